@@ -1,0 +1,35 @@
+// What `tessera-lod info` says about an input: format, counts, bounds, attributes, skips, scans.
+#pragma once
+
+#include <filesystem>
+#include <string>
+
+#include <tessera/lod/point_reader.h>
+
+namespace tessera::lod {
+
+struct SourceSummary {
+  std::string path;
+  SourceInfo info;
+  ReadStats stats;               ///< points/triangles actually read, skips by reason
+  glm::dvec3 bbox_min{0.0};      ///< file coordinates (world = origin + local), double
+  glm::dvec3 bbox_max{0.0};
+  std::string error;             ///< empty when the whole file read cleanly
+  bool opened = false;           ///< header parsed (info valid)
+};
+
+/// Reads the whole of `path` once (streaming) to count points and bound them. Never throws for
+/// bad input: a ReadError lands in `error` with whatever was read before it.
+/// `quiet` silences the progress bar shown for large inputs on a terminal.
+SourceSummary summarizeSource(const std::filesystem::path& path, bool quiet = false);
+
+/// Human-readable block, one `key: value` per line.
+std::string summaryText(const SourceSummary& s);
+/// One JSON object with keys format, points, triangles, bbox_min, bbox_max, attributes, skipped,
+/// scans (and file, format_detail, declared_points, error when set).
+std::string summaryJson(const SourceSummary& s);
+
+/// JSON string literal with escapes.
+std::string jsonString(std::string_view s);
+
+}  // namespace tessera::lod

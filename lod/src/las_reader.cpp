@@ -1,0 +1,219 @@
+// LAS 1.0-1.4 reader, point data formats 0-10, uncompressed. Coordinates are integers scaled
+// and offset in double, then expressed relative to a local origin (the header box centre) so
+// georeferenced data keeps its precision. Extra bytes are skipped by the record length.
+// LAZ (compressed) files are recognised and refused with a clear message.
+#include <algorithm>
+#include <cmath>
+
+#include "byte_source.h"
+#include "reader_util.h"
+#include "readers.h"
+
+namespace tessera::lod::detail {
+namespace {
+
+constexpr const char* kComponent = "lod::readLas()";
+constexpr size_t kMinHeader = 227;
+// Minimum record length of each point data format (ASPRS LAS 1.4 R15, section 2.6).
+constexpr uint16_t kMinRecord[11] = {20, 28, 26, 34, 57, 63, 30, 36, 38, 59, 67};
+
+int rgbOffset(int fmt) {
+  switch (fmt) {
+    case 2: return 20;
+    case 3:
+    case 5: return 28;
+    case 7:
+    case 8:
+    case 10: return 30;
+    default: return -1;
+  }
+}
+
+class LasReader final : public PointReader {
+ public:
+  explicit LasReader(ByteSource source) : mSrc(std::move(source)) { parseHeader(); }
+  bool next(PointBatch& batch, size_t max_points) override;
+
+ private:
+  void parseHeader();
+  void refuseLaz(const std::string& why) const {
+    fail(kComponent, mSrc.name(), "", "file is LAZ-compressed (" + why +
+             "); LAZ is not supported: decompress it to LAS first (for example "
+             "`laszip -i IN.laz -o OUT.las` or `pdal translate IN.laz OUT.las`)");
+  }
+  void detectColorDepth();
+
+  ByteSource mSrc;
+  int mFormat = 0;
+  uint16_t mRecordLength = 0;
+  uint64_t mCount = 0;
+  uint64_t mDataOffset = 0;
+  uint64_t mNext = 0;  // next record index
+  glm::dvec3 mScale{1.0}, mDelta{0.0};
+  int mRgb = -1;
+  bool mColor16 = true;  // colours use the full 16 bits (else 8-bit values in 16-bit fields)
+};
+
+void LasReader::parseHeader() {
+  uint8_t h[375] = {};
+  size_t got = mSrc.readAt(0, h, sizeof h);
+  if (got < 4 || std::memcmp(h, "LASF", 4) != 0) {
+    fail(kComponent, mSrc.name(), atByte(0), "not a LAS file (missing 'LASF' signature)");
+  }
+  if (got < kMinHeader) {
+    fail(kComponent, mSrc.name(), atByte(got), "file ends inside the " +
+             std::to_string(kMinHeader) + "-byte public header");
+  }
+  int major = h[24], minor = h[25];
+  uint16_t header_size = loadLE<uint16_t>(h + 94);
+  mDataOffset = loadLE<uint32_t>(h + 96);
+  uint32_t vlr_count = loadLE<uint32_t>(h + 100);
+  uint8_t fmt_byte = h[104];
+  mRecordLength = loadLE<uint16_t>(h + 105);
+  uint64_t legacy_count = loadLE<uint32_t>(h + 107);
+  std::string version = std::to_string(major) + "." + std::to_string(minor);
+  if (major != 1 || minor > 4) {
+    fail(kComponent, mSrc.name(), atByte(24), "unsupported LAS version " + version);
+  }
+  // LASzip marks compressed records by setting bit 7 (and 6) of the format byte.
+  if (fmt_byte & 0xC0) {
+    char hex[8];
+    std::snprintf(hex, sizeof hex, "0x%02x", fmt_byte);
+    refuseLaz(std::string("point format byte ") + hex);
+  }
+  mFormat = fmt_byte;
+  if (mFormat > 10) {
+    fail(kComponent, mSrc.name(), atByte(104), "unknown point data format " + std::to_string(mFormat));
+  }
+  size_t need_header = minor >= 4 ? 375 : minor == 3 ? 235 : kMinHeader;
+  if (header_size < need_header) {
+    fail(kComponent, mSrc.name(), atByte(94), "header size " + std::to_string(header_size) +
+             " is smaller than LAS " + version + " requires (" + std::to_string(need_header) + ")");
+  }
+  if (got < need_header) {
+    fail(kComponent, mSrc.name(), atByte(got), "file ends inside the public header");
+  }
+  if (mDataOffset < header_size) {
+    fail(kComponent, mSrc.name(), atByte(96), "offset to point data " + std::to_string(mDataOffset) +
+             " lies inside the header");
+  }
+  if (mRecordLength < kMinRecord[mFormat]) {
+    fail(kComponent, mSrc.name(), atByte(105), "point record length " + std::to_string(mRecordLength) +
+             " is shorter than format " + std::to_string(mFormat) + " needs (" +
+             std::to_string(kMinRecord[mFormat]) + ")");
+  }
+  mCount = legacy_count;
+  if (minor >= 4) {
+    uint64_t count64 = loadLE<uint64_t>(h + 247);
+    if (count64 != 0) mCount = count64;
+  }
+  for (int i = 0; i < 3; ++i) {
+    mScale[i] = loadLE<double>(h + 131 + 8 * i);
+    if (!std::isfinite(mScale[i]) || mScale[i] == 0.0) {
+      fail(kComponent, mSrc.name(), atByte(131 + 8 * i), "scale factor is zero or not finite");
+    }
+  }
+  glm::dvec3 offset, lo, hi;
+  for (int i = 0; i < 3; ++i) {
+    offset[i] = loadLE<double>(h + 155 + 8 * i);
+    hi[i] = loadLE<double>(h + 179 + 16 * i);
+    lo[i] = loadLE<double>(h + 187 + 16 * i);
+  }
+  if (!finite3(offset.x, offset.y, offset.z)) {
+    fail(kComponent, mSrc.name(), atByte(155), "offset is not finite");
+  }
+  bool box_ok = finite3(lo.x, lo.y, lo.z) && finite3(hi.x, hi.y, hi.z) && glm::all(glm::lessThanEqual(lo, hi));
+  if (box_ok) mInfo.header_bbox = std::make_pair(lo, hi);
+  // Local origin: the header box centre snapped to the coordinate grid, else the offset.
+  glm::dvec3 origin = offset;
+  if (box_ok) origin = offset + glm::round((0.5 * (lo + hi) - offset) / mScale) * mScale;
+  mInfo.origin = origin;
+  mDelta = offset - origin;
+
+  // Variable length records: look for the LASzip VLR a renamed .laz would carry.
+  uint64_t pos = header_size;
+  for (uint32_t i = 0; i < vlr_count && pos + 54 <= mDataOffset; ++i) {
+    uint8_t vh[54];
+    if (mSrc.readAt(pos, vh, 54) < 54) break;
+    std::string user(reinterpret_cast<const char*>(vh + 2), strnlen(reinterpret_cast<const char*>(vh + 2), 16));
+    uint16_t record_id = loadLE<uint16_t>(vh + 18);
+    if (user == "laszip encoded" && record_id == 22204) refuseLaz("LASzip VLR present");
+    pos += 54 + loadLE<uint16_t>(vh + 20);
+  }
+  std::string ext = std::filesystem::path(mSrc.name()).extension().string();
+  if (ext == ".laz" || ext == ".LAZ") refuseLaz("file name ends in .laz");
+
+  mRgb = rgbOffset(mFormat);
+  mInfo.format = Format::kLas;
+  mInfo.format_detail = "LAS " + version + " format " + std::to_string(mFormat);
+  mInfo.declared_points = mCount;
+  mInfo.has_declared_points = true;
+  mInfo.attributes = kIntensity | kClassification | (mRgb >= 0 ? kColor : 0u);
+  if (mRgb >= 0) detectColorDepth();
+  mSrc.seek(mDataOffset);
+}
+
+// Some writers put 8-bit colours in the 16-bit fields. Look at up to 64k records spread over
+// the whole file: if no channel exceeds 255, the values are 8-bit and are used as they are.
+void LasReader::detectColorDepth() {
+  uint64_t available = mSrc.size() > mDataOffset ? (mSrc.size() - mDataOffset) / mRecordLength : 0;
+  uint64_t n = std::min(mCount, available);
+  if (n == 0) return;
+  uint64_t samples = std::min<uint64_t>(n, 65536);
+  uint16_t max_value = 0;
+  uint8_t rgb[6];
+  for (uint64_t s = 0; s < samples; ++s) {
+    uint64_t rec = s * n / samples;
+    if (mSrc.readAt(mDataOffset + rec * mRecordLength + uint64_t(mRgb), rgb, 6) < 6) break;
+    for (int c = 0; c < 3; ++c) max_value = std::max(max_value, loadLE<uint16_t>(rgb + 2 * c));
+  }
+  mColor16 = max_value > 255;
+}
+
+bool LasReader::next(PointBatch& batch, size_t max_points) {
+  batch.reset(mInfo.attributes);
+  if (mNext >= mCount) return false;
+  size_t n = size_t(std::min<uint64_t>(std::max<size_t>(1, max_points), mCount - mNext));
+  size_t bytes = n * mRecordLength;
+  size_t avail = mSrc.ensure(bytes);
+  size_t whole = avail / mRecordLength;
+  if (whole == 0) {
+    fail(kComponent, mSrc.name(), atByte(mSrc.offset()),
+         "file ends inside point record " + std::to_string(mNext) + " of " +
+             std::to_string(mCount) + " declared by the header");
+  }
+  n = std::min(n, whole);
+  batch.resize(n);
+  const uint8_t* p = mSrc.data();
+  const bool legacy = mFormat < 6;
+  const bool color = mRgb >= 0;
+  for (size_t i = 0; i < n; ++i, p += mRecordLength) {
+    batch.positions[i] = glm::dvec3(double(loadLE<int32_t>(p)) * mScale.x + mDelta.x,
+                                    double(loadLE<int32_t>(p + 4)) * mScale.y + mDelta.y,
+                                    double(loadLE<int32_t>(p + 8)) * mScale.z + mDelta.z);
+    batch.intensities[i] = float(loadLE<uint16_t>(p + 12));
+    batch.classifications[i] = legacy ? (p[15] & 0x1F) : p[16];
+    if (color) {
+      const uint8_t* c = p + mRgb;
+      uint16_t r = loadLE<uint16_t>(c), g = loadLE<uint16_t>(c + 2), b = loadLE<uint16_t>(c + 4);
+      if (mColor16) {
+        batch.colors[i] = glm::u8vec4((r + 128) / 257, (g + 128) / 257, (b + 128) / 257, 255);
+      } else {
+        batch.colors[i] = glm::u8vec4(std::min<uint16_t>(r, 255), std::min<uint16_t>(g, 255),
+                                      std::min<uint16_t>(b, 255), 255);
+      }
+    }
+  }
+  mSrc.consume(n * mRecordLength);
+  mNext += n;
+  mStats.points += n;
+  return true;
+}
+
+}  // namespace
+
+std::unique_ptr<PointReader> openLas(ByteSource source) {
+  return std::make_unique<LasReader>(std::move(source));
+}
+
+}  // namespace tessera::lod::detail

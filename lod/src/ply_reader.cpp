@@ -1,0 +1,605 @@
+// PLY reader: ASCII, binary little and big endian; any scalar type for any property; vertex
+// normals, colours (uchar, ushort or float), alpha, intensity, confidence; faces triangulated as
+// fans; Stanford range grids (`obj_info num_cols/num_rows` + `range_grid` element) mapped to
+// per-vertex grid positions; every other element and property skipped by its declared size.
+#include "readers.h"
+
+#include <algorithm>
+#include <array>
+#include <limits>
+
+#include "byte_source.h"
+#include "reader_util.h"
+
+namespace tessera::lod::detail {
+namespace {
+
+constexpr const char* kComponent = "lod::readPly()";
+
+enum class PlyType : uint8_t { kInt8, kUInt8, kInt16, kUInt16, kInt32, kUInt32, kFloat32, kFloat64 };
+
+bool parsePlyType(std::string_view s, PlyType& t) {
+  static constexpr std::pair<std::string_view, PlyType> kNames[] = {
+      {"char", PlyType::kInt8},     {"int8", PlyType::kInt8},      {"uchar", PlyType::kUInt8},
+      {"uint8", PlyType::kUInt8},   {"short", PlyType::kInt16},    {"int16", PlyType::kInt16},
+      {"ushort", PlyType::kUInt16}, {"uint16", PlyType::kUInt16},  {"int", PlyType::kInt32},
+      {"int32", PlyType::kInt32},   {"uint", PlyType::kUInt32},    {"uint32", PlyType::kUInt32},
+      {"float", PlyType::kFloat32}, {"float32", PlyType::kFloat32}, {"double", PlyType::kFloat64},
+      {"float64", PlyType::kFloat64}};
+  for (auto& [name, type] : kNames) {
+    if (s == name) {
+      t = type;
+      return true;
+    }
+  }
+  return false;
+}
+
+size_t typeSize(PlyType t) {
+  switch (t) {
+    case PlyType::kInt8:
+    case PlyType::kUInt8: return 1;
+    case PlyType::kInt16:
+    case PlyType::kUInt16: return 2;
+    case PlyType::kInt32:
+    case PlyType::kUInt32:
+    case PlyType::kFloat32: return 4;
+    case PlyType::kFloat64: return 8;
+  }
+  return 0;
+}
+
+bool isIntegerType(PlyType t) { return t != PlyType::kFloat32 && t != PlyType::kFloat64; }
+
+double loadScalar(const uint8_t* p, PlyType t, bool swap) {
+  switch (t) {
+    case PlyType::kInt8: return double(int8_t(p[0]));
+    case PlyType::kUInt8: return double(p[0]);
+    case PlyType::kInt16: return double(load<int16_t>(p, swap));
+    case PlyType::kUInt16: return double(load<uint16_t>(p, swap));
+    case PlyType::kInt32: return double(load<int32_t>(p, swap));
+    case PlyType::kUInt32: return double(load<uint32_t>(p, swap));
+    case PlyType::kFloat32: return double(load<float>(p, swap));
+    case PlyType::kFloat64: return load<double>(p, swap);
+  }
+  return 0.0;
+}
+
+/// Where a vertex property's value goes.
+enum class Slot : uint8_t {
+  kSkip, kX, kY, kZ, kNx, kNy, kNz, kRed, kGreen, kBlue, kAlpha, kIntensity, kConfidence
+};
+
+Slot slotFor(std::string_view n) {
+  if (n == "x") return Slot::kX;
+  if (n == "y") return Slot::kY;
+  if (n == "z") return Slot::kZ;
+  if (n == "nx" || n == "normal_x") return Slot::kNx;
+  if (n == "ny" || n == "normal_y") return Slot::kNy;
+  if (n == "nz" || n == "normal_z") return Slot::kNz;
+  if (n == "red" || n == "diffuse_red" || n == "r") return Slot::kRed;
+  if (n == "green" || n == "diffuse_green" || n == "g") return Slot::kGreen;
+  if (n == "blue" || n == "diffuse_blue" || n == "b") return Slot::kBlue;
+  if (n == "alpha" || n == "diffuse_alpha" || n == "a") return Slot::kAlpha;
+  if (n == "intensity" || n == "scalar_intensity") return Slot::kIntensity;
+  if (n == "confidence" || n == "scalar_confidence") return Slot::kConfidence;
+  return Slot::kSkip;
+}
+
+struct Property {
+  std::string name;
+  PlyType type = PlyType::kFloat32;
+  bool is_list = false;
+  PlyType count_type = PlyType::kUInt8;
+  Slot slot = Slot::kSkip;
+  size_t offset = 0;  // in a fixed-size binary record
+};
+
+struct Element {
+  std::string name;
+  uint64_t count = 0;
+  std::vector<Property> props;
+  bool fixed = true;       // no list properties
+  size_t record_size = 0;  // bytes per instance when fixed
+};
+
+enum class Encoding { kAscii, kBinaryLE, kBinaryBE };
+
+/// Colour channel to 8 bits from the declared type: uchar as is, ushort >> 8, float in [0,1].
+uint8_t colorByte(double v, PlyType t) {
+  double c;
+  if (t == PlyType::kUInt16 || t == PlyType::kInt16) {
+    c = v / 257.0;
+  } else if (isIntegerType(t)) {
+    c = v;
+  } else {
+    c = v * 255.0;
+  }
+  if (!(c >= 0.0)) return 0;
+  return uint8_t(std::min(255.0, std::round(c)));
+}
+
+class PlyReader final : public PointReader {
+ public:
+  PlyReader(ByteSource source) : mSrc(std::move(source)) { parseHeader(); }
+
+  bool next(PointBatch& batch, size_t max_points) override;
+
+ private:
+  void parseHeader();
+  [[noreturn]] void failHere(const std::string& what) const {
+    fail(kComponent, mSrc.name(), mEncoding == Encoding::kAscii ? atLine(mSrc.lineNumber())
+                                                                : atByte(mSrc.offset()),
+         what);
+  }
+  /// Reads one vertex's properties into `values` (indexed by property). False only at a clean
+  /// end of data; throws on truncation or a bad token.
+  void readInstance(const Element& e, uint64_t index, std::vector<double>& values,
+                    std::vector<std::vector<double>>* lists);
+  std::string_view nextAsciiToken(const Element& e, uint64_t index);
+  double asciiValue(const Element& e, uint64_t index, PlyType t, bool integral);
+  [[noreturn]] void truncated(const Element& e, uint64_t index) const;
+
+  /// Decodes vertex `values` into the batch; false if skipped.
+  bool emitVertex(const std::vector<double>& values, PointBatch& batch);
+  void readVertices(PointBatch& batch, size_t max_points);
+  void readFaces(PointBatch& batch, size_t max_triangles);
+  void readRangeGrid();
+  void skipElement(const Element& e);
+  void advanceElement();
+  bool fillBuffered();
+
+  ByteSource mSrc;
+  Encoding mEncoding = Encoding::kAscii;
+  bool mSwap = false;
+  std::vector<Element> mElements;
+  int mVertexElement = -1;
+  uint32_t mGridCols = 0, mGridRows = 0;
+  bool mBufferGrid = false;  // range grid after the vertices: buffer one scan, attach cells
+
+  // Streaming state.
+  size_t mElement = 0;        // element being read
+  uint64_t mInstance = 0;     // next instance within it
+  uint64_t mVerticesKept = 0;
+  std::vector<uint32_t> mRemap;  // file vertex index -> delivered index (or kDropped)
+  bool mRemapNeeded = false;     // filled when the file has faces or a range grid
+  std::vector<double> mValues;
+  std::vector<std::vector<double>> mLists;
+  std::string_view mLineRest;    // ASCII: unread part of the current line
+  uint64_t mLineOfInstance = 0;  // ASCII: line the current instance started on
+
+  // Range-grid buffering (one scan: at most num_cols * num_rows vertices).
+  PointBatch mBuffer;
+  std::vector<Triangle> mBufferedTriangles;
+  size_t mBufferPos = 0;
+  bool mBuffered = false;
+
+  static constexpr uint32_t kDropped = std::numeric_limits<uint32_t>::max();
+};
+
+void PlyReader::parseHeader() {
+  std::string_view line;
+  if (mSrc.ensure(4) < 4 || std::memcmp(mSrc.data(), "ply", 3) != 0 ||
+      (mSrc.data()[3] != '\n' && mSrc.data()[3] != '\r')) {
+    fail(kComponent, mSrc.name(), atByte(0), "not a PLY file (missing 'ply' magic line)");
+  }
+  mSrc.readLine(line);
+  bool have_format = false;
+  for (;;) {
+    if (!mSrc.readLine(line, 1 << 16)) {
+      fail(kComponent, mSrc.name(), atLine(mSrc.lineNumber() + 1),
+           "file ends inside the header (no end_header)");
+    }
+    std::string_view rest = line;
+    std::string_view key = nextToken(rest);
+    auto where = atLine(mSrc.lineNumber());
+    if (key == "end_header") break;
+    if (key.empty() || key == "comment") continue;
+    if (key == "format") {
+      std::string_view enc = nextToken(rest);
+      std::string_view ver = nextToken(rest);
+      if (enc == "ascii") {
+        mEncoding = Encoding::kAscii;
+      } else if (enc == "binary_little_endian") {
+        mEncoding = Encoding::kBinaryLE;
+      } else if (enc == "binary_big_endian") {
+        mEncoding = Encoding::kBinaryBE;
+        mSwap = true;
+      } else {
+        fail(kComponent, mSrc.name(), where, "unknown format " + shown(enc));
+      }
+      if (ver != "1.0") fail(kComponent, mSrc.name(), where, "unsupported PLY version " + shown(ver));
+      mInfo.format_detail = std::string(enc) + " 1.0";
+      have_format = true;
+    } else if (key == "obj_info") {
+      std::string_view name = nextToken(rest);
+      std::string_view value = nextToken(rest);
+      uint64_t v = 0;
+      if ((name == "num_cols" || name == "num_rows") && parseUint(value, v) && v < 65536) {
+        (name == "num_cols" ? mGridCols : mGridRows) = uint32_t(v);
+      }
+    } else if (key == "element") {
+      Element e;
+      e.name = std::string(nextToken(rest));
+      if (e.name.empty() || !parseUint(nextToken(rest), e.count)) {
+        fail(kComponent, mSrc.name(), where, "malformed element line " + shown(line));
+      }
+      mElements.push_back(std::move(e));
+    } else if (key == "property") {
+      if (mElements.empty()) fail(kComponent, mSrc.name(), where, "property before any element");
+      Property p;
+      std::string_view type = nextToken(rest);
+      if (type == "list") {
+        p.is_list = true;
+        std::string_view ct = nextToken(rest);
+        if (!parsePlyType(ct, p.count_type) || !isIntegerType(p.count_type)) {
+          fail(kComponent, mSrc.name(), where, "bad list count type " + shown(ct));
+        }
+        type = nextToken(rest);
+      }
+      if (!parsePlyType(type, p.type)) {
+        fail(kComponent, mSrc.name(), where, "unknown property type " + shown(type));
+      }
+      p.name = std::string(nextToken(rest));
+      if (p.name.empty()) fail(kComponent, mSrc.name(), where, "property without a name");
+      mElements.back().props.push_back(std::move(p));
+    } else {
+      fail(kComponent, mSrc.name(), where, "unknown header keyword " + shown(key));
+    }
+  }
+  if (!have_format) fail(kComponent, mSrc.name(), "header", "no format line");
+
+  for (size_t i = 0; i < mElements.size(); ++i) {
+    Element& e = mElements[i];
+    for (Property& p : e.props) {
+      if (p.is_list) {
+        e.fixed = false;
+      } else {
+        p.offset = e.record_size;
+        e.record_size += typeSize(p.type);
+      }
+    }
+    if (e.name == "vertex" && mVertexElement < 0) {
+      mVertexElement = int(i);
+      for (Property& p : e.props) {
+        if (!p.is_list) p.slot = slotFor(p.name);
+      }
+    }
+  }
+  if (mVertexElement < 0) fail(kComponent, mSrc.name(), "header", "no vertex element");
+  const Element& v = mElements[size_t(mVertexElement)];
+  uint32_t have = 0;
+  AttributeMask attrs = 0;
+  for (const Property& p : v.props) {
+    have |= 1u << unsigned(p.slot);
+    switch (p.slot) {
+      case Slot::kNx: case Slot::kNy: case Slot::kNz: break;
+      case Slot::kRed: case Slot::kGreen: case Slot::kBlue: attrs |= kColor; break;
+      case Slot::kAlpha: attrs |= kAlpha | kColor; break;
+      case Slot::kIntensity: attrs |= kIntensity; break;
+      case Slot::kConfidence: attrs |= kConfidence; break;
+      default: break;
+    }
+  }
+  auto has = [&](Slot s) { return (have >> unsigned(s)) & 1u; };
+  if (!has(Slot::kX) || !has(Slot::kY) || !has(Slot::kZ)) {
+    fail(kComponent, mSrc.name(), "header", "vertex element lacks x, y or z");
+  }
+  if (has(Slot::kNx) && has(Slot::kNy) && has(Slot::kNz)) attrs |= kNormal;
+
+  bool faces = false;
+  int grid = -1;
+  for (size_t i = 0; i < mElements.size(); ++i) {
+    const Element& e = mElements[i];
+    if (e.name == "face") {
+      faces = true;
+      // Triangle count is exact only for triangle meshes; fans from polygons come out more.
+      mInfo.declared_triangles += e.count;
+    }
+    if (e.name == "range_grid" && int(i) > mVertexElement && e.props.size() == 1 &&
+        e.props[0].is_list) {
+      grid = int(i);
+    }
+  }
+  if (grid >= 0 && mGridCols > 0 && mGridRows > 0 &&
+      uint64_t(mGridCols) * mGridRows == mElements[size_t(grid)].count &&
+      v.count <= uint64_t(mGridCols) * mGridRows) {
+    mBufferGrid = true;
+    attrs |= kGridPosition;
+    ScanInfo scan;
+    scan.name = std::filesystem::path(mSrc.name()).filename().string();
+    scan.path = mSrc.name();
+    scan.grid_columns = mGridCols;
+    scan.grid_rows = mGridRows;
+    scan.points = v.count;
+    mInfo.scans.push_back(std::move(scan));
+  }
+  mRemapNeeded = faces || mBufferGrid;
+  if (mRemapNeeded && v.count > (uint64_t(1) << 32) - 2) {
+    fail(kComponent, mSrc.name(), "header", "more than 2^32 - 2 vertices in a mesh");
+  }
+  mInfo.format = Format::kPly;
+  mInfo.declared_points = v.count;
+  mInfo.has_declared_points = true;
+  mInfo.attributes = attrs;
+  size_t widest = std::max_element(mElements.begin(), mElements.end(), [](auto& a, auto& b) {
+                   return a.props.size() < b.props.size();
+                 })->props.size();
+  mValues.resize(widest);
+  mLists.resize(widest);
+}
+
+void PlyReader::truncated(const Element& e, uint64_t index) const {
+  fail(kComponent, mSrc.name(), atByte(mSrc.offset()),
+       "file ends inside " + e.name + " " + std::to_string(index) + " of " +
+           std::to_string(e.count) + " declared by the header");
+}
+
+std::string_view PlyReader::nextAsciiToken(const Element& e, uint64_t index) {
+  for (;;) {
+    std::string_view tok = nextToken(mLineRest, " \t\r");
+    if (!tok.empty()) return tok;
+    std::string_view line;
+    if (!mSrc.readLine(line)) truncated(e, index);
+    mLineRest = line;
+  }
+}
+
+double PlyReader::asciiValue(const Element& e, uint64_t index, PlyType t, bool integral) {
+  std::string_view tok = nextAsciiToken(e, index);
+  double v;
+  if (!parseDouble(tok, v) || (integral && (v != std::floor(v) || !std::isfinite(v)))) {
+    failHere("bad value " + shown(tok) + " in " + e.name + " " + std::to_string(index));
+  }
+  (void)t;
+  return v;
+}
+
+void PlyReader::readInstance(const Element& e, uint64_t index, std::vector<double>& values,
+                             std::vector<std::vector<double>>* lists) {
+  if (mEncoding == Encoding::kAscii) {
+    // One instance per line in every writer we know; tolerate instances spanning lines.
+    if (nextToken(mLineRest, " \t\r").empty()) {
+      std::string_view line;
+      do {
+        if (!mSrc.readLine(line)) truncated(e, index);
+        mLineRest = line;
+      } while (mLineRest.find_first_not_of(" \t\r") == std::string_view::npos);
+    } else {
+      failHere("extra values after " + e.name + " " + std::to_string(index - 1));
+    }
+    mLineOfInstance = mSrc.lineNumber();
+    for (size_t i = 0; i < e.props.size(); ++i) {
+      const Property& p = e.props[i];
+      if (!p.is_list) {
+        values[i] = asciiValue(e, index, p.type, isIntegerType(p.type));
+        continue;
+      }
+      double n = asciiValue(e, index, p.count_type, true);
+      if (n < 0 || n > 1e6) failHere("bad list length " + std::to_string(n) + " in " + e.name);
+      auto* out = lists ? &(*lists)[i] : nullptr;
+      if (out) out->clear();
+      for (size_t k = 0; k < size_t(n); ++k) {
+        double x = asciiValue(e, index, p.type, isIntegerType(p.type));
+        if (out) out->push_back(x);
+      }
+    }
+    return;
+  }
+  if (e.fixed) {
+    if (mSrc.ensure(e.record_size) < e.record_size) truncated(e, index);
+    const uint8_t* rec = mSrc.data();
+    for (size_t i = 0; i < e.props.size(); ++i) {
+      values[i] = loadScalar(rec + e.props[i].offset, e.props[i].type, mSwap);
+    }
+    mSrc.consume(e.record_size);
+    return;
+  }
+  for (size_t i = 0; i < e.props.size(); ++i) {
+    const Property& p = e.props[i];
+    size_t sz = typeSize(p.is_list ? p.count_type : p.type);
+    if (mSrc.ensure(sz) < sz) truncated(e, index);
+    double v = loadScalar(mSrc.data(), p.is_list ? p.count_type : p.type, mSwap);
+    mSrc.consume(sz);
+    if (!p.is_list) {
+      values[i] = v;
+      continue;
+    }
+    if (v < 0 || v > 1e6) failHere("bad list length " + std::to_string(v) + " in " + e.name);
+    size_t n = size_t(v), isz = typeSize(p.type);
+    if (mSrc.ensure(n * isz) < n * isz) truncated(e, index);
+    auto* out = lists ? &(*lists)[i] : nullptr;
+    if (out) {
+      out->resize(n);
+      for (size_t k = 0; k < n; ++k) (*out)[k] = loadScalar(mSrc.data() + k * isz, p.type, mSwap);
+    }
+    mSrc.consume(n * isz);
+  }
+}
+
+bool PlyReader::emitVertex(const std::vector<double>& values, PointBatch& batch) {
+  const Element& v = mElements[size_t(mVertexElement)];
+  double xyz[3] = {0, 0, 0};
+  float n[3] = {0, 0, 0};
+  glm::u8vec4 c(255, 255, 255, 255);
+  float intensity = 0.f, confidence = 0.f;
+  for (size_t i = 0; i < v.props.size(); ++i) {
+    double x = values[i];
+    switch (v.props[i].slot) {
+      case Slot::kSkip: break;
+      case Slot::kX: xyz[0] = x; break;
+      case Slot::kY: xyz[1] = x; break;
+      case Slot::kZ: xyz[2] = x; break;
+      case Slot::kNx: n[0] = float(x); break;
+      case Slot::kNy: n[1] = float(x); break;
+      case Slot::kNz: n[2] = float(x); break;
+      case Slot::kRed: c.r = colorByte(x, v.props[i].type); break;
+      case Slot::kGreen: c.g = colorByte(x, v.props[i].type); break;
+      case Slot::kBlue: c.b = colorByte(x, v.props[i].type); break;
+      case Slot::kAlpha: c.a = colorByte(x, v.props[i].type); break;
+      case Slot::kIntensity: intensity = float(x); break;
+      case Slot::kConfidence: confidence = float(x); break;
+    }
+  }
+  uint64_t file_index = mInstance;
+  if (!finite3(xyz[0], xyz[1], xyz[2])) {
+    mStats.skip("non-finite coordinate",
+                mEncoding == Encoding::kAscii ? atLine(mLineOfInstance)
+                                              : "vertex " + std::to_string(file_index));
+    if (mRemapNeeded) mRemap.push_back(kDropped);
+    return false;
+  }
+  if (mRemapNeeded) mRemap.push_back(uint32_t(mVerticesKept));
+  ++mVerticesKept;
+  AttributeMask a = batch.attributes;
+  batch.positions.emplace_back(xyz[0], xyz[1], xyz[2]);
+  if (a & kNormal) batch.normals.emplace_back(n[0], n[1], n[2]);
+  if (a & kColor) batch.colors.push_back(c);
+  if (a & kIntensity) batch.intensities.push_back(intensity);
+  if (a & kConfidence) batch.confidences.push_back(confidence);
+  if (a & kGridPosition) batch.grid_positions.emplace_back(0xFFFF, 0xFFFF);
+  return true;
+}
+
+void PlyReader::readVertices(PointBatch& batch, size_t max_points) {
+  const Element& v = mElements[size_t(mVertexElement)];
+  while (mInstance < v.count && batch.size() < max_points) {
+    readInstance(v, mInstance, mValues, nullptr);
+    emitVertex(mValues, batch);
+    ++mInstance;
+  }
+}
+
+void PlyReader::readFaces(PointBatch& batch, size_t max_triangles) {
+  const Element& e = mElements[mElement];
+  int list_prop = -1;
+  for (size_t i = 0; i < e.props.size(); ++i) {
+    if (e.props[i].is_list && (e.props[i].name == "vertex_indices" || e.props[i].name == "vertex_index")) {
+      list_prop = int(i);
+    }
+  }
+  while (mInstance < e.count && batch.triangles.size() < max_triangles) {
+    uint64_t where = mInstance;
+    readInstance(e, mInstance++, mValues, &mLists);
+    if (list_prop < 0) continue;
+    const auto& idx = mLists[size_t(list_prop)];
+    if (idx.size() < 3) {
+      mStats.skip("face with fewer than 3 vertices", "face " + std::to_string(where));
+      continue;
+    }
+    bool ok = true;
+    for (double d : idx) {
+      if (d < 0 || d >= double(mRemap.size()) || mRemap[size_t(d)] == kDropped) ok = false;
+    }
+    if (!ok) {
+      mStats.skip("face with an out-of-range or skipped vertex", "face " + std::to_string(where));
+      continue;
+    }
+    for (size_t k = 1; k + 1 < idx.size(); ++k) {
+      batch.triangles.emplace_back(mRemap[size_t(idx[0])], mRemap[size_t(idx[k])],
+                                   mRemap[size_t(idx[k + 1])]);
+    }
+  }
+}
+
+void PlyReader::readRangeGrid() {
+  const Element& e = mElements[mElement];
+  for (; mInstance < e.count; ++mInstance) {
+    readInstance(e, mInstance, mValues, &mLists);
+    for (double d : mLists[0]) {
+      if (d < 0 || d >= double(mRemap.size())) {
+        failHere("range_grid cell " + std::to_string(mInstance) + " names vertex " +
+                 std::to_string(int64_t(d)) + " outside the " + std::to_string(mRemap.size()) +
+                 " vertices");
+      }
+      uint32_t kept = mRemap[size_t(d)];
+      if (kept == kDropped) continue;
+      mBuffer.grid_positions[kept] =
+          glm::u16vec2(uint16_t(mInstance % mGridCols), uint16_t(mInstance / mGridCols));
+    }
+  }
+}
+
+void PlyReader::skipElement(const Element& e) {
+  if (mEncoding != Encoding::kAscii && e.fixed) {
+    uint64_t bytes = (e.count - mInstance) * e.record_size;
+    if (mSrc.offset() + bytes > mSrc.size()) {
+      mSrc.seek(mSrc.size());
+      truncated(e, mInstance + (mSrc.size() - mSrc.offset()) / std::max<size_t>(1, e.record_size));
+    }
+    mSrc.seek(mSrc.offset() + bytes);
+    mInstance = e.count;
+    return;
+  }
+  for (; mInstance < e.count; ++mInstance) readInstance(e, mInstance, mValues, nullptr);
+}
+
+void PlyReader::advanceElement() {
+  ++mElement;
+  mInstance = 0;
+  if (mElement < mElements.size()) {
+    mValues.resize(std::max(mValues.size(), mElements[mElement].props.size()));
+  }
+}
+
+// Reads the whole scan (vertices, faces, range grid) into mBuffer. Bounded by the grid size.
+bool PlyReader::fillBuffered() {
+  mBuffer.reset(mInfo.attributes);
+  while (mElement < mElements.size()) {
+    const Element& e = mElements[mElement];
+    if (int(mElement) == mVertexElement) {
+      readVertices(mBuffer, std::numeric_limits<size_t>::max());
+    } else if (e.name == "face") {
+      PointBatch tmp;
+      readFaces(tmp, std::numeric_limits<size_t>::max());
+      mBufferedTriangles.insert(mBufferedTriangles.end(), tmp.triangles.begin(), tmp.triangles.end());
+    } else if (e.name == "range_grid" && mRemap.size() == mElements[size_t(mVertexElement)].count) {
+      readRangeGrid();
+    } else {
+      skipElement(e);
+    }
+    advanceElement();
+  }
+  mBuffered = true;
+  return true;
+}
+
+bool PlyReader::next(PointBatch& batch, size_t max_points) {
+  batch.reset(mInfo.attributes);
+  max_points = std::max<size_t>(1, max_points);
+  if (mBufferGrid) {
+    if (!mBuffered) fillBuffered();
+    size_t n = std::min(max_points, mBuffer.size() - mBufferPos);
+    for (size_t i = 0; i < n; ++i) batch.appendFrom(mBuffer, mBufferPos + i);
+    mBufferPos += n;
+    if (mBufferPos == mBuffer.size() && !mBufferedTriangles.empty()) {
+      batch.triangles.swap(mBufferedTriangles);
+      mBufferedTriangles.clear();
+    }
+    mStats.points += batch.size();
+    mStats.triangles += batch.triangles.size();
+    return !batch.empty();
+  }
+  while (mElement < mElements.size() && batch.empty()) {
+    const Element& e = mElements[mElement];
+    if (int(mElement) == mVertexElement) {
+      readVertices(batch, max_points);
+    } else if (e.name == "face") {
+      readFaces(batch, max_points);
+    } else {
+      skipElement(e);
+    }
+    if (mInstance >= mElements[mElement].count) advanceElement();
+  }
+  mStats.points += batch.size();
+  mStats.triangles += batch.triangles.size();
+  return !batch.empty();
+}
+
+}  // namespace
+
+std::unique_ptr<PointReader> openPly(ByteSource source) {
+  return std::make_unique<PlyReader>(std::move(source));
+}
+
+}  // namespace tessera::lod::detail

@@ -1,0 +1,155 @@
+#include <tessera/lod/point_reader.h>
+
+#include <algorithm>
+#include <cctype>
+#include <cstring>
+
+#include "byte_source.h"
+#include "reader_util.h"
+#include "readers.h"
+
+namespace tessera::lod {
+
+std::vector<const char*> attributeNames(AttributeMask mask) {
+  static constexpr const char* kNames[] = {"normal",     "color",      "alpha",         "intensity",
+                                           "confidence", "scan_index", "grid_position", "classification"};
+  std::vector<const char*> out;
+  for (unsigned i = 0; i < std::size(kNames); ++i) {
+    if (mask & (1u << i)) out.push_back(kNames[i]);
+  }
+  return out;
+}
+
+const char* formatName(Format format) {
+  switch (format) {
+    case Format::kPly: return "ply";
+    case Format::kStanfordConf: return "stanford-conf";
+    case Format::kLas: return "las";
+    case Format::kText: return "xyz";
+    case Format::kObj: return "obj";
+  }
+  return "unknown";
+}
+
+void PointBatch::reset(AttributeMask mask) {
+  attributes = mask;
+  positions.clear();
+  normals.clear();
+  colors.clear();
+  intensities.clear();
+  confidences.clear();
+  scan_indices.clear();
+  grid_positions.clear();
+  classifications.clear();
+  triangles.clear();
+}
+
+void PointBatch::resize(size_t n) {
+  positions.resize(n);
+  if (attributes & kNormal) normals.resize(n);
+  if (attributes & kColor) colors.resize(n);
+  if (attributes & kIntensity) intensities.resize(n);
+  if (attributes & kConfidence) confidences.resize(n);
+  if (attributes & kScanIndex) scan_indices.resize(n);
+  if (attributes & kGridPosition) grid_positions.resize(n);
+  if (attributes & kClassification) classifications.resize(n);
+}
+
+void PointBatch::appendFrom(const PointBatch& o, size_t i) {
+  positions.push_back(o.positions[i]);
+  if (attributes & kNormal) normals.push_back(o.normals[i]);
+  if (attributes & kColor) colors.push_back(o.colors[i]);
+  if (attributes & kIntensity) intensities.push_back(o.intensities[i]);
+  if (attributes & kConfidence) confidences.push_back(o.confidences[i]);
+  if (attributes & kScanIndex) scan_indices.push_back(o.scan_indices[i]);
+  if (attributes & kGridPosition) grid_positions.push_back(o.grid_positions[i]);
+  if (attributes & kClassification) classifications.push_back(o.classifications[i]);
+}
+
+uint64_t ReadStats::skippedTotal() const {
+  uint64_t n = 0;
+  for (auto& [reason, count] : skipped) n += count;
+  return n;
+}
+
+void ReadStats::skip(const std::string& reason, const std::string& where) {
+  if (skipped[reason]++ == 0) first_skip_at[reason] = where;
+}
+
+namespace {
+
+std::string lowerExtension(const std::string& name) {
+  std::string ext = std::filesystem::path(name).extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
+  return ext;
+}
+
+/// Magic bytes first (they cannot lie about a renamed file), then the extension.
+std::optional<Format> detect(const uint8_t* head, size_t n, const std::string& name) {
+  if (n >= 4 && std::memcmp(head, "ply", 3) == 0 && (head[3] == '\n' || head[3] == '\r')) {
+    return Format::kPly;
+  }
+  if (n >= 4 && std::memcmp(head, "LASF", 4) == 0) return Format::kLas;
+  std::string ext = lowerExtension(name);
+  if (ext == ".conf") return Format::kStanfordConf;
+  if (ext == ".obj") return Format::kObj;
+  if (ext == ".xyz" || ext == ".pts" || ext == ".txt" || ext == ".csv") return Format::kText;
+  if (ext == ".ply" || ext == ".las" || ext == ".laz") return std::nullopt;  // wrong magic
+  return std::nullopt;
+}
+
+std::unique_ptr<PointReader> openWith(Format format, ByteSource src) {
+  switch (format) {
+    case Format::kPly: return detail::openPly(std::move(src));
+    case Format::kLas: return detail::openLas(std::move(src));
+    case Format::kText: return detail::openText(std::move(src));
+    case Format::kObj: return detail::openObj(std::move(src));
+    case Format::kStanfordConf: break;
+  }
+  detail::fail("lod::openPointReader()", src.name(), "",
+               "a Stanford .conf names other files and cannot be read from memory");
+}
+
+[[noreturn]] void unknownFormat(ByteSource& src) {
+  std::string ext = lowerExtension(src.name());
+  std::string what;
+  if (src.size() == 0) {
+    what = "file is empty";
+  } else if (ext == ".ply") {
+    what = "not a PLY file (missing 'ply' magic line)";
+  } else if (ext == ".las" || ext == ".laz") {
+    what = "not a LAS file (missing 'LASF' signature)";
+  } else {
+    what = "unknown point format (expected PLY, LAS, .conf, .xyz/.pts/.txt or .obj)";
+  }
+  detail::fail("lod::openPointReader()", src.name(), "byte 0", what);
+}
+
+std::unique_ptr<PointReader> openSource(ByteSource src, const ReaderOptions& options) {
+  size_t n = src.ensure(8);
+  auto format = options.format ? options.format : detect(src.data(), n, src.name());
+  if (!format) unknownFormat(src);
+  if (src.size() == 0) detail::fail("lod::openPointReader()", src.name(), "byte 0", "file is empty");
+  return openWith(*format, std::move(src));
+}
+
+}  // namespace
+
+std::unique_ptr<PointReader> openPointReader(const std::filesystem::path& path,
+                                             const ReaderOptions& options) {
+  std::error_code ec;
+  if (!std::filesystem::exists(path, ec)) {
+    throw ReadError("lod::openPointReader(): " + path.string() + ": no such file");
+  }
+  bool conf = options.format ? *options.format == Format::kStanfordConf
+                             : lowerExtension(path.string()) == ".conf";
+  if (conf) return detail::openStanfordConf(path);
+  return openSource(ByteSource::openFile(path, "lod::openPointReader()"), options);
+}
+
+std::unique_ptr<PointReader> openPointReader(std::span<const uint8_t> bytes, const std::string& name,
+                                             const ReaderOptions& options) {
+  return openSource(ByteSource::fromMemory(bytes, name), options);
+}
+
+}  // namespace tessera::lod

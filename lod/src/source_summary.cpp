@@ -1,0 +1,164 @@
+#include <tessera/lod/source_summary.h>
+
+#include <cstdio>
+#include <limits>
+#include <sstream>
+
+#include <tessera/core/progress.h>
+
+namespace tessera::lod {
+
+std::string jsonString(std::string_view s) {
+  std::string out = "\"";
+  for (char c : s) {
+    switch (c) {
+      case '"': out += "\\\""; break;
+      case '\\': out += "\\\\"; break;
+      case '\n': out += "\\n"; break;
+      case '\t': out += "\\t"; break;
+      default:
+        if (static_cast<unsigned char>(c) < 0x20) {
+          char buf[8];
+          std::snprintf(buf, sizeof buf, "\\u%04x", c);
+          out += buf;
+        } else {
+          out += c;
+        }
+    }
+  }
+  return out + "\"";
+}
+
+namespace {
+
+std::string num(double v) {
+  char buf[40];
+  std::snprintf(buf, sizeof buf, "%.10g", v);
+  return buf;
+}
+
+std::string vec(const glm::dvec3& v, bool json) {
+  if (json) return "[" + num(v.x) + ", " + num(v.y) + ", " + num(v.z) + "]";
+  return num(v.x) + " " + num(v.y) + " " + num(v.z);
+}
+
+}  // namespace
+
+SourceSummary summarizeSource(const std::filesystem::path& path, bool quiet) {
+  SourceSummary s;
+  s.path = path.string();
+  glm::dvec3 lo(std::numeric_limits<double>::max()), hi(-std::numeric_limits<double>::max());
+  try {
+    auto reader = openPointReader(path);
+    s.info = reader->info();
+    s.opened = true;
+    // Only worth a bar for big inputs.
+    bool show = !quiet && s.info.declared_points > 20'000'000;
+    Progress progress("info " + path.filename().string(), s.info.declared_points, " points", !show);
+    PointBatch batch;
+    try {
+      while (reader->next(batch)) {
+        for (const auto& p : batch.positions) {
+          lo = glm::min(lo, p);
+          hi = glm::max(hi, p);
+        }
+        progress.add(batch.size());
+      }
+    } catch (const ReadError& e) {
+      s.error = e.what();
+    }
+    s.stats = reader->stats();
+  } catch (const ReadError& e) {
+    s.error = e.what();
+  }
+  if (s.stats.points > 0) {
+    s.bbox_min = s.info.origin + lo;
+    s.bbox_max = s.info.origin + hi;
+  }
+  return s;
+}
+
+std::string summaryText(const SourceSummary& s) {
+  std::ostringstream o;
+  o << s.path << "\n";
+  if (s.opened) {
+    o << "  format: " << formatName(s.info.format) << " (" << s.info.format_detail << ")\n";
+    o << "  points: " << s.stats.points;
+    if (s.info.has_declared_points && s.info.declared_points != s.stats.points) {
+      o << " (header declares " << s.info.declared_points << ")";
+    }
+    o << "\n  triangles: " << s.stats.triangles << "\n";
+    if (s.stats.points > 0) {
+      o << "  bbox_min: " << vec(s.bbox_min, false) << "\n";
+      o << "  bbox_max: " << vec(s.bbox_max, false) << "\n";
+    }
+    if (s.info.header_bbox) {
+      o << "  header_bbox: " << vec(s.info.header_bbox->first, false) << " .. "
+        << vec(s.info.header_bbox->second, false) << "\n";
+    }
+    o << "  origin: " << vec(s.info.origin, false) << "\n";
+    o << "  attributes:";
+    for (const char* a : attributeNames(s.info.attributes)) o << " " << a;
+    if (s.info.attributes == 0) o << " none";
+    o << "\n  skipped: " << s.stats.skippedTotal();
+    for (auto& [reason, count] : s.stats.skipped) {
+      o << "\n    " << reason << ": " << count << " (first at " << s.stats.first_skip_at.at(reason) << ")";
+    }
+    o << "\n";
+    if (!s.info.scans.empty()) {
+      o << "  scans: " << s.info.scans.size() << "\n";
+      for (size_t i = 0; i < s.info.scans.size(); ++i) {
+        const ScanInfo& sc = s.info.scans[i];
+        const glm::dquat q = confQuaternion(sc.pose);
+        o << "    [" << i << "] " << sc.name << ": " << sc.points << " points, grid " << sc.grid_columns
+          << "x" << sc.grid_rows << ", t = " << vec(sc.pose.translation, false) << ", conf q(i j k r) = "
+          << num(q.x) << " " << num(q.y) << " " << num(q.z) << " " << num(q.w) << "\n";
+      }
+    }
+  }
+  if (!s.error.empty()) o << "  error: " << s.error << "\n";
+  return o.str();
+}
+
+std::string summaryJson(const SourceSummary& s) {
+  std::ostringstream o;
+  o << "{\"file\": " << jsonString(s.path);
+  if (s.opened) {
+    o << ", \"format\": " << jsonString(formatName(s.info.format))
+      << ", \"format_detail\": " << jsonString(s.info.format_detail) << ", \"points\": " << s.stats.points;
+    if (s.info.has_declared_points) o << ", \"declared_points\": " << s.info.declared_points;
+    o << ", \"triangles\": " << s.stats.triangles;
+    if (s.stats.points > 0) {
+      o << ", \"bbox_min\": " << vec(s.bbox_min, true) << ", \"bbox_max\": " << vec(s.bbox_max, true);
+    } else {
+      o << ", \"bbox_min\": null, \"bbox_max\": null";
+    }
+    o << ", \"origin\": " << vec(s.info.origin, true) << ", \"attributes\": [";
+    bool first = true;
+    for (const char* a : attributeNames(s.info.attributes)) {
+      o << (first ? "" : ", ") << jsonString(a);
+      first = false;
+    }
+    o << "], \"skipped\": {";
+    first = true;
+    for (auto& [reason, count] : s.stats.skipped) {
+      o << (first ? "" : ", ") << jsonString(reason) << ": " << count;
+      first = false;
+    }
+    o << "}, \"scans\": [";
+    for (size_t i = 0; i < s.info.scans.size(); ++i) {
+      const ScanInfo& sc = s.info.scans[i];
+      const glm::dquat q = confQuaternion(sc.pose);
+      o << (i ? ", " : "") << "{\"name\": " << jsonString(sc.name) << ", \"points\": " << sc.points
+        << ", \"grid\": [" << sc.grid_columns << ", " << sc.grid_rows << "], \"translation\": "
+        << vec(sc.pose.translation, true) << ", \"quaternion_ijkr\": [" << num(q.x) << ", " << num(q.y)
+        << ", " << num(q.z) << ", " << num(q.w) << "]}";
+    }
+    o << "]";
+  }
+  if (!s.error.empty()) o << ", \"error\": " << jsonString(s.error);
+  o << "}";
+  return o.str();
+}
+
+}  // namespace tessera::lod

@@ -1,0 +1,53 @@
+#!/usr/bin/env bash
+# Installs exactly the Debian 12 packages Tessera needs to build, test, benchmark and run.
+# Idempotent: packages already present are not reinstalled and apt is not touched at all.
+# Works as root or through sudo.
+set -euo pipefail
+
+PACKAGES=(
+  # toolchain
+  build-essential cmake ninja-build pkg-config git clang libclang-rt-14-dev
+  # cluster transport (inside the cluster) and collaboration transport (across sites)
+  libopenmpi-dev openmpi-bin libzmq3-dev cppzmq-dev
+  # windows, maths, OpenGL 4.5 through EGL on Mesa (llvmpipe when there is no GPU)
+  libglfw3-dev libglm-dev libegl-dev libgl-dev libopengl-dev libegl1-mesa-dev
+  libgl1-mesa-dri libegl-mesa0
+  # video insets and audio for remote sites
+  libavcodec-dev libavformat-dev libswscale-dev libavutil-dev libopus-dev
+  # one schema for configs, wire and snapshots
+  libprotobuf-dev protobuf-compiler
+  # tests and benchmarks
+  libgtest-dev libgmock-dev libbenchmark-dev gnuplot-nox
+  # annotations database, mesh LOD, console UI, command line, logging
+  libsqlite3-dev libmeshoptimizer-dev libmetis-dev libimgui-dev libcli11-dev libspdlog-dev
+  # virtual scanner ray casting, point chunk entropy coding, images
+  libembree-dev libzstd-dev libpng-dev
+)
+
+missing=()
+for p in "${PACKAGES[@]}"; do
+  if ! dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed"; then
+    missing+=("$p")
+  fi
+done
+
+if [ ${#missing[@]} -eq 0 ]; then
+  echo "deps.sh: all ${#PACKAGES[@]} packages present"
+  exit 0
+fi
+
+SUDO=""
+if [ "$(id -u)" -ne 0 ]; then
+  if command -v sudo >/dev/null 2>&1; then
+    SUDO="sudo"
+  else
+    echo "deps.sh: not root and no sudo; install these packages: ${missing[*]}" >&2
+    exit 1
+  fi
+fi
+
+echo "deps.sh: installing ${#missing[@]} packages: ${missing[*]}"
+export DEBIAN_FRONTEND=noninteractive
+$SUDO apt-get update -qq
+$SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}"
+echo "deps.sh: done"
