@@ -1,0 +1,85 @@
+// The tessera-lod command as a user runs it: output, JSON keys and exit codes.
+#include <gtest/gtest.h>
+
+#include <array>
+#include <cstdio>
+#include <string>
+#include <sys/wait.h>
+
+#include "../support/temp_dir.h"
+
+namespace {
+
+const std::string kData = TESSERA_DATA_DIR;
+const std::string kTool = TESSERA_LOD_TOOL;
+
+struct CommandResult {
+  int code = -1;
+  std::string out;  // stdout and stderr
+};
+
+CommandResult run(const std::string& args) {
+  CommandResult r;
+  FILE* p = popen((kTool + " " + args + " 2>&1").c_str(), "r");
+  if (!p) return r;
+  std::array<char, 4096> buf;
+  size_t n;
+  while ((n = fread(buf.data(), 1, buf.size(), p)) > 0) r.out.append(buf.data(), n);
+  int status = pclose(p);
+  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return r;
+}
+
+TEST(TesseraLodCli, InfoJsonHasTheDocumentedKeys) {
+  CommandResult r = run("info --json " + kData + "/lidar/autzen_trim.las");
+  ASSERT_EQ(r.code, 0) << r.out;
+  for (const char* key : {"\"format\": \"las\"", "\"points\": 110000", "\"triangles\": 0", "\"bbox_min\": [636001.76",
+                          "\"bbox_max\": [637179.22", "\"attributes\": [\"color\", \"intensity\", \"classification\"]",
+                          "\"skipped\": {}", "\"scans\": []"}) {
+    EXPECT_NE(r.out.find(key), std::string::npos) << key << " in " << r.out;
+  }
+  CommandResult conf = run("info --json " + kData + "/stanford-bunny/scans/bun.conf");
+  ASSERT_EQ(conf.code, 0) << conf.out;
+  EXPECT_NE(conf.out.find("\"points\": 362272"), std::string::npos);
+  EXPECT_NE(conf.out.find("\"name\": \"ear_back.ply\", \"points\": 32193, \"grid\": [512, 400]"), std::string::npos)
+      << conf.out;
+}
+
+TEST(TesseraLodCli, BadInputExitsNonZeroWithTheMessage) {
+  CommandResult laz = run("info " + kData + "/lidar/autzen_trim.laz");
+  EXPECT_EQ(laz.code, 1);
+  EXPECT_NE(laz.out.find("LAZ-compressed"), std::string::npos) << laz.out;
+  // One bad file among good ones: the good ones are still described.
+  CommandResult mixed = run("info " + kData + "/lidar/1.2-with-color.las /nonexistent.ply");
+  EXPECT_EQ(mixed.code, 1);
+  EXPECT_NE(mixed.out.find("points: 1065"), std::string::npos) << mixed.out;
+  EXPECT_NE(mixed.out.find("/nonexistent.ply: no such file"), std::string::npos) << mixed.out;
+  CommandResult usage = run("scan");
+  EXPECT_NE(usage.code, 0);
+  CommandResult res = run("scan " + kData + "/stanford-bunny/reconstruction/bun_zipper_res4.ply -o /tmp/x --resolution 12by4");
+  EXPECT_EQ(res.code, 2);
+  EXPECT_NE(res.out.find("expected WxH"), std::string::npos) << res.out;
+  CommandResult cloud = run("scan " + kData + "/stanford-bunny/scans/bun000.ply -o /tmp/x");
+  EXPECT_EQ(cloud.code, 1);
+  EXPECT_NE(cloud.out.find("no triangles"), std::string::npos) << cloud.out;
+}
+
+TEST(TesseraLodCli, HelpOnEverySubcommand) {
+  for (const char* sub : {"", "info ", "scan "}) {
+    CommandResult r = run(std::string(sub) + "--help");
+    EXPECT_EQ(r.code, 0) << sub;
+    EXPECT_NE(r.out.find("Usage"), std::string::npos) << sub << r.out;
+  }
+}
+
+TEST(TesseraLodCli, ScanWritesAConfThatInfoReads) {
+  tessera::test::TempDir dir;
+  CommandResult r = run("scan " + kData + "/stanford-bunny/reconstruction/bun_zipper_res2.ply -o " + dir.path().string() +
+              " --scanners 3 --resolution 128x100 --noise-mm 0.2 --quiet");
+  ASSERT_EQ(r.code, 0) << r.out;
+  CommandResult info = run("info --json " + (dir / "scans.conf").string());
+  ASSERT_EQ(info.code, 0) << info.out;
+  EXPECT_NE(info.out.find("\"grid\": [128, 100]"), std::string::npos) << info.out;
+}
+
+}  // namespace
