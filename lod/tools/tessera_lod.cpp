@@ -74,6 +74,7 @@ int runScan(const std::string& mesh_path, const std::string& out, const std::str
 int main(int argc, char** argv) {
   CLI::App app{"tessera-lod: read, inspect and generate scanned 3D data for Tessera"};
   app.require_subcommand(1);
+  app.set_config("--config", "", "Read options from a TOML file ([scan] section for scan options)");
 
   std::vector<std::string> info_files;
   bool info_json = false, info_quiet = false;

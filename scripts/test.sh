@@ -1,0 +1,25 @@
+#!/usr/bin/env bash
+# The test command: install dependencies, configure, build, run every test.
+# Exits non-zero on any failure; prints ctest's summary.
+#   ./scripts/test.sh            full run (optimised build with asserts, then the sanitizer pass)
+#   TESSERA_SKIP_ASAN=1 ./scripts/test.sh   skip the AddressSanitizer/UBSan pass over the readers
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+./scripts/deps.sh
+jobs=$(nproc)
+
+echo "== configure + build (dev: optimised, asserts on)"
+cmake --preset dev >/dev/null
+cmake --build --preset dev -j"$jobs"
+
+echo "== tests"
+ctest --preset dev -j"$jobs" --timeout 600
+
+if [ "${TESSERA_SKIP_ASAN:-0}" != 1 ]; then
+  # Decoders of outside bytes also run under AddressSanitizer and UBSan (STYLE.md).
+  echo "== sanitizer pass (asan: readers and decoders)"
+  cmake --preset asan >/dev/null
+  cmake --build --preset asan -j"$jobs" --target tessera_lod_tests
+  ctest --preset asan -j"$jobs" --timeout 900 -L lod
+fi
