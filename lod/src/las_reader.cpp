@@ -4,6 +4,7 @@
 // LAZ (compressed) files are recognised and refused with a clear message.
 #include <algorithm>
 #include <cmath>
+#include <vector>
 
 #include "byte_source.h"
 #include "reader_util.h"
@@ -42,6 +43,8 @@ class LasReader final : public PointReader {
              "`laszip -i IN.laz -o OUT.las` or `pdal translate IN.laz OUT.las`)");
   }
   void detectColorDepth();
+  /// Decodes `n` records at `p` into batch points at, at + 1, ...
+  void decodeRecords(const uint8_t* p, size_t n, PointBatch& batch, size_t at);
 
   ByteSource mSrc;
   int mFormat = 0;
@@ -128,6 +131,7 @@ void LasReader::parseHeader() {
   glm::dvec3 origin = offset;
   if (box_ok) origin = offset + glm::round((0.5 * (lo + hi) - offset) / mScale) * mScale;
   mInfo.origin = origin;
+  mInfo.precision = std::min({std::abs(mScale.x), std::abs(mScale.y), std::abs(mScale.z)});
   mDelta = offset - origin;
 
   // Variable length records: look for the LASzip VLR a renamed .laz would carry.
@@ -160,12 +164,31 @@ void LasReader::detectColorDepth() {
   uint64_t n = std::min(mCount, available);
   if (n == 0) return;
   uint64_t samples = std::min<uint64_t>(n, 65536);
+  auto record = [&](uint64_t s) { return s * n / samples; };
+  // Samples less than a page apart share one read (a small file is read in a few), instead of
+  // one pread() per sample: that made opening a small file cost more than reading it.
+  constexpr uint64_t kMaxGap = 4096, kMaxSpan = uint64_t(1) << 20;
+  std::vector<uint8_t> chunk;
   uint16_t max_value = 0;
-  uint8_t rgb[6];
-  for (uint64_t s = 0; s < samples; ++s) {
-    uint64_t rec = s * n / samples;
-    if (mSrc.readAt(mDataOffset + rec * mRecordLength + uint64_t(mRgb), rgb, 6) < 6) break;
-    for (int c = 0; c < 3; ++c) max_value = std::max(max_value, loadLE<uint16_t>(rgb + 2 * c));
+  bool short_read = false;
+  for (uint64_t s = 0; s < samples && !short_read;) {
+    const uint64_t first = record(s);
+    uint64_t end = s + 1, last = first;
+    while (end < samples && (record(end) - last) * mRecordLength <= kMaxGap &&
+           (record(end) - first) * mRecordLength <= kMaxSpan) {
+      last = record(end++);
+    }
+    chunk.resize(size_t((last - first) * mRecordLength + 6));
+    size_t got = mSrc.readAt(mDataOffset + first * mRecordLength + uint64_t(mRgb), chunk.data(),
+                             chunk.size());
+    for (; s < end; ++s) {
+      size_t at = size_t((record(s) - first) * mRecordLength);
+      short_read = at + 6 > got;
+      if (short_read) break;
+      for (int c = 0; c < 3; ++c) {
+        max_value = std::max(max_value, loadLE<uint16_t>(chunk.data() + at + 2 * c));
+      }
+    }
   }
   mColor16 = max_value > 255;
 }
@@ -174,20 +197,33 @@ bool LasReader::next(PointBatch& batch, size_t max_points) {
   batch.reset(mInfo.attributes);
   if (mNext >= mCount) return false;
   size_t n = size_t(std::min<uint64_t>(std::max<size_t>(1, max_points), mCount - mNext));
-  size_t bytes = n * mRecordLength;
-  size_t avail = mSrc.ensure(bytes);
-  size_t whole = avail / mRecordLength;
-  if (whole == 0) {
+  batch.resize(n);
+  // Blocks of about 64 KiB: a refill then moves at most a block's tail to the buffer front.
+  const size_t block = std::max<size_t>(1, (size_t(64) << 10) / mRecordLength);
+  size_t done = 0;
+  while (done < n) {
+    size_t want = std::min(n - done, block);
+    size_t whole = mSrc.ensure(want * mRecordLength) / mRecordLength;
+    decodeRecords(mSrc.data(), whole, batch, done);
+    mSrc.consume(whole * mRecordLength);
+    done += whole;
+    if (whole < want) break;  // the file ends early: deliver the whole records, fail next call
+  }
+  if (done == 0) {
     fail(kComponent, mSrc.name(), atByte(mSrc.offset()),
          "file ends inside point record " + std::to_string(mNext) + " of " +
              std::to_string(mCount) + " declared by the header");
   }
-  n = std::min(n, whole);
-  batch.resize(n);
-  const uint8_t* p = mSrc.data();
+  batch.resize(done);
+  mNext += done;
+  mStats.points += done;
+  return true;
+}
+
+void LasReader::decodeRecords(const uint8_t* p, size_t n, PointBatch& batch, size_t at) {
   const bool legacy = mFormat < 6;
   const bool color = mRgb >= 0;
-  for (size_t i = 0; i < n; ++i, p += mRecordLength) {
+  for (size_t i = at; i < at + n; ++i, p += mRecordLength) {
     batch.positions[i] = glm::dvec3(double(loadLE<int32_t>(p)) * mScale.x + mDelta.x,
                                     double(loadLE<int32_t>(p + 4)) * mScale.y + mDelta.y,
                                     double(loadLE<int32_t>(p + 8)) * mScale.z + mDelta.z);
@@ -204,10 +240,6 @@ bool LasReader::next(PointBatch& batch, size_t max_points) {
       }
     }
   }
-  mSrc.consume(n * mRecordLength);
-  mNext += n;
-  mStats.points += n;
-  return true;
 }
 
 }  // namespace

@@ -7,6 +7,7 @@
 #include <tessera/core/check.h>
 #include <tessera/lod/mesh.h>
 #include <tessera/lod/source_summary.h>
+#include <tessera/lod/store_builder.h>
 #include <tessera/lod/virtual_scanner.h>
 
 namespace {
@@ -69,6 +70,50 @@ int runScan(const std::string& mesh_path, const std::string& out, const std::str
   return 0;
 }
 
+// Exit codes for build/verify: 0 ok, 1 bad input, 3 failed writing, 4 verification failed.
+constexpr int kExitVerifyFailed = 4;
+
+int runBuild(const std::vector<std::string>& inputs, const std::string& out, const BuildOptions& o) {
+  std::vector<std::filesystem::path> paths(inputs.begin(), inputs.end());
+  try {
+    BuildReport r = buildStore(paths, out, o);
+    std::printf("built %s: %llu points (%llu skipped), %llu nodes, depth %u, %llu chunks, overhead %.3fx\n",
+                out.c_str(), (unsigned long long)r.points, (unsigned long long)r.skipped, (unsigned long long)r.nodes,
+                r.depth, (unsigned long long)r.chunks, double(r.stored_points) / double(r.points));
+    std::printf("  %.2f bytes/point in all, %.2f bytes/point position + colour, max quantisation error %.3g\n",
+                double(r.file_bytes) / double(r.points), double(r.position_color_bytes) / double(r.points),
+                r.max_error);
+    std::printf("  %.2f s (read %.2f, process %.2f, write %.2f): %.2f M points/s\n", r.seconds, r.seconds_read,
+                r.seconds_process, r.seconds_write, double(r.points) / r.seconds / 1e6);
+    return 0;
+  } catch (const ReadError& e) {
+    std::fprintf(stderr, "tessera-lod build: %s\n", e.what());
+    return kExitBadInput;
+  } catch (const StoreError& e) {
+    std::fprintf(stderr, "tessera-lod build: %s\n", e.what());
+    return kExitWriteFailed;
+  }
+}
+
+int runVerify(const std::string& store, const std::vector<std::string>& inputs, const BuildOptions& o) {
+  std::vector<std::filesystem::path> paths(inputs.begin(), inputs.end());
+  try {
+    VerifyReport r = verifyStore(store, paths, o);
+    std::printf("%s: %llu input points, %llu stored, %llu matched, %llu unmatched, %llu corrupt chunks\n",
+                store.c_str(), (unsigned long long)r.input_points, (unsigned long long)r.store_points,
+                (unsigned long long)r.matched, (unsigned long long)r.unmatched, (unsigned long long)r.corrupt_chunks);
+    std::printf("max error %.6g (%.3f of the stated bound)\n%s\n", r.max_error, r.max_error_ratio,
+                r.ok() ? "OK: every input point is stored once within its error bound" : "FAILED");
+    return r.ok() ? 0 : kExitVerifyFailed;
+  } catch (const ReadError& e) {
+    std::fprintf(stderr, "tessera-lod verify: %s\n", e.what());
+    return kExitBadInput;
+  } catch (const StoreError& e) {
+    std::fprintf(stderr, "tessera-lod verify: %s\n", e.what());
+    return kExitBadInput;
+  }
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -102,7 +147,31 @@ int main(int argc, char** argv) {
   scan->add_option("--threads", so.threads, "Threads (0: every core)")->capture_default_str();
   scan->add_flag("--quiet", so.quiet, "No progress output");
 
+  std::vector<std::string> build_in;
+  std::string build_out;
+  BuildOptions bo;
+  auto* build = app.add_subcommand("build", "Build an out-of-core multiresolution point store (.tlod) from inputs");
+  build->add_option("IN", build_in, "Input files (any readable format); several are fused, each point keeps its source")
+      ->required();
+  build->add_option("-o,--output", build_out, "Output store (.tlod)")->required();
+  build->add_option("--memory-mb", bo.memory_mb, "Memory budget in MB (peak stays within it plus a small constant)")
+      ->check(CLI::Range(64, 1 << 20))->capture_default_str();
+  build->add_option("--threads", bo.threads, "Threads (0: every core)")->capture_default_str();
+  build->add_option("--temp-dir", bo.temp_dir, "Folder for temporary files (default: beside the output)");
+  build->add_flag("--quiet", bo.quiet, "No progress output");
+
+  std::string verify_store;
+  std::vector<std::string> verify_in;
+  BuildOptions vo;
+  auto* verify = app.add_subcommand("verify", "Check that every input point is in a store within its error bound");
+  verify->add_option("STORE", verify_store, "The .tlod store")->required();
+  verify->add_option("IN", verify_in, "The inputs it was built from")->required();
+  verify->add_option("--memory-mb", vo.memory_mb, "Memory budget in MB")->capture_default_str();
+  verify->add_flag("--quiet", vo.quiet, "No progress output");
+
   CLI11_PARSE(app, argc, argv);
+  if (*build) return runBuild(build_in, build_out, bo);
+  if (*verify) return runVerify(verify_store, verify_in, vo);
   if (*info) return runInfo(info_files, info_json, info_quiet);
   if (*scan) return runScan(scan_mesh, scan_out, scan_res, so);
   return 2;

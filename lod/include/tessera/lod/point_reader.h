@@ -67,6 +67,8 @@ struct SourceInfo {
   glm::dvec3 origin{0.0};           ///< world = origin + batch position
   /// Bounding box stated by the header (LAS), in file coordinates.
   std::optional<std::pair<glm::dvec3, glm::dvec3>> header_bbox;
+  /// Coordinate resolution the file declares (LAS: the smallest scale factor); 0 when unknown.
+  double precision = 0.0;
   std::vector<ScanInfo> scans;      ///< .conf: one per bmesh line; range-grid PLY: one
   std::optional<RigidPose> camera;  ///< .conf `camera` line, if any
 };

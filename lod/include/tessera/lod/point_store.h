@@ -1,0 +1,123 @@
+// Read-only access to a .tlod point store (see store_format.h): the node hierarchy, loaded
+// lazily page by page, and decoded chunks through a thread-safe LRU cache with a byte budget.
+// This is what render nodes use to pick and stream the cut their tile needs.
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <memory>
+#include <mutex>
+#include <shared_mutex>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include <tessera/lod/point_batch.h>
+
+namespace tessera::lod {
+
+/// A store that cannot be opened or a chunk that cannot be used (corrupt, truncated, newer
+/// format). The message names the file and what is wrong.
+class StoreError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+/// Decoded points of one node. Positions are floats relative to `offset` (the node box minimum
+/// in the store's local frame), so precision does not depend on where the data lies on Earth:
+/// local = offset + position, world = store origin + local.
+struct ChunkPoints {
+  AttributeMask attributes = 0;  ///< kColor, kIntensity, kScanIndex (= source id), kClassification
+  glm::dvec3 offset{0.0};
+  double step = 0.0;  ///< quantisation step: every position is a whole multiple of it
+  std::vector<glm::vec3> positions;
+  std::vector<glm::u8vec4> colors;
+  std::vector<uint16_t> intensities;
+  std::vector<uint16_t> sources;  ///< index into PointStore::sources()
+  std::vector<uint8_t> classifications;
+
+  size_t size() const { return positions.size(); }
+  size_t byteSize() const;
+};
+
+using NodeId = uint32_t;
+constexpr NodeId kNoNode = ~NodeId(0);
+
+struct NodeInfo {
+  uint8_t level = 0;
+  glm::u32vec3 cell{0};     ///< octree cell at `level`
+  glm::dvec3 box_min{0.0};  ///< local frame
+  glm::dvec3 box_max{0.0};
+  uint32_t points = 0;
+  float spacing = 0.f;      ///< mean distance between this node's samples
+  float error_bound = 0.f;  ///< max stored-position error
+  uint8_t child_mask = 0;
+  bool leaf() const { return child_mask == 0; }
+};
+
+struct StoreSummary {
+  uint32_t version = 0;
+  glm::dvec3 origin{0.0};
+  glm::dvec3 bbox_min{0.0}, bbox_max{0.0};  ///< local frame
+  double cube_size = 0.0;
+  uint64_t points = 0;         ///< input points (each in exactly one leaf)
+  uint64_t stored_points = 0;  ///< over all nodes, inner copies included
+  uint64_t nodes = 0;
+  uint32_t depth = 0;
+  AttributeMask attributes = 0;
+  uint64_t file_bytes = 0;
+  uint64_t payload_bytes = 0;
+  uint64_t position_color_bytes = 0;
+  double spacing_root = 0.0, spacing_finest = 0.0;
+  double input_precision = 0.0;
+};
+
+struct CacheStats {
+  uint64_t hits = 0, misses = 0, evictions = 0;
+  uint64_t bytes = 0, budget = 0;
+  uint64_t corrupt = 0;  ///< chunks refused because their checksum or decoding failed
+};
+
+class PointStore {
+ public:
+  /// Opens the store: reads and checks the header and the root hierarchy page only (fast for
+  /// any size). `cache_bytes` bounds the decoded chunks kept in memory. Throws StoreError.
+  static std::unique_ptr<PointStore> open(const std::filesystem::path& path, uint64_t cache_bytes = 512ull << 20);
+  ~PointStore();
+
+  const StoreSummary& summary() const { return mSummary; }
+  const std::vector<std::string>& sources() const { return mSources; }
+  const std::filesystem::path& path() const { return mPath; }
+
+  NodeId root() const { return 0; }
+  /// Node metadata. Thread-safe. Copies, because loading pages may grow the table.
+  NodeInfo node(NodeId id) const;
+  /// Children of a node (loads their hierarchy page on first use; may throw StoreError for a
+  /// corrupt page). Thread-safe.
+  std::vector<NodeId> children(NodeId id);
+  /// Whether the children of `id` are already in memory (no I/O needed to list them).
+  bool childrenLoaded(NodeId id) const;
+  /// Number of nodes whose metadata is in memory.
+  size_t loadedNodes() const;
+
+  /// Decoded points of a node, from the cache or the file. Thread-safe; concurrent loads of
+  /// different nodes proceed in parallel. Throws StoreError for a corrupt chunk (checksum
+  /// mismatch or bad encoding): such a chunk is never returned as garbage.
+  std::shared_ptr<const ChunkPoints> loadChunk(NodeId id);
+  /// Like loadChunk but bypassing the cache (verification, benchmarks).
+  std::shared_ptr<ChunkPoints> decodeChunk(NodeId id) const;
+  /// Compressed bytes of a node's chunk on disk.
+  uint32_t chunkBytes(NodeId id) const;
+
+  CacheStats cacheStats() const;
+
+ private:
+  struct Impl;
+  PointStore() = default;
+  std::filesystem::path mPath;
+  StoreSummary mSummary;
+  std::vector<std::string> mSources;
+  std::unique_ptr<Impl> mImpl;
+};
+
+}  // namespace tessera::lod

@@ -1,0 +1,90 @@
+// The .tlod point store file format (version 1). Little-endian, every structure checksummed.
+//
+//   [Header, 4096 bytes at offset 0]
+//   [Payload: one compressed chunk per node, ordered by (level, Morton key of the node cell):
+//    coarse levels first, spatial neighbours adjacent, so a cut reads mostly sequential ranges]
+//   [Hierarchy pages: each holds a subtree of up to kPageLevels levels; nodes on a page's last
+//    level that have children point to their own page, loaded only when a traversal gets there]
+//   [Source table: one name per source (input file, or scan of a .conf)]
+//
+// A node's box is the octree cell (level, x, y, z) of the root cube. Every input point is stored
+// once, in the leaf containing it. An inner node holds a spatially even copy of the points below
+// it: one point per cell of a kGrid^3 grid over its box, the one nearest the cell centre. Nodes
+// are self-contained (Bettio et al. 2009): a cut is drawn from its own nodes only, so a coarse
+// node's quantisation (a quarter of its spacing) never shows next to finer data.
+#pragma once
+
+#include <cstdint>
+
+namespace tessera::lod::store {
+
+constexpr char kMagic[4] = {'T', 'L', 'O', 'D'};
+constexpr uint32_t kVersion = 1;
+constexpr uint32_t kHeaderSize = 4096;
+constexpr int kGrid = 48;        ///< sampling grid per node and axis: inner nodes hold <= kGrid^3 points
+constexpr int kPageLevels = 4;   ///< levels per hierarchy page
+constexpr int kMaxLevel = 30;    ///< deepest node level (duplicates stop subdividing there)
+
+/// Fixed-size file header. All offsets are absolute byte offsets in the file.
+struct FileHeader {
+  char magic[4];
+  uint32_t version;
+  uint32_t header_size;
+  uint32_t attributes;     ///< AttributeMask of what chunks carry (kColor, kIntensity, ...)
+  double origin[3];        ///< world = origin + local
+  double cube_min[3];      ///< root cube, local frame
+  double cube_size;        ///< edge length of the root cube
+  double bbox_min[3];      ///< tight bounds of all points, local frame
+  double bbox_max[3];
+  uint64_t points;
+  uint64_t nodes;
+  uint32_t depth;          ///< deepest level + 1
+  uint32_t sources;
+  uint64_t payload_offset;
+  uint64_t payload_size;
+  uint64_t root_page_offset;
+  uint32_t root_page_size;
+  uint32_t reserved0;
+  uint64_t source_table_offset;
+  uint32_t source_table_size;
+  uint32_t reserved1;
+  double input_precision;  ///< finest coordinate resolution the inputs declared (0: unknown)
+  double spacing_root;
+  double spacing_finest;   ///< smallest node spacing
+  uint64_t payload_position_color_bytes;  ///< bytes of the position + colour streams
+  uint64_t stored_points;  ///< points in all nodes (leaves hold each input point once; inner
+                           ///< nodes hold sampled copies): stored_points / points = overhead
+  uint32_t header_crc;     ///< CRC-32C of this struct with header_crc = 0
+  uint32_t reserved2;
+};
+
+/// One node on a hierarchy page (56 bytes, no padding).
+struct NodeRecord {
+  uint64_t payload_offset;
+  uint64_t page_offset;    ///< kHasPage: the page holding this node's children
+  uint32_t x, y, z;        ///< cell coordinates at `level`
+  uint32_t points;
+  float spacing;           ///< mean distance between the node's samples (local units)
+  float error_bound;       ///< max distance of a stored position from its input point
+  uint32_t payload_size;
+  uint32_t payload_crc;    ///< CRC-32C of the payload bytes
+  uint32_t page_size;
+  uint8_t level;
+  uint8_t child_mask;      ///< bit i: child i exists (i = x | y << 1 | z << 2)
+  uint8_t flags;           ///< kHasPage: children are on the page at page_offset
+  uint8_t reserved;
+};
+static_assert(sizeof(NodeRecord) == 56);
+static_assert(sizeof(FileHeader) == 240);
+
+constexpr uint8_t kHasPage = 1;
+
+/// A hierarchy page: this header, then `nodes` NodeRecords in breadth-first order.
+struct PageHeader {
+  char magic[4];           ///< "TPAG"
+  uint32_t nodes;
+  uint32_t crc;            ///< CRC-32C of the records
+  uint32_t reserved;
+};
+
+}  // namespace tessera::lod::store

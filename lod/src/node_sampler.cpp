@@ -1,0 +1,110 @@
+#include "node_sampler.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace tessera::lod {
+
+size_t gridSample(std::span<BuildPoint> pts, const glm::dvec3& box_min, double size, int grid) {
+  const size_t cells = size_t(grid) * grid * grid;
+  thread_local std::vector<uint32_t> best;  // cell -> point index + 1 (0: empty)
+  thread_local std::vector<float> best_d;
+  thread_local std::vector<uint32_t> touched;
+  if (best.size() != cells) {
+    best.assign(cells, 0);
+    best_d.assign(cells, 0.f);
+  }
+  touched.clear();
+  const double cell = size / grid;
+  for (size_t i = 0; i < pts.size(); ++i) {
+    glm::dvec3 f = (pts[i].position - box_min) / cell;
+    glm::dvec3 c = glm::clamp(glm::floor(f), glm::dvec3(0.0), glm::dvec3(grid - 1));
+    size_t idx = (size_t(c.z) * grid + size_t(c.y)) * grid + size_t(c.x);
+    float d = float(glm::length(f - (c + 0.5)));
+    if (best[idx] == 0) {
+      touched.push_back(uint32_t(idx));
+      best[idx] = uint32_t(i + 1);
+      best_d[idx] = d;
+    } else if (d < best_d[idx]) {
+      best[idx] = uint32_t(i + 1);
+      best_d[idx] = d;
+    }
+  }
+  thread_local std::vector<uint8_t> selected;
+  selected.assign(pts.size(), 0);
+  for (uint32_t idx : touched) {
+    selected[best[idx] - 1] = 1;
+    best[idx] = 0;
+  }
+  // Stable partition: selected first, both groups in their original order.
+  thread_local std::vector<BuildPoint> tmp;
+  tmp.resize(pts.size());
+  size_t front = 0, back = touched.size();
+  for (size_t i = 0; i < pts.size(); ++i) tmp[selected[i] ? front++ : back++] = pts[i];
+  std::copy(tmp.begin(), tmp.begin() + ptrdiff_t(pts.size()), pts.begin());
+  return touched.size();
+}
+
+std::array<size_t, 9> partitionOctants(std::span<BuildPoint> pts, const CubeFrame& frame, const CellKey& key) {
+  const int level = key.level + 1;
+  auto octant = [&](const BuildPoint& p) { return frame.cellOf(p.position, level).childIndex(); };
+  std::array<size_t, 9> bounds{};
+  for (const BuildPoint& p : pts) ++bounds[size_t(octant(p)) + 1];
+  for (int i = 0; i < 8; ++i) bounds[size_t(i) + 1] += bounds[size_t(i)];
+  thread_local std::vector<BuildPoint> tmp;
+  tmp.resize(pts.size());
+  std::array<size_t, 8> fill{};
+  for (int i = 0; i < 8; ++i) fill[size_t(i)] = bounds[size_t(i)];
+  for (const BuildPoint& p : pts) tmp[fill[size_t(octant(p))]++] = p;
+  std::copy(tmp.begin(), tmp.begin() + ptrdiff_t(pts.size()), pts.begin());
+  return bounds;
+}
+
+double meanSpacing(std::span<const BuildPoint> pts, double extent, double fallback, size_t samples) {
+  const size_t n = pts.size();
+  if (n < 2 || !(extent > 0)) return fallback;
+  // Hash grid with about one point per cell for a surface sampling (n ~ (extent / s)^2).
+  const double cell = std::max(extent / std::sqrt(double(n)), extent * 1e-7);
+  glm::dvec3 lo(std::numeric_limits<double>::max());
+  for (const auto& p : pts) lo = glm::min(lo, p.position);
+  auto keyOf = [&](const glm::ivec3& c) {
+    return (uint64_t(uint32_t(c.x) & 0x1FFFFF) << 42) | (uint64_t(uint32_t(c.y) & 0x1FFFFF) << 21) |
+           uint64_t(uint32_t(c.z) & 0x1FFFFF);
+  };
+  auto cellOf = [&](const glm::dvec3& p) { return glm::ivec3(glm::floor((p - lo) / cell)); };
+  std::vector<std::pair<uint64_t, uint32_t>> keys(n);
+  for (size_t i = 0; i < n; ++i) keys[i] = {keyOf(cellOf(pts[i].position)), uint32_t(i)};
+  std::sort(keys.begin(), keys.end());
+  const size_t stride = std::max<size_t>(1, n / samples);
+  double sum = 0.0;
+  size_t measured = 0;
+  for (size_t s = 0; s < n; s += stride) {
+    const glm::dvec3 p = pts[s].position;
+    const glm::ivec3 c = cellOf(p);
+    double best = std::numeric_limits<double>::infinity();
+    for (int r = 1; r <= 3 && !std::isfinite(best); ++r) {
+      for (int dz = -r; dz <= r; ++dz)
+        for (int dy = -r; dy <= r; ++dy)
+          for (int dx = -r; dx <= r; ++dx) {
+            if (r > 1 && std::max({std::abs(dx), std::abs(dy), std::abs(dz)}) < r) continue;
+            uint64_t k = keyOf(c + glm::ivec3(dx, dy, dz));
+            auto it = std::lower_bound(keys.begin(), keys.end(), std::make_pair(k, uint32_t(0)));
+            for (; it != keys.end() && it->first == k; ++it) {
+              if (it->second == s) continue;
+              double d = glm::length(pts[it->second].position - p);
+              if (d > 0.0) best = std::min(best, d);
+            }
+          }
+      // A neighbour found in ring r may still be beaten by one in ring r + 1 only if farther
+      // than r cells; accept the small bias (spacing is a statistic, not a bound).
+    }
+    if (std::isfinite(best)) {
+      sum += best;
+      ++measured;
+    }
+  }
+  return measured > 0 ? sum / double(measured) : fallback;
+}
+
+}  // namespace tessera::lod

@@ -1,0 +1,274 @@
+#include "point_distributor.h"
+
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <cmath>
+#include <cstring>
+#include <limits>
+#include <tuple>
+
+#include <tessera/core/progress.h>
+#include <tessera/lod/point_store.h>
+
+namespace tessera::lod {
+namespace {
+
+constexpr int kCountLevel = 7;  // 128^3 counting grid
+constexpr uint32_t kCountRes = 1u << kCountLevel;
+
+uint64_t spread3(uint64_t v) {
+  v &= 0x1FFFFF;
+  v = (v | v << 32) & 0x1F00000000FFFFull;
+  v = (v | v << 16) & 0x1F0000FF0000FFull;
+  v = (v | v << 8) & 0x100F00F00F00F00Full;
+  v = (v | v << 4) & 0x10C30C30C30C30C3ull;
+  v = (v | v << 2) & 0x1249249249249249ull;
+  return v;
+}
+
+size_t gridIndex(uint32_t x, uint32_t y, uint32_t z) { return (size_t(z) * kCountRes + y) * kCountRes + x; }
+
+}  // namespace
+
+uint64_t CellKey::morton() const {
+  // Cells deeper than level 21 share codes with their neighbours; callers break ties by x, y, z.
+  int shift = std::max(0, int(level) - 21);
+  return spread3(x >> shift) | spread3(y >> shift) << 1 | spread3(z >> shift) << 2;
+}
+
+bool CellKey::operator<(const CellKey& o) const {
+  if (level != o.level) return level < o.level;
+  uint64_t a = morton(), b = o.morton();
+  if (a != b) return a < b;
+  return std::tie(x, y, z) < std::tie(o.x, o.y, o.z);
+}
+
+CellKey CubeFrame::cellOf(const glm::dvec3& p, int level) const {
+  double res = double(uint64_t(1) << level);
+  glm::dvec3 f = (p - cube_min) / cube_size * res;
+  auto clampi = [&](double v) { return uint32_t(std::clamp(std::floor(v), 0.0, res - 1.0)); };
+  return {uint8_t(level), clampi(f.x), clampi(f.y), clampi(f.z)};
+}
+
+void readTempPoints(int fd, uint64_t first, uint64_t count, BuildPoint* out, const std::string& name) {
+  auto* dst = reinterpret_cast<uint8_t*>(out);
+  uint64_t bytes = count * sizeof(BuildPoint), off = first * sizeof(BuildPoint), done = 0;
+  while (done < bytes) {
+    ssize_t got = ::pread(fd, dst + done, size_t(std::min<uint64_t>(bytes - done, 1u << 30)), off_t(off + done));
+    if (got < 0 && errno == EINTR) continue;
+    if (got <= 0) throw StoreError("lod::buildStore(): reading temporary file " + name + " failed: " + std::strerror(errno));
+    done += uint64_t(got);
+  }
+}
+
+void writeTempPoints(int fd, uint64_t first, const BuildPoint* pts, uint64_t count, const std::string& name) {
+  const auto* src = reinterpret_cast<const uint8_t*>(pts);
+  uint64_t bytes = count * sizeof(BuildPoint), off = first * sizeof(BuildPoint), done = 0;
+  while (done < bytes) {
+    ssize_t put = ::pwrite(fd, src + done, size_t(std::min<uint64_t>(bytes - done, 1u << 30)), off_t(off + done));
+    if (put < 0 && errno == EINTR) continue;
+    if (put <= 0) {
+      throw StoreError("lod::buildStore(): writing temporary file " + name + " failed: " +
+                       (put < 0 ? std::strerror(errno) : "no space") + " (disk full?)");
+    }
+    done += uint64_t(put);
+  }
+}
+
+PointDistributor::PointDistributor(const std::vector<std::filesystem::path>& inputs, bool quiet) : mQuiet(quiet) {
+  if (inputs.empty()) throw ReadError("lod::buildStore(): no input files");
+  uint32_t next_source = 0;
+  for (const auto& path : inputs) {
+    auto reader = openPointReader(path);  // throws ReadError naming the file
+    const SourceInfo& info = reader->info();
+    mInputs.push_back({path, uint16_t(next_source)});
+    if (info.format == Format::kStanfordConf) {
+      for (const ScanInfo& s : info.scans) mSourceNames.push_back(path.filename().string() + ":" + s.name);
+      next_source += uint32_t(info.scans.size());
+    } else {
+      mSourceNames.push_back(path.filename().string());
+      next_source += 1;
+    }
+    if (next_source > 65535) throw ReadError("lod::buildStore(): more than 65535 sources (files and scans)");
+    mAttributes |= info.attributes & (kColor | kIntensity | kClassification);
+    mDeclared += info.declared_points;
+    // The finest declared resolution over all inputs; unknown (0) anywhere means unknown.
+    double p = info.precision;
+    mPrecision = mInputs.size() == 1 ? p : (p == 0.0 || mPrecision == 0.0) ? 0.0 : std::min(mPrecision, p);
+  }
+}
+
+void PointDistributor::forEachBatch(const std::string& label,
+                                    const std::function<void(std::span<const BuildPoint>)>& fn) {
+  Progress progress(label, mDeclared, " points", mQuiet);
+  std::vector<BuildPoint> pts;
+  PointBatch batch;
+  uint64_t skipped = 0;
+  for (const InputSource& in : mInputs) {
+    auto reader = openPointReader(in.path);
+    const glm::dvec3 shift = reader->info().origin - mFrame.origin;
+    const AttributeMask a = reader->info().attributes;
+    while (reader->next(batch, 1 << 16)) {
+      pts.resize(batch.size());
+      for (size_t i = 0; i < batch.size(); ++i) {
+        BuildPoint& p = pts[i];
+        p.position = batch.positions[i] + shift;
+        p.color = a & kColor ? batch.colors[i] : glm::u8vec4(255);
+        p.intensity = a & kIntensity ? uint16_t(std::clamp(batch.intensities[i], 0.f, 65535.f)) : 0;
+        p.source = uint16_t(in.first_source + (a & kScanIndex ? batch.scan_indices[i] : 0));
+        p.classification = a & kClassification ? batch.classifications[i] : 0;
+        std::memset(p.pad, 0, sizeof p.pad);
+      }
+      fn(pts);
+      progress.add(batch.size());
+    }
+    skipped += reader->stats().skippedTotal();
+  }
+  mSkipped = skipped;
+}
+
+void PointDistributor::measure() {
+  // Pass 1 runs in the readers' own frame offsets relative to origin 0; LAS readers keep a local
+  // origin, so measure relative to the first input's origin to keep precision.
+  mFrame.origin = openPointReader(mInputs.front().path)->info().origin;
+  glm::dvec3 lo(std::numeric_limits<double>::max()), hi(-std::numeric_limits<double>::max());
+  uint64_t n = 0;
+  forEachBatch("build 1/5 bounds", [&](std::span<const BuildPoint> pts) {
+    for (const BuildPoint& p : pts) {
+      lo = glm::min(lo, p.position);
+      hi = glm::max(hi, p.position);
+    }
+    n += pts.size();
+  });
+  if (n == 0) throw ReadError("lod::buildStore(): the inputs hold no points");
+  mPoints = n;
+  // Local frame centred on the data; the cube a hair larger than the box so nothing sits on
+  // its far faces.
+  glm::dvec3 centre = 0.5 * (lo + hi);
+  glm::dvec3 new_origin = mFrame.origin + centre;
+  mMin = lo - centre;
+  mMax = hi - centre;
+  double size = std::max({hi.x - lo.x, hi.y - lo.y, hi.z - lo.z});
+  size = size > 0 ? size * (1.0 + 1e-6) : 1.0;
+  mFrame.origin = new_origin;
+  mFrame.cube_size = size;
+  mFrame.cube_min = glm::dvec3(-0.5 * size);
+}
+
+void PointDistributor::measureInFrame(const CubeFrame& frame) {
+  mFrame = frame;
+  glm::dvec3 lo(std::numeric_limits<double>::max()), hi(-std::numeric_limits<double>::max());
+  uint64_t n = 0;
+  forEachBatch("verify 1/3 count", [&](std::span<const BuildPoint> pts) {
+    for (const BuildPoint& p : pts) {
+      lo = glm::min(lo, p.position);
+      hi = glm::max(hi, p.position);
+    }
+    n += pts.size();
+  });
+  mPoints = n;
+  mMin = lo;
+  mMax = hi;
+}
+
+std::vector<Chunk> PointDistributor::distribute(uint64_t chunk_max, const std::filesystem::path& temp_file) {
+  // Pass 2: counting grid.
+  std::vector<uint32_t> counts(size_t(kCountRes) * kCountRes * kCountRes, 0);
+  uint64_t counted = 0;
+  forEachBatch("build 2/5 counting", [&](std::span<const BuildPoint> pts) {
+    for (const BuildPoint& p : pts) {
+      CellKey c = mFrame.cellOf(p.position, kCountLevel);
+      ++counts[gridIndex(c.x, c.y, c.z)];
+    }
+    counted += pts.size();
+  });
+  if (counted != mPoints) throw ReadError("lod::buildStore(): an input changed while it was being read");
+
+  // Count pyramid: level l has 2^l cells per axis.
+  std::vector<std::vector<uint64_t>> pyramid(kCountLevel + 1);
+  pyramid[kCountLevel].assign(counts.begin(), counts.end());
+  for (int l = kCountLevel - 1; l >= 0; --l) {
+    uint32_t r = 1u << l;
+    pyramid[l].assign(size_t(r) * r * r, 0);
+    for (uint32_t z = 0; z < 2 * r; ++z)
+      for (uint32_t y = 0; y < 2 * r; ++y)
+        for (uint32_t x = 0; x < 2 * r; ++x) {
+          pyramid[l][(size_t(z / 2) * r + y / 2) * r + x / 2] +=
+              pyramid[l + 1][(size_t(z) * 2 * r + y) * 2 * r + x];
+        }
+  }
+  std::vector<Chunk> chunks;
+  std::function<void(CellKey)> split = [&](CellKey k) {
+    uint32_t r = 1u << k.level;
+    uint64_t n = pyramid[k.level][(size_t(k.z) * r + k.y) * r + k.x];
+    if (n == 0) return;
+    if (n <= chunk_max || k.level == kCountLevel) {
+      chunks.push_back({k, 0, n});
+      return;
+    }
+    for (int i = 0; i < 8; ++i) split(k.child(i));
+  };
+  split(CellKey{});
+  pyramid.clear();
+
+  // Chunk of every counting cell, and each chunk's contiguous range in the temp file.
+  std::vector<int32_t> owner(counts.size(), -1);
+  uint64_t offset = 0;
+  for (size_t ci = 0; ci < chunks.size(); ++ci) {
+    Chunk& c = chunks[ci];
+    c.first = offset;
+    offset += c.count;
+    int shift = kCountLevel - c.key.level;
+    uint32_t span = 1u << shift;
+    for (uint32_t z = 0; z < span; ++z)
+      for (uint32_t y = 0; y < span; ++y)
+        for (uint32_t x = 0; x < span; ++x) {
+          owner[gridIndex((c.key.x << shift) + x, (c.key.y << shift) + y, (c.key.z << shift) + z)] = int32_t(ci);
+        }
+  }
+  counts.clear();
+  counts.shrink_to_fit();
+
+  // Pass 3: distribution through per-chunk buffers into one preallocated file.
+  const std::string name = temp_file.string();
+  int fd = ::open(temp_file.c_str(), O_RDWR | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  if (fd < 0) throw StoreError("lod::buildStore(): cannot create temporary file " + name + ": " + std::strerror(errno));
+  struct FdCloser {
+    int fd;
+    ~FdCloser() { ::close(fd); }
+  } closer{fd};
+  // Buffers: a few MB in all whatever the chunk count (at least 64 points each).
+  const size_t per_chunk = std::max<size_t>(64, (size_t(64) << 20) / sizeof(BuildPoint) / std::max<size_t>(1, chunks.size()));
+  std::vector<std::vector<BuildPoint>> buffers(chunks.size());
+  std::vector<uint64_t> written(chunks.size(), 0);
+  auto flush = [&](size_t ci) {
+    auto& b = buffers[ci];
+    if (b.empty()) return;
+    if (written[ci] + b.size() > chunks[ci].count) {
+      throw ReadError("lod::buildStore(): an input changed while it was being read");
+    }
+    writeTempPoints(fd, chunks[ci].first + written[ci], b.data(), b.size(), name);
+    written[ci] += b.size();
+    b.clear();
+  };
+  forEachBatch("build 3/5 distributing", [&](std::span<const BuildPoint> pts) {
+    for (const BuildPoint& p : pts) {
+      CellKey c = mFrame.cellOf(p.position, kCountLevel);
+      int32_t ci = owner[gridIndex(c.x, c.y, c.z)];
+      auto& b = buffers[size_t(ci)];
+      if (b.capacity() == 0) b.reserve(per_chunk);
+      b.push_back(p);
+      if (b.size() >= per_chunk) flush(size_t(ci));
+    }
+  });
+  for (size_t ci = 0; ci < chunks.size(); ++ci) {
+    flush(ci);
+    if (written[ci] != chunks[ci].count) throw ReadError("lod::buildStore(): an input changed while it was being read");
+  }
+  return chunks;
+}
+
+}  // namespace tessera::lod

@@ -1,0 +1,107 @@
+// Out-of-core distribution of input points into octree cells ("chunks") small enough to be
+// worked on in memory: the first passes of building (and verifying) a point store.
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include <tessera/lod/point_reader.h>
+
+#include "build_point.h"
+
+namespace tessera::lod {
+
+/// Octree cell of the root cube.
+struct CellKey {
+  uint8_t level = 0;
+  uint32_t x = 0, y = 0, z = 0;
+  CellKey child(int i) const {
+    return {uint8_t(level + 1), 2 * x + (i & 1), 2 * y + ((i >> 1) & 1), 2 * z + ((i >> 2) & 1)};
+  }
+  CellKey parent() const { return {uint8_t(level - 1), x / 2, y / 2, z / 2}; }
+  int childIndex() const { return int(x & 1) | int(y & 1) << 1 | int(z & 1) << 2; }
+  bool operator==(const CellKey&) const = default;
+  /// Morton code of the cell within its level.
+  uint64_t morton() const;
+  /// Level first, then Morton order within the level: the payload order of a store.
+  bool operator<(const CellKey& o) const;
+};
+
+struct CellKeyHash {
+  size_t operator()(const CellKey& k) const {
+    return size_t((uint64_t(k.x) * 0x9E3779B97F4A7C15ull) ^ (uint64_t(k.y) * 0xC2B2AE3D27D4EB4Full) ^
+                  (uint64_t(k.z) * 0x165667B19E3779F9ull) ^ k.level);
+  }
+};
+
+/// The store's local frame: world = origin + local; the root cube spans cube_min + [0, size]^3.
+struct CubeFrame {
+  glm::dvec3 origin{0.0};
+  glm::dvec3 cube_min{0.0};
+  double cube_size = 1.0;
+  glm::dvec3 cellMin(const CellKey& k) const { return cube_min + glm::dvec3(k.x, k.y, k.z) * cellSize(k.level); }
+  double cellSize(int level) const { return cube_size / double(uint64_t(1) << level); }
+  /// The cell at `level` containing local point p (clamped into the cube).
+  CellKey cellOf(const glm::dvec3& p, int level) const;
+};
+
+struct InputSource {
+  std::filesystem::path path;
+  uint16_t first_source = 0;  ///< source id of its first scan (a .conf has one source per scan)
+};
+
+/// One out-of-core work unit: a cell and the contiguous range of its points in the temp file.
+struct Chunk {
+  CellKey key;
+  uint64_t first = 0;  ///< index of its first point in the temp file
+  uint64_t count = 0;
+};
+
+class PointDistributor {
+ public:
+  /// Opens every input's header (so a bad input fails before any work) and assigns source ids.
+  explicit PointDistributor(const std::vector<std::filesystem::path>& inputs, bool quiet);
+
+  const std::vector<std::string>& sourceNames() const { return mSourceNames; }
+  AttributeMask attributes() const { return mAttributes; }
+  double inputPrecision() const { return mPrecision; }
+  uint64_t skipped() const { return mSkipped; }
+
+  /// Pass 1: bounds and count; sets the frame (origin at the box centre, cube around the box).
+  void measure();
+  /// Uses a given frame instead (verification against an existing store): counts only.
+  void measureInFrame(const CubeFrame& frame);
+  const CubeFrame& frame() const { return mFrame; }
+  uint64_t points() const { return mPoints; }
+  glm::dvec3 boundsMin() const { return mMin; }
+  glm::dvec3 boundsMax() const { return mMax; }
+
+  /// Passes 2 and 3: counting grid, chunks of at most `chunk_max` points where the grid allows,
+  /// and distribution into `temp_file`. Returns the chunks.
+  std::vector<Chunk> distribute(uint64_t chunk_max, const std::filesystem::path& temp_file);
+
+ private:
+  /// Streams every input, calling `fn` per batch of points in the local frame.
+  void forEachBatch(const std::string& label, const std::function<void(std::span<const BuildPoint>)>& fn);
+
+  std::vector<InputSource> mInputs;
+  std::vector<std::string> mSourceNames;
+  AttributeMask mAttributes = kScanIndex;
+  double mPrecision = 0.0;
+  uint64_t mDeclared = 0;
+  uint64_t mPoints = 0;
+  uint64_t mSkipped = 0;
+  glm::dvec3 mMin{0.0}, mMax{0.0};
+  CubeFrame mFrame;
+  bool mQuiet;
+};
+
+/// Reads points [first, first + count) of a temp file written by distribute().
+void readTempPoints(int fd, uint64_t first, uint64_t count, BuildPoint* out, const std::string& name);
+/// Writes points at index `first` of a temp file.
+void writeTempPoints(int fd, uint64_t first, const BuildPoint* pts, uint64_t count, const std::string& name);
+
+}  // namespace tessera::lod

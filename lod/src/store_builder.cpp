@@ -1,0 +1,485 @@
+#include <tessera/lod/store_builder.h>
+
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <atomic>
+#include <cerrno>
+#include <chrono>
+#include <cmath>
+#include <cstring>
+#include <map>
+#include <mutex>
+#include <thread>
+#include <unordered_map>
+
+#include <tessera/core/progress.h>
+#include <tessera/lod/store_format.h>
+
+#include "chunk_codec.h"
+#include "crc32c.h"
+#include "node_sampler.h"
+#include "point_distributor.h"
+
+namespace tessera::lod {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
+
+/// A finished node: where its payload is in the temporary payload file and its metadata.
+struct NodeOut {
+  CellKey key;
+  uint8_t child_mask = 0;
+  uint32_t points = 0;
+  float spacing = 0.f;
+  float error_bound = 0.f;
+  uint64_t temp_offset = 0;
+  uint32_t size = 0;
+  uint32_t crc = 0;
+  uint32_t position_color_bytes = 0;
+  uint64_t final_offset = 0;
+};
+
+/// A file descriptor closed on scope exit.
+struct Fd {
+  int fd = -1;
+  std::string name;
+  Fd(const std::filesystem::path& p, int flags, const char* what) : name(p.string()) {
+    fd = ::open(p.c_str(), flags | O_CLOEXEC, 0644);
+    if (fd < 0) throw StoreError(std::string("lod::buildStore(): cannot open ") + what + " " + name + ": " + std::strerror(errno));
+  }
+  ~Fd() {
+    if (fd >= 0) ::close(fd);
+  }
+  Fd(const Fd&) = delete;
+  Fd& operator=(const Fd&) = delete;
+};
+
+void pwriteAll(int fd, const void* data, size_t n, uint64_t off, const std::string& name) {
+  const auto* p = static_cast<const uint8_t*>(data);
+  size_t done = 0;
+  while (done < n) {
+    ssize_t put = ::pwrite(fd, p + done, n - done, off_t(off + done));
+    if (put < 0 && errno == EINTR) continue;
+    if (put <= 0) {
+      throw StoreError("lod::buildStore(): writing " + name + " failed: " + (put < 0 ? std::strerror(errno) : "no space") +
+                       " (disk full?)");
+    }
+    done += size_t(put);
+  }
+}
+
+void preadAll(int fd, void* data, size_t n, uint64_t off, const std::string& name) {
+  auto* p = static_cast<uint8_t*>(data);
+  size_t done = 0;
+  while (done < n) {
+    ssize_t got = ::pread(fd, p + done, n - done, off_t(off + done));
+    if (got < 0 && errno == EINTR) continue;
+    if (got <= 0) throw StoreError("lod::buildStore(): reading " + name + " failed");
+    done += size_t(got);
+  }
+}
+
+/// Removes temporary files and the partial output unless the build commits.
+struct Cleanup {
+  std::vector<std::filesystem::path> paths;
+  ~Cleanup() {
+    for (const auto& p : paths) {
+      std::error_code ec;
+      std::filesystem::remove_all(p, ec);
+    }
+  }
+};
+
+class Builder {
+ public:
+  Builder(const BuildOptions& o, const CubeFrame& frame, AttributeMask attributes, double precision,
+          const std::filesystem::path& payload_file)
+      : mOpt(o), mFrame(frame), mAttributes(attributes), mPrecision(precision),
+        mPayload(payload_file, O_RDWR | O_CREAT | O_TRUNC, "temporary file") {}
+
+  /// Encodes a node and appends its payload. Reorders `pts` (Morton order).
+  void emit(const CellKey& key, std::span<BuildPoint> pts, uint8_t child_mask) {
+    const double extent = mFrame.cellSize(key.level);
+    const glm::dvec3 box_min = mFrame.cellMin(key);
+    // Inner nodes hold one point per grid cell: their spacing is about a cell; measure it.
+    double spacing = meanSpacing(pts, extent, extent / store::kGrid);
+    // Quantisation error at most a quarter of the spacing (Euclidean: step * sqrt(3) / 2), but
+    // no finer than the input's own resolution.
+    double step = std::max(spacing / (2.0 * std::sqrt(3.0)), mPrecision);
+    NodeOut out;
+    out.key = key;
+    out.child_mask = child_mask;
+    out.points = uint32_t(pts.size());
+    out.spacing = float(spacing);
+    if (!pts.empty()) {
+      EncodedChunk enc = encodeChunk(pts, box_min, extent, step, mAttributes, mOpt.zstd_level);
+      out.size = uint32_t(enc.bytes.size());
+      out.crc = crc32c(enc.bytes.data(), enc.bytes.size());
+      out.position_color_bytes = enc.position_color_bytes;
+      // The stated bound: what the step guarantees, never below what was measured.
+      out.error_bound = float(std::max(enc.step * std::sqrt(3.0) / 2.0, enc.max_error) * (1.0 + 1e-6));
+      std::lock_guard lock(mMutex);
+      out.temp_offset = mPayloadEnd;
+      mPayloadEnd += out.size;
+      mMaxError = std::max(mMaxError, enc.max_error);
+      pwriteAll(mPayload.fd, enc.bytes.data(), enc.bytes.size(), out.temp_offset, mPayload.name);
+      mNodes.push_back(out);
+      return;
+    }
+    std::lock_guard lock(mMutex);
+    mNodes.push_back(out);
+  }
+
+  /// Builds the subtree of a chunk in memory and emits every node of it. Leaves hold all their
+  /// points; an inner node holds a grid-sampled copy of the points below it (Bettio et al. 2009,
+  /// section 3.2: self-contained nodes, a cut is drawn from its own nodes only). The points of
+  /// the subtree root are copied to `root_points`: the levels above sample from them.
+  uint8_t buildSubtree(const CellKey& key, std::span<BuildPoint> pts, std::vector<BuildPoint>* root_points) {
+    if (pts.size() <= mOpt.leaf_max || key.level >= store::kMaxLevel) {
+      if (root_points) root_points->assign(pts.begin(), pts.end());
+      emit(key, pts, 0);
+      return 0;
+    }
+    size_t selected = gridSample(pts, mFrame.cellMin(key), mFrame.cellSize(key.level), store::kGrid);
+    std::vector<BuildPoint> sample(pts.begin(), pts.begin() + ptrdiff_t(selected));
+    auto bounds = partitionOctants(pts, mFrame, key);
+    uint8_t mask = 0;
+    for (int i = 0; i < 8; ++i) {
+      size_t a = bounds[size_t(i)], b = bounds[size_t(i) + 1];
+      if (a == b) continue;
+      buildSubtree(key.child(i), pts.subspan(a, b - a), nullptr);
+      mask |= uint8_t(1u << i);
+    }
+    if (root_points) *root_points = sample;
+    emit(key, sample, mask);
+    return mask;
+  }
+
+  std::vector<NodeOut>& nodes() { return mNodes; }
+  Fd& payload() { return mPayload; }
+  uint64_t payloadEnd() const { return mPayloadEnd; }
+  double maxError() const { return mMaxError; }
+
+ private:
+  const BuildOptions& mOpt;
+  CubeFrame mFrame;
+  AttributeMask mAttributes;
+  double mPrecision;
+  Fd mPayload;
+  std::mutex mMutex;
+  uint64_t mPayloadEnd = 0;
+  std::vector<NodeOut> mNodes;
+  double mMaxError = 0.0;
+};
+
+/// The points of a chunk root or upper node, kept for its parent to sample from.
+struct Pending {
+  std::vector<BuildPoint> pts;
+  uint8_t child_mask = 0;
+};
+
+/// Splits chunks too large for memory into their octants (streamed through the temp file).
+void splitOversized(std::vector<Chunk>& chunks, uint64_t chunk_max, const CubeFrame& frame, int fd,
+                    const std::string& name, uint64_t& temp_end) {
+  std::vector<Chunk> out;
+  std::vector<Chunk> work(chunks.begin(), chunks.end());
+  const uint64_t kStream = 1 << 20;
+  std::vector<BuildPoint> buf;
+  while (!work.empty()) {
+    Chunk c = work.back();
+    work.pop_back();
+    if (c.count <= chunk_max || c.key.level >= store::kMaxLevel - 1) {
+      out.push_back(c);
+      continue;
+    }
+    std::array<uint64_t, 8> counts{};
+    auto octant = [&](const BuildPoint& p) {
+      CellKey k = frame.cellOf(p.position, c.key.level + 1);
+      return k.childIndex();
+    };
+    for (uint64_t i = 0; i < c.count; i += kStream) {
+      uint64_t n = std::min(kStream, c.count - i);
+      buf.resize(n);
+      readTempPoints(fd, c.first + i, n, buf.data(), name);
+      for (const auto& p : buf) ++counts[size_t(octant(p))];
+    }
+    std::array<Chunk, 8> kids;
+    std::array<uint64_t, 8> fill{};
+    for (int i = 0; i < 8; ++i) {
+      kids[size_t(i)] = {c.key.child(i), temp_end, counts[size_t(i)]};
+      temp_end += counts[size_t(i)];
+    }
+    std::array<std::vector<BuildPoint>, 8> bufs;
+    for (uint64_t i = 0; i < c.count; i += kStream) {
+      uint64_t n = std::min(kStream, c.count - i);
+      buf.resize(n);
+      readTempPoints(fd, c.first + i, n, buf.data(), name);
+      for (const auto& p : buf) bufs[size_t(octant(p))].push_back(p);
+      for (int k = 0; k < 8; ++k) {
+        auto& b = bufs[size_t(k)];
+        writeTempPoints(fd, kids[size_t(k)].first + fill[size_t(k)], b.data(), b.size(), name);
+        fill[size_t(k)] += b.size();
+        b.clear();
+      }
+    }
+    for (const Chunk& k : kids) {
+      if (k.count > 0) work.push_back(k);
+    }
+  }
+  chunks.swap(out);
+}
+
+}  // namespace
+
+BuildReport buildStore(const std::vector<std::filesystem::path>& inputs, const std::filesystem::path& output,
+                       const BuildOptions& options) {
+  const auto t0 = Clock::now();
+  BuildReport report;
+  const int threads = options.threads > 0 ? options.threads : int(std::max(1u, std::thread::hardware_concurrency()));
+  const std::filesystem::path partial = output.string() + ".partial";
+  const std::filesystem::path temp_dir =
+      (options.temp_dir.empty() ? output.parent_path() : options.temp_dir) / (output.filename().string() + ".build-tmp");
+  Cleanup cleanup{{partial, temp_dir}};
+  {
+    std::error_code ec;
+    std::filesystem::remove_all(temp_dir, ec);
+    std::filesystem::remove(partial, ec);
+    std::filesystem::create_directories(temp_dir, ec);
+    if (ec) throw StoreError("lod::buildStore(): cannot create " + temp_dir.string() + ": " + ec.message());
+  }
+
+  PointDistributor dist(inputs, options.quiet);
+  dist.measure();
+  const CubeFrame frame = dist.frame();
+  // Memory: the chunk being worked on dominates (point + partition buffer + codec temporaries,
+  // under 100 bytes a point) on every thread; a fixed ~128 MB for grids and buffers.
+  const uint64_t budget = options.memory_mb << 20;
+  const uint64_t fixed = 128ull << 20;
+  const uint64_t chunk_max =
+      std::max<uint64_t>(1'000'000, (budget > fixed ? budget - fixed : budget / 2) / (uint64_t(threads) * 100));
+  const std::filesystem::path temp_points = temp_dir / "points.bin";
+  std::vector<Chunk> chunks = dist.distribute(chunk_max, temp_points);
+  report.seconds_read = since(t0);
+  report.points = dist.points();
+  report.skipped = dist.skipped();
+
+  const auto t1 = Clock::now();
+  Fd points_fd(temp_points, O_RDWR, "temporary file");
+  uint64_t temp_end = dist.points();
+  splitOversized(chunks, chunk_max, frame, points_fd.fd, points_fd.name, temp_end);
+  std::sort(chunks.begin(), chunks.end(), [](const Chunk& a, const Chunk& b) { return a.count > b.count; });
+  report.chunks = chunks.size();
+
+  Builder builder(options, frame, dist.attributes(), dist.inputPrecision(), temp_dir / "payload.bin");
+  std::unordered_map<CellKey, Pending, CellKeyHash> pending;
+  std::mutex pending_mutex;
+  {
+    Progress progress("build 4/5 chunks", dist.points(), " points", options.quiet);
+    std::atomic<size_t> next{0};
+    std::mutex progress_mutex;
+    std::exception_ptr failure;
+    auto work = [&] {
+      std::vector<BuildPoint> pts;
+      try {
+        for (size_t ci; (ci = next++) < chunks.size();) {
+          const Chunk& c = chunks[ci];
+          pts.resize(c.count);
+          readTempPoints(points_fd.fd, c.first, c.count, pts.data(), points_fd.name);
+          Pending root;
+          root.child_mask = builder.buildSubtree(c.key, pts, &root.pts);
+          {
+            std::lock_guard lock(pending_mutex);
+            pending.emplace(c.key, std::move(root));
+          }
+          std::lock_guard lock(progress_mutex);
+          progress.add(c.count);
+        }
+      } catch (...) {
+        std::lock_guard lock(progress_mutex);
+        if (!failure) failure = std::current_exception();
+        next = chunks.size();
+      }
+      pts.clear();
+      pts.shrink_to_fit();
+    };
+    std::vector<std::thread> pool;
+    for (int t = 1; t < threads; ++t) pool.emplace_back(work);
+    work();
+    for (auto& t : pool) t.join();
+    if (failure) std::rethrow_exception(failure);
+  }
+
+  // Levels above the chunks: each upper node is a grid sample of its children's points.
+  {
+    std::map<int, std::vector<CellKey>, std::greater<int>> upper;  // deepest level first
+    std::unordered_map<CellKey, bool, CellKeyHash> seen;
+    for (const auto& [key, p] : pending) {
+      for (CellKey k = key; k.level > 0;) {
+        k = k.parent();
+        if (pending.count(k) || seen.count(k)) break;
+        seen[k] = true;
+        upper[k.level].push_back(k);
+      }
+    }
+    for (auto& [level, keys] : upper) {
+      for (const CellKey& key : keys) {
+        Pending parent;
+        for (int i = 0; i < 8; ++i) {
+          auto it = pending.find(key.child(i));
+          if (it == pending.end()) continue;
+          parent.pts.insert(parent.pts.end(), it->second.pts.begin(), it->second.pts.end());
+          parent.child_mask |= uint8_t(1u << i);
+          pending.erase(it);
+        }
+        size_t selected = gridSample(parent.pts, frame.cellMin(key), frame.cellSize(key.level), store::kGrid);
+        parent.pts.resize(selected);
+        builder.emit(key, parent.pts, parent.child_mask);
+        pending.emplace(key, std::move(parent));
+      }
+    }
+    if (pending.size() != 1 || !pending.count(CellKey{})) {
+      throw StoreError("lod::buildStore(): internal error: upper levels did not converge to one root");
+    }
+    pending.clear();
+  }
+  report.seconds_process = since(t1);
+
+  // Final file: header, payload in (level, Morton) order, hierarchy pages, source table.
+  const auto t2 = Clock::now();
+  std::vector<NodeOut>& nodes = builder.nodes();
+  std::sort(nodes.begin(), nodes.end(), [](const NodeOut& a, const NodeOut& b) { return a.key < b.key; });
+  std::unordered_map<CellKey, size_t, CellKeyHash> index;
+  for (size_t i = 0; i < nodes.size(); ++i) index[nodes[i].key] = i;
+
+  Fd out(partial, O_RDWR | O_CREAT | O_TRUNC, "output");
+  uint64_t pos = store::kHeaderSize;
+  uint64_t pc_bytes = 0;
+  {
+    Progress progress("build 5/5 writing", nodes.size(), " nodes", options.quiet);
+    std::vector<uint8_t> buf;
+    for (NodeOut& n : nodes) {
+      buf.resize(n.size);
+      if (n.size) preadAll(builder.payload().fd, buf.data(), n.size, n.temp_offset, builder.payload().name);
+      n.final_offset = pos;
+      if (n.size) pwriteAll(out.fd, buf.data(), n.size, pos, out.name);
+      pos += n.size;
+      pc_bytes += n.position_color_bytes;
+      progress.add(1);
+    }
+  }
+  const uint64_t payload_size = pos - store::kHeaderSize;
+
+  auto record = [&](const NodeOut& n) {
+    store::NodeRecord r{};
+    r.payload_offset = n.final_offset;
+    r.x = n.key.x;
+    r.y = n.key.y;
+    r.z = n.key.z;
+    r.points = n.points;
+    r.spacing = n.spacing;
+    r.error_bound = n.error_bound;
+    r.payload_size = n.size;
+    r.payload_crc = n.crc;
+    r.level = n.key.level;
+    r.child_mask = n.child_mask;
+    return r;
+  };
+  // Pages: the subtree of a page root down to kPageLevels levels below it; nodes on the bottom
+  // level that have children point to the page rooted at themselves. Child pages first.
+  std::function<std::pair<uint64_t, uint32_t>(size_t)> writePage = [&](size_t root) {
+    std::vector<size_t> bfs{root};
+    for (size_t i = 0; i < bfs.size(); ++i) {
+      const NodeOut& n = nodes[bfs[i]];
+      if (n.key.level - nodes[root].key.level >= store::kPageLevels) continue;
+      for (int c = 0; c < 8; ++c) {
+        if (n.child_mask & (1u << c)) bfs.push_back(index.at(n.key.child(c)));
+      }
+    }
+    std::vector<store::NodeRecord> recs;
+    for (size_t i : bfs) {
+      store::NodeRecord r = record(nodes[i]);
+      if (nodes[i].child_mask && nodes[i].key.level - nodes[root].key.level == store::kPageLevels) {
+        auto [off, size] = writePage(i);
+        r.flags |= store::kHasPage;
+        r.page_offset = off;
+        r.page_size = size;
+      }
+      recs.push_back(r);
+    }
+    store::PageHeader ph{};
+    std::memcpy(ph.magic, "TPAG", 4);
+    ph.nodes = uint32_t(recs.size());
+    ph.crc = crc32c(recs.data(), recs.size() * sizeof(store::NodeRecord));
+    uint64_t at = pos;
+    pwriteAll(out.fd, &ph, sizeof ph, pos, out.name);
+    pos += sizeof ph;
+    pwriteAll(out.fd, recs.data(), recs.size() * sizeof(store::NodeRecord), pos, out.name);
+    pos += recs.size() * sizeof(store::NodeRecord);
+    return std::make_pair(at, uint32_t(pos - at));
+  };
+  auto [root_off, root_size] = writePage(index.at(CellKey{}));
+
+  std::string table;
+  for (const std::string& s : dist.sourceNames()) table += s + '\n';
+  const uint64_t table_off = pos;
+  pwriteAll(out.fd, table.data(), table.size(), pos, out.name);
+  pos += table.size();
+
+  store::FileHeader h{};
+  std::memcpy(h.magic, store::kMagic, 4);
+  h.version = store::kVersion;
+  h.header_size = store::kHeaderSize;
+  h.attributes = dist.attributes();
+  for (int i = 0; i < 3; ++i) {
+    h.origin[i] = frame.origin[i];
+    h.cube_min[i] = frame.cube_min[i];
+    h.bbox_min[i] = dist.boundsMin()[i];
+    h.bbox_max[i] = dist.boundsMax()[i];
+  }
+  h.cube_size = frame.cube_size;
+  h.points = dist.points();
+  h.nodes = nodes.size();
+  uint32_t depth = 0;
+  double finest = std::numeric_limits<double>::max();
+  for (const NodeOut& n : nodes) {
+    h.stored_points += n.points;
+    depth = std::max<uint32_t>(depth, n.key.level + 1u);
+    if (n.points > 0) finest = std::min(finest, double(n.spacing));
+  }
+  h.depth = depth;
+  h.sources = uint32_t(dist.sourceNames().size());
+  h.payload_offset = store::kHeaderSize;
+  h.payload_size = payload_size;
+  h.root_page_offset = root_off;
+  h.root_page_size = root_size;
+  h.source_table_offset = table_off;
+  h.source_table_size = uint32_t(table.size());
+  h.input_precision = dist.inputPrecision();
+  h.spacing_root = nodes[index.at(CellKey{})].spacing;
+  h.spacing_finest = finest;
+  h.payload_position_color_bytes = pc_bytes;
+  h.header_crc = 0;
+  h.header_crc = crc32c(&h, sizeof h);
+  std::vector<uint8_t> header(store::kHeaderSize, 0);
+  std::memcpy(header.data(), &h, sizeof h);
+  pwriteAll(out.fd, header.data(), header.size(), 0, out.name);
+  if (::fsync(out.fd) != 0) throw StoreError("lod::buildStore(): flushing " + out.name + " failed: " + std::strerror(errno));
+  std::error_code ec;
+  std::filesystem::rename(partial, output, ec);
+  if (ec) throw StoreError("lod::buildStore(): cannot move " + partial.string() + " to " + output.string() + ": " + ec.message());
+
+  report.nodes = nodes.size();
+  report.stored_points = h.stored_points;
+  report.depth = depth;
+  report.file_bytes = pos;
+  report.position_color_bytes = pc_bytes;
+  report.max_error = builder.maxError();
+  report.seconds_write = since(t2);
+  report.seconds = since(t0);
+  return report;
+}
+
+}  // namespace tessera::lod

@@ -1,0 +1,189 @@
+// `tessera-lod verify`: every input point must be in the store, one to one, within the error
+// bound its node states. The inputs are distributed out of core in the store's own frame; each
+// region is then matched against the store nodes that overlap it.
+//
+// Every input point is stored once, in the leaf whose cell contains it (inner nodes hold
+// sampled copies). A stored point is the input point quantised on its leaf's grid, so the
+// candidate for p is key(L, p) = round((p - L.min) / L.step); a multiset per leaf makes the
+// match one to one, and the distance from p to the decoded position is checked against the
+// bound the hierarchy states for L.
+#include <tessera/lod/store_builder.h>
+
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cmath>
+#include <unordered_map>
+
+#include <tessera/core/progress.h>
+#include <tessera/lod/store_format.h>
+
+#include "point_distributor.h"
+
+namespace tessera::lod {
+namespace {
+
+struct ActiveNode {
+  std::unordered_map<uint64_t, uint32_t> keys;  // quantised position -> multiplicity
+  glm::dvec3 box_min{0.0};
+  double step = 0.0;
+  double bound = 0.0;
+};
+
+uint64_t packKey(const glm::dvec3& q) {
+  return uint64_t(q.x) | uint64_t(q.y) << 21 | uint64_t(q.z) << 42;
+}
+
+bool overlaps(const NodeInfo& n, const glm::dvec3& lo, const glm::dvec3& hi) {
+  return glm::all(glm::lessThanEqual(n.box_min, hi)) && glm::all(glm::greaterThanEqual(n.box_max, lo));
+}
+
+bool inside(const NodeInfo& n, const glm::dvec3& lo, const glm::dvec3& hi) {
+  return glm::all(glm::greaterThanEqual(n.box_min, lo)) && glm::all(glm::lessThanEqual(n.box_max, hi));
+}
+
+}  // namespace
+
+VerifyReport verifyStore(const std::filesystem::path& store_path, const std::vector<std::filesystem::path>& inputs,
+                         const BuildOptions& options) {
+  auto store = PointStore::open(store_path, 64ull << 20);
+  const StoreSummary& sum = store->summary();
+  VerifyReport report;
+  report.store_points = sum.points;
+
+  CubeFrame frame;
+  frame.origin = sum.origin;
+  frame.cube_size = sum.cube_size;
+  frame.cube_min = glm::dvec3(-0.5 * sum.cube_size);
+  {
+    // The store records its cube; recompute from the root node to be exact.
+    NodeInfo root = store->node(store->root());
+    frame.cube_min = root.box_min;
+  }
+
+  // The whole hierarchy (metadata only) and a key -> node map.
+  std::unordered_map<CellKey, NodeId, CellKeyHash> by_key;
+  std::vector<NodeId> stack{store->root()};
+  while (!stack.empty()) {
+    NodeId id = stack.back();
+    stack.pop_back();
+    NodeInfo n = store->node(id);
+    by_key[CellKey{n.level, n.cell.x, n.cell.y, n.cell.z}] = id;
+    for (NodeId c : store->children(id)) stack.push_back(c);
+  }
+
+  const std::filesystem::path temp_dir = (options.temp_dir.empty() ? store_path.parent_path() : options.temp_dir) /
+                                         (store_path.filename().string() + ".verify-tmp");
+  std::error_code ec;
+  std::filesystem::remove_all(temp_dir, ec);
+  std::filesystem::create_directories(temp_dir, ec);
+  struct Remove {
+    std::filesystem::path p;
+    ~Remove() {
+      std::error_code e;
+      std::filesystem::remove_all(p, e);
+    }
+  } remove{temp_dir};
+
+  PointDistributor dist(inputs, options.quiet);
+  dist.measureInFrame(frame);
+  report.input_points = dist.points();
+  const uint64_t region_max = std::max<uint64_t>(200'000, (options.memory_mb << 20) / 400);
+  std::vector<Chunk> regions = dist.distribute(region_max, temp_dir / "points.bin");
+  std::sort(regions.begin(), regions.end(), [](const Chunk& a, const Chunk& b) { return a.key < b.key; });
+
+  int fd = ::open((temp_dir / "points.bin").c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0) throw StoreError("lod::verifyStore(): cannot reopen the temporary file");
+  struct Close {
+    int fd;
+    ~Close() { ::close(fd); }
+  } close_fd{fd};
+
+  std::unordered_map<NodeId, ActiveNode> active;
+  std::unordered_map<NodeId, bool> corrupt;
+  auto activate = [&](NodeId id) {
+    if (active.count(id) || corrupt.count(id)) return;
+    std::shared_ptr<ChunkPoints> pts;
+    try {
+      pts = store->decodeChunk(id);
+    } catch (const StoreError&) {
+      corrupt[id] = true;
+      ++report.corrupt_chunks;
+      return;
+    }
+    ActiveNode a;
+    a.box_min = pts->offset;
+    a.step = pts->step;
+    a.bound = store->node(id).error_bound;
+    for (const glm::vec3& p : pts->positions) {
+      glm::dvec3 q = glm::round(glm::dvec3(p) / a.step);
+      ++a.keys[packKey(q)];
+    }
+    active.emplace(id, std::move(a));
+  };
+
+  Progress progress("verify 3/3 matching", dist.points(), " points", options.quiet);
+  std::vector<BuildPoint> pts;
+  std::vector<NodeId> path;
+  for (const Chunk& region : regions) {
+    const glm::dvec3 lo = frame.cellMin(region.key), hi = lo + frame.cellSize(region.key.level);
+    // Every node overlapping the region (ancestors and descendants).
+    std::vector<NodeId> todo{store->root()};
+    while (!todo.empty()) {
+      NodeId id = todo.back();
+      todo.pop_back();
+      NodeInfo n = store->node(id);
+      if (!overlaps(n, lo, hi)) continue;
+      if (n.points > 0 && n.leaf()) activate(id);
+      for (NodeId c : store->children(id)) todo.push_back(c);
+    }
+    pts.resize(region.count);
+    readTempPoints(fd, region.first, region.count, pts.data(), "verify temporary file");
+    for (const BuildPoint& bp : pts) {
+      const glm::dvec3 p = bp.position;
+      path.clear();
+      for (int level = 0; level < int(sum.depth); ++level) {
+        auto it = by_key.find(frame.cellOf(p, level));
+        if (it == by_key.end()) break;
+        path.push_back(it->second);
+      }
+      bool matched = false;
+      // The deepest node on p's path is the leaf that must hold it.
+      auto a = path.empty() ? active.end() : active.find(path.back());
+      if (a != active.end()) {
+        ActiveNode& node = a->second;
+        glm::dvec3 q = glm::max(glm::round((p - node.box_min) / node.step), glm::dvec3(0.0));
+        auto k = node.keys.find(packKey(q));
+        if (k != node.keys.end() && k->second > 0) {
+          // The decoded position, as a renderer gets it (float relative to the node).
+          glm::dvec3 stored = node.box_min + glm::dvec3(glm::vec3(q) * float(node.step));
+          double d = glm::length(stored - p);
+          if (d <= node.bound) {
+            --k->second;
+            matched = true;
+            report.max_error = std::max(report.max_error, d);
+            if (node.bound > 0) report.max_error_ratio = std::max(report.max_error_ratio, d / node.bound);
+          }
+        }
+      }
+      if (matched) {
+        ++report.matched;
+      } else {
+        ++report.unmatched;
+      }
+    }
+    progress.add(region.count);
+    // Nodes entirely inside this region are done.
+    for (auto it = active.begin(); it != active.end();) {
+      if (inside(store->node(it->first), lo, hi)) {
+        it = active.erase(it);
+      } else {
+        ++it;
+      }
+    }
+  }
+  return report;
+}
+
+}  // namespace tessera::lod
