@@ -1,6 +1,8 @@
 #include <tessera/lod/source_summary.h>
 
 #include <cstdio>
+#include <cstring>
+#include <fstream>
 #include <limits>
 #include <sstream>
 
@@ -44,9 +46,37 @@ std::string vec(const glm::dvec3& v, bool json) {
 
 }  // namespace
 
+namespace {
+
+bool isStore(const std::filesystem::path& path) {
+  if (path.extension() == ".tlod") return true;
+  std::ifstream in(path, std::ios::binary);
+  char magic[4] = {};
+  in.read(magic, 4);
+  return in && std::memcmp(magic, "TLOD", 4) == 0;
+}
+
+}  // namespace
+
 SourceSummary summarizeSource(const std::filesystem::path& path, bool quiet) {
   SourceSummary s;
   s.path = path.string();
+  if (isStore(path)) {
+    try {
+      auto store = PointStore::open(path);
+      s.store = store->summary();
+      s.store_sources = store->sources();
+      s.opened = true;
+      s.stats.points = s.store->points;
+      s.bbox_min = s.store->origin + s.store->bbox_min;
+      s.bbox_max = s.store->origin + s.store->bbox_max;
+      s.info.attributes = s.store->attributes;
+      s.info.origin = s.store->origin;
+    } catch (const StoreError& e) {
+      s.error = e.what();
+    }
+    return s;
+  }
   glm::dvec3 lo(std::numeric_limits<double>::max()), hi(-std::numeric_limits<double>::max());
   try {
     auto reader = openPointReader(path);
@@ -81,7 +111,22 @@ SourceSummary summarizeSource(const std::filesystem::path& path, bool quiet) {
 std::string summaryText(const SourceSummary& s) {
   std::ostringstream o;
   o << s.path << "\n";
-  if (s.opened) {
+  if (s.store) {
+    const StoreSummary& t = *s.store;
+    o << "  format: tlod (Tessera point store, version " << t.version << ")\n";
+    o << "  points: " << t.points << "\n  triangles: 0\n";
+    o << "  bbox_min: " << vec(s.bbox_min, false) << "\n  bbox_max: " << vec(s.bbox_max, false) << "\n";
+    o << "  origin: " << vec(t.origin, false) << "\n  attributes:";
+    for (const char* a : attributeNames(t.attributes)) o << " " << (std::strcmp(a, "scan_index") ? a : "source");
+    o << "\n  nodes: " << t.nodes << "\n  depth: " << t.depth << "\n";
+    o << "  stored_points: " << t.stored_points << " (overhead " << num(double(t.stored_points) / double(t.points)) << "x)\n";
+    o << "  bytes_per_point: " << num(double(t.file_bytes) / double(t.points))
+      << " (position + colour " << num(double(t.position_color_bytes) / double(t.points)) << ")\n";
+    o << "  spacing_root: " << num(t.spacing_root) << "\n  spacing_finest: " << num(t.spacing_finest) << "\n";
+    o << "  sources: " << s.store_sources.size() << "\n";
+    for (size_t i = 0; i < s.store_sources.size(); ++i) o << "    [" << i << "] " << s.store_sources[i] << "\n";
+  }
+  if (s.opened && !s.store) {
     o << "  format: " << formatName(s.info.format) << " (" << s.info.format_detail << ")\n";
     o << "  points: " << s.stats.points;
     if (s.info.has_declared_points && s.info.declared_points != s.stats.points) {
@@ -123,7 +168,27 @@ std::string summaryText(const SourceSummary& s) {
 std::string summaryJson(const SourceSummary& s) {
   std::ostringstream o;
   o << "{\"file\": " << jsonString(s.path);
-  if (s.opened) {
+  if (s.store) {
+    const StoreSummary& t = *s.store;
+    o << ", \"format\": \"tlod\", \"version\": " << t.version << ", \"points\": " << t.points
+      << ", \"triangles\": 0, \"bbox_min\": " << vec(s.bbox_min, true) << ", \"bbox_max\": " << vec(s.bbox_max, true)
+      << ", \"origin\": " << vec(t.origin, true) << ", \"attributes\": [";
+    bool first = true;
+    for (const char* a : attributeNames(t.attributes)) {
+      o << (first ? "" : ", ") << jsonString(std::strcmp(a, "scan_index") ? a : "source");
+      first = false;
+    }
+    o << "], \"skipped\": {}, \"scans\": [], \"nodes\": " << t.nodes << ", \"depth\": " << t.depth
+      << ", \"bytes_per_point\": " << num(double(t.file_bytes) / double(t.points))
+      << ", \"position_color_bytes_per_point\": " << num(double(t.position_color_bytes) / double(t.points))
+      << ", \"stored_points\": " << t.stored_points
+      << ", \"overhead\": " << num(double(t.stored_points) / double(t.points))
+      << ", \"spacing_root\": " << num(t.spacing_root) << ", \"spacing_finest\": " << num(t.spacing_finest)
+      << ", \"sources\": [";
+    for (size_t i = 0; i < s.store_sources.size(); ++i) o << (i ? ", " : "") << jsonString(s.store_sources[i]);
+    o << "]";
+  }
+  if (s.opened && !s.store) {
     o << ", \"format\": " << jsonString(formatName(s.info.format))
       << ", \"format_detail\": " << jsonString(s.info.format_detail) << ", \"points\": " << s.stats.points;
     if (s.info.has_declared_points) o << ", \"declared_points\": " << s.info.declared_points;

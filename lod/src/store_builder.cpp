@@ -259,7 +259,9 @@ BuildReport buildStore(const std::vector<std::filesystem::path>& inputs, const s
   const uint64_t budget = options.memory_mb << 20;
   const uint64_t fixed = 128ull << 20;
   const uint64_t chunk_max =
-      std::max<uint64_t>(1'000'000, (budget > fixed ? budget - fixed : budget / 2) / (uint64_t(threads) * 100));
+      options.chunk_points > 0
+          ? options.chunk_points
+          : std::max<uint64_t>(1'000'000, (budget > fixed ? budget - fixed : budget / 2) / (uint64_t(threads) * 100));
   const std::filesystem::path temp_points = temp_dir / "points.bin";
   std::vector<Chunk> chunks = dist.distribute(chunk_max, temp_points);
   report.seconds_read = since(t0);

@@ -62,7 +62,8 @@ VerifyReport verifyStore(const std::filesystem::path& store_path, const std::vec
     frame.cube_min = root.box_min;
   }
 
-  // The whole hierarchy (metadata only) and a key -> node map.
+  // The whole hierarchy (metadata only) and a key -> node map. Inner nodes are decoded here
+  // (checksums, and their sampled copies must lie in their box); leaves during matching.
   std::unordered_map<CellKey, NodeId, CellKeyHash> by_key;
   std::vector<NodeId> stack{store->root()};
   while (!stack.empty()) {
@@ -71,6 +72,18 @@ VerifyReport verifyStore(const std::filesystem::path& store_path, const std::vec
     NodeInfo n = store->node(id);
     by_key[CellKey{n.level, n.cell.x, n.cell.y, n.cell.z}] = id;
     for (NodeId c : store->children(id)) stack.push_back(c);
+    if (n.leaf() || n.points == 0) continue;
+    try {
+      auto pts = store->decodeChunk(id);
+      const glm::vec3 extent(n.box_max - n.box_min);
+      for (const glm::vec3& p : pts->positions) {
+        if (glm::any(glm::greaterThan(p, extent + n.error_bound)) || glm::any(glm::lessThan(p, glm::vec3(0.f)))) {
+          ++report.stray_points;
+        }
+      }
+    } catch (const StoreError&) {
+      ++report.corrupt_chunks;
+    }
   }
 
   const std::filesystem::path temp_dir = (options.temp_dir.empty() ? store_path.parent_path() : options.temp_dir) /

@@ -4,7 +4,10 @@
 #include <filesystem>
 #include <string>
 
+#include <optional>
+
 #include <tessera/lod/point_reader.h>
+#include <tessera/lod/point_store.h>
 
 namespace tessera::lod {
 
@@ -16,6 +19,9 @@ struct SourceSummary {
   glm::dvec3 bbox_max{0.0};
   std::string error;             ///< empty when the whole file read cleanly
   bool opened = false;           ///< header parsed (info valid)
+  /// Set for a .tlod point store (then `info` is unused).
+  std::optional<StoreSummary> store;
+  std::vector<std::string> store_sources;
 };
 
 /// Reads the whole of `path` once (streaming) to count points and bound them. Never throws for
@@ -26,7 +32,9 @@ SourceSummary summarizeSource(const std::filesystem::path& path, bool quiet = fa
 /// Human-readable block, one `key: value` per line.
 std::string summaryText(const SourceSummary& s);
 /// One JSON object with keys format, points, triangles, bbox_min, bbox_max, attributes, skipped,
-/// scans (and file, format_detail, declared_points, error when set).
+/// scans (and file, format_detail, declared_points, error when set). A store adds nodes, depth,
+/// bytes_per_point, spacing_root, spacing_finest, stored_points, overhead,
+/// position_color_bytes_per_point and sources.
 std::string summaryJson(const SourceSummary& s);
 
 /// JSON string literal with escapes.

@@ -24,6 +24,8 @@ struct BuildOptions {
   bool quiet = false;     ///< no progress output
   int zstd_level = 9;
   uint32_t leaf_max = 16384;  ///< nodes with at most this many points stay leaves
+  /// Points per out-of-core chunk; 0 derives it from memory_mb (tests force small chunks).
+  uint64_t chunk_points = 0;
   /// Temporary files go here (default: beside the output). Needs about 40 bytes per point.
   std::filesystem::path temp_dir;
 };
@@ -57,7 +59,10 @@ struct VerifyReport {
   double max_error = 0.0;     ///< largest distance input point -> its stored point
   double max_error_ratio = 0.0;  ///< largest (distance / node error bound)
   uint64_t corrupt_chunks = 0;
-  bool ok() const { return unmatched == 0 && input_points == store_points && corrupt_chunks == 0; }
+  uint64_t stray_points = 0;  ///< inner-node points outside their node box
+  bool ok() const {
+    return unmatched == 0 && input_points == store_points && corrupt_chunks == 0 && stray_points == 0;
+  }
 };
 
 /// Checks that every input point is in the store within its node's error bound (one-to-one),
