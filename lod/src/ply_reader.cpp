@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <array>
 #include <limits>
+#include <type_traits>
 
 #include "byte_source.h"
 #include "reader_util.h"
@@ -119,6 +120,65 @@ uint8_t colorByte(double v, PlyType t) {
   return uint8_t(std::min(255.0, std::round(c)));
 }
 
+/// Calls `store(i, value)` with property values of `n` fixed-size records, `stride` bytes apart,
+/// in their declared type: the type and byte order are resolved once per column, not per value.
+template <typename T, bool kSwap, typename Store>
+void decodeColumn(const uint8_t* p, size_t stride, size_t n, Store& store) {
+  for (size_t i = 0; i < n; ++i, p += stride) store(i, load<T>(p, kSwap));
+}
+
+template <typename T, typename Store>
+void decodeColumn(const uint8_t* p, size_t stride, size_t n, bool swap, Store& store) {
+  if (swap) {
+    decodeColumn<T, true>(p, stride, n, store);
+  } else {
+    decodeColumn<T, false>(p, stride, n, store);
+  }
+}
+
+template <typename Store>
+void decodeColumn(const uint8_t* p, size_t stride, size_t n, PlyType t, bool swap, Store store) {
+  switch (t) {
+    case PlyType::kInt8:
+      return decodeColumn<int8_t>(p, stride, n, swap, store);
+    case PlyType::kUInt8:
+      return decodeColumn<uint8_t>(p, stride, n, swap, store);
+    case PlyType::kInt16:
+      return decodeColumn<int16_t>(p, stride, n, swap, store);
+    case PlyType::kUInt16:
+      return decodeColumn<uint16_t>(p, stride, n, swap, store);
+    case PlyType::kInt32:
+      return decodeColumn<int32_t>(p, stride, n, swap, store);
+    case PlyType::kUInt32:
+      return decodeColumn<uint32_t>(p, stride, n, swap, store);
+    case PlyType::kFloat32:
+      return decodeColumn<float>(p, stride, n, swap, store);
+    case PlyType::kFloat64:
+      return decodeColumn<double>(p, stride, n, swap, store);
+  }
+}
+
+/// colorByte() for a value still in its declared type; uchar (the common case) needs no work.
+template <typename T>
+uint8_t colorByteOf(T v, PlyType t) {
+  if constexpr (std::is_same_v<T, uint8_t>) {
+    return v;
+  } else {
+    return colorByte(double(v), t);
+  }
+}
+
+/// Moves point `from` to `to` in every array a PLY batch fills.
+void movePoint(PointBatch& b, size_t from, size_t to) {
+  const AttributeMask a = b.attributes;
+  b.positions[to] = b.positions[from];
+  if (a & kNormal) b.normals[to] = b.normals[from];
+  if (a & kColor) b.colors[to] = b.colors[from];
+  if (a & kIntensity) b.intensities[to] = b.intensities[from];
+  if (a & kConfidence) b.confidences[to] = b.confidences[from];
+  if (a & kGridPosition) b.grid_positions[to] = b.grid_positions[from];
+}
+
 class PlyReader final : public PointReader {
  public:
   PlyReader(ByteSource source) : mSrc(std::move(source)) { parseHeader(); }
@@ -140,9 +200,23 @@ class PlyReader final : public PointReader {
   double asciiValue(const Element& e, uint64_t index, PlyType t, bool integral);
   [[noreturn]] void truncated(const Element& e, uint64_t index) const;
 
+  /// Counts vertex `file_index` as delivered, or as skipped when a coordinate is not finite.
+  bool admitVertex(const glm::dvec3& p, uint64_t file_index) {
+    if (!finite3(p.x, p.y, p.z)) {
+      skipVertex(file_index);
+      return false;
+    }
+    if (mRemapNeeded) mRemap.push_back(uint32_t(mVerticesKept));
+    ++mVerticesKept;
+    return true;
+  }
+  void skipVertex(uint64_t file_index);
   /// Decodes vertex `values` into the batch; false if skipped.
   bool emitVertex(const std::vector<double>& values, PointBatch& batch);
   void readVertices(PointBatch& batch, size_t max_points);
+  /// Binary vertices without list properties: whole blocks of records, one column at a time.
+  void readFixedVertices(PointBatch& batch, size_t max_points);
+  void decodeVertexBlock(const uint8_t* records, size_t n, PointBatch& batch);
   void readFaces(PointBatch& batch, size_t max_triangles);
   void readRangeGrid();
   void skipElement(const Element& e);
@@ -417,6 +491,13 @@ void PlyReader::readInstance(const Element& e, uint64_t index, std::vector<doubl
   }
 }
 
+void PlyReader::skipVertex(uint64_t file_index) {
+  mStats.skip("non-finite coordinate", mEncoding == Encoding::kAscii
+                                           ? atLine(mLineOfInstance)
+                                           : "vertex " + std::to_string(file_index));
+  if (mRemapNeeded) mRemap.push_back(kDropped);
+}
+
 bool PlyReader::emitVertex(const std::vector<double>& values, PointBatch& batch) {
   const Element& v = mElements[size_t(mVertexElement)];
   double xyz[3] = {0, 0, 0};
@@ -441,18 +522,10 @@ bool PlyReader::emitVertex(const std::vector<double>& values, PointBatch& batch)
       case Slot::kConfidence: confidence = float(x); break;
     }
   }
-  uint64_t file_index = mInstance;
-  if (!finite3(xyz[0], xyz[1], xyz[2])) {
-    mStats.skip("non-finite coordinate",
-                mEncoding == Encoding::kAscii ? atLine(mLineOfInstance)
-                                              : "vertex " + std::to_string(file_index));
-    if (mRemapNeeded) mRemap.push_back(kDropped);
-    return false;
-  }
-  if (mRemapNeeded) mRemap.push_back(uint32_t(mVerticesKept));
-  ++mVerticesKept;
+  const glm::dvec3 p(xyz[0], xyz[1], xyz[2]);
+  if (!admitVertex(p, mInstance)) return false;
   AttributeMask a = batch.attributes;
-  batch.positions.emplace_back(xyz[0], xyz[1], xyz[2]);
+  batch.positions.push_back(p);
   if (a & kNormal) batch.normals.emplace_back(n[0], n[1], n[2]);
   if (a & kColor) batch.colors.push_back(c);
   if (a & kIntensity) batch.intensities.push_back(intensity);
@@ -463,11 +536,88 @@ bool PlyReader::emitVertex(const std::vector<double>& values, PointBatch& batch)
 
 void PlyReader::readVertices(PointBatch& batch, size_t max_points) {
   const Element& v = mElements[size_t(mVertexElement)];
+  if (mEncoding != Encoding::kAscii && v.fixed) {
+    readFixedVertices(batch, max_points);
+    return;
+  }
   while (mInstance < v.count && batch.size() < max_points) {
     readInstance(v, mInstance, mValues, nullptr);
     emitVertex(mValues, batch);
     ++mInstance;
   }
+}
+
+void PlyReader::readFixedVertices(PointBatch& batch, size_t max_points) {
+  const Element& v = mElements[size_t(mVertexElement)];
+  // Blocks of about 64 KiB stay in cache while each column is decoded.
+  const uint64_t block = std::max<size_t>(1, (size_t(64) << 10) / v.record_size);
+  while (mInstance < v.count && batch.size() < max_points) {
+    size_t want =
+        size_t(std::min({v.count - mInstance, uint64_t(max_points - batch.size()), block}));
+    size_t whole = mSrc.ensure(want * v.record_size) / v.record_size;
+    decodeVertexBlock(mSrc.data(), whole, batch);
+    mSrc.consume(whole * v.record_size);
+    if (whole < want) truncated(v, mInstance);
+  }
+}
+
+// Same results as readInstance() + emitVertex() for each record, in the same order.
+void PlyReader::decodeVertexBlock(const uint8_t* records, size_t n, PointBatch& batch) {
+  const Element& v = mElements[size_t(mVertexElement)];
+  const AttributeMask a = batch.attributes;
+  const size_t base = batch.size();
+  batch.resize(base + n);
+  glm::dvec3* positions = batch.positions.data() + base;
+  // Arrays of attributes the batch lacks are empty: no pointer into them.
+  glm::vec3* normals = (a & kNormal) ? batch.normals.data() + base : nullptr;
+  glm::u8vec4* colors = (a & kColor) ? batch.colors.data() + base : nullptr;
+  if (a & kColor) std::fill_n(colors, n, glm::u8vec4(255));
+  if (a & kGridPosition) std::fill_n(batch.grid_positions.data() + base, n, glm::u16vec2(0xFFFF));
+  for (const Property& p : v.props) {
+    const uint8_t* column = records + p.offset;
+    auto decode = [&](auto store) { decodeColumn(column, v.record_size, n, p.type, mSwap, store); };
+    switch (p.slot) {
+      case Slot::kSkip:
+        break;
+      case Slot::kX:
+      case Slot::kY:
+      case Slot::kZ: {
+        const int axis = int(p.slot) - int(Slot::kX);
+        decode([&](size_t i, auto x) { positions[i][axis] = double(x); });
+        break;
+      }
+      case Slot::kNx:
+      case Slot::kNy:
+      case Slot::kNz: {
+        const int axis = int(p.slot) - int(Slot::kNx);
+        if (a & kNormal) decode([&](size_t i, auto x) { normals[i][axis] = float(double(x)); });
+        break;
+      }
+      case Slot::kRed:
+      case Slot::kGreen:
+      case Slot::kBlue:
+      case Slot::kAlpha: {
+        const int channel = int(p.slot) - int(Slot::kRed);
+        decode([&](size_t i, auto x) { colors[i][channel] = colorByteOf(x, p.type); });
+        break;
+      }
+      case Slot::kIntensity:
+        decode([&](size_t i, auto x) { batch.intensities[base + i] = float(double(x)); });
+        break;
+      case Slot::kConfidence:
+        decode([&](size_t i, auto x) { batch.confidences[base + i] = float(double(x)); });
+        break;
+    }
+  }
+  // Skipped vertices close up the block (rare: usually every index stays where it is).
+  size_t kept = base;
+  for (size_t i = 0; i < n; ++i) {
+    if (!admitVertex(positions[i], mInstance + i)) continue;
+    if (kept != base + i) movePoint(batch, base + i, kept);
+    ++kept;
+  }
+  batch.resize(kept);
+  mInstance += n;
 }
 
 void PlyReader::readFaces(PointBatch& batch, size_t max_triangles) {
