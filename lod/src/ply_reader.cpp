@@ -654,19 +654,41 @@ void PlyReader::readFaces(PointBatch& batch, size_t max_triangles) {
 
 void PlyReader::readRangeGrid() {
   const Element& e = mElements[mElement];
+  auto assign = [&](double d) {
+    if (d < 0 || d >= double(mRemap.size())) {
+      failHere("range_grid cell " + std::to_string(mInstance) + " names vertex " + std::to_string(int64_t(d)) +
+               " outside the " + std::to_string(mRemap.size()) + " vertices");
+    }
+    uint32_t kept = mRemap[size_t(d)];
+    if (kept == kDropped) return;
+    mBuffer.grid_positions[kept] = glm::u16vec2(uint16_t(mInstance % mGridCols), uint16_t(mInstance / mGridCols));
+  };
+  if (mEncoding != Encoding::kAscii) {
+    // Binary: a tight loop over whole cells in the buffer (count, then that many indices);
+    // a range grid has one cell per range-image pixel, so this is the bulk of a scan file.
+    const Property& p = e.props[0];
+    const size_t csz = typeSize(p.count_type), isz = typeSize(p.type);
+    while (mInstance < e.count) {
+      size_t avail = mSrc.ensure(1 << 16);
+      const uint8_t* b = mSrc.data();
+      size_t used = 0;
+      while (mInstance < e.count && used + csz <= avail) {
+        double n = loadScalar(b + used, p.count_type, mSwap);
+        if (n < 0 || n > 1e6) failHere("bad list length " + std::to_string(n) + " in range_grid");
+        size_t need = csz + size_t(n) * isz;
+        if (used + need > avail) break;
+        for (size_t k = 0; k < size_t(n); ++k) assign(loadScalar(b + used + csz + k * isz, p.type, mSwap));
+        used += need;
+        ++mInstance;
+      }
+      if (used == 0) truncated(e, mInstance);
+      mSrc.consume(used);
+    }
+    return;
+  }
   for (; mInstance < e.count; ++mInstance) {
     readInstance(e, mInstance, mValues, &mLists);
-    for (double d : mLists[0]) {
-      if (d < 0 || d >= double(mRemap.size())) {
-        failHere("range_grid cell " + std::to_string(mInstance) + " names vertex " +
-                 std::to_string(int64_t(d)) + " outside the " + std::to_string(mRemap.size()) +
-                 " vertices");
-      }
-      uint32_t kept = mRemap[size_t(d)];
-      if (kept == kDropped) continue;
-      mBuffer.grid_positions[kept] =
-          glm::u16vec2(uint16_t(mInstance % mGridCols), uint16_t(mInstance / mGridCols));
-    }
+    for (double d : mLists[0]) assign(d);
   }
 }
 
@@ -720,7 +742,7 @@ bool PlyReader::next(PointBatch& batch, size_t max_points) {
   if (mBufferGrid) {
     if (!mBuffered) fillBuffered();
     size_t n = std::min(max_points, mBuffer.size() - mBufferPos);
-    for (size_t i = 0; i < n; ++i) batch.appendFrom(mBuffer, mBufferPos + i);
+    batch.appendRange(mBuffer, mBufferPos, n);
     mBufferPos += n;
     if (mBufferPos == mBuffer.size() && !mBufferedTriangles.empty()) {
       batch.triangles.swap(mBufferedTriangles);

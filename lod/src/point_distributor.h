@@ -70,22 +70,26 @@ class PointDistributor {
   double inputPrecision() const { return mPrecision; }
   uint64_t skipped() const { return mSkipped; }
 
-  /// Pass 1: bounds and count; sets the frame (origin at the box centre, cube around the box).
-  void measure();
-  /// Uses a given frame instead (verification against an existing store): counts only.
-  void measureInFrame(const CubeFrame& frame);
+  /// Pass 1: parses every input once into `raw_file` (40 bytes a point); bounds and count; sets
+  /// the frame (origin: the first input's own local origin; cube around the box).
+  void measure(const std::filesystem::path& raw_file);
+  /// Pass 1 in a given frame (verification against an existing store).
+  void measureInFrame(const CubeFrame& frame, const std::filesystem::path& raw_file);
   const CubeFrame& frame() const { return mFrame; }
   uint64_t points() const { return mPoints; }
   glm::dvec3 boundsMin() const { return mMin; }
   glm::dvec3 boundsMax() const { return mMax; }
 
-  /// Passes 2 and 3: counting grid, chunks of at most `chunk_max` points where the grid allows,
-  /// and distribution into `temp_file`. Returns the chunks.
+  /// Passes 2 and 3 over the raw file: counting grid, chunks of at most `chunk_max` points where
+  /// the grid allows, and distribution into `temp_file`; the raw file is then removed.
   std::vector<Chunk> distribute(uint64_t chunk_max, const std::filesystem::path& temp_file);
 
  private:
   /// Streams every input, calling `fn` per batch of points in the local frame.
   void forEachBatch(const std::string& label, const std::function<void(std::span<const BuildPoint>)>& fn);
+  void readInputs(const std::string& label, const std::filesystem::path& raw_file);
+  /// Streams the raw file written by pass 1.
+  void forEachRaw(const std::string& label, const std::function<void(std::span<const BuildPoint>)>& fn);
 
   std::vector<InputSource> mInputs;
   std::vector<std::string> mSourceNames;
@@ -96,6 +100,7 @@ class PointDistributor {
   uint64_t mSkipped = 0;
   glm::dvec3 mMin{0.0}, mMax{0.0};
   CubeFrame mFrame;
+  std::filesystem::path mRawFile;
   bool mQuiet;
 };
 

@@ -66,6 +66,20 @@ void PointBatch::appendFrom(const PointBatch& o, size_t i) {
   if (attributes & kClassification) classifications.push_back(o.classifications[i]);
 }
 
+void PointBatch::appendRange(const PointBatch& o, size_t first, size_t count) {
+  auto append = [&](auto& dst, const auto& src) {
+    dst.insert(dst.end(), src.begin() + ptrdiff_t(first), src.begin() + ptrdiff_t(first + count));
+  };
+  append(positions, o.positions);
+  if (attributes & kNormal) append(normals, o.normals);
+  if (attributes & kColor) append(colors, o.colors);
+  if (attributes & kIntensity) append(intensities, o.intensities);
+  if (attributes & kConfidence) append(confidences, o.confidences);
+  if (attributes & kScanIndex) append(scan_indices, o.scan_indices);
+  if (attributes & kGridPosition) append(grid_positions, o.grid_positions);
+  if (attributes & kClassification) append(classifications, o.classifications);
+}
+
 uint64_t ReadStats::skippedTotal() const {
   uint64_t n = 0;
   for (auto& [reason, count] : skipped) n += count;

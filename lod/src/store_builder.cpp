@@ -252,7 +252,7 @@ BuildReport buildStore(const std::vector<std::filesystem::path>& inputs, const s
   }
 
   PointDistributor dist(inputs, options.quiet);
-  dist.measure();
+  dist.measure(temp_dir / "raw.bin");
   const CubeFrame frame = dist.frame();
   // Memory: the chunk being worked on dominates (point + partition buffer + codec temporaries,
   // under 100 bytes a point) on every thread; a fixed ~128 MB for grids and buffers.

@@ -100,7 +100,7 @@ VerifyReport verifyStore(const std::filesystem::path& store_path, const std::vec
   } remove{temp_dir};
 
   PointDistributor dist(inputs, options.quiet);
-  dist.measureInFrame(frame);
+  dist.measureInFrame(frame, temp_dir / "raw.bin");
   report.input_points = dist.points();
   const uint64_t region_max = std::max<uint64_t>(200'000, (options.memory_mb << 20) / 400);
   std::vector<Chunk> regions = dist.distribute(region_max, temp_dir / "points.bin");

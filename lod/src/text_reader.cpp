@@ -97,7 +97,8 @@ void TextReader::sniff() {
       continue;
     }
     double v;
-    if (!parseDouble(toks[0], v) && mMap.empty()) {
+    // A line of separators only (",,") has no token: setPositional() or next() reject it.
+    if (!toks.empty() && !parseDouble(toks[0], v) && mMap.empty()) {
       // A header line of column names.
       for (auto t : toks) mMap.push_back(columnFor(std::string(t)));
       if (std::count(mMap.begin(), mMap.end(), kColX) != 1 ||

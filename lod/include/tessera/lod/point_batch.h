@@ -55,6 +55,8 @@ struct PointBatch {
   void resize(size_t n);
   /// Appends point `i` of `other` (same attribute mask) to this batch.
   void appendFrom(const PointBatch& other, size_t i);
+  /// Appends points [first, first + count) of `other` (same attribute mask).
+  void appendRange(const PointBatch& other, size_t first, size_t count);
 };
 
 }  // namespace tessera::lod

@@ -2,7 +2,7 @@
 // result). Input streams through; peak memory stays within BuildOptions::memory_mb plus a small
 // constant whatever the input size; every core is used for the per-chunk work.
 //
-// Passes: (1) bounds and counts; (2) a 128^3 counting grid; chunking: octree cells holding at
+// Passes: (1) inputs parsed once into fixed-size records, bounds and counts; (2) a 128^3 counting grid; chunking: octree cells holding at
 // most what fits in memory; (3) distribution of the points into one temporary file, each chunk
 // contiguous; (4) per chunk, in parallel: the subtree, grid-sampled top-down, each node encoded;
 // (5) levels above the chunks, sampled bottom-up from the chunk roots; (6) payload copied in
@@ -26,7 +26,7 @@ struct BuildOptions {
   uint32_t leaf_max = 16384;  ///< nodes with at most this many points stay leaves
   /// Points per out-of-core chunk; 0 derives it from memory_mb (tests force small chunks).
   uint64_t chunk_points = 0;
-  /// Temporary files go here (default: beside the output). Needs about 40 bytes per point.
+  /// Temporary files go here (default: beside the output). Needs up to 80 bytes per point.
   std::filesystem::path temp_dir;
 };
 
