@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# The main job as it stands: build, describe every real data file, virtually scan the bunny.
+# The main job as it stands: build, describe every real data file, virtually scan the bunny,
+# build and verify point LOD stores of the real scans.
 # Outputs go to out/demo/ (override with TESSERA_DEMO_OUT).
 set -uo pipefail
 cd "$(dirname "$0")/.."
@@ -25,9 +26,19 @@ echo "== virtual scanner: the bunny reconstruction, 12 scanners, 0.2 mm noise"
   -o "$out/bunny-virtual-scans" || exit 1
 "$lod" info "$out/bunny-virtual-scans/scans.conf" | tee "$out/bunny-virtual-scans.txt" | head -12
 
+echo "== point LOD stores: the registered bunny scans and the Autzen LiDAR, built and verified"
+mkdir -p "$out/stores"
+"$lod" build "$data/stanford-bunny/scans/bun.conf" -o "$out/stores/bunny.tlod" || exit 1
+"$lod" verify "$out/stores/bunny.tlod" "$data/stanford-bunny/scans/bun.conf" --quiet || exit 1
+"$lod" build "$data/lidar/autzen_trim.las" -o "$out/stores/autzen.tlod" || exit 1
+"$lod" verify "$out/stores/autzen.tlod" "$data/lidar/autzen_trim.las" --quiet || exit 1
+"$lod" info "$out/stores/bunny.tlod" "$out/stores/autzen.tlod" | tee "$out/stores.txt"
+
 echo
 echo "Outputs:"
 echo "  $out/info.txt                      description of every data file"
 echo "  $out/info.json                     the same as JSON"
 echo "  $out/bunny-virtual-scans/          virtual range scans (Stanford format) + scans.conf"
 echo "  $out/bunny-virtual-scans.txt       their description"
+echo "  $out/stores/bunny.tlod, autzen.tlod   point LOD stores (the renderer's input)"
+echo "  $out/stores.txt                    their description"

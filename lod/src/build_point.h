@@ -7,14 +7,14 @@
 
 namespace tessera::lod {
 
+/// 32 bytes: temporary files hold one per point (twice, briefly), so every byte counts.
 struct BuildPoint {
   glm::dvec3 position;  ///< store local frame (world - origin)
-  glm::u8vec4 color;
+  glm::u8vec3 rgb;
+  uint8_t classification;
   uint16_t intensity;
   uint16_t source;
-  uint8_t classification;
-  uint8_t pad[7];
 };
-static_assert(sizeof(BuildPoint) == 40);
+static_assert(sizeof(BuildPoint) == 32);
 
 }  // namespace tessera::lod

@@ -54,16 +54,38 @@ void putVarint(std::vector<uint8_t>& out, uint64_t v) {
   out.push_back(uint8_t(v));
 }
 
+ZSTD_CCtx* threadCCtx();
+
 void compressInto(std::vector<uint8_t>& out, const std::vector<uint8_t>& raw, int level) {
   size_t start = out.size();
   out.resize(start + ZSTD_compressBound(raw.size()));
-  size_t n = ZSTD_compress(out.data() + start, out.size() - start, raw.data(), raw.size(), level);
+  size_t n = ZSTD_compressCCtx(threadCCtx(), out.data() + start, out.size() - start, raw.data(), raw.size(), level);
   if (ZSTD_isError(n)) throw StoreError(std::string("lod::encodeChunk(): zstd: ") + ZSTD_getErrorName(n));
   out.resize(start + n);
 }
 
 [[noreturn]] void corrupt(const std::string& what, const char* why) {
   throw StoreError("lod::decodeChunk(): " + what + ": corrupt chunk (" + why + ")");
+}
+
+/// One decompression context per thread: creating one per chunk costs more than small chunks'
+/// decoding.
+ZSTD_DCtx* threadDCtx() {
+  struct Holder {
+    ZSTD_DCtx* ctx = ZSTD_createDCtx();
+    ~Holder() { ZSTD_freeDCtx(ctx); }
+  };
+  thread_local Holder holder;
+  return holder.ctx;
+}
+
+ZSTD_CCtx* threadCCtx() {
+  struct Holder {
+    ZSTD_CCtx* ctx = ZSTD_createCCtx();
+    ~Holder() { ZSTD_freeCCtx(ctx); }
+  };
+  thread_local Holder holder;
+  return holder.ctx;
 }
 
 /// Decompresses exactly `expect` bytes or reports corruption.
@@ -73,7 +95,7 @@ void decompress(std::span<const uint8_t> in, std::vector<uint8_t>& out, size_t e
     corrupt(what, "frame size does not match the point count");
   }
   out.resize(expect);
-  size_t n = ZSTD_decompress(out.data(), out.size(), in.data(), in.size());
+  size_t n = ZSTD_decompressDCtx(threadDCtx(), out.data(), out.size(), in.data(), in.size());
   if (ZSTD_isError(n) || n != expect) corrupt(what, "zstd frame does not decode");
 }
 
@@ -129,7 +151,7 @@ EncodedChunk encodeChunk(std::span<BuildPoint> pts, const glm::dvec3& box_min, d
     raw.resize(base + 3 * n);
     uint8_t pg = 0, pr = 0, pb = 0;
     for (size_t i = 0; i < n; ++i) {
-      const glm::u8vec4 c = pts[i].color;
+      const glm::u8vec3 c = pts[i].rgb;
       uint8_t g = c.g, r = uint8_t(c.r - c.g), b = uint8_t(c.b - c.g);
       raw[base + i] = uint8_t(g - pg);
       raw[base + n + i] = uint8_t(r - pr);

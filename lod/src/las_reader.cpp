@@ -130,9 +130,18 @@ void LasReader::parseHeader() {
   // Local origin: the header box centre snapped to the coordinate grid, else the offset.
   glm::dvec3 origin = offset;
   if (box_ok) origin = offset + glm::round((0.5 * (lo + hi) - offset) / mScale) * mScale;
+  // A box or scale at the edge of the double range overflows: keep the offset then.
+  if (!finite3(origin.x, origin.y, origin.z)) origin = offset;
   mInfo.origin = origin;
   mInfo.precision = std::min({std::abs(mScale.x), std::abs(mScale.y), std::abs(mScale.z)});
   mDelta = offset - origin;
+  for (int i = 0; i < 3; ++i) {
+    // Every int32 coordinate must give a finite position.
+    if (!std::isfinite(2147483648.0 * std::abs(mScale[i]) + std::abs(mDelta[i]))) {
+      fail(kComponent, mSrc.name(), atByte(131 + 8 * i),
+           "scale factor and offset make coordinates overflow (not finite)");
+    }
+  }
 
   // Variable length records: look for the LASzip VLR a renamed .laz would carry.
   uint64_t pos = header_size;

@@ -230,6 +230,7 @@ class PlyReader final : public PointReader {
   int mVertexElement = -1;
   uint32_t mGridCols = 0, mGridRows = 0;
   bool mBufferGrid = false;  // range grid after the vertices: buffer one scan, attach cells
+  int mGridElement = -1;     // the range_grid element checked by parseHeader() (one list)
 
   // Streaming state.
   size_t mElement = 0;        // element being read
@@ -379,6 +380,7 @@ void PlyReader::parseHeader() {
       uint64_t(mGridCols) * mGridRows == mElements[size_t(grid)].count &&
       v.count <= uint64_t(mGridCols) * mGridRows) {
     mBufferGrid = true;
+    mGridElement = grid;
     attrs |= kGridPosition;
     ScanInfo scan;
     scan.name = std::filesystem::path(mSrc.name()).filename().string();
@@ -672,6 +674,24 @@ void PlyReader::readRangeGrid() {
       size_t avail = mSrc.ensure(1 << 16);
       const uint8_t* b = mSrc.data();
       size_t used = 0;
+      if (p.count_type == PlyType::kUInt8 && (p.type == PlyType::kInt32 || p.type == PlyType::kUInt32)) {
+        // The Stanford layout (uchar count, int index): most cells are empty single zero bytes.
+        while (mInstance < e.count && used < avail) {
+          const uint8_t n = b[used];
+          if (n == 0) {
+            ++used;
+            ++mInstance;
+            continue;
+          }
+          if (used + 1 + size_t(n) * 4 > avail) break;
+          for (size_t k = 0; k < n; ++k) {
+            const uint8_t* q = b + used + 1 + 4 * k;
+            assign(p.type == PlyType::kInt32 ? double(load<int32_t>(q, mSwap)) : double(load<uint32_t>(q, mSwap)));
+          }
+          used += 1 + size_t(n) * 4;
+          ++mInstance;
+        }
+      }
       while (mInstance < e.count && used + csz <= avail) {
         double n = loadScalar(b + used, p.count_type, mSwap);
         if (n < 0 || n > 1e6) failHere("bad list length " + std::to_string(n) + " in range_grid");
@@ -725,7 +745,8 @@ bool PlyReader::fillBuffered() {
       PointBatch tmp;
       readFaces(tmp, std::numeric_limits<size_t>::max());
       mBufferedTriangles.insert(mBufferedTriangles.end(), tmp.triangles.begin(), tmp.triangles.end());
-    } else if (e.name == "range_grid" && mRemap.size() == mElements[size_t(mVertexElement)].count) {
+    } else if (int(mElement) == mGridElement &&
+               mRemap.size() == mElements[size_t(mVertexElement)].count) {
       readRangeGrid();
     } else {
       skipElement(e);

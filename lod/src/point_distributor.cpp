@@ -116,11 +116,10 @@ void PointDistributor::forEachBatch(const std::string& label,
       for (size_t i = 0; i < batch.size(); ++i) {
         BuildPoint& p = pts[i];
         p.position = batch.positions[i] + shift;
-        p.color = a & kColor ? batch.colors[i] : glm::u8vec4(255);
+        p.rgb = a & kColor ? glm::u8vec3(batch.colors[i]) : glm::u8vec3(255);
         p.intensity = a & kIntensity ? uint16_t(std::clamp(batch.intensities[i], 0.f, 65535.f)) : 0;
         p.source = uint16_t(in.first_source + (a & kScanIndex ? batch.scan_indices[i] : 0));
         p.classification = a & kClassification ? batch.classifications[i] : 0;
-        std::memset(p.pad, 0, sizeof p.pad);
       }
       fn(pts);
       progress.add(batch.size());

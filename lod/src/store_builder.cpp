@@ -144,6 +144,14 @@ class Builder {
       return 0;
     }
     size_t selected = gridSample(pts, mFrame.cellMin(key), mFrame.cellSize(key.level), store::kGrid);
+    // Overhead bound: an inner node keeps at most kMaxInnerFraction of the points below it (a
+    // coarser grid where the data is thick, e.g. noisy overlapping scans), so the copies cost
+    // at most f + f^2 + ... = 0.25 for f = 0.2.
+    const double cap = store::kMaxInnerFraction * double(pts.size());
+    for (int grid = store::kGrid, tries = 0; double(selected) > cap && grid > 2 && tries < 6; ++tries) {
+      grid = std::max(2, int(double(grid) * std::sqrt(cap / double(selected))));
+      selected = gridSample(pts, mFrame.cellMin(key), mFrame.cellSize(key.level), grid);
+    }
     std::vector<BuildPoint> sample(pts.begin(), pts.begin() + ptrdiff_t(selected));
     auto bounds = partitionOctants(pts, mFrame, key);
     uint8_t mask = 0;

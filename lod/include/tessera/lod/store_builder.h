@@ -22,7 +22,7 @@ struct BuildOptions {
   uint64_t memory_mb = 2048;
   int threads = 0;        ///< 0: every core
   bool quiet = false;     ///< no progress output
-  int zstd_level = 9;
+  int zstd_level = 5;
   uint32_t leaf_max = 16384;  ///< nodes with at most this many points stay leaves
   /// Points per out-of-core chunk; 0 derives it from memory_mb (tests force small chunks).
   uint64_t chunk_points = 0;

@@ -1,0 +1,34 @@
+// Replays every input the fuzzers ever crashed on (fuzz/regressions/<format>/) through the same
+// checks the fuzz targets make; under the asan preset this is the sanitizer regression suite.
+#include <gtest/gtest.h>
+
+#include <filesystem>
+
+#include "../../fuzz/fuzz_reader.h"
+#include "../support/temp_dir.h"
+
+namespace tessera::lod {
+namespace {
+
+const std::filesystem::path kRegressions = TESSERA_FUZZ_REGRESSIONS;
+
+TEST(FuzzRegressions, EveryRecordedCrashInputIsHandled) {
+  const std::pair<const char*, Format> formats[] = {
+      {"ply", Format::kPly}, {"las", Format::kLas}, {"text", Format::kText}, {"obj", Format::kObj}};
+  size_t replayed = 0;
+  for (auto [dir, format] : formats) {
+    std::filesystem::path folder = kRegressions / dir;
+    if (!std::filesystem::exists(folder)) continue;
+    for (const auto& entry : std::filesystem::directory_iterator(folder)) {
+      auto bytes = test::readBytes(entry.path());
+      SCOPED_TRACE(entry.path().string());
+      // Aborts (and fails the test binary) on a broken invariant; sanitizers report the rest.
+      fuzz::readAll(bytes.data(), bytes.size(), format, entry.path().filename().c_str());
+      ++replayed;
+    }
+  }
+  EXPECT_GT(replayed, 0u) << "no regression inputs found in " << kRegressions;
+}
+
+}  // namespace
+}  // namespace tessera::lod
