@@ -108,7 +108,11 @@ INSTANTIATE_TEST_SUITE_P(AllFormats, LasFormats,
                                            LasCase{2, 3, 0}, LasCase{3, 4, 0}, LasCase{3, 5, 0},
                                            LasCase{4, 6, 0}, LasCase{4, 7, 0}, LasCase{4, 8, 0},
                                            LasCase{4, 9, 0}, LasCase{4, 10, 0}, LasCase{2, 3, 5},
-                                           LasCase{4, 7, 13}, LasCase{4, 3, 0}));
+                                           LasCase{4, 7, 13}, LasCase{4, 3, 0}),
+                         [](const ::testing::TestParamInfo<LasCase>& i) {
+                           return "las1" + std::to_string(i.param.minor) + "_format" +
+                                  std::to_string(i.param.format) + "_extra" + std::to_string(i.param.extra);
+                         });
 
 TEST(LasReader, EightBitColoursInSixteenBitFieldsAreDetected) {
   test::TempDir dir;

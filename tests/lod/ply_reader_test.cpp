@@ -76,6 +76,12 @@ struct EncodingCase {
   bool ushort_colors;
 };
 
+std::string encodingName(const ::testing::TestParamInfo<EncodingCase>& i) {
+  static const char* const kEnc[] = {"ascii", "binary_le", "binary_be"};
+  return std::string(kEnc[int(i.param.encoding)]) + (i.param.doubles ? "_double" : "_float") +
+         (i.param.ushort_colors ? "_ushort" : "_uchar");
+}
+
 class PlyRoundTrip : public ::testing::TestWithParam<EncodingCase> {};
 
 TEST_P(PlyRoundTrip, EveryAttributeSurvives) {
@@ -107,7 +113,8 @@ INSTANTIATE_TEST_SUITE_P(
                       EncodingCase{PlyEncoding::kBinaryLittleEndian, false, false},
                       EncodingCase{PlyEncoding::kBinaryLittleEndian, true, true},
                       EncodingCase{PlyEncoding::kBinaryBigEndian, false, true},
-                      EncodingCase{PlyEncoding::kBinaryBigEndian, true, false}));
+                      EncodingCase{PlyEncoding::kBinaryBigEndian, true, false}),
+    encodingName);
 
 // Hand-written big-endian bytes: independent of our writer.
 TEST(PlyReader, BigEndianBytesDecodeIndependently) {
