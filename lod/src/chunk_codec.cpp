@@ -115,35 +115,41 @@ EncodedChunk encodeChunk(std::span<BuildPoint> pts, const glm::dvec3& box_min, d
   while (bits < kMaxBits && double((1u << bits) - 1) * step < extent) ++bits;
   const double qmax = double((1u << bits) - 1);
 
-  std::vector<uint64_t> codes(n);
-  for (size_t i = 0; i < n; ++i) {
-    glm::dvec3 q = glm::clamp(glm::round((pts[i].position - box_min) / step), glm::dvec3(0.0), glm::dvec3(qmax));
-    codes[i] = spread(uint64_t(q.x)) | spread(uint64_t(q.y)) << 1 | spread(uint64_t(q.z)) << 2;
-  }
-  std::vector<uint32_t> order(n);
-  std::iota(order.begin(), order.end(), 0u);
-  std::sort(order.begin(), order.end(), [&](uint32_t a, uint32_t b) { return codes[a] < codes[b]; });
-  {
-    std::vector<BuildPoint> sorted(n);
-    std::vector<uint64_t> sorted_codes(n);
-    for (size_t i = 0; i < n; ++i) {
-      sorted[i] = pts[order[i]];
-      sorted_codes[i] = codes[order[i]];
-    }
-    std::copy(sorted.begin(), sorted.end(), pts.begin());
-    codes.swap(sorted_codes);
-  }
-
   EncodedChunk out;
   out.step = step;
+  thread_local std::vector<uint64_t> codes;
+  codes.resize(n);
+  const double inv_step = 1.0 / step;
+  double max_error2 = 0.0;
+  for (size_t i = 0; i < n; ++i) {
+    const glm::dvec3 rel = pts[i].position - box_min;
+    glm::dvec3 q = glm::clamp(glm::round(rel * inv_step), glm::dvec3(0.0), glm::dvec3(qmax));
+    const glm::dvec3 e = q * step - rel;
+    max_error2 = std::max(max_error2, glm::dot(e, e));
+    codes[i] = spread(uint64_t(q.x)) | spread(uint64_t(q.y)) << 1 | spread(uint64_t(q.z)) << 2;
+  }
+  out.max_error = std::sqrt(max_error2);
+  // Sort (code, index) pairs: contiguous keys sort much faster than an indirect comparison.
+  thread_local std::vector<std::pair<uint64_t, uint32_t>> keyed;
+  keyed.resize(n);
+  for (size_t i = 0; i < n; ++i) keyed[i] = {codes[i], uint32_t(i)};
+  std::sort(keyed.begin(), keyed.end());
+  {
+    thread_local std::vector<BuildPoint> sorted;
+    sorted.resize(n);
+    for (size_t i = 0; i < n; ++i) {
+      sorted[i] = pts[keyed[i].second];
+      codes[i] = keyed[i].first;
+    }
+    std::copy(sorted.begin(), sorted.begin() + ptrdiff_t(n), pts.begin());
+  }
+
   std::vector<uint8_t> raw;
   raw.reserve(n * 8);
   uint64_t prev = 0;
   for (size_t i = 0; i < n; ++i) {
     putVarint(raw, codes[i] - prev);
     prev = codes[i];
-    glm::dvec3 q(compact(codes[i]), compact(codes[i] >> 1), compact(codes[i] >> 2));
-    out.max_error = std::max(out.max_error, glm::length(box_min + q * step - pts[i].position));
   }
   if (attributes & kColor) {
     // Reversible subtract-green, then deltas along the Morton order, as three byte planes.

@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <array>
+#include <cstdio>
 #include <limits>
 #include <type_traits>
 
@@ -630,10 +631,15 @@ void PlyReader::readFaces(PointBatch& batch, size_t max_triangles) {
       list_prop = int(i);
     }
   }
+  if (list_prop < 0) {
+    // Nothing to triangulate: skip by size (a binary face without properties has 0 bytes, and
+    // reading its instances one by one would never end for a huge count).
+    skipElement(e);
+    return;
+  }
   while (mInstance < e.count && batch.triangles.size() < max_triangles) {
     uint64_t where = mInstance;
     readInstance(e, mInstance++, mValues, &mLists);
-    if (list_prop < 0) continue;
     const auto& idx = mLists[size_t(list_prop)];
     if (idx.size() < 3) {
       mStats.skip("face with fewer than 3 vertices", "face " + std::to_string(where));
@@ -641,7 +647,7 @@ void PlyReader::readFaces(PointBatch& batch, size_t max_triangles) {
     }
     bool ok = true;
     for (double d : idx) {
-      if (d < 0 || d >= double(mRemap.size()) || mRemap[size_t(d)] == kDropped) ok = false;
+      if (!(d >= 0) || d >= double(mRemap.size()) || mRemap[size_t(d)] == kDropped) ok = false;
     }
     if (!ok) {
       mStats.skip("face with an out-of-range or skipped vertex", "face " + std::to_string(where));
@@ -657,8 +663,10 @@ void PlyReader::readFaces(PointBatch& batch, size_t max_triangles) {
 void PlyReader::readRangeGrid() {
   const Element& e = mElements[mElement];
   auto assign = [&](double d) {
-    if (d < 0 || d >= double(mRemap.size())) {
-      failHere("range_grid cell " + std::to_string(mInstance) + " names vertex " + std::to_string(int64_t(d)) +
+    if (!(d >= 0) || d >= double(mRemap.size())) {  // NaN too: a float list can hold one
+      char index[32];  // %g: no integer type holds every float (1e30, nan)
+      std::snprintf(index, sizeof index, "%.15g", d);
+      failHere("range_grid cell " + std::to_string(mInstance) + " names vertex " + index +
                " outside the " + std::to_string(mRemap.size()) + " vertices");
     }
     uint32_t kept = mRemap[size_t(d)];
@@ -714,12 +722,14 @@ void PlyReader::readRangeGrid() {
 
 void PlyReader::skipElement(const Element& e) {
   if (mEncoding != Encoding::kAscii && e.fixed) {
-    uint64_t bytes = (e.count - mInstance) * e.record_size;
-    if (mSrc.offset() + bytes > mSrc.size()) {
+    // Compared in records, not bytes: count * record_size can wrap around 64 bits.
+    uint64_t left = e.count - mInstance;
+    uint64_t room = e.record_size ? (mSrc.size() - mSrc.offset()) / e.record_size : left;
+    if (left > room) {
       mSrc.seek(mSrc.size());
-      truncated(e, mInstance + (mSrc.size() - mSrc.offset()) / std::max<size_t>(1, e.record_size));
+      truncated(e, mInstance + room);
     }
-    mSrc.seek(mSrc.offset() + bytes);
+    mSrc.seek(mSrc.offset() + left * e.record_size);
     mInstance = e.count;
     return;
   }

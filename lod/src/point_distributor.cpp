@@ -47,10 +47,15 @@ bool CellKey::operator<(const CellKey& o) const {
 }
 
 CellKey CubeFrame::cellOf(const glm::dvec3& p, int level) const {
-  double res = double(uint64_t(1) << level);
-  glm::dvec3 f = (p - cube_min) / cube_size * res;
-  auto clampi = [&](double v) { return uint32_t(std::clamp(std::floor(v), 0.0, res - 1.0)); };
-  return {uint8_t(level), clampi(f.x), clampi(f.y), clampi(f.z)};
+  // (p - min) * (1 / size) then an exact power-of-two scale: the cell at level l + 1 is always a
+  // child of the cell at level l, and build and verify share this one function.
+  const double inv = 1.0 / cube_size;
+  const double res = double(uint64_t(1) << level);
+  auto axis = [&](double v) {
+    double f = (v * inv) * res;
+    return f <= 0.0 ? 0u : f >= res ? uint32_t(res - 1.0) : uint32_t(f);
+  };
+  return {uint8_t(level), axis(p.x - cube_min.x), axis(p.y - cube_min.y), axis(p.z - cube_min.z)};
 }
 
 void readTempPoints(int fd, uint64_t first, uint64_t count, BuildPoint* out, const std::string& name) {
