@@ -99,6 +99,59 @@ void decompress(std::span<const uint8_t> in, std::vector<uint8_t>& out, size_t e
   if (ZSTD_isError(n) || n != expect) corrupt(what, "zstd frame does not decode");
 }
 
+#if defined(__x86_64__)
+bool haveBmi2() {
+  static const bool have = __builtin_cpu_supports("bmi2");
+  return have;
+}
+__attribute__((target("bmi2"))) inline uint32_t compactBmi2(uint64_t v, int axis) {
+  return uint32_t(__builtin_ia32_pext_di(v, 0x1249249249249249ull << axis));
+}
+#else
+bool haveBmi2() { return false; }
+inline uint32_t compactBmi2(uint64_t, int) { return 0; }
+#endif
+
+/// Decodes `n` LEB128 Morton deltas into positions (cell * step). Returns false on a malformed
+/// stream (ends early, overlong varint, code outside the node, trailing bytes are checked by the
+/// caller through `p`). kBmi2: one PEXT per axis instead of the magic-bits compaction.
+template <bool kBmi2>
+#if defined(__x86_64__)
+__attribute__((target("bmi2")))
+#endif
+bool decodePositions(const uint8_t*& p, const uint8_t* end, size_t n, uint64_t limit, float step, glm::vec3* out) {
+  uint64_t code = 0;
+  for (size_t i = 0; i < n; ++i) {
+    uint64_t d;
+    if (end - p >= 10) {
+      // Fast path: no bounds checks inside a varint (at most 10 bytes).
+      uint8_t b = *p++;
+      d = b & 0x7F;
+      for (int shift = 7; b & 0x80; shift += 7) {
+        if (shift > 63) return false;
+        b = *p++;
+        d |= uint64_t(b & 0x7F) << shift;
+      }
+    } else {
+      d = 0;
+      for (int shift = 0;; shift += 7) {
+        if (p >= end || shift > 63) return false;
+        uint8_t b = *p++;
+        d |= uint64_t(b & 0x7F) << shift;
+        if (!(b & 0x80)) break;
+      }
+    }
+    code += d;
+    if (code > limit) return false;
+    if constexpr (kBmi2) {
+      out[i] = glm::vec3(float(compactBmi2(code, 0)), float(compactBmi2(code, 1)), float(compactBmi2(code, 2))) * step;
+    } else {
+      out[i] = glm::vec3(float(compact(code)), float(compact(code >> 1)), float(compact(code >> 2))) * step;
+    }
+  }
+  return true;
+}
+
 }  // namespace
 
 size_t ChunkPoints::byteSize() const {
@@ -239,21 +292,9 @@ void decodeChunk(std::span<const uint8_t> bytes, const glm::dvec3& box_min, Chun
   const uint8_t* end = raw.data() + varint_end;
   const float step = float(h.step);
   const uint64_t limit = h.bits == 21 ? ~uint64_t(0) >> 1 : (uint64_t(1) << (3 * h.bits)) - 1;
-  uint64_t code = 0;
-  for (size_t i = 0; i < n; ++i) {
-    uint64_t d = 0;
-    int shift = 0;
-    for (;;) {
-      if (p >= end || shift > 63) corrupt(what, "position stream ends early");
-      uint8_t b = *p++;
-      d |= uint64_t(b & 0x7F) << shift;
-      if (!(b & 0x80)) break;
-      shift += 7;
-    }
-    code += d;
-    if (code > limit) corrupt(what, "position outside the node");
-    out.positions[i] = glm::vec3(float(compact(code)), float(compact(code >> 1)), float(compact(code >> 2))) * step;
-  }
+  bool ok = haveBmi2() ? decodePositions<true>(p, end, n, limit, step, out.positions.data())
+                       : decodePositions<false>(p, end, n, limit, step, out.positions.data());
+  if (!ok) corrupt(what, "position stream is malformed or leaves the node");
   if (p != end) corrupt(what, "position stream has trailing bytes");
   if (color) {
     out.colors.resize(n);
