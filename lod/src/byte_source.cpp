@@ -29,7 +29,7 @@ ByteSource ByteSource::openFile(const std::filesystem::path& path, const std::st
     throw ReadError(component + ": " + s.mName + ": not a regular file");
   }
   s.mSize = uint64_t(st.st_size);
-  s.mBuffer.resize(kChunk);
+  s.mBuffer = ReadBuffer(kChunk);
   s.mWindow = s.mBuffer.data();
   ::posix_fadvise(s.mFd, 0, 0, POSIX_FADV_SEQUENTIAL);
   return s;
@@ -73,7 +73,7 @@ void ByteSource::refill(size_t want) {
   // Move the unread tail to the front, grow if one request exceeds the buffer, then read.
   size_t rest = mWindowSize - mPos;
   if (want > mBuffer.size()) {
-    std::vector<uint8_t> bigger(std::max(want, mBuffer.size() * 2));
+    ReadBuffer bigger(std::max(want, mBuffer.size() * 2));
     std::memcpy(bigger.data(), mBuffer.data() + mPos, rest);
     mBuffer.swap(bigger);
   } else if (mPos > 0) {

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <cstdint>
+#include <memory>
 #include <filesystem>
 #include <span>
 #include <string>
@@ -10,6 +11,25 @@
 #include <vector>
 
 namespace tessera::lod {
+
+/// A byte buffer that is not zero-filled: a 4 MiB read buffer per open file must cost nothing
+/// until it is read into.
+class ReadBuffer {
+ public:
+  explicit ReadBuffer(size_t n = 0) : mData(std::make_unique_for_overwrite<uint8_t[]>(n)), mSize(n) {}
+  uint8_t* data() { return mData.get(); }
+  const uint8_t* data() const { return mData.get(); }
+  size_t size() const { return mSize; }
+  bool empty() const { return mSize == 0; }
+  void swap(ReadBuffer& o) noexcept {
+    std::swap(mData, o.mData);
+    std::swap(mSize, o.mSize);
+  }
+
+ private:
+  std::unique_ptr<uint8_t[]> mData;
+  size_t mSize;
+};
 
 class ByteSource {
  public:
@@ -65,7 +85,7 @@ class ByteSource {
   size_t mWindowSize = 0;            // valid bytes in the window
   uint64_t mWindowOffset = 0;        // file offset of mWindow[0]
   size_t mPos = 0;                   // read position inside the window
-  std::vector<uint8_t> mBuffer;
+  ReadBuffer mBuffer;
   uint64_t mLine = 0;
 };
 
