@@ -34,7 +34,9 @@ namespace fs = std::filesystem;
 using namespace tessera::lod;
 using Clock = std::chrono::steady_clock;
 
-double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
+double since(Clock::time_point t) {
+  return std::chrono::duration<double>(Clock::now() - t).count();
+}
 
 struct Dataset {
   std::string name;
@@ -50,7 +52,8 @@ struct Row {
   uint64_t nodes = 0;
   uint32_t depth = 0;
   double decode_mpts = 0, payload_read_mpts = 0;
-  double first_cut_ms = 0;  ///< open the store + decode the root and its children (cold process state)
+  double first_cut_ms =
+      0;  ///< open the store + decode the root and its children (cold process state)
   bool verified = false;
 };
 
@@ -72,7 +75,8 @@ double readPass(const Dataset& d, uint64_t& points) {
 }
 
 /// Builds in a child process; returns the child's peak RSS in MB (0 on failure).
-double buildInChild(const Dataset& d, const fs::path& out, const BuildOptions& o, BuildReport& report) {
+double buildInChild(const Dataset& d, const fs::path& out, const BuildOptions& o,
+                    BuildReport& report) {
   int fds[2];
   if (pipe(fds) != 0) return 0;
   pid_t pid = fork();
@@ -137,7 +141,8 @@ void decodeRate(const fs::path& store_path, int threads, Row& row) {
   // Warm the page cache once, then best of three.
   run([&](NodeId id) { store->decodeChunk(id); });
   double best = 1e30;
-  for (int r = 0; r < 3; ++r) best = std::min(best, run([&](NodeId id) { store->decodeChunk(id); }));
+  for (int r = 0; r < 3; ++r)
+    best = std::min(best, run([&](NodeId id) { store->decodeChunk(id); }));
   row.decode_mpts = double(total) / best / 1e6;
   // Baseline: the same bytes read from the page cache, no decoding.
   std::ifstream f(store_path, std::ios::binary);
@@ -169,11 +174,12 @@ fs::path bigScan(const fs::path& dir, uint64_t points, const std::string& data) 
   o.rows = uint32_t(std::ceil(160 * scale));
   o.noise_mm = 0.2;
   o.quiet = false;
-  std::fprintf(stderr, "lod_build: scanning %u x %u from %d scanners for ~%.0f M points\n", o.columns, o.rows,
-               o.scanners, double(points) / 1e6);
+  std::fprintf(stderr, "lod_build: scanning %u x %u from %d scanners for ~%.0f M points\n",
+               o.columns, o.rows, o.scanners, double(points) / 1e6);
   auto t = Clock::now();
   ScanResult r = scanMesh(mesh, dir, o);
-  std::fprintf(stderr, "lod_build: %llu points scanned in %.1f s\n", (unsigned long long)r.points, since(t));
+  std::fprintf(stderr, "lod_build: %llu points scanned in %.1f s\n", (unsigned long long)r.points,
+               since(t));
   return conf;
 }
 
@@ -181,25 +187,34 @@ void chart(const fs::path& out, const std::vector<Row>& rows) {
   fs::path dat = out / "lod_build.dat", gp = out / "lod_build.gp";
   std::ofstream d(dat);
   for (const Row& r : rows) {
-    d << '"' << r.name << "\" " << double(r.points) / r.read_s / 1e6 << " " << double(r.points) / r.build_s / 1e6 << " "
-      << r.decode_mpts << " " << r.pc_bytes_per_point << " " << r.bytes_per_point << " " << r.peak_rss_mb << "\n";
+    d << '"' << r.name << "\" " << double(r.points) / r.read_s / 1e6 << " "
+      << double(r.points) / r.build_s / 1e6 << " " << r.decode_mpts << " " << r.pc_bytes_per_point
+      << " " << r.bytes_per_point << " " << r.peak_rss_mb << "\n";
   }
   d.close();
   std::ofstream g(gp);
-  g << "set terminal pngcairo size 1400,480 font 'sans,10'\nset output '" << (out / "lod_build.png").string() << "'\n"
+  g << "set terminal pngcairo size 1400,480 font 'sans,10'\nset output '"
+    << (out / "lod_build.png").string() << "'\n"
     << "set multiplot layout 1,3 title 'tessera-lod build (2 cores, --memory-mb 2048)'\n"
-    << "set style data histograms\nset style histogram clustered gap 1\nset style fill solid 0.8 border -1\n"
+    << "set style data histograms\nset style histogram clustered gap 1\nset style fill solid 0.8 "
+       "border -1\n"
     << "set xtics rotate by -20\nset grid ytics\nset key top right\n"
     << "set title 'Build throughput (M points/s)'\nset yrange [0:*]\n"
-    << "plot '" << dat.string() << "' using 2:xtic(1) title 'one read pass', '' using 3 title 'build (3 read passes + LOD)', 3 with lines lw 2 dt 2 title 'goal 3'\n"
+    << "plot '" << dat.string()
+    << "' using 2:xtic(1) title 'one read pass', '' using 3 title 'build (3 read passes + LOD)', 3 "
+       "with lines lw 2 dt 2 title 'goal 3'\n"
     << "set title 'Decode (M points/s, 2 threads)'\n"
-    << "plot '" << dat.string() << "' using 4:xtic(1) title 'decode', 100 with lines lw 2 dt 2 title 'goal 100'\n"
+    << "plot '" << dat.string()
+    << "' using 4:xtic(1) title 'decode', 100 with lines lw 2 dt 2 title 'goal 100'\n"
     << "set title 'Bytes per input point'\n"
-    << "plot '" << dat.string() << "' using 5:xtic(1) title 'position + colour', '' using 6 title 'whole file', 3.5 with lines lw 2 dt 2 title 'goal 3.5'\n"
+    << "plot '" << dat.string()
+    << "' using 5:xtic(1) title 'position + colour', '' using 6 title 'whole file', 3.5 with lines "
+       "lw 2 dt 2 title 'goal 3.5'\n"
     << "unset multiplot\n";
   g.close();
   std::string cmd = std::string(TESSERA_GNUPLOT) + " '" + gp.string() + "'";
-  if (std::system(cmd.c_str()) != 0) std::fprintf(stderr, "lod_build: gnuplot failed; the CSV is complete\n");
+  if (std::system(cmd.c_str()) != 0)
+    std::fprintf(stderr, "lod_build: gnuplot failed; the CSV is complete\n");
 }
 
 }  // namespace
@@ -212,7 +227,8 @@ int main(int argc, char** argv) {
   int threads = 0;
   bool verify = false;
   app.add_option("--out", out, "Folder for inputs, stores, CSV and chart")->capture_default_str();
-  app.add_option("--big-points", big, "Points in the virtual bunny scan (0: skip it)")->capture_default_str();
+  app.add_option("--big-points", big, "Points in the virtual bunny scan (0: skip it)")
+      ->capture_default_str();
   app.add_option("--memory-mb", memory_mb, "Build memory budget")->capture_default_str();
   app.add_option("--threads", threads, "Build threads (0: every core)")->capture_default_str();
   app.add_flag("--verify", verify, "Also run tessera-lod verify on every store (slow for 10^8)");
@@ -220,17 +236,21 @@ int main(int argc, char** argv) {
 
   const std::string data = TESSERA_DATA_DIR;
   fs::create_directories(out);
-  std::vector<Dataset> sets = {{"autzen_trim.las", {data + "/lidar/autzen_trim.las"}},
-                               {"bunny 10 scans (ASCII)", {data + "/stanford-bunny/scans/bun.conf"}}};
+  std::vector<Dataset> sets = {
+      {"autzen_trim.las", {data + "/lidar/autzen_trim.las"}},
+      {"bunny 10 scans (ASCII)", {data + "/stanford-bunny/scans/bun.conf"}}};
   if (big > 0) {
     fs::path dir = fs::path(out) / "inputs" / ("bunny-scan-" + std::to_string(big));
     fs::create_directories(dir);
-    sets.push_back({"bunny virtual scan " + std::to_string(big / 1'000'000) + " M (binary)", {bigScan(dir, big, data)}});
+    sets.push_back({"bunny virtual scan " + std::to_string(big / 1'000'000) + " M (binary)",
+                    {bigScan(dir, big, data)}});
   }
 
   std::vector<Row> rows;
-  std::printf("dataset,points,read_pass_s,build_s,build_mpts,peak_rss_mb,bytes_per_point,pc_bytes_per_point,overhead,"
-              "nodes,depth,decode_mpts,payload_read_mpts,first_cut_ms,verified\n");
+  std::printf(
+      "dataset,points,read_pass_s,build_s,build_mpts,peak_rss_mb,bytes_per_point,pc_bytes_per_"
+      "point,overhead,"
+      "nodes,depth,decode_mpts,payload_read_mpts,first_cut_ms,verified\n");
   for (const Dataset& d : sets) {
     Row row;
     row.name = d.name;
@@ -256,22 +276,24 @@ int main(int argc, char** argv) {
     row.first_cut_ms = firstCut(store);
     decodeRate(store, 2, row);
     if (verify) row.verified = verifyStore(store, d.inputs, o).ok();
-    std::printf("\"%s\",%llu,%.3f,%.3f,%.3f,%.1f,%.3f,%.3f,%.3f,%llu,%u,%.1f,%.1f,%.2f,%s\n", row.name.c_str(),
-                (unsigned long long)row.points, row.read_s, row.build_s, double(row.points) / row.build_s / 1e6,
-                row.peak_rss_mb, row.bytes_per_point, row.pc_bytes_per_point, row.overhead,
-                (unsigned long long)row.nodes, row.depth, row.decode_mpts, row.payload_read_mpts, row.first_cut_ms,
+    std::printf("\"%s\",%llu,%.3f,%.3f,%.3f,%.1f,%.3f,%.3f,%.3f,%llu,%u,%.1f,%.1f,%.2f,%s\n",
+                row.name.c_str(), (unsigned long long)row.points, row.read_s, row.build_s,
+                double(row.points) / row.build_s / 1e6, row.peak_rss_mb, row.bytes_per_point,
+                row.pc_bytes_per_point, row.overhead, (unsigned long long)row.nodes, row.depth,
+                row.decode_mpts, row.payload_read_mpts, row.first_cut_ms,
                 verify ? (row.verified ? "yes" : "NO") : "not run");
     std::fflush(stdout);
     rows.push_back(row);
   }
   std::ofstream csv(fs::path(out) / "lod_build.csv");
-  csv << "dataset,points,read_pass_s,build_s,build_mpts,peak_rss_mb,bytes_per_point,pc_bytes_per_point,overhead,nodes,"
+  csv << "dataset,points,read_pass_s,build_s,build_mpts,peak_rss_mb,bytes_per_point,pc_bytes_per_"
+         "point,overhead,nodes,"
          "depth,decode_mpts,payload_read_mpts,first_cut_ms\n";
   for (const Row& r : rows) {
     csv << '"' << r.name << "\"," << r.points << "," << r.read_s << "," << r.build_s << ","
-        << double(r.points) / r.build_s / 1e6 << "," << r.peak_rss_mb << "," << r.bytes_per_point << ","
-        << r.pc_bytes_per_point << "," << r.overhead << "," << r.nodes << "," << r.depth << "," << r.decode_mpts << ","
-        << r.payload_read_mpts << "," << r.first_cut_ms << "\n";
+        << double(r.points) / r.build_s / 1e6 << "," << r.peak_rss_mb << "," << r.bytes_per_point
+        << "," << r.pc_bytes_per_point << "," << r.overhead << "," << r.nodes << "," << r.depth
+        << "," << r.decode_mpts << "," << r.payload_read_mpts << "," << r.first_cut_ms << "\n";
   }
   csv.close();
   chart(out, rows);

@@ -29,7 +29,9 @@ Progress::Progress(std::string label, uint64_t total, std::string unit, bool qui
       mStart(std::chrono::steady_clock::now()),
       mLastPrint(mStart) {}
 
-Progress::~Progress() { finish(); }
+Progress::~Progress() {
+  finish();
+}
 
 double Progress::elapsedSeconds() const {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - mStart).count();

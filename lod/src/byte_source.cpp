@@ -44,7 +44,9 @@ ByteSource ByteSource::fromMemory(std::span<const uint8_t> bytes, std::string na
   return s;
 }
 
-ByteSource::ByteSource(ByteSource&& o) noexcept { *this = std::move(o); }
+ByteSource::ByteSource(ByteSource&& o) noexcept {
+  *this = std::move(o);
+}
 
 ByteSource& ByteSource::operator=(ByteSource&& o) noexcept {
   if (this == &o) return *this;
@@ -148,7 +150,8 @@ bool ByteSource::readLine(std::string_view& line, size_t max_line) {
   for (;;) {
     size_t avail = mWindowSize - mPos;
     const uint8_t* start = mWindow + mPos;
-    const void* nl = avail > scanned ? std::memchr(start + scanned, '\n', avail - scanned) : nullptr;
+    const void* nl =
+        avail > scanned ? std::memchr(start + scanned, '\n', avail - scanned) : nullptr;
     if (nl) {
       size_t len = size_t(static_cast<const uint8_t*>(nl) - start);
       size_t eat = len + 1;

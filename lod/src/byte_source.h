@@ -3,8 +3,8 @@
 #pragma once
 
 #include <cstdint>
-#include <memory>
 #include <filesystem>
+#include <memory>
 #include <span>
 #include <string>
 #include <string_view>
@@ -16,7 +16,8 @@ namespace tessera::lod {
 /// until it is read into.
 class ReadBuffer {
  public:
-  explicit ReadBuffer(size_t n = 0) : mData(std::make_unique_for_overwrite<uint8_t[]>(n)), mSize(n) {}
+  explicit ReadBuffer(size_t n = 0)
+      : mData(std::make_unique_for_overwrite<uint8_t[]>(n)), mSize(n) {}
   uint8_t* data() { return mData.get(); }
   const uint8_t* data() const { return mData.get(); }
   size_t size() const { return mSize; }

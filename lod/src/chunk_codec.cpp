@@ -59,8 +59,10 @@ ZSTD_CCtx* threadCCtx();
 void compressInto(std::vector<uint8_t>& out, const std::vector<uint8_t>& raw, int level) {
   size_t start = out.size();
   out.resize(start + ZSTD_compressBound(raw.size()));
-  size_t n = ZSTD_compressCCtx(threadCCtx(), out.data() + start, out.size() - start, raw.data(), raw.size(), level);
-  if (ZSTD_isError(n)) throw StoreError(std::string("lod::encodeChunk(): zstd: ") + ZSTD_getErrorName(n));
+  size_t n = ZSTD_compressCCtx(threadCCtx(), out.data() + start, out.size() - start, raw.data(),
+                               raw.size(), level);
+  if (ZSTD_isError(n))
+    throw StoreError(std::string("lod::encodeChunk(): zstd: ") + ZSTD_getErrorName(n));
   out.resize(start + n);
 }
 
@@ -89,7 +91,8 @@ ZSTD_CCtx* threadCCtx() {
 }
 
 /// Decompresses exactly `expect` bytes or reports corruption.
-void decompress(std::span<const uint8_t> in, std::vector<uint8_t>& out, size_t expect, const std::string& what) {
+void decompress(std::span<const uint8_t> in, std::vector<uint8_t>& out, size_t expect,
+                const std::string& what) {
   unsigned long long size = ZSTD_getFrameContentSize(in.data(), in.size());
   if (size == ZSTD_CONTENTSIZE_ERROR || size == ZSTD_CONTENTSIZE_UNKNOWN || size != expect) {
     corrupt(what, "frame size does not match the point count");
@@ -108,8 +111,12 @@ __attribute__((target("bmi2"))) inline uint32_t compactBmi2(uint64_t v, int axis
   return uint32_t(__builtin_ia32_pext_di(v, 0x1249249249249249ull << axis));
 }
 #else
-bool haveBmi2() { return false; }
-inline uint32_t compactBmi2(uint64_t, int) { return 0; }
+bool haveBmi2() {
+  return false;
+}
+inline uint32_t compactBmi2(uint64_t, int) {
+  return 0;
+}
 #endif
 
 /// Decodes `n` LEB128 Morton deltas into positions (cell * step). Returns false on a malformed
@@ -144,9 +151,13 @@ bool decodePositions(const uint8_t*& p, const uint8_t* end, size_t n, uint64_t l
     code += d;
     if (code > limit) return false;
     if constexpr (kBmi2) {
-      out[i] = glm::vec3(float(compactBmi2(code, 0)), float(compactBmi2(code, 1)), float(compactBmi2(code, 2))) * step;
+      out[i] = glm::vec3(float(compactBmi2(code, 0)), float(compactBmi2(code, 1)),
+                         float(compactBmi2(code, 2))) *
+               step;
     } else {
-      out[i] = glm::vec3(float(compact(code)), float(compact(code >> 1)), float(compact(code >> 2))) * step;
+      out[i] =
+          glm::vec3(float(compact(code)), float(compact(code >> 1)), float(compact(code >> 2))) *
+          step;
     }
   }
   return true;
@@ -155,12 +166,12 @@ bool decodePositions(const uint8_t*& p, const uint8_t* end, size_t n, uint64_t l
 }  // namespace
 
 size_t ChunkPoints::byteSize() const {
-  return positions.size() * sizeof(glm::vec3) + colors.size() * 4 + intensities.size() * 2 + sources.size() * 2 +
-         classifications.size() + sizeof(*this);
+  return positions.size() * sizeof(glm::vec3) + colors.size() * 4 + intensities.size() * 2 +
+         sources.size() * 2 + classifications.size() + sizeof(*this);
 }
 
-EncodedChunk encodeChunk(std::span<BuildPoint> pts, const glm::dvec3& box_min, double extent, double step,
-                         AttributeMask attributes, int zstd_level) {
+EncodedChunk encodeChunk(std::span<BuildPoint> pts, const glm::dvec3& box_min, double extent,
+                         double step, AttributeMask attributes, int zstd_level) {
   const size_t n = pts.size();
   // Never more than 21 bits per axis: a coarser step if the box needs it.
   step = std::max(step, extent / double((1u << kMaxBits) - 1));
@@ -263,12 +274,15 @@ EncodedChunk encodeChunk(std::span<BuildPoint> pts, const glm::dvec3& box_min, d
   return out;
 }
 
-void decodeChunk(std::span<const uint8_t> bytes, const glm::dvec3& box_min, ChunkPoints& out, const std::string& what) {
+void decodeChunk(std::span<const uint8_t> bytes, const glm::dvec3& box_min, ChunkPoints& out,
+                 const std::string& what) {
   ChunkHeader h;
   if (bytes.size() < sizeof h) corrupt(what, "shorter than its header");
   std::memcpy(&h, bytes.data(), sizeof h);
-  if (uint64_t(sizeof h) + h.pc_size + h.extra_size != bytes.size()) corrupt(what, "frame sizes do not add up");
-  if (h.bits < 1 || h.bits > kMaxBits || !(h.step > 0.0) || !std::isfinite(h.step)) corrupt(what, "bad quantisation");
+  if (uint64_t(sizeof h) + h.pc_size + h.extra_size != bytes.size())
+    corrupt(what, "frame sizes do not add up");
+  if (h.bits < 1 || h.bits > kMaxBits || !(h.step > 0.0) || !std::isfinite(h.step))
+    corrupt(what, "bad quantisation");
   if ((h.attributes & ~(kColor | kExtra)) != 0) corrupt(what, "unknown attributes");
   if (h.points > (1u << 26)) corrupt(what, "implausible point count");
   const size_t n = h.points;
@@ -277,8 +291,8 @@ void decodeChunk(std::span<const uint8_t> bytes, const glm::dvec3& box_min, Chun
   thread_local std::vector<uint8_t> raw;
   // The varint stream's length is not stored: decompress whatever the frame holds (bounded).
   unsigned long long size = ZSTD_getFrameContentSize(bytes.data() + sizeof h, h.pc_size);
-  if (size == ZSTD_CONTENTSIZE_ERROR || size == ZSTD_CONTENTSIZE_UNKNOWN || size < n * (color ? 4 : 1) ||
-      size > n * (10 + (color ? 3 : 0))) {
+  if (size == ZSTD_CONTENTSIZE_ERROR || size == ZSTD_CONTENTSIZE_UNKNOWN ||
+      size < n * (color ? 4 : 1) || size > n * (10 + (color ? 3 : 0))) {
     corrupt(what, "position frame size does not match the point count");
   }
   decompress(bytes.subspan(sizeof h, h.pc_size), raw, size_t(size), what);
@@ -315,7 +329,8 @@ void decodeChunk(std::span<const uint8_t> bytes, const glm::dvec3& box_min, Chun
   out.sources.clear();
   out.classifications.clear();
   if (h.attributes & kExtra) {
-    size_t expect = (h.attributes & kIntensity ? 2 * n : 0) + (h.attributes & kScanIndex ? 2 * n : 0) +
+    size_t expect = (h.attributes & kIntensity ? 2 * n : 0) +
+                    (h.attributes & kScanIndex ? 2 * n : 0) +
                     (h.attributes & kClassification ? n : 0);
     if (h.extra_size == 0) corrupt(what, "attribute frame missing");
     decompress(bytes.subspan(sizeof h + h.pc_size, h.extra_size), raw, expect, what);

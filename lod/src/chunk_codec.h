@@ -27,10 +27,11 @@ struct EncodedChunk {
 
 /// Encodes `points` (reordered in place into Morton order). `box_min` is the node box minimum;
 /// every point must lie within [box_min, box_min + extent]. `step` > 0 is the quantisation step.
-EncodedChunk encodeChunk(std::span<BuildPoint> points, const glm::dvec3& box_min, double extent, double step,
-                         AttributeMask attributes, int zstd_level);
+EncodedChunk encodeChunk(std::span<BuildPoint> points, const glm::dvec3& box_min, double extent,
+                         double step, AttributeMask attributes, int zstd_level);
 
 /// Decodes a payload. Throws StoreError (with `what` naming the chunk) on any inconsistency.
-void decodeChunk(std::span<const uint8_t> bytes, const glm::dvec3& box_min, ChunkPoints& out, const std::string& what);
+void decodeChunk(std::span<const uint8_t> bytes, const glm::dvec3& box_min, ChunkPoints& out,
+                 const std::string& what);
 
 }  // namespace tessera::lod

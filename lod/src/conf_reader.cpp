@@ -24,13 +24,15 @@ RigidPose parsePose(std::string_view& rest, const std::string& file, uint64_t li
   for (double& x : v) {
     std::string_view t = nextToken(rest, " \t\r");
     if (!parseDouble(t, x) || !std::isfinite(x)) {
-      fail(kComponent, file, atLine(line), "expected 7 numbers (tx ty tz qi qj qk qr), got " + shown(t));
+      fail(kComponent, file, atLine(line),
+           "expected 7 numbers (tx ty tz qi qj qk qr), got " + shown(t));
     }
   }
   glm::dquat q(v[6], v[3], v[4], v[5]);  // glm: (w, x, y, z)
   double len = glm::length(q);
   if (std::abs(len - 1.0) > 1e-3) {
-    fail(kComponent, file, atLine(line), "quaternion is not unit length (|q| = " + std::to_string(len) + ")");
+    fail(kComponent, file, atLine(line),
+         "quaternion is not unit length (|q| = " + std::to_string(len) + ")");
   }
   // RigidPose means world = rotation * local + translation: store the conjugate.
   return RigidPose{glm::dvec3(v[0], v[1], v[2]), glm::conjugate(q / len)};
@@ -61,7 +63,8 @@ ConfReader::ConfReader(const std::filesystem::path& conf) : mName(conf.string())
       mInfo.camera = parsePose(rest, mName, src.lineNumber());
     } else if (key == "bmesh") {
       std::string_view file = nextToken(rest, " \t\r");
-      if (file.empty()) fail(kComponent, mName, atLine(src.lineNumber()), "bmesh without a file name");
+      if (file.empty())
+        fail(kComponent, mName, atLine(src.lineNumber()), "bmesh without a file name");
       ScanInfo scan;
       scan.name = std::string(file);
       scan.pose = parsePose(rest, mName, src.lineNumber());
@@ -70,7 +73,8 @@ ConfReader::ConfReader(const std::filesystem::path& conf) : mName(conf.string())
       try {
         r = openPointReader(scan.path);
       } catch (const ReadError& e) {
-        fail(kComponent, mName, atLine(src.lineNumber()), std::string("scan ") + shown(scan.name) + ": " + e.what());
+        fail(kComponent, mName, atLine(src.lineNumber()),
+             std::string("scan ") + shown(scan.name) + ": " + e.what());
       }
       const SourceInfo& si = r->info();
       scan.points = si.declared_points;
@@ -83,7 +87,8 @@ ConfReader::ConfReader(const std::filesystem::path& conf) : mName(conf.string())
       mInfo.declared_triangles += si.declared_triangles;
       mInfo.scans.push_back(std::move(scan));
     } else {
-      fail(kComponent, mName, atLine(src.lineNumber()), "unknown keyword " + shown(key) + " (expected bmesh or camera)");
+      fail(kComponent, mName, atLine(src.lineNumber()),
+           "unknown keyword " + shown(key) + " (expected bmesh or camera)");
     }
   }
   if (mInfo.scans.empty()) fail(kComponent, mName, "", "no bmesh lines: no scans to load");
@@ -103,7 +108,8 @@ bool ConfReader::next(PointBatch& batch, size_t max_points) {
       for (auto& [reason, count] : mCurrent->stats().skipped) {
         mStats.skipped[reason] += count;
         if (!mStats.first_skip_at.count(reason)) {
-          mStats.first_skip_at[reason] = scan.name + " " + mCurrent->stats().first_skip_at.at(reason);
+          mStats.first_skip_at[reason] =
+              scan.name + " " + mCurrent->stats().first_skip_at.at(reason);
         }
       }
       mBase += mCurrent->stats().points;
@@ -114,9 +120,11 @@ bool ConfReader::next(PointBatch& batch, size_t max_points) {
     const glm::dmat3 rot = glm::mat3_cast(scan.pose.rotation);
     const size_t n = mTmp.size();
     batch.resize(n);
-    for (size_t i = 0; i < n; ++i) batch.positions[i] = rot * mTmp.positions[i] + scan.pose.translation;
+    for (size_t i = 0; i < n; ++i)
+      batch.positions[i] = rot * mTmp.positions[i] + scan.pose.translation;
     if (batch.attributes & kNormal) {
-      for (size_t i = 0; i < n; ++i) batch.normals[i] = glm::vec3(rot * glm::dvec3(mTmp.normals[i]));
+      for (size_t i = 0; i < n; ++i)
+        batch.normals[i] = glm::vec3(rot * glm::dvec3(mTmp.normals[i]));
     }
     auto copy = [&](AttributeMask bit, auto& dst, const auto& src) {
       if (batch.attributes & bit) std::copy(src.begin(), src.begin() + n, dst.begin());
@@ -127,7 +135,8 @@ bool ConfReader::next(PointBatch& batch, size_t max_points) {
     copy(kGridPosition, batch.grid_positions, mTmp.grid_positions);
     copy(kClassification, batch.classifications, mTmp.classifications);
     std::fill(batch.scan_indices.begin(), batch.scan_indices.end(), uint16_t(mScan));
-    for (const Triangle& t : mTmp.triangles) batch.triangles.push_back(t + Triangle(uint32_t(mBase)));
+    for (const Triangle& t : mTmp.triangles)
+      batch.triangles.push_back(t + Triangle(uint32_t(mBase)));
     mStats.points += n;
     mStats.triangles += mTmp.triangles.size();
     return true;

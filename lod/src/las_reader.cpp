@@ -20,13 +20,17 @@ constexpr uint16_t kMinRecord[11] = {20, 28, 26, 34, 57, 63, 30, 36, 38, 59, 67}
 
 int rgbOffset(int fmt) {
   switch (fmt) {
-    case 2: return 20;
+    case 2:
+      return 20;
     case 3:
-    case 5: return 28;
+    case 5:
+      return 28;
     case 7:
     case 8:
-    case 10: return 30;
-    default: return -1;
+    case 10:
+      return 30;
+    default:
+      return -1;
   }
 }
 
@@ -38,7 +42,8 @@ class LasReader final : public PointReader {
  private:
   void parseHeader();
   void refuseLaz(const std::string& why) const {
-    fail(kComponent, mSrc.name(), "", "file is LAZ-compressed (" + why +
+    fail(kComponent, mSrc.name(), "",
+         "file is LAZ-compressed (" + why +
              "); LAZ is not supported: decompress it to LAS first (for example "
              "`laszip -i IN.laz -o OUT.las` or `pdal translate IN.laz OUT.las`)");
   }
@@ -64,8 +69,8 @@ void LasReader::parseHeader() {
     fail(kComponent, mSrc.name(), atByte(0), "not a LAS file (missing 'LASF' signature)");
   }
   if (got < kMinHeader) {
-    fail(kComponent, mSrc.name(), atByte(got), "file ends inside the " +
-             std::to_string(kMinHeader) + "-byte public header");
+    fail(kComponent, mSrc.name(), atByte(got),
+         "file ends inside the " + std::to_string(kMinHeader) + "-byte public header");
   }
   int major = h[24], minor = h[25];
   uint16_t header_size = loadLE<uint16_t>(h + 94);
@@ -86,24 +91,26 @@ void LasReader::parseHeader() {
   }
   mFormat = fmt_byte;
   if (mFormat > 10) {
-    fail(kComponent, mSrc.name(), atByte(104), "unknown point data format " + std::to_string(mFormat));
+    fail(kComponent, mSrc.name(), atByte(104),
+         "unknown point data format " + std::to_string(mFormat));
   }
   size_t need_header = minor >= 4 ? 375 : minor == 3 ? 235 : kMinHeader;
   if (header_size < need_header) {
-    fail(kComponent, mSrc.name(), atByte(94), "header size " + std::to_string(header_size) +
-             " is smaller than LAS " + version + " requires (" + std::to_string(need_header) + ")");
+    fail(kComponent, mSrc.name(), atByte(94),
+         "header size " + std::to_string(header_size) + " is smaller than LAS " + version +
+             " requires (" + std::to_string(need_header) + ")");
   }
   if (got < need_header) {
     fail(kComponent, mSrc.name(), atByte(got), "file ends inside the public header");
   }
   if (mDataOffset < header_size) {
-    fail(kComponent, mSrc.name(), atByte(96), "offset to point data " + std::to_string(mDataOffset) +
-             " lies inside the header");
+    fail(kComponent, mSrc.name(), atByte(96),
+         "offset to point data " + std::to_string(mDataOffset) + " lies inside the header");
   }
   if (mRecordLength < kMinRecord[mFormat]) {
-    fail(kComponent, mSrc.name(), atByte(105), "point record length " + std::to_string(mRecordLength) +
-             " is shorter than format " + std::to_string(mFormat) + " needs (" +
-             std::to_string(kMinRecord[mFormat]) + ")");
+    fail(kComponent, mSrc.name(), atByte(105),
+         "point record length " + std::to_string(mRecordLength) + " is shorter than format " +
+             std::to_string(mFormat) + " needs (" + std::to_string(kMinRecord[mFormat]) + ")");
   }
   mCount = legacy_count;
   if (minor >= 4) {
@@ -125,7 +132,8 @@ void LasReader::parseHeader() {
   if (!finite3(offset.x, offset.y, offset.z)) {
     fail(kComponent, mSrc.name(), atByte(155), "offset is not finite");
   }
-  bool box_ok = finite3(lo.x, lo.y, lo.z) && finite3(hi.x, hi.y, hi.z) && glm::all(glm::lessThanEqual(lo, hi));
+  bool box_ok = finite3(lo.x, lo.y, lo.z) && finite3(hi.x, hi.y, hi.z) &&
+                glm::all(glm::lessThanEqual(lo, hi));
   if (box_ok) mInfo.header_bbox = std::make_pair(lo, hi);
   // Local origin: the header box centre snapped to the coordinate grid, else the offset.
   glm::dvec3 origin = offset;
@@ -148,7 +156,8 @@ void LasReader::parseHeader() {
   for (uint32_t i = 0; i < vlr_count && pos + 54 <= mDataOffset; ++i) {
     uint8_t vh[54];
     if (mSrc.readAt(pos, vh, 54) < 54) break;
-    std::string user(reinterpret_cast<const char*>(vh + 2), strnlen(reinterpret_cast<const char*>(vh + 2), 16));
+    std::string user(reinterpret_cast<const char*>(vh + 2),
+                     strnlen(reinterpret_cast<const char*>(vh + 2), 16));
     uint16_t record_id = loadLE<uint16_t>(vh + 18);
     if (user == "laszip encoded" && record_id == 22204) refuseLaz("LASzip VLR present");
     pos += 54 + loadLE<uint16_t>(vh + 20);

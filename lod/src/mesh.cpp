@@ -27,7 +27,8 @@ Mesh readMesh(const std::filesystem::path& path) {
     mesh.triangles.insert(mesh.triangles.end(), batch.triangles.begin(), batch.triangles.end());
   }
   if (mesh.triangles.empty()) {
-    throw ReadError("lod::readMesh(): " + path.string() + ": no triangles (a point cloud, not a mesh)");
+    throw ReadError("lod::readMesh(): " + path.string() +
+                    ": no triangles (a point cloud, not a mesh)");
   }
   return mesh;
 }

@@ -48,7 +48,8 @@ size_t gridSample(std::span<BuildPoint> pts, const glm::dvec3& box_min, double s
   return touched.size();
 }
 
-std::array<size_t, 9> partitionOctants(std::span<BuildPoint> pts, const CubeFrame& frame, const CellKey& key) {
+std::array<size_t, 9> partitionOctants(std::span<BuildPoint> pts, const CubeFrame& frame,
+                                       const CellKey& key) {
   const int level = key.level + 1;
   auto octant = [&](const BuildPoint& p) { return frame.cellOf(p.position, level).childIndex(); };
   std::array<size_t, 9> bounds{};
@@ -63,7 +64,8 @@ std::array<size_t, 9> partitionOctants(std::span<BuildPoint> pts, const CubeFram
   return bounds;
 }
 
-double meanSpacing(std::span<const BuildPoint> pts, double extent, double fallback, size_t samples) {
+double meanSpacing(std::span<const BuildPoint> pts, double extent, double fallback,
+                   size_t samples) {
   const size_t n = pts.size();
   if (n < 2 || !(extent > 0)) return fallback;
   // Hash grid with about one point per cell for a surface sampling (n ~ (extent / s)^2), built
@@ -74,7 +76,8 @@ double meanSpacing(std::span<const BuildPoint> pts, double extent, double fallba
   auto cellOf = [&](const glm::dvec3& p) { return glm::ivec3(glm::floor((p - lo) / cell)); };
   const size_t buckets = size_t(1) << std::max(4, int(std::ceil(std::log2(double(n)))) + 1);
   auto bucketOf = [&](const glm::ivec3& c) {
-    uint64_t h = uint64_t(uint32_t(c.x)) * 0x9E3779B97F4A7C15ull ^ uint64_t(uint32_t(c.y)) * 0xC2B2AE3D27D4EB4Full ^
+    uint64_t h = uint64_t(uint32_t(c.x)) * 0x9E3779B97F4A7C15ull ^
+                 uint64_t(uint32_t(c.y)) * 0xC2B2AE3D27D4EB4Full ^
                  uint64_t(uint32_t(c.z)) * 0x165667B19E3779F9ull;
     return size_t(h >> 20) & (buckets - 1);
   };

@@ -20,10 +20,12 @@ size_t gridSample(std::span<BuildPoint> pts, const glm::dvec3& box_min, double s
 /// Reorders the points of cell `key` by child cell (index x | y << 1 | z << 2) and returns the 9
 /// boundaries: child i spans [bounds[i], bounds[i + 1]). Uses CubeFrame::cellOf, the same
 /// arithmetic as distribution and verification, so a point on a boundary lands in one place.
-std::array<size_t, 9> partitionOctants(std::span<BuildPoint> pts, const CubeFrame& frame, const CellKey& key);
+std::array<size_t, 9> partitionOctants(std::span<BuildPoint> pts, const CubeFrame& frame,
+                                       const CellKey& key);
 
 /// Mean distance from a point to its nearest other sample (exact duplicates excluded), over up
 /// to `samples` points spread through `pts`. Returns `fallback` when nothing can be measured.
-double meanSpacing(std::span<const BuildPoint> pts, double extent, double fallback, size_t samples = 256);
+double meanSpacing(std::span<const BuildPoint> pts, double extent, double fallback,
+                   size_t samples = 256);
 
 }  // namespace tessera::lod

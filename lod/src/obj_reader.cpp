@@ -56,8 +56,11 @@ void ObjReader::vertex(std::string_view rest, PointBatch& batch) {
       fail(kComponent, mSrc.name(), atLine(mSrc.lineNumber()), "bad vertex value " + shown(t));
     }
   }
-  if (n < 3) fail(kComponent, mSrc.name(), atLine(mSrc.lineNumber()), "vertex with fewer than 3 coordinates");
-  if (mRemap.size() >= kDropped - 1) fail(kComponent, mSrc.name(), atLine(mSrc.lineNumber()), "too many vertices");
+  if (n < 3)
+    fail(kComponent, mSrc.name(), atLine(mSrc.lineNumber()),
+         "vertex with fewer than 3 coordinates");
+  if (mRemap.size() >= kDropped - 1)
+    fail(kComponent, mSrc.name(), atLine(mSrc.lineNumber()), "too many vertices");
   if (!finite3(v[0], v[1], v[2])) {
     mStats.skip("non-finite coordinate", atLine(mSrc.lineNumber()));
     mRemap.push_back(kDropped);

@@ -18,15 +18,24 @@ namespace {
 
 constexpr const char* kComponent = "lod::readPly()";
 
-enum class PlyType : uint8_t { kInt8, kUInt8, kInt16, kUInt16, kInt32, kUInt32, kFloat32, kFloat64 };
+enum class PlyType : uint8_t {
+  kInt8,
+  kUInt8,
+  kInt16,
+  kUInt16,
+  kInt32,
+  kUInt32,
+  kFloat32,
+  kFloat64
+};
 
 bool parsePlyType(std::string_view s, PlyType& t) {
   static constexpr std::pair<std::string_view, PlyType> kNames[] = {
-      {"char", PlyType::kInt8},     {"int8", PlyType::kInt8},      {"uchar", PlyType::kUInt8},
-      {"uint8", PlyType::kUInt8},   {"short", PlyType::kInt16},    {"int16", PlyType::kInt16},
-      {"ushort", PlyType::kUInt16}, {"uint16", PlyType::kUInt16},  {"int", PlyType::kInt32},
-      {"int32", PlyType::kInt32},   {"uint", PlyType::kUInt32},    {"uint32", PlyType::kUInt32},
-      {"float", PlyType::kFloat32}, {"float32", PlyType::kFloat32}, {"double", PlyType::kFloat64},
+      {"char", PlyType::kInt8},      {"int8", PlyType::kInt8},       {"uchar", PlyType::kUInt8},
+      {"uint8", PlyType::kUInt8},    {"short", PlyType::kInt16},     {"int16", PlyType::kInt16},
+      {"ushort", PlyType::kUInt16},  {"uint16", PlyType::kUInt16},   {"int", PlyType::kInt32},
+      {"int32", PlyType::kInt32},    {"uint", PlyType::kUInt32},     {"uint32", PlyType::kUInt32},
+      {"float", PlyType::kFloat32},  {"float32", PlyType::kFloat32}, {"double", PlyType::kFloat64},
       {"float64", PlyType::kFloat64}};
   for (auto& [name, type] : kNames) {
     if (s == name) {
@@ -40,36 +49,62 @@ bool parsePlyType(std::string_view s, PlyType& t) {
 size_t typeSize(PlyType t) {
   switch (t) {
     case PlyType::kInt8:
-    case PlyType::kUInt8: return 1;
+    case PlyType::kUInt8:
+      return 1;
     case PlyType::kInt16:
-    case PlyType::kUInt16: return 2;
+    case PlyType::kUInt16:
+      return 2;
     case PlyType::kInt32:
     case PlyType::kUInt32:
-    case PlyType::kFloat32: return 4;
-    case PlyType::kFloat64: return 8;
+    case PlyType::kFloat32:
+      return 4;
+    case PlyType::kFloat64:
+      return 8;
   }
   return 0;
 }
 
-bool isIntegerType(PlyType t) { return t != PlyType::kFloat32 && t != PlyType::kFloat64; }
+bool isIntegerType(PlyType t) {
+  return t != PlyType::kFloat32 && t != PlyType::kFloat64;
+}
 
 double loadScalar(const uint8_t* p, PlyType t, bool swap) {
   switch (t) {
-    case PlyType::kInt8: return double(int8_t(p[0]));
-    case PlyType::kUInt8: return double(p[0]);
-    case PlyType::kInt16: return double(load<int16_t>(p, swap));
-    case PlyType::kUInt16: return double(load<uint16_t>(p, swap));
-    case PlyType::kInt32: return double(load<int32_t>(p, swap));
-    case PlyType::kUInt32: return double(load<uint32_t>(p, swap));
-    case PlyType::kFloat32: return double(load<float>(p, swap));
-    case PlyType::kFloat64: return load<double>(p, swap);
+    case PlyType::kInt8:
+      return double(int8_t(p[0]));
+    case PlyType::kUInt8:
+      return double(p[0]);
+    case PlyType::kInt16:
+      return double(load<int16_t>(p, swap));
+    case PlyType::kUInt16:
+      return double(load<uint16_t>(p, swap));
+    case PlyType::kInt32:
+      return double(load<int32_t>(p, swap));
+    case PlyType::kUInt32:
+      return double(load<uint32_t>(p, swap));
+    case PlyType::kFloat32:
+      return double(load<float>(p, swap));
+    case PlyType::kFloat64:
+      return load<double>(p, swap);
   }
   return 0.0;
 }
 
 /// Where a vertex property's value goes.
 enum class Slot : uint8_t {
-  kSkip, kX, kY, kZ, kNx, kNy, kNz, kRed, kGreen, kBlue, kAlpha, kIntensity, kConfidence
+  kSkip,
+  kX,
+  kY,
+  kZ,
+  kNx,
+  kNy,
+  kNz,
+  kRed,
+  kGreen,
+  kBlue,
+  kAlpha,
+  kIntensity,
+  kConfidence
 };
 
 Slot slotFor(std::string_view n) {
@@ -189,9 +224,8 @@ class PlyReader final : public PointReader {
  private:
   void parseHeader();
   [[noreturn]] void failHere(const std::string& what) const {
-    fail(kComponent, mSrc.name(), mEncoding == Encoding::kAscii ? atLine(mSrc.lineNumber())
-                                                                : atByte(mSrc.offset()),
-         what);
+    fail(kComponent, mSrc.name(),
+         mEncoding == Encoding::kAscii ? atLine(mSrc.lineNumber()) : atByte(mSrc.offset()), what);
   }
   /// Reads one vertex's properties into `values` (indexed by property). False only at a clean
   /// end of data; throws on truncation or a bad token.
@@ -234,8 +268,8 @@ class PlyReader final : public PointReader {
   int mGridElement = -1;     // the range_grid element checked by parseHeader() (one list)
 
   // Streaming state.
-  size_t mElement = 0;        // element being read
-  uint64_t mInstance = 0;     // next instance within it
+  size_t mElement = 0;     // element being read
+  uint64_t mInstance = 0;  // next instance within it
   uint64_t mVerticesKept = 0;
   std::vector<uint32_t> mRemap;  // file vertex index -> delivered index (or kDropped)
   bool mRemapNeeded = false;     // filled when the file has faces or a range grid
@@ -284,7 +318,8 @@ void PlyReader::parseHeader() {
       } else {
         fail(kComponent, mSrc.name(), where, "unknown format " + shown(enc));
       }
-      if (ver != "1.0") fail(kComponent, mSrc.name(), where, "unsupported PLY version " + shown(ver));
+      if (ver != "1.0")
+        fail(kComponent, mSrc.name(), where, "unsupported PLY version " + shown(ver));
       mInfo.format_detail = std::string(enc) + " 1.0";
       have_format = true;
     } else if (key == "obj_info") {
@@ -349,12 +384,26 @@ void PlyReader::parseHeader() {
   for (const Property& p : v.props) {
     have |= 1u << unsigned(p.slot);
     switch (p.slot) {
-      case Slot::kNx: case Slot::kNy: case Slot::kNz: break;
-      case Slot::kRed: case Slot::kGreen: case Slot::kBlue: attrs |= kColor; break;
-      case Slot::kAlpha: attrs |= kAlpha | kColor; break;
-      case Slot::kIntensity: attrs |= kIntensity; break;
-      case Slot::kConfidence: attrs |= kConfidence; break;
-      default: break;
+      case Slot::kNx:
+      case Slot::kNy:
+      case Slot::kNz:
+        break;
+      case Slot::kRed:
+      case Slot::kGreen:
+      case Slot::kBlue:
+        attrs |= kColor;
+        break;
+      case Slot::kAlpha:
+        attrs |= kAlpha | kColor;
+        break;
+      case Slot::kIntensity:
+        attrs |= kIntensity;
+        break;
+      case Slot::kConfidence:
+        attrs |= kConfidence;
+        break;
+      default:
+        break;
     }
   }
   auto has = [&](Slot s) { return (have >> unsigned(s)) & 1u; };
@@ -400,8 +449,8 @@ void PlyReader::parseHeader() {
   mInfo.has_declared_points = true;
   mInfo.attributes = attrs;
   size_t widest = std::max_element(mElements.begin(), mElements.end(), [](auto& a, auto& b) {
-                   return a.props.size() < b.props.size();
-                 })->props.size();
+                    return a.props.size() < b.props.size();
+                  })->props.size();
   mValues.resize(widest);
   mLists.resize(widest);
 }
@@ -510,19 +559,44 @@ bool PlyReader::emitVertex(const std::vector<double>& values, PointBatch& batch)
   for (size_t i = 0; i < v.props.size(); ++i) {
     double x = values[i];
     switch (v.props[i].slot) {
-      case Slot::kSkip: break;
-      case Slot::kX: xyz[0] = x; break;
-      case Slot::kY: xyz[1] = x; break;
-      case Slot::kZ: xyz[2] = x; break;
-      case Slot::kNx: n[0] = float(x); break;
-      case Slot::kNy: n[1] = float(x); break;
-      case Slot::kNz: n[2] = float(x); break;
-      case Slot::kRed: c.r = colorByte(x, v.props[i].type); break;
-      case Slot::kGreen: c.g = colorByte(x, v.props[i].type); break;
-      case Slot::kBlue: c.b = colorByte(x, v.props[i].type); break;
-      case Slot::kAlpha: c.a = colorByte(x, v.props[i].type); break;
-      case Slot::kIntensity: intensity = float(x); break;
-      case Slot::kConfidence: confidence = float(x); break;
+      case Slot::kSkip:
+        break;
+      case Slot::kX:
+        xyz[0] = x;
+        break;
+      case Slot::kY:
+        xyz[1] = x;
+        break;
+      case Slot::kZ:
+        xyz[2] = x;
+        break;
+      case Slot::kNx:
+        n[0] = float(x);
+        break;
+      case Slot::kNy:
+        n[1] = float(x);
+        break;
+      case Slot::kNz:
+        n[2] = float(x);
+        break;
+      case Slot::kRed:
+        c.r = colorByte(x, v.props[i].type);
+        break;
+      case Slot::kGreen:
+        c.g = colorByte(x, v.props[i].type);
+        break;
+      case Slot::kBlue:
+        c.b = colorByte(x, v.props[i].type);
+        break;
+      case Slot::kAlpha:
+        c.a = colorByte(x, v.props[i].type);
+        break;
+      case Slot::kIntensity:
+        intensity = float(x);
+        break;
+      case Slot::kConfidence:
+        confidence = float(x);
+        break;
     }
   }
   const glm::dvec3 p(xyz[0], xyz[1], xyz[2]);
@@ -627,7 +701,8 @@ void PlyReader::readFaces(PointBatch& batch, size_t max_triangles) {
   const Element& e = mElements[mElement];
   int list_prop = -1;
   for (size_t i = 0; i < e.props.size(); ++i) {
-    if (e.props[i].is_list && (e.props[i].name == "vertex_indices" || e.props[i].name == "vertex_index")) {
+    if (e.props[i].is_list &&
+        (e.props[i].name == "vertex_indices" || e.props[i].name == "vertex_index")) {
       list_prop = int(i);
     }
   }
@@ -671,7 +746,8 @@ void PlyReader::readRangeGrid() {
     }
     uint32_t kept = mRemap[size_t(d)];
     if (kept == kDropped) return;
-    mBuffer.grid_positions[kept] = glm::u16vec2(uint16_t(mInstance % mGridCols), uint16_t(mInstance / mGridCols));
+    mBuffer.grid_positions[kept] =
+        glm::u16vec2(uint16_t(mInstance % mGridCols), uint16_t(mInstance / mGridCols));
   };
   if (mEncoding != Encoding::kAscii) {
     // Binary: a tight loop over whole cells in the buffer (count, then that many indices);
@@ -682,7 +758,8 @@ void PlyReader::readRangeGrid() {
       size_t avail = mSrc.ensure(1 << 16);
       const uint8_t* b = mSrc.data();
       size_t used = 0;
-      if (p.count_type == PlyType::kUInt8 && (p.type == PlyType::kInt32 || p.type == PlyType::kUInt32)) {
+      if (p.count_type == PlyType::kUInt8 &&
+          (p.type == PlyType::kInt32 || p.type == PlyType::kUInt32)) {
         // The Stanford layout (uchar count, int index): most cells are empty single zero bytes.
         while (mInstance < e.count && used < avail) {
           const uint8_t n = b[used];
@@ -694,7 +771,8 @@ void PlyReader::readRangeGrid() {
           if (used + 1 + size_t(n) * 4 > avail) break;
           for (size_t k = 0; k < n; ++k) {
             const uint8_t* q = b + used + 1 + 4 * k;
-            assign(p.type == PlyType::kInt32 ? double(load<int32_t>(q, mSwap)) : double(load<uint32_t>(q, mSwap)));
+            assign(p.type == PlyType::kInt32 ? double(load<int32_t>(q, mSwap))
+                                             : double(load<uint32_t>(q, mSwap)));
           }
           used += 1 + size_t(n) * 4;
           ++mInstance;
@@ -705,7 +783,8 @@ void PlyReader::readRangeGrid() {
         if (n < 0 || n > 1e6) failHere("bad list length " + std::to_string(n) + " in range_grid");
         size_t need = csz + size_t(n) * isz;
         if (used + need > avail) break;
-        for (size_t k = 0; k < size_t(n); ++k) assign(loadScalar(b + used + csz + k * isz, p.type, mSwap));
+        for (size_t k = 0; k < size_t(n); ++k)
+          assign(loadScalar(b + used + csz + k * isz, p.type, mSwap));
         used += need;
         ++mInstance;
       }
@@ -754,7 +833,8 @@ bool PlyReader::fillBuffered() {
     } else if (e.name == "face") {
       PointBatch tmp;
       readFaces(tmp, std::numeric_limits<size_t>::max());
-      mBufferedTriangles.insert(mBufferedTriangles.end(), tmp.triangles.begin(), tmp.triangles.end());
+      mBufferedTriangles.insert(mBufferedTriangles.end(), tmp.triangles.begin(),
+                                tmp.triangles.end());
     } else if (int(mElement) == mGridElement &&
                mRemap.size() == mElements[size_t(mVertexElement)].count) {
       readRangeGrid();

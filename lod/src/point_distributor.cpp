@@ -29,7 +29,9 @@ uint64_t spread3(uint64_t v) {
   return v;
 }
 
-size_t gridIndex(uint32_t x, uint32_t y, uint32_t z) { return (size_t(z) * kCountRes + y) * kCountRes + x; }
+size_t gridIndex(uint32_t x, uint32_t y, uint32_t z) {
+  return (size_t(z) * kCountRes + y) * kCountRes + x;
+}
 
 }  // namespace
 
@@ -58,22 +60,28 @@ CellKey CubeFrame::cellOf(const glm::dvec3& p, int level) const {
   return {uint8_t(level), axis(p.x - cube_min.x), axis(p.y - cube_min.y), axis(p.z - cube_min.z)};
 }
 
-void readTempPoints(int fd, uint64_t first, uint64_t count, BuildPoint* out, const std::string& name) {
+void readTempPoints(int fd, uint64_t first, uint64_t count, BuildPoint* out,
+                    const std::string& name) {
   auto* dst = reinterpret_cast<uint8_t*>(out);
   uint64_t bytes = count * sizeof(BuildPoint), off = first * sizeof(BuildPoint), done = 0;
   while (done < bytes) {
-    ssize_t got = ::pread(fd, dst + done, size_t(std::min<uint64_t>(bytes - done, 1u << 30)), off_t(off + done));
+    ssize_t got = ::pread(fd, dst + done, size_t(std::min<uint64_t>(bytes - done, 1u << 30)),
+                          off_t(off + done));
     if (got < 0 && errno == EINTR) continue;
-    if (got <= 0) throw StoreError("lod::buildStore(): reading temporary file " + name + " failed: " + std::strerror(errno));
+    if (got <= 0)
+      throw StoreError("lod::buildStore(): reading temporary file " + name +
+                       " failed: " + std::strerror(errno));
     done += uint64_t(got);
   }
 }
 
-void writeTempPoints(int fd, uint64_t first, const BuildPoint* pts, uint64_t count, const std::string& name) {
+void writeTempPoints(int fd, uint64_t first, const BuildPoint* pts, uint64_t count,
+                     const std::string& name) {
   const auto* src = reinterpret_cast<const uint8_t*>(pts);
   uint64_t bytes = count * sizeof(BuildPoint), off = first * sizeof(BuildPoint), done = 0;
   while (done < bytes) {
-    ssize_t put = ::pwrite(fd, src + done, size_t(std::min<uint64_t>(bytes - done, 1u << 30)), off_t(off + done));
+    ssize_t put = ::pwrite(fd, src + done, size_t(std::min<uint64_t>(bytes - done, 1u << 30)),
+                           off_t(off + done));
     if (put < 0 && errno == EINTR) continue;
     if (put <= 0) {
       throw StoreError("lod::buildStore(): writing temporary file " + name + " failed: " +
@@ -83,7 +91,8 @@ void writeTempPoints(int fd, uint64_t first, const BuildPoint* pts, uint64_t cou
   }
 }
 
-PointDistributor::PointDistributor(const std::vector<std::filesystem::path>& inputs, bool quiet) : mQuiet(quiet) {
+PointDistributor::PointDistributor(const std::vector<std::filesystem::path>& inputs, bool quiet)
+    : mQuiet(quiet) {
   if (inputs.empty()) throw ReadError("lod::buildStore(): no input files");
   uint32_t next_source = 0;
   for (const auto& path : inputs) {
@@ -91,18 +100,22 @@ PointDistributor::PointDistributor(const std::vector<std::filesystem::path>& inp
     const SourceInfo& info = reader->info();
     mInputs.push_back({path, uint16_t(next_source)});
     if (info.format == Format::kStanfordConf) {
-      for (const ScanInfo& s : info.scans) mSourceNames.push_back(path.filename().string() + ":" + s.name);
+      for (const ScanInfo& s : info.scans)
+        mSourceNames.push_back(path.filename().string() + ":" + s.name);
       next_source += uint32_t(info.scans.size());
     } else {
       mSourceNames.push_back(path.filename().string());
       next_source += 1;
     }
-    if (next_source > 65535) throw ReadError("lod::buildStore(): more than 65535 sources (files and scans)");
+    if (next_source > 65535)
+      throw ReadError("lod::buildStore(): more than 65535 sources (files and scans)");
     mAttributes |= info.attributes & (kColor | kIntensity | kClassification);
     mDeclared += info.declared_points;
     // The finest declared resolution over all inputs; unknown (0) anywhere means unknown.
     double p = info.precision;
-    mPrecision = mInputs.size() == 1 ? p : (p == 0.0 || mPrecision == 0.0) ? 0.0 : std::min(mPrecision, p);
+    mPrecision = mInputs.size() == 1               ? p
+                 : (p == 0.0 || mPrecision == 0.0) ? 0.0
+                                                   : std::min(mPrecision, p);
   }
 }
 
@@ -141,7 +154,9 @@ void PointDistributor::readInputs(const std::string& label, const std::filesyste
   mRawFile = raw_file;
   const std::string name = raw_file.string();
   int fd = ::open(raw_file.c_str(), O_RDWR | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
-  if (fd < 0) throw StoreError("lod::buildStore(): cannot create temporary file " + name + ": " + std::strerror(errno));
+  if (fd < 0)
+    throw StoreError("lod::buildStore(): cannot create temporary file " + name + ": " +
+                     std::strerror(errno));
   struct FdCloser {
     int fd;
     ~FdCloser() { ::close(fd); }
@@ -161,9 +176,11 @@ void PointDistributor::readInputs(const std::string& label, const std::filesyste
   mMax = hi;
 }
 
-void PointDistributor::forEachRaw(const std::string& label, const std::function<void(std::span<const BuildPoint>)>& fn) {
+void PointDistributor::forEachRaw(const std::string& label,
+                                  const std::function<void(std::span<const BuildPoint>)>& fn) {
   int fd = ::open(mRawFile.c_str(), O_RDONLY | O_CLOEXEC);
-  if (fd < 0) throw StoreError("lod::buildStore(): cannot reopen temporary file " + mRawFile.string());
+  if (fd < 0)
+    throw StoreError("lod::buildStore(): cannot reopen temporary file " + mRawFile.string());
   struct FdCloser {
     int fd;
     ~FdCloser() { ::close(fd); }
@@ -194,12 +211,14 @@ void PointDistributor::measure(const std::filesystem::path& raw_file) {
   mFrame.cube_min = centre - glm::dvec3(0.5 * size);
 }
 
-void PointDistributor::measureInFrame(const CubeFrame& frame, const std::filesystem::path& raw_file) {
+void PointDistributor::measureInFrame(const CubeFrame& frame,
+                                      const std::filesystem::path& raw_file) {
   mFrame = frame;
   readInputs("verify 1/3 reading", raw_file);
 }
 
-std::vector<Chunk> PointDistributor::distribute(uint64_t chunk_max, const std::filesystem::path& temp_file) {
+std::vector<Chunk> PointDistributor::distribute(uint64_t chunk_max,
+                                                const std::filesystem::path& temp_file) {
   // Pass 2: counting grid.
   std::vector<uint32_t> counts(size_t(kCountRes) * kCountRes * kCountRes, 0);
   uint64_t counted = 0;
@@ -210,7 +229,8 @@ std::vector<Chunk> PointDistributor::distribute(uint64_t chunk_max, const std::f
     }
     counted += pts.size();
   });
-  if (counted != mPoints) throw StoreError("lod::buildStore(): internal error: temporary file count differs");
+  if (counted != mPoints)
+    throw StoreError("lod::buildStore(): internal error: temporary file count differs");
 
   // Count pyramid: level l has 2^l cells per axis.
   std::vector<std::vector<uint64_t>> pyramid(kCountLevel + 1);
@@ -251,7 +271,8 @@ std::vector<Chunk> PointDistributor::distribute(uint64_t chunk_max, const std::f
     for (uint32_t z = 0; z < span; ++z)
       for (uint32_t y = 0; y < span; ++y)
         for (uint32_t x = 0; x < span; ++x) {
-          owner[gridIndex((c.key.x << shift) + x, (c.key.y << shift) + y, (c.key.z << shift) + z)] = int32_t(ci);
+          owner[gridIndex((c.key.x << shift) + x, (c.key.y << shift) + y, (c.key.z << shift) + z)] =
+              int32_t(ci);
         }
   }
   counts.clear();
@@ -260,13 +281,16 @@ std::vector<Chunk> PointDistributor::distribute(uint64_t chunk_max, const std::f
   // Pass 3: distribution through per-chunk buffers into one preallocated file.
   const std::string name = temp_file.string();
   int fd = ::open(temp_file.c_str(), O_RDWR | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
-  if (fd < 0) throw StoreError("lod::buildStore(): cannot create temporary file " + name + ": " + std::strerror(errno));
+  if (fd < 0)
+    throw StoreError("lod::buildStore(): cannot create temporary file " + name + ": " +
+                     std::strerror(errno));
   struct FdCloser {
     int fd;
     ~FdCloser() { ::close(fd); }
   } closer{fd};
   // Buffers: a few MB in all whatever the chunk count (at least 64 points each).
-  const size_t per_chunk = std::max<size_t>(64, (size_t(64) << 20) / sizeof(BuildPoint) / std::max<size_t>(1, chunks.size()));
+  const size_t per_chunk = std::max<size_t>(
+      64, (size_t(64) << 20) / sizeof(BuildPoint) / std::max<size_t>(1, chunks.size()));
   std::vector<std::vector<BuildPoint>> buffers(chunks.size());
   std::vector<uint64_t> written(chunks.size(), 0);
   auto flush = [&](size_t ci) {
@@ -291,7 +315,8 @@ std::vector<Chunk> PointDistributor::distribute(uint64_t chunk_max, const std::f
   });
   for (size_t ci = 0; ci < chunks.size(); ++ci) {
     flush(ci);
-    if (written[ci] != chunks[ci].count) throw StoreError("lod::buildStore(): internal error: chunk counts differ");
+    if (written[ci] != chunks[ci].count)
+      throw StoreError("lod::buildStore(): internal error: chunk counts differ");
   }
   std::error_code ec;
   std::filesystem::remove(mRawFile, ec);

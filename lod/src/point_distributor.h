@@ -32,7 +32,8 @@ struct CellKey {
 
 struct CellKeyHash {
   size_t operator()(const CellKey& k) const {
-    return size_t((uint64_t(k.x) * 0x9E3779B97F4A7C15ull) ^ (uint64_t(k.y) * 0xC2B2AE3D27D4EB4Full) ^
+    return size_t((uint64_t(k.x) * 0x9E3779B97F4A7C15ull) ^
+                  (uint64_t(k.y) * 0xC2B2AE3D27D4EB4Full) ^
                   (uint64_t(k.z) * 0x165667B19E3779F9ull) ^ k.level);
   }
 };
@@ -42,7 +43,9 @@ struct CubeFrame {
   glm::dvec3 origin{0.0};
   glm::dvec3 cube_min{0.0};
   double cube_size = 1.0;
-  glm::dvec3 cellMin(const CellKey& k) const { return cube_min + glm::dvec3(k.x, k.y, k.z) * cellSize(k.level); }
+  glm::dvec3 cellMin(const CellKey& k) const {
+    return cube_min + glm::dvec3(k.x, k.y, k.z) * cellSize(k.level);
+  }
   double cellSize(int level) const { return cube_size / double(uint64_t(1) << level); }
   /// The cell at `level` containing local point p (clamped into the cube).
   CellKey cellOf(const glm::dvec3& p, int level) const;
@@ -86,10 +89,12 @@ class PointDistributor {
 
  private:
   /// Streams every input, calling `fn` per batch of points in the local frame.
-  void forEachBatch(const std::string& label, const std::function<void(std::span<const BuildPoint>)>& fn);
+  void forEachBatch(const std::string& label,
+                    const std::function<void(std::span<const BuildPoint>)>& fn);
   void readInputs(const std::string& label, const std::filesystem::path& raw_file);
   /// Streams the raw file written by pass 1.
-  void forEachRaw(const std::string& label, const std::function<void(std::span<const BuildPoint>)>& fn);
+  void forEachRaw(const std::string& label,
+                  const std::function<void(std::span<const BuildPoint>)>& fn);
 
   std::vector<InputSource> mInputs;
   std::vector<std::string> mSourceNames;
@@ -105,8 +110,10 @@ class PointDistributor {
 };
 
 /// Reads points [first, first + count) of a temp file written by distribute().
-void readTempPoints(int fd, uint64_t first, uint64_t count, BuildPoint* out, const std::string& name);
+void readTempPoints(int fd, uint64_t first, uint64_t count, BuildPoint* out,
+                    const std::string& name);
 /// Writes points at index `first` of a temp file.
-void writeTempPoints(int fd, uint64_t first, const BuildPoint* pts, uint64_t count, const std::string& name);
+void writeTempPoints(int fd, uint64_t first, const BuildPoint* pts, uint64_t count,
+                     const std::string& name);
 
 }  // namespace tessera::lod

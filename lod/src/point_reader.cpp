@@ -11,8 +11,9 @@
 namespace tessera::lod {
 
 std::vector<const char*> attributeNames(AttributeMask mask) {
-  static constexpr const char* kNames[] = {"normal",     "color",      "alpha",         "intensity",
-                                           "confidence", "scan_index", "grid_position", "classification"};
+  static constexpr const char* kNames[] = {"normal",        "color",         "alpha",
+                                           "intensity",     "confidence",    "scan_index",
+                                           "grid_position", "classification"};
   std::vector<const char*> out;
   for (unsigned i = 0; i < std::size(kNames); ++i) {
     if (mask & (1u << i)) out.push_back(kNames[i]);
@@ -22,11 +23,16 @@ std::vector<const char*> attributeNames(AttributeMask mask) {
 
 const char* formatName(Format format) {
   switch (format) {
-    case Format::kPly: return "ply";
-    case Format::kStanfordConf: return "stanford-conf";
-    case Format::kLas: return "las";
-    case Format::kText: return "xyz";
-    case Format::kObj: return "obj";
+    case Format::kPly:
+      return "ply";
+    case Format::kStanfordConf:
+      return "stanford-conf";
+    case Format::kLas:
+      return "las";
+    case Format::kText:
+      return "xyz";
+    case Format::kObj:
+      return "obj";
   }
   return "unknown";
 }
@@ -94,7 +100,8 @@ namespace {
 
 std::string lowerExtension(const std::string& name) {
   std::string ext = std::filesystem::path(name).extension().string();
-  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
+  std::transform(ext.begin(), ext.end(), ext.begin(),
+                 [](unsigned char c) { return std::tolower(c); });
   return ext;
 }
 
@@ -114,11 +121,16 @@ std::optional<Format> detect(const uint8_t* head, size_t n, const std::string& n
 
 std::unique_ptr<PointReader> openWith(Format format, ByteSource src) {
   switch (format) {
-    case Format::kPly: return detail::openPly(std::move(src));
-    case Format::kLas: return detail::openLas(std::move(src));
-    case Format::kText: return detail::openText(std::move(src));
-    case Format::kObj: return detail::openObj(std::move(src));
-    case Format::kStanfordConf: break;
+    case Format::kPly:
+      return detail::openPly(std::move(src));
+    case Format::kLas:
+      return detail::openLas(std::move(src));
+    case Format::kText:
+      return detail::openText(std::move(src));
+    case Format::kObj:
+      return detail::openObj(std::move(src));
+    case Format::kStanfordConf:
+      break;
   }
   detail::fail("lod::openPointReader()", src.name(), "",
                "a Stanford .conf names other files and cannot be read from memory");
@@ -143,7 +155,8 @@ std::unique_ptr<PointReader> openSource(ByteSource src, const ReaderOptions& opt
   size_t n = src.ensure(8);
   auto format = options.format ? options.format : detect(src.data(), n, src.name());
   if (!format) unknownFormat(src);
-  if (src.size() == 0) detail::fail("lod::openPointReader()", src.name(), "byte 0", "file is empty");
+  if (src.size() == 0)
+    detail::fail("lod::openPointReader()", src.name(), "byte 0", "file is empty");
   return openWith(*format, std::move(src));
 }
 
@@ -161,7 +174,8 @@ std::unique_ptr<PointReader> openPointReader(const std::filesystem::path& path,
   return openSource(ByteSource::openFile(path, "lod::openPointReader()"), options);
 }
 
-std::unique_ptr<PointReader> openPointReader(std::span<const uint8_t> bytes, const std::string& name,
+std::unique_ptr<PointReader> openPointReader(std::span<const uint8_t> bytes,
+                                             const std::string& name,
                                              const ReaderOptions& options) {
   return openSource(ByteSource::fromMemory(bytes, name), options);
 }

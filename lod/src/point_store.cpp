@@ -54,15 +54,20 @@ struct PointStore::Impl {
     if (fd >= 0) ::close(fd);
   }
 
-  [[noreturn]] void fail(const std::string& what) const { throw StoreError("lod::PointStore: " + name + ": " + what); }
+  [[noreturn]] void fail(const std::string& what) const {
+    throw StoreError("lod::PointStore: " + name + ": " + what);
+  }
 
   void readAt(uint64_t off, void* dst, size_t n, const char* what) const {
-    if (off > file_size || n > file_size - off) fail(std::string(what) + " lies beyond the end of the file (truncated?)");
+    if (off > file_size || n > file_size - off)
+      fail(std::string(what) + " lies beyond the end of the file (truncated?)");
     size_t done = 0;
     while (done < n) {
       ssize_t got = ::pread(fd, static_cast<uint8_t*>(dst) + done, n - done, off_t(off + done));
       if (got < 0 && errno == EINTR) continue;
-      if (got <= 0) fail(std::string("reading ") + what + " failed: " + (got < 0 ? std::strerror(errno) : "end of file"));
+      if (got <= 0)
+        fail(std::string("reading ") + what +
+             " failed: " + (got < 0 ? std::strerror(errno) : "end of file"));
       done += size_t(got);
     }
   }
@@ -71,14 +76,16 @@ struct PointStore::Impl {
   /// be that node), or kNoNode for the root page. Caller holds the unique lock.
   void loadPage(uint64_t offset, uint32_t size, NodeId expand) {
     store::PageHeader ph;
-    if (size < sizeof ph) fail("hierarchy page at byte " + std::to_string(offset) + " is too small");
+    if (size < sizeof ph)
+      fail("hierarchy page at byte " + std::to_string(offset) + " is too small");
     readAt(offset, &ph, sizeof ph, "a hierarchy page");
-    if (std::memcmp(ph.magic, "TPAG", 4) != 0 || uint64_t(ph.nodes) * sizeof(store::NodeRecord) + sizeof ph != size ||
-        ph.nodes == 0) {
+    if (std::memcmp(ph.magic, "TPAG", 4) != 0 ||
+        uint64_t(ph.nodes) * sizeof(store::NodeRecord) + sizeof ph != size || ph.nodes == 0) {
       fail("hierarchy page at byte " + std::to_string(offset) + " is corrupt (bad header)");
     }
     std::vector<store::NodeRecord> recs(ph.nodes);
-    readAt(offset + sizeof ph, recs.data(), recs.size() * sizeof(store::NodeRecord), "a hierarchy page");
+    readAt(offset + sizeof ph, recs.data(), recs.size() * sizeof(store::NodeRecord),
+           "a hierarchy page");
     if (crc32c(recs.data(), recs.size() * sizeof(store::NodeRecord)) != ph.crc) {
       fail("hierarchy page at byte " + std::to_string(offset) + " is corrupt (checksum mismatch)");
     }
@@ -87,17 +94,20 @@ struct PointStore::Impl {
       const store::NodeRecord& r = recs[i];
       CellKey key{r.level, r.x, r.y, r.z};
       uint64_t res = uint64_t(1) << std::min<int>(r.level, 62);
-      if (r.level > store::kMaxLevel || r.x >= res || r.y >= res || r.z >= res) fail("hierarchy page holds a bad node key");
+      if (r.level > store::kMaxLevel || r.x >= res || r.y >= res || r.z >= res)
+        fail("hierarchy page holds a bad node key");
       NodeId id;
       if (i == 0 && expand != kNoNode) {
         const NodeInfo& e = nodes[expand].info;
-        if (e.level != r.level || e.cell != glm::u32vec3(r.x, r.y, r.z)) fail("hierarchy page does not belong to its node");
+        if (e.level != r.level || e.cell != glm::u32vec3(r.x, r.y, r.z))
+          fail("hierarchy page does not belong to its node");
         id = expand;
       } else {
         if (i == 0 && (r.level != 0)) fail("root page does not start with the root node");
         if (i > 0) {
           auto parent = local.find(key.parent());
-          if (key.level == 0 || parent == local.end() || !(nodes[parent->second].info.child_mask & (1u << key.childIndex()))) {
+          if (key.level == 0 || parent == local.end() ||
+              !(nodes[parent->second].info.child_mask & (1u << key.childIndex()))) {
             fail("hierarchy page lists a node without its parent");
           }
         }
@@ -117,7 +127,8 @@ struct PointStore::Impl {
         e.page_size = r.page_size;
         e.children_loaded = !(r.flags & store::kHasPage);
         e.children.fill(kNoNode);
-        if ((r.payload_size > 0) != (r.points > 0) || r.payload_offset + r.payload_size > file_size) {
+        if ((r.payload_size > 0) != (r.points > 0) ||
+            r.payload_offset + r.payload_size > file_size) {
           fail("hierarchy page holds a node with a bad payload range");
         }
         id = NodeId(nodes.size());
@@ -131,30 +142,35 @@ struct PointStore::Impl {
       const Entry& e = nodes[id];
       if (!e.children_loaded) continue;
       for (int c = 0; c < 8; ++c) {
-        if ((e.info.child_mask & (1u << c)) && e.children[size_t(c)] == kNoNode) fail("hierarchy page misses a child node");
+        if ((e.info.child_mask & (1u << c)) && e.children[size_t(c)] == kNoNode)
+          fail("hierarchy page misses a child node");
       }
     }
   }
 };
 
-std::unique_ptr<PointStore> PointStore::open(const std::filesystem::path& path, uint64_t cache_bytes) {
+std::unique_ptr<PointStore> PointStore::open(const std::filesystem::path& path,
+                                             uint64_t cache_bytes) {
   std::unique_ptr<PointStore> s(new PointStore());
   s->mPath = path;
   s->mImpl = std::make_unique<Impl>();
   Impl& m = *s->mImpl;
   m.name = path.string();
   m.fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
-  if (m.fd < 0) throw StoreError("lod::PointStore: " + m.name + ": cannot open: " + std::strerror(errno));
+  if (m.fd < 0)
+    throw StoreError("lod::PointStore: " + m.name + ": cannot open: " + std::strerror(errno));
   struct stat st {};
   if (::fstat(m.fd, &st) != 0 || !S_ISREG(st.st_mode)) m.fail("not a regular file");
   m.file_size = uint64_t(st.st_size);
   store::FileHeader h;
-  if (m.file_size < sizeof h) m.fail("too small to be a point store (" + std::to_string(m.file_size) + " bytes)");
+  if (m.file_size < sizeof h)
+    m.fail("too small to be a point store (" + std::to_string(m.file_size) + " bytes)");
   m.readAt(0, &h, sizeof h, "the header");
   if (std::memcmp(h.magic, store::kMagic, 4) != 0) m.fail("not a Tessera point store (bad magic)");
   if (h.version > store::kVersion) {
-    m.fail("store format version " + std::to_string(h.version) + " is newer than this build reads (" +
-           std::to_string(store::kVersion) + "): update Tessera or rebuild the store");
+    m.fail("store format version " + std::to_string(h.version) +
+           " is newer than this build reads (" + std::to_string(store::kVersion) +
+           "): update Tessera or rebuild the store");
   }
   if (h.version == 0) m.fail("bad format version 0");
   uint32_t crc = h.header_crc;
@@ -262,14 +278,16 @@ std::shared_ptr<ChunkPoints> PointStore::decodeChunk(NodeId id) const {
   if (e.payload_size == 0) return out;
   thread_local std::vector<uint8_t> bytes;
   bytes.resize(e.payload_size);
-  const std::string what = m.name + ": node " + std::to_string(id) + " (level " + std::to_string(e.info.level) +
-                           ", payload at byte " + std::to_string(e.payload_offset) + ")";
+  const std::string what = m.name + ": node " + std::to_string(id) + " (level " +
+                           std::to_string(e.info.level) + ", payload at byte " +
+                           std::to_string(e.payload_offset) + ")";
   m.readAt(e.payload_offset, bytes.data(), bytes.size(), "a chunk payload");
   if (crc32c(bytes.data(), bytes.size()) != e.crc) {
     throw StoreError("lod::PointStore: " + what + ": corrupt chunk (checksum mismatch); skipped");
   }
   lod::decodeChunk(bytes, e.info.box_min, *out, what);
-  if (out->size() != e.info.points) throw StoreError("lod::PointStore: " + what + ": point count differs from the hierarchy");
+  if (out->size() != e.info.points)
+    throw StoreError("lod::PointStore: " + what + ": point count differs from the hierarchy");
   return out;
 }
 

@@ -38,7 +38,9 @@ class Bytes {
 class AtomicFile {
  public:
   AtomicFile(std::filesystem::path path, const char* component)
-      : mPath(std::move(path)), mTmp(mPath.string() + ".partial"), mComponent(component),
+      : mPath(std::move(path)),
+        mTmp(mPath.string() + ".partial"),
+        mComponent(component),
         mOut(mTmp, std::ios::binary | std::ios::trunc) {
     if (!mOut) throw WriteError(std::string(mComponent) + ": cannot create " + mTmp.string());
   }
@@ -50,14 +52,18 @@ class AtomicFile {
   }
   void write(const std::vector<uint8_t>& b) {
     mOut.write(reinterpret_cast<const char*>(b.data()), std::streamsize(b.size()));
-    if (!mOut) throw WriteError(std::string(mComponent) + ": write failed for " + mTmp.string() + " (disk full?)");
+    if (!mOut)
+      throw WriteError(std::string(mComponent) + ": write failed for " + mTmp.string() +
+                       " (disk full?)");
   }
   void commit() {
     mOut.close();
     if (!mOut) throw WriteError(std::string(mComponent) + ": closing " + mTmp.string() + " failed");
     std::error_code ec;
     std::filesystem::rename(mTmp, mPath, ec);
-    if (ec) throw WriteError(std::string(mComponent) + ": cannot rename to " + mPath.string() + ": " + ec.message());
+    if (ec)
+      throw WriteError(std::string(mComponent) + ": cannot rename to " + mPath.string() + ": " +
+                       ec.message());
     mDone = true;
   }
 
@@ -80,19 +86,25 @@ void writePly(const std::filesystem::path& path, const PointBatch& pts, const gl
               const PlyWriteOptions& o) {
   const AttributeMask a = pts.attributes;
   const bool ascii = o.encoding == PlyEncoding::kAscii;
-  const char* enc = ascii ? "ascii" : o.encoding == PlyEncoding::kBinaryBigEndian ? "binary_big_endian"
-                                                                                  : "binary_little_endian";
+  const char* enc = ascii                                         ? "ascii"
+                    : o.encoding == PlyEncoding::kBinaryBigEndian ? "binary_big_endian"
+                                                                  : "binary_little_endian";
   const char* ptype = o.double_positions ? "double" : "float";
   const char* ctype = o.ushort_colors ? "ushort" : "uchar";
-  std::string h = std::string("ply\nformat ") + enc + " 1.0\ncomment written by tessera\nelement vertex " +
-                  std::to_string(pts.size()) + "\nproperty " + ptype + " x\nproperty " + ptype +
-                  " y\nproperty " + ptype + " z\n";
+  std::string h = std::string("ply\nformat ") + enc +
+                  " 1.0\ncomment written by tessera\nelement vertex " + std::to_string(pts.size()) +
+                  "\nproperty " + ptype + " x\nproperty " + ptype + " y\nproperty " + ptype +
+                  " z\n";
   if (a & kNormal) h += "property float nx\nproperty float ny\nproperty float nz\n";
-  if (a & kColor) h += std::string("property ") + ctype + " red\nproperty " + ctype + " green\nproperty " + ctype + " blue\n";
+  if (a & kColor)
+    h += std::string("property ") + ctype + " red\nproperty " + ctype + " green\nproperty " +
+         ctype + " blue\n";
   if (a & kAlpha) h += std::string("property ") + ctype + " alpha\n";
   if (a & kIntensity) h += "property float intensity\n";
   if (a & kConfidence) h += "property float confidence\n";
-  if (!pts.triangles.empty()) h += "element face " + std::to_string(pts.triangles.size()) + "\nproperty list uchar int vertex_indices\n";
+  if (!pts.triangles.empty())
+    h += "element face " + std::to_string(pts.triangles.size()) +
+         "\nproperty list uchar int vertex_indices\n";
   h += "end_header\n";
 
   AtomicFile file(path, "lod::writePly()");
@@ -109,7 +121,9 @@ void writePly(const std::filesystem::path& path, const PointBatch& pts, const gl
     glm::dvec3 p = origin + pts.positions[i];
     if (ascii) {
       std::string line = fmt(p.x) + " " + fmt(p.y) + " " + fmt(p.z);
-      if (a & kNormal) line += " " + fmt(pts.normals[i].x) + " " + fmt(pts.normals[i].y) + " " + fmt(pts.normals[i].z);
+      if (a & kNormal)
+        line +=
+            " " + fmt(pts.normals[i].x) + " " + fmt(pts.normals[i].y) + " " + fmt(pts.normals[i].z);
       int scale = o.ushort_colors ? 257 : 1;
       if (a & kColor) {
         for (int c = 0; c < 3; ++c) line += " " + std::to_string(pts.colors[i][c] * scale);
@@ -143,7 +157,8 @@ void writePly(const std::filesystem::path& path, const PointBatch& pts, const gl
   }
   for (const Triangle& t : pts.triangles) {
     if (ascii) {
-      b.text("3 " + std::to_string(t.x) + " " + std::to_string(t.y) + " " + std::to_string(t.z) + "\n");
+      b.text("3 " + std::to_string(t.x) + " " + std::to_string(t.y) + " " + std::to_string(t.z) +
+             "\n");
     } else {
       b.put<uint8_t>(3);
       b.put<int32_t>(int32_t(t.x));
@@ -158,9 +173,12 @@ void writePly(const std::filesystem::path& path, const PointBatch& pts, const gl
 void writeLas(const std::filesystem::path& path, const PointBatch& pts, const glm::dvec3& origin,
               const LasWriteOptions& o) {
   static constexpr uint16_t kMinRecord[11] = {20, 28, 26, 34, 57, 63, 30, 36, 38, 59, 67};
-  TESSERA_CHECK(o.minor_version >= 2 && o.minor_version <= 4, "lod::writeLas(): minor version must be 2..4");
-  TESSERA_CHECK(o.point_format >= 0 && o.point_format <= 10, "lod::writeLas(): point format must be 0..10");
-  TESSERA_CHECK(o.point_format <= 5 || o.minor_version == 4, "lod::writeLas(): formats 6-10 need LAS 1.4");
+  TESSERA_CHECK(o.minor_version >= 2 && o.minor_version <= 4,
+                "lod::writeLas(): minor version must be 2..4");
+  TESSERA_CHECK(o.point_format >= 0 && o.point_format <= 10,
+                "lod::writeLas(): point format must be 0..10");
+  TESSERA_CHECK(o.point_format <= 5 || o.minor_version == 4,
+                "lod::writeLas(): formats 6-10 need LAS 1.4");
   const int f = o.point_format;
   const uint16_t header_size = o.minor_version == 4 ? 375 : o.minor_version == 3 ? 235 : 227;
   const uint16_t record = uint16_t(kMinRecord[f] + o.extra_bytes);
@@ -208,30 +226,32 @@ void writeLas(const std::filesystem::path& path, const PointBatch& pts, const gl
     b.put<uint64_t>(n);
     for (int i = 0; i < 14; ++i) b.put<uint64_t>(0);
   }
-  if (b.data().size() != header_size) throw WriteError("lod::writeLas(): internal header size mismatch");
+  if (b.data().size() != header_size)
+    throw WriteError("lod::writeLas(): internal header size mismatch");
 
   AtomicFile file(path, "lod::writeLas()");
   const AttributeMask a = pts.attributes;
   for (size_t i = 0; i < n; ++i) {
     glm::dvec3 q = glm::round((origin + pts.positions[i] - offset) / o.scale);
     size_t start = b.data().size();
-    for (int c = 0; c < 3; ++c) b.put<int32_t>(int32_t(std::clamp(q[c], -2147483648.0, 2147483647.0)));
+    for (int c = 0; c < 3; ++c)
+      b.put<int32_t>(int32_t(std::clamp(q[c], -2147483648.0, 2147483647.0)));
     b.put<uint16_t>(a & kIntensity ? uint16_t(std::clamp(pts.intensities[i], 0.f, 65535.f)) : 0);
     uint8_t cls = a & kClassification ? pts.classifications[i] : 1;
     if (f <= 5) {
       b.put<uint8_t>(0x09);  // return 1 of 1
       b.put<uint8_t>(cls & 0x1F);
-      b.put<int8_t>(0);      // scan angle rank
-      b.put<uint8_t>(0);     // user data
-      b.put<uint16_t>(0);    // point source id
+      b.put<int8_t>(0);                                                    // scan angle rank
+      b.put<uint8_t>(0);                                                   // user data
+      b.put<uint16_t>(0);                                                  // point source id
       if (f == 1 || f == 3 || f == 4 || f == 5) b.put<double>(double(i));  // GPS time
     } else {
       b.put<uint8_t>(0x11);  // return 1 of 1
       b.put<uint8_t>(0);     // flags
       b.put<uint8_t>(cls);
-      b.put<uint8_t>(0);     // user data
-      b.put<int16_t>(0);     // scan angle
-      b.put<uint16_t>(0);    // point source id
+      b.put<uint8_t>(0);   // user data
+      b.put<int16_t>(0);   // scan angle
+      b.put<uint16_t>(0);  // point source id
       b.put<double>(double(i));
     }
     bool rgb = f == 2 || f == 3 || f == 5 || f == 7 || f == 8 || f == 10;

@@ -2,8 +2,8 @@
 #pragma once
 
 #include <bit>
-#include <cmath>
 #include <charconv>
+#include <cmath>
 #include <cstdint>
 #include <cstring>
 #include <string>
@@ -21,8 +21,12 @@ namespace tessera::lod::detail {
   throw ReadError(msg + ": " + what);
 }
 
-inline std::string atByte(uint64_t offset) { return "byte " + std::to_string(offset); }
-inline std::string atLine(uint64_t line) { return "line " + std::to_string(line); }
+inline std::string atByte(uint64_t offset) {
+  return "byte " + std::to_string(offset);
+}
+inline std::string atLine(uint64_t line) {
+  return "line " + std::to_string(line);
+}
 
 /// Loads a T stored little- (swap=false on this little-endian host) or big-endian.
 template <typename T>

@@ -14,10 +14,18 @@ std::string jsonString(std::string_view s) {
   std::string out = "\"";
   for (char c : s) {
     switch (c) {
-      case '"': out += "\\\""; break;
-      case '\\': out += "\\\\"; break;
-      case '\n': out += "\\n"; break;
-      case '\t': out += "\\t"; break;
+      case '"':
+        out += "\\\"";
+        break;
+      case '\\':
+        out += "\\\\";
+        break;
+      case '\n':
+        out += "\\n";
+        break;
+      case '\t':
+        out += "\\t";
+        break;
       default:
         if (static_cast<unsigned char>(c) < 0x20) {
           char buf[8];
@@ -115,16 +123,21 @@ std::string summaryText(const SourceSummary& s) {
     const StoreSummary& t = *s.store;
     o << "  format: tlod (Tessera point store, version " << t.version << ")\n";
     o << "  points: " << t.points << "\n  triangles: 0\n";
-    o << "  bbox_min: " << vec(s.bbox_min, false) << "\n  bbox_max: " << vec(s.bbox_max, false) << "\n";
+    o << "  bbox_min: " << vec(s.bbox_min, false) << "\n  bbox_max: " << vec(s.bbox_max, false)
+      << "\n";
     o << "  origin: " << vec(t.origin, false) << "\n  attributes:";
-    for (const char* a : attributeNames(t.attributes)) o << " " << (std::strcmp(a, "scan_index") ? a : "source");
+    for (const char* a : attributeNames(t.attributes))
+      o << " " << (std::strcmp(a, "scan_index") ? a : "source");
     o << "\n  nodes: " << t.nodes << "\n  depth: " << t.depth << "\n";
-    o << "  stored_points: " << t.stored_points << " (overhead " << num(double(t.stored_points) / double(t.points)) << "x)\n";
+    o << "  stored_points: " << t.stored_points << " (overhead "
+      << num(double(t.stored_points) / double(t.points)) << "x)\n";
     o << "  bytes_per_point: " << num(double(t.file_bytes) / double(t.points))
       << " (position + colour " << num(double(t.position_color_bytes) / double(t.points)) << ")\n";
-    o << "  spacing_root: " << num(t.spacing_root) << "\n  spacing_finest: " << num(t.spacing_finest) << "\n";
+    o << "  spacing_root: " << num(t.spacing_root)
+      << "\n  spacing_finest: " << num(t.spacing_finest) << "\n";
     o << "  sources: " << s.store_sources.size() << "\n";
-    for (size_t i = 0; i < s.store_sources.size(); ++i) o << "    [" << i << "] " << s.store_sources[i] << "\n";
+    for (size_t i = 0; i < s.store_sources.size(); ++i)
+      o << "    [" << i << "] " << s.store_sources[i] << "\n";
   }
   if (s.opened && !s.store) {
     o << "  format: " << formatName(s.info.format) << " (" << s.info.format_detail << ")\n";
@@ -147,7 +160,8 @@ std::string summaryText(const SourceSummary& s) {
     if (s.info.attributes == 0) o << " none";
     o << "\n  skipped: " << s.stats.skippedTotal();
     for (auto& [reason, count] : s.stats.skipped) {
-      o << "\n    " << reason << ": " << count << " (first at " << s.stats.first_skip_at.at(reason) << ")";
+      o << "\n    " << reason << ": " << count << " (first at " << s.stats.first_skip_at.at(reason)
+        << ")";
     }
     o << "\n";
     if (!s.info.scans.empty()) {
@@ -155,9 +169,10 @@ std::string summaryText(const SourceSummary& s) {
       for (size_t i = 0; i < s.info.scans.size(); ++i) {
         const ScanInfo& sc = s.info.scans[i];
         const glm::dquat q = confQuaternion(sc.pose);
-        o << "    [" << i << "] " << sc.name << ": " << sc.points << " points, grid " << sc.grid_columns
-          << "x" << sc.grid_rows << ", t = " << vec(sc.pose.translation, false) << ", conf q(i j k r) = "
-          << num(q.x) << " " << num(q.y) << " " << num(q.z) << " " << num(q.w) << "\n";
+        o << "    [" << i << "] " << sc.name << ": " << sc.points << " points, grid "
+          << sc.grid_columns << "x" << sc.grid_rows << ", t = " << vec(sc.pose.translation, false)
+          << ", conf q(i j k r) = " << num(q.x) << " " << num(q.y) << " " << num(q.z) << " "
+          << num(q.w) << "\n";
       }
     }
   }
@@ -171,8 +186,9 @@ std::string summaryJson(const SourceSummary& s) {
   if (s.store) {
     const StoreSummary& t = *s.store;
     o << ", \"format\": \"tlod\", \"version\": " << t.version << ", \"points\": " << t.points
-      << ", \"triangles\": 0, \"bbox_min\": " << vec(s.bbox_min, true) << ", \"bbox_max\": " << vec(s.bbox_max, true)
-      << ", \"origin\": " << vec(t.origin, true) << ", \"attributes\": [";
+      << ", \"triangles\": 0, \"bbox_min\": " << vec(s.bbox_min, true)
+      << ", \"bbox_max\": " << vec(s.bbox_max, true) << ", \"origin\": " << vec(t.origin, true)
+      << ", \"attributes\": [";
     bool first = true;
     for (const char* a : attributeNames(t.attributes)) {
       o << (first ? "" : ", ") << jsonString(std::strcmp(a, "scan_index") ? a : "source");
@@ -180,21 +196,25 @@ std::string summaryJson(const SourceSummary& s) {
     }
     o << "], \"skipped\": {}, \"scans\": [], \"nodes\": " << t.nodes << ", \"depth\": " << t.depth
       << ", \"bytes_per_point\": " << num(double(t.file_bytes) / double(t.points))
-      << ", \"position_color_bytes_per_point\": " << num(double(t.position_color_bytes) / double(t.points))
+      << ", \"position_color_bytes_per_point\": "
+      << num(double(t.position_color_bytes) / double(t.points))
       << ", \"stored_points\": " << t.stored_points
       << ", \"overhead\": " << num(double(t.stored_points) / double(t.points))
-      << ", \"spacing_root\": " << num(t.spacing_root) << ", \"spacing_finest\": " << num(t.spacing_finest)
-      << ", \"sources\": [";
-    for (size_t i = 0; i < s.store_sources.size(); ++i) o << (i ? ", " : "") << jsonString(s.store_sources[i]);
+      << ", \"spacing_root\": " << num(t.spacing_root)
+      << ", \"spacing_finest\": " << num(t.spacing_finest) << ", \"sources\": [";
+    for (size_t i = 0; i < s.store_sources.size(); ++i)
+      o << (i ? ", " : "") << jsonString(s.store_sources[i]);
     o << "]";
   }
   if (s.opened && !s.store) {
     o << ", \"format\": " << jsonString(formatName(s.info.format))
-      << ", \"format_detail\": " << jsonString(s.info.format_detail) << ", \"points\": " << s.stats.points;
+      << ", \"format_detail\": " << jsonString(s.info.format_detail)
+      << ", \"points\": " << s.stats.points;
     if (s.info.has_declared_points) o << ", \"declared_points\": " << s.info.declared_points;
     o << ", \"triangles\": " << s.stats.triangles;
     if (s.stats.points > 0) {
-      o << ", \"bbox_min\": " << vec(s.bbox_min, true) << ", \"bbox_max\": " << vec(s.bbox_max, true);
+      o << ", \"bbox_min\": " << vec(s.bbox_min, true)
+        << ", \"bbox_max\": " << vec(s.bbox_max, true);
     } else {
       o << ", \"bbox_min\": null, \"bbox_max\": null";
     }
@@ -215,9 +235,9 @@ std::string summaryJson(const SourceSummary& s) {
       const ScanInfo& sc = s.info.scans[i];
       const glm::dquat q = confQuaternion(sc.pose);
       o << (i ? ", " : "") << "{\"name\": " << jsonString(sc.name) << ", \"points\": " << sc.points
-        << ", \"grid\": [" << sc.grid_columns << ", " << sc.grid_rows << "], \"translation\": "
-        << vec(sc.pose.translation, true) << ", \"quaternion_ijkr\": [" << num(q.x) << ", " << num(q.y)
-        << ", " << num(q.z) << ", " << num(q.w) << "]}";
+        << ", \"grid\": [" << sc.grid_columns << ", " << sc.grid_rows
+        << "], \"translation\": " << vec(sc.pose.translation, true) << ", \"quaternion_ijkr\": ["
+        << num(q.x) << ", " << num(q.y) << ", " << num(q.z) << ", " << num(q.w) << "]}";
     }
     o << "]";
   }

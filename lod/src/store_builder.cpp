@@ -26,7 +26,9 @@ namespace tessera::lod {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
+double since(Clock::time_point t) {
+  return std::chrono::duration<double>(Clock::now() - t).count();
+}
 
 /// A finished node: where its payload is in the temporary payload file and its metadata.
 struct NodeOut {
@@ -48,7 +50,9 @@ struct Fd {
   std::string name;
   Fd(const std::filesystem::path& p, int flags, const char* what) : name(p.string()) {
     fd = ::open(p.c_str(), flags | O_CLOEXEC, 0644);
-    if (fd < 0) throw StoreError(std::string("lod::buildStore(): cannot open ") + what + " " + name + ": " + std::strerror(errno));
+    if (fd < 0)
+      throw StoreError(std::string("lod::buildStore(): cannot open ") + what + " " + name + ": " +
+                       std::strerror(errno));
   }
   ~Fd() {
     if (fd >= 0) ::close(fd);
@@ -64,8 +68,8 @@ void pwriteAll(int fd, const void* data, size_t n, uint64_t off, const std::stri
     ssize_t put = ::pwrite(fd, p + done, n - done, off_t(off + done));
     if (put < 0 && errno == EINTR) continue;
     if (put <= 0) {
-      throw StoreError("lod::buildStore(): writing " + name + " failed: " + (put < 0 ? std::strerror(errno) : "no space") +
-                       " (disk full?)");
+      throw StoreError("lod::buildStore(): writing " + name + " failed: " +
+                       (put < 0 ? std::strerror(errno) : "no space") + " (disk full?)");
     }
     done += size_t(put);
   }
@@ -97,7 +101,10 @@ class Builder {
  public:
   Builder(const BuildOptions& o, const CubeFrame& frame, AttributeMask attributes, double precision,
           const std::filesystem::path& payload_file)
-      : mOpt(o), mFrame(frame), mAttributes(attributes), mPrecision(precision),
+      : mOpt(o),
+        mFrame(frame),
+        mAttributes(attributes),
+        mPrecision(precision),
         mPayload(payload_file, O_RDWR | O_CREAT | O_TRUNC, "temporary file") {}
 
   /// Encodes a node and appends its payload. Reorders `pts` (Morton order).
@@ -120,7 +127,8 @@ class Builder {
       out.crc = crc32c(enc.bytes.data(), enc.bytes.size());
       out.position_color_bytes = enc.position_color_bytes;
       // The stated bound: what the step guarantees, never below what was measured.
-      out.error_bound = float(std::max(enc.step * std::sqrt(3.0) / 2.0, enc.max_error) * (1.0 + 1e-6));
+      out.error_bound =
+          float(std::max(enc.step * std::sqrt(3.0) / 2.0, enc.max_error) * (1.0 + 1e-6));
       std::lock_guard lock(mMutex);
       out.temp_offset = mPayloadEnd;
       mPayloadEnd += out.size;
@@ -137,18 +145,21 @@ class Builder {
   /// points; an inner node holds a grid-sampled copy of the points below it (Bettio et al. 2009,
   /// section 3.2: self-contained nodes, a cut is drawn from its own nodes only). The points of
   /// the subtree root are copied to `root_points`: the levels above sample from them.
-  uint8_t buildSubtree(const CellKey& key, std::span<BuildPoint> pts, std::vector<BuildPoint>* root_points) {
+  uint8_t buildSubtree(const CellKey& key, std::span<BuildPoint> pts,
+                       std::vector<BuildPoint>* root_points) {
     if (pts.size() <= mOpt.leaf_max || key.level >= store::kMaxLevel) {
       if (root_points) root_points->assign(pts.begin(), pts.end());
       emit(key, pts, 0);
       return 0;
     }
-    size_t selected = gridSample(pts, mFrame.cellMin(key), mFrame.cellSize(key.level), store::kGrid);
+    size_t selected =
+        gridSample(pts, mFrame.cellMin(key), mFrame.cellSize(key.level), store::kGrid);
     // Overhead bound: an inner node keeps at most kMaxInnerFraction of the points below it (a
     // coarser grid where the data is thick, e.g. noisy overlapping scans), so the copies cost
     // at most f + f^2 + ... = 0.25 for f = 0.2.
     const double cap = store::kMaxInnerFraction * double(pts.size());
-    for (int grid = store::kGrid, tries = 0; double(selected) > cap && grid > 2 && tries < 6; ++tries) {
+    for (int grid = store::kGrid, tries = 0; double(selected) > cap && grid > 2 && tries < 6;
+         ++tries) {
       grid = std::max(2, int(double(grid) * std::sqrt(cap / double(selected))));
       selected = gridSample(pts, mFrame.cellMin(key), mFrame.cellSize(key.level), grid);
     }
@@ -242,21 +253,25 @@ void splitOversized(std::vector<Chunk>& chunks, uint64_t chunk_max, const CubeFr
 
 }  // namespace
 
-BuildReport buildStore(const std::vector<std::filesystem::path>& inputs, const std::filesystem::path& output,
-                       const BuildOptions& options) {
+BuildReport buildStore(const std::vector<std::filesystem::path>& inputs,
+                       const std::filesystem::path& output, const BuildOptions& options) {
   const auto t0 = Clock::now();
   BuildReport report;
-  const int threads = options.threads > 0 ? options.threads : int(std::max(1u, std::thread::hardware_concurrency()));
+  const int threads = options.threads > 0 ? options.threads
+                                          : int(std::max(1u, std::thread::hardware_concurrency()));
   const std::filesystem::path partial = output.string() + ".partial";
   const std::filesystem::path temp_dir =
-      (options.temp_dir.empty() ? output.parent_path() : options.temp_dir) / (output.filename().string() + ".build-tmp");
+      (options.temp_dir.empty() ? output.parent_path() : options.temp_dir) /
+      (output.filename().string() + ".build-tmp");
   Cleanup cleanup{{partial, temp_dir}};
   {
     std::error_code ec;
     std::filesystem::remove_all(temp_dir, ec);
     std::filesystem::remove(partial, ec);
     std::filesystem::create_directories(temp_dir, ec);
-    if (ec) throw StoreError("lod::buildStore(): cannot create " + temp_dir.string() + ": " + ec.message());
+    if (ec)
+      throw StoreError("lod::buildStore(): cannot create " + temp_dir.string() + ": " +
+                       ec.message());
   }
 
   PointDistributor dist(inputs, options.quiet);
@@ -269,7 +284,8 @@ BuildReport buildStore(const std::vector<std::filesystem::path>& inputs, const s
   const uint64_t chunk_max =
       options.chunk_points > 0
           ? options.chunk_points
-          : std::max<uint64_t>(1'000'000, (budget > fixed ? budget - fixed : budget / 2) / (uint64_t(threads) * 100));
+          : std::max<uint64_t>(1'000'000, (budget > fixed ? budget - fixed : budget / 2) /
+                                              (uint64_t(threads) * 100));
   const std::filesystem::path temp_points = temp_dir / "points.bin";
   std::vector<Chunk> chunks = dist.distribute(chunk_max, temp_points);
   report.seconds_read = since(t0);
@@ -280,10 +296,12 @@ BuildReport buildStore(const std::vector<std::filesystem::path>& inputs, const s
   Fd points_fd(temp_points, O_RDWR, "temporary file");
   uint64_t temp_end = dist.points();
   splitOversized(chunks, chunk_max, frame, points_fd.fd, points_fd.name, temp_end);
-  std::sort(chunks.begin(), chunks.end(), [](const Chunk& a, const Chunk& b) { return a.count > b.count; });
+  std::sort(chunks.begin(), chunks.end(),
+            [](const Chunk& a, const Chunk& b) { return a.count > b.count; });
   report.chunks = chunks.size();
 
-  Builder builder(options, frame, dist.attributes(), dist.inputPrecision(), temp_dir / "payload.bin");
+  Builder builder(options, frame, dist.attributes(), dist.inputPrecision(),
+                  temp_dir / "payload.bin");
   std::unordered_map<CellKey, Pending, CellKeyHash> pending;
   std::mutex pending_mutex;
   {
@@ -344,14 +362,16 @@ BuildReport buildStore(const std::vector<std::filesystem::path>& inputs, const s
           parent.child_mask |= uint8_t(1u << i);
           pending.erase(it);
         }
-        size_t selected = gridSample(parent.pts, frame.cellMin(key), frame.cellSize(key.level), store::kGrid);
+        size_t selected =
+            gridSample(parent.pts, frame.cellMin(key), frame.cellSize(key.level), store::kGrid);
         parent.pts.resize(selected);
         builder.emit(key, parent.pts, parent.child_mask);
         pending.emplace(key, std::move(parent));
       }
     }
     if (pending.size() != 1 || !pending.count(CellKey{})) {
-      throw StoreError("lod::buildStore(): internal error: upper levels did not converge to one root");
+      throw StoreError(
+          "lod::buildStore(): internal error: upper levels did not converge to one root");
     }
     pending.clear();
   }
@@ -360,7 +380,8 @@ BuildReport buildStore(const std::vector<std::filesystem::path>& inputs, const s
   // Final file: header, payload in (level, Morton) order, hierarchy pages, source table.
   const auto t2 = Clock::now();
   std::vector<NodeOut>& nodes = builder.nodes();
-  std::sort(nodes.begin(), nodes.end(), [](const NodeOut& a, const NodeOut& b) { return a.key < b.key; });
+  std::sort(nodes.begin(), nodes.end(),
+            [](const NodeOut& a, const NodeOut& b) { return a.key < b.key; });
   std::unordered_map<CellKey, size_t, CellKeyHash> index;
   for (size_t i = 0; i < nodes.size(); ++i) index[nodes[i].key] = i;
 
@@ -372,7 +393,8 @@ BuildReport buildStore(const std::vector<std::filesystem::path>& inputs, const s
     std::vector<uint8_t> buf;
     for (NodeOut& n : nodes) {
       buf.resize(n.size);
-      if (n.size) preadAll(builder.payload().fd, buf.data(), n.size, n.temp_offset, builder.payload().name);
+      if (n.size)
+        preadAll(builder.payload().fd, buf.data(), n.size, n.temp_offset, builder.payload().name);
       n.final_offset = pos;
       if (n.size) pwriteAll(out.fd, buf.data(), n.size, pos, out.name);
       pos += n.size;
@@ -476,10 +498,14 @@ BuildReport buildStore(const std::vector<std::filesystem::path>& inputs, const s
   std::vector<uint8_t> header(store::kHeaderSize, 0);
   std::memcpy(header.data(), &h, sizeof h);
   pwriteAll(out.fd, header.data(), header.size(), 0, out.name);
-  if (::fsync(out.fd) != 0) throw StoreError("lod::buildStore(): flushing " + out.name + " failed: " + std::strerror(errno));
+  if (::fsync(out.fd) != 0)
+    throw StoreError("lod::buildStore(): flushing " + out.name +
+                     " failed: " + std::strerror(errno));
   std::error_code ec;
   std::filesystem::rename(partial, output, ec);
-  if (ec) throw StoreError("lod::buildStore(): cannot move " + partial.string() + " to " + output.string() + ": " + ec.message());
+  if (ec)
+    throw StoreError("lod::buildStore(): cannot move " + partial.string() + " to " +
+                     output.string() + ": " + ec.message());
 
   report.nodes = nodes.size();
   report.stored_points = h.stored_points;

@@ -36,16 +36,19 @@ uint64_t packKey(const glm::dvec3& q) {
 }
 
 bool overlaps(const NodeInfo& n, const glm::dvec3& lo, const glm::dvec3& hi) {
-  return glm::all(glm::lessThanEqual(n.box_min, hi)) && glm::all(glm::greaterThanEqual(n.box_max, lo));
+  return glm::all(glm::lessThanEqual(n.box_min, hi)) &&
+         glm::all(glm::greaterThanEqual(n.box_max, lo));
 }
 
 bool inside(const NodeInfo& n, const glm::dvec3& lo, const glm::dvec3& hi) {
-  return glm::all(glm::greaterThanEqual(n.box_min, lo)) && glm::all(glm::lessThanEqual(n.box_max, hi));
+  return glm::all(glm::greaterThanEqual(n.box_min, lo)) &&
+         glm::all(glm::lessThanEqual(n.box_max, hi));
 }
 
 }  // namespace
 
-VerifyReport verifyStore(const std::filesystem::path& store_path, const std::vector<std::filesystem::path>& inputs,
+VerifyReport verifyStore(const std::filesystem::path& store_path,
+                         const std::vector<std::filesystem::path>& inputs,
                          const BuildOptions& options) {
   auto store = PointStore::open(store_path, 64ull << 20);
   const StoreSummary& sum = store->summary();
@@ -77,7 +80,8 @@ VerifyReport verifyStore(const std::filesystem::path& store_path, const std::vec
       auto pts = store->decodeChunk(id);
       const glm::vec3 extent(n.box_max - n.box_min);
       for (const glm::vec3& p : pts->positions) {
-        if (glm::any(glm::greaterThan(p, extent + n.error_bound)) || glm::any(glm::lessThan(p, glm::vec3(0.f)))) {
+        if (glm::any(glm::greaterThan(p, extent + n.error_bound)) ||
+            glm::any(glm::lessThan(p, glm::vec3(0.f)))) {
           ++report.stray_points;
         }
       }
@@ -86,8 +90,9 @@ VerifyReport verifyStore(const std::filesystem::path& store_path, const std::vec
     }
   }
 
-  const std::filesystem::path temp_dir = (options.temp_dir.empty() ? store_path.parent_path() : options.temp_dir) /
-                                         (store_path.filename().string() + ".verify-tmp");
+  const std::filesystem::path temp_dir =
+      (options.temp_dir.empty() ? store_path.parent_path() : options.temp_dir) /
+      (store_path.filename().string() + ".verify-tmp");
   std::error_code ec;
   std::filesystem::remove_all(temp_dir, ec);
   std::filesystem::create_directories(temp_dir, ec);
@@ -104,7 +109,8 @@ VerifyReport verifyStore(const std::filesystem::path& store_path, const std::vec
   report.input_points = dist.points();
   const uint64_t region_max = std::max<uint64_t>(200'000, (options.memory_mb << 20) / 400);
   std::vector<Chunk> regions = dist.distribute(region_max, temp_dir / "points.bin");
-  std::sort(regions.begin(), regions.end(), [](const Chunk& a, const Chunk& b) { return a.key < b.key; });
+  std::sort(regions.begin(), regions.end(),
+            [](const Chunk& a, const Chunk& b) { return a.key < b.key; });
 
   int fd = ::open((temp_dir / "points.bin").c_str(), O_RDONLY | O_CLOEXEC);
   if (fd < 0) throw StoreError("lod::verifyStore(): cannot reopen the temporary file");
@@ -176,7 +182,8 @@ VerifyReport verifyStore(const std::filesystem::path& store_path, const std::vec
             --k->second;
             matched = true;
             report.max_error = std::max(report.max_error, d);
-            if (node.bound > 0) report.max_error_ratio = std::max(report.max_error_ratio, d / node.bound);
+            if (node.bound > 0)
+              report.max_error_ratio = std::max(report.max_error_ratio, d / node.bound);
           }
         }
       }

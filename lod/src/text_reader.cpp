@@ -16,7 +16,19 @@ namespace {
 constexpr const char* kComponent = "lod::readText()";
 constexpr std::string_view kSeps = " \t,;\r";
 
-enum Column : int { kColX, kColY, kColZ, kColI, kColR, kColG, kColB, kColNx, kColNy, kColNz, kColCount };
+enum Column : int {
+  kColX,
+  kColY,
+  kColZ,
+  kColI,
+  kColR,
+  kColG,
+  kColB,
+  kColNx,
+  kColNy,
+  kColNz,
+  kColCount
+};
 
 bool isComment(std::string_view line) {
   size_t b = line.find_first_not_of(" \t\r");
@@ -27,9 +39,9 @@ bool isComment(std::string_view line) {
 int columnFor(std::string s) {
   std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return std::tolower(c); });
   static const std::pair<const char*, int> kNames[] = {
-      {"x", kColX},  {"y", kColY},     {"z", kColZ},       {"i", kColI},      {"intensity", kColI},
-      {"r", kColR},  {"red", kColR},   {"g", kColG},       {"green", kColG},  {"b", kColB},
-      {"blue", kColB}, {"nx", kColNx}, {"ny", kColNy},     {"nz", kColNz}};
+      {"x", kColX},    {"y", kColY},   {"z", kColZ},   {"i", kColI},     {"intensity", kColI},
+      {"r", kColR},    {"red", kColR}, {"g", kColG},   {"green", kColG}, {"b", kColB},
+      {"blue", kColB}, {"nx", kColNx}, {"ny", kColNy}, {"nz", kColNz}};
   for (auto& [name, col] : kNames) {
     if (s == name) return col;
   }
@@ -58,14 +70,23 @@ void TextReader::setPositional(size_t columns, uint64_t line) {
                                 k6 = {kColX, kColY, kColZ, kColR, kColG, kColB},
                                 k7 = {kColX, kColY, kColZ, kColI, kColR, kColG, kColB};
   switch (columns) {
-    case 3: mMap = k3; break;
-    case 4: mMap = k4; break;
-    case 6: mMap = k6; break;
-    case 7: mMap = k7; break;
+    case 3:
+      mMap = k3;
+      break;
+    case 4:
+      mMap = k4;
+      break;
+    case 6:
+      mMap = k6;
+      break;
+    case 7:
+      mMap = k7;
+      break;
     default:
       fail(kComponent, mSrc.name(), atLine(line),
-           std::to_string(columns) + " values per line; expected 3 (x y z), 4 (x y z i), 6 (x y z r g b), "
-           "7 (x y z i r g b), or a header line naming the columns");
+           std::to_string(columns) +
+               " values per line; expected 3 (x y z), 4 (x y z i), 6 (x y z r g b), "
+               "7 (x y z i r g b), or a header line naming the columns");
   }
 }
 
@@ -78,9 +99,9 @@ void TextReader::sniff() {
     if (!mSrc.readLine(line)) {
       if (!seen_count || mInfo.declared_points > 0) {
         fail(kComponent, mSrc.name(), atLine(mSrc.lineNumber() + 1),
-             "no points in file" + (seen_count ? "; the count line declares " +
-                                                     std::to_string(mInfo.declared_points)
-                                               : std::string()));
+             "no points in file" +
+                 (seen_count ? "; the count line declares " + std::to_string(mInfo.declared_points)
+                             : std::string()));
       }
       break;
     }
@@ -120,7 +141,8 @@ void TextReader::sniff() {
   if (has(kColR) && has(kColG) && has(kColB)) a |= kColor;
   if (has(kColNx) && has(kColNy) && has(kColNz)) a |= kNormal;
   mInfo.format = Format::kText;
-  mInfo.format_detail = std::to_string(mColumns) + " columns" + (mInfo.has_declared_points ? " with count line" : "");
+  mInfo.format_detail =
+      std::to_string(mColumns) + " columns" + (mInfo.has_declared_points ? " with count line" : "");
   mInfo.attributes = a;
   mSrc.rewind();
   for (uint64_t i = 0; i < mSkipLines; ++i) mSrc.readLine(line);
@@ -168,12 +190,14 @@ bool TextReader::next(PointBatch& batch, size_t max_points) {
     }
     if (col != mColumns) {
       fail(kComponent, mSrc.name(), atLine(lineno),
-           std::to_string(col) + " values; expected " + std::to_string(mColumns) + " as on the first data line");
+           std::to_string(col) + " values; expected " + std::to_string(mColumns) +
+               " as on the first data line");
     }
     if (mInfo.has_declared_points &&
         mStats.points + batch.size() + mStats.skippedTotal() >= mInfo.declared_points) {
       fail(kComponent, mSrc.name(), atLine(lineno),
-           "more points than the " + std::to_string(mInfo.declared_points) + " the count line declares");
+           "more points than the " + std::to_string(mInfo.declared_points) +
+               " the count line declares");
     }
     if (!finite3(v[kColX], v[kColY], v[kColZ])) {
       mStats.skip("non-finite coordinate", atLine(lineno));
@@ -182,7 +206,9 @@ bool TextReader::next(PointBatch& batch, size_t max_points) {
     batch.positions.emplace_back(v[kColX], v[kColY], v[kColZ]);
     if (batch.attributes & kIntensity) batch.intensities.push_back(float(v[kColI]));
     if (batch.attributes & kColor) {
-      auto c8 = [](double c) { return uint8_t(std::clamp(std::isfinite(c) ? c : 0.0, 0.0, 255.0)); };
+      auto c8 = [](double c) {
+        return uint8_t(std::clamp(std::isfinite(c) ? c : 0.0, 0.0, 255.0));
+      };
       batch.colors.emplace_back(c8(v[kColR]), c8(v[kColG]), c8(v[kColB]), 255);
     }
     if (batch.attributes & kNormal) batch.normals.emplace_back(v[kColNx], v[kColNy], v[kColNz]);

@@ -13,9 +13,9 @@
 #include <stdexcept>
 #include <thread>
 
-#include <glm/gtc/quaternion.hpp>
 #include <tessera/core/check.h>
 #include <tessera/core/progress.h>
+#include <glm/gtc/quaternion.hpp>
 
 namespace tessera::lod {
 namespace {
@@ -63,7 +63,8 @@ struct Scanner {
       return {std::cos(el) * std::sin(az), std::sin(el), -std::cos(el) * std::cos(az)};
     }
     // Row 0 at the top of the image, as in a range image.
-    return glm::normalize(glm::dvec3((2.0 * u - 1.0) * tan_half_x, (1.0 - 2.0 * v) * tan_half_y, -1.0));
+    return glm::normalize(
+        glm::dvec3((2.0 * u - 1.0) * tan_half_x, (1.0 - 2.0 * v) * tan_half_y, -1.0));
   }
 };
 
@@ -112,14 +113,16 @@ struct Hit {
   bool valid = false;
 };
 
-void writeScan(const std::filesystem::path& file, const std::vector<Hit>& hits, const ScanOptions& o) {
+void writeScan(const std::filesystem::path& file, const std::vector<Hit>& hits,
+               const ScanOptions& o) {
   uint64_t n = std::count_if(hits.begin(), hits.end(), [](const Hit& h) { return h.valid; });
   std::ofstream out(file, std::ios::binary);
   if (!out) throw std::runtime_error("lod::scanMesh(): cannot write " + file.string());
   out << "ply\nformat " << (o.binary ? "binary_little_endian" : "ascii") << " 1.0\n"
       << "obj_info is_cyberware_data 0\nobj_info is_mesh 0\nobj_info is_warped 0\n"
-      << "obj_info is_interlaced 0\nobj_info num_cols " << o.columns << "\nobj_info num_rows " << o.rows
-      << "\ncomment tessera virtual scanner" << (o.panoramic ? " (panoramic)" : "") << "\n"
+      << "obj_info is_interlaced 0\nobj_info num_cols " << o.columns << "\nobj_info num_rows "
+      << o.rows << "\ncomment tessera virtual scanner" << (o.panoramic ? " (panoramic)" : "")
+      << "\n"
       << "element vertex " << n << "\nproperty float x\nproperty float y\nproperty float z\n"
       << "element range_grid " << uint64_t(o.columns) * o.rows
       << "\nproperty list uchar int vertex_indices\nend_header\n";
@@ -135,7 +138,8 @@ void writeScan(const std::filesystem::path& file, const std::vector<Hit>& hits, 
     if (o.binary) {
       buf.append(reinterpret_cast<const char*>(&h.local), sizeof(glm::vec3));
     } else {
-      int len = std::snprintf(line, sizeof line, "%.9g %.9g %.9g \n", h.local.x, h.local.y, h.local.z);
+      int len =
+          std::snprintf(line, sizeof line, "%.9g %.9g %.9g \n", h.local.x, h.local.y, h.local.z);
       buf.append(line, size_t(len));
     }
     if (buf.size() > (1 << 20)) flush();
@@ -156,16 +160,20 @@ void writeScan(const std::filesystem::path& file, const std::vector<Hit>& hits, 
     if (buf.size() > (1 << 20)) flush();
   }
   flush();
-  if (!out) throw std::runtime_error("lod::scanMesh(): write failed for " + file.string() + " (disk full?)");
+  if (!out)
+    throw std::runtime_error("lod::scanMesh(): write failed for " + file.string() +
+                             " (disk full?)");
 }
 
 }  // namespace
 
 ScanResult scanMesh(const Mesh& mesh, const std::filesystem::path& out_dir, const ScanOptions& o) {
-  TESSERA_CHECK(o.scanners >= 1 && o.scanners <= 10000, "lod::scanMesh(): scanners must be 1..10000");
+  TESSERA_CHECK(o.scanners >= 1 && o.scanners <= 10000,
+                "lod::scanMesh(): scanners must be 1..10000");
   TESSERA_CHECK(o.columns >= 1 && o.rows >= 1 && o.columns <= 65535 && o.rows <= 65535,
                 "lod::scanMesh(): resolution must be 1..65535 in each direction");
-  TESSERA_CHECK(o.noise_mm >= 0.0 && std::isfinite(o.noise_mm), "lod::scanMesh(): noise must be >= 0");
+  TESSERA_CHECK(o.noise_mm >= 0.0 && std::isfinite(o.noise_mm),
+                "lod::scanMesh(): noise must be >= 0");
   TESSERA_CHECK(!mesh.triangles.empty(), "lod::scanMesh(): mesh has no triangles");
 
   auto [lo, hi] = mesh.bounds();
@@ -179,16 +187,18 @@ ScanResult scanMesh(const Mesh& mesh, const std::filesystem::path& out_dir, cons
   es.scene = rtcNewScene(es.device);
   RTCGeometry geom = rtcNewGeometry(es.device, RTC_GEOMETRY_TYPE_TRIANGLE);
   // Embree works in float: vertices relative to the mesh centre keep precision.
-  auto* vb = static_cast<float*>(rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
-                                                         3 * sizeof(float), mesh.positions.size()));
+  auto* vb = static_cast<float*>(rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0,
+                                                         RTC_FORMAT_FLOAT3, 3 * sizeof(float),
+                                                         mesh.positions.size()));
   for (size_t i = 0; i < mesh.positions.size(); ++i) {
     glm::vec3 p(mesh.positions[i] - center);
     vb[3 * i] = p.x;
     vb[3 * i + 1] = p.y;
     vb[3 * i + 2] = p.z;
   }
-  auto* ib = static_cast<uint32_t*>(rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
-                                                            3 * sizeof(uint32_t), mesh.triangles.size()));
+  auto* ib = static_cast<uint32_t*>(rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_INDEX, 0,
+                                                            RTC_FORMAT_UINT3, 3 * sizeof(uint32_t),
+                                                            mesh.triangles.size()));
   std::memcpy(ib, mesh.triangles.data(), mesh.triangles.size() * sizeof(Triangle));
   rtcCommitGeometry(geom);
   rtcAttachGeometry(es.scene, geom);
@@ -259,7 +269,8 @@ ScanResult scanMesh(const Mesh& mesh, const std::filesystem::path& out_dir, cons
     info.pose = RigidPose{mesh.origin + sc.pose.translation, sc.pose.rotation};
     info.grid_columns = o.columns;
     info.grid_rows = o.rows;
-    info.points = uint64_t(std::count_if(hits.begin(), hits.end(), [](const Hit& h) { return h.valid; }));
+    info.points =
+        uint64_t(std::count_if(hits.begin(), hits.end(), [](const Hit& h) { return h.valid; }));
     writeScan(info.path, hits, o);
     result.points += info.points;
     result.scans.push_back(std::move(info));

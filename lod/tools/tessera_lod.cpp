@@ -24,7 +24,8 @@ int runInfo(const std::vector<std::string>& files, bool json, bool quiet) {
   for (size_t i = 0; i < files.size(); ++i) {
     SourceSummary s = summarizeSource(files[i], quiet);
     if (json) {
-      std::cout << (files.size() > 1 ? "  " : "") << summaryJson(s) << (i + 1 < files.size() ? "," : "") << "\n";
+      std::cout << (files.size() > 1 ? "  " : "") << summaryJson(s)
+                << (i + 1 < files.size() ? "," : "") << "\n";
     } else {
       std::cout << summaryText(s);
     }
@@ -41,9 +42,10 @@ int runScan(const std::string& mesh_path, const std::string& out, const std::str
             ScanOptions o) {
   unsigned w = 0, h = 0;
   char extra;
-  if (std::sscanf(resolution.c_str(), "%ux%u%c", &w, &h, &extra) != 2 || w == 0 || h == 0 || w > 65535 ||
-      h > 65535) {
-    std::cerr << "tessera-lod scan: --resolution " << resolution << ": expected WxH, e.g. 512x400\n";
+  if (std::sscanf(resolution.c_str(), "%ux%u%c", &w, &h, &extra) != 2 || w == 0 || h == 0 ||
+      w > 65535 || h > 65535) {
+    std::cerr << "tessera-lod scan: --resolution " << resolution
+              << ": expected WxH, e.g. 512x400\n";
     return 2;
   }
   o.columns = w;
@@ -57,9 +59,9 @@ int runScan(const std::string& mesh_path, const std::string& out, const std::str
   }
   try {
     ScanResult r = scanMesh(mesh, out, o);
-    std::cout << "scanned " << mesh_path << " (" << mesh.triangles.size() << " triangles) from " << r.scans.size()
-              << (o.panoramic ? " panoramic" : "") << " scanners: " << r.points << " points of " << r.rays
-              << " rays\nwrote " << r.conf.string() << "\n";
+    std::cout << "scanned " << mesh_path << " (" << mesh.triangles.size() << " triangles) from "
+              << r.scans.size() << (o.panoramic ? " panoramic" : "") << " scanners: " << r.points
+              << " points of " << r.rays << " rays\nwrote " << r.conf.string() << "\n";
   } catch (const tessera::PreconditionError& e) {
     std::cerr << "tessera-lod scan: " << e.what() << "\n";
     return 2;
@@ -73,18 +75,24 @@ int runScan(const std::string& mesh_path, const std::string& out, const std::str
 // Exit codes for build/verify: 0 ok, 1 bad input, 3 failed writing, 4 verification failed.
 constexpr int kExitVerifyFailed = 4;
 
-int runBuild(const std::vector<std::string>& inputs, const std::string& out, const BuildOptions& o) {
+int runBuild(const std::vector<std::string>& inputs, const std::string& out,
+             const BuildOptions& o) {
   std::vector<std::filesystem::path> paths(inputs.begin(), inputs.end());
   try {
     BuildReport r = buildStore(paths, out, o);
-    std::printf("built %s: %llu points (%llu skipped), %llu nodes, depth %u, %llu chunks, overhead %.3fx\n",
-                out.c_str(), (unsigned long long)r.points, (unsigned long long)r.skipped, (unsigned long long)r.nodes,
-                r.depth, (unsigned long long)r.chunks, double(r.stored_points) / double(r.points));
-    std::printf("  %.2f bytes/point in all, %.2f bytes/point position + colour, max quantisation error %.3g\n",
-                double(r.file_bytes) / double(r.points), double(r.position_color_bytes) / double(r.points),
-                r.max_error);
-    std::printf("  %.2f s (read %.2f, process %.2f, write %.2f): %.2f M points/s\n", r.seconds, r.seconds_read,
-                r.seconds_process, r.seconds_write, double(r.points) / r.seconds / 1e6);
+    std::printf(
+        "built %s: %llu points (%llu skipped), %llu nodes, depth %u, %llu chunks, overhead %.3fx\n",
+        out.c_str(), (unsigned long long)r.points, (unsigned long long)r.skipped,
+        (unsigned long long)r.nodes, r.depth, (unsigned long long)r.chunks,
+        double(r.stored_points) / double(r.points));
+    std::printf(
+        "  %.2f bytes/point in all, %.2f bytes/point position + colour, max quantisation error "
+        "%.3g\n",
+        double(r.file_bytes) / double(r.points), double(r.position_color_bytes) / double(r.points),
+        r.max_error);
+    std::printf("  %.2f s (read %.2f, process %.2f, write %.2f): %.2f M points/s\n", r.seconds,
+                r.seconds_read, r.seconds_process, r.seconds_write,
+                double(r.points) / r.seconds / 1e6);
     return 0;
   } catch (const ReadError& e) {
     std::fprintf(stderr, "tessera-lod build: %s\n", e.what());
@@ -95,13 +103,16 @@ int runBuild(const std::vector<std::string>& inputs, const std::string& out, con
   }
 }
 
-int runVerify(const std::string& store, const std::vector<std::string>& inputs, const BuildOptions& o) {
+int runVerify(const std::string& store, const std::vector<std::string>& inputs,
+              const BuildOptions& o) {
   std::vector<std::filesystem::path> paths(inputs.begin(), inputs.end());
   try {
     VerifyReport r = verifyStore(store, paths, o);
-    std::printf("%s: %llu input points, %llu stored, %llu matched, %llu unmatched, %llu corrupt chunks\n",
-                store.c_str(), (unsigned long long)r.input_points, (unsigned long long)r.store_points,
-                (unsigned long long)r.matched, (unsigned long long)r.unmatched, (unsigned long long)r.corrupt_chunks);
+    std::printf(
+        "%s: %llu input points, %llu stored, %llu matched, %llu unmatched, %llu corrupt chunks\n",
+        store.c_str(), (unsigned long long)r.input_points, (unsigned long long)r.store_points,
+        (unsigned long long)r.matched, (unsigned long long)r.unmatched,
+        (unsigned long long)r.corrupt_chunks);
     std::printf("max error %.6g (%.3f of the stated bound)\n%s\n", r.max_error, r.max_error_ratio,
                 r.ok() ? "OK: every input point is stored once within its error bound" : "FAILED");
     return r.ok() ? 0 : kExitVerifyFailed;
@@ -123,26 +134,36 @@ int main(int argc, char** argv) {
 
   std::vector<std::string> info_files;
   bool info_json = false, info_quiet = false;
-  auto* info = app.add_subcommand("info", "Describe scan files: format, points, triangles, bounds, attributes, skips, scans");
-  info->add_option("FILE", info_files, "PLY, LAS, Stanford .conf, XYZ/PTS/TXT or OBJ files")->required();
+  auto* info = app.add_subcommand(
+      "info", "Describe scan files: format, points, triangles, bounds, attributes, skips, scans");
+  info->add_option("FILE", info_files, "PLY, LAS, Stanford .conf, XYZ/PTS/TXT or OBJ files")
+      ->required();
   info->add_flag("--json", info_json, "Print JSON (one object per file; an array for several)");
   info->add_flag("--quiet", info_quiet, "No progress bar");
 
   std::string scan_mesh, scan_out, scan_res = "512x400";
   ScanOptions so;
-  auto* scan = app.add_subcommand("scan", "Virtual laser scanner: ray-cast a mesh into Stanford-format range scans + .conf");
+  auto* scan = app.add_subcommand(
+      "scan", "Virtual laser scanner: ray-cast a mesh into Stanford-format range scans + .conf");
   scan->add_option("MESH", scan_mesh, "Mesh to scan (PLY or OBJ with faces)")->required();
-  scan->add_option("-o,--output", scan_out, "Output folder (scan_NNN.ply and scans.conf)")->required();
-  scan->add_option("--scanners", so.scanners, "Number of scanner poses")->check(CLI::Range(1, 10000))->capture_default_str();
+  scan->add_option("-o,--output", scan_out, "Output folder (scan_NNN.ply and scans.conf)")
+      ->required();
+  scan->add_option("--scanners", so.scanners, "Number of scanner poses")
+      ->check(CLI::Range(1, 10000))
+      ->capture_default_str();
   scan->add_option("--resolution", scan_res, "Range grid WxH per scanner")->capture_default_str();
   scan->add_flag("--panoramic", so.panoramic, "Scanners inside the model, 360-degree panoramas");
   scan->add_option("--noise-mm", so.noise_mm, "Gaussian range noise (standard deviation, mm)")
-      ->check(CLI::NonNegativeNumber)->capture_default_str();
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
   scan->add_option("--units-per-mm", so.units_per_mm, "Model units per millimetre (metres: 0.001)")
-      ->check(CLI::PositiveNumber)->capture_default_str();
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
   scan->add_option("--seed", so.seed, "Noise seed (same seed, same scans)")->capture_default_str();
-  scan->add_option("--max-incidence", so.max_incidence_deg, "Drop hits more oblique than this (degrees)")
-      ->check(CLI::Range(0.0, 90.0))->capture_default_str();
+  scan->add_option("--max-incidence", so.max_incidence_deg,
+                   "Drop hits more oblique than this (degrees)")
+      ->check(CLI::Range(0.0, 90.0))
+      ->capture_default_str();
   scan->add_flag("--binary", so.binary, "Write binary little-endian PLY (for large scans)");
   scan->add_option("--threads", so.threads, "Threads (0: every core)")->capture_default_str();
   scan->add_flag("--quiet", so.quiet, "No progress output");
@@ -150,20 +171,29 @@ int main(int argc, char** argv) {
   std::vector<std::string> build_in;
   std::string build_out;
   BuildOptions bo;
-  auto* build = app.add_subcommand("build", "Build an out-of-core multiresolution point store (.tlod) from inputs");
-  build->add_option("IN", build_in, "Input files (any readable format); several are fused, each point keeps its source")
+  auto* build = app.add_subcommand(
+      "build", "Build an out-of-core multiresolution point store (.tlod) from inputs");
+  build
+      ->add_option(
+          "IN", build_in,
+          "Input files (any readable format); several are fused, each point keeps its source")
       ->required();
   build->add_option("-o,--output", build_out, "Output store (.tlod)")->required();
-  build->add_option("--memory-mb", bo.memory_mb, "Memory budget in MB (peak stays within it plus a small constant)")
-      ->check(CLI::Range(64, 1 << 20))->capture_default_str();
+  build
+      ->add_option("--memory-mb", bo.memory_mb,
+                   "Memory budget in MB (peak stays within it plus a small constant)")
+      ->check(CLI::Range(64, 1 << 20))
+      ->capture_default_str();
   build->add_option("--threads", bo.threads, "Threads (0: every core)")->capture_default_str();
-  build->add_option("--temp-dir", bo.temp_dir, "Folder for temporary files (default: beside the output)");
+  build->add_option("--temp-dir", bo.temp_dir,
+                    "Folder for temporary files (default: beside the output)");
   build->add_flag("--quiet", bo.quiet, "No progress output");
 
   std::string verify_store;
   std::vector<std::string> verify_in;
   BuildOptions vo;
-  auto* verify = app.add_subcommand("verify", "Check that every input point is in a store within its error bound");
+  auto* verify = app.add_subcommand(
+      "verify", "Check that every input point is in a store within its error bound");
   verify->add_option("STORE", verify_store, "The .tlod store")->required();
   verify->add_option("IN", verify_in, "The inputs it was built from")->required();
   verify->add_option("--memory-mb", vo.memory_mb, "Memory budget in MB")->capture_default_str();

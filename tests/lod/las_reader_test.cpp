@@ -60,7 +60,8 @@ PointBatch geoBatch(size_t n) {
   b.reset(kColor | kIntensity | kClassification);
   for (size_t i = 0; i < n; ++i) {
     // Millimetre steps on top of local offsets (world adds a georeferenced origin).
-    b.positions.emplace_back(0.001 * double(i), 12.345 + 0.001 * double(i % 97), -3.5 + 0.002 * double(i % 13));
+    b.positions.emplace_back(0.001 * double(i), 12.345 + 0.001 * double(i % 97),
+                             -3.5 + 0.002 * double(i % 13));
     b.colors.emplace_back(uint8_t(i), uint8_t(255 - i % 256), uint8_t(i * 5), 255);
     b.intensities.push_back(float(i * 11 % 65536));
     b.classifications.push_back(uint8_t(i % 19));
@@ -84,7 +85,8 @@ TEST_P(LasFormats, RoundTripKeepsMillimetresAtGeoreferencedCoordinates) {
   writeLas(dir / "g.las", in, origin, {c.minor, c.format, glm::dvec3(0.001), false, c.extra});
   auto r = readAll(dir / "g.las", 700);
   ASSERT_EQ(r.points.size(), in.size());
-  bool rgb = c.format == 2 || c.format == 3 || c.format == 5 || c.format == 7 || c.format == 8 || c.format == 10;
+  bool rgb = c.format == 2 || c.format == 3 || c.format == 5 || c.format == 7 || c.format == 8 ||
+             c.format == 10;
   EXPECT_EQ(bool(r.info.attributes & kColor), rgb);
   for (size_t i = 0; i < in.size(); ++i) {
     glm::dvec3 w = r.info.origin + r.points.positions[i];
@@ -111,7 +113,8 @@ INSTANTIATE_TEST_SUITE_P(AllFormats, LasFormats,
                                            LasCase{4, 7, 13}, LasCase{4, 3, 0}),
                          [](const ::testing::TestParamInfo<LasCase>& i) {
                            return "las1" + std::to_string(i.param.minor) + "_format" +
-                                  std::to_string(i.param.format) + "_extra" + std::to_string(i.param.extra);
+                                  std::to_string(i.param.format) + "_extra" +
+                                  std::to_string(i.param.extra);
                          });
 
 TEST(LasReader, EightBitColoursInSixteenBitFieldsAreDetected) {
@@ -130,8 +133,10 @@ TEST(LasReader, BadHeadersAndTruncationSayWhere) {
   test::TempDir dir;
   auto bytes = test::readBytes(kData + "/lidar/autzen_trim.las");
   // Truncated at several offsets: inside the header, at the points, mid-record, last byte.
-  for (size_t cut : {size_t(3), size_t(100), size_t(226), size_t(2000), bytes.size() / 3, bytes.size() - 1}) {
-    test::writeBytes(dir / "cut.las", std::vector<uint8_t>(bytes.begin(), bytes.begin() + ptrdiff_t(cut)));
+  for (size_t cut :
+       {size_t(3), size_t(100), size_t(226), size_t(2000), bytes.size() / 3, bytes.size() - 1}) {
+    test::writeBytes(dir / "cut.las",
+                     std::vector<uint8_t>(bytes.begin(), bytes.begin() + ptrdiff_t(cut)));
     std::string msg = readErrorOf([&] { readAll(dir / "cut.las"); });
     EXPECT_NE(msg.find("cut.las"), std::string::npos) << cut << ": " << msg;
     EXPECT_NE(msg.find("byte"), std::string::npos) << cut << ": " << msg;

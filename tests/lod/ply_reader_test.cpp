@@ -63,7 +63,9 @@ PointBatch sampleBatch(size_t n, AttributeMask mask) {
   for (size_t i = 0; i < n; ++i) {
     b.positions.emplace_back(0.25 * double(i), -1.5 + 0.125 * double(i % 7), 1000.0 + double(i));
     if (mask & kNormal) b.normals.emplace_back(0.f, 0.6f, 0.8f);
-    if (mask & kColor) b.colors.emplace_back(uint8_t(i * 3), uint8_t(255 - i), uint8_t(i * 7), mask & kAlpha ? uint8_t(i) : 255);
+    if (mask & kColor)
+      b.colors.emplace_back(uint8_t(i * 3), uint8_t(255 - i), uint8_t(i * 7),
+                            mask & kAlpha ? uint8_t(i) : 255);
     if (mask & kIntensity) b.intensities.push_back(float(i) * 0.5f);
     if (mask & kConfidence) b.confidences.push_back(1.0f / float(i + 1));
   }
@@ -120,7 +122,8 @@ INSTANTIATE_TEST_SUITE_P(
 TEST(PlyReader, BigEndianBytesDecodeIndependently) {
   std::string s =
       "ply\nformat binary_big_endian 1.0\nelement vertex 1\nproperty double x\n"
-      "property float y\nproperty short z\nproperty ushort red\nproperty ushort green\nproperty ushort blue\nend_header\n";
+      "property float y\nproperty short z\nproperty ushort red\nproperty ushort green\nproperty "
+      "ushort blue\nend_header\n";
   const uint8_t rec[] = {0x40, 0x09, 0x21, 0xFB, 0x54, 0x44, 0x2D, 0x18,  // 3.141592653589793
                          0xC0, 0x20, 0x00, 0x00,                          // -2.5f
                          0xFF, 0xFE,                                      // -2
@@ -136,9 +139,11 @@ TEST(PlyReader, BigEndianBytesDecodeIndependently) {
 
 TEST(PlyReader, UnknownPropertiesAndElementsAreSkippedBySize) {
   std::string s =
-      "ply\nformat binary_little_endian 1.0\ncomment odd layout\nelement camera 1\nproperty double a\n"
+      "ply\nformat binary_little_endian 1.0\ncomment odd layout\nelement camera 1\nproperty double "
+      "a\n"
       "element vertex 2\nproperty uchar flags\nproperty float x\nproperty list uchar int tags\n"
-      "property float y\nproperty double weird\nproperty float z\nproperty uchar red\nproperty uchar green\n"
+      "property float y\nproperty double weird\nproperty float z\nproperty uchar red\nproperty "
+      "uchar green\n"
       "property uchar blue\nelement edge 1\nproperty int v1\nproperty int v2\nend_header\n";
   auto put = [&](const void* p, size_t n) { s.append(static_cast<const char*>(p), n); };
   double cam = 9.0;
@@ -169,7 +174,8 @@ TEST(PlyReader, UnknownPropertiesAndElementsAreSkippedBySize) {
 
 TEST(PlyReader, PolygonsAreTriangulatedAsFans) {
   std::string s =
-      "ply\nformat ascii 1.0\nelement vertex 5\nproperty float x\nproperty float y\nproperty float z\n"
+      "ply\nformat ascii 1.0\nelement vertex 5\nproperty float x\nproperty float y\nproperty float "
+      "z\n"
       "element face 2\nproperty list uchar uint vertex_indices\nend_header\n"
       "0 0 0\n1 0 0\n1 1 0\n0 1 0\n2 2 2\n4 0 1 2 3\n3 2 3 4\n";
   auto r = readAllMemory(s, "quad.ply");
@@ -181,7 +187,8 @@ TEST(PlyReader, PolygonsAreTriangulatedAsFans) {
 
 TEST(PlyReader, NonFiniteVerticesAreSkippedCountedAndFacesRemapped) {
   std::string s =
-      "ply\nformat ascii 1.0\nelement vertex 5\nproperty float x\nproperty float y\nproperty float z\n"
+      "ply\nformat ascii 1.0\nelement vertex 5\nproperty float x\nproperty float y\nproperty float "
+      "z\n"
       "element face 2\nproperty list uchar int vertex_indices\nend_header\n"
       "0 0 0\nnan 0 0\n1 1 0\n0 inf 1\n2 2 2\n3 0 2 4\n3 0 1 2\n";
   auto r = readAllMemory(s, "nan.ply");
@@ -195,34 +202,44 @@ TEST(PlyReader, NonFiniteVerticesAreSkippedCountedAndFacesRemapped) {
 }
 
 TEST(PlyReader, BadHeadersNameTheProblem) {
-  EXPECT_NE(readErrorOf([] { readAllMemory("plx\nformat ascii 1.0\n", "a.ply"); }).find("not a PLY file"),
-            std::string::npos);
+  EXPECT_NE(
+      readErrorOf([] { readAllMemory("plx\nformat ascii 1.0\n", "a.ply"); }).find("not a PLY file"),
+      std::string::npos);
   EXPECT_NE(readErrorOf([] { readAllMemory("", "a.ply"); }).find("empty"), std::string::npos);
   std::string unknown = readErrorOf([] {
-    readAllMemory("ply\nformat ascii 1.0\nelement vertex 1\nproperty quad x\nend_header\n", "t.ply");
+    readAllMemory("ply\nformat ascii 1.0\nelement vertex 1\nproperty quad x\nend_header\n",
+                  "t.ply");
   });
-  EXPECT_NE(unknown.find("t.ply: line 4: unknown property type 'quad'"), std::string::npos) << unknown;
-  EXPECT_NE(readErrorOf([] { readAllMemory("ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\n", "h.ply"); })
-                .find("no end_header"),
+  EXPECT_NE(unknown.find("t.ply: line 4: unknown property type 'quad'"), std::string::npos)
+      << unknown;
+  EXPECT_NE(readErrorOf([] {
+              readAllMemory("ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\n", "h.ply");
+            }).find("no end_header"),
             std::string::npos);
   EXPECT_NE(readErrorOf([] {
-              readAllMemory("ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nend_header\n1\n", "xy.ply");
+              readAllMemory(
+                  "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nend_header\n1\n",
+                  "xy.ply");
             }).find("lacks x, y or z"),
             std::string::npos);
   EXPECT_NE(readErrorOf([] {
-              readAllMemory("ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\n"
-                            "property float z\nend_header\n1 2 zebra\n", "v.ply");
+              readAllMemory(
+                  "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\n"
+                  "property float z\nend_header\n1 2 zebra\n",
+                  "v.ply");
             }).find("line 8: bad value 'zebra'"),
             std::string::npos);
 }
 
 TEST(PlyReader, HeaderCountLargerThanDataIsAnErrorWithOffset) {
-  std::string s = "ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
-                  "property float z\nend_header\n";
+  std::string s =
+      "ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+      "property float z\nend_header\n";
   size_t header = s.size();
   s.append(std::string(24, '\0'));  // two vertices of three
   std::string msg = readErrorOf([&] { readAllMemory(s, "short.ply"); });
-  EXPECT_NE(msg.find("short.ply: byte " + std::to_string(header + 24) + ": file ends inside vertex 2 of 3"),
+  EXPECT_NE(msg.find("short.ply: byte " + std::to_string(header + 24) +
+                     ": file ends inside vertex 2 of 3"),
             std::string::npos)
       << msg;
 }
@@ -230,14 +247,16 @@ TEST(PlyReader, HeaderCountLargerThanDataIsAnErrorWithOffset) {
 // Real files cut at many offsets: an error (never a crash, never silently fewer points).
 TEST(PlyReader, TruncatedRealFilesFailCleanly) {
   test::TempDir dir;
-  for (const std::string name : {"/stanford-bunny/scans/bun000.ply", "/stanford-bunny/reconstruction/bun_zipper_res3.ply"}) {
+  for (const std::string name :
+       {"/stanford-bunny/scans/bun000.ply", "/stanford-bunny/reconstruction/bun_zipper_res3.ply"}) {
     auto bytes = test::readBytes(kData + name);
     for (double frac : {0.0001, 0.001, 0.01, 0.3, 0.5, 0.9, 0.999}) {
       size_t cut = size_t(double(bytes.size()) * frac);
       std::vector<uint8_t> part(bytes.begin(), bytes.begin() + ptrdiff_t(cut));
       test::writeBytes(dir / "cut.ply", part);
       std::string msg = readErrorOf([&] { readAll(dir / "cut.ply"); });
-      EXPECT_NE(msg.find("lod::readPly()"), std::string::npos) << name << " cut at " << cut << ": '" << msg << "'";
+      EXPECT_NE(msg.find("lod::readPly()"), std::string::npos)
+          << name << " cut at " << cut << ": '" << msg << "'";
       EXPECT_NE(msg.find("cut.ply"), std::string::npos) << msg;
     }
   }
@@ -248,7 +267,8 @@ TEST(PlyReader, TruncatedRealFilesFailCleanly) {
   std::string text(bytes.begin(), bytes.end());
   size_t data = text.find("end_header\n") + 11;
   for (size_t cut : {data + 5, bytes.size() / 2, bytes.size() - 1}) {
-    test::writeBytes(dir / "cut.ply", std::vector<uint8_t>(bytes.begin(), bytes.begin() + ptrdiff_t(cut)));
+    test::writeBytes(dir / "cut.ply",
+                     std::vector<uint8_t>(bytes.begin(), bytes.begin() + ptrdiff_t(cut)));
     std::string msg = readErrorOf([&] { readAll(dir / "cut.ply"); });
     EXPECT_NE(msg.find("byte "), std::string::npos) << cut << ": " << msg;
   }

@@ -5,12 +5,12 @@
 
 #include <atomic>
 #include <cstring>
+#include <fstream>
 #include <functional>
 #include <map>
 #include <set>
-#include <tuple>
-#include <fstream>
 #include <thread>
+#include <tuple>
 
 #include <tessera/lod/point_store.h>
 #include <tessera/lod/store_builder.h>
@@ -122,10 +122,12 @@ TEST(PointStore, OutOfCoreChunksFusedInputsAndThreadsGiveTheSameGuarantees) {
   // Tiny chunks force many out-of-core work units, the oversize split and upper levels.
   BuildOptions o = quiet(20000, 400);
   o.threads = 2;
-  BuildReport r = buildStore({kBunny, kData + "/stanford-bunny/reconstruction/bun_zipper.ply"}, dir / "f.tlod", o);
+  BuildReport r = buildStore({kBunny, kData + "/stanford-bunny/reconstruction/bun_zipper.ply"},
+                             dir / "f.tlod", o);
   EXPECT_GT(r.chunks, 10u);
   EXPECT_EQ(r.points, 362272u + 35947u);
-  VerifyReport v = verifyStore(dir / "f.tlod", {kBunny, kData + "/stanford-bunny/reconstruction/bun_zipper.ply"}, o);
+  VerifyReport v = verifyStore(
+      dir / "f.tlod", {kBunny, kData + "/stanford-bunny/reconstruction/bun_zipper.ply"}, o);
   EXPECT_TRUE(v.ok()) << v.unmatched << " unmatched of " << v.input_points;
   auto s = PointStore::open(dir / "f.tlod");
   EXPECT_EQ(s->sources().size(), 11u);
@@ -224,8 +226,10 @@ TEST(PointStore, BadStoresAreRefusedWithTheReason) {
     std::memcpy(b.data(), &h, sizeof h);
     EXPECT_NE(openErr(b).find("newer than this build reads"), std::string::npos) << openErr(b);
   }
-  EXPECT_NE(openErr(std::vector<uint8_t>(bytes.begin(), bytes.begin() + 100)).find("too small"), std::string::npos);
-  EXPECT_NE(openErr(std::vector<uint8_t>(bytes.begin(), bytes.end() - 40)).find("truncated"), std::string::npos)
+  EXPECT_NE(openErr(std::vector<uint8_t>(bytes.begin(), bytes.begin() + 100)).find("too small"),
+            std::string::npos);
+  EXPECT_NE(openErr(std::vector<uint8_t>(bytes.begin(), bytes.end() - 40)).find("truncated"),
+            std::string::npos)
       << openErr(std::vector<uint8_t>(bytes.begin(), bytes.end() - 40));
   {
     auto b = bytes;

@@ -1,10 +1,10 @@
 // The tessera-lod command as a user runs it: output, JSON keys and exit codes.
 #include <gtest/gtest.h>
 
+#include <sys/wait.h>
 #include <array>
 #include <cstdio>
 #include <string>
-#include <sys/wait.h>
 
 #include "../support/temp_dir.h"
 
@@ -33,15 +33,17 @@ CommandResult run(const std::string& args) {
 TEST(TesseraLodCli, InfoJsonHasTheDocumentedKeys) {
   CommandResult r = run("info --json " + kData + "/lidar/autzen_trim.las");
   ASSERT_EQ(r.code, 0) << r.out;
-  for (const char* key : {"\"format\": \"las\"", "\"points\": 110000", "\"triangles\": 0", "\"bbox_min\": [636001.76",
-                          "\"bbox_max\": [637179.22", "\"attributes\": [\"color\", \"intensity\", \"classification\"]",
+  for (const char* key : {"\"format\": \"las\"", "\"points\": 110000", "\"triangles\": 0",
+                          "\"bbox_min\": [636001.76", "\"bbox_max\": [637179.22",
+                          "\"attributes\": [\"color\", \"intensity\", \"classification\"]",
                           "\"skipped\": {}", "\"scans\": []"}) {
     EXPECT_NE(r.out.find(key), std::string::npos) << key << " in " << r.out;
   }
   CommandResult conf = run("info --json " + kData + "/stanford-bunny/scans/bun.conf");
   ASSERT_EQ(conf.code, 0) << conf.out;
   EXPECT_NE(conf.out.find("\"points\": 362272"), std::string::npos);
-  EXPECT_NE(conf.out.find("\"name\": \"ear_back.ply\", \"points\": 32193, \"grid\": [512, 400]"), std::string::npos)
+  EXPECT_NE(conf.out.find("\"name\": \"ear_back.ply\", \"points\": 32193, \"grid\": [512, 400]"),
+            std::string::npos)
       << conf.out;
 }
 
@@ -56,7 +58,9 @@ TEST(TesseraLodCli, BadInputExitsNonZeroWithTheMessage) {
   EXPECT_NE(mixed.out.find("/nonexistent.ply: no such file"), std::string::npos) << mixed.out;
   CommandResult usage = run("scan");
   EXPECT_NE(usage.code, 0);
-  CommandResult res = run("scan " + kData + "/stanford-bunny/reconstruction/bun_zipper_res4.ply -o /tmp/x --resolution 12by4");
+  CommandResult res =
+      run("scan " + kData +
+          "/stanford-bunny/reconstruction/bun_zipper_res4.ply -o /tmp/x --resolution 12by4");
   EXPECT_EQ(res.code, 2);
   EXPECT_NE(res.out.find("expected WxH"), std::string::npos) << res.out;
   CommandResult cloud = run("scan " + kData + "/stanford-bunny/scans/bun000.ply -o /tmp/x");
@@ -74,8 +78,9 @@ TEST(TesseraLodCli, HelpOnEverySubcommand) {
 
 TEST(TesseraLodCli, ScanWritesAConfThatInfoReads) {
   tessera::test::TempDir dir;
-  CommandResult r = run("scan " + kData + "/stanford-bunny/reconstruction/bun_zipper_res2.ply -o " + dir.path().string() +
-              " --scanners 3 --resolution 128x100 --noise-mm 0.2 --quiet");
+  CommandResult r =
+      run("scan " + kData + "/stanford-bunny/reconstruction/bun_zipper_res2.ply -o " +
+          dir.path().string() + " --scanners 3 --resolution 128x100 --noise-mm 0.2 --quiet");
   ASSERT_EQ(r.code, 0) << r.out;
   CommandResult info = run("info --json " + (dir / "scans.conf").string());
   ASSERT_EQ(info.code, 0) << info.out;
@@ -95,8 +100,9 @@ TEST(TesseraLodBuild, BuildInfoVerifyRoundTrip) {
   ASSERT_EQ(b.code, 0) << b.out;
   CommandResult i = run("info --json " + out);
   ASSERT_EQ(i.code, 0) << i.out;
-  for (const char* key : {"\"format\": \"tlod\"", "\"points\": 110000", "\"nodes\": ", "\"depth\": ",
-                          "\"bytes_per_point\": ", "\"spacing_root\": ", "\"spacing_finest\": ", "\"bbox_min\": [636001.76"}) {
+  for (const char* key : {"\"format\": \"tlod\"", "\"points\": 110000", "\"nodes\": ",
+                          "\"depth\": ", "\"bytes_per_point\": ", "\"spacing_root\": ",
+                          "\"spacing_finest\": ", "\"bbox_min\": [636001.76"}) {
     EXPECT_NE(i.out.find(key), std::string::npos) << key << " in " << i.out;
   }
   CommandResult v = run("verify " + out + " " + kData + "/lidar/autzen_trim.las --quiet");
@@ -110,7 +116,8 @@ TEST(TesseraLodBuild, BuildInfoVerifyRoundTrip) {
 TEST(TesseraLodBuild, BadInputsFailBeforeAnyWork) {
   TempDir dir;
   std::string out = (dir / "a.tlod").string();
-  CommandResult m = run("build " + kData + "/lidar/autzen_trim.las /nonexistent.las -o " + out + " --quiet");
+  CommandResult m =
+      run("build " + kData + "/lidar/autzen_trim.las /nonexistent.las -o " + out + " --quiet");
   EXPECT_EQ(m.code, 1);
   EXPECT_NE(m.out.find("/nonexistent.las: no such file"), std::string::npos) << m.out;
   CommandResult laz = run("build " + kData + "/lidar/autzen_trim.laz -o " + out + " --quiet");
@@ -127,7 +134,8 @@ TEST(TesseraLodBuild, DiskFullLeavesNoOutput) {
   TempDir dir;
   std::string out = (dir / "a.tlod").string();
   // A file-size limit makes every write past 64 kB fail as on a full disk (EFBIG).
-  CommandResult r = run("build " + kData + "/lidar/autzen_trim.las -o " + out + " --quiet 2>&1; true");
+  CommandResult r =
+      run("build " + kData + "/lidar/autzen_trim.las -o " + out + " --quiet 2>&1; true");
   ASSERT_TRUE(std::filesystem::exists(out));
   std::filesystem::remove(out);
   std::string cmd = "sh -c \"trap '' XFSZ; ulimit -f 128; exec " + kTool + " build " + kData +
@@ -150,13 +158,16 @@ TEST(TesseraLodBuild, KilledBuildLeavesNoHalfFile) {
   // Kill the build at several moments: the output is either absent or complete and valid.
   for (int ms : {50, 150, 300, 600}) {
     std::filesystem::remove(out);
-    std::string cmd = "sh -c '" + kTool + " build " + kData + "/stanford-bunny/scans/bun.conf -o " + out +
-                      " --quiet & pid=$!; sleep " + std::to_string(ms / 1000.0) + "; kill -9 $pid; wait $pid' 2>/dev/null";
+    std::string cmd = "sh -c '" + kTool + " build " + kData + "/stanford-bunny/scans/bun.conf -o " +
+                      out + " --quiet & pid=$!; sleep " + std::to_string(ms / 1000.0) +
+                      "; kill -9 $pid; wait $pid' 2>/dev/null";
     int rc = std::system(cmd.c_str());
     (void)rc;
     if (std::filesystem::exists(out)) {
-      CommandResult v = run("verify " + out + " " + kData + "/stanford-bunny/scans/bun.conf --quiet");
-      EXPECT_EQ(v.code, 0) << "killed after " << ms << " ms: output exists but does not verify: " << v.out;
+      CommandResult v =
+          run("verify " + out + " " + kData + "/stanford-bunny/scans/bun.conf --quiet");
+      EXPECT_EQ(v.code, 0) << "killed after " << ms
+                           << " ms: output exists but does not verify: " << v.out;
     }
     CommandResult i = run("info " + out + ".partial");
     EXPECT_NE(i.code, 0) << "a partial file must never open as a store";

@@ -27,7 +27,8 @@ TEST(TextReader, ColumnLayouts) {
   EXPECT_EQ(r6.points.colors[0], glm::u8vec4(255, 128, 0, 255));
 
   // PTS: count line, then x y z intensity r g b.
-  auto pts = readAllMemory("2\n636001.761 848935.201 406.26 -1200 10 20 30\n1 2 3 5 1 2 3\n", "scan.pts");
+  auto pts =
+      readAllMemory("2\n636001.761 848935.201 406.26 -1200 10 20 30\n1 2 3 5 1 2 3\n", "scan.pts");
   ASSERT_EQ(pts.points.size(), 2u);
   EXPECT_TRUE(pts.info.has_declared_points);
   EXPECT_EQ(pts.info.declared_points, 2u);
@@ -48,21 +49,32 @@ TEST(TextReader, NonFiniteRowsAreSkippedAndCounted) {
 }
 
 TEST(TextReader, BadRowsNameTheLine) {
-  EXPECT_NE(readErrorOf([] { readAllMemory("1 2 3\n1 2\n", "a.xyz"); }).find("a.xyz: line 2: 2 values; expected 3"),
+  EXPECT_NE(readErrorOf([] {
+              readAllMemory("1 2 3\n1 2\n", "a.xyz");
+            }).find("a.xyz: line 2: 2 values; expected 3"),
             std::string::npos);
-  EXPECT_NE(readErrorOf([] { readAllMemory("1 2 3\n1 two 3\n", "a.xyz"); }).find("line 2: value 2 is not a number: 'two'"),
+  EXPECT_NE(readErrorOf([] {
+              readAllMemory("1 2 3\n1 two 3\n", "a.xyz");
+            }).find("line 2: value 2 is not a number: 'two'"),
             std::string::npos);
-  EXPECT_NE(readErrorOf([] { readAllMemory("1 2 3 4 5\n", "a.xyz"); }).find("5 values per line"), std::string::npos);
-  EXPECT_NE(readErrorOf([] { readAllMemory("3\n1 2 3\n", "a.pts"); }).find("file ends after 1 points; the count line declares 3"),
+  EXPECT_NE(readErrorOf([] { readAllMemory("1 2 3 4 5\n", "a.xyz"); }).find("5 values per line"),
             std::string::npos);
-  EXPECT_NE(readErrorOf([] { readAllMemory("1\n1 2 3\n4 5 6\n", "a.pts"); }).find("line 3: more points than the 1"),
+  EXPECT_NE(readErrorOf([] {
+              readAllMemory("3\n1 2 3\n", "a.pts");
+            }).find("file ends after 1 points; the count line declares 3"),
             std::string::npos);
-  EXPECT_NE(readErrorOf([] { readAllMemory("# only a comment\n", "a.xyz"); }).find("no points"), std::string::npos);
+  EXPECT_NE(readErrorOf([] {
+              readAllMemory("1\n1 2 3\n4 5 6\n", "a.pts");
+            }).find("line 3: more points than the 1"),
+            std::string::npos);
+  EXPECT_NE(readErrorOf([] { readAllMemory("# only a comment\n", "a.xyz"); }).find("no points"),
+            std::string::npos);
 }
 
 TEST(ObjReader, VerticesColoursAndPolygons) {
   auto r = readAllMemory(
-      "# cube corner\nmtllib x.mtl\nv 0 0 0 1 0 0\nv 1 0 0 0 1 0\nv 1 1 0 0 0 1\nv 0 1 0 0.5 0.5 0.5\n"
+      "# cube corner\nmtllib x.mtl\nv 0 0 0 1 0 0\nv 1 0 0 0 1 0\nv 1 1 0 0 0 1\nv 0 1 0 0.5 0.5 "
+      "0.5\n"
       "vn 0 0 1\nvt 0 0\nusemtl m\nf 1/1/1 2/1/1 3/1/1 4/1/1\nf -4 -2 -1\n",
       "quad.obj");
   ASSERT_EQ(r.points.size(), 4u);
@@ -75,20 +87,27 @@ TEST(ObjReader, VerticesColoursAndPolygons) {
 }
 
 TEST(ObjReader, BadInput) {
-  auto r = readAllMemory("v 0 0 0\nv nan 0 0\nv 1 1 1\nv 2 2 2\nf 1 2 3\nf 1 3 4\nf 1 3 9\n", "n.obj");
+  auto r =
+      readAllMemory("v 0 0 0\nv nan 0 0\nv 1 1 1\nv 2 2 2\nf 1 2 3\nf 1 3 4\nf 1 3 9\n", "n.obj");
   EXPECT_EQ(r.points.size(), 3u);
   ASSERT_EQ(r.points.triangles.size(), 1u);
   EXPECT_EQ(r.points.triangles[0], Triangle(0, 1, 2));
   EXPECT_EQ(r.stats.skipped.at("face with an out-of-range or skipped vertex"), 2u);
-  EXPECT_NE(readErrorOf([] { readAllMemory("v 0 0 zero\n", "b.obj"); }).find("b.obj: line 1: bad vertex value 'zero'"),
+  EXPECT_NE(readErrorOf([] {
+              readAllMemory("v 0 0 zero\n", "b.obj");
+            }).find("b.obj: line 1: bad vertex value 'zero'"),
             std::string::npos);
-  EXPECT_NE(readErrorOf([] { readAllMemory("v 0 0 0\nf 1 x 1\n", "b.obj"); }).find("line 2: bad face index 'x'"),
+  EXPECT_NE(readErrorOf([] {
+              readAllMemory("v 0 0 0\nf 1 x 1\n", "b.obj");
+            }).find("line 2: bad face index 'x'"),
             std::string::npos);
 }
 
 TEST(Detection, UnknownFormatsAreNamed) {
-  EXPECT_NE(readErrorOf([] { readAllMemory("hello", "a.bin"); }).find("unknown point format"), std::string::npos);
-  EXPECT_NE(readErrorOf([] { readAllMemory("hello", "a.las"); }).find("not a LAS file"), std::string::npos);
+  EXPECT_NE(readErrorOf([] { readAllMemory("hello", "a.bin"); }).find("unknown point format"),
+            std::string::npos);
+  EXPECT_NE(readErrorOf([] { readAllMemory("hello", "a.las"); }).find("not a LAS file"),
+            std::string::npos);
 }
 
 }  // namespace

@@ -29,7 +29,8 @@ Distances scanAndMeasure(const Mesh& mesh, const test::MeshDistance& dist, const
   EXPECT_TRUE(read.info.attributes & kGridPosition);
   Distances out;
   out.points = read.points.size();
-  for (size_t i = 0; i < read.points.size(); i += 41) out.d.push_back(dist.distance(read.points.positions[i]));
+  for (size_t i = 0; i < read.points.size(); i += 41)
+    out.d.push_back(dist.distance(read.points.positions[i]));
   return out;
 }
 

@@ -13,11 +13,12 @@ class PreconditionError : public std::logic_error {
   using std::logic_error::logic_error;
 };
 
-[[noreturn]] void failCheck(const char* condition, const char* file, int line, const std::string& what);
+[[noreturn]] void failCheck(const char* condition, const char* file, int line,
+                            const std::string& what);
 
 }  // namespace tessera
 
-#define TESSERA_CHECK(cond, what)                                            \
-  do {                                                                       \
-    if (!(cond)) ::tessera::failCheck(#cond, __FILE__, __LINE__, (what));    \
+#define TESSERA_CHECK(cond, what)                                         \
+  do {                                                                    \
+    if (!(cond)) ::tessera::failCheck(#cond, __FILE__, __LINE__, (what)); \
   } while (0)

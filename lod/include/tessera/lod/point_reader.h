@@ -42,29 +42,31 @@ struct RigidPose {
 };
 
 /// The quaternion as a Stanford .conf writes it (i j k r order in the file) for a pose.
-inline glm::dquat confQuaternion(const RigidPose& pose) { return glm::conjugate(pose.rotation); }
+inline glm::dquat confQuaternion(const RigidPose& pose) {
+  return glm::conjugate(pose.rotation);
+}
 
 /// One range scan of a Stanford-style .conf (or the single scan of a range-grid PLY).
 struct ScanInfo {
-  std::string name;              ///< file name as written in the .conf
-  std::filesystem::path path;    ///< resolved path
+  std::string name;            ///< file name as written in the .conf
+  std::filesystem::path path;  ///< resolved path
   /// Scanner frame -> registered frame, from the `bmesh` line. Note the .conf stores the
   /// inverse rotation: conf quaternion = conjugate(pose.rotation); see confQuaternion().
   RigidPose pose;
-  uint32_t grid_columns = 0;     ///< `obj_info num_cols` (0 when the file has no range grid)
-  uint32_t grid_rows = 0;        ///< `obj_info num_rows`
-  uint64_t points = 0;           ///< vertices declared by the scan's header
+  uint32_t grid_columns = 0;  ///< `obj_info num_cols` (0 when the file has no range grid)
+  uint32_t grid_rows = 0;     ///< `obj_info num_rows`
+  uint64_t points = 0;        ///< vertices declared by the scan's header
 };
 
 /// What a source declares about itself before any point is read.
 struct SourceInfo {
   Format format = Format::kPly;
-  std::string format_detail;        ///< "binary_little_endian 1.0", "LAS 1.2 format 3", ...
-  uint64_t declared_points = 0;     ///< from the header (0 when the format has no count)
-  bool has_declared_points = false; ///< false for text formats without a count line
-  uint64_t declared_triangles = 0;  ///< faces after triangulation where countable, else 0
-  AttributeMask attributes = 0;     ///< attributes every batch will carry
-  glm::dvec3 origin{0.0};           ///< world = origin + batch position
+  std::string format_detail;         ///< "binary_little_endian 1.0", "LAS 1.2 format 3", ...
+  uint64_t declared_points = 0;      ///< from the header (0 when the format has no count)
+  bool has_declared_points = false;  ///< false for text formats without a count line
+  uint64_t declared_triangles = 0;   ///< faces after triangulation where countable, else 0
+  AttributeMask attributes = 0;      ///< attributes every batch will carry
+  glm::dvec3 origin{0.0};            ///< world = origin + batch position
   /// Bounding box stated by the header (LAS), in file coordinates.
   std::optional<std::pair<glm::dvec3, glm::dvec3>> header_bbox;
   /// Coordinate resolution the file declares (LAS: the smallest scale factor); 0 when unknown.
@@ -113,7 +115,8 @@ std::unique_ptr<PointReader> openPointReader(const std::filesystem::path& path,
 /// Same over bytes in memory (fuzzing, tests, network). `name` is used in messages and, for
 /// format detection, its extension. `bytes` must outlive the reader. A .conf cannot be read
 /// from memory (it names other files).
-std::unique_ptr<PointReader> openPointReader(std::span<const uint8_t> bytes, const std::string& name,
+std::unique_ptr<PointReader> openPointReader(std::span<const uint8_t> bytes,
+                                             const std::string& name,
                                              const ReaderOptions& options = {});
 
 }  // namespace tessera::lod

@@ -82,7 +82,8 @@ class PointStore {
  public:
   /// Opens the store: reads and checks the header and the root hierarchy page only (fast for
   /// any size). `cache_bytes` bounds the decoded chunks kept in memory. Throws StoreError.
-  static std::unique_ptr<PointStore> open(const std::filesystem::path& path, uint64_t cache_bytes = 512ull << 20);
+  static std::unique_ptr<PointStore> open(const std::filesystem::path& path,
+                                          uint64_t cache_bytes = 512ull << 20);
   ~PointStore();
 
   const StoreSummary& summary() const { return mSummary; }

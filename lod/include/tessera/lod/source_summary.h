@@ -14,11 +14,11 @@ namespace tessera::lod {
 struct SourceSummary {
   std::string path;
   SourceInfo info;
-  ReadStats stats;               ///< points/triangles actually read, skips by reason
-  glm::dvec3 bbox_min{0.0};      ///< file coordinates (world = origin + local), double
+  ReadStats stats;           ///< points/triangles actually read, skips by reason
+  glm::dvec3 bbox_min{0.0};  ///< file coordinates (world = origin + local), double
   glm::dvec3 bbox_max{0.0};
-  std::string error;             ///< empty when the whole file read cleanly
-  bool opened = false;           ///< header parsed (info valid)
+  std::string error;    ///< empty when the whole file read cleanly
+  bool opened = false;  ///< header parsed (info valid)
   /// Set for a .tlod point store (then `info` is unused).
   std::optional<StoreSummary> store;
   std::vector<std::string> store_sources;

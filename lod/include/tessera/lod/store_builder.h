@@ -2,11 +2,12 @@
 // result). Input streams through; peak memory stays within BuildOptions::memory_mb plus a small
 // constant whatever the input size; every core is used for the per-chunk work.
 //
-// Passes: (1) inputs parsed once into fixed-size records, bounds and counts; (2) a 128^3 counting grid; chunking: octree cells holding at
-// most what fits in memory; (3) distribution of the points into one temporary file, each chunk
-// contiguous; (4) per chunk, in parallel: the subtree, grid-sampled top-down, each node encoded;
-// (5) levels above the chunks, sampled bottom-up from the chunk roots; (6) payload copied in
-// (level, Morton) order, hierarchy pages, header; the file is renamed into place at the end.
+// Passes: (1) inputs parsed once into fixed-size records, bounds and counts; (2) a 128^3 counting
+// grid; chunking: octree cells holding at most what fits in memory; (3) distribution of the points
+// into one temporary file, each chunk contiguous; (4) per chunk, in parallel: the subtree,
+// grid-sampled top-down, each node encoded; (5) levels above the chunks, sampled bottom-up from the
+// chunk roots; (6) payload copied in (level, Morton) order, hierarchy pages, header; the file is
+// renamed into place at the end.
 #pragma once
 
 #include <cstdint>
@@ -20,8 +21,8 @@ namespace tessera::lod {
 
 struct BuildOptions {
   uint64_t memory_mb = 2048;
-  int threads = 0;        ///< 0: every core
-  bool quiet = false;     ///< no progress output
+  int threads = 0;     ///< 0: every core
+  bool quiet = false;  ///< no progress output
   int zstd_level = 5;
   uint32_t leaf_max = 16384;  ///< nodes with at most this many points stay leaves
   /// Points per out-of-core chunk; 0 derives it from memory_mb (tests force small chunks).
@@ -36,38 +37,40 @@ struct BuildReport {
   uint64_t nodes = 0;
   uint64_t stored_points = 0;  ///< over all nodes: stored_points / points is the overhead
   uint32_t depth = 0;
-  uint64_t chunks = 0;   ///< out-of-core work units
+  uint64_t chunks = 0;  ///< out-of-core work units
   uint64_t file_bytes = 0;
   uint64_t position_color_bytes = 0;
   double seconds = 0.0;
   double seconds_read = 0.0;     ///< passes 1-3 (reading and distributing)
   double seconds_process = 0.0;  ///< chunk and upper-level work
   double seconds_write = 0.0;
-  double max_error = 0.0;        ///< largest quantisation error of any stored point
+  double max_error = 0.0;  ///< largest quantisation error of any stored point
 };
 
 /// Builds `output` from `inputs`. Throws ReadError for bad input, StoreError for failures writing
 /// (disk full, ...). On any failure the output path is left untouched (no half file).
-BuildReport buildStore(const std::vector<std::filesystem::path>& inputs, const std::filesystem::path& output,
-                       const BuildOptions& options = {});
+BuildReport buildStore(const std::vector<std::filesystem::path>& inputs,
+                       const std::filesystem::path& output, const BuildOptions& options = {});
 
 struct VerifyReport {
   uint64_t input_points = 0;
   uint64_t store_points = 0;
   uint64_t matched = 0;
-  uint64_t unmatched = 0;     ///< input points with no stored point within the bound
-  double max_error = 0.0;     ///< largest distance input point -> its stored point
+  uint64_t unmatched = 0;        ///< input points with no stored point within the bound
+  double max_error = 0.0;        ///< largest distance input point -> its stored point
   double max_error_ratio = 0.0;  ///< largest (distance / node error bound)
   uint64_t corrupt_chunks = 0;
   uint64_t stray_points = 0;  ///< inner-node points outside their node box
   bool ok() const {
-    return unmatched == 0 && input_points == store_points && corrupt_chunks == 0 && stray_points == 0;
+    return unmatched == 0 && input_points == store_points && corrupt_chunks == 0 &&
+           stray_points == 0;
   }
 };
 
 /// Checks that every input point is in the store within its node's error bound (one-to-one),
 /// and that the counts match. Out of core like the build (memory_mb bounds the work).
-VerifyReport verifyStore(const std::filesystem::path& store, const std::vector<std::filesystem::path>& inputs,
+VerifyReport verifyStore(const std::filesystem::path& store,
+                         const std::vector<std::filesystem::path>& inputs,
                          const BuildOptions& options = {});
 
 }  // namespace tessera::lod

@@ -21,27 +21,27 @@ namespace tessera::lod::store {
 constexpr char kMagic[4] = {'T', 'L', 'O', 'D'};
 constexpr uint32_t kVersion = 1;
 constexpr uint32_t kHeaderSize = 4096;
-constexpr int kGrid = 48;        ///< sampling grid per node and axis: inner nodes hold <= kGrid^3 points
+constexpr int kGrid = 48;  ///< sampling grid per node and axis: inner nodes hold <= kGrid^3 points
 /// An inner node holds at most this fraction of the points below it (a coarser sampling grid
 /// where needed), which bounds the copies to f / (1 - f) = 0.25 of the input.
 constexpr double kMaxInnerFraction = 0.2;
-constexpr int kPageLevels = 4;   ///< levels per hierarchy page
-constexpr int kMaxLevel = 30;    ///< deepest node level (duplicates stop subdividing there)
+constexpr int kPageLevels = 4;  ///< levels per hierarchy page
+constexpr int kMaxLevel = 30;   ///< deepest node level (duplicates stop subdividing there)
 
 /// Fixed-size file header. All offsets are absolute byte offsets in the file.
 struct FileHeader {
   char magic[4];
   uint32_t version;
   uint32_t header_size;
-  uint32_t attributes;     ///< AttributeMask of what chunks carry (kColor, kIntensity, ...)
-  double origin[3];        ///< world = origin + local
-  double cube_min[3];      ///< root cube, local frame
-  double cube_size;        ///< edge length of the root cube
-  double bbox_min[3];      ///< tight bounds of all points, local frame
+  uint32_t attributes;  ///< AttributeMask of what chunks carry (kColor, kIntensity, ...)
+  double origin[3];     ///< world = origin + local
+  double cube_min[3];   ///< root cube, local frame
+  double cube_size;     ///< edge length of the root cube
+  double bbox_min[3];   ///< tight bounds of all points, local frame
   double bbox_max[3];
   uint64_t points;
   uint64_t nodes;
-  uint32_t depth;          ///< deepest level + 1
+  uint32_t depth;  ///< deepest level + 1
   uint32_t sources;
   uint64_t payload_offset;
   uint64_t payload_size;
@@ -53,7 +53,7 @@ struct FileHeader {
   uint32_t reserved1;
   double input_precision;  ///< finest coordinate resolution the inputs declared (0: unknown)
   double spacing_root;
-  double spacing_finest;   ///< smallest node spacing
+  double spacing_finest;                  ///< smallest node spacing
   uint64_t payload_position_color_bytes;  ///< bytes of the position + colour streams
   uint64_t stored_points;  ///< points in all nodes (leaves hold each input point once; inner
                            ///< nodes hold sampled copies): stored_points / points = overhead
@@ -64,17 +64,17 @@ struct FileHeader {
 /// One node on a hierarchy page (56 bytes, no padding).
 struct NodeRecord {
   uint64_t payload_offset;
-  uint64_t page_offset;    ///< kHasPage: the page holding this node's children
-  uint32_t x, y, z;        ///< cell coordinates at `level`
+  uint64_t page_offset;  ///< kHasPage: the page holding this node's children
+  uint32_t x, y, z;      ///< cell coordinates at `level`
   uint32_t points;
-  float spacing;           ///< mean distance between the node's samples (local units)
-  float error_bound;       ///< max distance of a stored position from its input point
+  float spacing;      ///< mean distance between the node's samples (local units)
+  float error_bound;  ///< max distance of a stored position from its input point
   uint32_t payload_size;
-  uint32_t payload_crc;    ///< CRC-32C of the payload bytes
+  uint32_t payload_crc;  ///< CRC-32C of the payload bytes
   uint32_t page_size;
   uint8_t level;
-  uint8_t child_mask;      ///< bit i: child i exists (i = x | y << 1 | z << 2)
-  uint8_t flags;           ///< kHasPage: children are on the page at page_offset
+  uint8_t child_mask;  ///< bit i: child i exists (i = x | y << 1 | z << 2)
+  uint8_t flags;       ///< kHasPage: children are on the page at page_offset
   uint8_t reserved;
 };
 static_assert(sizeof(NodeRecord) == 56);
@@ -84,9 +84,9 @@ constexpr uint8_t kHasPage = 1;
 
 /// A hierarchy page: this header, then `nodes` NodeRecords in breadth-first order.
 struct PageHeader {
-  char magic[4];           ///< "TPAG"
+  char magic[4];  ///< "TPAG"
   uint32_t nodes;
-  uint32_t crc;            ///< CRC-32C of the records
+  uint32_t crc;  ///< CRC-32C of the records
   uint32_t reserved;
 };
 

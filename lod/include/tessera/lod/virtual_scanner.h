@@ -13,9 +13,9 @@
 namespace tessera::lod {
 
 struct ScanOptions {
-  int scanners = 8;           ///< number of scanner poses
-  uint32_t columns = 512;     ///< range-grid width (rays per row)
-  uint32_t rows = 400;        ///< range-grid height
+  int scanners = 8;        ///< number of scanner poses
+  uint32_t columns = 512;  ///< range-grid width (rays per row)
+  uint32_t rows = 400;     ///< range-grid height
   /// false: scanners on a sphere around the model looking at its centre (perspective grid);
   /// true: scanners inside the model's box, each a full 360 x 150 degree panorama.
   bool panoramic = false;
@@ -39,6 +39,7 @@ struct ScanResult {
 
 /// Scans `mesh` and writes `out_dir/scan_NNN.ply` and `out_dir/scans.conf` (the folder is created).
 /// Throws std::runtime_error when a file cannot be written, PreconditionError for bad options.
-ScanResult scanMesh(const Mesh& mesh, const std::filesystem::path& out_dir, const ScanOptions& options);
+ScanResult scanMesh(const Mesh& mesh, const std::filesystem::path& out_dir,
+                    const ScanOptions& options);
 
 }  // namespace tessera::lod
