@@ -1,5 +1,7 @@
 #include "chunk_codec.h"
 
+#include "morton.h"
+
 #include <zstd.h>
 
 #include <algorithm>
@@ -24,27 +26,6 @@ struct ChunkHeader {
 static_assert(sizeof(ChunkHeader) == 32);
 
 constexpr AttributeMask kExtra = kIntensity | kScanIndex | kClassification;
-
-// Spreads the low 21 bits of v to every third bit (magic-bits Morton encoding).
-uint64_t spread(uint64_t v) {
-  v &= 0x1FFFFF;
-  v = (v | v << 32) & 0x1F00000000FFFFull;
-  v = (v | v << 16) & 0x1F0000FF0000FFull;
-  v = (v | v << 8) & 0x100F00F00F00F00Full;
-  v = (v | v << 4) & 0x10C30C30C30C30C3ull;
-  v = (v | v << 2) & 0x1249249249249249ull;
-  return v;
-}
-
-uint32_t compact(uint64_t v) {
-  v &= 0x1249249249249249ull;
-  v = (v ^ (v >> 2)) & 0x10C30C30C30C30C3ull;
-  v = (v ^ (v >> 4)) & 0x100F00F00F00F00Full;
-  v = (v ^ (v >> 8)) & 0x1F0000FF0000FFull;
-  v = (v ^ (v >> 16)) & 0x1F00000000FFFFull;
-  v = (v ^ (v >> 32)) & 0x1FFFFF;
-  return uint32_t(v);
-}
 
 void putVarint(std::vector<uint8_t>& out, uint64_t v) {
   while (v >= 0x80) {
@@ -155,9 +136,9 @@ bool decodePositions(const uint8_t*& p, const uint8_t* end, size_t n, uint64_t l
                          float(compactBmi2(code, 2))) *
                step;
     } else {
-      out[i] =
-          glm::vec3(float(compact(code)), float(compact(code >> 1)), float(compact(code >> 2))) *
-          step;
+      out[i] = glm::vec3(float(mortonCompact(code)), float(mortonCompact(code >> 1)),
+                         float(mortonCompact(code >> 2))) *
+               step;
     }
   }
   return true;
@@ -190,7 +171,7 @@ EncodedChunk encodeChunk(std::span<BuildPoint> pts, const glm::dvec3& box_min, d
     glm::dvec3 q = glm::clamp(glm::round(rel * inv_step), glm::dvec3(0.0), glm::dvec3(qmax));
     const glm::dvec3 e = q * step - rel;
     max_error2 = std::max(max_error2, glm::dot(e, e));
-    codes[i] = spread(uint64_t(q.x)) | spread(uint64_t(q.y)) << 1 | spread(uint64_t(q.z)) << 2;
+    codes[i] = mortonEncode(uint64_t(q.x), uint64_t(q.y), uint64_t(q.z));
   }
   out.max_error = std::sqrt(max_error2);
   // Sort (code, index) pairs: contiguous keys sort much faster than an indirect comparison.

@@ -1,5 +1,8 @@
 #include "point_distributor.h"
 
+#include "file_io.h"
+#include "morton.h"
+
 #include <fcntl.h>
 #include <unistd.h>
 
@@ -19,16 +22,6 @@ namespace {
 constexpr int kCountLevel = 7;  // 128^3 counting grid
 constexpr uint32_t kCountRes = 1u << kCountLevel;
 
-uint64_t spread3(uint64_t v) {
-  v &= 0x1FFFFF;
-  v = (v | v << 32) & 0x1F00000000FFFFull;
-  v = (v | v << 16) & 0x1F0000FF0000FFull;
-  v = (v | v << 8) & 0x100F00F00F00F00Full;
-  v = (v | v << 4) & 0x10C30C30C30C30C3ull;
-  v = (v | v << 2) & 0x1249249249249249ull;
-  return v;
-}
-
 size_t gridIndex(uint32_t x, uint32_t y, uint32_t z) {
   return (size_t(z) * kCountRes + y) * kCountRes + x;
 }
@@ -38,7 +31,7 @@ size_t gridIndex(uint32_t x, uint32_t y, uint32_t z) {
 uint64_t CellKey::morton() const {
   // Cells deeper than level 21 share codes with their neighbours; callers break ties by x, y, z.
   int shift = std::max(0, int(level) - 21);
-  return spread3(x >> shift) | spread3(y >> shift) << 1 | spread3(z >> shift) << 2;
+  return mortonEncode(x >> shift, y >> shift, z >> shift);
 }
 
 bool CellKey::operator<(const CellKey& o) const {
@@ -62,33 +55,12 @@ CellKey CubeFrame::cellOf(const glm::dvec3& p, int level) const {
 
 void readTempPoints(int fd, uint64_t first, uint64_t count, BuildPoint* out,
                     const std::string& name) {
-  auto* dst = reinterpret_cast<uint8_t*>(out);
-  uint64_t bytes = count * sizeof(BuildPoint), off = first * sizeof(BuildPoint), done = 0;
-  while (done < bytes) {
-    ssize_t got = ::pread(fd, dst + done, size_t(std::min<uint64_t>(bytes - done, 1u << 30)),
-                          off_t(off + done));
-    if (got < 0 && errno == EINTR) continue;
-    if (got <= 0)
-      throw StoreError("lod::buildStore(): reading temporary file " + name +
-                       " failed: " + std::strerror(errno));
-    done += uint64_t(got);
-  }
+  preadAll(fd, out, count * sizeof(BuildPoint), first * sizeof(BuildPoint), name);
 }
 
 void writeTempPoints(int fd, uint64_t first, const BuildPoint* pts, uint64_t count,
                      const std::string& name) {
-  const auto* src = reinterpret_cast<const uint8_t*>(pts);
-  uint64_t bytes = count * sizeof(BuildPoint), off = first * sizeof(BuildPoint), done = 0;
-  while (done < bytes) {
-    ssize_t put = ::pwrite(fd, src + done, size_t(std::min<uint64_t>(bytes - done, 1u << 30)),
-                           off_t(off + done));
-    if (put < 0 && errno == EINTR) continue;
-    if (put <= 0) {
-      throw StoreError("lod::buildStore(): writing temporary file " + name + " failed: " +
-                       (put < 0 ? std::strerror(errno) : "no space") + " (disk full?)");
-    }
-    done += uint64_t(put);
-  }
+  pwriteAll(fd, pts, count * sizeof(BuildPoint), first * sizeof(BuildPoint), name);
 }
 
 PointDistributor::PointDistributor(const std::vector<std::filesystem::path>& inputs, bool quiet)
@@ -153,14 +125,8 @@ void PointDistributor::forEachBatch(const std::string& label,
 void PointDistributor::readInputs(const std::string& label, const std::filesystem::path& raw_file) {
   mRawFile = raw_file;
   const std::string name = raw_file.string();
-  int fd = ::open(raw_file.c_str(), O_RDWR | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
-  if (fd < 0)
-    throw StoreError("lod::buildStore(): cannot create temporary file " + name + ": " +
-                     std::strerror(errno));
-  struct FdCloser {
-    int fd;
-    ~FdCloser() { ::close(fd); }
-  } closer{fd};
+  ScopedFd file(raw_file, O_RDWR | O_CREAT | O_TRUNC, "temporary file");
+  const int fd = file.get();
   glm::dvec3 lo(std::numeric_limits<double>::max()), hi(-std::numeric_limits<double>::max());
   uint64_t n = 0;
   forEachBatch(label, [&](std::span<const BuildPoint> pts) {
@@ -178,13 +144,8 @@ void PointDistributor::readInputs(const std::string& label, const std::filesyste
 
 void PointDistributor::forEachRaw(const std::string& label,
                                   const std::function<void(std::span<const BuildPoint>)>& fn) {
-  int fd = ::open(mRawFile.c_str(), O_RDONLY | O_CLOEXEC);
-  if (fd < 0)
-    throw StoreError("lod::buildStore(): cannot reopen temporary file " + mRawFile.string());
-  struct FdCloser {
-    int fd;
-    ~FdCloser() { ::close(fd); }
-  } closer{fd};
+  ScopedFd file(mRawFile, O_RDONLY, "temporary file");
+  const int fd = file.get();
   Progress progress(label, mPoints, " points", mQuiet);
   std::vector<BuildPoint> pts;
   const uint64_t kBlock = 1 << 16;
@@ -280,14 +241,8 @@ std::vector<Chunk> PointDistributor::distribute(uint64_t chunk_max,
 
   // Pass 3: distribution through per-chunk buffers into one preallocated file.
   const std::string name = temp_file.string();
-  int fd = ::open(temp_file.c_str(), O_RDWR | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
-  if (fd < 0)
-    throw StoreError("lod::buildStore(): cannot create temporary file " + name + ": " +
-                     std::strerror(errno));
-  struct FdCloser {
-    int fd;
-    ~FdCloser() { ::close(fd); }
-  } closer{fd};
+  ScopedFd file(temp_file, O_RDWR | O_CREAT | O_TRUNC, "temporary file");
+  const int fd = file.get();
   // Buffers: a few MB in all whatever the chunk count (at least 64 points each).
   const size_t per_chunk = std::max<size_t>(
       64, (size_t(64) << 20) / sizeof(BuildPoint) / std::max<size_t>(1, chunks.size()));

@@ -19,6 +19,7 @@
 
 #include "chunk_codec.h"
 #include "crc32c.h"
+#include "file_io.h"
 #include "node_sampler.h"
 #include "point_distributor.h"
 
@@ -43,48 +44,6 @@ struct NodeOut {
   uint32_t position_color_bytes = 0;
   uint64_t final_offset = 0;
 };
-
-/// A file descriptor closed on scope exit.
-struct Fd {
-  int fd = -1;
-  std::string name;
-  Fd(const std::filesystem::path& p, int flags, const char* what) : name(p.string()) {
-    fd = ::open(p.c_str(), flags | O_CLOEXEC, 0644);
-    if (fd < 0)
-      throw StoreError(std::string("lod::buildStore(): cannot open ") + what + " " + name + ": " +
-                       std::strerror(errno));
-  }
-  ~Fd() {
-    if (fd >= 0) ::close(fd);
-  }
-  Fd(const Fd&) = delete;
-  Fd& operator=(const Fd&) = delete;
-};
-
-void pwriteAll(int fd, const void* data, size_t n, uint64_t off, const std::string& name) {
-  const auto* p = static_cast<const uint8_t*>(data);
-  size_t done = 0;
-  while (done < n) {
-    ssize_t put = ::pwrite(fd, p + done, n - done, off_t(off + done));
-    if (put < 0 && errno == EINTR) continue;
-    if (put <= 0) {
-      throw StoreError("lod::buildStore(): writing " + name + " failed: " +
-                       (put < 0 ? std::strerror(errno) : "no space") + " (disk full?)");
-    }
-    done += size_t(put);
-  }
-}
-
-void preadAll(int fd, void* data, size_t n, uint64_t off, const std::string& name) {
-  auto* p = static_cast<uint8_t*>(data);
-  size_t done = 0;
-  while (done < n) {
-    ssize_t got = ::pread(fd, p + done, n - done, off_t(off + done));
-    if (got < 0 && errno == EINTR) continue;
-    if (got <= 0) throw StoreError("lod::buildStore(): reading " + name + " failed");
-    done += size_t(got);
-  }
-}
 
 /// Removes temporary files and the partial output unless the build commits.
 struct Cleanup {
@@ -133,7 +92,8 @@ class Builder {
       out.temp_offset = mPayloadEnd;
       mPayloadEnd += out.size;
       mMaxError = std::max(mMaxError, enc.max_error);
-      pwriteAll(mPayload.fd, enc.bytes.data(), enc.bytes.size(), out.temp_offset, mPayload.name);
+      pwriteAll(mPayload.get(), enc.bytes.data(), enc.bytes.size(), out.temp_offset,
+                mPayload.name());
       mNodes.push_back(out);
       return;
     }
@@ -178,7 +138,7 @@ class Builder {
   }
 
   std::vector<NodeOut>& nodes() { return mNodes; }
-  Fd& payload() { return mPayload; }
+  ScopedFd& payload() { return mPayload; }
   uint64_t payloadEnd() const { return mPayloadEnd; }
   double maxError() const { return mMaxError; }
 
@@ -187,7 +147,7 @@ class Builder {
   CubeFrame mFrame;
   AttributeMask mAttributes;
   double mPrecision;
-  Fd mPayload;
+  ScopedFd mPayload;
   std::mutex mMutex;
   uint64_t mPayloadEnd = 0;
   std::vector<NodeOut> mNodes;
@@ -293,9 +253,9 @@ BuildReport buildStore(const std::vector<std::filesystem::path>& inputs,
   report.skipped = dist.skipped();
 
   const auto t1 = Clock::now();
-  Fd points_fd(temp_points, O_RDWR, "temporary file");
+  ScopedFd points_fd(temp_points, O_RDWR, "temporary file");
   uint64_t temp_end = dist.points();
-  splitOversized(chunks, chunk_max, frame, points_fd.fd, points_fd.name, temp_end);
+  splitOversized(chunks, chunk_max, frame, points_fd.get(), points_fd.name(), temp_end);
   std::sort(chunks.begin(), chunks.end(),
             [](const Chunk& a, const Chunk& b) { return a.count > b.count; });
   report.chunks = chunks.size();
@@ -315,7 +275,7 @@ BuildReport buildStore(const std::vector<std::filesystem::path>& inputs,
         for (size_t ci; (ci = next++) < chunks.size();) {
           const Chunk& c = chunks[ci];
           pts.resize(c.count);
-          readTempPoints(points_fd.fd, c.first, c.count, pts.data(), points_fd.name);
+          readTempPoints(points_fd.get(), c.first, c.count, pts.data(), points_fd.name());
           Pending root;
           root.child_mask = builder.buildSubtree(c.key, pts, &root.pts);
           {
@@ -385,7 +345,7 @@ BuildReport buildStore(const std::vector<std::filesystem::path>& inputs,
   std::unordered_map<CellKey, size_t, CellKeyHash> index;
   for (size_t i = 0; i < nodes.size(); ++i) index[nodes[i].key] = i;
 
-  Fd out(partial, O_RDWR | O_CREAT | O_TRUNC, "output");
+  ScopedFd out(partial, O_RDWR | O_CREAT | O_TRUNC, "output");
   uint64_t pos = store::kHeaderSize;
   uint64_t pc_bytes = 0;
   {
@@ -394,9 +354,10 @@ BuildReport buildStore(const std::vector<std::filesystem::path>& inputs,
     for (NodeOut& n : nodes) {
       buf.resize(n.size);
       if (n.size)
-        preadAll(builder.payload().fd, buf.data(), n.size, n.temp_offset, builder.payload().name);
+        preadAll(builder.payload().get(), buf.data(), n.size, n.temp_offset,
+                 builder.payload().name());
       n.final_offset = pos;
-      if (n.size) pwriteAll(out.fd, buf.data(), n.size, pos, out.name);
+      if (n.size) pwriteAll(out.get(), buf.data(), n.size, pos, out.name());
       pos += n.size;
       pc_bytes += n.position_color_bytes;
       progress.add(1);
@@ -446,9 +407,9 @@ BuildReport buildStore(const std::vector<std::filesystem::path>& inputs,
     ph.nodes = uint32_t(recs.size());
     ph.crc = crc32c(recs.data(), recs.size() * sizeof(store::NodeRecord));
     uint64_t at = pos;
-    pwriteAll(out.fd, &ph, sizeof ph, pos, out.name);
+    pwriteAll(out.get(), &ph, sizeof ph, pos, out.name());
     pos += sizeof ph;
-    pwriteAll(out.fd, recs.data(), recs.size() * sizeof(store::NodeRecord), pos, out.name);
+    pwriteAll(out.get(), recs.data(), recs.size() * sizeof(store::NodeRecord), pos, out.name());
     pos += recs.size() * sizeof(store::NodeRecord);
     return std::make_pair(at, uint32_t(pos - at));
   };
@@ -457,7 +418,7 @@ BuildReport buildStore(const std::vector<std::filesystem::path>& inputs,
   std::string table;
   for (const std::string& s : dist.sourceNames()) table += s + '\n';
   const uint64_t table_off = pos;
-  pwriteAll(out.fd, table.data(), table.size(), pos, out.name);
+  pwriteAll(out.get(), table.data(), table.size(), pos, out.name());
   pos += table.size();
 
   store::FileHeader h{};
@@ -497,9 +458,9 @@ BuildReport buildStore(const std::vector<std::filesystem::path>& inputs,
   h.header_crc = crc32c(&h, sizeof h);
   std::vector<uint8_t> header(store::kHeaderSize, 0);
   std::memcpy(header.data(), &h, sizeof h);
-  pwriteAll(out.fd, header.data(), header.size(), 0, out.name);
-  if (::fsync(out.fd) != 0)
-    throw StoreError("lod::buildStore(): flushing " + out.name +
+  pwriteAll(out.get(), header.data(), header.size(), 0, out.name());
+  if (::fsync(out.get()) != 0)
+    throw StoreError("lod::buildStore(): flushing " + out.name() +
                      " failed: " + std::strerror(errno));
   std::error_code ec;
   std::filesystem::rename(partial, output, ec);

@@ -19,6 +19,7 @@
 #include <tessera/core/progress.h>
 #include <tessera/lod/store_format.h>
 
+#include "file_io.h"
 #include "point_distributor.h"
 
 namespace tessera::lod {
@@ -112,12 +113,8 @@ VerifyReport verifyStore(const std::filesystem::path& store_path,
   std::sort(regions.begin(), regions.end(),
             [](const Chunk& a, const Chunk& b) { return a.key < b.key; });
 
-  int fd = ::open((temp_dir / "points.bin").c_str(), O_RDONLY | O_CLOEXEC);
-  if (fd < 0) throw StoreError("lod::verifyStore(): cannot reopen the temporary file");
-  struct Close {
-    int fd;
-    ~Close() { ::close(fd); }
-  } close_fd{fd};
+  ScopedFd points_file(temp_dir / "points.bin", O_RDONLY, "temporary file");
+  const int fd = points_file.get();
 
   std::unordered_map<NodeId, ActiveNode> active;
   std::unordered_map<NodeId, bool> corrupt;
