@@ -4,6 +4,7 @@
 #pragma once
 
 #include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <cstdio>
 #include <cstdlib>
@@ -19,12 +20,17 @@ inline void require(bool ok, const char* what) {
   std::abort();
 }
 
+inline bool finite(const glm::dvec3& p) {
+  return std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z);
+}
+
 inline int readAll(const uint8_t* data, size_t size, lod::Format format, const char* name) {
   using namespace tessera::lod;
   try {
     ReaderOptions options;
     options.format = format;
     auto reader = openPointReader(std::span<const uint8_t>(data, size), name, options);
+    require(finite(reader->info().origin), "non-finite origin");
     PointBatch batch;
     uint64_t points = 0, triangles = 0;
     uint32_t max_index = 0;
@@ -38,6 +44,7 @@ inline int readAll(const uint8_t* data, size_t size, lod::Format format, const c
       require(!(a & kConfidence) || batch.confidences.size() == n, "confidences.size() != size()");
       require(!(a & kGridPosition) || batch.grid_positions.size() == n, "grid_positions.size()");
       require(!(a & kClassification) || batch.classifications.size() == n, "classifications.size()");
+      for (const glm::dvec3& p : batch.positions) require(finite(p), "non-finite position");
       for (const Triangle& t : batch.triangles) {
         max_index = std::max({max_index, t.x, t.y, t.z});
       }

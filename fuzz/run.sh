@@ -1,0 +1,134 @@
+#!/usr/bin/env bash
+# Builds the reader fuzz targets (preset `fuzz`, -j1), seeds a corpus per target in
+# build/fuzz/corpus/<target>/ from small real files and hand-made inputs, then runs each fuzzer
+# for SECONDS (default 300), one at a time. Crashing inputs land in fuzz/regressions/<target>/,
+# which is also replayed first, so a regression that comes back fails at once.
+# Usage: fuzz/run.sh [SECONDS] [TARGET...]   (targets: ply las text obj; default all)
+set -euo pipefail
+
+cd "$(dirname "$0")/.."
+SECONDS_PER_TARGET=${1:-300}
+shift || true
+TARGETS=("${@:-ply las text obj}")
+read -r -a TARGETS <<<"${TARGETS[*]}"
+DATA=${TESSERA_DATA_DIR:-$(cd .. && pwd)/shared/data}
+BUILD=build/fuzz
+
+cmake --preset fuzz >/dev/null
+cmake --build "$BUILD" -j1 --target "${TARGETS[@]/%/_fuzzer}"
+
+# poke FILE OFFSET WIDTH VALUE: writes VALUE as a WIDTH-byte little-endian integer at OFFSET.
+poke() {
+  local hex="" i
+  for ((i = 0; i < $3; i++)); do hex+=$(printf '\\x%02x' $((($4 >> (8 * i)) & 255))); done
+  printf "$hex" | dd of="$1" bs=1 seek="$2" conv=notrunc status=none
+}
+
+seed_ply() {
+  local bunny="$DATA/stanford-bunny/scans/bun000.ply" i
+  head -c 4096 "$bunny" >bunny-head.ply
+  # The same header cut down to an 8x8 grid over the first 60 vertices.
+  { head -24 "$bunny" | sed -e 's/num_cols 512/num_cols 8/;s/num_rows 400/num_rows 8/' \
+      -e 's/vertex 40256/vertex 60/;s/range_grid 204800/range_grid 64/'
+    sed -n '25,84p;84q' "$bunny"
+    for ((i = 0; i < 64; i++)); do if ((i % 16 < 15)); then echo "1 $((i - i / 16))"; else echo 0; fi; done
+  } >bunny-small.ply
+  printf 'ply\nformat ascii 1.0\ncomment colours and a quad\nelement vertex 4\nproperty float x
+property float y\nproperty float z\nproperty uchar red\nproperty uchar green\nproperty uchar blue
+element face 2\nproperty list uchar int vertex_indices\nend_header\n0 0 0 255 0 0\n1 0 0 0 255 0
+1 1 0 0 0 255\nnan 1 0 9 9 9\n3 0 1 2\n4 0 1 2 3\n' >ascii-faces.ply
+  printf 'ply\r\nformat ascii 1.0\r\nobj_info num_cols 2\r\nobj_info num_rows 2\r\nelement vertex 3
+property double x\nproperty double y\nproperty double z\nproperty float confidence
+property float intensity\nelement range_grid 4\nproperty list uchar int vertex_indices\nend_header
+0 0 0 0.5 1\n1 0 0 0.5 1\n0 1 0 0.5 1\n1 0\n1 1\n0\n1 2\n' >ascii-grid.ply
+  # Big-endian floats 0 and 1, normals, ushort colours, a skipped element and a face.
+  { printf 'ply\nformat binary_big_endian 1.0\nelement vertex 3\nproperty float x\nproperty float y
+property float z\nproperty float nx\nproperty float ny\nproperty float nz\nproperty ushort red
+property ushort green\nproperty ushort blue\nelement extra 2\nproperty int16 a\nproperty int8 b
+element face 1\nproperty list uchar uint vertex_indices\nproperty uchar flags\nend_header\n'
+    for v in 0 1 2; do
+      printf '\x3f\x80\x00\x00\x00\x00\x00\x00\x3f\x80\x00\x00\x00\x00\x00\x00\x00\x00\x00\x00'
+      printf '\x3f\x80\x00\x00\xff\xff\x80\x00\x00'"\\x0$v"
+    done
+    printf '\x00\x01\x02\xff\xfe\x03'
+    printf '\x03\x00\x00\x00\x00\x00\x00\x00\x01\x00\x00\x00\x02\x07'; } >binary-be.ply
+  # Little-endian range grid with a vertex the grid leaves out.
+  { printf 'ply\nformat binary_little_endian 1.0\nobj_info num_cols 2\nobj_info num_rows 2
+element vertex 3\nproperty float x\nproperty float y\nproperty float z\nproperty uchar alpha
+element range_grid 4\nproperty list uchar int vertex_indices\nend_header\n'
+    printf '\x00\x00\x00\x00\x00\x00\x80\x3f\x00\x00\x00\x00\x80'
+    printf '\x00\x00\x80\x3f\x00\x00\x00\x00\x00\x00\x80\x3f\x40'
+    printf '\x00\x00\xc0\x7f\x00\x00\x00\x00\x00\x00\x00\x00\xff'
+    printf '\x01\x00\x00\x00\x00\x00\x01\x01\x00\x00\x00\x00\x01\x02\x00\x00\x00'; } >binary-le-grid.ply
+}
+
+seed_las() {
+  local src="$DATA/lidar/1.2-with-color.las"
+  # (dd, not `tail | head`: under pipefail the SIGPIPE tail may get would end the script)
+  records() { dd if="$src" iflag=skip_bytes,count_bytes skip=229 count="$1" status=none; }
+  # LAS 1.2 format 3: the header, 2 pad bytes and the records that fit in 4 KiB.
+  head -c 4096 "$src" >color-1.2.las
+  poke color-1.2.las 107 4 $(((4096 - 229) / 34))
+  # LAS 1.0 format 0 and LAS 1.4 format 7 (375-byte header, 64-bit count), records reused.
+  { head -c 227 "$src"; records 400; } >format0-1.0.las
+  poke format0-1.0.las 25 1 0; poke format0-1.0.las 96 4 227; poke format0-1.0.las 100 4 0
+  poke format0-1.0.las 104 1 0; poke format0-1.0.las 105 2 20; poke format0-1.0.las 107 4 20
+  { head -c 227 "$src"; head -c 148 /dev/zero; records 720; } >format7-1.4.las
+  poke format7-1.4.las 25 1 4; poke format7-1.4.las 94 2 375; poke format7-1.4.las 96 4 375
+  poke format7-1.4.las 100 4 0; poke format7-1.4.las 104 1 7; poke format7-1.4.las 105 2 36
+  poke format7-1.4.las 107 4 0; poke format7-1.4.las 247 8 20
+}
+
+seed_text() {
+  printf '# scan export\n1.0 2.0 3.0\n-1e3 4.5 .25\n\n// done\n7 8 9\n' >xyz3.xyz
+  printf '3\r\n1 2 3 -1204 255 128 0\r\n4 5 6 12 0 0 0\r\nnan 5 6 12 0 0 0\r\n' >pts7.pts
+  printf 'X,Y,Z,Intensity,Red,Green,Blue,Nx,Ny,Nz,time\n1,2,3,40,1,2,3,0,0,1,9.5\n+4;5;6;1;2;3;4;5;6;7;8\n' \
+    >header.csv
+  printf '1\t2\t3\t0.5\n4\t5\t6\t1e-9\ninf 1 1 2\n' >xyzi.txt
+  printf '1 2 3 10 20 30\n4 5 6 300 -5 1.5\n' >xyzrgb.xyz
+}
+
+seed_obj() {
+  printf '# cube corner\nmtllib a.mtl\no thing\nv 0 0 0\nv 1 0 0 1.0\nv 1 1 0\nv 0 1 0\nvt 0 0\nvn 0 0 1
+g side\nusemtl red\nf 1 2 3\nf 1/1 3/1 4/1\nf -4//1 -3//1 -2//1 -1//1\nf 1 2\nf 1 2 99\n' >quad.obj
+  printf 'v 0 0 0 255 0 0\r\nv 1 0 0 0 255 0\r\nv 0 1 0 0 0 255\r\nv nan 0 0 1 1 1\r\nf 1/1/1 2/2/2 3/3/3\r\nf 1 2 4\r\n' \
+    >colors.obj
+  printf 'v 0.5 0.5 0.5 0.1 0.2 0.3\nv 1 2 3 0.4 0.5 0.6\nv 4 5 6\nf 1 2 3\n' >unit-colors.obj
+}
+
+declare -A MAX_LEN=([ply]=8192 [las]=8192 [text]=4096 [obj]=4096)
+export UBSAN_OPTIONS=halt_on_error=1:print_stacktrace=1
+status=0
+summary=()
+for target in "${TARGETS[@]}"; do
+  fuzzer="$BUILD/fuzz/${target}_fuzzer"
+  corpus="$BUILD/corpus/$target"
+  regressions="fuzz/regressions/$target"
+  log="$BUILD/logs/$target.log"
+  mkdir -p "$corpus" "$regressions" "$(dirname "$log")"
+  (cd "$corpus" && "seed_$target")
+  dirs=("$corpus")
+  if [ -n "$(ls -A "$regressions")" ]; then dirs+=("$regressions"); fi
+  echo "== ${target}_fuzzer: ${SECONDS_PER_TARGET}s, log $log"
+  start=$(date +%s)
+  rc=0
+  "$fuzzer" "${dirs[@]}" -max_total_time="$SECONDS_PER_TARGET" -max_len="${MAX_LEN[$target]}" \
+    -rss_limit_mb=2048 -timeout=10 -print_final_stats=1 -artifact_prefix="$regressions/" \
+    >"$log" 2>&1 || rc=$?
+  elapsed=$(($(date +%s) - start))
+  execs=$(awk '/^stat::number_of_executed_units:/ {print $2}' "$log")
+  rate=$(awk '/^stat::average_exec_per_sec:/ {print $2}' "$log")
+  cov=$(grep -o 'cov: [0-9]* ft: [0-9]*' "$log" | tail -1 || true)
+  if [ "$rc" -eq 0 ]; then
+    found="no crash"
+  else
+    status=1
+    found="CRASH (exit $rc): $(grep -o "Test unit written to .*" "$log" | tail -1 || true)"
+    found+=" $(grep -m1 -E '^(==[0-9]+==ERROR|SUMMARY|.*runtime error|reader fuzz:)' "$log" || true)"
+  fi
+  summary+=("${target}_fuzzer: ${elapsed}s, ${execs:-?} execs (${rate:-?}/s), ${cov:-cov: ?}, $found")
+  echo "${summary[-1]}"
+done
+echo "== summary"
+printf '%s\n' "${summary[@]}"
+exit "$status"
