@@ -754,8 +754,10 @@ void PlyReader::readRangeGrid() {
     // a range grid has one cell per range-image pixel, so this is the bulk of a scan file.
     const Property& p = e.props[0];
     const size_t csz = typeSize(p.count_type), isz = typeSize(p.type);
+    size_t want = size_t(1) << 16;
     while (mInstance < e.count) {
-      size_t avail = mSrc.ensure(1 << 16);
+      size_t avail = mSrc.ensure(want);
+      want = size_t(1) << 16;
       const uint8_t* b = mSrc.data();
       size_t used = 0;
       if (p.count_type == PlyType::kUInt8 &&
@@ -788,7 +790,16 @@ void PlyReader::readRangeGrid() {
         used += need;
         ++mInstance;
       }
-      if (used == 0) truncated(e, mInstance);
+      if (used == 0) {
+        // One cell larger than the window: ask for exactly its size (ensure() grows the buffer).
+        if (avail < csz) truncated(e, mInstance);
+        double n = loadScalar(b, p.count_type, mSwap);
+        if (n < 0 || n > 1e6) failHere("bad list length " + std::to_string(n) + " in range_grid");
+        want = csz + size_t(n) * isz;
+        if (avail >= want) truncated(e, mInstance);  // cannot happen: it would have been parsed
+        if (mSrc.ensure(want) < want) truncated(e, mInstance);
+        continue;
+      }
       mSrc.consume(used);
     }
     return;

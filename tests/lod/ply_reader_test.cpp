@@ -281,3 +281,28 @@ TEST(PlyReader, MissingFileIsAReadError) {
 
 }  // namespace
 }  // namespace tessera::lod
+
+namespace tessera::lod {
+namespace {
+
+// A range-grid cell larger than the reader's 64 KiB window, read from a file (not memory).
+TEST(PlyReader, RangeGridCellLargerThanTheReadWindow) {
+  test::TempDir dir;
+  std::string s =
+      "ply\nformat binary_little_endian 1.0\nobj_info num_cols 2\nobj_info num_rows 1\n"
+      "element vertex 1\nproperty float x\nproperty float y\nproperty float z\n"
+      "element range_grid 2\nproperty list int int vertex_indices\nend_header\n";
+  float xyz[3] = {1.f, 2.f, 3.f};
+  s.append(reinterpret_cast<const char*>(xyz), sizeof xyz);
+  int32_t count = 20000, zero = 0, empty = 0;
+  s.append(reinterpret_cast<const char*>(&empty), 4);  // cell 0: empty
+  s.append(reinterpret_cast<const char*>(&count), 4);  // cell 1: 20000 x vertex 0
+  for (int i = 0; i < count; ++i) s.append(reinterpret_cast<const char*>(&zero), 4);
+  test::writeText(dir / "big.ply", s);
+  auto r = test::readAll(dir / "big.ply");
+  ASSERT_EQ(r.points.size(), 1u);
+  EXPECT_EQ(r.points.grid_positions[0], glm::u16vec2(1, 0));
+}
+
+}  // namespace
+}  // namespace tessera::lod
