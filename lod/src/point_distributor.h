@@ -85,16 +85,18 @@ class PointDistributor {
 
   /// Passes 2 and 3 over the raw file: counting grid, chunks of at most `chunk_max` points where
   /// the grid allows, and distribution into `temp_file`; the raw file is then removed.
-  std::vector<Chunk> distribute(uint64_t chunk_max, const std::filesystem::path& temp_file);
+  std::vector<Chunk> distribute(uint64_t chunk_max, const std::filesystem::path& temp_file,
+                                int threads);
 
  private:
   /// Streams every input, calling `fn` per batch of points in the local frame.
   void forEachBatch(const std::string& label,
                     const std::function<void(std::span<const BuildPoint>)>& fn);
   void readInputs(const std::string& label, const std::filesystem::path& raw_file);
-  /// Streams the raw file written by pass 1.
-  void forEachRaw(const std::string& label,
-                  const std::function<void(std::span<const BuildPoint>)>& fn);
+  /// Streams the raw file written by pass 1 in `parts` contiguous parts, one thread each;
+  /// `fn(part, points)` is called from that part's thread.
+  void forEachRaw(const std::string& label, int parts,
+                  const std::function<void(int, std::span<const BuildPoint>)>& fn);
 
   std::vector<InputSource> mInputs;
   std::vector<std::string> mSourceNames;

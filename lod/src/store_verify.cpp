@@ -14,6 +14,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <thread>
 #include <unordered_map>
 
 #include <tessera/core/progress.h>
@@ -109,7 +110,10 @@ VerifyReport verifyStore(const std::filesystem::path& store_path,
   dist.measureInFrame(frame, temp_dir / "raw.bin");
   report.input_points = dist.points();
   const uint64_t region_max = std::max<uint64_t>(200'000, (options.memory_mb << 20) / 400);
-  std::vector<Chunk> regions = dist.distribute(region_max, temp_dir / "points.bin");
+  std::vector<Chunk> regions =
+      dist.distribute(region_max, temp_dir / "points.bin",
+                      options.threads > 0 ? options.threads
+                                          : int(std::max(1u, std::thread::hardware_concurrency())));
   std::sort(regions.begin(), regions.end(),
             [](const Chunk& a, const Chunk& b) { return a.key < b.key; });
 
