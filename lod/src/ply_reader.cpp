@@ -485,15 +485,11 @@ void PlyReader::readInstance(const Element& e, uint64_t index, std::vector<doubl
                              std::vector<std::vector<double>>* lists) {
   if (mEncoding == Encoding::kAscii) {
     // One instance per line in every writer we know; tolerate instances spanning lines.
-    if (nextToken(mLineRest, " \t\r").empty()) {
-      std::string_view line;
-      do {
-        if (!mSrc.readLine(line)) truncated(e, index);
-        mLineRest = line;
-      } while (mLineRest.find_first_not_of(" \t\r") == std::string_view::npos);
-    } else {
-      failHere("extra values after " + e.name + " " + std::to_string(index - 1));
-    }
+    std::string_view line;
+    do {
+      if (!mSrc.readLine(line)) truncated(e, index);
+      mLineRest = line;
+    } while (mLineRest.find_first_not_of(" \t\r") == std::string_view::npos);
     mLineOfInstance = mSrc.lineNumber();
     for (size_t i = 0; i < e.props.size(); ++i) {
       const Property& p = e.props[i];
@@ -509,6 +505,12 @@ void PlyReader::readInstance(const Element& e, uint64_t index, std::vector<doubl
         double x = asciiValue(e, index, p.type, isIntegerType(p.type));
         if (out) out->push_back(x);
       }
+    }
+    // The next instance starts on a new line: anything left on this one is a bad file.
+    std::string_view extra = nextToken(mLineRest, " \t\r");
+    if (!extra.empty()) {
+      failHere("more values than " + e.name + " " + std::to_string(index) + " declares (" +
+               shown(extra) + " is extra)");
     }
     return;
   }

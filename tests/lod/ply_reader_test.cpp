@@ -231,6 +231,18 @@ TEST(PlyReader, BadHeadersNameTheProblem) {
             std::string::npos);
 }
 
+TEST(PlyReader, ExtraValuesOnALineNameTheInstance) {
+  std::string last = readErrorOf([] {
+    readAllMemory(
+        "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\n"
+        "property float z\nend_header\n1 2 3\n4 5 6 7\n",
+        "extra.ply");
+  });
+  EXPECT_NE(last.find("line 9: more values than vertex 1 declares ('7' is extra)"),
+            std::string::npos)
+      << last;
+}
+
 TEST(PlyReader, HeaderCountLargerThanDataIsAnErrorWithOffset) {
   std::string s =
       "ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
