@@ -18,8 +18,8 @@ ctest --preset dev -j"$jobs" --timeout 600
 
 if [ "${TESSERA_SKIP_ASAN:-0}" != 1 ]; then
   # Decoders of outside bytes also run under AddressSanitizer and UBSan (STYLE.md).
-  echo "== sanitizer pass (asan: readers and decoders)"
+  echo "== sanitizer pass (asan: readers, decoders and the sync schema)"
   cmake --preset asan >/dev/null
-  cmake --build --preset asan -j"$jobs" --target tessera_lod_tests
-  ctest --preset asan -j"$jobs" --timeout 900 -L lod
+  cmake --build --preset asan -j"$jobs" --target tessera_lod_tests tessera_sync_tests
+  ctest --preset asan -j"$jobs" --timeout 900 -L "lod|sync"
 fi

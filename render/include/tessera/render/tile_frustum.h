@@ -1,0 +1,59 @@
+// Off-axis (generalized perspective) projections for the tiles of a display wall, after
+// Kooima's "Generalized Perspective Projection": each tile is a window on the wall plane seen
+// from the viewer's eye, so geometry continues straight across bezels and a wall of tiles shows
+// exactly what one large view of the whole wall would (Atelier3D, section on walls).
+//
+// Frames: the wall frame has the wall plane at z = 0 (x right, y up, metres) and the eye at
+// z > 0. The scene camera (eye, target, up) places the wall eye in the world: camera space is
+// the wall frame translated so the eye is at the origin, looking down -z.
+#pragma once
+
+#include <array>
+#include <cstdint>
+
+#include <glm/glm.hpp>
+
+#include <tessera/sync/config.h>
+
+namespace tessera::render {
+
+/// What one view renders: world -> camera, camera -> clip, and its pixel size.
+struct ViewSetup {
+  glm::dmat4 view{1.0};
+  glm::dmat4 projection{1.0};
+  uint32_t width = 0, height = 0;
+  glm::dvec3 eye_world{0.0};  ///< camera position in the world
+};
+
+/// World -> camera matrix of a scene camera (right-handed, looking down -z, y up).
+glm::dmat4 cameraView(const config::Camera& camera);
+
+/// Projection of the wall-plane rectangle [x0, x1] x [y0, y1] (metres) seen from `eye` (wall
+/// frame, eye.z > 0): an asymmetric frustum with the given near and far distances (metres).
+glm::dmat4 offAxisProjection(const glm::dvec3& eye, double x0, double x1, double y0, double y1,
+                             double near, double far);
+
+/// The view of one tile.
+ViewSetup tileView(const config::WallConfig& wall, const config::Tile& tile,
+                   const config::Camera& camera);
+
+/// The whole wall's extent as one view, at the pixel density of its first tile (pixels per metre),
+/// so tile pixels and whole-wall pixels line up one to one.
+ViewSetup wholeWallView(const config::WallConfig& wall, const config::Camera& camera);
+
+/// Where a tile's pixel (0, 0) (top-left) falls in the whole-wall image of wholeWallView().
+glm::ivec2 tileOffsetInWhole(const config::WallConfig& wall, const config::Tile& tile);
+
+/// The wall's bounding rectangle on its plane: min x, min y, max x, max y (metres).
+glm::dvec4 wallExtent(const config::WallConfig& wall);
+
+/// Six planes (a, b, c, d), inside where a x + b y + c z + d >= 0, of a clip matrix (Gribb and
+/// Hartmann's extraction), in the space the matrix takes points from.
+struct Frustum {
+  std::array<glm::dvec4, 6> planes;
+  static Frustum fromMatrix(const glm::dmat4& clip_from_space);
+  /// Conservative box test: false only if the box is entirely outside one plane.
+  bool intersects(const glm::dvec3& box_min, const glm::dvec3& box_max) const;
+};
+
+}  // namespace tessera::render

@@ -1,0 +1,95 @@
+#include <tessera/render/tile_frustum.h>
+
+#include <algorithm>
+#include <cmath>
+
+#include <glm/gtc/matrix_transform.hpp>
+
+namespace tessera::render {
+namespace {
+
+glm::dvec3 vec(const config::Vec3& v) {
+  return {v.x(), v.y(), v.z()};
+}
+
+}  // namespace
+
+glm::dmat4 cameraView(const config::Camera& camera) {
+  return glm::lookAt(vec(camera.eye()), vec(camera.target()), vec(camera.up()));
+}
+
+glm::dmat4 offAxisProjection(const glm::dvec3& eye, double x0, double x1, double y0, double y1,
+                             double near, double far) {
+  // The window edges relative to the eye, scaled from the wall plane (distance eye.z) to the
+  // near plane: Kooima 2008, eq. for l, r, b, t with an axis-aligned screen.
+  const double s = near / eye.z;
+  return glm::frustum((x0 - eye.x) * s, (x1 - eye.x) * s, (y0 - eye.y) * s, (y1 - eye.y) * s, near,
+                      far);
+}
+
+ViewSetup tileView(const config::WallConfig& wall, const config::Tile& tile,
+                   const config::Camera& camera) {
+  ViewSetup v;
+  v.view = cameraView(camera);
+  v.projection = offAxisProjection(vec(wall.eye()), tile.x(), tile.x() + tile.width(), tile.y(),
+                                   tile.y() + tile.height(), wall.near(), wall.far());
+  v.width = tile.pixel_width();
+  v.height = tile.pixel_height();
+  v.eye_world = vec(camera.eye());
+  return v;
+}
+
+glm::dvec4 wallExtent(const config::WallConfig& wall) {
+  glm::dvec4 e(1e300, 1e300, -1e300, -1e300);
+  for (const auto& t : wall.tiles()) {
+    e = glm::dvec4(std::min(e.x, t.x()), std::min(e.y, t.y()), std::max(e.z, t.x() + t.width()),
+                   std::max(e.w, t.y() + t.height()));
+  }
+  return e;
+}
+
+ViewSetup wholeWallView(const config::WallConfig& wall, const config::Camera& camera) {
+  const config::Tile& first = wall.tiles(0);
+  const double ppm_x = first.pixel_width() / first.width(),
+               ppm_y = first.pixel_height() / first.height();
+  const glm::dvec4 e = wallExtent(wall);
+  ViewSetup v;
+  v.view = cameraView(camera);
+  v.width = uint32_t(std::lround((e.z - e.x) * ppm_x));
+  v.height = uint32_t(std::lround((e.w - e.y) * ppm_y));
+  // Snap the extent to whole pixels so tiles land on pixel boundaries.
+  v.projection = offAxisProjection(vec(wall.eye()), e.x, e.x + v.width / ppm_x,
+                                   e.w - v.height / ppm_y, e.w, wall.near(), wall.far());
+  v.eye_world = vec(camera.eye());
+  return v;
+}
+
+glm::ivec2 tileOffsetInWhole(const config::WallConfig& wall, const config::Tile& tile) {
+  const config::Tile& first = wall.tiles(0);
+  const double ppm_x = first.pixel_width() / first.width(),
+               ppm_y = first.pixel_height() / first.height();
+  const glm::dvec4 e = wallExtent(wall);
+  return {int(std::lround((tile.x() - e.x) * ppm_x)),
+          int(std::lround((e.w - (tile.y() + tile.height())) * ppm_y))};
+}
+
+Frustum Frustum::fromMatrix(const glm::dmat4& m) {
+  // Rows of the matrix (glm is column-major: m[col][row]).
+  auto row = [&](int r) { return glm::dvec4(m[0][r], m[1][r], m[2][r], m[3][r]); };
+  Frustum f;
+  f.planes = {row(3) + row(0), row(3) - row(0), row(3) + row(1),
+              row(3) - row(1), row(3) + row(2), row(3) - row(2)};
+  for (auto& p : f.planes) p /= glm::length(glm::dvec3(p));
+  return f;
+}
+
+bool Frustum::intersects(const glm::dvec3& lo, const glm::dvec3& hi) const {
+  for (const auto& p : planes) {
+    // The box corner farthest along the plane normal (the "p-vertex").
+    glm::dvec3 v(p.x >= 0 ? hi.x : lo.x, p.y >= 0 ? hi.y : lo.y, p.z >= 0 ? hi.z : lo.z);
+    if (glm::dot(glm::dvec3(p), v) + p.w < 0) return false;
+  }
+  return true;
+}
+
+}  // namespace tessera::render

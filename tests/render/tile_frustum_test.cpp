@@ -1,0 +1,97 @@
+// Off-axis tile frusta: a point on the wall plane lands on the tile pixel it lies on, tiles and
+// the whole-wall view agree pixel for pixel across bezels, and a centred eye gives the ordinary
+// symmetric perspective.
+#include <gtest/gtest.h>
+
+#include <glm/gtc/matrix_transform.hpp>
+
+#include <tessera/render/tile_frustum.h>
+
+namespace tessera::render {
+namespace {
+
+const std::string kConfigs = TESSERA_CONFIG_DIR;
+
+config::Camera camera() {
+  config::Camera c;
+  c.mutable_eye()->set_x(0.3);
+  c.mutable_eye()->set_y(-0.2);
+  c.mutable_eye()->set_z(4.0);
+  c.mutable_target()->set_x(0.1);
+  c.mutable_up()->set_y(1.0);
+  return c;
+}
+
+/// Pixel coordinates (x right, y down, pixel centres at +0.5) of a world point in a view.
+glm::dvec2 pixelOf(const ViewSetup& v, const glm::dvec3& world) {
+  glm::dvec4 clip = v.projection * v.view * glm::dvec4(world, 1.0);
+  glm::dvec3 ndc = glm::dvec3(clip) / clip.w;
+  return {(ndc.x * 0.5 + 0.5) * v.width, (0.5 - ndc.y * 0.5) * v.height};
+}
+
+TEST(TileFrustum, TilesAndWholeWallAgreeAcrossBezels) {
+  auto wall = sync::loadWallConfig(kConfigs + "/walls/2x2.json");
+  config::Camera cam = camera();
+  ViewSetup whole = wholeWallView(wall, cam);
+  EXPECT_EQ(whole.width, 960u * 2 + 20);
+  EXPECT_EQ(whole.height, 540u * 2 + 20);
+  // Points all over the scene, including ones that project near the bezels.
+  int checked = 0;
+  for (int i = 0; i < 2000; ++i) {
+    glm::dvec3 p(std::sin(i * 0.37) * 1.5, std::cos(i * 0.11) * 0.9, std::sin(i * 0.05) * 2.0);
+    glm::dvec2 w = pixelOf(whole, p);
+    for (const auto& tile : wall.tiles()) {
+      ViewSetup tv = tileView(wall, tile, cam);
+      glm::dvec2 t = pixelOf(tv, p);
+      if (t.x < 0 || t.y < 0 || t.x >= tv.width || t.y >= tv.height) continue;
+      glm::ivec2 off = tileOffsetInWhole(wall, tile);
+      ASSERT_NEAR(t.x + off.x, w.x, 1e-6) << tile.name();
+      ASSERT_NEAR(t.y + off.y, w.y, 1e-6) << tile.name();
+      ++checked;
+    }
+  }
+  EXPECT_GT(checked, 500);
+}
+
+TEST(TileFrustum, WallPlanePointsLandOnTheirTilePixel) {
+  auto wall = sync::loadWallConfig(kConfigs + "/walls/3x2.json");
+  config::Camera cam;
+  // Camera at the wall eye, looking straight at the wall: camera space = wall frame - eye.
+  const auto& e = wall.eye();
+  cam.mutable_eye()->CopyFrom(e);
+  cam.mutable_target()->set_x(e.x());
+  cam.mutable_target()->set_y(e.y());
+  cam.mutable_target()->set_z(0.0);
+  cam.mutable_up()->set_y(1.0);
+  for (const auto& tile : wall.tiles()) {
+    ViewSetup tv = tileView(wall, tile, cam);
+    // The centre of pixel (10, 20) of this tile, on the wall plane.
+    glm::dvec3 p(tile.x() + 10.5 * tile.width() / tile.pixel_width(),
+                 tile.y() + tile.height() - 20.5 * tile.height() / tile.pixel_height(), 0.0);
+    glm::dvec2 px = pixelOf(tv, p);
+    EXPECT_NEAR(px.x, 10.5, 1e-6);
+    EXPECT_NEAR(px.y, 20.5, 1e-6);
+  }
+}
+
+TEST(TileFrustum, CentredEyeIsTheSymmetricPerspective) {
+  const double fovy = glm::radians(45.0), aspect = 16.0 / 9.0, near = 0.1, far = 100.0;
+  const double h = 2.0 * std::tan(fovy / 2), w = h * aspect;  // window at distance 1
+  glm::dmat4 off = offAxisProjection(glm::dvec3(0, 0, 1), -w / 2, w / 2, -h / 2, h / 2, near, far);
+  glm::dmat4 sym = glm::perspective(fovy, aspect, near, far);
+  for (int c = 0; c < 4; ++c)
+    for (int r = 0; r < 4; ++r) EXPECT_NEAR(off[c][r], sym[c][r], 1e-12);
+}
+
+TEST(TileFrustum, FrustumCullsBoxesOutsideOnly) {
+  glm::dmat4 m = glm::perspective(glm::radians(60.0), 1.0, 0.1, 10.0);
+  Frustum f = Frustum::fromMatrix(m);
+  EXPECT_TRUE(f.intersects(glm::dvec3(-0.1, -0.1, -2), glm::dvec3(0.1, 0.1, -1)));
+  EXPECT_FALSE(f.intersects(glm::dvec3(-0.1, -0.1, 1), glm::dvec3(0.1, 0.1, 2)));      // behind
+  EXPECT_FALSE(f.intersects(glm::dvec3(50, -0.1, -2), glm::dvec3(51, 0.1, -1)));       // right
+  EXPECT_FALSE(f.intersects(glm::dvec3(-0.1, -0.1, -30), glm::dvec3(0.1, 0.1, -20)));  // beyond far
+  EXPECT_TRUE(f.intersects(glm::dvec3(-100, -100, -5), glm::dvec3(100, 100, -4)));     // straddles
+}
+
+}  // namespace
+}  // namespace tessera::render
