@@ -1,0 +1,59 @@
+// Points into pixels with compute shaders (shaders/point_raster.comp): nearest point wins,
+// deterministic whatever the thread order, round splats of a given radius. A GL 4.5 context must
+// be current on the calling thread for the object's whole life.
+#pragma once
+
+#include <cstdint>
+#include <span>
+#include <string>
+#include <vector>
+
+#include <glm/glm.hpp>
+
+namespace tessera::render {
+
+/// One point as the GPU holds it: position relative to its batch's frame, colour packed RGBA
+/// (r in the low byte). 16 bytes.
+struct GpuPoint {
+  glm::vec3 position;
+  uint32_t rgba;
+};
+static_assert(sizeof(GpuPoint) == 16);
+
+/// A range of uploaded points drawn with one transform and splat size.
+struct DrawBatch {
+  uint32_t first = 0;
+  uint32_t count = 0;
+  glm::mat4 clip_from_local{1.0f};
+  int splat_radius = 0;  ///< pixels around the centre (0: one pixel)
+};
+
+struct Image {
+  uint32_t width = 0, height = 0;
+  std::vector<uint8_t> rgba;  ///< width * height * 4, top row first
+};
+
+class PointRasterizer {
+ public:
+  PointRasterizer(uint32_t width, uint32_t height);
+  ~PointRasterizer();
+  PointRasterizer(const PointRasterizer&) = delete;
+  PointRasterizer& operator=(const PointRasterizer&) = delete;
+
+  /// Replaces the uploaded points (one storage buffer).
+  void setPoints(std::span<const GpuPoint> points);
+  /// Clears, rasterises every batch (depth pass, then id pass), resolves colours.
+  void render(std::span<const DrawBatch> batches, const glm::vec3& background);
+  /// The last render, read back.
+  Image read() const;
+
+ private:
+  uint32_t mWidth, mHeight;
+  uint32_t mRasterProgram = 0, mResolveProgram = 0;
+  uint32_t mPoints = 0, mDepth = 0, mIds = 0, mImage = 0;
+};
+
+/// Writes an 8-bit RGBA PNG. Throws RenderError naming the file on failure.
+void writePng(const std::string& path, const Image& image);
+
+}  // namespace tessera::render

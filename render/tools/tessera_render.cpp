@@ -1,0 +1,255 @@
+// tessera-render: renders a plain view, one tile of a wall, the wall mosaic (bezels drawn dark)
+// or the wall's whole extent to PNG, headless. `tessera-render --help` lists the options.
+#include <CLI/CLI.hpp>
+
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+
+#include <glm/gtc/matrix_transform.hpp>
+#include <glm/gtc/type_ptr.hpp>
+#include <cstring>
+#include <sstream>
+
+#include <tessera/lod/point_reader.h>
+#include <tessera/lod/store_builder.h>
+#include <tessera/render/gl_context.h>
+#include <tessera/render/view_renderer.h>
+#include <tessera/sync/config.h>
+
+namespace {
+
+using namespace tessera;
+namespace fs = std::filesystem;
+
+[[noreturn]] void usage(const std::string& what) {
+  std::fprintf(stderr, "tessera-render: %s\n", what.c_str());
+  std::exit(2);
+}
+
+glm::dvec3 parseVec(const std::string& s, const std::string& what) {
+  glm::dvec3 v;
+  char extra;
+  if (std::sscanf(s.c_str(), "%lf,%lf,%lf%c", &v.x, &v.y, &v.z, &extra) != 3) usage(what + ": expected X,Y,Z, got '" + s + "'");
+  return v;
+}
+
+/// `eye=X,Y,Z;target=X,Y,Z;up=X,Y,Z`
+config::Camera parseCamera(const std::string& s) {
+  config::Camera c;
+  size_t seen = 0;
+  std::stringstream in(s);
+  for (std::string part; std::getline(in, part, ';');) {
+    auto eq = part.find('=');
+    if (eq == std::string::npos) usage("--camera: expected eye=X,Y,Z;target=X,Y,Z;up=X,Y,Z");
+    std::string key = part.substr(0, eq);
+    glm::dvec3 v = parseVec(part.substr(eq + 1), "--camera " + key);
+    config::Vec3* dst = key == "eye" ? c.mutable_eye() : key == "target" ? c.mutable_target() : key == "up" ? c.mutable_up() : nullptr;
+    if (!dst) usage("--camera: unknown key '" + key + "' (eye, target, up)");
+    dst->set_x(v.x);
+    dst->set_y(v.y);
+    dst->set_z(v.z);
+    ++seen;
+  }
+  if (seen != 3) usage("--camera: give eye, target and up");
+  return c;
+}
+
+/// A .tlod as it is; any other readable file is converted once into a cache folder.
+fs::path storeFor(const fs::path& input) {
+  if (input.extension() == ".tlod") return input;
+  std::error_code ec;
+  auto size = fs::file_size(input, ec);
+  if (ec) usage("--model " + input.string() + ": " + ec.message());
+  auto mtime = fs::last_write_time(input, ec).time_since_epoch().count();
+  const char* cache_env = std::getenv("XDG_CACHE_HOME");
+  fs::path cache = cache_env ? fs::path(cache_env) : fs::path(std::getenv("HOME") ? std::getenv("HOME") : "/tmp") / ".cache";
+  cache /= "tessera";
+  fs::create_directories(cache, ec);
+  size_t key = std::hash<std::string>{}(fs::absolute(input).string() + ":" + std::to_string(size) + ":" + std::to_string(mtime));
+  fs::path out = cache / (input.stem().string() + "-" + std::to_string(key) + ".tlod");
+  if (!fs::exists(out)) {
+    std::fprintf(stderr, "tessera-render: converting %s into %s\n", input.c_str(), out.c_str());
+    lod::BuildOptions o;
+    lod::buildStore({input}, out, o);
+  }
+  return out;
+}
+
+config::Camera fitCamera(const lod::PointStore& s) {
+  const auto& sum = s.summary();
+  glm::dvec3 lo = sum.origin + sum.bbox_min, hi = sum.origin + sum.bbox_max, c = 0.5 * (lo + hi);
+  glm::dvec3 ext = hi - lo;
+  double r = 0.5 * glm::length(ext);
+  // Flat data (terrain, LiDAR) seen from the south and above with z up; objects from the front.
+  bool flat = ext.z < 0.3 * std::max(ext.x, ext.y);
+  glm::dvec3 eye = flat ? c + glm::dvec3(0, -1.6 * r, 1.2 * r) : c + glm::dvec3(0, 0, 2.6 * r);
+  glm::dvec3 up = flat ? glm::dvec3(0, 0, 1) : glm::dvec3(0, 1, 0);
+  config::Camera cam;
+  auto set = [](config::Vec3* d, const glm::dvec3& v) {
+    d->set_x(v.x);
+    d->set_y(v.y);
+    d->set_z(v.z);
+  };
+  set(cam.mutable_eye(), eye);
+  set(cam.mutable_target(), c);
+  set(cam.mutable_up(), up);
+  return cam;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"tessera-render: render point stores headless to PNG: a view, a wall tile, the mosaic or the whole wall"};
+  std::string wall_path, tile_name, size = "1280x720", scene_path, camera, background, stats_path, out;
+  std::vector<std::string> models;
+  bool mosaic = false, whole = false;
+  double fovy = 45.0, lod_px = 0.0;
+  app.add_option("--wall", wall_path, "Wall configuration (JSON)");
+  auto* tile_opt = app.add_option("--tile", tile_name, "Render this tile of the wall");
+  auto* mosaic_opt = app.add_flag("--mosaic", mosaic, "Render every tile and assemble the wall, bezels dark");
+  auto* whole_opt = app.add_flag("--whole", whole, "Render the wall's whole extent as one image (seam check)");
+  tile_opt->excludes(mosaic_opt)->excludes(whole_opt);
+  mosaic_opt->excludes(whole_opt);
+  app.add_option("--size", size, "Plain view size WxH (without --wall)")->capture_default_str();
+  app.add_option("--fovy", fovy, "Plain view vertical field of view, degrees")->check(CLI::Range(1.0, 170.0))->capture_default_str();
+  app.add_option("--scene", scene_path, "Scene configuration (JSON): models, camera, background, lod");
+  app.add_option("--model", models, "A .tlod store or any readable scan (converted once into ~/.cache/tessera)");
+  app.add_option("--camera", camera, "eye=X,Y,Z;target=X,Y,Z;up=X,Y,Z (default: the scene's, else fitted)");
+  app.add_option("--lod-px", lod_px, "LOD threshold in pixels (default: the scene's, else 1)")->check(CLI::PositiveNumber);
+  app.add_option("--background", background, "R,G,B in [0, 1]");
+  app.add_option("--stats", stats_path, "Append per-view statistics as CSV");
+  app.add_option("-o,--output", out, "Output PNG")->required();
+  CLI11_PARSE(app, argc, argv);
+
+  try {
+    std::vector<std::unique_ptr<lod::PointStore>> stores;
+    std::vector<render::ModelInstance> instances;
+    render::RenderOptions options;
+    config::Camera cam;
+    bool have_camera = false;
+    if (!scene_path.empty()) {
+      config::SceneConfig scene = sync::loadSceneConfig(scene_path);
+      for (const auto& m : scene.models()) {
+        if (m.hidden()) continue;
+        if (m.opacity() < 1.0) usage("model " + m.store() + ": opacity below 1 needs the see-through renderer (not built yet)");
+        stores.push_back(lod::PointStore::open(storeFor(m.store())));
+        glm::dmat4 t(1.0);
+        if (m.transform_size() == 16) t = glm::make_mat4(m.transform().data());
+        instances.push_back({stores.back().get(), t * render::storeModel(*stores.back())});
+      }
+      cam = scene.camera();
+      have_camera = true;
+      options.lod_pixels = scene.lod_pixels();
+      options.background = glm::vec3(scene.background(0), scene.background(1), scene.background(2));
+    }
+    for (const std::string& m : models) {
+      auto colon = m.rfind(':');
+      if (colon != std::string::npos && colon > 0 && m.find('/', colon) == std::string::npos) {
+        usage("--model " + m + ": opacity below 1 needs the see-through renderer (not built yet)");
+      }
+      stores.push_back(lod::PointStore::open(storeFor(m)));
+      instances.push_back({stores.back().get(), render::storeModel(*stores.back())});
+    }
+    if (instances.empty()) usage("nothing to render: give --scene or --model");
+    if (!camera.empty()) {
+      cam = parseCamera(camera);
+      have_camera = true;
+    }
+    if (!have_camera) cam = fitCamera(*stores.front());
+    if (lod_px > 0) options.lod_pixels = lod_px;
+    if (!background.empty()) options.background = glm::vec3(parseVec(background, "--background"));
+
+    auto ctx = render::GlContext::createHeadless();
+    std::ofstream stats_file;
+    if (!stats_path.empty()) {
+      bool fresh = !fs::exists(stats_path);
+      stats_file.open(stats_path, std::ios::app);
+      if (!stats_file) usage("--stats " + stats_path + ": cannot write");
+      if (fresh) stats_file << "view,width,height,nodes,points,corrupt_chunks,select_ms,load_ms,raster_ms\n";
+    }
+    auto renderView = [&](const std::string& name, const render::ViewSetup& v) {
+      render::ViewRenderer r(v.width, v.height);
+      render::RenderStats st;
+      render::Image img = r.render(instances, v, options, &st);
+      std::fprintf(stderr, "%s: %ux%u, %zu nodes, %llu points, %.1f ms (select %.1f, load %.1f, raster %.1f)%s\n",
+                   name.c_str(), v.width, v.height, st.nodes, (unsigned long long)st.points,
+                   st.select_ms + st.load_ms + st.raster_ms, st.select_ms, st.load_ms, st.raster_ms,
+                   st.corrupt_chunks ? (", " + std::to_string(st.corrupt_chunks) + " corrupt chunks skipped").c_str() : "");
+      if (stats_file) {
+        stats_file << name << "," << v.width << "," << v.height << "," << st.nodes << "," << st.points << ","
+                    << st.corrupt_chunks << "," << st.select_ms << "," << st.load_ms << "," << st.raster_ms << "\n";
+      }
+      return img;
+    };
+
+    render::Image result;
+    if (wall_path.empty()) {
+      unsigned w = 0, h = 0;
+      char extra;
+      if (std::sscanf(size.c_str(), "%ux%u%c", &w, &h, &extra) != 2 || w == 0 || h == 0 || w > 16384 || h > 16384) {
+        usage("--size " + size + ": expected WxH, e.g. 1280x720");
+      }
+      render::ViewSetup v;
+      v.view = render::cameraView(cam);
+      const auto& sum = stores.front()->summary();
+      double radius = 0.5 * glm::length(sum.bbox_max - sum.bbox_min);
+      double dist = glm::length(glm::dvec3(cam.eye().x(), cam.eye().y(), cam.eye().z()) -
+                                glm::dvec3(cam.target().x(), cam.target().y(), cam.target().z()));
+      v.projection = glm::perspective(glm::radians(fovy), double(w) / h, std::max(1e-4 * radius, (dist - 4 * radius) * 0.5 + 1e-6 * radius),
+                                      dist + 4 * radius);
+      v.width = w;
+      v.height = h;
+      v.eye_world = glm::dvec3(cam.eye().x(), cam.eye().y(), cam.eye().z());
+      result = renderView("view", v);
+    } else {
+      config::WallConfig wall = sync::loadWallConfig(wall_path);
+      if (whole) {
+        result = renderView("whole", render::wholeWallView(wall, cam));
+      } else if (mosaic) {
+        render::ViewSetup whole_view = render::wholeWallView(wall, cam);
+        result.width = whole_view.width;
+        result.height = whole_view.height;
+        result.rgba.assign(size_t(result.width) * result.height * 4, 0);
+        for (size_t i = 0; i < result.rgba.size(); i += 4) {
+          result.rgba[i] = result.rgba[i + 1] = result.rgba[i + 2] = 24;  // bezels: dark grey
+          result.rgba[i + 3] = 255;
+        }
+        for (const auto& tile : wall.tiles()) {
+          render::Image img = renderView(tile.name(), render::tileView(wall, tile, cam));
+          glm::ivec2 off = render::tileOffsetInWhole(wall, tile);
+          for (uint32_t y = 0; y < img.height; ++y) {
+            if (off.y + int(y) < 0 || off.y + y >= result.height) continue;
+            for (uint32_t x = 0; x < img.width; ++x) {
+              if (off.x + int(x) < 0 || off.x + x >= result.width) continue;
+              std::memcpy(&result.rgba[(size_t(off.y + y) * result.width + off.x + x) * 4], &img.rgba[(size_t(y) * img.width + x) * 4], 4);
+            }
+          }
+        }
+      } else {
+        const config::Tile* tile = wall.tiles_size() == 1 && tile_name.empty() ? &wall.tiles(0) : nullptr;
+        for (const auto& t : wall.tiles()) {
+          if (t.name() == tile_name) tile = &t;
+        }
+        if (!tile) usage("--tile '" + tile_name + "' is not a tile of " + wall_path + " (give --tile, --mosaic or --whole)");
+        result = renderView(tile->name(), render::tileView(wall, *tile, cam));
+      }
+    }
+    render::writePng(out, result);
+    std::printf("wrote %s (%ux%u)\n", out.c_str(), result.width, result.height);
+    return 0;
+  } catch (const sync::ConfigError& e) {
+    std::fprintf(stderr, "tessera-render: %s\n", e.what());
+    return 1;
+  } catch (const lod::StoreError& e) {
+    std::fprintf(stderr, "tessera-render: %s\n", e.what());
+    return 1;
+  } catch (const lod::ReadError& e) {
+    std::fprintf(stderr, "tessera-render: %s\n", e.what());
+    return 1;
+  } catch (const render::RenderError& e) {
+    std::fprintf(stderr, "tessera-render: %s\n", e.what());
+    return 3;
+  }
+}
