@@ -26,7 +26,8 @@ uint32_t compileCompute(const char* source, const char* name) {
     char log[4096];
     glGetShaderInfoLog(shader, sizeof log, nullptr, log);
     glDeleteShader(shader);
-    throw RenderError(std::string("render::PointRasterizer: ") + name + " does not compile: " + log);
+    throw RenderError(std::string("render::PointRasterizer: ") + name +
+                      " does not compile: " + log);
   }
   GLuint program = glCreateProgram();
   glAttachShader(program, shader);
@@ -45,7 +46,8 @@ uint32_t compileCompute(const char* source, const char* name) {
 uint32_t makeBuffer(size_t bytes) {
   GLuint b = 0;
   glCreateBuffers(1, &b);
-  glNamedBufferStorage(b, GLsizeiptr(std::max<size_t>(bytes, 16)), nullptr, GL_DYNAMIC_STORAGE_BIT | GL_MAP_READ_BIT);
+  glNamedBufferStorage(b, GLsizeiptr(std::max<size_t>(bytes, 16)), nullptr,
+                       GL_DYNAMIC_STORAGE_BIT | GL_MAP_READ_BIT);
   return b;
 }
 
@@ -105,7 +107,8 @@ void PointRasterizer::render(std::span<const DrawBatch> batches, const glm::vec3
   glUseProgram(mResolveProgram);
   glUniform2i(glGetUniformLocation(mResolveProgram, "uSize"), GLint(mWidth), GLint(mHeight));
   glm::uvec3 bg = glm::uvec3(glm::clamp(background, 0.0f, 1.0f) * 255.0f + 0.5f);
-  glUniform1ui(glGetUniformLocation(mResolveProgram, "uBackground"), bg.r | bg.g << 8 | bg.b << 16 | 0xFF000000u);
+  glUniform1ui(glGetUniformLocation(mResolveProgram, "uBackground"),
+               bg.r | bg.g << 8 | bg.b << 16 | 0xFF000000u);
   glDispatchCompute((mWidth + 15) / 16, (mHeight + 15) / 16, 1);
   glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT | GL_SHADER_STORAGE_BARRIER_BIT);
 }

@@ -19,8 +19,8 @@ glm::dmat4 storeModel(const lod::PointStore& store) {
   return glm::translate(glm::dmat4(1.0), store.summary().origin);
 }
 
-Image ViewRenderer::render(std::span<const ModelInstance> models, const ViewSetup& view, const RenderOptions& options,
-                           RenderStats* stats) {
+Image ViewRenderer::render(std::span<const ModelInstance> models, const ViewSetup& view,
+                           const RenderOptions& options, RenderStats* stats) {
   RenderStats st;
   mPoints.clear();
   std::vector<DrawBatch> batches;
@@ -36,13 +36,15 @@ Image ViewRenderer::render(std::span<const ModelInstance> models, const ViewSetu
 }
 
 void ViewRenderer::addModel(lod::PointStore& store, const glm::dmat4& model, const ViewSetup& view,
-                            const RenderOptions& options, std::vector<DrawBatch>& batches, RenderStats& stats) {
+                            const RenderOptions& options, std::vector<DrawBatch>& batches,
+                            RenderStats& stats) {
   auto t0 = std::chrono::steady_clock::now();
   CutOptions co;
   co.pixel_threshold = options.lod_pixels;
   Cut cut = selectCut(store, model, view, co);
   // Node order decides ties between points at equal depth: by id, the same in every view.
-  std::sort(cut.nodes.begin(), cut.nodes.end(), [](const CutNode& a, const CutNode& b) { return a.id < b.id; });
+  std::sort(cut.nodes.begin(), cut.nodes.end(),
+            [](const CutNode& a, const CutNode& b) { return a.id < b.id; });
   stats.select_ms += msSince(t0);
   stats.nodes += cut.nodes.size();
 
@@ -62,7 +64,8 @@ void ViewRenderer::addModel(lod::PointStore& store, const glm::dmat4& model, con
     b.first = uint32_t(mPoints.size());
     b.count = uint32_t(chunk->size());
     // Double precision down to the node, float within it: georeferenced data stays exact.
-    b.clip_from_local = glm::mat4(clip_from_world * model * glm::translate(glm::dmat4(1.0), chunk->offset));
+    b.clip_from_local =
+        glm::mat4(clip_from_world * model * glm::translate(glm::dmat4(1.0), chunk->offset));
     b.splat_radius = std::clamp(int(std::ceil(n.projected_spacing_px * 0.5 - 0.5)), 0, 8);
     const bool color = !chunk->colors.empty();
     for (size_t i = 0; i < chunk->size(); ++i) {

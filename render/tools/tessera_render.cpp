@@ -7,9 +7,9 @@
 #include <fstream>
 #include <functional>
 
+#include <cstring>
 #include <glm/gtc/matrix_transform.hpp>
 #include <glm/gtc/type_ptr.hpp>
-#include <cstring>
 #include <sstream>
 
 #include <tessera/lod/point_reader.h>
@@ -31,7 +31,8 @@ namespace fs = std::filesystem;
 glm::dvec3 parseVec(const std::string& s, const std::string& what) {
   glm::dvec3 v;
   char extra;
-  if (std::sscanf(s.c_str(), "%lf,%lf,%lf%c", &v.x, &v.y, &v.z, &extra) != 3) usage(what + ": expected X,Y,Z, got '" + s + "'");
+  if (std::sscanf(s.c_str(), "%lf,%lf,%lf%c", &v.x, &v.y, &v.z, &extra) != 3)
+    usage(what + ": expected X,Y,Z, got '" + s + "'");
   return v;
 }
 
@@ -45,7 +46,10 @@ config::Camera parseCamera(const std::string& s) {
     if (eq == std::string::npos) usage("--camera: expected eye=X,Y,Z;target=X,Y,Z;up=X,Y,Z");
     std::string key = part.substr(0, eq);
     glm::dvec3 v = parseVec(part.substr(eq + 1), "--camera " + key);
-    config::Vec3* dst = key == "eye" ? c.mutable_eye() : key == "target" ? c.mutable_target() : key == "up" ? c.mutable_up() : nullptr;
+    config::Vec3* dst = key == "eye"      ? c.mutable_eye()
+                        : key == "target" ? c.mutable_target()
+                        : key == "up"     ? c.mutable_up()
+                                          : nullptr;
     if (!dst) usage("--camera: unknown key '" + key + "' (eye, target, up)");
     dst->set_x(v.x);
     dst->set_y(v.y);
@@ -64,10 +68,13 @@ fs::path storeFor(const fs::path& input) {
   if (ec) usage("--model " + input.string() + ": " + ec.message());
   auto mtime = fs::last_write_time(input, ec).time_since_epoch().count();
   const char* cache_env = std::getenv("XDG_CACHE_HOME");
-  fs::path cache = cache_env ? fs::path(cache_env) : fs::path(std::getenv("HOME") ? std::getenv("HOME") : "/tmp") / ".cache";
+  fs::path cache = cache_env
+                       ? fs::path(cache_env)
+                       : fs::path(std::getenv("HOME") ? std::getenv("HOME") : "/tmp") / ".cache";
   cache /= "tessera";
   fs::create_directories(cache, ec);
-  size_t key = std::hash<std::string>{}(fs::absolute(input).string() + ":" + std::to_string(size) + ":" + std::to_string(mtime));
+  size_t key = std::hash<std::string>{}(fs::absolute(input).string() + ":" + std::to_string(size) +
+                                        ":" + std::to_string(mtime));
   fs::path out = cache / (input.stem().string() + "-" + std::to_string(key) + ".tlod");
   if (!fs::exists(out)) {
     std::fprintf(stderr, "tessera-render: converting %s into %s\n", input.c_str(), out.c_str());
@@ -101,23 +108,34 @@ config::Camera fitCamera(const lod::PointStore& s) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  CLI::App app{"tessera-render: render point stores headless to PNG: a view, a wall tile, the mosaic or the whole wall"};
-  std::string wall_path, tile_name, size = "1280x720", scene_path, camera, background, stats_path, out;
+  CLI::App app{
+      "tessera-render: render point stores headless to PNG: a view, a wall tile, the mosaic or the "
+      "whole wall"};
+  std::string wall_path, tile_name, size = "1280x720", scene_path, camera, background, stats_path,
+                                    out;
   std::vector<std::string> models;
   bool mosaic = false, whole = false;
   double fovy = 45.0, lod_px = 0.0;
   app.add_option("--wall", wall_path, "Wall configuration (JSON)");
   auto* tile_opt = app.add_option("--tile", tile_name, "Render this tile of the wall");
-  auto* mosaic_opt = app.add_flag("--mosaic", mosaic, "Render every tile and assemble the wall, bezels dark");
-  auto* whole_opt = app.add_flag("--whole", whole, "Render the wall's whole extent as one image (seam check)");
+  auto* mosaic_opt =
+      app.add_flag("--mosaic", mosaic, "Render every tile and assemble the wall, bezels dark");
+  auto* whole_opt =
+      app.add_flag("--whole", whole, "Render the wall's whole extent as one image (seam check)");
   tile_opt->excludes(mosaic_opt)->excludes(whole_opt);
   mosaic_opt->excludes(whole_opt);
   app.add_option("--size", size, "Plain view size WxH (without --wall)")->capture_default_str();
-  app.add_option("--fovy", fovy, "Plain view vertical field of view, degrees")->check(CLI::Range(1.0, 170.0))->capture_default_str();
-  app.add_option("--scene", scene_path, "Scene configuration (JSON): models, camera, background, lod");
-  app.add_option("--model", models, "A .tlod store or any readable scan (converted once into ~/.cache/tessera)");
-  app.add_option("--camera", camera, "eye=X,Y,Z;target=X,Y,Z;up=X,Y,Z (default: the scene's, else fitted)");
-  app.add_option("--lod-px", lod_px, "LOD threshold in pixels (default: the scene's, else 1)")->check(CLI::PositiveNumber);
+  app.add_option("--fovy", fovy, "Plain view vertical field of view, degrees")
+      ->check(CLI::Range(1.0, 170.0))
+      ->capture_default_str();
+  app.add_option("--scene", scene_path,
+                 "Scene configuration (JSON): models, camera, background, lod");
+  app.add_option("--model", models,
+                 "A .tlod store or any readable scan (converted once into ~/.cache/tessera)");
+  app.add_option("--camera", camera,
+                 "eye=X,Y,Z;target=X,Y,Z;up=X,Y,Z (default: the scene's, else fitted)");
+  app.add_option("--lod-px", lod_px, "LOD threshold in pixels (default: the scene's, else 1)")
+      ->check(CLI::PositiveNumber);
   app.add_option("--background", background, "R,G,B in [0, 1]");
   app.add_option("--stats", stats_path, "Append per-view statistics as CSV");
   app.add_option("-o,--output", out, "Output PNG")->required();
@@ -133,7 +151,9 @@ int main(int argc, char** argv) {
       config::SceneConfig scene = sync::loadSceneConfig(scene_path);
       for (const auto& m : scene.models()) {
         if (m.hidden()) continue;
-        if (m.opacity() < 1.0) usage("model " + m.store() + ": opacity below 1 needs the see-through renderer (not built yet)");
+        if (m.opacity() < 1.0)
+          usage("model " + m.store() +
+                ": opacity below 1 needs the see-through renderer (not built yet)");
         stores.push_back(lod::PointStore::open(storeFor(m.store())));
         glm::dmat4 t(1.0);
         if (m.transform_size() == 16) t = glm::make_mat4(m.transform().data());
@@ -167,19 +187,25 @@ int main(int argc, char** argv) {
       bool fresh = !fs::exists(stats_path);
       stats_file.open(stats_path, std::ios::app);
       if (!stats_file) usage("--stats " + stats_path + ": cannot write");
-      if (fresh) stats_file << "view,width,height,nodes,points,corrupt_chunks,select_ms,load_ms,raster_ms\n";
+      if (fresh)
+        stats_file << "view,width,height,nodes,points,corrupt_chunks,select_ms,load_ms,raster_ms\n";
     }
     auto renderView = [&](const std::string& name, const render::ViewSetup& v) {
       render::ViewRenderer r(v.width, v.height);
       render::RenderStats st;
       render::Image img = r.render(instances, v, options, &st);
-      std::fprintf(stderr, "%s: %ux%u, %zu nodes, %llu points, %.1f ms (select %.1f, load %.1f, raster %.1f)%s\n",
-                   name.c_str(), v.width, v.height, st.nodes, (unsigned long long)st.points,
-                   st.select_ms + st.load_ms + st.raster_ms, st.select_ms, st.load_ms, st.raster_ms,
-                   st.corrupt_chunks ? (", " + std::to_string(st.corrupt_chunks) + " corrupt chunks skipped").c_str() : "");
+      std::fprintf(
+          stderr,
+          "%s: %ux%u, %zu nodes, %llu points, %.1f ms (select %.1f, load %.1f, raster %.1f)%s\n",
+          name.c_str(), v.width, v.height, st.nodes, (unsigned long long)st.points,
+          st.select_ms + st.load_ms + st.raster_ms, st.select_ms, st.load_ms, st.raster_ms,
+          st.corrupt_chunks
+              ? (", " + std::to_string(st.corrupt_chunks) + " corrupt chunks skipped").c_str()
+              : "");
       if (stats_file) {
-        stats_file << name << "," << v.width << "," << v.height << "," << st.nodes << "," << st.points << ","
-                    << st.corrupt_chunks << "," << st.select_ms << "," << st.load_ms << "," << st.raster_ms << "\n";
+        stats_file << name << "," << v.width << "," << v.height << "," << st.nodes << ","
+                   << st.points << "," << st.corrupt_chunks << "," << st.select_ms << ","
+                   << st.load_ms << "," << st.raster_ms << "\n";
       }
       return img;
     };
@@ -188,7 +214,8 @@ int main(int argc, char** argv) {
     if (wall_path.empty()) {
       unsigned w = 0, h = 0;
       char extra;
-      if (std::sscanf(size.c_str(), "%ux%u%c", &w, &h, &extra) != 2 || w == 0 || h == 0 || w > 16384 || h > 16384) {
+      if (std::sscanf(size.c_str(), "%ux%u%c", &w, &h, &extra) != 2 || w == 0 || h == 0 ||
+          w > 16384 || h > 16384) {
         usage("--size " + size + ": expected WxH, e.g. 1280x720");
       }
       render::ViewSetup v;
@@ -197,8 +224,9 @@ int main(int argc, char** argv) {
       double radius = 0.5 * glm::length(sum.bbox_max - sum.bbox_min);
       double dist = glm::length(glm::dvec3(cam.eye().x(), cam.eye().y(), cam.eye().z()) -
                                 glm::dvec3(cam.target().x(), cam.target().y(), cam.target().z()));
-      v.projection = glm::perspective(glm::radians(fovy), double(w) / h, std::max(1e-4 * radius, (dist - 4 * radius) * 0.5 + 1e-6 * radius),
-                                      dist + 4 * radius);
+      v.projection = glm::perspective(
+          glm::radians(fovy), double(w) / h,
+          std::max(1e-4 * radius, (dist - 4 * radius) * 0.5 + 1e-6 * radius), dist + 4 * radius);
       v.width = w;
       v.height = h;
       v.eye_world = glm::dvec3(cam.eye().x(), cam.eye().y(), cam.eye().z());
@@ -223,16 +251,20 @@ int main(int argc, char** argv) {
             if (off.y + int(y) < 0 || off.y + y >= result.height) continue;
             for (uint32_t x = 0; x < img.width; ++x) {
               if (off.x + int(x) < 0 || off.x + x >= result.width) continue;
-              std::memcpy(&result.rgba[(size_t(off.y + y) * result.width + off.x + x) * 4], &img.rgba[(size_t(y) * img.width + x) * 4], 4);
+              std::memcpy(&result.rgba[(size_t(off.y + y) * result.width + off.x + x) * 4],
+                          &img.rgba[(size_t(y) * img.width + x) * 4], 4);
             }
           }
         }
       } else {
-        const config::Tile* tile = wall.tiles_size() == 1 && tile_name.empty() ? &wall.tiles(0) : nullptr;
+        const config::Tile* tile =
+            wall.tiles_size() == 1 && tile_name.empty() ? &wall.tiles(0) : nullptr;
         for (const auto& t : wall.tiles()) {
           if (t.name() == tile_name) tile = &t;
         }
-        if (!tile) usage("--tile '" + tile_name + "' is not a tile of " + wall_path + " (give --tile, --mosaic or --whole)");
+        if (!tile)
+          usage("--tile '" + tile_name + "' is not a tile of " + wall_path +
+                " (give --tile, --mosaic or --whole)");
         result = renderView(tile->name(), render::tileView(wall, *tile, cam));
       }
     }

@@ -36,12 +36,12 @@ class ViewRenderer {
  public:
   ViewRenderer(uint32_t width, uint32_t height) : mRaster(width, height) {}
   /// Renders every model into one image (nearest point wins across models).
-  Image render(std::span<const ModelInstance> models, const ViewSetup& view, const RenderOptions& options,
-               RenderStats* stats = nullptr);
+  Image render(std::span<const ModelInstance> models, const ViewSetup& view,
+               const RenderOptions& options, RenderStats* stats = nullptr);
 
  private:
-  void addModel(lod::PointStore& store, const glm::dmat4& model, const ViewSetup& view, const RenderOptions& options,
-                std::vector<DrawBatch>& batches, RenderStats& stats);
+  void addModel(lod::PointStore& store, const glm::dmat4& model, const ViewSetup& view,
+                const RenderOptions& options, std::vector<DrawBatch>& batches, RenderStats& stats);
   PointRasterizer mRaster;
   std::vector<GpuPoint> mPoints;
 };

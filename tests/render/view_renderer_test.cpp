@@ -1,0 +1,157 @@
+// The GPU renderer (headless EGL, llvmpipe in CI) against an independent CPU projection of the
+// same points, the 2x2 mosaic against one render of the whole wall, and repeatability.
+#include <gtest/gtest.h>
+
+#include <cstring>
+
+#include <glm/gtc/matrix_transform.hpp>
+
+#include <tessera/lod/store_builder.h>
+#include <tessera/render/gl_context.h>
+#include <tessera/render/view_renderer.h>
+
+#include "../support/temp_dir.h"
+
+namespace tessera::render {
+namespace {
+
+const std::string kData = TESSERA_DATA_DIR;
+const std::string kConfigs = TESSERA_CONFIG_DIR;
+
+class ViewRendererTest : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    sDir = new test::TempDir();
+    lod::BuildOptions o;
+    o.quiet = true;
+    lod::buildStore({kData + "/stanford-bunny/scans/bun.conf"}, *sDir / "b.tlod", o);
+    sContext = GlContext::createHeadless().release();
+  }
+  static void TearDownTestSuite() {
+    delete sContext;
+    delete sDir;
+  }
+  static config::Camera camera(const lod::PointStore& s, double distance) {
+    const auto& sum = s.summary();
+    glm::dvec3 c = sum.origin + 0.5 * (sum.bbox_min + sum.bbox_max);
+    config::Camera cam;
+    cam.mutable_eye()->set_x(c.x + 0.05);
+    cam.mutable_eye()->set_y(c.y + 0.02);
+    cam.mutable_eye()->set_z(c.z + distance);
+    cam.mutable_target()->set_x(c.x);
+    cam.mutable_target()->set_y(c.y);
+    cam.mutable_target()->set_z(c.z);
+    cam.mutable_up()->set_y(1);
+    return cam;
+  }
+  static test::TempDir* sDir;
+  static GlContext* sContext;
+};
+test::TempDir* ViewRendererTest::sDir = nullptr;
+GlContext* ViewRendererTest::sContext = nullptr;
+
+ViewSetup plainView(const config::Camera& cam, uint32_t w, uint32_t h) {
+  ViewSetup v;
+  v.view = cameraView(cam);
+  v.projection = glm::perspective(glm::radians(40.0), double(w) / h, 0.01, 10.0);
+  v.width = w;
+  v.height = h;
+  v.eye_world = glm::dvec3(cam.eye().x(), cam.eye().y(), cam.eye().z());
+  return v;
+}
+
+TEST_F(ViewRendererTest, SilhouetteMatchesACpuProjectionOfTheSamePoints) {
+  auto s = lod::PointStore::open(*sDir / "b.tlod");
+  const ViewSetup v = plainView(camera(*s, 0.35), 320, 240);
+  const glm::dmat4 model = storeModel(*s);
+  ViewRenderer r(v.width, v.height);
+  ModelInstance inst{s.get(), model};
+  Image img = r.render({&inst, 1}, v, RenderOptions{});
+  // CPU: the same cut, projected in double precision, the same splat radius.
+  std::vector<uint8_t> cpu(size_t(v.width) * v.height, 0);
+  Cut cut = selectCut(*s, model, v);
+  for (const CutNode& n : cut.nodes) {
+    auto chunk = s->loadChunk(n.id);
+    int radius = std::clamp(int(std::ceil(n.projected_spacing_px * 0.5 - 0.5)), 0, 8);
+    for (const glm::vec3& p : chunk->positions) {
+      glm::dvec4 clip =
+          v.projection * v.view * model * glm::dvec4(chunk->offset + glm::dvec3(p), 1.0);
+      if (clip.w <= 0) continue;
+      glm::dvec3 ndc = glm::dvec3(clip) / clip.w;
+      if (ndc.z < -1 || ndc.z > 1) continue;
+      int cx = int(std::floor((ndc.x * 0.5 + 0.5) * v.width)),
+          cy = int(std::floor((ndc.y * 0.5 + 0.5) * v.height));
+      for (int dy = -radius; dy <= radius; ++dy)
+        for (int dx = -radius; dx <= radius; ++dx) {
+          if (dx * dx + dy * dy > radius * radius + radius) continue;
+          int x = cx + dx, y = cy + dy;
+          if (x < 0 || y < 0 || x >= int(v.width) || y >= int(v.height)) continue;
+          cpu[size_t(v.height - 1 - y) * v.width + size_t(x)] = 1;
+        }
+    }
+  }
+  size_t both = 0, either = 0;
+  for (size_t i = 0; i < cpu.size(); ++i) {
+    bool gpu = img.rgba[4 * i] != 0 || img.rgba[4 * i + 1] != 0 || img.rgba[4 * i + 2] != 0;
+    both += gpu && cpu[i];
+    either += gpu || cpu[i];
+  }
+  ASSERT_GT(either, 5000u) << "the bunny should cover a good part of the image";
+  double iou = double(both) / double(either);
+  EXPECT_GE(iou, 0.98);
+  std::printf("silhouette IoU GPU vs CPU: %.5f over %zu pixels\n", iou, either);
+}
+
+TEST_F(ViewRendererTest, MosaicEqualsTheWholeWallRender) {
+  auto s = lod::PointStore::open(*sDir / "b.tlod");
+  config::WallConfig wall = sync::loadWallConfig(kConfigs + "/walls/2x2.json");
+  config::Camera cam = camera(*s, 0.6);
+  ModelInstance inst{s.get(), storeModel(*s)};
+  ViewSetup whole_view = wholeWallView(wall, cam);
+  ViewRenderer whole_r(whole_view.width, whole_view.height);
+  Image whole = whole_r.render({&inst, 1}, whole_view, RenderOptions{});
+  size_t differ = 0, compared = 0, covered = 0;
+  for (const auto& tile : wall.tiles()) {
+    ViewSetup tv = tileView(wall, tile, cam);
+    ViewRenderer tr(tv.width, tv.height);
+    Image img = tr.render({&inst, 1}, tv, RenderOptions{});
+    glm::ivec2 off = tileOffsetInWhole(wall, tile);
+    for (uint32_t y = 0; y < img.height; ++y)
+      for (uint32_t x = 0; x < img.width; ++x) {
+        const uint8_t* a = &img.rgba[(size_t(y) * img.width + x) * 4];
+        const uint8_t* b = &whole.rgba[(size_t(off.y + y) * whole.width + off.x + x) * 4];
+        ++compared;
+        covered += a[0] != 0;
+        differ += std::memcmp(a, b, 4) != 0;
+      }
+  }
+  EXPECT_GT(covered, 100000u);
+  // Pixel for pixel, up to float rounding of points that fall exactly on a pixel edge.
+  EXPECT_LE(double(differ) / double(compared), 1e-4)
+      << differ << " of " << compared << " pixels differ";
+  std::printf("mosaic vs whole: %zu of %zu pixels differ\n", differ, compared);
+}
+
+TEST_F(ViewRendererTest, ColdAndWarmRendersAreIdentical) {
+  const ViewSetup v = [&] {
+    auto s = lod::PointStore::open(*sDir / "b.tlod");
+    return plainView(camera(*s, 0.3), 256, 192);
+  }();
+  Image first;
+  for (int round = 0; round < 3; ++round) {
+    auto s = lod::PointStore::open(*sDir / "b.tlod");  // cold cache each time
+    ModelInstance inst{s.get(), storeModel(*s)};
+    ViewRenderer r(v.width, v.height);
+    Image img = r.render({&inst, 1}, v, RenderOptions{});
+    Image warm = r.render({&inst, 1}, v, RenderOptions{});
+    EXPECT_EQ(img.rgba, warm.rgba);
+    if (round == 0) {
+      first = img;
+    } else {
+      EXPECT_EQ(img.rgba, first.rgba);
+    }
+  }
+}
+
+}  // namespace
+}  // namespace tessera::render
