@@ -1,5 +1,7 @@
 // Resolves the winning point of each pixel to its colour (background where none won), rows
-// flipped so row 0 is the top of the image.
+// flipped so row 0 is the top of the image, with optional eye-dome lighting (Boucheny 2009, as
+// in Potree): shade = exp(-k * mean over 8 neighbours of max(0, log2 d - log2 d_neighbour)),
+// d the linear view depth; neighbours without a point do not count. Needs no normals.
 layout(local_size_x = 16, local_size_y = 16) in;
 
 struct Point {
@@ -7,16 +9,48 @@ struct Point {
   uint rgba;
 };
 layout(std430, binding = 0) readonly buffer Points { Point points[]; };
+layout(std430, binding = 1) readonly buffer Depth { uint depth[]; };
 layout(std430, binding = 2) readonly buffer Ids { uint ids[]; };
 layout(std430, binding = 3) writeonly buffer Image { uint image[]; };
 
 uniform ivec2 uSize;
 uniform uint uBackground;  // rgba, r in the low byte
+uniform float uEdlStrength;  // 0: off
+uniform int uEdlRadius;      // pixels
+uniform float uP22;          // projection[2][2] and [3][2]: linear depth from NDC depth
+uniform float uP32;
+
+float logDepth(ivec2 q) {
+  uint d = depth[uint(q.y) * uint(uSize.x) + uint(q.x)];
+  if (d == 0xFFFFFFFFu) return 0.0;
+  float ndc = uintBitsToFloat(d) * 2.0 - 1.0;
+  return log2(max(uP32 / (ndc + uP22), 1e-30));
+}
 
 void main() {
   ivec2 p = ivec2(gl_GlobalInvocationID.xy);
   if (p.x >= uSize.x || p.y >= uSize.y) return;
   uint id = ids[uint(p.y) * uint(uSize.x) + uint(p.x)];
-  uint out_row = uint(uSize.y - 1 - p.y);
-  image[out_row * uint(uSize.x) + uint(p.x)] = id == 0xFFFFFFFFu ? uBackground : (points[id].rgba | 0xFF000000u);
+  uint out_index = uint(uSize.y - 1 - p.y) * uint(uSize.x) + uint(p.x);
+  if (id == 0xFFFFFFFFu) {
+    image[out_index] = uBackground;
+    return;
+  }
+  uint rgba = points[id].rgba;
+  if (uEdlStrength > 0.0) {
+    float here = logDepth(p);
+    float sum = 0.0;
+    const ivec2 dirs[8] = ivec2[8](ivec2(1, 0), ivec2(-1, 0), ivec2(0, 1), ivec2(0, -1),
+                                   ivec2(1, 1), ivec2(-1, -1), ivec2(1, -1), ivec2(-1, 1));
+    for (int k = 0; k < 8; ++k) {
+      ivec2 q = clamp(p + dirs[k] * uEdlRadius, ivec2(0), uSize - 1);
+      float there = logDepth(q);
+      if (there != 0.0) sum += max(0.0, here - there);
+    }
+    float shade = exp(-sum / 8.0 * 300.0 * uEdlStrength);
+    vec3 c = vec3(rgba & 0xFFu, (rgba >> 8) & 0xFFu, (rgba >> 16) & 0xFFu) * shade;
+    uvec3 u = uvec3(clamp(c + 0.5, 0.0, 255.0));
+    rgba = u.r | (u.g << 8) | (u.b << 16);
+  }
+  image[out_index] = rgba | 0xFF000000u;
 }

@@ -76,7 +76,8 @@ void PointRasterizer::setPoints(std::span<const GpuPoint> points) {
                        points.empty() ? nullptr : points.data(), 0);
 }
 
-void PointRasterizer::render(std::span<const DrawBatch> batches, const glm::vec3& background) {
+void PointRasterizer::render(std::span<const DrawBatch> batches, const glm::vec3& background,
+                             const RasterShading& shading) {
   const GLuint all_ones = 0xFFFFFFFFu;
   glClearNamedBufferData(mDepth, GL_R32UI, GL_RED_INTEGER, GL_UNSIGNED_INT, &all_ones);
   glClearNamedBufferData(mIds, GL_R32UI, GL_RED_INTEGER, GL_UNSIGNED_INT, &all_ones);
@@ -109,6 +110,10 @@ void PointRasterizer::render(std::span<const DrawBatch> batches, const glm::vec3
   glm::uvec3 bg = glm::uvec3(glm::clamp(background, 0.0f, 1.0f) * 255.0f + 0.5f);
   glUniform1ui(glGetUniformLocation(mResolveProgram, "uBackground"),
                bg.r | bg.g << 8 | bg.b << 16 | 0xFF000000u);
+  glUniform1f(glGetUniformLocation(mResolveProgram, "uEdlStrength"), shading.edl_strength);
+  glUniform1i(glGetUniformLocation(mResolveProgram, "uEdlRadius"), shading.edl_radius);
+  glUniform1f(glGetUniformLocation(mResolveProgram, "uP22"), float(shading.projection[2][2]));
+  glUniform1f(glGetUniformLocation(mResolveProgram, "uP32"), float(shading.projection[3][2]));
   glDispatchCompute((mWidth + 15) / 16, (mHeight + 15) / 16, 1);
   glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT | GL_SHADER_STORAGE_BARRIER_BIT);
 }

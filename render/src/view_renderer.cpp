@@ -27,7 +27,11 @@ Image ViewRenderer::render(std::span<const ModelInstance> models, const ViewSetu
   for (const ModelInstance& m : models) addModel(*m.store, m.model, view, options, batches, st);
   auto t2 = std::chrono::steady_clock::now();
   mRaster.setPoints(mPoints);
-  mRaster.render(batches, options.background);
+  RasterShading shading;
+  shading.edl_strength = options.edl_strength;
+  shading.edl_radius = options.edl_radius;
+  shading.projection = view.projection;
+  mRaster.render(batches, options.background, shading);
   Image img = mRaster.read();
   st.raster_ms = msSince(t2);
   st.points = mPoints.size();

@@ -114,7 +114,7 @@ int main(int argc, char** argv) {
   std::string wall_path, tile_name, size = "1280x720", scene_path, camera, background, stats_path,
                                     out;
   std::vector<std::string> models;
-  bool mosaic = false, whole = false;
+  bool mosaic = false, whole = false, edl = false;
   double fovy = 45.0, lod_px = 0.0;
   app.add_option("--wall", wall_path, "Wall configuration (JSON)");
   auto* tile_opt = app.add_option("--tile", tile_name, "Render this tile of the wall");
@@ -137,6 +137,8 @@ int main(int argc, char** argv) {
   app.add_option("--lod-px", lod_px, "LOD threshold in pixels (default: the scene's, else 1)")
       ->check(CLI::PositiveNumber);
   app.add_option("--background", background, "R,G,B in [0, 1]");
+  app.add_flag("--edl", edl,
+               "Eye-dome lighting (shape without normals; default: the scene's shading)");
   app.add_option("--stats", stats_path, "Append per-view statistics as CSV");
   app.add_option("-o,--output", out, "Output PNG")->required();
   CLI11_PARSE(app, argc, argv);
@@ -163,6 +165,7 @@ int main(int argc, char** argv) {
       have_camera = true;
       options.lod_pixels = scene.lod_pixels();
       options.background = glm::vec3(scene.background(0), scene.background(1), scene.background(2));
+      if (scene.shading() == "edl") options.edl_strength = 1.0f;
     }
     for (const std::string& m : models) {
       auto colon = m.rfind(':');
@@ -179,6 +182,7 @@ int main(int argc, char** argv) {
     }
     if (!have_camera) cam = fitCamera(*stores.front());
     if (lod_px > 0) options.lod_pixels = lod_px;
+    if (edl) options.edl_strength = 1.0f;
     if (!background.empty()) options.background = glm::vec3(parseVec(background, "--background"));
 
     auto ctx = render::GlContext::createHeadless();

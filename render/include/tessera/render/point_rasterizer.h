@@ -33,6 +33,14 @@ struct Image {
   std::vector<uint8_t> rgba;  ///< width * height * 4, top row first
 };
 
+/// Eye-dome lighting in the resolve pass: strength (0: off), neighbour distance in pixels, and
+/// the projection whose depth the batches wrote (for linear depth).
+struct RasterShading {
+  float edl_strength = 0.0f;
+  int edl_radius = 1;
+  glm::dmat4 projection{1.0};
+};
+
 class PointRasterizer {
  public:
   PointRasterizer(uint32_t width, uint32_t height);
@@ -43,7 +51,8 @@ class PointRasterizer {
   /// Replaces the uploaded points (one storage buffer).
   void setPoints(std::span<const GpuPoint> points);
   /// Clears, rasterises every batch (depth pass, then id pass), resolves colours.
-  void render(std::span<const DrawBatch> batches, const glm::vec3& background);
+  void render(std::span<const DrawBatch> batches, const glm::vec3& background,
+              const RasterShading& shading = RasterShading());
   /// The last render, read back.
   Image read() const;
 

@@ -17,6 +17,8 @@ struct RenderOptions {
   double lod_pixels = 1.0;
   glm::vec3 background{0.0f};
   glm::u8vec3 default_color{200, 200, 200};  ///< for stores without colour
+  float edl_strength = 0.0f;                 ///< eye-dome lighting (0: off, 1: usual)
+  int edl_radius = 1;                        ///< EDL neighbour distance, pixels
 };
 
 struct RenderStats {
