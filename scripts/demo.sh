@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # The main job as it stands: build, describe every real data file, virtually scan the bunny,
-# build and verify point LOD stores of the real scans.
+# build and verify point LOD stores of the real scans, render them headless (one view, a 2x2 wall).
 # Outputs go to out/demo/ (override with TESSERA_DEMO_OUT).
 set -uo pipefail
 cd "$(dirname "$0")/.."
@@ -10,8 +10,9 @@ out="${TESSERA_DEMO_OUT:-$root/out/demo}"
 
 ./scripts/deps.sh || exit 1
 cmake --preset release >/dev/null || exit 1
-cmake --build --preset release -j"$(nproc)" --target tessera-lod || exit 1
+cmake --build --preset release -j"$(nproc)" --target tessera-lod tessera-render || exit 1
 lod="$root/build/release/lod/tessera-lod"
+render="$root/build/release/render/tessera-render"
 mkdir -p "$out"
 
 echo "== tessera-lod info on every file in $data"
@@ -34,6 +35,15 @@ mkdir -p "$out/stores"
 "$lod" verify "$out/stores/autzen.tlod" "$data/lidar/autzen_trim.las" --quiet || exit 1
 "$lod" info "$out/stores/bunny.tlod" "$out/stores/autzen.tlod" | tee "$out/stores.txt"
 
+echo "== pictures: headless renders of the stores (compute-shader points, eye-dome lighting)"
+export EGL_PLATFORM=surfaceless
+"$render" --model "$out/stores/bunny.tlod" --edl --size 1280x960 --background 0.05,0.05,0.08 \
+  --stats "$out/render-stats.csv" -o "$out/bunny.png" || exit 1
+"$render" --model "$out/stores/autzen.tlod" --size 1280x720 --stats "$out/render-stats.csv" -o "$out/autzen.png" || exit 1
+"$render" --model "$out/stores/bunny.tlod" --edl --wall configs/walls/2x2.json --mosaic \
+  --camera "eye=-0.03,0.12,0.42;target=-0.026,0.1,0;up=0,1,0" --background 0.05,0.05,0.08 \
+  --stats "$out/render-stats.csv" -o "$out/wall-2x2.png" || exit 1
+
 echo
 echo "Outputs:"
 echo "  $out/info.txt                      description of every data file"
@@ -42,3 +52,6 @@ echo "  $out/bunny-virtual-scans/          virtual range scans (Stanford format)
 echo "  $out/bunny-virtual-scans.txt       their description"
 echo "  $out/stores/bunny.tlod, autzen.tlod   point LOD stores (the renderer's input)"
 echo "  $out/stores.txt                    their description"
+echo "  $out/bunny.png, autzen.png          renders of the stores"
+echo "  $out/wall-2x2.png                   the 2x2 wall (configs/walls/2x2.json), tiles assembled with bezels"
+echo "  $out/render-stats.csv               per-view render statistics"
