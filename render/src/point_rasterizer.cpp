@@ -2,6 +2,7 @@
 
 #include <png.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <string>
 
@@ -98,10 +99,15 @@ void PointRasterizer::render(std::span<const DrawBatch> batches, const glm::vec3
     for (const DrawBatch& b : batches) {
       if (b.count == 0) continue;
       glUniformMatrix4fv(u_clip, 1, GL_FALSE, &b.clip_from_local[0][0]);
-      glUniform1ui(u_first, b.first);
-      glUniform1ui(u_count, b.count);
       glUniform1i(u_radius, b.splat_radius);
-      glDispatchCompute((b.count + 127) / 128, 1, 1);
+      // At most 65535 work groups per dispatch (GL's guaranteed minimum, llvmpipe's limit).
+      const uint32_t kMaxPoints = 65535u * 128u;
+      for (uint32_t done = 0; done < b.count; done += kMaxPoints) {
+        const uint32_t count = std::min(kMaxPoints, b.count - done);
+        glUniform1ui(u_first, b.first + done);
+        glUniform1ui(u_count, count);
+        glDispatchCompute((count + 127) / 128, 1, 1);
+      }
     }
     glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
   }

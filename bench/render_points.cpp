@@ -1,0 +1,222 @@
+// render_points: the point pass against its baselines, in one run, on one context, with the same
+// resident points at 1920x1080 (issue 4): (a) bare GL_POINTS into a depth-tested framebuffer,
+// (b) a bare compute atomicMin scatter (one pass, one pixel per point), (c) the renderer's point
+// pass (PointRasterizer: depth pass, id pass, resolve). Points come from a .tlod store's leaves.
+// Prints CSV, writes OUT/render_points.csv and OUT/render_points.png.
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+
+#include <CLI/CLI.hpp>
+#include <glm/gtc/matrix_transform.hpp>
+
+#define GL_GLEXT_PROTOTYPES
+#include <GL/glcorearb.h>
+
+#include <tessera/lod/point_store.h>
+#include <tessera/render/gl_context.h>
+#include <tessera/render/point_rasterizer.h>
+
+namespace {
+
+using namespace tessera;
+using Clock = std::chrono::steady_clock;
+
+GLuint program(std::initializer_list<std::pair<GLenum, const char*>> stages) {
+  GLuint p = glCreateProgram();
+  for (auto [type, src] : stages) {
+    GLuint s = glCreateShader(type);
+    glShaderSource(s, 1, &src, nullptr);
+    glCompileShader(s);
+    GLint ok = 0;
+    glGetShaderiv(s, GL_COMPILE_STATUS, &ok);
+    if (!ok) {
+      char log[2048];
+      glGetShaderInfoLog(s, sizeof log, nullptr, log);
+      throw std::runtime_error(std::string("render_points: shader: ") + log);
+    }
+    glAttachShader(p, s);
+    glDeleteShader(s);
+  }
+  glLinkProgram(p);
+  return p;
+}
+
+const char* kVertex = R"(#version 450 core
+layout(location = 0) in vec3 aPos;
+layout(location = 1) in uint aRgba;
+uniform mat4 uClip;
+flat out uint vRgba;
+void main() { gl_Position = uClip * vec4(aPos, 1.0); vRgba = aRgba; })";
+const char* kFragment = R"(#version 450 core
+flat in uint vRgba;
+out vec4 color;
+void main() { color = unpackUnorm4x8(vRgba); })";
+const char* kScatter = R"(#version 450 core
+layout(local_size_x = 128) in;
+struct Point { vec3 position; uint rgba; };
+layout(std430, binding = 0) readonly buffer Points { Point points[]; };
+layout(std430, binding = 1) buffer Depth { uint depth[]; };
+uniform mat4 uClip; uniform uint uFirst; uniform uint uCount; uniform ivec2 uSize;
+void main() {
+  if (gl_GlobalInvocationID.x >= uCount) return;
+  uint i = uFirst + gl_GlobalInvocationID.x;
+  vec4 c = uClip * vec4(points[i].position, 1.0);
+  if (c.w <= 0.0) return;
+  vec3 ndc = c.xyz / c.w;
+  ivec2 q = ivec2(floor((ndc.xy * 0.5 + 0.5) * vec2(uSize)));
+  if (q.x < 0 || q.y < 0 || q.x >= uSize.x || q.y >= uSize.y || ndc.z < -1.0 || ndc.z > 1.0) return;
+  atomicMin(depth[uint(q.y) * uint(uSize.x) + uint(q.x)], floatBitsToUint(ndc.z * 0.5 + 0.5));
+})";
+
+template <typename Fn>
+double best(int repeats, Fn&& fn) {
+  double b = 1e30;
+  for (int r = 0; r < repeats; ++r) {
+    glFinish();
+    auto t = Clock::now();
+    fn();
+    glFinish();
+    b = std::min(b, std::chrono::duration<double>(Clock::now() - t).count());
+  }
+  return b;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{
+      "render_points: GL_POINTS vs compute scatter vs the renderer's point pass, same points, "
+      "1920x1080"};
+  std::string store_path, out = TESSERA_BENCH_RESULTS_DIR;
+  uint64_t max_points = 10'000'000;
+  int repeats = 3;
+  app.add_option("STORE", store_path, "A .tlod store (its leaves supply the points)")->required();
+  app.add_option("--points", max_points, "Points to draw")->capture_default_str();
+  app.add_option("--repeat", repeats, "Best of this many frames")->capture_default_str();
+  app.add_option("--out", out, "Folder for CSV and chart")->capture_default_str();
+  CLI11_PARSE(app, argc, argv);
+
+  auto ctx = render::GlContext::createHeadless();
+  auto store = lod::PointStore::open(store_path);
+  // Leaves, nearest the root first, until enough points: positions in the store frame (float).
+  std::vector<render::GpuPoint> pts;
+  std::vector<lod::NodeId> stack{store->root()};
+  while (!stack.empty() && pts.size() < max_points) {
+    lod::NodeId id = stack.back();
+    stack.pop_back();
+    lod::NodeInfo n = store->node(id);
+    if (!n.leaf()) {
+      for (lod::NodeId c : store->children(id)) stack.push_back(c);
+      continue;
+    }
+    auto c = store->loadChunk(id);
+    for (size_t i = 0; i < c->size() && pts.size() < max_points; ++i) {
+      pts.push_back({glm::vec3(c->offset + glm::dvec3(c->positions[i])), 0xFFC8C8C8u});
+    }
+  }
+  const auto& sum = store->summary();
+  glm::dvec3 centre = 0.5 * (sum.bbox_min + sum.bbox_max);
+  double radius = 0.5 * glm::length(sum.bbox_max - sum.bbox_min);
+  const uint32_t W = 1920, H = 1080;
+  glm::mat4 clip(glm::perspective(glm::radians(45.0), double(W) / H, 0.1 * radius, 10 * radius) *
+                 glm::lookAt(centre + glm::dvec3(0, 0, 2.2 * radius), centre, glm::dvec3(0, 1, 0)));
+  const uint32_t n = uint32_t(pts.size());
+
+  GLuint vbo;
+  glCreateBuffers(1, &vbo);
+  glNamedBufferStorage(vbo, GLsizeiptr(pts.size() * sizeof(render::GpuPoint)), pts.data(), 0);
+  // (a) GL_POINTS into an RGBA8 + depth framebuffer.
+  GLuint vao, fbo, color_rb, depth_rb;
+  glCreateVertexArrays(1, &vao);
+  glVertexArrayVertexBuffer(vao, 0, vbo, 0, sizeof(render::GpuPoint));
+  glEnableVertexArrayAttrib(vao, 0);
+  glVertexArrayAttribFormat(vao, 0, 3, GL_FLOAT, GL_FALSE, 0);
+  glVertexArrayAttribBinding(vao, 0, 0);
+  glEnableVertexArrayAttrib(vao, 1);
+  glVertexArrayAttribIFormat(vao, 1, 1, GL_UNSIGNED_INT, 12);
+  glVertexArrayAttribBinding(vao, 1, 0);
+  glCreateRenderbuffers(1, &color_rb);
+  glNamedRenderbufferStorage(color_rb, GL_RGBA8, W, H);
+  glCreateRenderbuffers(1, &depth_rb);
+  glNamedRenderbufferStorage(depth_rb, GL_DEPTH_COMPONENT24, W, H);
+  glCreateFramebuffers(1, &fbo);
+  glNamedFramebufferRenderbuffer(fbo, GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER, color_rb);
+  glNamedFramebufferRenderbuffer(fbo, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, depth_rb);
+  GLuint raster = program({{GL_VERTEX_SHADER, kVertex}, {GL_FRAGMENT_SHADER, kFragment}});
+  double t_points = best(repeats, [&] {
+    glBindFramebuffer(GL_FRAMEBUFFER, fbo);
+    glViewport(0, 0, W, H);
+    glEnable(GL_DEPTH_TEST);
+    glClearColor(0, 0, 0, 1);
+    glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
+    glUseProgram(raster);
+    glUniformMatrix4fv(glGetUniformLocation(raster, "uClip"), 1, GL_FALSE, &clip[0][0]);
+    glBindVertexArray(vao);
+    glDrawArrays(GL_POINTS, 0, GLsizei(n));
+  });
+  // (b) bare compute scatter.
+  GLuint scatter = program({{GL_COMPUTE_SHADER, kScatter}});
+  GLuint depth;
+  glCreateBuffers(1, &depth);
+  glNamedBufferStorage(depth, GLsizeiptr(size_t(W) * H * 4), nullptr, GL_DYNAMIC_STORAGE_BIT);
+  double t_scatter = best(repeats, [&] {
+    const GLuint ones = 0xFFFFFFFFu;
+    glClearNamedBufferData(depth, GL_R32UI, GL_RED_INTEGER, GL_UNSIGNED_INT, &ones);
+    glUseProgram(scatter);
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, vbo);
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, depth);
+    glUniformMatrix4fv(glGetUniformLocation(scatter, "uClip"), 1, GL_FALSE, &clip[0][0]);
+    glUniform2i(glGetUniformLocation(scatter, "uSize"), W, H);
+    const uint32_t kMaxPoints = 65535u * 128u;  // work-group count limit per dispatch
+    for (uint32_t done = 0; done < n; done += kMaxPoints) {
+      const uint32_t count = std::min(kMaxPoints, n - done);
+      glUniform1ui(glGetUniformLocation(scatter, "uFirst"), done);
+      glUniform1ui(glGetUniformLocation(scatter, "uCount"), count);
+      glDispatchCompute((count + 127) / 128, 1, 1);
+    }
+    glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+  });
+  // (c) the renderer's point pass.
+  render::PointRasterizer rast(W, H);
+  rast.setPoints(pts);
+  render::DrawBatch batch;
+  batch.count = n;
+  batch.clip_from_local = clip;
+  double t_renderer = best(repeats, [&] { rast.render({&batch, 1}, glm::vec3(0)); });
+
+  struct Row {
+    const char* name;
+    double s;
+  } rows[] = {{"(a) GL_POINTS", t_points},
+              {"(b) compute scatter", t_scatter},
+              {"(c) renderer point pass", t_renderer}};
+  std::filesystem::create_directories(out);
+  std::ofstream csv(std::filesystem::path(out) / "render_points.csv");
+  csv << "method,points,seconds,mpoints_per_s\n";
+  std::printf("method,points,seconds,mpoints_per_s\n");
+  for (const Row& r : rows) {
+    std::printf("\"%s\",%u,%.4f,%.1f\n", r.name, n, r.s, n / r.s / 1e6);
+    csv << '"' << r.name << "\"," << n << "," << r.s << "," << n / r.s / 1e6 << "\n";
+  }
+  csv.close();
+  std::fprintf(stderr, "%s\n(c)/(a) = %.1fx (goal >= 15x), (c)/(b) = %.0f%% (goal >= 60%%)\n",
+               ctx->description().c_str(), t_points / t_renderer, 100.0 * t_scatter / t_renderer);
+  std::ofstream gp(std::filesystem::path(out) / "render_points.gp");
+  gp << "set terminal pngcairo size 900,450 font 'sans,10' noenhanced\nset output '"
+     << (std::filesystem::path(out) / "render_points.png").string() << "'\n"
+     << "set datafile separator ','\nset style data histograms\nset style fill solid 0.8 border "
+        "-1\nset logscale y\n"
+     << "set ylabel 'M points/s (log)'\nset title 'Point pass at 1920x1080, " << n
+     << " points, llvmpipe, 2 cores'\n"
+     << "set grid ytics\nplot '" << (std::filesystem::path(out) / "render_points.csv").string()
+     << "' every ::1 using 4:xtic(1) title 'M points/s'\n";
+  gp.close();
+  std::string cmd = std::string(TESSERA_GNUPLOT) + " '" +
+                    (std::filesystem::path(out) / "render_points.gp").string() + "'";
+  if (std::system(cmd.c_str()) != 0)
+    std::fprintf(stderr, "render_points: gnuplot failed; the CSV is complete\n");
+  return 0;
+}
