@@ -19,6 +19,7 @@ uniform float uEdlStrength;  // 0: off
 uniform int uEdlRadius;      // pixels
 uniform float uP22;          // projection[2][2] and [3][2]: linear depth from NDC depth
 uniform float uP32;
+uniform uint uUniformColor;  // non-zero: every point has this colour and no id pass ran
 
 float logDepth(ivec2 q) {
   uint d = depth[uint(q.y) * uint(uSize.x) + uint(q.x)];
@@ -30,13 +31,14 @@ float logDepth(ivec2 q) {
 void main() {
   ivec2 p = ivec2(gl_GlobalInvocationID.xy);
   if (p.x >= uSize.x || p.y >= uSize.y) return;
-  uint id = ids[uint(p.y) * uint(uSize.x) + uint(p.x)];
+  uint pixel = uint(p.y) * uint(uSize.x) + uint(p.x);
   uint out_index = uint(uSize.y - 1 - p.y) * uint(uSize.x) + uint(p.x);
+  uint id = uUniformColor != 0u ? (depth[pixel] == 0xFFFFFFFFu ? 0xFFFFFFFFu : 0u) : ids[pixel];
   if (id == 0xFFFFFFFFu) {
     image[out_index] = uBackground;
     return;
   }
-  uint rgba = points[id].rgba;
+  uint rgba = uUniformColor != 0u ? uUniformColor : points[id].rgba;
   if (uEdlStrength > 0.0) {
     float here = logDepth(p);
     float sum = 0.0;

@@ -94,7 +94,8 @@ void PointRasterizer::render(std::span<const DrawBatch> batches, const glm::vec3
   const GLint u_radius = glGetUniformLocation(mRasterProgram, "uRadius");
   const GLint u_pass = glGetUniformLocation(mRasterProgram, "uPass");
   glUniform2i(u_size, GLint(mWidth), GLint(mHeight));
-  for (int pass = 0; pass < 2; ++pass) {
+  const int passes = shading.uniform_color != 0 ? 1 : 2;
+  for (int pass = 0; pass < passes; ++pass) {
     glUniform1i(u_pass, pass);
     for (const DrawBatch& b : batches) {
       if (b.count == 0) continue;
@@ -116,6 +117,7 @@ void PointRasterizer::render(std::span<const DrawBatch> batches, const glm::vec3
   glm::uvec3 bg = glm::uvec3(glm::clamp(background, 0.0f, 1.0f) * 255.0f + 0.5f);
   glUniform1ui(glGetUniformLocation(mResolveProgram, "uBackground"),
                bg.r | bg.g << 8 | bg.b << 16 | 0xFF000000u);
+  glUniform1ui(glGetUniformLocation(mResolveProgram, "uUniformColor"), shading.uniform_color);
   glUniform1f(glGetUniformLocation(mResolveProgram, "uEdlStrength"), shading.edl_strength);
   glUniform1i(glGetUniformLocation(mResolveProgram, "uEdlRadius"), shading.edl_radius);
   glUniform1f(glGetUniformLocation(mResolveProgram, "uP22"), float(shading.projection[2][2]));

@@ -28,6 +28,14 @@ Image ViewRenderer::render(std::span<const ModelInstance> models, const ViewSetu
   auto t2 = std::chrono::steady_clock::now();
   mRaster.setPoints(mPoints);
   RasterShading shading;
+  bool any_color = false;
+  for (const ModelInstance& m : models)
+    any_color |= (m.store->summary().attributes & lod::kColor) != 0;
+  if (!any_color) {
+    shading.uniform_color = uint32_t(options.default_color.r) |
+                            uint32_t(options.default_color.g) << 8 |
+                            uint32_t(options.default_color.b) << 16 | 0xFF000000u;
+  }
   shading.edl_strength = options.edl_strength;
   shading.edl_radius = options.edl_radius;
   shading.projection = view.projection;

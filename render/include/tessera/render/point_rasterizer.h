@@ -36,6 +36,9 @@ struct Image {
 /// Eye-dome lighting in the resolve pass: strength (0: off), neighbour distance in pixels, and
 /// the projection whose depth the batches wrote (for linear depth).
 struct RasterShading {
+  /// Non-zero (rgba, r in the low byte): every point has this colour, so only the depth pass
+  /// runs (points without colour need no id pass).
+  uint32_t uniform_color = 0;
   float edl_strength = 0.0f;
   int edl_radius = 1;
   glm::dmat4 projection{1.0};
