@@ -2,6 +2,7 @@
 // same points, the 2x2 mosaic against one render of the whole wall, and repeatability.
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <cstring>
 
 #include <glm/gtc/matrix_transform.hpp>
@@ -130,6 +131,35 @@ TEST_F(ViewRendererTest, MosaicEqualsTheWholeWallRender) {
   EXPECT_LE(double(differ) / double(compared), 1e-4)
       << differ << " of " << compared << " pixels differ";
   std::printf("mosaic vs whole: %zu of %zu pixels differ\n", differ, compared);
+}
+
+TEST_F(ViewRendererTest, FarViewAtOnePixelDrawsFewPointsAndLooksLikeFullResolution) {
+  auto s = lod::PointStore::open(*sDir / "b.tlod");
+  const ViewSetup v = plainView(camera(*s, 1.2), 320, 240);
+  ModelInstance inst{s.get(), storeModel(*s)};
+  ViewRenderer r(v.width, v.height);
+  RenderOptions lod1;
+  lod1.edl_strength = 1.0f;
+  RenderOptions full = lod1;
+  full.lod_pixels = 1e-6;  // every leaf: the full-resolution reference
+  RenderStats st1, stf;
+  Image a = r.render({&inst, 1}, v, lod1, &st1);
+  Image b = r.render({&inst, 1}, v, full, &stf);
+  EXPECT_EQ(stf.points, 362272u);
+  EXPECT_LT(double(st1.points), 0.25 * double(stf.points));
+  double se = 0;
+  for (size_t i = 0; i < a.rgba.size(); i += 4) {
+    for (int c = 0; c < 3; ++c) {
+      double d = double(a.rgba[i + c]) - double(b.rgba[i + c]);
+      se += d * d;
+    }
+  }
+  double mse = se / double(a.rgba.size() / 4 * 3);
+  double psnr = mse > 0 ? 10.0 * std::log10(255.0 * 255.0 / mse) : 99.0;
+  std::printf("far view at 1 px: %llu of %llu points (%.1f%%), PSNR %.1f dB to full resolution\n",
+              (unsigned long long)st1.points, (unsigned long long)stf.points,
+              100.0 * st1.points / stf.points, psnr);
+  EXPECT_GE(psnr, 30.0);  // measured 34.6 dB with 1.7% of the points
 }
 
 TEST_F(ViewRendererTest, ColdAndWarmRendersAreIdentical) {
