@@ -74,6 +74,7 @@ PointDistributor::PointDistributor(const std::vector<std::filesystem::path>& inp
   for (const auto& path : inputs) {
     auto reader = openPointReader(path);  // throws ReadError naming the file
     const SourceInfo& info = reader->info();
+    if (mInputs.empty()) mFirstOrigin = info.origin;
     mInputs.push_back({path, uint16_t(next_source)});
     if (info.format == Format::kStanfordConf) {
       for (const ScanInfo& s : info.scans)
@@ -186,7 +187,7 @@ void PointDistributor::forEachRaw(const std::string& label, int parts,
 void PointDistributor::measure(const std::filesystem::path& raw_file) {
   // The local frame's origin is the first input's own (a LAS file's local origin, 0 for
   // others): positions then carry the same arithmetic in build and verify.
-  mFrame.origin = openPointReader(mInputs.front().path)->info().origin;
+  mFrame.origin = mFirstOrigin;
   readInputs("build 1/5 reading", raw_file);
   if (mPoints == 0) throw ReadError("lod::buildStore(): the inputs hold no points");
   // The root cube around the box, a hair larger so nothing sits on its far faces.

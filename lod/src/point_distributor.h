@@ -107,6 +107,7 @@ class PointDistributor {
   uint64_t mSkipped = 0;
   glm::dvec3 mMin{0.0}, mMax{0.0};
   CubeFrame mFrame;
+  glm::dvec3 mFirstOrigin{0.0};  ///< the first input's local origin (the store's origin)
   std::filesystem::path mRawFile;
   bool mQuiet;
 };

@@ -60,12 +60,7 @@ VerifyReport verifyStore(const std::filesystem::path& store_path,
   CubeFrame frame;
   frame.origin = sum.origin;
   frame.cube_size = sum.cube_size;
-  frame.cube_min = glm::dvec3(-0.5 * sum.cube_size);
-  {
-    // The store records its cube; recompute from the root node to be exact.
-    NodeInfo root = store->node(store->root());
-    frame.cube_min = root.box_min;
-  }
+  frame.cube_min = store->node(store->root()).box_min;  // the root node's box is the cube
 
   // The whole hierarchy (metadata only) and a key -> node map. Inner nodes are decoded here
   // (checksums, and their sampled copies must lie in their box); leaves during matching.

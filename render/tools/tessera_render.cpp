@@ -275,17 +275,12 @@ int main(int argc, char** argv) {
     render::writePng(out, result);
     std::printf("wrote %s (%ux%u)\n", out.c_str(), result.width, result.height);
     return 0;
-  } catch (const sync::ConfigError& e) {
-    std::fprintf(stderr, "tessera-render: %s\n", e.what());
-    return 1;
-  } catch (const lod::StoreError& e) {
-    std::fprintf(stderr, "tessera-render: %s\n", e.what());
-    return 1;
-  } catch (const lod::ReadError& e) {
-    std::fprintf(stderr, "tessera-render: %s\n", e.what());
-    return 1;
-  } catch (const render::RenderError& e) {
+  } catch (const render::RenderError& e) {  // no usable GL, or the PNG cannot be written
     std::fprintf(stderr, "tessera-render: %s\n", e.what());
     return 3;
+  } catch (const std::runtime_error&
+               e) {  // bad config, store or scan (ConfigError, StoreError, ReadError)
+    std::fprintf(stderr, "tessera-render: %s\n", e.what());
+    return 1;
   }
 }
