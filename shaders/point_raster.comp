@@ -2,8 +2,10 @@
 // compute atomicMin scatter ~100 M points/s). Without 64-bit atomics the nearest point wins in
 // two passes over the same points: pass 0 keeps the smallest depth per pixel (atomicMin on the
 // depth's float bits, which order like the floats for depths in [0, 1]); pass 1, among points at
-// that depth, keeps the smallest point index, so the result is the same whatever the thread
-// order. Splats are round, `uRadius` pixels, sized from the node spacing by the caller.
+// that depth, keeps the smallest colour, so the result is the same whatever the thread order and
+// whichever buffer a point came from. Splats are round; their diameter follows the node's sample
+// spacing as it projects at each point (uSpacingK / w pixels), so surfaces close at every LOD
+// level without fat blobs behind near ones, radius capped at uRadius.
 layout(local_size_x = 128) in;
 
 struct Point {
@@ -12,14 +14,15 @@ struct Point {
 };
 layout(std430, binding = 0) readonly buffer Points { Point points[]; };
 layout(std430, binding = 1) buffer Depth { uint depth[]; };
-layout(std430, binding = 2) buffer Ids { uint ids[]; };
+layout(std430, binding = 2) buffer Colors { uint colors[]; };  // rgb, 0xFFFFFFFF: none
 
 uniform mat4 uClip;     // clip from the batch's node frame
 uniform uint uFirst;    // first point of the batch in `points`
 uniform uint uCount;
 uniform ivec2 uSize;    // viewport in pixels
-uniform int uRadius;
-uniform int uPass;      // 0: depth, 1: id
+uniform int uRadius;    // the largest splat radius, pixels (the radius when uSpacingK is 0)
+uniform float uSpacingK;  // node spacing in pixels at view depth 1 (0: fixed radius uRadius)
+uniform int uPass;      // 0: depth, 1: colour
 
 void main() {
   uint i = gl_GlobalInvocationID.x;
@@ -29,19 +32,30 @@ void main() {
   if (c.w <= 0.0) return;
   vec3 ndc = c.xyz / c.w;
   if (ndc.z < -1.0 || ndc.z > 1.0) return;
-  ivec2 centre = ivec2(floor((ndc.xy * 0.5 + 0.5) * vec2(uSize)));
+  vec2 pos = (ndc.xy * 0.5 + 0.5) * vec2(uSize);  // pixels, sub-pixel exact
+  ivec2 centre = ivec2(floor(pos));
   uint d = floatBitsToUint(ndc.z * 0.5 + 0.5);
-  int r2 = uRadius * uRadius + uRadius;
-  for (int dy = -uRadius; dy <= uRadius; ++dy) {
-    for (int dx = -uRadius; dx <= uRadius; ++dx) {
-      if (dx * dx + dy * dy > r2) continue;
+  // With a spacing, the splat is the disc of diameter (projected spacing) around the point's
+  // exact position: it covers the pixels whose centres it contains, and always its own pixel.
+  // Fixed splats cover the integer disc of radius uRadius around the point's pixel.
+  float disc = uSpacingK > 0.0 ? min(0.5 * uSpacingK / c.w, float(uRadius)) : 0.0;
+  int radius = uSpacingK > 0.0 ? int(ceil(disc)) : uRadius;
+  int r2 = radius * radius + radius;
+  for (int dy = -radius; dy <= radius; ++dy) {
+    for (int dx = -radius; dx <= radius; ++dx) {
+      if (uSpacingK > 0.0) {
+        vec2 off = vec2(centre + ivec2(dx, dy)) + 0.5 - pos;
+        if ((dx != 0 || dy != 0) && dot(off, off) > disc * disc) continue;
+      } else if (dx * dx + dy * dy > r2) {
+        continue;
+      }
       ivec2 q = centre + ivec2(dx, dy);
       if (q.x < 0 || q.y < 0 || q.x >= uSize.x || q.y >= uSize.y) continue;
       uint idx = uint(q.y) * uint(uSize.x) + uint(q.x);
       if (uPass == 0) {
         atomicMin(depth[idx], d);
       } else if (depth[idx] == d) {
-        atomicMin(ids[idx], gi);
+        atomicMin(colors[idx], points[gi].rgba & 0xFFFFFFu);
       }
     }
   }

@@ -4,13 +4,8 @@
 // d the linear view depth; neighbours without a point do not count. Needs no normals.
 layout(local_size_x = 16, local_size_y = 16) in;
 
-struct Point {
-  vec3 position;
-  uint rgba;
-};
-layout(std430, binding = 0) readonly buffer Points { Point points[]; };
 layout(std430, binding = 1) readonly buffer Depth { uint depth[]; };
-layout(std430, binding = 2) readonly buffer Ids { uint ids[]; };
+layout(std430, binding = 2) readonly buffer Colors { uint colors[]; };  // rgb of the winner
 layout(std430, binding = 3) writeonly buffer Image { uint image[]; };
 
 uniform ivec2 uSize;
@@ -19,7 +14,7 @@ uniform float uEdlStrength;  // 0: off
 uniform int uEdlRadius;      // pixels
 uniform float uP22;          // projection[2][2] and [3][2]: linear depth from NDC depth
 uniform float uP32;
-uniform uint uUniformColor;  // non-zero: every point has this colour and no id pass ran
+uniform uint uUniformColor;  // non-zero: every point has this colour and no colour pass ran
 
 float logDepth(ivec2 q) {
   uint d = depth[uint(q.y) * uint(uSize.x) + uint(q.x)];
@@ -33,12 +28,11 @@ void main() {
   if (p.x >= uSize.x || p.y >= uSize.y) return;
   uint pixel = uint(p.y) * uint(uSize.x) + uint(p.x);
   uint out_index = uint(uSize.y - 1 - p.y) * uint(uSize.x) + uint(p.x);
-  uint id = uUniformColor != 0u ? (depth[pixel] == 0xFFFFFFFFu ? 0xFFFFFFFFu : 0u) : ids[pixel];
-  if (id == 0xFFFFFFFFu) {
+  if (depth[pixel] == 0xFFFFFFFFu) {
     image[out_index] = uBackground;
     return;
   }
-  uint rgba = uUniformColor != 0u ? uUniformColor : points[id].rgba;
+  uint rgba = uUniformColor != 0u ? uUniformColor : colors[pixel];
   if (uEdlStrength > 0.0) {
     float here = logDepth(p);
     float sum = 0.0;

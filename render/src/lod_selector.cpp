@@ -22,9 +22,13 @@ Cut selectCut(lod::PointStore& store, const glm::dmat4& model, const ViewSetup& 
   const double unit = std::cbrt(std::abs(glm::determinant(glm::dmat3(model))));
   const double k = pixelsPerUnitAtDistanceOne(view);
 
-  std::vector<lod::NodeId> stack{store.root()};
+  struct Entry {
+    lod::NodeId id;
+    int32_t parent;
+  };
+  std::vector<Entry> stack{{store.root(), -1}};
   while (!stack.empty()) {
-    const lod::NodeId id = stack.back();
+    const auto [id, parent] = stack.back();
     stack.pop_back();
     ++cut.visited;
     const lod::NodeInfo n = store.node(id);
@@ -36,14 +40,22 @@ Cut selectCut(lod::PointStore& store, const glm::dmat4& model, const ViewSetup& 
     const double d = glm::length(eye - nearest) * unit;
     const double px =
         d > 0 ? double(n.spacing) * unit * k / d : std::numeric_limits<double>::infinity();
-    const bool refine =
-        !n.leaf() && px > options.pixel_threshold && cut.nodes.size() < options.max_nodes;
+    const CutNode here{id,    std::isfinite(px) ? px : 0.0, d, double(n.spacing) * unit, n.level,
+                       parent};
+    bool refine = !n.leaf() && px > options.pixel_threshold && cut.nodes.size() < options.max_nodes;
+    if (refine && options.may_load_children && !store.childrenLoaded(id) &&
+        !options.may_load_children(id)) {
+      refine = false;
+      ++cut.pages_deferred;
+    }
     if (!refine) {
-      cut.nodes.push_back({id, std::isfinite(px) ? px : 0.0, d});
+      cut.nodes.push_back(here);
       cut.points += n.points;
       continue;
     }
-    for (lod::NodeId c : store.children(id)) stack.push_back(c);
+    cut.above.push_back(here);
+    const auto index = int32_t(cut.above.size() - 1);
+    for (lod::NodeId c : store.children(id)) stack.push_back({c, index});
   }
   // Nearest first: the order a loader should fetch them in.
   std::sort(cut.nodes.begin(), cut.nodes.end(),

@@ -3,6 +3,7 @@
 #include <png.h>
 
 #include <algorithm>
+#include <chrono>
 #include <cstdio>
 #include <string>
 
@@ -59,12 +60,12 @@ PointRasterizer::PointRasterizer(uint32_t width, uint32_t height) : mWidth(width
   mResolveProgram = compileCompute(shaders::kPointResolve, "point_resolve.comp");
   const size_t pixels = size_t(width) * height;
   mDepth = makeBuffer(pixels * 4);
-  mIds = makeBuffer(pixels * 4);
+  mColors = makeBuffer(pixels * 4);
   mImage = makeBuffer(pixels * 4);
 }
 
 PointRasterizer::~PointRasterizer() {
-  GLuint buffers[] = {mPoints, mDepth, mIds, mImage};
+  GLuint buffers[] = {mPoints, mDepth, mColors, mImage};
   glDeleteBuffers(4, buffers);
   glDeleteProgram(mRasterProgram);
   glDeleteProgram(mResolveProgram);
@@ -77,14 +78,22 @@ void PointRasterizer::setPoints(std::span<const GpuPoint> points) {
                        points.empty() ? nullptr : points.data(), 0);
 }
 
-void PointRasterizer::render(std::span<const DrawBatch> batches, const glm::vec3& background,
-                             const RasterShading& shading) {
+RasterTimings PointRasterizer::render(std::span<const DrawBatch> batches,
+                                      const glm::vec3& background, const RasterShading& shading) {
+  RasterTimings timings;
+  auto t = std::chrono::steady_clock::now();
+  auto lap = [&t] {
+    glFinish();
+    const auto now = std::chrono::steady_clock::now();
+    const double ms = std::chrono::duration<double, std::milli>(now - t).count();
+    t = now;
+    return ms;
+  };
   const GLuint all_ones = 0xFFFFFFFFu;
   glClearNamedBufferData(mDepth, GL_R32UI, GL_RED_INTEGER, GL_UNSIGNED_INT, &all_ones);
-  glClearNamedBufferData(mIds, GL_R32UI, GL_RED_INTEGER, GL_UNSIGNED_INT, &all_ones);
-  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, mPoints);
+  glClearNamedBufferData(mColors, GL_R32UI, GL_RED_INTEGER, GL_UNSIGNED_INT, &all_ones);
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, mDepth);
-  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 2, mIds);
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 2, mColors);
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 3, mImage);
   glUseProgram(mRasterProgram);
   const GLint u_clip = glGetUniformLocation(mRasterProgram, "uClip");
@@ -93,12 +102,15 @@ void PointRasterizer::render(std::span<const DrawBatch> batches, const glm::vec3
   const GLint u_size = glGetUniformLocation(mRasterProgram, "uSize");
   const GLint u_radius = glGetUniformLocation(mRasterProgram, "uRadius");
   const GLint u_pass = glGetUniformLocation(mRasterProgram, "uPass");
+  const GLint u_spacing = glGetUniformLocation(mRasterProgram, "uSpacingK");
   glUniform2i(u_size, GLint(mWidth), GLint(mHeight));
   const int passes = shading.uniform_color != 0 ? 1 : 2;
   for (int pass = 0; pass < passes; ++pass) {
     glUniform1i(u_pass, pass);
     for (const DrawBatch& b : batches) {
       if (b.count == 0) continue;
+      glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, b.buffer ? b.buffer : mPoints);
+      glUniform1f(u_spacing, b.spacing_k);
       glUniformMatrix4fv(u_clip, 1, GL_FALSE, &b.clip_from_local[0][0]);
       glUniform1i(u_radius, b.splat_radius);
       // At most 65535 work groups per dispatch (GL's guaranteed minimum, llvmpipe's limit).
@@ -111,6 +123,7 @@ void PointRasterizer::render(std::span<const DrawBatch> batches, const glm::vec3
       }
     }
     glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+    (pass == 0 ? timings.depth_ms : timings.color_ms) = lap();
   }
   glUseProgram(mResolveProgram);
   glUniform2i(glGetUniformLocation(mResolveProgram, "uSize"), GLint(mWidth), GLint(mHeight));
@@ -124,6 +137,8 @@ void PointRasterizer::render(std::span<const DrawBatch> batches, const glm::vec3
   glUniform1f(glGetUniformLocation(mResolveProgram, "uP32"), float(shading.projection[3][2]));
   glDispatchCompute((mWidth + 15) / 16, (mHeight + 15) / 16, 1);
   glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT | GL_SHADER_STORAGE_BARRIER_BIT);
+  timings.resolve_ms = lap();
+  return timings;
 }
 
 Image PointRasterizer::read() const {

@@ -115,7 +115,7 @@ int main(int argc, char** argv) {
                                     out;
   std::vector<std::string> models;
   bool mosaic = false, whole = false, edl = false;
-  double fovy = 45.0, lod_px = 0.0;
+  double fovy = 45.0, lod_px = 0.0, splat_scale = 2.0, budget_mb = 1024.0;
   app.add_option("--wall", wall_path, "Wall configuration (JSON)");
   auto* tile_opt = app.add_option("--tile", tile_name, "Render this tile of the wall");
   auto* mosaic_opt =
@@ -139,6 +139,13 @@ int main(int argc, char** argv) {
   app.add_option("--background", background, "R,G,B in [0, 1]");
   app.add_flag("--edl", edl,
                "Eye-dome lighting (shape without normals; default: the scene's shading)");
+  app.add_option("--splat-scale", splat_scale,
+                 "Splat size as a multiple of the projected sample spacing (raise for LiDAR)")
+      ->check(CLI::Range(0.25, 8.0))
+      ->capture_default_str();
+  app.add_option("--gpu-budget-mb", budget_mb, "GPU bytes for resident chunks, MiB")
+      ->check(CLI::Range(1.0, 1e6))
+      ->capture_default_str();
   app.add_option("--stats", stats_path, "Append per-view statistics as CSV");
   app.add_option("-o,--output", out, "Output PNG")->required();
   CLI11_PARSE(app, argc, argv);
@@ -183,6 +190,7 @@ int main(int argc, char** argv) {
     if (!have_camera) cam = fitCamera(*stores.front());
     if (lod_px > 0) options.lod_pixels = lod_px;
     if (edl) options.edl_strength = 1.0f;
+    options.splat_scale = float(splat_scale);
     if (!background.empty()) options.background = glm::vec3(parseVec(background, "--background"));
 
     auto ctx = render::GlContext::createHeadless();
@@ -191,25 +199,38 @@ int main(int argc, char** argv) {
       bool fresh = !fs::exists(stats_path);
       stats_file.open(stats_path, std::ios::app);
       if (!stats_file) usage("--stats " + stats_path + ": cannot write");
-      if (fresh)
-        stats_file << "view,width,height,nodes,points,corrupt_chunks,select_ms,load_ms,raster_ms\n";
+      if (fresh) {
+        stats_file << "view,width,height,frames,cut_nodes,nodes,points,corrupt_chunks,"
+                      "resident_chunks,resident_bytes,store_bytes,select_ms,upload_ms,depth_ms,"
+                      "color_ms,resolve_ms,readback_ms,frame_ms\n";
+      }
     }
+    uint64_t store_bytes = 0;
+    for (const auto& s : stores) store_bytes += s->summary().file_bytes;
+    // Each view streams on its own, as the wall node driving that tile would.
+    render::StreamerOptions stream_options;
+    stream_options.budget_bytes = uint64_t(budget_mb * 1048576.0);
     auto renderView = [&](const std::string& name, const render::ViewSetup& v) {
-      render::ViewRenderer r(v.width, v.height);
+      render::ViewRenderer r(v.width, v.height, nullptr, stream_options);
       render::RenderStats st;
-      render::Image img = r.render(instances, v, options, &st);
-      std::fprintf(
-          stderr,
-          "%s: %ux%u, %zu nodes, %llu points, %.1f ms (select %.1f, load %.1f, raster %.1f)%s\n",
-          name.c_str(), v.width, v.height, st.nodes, (unsigned long long)st.points,
-          st.select_ms + st.load_ms + st.raster_ms, st.select_ms, st.load_ms, st.raster_ms,
-          st.corrupt_chunks
-              ? (", " + std::to_string(st.corrupt_chunks) + " corrupt chunks skipped").c_str()
-              : "");
+      render::Image img = r.renderSettled(instances, v, options, &st);
+      std::fprintf(stderr,
+                   "%s: %ux%u, %zu nodes, %llu points, %.1f MB resident after %zu frames; last "
+                   "frame %.1f ms (select %.1f, depth %.1f, colour %.1f, resolve %.1f)%s\n",
+                   name.c_str(), v.width, v.height, st.nodes, (unsigned long long)st.points,
+                   st.stream.resident_bytes / 1e6, st.frames, st.totalMs(), st.select_ms,
+                   st.depth_ms, st.color_ms, st.resolve_ms,
+                   st.corrupt_chunks ? (", " + std::to_string(st.corrupt_chunks) +
+                                        " corrupt chunks drawn by their ancestors")
+                                           .c_str()
+                                     : "");
       if (stats_file) {
-        stats_file << name << "," << v.width << "," << v.height << "," << st.nodes << ","
-                   << st.points << "," << st.corrupt_chunks << "," << st.select_ms << ","
-                   << st.load_ms << "," << st.raster_ms << "\n";
+        stats_file << name << "," << v.width << "," << v.height << "," << st.frames << ","
+                   << st.cut_nodes << "," << st.nodes << "," << st.points << ","
+                   << st.corrupt_chunks << "," << st.stream.resident_chunks << ","
+                   << st.stream.resident_bytes << "," << store_bytes << "," << st.select_ms << ","
+                   << st.upload_ms << "," << st.depth_ms << "," << st.color_ms << ","
+                   << st.resolve_ms << "," << st.readback_ms << "," << st.totalMs() << "\n";
       }
       return img;
     };

@@ -20,12 +20,17 @@ struct GpuPoint {
 };
 static_assert(sizeof(GpuPoint) == 16);
 
-/// A range of uploaded points drawn with one transform and splat size.
+/// A range of GpuPoints drawn with one transform and splat size.
 struct DrawBatch {
-  uint32_t first = 0;
+  uint32_t buffer = 0;  ///< GL buffer holding the points; 0: the one setPoints() filled
+  uint32_t first = 0;   ///< index of the first point in that buffer
   uint32_t count = 0;
   glm::mat4 clip_from_local{1.0f};
-  int splat_radius = 0;  ///< pixels around the centre (0: one pixel)
+  /// Splats: with spacing_k > 0, a point at view depth w covers spacing_k / w pixels (the
+  /// node's sample spacing projected), radius capped at splat_radius; with spacing_k = 0 every
+  /// splat has radius splat_radius (0: one pixel).
+  float spacing_k = 0.0f;
+  int splat_radius = 0;
 };
 
 struct Image {
@@ -44,6 +49,12 @@ struct RasterShading {
   glm::dmat4 projection{1.0};
 };
 
+/// Milliseconds per pass of the last render(), measured on the CPU with the GL work finished
+/// after each pass (llvmpipe runs it on the CPU; on a GPU this also includes the stall).
+struct RasterTimings {
+  double depth_ms = 0, color_ms = 0, resolve_ms = 0;
+};
+
 class PointRasterizer {
  public:
   PointRasterizer(uint32_t width, uint32_t height);
@@ -51,18 +62,18 @@ class PointRasterizer {
   PointRasterizer(const PointRasterizer&) = delete;
   PointRasterizer& operator=(const PointRasterizer&) = delete;
 
-  /// Replaces the uploaded points (one storage buffer).
+  /// Replaces the rasterizer's own point buffer (batches with buffer 0 read it).
   void setPoints(std::span<const GpuPoint> points);
-  /// Clears, rasterises every batch (depth pass, then id pass), resolves colours.
-  void render(std::span<const DrawBatch> batches, const glm::vec3& background,
-              const RasterShading& shading = RasterShading());
+  /// Clears, rasterises every batch (depth pass, then colour pass), resolves colours.
+  RasterTimings render(std::span<const DrawBatch> batches, const glm::vec3& background,
+                       const RasterShading& shading = RasterShading());
   /// The last render, read back.
   Image read() const;
 
  private:
   uint32_t mWidth, mHeight;
   uint32_t mRasterProgram = 0, mResolveProgram = 0;
-  uint32_t mPoints = 0, mDepth = 0, mIds = 0, mImage = 0;
+  uint32_t mPoints = 0, mDepth = 0, mColors = 0, mImage = 0;
 };
 
 /// Writes an 8-bit RGBA PNG. Throws RenderError naming the file on failure.

@@ -1,12 +1,18 @@
-// One view of a point store, end to end: LOD cut for the view's frustum, chunks decoded through
-// the store's cache, points rasterised by compute shaders, image read back. Synchronous for now
-// (every chunk of the cut is loaded before drawing); the streaming loader comes with the wall.
-// A GL 4.5 context must be current.
+// One view of point stores, end to end: the LOD cut for the view's frustum (lod_selector.h),
+// chunks streamed to the GPU by a loader thread (chunk_streamer.h), points rasterised by compute
+// shaders (point_rasterizer.h), the image read back. render() never waits on I/O: a cut node
+// whose chunk is not resident is drawn by its nearest resident ancestor, so a frame shows
+// coarse data at once and refines over the next frames. renderSettled() repeats frames until
+// every chunk of the cut is resident, for screenshots, tools and tests: its pixels depend only
+// on the inputs, not on the loader's timing. A GL 4.5 context must be current on the calling
+// thread for the object's whole life.
 #pragma once
 
+#include <memory>
 #include <span>
 
 #include <tessera/lod/point_store.h>
+#include <tessera/render/chunk_streamer.h>
 #include <tessera/render/lod_selector.h>
 #include <tessera/render/point_rasterizer.h>
 #include <tessera/render/tile_frustum.h>
@@ -16,16 +22,30 @@ namespace tessera::render {
 struct RenderOptions {
   double lod_pixels = 1.0;
   glm::vec3 background{0.0f};
-  glm::u8vec3 default_color{200, 200, 200};  ///< for stores without colour
+  glm::u8vec3 default_color{200, 200, 200};  ///< for stores without colour (all must agree)
   float edl_strength = 0.0f;                 ///< eye-dome lighting (0: off, 1: usual)
   int edl_radius = 1;                        ///< EDL neighbour distance, pixels
+  /// Splat diameter as a multiple of the node's projected mean sample spacing (the mean nearest-
+  /// neighbour distance). At 1 random samples leave 20% of a surface open; 2 closes them and
+  /// LiDAR scan lines (tests/render/view_renderer_test.cpp measures it).
+  float splat_scale = 2.0f;
+  int max_splat_radius = 8;  ///< pixels
 };
 
+/// One frame. `nodes`..`points` describe what was drawn.
 struct RenderStats {
-  size_t nodes = 0;
+  size_t cut_nodes = 0;       ///< the LOD cut for this view
+  size_t nodes = 0;           ///< batches drawn: resident cut nodes plus ancestors standing in
+  size_t fallback_nodes = 0;  ///< ancestors drawn for cut nodes not resident yet
+  size_t missing_nodes = 0;   ///< cut nodes not drawn at their own level this frame
   uint64_t points = 0;
-  size_t corrupt_chunks = 0;  ///< skipped: checksum or decoding failed
-  double select_ms = 0, load_ms = 0, raster_ms = 0;
+  size_t corrupt_chunks = 0;  ///< cut nodes whose chunk the store refused (drawn by ancestors)
+  StreamStats stream;         ///< requested / uploaded / evicted, resident bytes
+  double select_ms = 0, upload_ms = 0, depth_ms = 0, color_ms = 0, resolve_ms = 0, readback_ms = 0;
+  size_t frames = 1;  ///< frames renderSettled() drew
+  double totalMs() const {
+    return select_ms + upload_ms + depth_ms + color_ms + resolve_ms + readback_ms;
+  }
 };
 
 /// A store placed in the world: world = model * local.
@@ -36,16 +56,25 @@ struct ModelInstance {
 
 class ViewRenderer {
  public:
-  ViewRenderer(uint32_t width, uint32_t height) : mRaster(width, height) {}
-  /// Renders every model into one image (nearest point wins across models).
+  /// Renders `width` x `height` views, streaming through `streamer` (shared between views of
+  /// one process, e.g. the tiles of a mosaic) or a streamer of its own with `stream_options`.
+  ViewRenderer(uint32_t width, uint32_t height, std::shared_ptr<ChunkStreamer> streamer = nullptr,
+               const StreamerOptions& stream_options = {});
+  /// One frame of every model (nearest point wins across models). Never waits on I/O.
   Image render(std::span<const ModelInstance> models, const ViewSetup& view,
                const RenderOptions& options, RenderStats* stats = nullptr);
+  /// Frames until the whole cut is resident (or refused as corrupt); the last one's image.
+  /// `stats` holds the last frame's figures with `frames` counting all of them.
+  Image renderSettled(std::span<const ModelInstance> models, const ViewSetup& view,
+                      const RenderOptions& options, RenderStats* stats = nullptr);
+
+  ChunkStreamer& streamer() { return *mStreamer; }
 
  private:
   void addModel(lod::PointStore& store, const glm::dmat4& model, const ViewSetup& view,
                 const RenderOptions& options, std::vector<DrawBatch>& batches, RenderStats& stats);
+  std::shared_ptr<ChunkStreamer> mStreamer;
   PointRasterizer mRaster;
-  std::vector<GpuPoint> mPoints;
 };
 
 /// The store's local frame in the world: a translation by its origin (world = origin + local).

@@ -1,0 +1,90 @@
+// Streaming of point chunks to the GPU (Bettio et al. 2009, section 4.1: the renderer never
+// waits for data; it draws what is resident and refines as chunks arrive). One loader thread
+// reads and decodes chunks (and hierarchy pages) in priority order, coarse and near first; the
+// GL thread uploads finished chunks into buffers kept under a byte budget with LRU eviction.
+//
+// Per frame, on the GL thread: beginFrame() uploads what the loader finished and evicts; the
+// renderer asks find() for each chunk it wants and request()s the missing ones; endFrame() hands
+// this frame's requests to the loader, replacing the previous frame's (a camera that moved on
+// does not keep stale work queued). Chunks used in the previous frame are never evicted, so a
+// resting view settles even when its cut is larger than the budget (the budget is then exceeded
+// and says so in the stats).
+#pragma once
+
+#include <cstdint>
+#include <memory>
+
+#include <tessera/lod/point_store.h>
+#include <tessera/render/gl_buffer.h>
+
+namespace tessera::render {
+
+/// A chunk resident on the GPU: GpuPoint records (point_rasterizer.h) relative to `offset`.
+struct GpuChunk {
+  GlBuffer buffer;
+  uint32_t count = 0;
+  glm::dvec3 offset{0.0};  ///< store-local position of the points' frame
+  uint64_t last_used = 0;  ///< frame number
+};
+
+/// Counters of the last frame (requested..evicted, pages_*) and the state after it.
+struct StreamStats {
+  uint64_t requested = 0;  ///< chunks this frame wanted but were not resident
+  uint64_t uploaded = 0;   ///< chunks that became resident at the start of this frame
+  uint64_t evicted = 0;
+  uint64_t failed = 0;  ///< chunks refused by the store (corrupt): never drawn, never retried
+  uint64_t pages_requested = 0;
+  uint64_t resident_chunks = 0;
+  uint64_t resident_bytes = 0;
+  uint64_t budget_bytes = 0;
+  uint64_t queued = 0;  ///< handed to the loader and not done
+  double upload_ms = 0.0;
+};
+
+struct StreamerOptions {
+  uint64_t budget_bytes = 1ull << 30;        ///< GPU bytes for resident chunks
+  glm::u8vec3 default_color{200, 200, 200};  ///< for stores without colour
+};
+
+class ChunkStreamer {
+ public:
+  /// Starts the loader thread. A GL context must be current on the constructing thread, which
+  /// is the only thread that may call the methods below (except stats readers noted).
+  explicit ChunkStreamer(const StreamerOptions& options = {});
+  /// Stops the loader (finishing the chunk in flight) and frees every buffer.
+  ~ChunkStreamer();
+  ChunkStreamer(const ChunkStreamer&) = delete;
+  ChunkStreamer& operator=(const ChunkStreamer&) = delete;
+
+  /// Starts the next frame: uploads the loader's finished chunks, evicts beyond the budget,
+  /// resets the per-frame counters.
+  void beginFrame();
+  /// The resident chunk of a node, marked used this frame; null when not resident.
+  const GpuChunk* find(const lod::PointStore& store, lod::NodeId node);
+  /// Asks for a missing chunk. Priority: lower levels first, then nearer (`distance`).
+  /// Ignored for chunks already resident, failed or finished and waiting for upload.
+  void request(lod::PointStore& store, lod::NodeId node, uint8_t level, double distance);
+  /// Asks the loader to read the hierarchy page holding `node`'s children (ahead of chunks).
+  void requestChildren(lod::PointStore& store, lod::NodeId node);
+  /// Whether a chunk failed to load (corrupt): the renderer draws an ancestor instead.
+  bool failed(const lod::PointStore& store, lod::NodeId node) const;
+  /// Hands this frame's requests to the loader, replacing earlier ones.
+  void endFrame();
+
+  /// Blocks until the loader has nothing queued or in flight (tools, tests, screenshots).
+  void waitForLoader();
+  /// Holds (true) or releases the loader before its next item: lets tests observe frames drawn
+  /// while data is missing.
+  void pauseLoader(bool paused);
+  /// Drops every chunk of a store (before it is closed).
+  void forget(const lod::PointStore& store);
+
+  const StreamStats& stats() const { return mStats; }
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> mImpl;
+  StreamStats mStats;
+};
+
+}  // namespace tessera::render
