@@ -28,6 +28,8 @@
 #include <tessera/lod/store_builder.h>
 #include <tessera/lod/virtual_scanner.h>
 
+#include "bench_inputs.h"
+
 namespace {
 
 namespace fs = std::filesystem;
@@ -153,36 +155,6 @@ void decodeRate(const fs::path& store_path, int threads, Row& row) {
   row.payload_read_mpts = double(total) / since(t) / 1e6;
 }
 
-/// A virtual scan of the bunny with about `points` points (cached between runs).
-fs::path bigScan(const fs::path& dir, uint64_t points, const std::string& data) {
-  fs::path conf = dir / "scans.conf";
-  if (fs::exists(conf)) return conf;
-  Mesh mesh = readMesh(data + "/stanford-bunny/reconstruction/bun_zipper.ply");
-  // Pilot scan for the hit ratio, then a resolution that gives the requested count.
-  ScanOptions o;
-  o.scanners = 40;
-  o.columns = 200;
-  o.rows = 160;
-  o.quiet = true;
-  o.binary = true;
-  ScanResult pilot = scanMesh(mesh, dir / "pilot", o);
-  fs::remove_all(dir / "pilot");
-  double ratio = double(pilot.points) / double(pilot.rays);
-  double rays_per_scanner = double(points) / ratio / o.scanners;
-  double scale = std::sqrt(rays_per_scanner / (200.0 * 160.0));
-  o.columns = uint32_t(std::ceil(200 * scale));
-  o.rows = uint32_t(std::ceil(160 * scale));
-  o.noise_mm = 0.2;
-  o.quiet = false;
-  std::fprintf(stderr, "lod_build: scanning %u x %u from %d scanners for ~%.0f M points\n",
-               o.columns, o.rows, o.scanners, double(points) / 1e6);
-  auto t = Clock::now();
-  ScanResult r = scanMesh(mesh, dir, o);
-  std::fprintf(stderr, "lod_build: %llu points scanned in %.1f s\n", (unsigned long long)r.points,
-               since(t));
-  return conf;
-}
-
 void chart(const fs::path& out, const std::vector<Row>& rows) {
   fs::path dat = out / "lod_build.dat", gp = out / "lod_build.gp";
   std::ofstream d(dat);
@@ -243,7 +215,7 @@ int main(int argc, char** argv) {
     fs::path dir = fs::path(out) / "inputs" / ("bunny-scan-" + std::to_string(big));
     fs::create_directories(dir);
     sets.push_back({"bunny virtual scan " + std::to_string(big / 1'000'000) + " M (binary)",
-                    {bigScan(dir, big, data)}});
+                    {tessera::bench::bigBunnyScan(dir, big, data)}});
   }
 
   std::vector<Row> rows;

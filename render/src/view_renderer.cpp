@@ -31,6 +31,17 @@ ViewRenderer::ViewRenderer(uint32_t width, uint32_t height, std::shared_ptr<Chun
 Image ViewRenderer::render(std::span<const ModelInstance> models, const ViewSetup& view,
                            const RenderOptions& options, RenderStats* stats) {
   RenderStats st;
+  draw(models, view, options, &st);
+  const auto t0 = std::chrono::steady_clock::now();
+  Image img = mRaster.read();
+  st.readback_ms = msSince(t0);
+  if (stats) *stats = st;
+  return img;
+}
+
+void ViewRenderer::draw(std::span<const ModelInstance> models, const ViewSetup& view,
+                        const RenderOptions& options, RenderStats* stats) {
+  RenderStats st;
   mStreamer->beginFrame();
   st.upload_ms = mStreamer->stats().upload_ms;
   std::vector<DrawBatch> batches;
@@ -51,11 +62,7 @@ Image ViewRenderer::render(std::span<const ModelInstance> models, const ViewSetu
   st.depth_ms = t.depth_ms;
   st.color_ms = t.color_ms;
   st.resolve_ms = t.resolve_ms;
-  const auto t0 = std::chrono::steady_clock::now();
-  Image img = mRaster.read();
-  st.readback_ms = msSince(t0);
   if (stats) *stats = st;
-  return img;
 }
 
 Image ViewRenderer::renderSettled(std::span<const ModelInstance> models, const ViewSetup& view,

@@ -6,6 +6,7 @@
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <span>
 
 #include <cstring>
 #include <glm/gtc/matrix_transform.hpp>
@@ -16,6 +17,7 @@
 #include <tessera/lod/store_builder.h>
 #include <tessera/render/gl_context.h>
 #include <tessera/render/view_renderer.h>
+#include <tessera/render/window.h>
 #include <tessera/sync/config.h>
 
 namespace {
@@ -105,6 +107,56 @@ config::Camera fitCamera(const lod::PointStore& s) {
   return cam;
 }
 
+glm::dvec3 vec(const config::Vec3& v) {
+  return {v.x(), v.y(), v.z()};
+}
+
+void setVec(config::Vec3* d, const glm::dvec3& v) {
+  d->set_x(v.x);
+  d->set_y(v.y);
+  d->set_z(v.z);
+}
+
+/// Shows the view in `win` until it closes (or `frames` frames): left drag orbits the target,
+/// right drag pans, the wheel zooms. Frames never wait for data; it streams in behind them.
+/// Returns the camera the user left.
+config::Camera interactive(render::Window& win, config::Camera cam,
+                           const std::function<render::ViewSetup(const config::Camera&)>& viewOf,
+                           std::span<const render::ModelInstance> instances,
+                           const render::RenderOptions& options, int frames) {
+  const render::ViewSetup first = viewOf(cam);
+  render::ViewRenderer r(first.width, first.height);
+  for (int frame = 1; !win.closing() && (frames == 0 || frame <= frames); ++frame) {
+    render::RenderStats st;
+    r.draw(instances, viewOf(cam), options, &st);
+    win.present(r.imageBuffer(), first.width, first.height);
+    char title[160];
+    std::snprintf(title, sizeof title, "tessera-render: %llu points, %.0f ms, %zu chunks loading",
+                  (unsigned long long)st.points, st.totalMs(), size_t(st.stream.queued));
+    win.setTitle(title);
+    const render::WindowInput in = win.poll();
+    glm::dvec3 eye = vec(cam.eye()), target = vec(cam.target()), up = glm::normalize(vec(cam.up()));
+    glm::dvec3 back = eye - target;
+    const double dist = glm::length(back);
+    const glm::dvec3 right = glm::normalize(glm::cross(-back, up));
+    if (in.left && glm::length(in.cursor_delta) > 0) {
+      // Turntable: yaw about the up axis, pitch about the view's right axis.
+      const double yaw = -in.cursor_delta.x * 0.008, pitch = -in.cursor_delta.y * 0.008;
+      back = glm::dvec3(glm::rotate(glm::dmat4(1.0), yaw, up) *
+                        glm::rotate(glm::dmat4(1.0), pitch, right) * glm::dvec4(back, 0.0));
+    }
+    if (in.right && glm::length(in.cursor_delta) > 0) {
+      const double per_px = 2.0 * dist * std::tan(glm::radians(22.5)) / double(in.size.y + 1);
+      const glm::dvec3 cam_up = glm::normalize(glm::cross(right, -back));
+      target += (-in.cursor_delta.x * right + in.cursor_delta.y * cam_up) * per_px;
+    }
+    if (in.scroll != 0) back *= std::pow(0.85, in.scroll);
+    setVec(cam.mutable_eye(), target + back);
+    setVec(cam.mutable_target(), target);
+  }
+  return cam;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -114,7 +166,8 @@ int main(int argc, char** argv) {
   std::string wall_path, tile_name, size = "1280x720", scene_path, camera, background, stats_path,
                                     out;
   std::vector<std::string> models;
-  bool mosaic = false, whole = false, edl = false;
+  bool mosaic = false, whole = false, edl = false, window = false;
+  int frames = 0;
   double fovy = 45.0, lod_px = 0.0, splat_scale = 2.0, budget_mb = 1024.0;
   app.add_option("--wall", wall_path, "Wall configuration (JSON)");
   auto* tile_opt = app.add_option("--tile", tile_name, "Render this tile of the wall");
@@ -147,8 +200,16 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(1.0, 1e6))
       ->capture_default_str();
   app.add_option("--stats", stats_path, "Append per-view statistics as CSV");
-  app.add_option("-o,--output", out, "Output PNG")->required();
+  app.add_flag("--window", window,
+               "Show the plain view in a window (GLFW): left drag orbits, right drag pans, wheel "
+               "zooms, Esc quits; -o then saves the last view");
+  app.add_option("--frames", frames, "With --window: quit after this many frames (0: on close)")
+      ->check(CLI::NonNegativeNumber);
+  auto* out_opt = app.add_option("-o,--output", out, "Output PNG (required without --window)");
   CLI11_PARSE(app, argc, argv);
+  if (out.empty() && !window) usage("-o OUT.png is required (or --window)");
+  if (window && !wall_path.empty()) usage("--window shows a plain view: drop --wall");
+  (void)out_opt;
 
   try {
     std::vector<std::unique_ptr<lod::PointStore>> stores;
@@ -193,7 +254,21 @@ int main(int argc, char** argv) {
     options.splat_scale = float(splat_scale);
     if (!background.empty()) options.background = glm::vec3(parseVec(background, "--background"));
 
-    auto ctx = render::GlContext::createHeadless();
+    std::unique_ptr<render::GlContext> ctx;
+    std::unique_ptr<render::Window> win;
+    if (window) {
+      try {
+        unsigned ww = 1280, wh = 720;
+        std::sscanf(size.c_str(), "%ux%u", &ww, &wh);  // checked below
+        win = render::Window::open(std::clamp(ww, 64u, 4096u), std::clamp(wh, 64u, 4096u),
+                                   "tessera-render");
+      } catch (const render::RenderError& e) {
+        std::fprintf(stderr, "tessera-render: %s; rendering headless\n", e.what());
+        window = false;
+        if (out.empty()) usage("no window and no -o: nothing to do");
+      }
+    }
+    if (!win) ctx = render::GlContext::createHeadless();
     std::ofstream stats_file;
     if (!stats_path.empty()) {
       bool fresh = !fs::exists(stats_path);
@@ -243,18 +318,24 @@ int main(int argc, char** argv) {
           w > 16384 || h > 16384) {
         usage("--size " + size + ": expected WxH, e.g. 1280x720");
       }
-      render::ViewSetup v;
-      v.view = render::cameraView(cam);
-      const auto& sum = stores.front()->summary();
-      double radius = 0.5 * glm::length(sum.bbox_max - sum.bbox_min);
-      double dist = glm::length(glm::dvec3(cam.eye().x(), cam.eye().y(), cam.eye().z()) -
-                                glm::dvec3(cam.target().x(), cam.target().y(), cam.target().z()));
-      v.projection = glm::perspective(
-          glm::radians(fovy), double(w) / h,
-          std::max(1e-4 * radius, (dist - 4 * radius) * 0.5 + 1e-6 * radius), dist + 4 * radius);
-      v.width = w;
-      v.height = h;
-      v.eye_world = glm::dvec3(cam.eye().x(), cam.eye().y(), cam.eye().z());
+      auto plainView = [&](const config::Camera& c) {
+        render::ViewSetup v;
+        v.view = render::cameraView(c);
+        const auto& sum = stores.front()->summary();
+        double radius = 0.5 * glm::length(sum.bbox_max - sum.bbox_min);
+        double dist = glm::length(glm::dvec3(c.eye().x(), c.eye().y(), c.eye().z()) -
+                                  glm::dvec3(c.target().x(), c.target().y(), c.target().z()));
+        v.projection = glm::perspective(
+            glm::radians(fovy), double(w) / h,
+            std::max(1e-4 * radius, (dist - 4 * radius) * 0.5 + 1e-6 * radius), dist + 4 * radius);
+        v.width = w;
+        v.height = h;
+        v.eye_world = glm::dvec3(c.eye().x(), c.eye().y(), c.eye().z());
+        return v;
+      };
+      if (win) cam = interactive(*win, cam, plainView, instances, options, frames);
+      if (out.empty()) return 0;
+      const render::ViewSetup v = plainView(cam);
       result = renderView("view", v);
     } else {
       config::WallConfig wall = sync::loadWallConfig(wall_path);

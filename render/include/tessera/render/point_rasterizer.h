@@ -69,6 +69,10 @@ class PointRasterizer {
                        const RasterShading& shading = RasterShading());
   /// The last render, read back.
   Image read() const;
+  /// The GL buffer holding the last render: width x height RGBA8, top row first.
+  uint32_t imageBuffer() const { return mImage; }
+  uint32_t width() const { return mWidth; }
+  uint32_t height() const { return mHeight; }
 
  private:
   uint32_t mWidth, mHeight;

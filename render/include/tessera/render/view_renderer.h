@@ -60,7 +60,11 @@ class ViewRenderer {
   /// one process, e.g. the tiles of a mosaic) or a streamer of its own with `stream_options`.
   ViewRenderer(uint32_t width, uint32_t height, std::shared_ptr<ChunkStreamer> streamer = nullptr,
                const StreamerOptions& stream_options = {});
-  /// One frame of every model (nearest point wins across models). Never waits on I/O.
+  /// One frame of every model (nearest point wins across models) into imageBuffer(), without
+  /// reading it back (windows, wall nodes). Never waits on I/O.
+  void draw(std::span<const ModelInstance> models, const ViewSetup& view,
+            const RenderOptions& options, RenderStats* stats = nullptr);
+  /// draw() and read the image back.
   Image render(std::span<const ModelInstance> models, const ViewSetup& view,
                const RenderOptions& options, RenderStats* stats = nullptr);
   /// Frames until the whole cut is resident (or refused as corrupt); the last one's image.
@@ -69,6 +73,8 @@ class ViewRenderer {
                       const RenderOptions& options, RenderStats* stats = nullptr);
 
   ChunkStreamer& streamer() { return *mStreamer; }
+  /// The GL buffer with the last frame (PointRasterizer::imageBuffer()).
+  uint32_t imageBuffer() const { return mRaster.imageBuffer(); }
 
  private:
   void addModel(lod::PointStore& store, const glm::dmat4& model, const ViewSetup& view,

@@ -1,0 +1,51 @@
+// Inputs the benchmarks share, generated into their results folder (never into the repo) and
+// cached between runs.
+#pragma once
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <string>
+
+#include <tessera/lod/mesh.h>
+#include <tessera/lod/virtual_scanner.h>
+
+namespace tessera::bench {
+
+/// A virtual scan of the Stanford bunny reconstruction with about `points` points from 40
+/// scanners with 0.2 mm noise, as Stanford range scans with a .conf, in `dir` (reused when
+/// `dir`/scans.conf exists). Returns the .conf path.
+inline std::filesystem::path bigBunnyScan(const std::filesystem::path& dir, uint64_t points,
+                                          const std::string& data) {
+  namespace fs = std::filesystem;
+  using namespace tessera::lod;
+  fs::path conf = dir / "scans.conf";
+  if (fs::exists(conf)) return conf;
+  Mesh mesh = readMesh(data + "/stanford-bunny/reconstruction/bun_zipper.ply");
+  // Pilot scan for the hit ratio, then a resolution that gives the requested count.
+  ScanOptions o;
+  o.scanners = 40;
+  o.columns = 200;
+  o.rows = 160;
+  o.quiet = true;
+  o.binary = true;
+  ScanResult pilot = scanMesh(mesh, dir / "pilot", o);
+  fs::remove_all(dir / "pilot");
+  double ratio = double(pilot.points) / double(pilot.rays);
+  double rays_per_scanner = double(points) / ratio / o.scanners;
+  double scale = std::sqrt(rays_per_scanner / (200.0 * 160.0));
+  o.columns = uint32_t(std::ceil(200 * scale));
+  o.rows = uint32_t(std::ceil(160 * scale));
+  o.noise_mm = 0.2;
+  o.quiet = false;
+  std::fprintf(stderr, "bench: scanning %u x %u from %d scanners for ~%.0f M points\n", o.columns,
+               o.rows, o.scanners, double(points) / 1e6);
+  auto t = std::chrono::steady_clock::now();
+  ScanResult r = scanMesh(mesh, dir, o);
+  std::fprintf(stderr, "bench: %llu points scanned in %.1f s\n", (unsigned long long)r.points,
+               std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count());
+  return conf;
+}
+
+}  // namespace tessera::bench

@@ -1,0 +1,216 @@
+// render_lod: the renderer's speed against its accuracy on the 10^8-point virtual bunny scan
+// (issue 4), in one run on one context:
+//  (1) lod-px in {0.5, 1, 2, 4, 8}: frame time (all chunks resident) and PSNR to the
+//      full-resolution image (every leaf drawn), with points drawn and GPU bytes resident;
+//  (2) the 2x2 wall (configs/walls/2x2.json): per tile, with its own streamer as a wall node
+//      has, the frame time and the bytes it holds resident against the whole store's size.
+// Eye-dome lighting is on (the scan has no colour), so PSNR sees shape, not just silhouette.
+// Prints CSV; writes OUT/render_lod.csv, OUT/render_wall.csv and OUT/render_lod.png.
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+
+#include <CLI/CLI.hpp>
+#include <glm/gtc/matrix_transform.hpp>
+
+#include <tessera/lod/store_builder.h>
+#include <tessera/render/gl_context.h>
+#include <tessera/render/view_renderer.h>
+#include <tessera/sync/config.h>
+
+#include "bench_inputs.h"
+
+namespace {
+
+using namespace tessera;
+namespace fs = std::filesystem;
+using Clock = std::chrono::steady_clock;
+
+double msSince(Clock::time_point t) {
+  return std::chrono::duration<double, std::milli>(Clock::now() - t).count();
+}
+
+double psnr(const render::Image& a, const render::Image& b) {
+  double se = 0;
+  for (size_t i = 0; i < a.rgba.size(); i += 4)
+    for (int c = 0; c < 3; ++c) {
+      const double d = double(a.rgba[i + c]) - double(b.rgba[i + c]);
+      se += d * d;
+    }
+  const double mse = se / double(a.rgba.size() / 4 * 3);
+  return mse > 0 ? 10.0 * std::log10(255.0 * 255.0 / mse) : 99.0;
+}
+
+struct Measure {
+  render::Image image;
+  render::RenderStats stats;
+  double settle_ms = 0;  ///< from a cold streamer to every chunk resident
+  double frame_ms = 0;   ///< best of `repeats` frames once resident (wall clock, no readback)
+};
+
+Measure measure(std::span<const render::ModelInstance> models, const render::ViewSetup& view,
+                const render::RenderOptions& options, uint64_t budget, int repeats) {
+  Measure m;
+  render::StreamerOptions so;
+  so.budget_bytes = budget;
+  render::ViewRenderer r(view.width, view.height, nullptr, so);
+  auto t = Clock::now();
+  m.image = r.renderSettled(models, view, options, &m.stats);
+  m.settle_ms = msSince(t);
+  m.frame_ms = 1e300;
+  for (int i = 0; i < repeats; ++i) {
+    t = Clock::now();
+    r.draw(models, view, options, &m.stats);
+    m.frame_ms = std::min(m.frame_ms, msSince(t));
+  }
+  return m;
+}
+
+config::Camera bunnyCamera() {
+  config::Camera c;
+  c.mutable_eye()->set_x(-0.02);
+  c.mutable_eye()->set_y(0.13);
+  c.mutable_eye()->set_z(0.26);
+  c.mutable_target()->set_x(-0.02);
+  c.mutable_target()->set_y(0.1);
+  c.mutable_up()->set_y(1);
+  return c;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"render_lod: frame time against PSNR for LOD thresholds; per-tile cost of a wall"};
+  std::string out = TESSERA_BENCH_RESULTS_DIR, store_path,
+              wall_path = TESSERA_CONFIG_DIR "/walls/2x2.json";
+  uint64_t points = 100'000'000;
+  int repeats = 3;
+  app.add_option("--out", out, "Folder for inputs, CSV and chart")->capture_default_str();
+  app.add_option("--store", store_path, "A .tlod to use (default: the virtual bunny scan)");
+  app.add_option("--points", points, "Points of the virtual bunny scan")->capture_default_str();
+  app.add_option("--wall", wall_path, "Wall for the per-tile part")->capture_default_str();
+  app.add_option("--repeats", repeats, "Timed frames per measure (best kept)")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  CLI11_PARSE(app, argc, argv);
+  try {
+    fs::create_directories(out);
+    if (store_path.empty()) {
+      const std::string tag = "bunny-scan-" + std::to_string(points);
+      fs::path conf = bench::bigBunnyScan(fs::path(out) / "inputs" / tag, points, TESSERA_DATA_DIR);
+      store_path = (fs::path(out) / "inputs" / (tag + ".tlod")).string();
+      if (!fs::exists(store_path)) {
+        lod::BuildOptions o;
+        o.memory_mb = 2048;
+        lod::buildStore({conf}, store_path, o);
+      }
+    }
+    auto store = lod::PointStore::open(store_path);
+    const uint64_t store_bytes = store->summary().file_bytes;
+    std::fprintf(stderr, "render_lod: %s, %llu points, %.1f MB\n", store_path.c_str(),
+                 (unsigned long long)store->summary().points, store_bytes / 1e6);
+    auto ctx = render::GlContext::createHeadless();
+    render::ModelInstance inst{store.get(), render::storeModel(*store)};
+    const config::Camera cam = bunnyCamera();
+    render::ViewSetup view;
+    view.view = render::cameraView(cam);
+    view.projection = glm::perspective(glm::radians(45.0), 1920.0 / 1080.0, 0.01, 2.0);
+    view.width = 1920;
+    view.height = 1080;
+    view.eye_world = glm::dvec3(cam.eye().x(), cam.eye().y(), cam.eye().z());
+    render::RenderOptions options;
+    options.edl_strength = 1.0f;
+    const uint64_t big_budget = 8ull << 30;
+
+    std::fprintf(stderr, "render_lod: full-resolution reference (every leaf)...\n");
+    render::RenderOptions full = options;
+    full.lod_pixels = 1e-9;
+    const Measure ref = measure({&inst, 1}, view, full, big_budget, 1);
+    std::ofstream csv(fs::path(out) / "render_lod.csv");
+    const std::string header =
+        "lod_px,points,nodes,resident_bytes,settle_ms,frame_ms,depth_ms,color_ms,resolve_ms,"
+        "psnr_db";
+    csv << header << "\n";
+    std::cout << header << "\n";
+    auto row = [&](const std::string& lod, const Measure& m, double p) {
+      char line[512];
+      std::snprintf(line, sizeof line, "%s,%llu,%zu,%llu,%.1f,%.1f,%.1f,%.1f,%.1f,%.2f",
+                    lod.c_str(), (unsigned long long)m.stats.points, m.stats.nodes,
+                    (unsigned long long)m.stats.stream.resident_bytes, m.settle_ms, m.frame_ms,
+                    m.stats.depth_ms, m.stats.color_ms, m.stats.resolve_ms, p);
+      csv << line << "\n";
+      std::cout << line << std::endl;
+    };
+    row("full", ref, 99.0);
+    render::writePng((fs::path(out) / "render_lod-full.png").string(), ref.image);
+    for (double lod : {0.5, 1.0, 2.0, 4.0, 8.0}) {
+      render::RenderOptions o = options;
+      o.lod_pixels = lod;
+      const Measure m = measure({&inst, 1}, view, o, big_budget, repeats);
+      char name[32];
+      std::snprintf(name, sizeof name, "%g", lod);
+      row(name, m, psnr(m.image, ref.image));
+      render::writePng((fs::path(out) / ("render_lod-" + std::string(name) + ".png")).string(),
+                       m.image);
+    }
+    csv.close();
+
+    // The wall: each tile streams on its own, as a node would.
+    config::WallConfig wall = sync::loadWallConfig(wall_path);
+    std::ofstream wcsv(fs::path(out) / "render_wall.csv");
+    const std::string wheader =
+        "tile,width,height,points,nodes,resident_bytes,store_bytes,resident_fraction,settle_ms,"
+        "frame_ms";
+    wcsv << wheader << "\n";
+    std::cout << "\n" << wheader << "\n";
+    auto wrow = [&](const std::string& name, const render::ViewSetup& v) {
+      const Measure m = measure({&inst, 1}, v, options, big_budget, repeats);
+      char line[512];
+      std::snprintf(
+          line, sizeof line, "%s,%u,%u,%llu,%zu,%llu,%llu,%.4f,%.1f,%.1f", name.c_str(), v.width,
+          v.height, (unsigned long long)m.stats.points, m.stats.nodes,
+          (unsigned long long)m.stats.stream.resident_bytes, (unsigned long long)store_bytes,
+          double(m.stats.stream.resident_bytes) / double(store_bytes), m.settle_ms, m.frame_ms);
+      wcsv << line << "\n";
+      std::cout << line << std::endl;
+    };
+    for (const auto& tile : wall.tiles()) wrow(tile.name(), render::tileView(wall, tile, cam));
+    wrow("whole", render::wholeWallView(wall, cam));
+    wcsv.close();
+
+    // Chart: frame time against PSNR, and per-tile resident bytes against the store.
+    const fs::path gp = fs::path(out) / "render_lod.gp";
+    std::ofstream g(gp);
+    g << "set terminal pngcairo size 1200,460 font 'sans,10' noenhanced\n"
+      << "set output '" << (fs::path(out) / "render_lod.png").string() << "'\n"
+      << "set datafile separator ','\nset multiplot layout 1,2\n"
+      << "set title 'LOD threshold: frame time against accuracy (1920x1080, "
+      << store->summary().points / 1000000 << " M point store)'\n"
+      << "set xlabel 'frame time, ms (llvmpipe, 2 cores)'\nset ylabel 'PSNR to full resolution, "
+         "dB'\nset grid\nset key off\n"
+      << "plot '" << (fs::path(out) / "render_lod.csv").string()
+      << "' every ::2 using 6:10 with linespoints pt 7 ps 1.2, '' every ::2 using "
+         "6:10:(sprintf('%s px', stringcolumn(1))) with labels offset 2,0.8\n"
+      << "set title '2x2 wall: GPU bytes each tile holds (MB)'\nset xlabel ''\nset ylabel "
+         "'MB'\nset style data histograms\nset style fill solid 0.8 border -1\nset yrange [0:*]\n"
+      << "set key top left\n"
+      << "plot '" << (fs::path(out) / "render_wall.csv").string()
+      << "' every ::1 using ($6/1e6):xtic(1) title 'resident on the GPU', '' every ::1 using "
+         "($7/1e6) title 'whole store on disk'\n"
+      << "unset multiplot\n";
+    g.close();
+    const std::string cmd = std::string(TESSERA_GNUPLOT) + " '" + gp.string() + "'";
+    if (std::system(cmd.c_str()) != 0)
+      std::fprintf(stderr, "render_lod: gnuplot failed; the CSV is complete\n");
+    std::fprintf(stderr, "render_lod: wrote %s/render_lod.csv, render_wall.csv, render_lod.png\n",
+                 out.c_str());
+    return 0;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "render_lod: %s\n", e.what());
+    return 1;
+  }
+}

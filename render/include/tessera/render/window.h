@@ -1,0 +1,54 @@
+// A desktop window (GLFW) with an OpenGL 4.5 core context: the windowed twin of
+// GlContext::createHeadless(). The renderer draws into its own buffers either way; a window only
+// shows the result (present()), so windowed and headless pixels are the same.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <glm/glm.hpp>
+
+namespace tessera::render {
+
+/// Input gathered since the previous poll().
+struct WindowInput {
+  glm::dvec2 cursor{0.0};        ///< pixels from the top-left corner of the window
+  glm::dvec2 cursor_delta{0.0};  ///< movement since the previous poll
+  bool left = false, right = false, middle = false;  ///< buttons held now
+  bool left_pressed = false, left_released = false;  ///< transitions since the previous poll
+  double scroll = 0.0;                               ///< wheel steps, up positive
+  std::vector<int> keys;                             ///< GLFW key codes pressed (not repeats)
+  glm::uvec2 size{0};                                ///< window size in screen coordinates
+};
+
+class Window {
+ public:
+  /// Opens a window and makes its GL 4.5 core context current on this thread. Throws
+  /// RenderError saying why not (no display: DISPLAY unset or unreachable; no GL 4.5 core).
+  static std::unique_ptr<Window> open(uint32_t width, uint32_t height, const std::string& title);
+  ~Window();
+  Window(const Window&) = delete;
+  Window& operator=(const Window&) = delete;
+
+  /// The user asked to close (window button or Escape).
+  bool closing() const;
+  /// Shows `image_buffer` (a GL buffer of width x height RGBA8 pixels, top row first, as
+  /// PointRasterizer writes it) scaled to the window, and swaps.
+  void present(uint32_t image_buffer, uint32_t width, uint32_t height);
+  /// What the window shows now (its back buffer after present(), before the next swap is
+  /// drawn), RGBA top row first: for checking that the window shows the renderer's pixels.
+  std::vector<uint8_t> readFramebuffer(uint32_t& width, uint32_t& height) const;
+  /// Processes pending events.
+  WindowInput poll();
+  void setTitle(const std::string& title);
+
+  struct Impl;  ///< GLFW state (window.cpp); public so GLFW callbacks can reach it
+
+ private:
+  Window();
+  std::unique_ptr<Impl> mImpl;
+};
+
+}  // namespace tessera::render

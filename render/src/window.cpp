@@ -1,0 +1,151 @@
+#include <tessera/render/window.h>
+
+#define GLFW_INCLUDE_NONE
+#include <GLFW/glfw3.h>
+#define GL_GLEXT_PROTOTYPES
+#include <GL/glcorearb.h>
+
+#include <algorithm>
+#include <cstdlib>
+
+#include <tessera/render/gl_context.h>
+
+namespace tessera::render {
+
+struct Window::Impl {
+  GLFWwindow* window = nullptr;
+  GLuint texture = 0, framebuffer = 0;
+  uint32_t tex_w = 0, tex_h = 0;
+  WindowInput pending;
+  glm::dvec2 last_cursor{0.0};
+  bool was_left = false;
+};
+
+namespace {
+
+std::string glfwFailure() {
+  const char* text = nullptr;
+  glfwGetError(&text);
+  return text ? text : "unknown GLFW error";
+}
+
+Window::Impl* implOf(GLFWwindow* w) {
+  return static_cast<Window::Impl*>(glfwGetWindowUserPointer(w));
+}
+
+}  // namespace
+
+Window::Window() : mImpl(std::make_unique<Impl>()) {}
+
+std::unique_ptr<Window> Window::open(uint32_t width, uint32_t height, const std::string& title) {
+  const char* display = std::getenv("DISPLAY");
+  const char* wayland = std::getenv("WAYLAND_DISPLAY");
+  if ((!display || !*display) && (!wayland || !*wayland))
+    throw RenderError("render::Window: no display (DISPLAY is not set); run headless instead");
+  if (!glfwInit()) throw RenderError("render::Window: GLFW cannot start: " + glfwFailure());
+  glfwWindowHint(GLFW_CONTEXT_VERSION_MAJOR, 4);
+  glfwWindowHint(GLFW_CONTEXT_VERSION_MINOR, 5);
+  glfwWindowHint(GLFW_OPENGL_PROFILE, GLFW_OPENGL_CORE_PROFILE);
+  glfwWindowHint(GLFW_OPENGL_FORWARD_COMPAT, GLFW_TRUE);
+  GLFWwindow* w = glfwCreateWindow(int(width), int(height), title.c_str(), nullptr, nullptr);
+  if (!w) {
+    std::string why = glfwFailure();
+    glfwTerminate();
+    throw RenderError("render::Window: no OpenGL 4.5 core window: " + why);
+  }
+  std::unique_ptr<Window> win(new Window());
+  win->mImpl->window = w;
+  glfwSetWindowUserPointer(w, win->mImpl.get());
+  glfwMakeContextCurrent(w);
+  glfwSwapInterval(0);
+  glfwSetScrollCallback(
+      w, [](GLFWwindow* gw, double, double dy) { implOf(gw)->pending.scroll += dy; });
+  glfwSetKeyCallback(w, [](GLFWwindow* gw, int key, int, int action, int) {
+    if (action == GLFW_PRESS) implOf(gw)->pending.keys.push_back(key);
+    if (key == GLFW_KEY_ESCAPE && action == GLFW_PRESS) glfwSetWindowShouldClose(gw, GLFW_TRUE);
+  });
+  glfwGetCursorPos(w, &win->mImpl->last_cursor.x, &win->mImpl->last_cursor.y);
+  return win;
+}
+
+Window::~Window() {
+  if (mImpl->framebuffer) glDeleteFramebuffers(1, &mImpl->framebuffer);
+  if (mImpl->texture) glDeleteTextures(1, &mImpl->texture);
+  glfwDestroyWindow(mImpl->window);
+  glfwTerminate();
+}
+
+bool Window::closing() const {
+  return glfwWindowShouldClose(mImpl->window);
+}
+
+void Window::setTitle(const std::string& title) {
+  glfwSetWindowTitle(mImpl->window, title.c_str());
+}
+
+void Window::present(uint32_t image_buffer, uint32_t width, uint32_t height) {
+  Impl& s = *mImpl;
+  if (s.tex_w != width || s.tex_h != height) {
+    if (s.framebuffer) glDeleteFramebuffers(1, &s.framebuffer);
+    if (s.texture) glDeleteTextures(1, &s.texture);
+    glCreateTextures(GL_TEXTURE_2D, 1, &s.texture);
+    glTextureStorage2D(s.texture, 1, GL_RGBA8, GLsizei(width), GLsizei(height));
+    glCreateFramebuffers(1, &s.framebuffer);
+    glNamedFramebufferTexture(s.framebuffer, GL_COLOR_ATTACHMENT0, s.texture, 0);
+    s.tex_w = width;
+    s.tex_h = height;
+  }
+  glMemoryBarrier(GL_PIXEL_BUFFER_BARRIER_BIT | GL_TEXTURE_UPDATE_BARRIER_BIT);
+  glBindBuffer(GL_PIXEL_UNPACK_BUFFER, image_buffer);
+  glTextureSubImage2D(s.texture, 0, 0, 0, GLsizei(width), GLsizei(height), GL_RGBA,
+                      GL_UNSIGNED_BYTE, nullptr);
+  glBindBuffer(GL_PIXEL_UNPACK_BUFFER, 0);
+  int fw = 0, fh = 0;
+  glfwGetFramebufferSize(s.window, &fw, &fh);
+  // The image's first row is the top: flip while blitting into GL's bottom-up framebuffer.
+  glBlitNamedFramebuffer(s.framebuffer, 0, 0, 0, GLint(width), GLint(height), 0, fh, fw, 0,
+                         GL_COLOR_BUFFER_BIT, GL_LINEAR);
+  glfwSwapBuffers(s.window);
+  // The back buffer is undefined after a swap: draw the frame into it again so that
+  // readFramebuffer() and the next partial update see what is on screen.
+  glBlitNamedFramebuffer(s.framebuffer, 0, 0, 0, GLint(width), GLint(height), 0, fh, fw, 0,
+                         GL_COLOR_BUFFER_BIT, GL_LINEAR);
+}
+
+std::vector<uint8_t> Window::readFramebuffer(uint32_t& width, uint32_t& height) const {
+  int fw = 0, fh = 0;
+  glfwGetFramebufferSize(mImpl->window, &fw, &fh);
+  width = uint32_t(fw);
+  height = uint32_t(fh);
+  std::vector<uint8_t> rows(size_t(fw) * size_t(fh) * 4), out(rows.size());
+  glBindFramebuffer(GL_READ_FRAMEBUFFER, 0);
+  glReadBuffer(GL_BACK);
+  glPixelStorei(GL_PACK_ALIGNMENT, 1);
+  glReadPixels(0, 0, fw, fh, GL_RGBA, GL_UNSIGNED_BYTE, rows.data());
+  const size_t stride = size_t(fw) * 4;
+  for (int y = 0; y < fh; ++y)  // GL's rows run bottom-up
+    std::copy_n(&rows[size_t(fh - 1 - y) * stride], stride, &out[size_t(y) * stride]);
+  return out;
+}
+
+WindowInput Window::poll() {
+  Impl& s = *mImpl;
+  glfwPollEvents();
+  WindowInput in = std::move(s.pending);
+  s.pending = WindowInput{};
+  glfwGetCursorPos(s.window, &in.cursor.x, &in.cursor.y);
+  in.cursor_delta = in.cursor - s.last_cursor;
+  s.last_cursor = in.cursor;
+  in.left = glfwGetMouseButton(s.window, GLFW_MOUSE_BUTTON_LEFT) == GLFW_PRESS;
+  in.right = glfwGetMouseButton(s.window, GLFW_MOUSE_BUTTON_RIGHT) == GLFW_PRESS;
+  in.middle = glfwGetMouseButton(s.window, GLFW_MOUSE_BUTTON_MIDDLE) == GLFW_PRESS;
+  in.left_pressed = in.left && !s.was_left;
+  in.left_released = !in.left && s.was_left;
+  s.was_left = in.left;
+  int w = 0, h = 0;
+  glfwGetWindowSize(s.window, &w, &h);
+  in.size = glm::uvec2(uint32_t(w), uint32_t(h));
+  return in;
+}
+
+}  // namespace tessera::render
