@@ -39,7 +39,9 @@ void main() {
   // exact position: it covers the pixels whose centres it contains, and always its own pixel.
   // Fixed splats cover the integer disc of radius uRadius around the point's pixel.
   float disc = uSpacingK > 0.0 ? min(0.5 * uSpacingK / c.w, float(uRadius)) : 0.0;
-  int radius = uSpacingK > 0.0 ? int(ceil(disc)) : uRadius;
+  // A neighbour k pixels away has its centre at least k - 1/2 from the point: a disc of radius
+  // up to 1/2 stays in the point's own pixel.
+  int radius = uSpacingK > 0.0 ? int(ceil(disc - 0.5)) : uRadius;
   int r2 = radius * radius + radius;
   for (int dy = -radius; dy <= radius; ++dy) {
     for (int dx = -radius; dx <= radius; ++dx) {

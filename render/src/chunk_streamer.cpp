@@ -43,6 +43,7 @@ bool before(const Item& a, const Item& b) {
 
 struct Loaded {
   Key key;
+  uint32_t disk_bytes = 0;
   bool page = false;
   bool failed = false;
   glm::dvec3 offset{0.0};
@@ -69,7 +70,7 @@ struct ChunkStreamer::Impl {
   // GL thread only.
   uint64_t frame = 0;
   std::unordered_map<Key, GpuChunk, KeyHash> resident;
-  uint64_t resident_bytes = 0;
+  uint64_t resident_bytes = 0, resident_disk_bytes = 0;
   std::unordered_set<Key, KeyHash> failed;
   std::unordered_set<Key, KeyHash> failed_pages;
   std::vector<Item> wanted;  ///< this frame's requests
@@ -97,6 +98,7 @@ struct ChunkStreamer::Impl {
       } else {
         try {
           auto chunk = item.store->decodeChunk(item.node);
+          out.disk_bytes = item.store->chunkBytes(item.node);
           out.offset = chunk->offset;
           out.points.resize(chunk->size());
           const bool color = !chunk->colors.empty();
@@ -168,7 +170,9 @@ void ChunkStreamer::beginFrame() {
     c.count = uint32_t(l.points.size());
     c.offset = l.offset;
     c.last_used = frame;
+    c.disk_bytes = l.disk_bytes;
     s.resident_bytes += c.buffer.bytes();
+    s.resident_disk_bytes += c.disk_bytes;
     s.resident.emplace(l.key, std::move(c));
     ++mStats.uploaded;
   }
@@ -185,6 +189,7 @@ void ChunkStreamer::beginFrame() {
       if (s.resident_bytes <= s.options.budget_bytes) break;
       auto it = s.resident.find(k);
       s.resident_bytes -= it->second.buffer.bytes();
+      s.resident_disk_bytes -= it->second.disk_bytes;
       s.resident.erase(it);
       ++mStats.evicted;
     }
@@ -239,6 +244,7 @@ void ChunkStreamer::endFrame() {
   s.wake.notify_all();
   mStats.resident_chunks = s.resident.size();
   mStats.resident_bytes = s.resident_bytes;
+  mStats.resident_disk_bytes = s.resident_disk_bytes;
 }
 
 void ChunkStreamer::waitForLoader() {
@@ -269,6 +275,7 @@ void ChunkStreamer::forget(const lod::PointStore& store) {
   for (auto it = s.resident.begin(); it != s.resident.end();) {
     if (it->first.store == &store) {
       s.resident_bytes -= it->second.buffer.bytes();
+      s.resident_disk_bytes -= it->second.disk_bytes;
       it = s.resident.erase(it);
     } else {
       ++it;

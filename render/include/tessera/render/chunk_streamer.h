@@ -23,8 +23,9 @@ namespace tessera::render {
 struct GpuChunk {
   GlBuffer buffer;
   uint32_t count = 0;
-  glm::dvec3 offset{0.0};  ///< store-local position of the points' frame
-  uint64_t last_used = 0;  ///< frame number
+  glm::dvec3 offset{0.0};   ///< store-local position of the points' frame
+  uint64_t last_used = 0;   ///< frame number
+  uint32_t disk_bytes = 0;  ///< the chunk's compressed size in the store
 };
 
 /// Counters of the last frame (requested..evicted, pages_*) and the state after it.
@@ -36,6 +37,7 @@ struct StreamStats {
   uint64_t pages_requested = 0;
   uint64_t resident_chunks = 0;
   uint64_t resident_bytes = 0;
+  uint64_t resident_disk_bytes = 0;  ///< the resident chunks' compressed size in their stores
   uint64_t budget_bytes = 0;
   uint64_t queued = 0;  ///< handed to the loader and not done
   double upload_ms = 0.0;
