@@ -616,9 +616,11 @@ class RandomScene {
   std::vector<NodeId> mRemoved;
 };
 
-TEST(SceneGraphProperty, ReplicasEqualTheMasterAfterEveryFrame) {
+class SceneGraphProperty : public ::testing::TestWithParam<uint64_t> {};
+
+TEST_P(SceneGraphProperty, ReplicasEqualTheMasterAfterEveryFrame) {
   constexpr int kOperations = 10'000;
-  RandomScene random(2024);
+  RandomScene random(GetParam());
   SceneGraph master, from_start;
   std::optional<SceneGraph> from_snapshot;
   const int snapshot_at = kOperations / 4 + random.pick(kOperations / 2);
@@ -655,11 +657,13 @@ TEST(SceneGraphProperty, ReplicasEqualTheMasterAfterEveryFrame) {
   EXPECT_GT(random.mReparented, 100);
   EXPECT_GT(max_nodes, 50u);
   std::printf(
-      "property test: %llu frames, %d re-created ids, %d removed subtrees, up to %zu "
+      "property test, seed %llu: %llu frames, %d re-created ids, %d removed subtrees, up to %zu "
       "nodes\n",
-      static_cast<unsigned long long>(frames), random.mRecreated, random.mRemovedWithChildren,
-      max_nodes);
+      static_cast<unsigned long long>(GetParam()), static_cast<unsigned long long>(frames),
+      random.mRecreated, random.mRemovedWithChildren, max_nodes);
 }
+
+INSTANTIATE_TEST_SUITE_P(Seeds, SceneGraphProperty, ::testing::Values(2024u, 7u, 99u));
 
 }  // namespace
 }  // namespace tessera::sync
