@@ -1,15 +1,15 @@
 #!/usr/bin/env bash
-# Builds the reader fuzz targets (preset `fuzz`, -j1), seeds a corpus per target in
+# Builds the reader and frame fuzz targets (preset `fuzz`, -j1), seeds a corpus per target in
 # build/fuzz/corpus/<target>/ from small real files and hand-made inputs, then runs each fuzzer
 # for SECONDS (default 300), one at a time. Crashing inputs land in fuzz/regressions/<target>/,
 # which is also replayed first, so a regression that comes back fails at once.
-# Usage: fuzz/run.sh [SECONDS] [TARGET...]   (targets: ply las text obj; default all)
+# Usage: fuzz/run.sh [SECONDS] [TARGET...]   (targets: ply las text obj frame; default all)
 set -euo pipefail
 
 cd "$(dirname "$0")/.."
 SECONDS_PER_TARGET=${1:-300}
 shift || true
-TARGETS=("${@:-ply las text obj}")
+TARGETS=("${@:-ply las text obj frame}")
 read -r -a TARGETS <<<"${TARGETS[*]}"
 DATA=${TESSERA_DATA_DIR:-$(cd .. && pwd)/shared/data}
 BUILD=build/fuzz
@@ -96,7 +96,39 @@ g side\nusemtl red\nf 1 2 3\nf 1/1 3/1 4/1\nf -4//1 -3//1 -2//1 -1//1\nf 1 2\nf 
   printf 'v 0.5 0.5 0.5 0.1 0.2 0.3\nv 1 2 3 0.4 0.5 0.6\nv 4 5 6\nf 1 2 3\n' >unit-colors.obj
 }
 
-declare -A MAX_LEN=([ply]=8192 [las]=8192 [text]=4096 [obj]=4096)
+# Frames and snapshots written from protobuf text format (protoc --encode), against the scene
+# the fuzzer applies them to: nodes 1 > 2 > 3 and 4, at version 1.
+seed_frame() {
+  local proto="$OLDPWD/sync/proto"
+  encode() { protoc --encode="tessera.scene.$1" -I "$proto" "$proto/tessera/scene.proto" >"$2"; }
+  encode Frame changes.frame <<'END'
+number: 2 version: 2 time_us: 33333
+camera { eye: [636590.5, 847900.25, 1400] view: [0, 1316, -937] roll: 0.25 }
+changed { id: 3 opacity: 0.5 visible: false transform { m: [1,0,0,0, 0,1,0,0, 0,0,1,0, 5,6,7,1] } }
+changed { id: 2 parent: 4 shading: SHADING_EDL lod_pixels: 2 }
+deleted: [1]
+created { id: 5 kind: SKETCH parent: 3 sketch { points: [0, 0, 0, 1, 1, 1] width: 2 } }
+created { id: 1 kind: AVATAR name: "visitor" avatar { site: "lab" color { g: 1 } } }
+settings { background { r: 0.1 } shading: SHADING_COLOR spbr_ensembles: 8 }
+commands { screenshot { path: "wall.png" } }
+commands { quit {} }
+END
+  encode Frame unchanged.frame <<'END'
+number: 2 version: 1 time_us: 33333
+END
+  encode Snapshot scene.snapshot <<'END'
+version: 7 frame: 40
+scene {
+  camera { eye: [0, 0, 1] view: [0, 0, -1] roll: 0 }
+  settings { background {} shading: SHADING_EDL lod_pixels: 1 spbr_ensembles: 1 }
+  nodes { id: 1 kind: GROUP }
+  nodes { id: 2 kind: MODEL parent: 1 model { store: "/s/a.tlod" } opacity: 0.5 }
+  nodes { id: 9 kind: VIDEO_INSET parent: 2 video_inset { stream: "cam" width: 1 height: 0.5 } }
+}
+END
+}
+
+declare -A MAX_LEN=([ply]=8192 [las]=8192 [text]=4096 [obj]=4096 [frame]=4096)
 export UBSAN_OPTIONS=halt_on_error=1:print_stacktrace=1
 status=0
 summary=()

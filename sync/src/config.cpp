@@ -1,47 +1,18 @@
 #include <tessera/sync/config.h>
 
-#include <google/protobuf/util/json_util.h>
-
 #include <cmath>
-#include <fstream>
 #include <set>
-#include <sstream>
 
-#include <glm/glm.hpp>
+#include "config_json.h"
 
 namespace tessera::sync {
 namespace {
 
+using detail::parseConfigJson;
+
 [[noreturn]] void fail(const char* fn, const std::string& file, const std::string& field,
                        const std::string& what) {
-  throw ConfigError(std::string(fn) + ": " + file + ": " + (field.empty() ? "" : field + ": ") +
-                    what);
-}
-
-std::string readFile(const std::filesystem::path& path, const char* fn) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) fail(fn, path.string(), "", "cannot open");
-  std::ostringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
-
-template <typename Message>
-void parseJson(const std::string& json, const std::string& name, const char* fn, Message& msg) {
-  google::protobuf::util::JsonParseOptions options;
-  options.ignore_unknown_fields = false;  // a misspelt field is an error, not silently ignored
-  auto status = google::protobuf::util::JsonStringToMessage(json, &msg, options);
-  if (!status.ok())
-    fail(fn, name, "",
-         "not a valid " + msg.GetDescriptor()->name() + ": " + std::string(status.message()));
-}
-
-glm::dvec3 vec(const config::Vec3& v) {
-  return {v.x(), v.y(), v.z()};
-}
-
-bool finite(const config::Vec3& v) {
-  return std::isfinite(v.x()) && std::isfinite(v.y()) && std::isfinite(v.z());
+  detail::failConfig(fn, file, field, what);
 }
 
 }  // namespace
@@ -49,7 +20,7 @@ bool finite(const config::Vec3& v) {
 config::WallConfig parseWallConfig(const std::string& json, const std::string& name) {
   const char* fn = "sync::loadWallConfig()";
   config::WallConfig wall;
-  parseJson(json, name, fn, wall);
+  parseConfigJson(json, name, fn, wall);
   if (wall.tiles_size() == 0) fail(fn, name, "tiles", "a wall needs at least one tile");
   std::set<std::string> names;
   for (int i = 0; i < wall.tiles_size(); ++i) {
@@ -69,7 +40,7 @@ config::WallConfig parseWallConfig(const std::string& json, const std::string& n
       fail(fn, name, f, "pixelWidth and pixelHeight must be 1..16384");
     }
   }
-  if (!wall.has_eye() || !finite(wall.eye()) || !(wall.eye().z() > 0)) {
+  if (!wall.has_eye() || !detail::finite(wall.eye()) || !(wall.eye().z() > 0)) {
     fail(fn, name, "eye", "the viewer's eye must be in front of the wall (z > 0, metres)");
   }
   if (wall.near() == 0) wall.set_near(0.05);
@@ -80,14 +51,14 @@ config::WallConfig parseWallConfig(const std::string& json, const std::string& n
 }
 
 config::WallConfig loadWallConfig(const std::filesystem::path& path) {
-  return parseWallConfig(readFile(path, "sync::loadWallConfig()"), path.string());
+  return parseWallConfig(detail::readConfigFile(path, "sync::loadWallConfig()"), path.string());
 }
 
 config::SceneConfig parseSceneConfig(const std::string& json, const std::string& name,
                                      const std::filesystem::path& base_dir) {
   const char* fn = "sync::loadSceneConfig()";
   config::SceneConfig scene;
-  parseJson(json, name, fn, scene);
+  parseConfigJson(json, name, fn, scene);
   for (int i = 0; i < scene.models_size(); ++i) {
     config::Model& m = *scene.mutable_models(i);
     const std::string f = "models[" + std::to_string(i) + "]";
@@ -107,15 +78,7 @@ config::SceneConfig parseSceneConfig(const std::string& json, const std::string&
   }
   if (!scene.has_camera())
     fail(fn, name, "camera", "a scene needs an initial camera (eye, target, up)");
-  const auto& c = scene.camera();
-  if (!finite(c.eye()) || !finite(c.target()) || !finite(c.up()))
-    fail(fn, name, "camera", "numbers must be finite");
-  glm::dvec3 view = vec(c.target()) - vec(c.eye());
-  if (glm::length(view) == 0) fail(fn, name, "camera", "eye and target coincide");
-  if (glm::length(glm::cross(view, vec(c.up()))) <=
-      1e-9 * glm::length(view) * glm::length(vec(c.up()))) {
-    fail(fn, name, "camera.up", "up must not be zero or along the view direction");
-  }
+  detail::checkConfigCamera(scene.camera(), fn, name, "camera");
   if (scene.background_size() == 0) {
     for (int k = 0; k < 3; ++k) scene.add_background(0.0);
   }
@@ -135,7 +98,7 @@ config::SceneConfig parseSceneConfig(const std::string& json, const std::string&
 }
 
 config::SceneConfig loadSceneConfig(const std::filesystem::path& path) {
-  return parseSceneConfig(readFile(path, "sync::loadSceneConfig()"), path.string(),
+  return parseSceneConfig(detail::readConfigFile(path, "sync::loadSceneConfig()"), path.string(),
                           path.parent_path());
 }
 

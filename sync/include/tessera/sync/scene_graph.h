@@ -1,0 +1,192 @@
+// The versioned scene graph and its differential sync (issue 6; Equalizer's distributed objects:
+// instance data plus deltas, versions). The master mutates its SceneGraph, and once per frame
+// takeFrame() turns what changed since the previous frame into one scene::Frame; each node's
+// replica SceneGraph apply()s the frames, or first a snapshot() when it joins late. Applying a
+// snapshot and then every later frame gives a replica equal to the master.
+//
+// A scene is a tree of nodes (scene::SceneNode, scene.proto) under an implicit root with id 0,
+// plus the camera and the wall-level settings. One class plays both roles; a graph is used either
+// as master (mutators, takeFrame) or as replica (apply), not both at once.
+//
+// Change tracking: the first mutation of a node in a frame keeps a copy of its state as of the
+// previous frame (or notes that it did not exist). takeFrame() compares each touched node's
+// saved and current state field by field and sends only the fields that differ, so a node
+// deleted and re-created, or a field set and set back, costs nothing. The same saved copies let
+// snapshot() give the state as of the last frame while new changes are pending.
+//
+// Not thread-safe: one thread owns a graph.
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <map>
+#include <optional>
+#include <set>
+#include <span>
+#include <stdexcept>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include <tessera/config.pb.h>
+#include <tessera/scene.pb.h>
+
+namespace tessera::sync {
+
+/// A frame, snapshot or byte string from outside that cannot be applied or parsed. The replica is
+/// left as it was. what() starts with the function and names the frame, the field and the node.
+class SyncError : public std::runtime_error {
+ public:
+  enum class Code {
+    kParse,          ///< bytes are not a message of the expected type
+    kVersionGap,     ///< a frame's version does not follow the replica's
+    kUnknownNode,    ///< a change or delete names an id the replica does not have
+    kDuplicateNode,  ///< a create names an id that exists, or an id appears twice
+    kBadParent,      ///< a parent that does not exist, or a node left without its parent
+    kParentCycle,    ///< the parents would form a cycle
+    kBadField,       ///< a value out of range, a wrong payload for the kind, a bad camera ...
+  };
+  SyncError(Code code, const std::string& what) : std::runtime_error(what), mCode(code) {}
+  Code code() const { return mCode; }
+
+ private:
+  Code mCode;
+};
+
+class SceneGraph {
+ public:
+  using NodeId = uint32_t;
+  using Kind = scene::SceneNode::Kind;
+  static constexpr NodeId kRoot = 0;
+
+  /// An empty scene at version 0, frame 0: no nodes, camera at (0, 0, 1) looking at the origin
+  /// with y up, settings defaultSettings().
+  SceneGraph();
+
+  /// A master's scene from a loaded scene file (loadSceneConfig): one MODEL node per model,
+  /// ids 1, 2, ... in file order, under the root; its camera and settings. All of it is pending,
+  /// so the first takeFrame() carries it.
+  static SceneGraph fromConfig(const config::SceneConfig& config);
+
+  /// A node of `kind` as created: visible, opacity 1, identity transform, inherited shading and
+  /// LOD threshold, empty name, parent root, the (empty) payload of its kind. Every field set.
+  static scene::SceneNode defaultNode(NodeId id, Kind kind);
+  /// Background black, shading colour, LOD threshold 1 pixel, 1 SPBR ensemble.
+  static scene::Settings defaultSettings();
+
+  // ---- Master: mutations. Preconditions are TESSERA_CHECKs (PreconditionError): they name
+  // ---- API misuse, not bad input from outside.
+
+  /// Creates node `id` (> 0, not in use) of a valid `kind` under `parent` (kRoot or an existing
+  /// node), with defaultNode() fields and `name`.
+  void create(NodeId id, Kind kind, NodeId parent = kRoot, std::string_view name = {});
+  /// Same with the next id never used by this graph (one more than the largest seen). Returns it.
+  NodeId add(Kind kind, NodeId parent = kRoot, std::string_view name = {});
+  /// Removes `id` and its whole subtree. Cost: the subtree's size.
+  void remove(NodeId id);
+  /// Moves `id` under `parent`, which must not be `id` or in its subtree.
+  void setParent(NodeId id, NodeId parent);
+  void setName(NodeId id, std::string_view name);
+  void setVisible(NodeId id, bool visible);
+  /// opacity in [0, 1].
+  void setOpacity(NodeId id, float opacity);
+  /// 16 finite numbers, column-major, node frame to parent frame, metres; or none: identity.
+  void setTransform(NodeId id, std::span<const double> matrix);
+  /// Any Shading; SHADING_INHERIT uses the wall-level setting.
+  void setShading(NodeId id, scene::Shading shading);
+  /// pixels >= 0; 0 uses the wall-level setting.
+  void setLodPixels(NodeId id, float pixels);
+  /// Replaces the payload; the node's kind must be the payload's (MODEL for ModelPayload ...).
+  void setPayload(NodeId id, const scene::ModelPayload& payload);
+  void setPayload(NodeId id, const scene::AnnotationPayload& payload);
+  void setPayload(NodeId id, const scene::SketchPayload& payload);
+  void setPayload(NodeId id, const scene::AvatarPayload& payload);
+  void setPayload(NodeId id, const scene::VideoInsetPayload& payload);
+
+  /// Sets the camera (metres, scene frame), stored in its wire form (camera_state.h): camera()
+  /// then returns it rounded as every node will see it. Preconditions as encodeCamera().
+  void setCamera(const config::Camera& camera);
+  /// r, g, b in [0, 1].
+  void setBackground(float r, float g, float b);
+  /// SHADING_COLOR or SHADING_EDL.
+  void setShading(scene::Shading shading);
+  /// pixels > 0.
+  void setLodPixels(float pixels);
+  /// 1..64.
+  void setSpbrEnsembles(uint32_t ensembles);
+
+  /// Queues a command (screenshot, quit) for the next frame. It does not change the scene.
+  void addCommand(const scene::Command& command);
+
+  /// The frame holding everything changed since the previous takeFrame() (or since
+  /// construction), and the queued commands. Bumps the version by one when the scene changed;
+  /// a frame without changes holds number, version and time only. `number` is stored as the
+  /// last frame number (snapshot().frame()). Cost: the nodes touched since the last frame.
+  scene::Frame takeFrame(uint64_t number, uint64_t time_us);
+
+  /// True when a mutation happened since the last takeFrame() (commands do not count).
+  bool hasPendingChanges() const;
+
+  /// The scene as of the last takeFrame() (pending changes are not in it), at version(), nodes
+  /// in ascending id. Cost: the whole scene.
+  scene::Snapshot snapshot() const;
+
+  // ---- Replica: applying what the master sent. Both throw SyncError on bad input and then
+  // ---- leave the graph unchanged. Precondition: no pending local mutations.
+
+  /// Applies one frame (see scene::Frame for the order and the version rule). Commands are not
+  /// executed here; the caller reads them from the frame. Cost: the size of the frame, plus the
+  /// depth of the tree for each node whose parent changed.
+  void apply(const scene::Frame& frame);
+  /// Replaces the whole state with a snapshot's. Cost: the snapshot's size.
+  void apply(const scene::Snapshot& snapshot);
+
+  // ---- Queries (the current state, pending changes included).
+
+  uint64_t version() const { return mVersion; }
+  uint64_t frameNumber() const { return mFrameNumber; }
+  size_t size() const { return mNodes.size(); }
+  bool contains(NodeId id) const { return mNodes.count(id) != 0; }
+  /// The node's full state. Precondition: contains(id).
+  const scene::SceneNode& node(NodeId id) const;
+  /// Direct children of `id` (or of the root), ascending.
+  std::vector<NodeId> children(NodeId id) const;
+  /// Every node id, ascending.
+  std::vector<NodeId> ids() const;
+  /// The first node (lowest id) with this name, if any.
+  std::optional<NodeId> findByName(std::string_view name) const;
+  /// The camera as every process decodes it (unit up, orthogonal to the view).
+  config::Camera camera() const;
+  const scene::CameraState& cameraState() const { return mCamera; }
+  const scene::Settings& settings() const { return mSettings; }
+
+  /// Same version, frame number, camera, settings and nodes.
+  bool operator==(const SceneGraph& other) const;
+
+ private:
+  scene::SceneNode& mutableNode(NodeId id);  // checks, saves the committed copy
+  void replacePayload(NodeId id, Kind kind, const std::function<void(scene::SceneNode&)>& set);
+  void checkNode(const scene::SceneNode& node) const;  // a mutator's result is valid
+  void insertNode(scene::SceneNode node);              // no checks, keeps mChildren
+  void eraseNode(NodeId id);                           // the node only, keeps mChildren
+  void touchCamera();
+  void touchSettings();
+  void validateFrame(const scene::Frame& frame) const;
+
+  std::map<NodeId, scene::SceneNode> mNodes;
+  std::map<NodeId, std::set<NodeId>> mChildren;  // parent (kRoot too) -> children
+  scene::CameraState mCamera;
+  scene::Settings mSettings;
+  uint64_t mVersion = 0;
+  uint64_t mFrameNumber = 0;
+  NodeId mNextId = 1;
+
+  // Change tracking since the last takeFrame(): a touched node's committed state (nullopt: it
+  // did not exist), and the committed camera and settings when touched.
+  std::map<NodeId, std::optional<scene::SceneNode>> mCommitted;
+  std::optional<scene::CameraState> mCommittedCamera;
+  std::optional<scene::Settings> mCommittedSettings;
+  std::vector<scene::Command> mCommands;
+};
+
+}  // namespace tessera::sync

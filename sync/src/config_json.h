@@ -1,0 +1,61 @@
+// Private helpers shared by the JSON config loaders (walls, scenes, camera paths): errors in the
+// form "sync::loadX(): FILE: FIELD: what", reading a file, strict JSON parsing.
+#pragma once
+
+#include <google/protobuf/util/json_util.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+
+#include <glm/glm.hpp>
+
+#include <tessera/sync/config.h>
+
+#include "vec3.h"
+
+namespace tessera::sync::detail {
+
+[[noreturn]] inline void failConfig(const char* fn, const std::string& file,
+                                    const std::string& field, const std::string& what) {
+  throw ConfigError(std::string(fn) + ": " + file + ": " + (field.empty() ? "" : field + ": ") +
+                    what);
+}
+
+inline std::string readConfigFile(const std::filesystem::path& path, const char* fn) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) failConfig(fn, path.string(), "", "cannot open");
+  std::ostringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+/// Parses `json` into `msg`; an unknown (misspelt) field is an error, not silently ignored.
+template <typename Message>
+void parseConfigJson(const std::string& json, const std::string& name, const char* fn,
+                     Message& msg) {
+  google::protobuf::util::JsonParseOptions options;
+  options.ignore_unknown_fields = false;
+  auto status = google::protobuf::util::JsonStringToMessage(json, &msg, options);
+  if (!status.ok())
+    failConfig(fn, name, "",
+               "not a valid " + msg.GetDescriptor()->name() + ": " + std::string(status.message()));
+}
+
+/// A camera from a file: finite, eye != target, up not zero or along the view. Errors name
+/// `field` (and `field`.up).
+inline void checkConfigCamera(const config::Camera& c, const char* fn, const std::string& file,
+                              const std::string& field) {
+  if (!finite(c.eye()) || !finite(c.target()) || !finite(c.up()))
+    failConfig(fn, file, field, "numbers must be finite");
+  const glm::dvec3 view = vec(c.target()) - vec(c.eye());
+  if (glm::length(view) == 0) failConfig(fn, file, field, "eye and target coincide");
+  if (glm::length(glm::cross(view, vec(c.up()))) <=
+      1e-9 * glm::length(view) * glm::length(vec(c.up()))) {
+    failConfig(fn, file, field + ".up", "up must not be zero or along the view direction");
+  }
+}
+
+}  // namespace tessera::sync::detail

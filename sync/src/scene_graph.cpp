@@ -1,0 +1,841 @@
+#include <tessera/sync/scene_graph.h>
+
+#include <google/protobuf/util/message_differencer.h>
+
+#include <algorithm>
+#include <cassert>
+#include <cmath>
+#include <cstdio>
+#include <functional>
+#include <unordered_set>
+
+#include <tessera/core/check.h>
+#include <tessera/sync/camera_state.h>
+
+namespace tessera::sync {
+namespace {
+
+using google::protobuf::FieldDescriptor;
+using google::protobuf::Message;
+using google::protobuf::util::MessageDifferencer;
+using scene::SceneNode;
+using NodeId = SceneGraph::NodeId;
+using Code = SyncError::Code;
+
+// ---- Field-wise diff and overwrite, through reflection, so new fields need no code here.
+// State messages have every field present; in deltas presence means "changed to this". A
+// repeated field counts as present when non-empty (a state never holds an empty one that a
+// delta would need to send: an empty transform is the default, and the camera's are complete).
+
+bool present(const Message& m, const FieldDescriptor* f) {
+  const auto* r = m.GetReflection();
+  return f->is_repeated() ? r->FieldSize(m, f) > 0 : r->HasField(m, f);
+}
+
+bool sameField(const Message& a, const Message& b, const FieldDescriptor* f) {
+  MessageDifferencer differencer;  // exact float comparison, repeated fields as lists
+  const std::vector<const FieldDescriptor*> fields{f};
+  return differencer.CompareWithFields(a, b, fields, fields);
+}
+
+/// Makes `delta` hold the fields of `now` that `before` lacks or holds with another value
+/// (`skip` excepted). Returns whether there is any.
+bool diffFields(const Message& before, const Message& now, Message& delta,
+                const FieldDescriptor* skip = nullptr) {
+  delta.CopyFrom(now);
+  const auto* r = delta.GetReflection();
+  const auto* d = delta.GetDescriptor();
+  for (int i = 0; i < d->field_count(); ++i) {
+    const FieldDescriptor* f = d->field(i);
+    if (f == skip || (present(now, f) && present(before, f) && sameField(before, now, f)))
+      r->ClearField(&delta, f);
+  }
+  std::vector<const FieldDescriptor*> left;
+  r->ListFields(delta, &left);
+  return !left.empty();
+}
+
+/// Overwrites in `state` every field present in `delta`: scalars and strings take the new value,
+/// messages and repeated fields are replaced whole (MergeFrom alone would merge and append).
+void overwriteFields(Message& state, const Message& delta) {
+  const auto* r = state.GetReflection();
+  std::vector<const FieldDescriptor*> fields;
+  delta.GetReflection()->ListFields(delta, &fields);
+  for (const FieldDescriptor* f : fields) {
+    if (f->is_repeated() || f->cpp_type() == FieldDescriptor::CPPTYPE_MESSAGE)
+      r->ClearField(&state, f);
+  }
+  state.MergeFrom(delta);
+}
+
+bool equal(const Message& a, const Message& b) {
+  return MessageDifferencer::Equals(a, b);
+}
+
+// ---- Validation of values from outside (and of the master's own mutations). Each returns an
+// error text naming the field, or nothing.
+
+using Problem = std::optional<std::string>;
+
+std::string num(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%g", v);
+  return buf;
+}
+
+bool validKind(int kind) {
+  return SceneNode::Kind_IsValid(kind) && kind != SceneNode::KIND_UNSPECIFIED;
+}
+
+SceneNode::PayloadCase payloadCaseOf(SceneGraph::Kind kind) {
+  switch (kind) {
+    case SceneNode::MODEL:
+      return SceneNode::kModel;
+    case SceneNode::ANNOTATION:
+      return SceneNode::kAnnotation;
+    case SceneNode::SKETCH:
+      return SceneNode::kSketch;
+    case SceneNode::AVATAR:
+      return SceneNode::kAvatar;
+    case SceneNode::VIDEO_INSET:
+      return SceneNode::kVideoInset;
+    default:
+      return SceneNode::PAYLOAD_NOT_SET;
+  }
+}
+
+Problem checkColor(const scene::Color& c, const std::string& field) {
+  for (float v : {c.r(), c.g(), c.b()}) {
+    if (!(v >= 0.0f && v <= 1.0f)) return field + ": components must be in [0, 1], got " + num(v);
+  }
+  return {};
+}
+
+Problem checkNonNegative(float v, const std::string& field) {
+  if (!(v >= 0.0f) || !std::isfinite(v)) return field + ": must be finite and >= 0, got " + num(v);
+  return {};
+}
+
+Problem checkPayload(const SceneNode& n) {
+  switch (n.payload_case()) {
+    case SceneNode::kAnnotation: {
+      const auto& a = n.annotation().anchor();
+      if (!std::isfinite(a.x()) || !std::isfinite(a.y()) || !std::isfinite(a.z()))
+        return std::string("annotation.anchor: numbers must be finite");
+      return {};
+    }
+    case SceneNode::kSketch: {
+      const auto& s = n.sketch();
+      if (s.points_size() % 3 != 0)
+        return "sketch.points: needs x y z triples, got " + std::to_string(s.points_size()) +
+               " numbers";
+      for (float v : s.points()) {
+        if (!std::isfinite(v)) return std::string("sketch.points: numbers must be finite");
+      }
+      if (auto p = checkColor(s.color(), "sketch.color")) return p;
+      return checkNonNegative(s.width(), "sketch.width");
+    }
+    case SceneNode::kAvatar:
+      return checkColor(n.avatar().color(), "avatar.color");
+    case SceneNode::kVideoInset: {
+      if (auto p = checkNonNegative(n.video_inset().width(), "video_inset.width")) return p;
+      return checkNonNegative(n.video_inset().height(), "video_inset.height");
+    }
+    default:
+      return {};
+  }
+}
+
+/// The fields present in `n` (a full state or a delta) for a node of `kind`.
+Problem checkNodeFields(const SceneNode& n, SceneGraph::Kind kind) {
+  if (n.has_opacity() && !(n.opacity() >= 0.0f && n.opacity() <= 1.0f))
+    return "opacity: " + num(n.opacity()) + " is not in [0, 1]";
+  if (n.has_transform()) {
+    const auto& m = n.transform().m();
+    if (m.size() != 0 && m.size() != 16)
+      return "transform: needs 16 numbers (column-major 4x4) or none, got " +
+             std::to_string(m.size());
+    for (double v : m) {
+      if (!std::isfinite(v)) return std::string("transform: numbers must be finite");
+    }
+  }
+  if (n.has_shading() && !scene::Shading_IsValid(n.shading()))
+    return "shading: unknown value " + std::to_string(int(n.shading()));
+  if (n.has_lod_pixels()) {
+    if (auto p = checkNonNegative(n.lod_pixels(), "lod_pixels")) return p;
+  }
+  if (n.has_kind() && n.kind() != kind)
+    return "kind: " + std::to_string(int(n.kind())) + " differs from the node's kind " +
+           std::to_string(int(kind)) + " (a new kind is a delete and a create)";
+  if (n.payload_case() != SceneNode::PAYLOAD_NOT_SET && n.payload_case() != payloadCaseOf(kind))
+    return "payload: field " + std::to_string(int(n.payload_case())) + " does not belong to kind " +
+           SceneNode::Kind_Name(kind);
+  return checkPayload(n);
+}
+
+/// A delta of the settings (or complete settings).
+Problem checkSettings(const scene::Settings& s) {
+  if (s.has_background()) {
+    if (auto p = checkColor(s.background(), "settings.background")) return p;
+  }
+  if (s.has_shading() && s.shading() != scene::SHADING_COLOR && s.shading() != scene::SHADING_EDL)
+    return "settings.shading: must be SHADING_COLOR or SHADING_EDL, got " +
+           std::to_string(int(s.shading()));
+  if (s.has_lod_pixels() && !(s.lod_pixels() > 0.0f && std::isfinite(s.lod_pixels())))
+    return "settings.lod_pixels: must be finite and > 0, got " + num(s.lod_pixels());
+  if (s.has_spbr_ensembles() && (s.spbr_ensembles() < 1 || s.spbr_ensembles() > 64))
+    return "settings.spbr_ensembles: must be 1..64, got " + std::to_string(s.spbr_ensembles());
+  return {};
+}
+
+/// A delta of the camera: each part absent or complete.
+Problem checkCameraDelta(const scene::CameraState& c) {
+  if (c.eye_size() != 0 && c.eye_size() != 3)
+    return "camera.eye: needs 3 numbers, got " + std::to_string(c.eye_size());
+  if (c.view_size() != 0 && c.view_size() != 3)
+    return "camera.view: needs 3 numbers, got " + std::to_string(c.view_size());
+  for (double v : c.eye()) {
+    if (!std::isfinite(v)) return std::string("camera.eye: numbers must be finite");
+  }
+  double length2 = 0.0;
+  for (float v : c.view()) {
+    if (!std::isfinite(v)) return std::string("camera.view: numbers must be finite");
+    length2 += double(v) * double(v);
+  }
+  if (c.view_size() == 3 && !(length2 > 0.0))
+    return std::string("camera.view: eye and target coincide");
+  if (c.has_roll() && !std::isfinite(c.roll())) return std::string("camera.roll: must be finite");
+  return {};
+}
+
+Problem checkCommand(const scene::Command& c) {
+  switch (c.command_case()) {
+    case scene::Command::kScreenshot:
+      if (c.screenshot().path().empty()) return std::string("screenshot.path: must not be empty");
+      return {};
+    case scene::Command::kQuit:
+      return {};
+    default:
+      return std::string("empty or unknown command");
+  }
+}
+
+/// Checks that every node in `start` reaches the root through existing parents without a cycle.
+/// `parentOf(id)` gives an existing node's parent; `exists(id)` whether a node exists. Each node
+/// is walked once (`verified`), so the cost is the number of nodes on the paths.
+void checkAncestry(const std::vector<NodeId>& start, const std::function<NodeId(NodeId)>& parentOf,
+                   const std::function<bool(NodeId)>& exists, const std::string& context) {
+  std::unordered_set<NodeId> verified;
+  std::vector<NodeId> path;
+  std::unordered_set<NodeId> on_path;
+  for (NodeId first : start) {
+    path.clear();
+    on_path.clear();
+    NodeId id = first;
+    while (id != SceneGraph::kRoot && !verified.count(id)) {
+      if (!on_path.insert(id).second) {
+        std::string cycle;
+        auto from = std::find(path.begin(), path.end(), id);
+        for (auto it = from; it != path.end(); ++it) cycle += std::to_string(*it) + " -> ";
+        throw SyncError(Code::kParentCycle, context + ": node " + std::to_string(first) +
+                                                ": parents form a cycle " + cycle +
+                                                std::to_string(id));
+      }
+      path.push_back(id);
+      const NodeId parent = parentOf(id);
+      if (parent != SceneGraph::kRoot && !exists(parent)) {
+        throw SyncError(Code::kBadParent, context + ": node " + std::to_string(id) + ": parent " +
+                                              std::to_string(parent) + " does not exist");
+      }
+      id = parent;
+    }
+    verified.insert(path.begin(), path.end());
+  }
+}
+
+[[noreturn]] void fail(Code code, const std::string& context, const std::string& where,
+                       const std::string& what) {
+  throw SyncError(code, context + ": " + where + ": " + what);
+}
+
+std::string nodeWhere(const char* list, int index, NodeId id) {
+  return std::string(list) + "[" + std::to_string(index) + "] (node " + std::to_string(id) + ")";
+}
+
+const FieldDescriptor* idField() {
+  static const FieldDescriptor* f =
+      SceneNode::descriptor()->FindFieldByNumber(SceneNode::kIdFieldNumber);
+  return f;
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------------------------------------
+// Construction
+
+SceneGraph::SceneGraph() : mSettings(defaultSettings()) {
+  config::Camera camera;
+  camera.mutable_eye()->set_z(1.0);
+  camera.mutable_up()->set_y(1.0);
+  mCamera = encodeCamera(camera);
+}
+
+SceneGraph SceneGraph::fromConfig(const config::SceneConfig& config) {
+  SceneGraph graph;
+  for (const config::Model& m : config.models()) {
+    const NodeId id = graph.add(SceneNode::MODEL, kRoot, m.name());
+    scene::ModelPayload model;
+    model.set_store(m.store());
+    graph.setPayload(id, model);
+    graph.setOpacity(id, m.opacity() == 0 ? 1.0f : float(m.opacity()));
+    graph.setVisible(id, !m.hidden());
+    graph.setTransform(id, {m.transform().data(), size_t(m.transform_size())});
+  }
+  if (config.has_camera()) graph.setCamera(config.camera());
+  if (config.background_size() == 3)
+    graph.setBackground(float(config.background(0)), float(config.background(1)),
+                        float(config.background(2)));
+  if (config.lod_pixels() > 0) graph.setLodPixels(float(config.lod_pixels()));
+  if (config.shading() == "edl") graph.setShading(scene::SHADING_EDL);
+  return graph;
+}
+
+SceneNode SceneGraph::defaultNode(NodeId id, Kind kind) {
+  SceneNode n;
+  n.set_id(id);
+  n.set_opacity(1.0f);
+  n.set_visible(true);
+  n.mutable_transform();
+  n.set_parent(kRoot);
+  n.set_name("");
+  n.set_kind(kind);
+  n.set_shading(scene::SHADING_INHERIT);
+  n.set_lod_pixels(0.0f);
+  switch (payloadCaseOf(kind)) {
+    case SceneNode::kModel:
+      n.mutable_model();
+      break;
+    case SceneNode::kAnnotation:
+      n.mutable_annotation();
+      break;
+    case SceneNode::kSketch:
+      n.mutable_sketch();
+      break;
+    case SceneNode::kAvatar:
+      n.mutable_avatar();
+      break;
+    case SceneNode::kVideoInset:
+      n.mutable_video_inset();
+      break;
+    default:
+      break;
+  }
+  return n;
+}
+
+scene::Settings SceneGraph::defaultSettings() {
+  scene::Settings s;
+  s.mutable_background();
+  s.set_shading(scene::SHADING_COLOR);
+  s.set_lod_pixels(1.0f);
+  s.set_spbr_ensembles(1);
+  return s;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Master: mutations
+
+void SceneGraph::insertNode(SceneNode node) {
+  const NodeId id = node.id(), parent = node.parent();
+  mNodes.insert_or_assign(id, std::move(node));
+  mChildren[parent].insert(id);
+  mNextId = std::max(mNextId, id + 1);
+}
+
+void SceneGraph::eraseNode(NodeId id) {
+  auto it = mNodes.find(id);
+  assert(it != mNodes.end());
+  auto siblings = mChildren.find(it->second.parent());
+  if (siblings != mChildren.end()) {
+    siblings->second.erase(id);
+    if (siblings->second.empty()) mChildren.erase(siblings);
+  }
+  mNodes.erase(it);
+}
+
+SceneNode& SceneGraph::mutableNode(NodeId id) {
+  auto it = mNodes.find(id);
+  TESSERA_CHECK(it != mNodes.end(),
+                "sync::SceneGraph: node " + std::to_string(id) + " does not exist");
+  mCommitted.try_emplace(id, it->second);
+  return it->second;
+}
+
+void SceneGraph::checkNode(const SceneNode& n) const {
+  const Problem p = checkNodeFields(n, n.kind());
+  TESSERA_CHECK(!p, "sync::SceneGraph: node " + std::to_string(n.id()) + ": " + p.value_or(""));
+}
+
+void SceneGraph::create(NodeId id, Kind kind, NodeId parent, std::string_view name) {
+  TESSERA_CHECK(id != kRoot && !contains(id),
+                "sync::SceneGraph::create(): id " + std::to_string(id) + " is 0 or in use");
+  TESSERA_CHECK(validKind(kind), "sync::SceneGraph::create(): invalid kind");
+  TESSERA_CHECK(parent == kRoot || contains(parent),
+                "sync::SceneGraph::create(): parent " + std::to_string(parent) + " does not exist");
+  mCommitted.try_emplace(id, std::nullopt);
+  SceneNode n = defaultNode(id, kind);
+  n.set_parent(parent);
+  n.set_name(std::string(name));
+  insertNode(std::move(n));
+}
+
+SceneGraph::NodeId SceneGraph::add(Kind kind, NodeId parent, std::string_view name) {
+  TESSERA_CHECK(mNextId != 0, "sync::SceneGraph::add(): ids exhausted");
+  const NodeId id = mNextId;
+  create(id, kind, parent, name);
+  return id;
+}
+
+void SceneGraph::remove(NodeId id) {
+  TESSERA_CHECK(contains(id),
+                "sync::SceneGraph::remove(): node " + std::to_string(id) + " does not exist");
+  // Depth-first, children before their parent.
+  std::vector<NodeId> order, stack{id};
+  while (!stack.empty()) {
+    const NodeId n = stack.back();
+    stack.pop_back();
+    order.push_back(n);
+    if (auto c = mChildren.find(n); c != mChildren.end())
+      stack.insert(stack.end(), c->second.begin(), c->second.end());
+  }
+  for (auto it = order.rbegin(); it != order.rend(); ++it) {
+    mutableNode(*it);  // saves the committed copy
+    eraseNode(*it);
+  }
+}
+
+void SceneGraph::setParent(NodeId id, NodeId parent) {
+  TESSERA_CHECK(contains(id),
+                "sync::SceneGraph::setParent(): node " + std::to_string(id) + " does not exist");
+  TESSERA_CHECK(
+      parent == kRoot || contains(parent),
+      "sync::SceneGraph::setParent(): parent " + std::to_string(parent) + " does not exist");
+  for (NodeId a = parent; a != kRoot; a = node(a).parent()) {
+    TESSERA_CHECK(a != id, "sync::SceneGraph::setParent(): node " + std::to_string(parent) +
+                               " is node " + std::to_string(id) + " or in its subtree");
+  }
+  SceneNode& n = mutableNode(id);
+  if (n.parent() == parent) return;
+  auto siblings = mChildren.find(n.parent());
+  siblings->second.erase(id);
+  if (siblings->second.empty()) mChildren.erase(siblings);
+  mChildren[parent].insert(id);
+  n.set_parent(parent);
+}
+
+void SceneGraph::setName(NodeId id, std::string_view name) {
+  mutableNode(id).set_name(std::string(name));
+}
+
+void SceneGraph::setVisible(NodeId id, bool visible) {
+  mutableNode(id).set_visible(visible);
+}
+
+void SceneGraph::setOpacity(NodeId id, float opacity) {
+  TESSERA_CHECK(opacity >= 0.0f && opacity <= 1.0f,
+                "sync::SceneGraph::setOpacity(): " + num(opacity) + " is not in [0, 1]");
+  mutableNode(id).set_opacity(opacity);
+}
+
+void SceneGraph::setTransform(NodeId id, std::span<const double> matrix) {
+  TESSERA_CHECK(matrix.empty() || matrix.size() == 16,
+                "sync::SceneGraph::setTransform(): needs 16 numbers or none");
+  TESSERA_CHECK(
+      std::all_of(matrix.begin(), matrix.end(), [](double v) { return std::isfinite(v); }),
+      "sync::SceneGraph::setTransform(): numbers must be finite");
+  mutableNode(id).mutable_transform()->mutable_m()->Assign(matrix.begin(), matrix.end());
+}
+
+void SceneGraph::setShading(NodeId id, scene::Shading shading) {
+  TESSERA_CHECK(scene::Shading_IsValid(shading), "sync::SceneGraph::setShading(): invalid value");
+  mutableNode(id).set_shading(shading);
+}
+
+void SceneGraph::setLodPixels(NodeId id, float pixels) {
+  TESSERA_CHECK(pixels >= 0.0f && std::isfinite(pixels),
+                "sync::SceneGraph::setLodPixels(): must be finite and >= 0");
+  mutableNode(id).set_lod_pixels(pixels);
+}
+
+void SceneGraph::replacePayload(NodeId id, Kind kind, const std::function<void(SceneNode&)>& set) {
+  TESSERA_CHECK(contains(id) && node(id).kind() == kind,
+                "sync::SceneGraph::setPayload(): node " + std::to_string(id) +
+                    " does not exist or is not a " + SceneNode::Kind_Name(kind));
+  SceneNode changed = node(id);
+  set(changed);
+  checkNode(changed);
+  mutableNode(id).Swap(&changed);
+}
+
+void SceneGraph::setPayload(NodeId id, const scene::ModelPayload& payload) {
+  replacePayload(id, SceneNode::MODEL, [&](SceneNode& n) { *n.mutable_model() = payload; });
+}
+
+void SceneGraph::setPayload(NodeId id, const scene::AnnotationPayload& payload) {
+  replacePayload(id, SceneNode::ANNOTATION,
+                 [&](SceneNode& n) { *n.mutable_annotation() = payload; });
+}
+
+void SceneGraph::setPayload(NodeId id, const scene::SketchPayload& payload) {
+  replacePayload(id, SceneNode::SKETCH, [&](SceneNode& n) { *n.mutable_sketch() = payload; });
+}
+
+void SceneGraph::setPayload(NodeId id, const scene::AvatarPayload& payload) {
+  replacePayload(id, SceneNode::AVATAR, [&](SceneNode& n) { *n.mutable_avatar() = payload; });
+}
+
+void SceneGraph::setPayload(NodeId id, const scene::VideoInsetPayload& payload) {
+  replacePayload(id, SceneNode::VIDEO_INSET,
+                 [&](SceneNode& n) { *n.mutable_video_inset() = payload; });
+}
+
+void SceneGraph::touchCamera() {
+  if (!mCommittedCamera) mCommittedCamera = mCamera;
+}
+
+void SceneGraph::touchSettings() {
+  if (!mCommittedSettings) mCommittedSettings = mSettings;
+}
+
+void SceneGraph::setCamera(const config::Camera& camera) {
+  scene::CameraState state = encodeCamera(camera);  // checks before anything is touched
+  touchCamera();
+  mCamera = std::move(state);
+}
+
+void SceneGraph::setBackground(float r, float g, float b) {
+  scene::Color c;
+  c.set_r(r);
+  c.set_g(g);
+  c.set_b(b);
+  const Problem p = checkColor(c, "background");
+  TESSERA_CHECK(!p, "sync::SceneGraph::setBackground(): " + p.value_or(""));
+  touchSettings();
+  *mSettings.mutable_background() = c;
+}
+
+void SceneGraph::setShading(scene::Shading shading) {
+  TESSERA_CHECK(shading == scene::SHADING_COLOR || shading == scene::SHADING_EDL,
+                "sync::SceneGraph::setShading(): the wall needs SHADING_COLOR or SHADING_EDL");
+  touchSettings();
+  mSettings.set_shading(shading);
+}
+
+void SceneGraph::setLodPixels(float pixels) {
+  TESSERA_CHECK(pixels > 0.0f && std::isfinite(pixels),
+                "sync::SceneGraph::setLodPixels(): must be finite and > 0");
+  touchSettings();
+  mSettings.set_lod_pixels(pixels);
+}
+
+void SceneGraph::setSpbrEnsembles(uint32_t ensembles) {
+  TESSERA_CHECK(ensembles >= 1 && ensembles <= 64,
+                "sync::SceneGraph::setSpbrEnsembles(): must be 1..64");
+  touchSettings();
+  mSettings.set_spbr_ensembles(ensembles);
+}
+
+void SceneGraph::addCommand(const scene::Command& command) {
+  const Problem p = checkCommand(command);
+  TESSERA_CHECK(!p, "sync::SceneGraph::addCommand(): " + p.value_or(""));
+  mCommands.push_back(command);
+}
+
+bool SceneGraph::hasPendingChanges() const {
+  return !mCommitted.empty() || mCommittedCamera || mCommittedSettings;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Master: frames and snapshots
+
+scene::Frame SceneGraph::takeFrame(uint64_t number, uint64_t time_us) {
+  scene::Frame frame;
+  frame.set_number(number);
+  frame.set_time_us(time_us);
+  // A created node sends what differs from the defaults of its kind, plus id and kind.
+  auto addCreated = [&](const SceneNode& now) {
+    SceneNode* c = frame.add_created();
+    diffFields(defaultNode(now.id(), now.kind()), now, *c, idField());
+    c->set_id(now.id());
+    c->set_kind(now.kind());
+  };
+  for (const auto& [id, before] : mCommitted) {  // ascending ids: a deterministic frame
+    auto now = mNodes.find(id);
+    if (!before) {
+      if (now != mNodes.end()) addCreated(now->second);
+    } else if (now == mNodes.end()) {
+      frame.add_deleted(id);
+    } else if (before->kind() != now->second.kind()) {
+      frame.add_deleted(id);
+      addCreated(now->second);
+    } else {
+      SceneNode delta;
+      if (diffFields(*before, now->second, delta, idField())) {
+        delta.set_id(id);
+        frame.add_changed()->Swap(&delta);
+      }
+    }
+  }
+  if (mCommittedCamera) {
+    scene::CameraState delta;
+    if (diffFields(*mCommittedCamera, mCamera, delta)) frame.mutable_camera()->Swap(&delta);
+  }
+  if (mCommittedSettings) {
+    scene::Settings delta;
+    if (diffFields(*mCommittedSettings, mSettings, delta)) frame.mutable_settings()->Swap(&delta);
+  }
+  for (scene::Command& c : mCommands) frame.add_commands()->Swap(&c);
+
+  const bool changed = frame.has_camera() || frame.has_settings() || frame.created_size() > 0 ||
+                       frame.deleted_size() > 0 || frame.changed_size() > 0;
+  if (changed) ++mVersion;
+  frame.set_version(mVersion);
+  mFrameNumber = number;
+  mCommitted.clear();
+  mCommittedCamera.reset();
+  mCommittedSettings.reset();
+  mCommands.clear();
+  return frame;
+}
+
+scene::Snapshot SceneGraph::snapshot() const {
+  scene::Snapshot s;
+  s.set_version(mVersion);
+  s.set_frame(mFrameNumber);
+  scene::Scene& sc = *s.mutable_scene();
+  *sc.mutable_camera() = mCommittedCamera.value_or(mCamera);
+  *sc.mutable_settings() = mCommittedSettings.value_or(mSettings);
+  // Merge of two ascending sequences: the current nodes, and the saved states of touched ones.
+  auto n = mNodes.begin();
+  auto c = mCommitted.begin();
+  while (n != mNodes.end() || c != mCommitted.end()) {
+    if (c == mCommitted.end() || (n != mNodes.end() && n->first < c->first)) {
+      *sc.add_nodes() = n->second;
+      ++n;
+    } else {
+      if (c->second) *sc.add_nodes() = *c->second;
+      if (n != mNodes.end() && n->first == c->first) ++n;
+      ++c;
+    }
+  }
+  return s;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Replica
+
+void SceneGraph::validateFrame(const scene::Frame& frame) const {
+  const std::string context = "sync::SceneGraph::apply(): frame " + std::to_string(frame.number());
+  const bool changes = frame.has_camera() || frame.has_settings() || frame.created_size() > 0 ||
+                       frame.deleted_size() > 0 || frame.changed_size() > 0;
+  const uint64_t expected = mVersion + (changes ? 1 : 0);
+  if (frame.version() != expected) {
+    fail(Code::kVersionGap, context, "version",
+         "brings version " + std::to_string(frame.version()) + " but the replica is at version " +
+             std::to_string(mVersion) + " and expects " + std::to_string(expected) +
+             " (a frame was lost, repeated or reordered)");
+  }
+
+  std::unordered_set<NodeId> deleted;
+  for (int i = 0; i < frame.deleted_size(); ++i) {
+    const NodeId id = frame.deleted(i);
+    const std::string where = nodeWhere("deleted", i, id);
+    if (!contains(id)) fail(Code::kUnknownNode, context, where, "no such node");
+    if (!deleted.insert(id).second) fail(Code::kDuplicateNode, context, where, "listed twice");
+  }
+  std::map<NodeId, const SceneNode*> created, changed;
+  for (int i = 0; i < frame.created_size(); ++i) {
+    const SceneNode& c = frame.created(i);
+    const std::string where = nodeWhere("created", i, c.id());
+    if (c.id() == kRoot) fail(Code::kBadField, context, where, "id 0 is the root");
+    if (contains(c.id()) && !deleted.count(c.id()))
+      fail(Code::kDuplicateNode, context, where, "already exists");
+    if (!created.emplace(c.id(), &c).second)
+      fail(Code::kDuplicateNode, context, where, "created twice");
+    if (!c.has_kind() || !validKind(c.kind()))
+      fail(Code::kBadField, context, where, "kind: missing or unknown");
+    if (const Problem p = checkNodeFields(c, c.kind())) fail(Code::kBadField, context, where, *p);
+  }
+  auto existsAfter = [&](NodeId id) {
+    return created.count(id) != 0 || (contains(id) && !deleted.count(id));
+  };
+  for (int i = 0; i < frame.changed_size(); ++i) {
+    const SceneNode& c = frame.changed(i);
+    const std::string where = nodeWhere("changed", i, c.id());
+    if (c.id() == kRoot || !existsAfter(c.id()))
+      fail(Code::kUnknownNode, context, where, "no such node");
+    if (!changed.emplace(c.id(), &c).second)
+      fail(Code::kDuplicateNode, context, where, "changed twice");
+    auto cr = created.find(c.id());
+    const Kind kind = cr != created.end() ? cr->second->kind() : node(c.id()).kind();
+    if (const Problem p = checkNodeFields(c, kind)) fail(Code::kBadField, context, where, *p);
+  }
+  if (frame.has_camera()) {
+    if (const Problem p = checkCameraDelta(frame.camera()))
+      fail(Code::kBadField, context, "camera", *p);
+  }
+  if (frame.has_settings()) {
+    if (const Problem p = checkSettings(frame.settings()))
+      fail(Code::kBadField, context, "settings", *p);
+  }
+  for (int i = 0; i < frame.commands_size(); ++i) {
+    if (const Problem p = checkCommand(frame.commands(i)))
+      fail(Code::kBadField, context, "commands[" + std::to_string(i) + "]", *p);
+  }
+
+  // The tree after the frame: nodes whose parent is new, and the surviving children of deleted
+  // nodes, must reach the root. Other nodes keep a path that was valid and is untouched.
+  auto parentAfter = [&](NodeId id) -> NodeId {
+    if (auto ch = changed.find(id); ch != changed.end() && ch->second->has_parent())
+      return ch->second->parent();
+    if (auto cr = created.find(id); cr != created.end()) return cr->second->parent();
+    return node(id).parent();
+  };
+  std::vector<NodeId> start;
+  for (const auto& [id, c] : created) start.push_back(id);
+  for (const auto& [id, c] : changed) {
+    if (c->has_parent()) start.push_back(id);
+  }
+  for (NodeId d : deleted) {
+    if (auto kids = mChildren.find(d); kids != mChildren.end()) {
+      for (NodeId k : kids->second) {
+        if (existsAfter(k)) start.push_back(k);
+      }
+    }
+  }
+  checkAncestry(start, parentAfter, existsAfter, context);
+}
+
+void SceneGraph::apply(const scene::Frame& frame) {
+  TESSERA_CHECK(!hasPendingChanges(),
+                "sync::SceneGraph::apply(): the graph has local changes not taken as a frame");
+  validateFrame(frame);  // throws before anything changes
+  for (NodeId id : frame.deleted()) eraseNode(id);
+  for (const SceneNode& c : frame.created()) {
+    SceneNode n = defaultNode(c.id(), c.kind());
+    overwriteFields(n, c);
+    n.DiscardUnknownFields();
+    insertNode(std::move(n));
+  }
+  for (const SceneNode& c : frame.changed()) {
+    SceneNode& n = mNodes.at(c.id());
+    const NodeId old_parent = n.parent();
+    overwriteFields(n, c);
+    n.DiscardUnknownFields();
+    if (n.parent() != old_parent) {
+      auto siblings = mChildren.find(old_parent);
+      if (siblings != mChildren.end()) {
+        siblings->second.erase(c.id());
+        if (siblings->second.empty()) mChildren.erase(siblings);
+      }
+      mChildren[n.parent()].insert(c.id());
+    }
+  }
+  if (frame.has_camera()) overwriteFields(mCamera, frame.camera());
+  if (frame.has_settings()) overwriteFields(mSettings, frame.settings());
+  mCamera.DiscardUnknownFields();
+  mSettings.DiscardUnknownFields();
+  mVersion = frame.version();
+  mFrameNumber = frame.number();
+}
+
+void SceneGraph::apply(const scene::Snapshot& snapshot) {
+  TESSERA_CHECK(!hasPendingChanges(),
+                "sync::SceneGraph::apply(): the graph has local changes not taken as a frame");
+  const std::string context =
+      "sync::SceneGraph::apply(): snapshot at version " + std::to_string(snapshot.version());
+  const scene::Scene& sc = snapshot.scene();
+  if (!isCompleteCamera(sc.camera()))
+    fail(Code::kBadField, context, "scene.camera", "incomplete or invalid (needs eye, view, roll)");
+  if (const Problem p = checkSettings(sc.settings())) fail(Code::kBadField, context, "scene", *p);
+  std::map<NodeId, SceneNode> nodes;
+  for (int i = 0; i < sc.nodes_size(); ++i) {
+    const SceneNode& s = sc.nodes(i);
+    const std::string where = nodeWhere("scene.nodes", i, s.id());
+    if (s.id() == kRoot) fail(Code::kBadField, context, where, "id 0 is the root");
+    if (!s.has_kind() || !validKind(s.kind()))
+      fail(Code::kBadField, context, where, "kind: missing or unknown");
+    if (const Problem p = checkNodeFields(s, s.kind())) fail(Code::kBadField, context, where, *p);
+    SceneNode n = defaultNode(s.id(), s.kind());
+    overwriteFields(n, s);
+    n.DiscardUnknownFields();
+    if (!nodes.emplace(s.id(), std::move(n)).second)
+      fail(Code::kDuplicateNode, context, where, "listed twice");
+  }
+  std::vector<NodeId> start;
+  for (const auto& [id, n] : nodes) start.push_back(id);
+  checkAncestry(
+      start, [&](NodeId id) { return nodes.at(id).parent(); },
+      [&](NodeId id) { return nodes.count(id) != 0; }, context);
+
+  mNodes.clear();
+  mChildren.clear();
+  mNextId = 1;
+  for (auto& [id, n] : nodes) insertNode(std::move(n));
+  mCamera = sc.camera();
+  mCamera.DiscardUnknownFields();
+  mSettings = defaultSettings();
+  overwriteFields(mSettings, sc.settings());
+  mSettings.DiscardUnknownFields();
+  mVersion = snapshot.version();
+  mFrameNumber = snapshot.frame();
+  mCommands.clear();
+}
+
+// ---------------------------------------------------------------------------------------------
+// Queries
+
+const SceneNode& SceneGraph::node(NodeId id) const {
+  auto it = mNodes.find(id);
+  TESSERA_CHECK(it != mNodes.end(),
+                "sync::SceneGraph::node(): node " + std::to_string(id) + " does not exist");
+  return it->second;
+}
+
+std::vector<SceneGraph::NodeId> SceneGraph::children(NodeId id) const {
+  auto it = mChildren.find(id);
+  if (it == mChildren.end()) return {};
+  return {it->second.begin(), it->second.end()};
+}
+
+std::vector<SceneGraph::NodeId> SceneGraph::ids() const {
+  std::vector<NodeId> out;
+  out.reserve(mNodes.size());
+  for (const auto& [id, n] : mNodes) out.push_back(id);
+  return out;
+}
+
+std::optional<SceneGraph::NodeId> SceneGraph::findByName(std::string_view name) const {
+  for (const auto& [id, n] : mNodes) {
+    if (n.name() == name) return id;
+  }
+  return std::nullopt;
+}
+
+config::Camera SceneGraph::camera() const {
+  return decodeCamera(mCamera);
+}
+
+bool SceneGraph::operator==(const SceneGraph& other) const {
+  if (mVersion != other.mVersion || mFrameNumber != other.mFrameNumber ||
+      mNodes.size() != other.mNodes.size() || !equal(mCamera, other.mCamera) ||
+      !equal(mSettings, other.mSettings)) {
+    return false;
+  }
+  for (auto a = mNodes.begin(), b = other.mNodes.begin(); a != mNodes.end(); ++a, ++b) {
+    if (a->first != b->first || !equal(a->second, b->second)) return false;
+  }
+  return true;
+}
+
+}  // namespace tessera::sync

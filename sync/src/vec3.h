@@ -1,0 +1,32 @@
+// Private: config::Vec3 (the schema's 3-vector, metres) to and from glm, and finiteness checks.
+#pragma once
+
+#include <cmath>
+
+#include <glm/glm.hpp>
+
+#include <tessera/config.pb.h>
+
+namespace tessera::sync::detail {
+
+inline glm::dvec3 vec(const config::Vec3& v) {
+  return {v.x(), v.y(), v.z()};
+}
+
+inline config::Vec3 toVec3(const glm::dvec3& v) {
+  config::Vec3 out;
+  out.set_x(v.x);
+  out.set_y(v.y);
+  out.set_z(v.z);
+  return out;
+}
+
+inline bool finite(const glm::dvec3& v) {
+  return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z);
+}
+
+inline bool finite(const config::Vec3& v) {
+  return finite(vec(v));
+}
+
+}  // namespace tessera::sync::detail
