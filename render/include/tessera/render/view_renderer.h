@@ -52,6 +52,9 @@ struct RenderStats {
 struct ModelInstance {
   lod::PointStore* store = nullptr;
   glm::dmat4 model{1.0};
+  /// (0, 1]: below 1 the view is drawn see-through with stochastic point-based rendering
+  /// (spbr.h; issue 5), every model with its own opacity.
+  float opacity = 1.0f;
 };
 
 class ViewRenderer {
