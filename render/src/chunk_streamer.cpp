@@ -10,6 +10,7 @@
 #include <vector>
 
 #include <tessera/render/point_rasterizer.h>
+#include <tessera/render/spbr.h>
 
 namespace tessera::render {
 namespace {
@@ -44,6 +45,8 @@ bool before(const Item& a, const Item& b) {
 struct Loaded {
   Key key;
   uint32_t disk_bytes = 0;
+  double spacing = 0.0, density = 0.0;
+  std::vector<uint32_t> normals;
   bool page = false;
   bool failed = false;
   glm::dvec3 offset{0.0};
@@ -99,6 +102,10 @@ struct ChunkStreamer::Impl {
         try {
           auto chunk = item.store->decodeChunk(item.node);
           out.disk_bytes = item.store->chunkBytes(item.node);
+          out.spacing = item.store->node(item.node).spacing;
+          // Spheres four spacings wide hold about 50 points of a surface.
+          out.density = sphereDensity(chunk->positions, 4.0 * out.spacing, 128, item.node);
+          if (options.normals) out.normals = estimateNormals(chunk->positions, 2.5 * out.spacing);
           out.offset = chunk->offset;
           out.points.resize(chunk->size());
           const bool color = !chunk->colors.empty();
@@ -171,6 +178,12 @@ void ChunkStreamer::beginFrame() {
     c.offset = l.offset;
     c.last_used = frame;
     c.disk_bytes = l.disk_bytes;
+    c.spacing = l.spacing;
+    c.density = l.density;
+    if (!l.normals.empty()) {
+      c.normals = GlBuffer(l.normals.size() * 4, l.normals.data());
+      s.resident_bytes += c.normals.bytes();
+    }
     s.resident_bytes += c.buffer.bytes();
     s.resident_disk_bytes += c.disk_bytes;
     s.resident.emplace(l.key, std::move(c));
@@ -188,7 +201,7 @@ void ChunkStreamer::beginFrame() {
     for (const auto& [used, k] : old) {
       if (s.resident_bytes <= s.options.budget_bytes) break;
       auto it = s.resident.find(k);
-      s.resident_bytes -= it->second.buffer.bytes();
+      s.resident_bytes -= it->second.buffer.bytes() + it->second.normals.bytes();
       s.resident_disk_bytes -= it->second.disk_bytes;
       s.resident.erase(it);
       ++mStats.evicted;
@@ -274,7 +287,7 @@ void ChunkStreamer::forget(const lod::PointStore& store) {
   }
   for (auto it = s.resident.begin(); it != s.resident.end();) {
     if (it->first.store == &store) {
-      s.resident_bytes -= it->second.buffer.bytes();
+      s.resident_bytes -= it->second.buffer.bytes() + it->second.normals.bytes();
       s.resident_disk_bytes -= it->second.disk_bytes;
       it = s.resident.erase(it);
     } else {

@@ -64,9 +64,146 @@ PointRasterizer::PointRasterizer(uint32_t width, uint32_t height) : mWidth(width
   mImage = makeBuffer(pixels * 4);
 }
 
+namespace {
+
+uint32_t packColor(const glm::vec3& c) {
+  const glm::uvec3 u = glm::uvec3(glm::clamp(c, 0.0f, 1.0f) * 255.0f + 0.5f);
+  return u.r | u.g << 8 | u.b << 16 | 0xFF000000u;
+}
+
+}  // namespace
+
+void PointRasterizer::beginEnsembles() {
+  if (!mSpbrProgram) {
+    mSpbrProgram = compileCompute(shaders::kSpbrRaster, "spbr_raster.comp");
+    mAccumulateProgram = compileCompute(shaders::kSpbrAccumulate, "spbr_accumulate.comp");
+    mAccum = makeBuffer(size_t(mWidth) * mHeight * 12);
+    mNoNormals = makeBuffer(16);
+  }
+  const GLuint zero = 0;
+  glClearNamedBufferData(mAccum, GL_R32UI, GL_RED_INTEGER, GL_UNSIGNED_INT, &zero);
+}
+
+RasterTimings PointRasterizer::drawEnsembles(std::span<const DrawBatch> batches, uint32_t first,
+                                             uint32_t count, uint32_t total, uint32_t max_layers,
+                                             const glm::vec3& background,
+                                             const RasterShading& shading, bool slant_off) {
+  RasterTimings timings;
+  auto t = std::chrono::steady_clock::now();
+  auto lap = [&t] {
+    glFinish();
+    const auto now = std::chrono::steady_clock::now();
+    const double ms = std::chrono::duration<double, std::milli>(now - t).count();
+    t = now;
+    return ms;
+  };
+  const size_t plane = size_t(mWidth) * mHeight;
+  const uint32_t layers = std::max<uint32_t>(1, std::min(max_layers, count));
+  if (layers > mLayers) {
+    GLuint old[] = {mLayerDepth, mLayerColors};
+    glDeleteBuffers(2, old);
+    mLayerDepth = makeBuffer(plane * layers * 4);
+    mLayerColors = makeBuffer(plane * layers * 4);
+    mLayers = layers;
+  }
+  const GLint u_clip = glGetUniformLocation(mSpbrProgram, "uClip");
+  const GLint u_count = glGetUniformLocation(mSpbrProgram, "uCount");
+  const GLint u_disc = glGetUniformLocation(mSpbrProgram, "uDiscK");
+  const GLint u_k = glGetUniformLocation(mSpbrProgram, "uK");
+  const GLint u_group_first = glGetUniformLocation(mSpbrProgram, "uGroupFirst");
+  const GLint u_group_count = glGetUniformLocation(mSpbrProgram, "uGroupCount");
+  const GLint u_seed = glGetUniformLocation(mSpbrProgram, "uSeed");
+  const GLint u_pass = glGetUniformLocation(mSpbrProgram, "uPass");
+  const GLint u_eye = glGetUniformLocation(mSpbrProgram, "uEyeLocal");
+  const int passes = shading.uniform_color != 0 ? 1 : 2;
+  for (uint32_t group = first; group < first + count; group += layers) {
+    const uint32_t n = std::min(layers, first + count - group);
+    const GLuint all_ones = 0xFFFFFFFFu;
+    glClearNamedBufferSubData(mLayerDepth, GL_R32UI, 0, GLsizeiptr(plane * n * 4), GL_RED_INTEGER,
+                              GL_UNSIGNED_INT, &all_ones);
+    if (passes == 2) {
+      glClearNamedBufferSubData(mLayerColors, GL_R32UI, 0, GLsizeiptr(plane * n * 4),
+                                GL_RED_INTEGER, GL_UNSIGNED_INT, &all_ones);
+    }
+    glUseProgram(mSpbrProgram);
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, mLayerDepth);
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 2, mLayerColors);
+    glUniform2i(glGetUniformLocation(mSpbrProgram, "uSize"), GLint(mWidth), GLint(mHeight));
+    glUniform1ui(glGetUniformLocation(mSpbrProgram, "uTotal"), total);
+    glUniform1i(glGetUniformLocation(mSpbrProgram, "uMaxRadius"), 16);
+    glUniform1i(glGetUniformLocation(mSpbrProgram, "uSlantOff"), slant_off ? 1 : 0);
+    glUniform1ui(u_group_first, group);
+    glUniform1ui(u_group_count, n);
+    for (int pass = 0; pass < passes; ++pass) {
+      glUniform1i(u_pass, pass);
+      for (const DrawBatch& b : batches) {
+        if (b.count == 0 || b.spbr_k <= 0.0f) continue;
+        glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, b.buffer ? b.buffer : mPoints);
+        glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 4, b.normals ? b.normals : mNoNormals);
+        glUniformMatrix4fv(u_clip, 1, GL_FALSE, &b.clip_from_local[0][0]);
+        glUniform1f(u_disc, b.disc_k);
+        glUniform1f(u_k, b.spbr_k);
+        glUniform1ui(u_seed, b.seed);
+        glUniform3fv(u_eye, 1, &b.eye_local[0]);
+        // Batches with buffer 0 start at `first` in the rasterizer's own buffer: offset the
+        // binding instead of the index, so point indices (and so ensembles) stay per batch.
+        if (!b.buffer && b.first) {
+          glBindBufferRange(GL_SHADER_STORAGE_BUFFER, 0, mPoints, GLintptr(b.first) * 16,
+                            GLsizeiptr(b.count) * 16);
+        }
+        const uint32_t kMaxPoints = 65535u * 128u;
+        for (uint32_t done = 0; done < b.count; done += kMaxPoints) {
+          const uint32_t c = std::min(kMaxPoints, b.count - done);
+          glUniform1ui(u_count, c);
+          // Later slices of a huge batch: a bound range keeps indices within the slice; the
+          // seed changes with the slice so their points stay independent.
+          if (done) {
+            glBindBufferRange(GL_SHADER_STORAGE_BUFFER, 0, b.buffer ? b.buffer : mPoints,
+                              GLintptr(b.first + done) * 16, GLsizeiptr(c) * 16);
+            glUniform1ui(u_seed, b.seed ^ (done * 0x9E3779B9u));
+          }
+          glDispatchCompute((c + 127) / 128, 1, 1);
+        }
+      }
+      glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+      (pass == 0 ? timings.depth_ms : timings.color_ms) += lap();
+    }
+    glUseProgram(mAccumulateProgram);
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, mLayerDepth);
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 2, mLayerColors);
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 5, mAccum);
+    glUniform2i(glGetUniformLocation(mAccumulateProgram, "uSize"), GLint(mWidth), GLint(mHeight));
+    glUniform1ui(glGetUniformLocation(mAccumulateProgram, "uLayers"), n);
+    glUniform1ui(glGetUniformLocation(mAccumulateProgram, "uBackground"), packColor(background));
+    glUniform1ui(glGetUniformLocation(mAccumulateProgram, "uUniformColor"), shading.uniform_color);
+    glUniform1i(glGetUniformLocation(mAccumulateProgram, "uMode"), 0);
+    glDispatchCompute((mWidth + 15) / 16, (mHeight + 15) / 16, 1);
+    glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+    timings.resolve_ms += lap();
+  }
+  return timings;
+}
+
+double PointRasterizer::resolveEnsembles(uint32_t accumulated) {
+  const auto t = std::chrono::steady_clock::now();
+  glUseProgram(mAccumulateProgram);
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 3, mImage);
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 5, mAccum);
+  glUniform2i(glGetUniformLocation(mAccumulateProgram, "uSize"), GLint(mWidth), GLint(mHeight));
+  glUniform1i(glGetUniformLocation(mAccumulateProgram, "uMode"), 1);
+  glUniform1ui(glGetUniformLocation(mAccumulateProgram, "uAccumulated"), accumulated);
+  glDispatchCompute((mWidth + 15) / 16, (mHeight + 15) / 16, 1);
+  glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT | GL_SHADER_STORAGE_BARRIER_BIT);
+  glFinish();
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t).count();
+}
+
 PointRasterizer::~PointRasterizer() {
-  GLuint buffers[] = {mPoints, mDepth, mColors, mImage};
-  glDeleteBuffers(4, buffers);
+  GLuint buffers[] = {mPoints,     mDepth,       mColors, mImage,
+                      mLayerDepth, mLayerColors, mAccum,  mNoNormals};
+  glDeleteBuffers(8, buffers);
+  glDeleteProgram(mSpbrProgram);
+  glDeleteProgram(mAccumulateProgram);
   glDeleteProgram(mRasterProgram);
   glDeleteProgram(mResolveProgram);
 }

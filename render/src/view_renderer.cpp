@@ -3,8 +3,14 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <numbers>
 
 #include <glm/gtc/matrix_transform.hpp>
+
+#include <tessera/core/check.h>
+#include <tessera/render/gl_context.h>
 
 namespace tessera::render {
 namespace {
@@ -15,6 +21,29 @@ double msSince(std::chrono::steady_clock::time_point t) {
 
 uint32_t packRgb(const glm::u8vec3& c) {
   return uint32_t(c.r) | uint32_t(c.g) << 8 | uint32_t(c.b) << 16;
+}
+
+uint64_t mix(uint64_t h, uint64_t v) {  // order-dependent hash combination (splitmix64 step)
+  h ^= v + 0x9E3779B97F4A7C15ull + (h << 6) + (h >> 2);
+  h = (h ^ (h >> 30)) * 0xBF58476D1CE4E5B9ull;
+  return h ^ (h >> 27);
+}
+
+uint64_t mixBytes(uint64_t h, const void* data, size_t bytes) {
+  const auto* p = static_cast<const unsigned char*>(data);
+  for (size_t i = 0; i < bytes; i += 8) {
+    uint64_t v = 0;
+    std::memcpy(&v, p + i, std::min<size_t>(8, bytes - i));
+    h = mix(h, v);
+  }
+  return h;
+}
+
+/// The same for every process that opens the same store: it picks points' ensembles.
+uint64_t storeKey(const lod::PointStore& store) {
+  const lod::StoreSummary& s = store.summary();
+  uint64_t h = mix(mix(mix(0, s.points), s.stored_points), s.nodes);
+  return mixBytes(h, &s.origin, sizeof s.origin);
 }
 
 }  // namespace
@@ -44,8 +73,10 @@ void ViewRenderer::draw(std::span<const ModelInstance> models, const ViewSetup& 
   RenderStats st;
   mStreamer->beginFrame();
   st.upload_ms = mStreamer->stats().upload_ms;
+  bool see_through = false;
+  for (const ModelInstance& m : models) see_through |= m.opacity < 1.0f;
   std::vector<DrawBatch> batches;
-  for (const ModelInstance& m : models) addModel(*m.store, m.model, view, options, batches, st);
+  for (const ModelInstance& m : models) addModel(m, see_through, view, options, batches, st);
   mStreamer->endFrame();
   st.stream = mStreamer->stats();
 
@@ -58,6 +89,12 @@ void ViewRenderer::draw(std::span<const ModelInstance> models, const ViewSetup& 
   shading.edl_strength = options.edl_strength;
   shading.edl_radius = options.edl_radius;
   shading.projection = view.projection;
+  if (see_through) {
+    drawSeeThrough(models, view, options, batches, shading, st);
+    if (stats) *stats = st;
+    return;
+  }
+  mSpbrSignature = 0;
   const RasterTimings t = mRaster.render(batches, options.background, shading);
   st.depth_ms = t.depth_ms;
   st.color_ms = t.color_ms;
@@ -71,22 +108,90 @@ Image ViewRenderer::renderSettled(std::span<const ModelInstance> models, const V
   Image img;
   // Each round either finds the cut complete or makes the loader fetch at least one missing
   // chunk or page, so this ends; the bound only guards against a bug.
+  const uint32_t ensembles = std::max(options.spbr.ensembles, options.spbr.progressive_max);
   for (size_t frame = 1; frame <= 100000; ++frame) {
     img = render(models, view, options, &st);
     st.frames = frame;
-    if (st.stream.requested == 0 && st.stream.pages_requested == 0) break;
+    if (st.stream.requested == 0 && st.stream.pages_requested == 0) {
+      if (st.ensembles == 0 || st.ensembles >= ensembles) break;
+      continue;  // a resting see-through view: more ensembles
+    }
     mStreamer->waitForLoader();
   }
   if (stats) *stats = st;
   return img;
 }
 
-void ViewRenderer::addModel(lod::PointStore& store, const glm::dmat4& model, const ViewSetup& view,
+void ViewRenderer::drawSeeThrough(std::span<const ModelInstance> models, const ViewSetup& view,
+                                  const RenderOptions& options, std::vector<DrawBatch>& batches,
+                                  const RasterShading& shading, RenderStats& st) {
+  const SpbrOptions& o = options.spbr;
+  TESSERA_CHECK(o.ensembles >= 1, "render::ViewRenderer: see-through needs at least 1 ensemble");
+  const uint32_t total = std::max(o.ensembles, o.progressive_max);
+  // What the accumulated ensembles show: the view, the options and every batch.
+  uint64_t sig = mixBytes(0x5B9Bu, &view.view, sizeof view.view);
+  sig = mixBytes(sig, &view.projection, sizeof view.projection);
+  sig =
+      mix(mix(mix(sig, total), o.slant_shading), packRgb(glm::u8vec3(options.background * 255.0f)));
+  for (const DrawBatch& b : batches) {
+    sig = mix(mix(mix(sig, b.buffer), b.count), b.seed);
+    sig = mixBytes(sig, &b.spbr_k, sizeof b.spbr_k);
+    sig = mixBytes(sig, &b.disc_k, sizeof b.disc_k);
+  }
+  if (sig != mSpbrSignature) {
+    mSpbrSignature = sig;
+    mSpbrDone = 0;
+    mRaster.beginEnsembles();
+  }
+  const uint32_t n = std::min(o.ensembles, total - std::min(total, mSpbrDone));
+  // Point copies this frame: each point sits in min(k, L) of the L ensembles.
+  double copies = 0.0;
+  for (const DrawBatch& b : batches)
+    copies += double(b.count) * std::min<double>(b.spbr_k, total) * n / total;
+  if (copies > double(o.max_copies_per_frame)) {
+    // Copies grow as -ln(1 - alpha): the opacities that fit scale that by budget / copies.
+    const double f = double(o.max_copies_per_frame) / copies;
+    std::string fits;
+    for (const ModelInstance& m : models) {
+      if (m.opacity >= 1.0f) continue;
+      char line[512];
+      std::snprintf(line, sizeof line, "%s%s at opacity %.3g fits at %.3g",
+                    fits.empty() ? "" : "; ", m.store->path().filename().c_str(), m.opacity,
+                    1.0 - std::pow(1.0 - double(m.opacity), f));
+      fits += line;
+    }
+    char msg[1024];
+    std::snprintf(msg, sizeof msg,
+                  "render::ViewRenderer: see-through at these opacities needs %.3g point copies "
+                  "per frame, beyond the budget of %.3g (SpbrOptions::max_copies_per_frame): %s; "
+                  "or draw fewer ensembles per frame",
+                  copies, double(o.max_copies_per_frame), fits.c_str());
+    throw RenderError(msg);
+  }
+  if (n > 0) {
+    const size_t layer_bytes = size_t(view.width) * view.height * 8;
+    const auto layers = uint32_t(std::max<size_t>(1, o.buffer_bytes / layer_bytes));
+    const RasterTimings t = mRaster.drawEnsembles(batches, mSpbrDone, n, total, layers,
+                                                  options.background, shading, !o.slant_shading);
+    mSpbrDone += n;
+    st.depth_ms = t.depth_ms;
+    st.color_ms = t.color_ms;
+    st.resolve_ms = t.resolve_ms;
+    st.copies = uint64_t(copies);
+  }
+  st.resolve_ms += mRaster.resolveEnsembles(mSpbrDone);
+  st.ensembles = mSpbrDone;
+  st.ensembles_drawn = n;
+}
+
+void ViewRenderer::addModel(const ModelInstance& instance, bool see_through, const ViewSetup& view,
                             const RenderOptions& options, std::vector<DrawBatch>& batches,
                             RenderStats& stats) {
+  lod::PointStore& store = *instance.store;
+  const glm::dmat4& model = instance.model;
   auto t0 = std::chrono::steady_clock::now();
   CutOptions co;
-  co.pixel_threshold = options.lod_pixels;
+  co.pixel_threshold = options.lod_pixels * (see_through ? options.spbr.lod_scale : 1.0);
   // Hierarchy pages not in memory are read by the loader; refinement waits a frame for them.
   co.may_load_children = [&](lod::NodeId id) {
     mStreamer->requestChildren(store, id);
@@ -97,15 +202,30 @@ void ViewRenderer::addModel(lod::PointStore& store, const glm::dmat4& model, con
 
   const glm::dmat4 clip_from_world = view.projection * view.view;
   const double k = pixelsPerUnitAtDistanceOne(view);
+  const double unit = std::cbrt(std::abs(glm::determinant(glm::dmat3(model))));
+  const uint32_t total = std::max(options.spbr.ensembles, options.spbr.progressive_max);
+  const uint64_t key = storeKey(store);
   auto addBatch = [&](const CutNode& n, const GpuChunk& chunk) {
     DrawBatch b;
     b.buffer = chunk.buffer.name();
     b.count = chunk.count;
     // Double precision down to the node, float within it: georeferenced data stays exact.
-    b.clip_from_local =
-        glm::mat4(clip_from_world * model * glm::translate(glm::dmat4(1.0), chunk.offset));
+    const glm::dmat4 world_from_local = model * glm::translate(glm::dmat4(1.0), chunk.offset);
+    b.clip_from_local = glm::mat4(clip_from_world * world_from_local);
     b.spacing_k = float(n.spacing * k * options.splat_scale);
     b.splat_radius = options.max_splat_radius;
+    if (see_through) {
+      // Each node its own k and cross-section, from its own density and spacing (spbr.h), so
+      // the opacity holds at every LOD level; opaque models sit in every ensemble.
+      const SpbrNodeParams p = spbrNodeParams(instance.opacity, chunk.density / (unit * unit),
+                                              n.spacing, total, options.spbr.max_k);
+      b.spbr_k = float(std::min<double>(p.k, total));
+      b.disc_k = float(std::sqrt(p.cross_section / std::numbers::pi) * k);
+      if (instance.opacity >= 1.0f) b.disc_k = 0.5f * b.spacing_k;
+      b.seed = uint32_t(mix(key, n.id));
+      b.normals = chunk.normals.name();
+      b.eye_local = glm::vec3(glm::inverse(world_from_local) * glm::dvec4(view.eye_world, 1.0));
+    }
     batches.push_back(b);
     stats.points += chunk.count;
     ++stats.nodes;

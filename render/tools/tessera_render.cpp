@@ -123,9 +123,10 @@ void setVec(config::Vec3* d, const glm::dvec3& v) {
 config::Camera interactive(render::Window& win, config::Camera cam,
                            const std::function<render::ViewSetup(const config::Camera&)>& viewOf,
                            std::span<const render::ModelInstance> instances,
-                           const render::RenderOptions& options, int frames) {
+                           const render::RenderOptions& options,
+                           const render::StreamerOptions& stream_options, int frames) {
   const render::ViewSetup first = viewOf(cam);
-  render::ViewRenderer r(first.width, first.height);
+  render::ViewRenderer r(first.width, first.height, nullptr, stream_options);
   for (int frame = 1; !win.closing() && (frames == 0 || frame <= frames); ++frame) {
     render::RenderStats st;
     r.draw(instances, viewOf(cam), options, &st);
@@ -199,6 +200,22 @@ int main(int argc, char** argv) {
   app.add_option("--gpu-budget-mb", budget_mb, "GPU bytes for resident chunks, MiB")
       ->check(CLI::Range(1.0, 1e6))
       ->capture_default_str();
+  uint32_t spbr_l = 64, spbr_progressive = 0;
+  double spbr_max_k = 1.0;
+  bool no_slant = false;
+  app.add_option("--spbr-L", spbr_l, "See-through: ensembles per frame (models with opacity < 1)")
+      ->check(CLI::Range(1, 4096))
+      ->capture_default_str();
+  app.add_option("--spbr-progressive", spbr_progressive,
+                 "See-through: keep adding ensembles up to this many while the view rests")
+      ->check(CLI::Range(0, 65536));
+  app.add_option("--spbr-max-k", spbr_max_k,
+                 "See-through: most copies of a point over the ensembles (1: independent "
+                 "ensembles; more: sharper, noisier)")
+      ->check(CLI::Range(0.01, 4096.0))
+      ->capture_default_str();
+  app.add_flag("--no-slant-shading", no_slant,
+               "See-through: cross-sections s cos(theta), no opacity gain on slanted surfaces");
   app.add_option("--stats", stats_path, "Append per-view statistics as CSV");
   app.add_flag("--window", window,
                "Show the plain view in a window (GLFW): left drag orbits, right drag pans, wheel "
@@ -221,13 +238,11 @@ int main(int argc, char** argv) {
       config::SceneConfig scene = sync::loadSceneConfig(scene_path);
       for (const auto& m : scene.models()) {
         if (m.hidden()) continue;
-        if (m.opacity() < 1.0)
-          usage("model " + m.store() +
-                ": opacity below 1 needs the see-through renderer (not built yet)");
         stores.push_back(lod::PointStore::open(storeFor(m.store())));
         glm::dmat4 t(1.0);
         if (m.transform_size() == 16) t = glm::make_mat4(m.transform().data());
-        instances.push_back({stores.back().get(), t * render::storeModel(*stores.back())});
+        const float opacity = m.opacity() > 0.0 ? float(m.opacity()) : 1.0f;
+        instances.push_back({stores.back().get(), t * render::storeModel(*stores.back()), opacity});
       }
       cam = scene.camera();
       have_camera = true;
@@ -236,12 +251,21 @@ int main(int argc, char** argv) {
       if (scene.shading() == "edl") options.edl_strength = 1.0f;
     }
     for (const std::string& m : models) {
-      auto colon = m.rfind(':');
+      // FILE or FILE:OPACITY (a colon followed by a number, so paths with colons still work).
+      std::string file = m;
+      float opacity = 1.0f;
+      const auto colon = m.rfind(':');
       if (colon != std::string::npos && colon > 0 && m.find('/', colon) == std::string::npos) {
-        usage("--model " + m + ": opacity below 1 needs the see-through renderer (not built yet)");
+        char* end = nullptr;
+        const std::string tail = m.substr(colon + 1);
+        const double v = std::strtod(tail.c_str(), &end);
+        if (end == tail.c_str() || *end != '\0' || !(v > 0.0 && v <= 1.0))
+          usage("--model " + m + ": opacity after ':' must be a number in (0, 1]");
+        file = m.substr(0, colon);
+        opacity = float(v);
       }
-      stores.push_back(lod::PointStore::open(storeFor(m)));
-      instances.push_back({stores.back().get(), render::storeModel(*stores.back())});
+      stores.push_back(lod::PointStore::open(storeFor(file)));
+      instances.push_back({stores.back().get(), render::storeModel(*stores.back()), opacity});
     }
     if (instances.empty()) usage("nothing to render: give --scene or --model");
     if (!camera.empty()) {
@@ -252,6 +276,10 @@ int main(int argc, char** argv) {
     if (lod_px > 0) options.lod_pixels = lod_px;
     if (edl) options.edl_strength = 1.0f;
     options.splat_scale = float(splat_scale);
+    options.spbr.ensembles = spbr_l;
+    options.spbr.progressive_max = spbr_progressive;
+    options.spbr.max_k = spbr_max_k;
+    options.spbr.slant_shading = !no_slant;
     if (!background.empty()) options.background = glm::vec3(parseVec(background, "--background"));
 
     std::unique_ptr<render::GlContext> ctx;
@@ -277,7 +305,7 @@ int main(int argc, char** argv) {
       if (fresh) {
         stats_file << "view,width,height,frames,cut_nodes,nodes,points,corrupt_chunks,"
                       "resident_chunks,resident_bytes,store_bytes,select_ms,upload_ms,depth_ms,"
-                      "color_ms,resolve_ms,readback_ms,frame_ms\n";
+                      "color_ms,resolve_ms,readback_ms,frame_ms,ensembles,copies\n";
       }
     }
     uint64_t store_bytes = 0;
@@ -285,6 +313,7 @@ int main(int argc, char** argv) {
     // Each view streams on its own, as the wall node driving that tile would.
     render::StreamerOptions stream_options;
     stream_options.budget_bytes = uint64_t(budget_mb * 1048576.0);
+    stream_options.normals = no_slant;  // cos(theta) needs a normal per point
     auto renderView = [&](const std::string& name, const render::ViewSetup& v) {
       render::ViewRenderer r(v.width, v.height, nullptr, stream_options);
       render::RenderStats st;
@@ -305,7 +334,8 @@ int main(int argc, char** argv) {
                    << st.corrupt_chunks << "," << st.stream.resident_chunks << ","
                    << st.stream.resident_bytes << "," << store_bytes << "," << st.select_ms << ","
                    << st.upload_ms << "," << st.depth_ms << "," << st.color_ms << ","
-                   << st.resolve_ms << "," << st.readback_ms << "," << st.totalMs() << "\n";
+                   << st.resolve_ms << "," << st.readback_ms << "," << st.totalMs() << ","
+                   << st.ensembles << "," << st.copies << "\n";
       }
       return img;
     };
@@ -333,7 +363,7 @@ int main(int argc, char** argv) {
         v.eye_world = glm::dvec3(c.eye().x(), c.eye().y(), c.eye().z());
         return v;
       };
-      if (win) cam = interactive(*win, cam, plainView, instances, options, frames);
+      if (win) cam = interactive(*win, cam, plainView, instances, options, stream_options, frames);
       if (out.empty()) return 0;
       const render::ViewSetup v = plainView(cam);
       result = renderView("view", v);

@@ -26,6 +26,11 @@ struct GpuChunk {
   glm::dvec3 offset{0.0};   ///< store-local position of the points' frame
   uint64_t last_used = 0;   ///< frame number
   uint32_t disk_bytes = 0;  ///< the chunk's compressed size in the store
+  double spacing = 0.0;     ///< the node's mean sample spacing, store units
+  /// Points per unit area (store units) by sphere counts on the chunk's own points (spbr.h),
+  /// for see-through rendering; 0 when too few points.
+  double density = 0.0;
+  GlBuffer normals;  ///< 10:10:10 normals, when StreamerOptions::normals
 };
 
 /// Counters of the last frame (requested..evicted, pages_*) and the state after it.
@@ -46,6 +51,9 @@ struct StreamStats {
 struct StreamerOptions {
   uint64_t budget_bytes = 1ull << 30;        ///< GPU bytes for resident chunks
   glm::u8vec3 default_color{200, 200, 200};  ///< for stores without colour
+  /// Estimate a normal per point on loading (see-through rendering without slant shading).
+  /// Costs about as much as decoding again.
+  bool normals = false;
 };
 
 class ChunkStreamer {

@@ -31,6 +31,13 @@ struct DrawBatch {
   /// splat has radius splat_radius (0: one pixel).
   float spacing_k = 0.0f;
   int splat_radius = 0;
+
+  // See-through (renderEnsembles() only; spbr.h):
+  float spbr_k = 0.0f;        ///< copies per point over all ensembles (eq. 4), <= total ensembles
+  float disc_k = 0.0f;        ///< cross-section disc radius in pixels at view depth 1
+  uint32_t seed = 0;          ///< stable key of the node: picks each point's ensembles
+  uint32_t normals = 0;       ///< GL buffer of 10:10:10 normals (slant shading off), or 0
+  glm::vec3 eye_local{0.0f};  ///< the eye in the batch's frame
 };
 
 struct Image {
@@ -67,6 +74,17 @@ class PointRasterizer {
   /// Clears, rasterises every batch (depth pass, then colour pass), resolves colours.
   RasterTimings render(std::span<const DrawBatch> batches, const glm::vec3& background,
                        const RasterShading& shading = RasterShading());
+  /// See-through rendering (Tanaka et al. 2016): clears the per-pixel sums of ensemble images.
+  void beginEnsembles();
+  /// Draws ensembles [first, first + count) of `total` with each batch's spbr_k, disc_k and seed,
+  /// `max_layers` at a time (each layer holds a depth and a colour image: 8 bytes a pixel), and
+  /// adds their images (background where empty) to the sums. With `slant_off`, cross-sections
+  /// shrink by cos(theta) from each batch's normals buffer.
+  RasterTimings drawEnsembles(std::span<const DrawBatch> batches, uint32_t first, uint32_t count,
+                              uint32_t total, uint32_t max_layers, const glm::vec3& background,
+                              const RasterShading& shading, bool slant_off);
+  /// Writes the mean of the `accumulated` ensembles summed since beginEnsembles() as the image.
+  double resolveEnsembles(uint32_t accumulated);
   /// The last render, read back.
   Image read() const;
   /// The GL buffer holding the last render: width x height RGBA8, top row first.
@@ -78,6 +96,9 @@ class PointRasterizer {
   uint32_t mWidth, mHeight;
   uint32_t mRasterProgram = 0, mResolveProgram = 0;
   uint32_t mPoints = 0, mDepth = 0, mColors = 0, mImage = 0;
+  uint32_t mSpbrProgram = 0, mAccumulateProgram = 0;
+  uint32_t mLayerDepth = 0, mLayerColors = 0, mAccum = 0, mNoNormals = 0;
+  uint32_t mLayers = 0;  ///< layers allocated
 };
 
 /// Writes an 8-bit RGBA PNG. Throws RenderError naming the file on failure.

@@ -15,6 +15,7 @@
 #include <tessera/render/chunk_streamer.h>
 #include <tessera/render/lod_selector.h>
 #include <tessera/render/point_rasterizer.h>
+#include <tessera/render/spbr.h>
 #include <tessera/render/tile_frustum.h>
 
 namespace tessera::render {
@@ -30,6 +31,8 @@ struct RenderOptions {
   /// LiDAR scan lines (tests/render/view_renderer_test.cpp measures it).
   float splat_scale = 2.0f;
   int max_splat_radius = 8;  ///< pixels
+  /// See-through rendering, used when a model's opacity is below 1.
+  SpbrOptions spbr;
 };
 
 /// One frame. `nodes`..`points` describe what was drawn.
@@ -42,7 +45,10 @@ struct RenderStats {
   size_t corrupt_chunks = 0;  ///< cut nodes whose chunk the store refused (drawn by ancestors)
   StreamStats stream;         ///< requested / uploaded / evicted, resident bytes
   double select_ms = 0, upload_ms = 0, depth_ms = 0, color_ms = 0, resolve_ms = 0, readback_ms = 0;
-  size_t frames = 1;  ///< frames renderSettled() drew
+  size_t frames = 1;             ///< frames renderSettled() drew
+  uint32_t ensembles = 0;        ///< see-through: ensembles averaged in the image (0: opaque)
+  uint32_t ensembles_drawn = 0;  ///< ... of which this frame drew
+  uint64_t copies = 0;           ///< see-through: point copies drawn this frame
   double totalMs() const {
     return select_ms + upload_ms + depth_ms + color_ms + resolve_ms + readback_ms;
   }
@@ -64,13 +70,19 @@ class ViewRenderer {
   ViewRenderer(uint32_t width, uint32_t height, std::shared_ptr<ChunkStreamer> streamer = nullptr,
                const StreamerOptions& stream_options = {});
   /// One frame of every model (nearest point wins across models) into imageBuffer(), without
-  /// reading it back (windows, wall nodes). Never waits on I/O.
+  /// reading it back (windows, wall nodes). Never waits on I/O. When a model's opacity is below
+  /// 1, the frame is see-through (spbr.h): options.spbr.ensembles ensembles are drawn and
+  /// averaged; while the view and the resident data stay the same, later frames add further
+  /// ensembles up to options.spbr.progressive_max, and any change starts over. Throws
+  /// RenderError when the opacities asked for need more point copies than
+  /// options.spbr.max_copies_per_frame, naming the opacities that fit.
   void draw(std::span<const ModelInstance> models, const ViewSetup& view,
             const RenderOptions& options, RenderStats* stats = nullptr);
   /// draw() and read the image back.
   Image render(std::span<const ModelInstance> models, const ViewSetup& view,
                const RenderOptions& options, RenderStats* stats = nullptr);
-  /// Frames until the whole cut is resident (or refused as corrupt); the last one's image.
+  /// Frames until the whole cut is resident (or refused as corrupt) and, see-through, every
+  /// ensemble up to options.spbr's maximum is averaged; the last one's image.
   /// `stats` holds the last frame's figures with `frames` counting all of them.
   Image renderSettled(std::span<const ModelInstance> models, const ViewSetup& view,
                       const RenderOptions& options, RenderStats* stats = nullptr);
@@ -80,10 +92,15 @@ class ViewRenderer {
   uint32_t imageBuffer() const { return mRaster.imageBuffer(); }
 
  private:
-  void addModel(lod::PointStore& store, const glm::dmat4& model, const ViewSetup& view,
+  void drawSeeThrough(std::span<const ModelInstance> models, const ViewSetup& view,
+                      const RenderOptions& options, std::vector<DrawBatch>& batches,
+                      const RasterShading& shading, RenderStats& st);
+  void addModel(const ModelInstance& instance, bool see_through, const ViewSetup& view,
                 const RenderOptions& options, std::vector<DrawBatch>& batches, RenderStats& stats);
   std::shared_ptr<ChunkStreamer> mStreamer;
   PointRasterizer mRaster;
+  uint64_t mSpbrSignature = 0;  ///< what the accumulated ensembles show
+  uint32_t mSpbrDone = 0;       ///< ensembles accumulated for it
 };
 
 /// The store's local frame in the world: a translation by its origin (world = origin + local).

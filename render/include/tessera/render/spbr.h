@@ -1,0 +1,76 @@
+// Stochastic point-based rendering (SPBR) of see-through point clouds, after Tanaka et al. 2016
+// ("See-through imaging of laser-scanned 3D cultural heritage objects based on stochastic
+// rendering of large-scale point clouds", ../shared/papers/spbr-see-through-point-clouds.txt).
+// No depth sorting: L statistically independent ensembles of points are each drawn with an
+// ordinary depth test and the L images are averaged. A surface segment of area S holding n
+// points of cross-section s shows opacity alpha = 1 - (1 - s/S)^n (eq. 1); the data's n_raw
+// points per S are thinned or copied by k = nL / n_raw (eq. 4) and dealt into the ensembles.
+//
+// Here, with LOD, every node of the cut gets its own k: its areal density is measured on its own
+// points (the paper's sphere counts, with spheres sized from the node's spacing) and its points'
+// cross-section follows its spacing, so the opacity holds at every level. Copies are never
+// stored: the shader deals copy c of point i into ensemble (h(i) + c) mod L, h a stable hash of
+// the node and the point index, so tiles of a wall agree and no point is invented.
+#pragma once
+
+#include <cstdint>
+#include <span>
+#include <string>
+#include <vector>
+
+#include <glm/glm.hpp>
+
+namespace tessera::render {
+
+struct SpbrOptions {
+  uint32_t ensembles = 64;       ///< L: ensembles per frame
+  uint32_t progressive_max = 0;  ///< >L: a resting view keeps adding ensembles up to this many
+  bool slant_shading = true;     ///< eq. 2's opacity gradation on slanted surfaces (off: s cos)
+  /// Largest adjustment ratio k (eq. 4) before cross-sections grow instead. At k <= 1 every
+  /// ensemble holds its own points (statistically independent, the paper's assumption); at
+  /// k > 1 copies of one point sit in k ensembles, so L ensembles average only about L / k
+  /// independent images: sharper points, noisier picture.
+  double max_k = 1.0;
+  /// See-through views refine the LOD cut this much finer than opaque ones: denser nodes let
+  /// each ensemble take fewer points of smaller cross-section.
+  double lod_scale = 0.5;
+  /// Point copies drawn per frame at most (the work, and the memory a materialised copy would
+  /// take at 16 bytes each): a request beyond it is refused with the opacity that fits.
+  uint64_t max_copies_per_frame = 3'000'000'000ull;
+  uint64_t buffer_bytes = 512ull << 20;  ///< ensemble depth + colour layers drawn at once
+  uint32_t seed = 0x5EEDu;
+};
+
+/// Opacity of a segment of area S holding n points of cross-section s (eq. 1).
+double spbrOpacity(double n, double s, double S);
+/// Points per segment area S that give opacity alpha with cross-section s (eq. 1 inverted).
+double spbrPointsFor(double alpha, double s, double S);
+
+/// One node's SPBR parameters.
+struct SpbrNodeParams {
+  double cross_section = 0;  ///< s, store units squared
+  double k = 0;              ///< adjustment ratio nL / n_raw (eq. 4) over the L_total ensembles
+};
+
+/// Parameters for a node of areal `density` (points per unit area) and mean `spacing`, for
+/// opacity `alpha` in (0, 1] over `total_ensembles` ensembles. The cross-section is the disc
+/// the opaque renderer draws (diameter 2 x spacing), enlarged where k would exceed `max_k`
+/// (k scales as 1 / s). alpha = 1: every point in every ensemble.
+SpbrNodeParams spbrNodeParams(double alpha, double density, double spacing,
+                              uint32_t total_ensembles, double max_k = 1.0);
+
+/// Areal density by the paper's estimator (section 3.2.1, steps 2-3): the mean number of
+/// points in `centres` spheres of `radius` around points chosen at random (deterministic from
+/// `seed`), divided by the great circle's area. Centres closer than `radius` to the box of the
+/// points are avoided where possible (a sphere cut by the data's edge undercounts); the centre
+/// itself is not counted. Inputs beyond `max_points` are subsampled at random with spheres
+/// widened to hold as many points. O(n).
+double sphereDensity(std::span<const glm::vec3> points, double radius, uint32_t centres,
+                     uint32_t seed, size_t max_points = 65536);
+
+/// Unit normals by principal component analysis of the points within `radius` of each point,
+/// packed as 10:10:10 signed normalised integers (x in the low bits); 0 where fewer than 3
+/// points are near. For turning the slant shading off (cross-section s cos(theta), eq. 2).
+std::vector<uint32_t> estimateNormals(std::span<const glm::vec3> points, double radius);
+
+}  // namespace tessera::render

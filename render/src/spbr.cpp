@@ -1,0 +1,198 @@
+#include <tessera/render/spbr.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <numbers>
+#include <unordered_map>
+#include <vector>
+
+namespace tessera::render {
+
+double spbrOpacity(double n, double s, double S) {
+  return 1.0 - std::pow(1.0 - s / S, n);
+}
+
+double spbrPointsFor(double alpha, double s, double S) {
+  return std::log1p(-alpha) / std::log1p(-s / S);
+}
+
+SpbrNodeParams spbrNodeParams(double alpha, double density, double spacing,
+                              uint32_t total_ensembles, double max_k) {
+  SpbrNodeParams p;
+  const double L = double(total_ensembles);
+  p.cross_section = std::numbers::pi * spacing * spacing;
+  if (alpha >= 1.0 || !(density > 0)) {
+    p.k = L;  // opaque: every point in every ensemble
+    return p;
+  }
+  // Eq. 1 on a segment much larger than a point (S = 100 s: the binomial is then within 1% of
+  // its Poisson limit, so the choice of S does not matter), n_raw = density * S, eq. 4.
+  auto kFor = [&](double s) {
+    const double S = 100.0 * s;
+    return spbrPointsFor(alpha, s, S) * L / (density * S);
+  };
+  p.k = kFor(p.cross_section);
+  // Never more copies than ensembles (two copies of a point in one ensemble coincide).
+  const double cap = std::min(std::max(max_k, 1e-3), L);
+  if (p.k > cap) {
+    // k scales as 1/s: the smallest cross-section with k = cap.
+    p.cross_section *= p.k / cap;
+    p.k = kFor(p.cross_section);
+  }
+  return p;
+}
+
+double sphereDensity(std::span<const glm::vec3> all, double radius, uint32_t centres, uint32_t seed,
+                     size_t max_points) {
+  if (all.size() < 8 || !(radius > 0)) return 0.0;
+  uint64_t state = seed * 0x9E3779B97F4A7C15ull + 1;
+  auto next = [&] {  // splitmix64
+    uint64_t z = (state += 0x9E3779B97F4A7C15ull);
+    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
+    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+    return z ^ (z >> 31);
+  };
+  // Large inputs: a random subset, each point kept with probability q, and spheres 1/sqrt(q)
+  // wider so they still hold as many points; the density is the subset's divided by q.
+  std::vector<glm::vec3> subset;
+  std::span<const glm::vec3> points = all;
+  double q = 1.0;
+  if (all.size() > max_points) {
+    q = double(max_points) / double(all.size());
+    const uint64_t threshold = uint64_t(q * 18446744073709551615.0);
+    subset.reserve(max_points + max_points / 8);
+    for (const glm::vec3& p : all)
+      if (next() <= threshold) subset.push_back(p);
+    points = subset;
+    radius /= std::sqrt(q);
+  }
+  const size_t n = points.size();
+  if (n < 8) return 0.0;
+  glm::vec3 lo(std::numeric_limits<float>::max()), hi(-std::numeric_limits<float>::max());
+  for (const glm::vec3& p : points) {
+    lo = glm::min(lo, p);
+    hi = glm::max(hi, p);
+  }
+  // Hash grid of cell `radius`: a sphere meets at most 27 cells.
+  auto cellOf = [&](const glm::vec3& p) {
+    return glm::ivec3(glm::floor((p - lo) / float(radius)));
+  };
+  auto keyOf = [](const glm::ivec3& c) {
+    return (uint64_t(uint32_t(c.x)) * 0x9E3779B97F4A7C15ull) ^
+           (uint64_t(uint32_t(c.y)) * 0xC2B2AE3D27D4EB4Full) ^
+           (uint64_t(uint32_t(c.z)) * 0x165667B19E3779F9ull);
+  };
+  std::unordered_map<uint64_t, std::vector<uint32_t>> grid;
+  grid.reserve(n / 8 + 1);
+  for (size_t i = 0; i < n; ++i) grid[keyOf(cellOf(points[i]))].push_back(uint32_t(i));
+  // Centres at least `radius` inside the box on the axes where the box is wide enough.
+  const float margin = float(radius);
+  const glm::vec3 ext = hi - lo;
+  auto interior = [&](const glm::vec3& p) {
+    for (int a = 0; a < 3; ++a) {
+      if (ext[a] > 4.0f * margin && (p[a] < lo[a] + margin || p[a] > hi[a] - margin)) return false;
+    }
+    return true;
+  };
+  const double r2 = radius * radius;
+  double sum = 0.0;
+  uint32_t used = 0;
+  for (uint32_t tries = 0; used < centres && tries < centres * 8; ++tries) {
+    const size_t ci = next() % n;
+    const glm::vec3 c = points[ci];
+    if (!interior(c) && tries < centres * 4) continue;
+    const glm::ivec3 cc = cellOf(c);
+    size_t count = 0;
+    for (int dz = -1; dz <= 1; ++dz)
+      for (int dy = -1; dy <= 1; ++dy)
+        for (int dx = -1; dx <= 1; ++dx) {
+          auto it = grid.find(keyOf(cc + glm::ivec3(dx, dy, dz)));
+          if (it == grid.end()) continue;
+          for (uint32_t j : it->second) {
+            const glm::vec3 d = points[j] - c;
+            count += j != ci && double(glm::dot(d, d)) <= r2;
+          }
+        }
+    // The centre is not counted: a sphere around a data point otherwise holds one point more
+    // than the density predicts (Palm's bias, 2% at 50 points).
+    sum += double(count);
+    ++used;
+  }
+  return used ? sum / used / (std::numbers::pi * r2) / q : 0.0;
+}
+
+}  // namespace tessera::render
+
+namespace tessera::render {
+
+std::vector<uint32_t> estimateNormals(std::span<const glm::vec3> points, double radius) {
+  const size_t n = points.size();
+  std::vector<uint32_t> out(n, 0);
+  if (n == 0 || !(radius > 0)) return out;
+  glm::vec3 lo(std::numeric_limits<float>::max());
+  for (const glm::vec3& p : points) lo = glm::min(lo, p);
+  auto cellOf = [&](const glm::vec3& p) {
+    return glm::ivec3(glm::floor((p - lo) / float(radius)));
+  };
+  auto keyOf = [](const glm::ivec3& c) {
+    return (uint64_t(uint32_t(c.x)) * 0x9E3779B97F4A7C15ull) ^
+           (uint64_t(uint32_t(c.y)) * 0xC2B2AE3D27D4EB4Full) ^
+           (uint64_t(uint32_t(c.z)) * 0x165667B19E3779F9ull);
+  };
+  std::unordered_map<uint64_t, std::vector<uint32_t>> grid;
+  grid.reserve(n / 4 + 1);
+  for (size_t i = 0; i < n; ++i) grid[keyOf(cellOf(points[i]))].push_back(uint32_t(i));
+  const float r2 = float(radius * radius);
+  auto pack = [](glm::vec3 v) {
+    const glm::ivec3 q = glm::ivec3(glm::round(glm::clamp(v, -1.0f, 1.0f) * 511.0f));
+    return uint32_t(q.x & 1023) | uint32_t(q.y & 1023) << 10 | uint32_t(q.z & 1023) << 20;
+  };
+  for (size_t i = 0; i < n; ++i) {
+    const glm::vec3 p = points[i];
+    const glm::ivec3 c = cellOf(p);
+    glm::dvec3 mean(0.0);
+    glm::dmat3 outer(0.0);
+    size_t count = 0;
+    for (int dz = -1; dz <= 1; ++dz)
+      for (int dy = -1; dy <= 1; ++dy)
+        for (int dx = -1; dx <= 1; ++dx) {
+          auto it = grid.find(keyOf(c + glm::ivec3(dx, dy, dz)));
+          if (it == grid.end()) continue;
+          for (uint32_t j : it->second) {
+            const glm::vec3 d = points[j] - p;
+            if (glm::dot(d, d) > r2) continue;
+            const glm::dvec3 q(d);
+            mean += q;
+            outer += glm::outerProduct(q, q);
+            ++count;
+          }
+        }
+    if (count < 3) continue;  // no normal: 0, which the shader treats as facing the viewer
+    mean /= double(count);
+    const glm::dmat3 cov = outer / double(count) - glm::outerProduct(mean, mean);
+    // The normal is the eigenvector of the smallest eigenvalue: the cross product of the two
+    // leading ones, found by power iteration (and deflation).
+    auto leading = [](const glm::dmat3& m, glm::dvec3 v) {
+      for (int it = 0; it < 24; ++it) {
+        const glm::dvec3 w = m * v;
+        const double len = glm::length(w);
+        if (!(len > 1e-300)) break;
+        v = w / len;
+      }
+      return v;
+    };
+    const glm::dvec3 e1 = leading(cov, glm::dvec3(0.57, 0.61, 0.55));
+    const double l1 = glm::dot(e1, cov * e1);
+    const glm::dmat3 deflated = cov - l1 * glm::outerProduct(e1, e1);
+    glm::dvec3 seed2 = glm::cross(e1, glm::dvec3(0.31, 0.47, 0.83));
+    if (glm::length(seed2) < 1e-6) seed2 = glm::cross(e1, glm::dvec3(1, 0, 0));
+    const glm::dvec3 e2 = leading(deflated, glm::normalize(seed2));
+    const glm::dvec3 normal = glm::cross(e1, e2);
+    const double len = glm::length(normal);
+    if (len > 1e-9) out[i] = pack(glm::vec3(normal / len));
+  }
+  return out;
+}
+
+}  // namespace tessera::render
