@@ -45,6 +45,21 @@ uint32_t compileCompute(const char* source, const char* name) {
   return program;
 }
 
+/// Milliseconds since the previous lap (or construction), with the GL work finished.
+class GpuLap {
+ public:
+  double operator()() {
+    glFinish();
+    const auto now = std::chrono::steady_clock::now();
+    const double ms = std::chrono::duration<double, std::milli>(now - mStart).count();
+    mStart = now;
+    return ms;
+  }
+
+ private:
+  std::chrono::steady_clock::time_point mStart = std::chrono::steady_clock::now();
+};
+
 uint32_t makeBuffer(size_t bytes) {
   GLuint b = 0;
   glCreateBuffers(1, &b);
@@ -89,14 +104,7 @@ RasterTimings PointRasterizer::drawEnsembles(std::span<const DrawBatch> batches,
                                              const glm::vec3& background,
                                              const RasterShading& shading, bool slant_off) {
   RasterTimings timings;
-  auto t = std::chrono::steady_clock::now();
-  auto lap = [&t] {
-    glFinish();
-    const auto now = std::chrono::steady_clock::now();
-    const double ms = std::chrono::duration<double, std::milli>(now - t).count();
-    t = now;
-    return ms;
-  };
+  GpuLap lap;
   const size_t plane = size_t(mWidth) * mHeight;
   const uint32_t layers = std::max<uint32_t>(1, std::min(max_layers, count));
   if (layers > mLayers) {
@@ -218,14 +226,7 @@ void PointRasterizer::setPoints(std::span<const GpuPoint> points) {
 RasterTimings PointRasterizer::render(std::span<const DrawBatch> batches,
                                       const glm::vec3& background, const RasterShading& shading) {
   RasterTimings timings;
-  auto t = std::chrono::steady_clock::now();
-  auto lap = [&t] {
-    glFinish();
-    const auto now = std::chrono::steady_clock::now();
-    const double ms = std::chrono::duration<double, std::milli>(now - t).count();
-    t = now;
-    return ms;
-  };
+  GpuLap lap;
   const GLuint all_ones = 0xFFFFFFFFu;
   glClearNamedBufferData(mDepth, GL_R32UI, GL_RED_INTEGER, GL_UNSIGNED_INT, &all_ones);
   glClearNamedBufferData(mColors, GL_R32UI, GL_RED_INTEGER, GL_UNSIGNED_INT, &all_ones);

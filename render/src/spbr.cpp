@@ -9,6 +9,51 @@
 
 namespace tessera::render {
 
+namespace {
+
+/// Points bucketed by a hash of their cell of side `cell`: a sphere of radius `cell` around any
+/// point meets the 27 cells around its own.
+class CellGrid {
+ public:
+  CellGrid(std::span<const glm::vec3> points, double cell) : mPoints(points), mCell(float(cell)) {
+    mLo = glm::vec3(std::numeric_limits<float>::max());
+    for (const glm::vec3& p : points) mLo = glm::min(mLo, p);
+    mCells.reserve(points.size() / 4 + 1);
+    for (size_t i = 0; i < points.size(); ++i)
+      mCells[key(cellOf(points[i]))].push_back(uint32_t(i));
+  }
+  /// Calls f(j) for every point j within `radius` (<= cell) of `p`.
+  template <typename F>
+  void near(const glm::vec3& p, float radius, F&& f) const {
+    const glm::ivec3 c = cellOf(p);
+    const float r2 = radius * radius;
+    for (int dz = -1; dz <= 1; ++dz)
+      for (int dy = -1; dy <= 1; ++dy)
+        for (int dx = -1; dx <= 1; ++dx) {
+          auto it = mCells.find(key(c + glm::ivec3(dx, dy, dz)));
+          if (it == mCells.end()) continue;
+          for (uint32_t j : it->second) {
+            const glm::vec3 d = mPoints[j] - p;
+            if (glm::dot(d, d) <= r2) f(j);
+          }
+        }
+  }
+
+ private:
+  glm::ivec3 cellOf(const glm::vec3& p) const { return glm::ivec3(glm::floor((p - mLo) / mCell)); }
+  static uint64_t key(const glm::ivec3& c) {
+    return (uint64_t(uint32_t(c.x)) * 0x9E3779B97F4A7C15ull) ^
+           (uint64_t(uint32_t(c.y)) * 0xC2B2AE3D27D4EB4Full) ^
+           (uint64_t(uint32_t(c.z)) * 0x165667B19E3779F9ull);
+  }
+  std::span<const glm::vec3> mPoints;
+  float mCell;
+  glm::vec3 mLo;
+  std::unordered_map<uint64_t, std::vector<uint32_t>> mCells;
+};
+
+}  // namespace
+
 double spbrOpacity(double n, double s, double S) {
   return 1.0 - std::pow(1.0 - s / S, n);
 }
@@ -74,18 +119,7 @@ double sphereDensity(std::span<const glm::vec3> all, double radius, uint32_t cen
     lo = glm::min(lo, p);
     hi = glm::max(hi, p);
   }
-  // Hash grid of cell `radius`: a sphere meets at most 27 cells.
-  auto cellOf = [&](const glm::vec3& p) {
-    return glm::ivec3(glm::floor((p - lo) / float(radius)));
-  };
-  auto keyOf = [](const glm::ivec3& c) {
-    return (uint64_t(uint32_t(c.x)) * 0x9E3779B97F4A7C15ull) ^
-           (uint64_t(uint32_t(c.y)) * 0xC2B2AE3D27D4EB4Full) ^
-           (uint64_t(uint32_t(c.z)) * 0x165667B19E3779F9ull);
-  };
-  std::unordered_map<uint64_t, std::vector<uint32_t>> grid;
-  grid.reserve(n / 8 + 1);
-  for (size_t i = 0; i < n; ++i) grid[keyOf(cellOf(points[i]))].push_back(uint32_t(i));
+  const CellGrid grid(points, radius);
   // Centres at least `radius` inside the box on the axes where the box is wide enough.
   const float margin = float(radius);
   const glm::vec3 ext = hi - lo;
@@ -95,79 +129,42 @@ double sphereDensity(std::span<const glm::vec3> all, double radius, uint32_t cen
     }
     return true;
   };
-  const double r2 = radius * radius;
   double sum = 0.0;
   uint32_t used = 0;
   for (uint32_t tries = 0; used < centres && tries < centres * 8; ++tries) {
     const size_t ci = next() % n;
     const glm::vec3 c = points[ci];
     if (!interior(c) && tries < centres * 4) continue;
-    const glm::ivec3 cc = cellOf(c);
     size_t count = 0;
-    for (int dz = -1; dz <= 1; ++dz)
-      for (int dy = -1; dy <= 1; ++dy)
-        for (int dx = -1; dx <= 1; ++dx) {
-          auto it = grid.find(keyOf(cc + glm::ivec3(dx, dy, dz)));
-          if (it == grid.end()) continue;
-          for (uint32_t j : it->second) {
-            const glm::vec3 d = points[j] - c;
-            count += j != ci && double(glm::dot(d, d)) <= r2;
-          }
-        }
+    grid.near(c, float(radius), [&](uint32_t j) { count += j != ci; });
     // The centre is not counted: a sphere around a data point otherwise holds one point more
     // than the density predicts (Palm's bias, 2% at 50 points).
     sum += double(count);
     ++used;
   }
-  return used ? sum / used / (std::numbers::pi * r2) / q : 0.0;
+  return used ? sum / used / (std::numbers::pi * radius * radius) / q : 0.0;
 }
-
-}  // namespace tessera::render
-
-namespace tessera::render {
 
 std::vector<uint32_t> estimateNormals(std::span<const glm::vec3> points, double radius) {
   const size_t n = points.size();
   std::vector<uint32_t> out(n, 0);
   if (n == 0 || !(radius > 0)) return out;
-  glm::vec3 lo(std::numeric_limits<float>::max());
-  for (const glm::vec3& p : points) lo = glm::min(lo, p);
-  auto cellOf = [&](const glm::vec3& p) {
-    return glm::ivec3(glm::floor((p - lo) / float(radius)));
-  };
-  auto keyOf = [](const glm::ivec3& c) {
-    return (uint64_t(uint32_t(c.x)) * 0x9E3779B97F4A7C15ull) ^
-           (uint64_t(uint32_t(c.y)) * 0xC2B2AE3D27D4EB4Full) ^
-           (uint64_t(uint32_t(c.z)) * 0x165667B19E3779F9ull);
-  };
-  std::unordered_map<uint64_t, std::vector<uint32_t>> grid;
-  grid.reserve(n / 4 + 1);
-  for (size_t i = 0; i < n; ++i) grid[keyOf(cellOf(points[i]))].push_back(uint32_t(i));
-  const float r2 = float(radius * radius);
+  const CellGrid grid(points, radius);
   auto pack = [](glm::vec3 v) {
     const glm::ivec3 q = glm::ivec3(glm::round(glm::clamp(v, -1.0f, 1.0f) * 511.0f));
     return uint32_t(q.x & 1023) | uint32_t(q.y & 1023) << 10 | uint32_t(q.z & 1023) << 20;
   };
   for (size_t i = 0; i < n; ++i) {
     const glm::vec3 p = points[i];
-    const glm::ivec3 c = cellOf(p);
     glm::dvec3 mean(0.0);
     glm::dmat3 outer(0.0);
     size_t count = 0;
-    for (int dz = -1; dz <= 1; ++dz)
-      for (int dy = -1; dy <= 1; ++dy)
-        for (int dx = -1; dx <= 1; ++dx) {
-          auto it = grid.find(keyOf(c + glm::ivec3(dx, dy, dz)));
-          if (it == grid.end()) continue;
-          for (uint32_t j : it->second) {
-            const glm::vec3 d = points[j] - p;
-            if (glm::dot(d, d) > r2) continue;
-            const glm::dvec3 q(d);
-            mean += q;
-            outer += glm::outerProduct(q, q);
-            ++count;
-          }
-        }
+    grid.near(p, float(radius), [&](uint32_t j) {
+      const glm::dvec3 q(points[j] - p);
+      mean += q;
+      outer += glm::outerProduct(q, q);
+      ++count;
+    });
     if (count < 3) continue;  // no normal: 0, which the shader treats as facing the viewer
     mean /= double(count);
     const glm::dmat3 cov = outer / double(count) - glm::outerProduct(mean, mean);
