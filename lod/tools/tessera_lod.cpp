@@ -1,11 +1,15 @@
 // tessera-lod: inspect scanned data and make test scans. `tessera-lod --help` lists subcommands.
 #include <CLI/CLI.hpp>
 
+#include <cmath>
 #include <cstdio>
 #include <iostream>
+#include <tuple>
 
 #include <tessera/core/check.h>
 #include <tessera/lod/mesh.h>
+#include <tessera/lod/photo_points.h>
+#include <tessera/lod/point_writer.h>
 #include <tessera/lod/source_summary.h>
 #include <tessera/lod/store_builder.h>
 #include <tessera/lod/virtual_scanner.h>
@@ -125,6 +129,49 @@ int runVerify(const std::string& store, const std::vector<std::string>& inputs,
   }
 }
 
+/// `X,Y,Z` into a vector; false when malformed.
+bool parseVec3(const std::string& s, glm::dvec3& v) {
+  char extra;
+  return std::sscanf(s.c_str(), "%lf,%lf,%lf%c", &v.x, &v.y, &v.z, &extra) == 3 &&
+         std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z);
+}
+
+int runPhoto(const PhotoOptions& o, const std::string& out, const BuildOptions& bo) {
+  try {
+    glm::dvec3 origin;
+    PhotoReport r;
+    const PointBatch points = photoPoints(o, origin, &r);
+    std::printf("photo %s: %ux%u pixels -> %llu points (1/cos(phi) up to %.2f)\n", o.image.c_str(),
+                r.width, r.height, (unsigned long long)r.points, r.max_copies);
+    const std::filesystem::path target(out);
+    if (target.extension() == ".ply") {
+      writePly(target, points, origin);
+    } else {
+      const std::filesystem::path ply = target.string() + ".points.ply";
+      writePly(ply, points, origin);
+      BuildOptions b = bo;
+      try {
+        buildStore({ply}, target, b);
+      } catch (...) {
+        std::filesystem::remove(ply);
+        throw;
+      }
+      std::filesystem::remove(ply);
+    }
+    std::printf("wrote %s\n", out.c_str());
+    return 0;
+  } catch (const ReadError& e) {
+    std::fprintf(stderr, "tessera-lod photo: %s\n", e.what());
+    return kExitBadInput;
+  } catch (const tessera::PreconditionError& e) {
+    std::fprintf(stderr, "tessera-lod photo: %s\n", e.what());
+    return 2;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "tessera-lod photo: %s\n", e.what());
+    return kExitWriteFailed;
+  }
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -199,7 +246,46 @@ int main(int argc, char** argv) {
   verify->add_option("--memory-mb", vo.memory_mb, "Memory budget in MB")->capture_default_str();
   verify->add_flag("--quiet", vo.quiet, "No progress output");
 
+  PhotoOptions po;
+  std::string photo_image, photo_height, photo_corner, photo_u, photo_v, photo_out;
+  BuildOptions pbo;
+  auto* photo = app.add_subcommand(
+      "photo",
+      "Turn a photo into points on a rectangle in 3D (displaced by a height map, 1/cos(phi) "
+      "copies), to fuse with scans in see-through views");
+  photo->add_option("IMAGE", photo_image, "The photo (PNG)")->required();
+  photo->add_option("--height", photo_height, "Height map (PNG, grey levels)");
+  photo->add_option("--height-scale", po.height_scale, "Metres at full grey level")
+      ->capture_default_str();
+  photo->add_option("--corner", photo_corner, "X,Y,Z of the picture's lower-left corner")
+      ->required();
+  photo->add_option("--u", photo_u, "X,Y,Z: the picture's width, lower-left to lower-right")
+      ->required();
+  photo->add_option("--v", photo_v, "X,Y,Z: the picture's height, lower-left to upper-left")
+      ->required();
+  photo->add_option("--seed", po.seed, "Seed of the fractional copies")->capture_default_str();
+  photo->add_option("-o,--output", photo_out, "Output store (.tlod) or points (.ply)")->required();
+  photo->add_flag("--quiet", pbo.quiet, "No progress output");
+
   CLI11_PARSE(app, argc, argv);
+  if (*photo) {
+    po.image = photo_image;
+    po.height = photo_height;
+    for (auto [text, dst, name] :
+         {std::tuple{&photo_corner, &po.corner, "--corner"}, std::tuple{&photo_u, &po.u, "--u"},
+          std::tuple{&photo_v, &po.v, "--v"}}) {
+      if (!parseVec3(*text, *dst)) {
+        std::fprintf(stderr, "tessera-lod photo: %s: expected X,Y,Z, got '%s'\n", name,
+                     text->c_str());
+        return 2;
+      }
+    }
+    if (!photo_height.empty() && !(po.height_scale > 0)) {
+      std::fprintf(stderr, "tessera-lod photo: --height needs a positive --height-scale\n");
+      return 2;
+    }
+    return runPhoto(po, photo_out, pbo);
+  }
   if (*build) return runBuild(build_in, build_out, bo);
   if (*verify) return runVerify(verify_store, verify_in, vo);
   if (*info) return runInfo(info_files, info_json, info_quiet);
