@@ -9,6 +9,7 @@
 #include <string>
 
 #include <tessera/lod/mesh.h>
+#include <tessera/lod/store_builder.h>
 #include <tessera/lod/virtual_scanner.h>
 
 namespace tessera::bench {
@@ -46,6 +47,20 @@ inline std::filesystem::path bigBunnyScan(const std::filesystem::path& dir, uint
   std::fprintf(stderr, "bench: %llu points scanned in %.1f s\n", (unsigned long long)r.points,
                std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count());
   return conf;
+}
+
+/// The point store of bigBunnyScan(`points`), built once into `out`/inputs and reused.
+inline std::filesystem::path bigBunnyStore(const std::filesystem::path& out, uint64_t points,
+                                           const std::string& data) {
+  const std::string tag = "bunny-scan-" + std::to_string(points);
+  const std::filesystem::path conf = bigBunnyScan(out / "inputs" / tag, points, data);
+  const std::filesystem::path store = out / "inputs" / (tag + ".tlod");
+  if (!std::filesystem::exists(store)) {
+    tessera::lod::BuildOptions o;
+    o.memory_mb = 2048;
+    tessera::lod::buildStore({conf}, store, o);
+  }
+  return store;
 }
 
 }  // namespace tessera::bench

@@ -17,7 +17,6 @@
 #include <CLI/CLI.hpp>
 #include <glm/gtc/matrix_transform.hpp>
 
-#include <tessera/lod/store_builder.h>
 #include <tessera/render/gl_context.h>
 #include <tessera/render/view_renderer.h>
 #include <tessera/sync/config.h>
@@ -112,16 +111,8 @@ int main(int argc, char** argv) {
   CLI11_PARSE(app, argc, argv);
   try {
     fs::create_directories(out);
-    if (store_path.empty()) {
-      const std::string tag = "bunny-scan-" + std::to_string(points);
-      fs::path conf = bench::bigBunnyScan(fs::path(out) / "inputs" / tag, points, TESSERA_DATA_DIR);
-      store_path = (fs::path(out) / "inputs" / (tag + ".tlod")).string();
-      if (!fs::exists(store_path)) {
-        lod::BuildOptions o;
-        o.memory_mb = 2048;
-        lod::buildStore({conf}, store_path, o);
-      }
-    }
+    if (store_path.empty())
+      store_path = bench::bigBunnyStore(fs::path(out), points, TESSERA_DATA_DIR).string();
     auto store = lod::PointStore::open(store_path);
     const uint64_t store_bytes = store->summary().file_bytes;
     std::fprintf(stderr, "render_lod: %s, %llu points, %.1f MB\n", store_path.c_str(),

@@ -16,7 +16,8 @@ layout(std430, binding = 0) readonly buffer Points { Point points[]; };
 layout(std430, binding = 1) buffer Depth { uint depth[]; };
 layout(std430, binding = 2) buffer Colors { uint colors[]; };  // rgb, 0xFFFFFFFF: none
 
-uniform mat4 uClip;     // clip from the batch's node frame
+uniform mat4 uClip;
+uniform uint uColorOverride;  // non-zero: 0x1000000 | rgb for every point of the batch     // clip from the batch's node frame
 uniform uint uFirst;    // first point of the batch in `points`
 uniform uint uCount;
 uniform ivec2 uSize;    // viewport in pixels
@@ -57,7 +58,8 @@ void main() {
       if (uPass == 0) {
         atomicMin(depth[idx], d);
       } else if (depth[idx] == d) {
-        atomicMin(colors[idx], points[gi].rgba & 0xFFFFFFu);
+        atomicMin(colors[idx], uColorOverride != 0u ? uColorOverride & 0xFFFFFFu
+                                                    : points[gi].rgba & 0xFFFFFFu);
       }
     }
   }

@@ -20,6 +20,7 @@ layout(std430, binding = 2) buffer Colors { uint colors[]; };  // uGroupCount la
 layout(std430, binding = 4) readonly buffer Normals { uint normals[]; };  // 10:10:10 snorm
 
 uniform mat4 uClip;
+uniform uint uColorOverride;  // non-zero: 0x1000000 | rgb for every point of the batch
 uniform uint uCount;
 uniform ivec2 uSize;
 uniform float uDiscK;     // disc radius in pixels at view depth 1
@@ -32,6 +33,7 @@ uniform int uPass;        // 0: depth, 1: colour
 uniform int uMaxRadius;
 uniform int uSlantOff;    // 1: cross-section s cos(theta), from the point's normal
 uniform vec3 uEyeLocal;   // the eye in the batch's frame (for theta)
+uniform int uOneLayer;    // 1: every ensemble into layer 0 (one opaque pass, a speed baseline)
 
 uint hash(uint x) {  // lowbias32 (C. Wellons)
   x ^= x >> 16;
@@ -44,7 +46,7 @@ uint hash(uint x) {  // lowbias32 (C. Wellons)
 
 void splat(uint layer, vec2 pos, ivec2 centre, float r, uint d, uint rgb) {
   int reach = min(int(floor(r + 0.5)), uMaxRadius);
-  uint base = layer * uint(uSize.x) * uint(uSize.y);
+  uint base = uOneLayer != 0 ? 0u : layer * uint(uSize.x) * uint(uSize.y);
   for (int dy = -reach; dy <= reach; ++dy) {
     for (int dx = -reach; dx <= reach; ++dx) {
       ivec2 q = centre + ivec2(dx, dy);
@@ -93,7 +95,7 @@ void main() {
     float cosine = abs(dot(normalize(n + 1e-9), view));
     r *= sqrt(max(cosine, 0.02));
   }
-  uint rgb = points[i].rgba & 0xFFFFFFu;
+  uint rgb = uColorOverride != 0u ? uColorOverride & 0xFFFFFFu : points[i].rgba & 0xFFFFFFu;
   // Copies c in [a, a + count) map to layers c - a; wrapping past L, copies [0, ...) follow.
   for (uint cc = a; cc < min(a + uGroupCount, copies); ++cc) splat(cc - a, pos, centre, r, d, rgb);
   if (a + uGroupCount > uTotal) {

@@ -102,12 +102,13 @@ void PointRasterizer::beginEnsembles() {
 RasterTimings PointRasterizer::drawEnsembles(std::span<const DrawBatch> batches, uint32_t first,
                                              uint32_t count, uint32_t total, uint32_t max_layers,
                                              const glm::vec3& background,
-                                             const RasterShading& shading, bool slant_off) {
+                                             const RasterShading& shading, bool slant_off,
+                                             bool one_layer) {
   RasterTimings timings;
   GpuLap lap;
   const size_t plane = size_t(mWidth) * mHeight;
-  const uint32_t layers = std::max<uint32_t>(1, std::min(max_layers, count));
-  if (layers > mLayers) {
+  const uint32_t layers = one_layer ? count : std::max<uint32_t>(1, std::min(max_layers, count));
+  if (!one_layer && layers > mLayers) {
     GLuint old[] = {mLayerDepth, mLayerColors};
     glDeleteBuffers(2, old);
     mLayerDepth = makeBuffer(plane * layers * 4);
@@ -126,11 +127,17 @@ RasterTimings PointRasterizer::drawEnsembles(std::span<const DrawBatch> batches,
   const int passes = shading.uniform_color != 0 ? 1 : 2;
   for (uint32_t group = first; group < first + count; group += layers) {
     const uint32_t n = std::min(layers, first + count - group);
+    if (one_layer && mLayers == 0) {
+      mLayerDepth = makeBuffer(plane * 4);
+      mLayerColors = makeBuffer(plane * 4);
+      mLayers = 1;
+    }
+    const uint32_t cleared = one_layer ? 1 : n;
     const GLuint all_ones = 0xFFFFFFFFu;
-    glClearNamedBufferSubData(mLayerDepth, GL_R32UI, 0, GLsizeiptr(plane * n * 4), GL_RED_INTEGER,
-                              GL_UNSIGNED_INT, &all_ones);
+    glClearNamedBufferSubData(mLayerDepth, GL_R32UI, 0, GLsizeiptr(plane * cleared * 4),
+                              GL_RED_INTEGER, GL_UNSIGNED_INT, &all_ones);
     if (passes == 2) {
-      glClearNamedBufferSubData(mLayerColors, GL_R32UI, 0, GLsizeiptr(plane * n * 4),
+      glClearNamedBufferSubData(mLayerColors, GL_R32UI, 0, GLsizeiptr(plane * cleared * 4),
                                 GL_RED_INTEGER, GL_UNSIGNED_INT, &all_ones);
     }
     glUseProgram(mSpbrProgram);
@@ -140,6 +147,7 @@ RasterTimings PointRasterizer::drawEnsembles(std::span<const DrawBatch> batches,
     glUniform1ui(glGetUniformLocation(mSpbrProgram, "uTotal"), total);
     glUniform1i(glGetUniformLocation(mSpbrProgram, "uMaxRadius"), 16);
     glUniform1i(glGetUniformLocation(mSpbrProgram, "uSlantOff"), slant_off ? 1 : 0);
+    glUniform1i(glGetUniformLocation(mSpbrProgram, "uOneLayer"), one_layer ? 1 : 0);
     glUniform1ui(u_group_first, group);
     glUniform1ui(u_group_count, n);
     for (int pass = 0; pass < passes; ++pass) {
@@ -153,6 +161,7 @@ RasterTimings PointRasterizer::drawEnsembles(std::span<const DrawBatch> batches,
         glUniform1f(u_k, b.spbr_k);
         glUniform1ui(u_seed, b.seed);
         glUniform3fv(u_eye, 1, &b.eye_local[0]);
+        glUniform1ui(glGetUniformLocation(mSpbrProgram, "uColorOverride"), b.color_override);
         // Batches with buffer 0 start at `first` in the rasterizer's own buffer: offset the
         // binding instead of the index, so point indices (and so ensembles) stay per batch.
         if (!b.buffer && b.first) {
@@ -181,7 +190,7 @@ RasterTimings PointRasterizer::drawEnsembles(std::span<const DrawBatch> batches,
     glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 2, mLayerColors);
     glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 5, mAccum);
     glUniform2i(glGetUniformLocation(mAccumulateProgram, "uSize"), GLint(mWidth), GLint(mHeight));
-    glUniform1ui(glGetUniformLocation(mAccumulateProgram, "uLayers"), n);
+    glUniform1ui(glGetUniformLocation(mAccumulateProgram, "uLayers"), cleared);
     glUniform1ui(glGetUniformLocation(mAccumulateProgram, "uBackground"), packColor(background));
     glUniform1ui(glGetUniformLocation(mAccumulateProgram, "uUniformColor"), shading.uniform_color);
     glUniform1i(glGetUniformLocation(mAccumulateProgram, "uMode"), 0);
@@ -189,6 +198,55 @@ RasterTimings PointRasterizer::drawEnsembles(std::span<const DrawBatch> batches,
     glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
     timings.resolve_ms += lap();
   }
+  return timings;
+}
+
+RasterTimings PointRasterizer::renderBlended(std::span<const DrawBatch> batches,
+                                             const glm::vec3& background, bool weighted_blended) {
+  RasterTimings timings;
+  GpuLap lap;
+  if (!mOitProgram) {
+    mOitProgram = compileCompute(shaders::kOitAccumulate, "oit_accumulate.comp");
+    mOitResolveProgram = compileCompute(shaders::kOitResolve, "oit_resolve.comp");
+    mOitSums = makeBuffer(size_t(mWidth) * mHeight * 20);
+  }
+  const float zero = 0.0f;
+  glClearNamedBufferData(mOitSums, GL_R32F, GL_RED, GL_FLOAT, &zero);
+  glUseProgram(mOitProgram);
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 5, mOitSums);
+  glUniform2i(glGetUniformLocation(mOitProgram, "uSize"), GLint(mWidth), GLint(mHeight));
+  glUniform1i(glGetUniformLocation(mOitProgram, "uMode"), weighted_blended ? 1 : 0);
+  glUniform1i(glGetUniformLocation(mOitProgram, "uMaxRadius"), 16);
+  for (const DrawBatch& b : batches) {
+    if (b.count == 0 || b.point_alpha <= 0.0f) continue;
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, b.buffer ? b.buffer : mPoints);
+    glUniformMatrix4fv(glGetUniformLocation(mOitProgram, "uClip"), 1, GL_FALSE,
+                       &b.clip_from_local[0][0]);
+    glUniform1f(glGetUniformLocation(mOitProgram, "uDiscK"), b.disc_k);
+    glUniform1f(glGetUniformLocation(mOitProgram, "uAlpha"), b.point_alpha);
+    glUniform1ui(glGetUniformLocation(mOitProgram, "uColorOverride"), b.color_override);
+    const uint32_t kMaxPoints = 65535u * 128u;
+    for (uint32_t done = 0; done < b.count; done += kMaxPoints) {
+      const uint32_t c = std::min(kMaxPoints, b.count - done);
+      if (done) {
+        glBindBufferRange(GL_SHADER_STORAGE_BUFFER, 0, b.buffer ? b.buffer : mPoints,
+                          GLintptr(b.first + done) * 16, GLsizeiptr(c) * 16);
+      }
+      glUniform1ui(glGetUniformLocation(mOitProgram, "uCount"), c);
+      glDispatchCompute((c + 127) / 128, 1, 1);
+    }
+  }
+  glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+  timings.depth_ms = lap();
+  glUseProgram(mOitResolveProgram);
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 3, mImage);
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 5, mOitSums);
+  glUniform2i(glGetUniformLocation(mOitResolveProgram, "uSize"), GLint(mWidth), GLint(mHeight));
+  const glm::vec3 bg = glm::clamp(background, 0.0f, 1.0f) * 255.0f;
+  glUniform3f(glGetUniformLocation(mOitResolveProgram, "uBackground"), bg.r, bg.g, bg.b);
+  glDispatchCompute((mWidth + 15) / 16, (mHeight + 15) / 16, 1);
+  glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT | GL_SHADER_STORAGE_BARRIER_BIT);
+  timings.resolve_ms = lap();
   return timings;
 }
 
@@ -249,6 +307,7 @@ RasterTimings PointRasterizer::render(std::span<const DrawBatch> batches,
       if (b.count == 0) continue;
       glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, b.buffer ? b.buffer : mPoints);
       glUniform1f(u_spacing, b.spacing_k);
+      glUniform1ui(glGetUniformLocation(mRasterProgram, "uColorOverride"), b.color_override);
       glUniformMatrix4fv(u_clip, 1, GL_FALSE, &b.clip_from_local[0][0]);
       glUniform1i(u_radius, b.splat_radius);
       // At most 65535 work groups per dispatch (GL's guaranteed minimum, llvmpipe's limit).

@@ -81,14 +81,30 @@ void ViewRenderer::draw(std::span<const ModelInstance> models, const ViewSetup& 
   st.stream = mStreamer->stats();
 
   RasterShading shading;
-  bool any_color = false;
-  for (const ModelInstance& m : models)
-    any_color |= (m.store->summary().attributes & lod::kColor) != 0;
-  // Points without colour need only the depth pass.
-  if (!any_color) shading.uniform_color = packRgb(options.default_color) | 0xFF000000u;
+  // Points of one colour (stores without colour, all drawn alike) need only the depth pass.
+  bool one_color = true;
+  for (const ModelInstance& m : models) {
+    one_color &= (m.store->summary().attributes & lod::kColor) == 0 &&
+                 (m.color == glm::u8vec3(0) || m.color == models.front().color);
+  }
+  if (one_color && !models.empty()) {
+    const glm::u8vec3 c =
+        models.front().color == glm::u8vec3(0) ? options.default_color : models.front().color;
+    shading.uniform_color = packRgb(c) | 0xFF000000u;
+  }
   shading.edl_strength = options.edl_strength;
   shading.edl_radius = options.edl_radius;
   shading.projection = view.projection;
+  if (see_through && options.transparency != Transparency::kStochastic) {
+    mSpbrSignature = 0;
+    for (DrawBatch& b : batches) b.disc_k = 0.5f * b.spacing_k;  // the opaque disc
+    const RasterTimings t = mRaster.renderBlended(
+        batches, options.background, options.transparency == Transparency::kWeightedBlended);
+    st.depth_ms = t.depth_ms;
+    st.resolve_ms = t.resolve_ms;
+    if (stats) *stats = st;
+    return;
+  }
   if (see_through) {
     drawSeeThrough(models, view, options, batches, shading, st);
     if (stats) *stats = st;
@@ -171,8 +187,9 @@ void ViewRenderer::drawSeeThrough(std::span<const ModelInstance> models, const V
   if (n > 0) {
     const size_t layer_bytes = size_t(view.width) * view.height * 8;
     const auto layers = uint32_t(std::max<size_t>(1, o.buffer_bytes / layer_bytes));
-    const RasterTimings t = mRaster.drawEnsembles(batches, mSpbrDone, n, total, layers,
-                                                  options.background, shading, !o.slant_shading);
+    const RasterTimings t =
+        mRaster.drawEnsembles(batches, mSpbrDone, n, total, layers, options.background, shading,
+                              !o.slant_shading, o.single_layer_baseline);
     mSpbrDone += n;
     st.depth_ms = t.depth_ms;
     st.color_ms = t.color_ms;
@@ -214,6 +231,8 @@ void ViewRenderer::addModel(const ModelInstance& instance, bool see_through, con
     b.clip_from_local = glm::mat4(clip_from_world * world_from_local);
     b.spacing_k = float(n.spacing * k * options.splat_scale);
     b.splat_radius = options.max_splat_radius;
+    if (instance.color != glm::u8vec3(0) && (store.summary().attributes & lod::kColor) == 0)
+      b.color_override = 0x1000000u | packRgb(instance.color);
     if (see_through) {
       // Each node its own k and cross-section, from its own density and spacing (spbr.h), so
       // the opacity holds at every LOD level; opaque models sit in every ensemble.
@@ -225,6 +244,13 @@ void ViewRenderer::addModel(const ModelInstance& instance, bool see_through, con
       b.seed = uint32_t(mix(key, n.id));
       b.normals = chunk.normals.name();
       b.eye_local = glm::vec3(glm::inverse(world_from_local) * glm::dvec4(view.eye_world, 1.0));
+      // The blended baselines: every point once as the opaque disc, with the opacity that m
+      // stacked discs (density x disc area) turn into the model's.
+      const double r = 0.5 * options.splat_scale * n.spacing;
+      const double m = std::max(1.0, chunk.density / (unit * unit) * std::numbers::pi * r * r);
+      b.point_alpha = instance.opacity >= 1.0f
+                          ? 1.0f
+                          : float(1.0 - std::pow(1.0 - double(instance.opacity), 1.0 / m));
     }
     batches.push_back(b);
     stats.points += chunk.count;

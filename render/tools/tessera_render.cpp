@@ -201,7 +201,7 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(1.0, 1e6))
       ->capture_default_str();
   uint32_t spbr_l = 64, spbr_progressive = 0;
-  double spbr_max_k = 1.0;
+  double spbr_max_k = 1e9;
   bool no_slant = false;
   app.add_option("--spbr-L", spbr_l, "See-through: ensembles per frame (models with opacity < 1)")
       ->check(CLI::Range(1, 4096))
@@ -210,10 +210,9 @@ int main(int argc, char** argv) {
                  "See-through: keep adding ensembles up to this many while the view rests")
       ->check(CLI::Range(0, 65536));
   app.add_option("--spbr-max-k", spbr_max_k,
-                 "See-through: most copies of a point over the ensembles (1: independent "
-                 "ensembles; more: sharper, noisier)")
-      ->check(CLI::Range(0.01, 4096.0))
-      ->capture_default_str();
+                 "See-through: most copies of a point over the ensembles (default: as the "
+                 "paper, up to L; 1: independent ensembles with larger discs, blurred)")
+      ->check(CLI::Range(0.01, 1e9));
   app.add_flag("--no-slant-shading", no_slant,
                "See-through: cross-sections s cos(theta), no opacity gain on slanted surfaces");
   app.add_option("--stats", stats_path, "Append per-view statistics as CSV");

@@ -149,6 +149,7 @@ TEST_F(SpbrRenderTest, WhitePlaneShowsTheRequestedOpacity) {
     ModelInstance inst{store.get(), storeModel(*store), alpha};
     RenderOptions opt;
     opt.spbr.ensembles = 64;
+    opt.spbr.max_k = 1.0;  // independent ensembles: the noise is the binomial's
     ViewRenderer r(v.width, v.height);
     RenderStats st;
     const Image img = r.renderSettled({&inst, 1}, v, opt, &st);
@@ -163,6 +164,13 @@ TEST_F(SpbrRenderTest, WhitePlaneShowsTheRequestedOpacity) {
     EXPECT_EQ(st.ensembles, 64u);
     EXPECT_NEAR(mean, 255.0 * alpha, 0.025 * 255.0 * alpha) << "alpha " << alpha;
     EXPECT_LT(sd, 1.5 * ideal) << "ensembles are not independent at alpha " << alpha;
+    // The paper's way (fixed cross-sections, copies for k > 1): the same mean, more noise.
+    RenderOptions copies = opt;
+    copies.spbr.max_k = 1e9;
+    ViewRenderer rc(v.width, v.height);
+    const double mean_copies = meanIntensity(rc.renderSettled({&inst, 1}, v, copies));
+    std::printf("  with copies: mean %.2f\n", mean_copies);
+    EXPECT_NEAR(mean_copies, 255.0 * alpha, 0.025 * 255.0 * alpha) << "alpha " << alpha;
   }
 }
 
@@ -174,6 +182,7 @@ TEST_F(SpbrRenderTest, ProgressiveRefinementConvergesAndRestartsOnChange) {
   RenderOptions opt;
   opt.spbr.ensembles = 4;
   opt.spbr.progressive_max = 32;
+  opt.spbr.max_k = 1.0;  // independent ensembles: the noise falls as 1/sqrt(ensembles)
   ViewRenderer r(v.width, v.height);
   RenderStats st;
   const Image settled = r.renderSettled({&inst, 1}, v, opt, &st);

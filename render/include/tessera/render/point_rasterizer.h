@@ -31,6 +31,7 @@ struct DrawBatch {
   /// splat has radius splat_radius (0: one pixel).
   float spacing_k = 0.0f;
   int splat_radius = 0;
+  uint32_t color_override = 0;  ///< non-zero: 0x1000000 | rgb for every point (r low byte)
 
   // See-through (renderEnsembles() only; spbr.h):
   float spbr_k = 0.0f;        ///< copies per point over all ensembles (eq. 4), <= total ensembles
@@ -38,6 +39,7 @@ struct DrawBatch {
   uint32_t seed = 0;          ///< stable key of the node: picks each point's ensembles
   uint32_t normals = 0;       ///< GL buffer of 10:10:10 normals (slant shading off), or 0
   glm::vec3 eye_local{0.0f};  ///< the eye in the batch's frame
+  float point_alpha = 0.0f;   ///< blended baselines (renderBlended()): each point's opacity
 };
 
 struct Image {
@@ -80,11 +82,18 @@ class PointRasterizer {
   /// `max_layers` at a time (each layer holds a depth and a colour image: 8 bytes a pixel), and
   /// adds their images (background where empty) to the sums. With `slant_off`, cross-sections
   /// shrink by cos(theta) from each batch's normals buffer.
+  /// `one_layer` draws every ensemble into a single layer instead (the same adjusted points in
+  /// one opaque pass: the speed baseline of bench/spbr).
   RasterTimings drawEnsembles(std::span<const DrawBatch> batches, uint32_t first, uint32_t count,
                               uint32_t total, uint32_t max_layers, const glm::vec3& background,
-                              const RasterShading& shading, bool slant_off);
+                              const RasterShading& shading, bool slant_off, bool one_layer = false);
   /// Writes the mean of the `accumulated` ensembles summed since beginEnsembles() as the image.
   double resolveEnsembles(uint32_t accumulated);
+  /// Order-independent blending baselines for see-through points (shaders/oit_accumulate.comp):
+  /// `weighted_blended` false is the weighted average, true McGuire and Bavoil's weighted
+  /// blended OIT. Each batch draws its points once as discs of disc_k with point_alpha.
+  RasterTimings renderBlended(std::span<const DrawBatch> batches, const glm::vec3& background,
+                              bool weighted_blended);
   /// The last render, read back.
   Image read() const;
   /// The GL buffer holding the last render: width x height RGBA8, top row first.
@@ -99,6 +108,7 @@ class PointRasterizer {
   uint32_t mSpbrProgram = 0, mAccumulateProgram = 0;
   uint32_t mLayerDepth = 0, mLayerColors = 0, mAccum = 0, mNoNormals = 0;
   uint32_t mLayers = 0;  ///< layers allocated
+  uint32_t mOitProgram = 0, mOitResolveProgram = 0, mOitSums = 0;
 };
 
 /// Writes an 8-bit RGBA PNG. Throws RenderError naming the file on failure.

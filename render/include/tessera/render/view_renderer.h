@@ -20,6 +20,13 @@
 
 namespace tessera::render {
 
+/// How models with opacity below 1 are drawn.
+enum class Transparency {
+  kStochastic,       ///< SPBR (spbr.h): no sorting, correct in the mean, noise falls with L
+  kWeightedAverage,  ///< baseline: opacity-weighted average of every point on a pixel
+  kWeightedBlended,  ///< baseline: McGuire and Bavoil's weighted blended OIT (depth weights)
+};
+
 struct RenderOptions {
   double lod_pixels = 1.0;
   glm::vec3 background{0.0f};
@@ -32,6 +39,7 @@ struct RenderOptions {
   float splat_scale = 2.0f;
   int max_splat_radius = 8;  ///< pixels
   /// See-through rendering, used when a model's opacity is below 1.
+  Transparency transparency = Transparency::kStochastic;
   SpbrOptions spbr;
 };
 
@@ -61,6 +69,9 @@ struct ModelInstance {
   /// (0, 1]: below 1 the view is drawn see-through with stochastic point-based rendering
   /// (spbr.h; issue 5), every model with its own opacity.
   float opacity = 1.0f;
+  /// The colour of every point of a store without colours (0, 0, 0: RenderOptions's
+  /// default_color), e.g. to tell fused scans apart.
+  glm::u8vec3 color{0, 0, 0};
 };
 
 class ViewRenderer {
