@@ -13,6 +13,7 @@
 #include <regex>
 #include <string>
 
+#include "../support/command.h"
 #include "../support/temp_dir.h"
 
 namespace {
@@ -21,21 +22,10 @@ namespace fs = std::filesystem;
 const std::string kData = TESSERA_DATA_DIR;
 const std::string kConfigs = TESSERA_CONFIG_DIR;
 
-struct CommandResult {
-  int code = -1;
-  std::string out;  // stdout and stderr
-};
+using tessera::test::CommandResult;
 
-CommandResult run(const std::string& cmd) {
-  CommandResult r;
-  FILE* p = popen((cmd + " 2>&1").c_str(), "r");
-  if (!p) return r;
-  std::array<char, 4096> buf;
-  size_t n;
-  while ((n = fread(buf.data(), 1, buf.size(), p)) > 0) r.out.append(buf.data(), n);
-  const int status = pclose(p);
-  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return r;
+CommandResult run(const std::string& command) {
+  return tessera::test::runCommand(command);
 }
 
 std::string mpirun() {
