@@ -76,8 +76,8 @@ std::string wallJson(int k, uint32_t w, uint32_t h) {
   j << "{\"name\": \"" << cols << "x" << rows << " bench wall\", \"tiles\": [";
   for (int r = 0; r < rows; ++r) {
     for (int c = 0; c < cols; ++c) {
-      j << (r || c ? ", " : "") << "{\"name\": \"tile-" << c << "-" << r << "\", \"x\": "
-        << c * tw * 1e-3 << ", \"y\": " << (rows - 1 - r) * th * 1e-3
+      j << (r || c ? ", " : "") << "{\"name\": \"tile-" << c << "-" << r
+        << "\", \"x\": " << c * tw * 1e-3 << ", \"y\": " << (rows - 1 - r) * th * 1e-3
         << ", \"width\": " << tw * 1e-3 << ", \"height\": " << th * 1e-3
         << ", \"pixelWidth\": " << tw << ", \"pixelHeight\": " << th << "}";
     }
@@ -125,8 +125,8 @@ int main(int argc, char** argv) {
     std::ofstream(dir / "scene.json") << scene;
   }
   const std::string bin = fs::canonical("/proc/self/exe").parent_path().parent_path().string();
-  const std::string mpirun = std::string("mpirun --oversubscribe") +
-                             (getuid() == 0 ? " --allow-run-as-root" : "");
+  const std::string mpirun =
+      std::string("mpirun --oversubscribe") + (getuid() == 0 ? " --allow-run-as-root" : "");
 
   std::ofstream frames_csv(dir.parent_path() / "cluster_frames.csv");
   std::ofstream resident_csv(dir.parent_path() / "cluster_resident.csv");
@@ -186,8 +186,8 @@ int main(int argc, char** argv) {
       ++n;
     }
     char line[256];
-    std::snprintf(line, sizeof line, "%d,%.3f,%.1f,%.1f,%.1f,%.0f", k, sum_sync / n,
-                  sum_render / n, sum_barrier / n, sum_frame / n, sum_points / n);
+    std::snprintf(line, sizeof line, "%d,%.3f,%.1f,%.1f,%.1f,%.0f", k, sum_sync / n, sum_render / n,
+                  sum_barrier / n, sum_frame / n, sum_points / n);
     frames_csv << line << "\n";
     std::cout << line << std::endl;
     for (const auto& [rank, r] : last_of_rank) {

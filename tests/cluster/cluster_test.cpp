@@ -64,11 +64,13 @@ class Cluster : public ::testing::Test {
     sDir = nullptr;
   }
 
-  /// mpirun master ARGS : K nodes, from the suite's folder.
-  static CommandResult cluster(const std::string& master_args, int nodes) {
-    return run("cd " + sDir->path().string() + " && " + mpirun() + " -np 1 " + TESSERA_MASTER +
-               " " + master_args + " : -np " + std::to_string(nodes) + " " + TESSERA_NODE +
-               " --headless");
+  /// mpirun master ARGS : K nodes, from the suite's folder, after `prefix` (environment, a
+  /// wrapper such as xvfb-run).
+  static CommandResult cluster(const std::string& master_args, int nodes,
+                               const std::string& prefix = "") {
+    return run("cd " + sDir->path().string() + " && " + prefix + mpirun() + " -np 1 " +
+               TESSERA_MASTER + " " + master_args + " : -np " + std::to_string(nodes) + " " +
+               TESSERA_NODE + " --headless");
   }
 
   /// tessera-render --mosaic of `scene` on `wall` with the camera the master printed for `png`.
@@ -180,5 +182,30 @@ TEST_F(Cluster, BadScriptNamesFileAndField) {
   EXPECT_NE(r.code, 0) << r.out;
   EXPECT_NE(r.out.find("bad-path.json: actions[0].setOpacity.model"), std::string::npos) << r.out;
 }
+
+TEST_F(Cluster, ConsoleWithoutADisplaySaysSoAndRunsHeadless) {
+  const std::string wall = kConfigs + "/walls/1x2.json";
+  const CommandResult r =
+      cluster("--wall " + wall + " --scene scene.json --frames 2 --console --screenshot nd.png", 2,
+              "env -u DISPLAY -u WAYLAND_DISPLAY ");
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("--console: "), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("running headless"), std::string::npos) << r.out;
+  expectSameAsMosaic(r, "nd.png", wall, "scene.json");
+}
+
+#ifdef TESSERA_XVFB_RUN
+TEST_F(Cluster, ConsoleUnderXvfbDrivesTheWall) {
+  // The console's frames do not wait for data, the nodes' neither (no --frames determinism with
+  // a console), but a screenshot frame is rendered complete, so the wall picture is still exact.
+  const std::string wall = kConfigs + "/walls/1x2.json";
+  const CommandResult r =
+      cluster("--wall " + wall + " --scene scene.json --frames 4 --console --screenshot con.png", 2,
+              std::string(TESSERA_XVFB_RUN) + " -a -s '-screen 0 1280x720x24' ");
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("console open"), std::string::npos) << r.out;
+  expectSameAsMosaic(r, "con.png", wall, "scene.json");
+}
+#endif
 
 }  // namespace
