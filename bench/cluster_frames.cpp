@@ -1,6 +1,8 @@
 // bench/cluster_frames: the wall cluster's frame time split into sync (master: take the frame,
-// serialize, broadcast), render (the slowest node: apply, select, stream, draw) and barrier (a
-// node's wait at the swap barrier for the slowest one, averaged over nodes), for 1, 2, 4 and 8
+// serialize, broadcast), render (the slowest node: apply, select, stream, draw) and barrier (the
+// rest of the master's frame: the swap barrier and the stats gather past the slowest node), so the
+// three add up to the frame; also the mean node wait at the barrier (load imbalance between
+// tiles, overlapping the slowest node's render), for 1, 2, 4 and 8
 // nodes sharing one wall of the same total pixels (1x1, 2x1, 2x2, 4x2 tiles without bezels), and
 // each node's resident bytes against the whole store: each tile should hold only what its frustum
 // needs.
@@ -130,7 +132,7 @@ int main(int argc, char** argv) {
 
   std::ofstream frames_csv(dir.parent_path() / "cluster_frames.csv");
   std::ofstream resident_csv(dir.parent_path() / "cluster_resident.csv");
-  const std::string head = "nodes,sync_ms,render_ms,barrier_ms,frame_ms,points";
+  const std::string head = "nodes,sync_ms,render_ms,barrier_ms,frame_ms,node_wait_ms,points";
   frames_csv << head << "\n";
   resident_csv << "nodes,rank,tile,points,resident_disk_bytes,store_bytes,share\n";
   std::cout << head << "\n";
@@ -174,20 +176,22 @@ int main(int argc, char** argv) {
         last_of_rank[r.rank] = r;
       }
     }
-    double sum_sync = 0, sum_render = 0, sum_barrier = 0, sum_frame = 0, sum_points = 0;
+    double sum_sync = 0, sum_render = 0, sum_barrier = 0, sum_frame = 0, sum_wait = 0,
+           sum_points = 0;
     int n = 0;
     for (const auto& [frame, f] : per_frame) {
       if (frame <= 5 || node_rows[frame] == 0) continue;
       sum_sync += f.sync_ms;
       sum_render += f.render_ms;
-      sum_barrier += f.barrier_ms / node_rows[frame];
+      sum_barrier += std::max(0.0, f.frame_ms - f.sync_ms - f.render_ms);
+      sum_wait += f.barrier_ms / node_rows[frame];
       sum_frame += f.frame_ms;
       sum_points += double(f.points);
       ++n;
     }
     char line[256];
-    std::snprintf(line, sizeof line, "%d,%.3f,%.1f,%.1f,%.1f,%.0f", k, sum_sync / n, sum_render / n,
-                  sum_barrier / n, sum_frame / n, sum_points / n);
+    std::snprintf(line, sizeof line, "%d,%.3f,%.1f,%.1f,%.1f,%.1f,%.0f", k, sum_sync / n,
+                  sum_render / n, sum_barrier / n, sum_frame / n, sum_wait / n, sum_points / n);
     frames_csv << line << "\n";
     std::cout << line << std::endl;
     for (const auto& [rank, r] : last_of_rank) {
@@ -212,11 +216,13 @@ int main(int argc, char** argv) {
      << "set style data histogram\nset style histogram rowstacked\n"
      << "set style fill solid 0.85 border -1\nset boxwidth 0.6\n"
      << "set ylabel 'ms per frame (mean)'\nset xlabel 'render nodes'\nset grid ytics\n"
-     << "set key top left\n"
+     << "set key below\n"
      << "plot '" << (res / "cluster_frames.csv").string()
      << "' skip 1 using 2:xtic(1) lc rgb '#9467bd' title 'sync (master: frame + broadcast)', \\\n"
      << "  '' skip 1 using 3 lc rgb '#1f77b4' title 'render (slowest node)', \\\n"
-     << "  '' skip 1 using 4 lc rgb '#ff7f0e' title 'barrier (mean node wait)'\n"
+     << "  '' skip 1 using 4 lc rgb '#ff7f0e' title 'barrier + stats gather', \\\n"
+     << "  '' skip 1 using 0:6 with linespoints lw 2 pt 7 lc rgb '#d62728' "
+     << "title 'mean node wait at the barrier (imbalance)'\n"
      << "set title 'Each node: on-disk bytes resident / whole store'\n"
      << "unset style\nset style data points\nset ylabel 'share of the store'\n"
      << "set format y '%.0f%%'\nset xrange [0.5:9]\nset logscale x 2\nset xtics (1,2,4,8)\n"
