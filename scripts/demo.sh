@@ -1,6 +1,8 @@
 #!/usr/bin/env bash
 # The main job as it stands: build, describe every real data file, virtually scan the bunny,
-# build and verify point LOD stores of the real scans, render them headless (one view, a 2x2 wall).
+# build and verify point LOD stores of the real scans, render them headless (one view, a 2x2 wall),
+# then run the wall as a cluster: tessera-master + 4 tessera-nodes (mpirun) on the 2x2 wall along
+# the bunny orbit, writing the wall pictures and per-frame statistics.
 # Outputs go to out/demo/ (override with TESSERA_DEMO_OUT).
 set -uo pipefail
 cd "$(dirname "$0")/.."
@@ -10,9 +12,11 @@ out="${TESSERA_DEMO_OUT:-$root/out/demo}"
 
 ./scripts/deps.sh || exit 1
 cmake --preset release >/dev/null || exit 1
-cmake --build --preset release -j"$(nproc)" --target tessera-lod tessera-render || exit 1
+cmake --build --preset release -j"$(nproc)" --target tessera-lod tessera-render tessera-master tessera-node || exit 1
 lod="$root/build/release/lod/tessera-lod"
 render="$root/build/release/render/tessera-render"
+master="$root/build/release/master/tessera-master"
+node="$root/build/release/render_node/tessera-node"
 mkdir -p "$out"
 
 echo "== tessera-lod info on every file in $data"
@@ -44,6 +48,18 @@ export EGL_PLATFORM=surfaceless
   --camera "eye=-0.03,0.12,0.42;target=-0.026,0.1,0;up=0,1,0" --background 0.05,0.05,0.08 \
   --stats "$out/render-stats.csv" -o "$out/wall-2x2.png" || exit 1
 
+echo "== the wall as a cluster: master + 4 render nodes (mpirun, oversubscribed on $(nproc) cores),"
+echo "   2x2 wall, headless, along configs/paths/bunny-orbit.json (12 s at 60 frames/s, deterministic)"
+mpi=(mpirun --oversubscribe)
+[ "$(id -u)" -eq 0 ] && mpi+=(--allow-run-as-root)
+# configs/scenes/bunny.json names the store this script built (out/demo/stores/bunny.tlod); the
+# path's own screenshots (half-way and at the end of the turn) land in out/demo/cluster/.
+mkdir -p "$out/cluster"
+"${mpi[@]}" -np 1 "$master" --wall configs/walls/2x2.json --scene configs/scenes/bunny.json \
+  --script configs/paths/bunny-orbit.json --frames "${TESSERA_DEMO_FRAMES:-721}" \
+  --out-dir "$out/cluster" --screenshot "$out/cluster/wall-2x2-cluster.png" \
+  --stats "$out/cluster/stats.csv" : -np 4 "$node" --headless | tee "$out/cluster/master.txt" || exit 1
+
 echo
 echo "Outputs:"
 echo "  $out/info.txt                      description of every data file"
@@ -55,3 +71,7 @@ echo "  $out/stores.txt                    their description"
 echo "  $out/bunny.png, autzen.png          renders of the stores"
 echo "  $out/wall-2x2.png                   the 2x2 wall (configs/walls/2x2.json), tiles assembled with bezels"
 echo "  $out/render-stats.csv               per-view render statistics"
+echo "  $out/cluster/wall-2x2-cluster.png   the cluster's wall picture (master + 4 nodes), last frame"
+echo "  $out/cluster/bunny-orbit-half.png, bunny-orbit.png   the path's own screenshots"
+echo "  $out/cluster/stats.csv              per frame and node: sync, render, barrier ms, points, resident bytes"
+echo "  $out/cluster/master.txt             the master's log (each screenshot's camera, for tessera-render --camera)"

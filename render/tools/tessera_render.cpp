@@ -17,6 +17,7 @@
 #include <tessera/lod/store_builder.h>
 #include <tessera/render/gl_context.h>
 #include <tessera/render/view_renderer.h>
+#include <tessera/render/wall_mosaic.h>
 #include <tessera/render/window.h>
 #include <tessera/sync/config.h>
 
@@ -371,26 +372,10 @@ int main(int argc, char** argv) {
       if (whole) {
         result = renderView("whole", render::wholeWallView(wall, cam));
       } else if (mosaic) {
-        render::ViewSetup whole_view = render::wholeWallView(wall, cam);
-        result.width = whole_view.width;
-        result.height = whole_view.height;
-        result.rgba.assign(size_t(result.width) * result.height * 4, 0);
-        for (size_t i = 0; i < result.rgba.size(); i += 4) {
-          result.rgba[i] = result.rgba[i + 1] = result.rgba[i + 2] = 24;  // bezels: dark grey
-          result.rgba[i + 3] = 255;
-        }
-        for (const auto& tile : wall.tiles()) {
-          render::Image img = renderView(tile.name(), render::tileView(wall, tile, cam));
-          glm::ivec2 off = render::tileOffsetInWhole(wall, tile);
-          for (uint32_t y = 0; y < img.height; ++y) {
-            if (off.y + int(y) < 0 || off.y + y >= result.height) continue;
-            for (uint32_t x = 0; x < img.width; ++x) {
-              if (off.x + int(x) < 0 || off.x + x >= result.width) continue;
-              std::memcpy(&result.rgba[(size_t(off.y + y) * result.width + off.x + x) * 4],
-                          &img.rgba[(size_t(y) * img.width + x) * 4], 4);
-            }
-          }
-        }
+        std::vector<render::Image> tiles;
+        for (const auto& tile : wall.tiles())
+          tiles.push_back(renderView(tile.name(), render::tileView(wall, tile, cam)));
+        result = render::assembleWallMosaic(wall, tiles);
       } else {
         const config::Tile* tile =
             wall.tiles_size() == 1 && tile_name.empty() ? &wall.tiles(0) : nullptr;

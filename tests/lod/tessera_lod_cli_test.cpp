@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <string>
 
+#include "../support/command.h"
 #include "../support/temp_dir.h"
 
 namespace {
@@ -13,21 +14,10 @@ namespace {
 const std::string kData = TESSERA_DATA_DIR;
 const std::string kTool = TESSERA_LOD_TOOL;
 
-struct CommandResult {
-  int code = -1;
-  std::string out;  // stdout and stderr
-};
+using tessera::test::CommandResult;
 
 CommandResult run(const std::string& args) {
-  CommandResult r;
-  FILE* p = popen((kTool + " " + args + " 2>&1").c_str(), "r");
-  if (!p) return r;
-  std::array<char, 4096> buf;
-  size_t n;
-  while ((n = fread(buf.data(), 1, buf.size(), p)) > 0) r.out.append(buf.data(), n);
-  int status = pclose(p);
-  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return r;
+  return tessera::test::runCommand(kTool + " " + args);
 }
 
 TEST(TesseraLodCli, InfoJsonHasTheDocumentedKeys) {

@@ -1,0 +1,157 @@
+#include "console.h"
+
+#define GL_GLEXT_PROTOTYPES
+#include <GL/glcorearb.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+
+#include <tessera/master/point_pick.h>
+#include <tessera/render/gl_context.h>
+
+namespace tessera::master {
+
+namespace {
+
+// GLFW key codes (glfw3.h), kept here so this file needs no GLFW header.
+constexpr int kKey1 = 49, kKey9 = 57, kKeyEqual = 61, kKeyMinus = 45, kKeyH = 72, kKeyE = 69,
+              kKeyPadAdd = 334, kKeyPadSubtract = 333;
+
+std::vector<sync::SceneGraph::NodeId> modelIds(const sync::SceneGraph& graph) {
+  std::vector<sync::SceneGraph::NodeId> ids;
+  for (auto id : graph.ids())
+    if (graph.node(id).kind() == scene::SceneNode::MODEL) ids.push_back(id);
+  return ids;
+}
+
+}  // namespace
+
+Console::Console(const config::WallConfig& wall, uint32_t max_width, float splat_scale)
+    : mWall(wall), mSplatScale(splat_scale) {
+  config::Camera any;
+  any.mutable_eye()->set_z(1.0);
+  any.mutable_up()->set_y(1.0);
+  const render::ViewSetup whole = render::wholeWallView(mWall, any);
+  const double s = std::min(1.0, double(max_width) / whole.width);
+  mWidth = std::max(1u, uint32_t(std::lround(whole.width * s)));
+  mHeight = std::max(1u, uint32_t(std::lround(whole.height * s)));
+  mWindow = render::Window::open(mWidth, mHeight, "tessera-master: " + mWall.name());
+  mRenderer = std::make_unique<render::ViewRenderer>(mWidth, mHeight);
+}
+
+Console::~Console() {
+  mRenderer.reset();  // while the window's context is still current
+}
+
+render::ViewSetup Console::view(const config::Camera& camera) const {
+  // The whole wall's frustum at a lower pixel count: the same picture, smaller.
+  render::ViewSetup v = render::wholeWallView(mWall, camera);
+  v.width = mWidth;
+  v.height = mHeight;
+  return v;
+}
+
+void Console::draw(const sync::SceneGraph& graph) {
+  mInstances = mModels.update(graph);
+  mLastView = view(graph.camera());
+  mRenderer->draw(mInstances, mLastView, render_node::SceneModels::options(graph, mSplatScale));
+  drawOverlay();
+  mWindow->present(mRenderer->imageBuffer(), mWidth, mHeight);
+}
+
+void Console::drawOverlay() {
+  // A few thousand pixels read, tinted and written back: the right-hand bar of the navigation,
+  // and a ring where the target is.
+  const uint32_t buffer = mRenderer->imageBuffer();
+  const uint32_t bar_x = uint32_t(mWidth * (1.0 - OneButtonNavigation::kBarFraction));
+  std::vector<uint8_t> row((mWidth - bar_x) * 4);
+  for (uint32_t y = 0; y < mHeight; ++y) {
+    const GLintptr at = GLintptr((size_t(y) * mWidth + bar_x) * 4);
+    glGetNamedBufferSubData(buffer, at, GLsizeiptr(row.size()), row.data());
+    for (size_t i = 0; i < row.size(); i += 4)
+      for (int c = 0; c < 3; ++c) row[i + c] = uint8_t((row[i + c] * 3 + 255) / 4);
+    glNamedBufferSubData(buffer, at, GLsizeiptr(row.size()), row.data());
+  }
+  if (const auto& target = mNavigation.target()) {
+    const glm::dvec4 clip = mLastView.projection * mLastView.view * glm::dvec4(*target, 1.0);
+    if (clip.w <= 0) return;
+    const double px = (clip.x / clip.w * 0.5 + 0.5) * mWidth,
+                 py = (0.5 - clip.y / clip.w * 0.5) * mHeight;
+    const uint8_t ring[4] = {255, 200, 40, 255};
+    for (int a = 0; a < 64; ++a) {
+      const double r = OneButtonNavigation::kTargetRadiusPx * 0.5, ang = a * 6.2831853 / 64;
+      const int x = int(px + r * std::cos(ang)), y = int(py + r * std::sin(ang));
+      if (x < 0 || y < 0 || x >= int(mWidth) || y >= int(mHeight)) continue;
+      glNamedBufferSubData(buffer, GLintptr((size_t(y) * mWidth + x) * 4), 4, ring);
+    }
+  }
+}
+
+bool Console::handleInput(sync::SceneGraph& graph) {
+  const render::WindowInput in = mWindow->poll();
+  if (mWindow->closing()) return false;
+  const auto now = std::chrono::steady_clock::now();
+  const double dt = std::chrono::duration<double>(now - mLastInput).count();
+  mLastInput = now;
+
+  // Window coordinates to view pixels (present() scales the image to the window).
+  const glm::dvec2 scale(mWidth / std::max(1.0, double(in.size.x)),
+                         mHeight / std::max(1.0, double(in.size.y)));
+  PointerInput p;
+  p.cursor = in.cursor * scale;
+  p.down = in.left;
+  p.pressed = in.left_pressed;
+  p.released = in.left_released;
+  p.scroll = in.scroll;
+  p.size = glm::dvec2(mWidth, mHeight);
+  const glm::dmat4 clip_from_world = mLastView.projection * mLastView.view;
+  const glm::dmat4 world_from_clip = glm::inverse(clip_from_world);
+  const double fovy = 2.0 * std::atan(1.0 / mLastView.projection[1][1]);
+  auto pick = [&](glm::dvec2 px) -> std::optional<glm::dvec3> {
+    const double nx = px.x / mWidth * 2.0 - 1.0, ny = 1.0 - px.y / mHeight * 2.0;
+    glm::dvec4 a = world_from_clip * glm::dvec4(nx, ny, -1.0, 1.0);
+    glm::dvec4 b = world_from_clip * glm::dvec4(nx, ny, 1.0, 1.0);
+    const glm::dvec3 from = glm::dvec3(a) / a.w, to = glm::dvec3(b) / b.w;
+    PickOptions o;
+    o.pixel_angle = fovy / mHeight;
+    return pickPoint(mInstances, from, glm::normalize(to - from), o);
+  };
+  auto project = [&](const glm::dvec3& w) -> std::optional<glm::dvec2> {
+    const glm::dvec4 c = clip_from_world * glm::dvec4(w, 1.0);
+    if (c.w <= 0) return std::nullopt;
+    return glm::dvec2((c.x / c.w * 0.5 + 0.5) * mWidth, (0.5 - c.y / c.w * 0.5) * mHeight);
+  };
+  if (p.pressed || p.down || p.released || p.scroll != 0 || mNavigation.flying()) {
+    const config::Camera before = graph.camera();
+    const config::Camera after = mNavigation.update(before, p, dt, fovy, pick, project);
+    if (after.SerializeAsString() != before.SerializeAsString()) graph.setCamera(after);
+  }
+
+  const auto models = modelIds(graph);
+  for (int key : in.keys) {
+    if (key >= kKey1 && key <= kKey9 && size_t(key - kKey1) < models.size())
+      mSelected = size_t(key - kKey1);
+    if (models.empty()) continue;
+    const auto id = models[std::min(mSelected, models.size() - 1)];
+    const float opacity = graph.node(id).opacity();
+    if (key == kKeyEqual || key == kKeyPadAdd)
+      graph.setOpacity(id, std::min(1.0f, std::round(opacity * 10.0f + 1.0f) / 10.0f));
+    if (key == kKeyMinus || key == kKeyPadSubtract)
+      graph.setOpacity(id, std::max(0.1f, std::round(opacity * 10.0f - 1.0f) / 10.0f));
+    if (key == kKeyH) graph.setVisible(id, !graph.node(id).visible());
+    if (key == kKeyE)
+      graph.setShading(graph.settings().shading() == scene::SHADING_EDL ? scene::SHADING_COLOR
+                                                                        : scene::SHADING_EDL);
+  }
+  char title[256];
+  const auto& target = mNavigation.target();
+  std::snprintf(title, sizeof title, "tessera-master: %s | model %zu of %zu%s",
+                mWall.name().c_str(),
+                models.empty() ? 0 : std::min(mSelected, models.size() - 1) + 1, models.size(),
+                target ? " | target set (click it to fly there)" : "");
+  mWindow->setTitle(title);
+  return true;
+}
+
+}  // namespace tessera::master

@@ -1,0 +1,51 @@
+// The master's console (--console): a GLFW window showing the whole wall at low resolution with
+// the nodes' renderer, one-button navigation (one_button_navigation.h) and keys for the models'
+// opacity and visibility. Its camera and opacity changes go into the master's scene graph, and
+// so to the nodes with the next frame. The window's GL context is current on the master's
+// thread for the console's life.
+#pragma once
+
+#include <chrono>
+#include <memory>
+#include <vector>
+
+#include <tessera/master/one_button_navigation.h>
+#include <tessera/render/view_renderer.h>
+#include <tessera/render/window.h>
+#include <tessera/render_node/scene_models.h>
+#include <tessera/sync/scene_graph.h>
+
+namespace tessera::master {
+
+class Console {
+ public:
+  /// Opens the window, at most `max_width` pixels wide with the wall's aspect. Throws
+  /// render::RenderError when there is no display or no GL 4.5.
+  Console(const config::WallConfig& wall, uint32_t max_width, float splat_scale);
+  ~Console();
+
+  /// Renders the scene as it is now (draw(): never waits for data) and shows it.
+  void draw(const sync::SceneGraph& graph);
+  /// Applies the input since the last call to `graph`: navigation to the camera, keys 1-9 select
+  /// a model, + / - change its opacity by 0.1, H toggles its visibility, E toggles eye-dome
+  /// lighting. Returns false once the window is closed (or Escape).
+  bool handleInput(sync::SceneGraph& graph);
+
+ private:
+  render::ViewSetup view(const config::Camera& camera) const;
+  void drawOverlay();  // the bar and the target marker, into the image buffer
+
+  config::WallConfig mWall;
+  float mSplatScale;
+  uint32_t mWidth = 0, mHeight = 0;
+  std::unique_ptr<render::Window> mWindow;
+  std::unique_ptr<render::ViewRenderer> mRenderer;
+  render_node::SceneModels mModels;
+  std::vector<render::ModelInstance> mInstances;
+  render::ViewSetup mLastView;
+  OneButtonNavigation mNavigation;
+  size_t mSelected = 0;  // index among the MODEL nodes
+  std::chrono::steady_clock::time_point mLastInput = std::chrono::steady_clock::now();
+};
+
+}  // namespace tessera::master

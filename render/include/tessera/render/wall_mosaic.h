@@ -1,0 +1,24 @@
+// The whole wall as one picture from its tiles' pictures: each tile at its place in
+// wholeWallView()'s image, the bezels (the gaps between tiles) dark grey. What
+// `tessera-render --mosaic` writes and what the master assembles from its nodes' read-backs for a
+// wall screenshot (DESIGN.md, "The frame", step 6), so both give the same pixels.
+#pragma once
+
+#include <cstdint>
+#include <span>
+
+#include <tessera/render/point_rasterizer.h>
+#include <tessera/sync/config.h>
+
+namespace tessera::render {
+
+/// The R, G and B of bezel pixels (opaque).
+constexpr uint8_t kBezelGrey = 24;
+
+/// The wall image: wholeWallView(wall, ...).width x height, RGBA top row first. `tiles[i]` is
+/// the image of wall.tiles(i) (tileView() size); each is copied to tileOffsetInWhole() and clipped
+/// to the wall image. Precondition (TESSERA_CHECK): one image per tile, each width * height * 4
+/// bytes. Cost: one pass over the wall image.
+Image assembleWallMosaic(const config::WallConfig& wall, std::span<const Image> tiles);
+
+}  // namespace tessera::render

@@ -1,0 +1,42 @@
+#include <tessera/render/wall_mosaic.h>
+
+#include <cstring>
+
+#include <tessera/core/check.h>
+#include <tessera/render/tile_frustum.h>
+
+namespace tessera::render {
+
+Image assembleWallMosaic(const config::WallConfig& wall, std::span<const Image> tiles) {
+  TESSERA_CHECK(tiles.size() == size_t(wall.tiles_size()), "one image per tile of the wall");
+  // The wall's pixel size does not depend on the camera; any valid one will do.
+  config::Camera camera;
+  camera.mutable_eye()->set_z(1.0);
+  camera.mutable_up()->set_y(1.0);
+  const ViewSetup whole = wholeWallView(wall, camera);
+  Image result;
+  result.width = whole.width;
+  result.height = whole.height;
+  result.rgba.assign(size_t(result.width) * result.height * 4, 0);
+  for (size_t i = 0; i < result.rgba.size(); i += 4) {
+    result.rgba[i] = result.rgba[i + 1] = result.rgba[i + 2] = kBezelGrey;
+    result.rgba[i + 3] = 255;
+  }
+  for (int t = 0; t < wall.tiles_size(); ++t) {
+    const Image& img = tiles[size_t(t)];
+    TESSERA_CHECK(img.rgba.size() == size_t(img.width) * img.height * 4,
+                  "a tile image of width * height RGBA pixels");
+    const glm::ivec2 off = tileOffsetInWhole(wall, wall.tiles(t));
+    for (uint32_t y = 0; y < img.height; ++y) {
+      if (off.y + int(y) < 0 || off.y + y >= result.height) continue;
+      for (uint32_t x = 0; x < img.width; ++x) {
+        if (off.x + int(x) < 0 || off.x + x >= result.width) continue;
+        std::memcpy(&result.rgba[(size_t(off.y + y) * result.width + off.x + x) * 4],
+                    &img.rgba[(size_t(y) * img.width + x) * 4], 4);
+      }
+    }
+  }
+  return result;
+}
+
+}  // namespace tessera::render

@@ -1,0 +1,70 @@
+#include <tessera/render_node/scene_models.h>
+
+#include <glm/gtc/type_ptr.hpp>
+
+namespace tessera::render_node {
+
+namespace {
+
+glm::dmat4 transformOf(const scene::SceneNode& node) {
+  if (node.transform().m_size() != 16) return glm::dmat4(1.0);
+  return glm::make_mat4(node.transform().m().data());
+}
+
+}  // namespace
+
+std::vector<render::ModelInstance> SceneModels::update(const sync::SceneGraph& graph) {
+  std::vector<render::ModelInstance> instances;
+  std::map<std::string, std::unique_ptr<lod::PointStore>> kept;
+  for (const sync::SceneGraph::NodeId id : graph.ids()) {
+    const scene::SceneNode& node = graph.node(id);
+    if (node.kind() != scene::SceneNode::MODEL) continue;
+    const std::string& path = node.model().store();
+    auto open = mStores.find(path);
+    if (open != mStores.end()) {
+      kept.emplace(path, std::move(open->second));
+      mStores.erase(open);
+    } else if (!kept.count(path)) {
+      try {
+        kept.emplace(path, lod::PointStore::open(path));
+      } catch (const lod::StoreError& e) {
+        throw lod::StoreError("render_node::SceneModels: model " + std::to_string(id) + " '" +
+                              node.name() + "': " + e.what());
+      }
+    }
+    // Up the tree: parents' transforms apply after the node's own; any hidden one hides it.
+    bool visible = node.visible();
+    float opacity = node.opacity();
+    glm::dmat4 world = transformOf(node);
+    for (auto parent = node.parent(); visible && parent != sync::SceneGraph::kRoot;) {
+      const scene::SceneNode& p = graph.node(parent);
+      visible = p.visible();
+      opacity *= p.opacity();
+      world = transformOf(p) * world;
+      parent = p.parent();
+    }
+    if (!visible || opacity <= 0.0f) continue;
+    lod::PointStore* store = kept.at(path).get();
+    instances.push_back({store, world * render::storeModel(*store), opacity});
+  }
+  mStores = std::move(kept);  // stores no model uses any more close here
+  return instances;
+}
+
+uint64_t SceneModels::storeBytes() const {
+  uint64_t bytes = 0;
+  for (const auto& [path, store] : mStores) bytes += store->summary().file_bytes;
+  return bytes;
+}
+
+render::RenderOptions SceneModels::options(const sync::SceneGraph& graph, float splat_scale) {
+  const scene::Settings& s = graph.settings();
+  render::RenderOptions o;
+  o.lod_pixels = s.lod_pixels();
+  o.background = glm::vec3(s.background().r(), s.background().g(), s.background().b());
+  o.edl_strength = s.shading() == scene::SHADING_EDL ? 1.0f : 0.0f;
+  o.splat_scale = splat_scale;
+  return o;
+}
+
+}  // namespace tessera::render_node

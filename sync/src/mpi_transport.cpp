@@ -1,0 +1,184 @@
+#include <tessera/sync/mpi_transport.h>
+
+#include <mpi.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <cstring>
+#include <thread>
+
+#include <tessera/core/check.h>
+
+namespace tessera::sync {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double msSince(Clock::time_point t) {
+  return std::chrono::duration<double, std::milli>(Clock::now() - t).count();
+}
+
+/// The fixed part of a broadcast: what follows and how long it is.
+struct BroadcastHeader {
+  int32_t kind = 0;
+  uint32_t flags = 0;
+  uint64_t bytes = 0;
+};
+
+}  // namespace
+
+void NodeStatus::set(NodeFailure failure, std::string_view message) {
+  code = int32_t(failure);
+  const size_t n = std::min(message.size(), sizeof text - 1);
+  std::memcpy(text, message.data(), n);
+  text[n] = '\0';
+}
+
+std::string NodeStatus::message() const {
+  return std::string(text, strnlen(text, sizeof text));
+}
+
+MpiTransport::MpiTransport(int* argc, char*** argv, std::string who, double timeout_s)
+    : mWho(std::move(who)), mTimeoutS(timeout_s) {
+  int initialized = 0;
+  MPI_Initialized(&initialized);
+  if (!initialized && MPI_Init(argc, argv) != MPI_SUCCESS)
+    throw TransportError(mWho + ": MPI_Init failed (start it with mpirun)");
+  // Errors come back as codes; a broken communicator then aborts through abort() with a message.
+  MPI_Comm_set_errhandler(MPI_COMM_WORLD, MPI_ERRORS_RETURN);
+  MPI_Comm_rank(MPI_COMM_WORLD, &mRank);
+  MPI_Comm_size(MPI_COMM_WORLD, &mSize);
+  char name[MPI_MAX_PROCESSOR_NAME] = {};
+  int len = 0;
+  MPI_Get_processor_name(name, &len);
+  mHost.assign(name, size_t(len));
+}
+
+MpiTransport::~MpiTransport() {
+  int finalized = 0;
+  MPI_Finalized(&finalized);
+  if (!finalized) MPI_Finalize();
+}
+
+void MpiTransport::abort(int code, const std::string& why) const {
+  std::fprintf(stderr, "%s (rank %d on %s): %s\n", mWho.c_str(), mRank, mHost.c_str(), why.c_str());
+  std::fflush(stderr);
+  MPI_Abort(MPI_COMM_WORLD, code);
+  std::_Exit(code);  // MPI_Abort does not return; this keeps [[noreturn]] honest
+}
+
+void MpiTransport::wait(void* request_ptr, const char* what) {
+  auto* request = static_cast<MPI_Request*>(request_ptr);
+  const auto start = Clock::now();
+  // Poll, then sleep a little between polls: MPI's own blocking waits spin, which on an
+  // oversubscribed machine takes the core from the rank being waited for.
+  for (int polls = 0;; ++polls) {
+    int done = 0;
+    if (MPI_Test(request, &done, MPI_STATUS_IGNORE) != MPI_SUCCESS)
+      abort(3, std::string("MPI failed while waiting for ") + what);
+    if (done) return;
+    const double ms = msSince(start);
+    if (ms > mTimeoutS * 1000.0) {
+      char why[256];
+      std::snprintf(why, sizeof why, "no %s after %.0f s (a rank hung or died); aborting the job",
+                    what, mTimeoutS);
+      abort(4, why);
+    }
+    std::this_thread::sleep_for(std::chrono::microseconds(ms < 1.0 ? 20 : 200));
+  }
+}
+
+uint64_t MpiTransport::broadcast(ClusterMessage& kind, uint32_t& flags, std::string& bytes,
+                                 const char* what) {
+  BroadcastHeader header;
+  if (mRank == 0) {
+    header.kind = int32_t(kind);
+    header.flags = flags;
+    header.bytes = bytes.size();
+  }
+  MPI_Request request;
+  MPI_Ibcast(&header, sizeof header, MPI_BYTE, 0, MPI_COMM_WORLD, &request);
+  wait(&request, what);
+  kind = ClusterMessage(header.kind);
+  flags = header.flags;
+  if (header.bytes > uint64_t(INT32_MAX))
+    abort(5, std::string("a broadcast of ") + std::to_string(header.bytes) +
+                 " bytes is over MPI's 2 GiB count limit");
+  if (header.bytes == 0) {
+    bytes.clear();
+    return sizeof header;
+  }
+  if (mRank != 0) bytes.resize(header.bytes);
+  MPI_Ibcast(bytes.data(), int(header.bytes), MPI_BYTE, 0, MPI_COMM_WORLD, &request);
+  wait(&request, what);
+  return sizeof header + header.bytes;
+}
+
+double MpiTransport::swapBarrier() {
+  const auto start = Clock::now();
+  MPI_Request request;
+  MPI_Ibarrier(MPI_COMM_WORLD, &request);
+  wait(&request, "swap barrier (a rank did not finish its frame)");
+  return msSince(start);
+}
+
+template <class T>
+std::vector<T> MpiTransport::gatherFixed(const T& mine, const char* what) {
+  std::vector<T> all(mRank == 0 ? size_t(mSize) : 0);
+  MPI_Request request;
+  MPI_Igather(&mine, sizeof(T), MPI_BYTE, all.data(), sizeof(T), MPI_BYTE, 0, MPI_COMM_WORLD,
+              &request);
+  wait(&request, what);
+  return all;
+}
+
+std::vector<NodeStatus> MpiTransport::gatherStatus(const NodeStatus& mine) {
+  return gatherFixed(mine, "startup status of every node");
+}
+
+std::vector<NodeFrameStats> MpiTransport::gatherStats(const NodeFrameStats& mine) {
+  return gatherFixed(mine, "frame statistics of every node");
+}
+
+std::vector<std::string> MpiTransport::gatherHosts() {
+  struct Host {
+    char name[MPI_MAX_PROCESSOR_NAME];
+  } mine = {};
+  std::memcpy(mine.name, mHost.data(), std::min(mHost.size(), sizeof mine.name - 1));
+  std::vector<std::string> hosts;
+  for (const Host& h : gatherFixed(mine, "host names of every rank"))
+    hosts.emplace_back(h.name, strnlen(h.name, sizeof h.name));
+  return hosts;
+}
+
+std::vector<std::string> MpiTransport::gatherBytes(std::string_view mine) {
+  if (mine.size() > size_t(INT32_MAX))
+    abort(5, "a tile of " + std::to_string(mine.size()) + " bytes is over MPI's 2 GiB limit");
+  const int my_count = int(mine.size());
+  std::vector<int> counts(mRank == 0 ? size_t(mSize) : 0);
+  MPI_Request request;
+  MPI_Igather(&my_count, 1, MPI_INT, counts.data(), 1, MPI_INT, 0, MPI_COMM_WORLD, &request);
+  wait(&request, "tile image sizes");
+  std::vector<int> displs(counts.size(), 0);
+  std::vector<char> all;
+  if (mRank == 0) {
+    int64_t total = 0;
+    for (size_t i = 0; i < counts.size(); ++i) {
+      displs[i] = int(total);
+      total += counts[i];
+    }
+    if (total > int64_t(INT32_MAX)) abort(5, "a wall screenshot over MPI's 2 GiB limit");
+    all.resize(size_t(total));
+  }
+  MPI_Igatherv(mine.data(), my_count, MPI_BYTE, all.data(), counts.data(), displs.data(), MPI_BYTE,
+               0, MPI_COMM_WORLD, &request);
+  wait(&request, "tile images");
+  std::vector<std::string> parts;
+  for (size_t i = 0; i < counts.size(); ++i)
+    parts.emplace_back(all.data() + displs[i], size_t(counts[i]));
+  return parts;
+}
+
+}  // namespace tessera::sync

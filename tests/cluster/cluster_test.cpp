@@ -1,0 +1,211 @@
+// The cluster as a user starts it: mpirun with tessera-master and 2 or 4 headless tessera-nodes
+// on a store of the real bunny scans. The wall screenshot must be pixel-identical to
+// `tessera-render --mosaic` of the same scene and camera; failures must end the job non-zero
+// with a message saying what and where (ctest's TIMEOUT catches a hang: tests never time).
+#include <gtest/gtest.h>
+
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <array>
+#include <cstdio>
+#include <fstream>
+#include <regex>
+#include <string>
+
+#include "../support/command.h"
+#include "../support/temp_dir.h"
+
+namespace {
+
+namespace fs = std::filesystem;
+const std::string kData = TESSERA_DATA_DIR;
+const std::string kConfigs = TESSERA_CONFIG_DIR;
+
+using tessera::test::CommandResult;
+
+CommandResult run(const std::string& command) {
+  return tessera::test::runCommand(command);
+}
+
+std::string mpirun() {
+  // Oversubscribed: this machine has 2 cores for 3 to 5 processes.
+  std::string m = std::string(TESSERA_MPIRUN) + " --oversubscribe";
+  if (getuid() == 0) m += " --allow-run-as-root";
+  return m;
+}
+
+void write(const fs::path& p, const std::string& text) {
+  std::ofstream(p) << text;
+}
+
+/// The scene of configs/scenes/bunny.json with the store replaced and the given shading.
+std::string sceneJson(const std::string& store, const std::string& shading = "edl") {
+  return R"({"models": [{"name": "bunny scans", "store": ")" + store +
+         R"("}], "camera": {"eye": {"x": -0.027, "y": 0.12, "z": 0.38}, "target": {"x": -0.027,
+         "y": 0.1, "z": 0.0}, "up": {"x": 0, "y": 1, "z": 0}}, "background": [0.05, 0.05, 0.08],
+         "lodPixels": 1.0, "shading": ")" +
+         shading + R"("})";
+}
+
+class Cluster : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    sDir = new tessera::test::TempDir();
+    const CommandResult r =
+        run(std::string(TESSERA_LOD_TOOL) + " build " + kData +
+            "/stanford-bunny/scans/bun.conf -o " + (*sDir / "bunny.tlod").string() + " --quiet");
+    ASSERT_EQ(r.code, 0) << r.out;
+    write(*sDir / "scene.json", sceneJson("bunny.tlod"));
+    write(*sDir / "scene-color.json", sceneJson("bunny.tlod", "color"));
+  }
+  static void TearDownTestSuite() {
+    delete sDir;
+    sDir = nullptr;
+  }
+
+  /// mpirun master ARGS : K nodes, from the suite's folder, after `prefix` (environment, a
+  /// wrapper such as xvfb-run).
+  static CommandResult cluster(const std::string& master_args, int nodes,
+                               const std::string& prefix = "") {
+    return run("cd " + sDir->path().string() + " && " + prefix + mpirun() + " -np 1 " +
+               TESSERA_MASTER + " " + master_args + " : -np " + std::to_string(nodes) + " " +
+               TESSERA_NODE + " --headless");
+  }
+
+  /// tessera-render --mosaic of `scene` on `wall` with the camera the master printed for `png`.
+  static void expectSameAsMosaic(const CommandResult& r, const std::string& png,
+                                 const std::string& wall, const std::string& scene) {
+    const std::regex line("wrote (\\S*" + png + ") \\(\\d+x\\d+\\); camera (\\S+)");
+    std::smatch m;
+    ASSERT_TRUE(std::regex_search(r.out, m, line)) << r.out;
+    const fs::path mosaic = *sDir / ("mosaic-" + png);
+    const CommandResult ref =
+        run("cd " + sDir->path().string() + " && " + TESSERA_RENDER_TOOL + " --scene " + scene +
+            " --wall " + wall + " --mosaic --camera '" + m[2].str() + "' -o " + mosaic.string());
+    ASSERT_EQ(ref.code, 0) << ref.out;
+    const auto wall_png = tessera::test::readBytes(sDir->path() / m[1].str());
+    const auto ref_png = tessera::test::readBytes(mosaic);
+    ASSERT_FALSE(wall_png.empty());
+    // Same encoder, same settings: equal files are equal pixels, and different pixels give
+    // different files.
+    EXPECT_TRUE(wall_png == ref_png)
+        << png << " differs from tessera-render --mosaic (" << wall_png.size() << " against "
+        << ref_png.size() << " bytes)";
+  }
+
+  static tessera::test::TempDir* sDir;
+};
+tessera::test::TempDir* Cluster::sDir = nullptr;
+
+TEST_F(Cluster, TwoNodesWallScreenshotIsTheMosaic) {
+  const std::string wall = kConfigs + "/walls/1x2.json";
+  const CommandResult r = cluster("--wall " + wall +
+                                      " --scene scene.json --frames 3 --screenshot two.png "
+                                      "--stats two.csv",
+                                  2);
+  ASSERT_EQ(r.code, 0) << r.out;
+  expectSameAsMosaic(r, "two.png", wall, "scene.json");
+  // One row per rank and frame: master + 2 nodes, 3 frames.
+  std::ifstream csv(sDir->path() / "two.csv");
+  std::string row;
+  int rows = 0, node_rows_with_points = 0;
+  std::getline(csv, row);
+  EXPECT_EQ(row.rfind("frame,time_s,rank,tile,", 0), 0u) << row;
+  while (std::getline(csv, row)) {
+    ++rows;
+    if ((row.find(",left,") != std::string::npos || row.find(",right,") != std::string::npos) &&
+        row.find(",0,0,0,0,0,0") == std::string::npos)
+      ++node_rows_with_points;
+  }
+  EXPECT_EQ(rows, 9);
+  EXPECT_EQ(node_rows_with_points, 6);
+}
+
+TEST_F(Cluster, FourNodesFollowTheScriptAndMatchTheMosaic) {
+  // Two keyframes (a straight move), shading switched to plain colour after the first frame, a
+  // screenshot by the script at frame 3 (t = 2/60 s) and one by --screenshot at the last.
+  write(sDir->path() / "path.json", R"({"name": "test move", "keyframes": [
+    {"time": 0, "eye": {"x": -0.027, "y": 0.12, "z": 0.38}, "target": {"x": -0.027, "y": 0.1, "z": 0},
+     "up": {"x": 0, "y": 1, "z": 0}},
+    {"time": 0.1, "eye": {"x": 0.05, "y": 0.14, "z": 0.33}, "target": {"x": -0.027, "y": 0.1, "z": 0},
+     "up": {"x": 0, "y": 1, "z": 0}}],
+    "actions": [{"time": 0.01, "setShading": "color"}, {"time": 0.03, "screenshot": "mid.png"}]})");
+  const std::string wall = kConfigs + "/walls/2x2.json";
+  const CommandResult r = cluster("--wall " + wall +
+                                      " --scene scene.json --script path.json --frames 5 "
+                                      "--screenshot last.png",
+                                  4);
+  ASSERT_EQ(r.code, 0) << r.out;
+  expectSameAsMosaic(r, "mid.png", wall, "scene-color.json");
+  expectSameAsMosaic(r, "last.png", wall, "scene-color.json");
+  EXPECT_NE(r.out.find("frame 3: wrote ./mid.png"), std::string::npos) << r.out;
+}
+
+TEST_F(Cluster, WrongNodeCountStopsBeforeRendering) {
+  const CommandResult r = cluster(
+      "--wall " + kConfigs + "/walls/2x2.json --scene scene.json --frames 2 --screenshot no.png",
+      3);
+  EXPECT_NE(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("has 4 tiles but 3 render nodes were started"), std::string::npos) << r.out;
+  EXPECT_FALSE(fs::exists(sDir->path() / "no.png"));
+}
+
+TEST_F(Cluster, NodeWithAnUnreadableStoreSaysWhichAndWhy) {
+  write(sDir->path() / "broken.tlod", std::string(4096, 'x'));
+  write(sDir->path() / "broken.json", sceneJson("broken.tlod"));
+  const CommandResult r =
+      cluster("--wall " + kConfigs + "/walls/1x2.json --scene broken.json --frames 2", 2);
+  EXPECT_NE(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("node rank 1 (tile left, host "), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("unreadable store"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("broken.tlod: not a Tessera point store"), std::string::npos) << r.out;
+}
+
+TEST_F(Cluster, BadSceneJsonNamesFileAndField) {
+  write(sDir->path() / "bad.json", R"({"models": [{"store": "bunny.tlod", "opacity": 2}]})");
+  const CommandResult r =
+      cluster("--wall " + kConfigs + "/walls/1x2.json --scene bad.json --frames 2", 2);
+  EXPECT_NE(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("bad.json: models[0].opacity"), std::string::npos) << r.out;
+}
+
+TEST_F(Cluster, BadScriptNamesFileAndField) {
+  write(sDir->path() / "bad-path.json",
+        R"({"keyframes": [{"time": 0, "eye": {"x": 0, "y": 0, "z": 1}, "target": {},
+            "up": {"y": 1}}], "actions": [{"time": 0, "setOpacity": {"model": "nobody",
+            "opacity": 0.5}}]})");
+  const CommandResult r = cluster("--wall " + kConfigs +
+                                      "/walls/1x2.json --scene scene.json --script bad-path.json "
+                                      "--frames 2",
+                                  2);
+  EXPECT_NE(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("bad-path.json: actions[0].setOpacity.model"), std::string::npos) << r.out;
+}
+
+TEST_F(Cluster, ConsoleWithoutADisplaySaysSoAndRunsHeadless) {
+  const std::string wall = kConfigs + "/walls/1x2.json";
+  const CommandResult r =
+      cluster("--wall " + wall + " --scene scene.json --frames 2 --console --screenshot nd.png", 2,
+              "env -u DISPLAY -u WAYLAND_DISPLAY ");
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("--console: "), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("running headless"), std::string::npos) << r.out;
+  expectSameAsMosaic(r, "nd.png", wall, "scene.json");
+}
+
+#ifdef TESSERA_XVFB_RUN
+TEST_F(Cluster, ConsoleUnderXvfbDrivesTheWall) {
+  // The console's frames do not wait for data, the nodes' neither (no --frames determinism with
+  // a console), but a screenshot frame is rendered complete, so the wall picture is still exact.
+  const std::string wall = kConfigs + "/walls/1x2.json";
+  const CommandResult r =
+      cluster("--wall " + wall + " --scene scene.json --frames 4 --console --screenshot con.png", 2,
+              std::string(TESSERA_XVFB_RUN) + " -a -s '-screen 0 1280x720x24' ");
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("console open"), std::string::npos) << r.out;
+  expectSameAsMosaic(r, "con.png", wall, "scene.json");
+}
+#endif
+
+}  // namespace

@@ -1,0 +1,40 @@
+#include <tessera/master/script_player.h>
+
+#include <gtest/gtest.h>
+
+#include <tessera/sync/camera_path.h>
+
+namespace {
+
+using namespace tessera;
+
+TEST(ScriptPlayer, CameraAndActionsOnceEachIntoTheGraph) {
+  const config::CameraPath path = sync::parseCameraPath(R"({"keyframes": [
+      {"time": 0, "eye": {"z": 2}, "target": {}, "up": {"y": 1}},
+      {"time": 1, "eye": {"x": 1, "z": 2}, "target": {}, "up": {"y": 1}}],
+      "actions": [{"time": 0.5, "setOpacity": {"model": "m", "opacity": 0.25}},
+                  {"time": 0.5, "setShading": "edl"},
+                  {"time": 0.75, "setVisible": {"model": "m", "visible": false}},
+                  {"time": 1, "screenshot": "end.png"}]})",
+                                                        "p.json");
+  config::SceneConfig scene;
+  scene.add_models()->set_name("m");
+  scene.mutable_models(0)->set_store("/x.tlod");
+  sync::SceneGraph graph = sync::SceneGraph::fromConfig(scene);
+  master::ScriptPlayer player(path);
+  EXPECT_DOUBLE_EQ(player.duration(), 1.0);
+  const auto id = *graph.findByName("m");
+
+  EXPECT_TRUE(player.advance(graph, 0.25).empty());
+  EXPECT_NEAR(graph.camera().eye().x(), sync::cameraAt(path, 0.25).eye().x(), 1e-9);
+  EXPECT_EQ(graph.node(id).opacity(), 1.0f);
+  EXPECT_TRUE(player.advance(graph, 0.5).empty());
+  EXPECT_EQ(graph.node(id).opacity(), 0.25f);
+  EXPECT_EQ(graph.settings().shading(), scene::SHADING_EDL);
+  EXPECT_TRUE(graph.node(id).visible());
+  EXPECT_EQ(player.advance(graph, 1.0), std::vector<std::string>{"end.png"});
+  EXPECT_FALSE(graph.node(id).visible());
+  EXPECT_TRUE(player.advance(graph, 2.0).empty());  // nothing twice
+}
+
+}  // namespace
