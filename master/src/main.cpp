@@ -45,7 +45,7 @@ struct Options {
   std::string wall, scene, script, screenshot, stats, out_dir = ".";
   int frames = 0;
   bool console = false;
-  double timeout_s = 120.0, splat_scale = 2.0, gpu_budget_mb = 1024.0;
+  double timeout_s = 120.0, splat_scale = 2.0, gpu_budget_mb = 1024.0, fps = 60.0;
   uint32_t console_width = 960;
 };
 
@@ -162,7 +162,7 @@ class Master {
     for (uint64_t f = 0;; ++f) {
       const auto frame_start = Clock::now();
       const double t = deterministic
-                           ? double(f) / 60.0
+                           ? double(f) / mOpt.fps
                            : std::chrono::duration<double>(frame_start - session_start).count();
       std::vector<std::string> shots;
       if (mPlayer) {
@@ -295,9 +295,12 @@ int main(int argc, char** argv) {
       ->required();
   app.add_option("--script", o.script, "Camera path with timed actions (configs/paths/*.json)");
   app.add_option("--frames", o.frames,
-                 "Run this many frames, deterministic: script time = frame / 60 s, every frame "
+                 "Run this many frames, deterministic: script time = frame / fps, every frame "
                  "rendered complete (0: real time until the script or console ends)")
       ->check(CLI::NonNegativeNumber);
+  app.add_option("--fps", o.fps, "With --frames: script frames per second (fewer: coarser steps)")
+      ->check(CLI::Range(0.1, 1000.0))
+      ->capture_default_str();
   app.add_option("--screenshot", o.screenshot, "Write the wall picture (PNG) of the last frame");
   app.add_option("--stats", o.stats, "Per-frame, per-node statistics (CSV)");
   app.add_option("--out-dir", o.out_dir, "Where the script's screenshot paths are relative to")

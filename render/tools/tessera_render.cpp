@@ -201,12 +201,13 @@ int main(int argc, char** argv) {
   app.add_option("--gpu-budget-mb", budget_mb, "GPU bytes for resident chunks, MiB")
       ->check(CLI::Range(1.0, 1e6))
       ->capture_default_str();
-  uint32_t spbr_l = 64, spbr_progressive = 0;
+  uint32_t spbr_l = 0, spbr_progressive = 0;
   double spbr_max_k = 1e9;
   bool no_slant = false;
-  app.add_option("--spbr-L", spbr_l, "See-through: ensembles per frame (models with opacity < 1)")
-      ->check(CLI::Range(1, 4096))
-      ->capture_default_str();
+  app.add_option("--spbr-L", spbr_l,
+                 "See-through: ensembles per frame for models with opacity < 1 (default: the "
+                 "scene's, else 16)")
+      ->check(CLI::Range(1, 4096));
   app.add_option("--spbr-progressive", spbr_progressive,
                  "See-through: keep adding ensembles up to this many while the view rests")
       ->check(CLI::Range(0, 65536));
@@ -249,6 +250,7 @@ int main(int argc, char** argv) {
       options.lod_pixels = scene.lod_pixels();
       options.background = glm::vec3(scene.background(0), scene.background(1), scene.background(2));
       if (scene.shading() == "edl") options.edl_strength = 1.0f;
+      if (scene.spbr_ensembles() > 0) options.spbr.ensembles = scene.spbr_ensembles();
     }
     for (const std::string& m : models) {
       // FILE or FILE:OPACITY (a colon followed by a number, so paths with colons still work).
@@ -276,7 +278,7 @@ int main(int argc, char** argv) {
     if (lod_px > 0) options.lod_pixels = lod_px;
     if (edl) options.edl_strength = 1.0f;
     options.splat_scale = float(splat_scale);
-    options.spbr.ensembles = spbr_l;
+    if (spbr_l > 0) options.spbr.ensembles = spbr_l;
     options.spbr.progressive_max = spbr_progressive;
     options.spbr.max_k = spbr_max_k;
     options.spbr.slant_shading = !no_slant;

@@ -183,8 +183,8 @@ Problem checkSettings(const scene::Settings& s) {
            std::to_string(int(s.shading()));
   if (s.has_lod_pixels() && !(s.lod_pixels() > 0.0f && std::isfinite(s.lod_pixels())))
     return "settings.lod_pixels: must be finite and > 0, got " + num(s.lod_pixels());
-  if (s.has_spbr_ensembles() && (s.spbr_ensembles() < 1 || s.spbr_ensembles() > 64))
-    return "settings.spbr_ensembles: must be 1..64, got " + std::to_string(s.spbr_ensembles());
+  if (s.has_spbr_ensembles() && (s.spbr_ensembles() < 1 || s.spbr_ensembles() > 4096))
+    return "settings.spbr_ensembles: must be 1..4096, got " + std::to_string(s.spbr_ensembles());
   return {};
 }
 
@@ -296,6 +296,7 @@ SceneGraph SceneGraph::fromConfig(const config::SceneConfig& config) {
     graph.setBackground(float(config.background(0)), float(config.background(1)),
                         float(config.background(2)));
   if (config.lod_pixels() > 0) graph.setLodPixels(float(config.lod_pixels()));
+  if (config.spbr_ensembles() > 0) graph.setSpbrEnsembles(config.spbr_ensembles());
   if (config.shading() == "edl") graph.setShading(scene::SHADING_EDL);
   return graph;
 }
@@ -338,7 +339,7 @@ scene::Settings SceneGraph::defaultSettings() {
   s.mutable_background();
   s.set_shading(scene::SHADING_COLOR);
   s.set_lod_pixels(1.0f);
-  s.set_spbr_ensembles(1);
+  s.set_spbr_ensembles(16);
   return s;
 }
 
@@ -539,8 +540,8 @@ void SceneGraph::setLodPixels(float pixels) {
 }
 
 void SceneGraph::setSpbrEnsembles(uint32_t ensembles) {
-  TESSERA_CHECK(ensembles >= 1 && ensembles <= 64,
-                "sync::SceneGraph::setSpbrEnsembles(): must be 1..64");
+  TESSERA_CHECK(ensembles >= 1 && ensembles <= 4096,
+                "sync::SceneGraph::setSpbrEnsembles(): must be 1..4096");
   touchSettings();
   mSettings.set_spbr_ensembles(ensembles);
 }

@@ -410,7 +410,7 @@ TEST_F(BadFrame, BadFields) {
   expectError(f, Code::kBadField, "eye and target coincide");
   f = next();
   f.mutable_settings()->set_spbr_ensembles(0);
-  expectError(f, Code::kBadField, "settings.spbr_ensembles: must be 1..64");
+  expectError(f, Code::kBadField, "settings.spbr_ensembles: must be 1..4096");
   f = next();
   f.set_version(1);
   f.add_commands();

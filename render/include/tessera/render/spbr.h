@@ -23,7 +23,7 @@
 namespace tessera::render {
 
 struct SpbrOptions {
-  uint32_t ensembles = 64;       ///< L: ensembles per frame
+  uint32_t ensembles = 16;       ///< L: ensembles per frame
   uint32_t progressive_max = 0;  ///< >L: a resting view keeps adding ensembles up to this many
   bool slant_shading = true;     ///< eq. 2's opacity gradation on slanted surfaces (off: s cos)
   /// Largest adjustment ratio k (eq. 4) before cross-sections grow instead. The default keeps
