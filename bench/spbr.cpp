@@ -147,26 +147,30 @@ double timedFrame(std::span<const render::ModelInstance> models, const render::V
 
 void figure5(const fs::path& out, const std::vector<size_t>& sizes) {
   std::ofstream csv(out / "spbr_figure5.csv");
-  csv << "n_raw,alpha,mean,stddev,theory,error_pct,ensembles\n";
+  csv << "n_raw,alpha,mean,stddev,theory,error_pct,ensembles,mode\n";
   std::cout
       << "\n== figure 5: white plane, 512x512, L = 64\nn_raw,alpha,mean,stddev,theory,error_pct\n";
   const render::ViewSetup v =
       lookAt({0.5, 0.5, 1.0}, {0.5, 0.5, 0.0}, {0, 1, 0}, 512, 512, 40.0, 0.1, 10.0);
   for (size_t n : sizes) {
     auto store = lod::PointStore::open(planeStore(out / "inputs", n));
-    for (int a = 1; a <= 19; ++a) {
-      const float alpha = float(a) * 0.05f;
+    for (int a = 1; a <= 38; ++a) {
+      // Copies as the paper (fixed cross-sections), then independent ensembles (k <= 1).
+      const bool independent = a > 19;
+      const float alpha = float(independent ? a - 19 : a) * 0.05f;
       render::ModelInstance inst{store.get(), render::storeModel(*store), alpha};
       render::RenderOptions o;
       o.spbr.ensembles = 64;
+      if (independent) o.spbr.max_k = 1.0;
       render::ViewRenderer r(512, 512);
       render::RenderStats st;
       const render::Image img = r.renderSettled({&inst, 1}, v, o, &st);
       double sd = 0;
       const double mean = meanOf(img, 0, 512, &sd);
       char line[256];
-      std::snprintf(line, sizeof line, "%zu,%.2f,%.2f,%.2f,%.2f,%.2f,%u", n, alpha, mean, sd,
-                    255.0 * alpha, 100.0 * (mean / (255.0 * alpha) - 1.0), st.ensembles);
+      std::snprintf(line, sizeof line, "%zu,%.2f,%.2f,%.2f,%.2f,%.2f,%u,%s", n, alpha, mean, sd,
+                    255.0 * alpha, 100.0 * (mean / (255.0 * alpha) - 1.0), st.ensembles,
+                    independent ? "independent" : "copies");
       csv << line << "\n";
       std::cout << line << std::endl;
     }
@@ -180,9 +184,13 @@ void figure5(const fs::path& out, const std::vector<size_t>& sizes) {
     << "set xlabel 'alpha'\nset ylabel 'mean pixel intensity'\nset grid\nset key top left\n"
     << "set xrange [0:1]\nset yrange [0:260]\n";
   for (size_t n : sizes) {
-    g << "set title 'n_raw = " << n << "'\nplot '" << (out / "spbr_figure5.csv").string()
-      << "' using ($1==" << n << "?$2:1/0):3:4 with yerrorbars pt 7 ps 0.6 title 'measured', "
-      << "255*x with lines lw 2 title '255 alpha'\n";
+    const std::string f = (out / "spbr_figure5.csv").string();
+    g << "set title 'n_raw = " << n << "'\nplot '" << f << "' using ($1==" << n
+      << " && stringcolumn(8) eq 'copies' ? $2 - 0.006 : 1/0):3:4 with yerrorbars pt 7 ps 0.6 "
+         "title 'copies (as the paper)', '"
+      << f << "' using ($1==" << n
+      << " && stringcolumn(8) eq 'independent' ? $2 + 0.006 : 1/0):3:4 with yerrorbars pt 6 ps "
+         "0.6 title 'independent ensembles (k <= 1)', 255*x with lines lw 2 title '255 alpha'\n";
   }
   g << "unset multiplot\n";
   g.close();
@@ -225,9 +233,9 @@ void accuracy(const fs::path& out, std::vector<Scene>& scenes) {
       render::RenderOptions o;
       o.spbr.ensembles = L;
       row("spbr", L, o);
-      // Paper-style: cross-sections stay at the opaque disc and points are copied (k up to L).
-      o.spbr.max_k = L;
-      row("spbr-copies", L, o);
+      // Independent ensembles (k <= 1): discs grow with L instead of points being copied.
+      o.spbr.max_k = 1.0;
+      row("spbr-independent", L, o);
     }
     render::RenderOptions avg;
     avg.transparency = render::Transparency::kWeightedAverage;
@@ -243,12 +251,12 @@ void accuracy(const fs::path& out, std::vector<Scene>& scenes) {
     << "set multiplot layout 1," << scenes.size()
     << " title 'See-through: error to the exact compositor against frame time'\n"
     << "set xlabel 'frame time, ms (llvmpipe, 2 cores)'\nset ylabel 'RMSE (0..255)'\nset grid\n"
-       "set logscale x\nset key top right\nset yrange [0:*]\n";
+       "set logscale x\nset key bottom left\nset yrange [0:*]\n";
   for (const Scene& s : scenes) {
     const std::string f = (out / "spbr_accuracy.csv").string();
     g << "set title '" << s.name << "'\nplot '" << f << "' using (stringcolumn(1) eq '" << s.name
-      << "' && stringcolumn(2) eq 'spbr' ? $4 : 1/0):5 with linespoints pt 7 title "
-         "'SPBR, L = 4..256', '' using (stringcolumn(1) eq '"
+      << "' && stringcolumn(2) eq 'spbr' ? $4 : 1/0):5 with points pt 7 ps 1.2 title "
+         "'SPBR (copies), L = 4..256', '' using (stringcolumn(1) eq '"
       << s.name
       << "' && stringcolumn(2) eq 'spbr' ? $4 : 1/0):5:(sprintf('L=%d', $3)) with "
          "labels offset 0,1 notitle, '' using (stringcolumn(1) eq '"
@@ -257,7 +265,10 @@ void accuracy(const fs::path& out, std::vector<Scene>& scenes) {
          "title 'weighted average', '' using (stringcolumn(1) eq '"
       << s.name
       << "' && stringcolumn(2) eq 'wboit' ? $4 : 1/0):5 with points pt 9 ps 1.5 "
-         "title 'weighted blended OIT'\n";
+         "title 'weighted blended OIT', '' using (stringcolumn(1) eq '"
+      << s.name
+      << "' && stringcolumn(2) eq 'spbr-independent' ? $4 : 1/0):5 with points pt 6 ps 1.2 "
+         "title 'SPBR, independent ensembles (k <= 1)'\n";
   }
   g << "unset multiplot\n";
   g.close();

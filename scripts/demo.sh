@@ -48,15 +48,34 @@ export EGL_PLATFORM=surfaceless
   --camera "eye=-0.03,0.12,0.42;target=-0.026,0.1,0;up=0,1,0" --background 0.05,0.05,0.08 \
   --stats "$out/render-stats.csv" -o "$out/wall-2x2.png" || exit 1
 
+echo "== see-through (stochastic point-based rendering): the bunny's ten scans in two groups,"
+echo "   fused at two opacities, and a photo fused with the scans"
+scans="$data/stanford-bunny/scans"
+awk -v d="$scans" '$1=="bmesh" && ($2=="bun000.ply"||$2=="bun045.ply"||$2=="bun315.ply"||$2=="chin.ply"||$2=="top2.ply") {$2=d"/"$2; print}' \
+  "$scans/bun.conf" > "$out/stores/bunny-front.conf"
+awk -v d="$scans" '$1=="bmesh" && ($2=="bun090.ply"||$2=="bun180.ply"||$2=="bun270.ply"||$2=="top3.ply"||$2=="ear_back.ply") {$2=d"/"$2; print}' \
+  "$scans/bun.conf" > "$out/stores/bunny-back.conf"
+"$lod" build "$out/stores/bunny-front.conf" -o "$out/stores/bunny-front.tlod" --quiet || exit 1
+"$lod" build "$out/stores/bunny-back.conf" -o "$out/stores/bunny-back.tlod" --quiet || exit 1
+"$render" --scene configs/scenes/bunny-fused.json --size 1280x960 --spbr-L 64 \
+  --stats "$out/render-stats.csv" -o "$out/see-through-bunny.png" || exit 1
+# The Autzen picture as a photo standing behind the bunny (section 4.5 of the SPBR paper).
+"$lod" photo "$out/autzen.png" --corner -0.13,0.03,-0.08 --u 0.2,0,0 --v 0,0.1125,0 \
+  -o "$out/stores/photo.tlod" --quiet || exit 1
+"$render" --model "$out/stores/bunny.tlod:0.4" --model "$out/stores/photo.tlod:0.7" --size 1280x960 \
+  --camera "eye=0.05,0.14,0.3;target=-0.03,0.09,0;up=0,1,0" --spbr-L 64 \
+  --stats "$out/render-stats.csv" -o "$out/see-through-photo.png" || exit 1
+
 echo "== the wall as a cluster: master + 4 render nodes (mpirun, oversubscribed on $(nproc) cores),"
-echo "   2x2 wall, headless, along configs/paths/bunny-orbit.json (12 s at 60 frames/s, deterministic)"
+echo "   2x2 wall, headless, along configs/paths/bunny-fused-orbit.json over the fused scans, opacities"
+echo "   changing on the way (12 s path sampled at 10 frames/s, deterministic)"
 mpi=(mpirun --oversubscribe)
 [ "$(id -u)" -eq 0 ] && mpi+=(--allow-run-as-root)
-# configs/scenes/bunny.json names the store this script built (out/demo/stores/bunny.tlod); the
+# configs/scenes/bunny-fused.json names the stores this script built (out/demo/stores/); the
 # path's own screenshots (half-way and at the end of the turn) land in out/demo/cluster/.
 mkdir -p "$out/cluster"
-"${mpi[@]}" -np 1 "$master" --wall configs/walls/2x2.json --scene configs/scenes/bunny.json \
-  --script configs/paths/bunny-orbit.json --frames "${TESSERA_DEMO_FRAMES:-721}" \
+"${mpi[@]}" -np 1 "$master" --wall configs/walls/2x2.json --scene configs/scenes/bunny-fused.json \
+  --script configs/paths/bunny-fused-orbit.json --frames "${TESSERA_DEMO_FRAMES:-121}" --fps 10 \
   --out-dir "$out/cluster" --screenshot "$out/cluster/wall-2x2-cluster.png" \
   --stats "$out/cluster/stats.csv" : -np 4 "$node" --headless | tee "$out/cluster/master.txt" || exit 1
 
@@ -72,6 +91,8 @@ echo "  $out/bunny.png, autzen.png          renders of the stores"
 echo "  $out/wall-2x2.png                   the 2x2 wall (configs/walls/2x2.json), tiles assembled with bezels"
 echo "  $out/render-stats.csv               per-view render statistics"
 echo "  $out/cluster/wall-2x2-cluster.png   the cluster's wall picture (master + 4 nodes), last frame"
-echo "  $out/cluster/bunny-orbit-half.png, bunny-orbit.png   the path's own screenshots"
+echo "  $out/see-through-bunny.png         the two groups of bunny scans fused at opacities 0.35 and 0.8"
+echo "  $out/see-through-photo.png         a photo fused with the scans (tessera-lod photo)"
+echo "  $out/cluster/bunny-fused-half.png, bunny-fused.png   the path's own screenshots"
 echo "  $out/cluster/stats.csv              per frame and node: sync, render, barrier ms, points, resident bytes"
 echo "  $out/cluster/master.txt             the master's log (each screenshot's camera, for tessera-render --camera)"
