@@ -243,7 +243,11 @@ int main(int argc, char** argv) {
         glm::dmat4 t(1.0);
         if (m.transform_size() == 16) t = glm::make_mat4(m.transform().data());
         const float opacity = m.opacity() > 0.0 ? float(m.opacity()) : 1.0f;
-        instances.push_back({stores.back().get(), t * render::storeModel(*stores.back()), opacity});
+        glm::u8vec3 color(0);
+        if (m.color_size() == 3)
+          color = glm::u8vec3(glm::dvec3(m.color(0), m.color(1), m.color(2)) * 255.0 + 0.5);
+        instances.push_back(
+            {stores.back().get(), t * render::storeModel(*stores.back()), opacity, color});
       }
       cam = scene.camera();
       have_camera = true;

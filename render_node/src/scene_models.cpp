@@ -45,7 +45,12 @@ std::vector<render::ModelInstance> SceneModels::update(const sync::SceneGraph& g
     }
     if (!visible || opacity <= 0.0f) continue;
     lod::PointStore* store = kept.at(path).get();
-    instances.push_back({store, world * render::storeModel(*store), opacity});
+    glm::u8vec3 color(0);
+    if (node.model().has_color()) {
+      const scene::Color& c = node.model().color();
+      color = glm::u8vec3(glm::clamp(glm::vec3(c.r(), c.g(), c.b()), 0.0f, 1.0f) * 255.0f + 0.5f);
+    }
+    instances.push_back({store, world * render::storeModel(*store), opacity, color});
   }
   mStores = std::move(kept);  // stores no model uses any more close here
   return instances;

@@ -68,6 +68,10 @@ config::SceneConfig parseSceneConfig(const std::string& json, const std::string&
       m.set_store((base_dir / p).lexically_normal().string());
     if (m.opacity() == 0) m.set_opacity(1.0);
     if (!(m.opacity() > 0 && m.opacity() <= 1)) fail(fn, name, f + ".opacity", "must be in (0, 1]");
+    if (m.color_size() != 0 && m.color_size() != 3)
+      fail(fn, name, f + ".color", "needs 3 numbers r, g, b in [0, 1]");
+    for (double c : m.color())
+      if (!(c >= 0 && c <= 1)) fail(fn, name, f + ".color", "components must be in [0, 1]");
     if (m.transform_size() != 0 && m.transform_size() != 16) {
       fail(fn, name, f + ".transform",
            "needs 16 numbers (column-major 4x4), got " + std::to_string(m.transform_size()));

@@ -286,6 +286,11 @@ SceneGraph SceneGraph::fromConfig(const config::SceneConfig& config) {
     const NodeId id = graph.add(SceneNode::MODEL, kRoot, m.name());
     scene::ModelPayload model;
     model.set_store(m.store());
+    if (m.color_size() == 3) {
+      model.mutable_color()->set_r(float(m.color(0)));
+      model.mutable_color()->set_g(float(m.color(1)));
+      model.mutable_color()->set_b(float(m.color(2)));
+    }
     graph.setPayload(id, model);
     graph.setOpacity(id, m.opacity() == 0 ? 1.0f : float(m.opacity()));
     graph.setVisible(id, !m.hidden());

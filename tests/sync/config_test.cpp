@@ -75,6 +75,12 @@ TEST(SceneConfig, BadScenesNameTheField) {
   EXPECT_NE(err(R"({"models": [{"store": "a.tlod", "opacity": 1.5}], )" + cam + "}")
                 .find("models[0].opacity"),
             std::string::npos);
+  EXPECT_NE(err(R"({"models": [{"store": "a.tlod", "color": [1, 0.5]}], )" + cam + "}")
+                .find("models[0].color"),
+            std::string::npos);
+  EXPECT_NE(err(R"({"models": [{"store": "a.tlod", "color": [1, 0.5, 2]}], )" + cam + "}")
+                .find("models[0].color"),
+            std::string::npos);
   EXPECT_NE(err(R"({"models": [{"store": "a.tlod", "transform": [1, 2]}], )" + cam + "}")
                 .find("models[0].transform"),
             std::string::npos);
