@@ -59,8 +59,10 @@ awk -v d="$scans" '$1=="bmesh" && ($2=="bun090.ply"||$2=="bun180.ply"||$2=="bun2
 "$lod" build "$out/stores/bunny-back.conf" -o "$out/stores/bunny-back.tlod" --quiet || exit 1
 "$render" --scene configs/scenes/bunny-fused.json --size 1280x960 --spbr-L 64 \
   --stats "$out/render-stats.csv" -o "$out/see-through-bunny.png" || exit 1
-# The Autzen picture as a photo standing behind the bunny (section 4.5 of the SPBR paper).
-"$lod" photo "$out/autzen.png" --corner -0.13,0.03,-0.08 --u 0.2,0,0 --v 0,0.1125,0 \
+# An aerial view of Autzen as a photo standing behind the bunny (section 4.5 of the SPBR paper).
+"$render" --model "$out/stores/autzen.tlod" --size 1280x720 --fovy 30 --background 0.92,0.9,0.85 \
+  --camera "eye=636590,848900,1400;target=636590,849216,440;up=0,0,1" -o "$out/autzen-photo.png" || exit 1
+"$lod" photo "$out/autzen-photo.png" --corner -0.13,0.03,-0.08 --u 0.2,0,0 --v 0,0.1125,0 \
   -o "$out/stores/photo.tlod" --quiet || exit 1
 "$render" --model "$out/stores/bunny.tlod:0.4" --model "$out/stores/photo.tlod:0.7" --size 1280x960 \
   --camera "eye=0.05,0.14,0.3;target=-0.03,0.09,0;up=0,1,0" --spbr-L 64 \
@@ -68,14 +70,14 @@ awk -v d="$scans" '$1=="bmesh" && ($2=="bun090.ply"||$2=="bun180.ply"||$2=="bun2
 
 echo "== the wall as a cluster: master + 4 render nodes (mpirun, oversubscribed on $(nproc) cores),"
 echo "   2x2 wall, headless, along configs/paths/bunny-fused-orbit.json over the fused scans, opacities"
-echo "   changing on the way (12 s path sampled at 10 frames/s, deterministic)"
+echo "   changing on the way (12 s path sampled at 5 frames/s, deterministic)"
 mpi=(mpirun --oversubscribe)
 [ "$(id -u)" -eq 0 ] && mpi+=(--allow-run-as-root)
 # configs/scenes/bunny-fused.json names the stores this script built (out/demo/stores/); the
 # path's own screenshots (half-way and at the end of the turn) land in out/demo/cluster/.
 mkdir -p "$out/cluster"
 "${mpi[@]}" -np 1 "$master" --wall configs/walls/2x2.json --scene configs/scenes/bunny-fused.json \
-  --script configs/paths/bunny-fused-orbit.json --frames "${TESSERA_DEMO_FRAMES:-121}" --fps 10 \
+  --script configs/paths/bunny-fused-orbit.json --frames "${TESSERA_DEMO_FRAMES:-61}" --fps 5 \
   --out-dir "$out/cluster" --screenshot "$out/cluster/wall-2x2-cluster.png" \
   --stats "$out/cluster/stats.csv" : -np 4 "$node" --headless | tee "$out/cluster/master.txt" || exit 1
 
