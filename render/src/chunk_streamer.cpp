@@ -66,6 +66,7 @@ struct ChunkStreamer::Impl {
   std::vector<Item> queue;
   size_t next = 0;
   const lod::PointStore* busy = nullptr;  ///< store of the item in flight
+  Key busy_key{nullptr, lod::kNoNode};     ///< the chunk in flight (not queued again)
   std::vector<Loaded> done;
   std::unordered_set<Key, KeyHash> done_keys;  ///< in `done`: not to be queued again
   bool paused = false, stop = false;
@@ -88,6 +89,7 @@ struct ChunkStreamer::Impl {
       if (stop) return;
       const Item item = queue[next++];
       busy = item.store;
+      busy_key = item.page ? Key{nullptr, lod::kNoNode} : Key{item.store, item.node};
       lock.unlock();
       Loaded out;
       out.key = {item.store, item.node};
@@ -123,6 +125,7 @@ struct ChunkStreamer::Impl {
       }
       lock.lock();
       busy = nullptr;
+      busy_key = Key{nullptr, lod::kNoNode};
       if (!item.page || out.failed) {
         if (!item.page) done_keys.insert(out.key);
         done.push_back(std::move(out));
@@ -250,7 +253,8 @@ void ChunkStreamer::endFrame() {
     s.queue.clear();
     s.next = 0;
     for (const Item& i : s.wanted) {
-      if (i.page || !s.done_keys.count({i.store, i.node})) s.queue.push_back(i);
+      const Key k{i.store, i.node};
+      if (i.page || (!s.done_keys.count(k) && !(s.busy_key == k))) s.queue.push_back(i);
     }
     mStats.queued = s.queue.size();
   }
