@@ -43,6 +43,18 @@ void main() {
   // A neighbour k pixels away has its centre at least k - 1/2 from the point: a disc of radius
   // up to 1/2 stays in the point's own pixel.
   int radius = uSpacingK > 0.0 ? int(ceil(disc - 0.5)) : uRadius;
+  if (radius == 0) {
+    // One pixel (fine LOD levels, far points): no loop, which llvmpipe runs much faster.
+    if (centre.x < 0 || centre.y < 0 || centre.x >= uSize.x || centre.y >= uSize.y) return;
+    uint idx = uint(centre.y) * uint(uSize.x) + uint(centre.x);
+    if (uPass == 0) {
+      atomicMin(depth[idx], d);
+    } else if (depth[idx] == d) {
+      atomicMin(colors[idx], uColorOverride != 0u ? uColorOverride & 0xFFFFFFu
+                                                  : points[gi].rgba & 0xFFFFFFu);
+    }
+    return;
+  }
   int r2 = radius * radius + radius;
   for (int dy = -radius; dy <= radius; ++dy) {
     for (int dx = -radius; dx <= radius; ++dx) {
