@@ -18,6 +18,7 @@ layout(std430, binding = 0) readonly buffer Points { Point points[]; };
 layout(std430, binding = 1) buffer Depth { uint depth[]; };    // uGroupCount layers
 layout(std430, binding = 2) buffer Colors { uint colors[]; };  // uGroupCount layers
 layout(std430, binding = 4) readonly buffer Normals { uint normals[]; };  // 10:10:10 snorm
+layout(std430, binding = 6) readonly buffer Ratios { float ratios[]; };   // node / local density
 
 uniform mat4 uClip;
 uniform uint uColorOverride;  // non-zero: 0x1000000 | rgb for every point of the batch
@@ -33,6 +34,7 @@ uniform int uPass;        // 0: depth, 1: colour
 uniform int uMaxRadius;
 uniform int uSlantOff;    // 1: cross-section s cos(theta), from the point's normal
 uniform vec3 uEyeLocal;   // the eye in the batch's frame (for theta)
+uniform int uHasRatios;   // 1: scale k by each point's density ratio (density jumps in a node)
 uniform int uOneLayer;    // 1: every ensemble into layer 0 (one opaque pass, a speed baseline)
 
 uint hash(uint x) {  // lowbias32 (C. Wellons)
@@ -67,9 +69,10 @@ void main() {
   uint i = gl_GlobalInvocationID.x;
   if (i >= uCount) return;
   uint h = hash(uSeed ^ hash(i + 0x9e3779b9u));
-  float whole = floor(uK);
+  float k = uHasRatios != 0 ? uK * ratios[i] : uK;
+  float whole = floor(k);
   float u = float(hash(h ^ 0x85ebca6bu) >> 8) * (1.0 / 16777216.0);
-  uint copies = min(uint(whole) + (u < uK - whole ? 1u : 0u), uTotal);
+  uint copies = min(uint(whole) + (u < k - whole ? 1u : 0u), uTotal);
   if (copies == 0u) return;
   // Copies sit in ensembles e0, e0 + 1, ... (mod L); a is the copy index of uGroupFirst.
   uint e0 = h % uTotal;

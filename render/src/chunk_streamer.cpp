@@ -47,6 +47,7 @@ struct Loaded {
   uint32_t disk_bytes = 0;
   double spacing = 0.0, density = 0.0;
   std::vector<uint32_t> normals;
+  std::vector<float> ratios;
   bool page = false;
   bool failed = false;
   glm::dvec3 offset{0.0};
@@ -66,7 +67,7 @@ struct ChunkStreamer::Impl {
   std::vector<Item> queue;
   size_t next = 0;
   const lod::PointStore* busy = nullptr;  ///< store of the item in flight
-  Key busy_key{nullptr, lod::kNoNode};     ///< the chunk in flight (not queued again)
+  Key busy_key{nullptr, lod::kNoNode};    ///< the chunk in flight (not queued again)
   std::vector<Loaded> done;
   std::unordered_set<Key, KeyHash> done_keys;  ///< in `done`: not to be queued again
   bool paused = false, stop = false;
@@ -108,6 +109,11 @@ struct ChunkStreamer::Impl {
           // Spheres four spacings wide hold about 50 points of a surface.
           out.density = sphereDensity(chunk->positions, 4.0 * out.spacing, 128, item.node);
           if (options.normals) out.normals = estimateNormals(chunk->positions, 2.5 * out.spacing);
+          if (options.density_ratios) {
+            const lod::NodeInfo info = item.store->node(item.node);
+            out.ratios = densityRatios(chunk->positions, 4.0 * out.spacing, glm::vec3(0.0f),
+                                       glm::vec3(info.box_max - info.box_min), out.density);
+          }
           out.offset = chunk->offset;
           out.points.resize(chunk->size());
           const bool color = !chunk->colors.empty();
@@ -187,6 +193,10 @@ void ChunkStreamer::beginFrame() {
       c.normals = GlBuffer(l.normals.size() * 4, l.normals.data());
       s.resident_bytes += c.normals.bytes();
     }
+    if (!l.ratios.empty()) {
+      c.density_ratios = GlBuffer(l.ratios.size() * 4, l.ratios.data());
+      s.resident_bytes += c.density_ratios.bytes();
+    }
     s.resident_bytes += c.buffer.bytes();
     s.resident_disk_bytes += c.disk_bytes;
     s.resident.emplace(l.key, std::move(c));
@@ -204,7 +214,8 @@ void ChunkStreamer::beginFrame() {
     for (const auto& [used, k] : old) {
       if (s.resident_bytes <= s.options.budget_bytes) break;
       auto it = s.resident.find(k);
-      s.resident_bytes -= it->second.buffer.bytes() + it->second.normals.bytes();
+      s.resident_bytes -= it->second.buffer.bytes() + it->second.normals.bytes() +
+                          it->second.density_ratios.bytes();
       s.resident_disk_bytes -= it->second.disk_bytes;
       s.resident.erase(it);
       ++mStats.evicted;
@@ -291,7 +302,8 @@ void ChunkStreamer::forget(const lod::PointStore& store) {
   }
   for (auto it = s.resident.begin(); it != s.resident.end();) {
     if (it->first.store == &store) {
-      s.resident_bytes -= it->second.buffer.bytes() + it->second.normals.bytes();
+      s.resident_bytes -= it->second.buffer.bytes() + it->second.normals.bytes() +
+                          it->second.density_ratios.bytes();
       s.resident_disk_bytes -= it->second.disk_bytes;
       it = s.resident.erase(it);
     } else {

@@ -156,6 +156,9 @@ RasterTimings PointRasterizer::drawEnsembles(std::span<const DrawBatch> batches,
         if (b.count == 0 || b.spbr_k <= 0.0f) continue;
         glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, b.buffer ? b.buffer : mPoints);
         glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 4, b.normals ? b.normals : mNoNormals);
+        glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 6,
+                         b.density_ratios ? b.density_ratios : mNoNormals);
+        glUniform1i(glGetUniformLocation(mSpbrProgram, "uHasRatios"), b.density_ratios ? 1 : 0);
         glUniformMatrix4fv(u_clip, 1, GL_FALSE, &b.clip_from_local[0][0]);
         glUniform1f(u_disc, b.disc_k);
         glUniform1f(u_k, b.spbr_k);

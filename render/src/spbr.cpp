@@ -192,4 +192,49 @@ std::vector<uint32_t> estimateNormals(std::span<const glm::vec3> points, double 
   return out;
 }
 
+std::vector<float> densityRatios(std::span<const glm::vec3> points, double radius,
+                                 const glm::vec3& box_min, const glm::vec3& box_max,
+                                 double node_density, size_t max_points) {
+  std::vector<float> ratios(points.size(), 1.0f);
+  if (points.size() < 8 || !(radius > 0) || !(node_density > 0)) return ratios;
+  // Neighbours are counted in a random subset for large inputs (as sphereDensity()).
+  std::vector<glm::vec3> subset;
+  std::span<const glm::vec3> counted = points;
+  double q = 1.0, r = radius;
+  if (points.size() > max_points) {
+    q = double(max_points) / double(points.size());
+    uint64_t state = 0x9E3779B97F4A7C15ull;
+    const uint64_t threshold = uint64_t(q * 18446744073709551615.0);
+    for (const glm::vec3& p : points) {
+      uint64_t z = (state += 0x9E3779B97F4A7C15ull);
+      z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
+      z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+      if ((z ^ (z >> 31)) <= threshold) subset.push_back(p);
+    }
+    counted = subset;
+    r /= std::sqrt(q);
+  }
+  const CellGrid grid(counted, r);
+  const glm::vec3 margin = glm::vec3(float(r));
+  const double area = std::numbers::pi * r * r * q;
+  for (size_t i = 0; i < points.size(); ++i) {
+    const glm::vec3 p = points[i];
+    // Near a face of the box (on axes where the box is wider than two spheres): spheres there
+    // lose the neighbours beyond the face.
+    bool inside = true;
+    for (int a = 0; a < 3; ++a) {
+      if (box_max[a] - box_min[a] > 4.0f * margin[a] &&
+          (p[a] < box_min[a] + margin[a] || p[a] > box_max[a] - margin[a]))
+        inside = false;
+    }
+    if (!inside) continue;
+    size_t count = 0;
+    grid.near(p, float(r), [&](uint32_t) { ++count; });
+    // The point itself is among those counted when it is in the subset: do not count it.
+    const double local = (double(count) - (q >= 1.0 ? 1.0 : 0.0)) / area;
+    if (local > 0) ratios[i] = float(std::clamp(node_density / local, 0.125, 8.0));
+  }
+  return ratios;
+}
+
 }  // namespace tessera::render

@@ -243,6 +243,7 @@ void ViewRenderer::addModel(const ModelInstance& instance, bool see_through, con
       if (instance.opacity >= 1.0f) b.disc_k = 0.5f * b.spacing_k;
       b.seed = uint32_t(mix(key, n.id));
       b.normals = chunk.normals.name();
+      b.density_ratios = chunk.density_ratios.name();
       b.eye_local = glm::vec3(glm::inverse(world_from_local) * glm::dvec4(view.eye_world, 1.0));
       // The blended baselines: every point once as the opaque disc, with the opacity that m
       // stacked discs (density x disc area) turn into the model's.

@@ -320,6 +320,7 @@ int main(int argc, char** argv) {
     render::StreamerOptions stream_options;
     stream_options.budget_bytes = uint64_t(budget_mb * 1048576.0);
     stream_options.normals = no_slant;  // cos(theta) needs a normal per point
+    for (const auto& m : instances) stream_options.density_ratios |= m.opacity < 1.0f;
     auto renderView = [&](const std::string& name, const render::ViewSetup& v) {
       render::ViewRenderer r(v.width, v.height, nullptr, stream_options);
       render::RenderStats st;

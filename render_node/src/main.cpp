@@ -80,6 +80,7 @@ class RenderNode {
     updateModels();
     render::StreamerOptions stream;
     if (mSetup.gpu_budget_bytes() > 0) stream.budget_bytes = mSetup.gpu_budget_bytes();
+    stream.density_ratios = true;  // any model may turn see-through during the session
     try {
       mRenderer = std::make_unique<render::ViewRenderer>(mTile->pixel_width(),
                                                          mTile->pixel_height(), nullptr, stream);

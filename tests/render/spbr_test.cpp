@@ -62,6 +62,30 @@ TEST(Spbr, SphereDensityMeasuresAUniformPlane) {
   EXPECT_NEAR(sphereDensity(pts, 0.01, 1000, 1, 20000), expected, 0.03 * expected);
 }
 
+TEST(Spbr, DensityRatiosEvenOutAJumpInsideANode) {
+  std::mt19937 rng(9);
+  std::uniform_real_distribution<float> u(0.0f, 1.0f);
+  std::vector<glm::vec3> pts;
+  for (int i = 0; i < 40000; ++i) pts.push_back({0.5f * u(rng), u(rng), 0.0f});          // left
+  for (int i = 0; i < 160000; ++i) pts.push_back({0.5f + 0.5f * u(rng), u(rng), 0.0f});  // 4x
+  const double node = sphereDensity(pts, 0.01, 512, 2);
+  const std::vector<float> r =
+      densityRatios(pts, 0.01, glm::vec3(0.0f), glm::vec3(1.0f, 1.0f, 0.0f), node);
+  double left = 0, right = 0;
+  size_t nl = 0, nr = 0, border = 0;
+  for (size_t i = 0; i < pts.size(); ++i) {
+    if (pts[i].x < 0.02f || pts[i].y < 0.02f || pts[i].y > 0.98f || pts[i].x > 0.98f) {
+      border += r[i] == 1.0f;  // near the node's faces: the node's own density
+      continue;
+    }
+    if (pts[i].x < 0.45f) left += r[i], ++nl;
+    if (pts[i].x > 0.55f) right += r[i], ++nr;
+  }
+  EXPECT_GT(border, 1000u);
+  // k scales by the ratio: four times the points take a quarter of the copies each.
+  EXPECT_NEAR((left / nl) / (right / nr), 4.0, 0.4);
+}
+
 TEST(Spbr, NormalsOfATiltedPlane) {
   std::mt19937 rng(5);
   std::uniform_real_distribution<float> u(0.0f, 1.0f);

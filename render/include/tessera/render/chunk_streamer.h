@@ -30,7 +30,8 @@ struct GpuChunk {
   /// Points per unit area (store units) by sphere counts on the chunk's own points (spbr.h),
   /// for see-through rendering; 0 when too few points.
   double density = 0.0;
-  GlBuffer normals;  ///< 10:10:10 normals, when StreamerOptions::normals
+  GlBuffer normals;         ///< 10:10:10 normals, when StreamerOptions::normals
+  GlBuffer density_ratios;  ///< float per point (spbr.h densityRatios()), when asked for
 };
 
 /// Counters of the last frame (requested..evicted, pages_*) and the state after it.
@@ -54,6 +55,10 @@ struct StreamerOptions {
   /// Estimate a normal per point on loading (see-through rendering without slant shading).
   /// Costs about as much as decoding again.
   bool normals = false;
+  /// Measure each point's density against its node's on loading (see-through rendering evens
+  /// out density jumps inside a node with it, e.g. overlapping scans). About as costly as
+  /// decoding; render nodes and see-through views turn it on.
+  bool density_ratios = false;
 };
 
 class ChunkStreamer {

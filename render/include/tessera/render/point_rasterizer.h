@@ -34,12 +34,13 @@ struct DrawBatch {
   uint32_t color_override = 0;  ///< non-zero: 0x1000000 | rgb for every point (r low byte)
 
   // See-through (renderEnsembles() only; spbr.h):
-  float spbr_k = 0.0f;        ///< copies per point over all ensembles (eq. 4), <= total ensembles
-  float disc_k = 0.0f;        ///< cross-section disc radius in pixels at view depth 1
-  uint32_t seed = 0;          ///< stable key of the node: picks each point's ensembles
-  uint32_t normals = 0;       ///< GL buffer of 10:10:10 normals (slant shading off), or 0
-  glm::vec3 eye_local{0.0f};  ///< the eye in the batch's frame
-  float point_alpha = 0.0f;   ///< blended baselines (renderBlended()): each point's opacity
+  float spbr_k = 0.0f;          ///< copies per point over all ensembles (eq. 4), <= total ensembles
+  float disc_k = 0.0f;          ///< cross-section disc radius in pixels at view depth 1
+  uint32_t seed = 0;            ///< stable key of the node: picks each point's ensembles
+  uint32_t normals = 0;         ///< GL buffer of 10:10:10 normals (slant shading off), or 0
+  glm::vec3 eye_local{0.0f};    ///< the eye in the batch's frame
+  uint32_t density_ratios = 0;  ///< GL buffer of per-point density ratios (k scale), or 0
+  float point_alpha = 0.0f;     ///< blended baselines (renderBlended()): each point's opacity
 };
 
 struct Image {

@@ -73,6 +73,16 @@ SpbrNodeParams spbrNodeParams(double alpha, double density, double spacing,
 double sphereDensity(std::span<const glm::vec3> points, double radius, uint32_t centres,
                      uint32_t seed, size_t max_points = 65536);
 
+/// Each point's density relative to its node's: `node_density` / (points within `radius` /
+/// (pi radius^2)), clamped to [1/8, 8], for points at least `radius` inside `box` (on the axes
+/// where it is wider than 4 radii); 1 elsewhere
+/// (spheres cut by the node's faces would undercount). Scaling k by it evens out density jumps
+/// inside a node, such as overlapping scans (bench/spbr, "where it breaks"). Inputs beyond
+/// `max_points` count neighbours among a random subset with wider spheres. O(n).
+std::vector<float> densityRatios(std::span<const glm::vec3> points, double radius,
+                                 const glm::vec3& box_min, const glm::vec3& box_max,
+                                 double node_density, size_t max_points = 65536);
+
 /// Unit normals by principal component analysis of the points within `radius` of each point,
 /// packed as 10:10:10 signed normalised integers (x in the low bits); 0 where fewer than 3
 /// points are near. For turning the slant shading off (cross-section s cos(theta), eq. 2).
