@@ -64,7 +64,7 @@ struct StreamerOptions {
 class ChunkStreamer {
  public:
   /// Starts the loader thread. A GL context must be current on the constructing thread, which
-  /// is the only thread that may call the methods below (except stats readers noted).
+  /// is the only thread that may call the methods below.
   explicit ChunkStreamer(const StreamerOptions& options = {});
   /// Stops the loader (finishing the chunk in flight) and frees every buffer.
   ~ChunkStreamer();
