@@ -21,6 +21,7 @@
 #include <tessera/render/view_renderer.h>
 #include <tessera/sync/config.h>
 
+#include <tessera/core/stopwatch.h>
 #include "bench_inputs.h"
 
 namespace {
@@ -28,10 +29,6 @@ namespace {
 using namespace tessera;
 namespace fs = std::filesystem;
 using Clock = std::chrono::steady_clock;
-
-double msSince(Clock::time_point t) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - t).count();
-}
 
 /// PSNR of the RGB channels; with `box` > 1, of the images averaged over box x box blocks
 /// first (what a viewer a few metres from the wall resolves; the scan's sub-millimetre noise

@@ -30,6 +30,7 @@
 #include <tessera/render/reference_compositor.h>
 #include <tessera/render/view_renderer.h>
 
+#include <tessera/core/stopwatch.h>
 #include "bench_inputs.h"
 
 namespace {
@@ -37,10 +38,6 @@ namespace {
 using namespace tessera;
 namespace fs = std::filesystem;
 using Clock = std::chrono::steady_clock;
-
-double msSince(Clock::time_point t) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - t).count();
-}
 
 void gnuplot(const fs::path& script) {
   const std::string cmd = std::string(TESSERA_GNUPLOT) + " '" + script.string() + "'";

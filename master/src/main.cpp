@@ -24,6 +24,7 @@
 #include <tessera/sync/mpi_transport.h>
 #include <tessera/sync/wire.h>
 
+#include <tessera/core/stopwatch.h>
 #include "console.h"
 
 namespace {
@@ -31,10 +32,6 @@ namespace {
 using namespace tessera;
 namespace fs = std::filesystem;
 using Clock = std::chrono::steady_clock;
-
-double msSince(Clock::time_point t) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - t).count();
-}
 
 /// A reason to stop before rendering (bad config, wrong node count): printed, exit code 1.
 struct StartError : std::runtime_error {

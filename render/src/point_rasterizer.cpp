@@ -45,6 +45,18 @@ uint32_t compileCompute(const char* source, const char* name) {
   return program;
 }
 
+/// Dispatches `count` points in slices of at most 65535 work groups of 128 (GL's guaranteed
+/// minimum, llvmpipe's limit); `setSlice(first, n)` sets each slice's uniforms and bindings.
+template <typename F>
+void dispatchSlices(uint32_t count, F&& setSlice) {
+  constexpr uint32_t kMaxPoints = 65535u * 128u;
+  for (uint32_t done = 0; done < count; done += kMaxPoints) {
+    const uint32_t n = std::min(kMaxPoints, count - done);
+    setSlice(done, n);
+    glDispatchCompute((n + 127) / 128, 1, 1);
+  }
+}
+
 /// Milliseconds since the previous lap (or construction), with the GL work finished.
 class GpuLap {
  public:
@@ -171,9 +183,7 @@ RasterTimings PointRasterizer::drawEnsembles(std::span<const DrawBatch> batches,
           glBindBufferRange(GL_SHADER_STORAGE_BUFFER, 0, mPoints, GLintptr(b.first) * 16,
                             GLsizeiptr(b.count) * 16);
         }
-        const uint32_t kMaxPoints = 65535u * 128u;
-        for (uint32_t done = 0; done < b.count; done += kMaxPoints) {
-          const uint32_t c = std::min(kMaxPoints, b.count - done);
+        dispatchSlices(b.count, [&](uint32_t done, uint32_t c) {
           glUniform1ui(u_count, c);
           // Later slices of a huge batch: a bound range keeps indices within the slice; the
           // seed changes with the slice so their points stay independent.
@@ -182,8 +192,7 @@ RasterTimings PointRasterizer::drawEnsembles(std::span<const DrawBatch> batches,
                               GLintptr(b.first + done) * 16, GLsizeiptr(c) * 16);
             glUniform1ui(u_seed, b.seed ^ (done * 0x9E3779B9u));
           }
-          glDispatchCompute((c + 127) / 128, 1, 1);
-        }
+        });
       }
       glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
       (pass == 0 ? timings.depth_ms : timings.color_ms) += lap();
@@ -228,16 +237,13 @@ RasterTimings PointRasterizer::renderBlended(std::span<const DrawBatch> batches,
     glUniform1f(glGetUniformLocation(mOitProgram, "uDiscK"), b.disc_k);
     glUniform1f(glGetUniformLocation(mOitProgram, "uAlpha"), b.point_alpha);
     glUniform1ui(glGetUniformLocation(mOitProgram, "uColorOverride"), b.color_override);
-    const uint32_t kMaxPoints = 65535u * 128u;
-    for (uint32_t done = 0; done < b.count; done += kMaxPoints) {
-      const uint32_t c = std::min(kMaxPoints, b.count - done);
+    dispatchSlices(b.count, [&](uint32_t done, uint32_t c) {
       if (done) {
         glBindBufferRange(GL_SHADER_STORAGE_BUFFER, 0, b.buffer ? b.buffer : mPoints,
                           GLintptr(b.first + done) * 16, GLsizeiptr(c) * 16);
       }
       glUniform1ui(glGetUniformLocation(mOitProgram, "uCount"), c);
-      glDispatchCompute((c + 127) / 128, 1, 1);
-    }
+    });
   }
   glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
   timings.depth_ms = lap();
@@ -313,14 +319,10 @@ RasterTimings PointRasterizer::render(std::span<const DrawBatch> batches,
       glUniform1ui(glGetUniformLocation(mRasterProgram, "uColorOverride"), b.color_override);
       glUniformMatrix4fv(u_clip, 1, GL_FALSE, &b.clip_from_local[0][0]);
       glUniform1i(u_radius, b.splat_radius);
-      // At most 65535 work groups per dispatch (GL's guaranteed minimum, llvmpipe's limit).
-      const uint32_t kMaxPoints = 65535u * 128u;
-      for (uint32_t done = 0; done < b.count; done += kMaxPoints) {
-        const uint32_t count = std::min(kMaxPoints, b.count - done);
+      dispatchSlices(b.count, [&](uint32_t done, uint32_t count) {
         glUniform1ui(u_first, b.first + done);
         glUniform1ui(u_count, count);
-        glDispatchCompute((count + 127) / 128, 1, 1);
-      }
+      });
     }
     glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
     (pass == 0 ? timings.depth_ms : timings.color_ms) = lap();

@@ -10,14 +10,11 @@
 #include <glm/gtc/matrix_transform.hpp>
 
 #include <tessera/core/check.h>
+#include <tessera/core/stopwatch.h>
 #include <tessera/render/gl_context.h>
 
 namespace tessera::render {
 namespace {
-
-double msSince(std::chrono::steady_clock::time_point t) {
-  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t).count();
-}
 
 uint32_t packRgb(const glm::u8vec3& c) {
   return uint32_t(c.r) | uint32_t(c.g) << 8 | uint32_t(c.b) << 16;

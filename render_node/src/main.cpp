@@ -13,6 +13,7 @@
 #include <optional>
 
 #include <tessera/cluster.pb.h>
+#include <tessera/core/stopwatch.h>
 #include <tessera/render/gl_context.h>
 #include <tessera/render/view_renderer.h>
 #include <tessera/render/window.h>
@@ -26,10 +27,6 @@ namespace {
 using namespace tessera;
 using Clock = std::chrono::steady_clock;
 using sync::NodeFailure;
-
-double msSince(Clock::time_point t) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - t).count();
-}
 
 /// A failure with the code the master reports.
 struct NodeError : std::runtime_error {

@@ -9,16 +9,13 @@
 #include <thread>
 
 #include <tessera/core/check.h>
+#include <tessera/core/stopwatch.h>
 
 namespace tessera::sync {
 
 namespace {
 
 using Clock = std::chrono::steady_clock;
-
-double msSince(Clock::time_point t) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - t).count();
-}
 
 /// The fixed part of a broadcast: what follows and how long it is.
 struct BroadcastHeader {
