@@ -107,7 +107,7 @@ struct ChunkStreamer::Impl {
           out.disk_bytes = item.store->chunkBytes(item.node);
           out.spacing = item.store->node(item.node).spacing;
           // Spheres four spacings wide hold about 50 points of a surface.
-          out.density = sphereDensity(chunk->positions, 4.0 * out.spacing, 128, item.node);
+          out.density = sphereDensity(chunk->positions, 4.0 * out.spacing, 128, item.node, 16384);
           if (options.normals) out.normals = estimateNormals(chunk->positions, 2.5 * out.spacing);
           if (options.density_ratios) {
             const lod::NodeInfo info = item.store->node(item.node);

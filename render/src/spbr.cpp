@@ -1,55 +1,70 @@
 #include <tessera/render/spbr.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 #include <numbers>
-#include <unordered_map>
 #include <vector>
 
 namespace tessera::render {
 
 namespace {
 
-/// Points bucketed by a hash of their cell of side `cell`: a sphere of radius `cell` around any
-/// point meets the 27 cells around its own.
+/// Points bucketed by a hash of their cell of side `cell` (a counting sort into a flat table: no
+/// allocation per cell, as this runs on every chunk the loader decodes): a sphere of radius
+/// `cell` around any point meets the 27 cells around its own.
 class CellGrid {
  public:
   CellGrid(std::span<const glm::vec3> points, double cell) : mPoints(points), mCell(float(cell)) {
     mLo = glm::vec3(std::numeric_limits<float>::max());
     for (const glm::vec3& p : points) mLo = glm::min(mLo, p);
-    mCells.reserve(points.size() / 4 + 1);
+    size_t buckets = 16;
+    while (buckets < 2 * points.size()) buckets *= 2;
+    mMask = buckets - 1;
+    mStart.assign(buckets + 1, 0);
+    for (const glm::vec3& p : points) ++mStart[bucket(cellOf(p)) + 1];
+    for (size_t b = 0; b < buckets; ++b) mStart[b + 1] += mStart[b];
+    mOrder.resize(points.size());
+    std::vector<uint32_t> fill(mStart.begin(), mStart.end() - 1);
     for (size_t i = 0; i < points.size(); ++i)
-      mCells[key(cellOf(points[i]))].push_back(uint32_t(i));
+      mOrder[fill[bucket(cellOf(points[i]))]++] = uint32_t(i);
   }
   /// Calls f(j) for every point j within `radius` (<= cell) of `p`.
   template <typename F>
   void near(const glm::vec3& p, float radius, F&& f) const {
     const glm::ivec3 c = cellOf(p);
-    const float r2 = radius * radius;
+    // Neighbouring cells may share a bucket: visit each bucket once.
+    std::array<size_t, 27> visit;
+    size_t n = 0;
     for (int dz = -1; dz <= 1; ++dz)
       for (int dy = -1; dy <= 1; ++dy)
-        for (int dx = -1; dx <= 1; ++dx) {
-          auto it = mCells.find(key(c + glm::ivec3(dx, dy, dz)));
-          if (it == mCells.end()) continue;
-          for (uint32_t j : it->second) {
-            const glm::vec3 d = mPoints[j] - p;
-            if (glm::dot(d, d) <= r2) f(j);
-          }
-        }
+        for (int dx = -1; dx <= 1; ++dx) visit[n++] = bucket(c + glm::ivec3(dx, dy, dz));
+    std::sort(visit.begin(), visit.end());
+    const float r2 = radius * radius;
+    for (size_t k = 0; k < visit.size(); ++k) {
+      if (k && visit[k] == visit[k - 1]) continue;
+      for (uint32_t o = mStart[visit[k]]; o < mStart[visit[k] + 1]; ++o) {
+        const uint32_t j = mOrder[o];
+        const glm::vec3 d = mPoints[j] - p;
+        if (glm::dot(d, d) <= r2) f(j);
+      }
+    }
   }
 
  private:
   glm::ivec3 cellOf(const glm::vec3& p) const { return glm::ivec3(glm::floor((p - mLo) / mCell)); }
-  static uint64_t key(const glm::ivec3& c) {
-    return (uint64_t(uint32_t(c.x)) * 0x9E3779B97F4A7C15ull) ^
-           (uint64_t(uint32_t(c.y)) * 0xC2B2AE3D27D4EB4Full) ^
-           (uint64_t(uint32_t(c.z)) * 0x165667B19E3779F9ull);
+  size_t bucket(const glm::ivec3& c) const {
+    const uint64_t h = (uint64_t(uint32_t(c.x)) * 0x9E3779B97F4A7C15ull) ^
+                       (uint64_t(uint32_t(c.y)) * 0xC2B2AE3D27D4EB4Full) ^
+                       (uint64_t(uint32_t(c.z)) * 0x165667B19E3779F9ull);
+    return size_t(h >> 24) & mMask;
   }
   std::span<const glm::vec3> mPoints;
   float mCell;
   glm::vec3 mLo;
-  std::unordered_map<uint64_t, std::vector<uint32_t>> mCells;
+  size_t mMask = 0;
+  std::vector<uint32_t> mStart, mOrder;
 };
 
 }  // namespace
