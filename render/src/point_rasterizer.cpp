@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
+#include <cstring>
 #include <string>
 
 #define GL_GLEXT_PROTOTYPES
@@ -372,6 +373,30 @@ void writePng(const std::string& path, const Image& image) {
   png_write_end(png, nullptr);
   png_destroy_write_struct(&png, &info);
   if (std::fclose(f) != 0) throw RenderError("render::writePng(): closing " + path + " failed");
+}
+
+Image readPng(const std::string& path) {
+  png_image png;
+  std::memset(&png, 0, sizeof png);
+  png.version = PNG_IMAGE_VERSION;
+  if (!png_image_begin_read_from_file(&png, path.c_str()))
+    throw RenderError("render::readPng(): " + path + ": " + png.message);
+  png.format = PNG_FORMAT_RGBA;
+  if (png.width == 0 || png.height == 0 || png.width > 65536 || png.height > 65536) {
+    png_image_free(&png);
+    throw RenderError("render::readPng(): " + path + ": " + std::to_string(png.width) + "x" +
+                      std::to_string(png.height) + " pixels (1..65536 each way)");
+  }
+  Image img;
+  img.width = png.width;
+  img.height = png.height;
+  img.rgba.resize(PNG_IMAGE_SIZE(png));
+  if (!png_image_finish_read(&png, nullptr, img.rgba.data(), 0, nullptr)) {
+    const std::string why = png.message;
+    png_image_free(&png);
+    throw RenderError("render::readPng(): " + path + ": " + why);
+  }
+  return img;
 }
 
 }  // namespace tessera::render

@@ -7,6 +7,24 @@
 
 namespace tessera::render {
 
+Image lostTileImage(uint32_t width, uint32_t height) {
+  Image img;
+  img.width = width;
+  img.height = height;
+  img.rgba.resize(size_t(width) * height * 4);
+  for (uint32_t y = 0; y < height; ++y) {
+    for (uint32_t x = 0; x < width; ++x) {
+      const bool red = ((x + y) / 16) % 2 == 0;
+      uint8_t* p = &img.rgba[(size_t(y) * width + x) * 4];
+      p[0] = red ? 200 : 20;
+      p[1] = red ? 30 : 20;
+      p[2] = red ? 30 : 20;
+      p[3] = 255;
+    }
+  }
+  return img;
+}
+
 Image assembleWallMosaic(const config::WallConfig& wall, std::span<const Image> tiles) {
   TESSERA_CHECK(tiles.size() == size_t(wall.tiles_size()), "one image per tile of the wall");
   // The wall's pixel size does not depend on the camera; any valid one will do.

@@ -43,6 +43,10 @@ config::WallConfig parseWallConfig(const std::string& json, const std::string& n
   if (!wall.has_eye() || !detail::finite(wall.eye()) || !(wall.eye().z() > 0)) {
     fail(fn, name, "eye", "the viewer's eye must be in front of the wall (z > 0, metres)");
   }
+  if (wall.min_live_tiles() > uint32_t(wall.tiles_size()))
+    fail(fn, name, "minLiveTiles",
+         "is " + std::to_string(wall.min_live_tiles()) + " but the wall has only " +
+             std::to_string(wall.tiles_size()) + " tiles");
   if (wall.near() == 0) wall.set_near(0.05);
   if (wall.far() == 0) wall.set_far(1000.0);
   if (!(wall.near() > 0) || !(wall.far() > wall.near()))

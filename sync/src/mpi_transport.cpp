@@ -17,25 +17,7 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
-/// The fixed part of a broadcast: what follows and how long it is.
-struct BroadcastHeader {
-  int32_t kind = 0;
-  uint32_t flags = 0;
-  uint64_t bytes = 0;
-};
-
 }  // namespace
-
-void NodeStatus::set(NodeFailure failure, std::string_view message) {
-  code = int32_t(failure);
-  const size_t n = std::min(message.size(), sizeof text - 1);
-  std::memcpy(text, message.data(), n);
-  text[n] = '\0';
-}
-
-std::string NodeStatus::message() const {
-  return std::string(text, strnlen(text, sizeof text));
-}
 
 MpiTransport::MpiTransport(int* argc, char*** argv, std::string who, double timeout_s)
     : mWho(std::move(who)), mTimeoutS(timeout_s) {
@@ -87,30 +69,19 @@ void MpiTransport::wait(void* request_ptr, const char* what) {
   }
 }
 
-uint64_t MpiTransport::broadcast(ClusterMessage& kind, uint32_t& flags, std::string& bytes,
-                                 const char* what) {
-  BroadcastHeader header;
-  if (mRank == 0) {
-    header.kind = int32_t(kind);
-    header.flags = flags;
-    header.bytes = bytes.size();
-  }
+uint64_t MpiTransport::broadcast(std::string& bytes, const char* what) {
+  uint64_t size = mRank == 0 ? bytes.size() : 0;
   MPI_Request request;
-  MPI_Ibcast(&header, sizeof header, MPI_BYTE, 0, MPI_COMM_WORLD, &request);
+  MPI_Ibcast(&size, 1, MPI_UINT64_T, 0, MPI_COMM_WORLD, &request);
   wait(&request, what);
-  kind = ClusterMessage(header.kind);
-  flags = header.flags;
-  if (header.bytes > uint64_t(INT32_MAX))
-    abort(5, std::string("a broadcast of ") + std::to_string(header.bytes) +
+  if (size > uint64_t(INT32_MAX))
+    abort(5, std::string("a broadcast of ") + std::to_string(size) +
                  " bytes is over MPI's 2 GiB count limit");
-  if (header.bytes == 0) {
-    bytes.clear();
-    return sizeof header;
-  }
-  if (mRank != 0) bytes.resize(header.bytes);
-  MPI_Ibcast(bytes.data(), int(header.bytes), MPI_BYTE, 0, MPI_COMM_WORLD, &request);
+  if (mRank != 0) bytes.resize(size);
+  if (size == 0) return sizeof size;
+  MPI_Ibcast(bytes.data(), int(size), MPI_BYTE, 0, MPI_COMM_WORLD, &request);
   wait(&request, what);
-  return sizeof header + header.bytes;
+  return sizeof size + size;
 }
 
 double MpiTransport::swapBarrier() {
@@ -121,43 +92,15 @@ double MpiTransport::swapBarrier() {
   return msSince(start);
 }
 
-template <class T>
-std::vector<T> MpiTransport::gatherFixed(const T& mine, const char* what) {
-  std::vector<T> all(mRank == 0 ? size_t(mSize) : 0);
-  MPI_Request request;
-  MPI_Igather(&mine, sizeof(T), MPI_BYTE, all.data(), sizeof(T), MPI_BYTE, 0, MPI_COMM_WORLD,
-              &request);
-  wait(&request, what);
-  return all;
-}
-
-std::vector<NodeStatus> MpiTransport::gatherStatus(const NodeStatus& mine) {
-  return gatherFixed(mine, "startup status of every node");
-}
-
-std::vector<NodeFrameStats> MpiTransport::gatherStats(const NodeFrameStats& mine) {
-  return gatherFixed(mine, "frame statistics of every node");
-}
-
-std::vector<std::string> MpiTransport::gatherHosts() {
-  struct Host {
-    char name[MPI_MAX_PROCESSOR_NAME];
-  } mine = {};
-  std::memcpy(mine.name, mHost.data(), std::min(mHost.size(), sizeof mine.name - 1));
-  std::vector<std::string> hosts;
-  for (const Host& h : gatherFixed(mine, "host names of every rank"))
-    hosts.emplace_back(h.name, strnlen(h.name, sizeof h.name));
-  return hosts;
-}
-
-std::vector<std::string> MpiTransport::gatherBytes(std::string_view mine) {
+std::vector<std::string> MpiTransport::gatherBytes(std::string_view mine, const char* what) {
   if (mine.size() > size_t(INT32_MAX))
-    abort(5, "a tile of " + std::to_string(mine.size()) + " bytes is over MPI's 2 GiB limit");
+    abort(5, std::string(what) + ": " + std::to_string(mine.size()) +
+                 " bytes are over MPI's 2 GiB limit");
   const int my_count = int(mine.size());
   std::vector<int> counts(mRank == 0 ? size_t(mSize) : 0);
   MPI_Request request;
   MPI_Igather(&my_count, 1, MPI_INT, counts.data(), 1, MPI_INT, 0, MPI_COMM_WORLD, &request);
-  wait(&request, "tile image sizes");
+  wait(&request, what);
   std::vector<int> displs(counts.size(), 0);
   std::vector<char> all;
   if (mRank == 0) {
@@ -165,17 +108,41 @@ std::vector<std::string> MpiTransport::gatherBytes(std::string_view mine) {
     for (size_t i = 0; i < counts.size(); ++i) {
       displs[i] = int(total);
       total += counts[i];
+      if (total > int64_t(INT32_MAX)) abort(5, std::string(what) + ": over MPI's 2 GiB limit");
     }
-    if (total > int64_t(INT32_MAX)) abort(5, "a wall screenshot over MPI's 2 GiB limit");
     all.resize(size_t(total));
   }
   MPI_Igatherv(mine.data(), my_count, MPI_BYTE, all.data(), counts.data(), displs.data(), MPI_BYTE,
                0, MPI_COMM_WORLD, &request);
-  wait(&request, "tile images");
+  wait(&request, what);
   std::vector<std::string> parts;
   for (size_t i = 0; i < counts.size(); ++i)
     parts.emplace_back(all.data() + displs[i], size_t(counts[i]));
   return parts;
+}
+
+std::string MpiTransport::scatterBytes(const std::vector<std::string>& parts, const char* what) {
+  std::vector<int> counts, displs;
+  std::string all;
+  if (mRank == 0) {
+    TESSERA_CHECK(parts.size() == size_t(mSize), "one part per rank");
+    for (const std::string& p : parts) {
+      if (all.size() + p.size() > size_t(INT32_MAX))
+        abort(5, std::string(what) + ": over MPI's 2 GiB limit");
+      counts.push_back(int(p.size()));
+      displs.push_back(int(all.size()));
+      all += p;
+    }
+  }
+  int my_count = 0;
+  MPI_Request request;
+  MPI_Iscatter(counts.data(), 1, MPI_INT, &my_count, 1, MPI_INT, 0, MPI_COMM_WORLD, &request);
+  wait(&request, what);
+  std::string mine(size_t(my_count), '\0');
+  MPI_Iscatterv(all.data(), counts.data(), displs.data(), MPI_BYTE, mine.data(), my_count, MPI_BYTE,
+                0, MPI_COMM_WORLD, &request);
+  wait(&request, what);
+  return mine;
 }
 
 }  // namespace tessera::sync

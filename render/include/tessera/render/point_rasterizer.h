@@ -114,5 +114,8 @@ class PointRasterizer {
 
 /// Writes an 8-bit RGBA PNG. Throws RenderError naming the file on failure.
 void writePng(const std::string& path, const Image& image);
+/// Reads an 8-bit RGB or RGBA PNG (any libpng can expand: palette, grey, 16-bit are converted)
+/// into RGBA, top row first. Throws RenderError naming the file on anything unreadable.
+Image readPng(const std::string& path);
 
 }  // namespace tessera::render

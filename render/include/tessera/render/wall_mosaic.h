@@ -15,6 +15,11 @@ namespace tessera::render {
 /// The R, G and B of bezel pixels (opaque).
 constexpr uint8_t kBezelGrey = 24;
 
+/// What a wall screenshot shows for a tile whose node is lost (dead, hung, never joined): red and
+/// near-black diagonal stripes 16 pixels wide, so a lost tile is never mistaken for a stale or
+/// dark picture. width x height RGBA. Cost: one pass over the image.
+Image lostTileImage(uint32_t width, uint32_t height);
+
 /// The wall image: wholeWallView(wall, ...).width x height, RGBA top row first. `tiles[i]` is
 /// the image of wall.tiles(i) (tileView() size); each is copied to tileOffsetInWhole() and clipped
 /// to the wall image. Precondition (TESSERA_CHECK): one image per tile, each width * height * 4

@@ -1,0 +1,110 @@
+// The master's loop (DESIGN.md, master/): owns the scene graph, plays the script and the
+// console's input into it, and drives the render nodes through a cluster link
+// (sync/cluster_link.h), whichever its transport. Per frame:
+//
+//   joins      welcome each new node with the wall, its tile and a snapshot (late joiners and
+//              nodes that come back are the same case)
+//   publish    what changed (SceneGraph::takeFrame), asking for read-back on screenshot frames
+//   collect    every live tile's report, until the node timeout; a tile that misses it is
+//              dropped (dead: its connection closed; hung: connected but silent; protocol
+//              error; failed: it said why), and the others go on
+//   swap       the barrier's release: every node presents
+//   screenshot the tiles' pixels assembled with bezels; a tile without a live node is drawn
+//              as render::lostTileImage(), never left stale
+//
+// Failure policies from the wall config: a `critical` tile lost, or fewer live tiles than
+// `minLiveTiles`, stops the wall with a message (exit code kPolicyStop).
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <stdexcept>
+#include <string>
+
+#include <tessera/master/script_player.h>
+#include <tessera/master/tile_table.h>
+#include <tessera/sync/cluster_link.h>
+#include <tessera/sync/config.h>
+#include <tessera/sync/scene_graph.h>
+
+namespace tessera::master {
+
+class Console;
+
+/// A reason to stop before rendering (bad config, nodes that cannot start): exit code 1.
+struct StartError : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+/// Exit codes of Master::run().
+constexpr int kExitOk = 0;
+constexpr int kExitStart = 1;       ///< bad input, or the wall could not start
+constexpr int kExitPolicyStop = 5;  ///< a critical tile or too many tiles lost mid-run
+
+struct MasterOptions {
+  std::string wall, scene, script, screenshot, stats, out_dir = ".";
+  int frames = 0;      ///< > 0: deterministic run of this many frames (script time = f / fps)
+  double fps = 60.0;   ///< script frames per second with `frames`
+  double max_fps = 0;  ///< > 0: frames start at most this often (real time)
+  bool console = false;
+  uint32_t console_width = 960;
+  double splat_scale = 2.0, gpu_budget_mb = 1024.0;
+  /// A live node's report may be this late (ms) before its tile is dropped; 0: automatic, five
+  /// times the slowest node's median render time over the last 15 frames, at least 1000 ms.
+  double node_timeout_ms = 0;
+  /// Before the first frame: how long to wait for a node per tile (seconds), and for each
+  /// node's first rendered frame (cold caches).
+  double join_wait_s = 10.0, first_frame_timeout_s = 120.0;
+};
+
+class Master {
+ public:
+  Master(sync::MasterLink& link, MasterOptions options);
+  ~Master();
+
+  /// Loads and checks the wall, the scene and the script. Throws StartError / sync::ConfigError
+  /// naming the file and field.
+  void prepare();
+
+  /// Opens the console window when asked (without a display it says so and goes on headless).
+  void openConsole();
+
+  /// Joins, the frame loop, the end. Returns an exit code (kExit*). Messages go to stdout
+  /// (progress: joins, drops, screenshots) and stderr (failures).
+  int run();
+
+  const config::WallConfig& wall() const { return mWall; }
+
+ private:
+  struct Pending;  // per-frame collection state
+  bool start();
+  void handleJoins(const sync::LinkEvents& events);
+  void handleFaults(const sync::LinkEvents& events);
+  void loseTile(uint32_t tile, const std::string& reason);
+  std::optional<std::string> policyViolation() const;
+  double nodeTimeoutMs() const;
+  cluster::ClusterSetup setupFor(uint32_t tile) const;
+  void writeScreenshots(const std::vector<std::string>& paths, uint64_t frame,
+                        const std::vector<std::string>& pixels);
+  void writeStatsHeader();
+  void writeStats(uint64_t frame, double t, size_t frame_bytes, double sync_ms, double barrier_ms,
+                  double present_ms, double frame_ms,
+                  const std::vector<std::optional<cluster::NodeReport>>& reports);
+  std::string message(const std::string& text) const;
+
+  sync::MasterLink& mLink;
+  MasterOptions mOpt;
+  config::WallConfig mWall;
+  std::unique_ptr<TileTable> mTiles;
+  sync::SceneGraph mGraph;
+  std::optional<ScriptPlayer> mPlayer;
+  std::unique_ptr<Console> mConsole;
+  std::unique_ptr<std::ofstream> mCsv;
+  std::vector<double> mRenderMs;  // the slowest node's render time, last frames
+  uint64_t mFrame = 0;            // the last frame published
+  int mStopCode = 0;
+  std::string mStopReason;
+};
+
+}  // namespace tessera::master

@@ -1,0 +1,496 @@
+#include <tessera/master/master.h>
+
+#include <algorithm>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <thread>
+
+#include <tessera/core/stopwatch.h>
+#include <tessera/master/tile_assignment.h>
+#include <tessera/render/gl_context.h>
+#include <tessera/render/wall_mosaic.h>
+#include <tessera/sync/camera_path.h>
+#include <tessera/sync/wire.h>
+
+#include "console.h"
+
+namespace tessera::master {
+
+namespace {
+
+namespace fs = std::filesystem;
+using Clock = sync::LinkClock;
+using State = TileTable::State;
+
+const char* failureName(cluster::NodeFailure code) {
+  switch (code) {
+    case cluster::NODE_NO_GL:
+      return "no GL";
+    case cluster::NODE_BAD_STORE:
+      return "unreadable store";
+    case cluster::NODE_BAD_TILE:
+      return "bad tile";
+    case cluster::NODE_BAD_FRAME:
+      return "bad frame";
+    case cluster::NODE_RENDER:
+      return "render failure";
+    case cluster::NODE_REFUSED:
+      return "refused";
+    default:
+      return "failure";
+  }
+}
+
+/// `eye=X,Y,Z;target=X,Y,Z;up=X,Y,Z` with every digit, as tessera-render --camera reads it.
+std::string cameraArgument(const config::Camera& c) {
+  char s[512];
+  std::snprintf(s, sizeof s, "eye=%.17g,%.17g,%.17g;target=%.17g,%.17g,%.17g;up=%.17g,%.17g,%.17g",
+                c.eye().x(), c.eye().y(), c.eye().z(), c.target().x(), c.target().y(),
+                c.target().z(), c.up().x(), c.up().y(), c.up().z());
+  return s;
+}
+
+Clock::time_point after(double ms) {
+  return Clock::now() + std::chrono::microseconds(int64_t(ms * 1000.0));
+}
+
+}  // namespace
+
+Master::Master(sync::MasterLink& link, MasterOptions options)
+    : mLink(link), mOpt(std::move(options)) {}
+
+Master::~Master() = default;
+
+std::string Master::message(const std::string& text) const {
+  return "tessera-master: frame " + std::to_string(mFrame) + ": " + text;
+}
+
+void Master::prepare() {
+  mWall = sync::loadWallConfig(mOpt.wall);
+  const config::SceneConfig scene = sync::loadSceneConfig(mOpt.scene);
+  for (int i = 0; i < scene.models_size(); ++i) {
+    const fs::path store = scene.models(i).store();
+    if (store.extension() != ".tlod")
+      throw StartError("tessera-master: " + mOpt.scene + ": models[" + std::to_string(i) +
+                       "].store: " + store.string() +
+                       " is not a .tlod store; build one first: tessera-lod build " +
+                       store.string() + " -o " + store.stem().string() + ".tlod");
+  }
+  if (!mOpt.script.empty()) {
+    config::CameraPath path = sync::loadCameraPath(mOpt.script);
+    sync::checkPathModels(path, scene, mOpt.script);
+    mPlayer.emplace(std::move(path));
+  }
+  mTiles = std::make_unique<TileTable>(mWall, mOpt.wall);
+  mGraph = sync::SceneGraph::fromConfig(scene);
+  (void)mGraph.takeFrame(0, 0);  // the loaded scene is the snapshot; frames count from 1
+  if (!mOpt.stats.empty()) {
+    mCsv = std::make_unique<std::ofstream>(mOpt.stats);
+    if (!*mCsv) throw StartError("tessera-master: --stats " + mOpt.stats + ": cannot write");
+    writeStatsHeader();
+  }
+}
+
+void Master::openConsole() {
+  if (!mOpt.console) return;
+  try {
+    mConsole = std::make_unique<Console>(mWall, mOpt.console_width, float(mOpt.splat_scale));
+    std::printf(
+        "tessera-master: console open (one button: click sets a target, drag orbits "
+        "it, click it to fly there; right-hand bar: forward/back; wheel zooms; 1-9 "
+        "select a model, +/- opacity, H hide, E eye-dome lighting; Esc quits)\n");
+  } catch (const render::RenderError& e) {
+    std::printf("tessera-master: --console: %s; running headless\n", e.what());
+  }
+  std::fflush(stdout);
+}
+
+cluster::ClusterSetup Master::setupFor(uint32_t tile) const {
+  cluster::ClusterSetup setup;
+  *setup.mutable_wall() = mWall;
+  setup.set_tile(mTiles->name(tile));
+  *setup.mutable_snapshot() = mGraph.snapshot();
+  setup.set_settled(mOpt.frames > 0 && !mOpt.console);
+  setup.set_splat_scale(float(mOpt.splat_scale));
+  setup.set_gpu_budget_bytes(uint64_t(mOpt.gpu_budget_mb * 1048576.0));
+  return setup;
+}
+
+void Master::handleFaults(const sync::LinkEvents& events) {
+  for (const auto& [peer, why] : events.faults) {
+    if (const auto tile = mTiles->tileOf(peer)) {
+      loseTile(*tile, "protocol error: " + why);
+    } else {
+      std::printf("%s\n", message("refused a peer: " + why).c_str());
+    }
+  }
+}
+
+void Master::handleJoins(const sync::LinkEvents& events) {
+  if (events.joins.empty()) return;
+  // MPI: every rank joins at once and each must get a tile, as before the cluster link.
+  if (!mLink.canDropNodes() && mFrame == 0) {
+    bool named = false;
+    std::vector<std::string> hosts;
+    for (const auto& [peer, hello] : events.joins) {
+      named |= !hello.tile().empty();
+      hosts.push_back(hello.host());
+    }
+    std::string refusal;
+    std::vector<uint32_t> tile_of;
+    if (!named) {
+      try {
+        tile_of = assignTiles(mWall, hosts, mOpt.wall);
+      } catch (const AssignmentError& e) {
+        refusal = e.what();
+      }
+    } else if (events.joins.size() != size_t(mWall.tiles_size())) {
+      refusal = mOpt.wall + " has " + std::to_string(mWall.tiles_size()) + " tiles but " +
+                std::to_string(events.joins.size()) + " render nodes were started";
+    }
+    for (size_t i = 0; i < events.joins.size(); ++i) {
+      const auto& [peer, hello] = events.joins[i];
+      std::variant<uint32_t, std::string> claim =
+          !refusal.empty() ? std::variant<uint32_t, std::string>(refusal)
+          : named          ? mTiles->claim(hello)
+                           : std::variant<uint32_t, std::string>(tile_of[i]);
+      if (auto* why = std::get_if<std::string>(&claim)) {
+        std::fprintf(stderr, "tessera-master: %s\n", why->c_str());
+        mStopCode = kExitStart;
+        mLink.refuse(peer, *why);
+        continue;
+      }
+      const uint32_t tile = std::get<uint32_t>(claim);
+      mTiles->assign(tile, peer, hello, mGraph.frameNumber());
+      mLink.welcome(peer, setupFor(tile));
+    }
+    return;
+  }
+  for (const auto& [peer, hello] : events.joins) {
+    // A node that joins again on the same connection gives up the tile it had.
+    if (const auto old = mTiles->tileOf(peer)) mTiles->lose(*old, "its node joined again");
+    const std::variant<uint32_t, std::string> claim = mTiles->claim(hello);
+    if (auto* why = std::get_if<std::string>(&claim)) {
+      std::printf("%s\n", message("refused a node on " + hello.host().substr(0, 64) + " (pid " +
+                                  std::to_string(hello.pid()) + "): " + *why)
+                              .c_str());
+      mLink.refuse(peer, *why);
+      continue;
+    }
+    const uint32_t tile = std::get<uint32_t>(claim);
+    const bool back = mTiles->slot(tile).state == State::kLost;
+    mTiles->assign(tile, peer, hello, mGraph.frameNumber());
+    mLink.welcome(peer, setupFor(tile));
+    std::printf("%s\n",
+                message(mTiles->describe(tile) + (back ? " rejoined" : " joined") +
+                        " from the snapshot of frame " + std::to_string(mGraph.frameNumber()))
+                    .c_str());
+  }
+  std::fflush(stdout);
+}
+
+void Master::loseTile(uint32_t tile, const std::string& reason) {
+  TileTable::Slot& s = mTiles->slot(tile);
+  if (s.state != State::kJoining && s.state != State::kLive) return;
+  std::printf("%s\n", message(mTiles->describe(tile) + " dropped: " + reason).c_str());
+  std::fflush(stdout);
+  if (mLink.canDropNodes()) {
+    mLink.drop(s.peer, reason);
+  } else if (mStopCode == 0) {
+    mStopCode = kExitStart;  // MPI cannot go on without a rank
+    mStopReason = mTiles->describe(tile) + ": " + reason;
+  }
+  mTiles->lose(tile, reason);
+}
+
+std::optional<std::string> Master::policyViolation() const {
+  for (uint32_t t = 0; t < mTiles->size(); ++t) {
+    const TileTable::Slot& s = mTiles->slot(t);
+    if (!mWall.tiles(int(t)).critical() || s.state == State::kJoining || s.state == State::kLive)
+      continue;
+    return "critical tile " + mTiles->name(t) + " has no node" +
+           (s.lost_reason.empty() ? std::string() : " (" + s.lost_reason + ")");
+  }
+  if (mTiles->driven() < mWall.min_live_tiles())
+    return std::to_string(mTiles->driven()) + " of " + std::to_string(mTiles->size()) +
+           " tiles have a node, fewer than the wall's minLiveTiles " +
+           std::to_string(mWall.min_live_tiles());
+  return std::nullopt;
+}
+
+double Master::nodeTimeoutMs() const {
+  if (mOpt.node_timeout_ms > 0) return mOpt.node_timeout_ms;
+  if (mRenderMs.empty()) return 1000.0;
+  std::vector<double> sorted = mRenderMs;
+  std::nth_element(sorted.begin(), sorted.begin() + sorted.size() / 2, sorted.end());
+  return std::max(1000.0, 5.0 * sorted[sorted.size() / 2]);
+}
+
+bool Master::start() {
+  // Joins: until every tile has a node or the wait is over (MPI: every rank at once).
+  const auto join_deadline = after(mOpt.join_wait_s * 1000.0);
+  while (mTiles->driven() < mTiles->size()) {
+    const sync::LinkEvents events = mLink.poll(mLink.canDropNodes() ? join_deadline : Clock::now());
+    handleFaults(events);
+    handleJoins(events);
+    if (!mLink.canDropNodes() || Clock::now() >= join_deadline) break;
+  }
+  // Startup reports: every welcomed node says whether it can render.
+  std::set<sync::PeerId> awaited;
+  for (uint32_t t = 0; t < mTiles->size(); ++t)
+    if (mTiles->slot(t).state == State::kJoining) awaited.insert(mTiles->slot(t).peer);
+  if (!mLink.canDropNodes() || !awaited.empty()) {
+    sync::LinkEvents events = mLink.collect(0, awaited, after(mOpt.first_frame_timeout_s * 1000.0));
+    handleFaults(events);
+    for (const auto& [peer, report] : events.reports) {
+      const auto tile = mTiles->tileOf(peer);
+      if (!tile) continue;
+      if (report.status().code() != cluster::NODE_OK) {
+        std::fprintf(stderr, "tessera-master: %s failed (%s, code %d): %s\n",
+                     mTiles->describe(*tile).c_str(), failureName(report.status().code()),
+                     int(report.status().code()), report.status().message().c_str());
+        loseTile(*tile, std::string("failed: ") + failureName(report.status().code()));
+        continue;
+      }
+      awaited.erase(peer);
+      mTiles->setLive(*tile);
+      mTiles->slot(*tile).reported = false;  // its first frame gets the cold-cache timeout
+    }
+    for (sync::PeerId peer : awaited)
+      if (const auto tile = mTiles->tileOf(peer))
+        if (mTiles->slot(*tile).state == State::kJoining)
+          loseTile(*tile, "no startup report within the first-frame timeout");
+    handleJoins(events);
+  }
+  if (mStopCode != 0 && !mLink.canDropNodes()) {
+    std::fprintf(stderr, "tessera-master: the wall cannot start; stopping every node\n");
+    mLink.quit(uint32_t(mStopCode), "the wall cannot start");
+    return false;
+  }
+  if (const auto why = policyViolation()) {
+    std::fprintf(stderr, "tessera-master: the wall cannot start: %s\n", why->c_str());
+    mStopCode = kExitStart;
+    mLink.quit(uint32_t(mStopCode), *why);
+    return false;
+  }
+  std::printf("tessera-master: %s transport; %zu of %zu tiles have a node\n", mLink.transport(),
+              mTiles->driven(), mTiles->size());
+  std::fflush(stdout);
+  return true;
+}
+
+int Master::run() {
+  mStopCode = 0;
+  if (!start()) return mStopCode ? mStopCode : kExitStart;
+  const bool deterministic = mOpt.frames > 0;
+  const auto session_start = Clock::now();
+  const size_t tiles = mTiles->size();
+  for (uint64_t f = 0;; ++f) {
+    const auto frame_start = Clock::now();
+    {  // what arrived since the last frame: joins, late reports of joining nodes
+      sync::LinkEvents events = mLink.poll(Clock::now());
+      handleFaults(events);
+      for (const auto& [peer, report] : events.reports) {
+        const auto tile = mTiles->tileOf(peer);
+        if (tile && report.status().code() == cluster::NODE_OK &&
+            mTiles->slot(*tile).state == State::kJoining &&
+            report.frame() > mTiles->slot(*tile).welcome_frame)
+          mTiles->setLive(*tile);
+      }
+      handleJoins(events);
+    }
+    const double t = deterministic
+                         ? double(f) / mOpt.fps
+                         : std::chrono::duration<double>(frame_start - session_start).count();
+    std::vector<std::string> shots;
+    if (mPlayer) {
+      for (const std::string& s : mPlayer->advance(mGraph, t))
+        shots.push_back((fs::path(mOpt.out_dir) / s).string());
+    }
+    bool last = deterministic ? f + 1 >= uint64_t(mOpt.frames)
+                              : (mPlayer ? t >= mPlayer->duration() : !mConsole);
+    if (mConsole && !mConsole->handleInput(mGraph)) last = true;
+    if (last && !mOpt.screenshot.empty()) shots.push_back(mOpt.screenshot);
+    for (const std::string& s : shots) {
+      scene::Command c;
+      c.mutable_screenshot()->set_path(s);
+      mGraph.addCommand(c);
+    }
+
+    mFrame = f + 1;
+    cluster::FrameMessage message_out;
+    message_out.set_frame(sync::serializeFrame(mGraph.takeFrame(mFrame, uint64_t(t * 1e6))));
+    message_out.set_read_back(!shots.empty());
+    const size_t frame_bytes = message_out.frame().size();
+    mLink.publish(message_out);
+    const double sync_ms = msSince(frame_start);
+    double present_ms = 0;
+    if (mConsole) {  // the console renders while the nodes do
+      const auto p = Clock::now();
+      mConsole->draw(mGraph);
+      present_ms = msSince(p);
+    }
+
+    // Collect: every live tile's report, up to the deadline.
+    const auto collect_start = Clock::now();
+    std::set<sync::PeerId> awaited;
+    bool first = false;
+    for (uint32_t i = 0; i < tiles; ++i) {
+      if (mTiles->slot(i).state != State::kLive) continue;
+      awaited.insert(mTiles->slot(i).peer);
+      first |= !mTiles->slot(i).reported;
+    }
+    const double timeout_ms = first ? mOpt.first_frame_timeout_s * 1000.0 : nodeTimeoutMs();
+    sync::LinkEvents events = mLink.collect(mFrame, awaited, after(timeout_ms));
+    handleFaults(events);
+    std::vector<std::optional<cluster::NodeReport>> reports(tiles);
+    for (auto& [peer, report] : events.reports) {
+      const auto tile = mTiles->tileOf(peer);
+      if (!tile) continue;
+      TileTable::Slot& slot = mTiles->slot(*tile);
+      if (report.status().code() != cluster::NODE_OK) {
+        std::fprintf(stderr, "tessera-master: %s failed (%s, code %d): %s\n",
+                     mTiles->describe(*tile).c_str(), failureName(report.status().code()),
+                     int(report.status().code()), report.status().message().c_str());
+        loseTile(*tile, std::string("failed: ") + failureName(report.status().code()) + ": " +
+                            report.status().message());
+        continue;
+      }
+      if (report.frame() == 0) continue;  // a late joiner's startup report
+      if (slot.state == State::kJoining && report.frame() > slot.welcome_frame)
+        mTiles->setLive(*tile);
+      if (report.frame() != mFrame) continue;
+      // Nodes are not trusted for sizes: pixels only when asked, exactly the tile's.
+      const config::Tile& tc = mWall.tiles(int(*tile));
+      const size_t expected =
+          message_out.read_back() ? size_t(tc.pixel_width()) * tc.pixel_height() * 4 : 0;
+      if (report.rgba().size() != expected) {
+        loseTile(*tile, "protocol error: " + std::to_string(report.rgba().size()) +
+                            " bytes of pixels for a frame that asked for " +
+                            std::to_string(expected));
+        continue;
+      }
+      slot.reported = true;
+      reports[*tile] = std::move(report);
+    }
+    for (uint32_t i = 0; i < tiles; ++i) {
+      const TileTable::Slot& slot = mTiles->slot(i);
+      if (slot.state != State::kLive || !awaited.count(slot.peer) || reports[i]) continue;
+      const bool gone = events.gone.count(slot.peer) || !mLink.connected(slot.peer);
+      char why[160];
+      std::snprintf(
+          why, sizeof why,
+          gone ? "dead: its connection closed" : "hung: connected, but no report within %.0f ms",
+          timeout_ms);
+      loseTile(i, why);
+    }
+    handleJoins(events);
+    double slowest = 0;
+    for (const auto& r : reports)
+      if (r) slowest = std::max(slowest, r->stats().render_ms());
+    if (slowest > 0) {
+      mRenderMs.push_back(slowest);
+      if (mRenderMs.size() > 15) mRenderMs.erase(mRenderMs.begin());
+    }
+    const double collect_ms = msSince(collect_start);
+
+    if (mStopCode == 0) {
+      if (const auto why = policyViolation()) {
+        mStopCode = kExitPolicyStop;
+        mStopReason = *why;
+      }
+    }
+    if (mStopCode != 0) {
+      std::fprintf(stderr, "tessera-master: frame %llu: stopping the wall: %s\n",
+                   (unsigned long long)mFrame, mStopReason.c_str());
+      mLink.quit(uint32_t(mStopCode), mStopReason);
+      return mStopCode;
+    }
+    const auto swap_start = Clock::now();
+    mLink.swap(mFrame);
+    const double barrier_ms = collect_ms + msSince(swap_start);
+
+    if (!shots.empty()) {
+      std::vector<std::string> pixels(tiles);
+      for (uint32_t i = 0; i < tiles; ++i)
+        if (reports[i]) pixels[i] = std::move(*reports[i]->mutable_rgba());
+      writeScreenshots(shots, mFrame, pixels);
+    }
+    if (mCsv)
+      writeStats(mFrame, t, frame_bytes, sync_ms, barrier_ms, present_ms, msSince(frame_start),
+                 reports);
+    if (last) break;
+    if (mOpt.max_fps > 0) {  // pace, handling joins meanwhile
+      const auto next = frame_start + std::chrono::microseconds(int64_t(1e6 / mOpt.max_fps));
+      while (Clock::now() < next) {
+        sync::LinkEvents idle = mLink.poll(next);
+        handleFaults(idle);
+        handleJoins(idle);
+      }
+    }
+  }
+  mLink.quit(0, "the session ended");
+  return kExitOk;
+}
+
+void Master::writeScreenshots(const std::vector<std::string>& paths, uint64_t frame,
+                              const std::vector<std::string>& pixels) {
+  std::vector<render::Image> images(pixels.size());
+  for (size_t i = 0; i < pixels.size(); ++i) {
+    const config::Tile& tile = mWall.tiles(int(i));
+    if (pixels[i].empty()) {
+      images[i] = render::lostTileImage(tile.pixel_width(), tile.pixel_height());
+      continue;
+    }
+    images[i].width = tile.pixel_width();
+    images[i].height = tile.pixel_height();
+    images[i].rgba.assign(pixels[i].begin(), pixels[i].end());
+  }
+  const render::Image wall = render::assembleWallMosaic(mWall, images);
+  for (const std::string& p : paths) {
+    try {
+      if (fs::path(p).has_parent_path()) fs::create_directories(fs::path(p).parent_path());
+      render::writePng(p, wall);
+      std::printf("tessera-master: frame %llu: wrote %s (%ux%u); camera %s\n",
+                  (unsigned long long)frame, p.c_str(), wall.width, wall.height,
+                  cameraArgument(mGraph.camera()).c_str());
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "tessera-master: frame %llu: screenshot %s: %s\n",
+                   (unsigned long long)frame, p.c_str(), e.what());
+    }
+  }
+  std::fflush(stdout);
+}
+
+void Master::writeStatsHeader() {
+  *mCsv << "frame,time_s,rank,tile,frame_bytes,sync_ms,render_ms,barrier_ms,present_ms,"
+           "frame_ms,settle_frames,points,nodes,resident_bytes,resident_disk_bytes,"
+           "store_bytes,chunks_queued,state\n";
+}
+
+void Master::writeStats(uint64_t frame, double t, size_t frame_bytes, double sync_ms,
+                        double barrier_ms, double present_ms, double frame_ms,
+                        const std::vector<std::optional<cluster::NodeReport>>& reports) {
+  std::ofstream& csv = *mCsv;
+  csv << frame << "," << t << ",0,master," << frame_bytes << "," << sync_ms << ",0," << barrier_ms
+      << "," << present_ms << "," << frame_ms << ",0,0,0,0,0,0,0,live\n";
+  for (uint32_t i = 0; i < reports.size(); ++i) {
+    const TileTable::Slot& slot = mTiles->slot(i);
+    if (!reports[i]) {
+      if (slot.state == State::kLive) continue;  // cannot happen: live tiles reported
+      csv << frame << "," << t << ",0," << mTiles->name(i) << ",0,0,0,0,0,0,0,0,0,0,0,0,0,"
+          << (slot.state == State::kJoining ? "joining" : "lost") << "\n";
+      continue;
+    }
+    const cluster::NodeFrameStats& s = reports[i]->stats();
+    csv << frame << "," << t << "," << slot.peer << "," << mTiles->name(i) << ",0,0,"
+        << s.render_ms() << "," << s.barrier_ms() << "," << s.present_ms() << ",0," << s.frames()
+        << "," << s.points() << "," << s.nodes() << "," << s.resident_bytes() << ","
+        << s.resident_disk_bytes() << "," << s.store_bytes() << "," << s.chunks_queued()
+        << ",live\n";
+  }
+  csv.flush();
+}
+
+}  // namespace tessera::master

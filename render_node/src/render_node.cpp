@@ -1,0 +1,300 @@
+#include <tessera/render_node/render_node.h>
+
+#include <unistd.h>
+
+#include <cstdio>
+#include <optional>
+
+#include <tessera/core/stopwatch.h>
+#include <tessera/render/gl_context.h>
+#include <tessera/render/view_renderer.h>
+#include <tessera/render/window.h>
+#include <tessera/render_node/scene_models.h>
+#include <tessera/sync/scene_graph.h>
+#include <tessera/sync/wire.h>
+
+namespace tessera::render_node {
+
+namespace {
+
+using Clock = sync::LinkClock;
+
+/// A failure with the code the master reports.
+struct NodeError : std::runtime_error {
+  NodeError(cluster::NodeFailure f, const std::string& what)
+      : std::runtime_error(what), failure(f) {}
+  cluster::NodeFailure failure;
+};
+
+std::string hostName() {
+  char name[256] = {};
+  if (gethostname(name, sizeof name - 1) != 0) return "unknown";
+  return name;
+}
+
+Clock::time_point after(double seconds) {
+  return Clock::now() + std::chrono::microseconds(int64_t(seconds * 1e6));
+}
+
+}  // namespace
+
+struct RenderNode::Impl {
+  sync::NodeLink& link;
+  NodeOptions opt;
+  std::string who = "tessera-node";
+  cluster::ClusterSetup setup;
+  const config::Tile* tile = nullptr;
+  std::unique_ptr<render::Window> window;
+  std::unique_ptr<render::GlContext> context;
+  sync::SceneGraph graph;
+  SceneModels models;
+  std::vector<render::ModelInstance> instances;
+  std::unique_ptr<render::ViewRenderer> renderer;  // destroyed first: needs the context
+  cluster::NodeStatus status;                      // NODE_OK until something fails
+  uint64_t reported = 0;                           // the last frame reported
+  Clock::time_point reported_at;
+  double barrier_ms = 0, present_ms = 0;  // of the previous frame, sent with the next report
+
+  Impl(sync::NodeLink& l, NodeOptions o) : link(l), opt(std::move(o)) {}
+
+  ~Impl() {
+    renderer.reset();
+    instances.clear();
+  }
+
+  void fail(cluster::NodeFailure code, const std::string& why) {
+    if (status.code() != cluster::NODE_OK) return;
+    status.set_code(code);
+    status.set_message(why);
+    std::fprintf(stderr, "%s: %s\n", who.c_str(), why.c_str());
+  }
+
+  void updateModels() {
+    try {
+      instances = models.update(graph);
+    } catch (const lod::StoreError& e) {
+      throw NodeError(cluster::NODE_BAD_STORE, e.what());
+    }
+  }
+
+  /// Takes a welcome: the tile, a GL context (window or headless), the replica, stores and
+  /// renderer. A node that joins again keeps its context, stores and resident chunks.
+  void start(cluster::ClusterSetup s) {
+    const bool same_size = tile && renderer && s.wall().tiles_size() > 0;
+    const uint32_t old_w = tile ? tile->pixel_width() : 0, old_h = tile ? tile->pixel_height() : 0;
+    setup = std::move(s);
+    tile = nullptr;
+    for (const config::Tile& t : setup.wall().tiles())
+      if (t.name() == setup.tile()) tile = &t;
+    if (!tile)
+      throw NodeError(cluster::NODE_BAD_TILE,
+                      "the master gave tile '" + setup.tile() + "', which its wall does not have");
+    who = "tessera-node " + tile->name();
+    if (tile->pixel_width() == 0 || tile->pixel_height() == 0 || tile->pixel_width() > 16384 ||
+        tile->pixel_height() > 16384)
+      throw NodeError(cluster::NODE_BAD_TILE,
+                      "tile " + tile->name() + " is " + std::to_string(tile->pixel_width()) + "x" +
+                          std::to_string(tile->pixel_height()) + " pixels (1..16384 each way)");
+    try {
+      if (!window && !context) {
+        if (!opt.headless) {
+          try {
+            window = render::Window::open(tile->pixel_width(), tile->pixel_height(), who);
+          } catch (const render::RenderError& e) {
+            std::fprintf(stderr, "%s: %s; rendering headless\n", who.c_str(), e.what());
+          }
+        }
+        if (!window) context = render::GlContext::createHeadless();
+      }
+    } catch (const render::RenderError& e) {
+      throw NodeError(cluster::NODE_NO_GL, e.what());
+    }
+    try {
+      graph = sync::SceneGraph();
+      graph.apply(setup.snapshot());
+    } catch (const sync::SyncError& e) {
+      throw NodeError(cluster::NODE_BAD_FRAME, e.what());
+    }
+    updateModels();
+    if (same_size && old_w == tile->pixel_width() && old_h == tile->pixel_height()) return;
+    render::StreamerOptions stream;
+    if (setup.gpu_budget_bytes() > 0) stream.budget_bytes = setup.gpu_budget_bytes();
+    stream.density_ratios = true;  // any model may turn see-through during the session
+    renderer.reset();
+    try {
+      renderer = std::make_unique<render::ViewRenderer>(tile->pixel_width(), tile->pixel_height(),
+                                                        nullptr, stream);
+    } catch (const render::RenderError& e) {
+      throw NodeError(cluster::NODE_NO_GL, e.what());
+    }
+  }
+
+  /// Applies one frame to the replica (every frame, also those not rendered).
+  void apply(const cluster::FrameMessage& frame) {
+    if (status.code() != cluster::NODE_OK) return;
+    try {
+      graph.apply(sync::parseFrame(frame.frame()));
+      updateModels();
+    } catch (const sync::SyncError& e) {
+      fail(cluster::NODE_BAD_FRAME, e.what());
+    } catch (const NodeError& e) {
+      fail(e.failure, e.what());
+    }
+  }
+
+  /// Renders the replica's current frame and reports it.
+  void renderAndReport(bool read_back) {
+    cluster::NodeReport r;
+    r.set_frame(graph.frameNumber());
+    if (status.code() == cluster::NODE_OK) {
+      const auto start_time = Clock::now();
+      try {
+        const render::ViewSetup view = render::tileView(setup.wall(), *tile, graph.camera());
+        const render::RenderOptions options =
+            SceneModels::options(graph, setup.splat_scale() > 0 ? setup.splat_scale() : 2.0f);
+        render::RenderStats rs;
+        // Settled frames (screenshots, deterministic scripted runs) wait for every chunk of the
+        // cut, so their pixels are exactly what tessera-render --mosaic makes.
+        if (read_back || setup.settled()) {
+          render::Image image = renderer->renderSettled(instances, view, options, &rs);
+          if (read_back) r.set_rgba(image.rgba.data(), image.rgba.size());
+        } else {
+          renderer->draw(instances, view, options, &rs);
+        }
+        cluster::NodeFrameStats& st = *r.mutable_stats();
+        st.set_render_ms(msSince(start_time));
+        st.set_points(rs.points);
+        st.set_nodes(rs.nodes);
+        st.set_frames(uint32_t(rs.frames));
+        st.set_resident_bytes(rs.stream.resident_bytes);
+        st.set_resident_disk_bytes(rs.stream.resident_disk_bytes);
+        st.set_chunks_queued(rs.stream.queued);
+        st.set_store_bytes(models.storeBytes());
+        st.set_barrier_ms(barrier_ms);
+        st.set_present_ms(present_ms);
+      } catch (const std::exception& e) {
+        fail(cluster::NODE_RENDER, std::string("rendering: ") + e.what());
+        r.clear_rgba();
+      }
+    }
+    *r.mutable_status() = status;
+    link.report(r);
+    reported = r.frame();
+    reported_at = Clock::now();
+  }
+
+  void present() {
+    barrier_ms = msSince(reported_at);
+    present_ms = 0;
+    if (!window || status.code() != cluster::NODE_OK) return;
+    const auto start_time = Clock::now();
+    window->present(renderer->imageBuffer(), tile->pixel_width(), tile->pixel_height());
+    window->poll();  // keep the window responsive; input belongs to the master's console
+    present_ms = msSince(start_time);
+  }
+
+  enum class SessionEnd { kQuit, kDropped };
+
+  /// Frames until the master quits or drops this node. Throws MasterLost.
+  SessionEnd frames(int& exit_code) {
+    bool todo = false;       // a frame applied and not rendered yet
+    bool read_back = false;  // ... and the pixels are asked for
+    while (true) {
+      // A node behind applies every waiting frame and renders only the newest.
+      if (todo && !link.pending()) {
+        renderAndReport(read_back);
+        todo = read_back = false;
+        continue;
+      }
+      cluster::ToNode m;
+      if (!link.receive(m, todo ? Clock::now() : after(opt.master_timeout_s))) {
+        if (todo) continue;
+        throw sync::MasterLost("no message from the master for " +
+                               std::to_string(int(opt.master_timeout_s)) + " s");
+      }
+      switch (m.kind_case()) {
+        case cluster::ToNode::kFrame:
+          apply(m.frame());
+          todo = true;
+          read_back |= m.frame().read_back();
+          break;
+        case cluster::ToNode::kPresent:
+          if (m.present().frame() == reported) present();
+          break;
+        case cluster::ToNode::kDropped:
+          std::fprintf(stderr, "%s: dropped by the master: %s\n", who.c_str(),
+                       m.dropped().reason().c_str());
+          if (status.code() != cluster::NODE_OK) {
+            exit_code = status.code();
+            return SessionEnd::kQuit;
+          }
+          return SessionEnd::kDropped;
+        case cluster::ToNode::kQuit:
+          exit_code = status.code();
+          return SessionEnd::kQuit;
+        default:  // a welcome or refusal out of turn: not for this session
+          break;
+      }
+    }
+  }
+
+  int run() {
+    cluster::Hello hello;
+    hello.set_protocol(sync::kProtocolVersion);
+    hello.set_tile(opt.tile);
+    hello.set_host(hostName());
+    hello.set_pid(uint32_t(getpid()));
+    double join_wait = opt.join_timeout_s;
+    while (true) {
+      cluster::ClusterSetup s;
+      try {
+        s = link.join(hello, after(join_wait));
+      } catch (const sync::JoinRefused& e) {
+        std::fprintf(stderr, "%s: the master refused this node: %s\n", who.c_str(), e.what());
+        return cluster::NODE_REFUSED;
+      } catch (const sync::MasterLost& e) {
+        std::fprintf(stderr, "%s: %s\n", who.c_str(), e.what());
+        return cluster::NODE_MASTER_LOST;
+      }
+      status = cluster::NodeStatus();
+      try {
+        start(std::move(s));
+      } catch (const NodeError& e) {
+        fail(e.failure, e.what());
+      } catch (const std::exception& e) {
+        fail(cluster::NODE_INTERNAL, e.what());
+      }
+      // The startup report: frame 0, whether this node can render.
+      cluster::NodeReport startup;
+      *startup.mutable_status() = status;
+      link.report(startup);
+      reported = 0;
+      int exit_code = 0;
+      try {
+        if (frames(exit_code) == SessionEnd::kQuit) return exit_code;
+        hello.set_tile(tile ? tile->name() : opt.tile);  // come back to the same tile
+        join_wait = opt.join_timeout_s;
+        std::fprintf(stderr, "%s: joining again\n", who.c_str());
+      } catch (const sync::MasterLost& e) {
+        if (opt.wait_master_s <= 0) {
+          std::fprintf(stderr, "%s: %s; exiting\n", who.c_str(), e.what());
+          return cluster::NODE_MASTER_LOST;
+        }
+        std::fprintf(stderr, "%s: %s; waiting up to %.0f s for a master\n", who.c_str(), e.what(),
+                     opt.wait_master_s);
+        join_wait = opt.wait_master_s;
+      }
+    }
+  }
+};
+
+RenderNode::RenderNode(sync::NodeLink& link, NodeOptions options)
+    : m(std::make_unique<Impl>(link, std::move(options))) {}
+
+RenderNode::~RenderNode() = default;
+
+int RenderNode::run() {
+  return m->run();
+}
+
+}  // namespace tessera::render_node

@@ -1,0 +1,394 @@
+#include <tessera/sync/zmq_link.h>
+
+#include <zmq.hpp>
+#include <zmq_addon.hpp>
+
+#include <atomic>
+#include <cstring>
+#include <map>
+
+namespace tessera::sync {
+
+namespace {
+
+/// Each link's monitor needs its own inproc address within its context.
+std::string monitorAddress(const char* who) {
+  static std::atomic<uint64_t> counter{0};
+  return std::string("inproc://tessera-") + who + "-monitor-" + std::to_string(counter++);
+}
+
+void setCommonOptions(zmq::socket_t& s, const ZmqLinkOptions& o) {
+  s.set(zmq::sockopt::heartbeat_ivl, o.heartbeat_ivl_ms);
+  s.set(zmq::sockopt::heartbeat_timeout, o.heartbeat_timeout_ms);
+  s.set(zmq::sockopt::heartbeat_ttl, o.heartbeat_timeout_ms);
+  s.set(zmq::sockopt::maxmsgsize, o.max_message_bytes);
+  s.set(zmq::sockopt::sndhwm, 1000);
+  s.set(zmq::sockopt::rcvhwm, 1000);
+}
+
+/// Milliseconds from now to `deadline`, for zmq::poll (0 when passed).
+std::chrono::milliseconds until(LinkClock::time_point deadline) {
+  const auto left =
+      std::chrono::duration_cast<std::chrono::milliseconds>(deadline - LinkClock::now());
+  return left.count() > 0 ? left : std::chrono::milliseconds(0);
+}
+
+/// Reads one monitor event: true when it says a connection closed.
+bool readMonitorEvent(zmq::socket_t& monitor) {
+  std::vector<zmq::message_t> parts;
+  if (!zmq::recv_multipart(monitor, std::back_inserter(parts), zmq::recv_flags::dontwait))
+    return false;
+  if (parts.empty() || parts[0].size() < 2) return false;
+  uint16_t event = 0;
+  std::memcpy(&event, parts[0].data(), sizeof event);
+  return event == ZMQ_EVENT_DISCONNECTED;
+}
+
+}  // namespace
+
+// ---- master ----------------------------------------------------------------------------------
+
+struct ZmqMasterLink::Impl {
+  struct Peer {
+    std::string routing;
+    bool member = false;  // welcomed and not dropped: gets frames and swaps
+    bool told = false;    // sent Dropped/Refused since its last join: stale reports are ignored
+  };
+
+  zmq::context_t ctx{1};
+  zmq::socket_t router{ctx, zmq::socket_type::router};
+  zmq::socket_t monitor{ctx, zmq::socket_type::pair};
+  std::map<std::string, PeerId> by_routing;
+  std::map<PeerId, Peer> peers;
+  PeerId next = 1;
+  LinkCounters counters;
+  std::string endpoint;
+
+  /// Sends to one peer without blocking. False when its connection is gone or its queue full.
+  bool send(PeerId id, const std::string& bytes) {
+    auto it = peers.find(id);
+    if (it == peers.end()) return false;
+    try {
+      zmq::const_buffer route(it->second.routing.data(), it->second.routing.size());
+      if (!router.send(route, zmq::send_flags::sndmore | zmq::send_flags::dontwait)) return false;
+      if (!router.send(zmq::const_buffer(bytes.data(), bytes.size()), zmq::send_flags::dontwait))
+        return false;
+    } catch (const zmq::error_t&) {  // EHOSTUNREACH (ZMQ_ROUTER_MANDATORY): connection gone
+      return false;
+    }
+    counters.bytes_sent += bytes.size() + it->second.routing.size();
+    counters.messages_sent += 1;
+    return true;
+  }
+
+  void sendTo(PeerId id, const cluster::ToNode& message) { send(id, envelope(message)); }
+
+  void tell(PeerId id, const std::string& reason, bool refused) {
+    cluster::ToNode t;
+    if (refused)
+      t.mutable_refused()->set_reason(reason);
+    else
+      t.mutable_dropped()->set_reason(reason);
+    sendTo(id, t);
+    Peer& p = peers[id];
+    p.member = false;
+    p.told = true;
+  }
+
+  /// One message from the router into `events`. False when none was waiting.
+  bool receiveOne(LinkEvents& events) {
+    std::vector<zmq::message_t> parts;
+    zmq::recv_result_t got;
+    try {
+      got = zmq::recv_multipart(router, std::back_inserter(parts), zmq::recv_flags::dontwait);
+    } catch (const zmq::error_t&) {
+      return false;
+    }
+    if (!got || parts.empty()) return false;
+    const std::string routing = parts[0].to_string();
+    auto [it, is_new] = by_routing.emplace(routing, next);
+    if (is_new) peers[next++].routing = routing;
+    const PeerId id = it->second;
+    counters.messages_received += 1;
+    for (const auto& p : parts) counters.bytes_received += p.size();
+
+    cluster::FromNode message;
+    std::string why;
+    if (parts.size() != 2) {
+      why = std::to_string(parts.size() - 1) + " frames in one message (a Tessera node sends 1)";
+    } else if (parseFromNode(std::string_view(parts[1].data<char>(), parts[1].size()), message,
+                             why)) {
+      Peer& peer = peers[id];
+      if (message.has_hello()) {
+        peer.told = false;
+        events.joins.emplace_back(id, std::move(*message.mutable_hello()));
+        return true;
+      }
+      // A report: from a member it counts; from anyone else (dropped, or a new connection of a
+      // node the master never welcomed) it is stale, and the node is told once to join again.
+      if (peer.member) {
+        events.reports.emplace_back(id, std::move(*message.mutable_report()));
+      } else if (!peer.told) {
+        tell(id,
+             "this connection is not a member of the wall (dropped, or reconnected): join again",
+             false);
+      }
+      return true;
+    }
+    if (!peers[id].told) tell(id, why, true);
+    events.faults.emplace_back(id, why);
+    return true;
+  }
+
+  /// Drains the monitor; on a closed connection, finds which members are unreachable.
+  void checkDisconnects(LinkEvents& events) {
+    bool any = false;
+    while (true) {
+      zmq::pollitem_t item{monitor.handle(), 0, ZMQ_POLLIN, 0};
+      if (zmq::poll(&item, 1, std::chrono::milliseconds(0)) <= 0) break;
+      any |= readMonitorEvent(monitor);
+    }
+    if (!any) return;
+    for (auto& [id, peer] : peers) {
+      if (!peer.member) continue;
+      cluster::ToNode ping;
+      ping.mutable_ping();
+      if (!send(id, envelope(ping))) {
+        peer.member = false;
+        events.gone.insert(id);
+      }
+    }
+  }
+
+  /// Waits for traffic until `deadline` or until `done(events)`.
+  template <class Done>
+  LinkEvents wait(LinkClock::time_point deadline, Done done) {
+    LinkEvents events;
+    while (true) {
+      while (receiveOne(events)) {
+      }
+      checkDisconnects(events);
+      if (done(events)) return events;
+      const auto left = until(deadline);
+      if (left.count() == 0) return events;
+      zmq::pollitem_t items[] = {{router.handle(), 0, ZMQ_POLLIN, 0},
+                                 {monitor.handle(), 0, ZMQ_POLLIN, 0}};
+      zmq::poll(items, 2, left);
+    }
+  }
+};
+
+ZmqMasterLink::ZmqMasterLink(const std::string& endpoint, const ZmqLinkOptions& options)
+    : m(std::make_unique<Impl>()) {
+  try {
+    setCommonOptions(m->router, options);
+    m->router.set(zmq::sockopt::router_mandatory, 1);
+    m->router.set(zmq::sockopt::linger, 200);
+    const std::string address = monitorAddress("master");
+    if (zmq_socket_monitor(m->router.handle(), address.c_str(), ZMQ_EVENT_DISCONNECTED) != 0)
+      throw zmq::error_t();
+    m->monitor.connect(address);
+    m->router.bind(endpoint);
+    m->endpoint = m->router.get(zmq::sockopt::last_endpoint);
+  } catch (const zmq::error_t& e) {
+    throw LinkError("sync::ZmqMasterLink: cannot listen on " + endpoint + ": " + e.what());
+  }
+}
+
+ZmqMasterLink::~ZmqMasterLink() = default;
+
+std::string ZmqMasterLink::endpoint() const {
+  return m->endpoint;
+}
+
+LinkEvents ZmqMasterLink::poll(LinkClock::time_point deadline) {
+  return m->wait(deadline, [](const LinkEvents& e) { return !e.empty(); });
+}
+
+void ZmqMasterLink::welcome(PeerId peer, const cluster::ClusterSetup& setup) {
+  cluster::ToNode t;
+  *t.mutable_welcome() = setup;
+  if (m->send(peer, envelope(t))) {
+    m->peers[peer].member = true;
+    m->peers[peer].told = false;
+  }
+}
+
+void ZmqMasterLink::refuse(PeerId peer, const std::string& reason) {
+  m->tell(peer, reason, true);
+}
+
+void ZmqMasterLink::publish(const cluster::FrameMessage& frame) {
+  cluster::ToNode t;
+  *t.mutable_frame() = frame;
+  const std::string bytes = envelope(t);
+  for (auto& [id, peer] : m->peers)
+    if (peer.member) m->send(id, bytes);
+}
+
+LinkEvents ZmqMasterLink::collect(uint64_t frame, const std::set<PeerId>& awaited,
+                                  LinkClock::time_point deadline) {
+  std::set<PeerId> left = awaited;
+  return m->wait(deadline, [&](const LinkEvents& e) {
+    for (const auto& [id, r] : e.reports)
+      if (r.frame() == frame || r.status().code() != cluster::NODE_OK) left.erase(id);
+    for (PeerId id : e.gone) left.erase(id);
+    for (const auto& [id, why] : e.faults) left.erase(id);
+    return left.empty();
+  });
+}
+
+void ZmqMasterLink::swap(uint64_t frame) {
+  cluster::ToNode t;
+  t.mutable_present()->set_frame(frame);
+  const std::string bytes = envelope(t);
+  for (auto& [id, peer] : m->peers)
+    if (peer.member) m->send(id, bytes);
+}
+
+void ZmqMasterLink::drop(PeerId peer, const std::string& reason) {
+  if (m->peers.count(peer)) m->tell(peer, reason, false);
+}
+
+bool ZmqMasterLink::connected(PeerId peer) {
+  cluster::ToNode ping;
+  ping.mutable_ping();
+  auto it = m->peers.find(peer);
+  if (it == m->peers.end()) return false;
+  // A full queue is a connected node that does not read: hung, not gone.
+  try {
+    zmq::const_buffer route(it->second.routing.data(), it->second.routing.size());
+    if (!m->router.send(route, zmq::send_flags::sndmore | zmq::send_flags::dontwait)) return true;
+    const std::string bytes = envelope(ping);
+    m->router.send(zmq::const_buffer(bytes.data(), bytes.size()), zmq::send_flags::dontwait);
+    return true;
+  } catch (const zmq::error_t&) {
+    return false;
+  }
+}
+
+void ZmqMasterLink::quit(uint32_t code, const std::string& reason) {
+  cluster::ToNode t;
+  t.mutable_quit()->set_code(code);
+  t.mutable_quit()->set_reason(reason);
+  const std::string bytes = envelope(t);
+  for (auto& [id, peer] : m->peers)
+    if (peer.member) m->send(id, bytes);
+}
+
+LinkCounters ZmqMasterLink::counters() const {
+  return m->counters;
+}
+
+// ---- node ------------------------------------------------------------------------------------
+
+struct ZmqNodeLink::Impl {
+  std::string endpoint;
+  ZmqLinkOptions options;
+  zmq::context_t ctx{1};
+  std::unique_ptr<zmq::socket_t> dealer, monitor;
+  bool lost = false;
+  std::string lost_why;
+
+  void open() {
+    monitor.reset();
+    dealer.reset();
+    dealer = std::make_unique<zmq::socket_t>(ctx, zmq::socket_type::dealer);
+    monitor = std::make_unique<zmq::socket_t>(ctx, zmq::socket_type::pair);
+    try {
+      setCommonOptions(*dealer, options);
+      // The last report (a failure, say) still reaches the master when the node exits.
+      dealer->set(zmq::sockopt::linger, 1000);
+      const std::string address = monitorAddress("node");
+      if (zmq_socket_monitor(dealer->handle(), address.c_str(), ZMQ_EVENT_DISCONNECTED) != 0)
+        throw zmq::error_t();
+      monitor->connect(address);
+      dealer->connect(endpoint);
+    } catch (const zmq::error_t& e) {
+      throw LinkError("sync::ZmqNodeLink: cannot connect to " + endpoint + ": " + e.what());
+    }
+    lost = false;
+  }
+
+  void send(const std::string& bytes) {
+    try {
+      dealer->send(zmq::const_buffer(bytes.data(), bytes.size()), zmq::send_flags::dontwait);
+    } catch (const zmq::error_t&) {
+      // The connection is gone; the monitor says so at the next receive().
+    }
+  }
+
+  /// The next message, or false at the deadline. Throws MasterLost.
+  bool next(cluster::ToNode& out, LinkClock::time_point deadline) {
+    while (true) {
+      zmq::message_t msg;
+      if (dealer->recv(msg, zmq::recv_flags::dontwait)) {
+        std::string why;
+        if (parseToNode(std::string_view(msg.data<char>(), msg.size()), out, why)) return true;
+        throw MasterLost("sync::ZmqNodeLink: the peer at " + endpoint +
+                         " is not a Tessera master: " + why);
+      }
+      zmq::pollitem_t mon{monitor->handle(), 0, ZMQ_POLLIN, 0};
+      while (zmq::poll(&mon, 1, std::chrono::milliseconds(0)) > 0) {
+        if (readMonitorEvent(*monitor)) {
+          lost = true;
+          throw MasterLost("sync::ZmqNodeLink: lost the master at " + endpoint +
+                           " (connection closed, or no heartbeat for " +
+                           std::to_string(options.heartbeat_timeout_ms) + " ms)");
+        }
+      }
+      const auto left = until(deadline);
+      if (left.count() == 0) return false;
+      zmq::pollitem_t items[] = {{dealer->handle(), 0, ZMQ_POLLIN, 0},
+                                 {monitor->handle(), 0, ZMQ_POLLIN, 0}};
+      zmq::poll(items, 2, left);
+    }
+  }
+};
+
+ZmqNodeLink::ZmqNodeLink(const std::string& endpoint, const ZmqLinkOptions& options)
+    : m(std::make_unique<Impl>()) {
+  m->endpoint = endpoint;
+  m->options = options;
+  m->open();
+}
+
+ZmqNodeLink::~ZmqNodeLink() {
+  m->monitor.reset();
+  m->dealer.reset();
+}
+
+cluster::ClusterSetup ZmqNodeLink::join(const cluster::Hello& hello,
+                                        LinkClock::time_point deadline) {
+  if (m->lost) m->open();
+  cluster::FromNode f;
+  *f.mutable_hello() = hello;
+  m->send(envelope(f));
+  cluster::ToNode t;
+  while (m->next(t, deadline)) {
+    if (t.has_welcome()) return std::move(*t.mutable_welcome());
+    if (t.has_refused()) throw JoinRefused(t.refused().reason());
+    if (t.has_quit()) throw MasterLost("the master ended the session: " + t.quit().reason());
+    // Anything else is from before this join (a frame, a swap, a ping): not ours any more.
+  }
+  throw MasterLost("sync::ZmqNodeLink: no master answered at " + m->endpoint + " in time");
+}
+
+bool ZmqNodeLink::receive(cluster::ToNode& message, LinkClock::time_point deadline) {
+  while (m->next(message, deadline))
+    if (!message.has_ping()) return true;
+  return false;
+}
+
+bool ZmqNodeLink::pending() {
+  zmq::pollitem_t item{m->dealer->handle(), 0, ZMQ_POLLIN, 0};
+  return zmq::poll(&item, 1, std::chrono::milliseconds(0)) > 0;
+}
+
+void ZmqNodeLink::report(const cluster::NodeReport& report) {
+  cluster::FromNode f;
+  *f.mutable_report() = report;
+  m->send(envelope(f));
+}
+
+}  // namespace tessera::sync
