@@ -170,6 +170,14 @@ void Master::handleJoins(const sync::LinkEvents& events) {
   for (const auto& [peer, hello] : events.joins) {
     // A node that joins again on the same connection gives up the tile it had.
     if (const auto old = mTiles->tileOf(peer)) mTiles->lose(*old, "its node joined again");
+    // A node that comes back on a new connection before its old one was dropped (it was
+    // stopped, its heartbeats timed out): the old connection is gone, so is its claim.
+    for (uint32_t t = 0; t < mTiles->size(); ++t) {
+      const TileTable::Slot& s = mTiles->slot(t);
+      if (mTiles->name(t) == hello.tile() &&
+          (s.state == State::kLive || s.state == State::kJoining) && !mLink.connected(s.peer))
+        loseTile(t, "dead: its connection closed (a new node claims the tile)");
+    }
     const std::variant<uint32_t, std::string> claim = mTiles->claim(hello);
     if (auto* why = std::get_if<std::string>(&claim)) {
       std::printf("%s\n", message("refused a node on " + hello.host().substr(0, 64) + " (pid " +
@@ -227,41 +235,64 @@ double Master::nodeTimeoutMs() const {
   return std::max(1000.0, 5.0 * sorted[sorted.size() / 2]);
 }
 
+void Master::absorb(sync::LinkEvents& events) {
+  handleFaults(events);
+  for (const auto& [peer, report] : events.reports) {
+    const auto tile = mTiles->tileOf(peer);
+    if (!tile) continue;
+    TileTable::Slot& slot = mTiles->slot(*tile);
+    if (report.status().code() != cluster::NODE_OK) {
+      std::fprintf(stderr, "tessera-master: %s failed (%s, code %d): %s\n",
+                   mTiles->describe(*tile).c_str(), failureName(report.status().code()),
+                   int(report.status().code()), report.status().message().c_str());
+      loseTile(*tile, std::string("failed: ") + failureName(report.status().code()) + ": " +
+                          report.status().message());
+    } else if (report.frame() == 0) {
+      slot.started = true;
+    } else if (slot.state == State::kJoining && report.frame() > slot.welcome_frame) {
+      mTiles->setLive(*tile);
+    }
+  }
+  events.reports.clear();
+  handleJoins(events);
+  events.joins.clear();
+  events.faults.clear();
+}
+
 bool Master::start() {
   // Joins: until every tile has a node or the wait is over (MPI: every rank at once).
   const auto join_deadline = after(mOpt.join_wait_s * 1000.0);
   while (mTiles->driven() < mTiles->size()) {
-    const sync::LinkEvents events = mLink.poll(mLink.canDropNodes() ? join_deadline : Clock::now());
-    handleFaults(events);
-    handleJoins(events);
+    sync::LinkEvents events = mLink.poll(mLink.canDropNodes() ? join_deadline : Clock::now());
+    absorb(events);
     if (!mLink.canDropNodes() || Clock::now() >= join_deadline) break;
   }
   // Startup reports: every welcomed node says whether it can render.
-  std::set<sync::PeerId> awaited;
-  for (uint32_t t = 0; t < mTiles->size(); ++t)
-    if (mTiles->slot(t).state == State::kJoining) awaited.insert(mTiles->slot(t).peer);
-  if (!mLink.canDropNodes() || !awaited.empty()) {
-    sync::LinkEvents events = mLink.collect(0, awaited, after(mOpt.first_frame_timeout_s * 1000.0));
-    handleFaults(events);
-    for (const auto& [peer, report] : events.reports) {
-      const auto tile = mTiles->tileOf(peer);
-      if (!tile) continue;
-      if (report.status().code() != cluster::NODE_OK) {
-        std::fprintf(stderr, "tessera-master: %s failed (%s, code %d): %s\n",
-                     mTiles->describe(*tile).c_str(), failureName(report.status().code()),
-                     int(report.status().code()), report.status().message().c_str());
-        loseTile(*tile, std::string("failed: ") + failureName(report.status().code()));
-        continue;
-      }
-      awaited.erase(peer);
-      mTiles->setLive(*tile);
-      mTiles->slot(*tile).reported = false;  // its first frame gets the cold-cache timeout
+  const auto start_deadline = after(mOpt.first_frame_timeout_s * 1000.0);
+  auto waiting = [&] {
+    std::set<sync::PeerId> peers;
+    for (uint32_t t = 0; t < mTiles->size(); ++t) {
+      const TileTable::Slot& s = mTiles->slot(t);
+      if (s.state == State::kJoining && !s.started) peers.insert(s.peer);
     }
-    for (sync::PeerId peer : awaited)
-      if (const auto tile = mTiles->tileOf(peer))
-        if (mTiles->slot(*tile).state == State::kJoining)
-          loseTile(*tile, "no startup report within the first-frame timeout");
-    handleJoins(events);
+    return peers;
+  };
+  for (bool first = true; first || (!waiting().empty() && Clock::now() < start_deadline);
+       first = false) {
+    if (mLink.canDropNodes() && waiting().empty()) break;
+    sync::LinkEvents events = mLink.collect(0, waiting(), start_deadline);
+    absorb(events);
+    if (!mLink.canDropNodes()) break;
+  }
+  for (uint32_t t = 0; t < mTiles->size(); ++t) {
+    TileTable::Slot& s = mTiles->slot(t);
+    if (s.state != State::kJoining) continue;
+    if (!s.started) {
+      loseTile(t, "no startup report within the first-frame timeout");
+      continue;
+    }
+    mTiles->setLive(t);
+    s.reported = false;  // its first frame gets the cold-cache timeout
   }
   if (mStopCode != 0 && !mLink.canDropNodes()) {
     std::fprintf(stderr, "tessera-master: the wall cannot start; stopping every node\n");
@@ -290,15 +321,7 @@ int Master::run() {
     const auto frame_start = Clock::now();
     {  // what arrived since the last frame: joins, late reports of joining nodes
       sync::LinkEvents events = mLink.poll(Clock::now());
-      handleFaults(events);
-      for (const auto& [peer, report] : events.reports) {
-        const auto tile = mTiles->tileOf(peer);
-        if (tile && report.status().code() == cluster::NODE_OK &&
-            mTiles->slot(*tile).state == State::kJoining &&
-            report.frame() > mTiles->slot(*tile).welcome_frame)
-          mTiles->setLive(*tile);
-      }
-      handleJoins(events);
+      absorb(events);
     }
     const double t = deterministic
                          ? double(f) / mOpt.fps
@@ -343,24 +366,17 @@ int Master::run() {
     }
     const double timeout_ms = first ? mOpt.first_frame_timeout_s * 1000.0 : nodeTimeoutMs();
     sync::LinkEvents events = mLink.collect(mFrame, awaited, after(timeout_ms));
-    handleFaults(events);
     std::vector<std::optional<cluster::NodeReport>> reports(tiles);
+    std::vector<std::pair<sync::PeerId, cluster::NodeReport>> others;
     for (auto& [peer, report] : events.reports) {
       const auto tile = mTiles->tileOf(peer);
-      if (!tile) continue;
-      TileTable::Slot& slot = mTiles->slot(*tile);
-      if (report.status().code() != cluster::NODE_OK) {
-        std::fprintf(stderr, "tessera-master: %s failed (%s, code %d): %s\n",
-                     mTiles->describe(*tile).c_str(), failureName(report.status().code()),
-                     int(report.status().code()), report.status().message().c_str());
-        loseTile(*tile, std::string("failed: ") + failureName(report.status().code()) + ": " +
-                            report.status().message());
+      if (!tile || report.frame() != mFrame || report.status().code() != cluster::NODE_OK) {
+        others.emplace_back(peer, std::move(report));
         continue;
       }
-      if (report.frame() == 0) continue;  // a late joiner's startup report
+      TileTable::Slot& slot = mTiles->slot(*tile);
       if (slot.state == State::kJoining && report.frame() > slot.welcome_frame)
         mTiles->setLive(*tile);
-      if (report.frame() != mFrame) continue;
       // Nodes are not trusted for sizes: pixels only when asked, exactly the tile's.
       const config::Tile& tc = mWall.tiles(int(*tile));
       const size_t expected =
@@ -374,18 +390,20 @@ int Master::run() {
       slot.reported = true;
       reports[*tile] = std::move(report);
     }
+    events.reports = std::move(others);
+    std::set<sync::PeerId> gone = events.gone;
+    absorb(events);
     for (uint32_t i = 0; i < tiles; ++i) {
       const TileTable::Slot& slot = mTiles->slot(i);
       if (slot.state != State::kLive || !awaited.count(slot.peer) || reports[i]) continue;
-      const bool gone = events.gone.count(slot.peer) || !mLink.connected(slot.peer);
+      const bool closed = gone.count(slot.peer) || !mLink.connected(slot.peer);
       char why[160];
       std::snprintf(
           why, sizeof why,
-          gone ? "dead: its connection closed" : "hung: connected, but no report within %.0f ms",
+          closed ? "dead: its connection closed" : "hung: connected, but no report within %.0f ms",
           timeout_ms);
       loseTile(i, why);
     }
-    handleJoins(events);
     double slowest = 0;
     for (const auto& r : reports)
       if (r) slowest = std::max(slowest, r->stats().render_ms());
@@ -425,8 +443,7 @@ int Master::run() {
       const auto next = frame_start + std::chrono::microseconds(int64_t(1e6 / mOpt.max_fps));
       while (Clock::now() < next) {
         sync::LinkEvents idle = mLink.poll(next);
-        handleFaults(idle);
-        handleJoins(idle);
+        absorb(idle);
       }
     }
   }

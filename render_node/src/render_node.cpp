@@ -1,5 +1,6 @@
 #include <tessera/render_node/render_node.h>
 
+#include <signal.h>
 #include <unistd.h>
 
 #include <cstdio>
@@ -30,6 +31,16 @@ std::string hostName() {
   char name[256] = {};
   if (gethostname(name, sizeof name - 1) != 0) return "unknown";
   return name;
+}
+
+// Set by SIGCONT. A node that was stopped (SIGSTOP, a debugger, a frozen VM) finds on resuming
+// that its own heartbeat timer expired while it slept, and takes that for a dead master; this
+// flag tells the two apart, so it joins again instead of exiting. The one global of the node:
+// a signal handler can only set a flag.
+volatile sig_atomic_t gContinued = 0;
+
+void onContinue(int) {
+  gContinued = 1;
 }
 
 Clock::time_point after(double seconds) {
@@ -239,6 +250,11 @@ struct RenderNode::Impl {
   }
 
   int run() {
+    struct sigaction sa = {};
+    sa.sa_handler = onContinue;
+    sa.sa_flags = SA_RESTART;
+    sigemptyset(&sa.sa_mask);
+    sigaction(SIGCONT, &sa, nullptr);
     cluster::Hello hello;
     hello.set_protocol(sync::kProtocolVersion);
     hello.set_tile(opt.tile);
@@ -276,6 +292,14 @@ struct RenderNode::Impl {
         join_wait = opt.join_timeout_s;
         std::fprintf(stderr, "%s: joining again\n", who.c_str());
       } catch (const sync::MasterLost& e) {
+        hello.set_tile(tile ? tile->name() : opt.tile);
+        if (gContinued) {
+          gContinued = 0;
+          std::fprintf(stderr, "%s: %s after this node was stopped; joining again\n", who.c_str(),
+                       e.what());
+          join_wait = opt.join_timeout_s;
+          continue;
+        }
         if (opt.wait_master_s <= 0) {
           std::fprintf(stderr, "%s: %s; exiting\n", who.c_str(), e.what());
           return cluster::NODE_MASTER_LOST;

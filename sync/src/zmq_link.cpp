@@ -3,6 +3,7 @@
 #include <zmq.hpp>
 #include <zmq_addon.hpp>
 
+#include <algorithm>
 #include <atomic>
 #include <cstring>
 #include <map>
@@ -63,6 +64,7 @@ struct ZmqMasterLink::Impl {
   PeerId next = 1;
   LinkCounters counters;
   std::string endpoint;
+  LinkClock::time_point probe_until{};  // after a closed connection: probe the members
 
   /// Sends to one peer without blocking. False when its connection is gone or its queue full.
   bool send(PeerId id, const std::string& bytes) {
@@ -140,15 +142,17 @@ struct ZmqMasterLink::Impl {
     return true;
   }
 
-  /// Drains the monitor; on a closed connection, finds which members are unreachable.
+  /// Drains the monitor. A closed connection's pipe leaves the socket a moment after the event,
+  /// so for a while after one every member is probed (a send to a gone pipe fails:
+  /// ZMQ_ROUTER_MANDATORY) and the unreachable ones are reported gone.
   void checkDisconnects(LinkEvents& events) {
-    bool any = false;
     while (true) {
       zmq::pollitem_t item{monitor.handle(), 0, ZMQ_POLLIN, 0};
       if (zmq::poll(&item, 1, std::chrono::milliseconds(0)) <= 0) break;
-      any |= readMonitorEvent(monitor);
+      if (readMonitorEvent(monitor))
+        probe_until = LinkClock::now() + std::chrono::milliseconds(300);
     }
-    if (!any) return;
+    if (LinkClock::now() >= probe_until) return;
     for (auto& [id, peer] : peers) {
       if (!peer.member) continue;
       cluster::ToNode ping;
@@ -169,8 +173,9 @@ struct ZmqMasterLink::Impl {
       }
       checkDisconnects(events);
       if (done(events)) return events;
-      const auto left = until(deadline);
+      auto left = until(deadline);
       if (left.count() == 0) return events;
+      if (LinkClock::now() < probe_until) left = std::min(left, std::chrono::milliseconds(5));
       zmq::pollitem_t items[] = {{router.handle(), 0, ZMQ_POLLIN, 0},
                                  {monitor.handle(), 0, ZMQ_POLLIN, 0}};
       zmq::poll(items, 2, left);

@@ -81,6 +81,9 @@ class Master {
   bool start();
   void handleJoins(const sync::LinkEvents& events);
   void handleFaults(const sync::LinkEvents& events);
+  /// Faults, joins and the reports that are not the current frame's: startup reports, failures,
+  /// a joining node's first rendered frame (it is live from the next frame on).
+  void absorb(sync::LinkEvents& events);
   void loseTile(uint32_t tile, const std::string& reason);
   std::optional<std::string> policyViolation() const;
   double nodeTimeoutMs() const;

@@ -30,6 +30,7 @@ class TileTable {
     std::string host;  ///< of the node driving it (Hello)
     uint32_t pid = 0;
     uint64_t welcome_frame = 0;  ///< the snapshot's frame its node started from
+    bool started = false;        ///< its startup report said it can render
     bool reported = false;       ///< reported at least one rendered frame since its welcome
     std::string lost_reason;     ///< kLost: why
   };

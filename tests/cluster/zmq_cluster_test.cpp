@@ -1,0 +1,422 @@
+// The wall over ZeroMQ as a user runs it: a real tessera-master and real tessera-node processes
+// on loopback (ephemeral ports), killed, stopped and restarted by PID. Every wall screenshot is
+// checked tile by tile: a tile with a live node must be exactly tessera-render --mosaic's pixels
+// for the camera the master printed, a tile without one exactly render::lostTileImage(). Every
+// wait is bounded and every process is reaped (tests/support/process.h); ctest's TIMEOUT is the
+// last guard.
+#include <gtest/gtest.h>
+
+#include <zmq.hpp>
+
+#include <arpa/inet.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
+
+#include <cstdio>
+#include <fstream>
+#include <map>
+#include <memory>
+#include <regex>
+#include <string>
+
+#include <tessera/cluster.pb.h>
+#include <tessera/render/point_rasterizer.h>
+#include <tessera/render/tile_frustum.h>
+#include <tessera/render/wall_mosaic.h>
+#include <tessera/sync/cluster_link.h>
+#include <tessera/sync/config.h>
+
+#include "../support/command.h"
+#include "../support/process.h"
+#include "../support/temp_dir.h"
+
+namespace {
+
+namespace fs = std::filesystem;
+using tessera::test::Process;
+const std::string kData = TESSERA_DATA_DIR;
+
+void write(const fs::path& p, const std::string& text) {
+  std::ofstream(p) << text;
+}
+
+/// A small 2x2 wall (320x180 tiles, 2 cm bezels) so that five processes share two cores.
+std::string wallJson(const std::string& extra_tile_1_1 = "", const std::string& extra = "") {
+  auto tile = [](const std::string& name, double x, double y, const std::string& more) {
+    return R"({"name": ")" + name + R"(", "x": )" + std::to_string(x) + R"(, "y": )" +
+           std::to_string(y) +
+           R"(, "width": 0.48, "height": 0.27, "pixelWidth": 320, "pixelHeight": 180)" + more + "}";
+  };
+  return R"({"name": "small 2x2", "tiles": [)" + tile("tile-0-0", 0, 0.29, "") + "," +
+         tile("tile-1-0", 0.5, 0.29, "") + "," + tile("tile-0-1", 0, 0, "") + "," +
+         tile("tile-1-1", 0.5, 0, extra_tile_1_1) +
+         R"(], "eye": {"x": 0.49, "y": 0.28, "z": 1.5})" + extra + "}";
+}
+
+/// A slow turn around the bunny with a screenshot every half second of script time.
+std::string orbitJson(double seconds) {
+  std::string actions;
+  for (double t = 0.45; t < seconds; t += 0.5) {
+    char a[96];
+    std::snprintf(a, sizeof a, R"(%s{"time": %.2f, "screenshot": "shot-%05.2f.png"})",
+                  actions.empty() ? "" : ",", t, t);
+    actions += a;
+  }
+  return R"({"name": "orbit", "keyframes": [
+    {"time": 0, "eye": {"x": -0.027, "y": 0.12, "z": 0.38}, "target": {"x": -0.027, "y": 0.1, "z": 0},
+     "up": {"x": 0, "y": 1, "z": 0}},
+    {"time": )" +
+         std::to_string(seconds) +
+         R"(, "eye": {"x": 0.2, "y": 0.14, "z": 0.3}, "target": {"x": -0.027, "y": 0.1, "z": 0},
+     "up": {"x": 0, "y": 1, "z": 0}}], "actions": [)" +
+         actions + "]}";
+}
+
+struct Shot {
+  uint64_t frame = 0;
+  std::string path, camera;
+};
+
+std::vector<Shot> screenshots(const std::string& log) {
+  std::vector<Shot> shots;
+  const std::regex line("frame (\\d+): wrote (\\S+) \\(\\d+x\\d+\\); camera (\\S+)");
+  for (std::sregex_iterator it(log.begin(), log.end(), line), end; it != end; ++it)
+    shots.push_back({std::stoull((*it)[1].str()), (*it)[2].str(), (*it)[3].str()});
+  return shots;
+}
+
+/// The frame of the first log line matching `pattern` (which must capture the frame number).
+std::optional<uint64_t> frameOf(const std::string& log, const std::string& pattern) {
+  std::smatch m;
+  if (!std::regex_search(log, m, std::regex(pattern))) return std::nullopt;
+  return std::stoull(m[1].str());
+}
+
+enum class TileLooks { kReference, kLost, kOther };
+
+class ZmqWall : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    sDir = new tessera::test::TempDir();
+    const auto r = tessera::test::runCommand(std::string(TESSERA_LOD_TOOL) + " build " + kData +
+                                             "/stanford-bunny/scans/bun.conf -o " +
+                                             (*sDir / "bunny.tlod").string() + " --quiet");
+    ASSERT_EQ(r.code, 0) << r.out;
+    write(*sDir / "scene.json",
+          R"({"models": [{"name": "bunny", "store": "bunny.tlod"}], "camera": {"eye": {"x": -0.027,
+          "y": 0.12, "z": 0.38}, "target": {"x": -0.027, "y": 0.1, "z": 0.0}, "up": {"y": 1}},
+          "background": [0.05, 0.05, 0.08], "lodPixels": 1.0, "shading": "edl"})");
+    write(*sDir / "wall.json", wallJson());
+  }
+  static void TearDownTestSuite() {
+    delete sDir;
+    sDir = nullptr;
+  }
+
+  void SetUp() override {
+    mRun = sDir->path() / ::testing::UnitTest::GetInstance()->current_test_info()->name();
+    fs::create_directories(mRun);
+  }
+
+  /// tessera-master over ZeroMQ on an ephemeral loopback port; returns once it listens.
+  std::unique_ptr<Process> startMaster(const std::vector<std::string>& args,
+                                       const std::string& wall = "wall.json") {
+    std::vector<std::string> argv = {TESSERA_MASTER,
+                                     "--transport",
+                                     "zmq",
+                                     "--listen",
+                                     "tcp://127.0.0.1:*",
+                                     "--wall",
+                                     (sDir->path() / wall).string(),
+                                     "--scene",
+                                     (sDir->path() / "scene.json").string(),
+                                     "--out-dir",
+                                     mRun.string()};
+    argv.insert(argv.end(), args.begin(), args.end());
+    auto m = std::make_unique<Process>(argv, mRun / "master.log");
+    EXPECT_TRUE(m->waitFor("listening on (tcp://\\S+)", 30)) << m->output();
+    std::smatch match;
+    const std::string out = m->output();
+    std::regex_search(out, match, std::regex("listening on (tcp://\\S+)"));
+    mEndpoint = match[1].str();
+    return m;
+  }
+
+  std::unique_ptr<Process> startNode(const std::string& tile, const std::string& log_name = "") {
+    std::vector<std::string> argv = {TESSERA_NODE, "--master", mEndpoint, "--headless"};
+    if (!tile.empty()) argv.insert(argv.end(), {"--tile", tile});
+    return std::make_unique<Process>(
+        argv, mRun / ((log_name.empty() ? "node-" + tile : log_name) + ".log"));
+  }
+
+  /// tessera-render --mosaic of the scene on `wall` with `camera`, cached per camera.
+  const tessera::render::Image& reference(const std::string& camera,
+                                          const std::string& wall = "wall.json") {
+    auto it = mReferences.find(camera);
+    if (it != mReferences.end()) return it->second;
+    const fs::path out = mRun / ("ref-" + std::to_string(mReferences.size()) + ".png");
+    const auto r =
+        tessera::test::runCommand("cd " + sDir->path().string() + " && " + TESSERA_RENDER_TOOL +
+                                  " --scene scene.json --wall " + wall + " --mosaic --camera '" +
+                                  camera + "' -o " + out.string());
+    EXPECT_EQ(r.code, 0) << r.out;
+    return mReferences.emplace(camera, tessera::render::readPng(out.string())).first->second;
+  }
+
+ public:
+  /// What tile `name` of a wall screenshot shows.
+  TileLooks looks(const Shot& shot, const std::string& name,
+                  const std::string& wall_file = "wall.json") {
+    const auto wall = tessera::sync::loadWallConfig(sDir->path() / wall_file);
+    const tessera::render::Image png = tessera::render::readPng(shot.path);
+    const tessera::render::Image& ref = reference(shot.camera, wall_file);
+    EXPECT_EQ(png.width, ref.width);
+    if (png.width != ref.width || png.height != ref.height) return TileLooks::kOther;
+    for (const auto& tile : wall.tiles()) {
+      if (tile.name() != name) continue;
+      const glm::ivec2 off = tessera::render::tileOffsetInWhole(wall, tile);
+      const auto lost = tessera::render::lostTileImage(tile.pixel_width(), tile.pixel_height());
+      bool same_ref = true, same_lost = true;
+      for (uint32_t y = 0; y < tile.pixel_height(); ++y) {
+        const size_t row = (size_t(off.y + y) * png.width + off.x) * 4;
+        const size_t n = size_t(tile.pixel_width()) * 4;
+        same_ref &= std::equal(&png.rgba[row], &png.rgba[row] + n, &ref.rgba[row]);
+        same_lost &= std::equal(&png.rgba[row], &png.rgba[row] + n,
+                                &lost.rgba[size_t(y) * tile.pixel_width() * 4]);
+      }
+      return same_ref ? TileLooks::kReference : same_lost ? TileLooks::kLost : TileLooks::kOther;
+    }
+    ADD_FAILURE() << "no tile " << name;
+    return TileLooks::kOther;
+  }
+
+ protected:
+  static tessera::test::TempDir* sDir;
+  fs::path mRun;
+  std::string mEndpoint;
+  std::map<std::string, tessera::render::Image> mReferences;
+};
+tessera::test::TempDir* ZmqWall::sDir = nullptr;
+
+const std::vector<std::string> kTiles = {"tile-0-0", "tile-1-0", "tile-0-1", "tile-1-1"};
+
+/// Checks every screenshot: tiles other than `victim` always the reference; `victim` the
+/// reference until frame `lost_from`, then lost, then (once back) the reference to the end.
+void expectDropAndReturn(ZmqWall* test, const std::vector<Shot>& shots, const std::string& victim,
+                         uint64_t lost_from, uint64_t back_from) {
+  ASSERT_GE(shots.size(), 6u);
+  bool back = false;
+  size_t lost_shots = 0;
+  for (const Shot& s : shots) {
+    for (const std::string& t : kTiles) {
+      if (t == victim) continue;
+      EXPECT_EQ(int(test->looks(s, t)), int(TileLooks::kReference))
+          << t << " in " << s.path << " (frame " << s.frame << ")";
+    }
+    const TileLooks v = test->looks(s, victim);
+    if (s.frame < lost_from) {
+      EXPECT_EQ(int(v), int(TileLooks::kReference))
+          << victim << " before the loss, frame " << s.frame;
+    } else if (s.frame <= back_from) {
+      EXPECT_EQ(int(v), int(TileLooks::kLost)) << victim << " while lost, frame " << s.frame;
+      lost_shots += v == TileLooks::kLost;
+    } else {
+      // Joining: the lost pattern until its first report, then the exact pixels for good.
+      if (v == TileLooks::kReference) back = true;
+      EXPECT_EQ(int(v), int(back ? TileLooks::kReference : TileLooks::kLost))
+          << victim << " after rejoining, frame " << s.frame;
+    }
+  }
+  EXPECT_GE(lost_shots, 1u) << "no screenshot while the tile was lost";
+  EXPECT_TRUE(back) << victim << " never came back to the reference pixels";
+}
+
+}  // namespace
+
+TEST_F(ZmqWall, KilledNodeIsDroppedTheWallGoesOnAndTheRestartedNodeMatches) {
+  write(mRun / "orbit.json", orbitJson(8.0));
+  auto master = startMaster({"--script", (mRun / "orbit.json").string(), "--frames", "80", "--fps",
+                             "10", "--max-fps", "10", "--node-timeout", "1500"});
+  std::vector<std::unique_ptr<Process>> nodes;
+  for (const std::string& t : kTiles) nodes.push_back(startNode(t));
+  ASSERT_TRUE(master->waitFor("frame \\d+: wrote \\S+shot-02.45", 90)) << master->output();
+  nodes[1]->signal(SIGKILL);  // tile-1-0
+  ASSERT_TRUE(master->waitFor("tile-1-0 \\([^)]*\\) dropped: dead", 30)) << master->output();
+  ASSERT_TRUE(master->waitFor("frame \\d+: wrote \\S+shot-03.95", 30)) << master->output();
+  auto restarted = startNode("tile-1-0", "node-tile-1-0-restarted");
+  ASSERT_TRUE(master->waitFor("tile-1-0 \\([^)]*\\) rejoined", 30)) << master->output();
+  ASSERT_EQ(master->wait(120), std::optional<int>(0)) << master->output();
+  EXPECT_EQ(restarted->wait(10), std::optional<int>(0)) << restarted->output();
+  for (size_t i : {0, 2, 3})
+    EXPECT_EQ(nodes[i]->wait(10), std::optional<int>(0)) << nodes[i]->output();
+  EXPECT_EQ(nodes[1]->wait(1), std::optional<int>(-SIGKILL));
+
+  const std::string log = master->output();
+  const auto lost = frameOf(log, "frame (\\d+): tile tile-1-0 \\([^)]*\\) dropped");
+  const auto back = frameOf(log, "frame (\\d+): tile tile-1-0 \\([^)]*\\) rejoined");
+  ASSERT_TRUE(lost && back) << log;
+  expectDropAndReturn(this, screenshots(log), "tile-1-0", *lost, *back);
+}
+
+TEST_F(ZmqWall, StoppedNodeIsDroppedAsHungAndRejoinsWhenContinued) {
+  write(mRun / "orbit.json", orbitJson(7.0));
+  auto master = startMaster({"--script", (mRun / "orbit.json").string(), "--frames", "70", "--fps",
+                             "10", "--max-fps", "10", "--node-timeout", "1000"});
+  std::vector<std::unique_ptr<Process>> nodes;
+  for (const std::string& t : kTiles) nodes.push_back(startNode(t));
+  ASSERT_TRUE(master->waitFor("frame \\d+: wrote \\S+shot-01.95", 90)) << master->output();
+  nodes[2]->signal(SIGSTOP);  // tile-0-1
+  ASSERT_TRUE(master->waitFor("tile-0-1 \\([^)]*\\) dropped: hung", 30)) << master->output();
+  ASSERT_TRUE(master->waitFor("frame \\d+: wrote \\S+shot-03.45", 30)) << master->output();
+  nodes[2]->signal(SIGCONT);
+  ASSERT_TRUE(master->waitFor("tile-0-1 \\([^)]*\\) rejoined", 30)) << master->output();
+  ASSERT_EQ(master->wait(120), std::optional<int>(0)) << master->output();
+  for (auto& n : nodes) EXPECT_EQ(n->wait(10), std::optional<int>(0)) << n->output();
+  const std::string log = master->output();
+  const auto lost = frameOf(log, "frame (\\d+): tile tile-0-1 \\([^)]*\\) dropped");
+  const auto back = frameOf(log, "frame (\\d+): tile tile-0-1 \\([^)]*\\) rejoined");
+  ASSERT_TRUE(lost && back) << log;
+  expectDropAndReturn(this, screenshots(log), "tile-0-1", *lost, *back);
+}
+
+TEST_F(ZmqWall, NodesExitWhenTheMasterIsKilled) {
+  auto master = startMaster({"--frames", "100000", "--max-fps", "20"});
+  std::vector<std::unique_ptr<Process>> nodes;
+  for (const std::string& t : kTiles) nodes.push_back(startNode(t));
+  ASSERT_TRUE(master->waitFor("4 of 4 tiles have a node", 60)) << master->output();
+  std::this_thread::sleep_for(std::chrono::milliseconds(500));
+  master->signal(SIGKILL);
+  for (auto& n : nodes) {
+    // NODE_MASTER_LOST; the bound only keeps a broken build from hanging (bench/cluster_link
+    // measures how soon).
+    EXPECT_EQ(n->wait(20), std::optional<int>(tessera::cluster::NODE_MASTER_LOST)) << n->output();
+    EXPECT_NE(n->output().find("lost the master"), std::string::npos) << n->output();
+  }
+}
+
+TEST_F(ZmqWall, NodeStartedAfterFrame50JoinsAndMatches) {
+  write(mRun / "orbit.json", orbitJson(8.0));
+  auto master =
+      startMaster({"--script", (mRun / "orbit.json").string(), "--frames", "80", "--fps", "10",
+                   "--max-fps", "10", "--node-timeout", "1500", "--join-wait", "1"});
+  std::vector<std::unique_ptr<Process>> nodes;
+  for (size_t i = 0; i < 3; ++i) nodes.push_back(startNode(kTiles[i]));
+  ASSERT_TRUE(master->waitFor("frame 5\\d: wrote", 90)) << master->output();
+  nodes.push_back(startNode("", "node-late"));  // the first free tile: tile-1-1
+  ASSERT_TRUE(master->waitFor("tile tile-1-1 \\([^)]*\\) joined", 30)) << master->output();
+  ASSERT_EQ(master->wait(120), std::optional<int>(0)) << master->output();
+  for (auto& n : nodes) EXPECT_EQ(n->wait(10), std::optional<int>(0)) << n->output();
+  const std::string log = master->output();
+  const auto joined = frameOf(log, "frame (\\d+): tile tile-1-1 \\([^)]*\\) joined");
+  ASSERT_TRUE(joined);
+  EXPECT_GE(*joined, 50u);
+  expectDropAndReturn(this, screenshots(log), "tile-1-1", 0, *joined);
+}
+
+TEST_F(ZmqWall, BadPeersAreRefusedAndTheWallIsUndisturbed) {
+  write(mRun / "orbit.json", orbitJson(6.0));
+  auto master = startMaster({"--script", (mRun / "orbit.json").string(), "--frames", "60", "--fps",
+                             "10", "--max-fps", "10", "--node-timeout", "1500"});
+  std::vector<std::unique_ptr<Process>> nodes;
+  for (const std::string& t : kTiles) nodes.push_back(startNode(t));
+  ASSERT_TRUE(master->waitFor("frame \\d+: wrote \\S+shot-00.95", 90)) << master->output();
+
+  // A second node for a driven tile, and one for a tile the wall does not have.
+  auto duplicate = startNode("tile-0-0", "node-duplicate");
+  EXPECT_EQ(duplicate->wait(20), std::optional<int>(tessera::cluster::NODE_REFUSED));
+  EXPECT_NE(duplicate->output().find("tile 'tile-0-0' is already driven by the node on"),
+            std::string::npos)
+      << duplicate->output();
+  auto unknown = startNode("nope", "node-unknown");
+  EXPECT_EQ(unknown->wait(20), std::optional<int>(tessera::cluster::NODE_REFUSED));
+  EXPECT_NE(unknown->output().find("has no tile 'nope'"), std::string::npos) << unknown->output();
+
+  // A peer of another protocol version, and one that sends bytes that are no message at all.
+  zmq::context_t ctx;
+  auto refusalTo = [&](const std::string& bytes) {
+    zmq::socket_t s(ctx, zmq::socket_type::dealer);
+    s.set(zmq::sockopt::linger, 0);
+    s.set(zmq::sockopt::rcvtimeo, 10000);
+    s.connect(mEndpoint);
+    s.send(zmq::buffer(bytes));
+    zmq::message_t reply;
+    if (!s.recv(reply)) return std::string("(no answer)");
+    tessera::cluster::ToNode t;
+    EXPECT_TRUE(t.ParseFromArray(reply.data(), int(reply.size())));
+    return t.has_refused() ? t.refused().reason() : std::string("(not a refusal)");
+  };
+  tessera::cluster::FromNode old;
+  old.set_protocol(1);
+  old.mutable_hello()->set_tile("tile-1-1");
+  EXPECT_NE(refusalTo(old.SerializeAsString()).find("protocol version 1, this build speaks"),
+            std::string::npos);
+  EXPECT_NE(refusalTo(std::string("\xff\xfe garbage \x01\x02", 14)).find("are not a FromNode"),
+            std::string::npos);
+  // Raw bytes on the TCP port (no ZMTP handshake): libzmq closes the connection.
+  {
+    std::smatch m;
+    ASSERT_TRUE(std::regex_search(mEndpoint, m, std::regex(":(\\d+)$")));
+    const int fd = socket(AF_INET, SOCK_STREAM, 0);
+    sockaddr_in addr{};
+    addr.sin_family = AF_INET;
+    addr.sin_port = htons(uint16_t(std::stoi(m[1].str())));
+    inet_pton(AF_INET, "127.0.0.1", &addr.sin_addr);
+    ASSERT_EQ(connect(fd, reinterpret_cast<sockaddr*>(&addr), sizeof addr), 0);
+    const std::string junk(4096, '\x5a');
+    EXPECT_GT(::write(fd, junk.data(), junk.size()), 0);
+    close(fd);
+  }
+  ASSERT_EQ(master->wait(120), std::optional<int>(0)) << master->output();
+  for (auto& n : nodes) EXPECT_EQ(n->wait(10), std::optional<int>(0)) << n->output();
+  const std::string log = master->output();
+  EXPECT_EQ(log.find("dropped"), std::string::npos) << log;
+  EXPECT_NE(log.find("refused a node on"), std::string::npos) << log;
+  for (const Shot& s : screenshots(log))
+    for (const std::string& t : kTiles)
+      EXPECT_EQ(int(looks(s, t)), int(TileLooks::kReference)) << t << " frame " << s.frame;
+}
+
+TEST_F(ZmqWall, LosingACriticalTileStopsTheWall) {
+  write(sDir->path() / "wall-critical.json", wallJson(R"(, "critical": true)"));
+  auto master = startMaster({"--frames", "100000", "--max-fps", "10", "--node-timeout", "1000"},
+                            "wall-critical.json");
+  std::vector<std::unique_ptr<Process>> nodes;
+  for (const std::string& t : kTiles) nodes.push_back(startNode(t));
+  ASSERT_TRUE(master->waitFor("4 of 4 tiles have a node", 60)) << master->output();
+  nodes[0]->signal(SIGKILL);  // not critical: the wall goes on
+  ASSERT_TRUE(master->waitFor("tile-0-0 \\([^)]*\\) dropped", 30)) << master->output();
+  EXPECT_TRUE(master->running());
+  nodes[3]->signal(SIGKILL);  // critical
+  EXPECT_EQ(master->wait(30), std::optional<int>(5)) << master->output();
+  EXPECT_NE(master->output().find("stopping the wall: critical tile tile-1-1 has no node"),
+            std::string::npos)
+      << master->output();
+  for (size_t i : {1, 2})
+    EXPECT_EQ(nodes[i]->wait(20), std::optional<int>(0)) << nodes[i]->output();
+}
+
+TEST_F(ZmqWall, MpiAndZmqGiveByteIdenticalScreenshots) {
+  write(mRun / "orbit.json", orbitJson(1.0));
+  auto master = startMaster({"--script", (mRun / "orbit.json").string(), "--frames", "12", "--fps",
+                             "10", "--screenshot", (mRun / "zmq-last.png").string()});
+  std::vector<std::unique_ptr<Process>> nodes;
+  for (const std::string& t : kTiles) nodes.push_back(startNode(t));
+  ASSERT_EQ(master->wait(120), std::optional<int>(0)) << master->output();
+  std::string mpirun = std::string(TESSERA_MPIRUN) + " --oversubscribe";
+  if (getuid() == 0) mpirun += " --allow-run-as-root";
+  fs::create_directories(mRun / "mpi");
+  const auto r = tessera::test::runCommand(
+      mpirun + " -np 1 " + TESSERA_MASTER + " --wall " + (sDir->path() / "wall.json").string() +
+      " --scene " + (sDir->path() / "scene.json").string() + " --script " +
+      (mRun / "orbit.json").string() + " --frames 12 --fps 10 --out-dir " +
+      (mRun / "mpi").string() + " --screenshot " + (mRun / "mpi-last.png").string() + " : -np 4 " +
+      TESSERA_NODE + " --headless");
+  ASSERT_EQ(r.code, 0) << r.out;
+  const auto same = [](const fs::path& a, const fs::path& b) {
+    const auto x = tessera::render::readPng(a.string()), y = tessera::render::readPng(b.string());
+    return x.width == y.width && x.height == y.height && x.rgba == y.rgba;
+  };
+  EXPECT_TRUE(same(mRun / "zmq-last.png", mRun / "mpi-last.png"));
+  EXPECT_TRUE(same(mRun / "shot-00.45.png", mRun / "mpi" / "shot-00.45.png"));
+  EXPECT_TRUE(same(mRun / "shot-00.95.png", mRun / "mpi" / "shot-00.95.png"));
+}
