@@ -31,6 +31,8 @@
 
 #include <tessera/lod/store_builder.h>
 
+#include "bench_walls.h"
+
 namespace {
 
 namespace fs = std::filesystem;
@@ -67,26 +69,6 @@ std::vector<Row> readStats(const fs::path& csv) {
     rows.push_back(r);
   }
   return rows;
-}
-
-/// K tiles in a grid covering `w` x `h` pixels at 1 mm per pixel, no bezels, the eye 2 m in front
-/// of the centre.
-std::string wallJson(int k, uint32_t w, uint32_t h) {
-  const int cols = k == 1 ? 1 : k == 2 ? 2 : k == 4 ? 2 : 4, rows = k / cols;
-  const uint32_t tw = w / uint32_t(cols), th = h / uint32_t(rows);
-  std::ostringstream j;
-  j << "{\"name\": \"" << cols << "x" << rows << " bench wall\", \"tiles\": [";
-  for (int r = 0; r < rows; ++r) {
-    for (int c = 0; c < cols; ++c) {
-      j << (r || c ? ", " : "") << "{\"name\": \"tile-" << c << "-" << r
-        << "\", \"x\": " << c * tw * 1e-3 << ", \"y\": " << (rows - 1 - r) * th * 1e-3
-        << ", \"width\": " << tw * 1e-3 << ", \"height\": " << th * 1e-3
-        << ", \"pixelWidth\": " << tw << ", \"pixelHeight\": " << th << "}";
-    }
-  }
-  j << "], \"eye\": {\"x\": " << cols * tw * 0.5e-3 << ", \"y\": " << rows * th * 0.5e-3
-    << ", \"z\": 2.0}}";
-  return j.str();
 }
 
 }  // namespace
@@ -144,7 +126,7 @@ int main(int argc, char** argv) {
       return 2;
     }
     const fs::path wall = dir / ("wall-" + std::to_string(k) + ".json");
-    std::ofstream(wall) << wallJson(k, width, height);
+    std::ofstream(wall) << tessera::bench::gridWallJson(k, width, height);
     const fs::path stats = dir / ("stats-" + std::to_string(k) + ".csv");
     const std::string cmd = mpirun + " -np 1 " + bin + "/master/tessera-master --wall " +
                             wall.string() + " --scene " + (dir / "scene.json").string() +

@@ -3,13 +3,13 @@
 # build/fuzz/corpus/<target>/ from small real files and hand-made inputs, then runs each fuzzer
 # for SECONDS (default 300), one at a time. Crashing inputs land in fuzz/regressions/<target>/,
 # which is also replayed first, so a regression that comes back fails at once.
-# Usage: fuzz/run.sh [SECONDS] [TARGET...]   (targets: ply las text obj frame; default all)
+# Usage: fuzz/run.sh [SECONDS] [TARGET...]   (targets: ply las text obj frame link; default all)
 set -euo pipefail
 
 cd "$(dirname "$0")/.."
 SECONDS_PER_TARGET=${1:-300}
 shift || true
-TARGETS=("${@:-ply las text obj frame}")
+TARGETS=("${@:-ply las text obj frame link}")
 read -r -a TARGETS <<<"${TARGETS[*]}"
 DATA=${TESSERA_DATA_DIR:-$(cd .. && pwd)/shared/data}
 BUILD=build/fuzz
@@ -128,7 +128,42 @@ scene {
 END
 }
 
-declare -A MAX_LEN=([ply]=8192 [las]=8192 [text]=4096 [obj]=4096 [frame]=4096)
+# Cluster link envelopes (cluster.proto): a join, a report, a welcome with a snapshot, a frame,
+# and one of another protocol version.
+seed_link() {
+  local proto="$OLDPWD/sync/proto"
+  encode() { protoc --encode="tessera.cluster.$1" -I "$proto" "$proto/tessera/cluster.proto" >"$2"; }
+  encode FromNode hello.msg <<'END'
+protocol: 2 hello { tile: "b" host: "h1.example.org" pid: 4242 }
+END
+  encode FromNode hello-any.msg <<'END'
+protocol: 2 hello { host: "h2" pid: 1 }
+END
+  encode FromNode report.msg <<'END'
+protocol: 2 report { frame: 7 status { code: NODE_BAD_STORE message: "a.tlod: bad" }
+  stats { render_ms: 12.5 points: 1000 frames: 2 } rgba: "0123456789abcdef0123456789abcdef0123456789abcdef0123456789abcdef" }
+END
+  encode FromNode old.msg <<'END'
+protocol: 1 hello { tile: "a" }
+END
+  encode ToNode welcome.msg <<'END'
+protocol: 2 welcome { tile: "a" settled: true splat_scale: 2 gpu_budget_bytes: 1000000
+  snapshot { version: 3 frame: 9 scene {
+    camera { eye: [0, 0, 1] view: [0, 0, -1] roll: 0 }
+    settings { background {} shading: SHADING_EDL lod_pixels: 1 spbr_ensembles: 1 }
+    nodes { id: 1 kind: GROUP }
+    nodes { id: 2 kind: MODEL parent: 1 model { store: "/s/a.tlod" } opacity: 0.5 } } }
+  wall { tiles { name: "a" width: 1 height: 1 pixel_width: 4 pixel_height: 4 } eye { z: 2 } } }
+END
+  encode ToNode frame.msg <<'END'
+protocol: 2 frame { frame: "\x08\x01\x10\x01" read_back: true }
+END
+  encode ToNode quit.msg <<'END'
+protocol: 2 quit { code: 5 reason: "critical tile lost" }
+END
+}
+
+declare -A MAX_LEN=([ply]=8192 [las]=8192 [text]=4096 [obj]=4096 [frame]=4096 [link]=4096)
 export UBSAN_OPTIONS=halt_on_error=1:print_stacktrace=1
 status=0
 summary=()

@@ -82,6 +82,48 @@ mkdir -p "$out/cluster"
   --stats "$out/cluster/stats.csv" : -np 4 "$node" --headless | tee "$out/cluster/master.txt" || exit 1
 
 echo
+echo "== the same wall over ZeroMQ: nodes join on their own, one is killed (kill -9) on the way and"
+echo "   restarted; the wall goes on with the lost tile striped red, then the node rejoins from a"
+echo "   snapshot and its tile is exact again"
+mkdir -p "$out/zmq"
+rm -f "$out/zmq/"*.log
+"$master" --transport zmq --listen tcp://127.0.0.1:7400 --wall configs/walls/2x2.json \
+  --scene configs/scenes/bunny-fused.json --script configs/paths/bunny-fused-orbit.json \
+  --frames "${TESSERA_DEMO_FRAMES:-61}" --fps 5 --max-fps 4 --node-timeout 3000 \
+  --out-dir "$out/zmq" --screenshot "$out/zmq/wall-2x2-zmq.png" \
+  --stats "$out/zmq/stats.csv" >"$out/zmq/master.log" 2>&1 &
+master_pid=$!
+node_pids=()
+for tile in tile-0-0 tile-1-0 tile-0-1 tile-1-1; do
+  "$node" --master tcp://127.0.0.1:7400 --headless --tile "$tile" >"$out/zmq/node-$tile.log" 2>&1 &
+  node_pids+=($!)
+done
+wait_for() {  # wait_for PATTERN SECONDS: until the master's log has PATTERN
+  local end=$((SECONDS + $2))
+  until grep -q "$1" "$out/zmq/master.log"; do
+    if ((SECONDS > end)) || ! kill -0 "$master_pid" 2>/dev/null; then return 1; fi
+    sleep 0.2
+  done
+}
+t0=$(date +%s.%N)
+stamp() { awk -v a="$(date +%s.%N)" -v b="$t0" -v m="$1" 'BEGIN { printf "  %6.2f s  %s\n", a - b, m }'; }
+if wait_for "frame 1[5-9]:" 120 || wait_for "wrote" 120; then
+  stamp "kill -9 tile-1-0 (pid ${node_pids[1]})"
+  kill -9 "${node_pids[1]}"
+  wait_for "tile-1-0 .* dropped" 30 && stamp "$(grep -m1 'tile-1-0 .* dropped' "$out/zmq/master.log")"
+  sleep 2
+  stamp "restart tile-1-0"
+  "$node" --master tcp://127.0.0.1:7400 --headless --tile tile-1-0 >"$out/zmq/node-tile-1-0-restarted.log" 2>&1 &
+  node_pids[1]=$!
+  wait_for "tile-1-0 .* rejoined" 30 && stamp "$(grep -m1 'tile-1-0 .* rejoined' "$out/zmq/master.log")"
+fi
+wait "$master_pid" || { echo "the ZeroMQ wall failed: $out/zmq/master.log"; exit 1; }
+for p in "${node_pids[@]}"; do wait "$p" 2>/dev/null || true; done
+stamp "the session ended: $(tail -1 "$out/zmq/master.log")"
+awk -F, '$4 == "master" && NR > 1 { n++; s += $10; if ($10 > m) m = $10 }
+  END { if (n) printf "  %d frames, mean %.0f ms, slowest %.0f ms\n", n, s / n, m }' "$out/zmq/stats.csv"
+
+echo
 echo "Outputs:"
 echo "  $out/info.txt                      description of every data file"
 echo "  $out/info.json                     the same as JSON"
@@ -98,3 +140,5 @@ echo "  $out/see-through-photo.png         a photo fused with the scans (tessera
 echo "  $out/cluster/bunny-fused-half.png, bunny-fused.png   the path's own screenshots"
 echo "  $out/cluster/stats.csv              per frame and node: sync, render, barrier ms, points, resident bytes"
 echo "  $out/cluster/master.txt             the master's log (each screenshot's camera, for tessera-render --camera)"
+echo "  $out/zmq/                           the ZeroMQ wall: master.log (joins, the drop, the rejoin), stats.csv,"
+echo "                                      the path's screenshots (the lost tile striped red), node logs"

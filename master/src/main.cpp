@@ -22,7 +22,8 @@ using namespace tessera;
 void refuseEveryone(sync::MasterLink& link, const std::string& reason) {
   const sync::LinkEvents events = link.poll(sync::LinkClock::now());
   for (const auto& [peer, hello] : events.joins) link.refuse(peer, reason);
-  if (!link.canDropNodes()) (void)link.collect(0, {}, sync::LinkClock::now());
+  if (!link.canDropNodes())
+    (void)link.collect(0, {}, sync::LinkClock::duration(0), sync::LinkClock::now());
   link.quit(master::kExitStart, reason);
 }
 

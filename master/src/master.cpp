@@ -171,11 +171,16 @@ void Master::handleJoins(const sync::LinkEvents& events) {
     // A node that joins again on the same connection gives up the tile it had.
     if (const auto old = mTiles->tileOf(peer)) mTiles->lose(*old, "its node joined again");
     // A node that comes back on a new connection before its old one was dropped (it was
-    // stopped, its heartbeats timed out): the old connection is gone, so is its claim.
+    // stopped, its heartbeats timed out): the old connection is gone, or is the same process's
+    // (host and pid), so is its claim.
     for (uint32_t t = 0; t < mTiles->size(); ++t) {
       const TileTable::Slot& s = mTiles->slot(t);
-      if (mTiles->name(t) == hello.tile() &&
-          (s.state == State::kLive || s.state == State::kJoining) && !mLink.connected(s.peer))
+      if (mTiles->name(t) != hello.tile() ||
+          (s.state != State::kLive && s.state != State::kJoining))
+        continue;
+      if (s.host == hello.host() && s.pid == hello.pid())
+        loseTile(t, "its node reconnected");
+      else if (!mLink.connected(s.peer))
         loseTile(t, "dead: its connection closed (a new node claims the tile)");
     }
     const std::variant<uint32_t, std::string> claim = mTiles->claim(hello);
@@ -239,7 +244,7 @@ void Master::absorb(sync::LinkEvents& events) {
   handleFaults(events);
   for (const auto& [peer, report] : events.reports) {
     const auto tile = mTiles->tileOf(peer);
-    if (!tile) continue;
+    if (!tile || report.working()) continue;
     TileTable::Slot& slot = mTiles->slot(*tile);
     if (report.status().code() != cluster::NODE_OK) {
       std::fprintf(stderr, "tessera-master: %s failed (%s, code %d): %s\n",
@@ -280,7 +285,9 @@ bool Master::start() {
   for (bool first = true; first || (!waiting().empty() && Clock::now() < start_deadline);
        first = false) {
     if (mLink.canDropNodes() && waiting().empty()) break;
-    sync::LinkEvents events = mLink.collect(0, waiting(), start_deadline);
+    sync::LinkEvents events = mLink.collect(
+        0, waiting(), std::chrono::milliseconds(int64_t(mOpt.first_frame_timeout_s * 1000.0)),
+        start_deadline);
     absorb(events);
     if (!mLink.canDropNodes()) break;
   }
@@ -365,12 +372,21 @@ int Master::run() {
       first |= !mTiles->slot(i).reported;
     }
     const double timeout_ms = first ? mOpt.first_frame_timeout_s * 1000.0 : nodeTimeoutMs();
-    sync::LinkEvents events = mLink.collect(mFrame, awaited, after(timeout_ms));
+    // A frame that must be complete (deterministic runs, screenshots) may take long: a node that
+    // keeps saying it is at work (NodeReport{working}) is waited for up to the first-frame
+    // timeout; otherwise a report later than the timeout drops the tile.
+    const bool complete = message_out.read_back() || (mOpt.frames > 0 && !mOpt.console);
+    const auto quiet = std::chrono::microseconds(int64_t(timeout_ms * 1000.0));
+    sync::LinkEvents events = mLink.collect(
+        mFrame, awaited, quiet,
+        complete ? after(std::max(timeout_ms, mOpt.first_frame_timeout_s * 1000.0))
+                 : Clock::now() + quiet);
     std::vector<std::optional<cluster::NodeReport>> reports(tiles);
     std::vector<std::pair<sync::PeerId, cluster::NodeReport>> others;
     for (auto& [peer, report] : events.reports) {
       const auto tile = mTiles->tileOf(peer);
-      if (!tile || report.frame() != mFrame || report.status().code() != cluster::NODE_OK) {
+      if (!tile || report.working() || report.frame() != mFrame ||
+          report.status().code() != cluster::NODE_OK) {
         others.emplace_back(peer, std::move(report));
         continue;
       }
@@ -436,7 +452,7 @@ int Master::run() {
       writeScreenshots(shots, mFrame, pixels);
     }
     if (mCsv)
-      writeStats(mFrame, t, frame_bytes, sync_ms, barrier_ms, present_ms, msSince(frame_start),
+      writeStats(frame_start, mFrame, t, frame_bytes, sync_ms, barrier_ms, present_ms, msSince(frame_start),
                  reports);
     if (last) break;
     if (mOpt.max_fps > 0) {  // pace, handling joins meanwhile
@@ -448,6 +464,13 @@ int Master::run() {
     }
   }
   mLink.quit(0, "the session ended");
+  const sync::LinkCounters c = mLink.counters();
+  std::printf("tessera-master: %s link: sent %llu bytes in %llu messages, received %llu bytes in "
+              "%llu messages, over %llu frames\n",
+              mLink.transport(), (unsigned long long)c.bytes_sent,
+              (unsigned long long)c.messages_sent, (unsigned long long)c.bytes_received,
+              (unsigned long long)c.messages_received, (unsigned long long)mFrame);
+  std::fflush(stdout);
   return kExitOk;
 }
 
@@ -483,21 +506,27 @@ void Master::writeScreenshots(const std::vector<std::string>& paths, uint64_t fr
 void Master::writeStatsHeader() {
   *mCsv << "frame,time_s,rank,tile,frame_bytes,sync_ms,render_ms,barrier_ms,present_ms,"
            "frame_ms,settle_frames,points,nodes,resident_bytes,resident_disk_bytes,"
-           "store_bytes,chunks_queued,state\n";
+           "store_bytes,chunks_queued,state,start_s\n";
 }
 
-void Master::writeStats(uint64_t frame, double t, size_t frame_bytes, double sync_ms,
+void Master::writeStats(Clock::time_point frame_start, uint64_t frame, double t,
+                        size_t frame_bytes, double sync_ms,
                         double barrier_ms, double present_ms, double frame_ms,
                         const std::vector<std::optional<cluster::NodeReport>>& reports) {
   std::ofstream& csv = *mCsv;
+  // The frame's start on the steady clock (CLOCK_MONOTONIC, shared by every process of the
+  // host): benchmarks put kills and restarts on the same time line.
+  char start[32];
+  std::snprintf(start, sizeof start, "%.6f",
+                std::chrono::duration<double>(frame_start.time_since_epoch()).count());
   csv << frame << "," << t << ",0,master," << frame_bytes << "," << sync_ms << ",0," << barrier_ms
-      << "," << present_ms << "," << frame_ms << ",0,0,0,0,0,0,0,live\n";
+      << "," << present_ms << "," << frame_ms << ",0,0,0,0,0,0,0,live," << start << "\n";
   for (uint32_t i = 0; i < reports.size(); ++i) {
     const TileTable::Slot& slot = mTiles->slot(i);
     if (!reports[i]) {
       if (slot.state == State::kLive) continue;  // cannot happen: live tiles reported
       csv << frame << "," << t << ",0," << mTiles->name(i) << ",0,0,0,0,0,0,0,0,0,0,0,0,0,"
-          << (slot.state == State::kJoining ? "joining" : "lost") << "\n";
+          << (slot.state == State::kJoining ? "joining" : "lost") << "," << start << "\n";
       continue;
     }
     const cluster::NodeFrameStats& s = reports[i]->stats();
@@ -505,7 +534,7 @@ void Master::writeStats(uint64_t frame, double t, size_t frame_bytes, double syn
         << s.render_ms() << "," << s.barrier_ms() << "," << s.present_ms() << ",0," << s.frames()
         << "," << s.points() << "," << s.nodes() << "," << s.resident_bytes() << ","
         << s.resident_disk_bytes() << "," << s.store_bytes() << "," << s.chunks_queued()
-        << ",live\n";
+        << ",live," << start << "\n";
   }
   csv.flush();
 }

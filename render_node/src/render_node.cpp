@@ -167,6 +167,9 @@ struct RenderNode::Impl {
         // Settled frames (screenshots, deterministic scripted runs) wait for every chunk of the
         // cut, so their pixels are exactly what tessera-render --mosaic makes.
         if (read_back || setup.settled()) {
+          // Settling can take many frames (loading, see-through ensembles): the link says
+          // now and then that this node is at work, so the master tells slow from hung.
+          link.working(graph.frameNumber());
           render::Image image = renderer->renderSettled(instances, view, options, &rs);
           if (read_back) r.set_rgba(image.rgba.data(), image.rgba.size());
         } else {
@@ -269,6 +272,12 @@ struct RenderNode::Impl {
         std::fprintf(stderr, "%s: the master refused this node: %s\n", who.c_str(), e.what());
         return cluster::NODE_REFUSED;
       } catch (const sync::MasterLost& e) {
+        if (gContinued) {  // the connection died while this node was stopped: a new one
+          gContinued = 0;
+          std::fprintf(stderr, "%s: %s after this node was stopped; joining again\n",
+                       who.c_str(), e.what());
+          continue;
+        }
         std::fprintf(stderr, "%s: %s\n", who.c_str(), e.what());
         return cluster::NODE_MASTER_LOST;
       }

@@ -69,7 +69,8 @@ void MpiMasterLink::publish(const cluster::FrameMessage& frame) {
   broadcast(t, "frame broadcast");
 }
 
-LinkEvents MpiMasterLink::collect(uint64_t, const std::set<PeerId>&, LinkClock::time_point) {
+LinkEvents MpiMasterLink::collect(uint64_t, const std::set<PeerId>&, LinkClock::duration,
+                                  LinkClock::time_point) {
   LinkEvents events;
   const std::vector<std::string> parts = mMpi.gatherBytes({}, "every node's report");
   for (size_t r = 1; r < parts.size(); ++r) {

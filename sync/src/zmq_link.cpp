@@ -5,8 +5,11 @@
 
 #include <algorithm>
 #include <atomic>
+#include <condition_variable>
 #include <cstring>
 #include <map>
+#include <mutex>
+#include <thread>
 
 namespace tessera::sync {
 
@@ -207,7 +210,10 @@ std::string ZmqMasterLink::endpoint() const {
 }
 
 LinkEvents ZmqMasterLink::poll(LinkClock::time_point deadline) {
-  return m->wait(deadline, [](const LinkEvents& e) { return !e.empty(); });
+  LinkEvents events = m->wait(deadline, [](const LinkEvents& e) { return !e.empty(); });
+  // Signs of work belong to collect(); between frames they are stale.
+  std::erase_if(events.reports, [](const auto& r) { return r.second.working(); });
+  return events;
 }
 
 void ZmqMasterLink::welcome(PeerId peer, const cluster::ClusterSetup& setup) {
@@ -232,15 +238,50 @@ void ZmqMasterLink::publish(const cluster::FrameMessage& frame) {
 }
 
 LinkEvents ZmqMasterLink::collect(uint64_t frame, const std::set<PeerId>& awaited,
-                                  LinkClock::time_point deadline) {
-  std::set<PeerId> left = awaited;
-  return m->wait(deadline, [&](const LinkEvents& e) {
-    for (const auto& [id, r] : e.reports)
-      if (r.frame() == frame || r.status().code() != cluster::NODE_OK) left.erase(id);
-    for (PeerId id : e.gone) left.erase(id);
-    for (const auto& [id, why] : e.faults) left.erase(id);
-    return left.empty();
-  });
+                                  LinkClock::duration quiet, LinkClock::time_point cap) {
+  // Each awaited peer's own deadline: `quiet` after its last sign of work on this frame.
+  std::map<PeerId, LinkClock::time_point> left;
+  const auto start = LinkClock::now();
+  for (PeerId id : awaited) left[id] = std::min(cap, start + quiet);
+  LinkEvents events;
+  while (true) {
+    LinkEvents more;
+    while (m->receiveOne(more)) {
+    }
+    m->checkDisconnects(more);
+    const auto now = LinkClock::now();
+    for (auto& [id, r] : more.reports) {
+      auto it = left.find(id);
+      if (r.working()) {
+        // Any frame: a node behind is still rendering an older one, and renders the newest next.
+        if (it != left.end()) it->second = std::min(cap, now + quiet);
+        continue;
+      }
+      if (it != left.end() && (r.frame() == frame || r.status().code() != cluster::NODE_OK))
+        left.erase(it);
+      events.reports.emplace_back(id, std::move(r));
+    }
+    more.reports.clear();
+    for (PeerId id : more.gone) left.erase(id);
+    for (const auto& [id, why] : more.faults) left.erase(id);
+    events.append(std::move(more));
+    LinkClock::time_point until_next = LinkClock::time_point::min();
+    for (auto it = left.begin(); it != left.end();) {
+      if (it->second <= now) {
+        it = left.erase(it);  // missed: the caller names it
+      } else {
+        until_next = std::max(until_next, it->second);
+        ++it;
+      }
+    }
+    if (left.empty()) return events;
+    auto wait = until(until_next);
+    if (now < m->probe_until) wait = std::min(wait, std::chrono::milliseconds(5));
+    wait = std::min(wait, std::chrono::milliseconds(100));  // deadlines move with progress
+    zmq::pollitem_t items[] = {{m->router.handle(), 0, ZMQ_POLLIN, 0},
+                               {m->monitor.handle(), 0, ZMQ_POLLIN, 0}};
+    zmq::poll(items, 2, wait);
+  }
 }
 
 void ZmqMasterLink::swap(uint64_t frame) {
@@ -288,6 +329,12 @@ LinkCounters ZmqMasterLink::counters() const {
 // ---- node ------------------------------------------------------------------------------------
 
 struct ZmqNodeLink::Impl {
+  std::mutex socket_mutex;  // the dealer: the caller's thread or the sign-of-life thread
+  std::mutex beat_mutex;    // what the sign-of-life thread does
+  std::condition_variable beat_wake;
+  bool beating = false, stopping = false;
+  uint64_t beat_frame = 0;
+  std::thread beat;
   std::string endpoint;
   ZmqLinkOptions options;
   zmq::context_t ctx{1};
@@ -356,15 +403,40 @@ ZmqNodeLink::ZmqNodeLink(const std::string& endpoint, const ZmqLinkOptions& opti
   m->endpoint = endpoint;
   m->options = options;
   m->open();
+  m->beat = std::thread([impl = m.get()] {
+    std::unique_lock lock(impl->beat_mutex);
+    while (!impl->stopping) {
+      impl->beat_wake.wait_for(lock, std::chrono::milliseconds(100));
+      if (!impl->beating || impl->stopping) continue;
+      cluster::FromNode f;
+      f.mutable_report()->set_frame(impl->beat_frame);
+      f.mutable_report()->set_working(true);
+      std::lock_guard socket(impl->socket_mutex);
+      impl->send(envelope(f));
+    }
+  });
 }
 
 ZmqNodeLink::~ZmqNodeLink() {
+  {
+    std::lock_guard lock(m->beat_mutex);
+    m->stopping = true;
+  }
+  m->beat_wake.notify_all();
+  m->beat.join();
   m->monitor.reset();
   m->dealer.reset();
 }
 
+void ZmqNodeLink::working(uint64_t frame) {
+  std::lock_guard lock(m->beat_mutex);
+  m->beating = true;
+  m->beat_frame = frame;
+}
+
 cluster::ClusterSetup ZmqNodeLink::join(const cluster::Hello& hello,
                                         LinkClock::time_point deadline) {
+  std::lock_guard socket(m->socket_mutex);
   if (m->lost) m->open();
   cluster::FromNode f;
   *f.mutable_hello() = hello;
@@ -380,17 +452,24 @@ cluster::ClusterSetup ZmqNodeLink::join(const cluster::Hello& hello,
 }
 
 bool ZmqNodeLink::receive(cluster::ToNode& message, LinkClock::time_point deadline) {
+  std::lock_guard socket(m->socket_mutex);
   while (m->next(message, deadline))
     if (!message.has_ping()) return true;
   return false;
 }
 
 bool ZmqNodeLink::pending() {
+  std::lock_guard socket(m->socket_mutex);
   zmq::pollitem_t item{m->dealer->handle(), 0, ZMQ_POLLIN, 0};
   return zmq::poll(&item, 1, std::chrono::milliseconds(0)) > 0;
 }
 
 void ZmqNodeLink::report(const cluster::NodeReport& report) {
+  {
+    std::lock_guard lock(m->beat_mutex);
+    m->beating = false;
+  }
+  std::lock_guard socket(m->socket_mutex);
   cluster::FromNode f;
   *f.mutable_report() = report;
   m->send(envelope(f));

@@ -17,6 +17,7 @@
 #pragma once
 
 #include <cstdint>
+#include <fstream>
 #include <memory>
 #include <optional>
 #include <stdexcept>
@@ -91,7 +92,8 @@ class Master {
   void writeScreenshots(const std::vector<std::string>& paths, uint64_t frame,
                         const std::vector<std::string>& pixels);
   void writeStatsHeader();
-  void writeStats(uint64_t frame, double t, size_t frame_bytes, double sync_ms, double barrier_ms,
+  void writeStats(sync::LinkClock::time_point frame_start, uint64_t frame, double t,
+                  size_t frame_bytes, double sync_ms, double barrier_ms,
                   double present_ms, double frame_ms,
                   const std::vector<std::optional<cluster::NodeReport>>& reports);
   std::string message(const std::string& text) const;

@@ -101,12 +101,14 @@ class MasterLink {
   /// full is reported gone by the next collect()).
   virtual void publish(const cluster::FrameMessage& frame) = 0;
 
-  /// Waits until every peer in `awaited` reported `frame`, or until `deadline`; returns all that
-  /// arrived meanwhile (reports of other frames and joins too). Peers in `awaited` that
-  /// disconnect end the wait for them early (they are in `gone`). MPI: a gather from every rank
-  /// (`awaited` and `deadline` are not used; the transport's own timeout ends the job).
+  /// Waits until every peer in `awaited` reported `frame`, or was silent for `quiet` (since the
+  /// call, or since its last NodeReport{working}, which is not returned), or `cap`
+  /// passed; returns all that arrived meanwhile (reports of other frames and joins too). Peers in
+  /// `awaited` that disconnect end the wait for them early (they are in `gone`). MPI: a gather
+  /// from every rank (`awaited`, `quiet` and `cap` are not used; the transport's own timeout ends
+  /// the job).
   virtual LinkEvents collect(uint64_t frame, const std::set<PeerId>& awaited,
-                             LinkClock::time_point deadline) = 0;
+                             LinkClock::duration quiet, LinkClock::time_point cap) = 0;
 
   /// Every member may present `frame` (the swap barrier's release).
   virtual void swap(uint64_t frame) = 0;
@@ -143,6 +145,11 @@ class NodeLink {
   /// True when a message from the master is waiting now (a node behind applies the frames that
   /// wait and renders only the newest). MPI: always false.
   virtual bool pending() = 0;
+
+  /// The node renders `frame` from now until its next report(): ZMQ sends NodeReport{working}
+  /// every 100 ms meanwhile, from a thread of its own (so even one long GL call is covered; a
+  /// stopped or dead process sends nothing). MPI: nothing (reports are collectives).
+  virtual void working(uint64_t frame) = 0;
 
   /// Sends a report (a frame done, or a startup failure).
   virtual void report(const cluster::NodeReport& report) = 0;

@@ -30,8 +30,8 @@ class MpiMasterLink final : public MasterLink {
   void welcome(PeerId peer, const cluster::ClusterSetup& setup) override;
   void refuse(PeerId peer, const std::string& reason) override;
   void publish(const cluster::FrameMessage& frame) override;
-  LinkEvents collect(uint64_t frame, const std::set<PeerId>& awaited,
-                     LinkClock::time_point deadline) override;
+  LinkEvents collect(uint64_t frame, const std::set<PeerId>& awaited, LinkClock::duration quiet,
+                     LinkClock::time_point cap) override;
   void swap(uint64_t frame) override;
   void drop(PeerId peer, const std::string& reason) override;
   bool connected(PeerId) override { return true; }
@@ -60,6 +60,7 @@ class MpiNodeLink final : public NodeLink {
   cluster::ClusterSetup join(const cluster::Hello& hello, LinkClock::time_point deadline) override;
   bool receive(cluster::ToNode& message, LinkClock::time_point deadline) override;
   bool pending() override { return false; }
+  void working(uint64_t) override {}
   void report(const cluster::NodeReport& report) override;
 
  private:

@@ -44,8 +44,8 @@ class ZmqMasterLink final : public MasterLink {
   void welcome(PeerId peer, const cluster::ClusterSetup& setup) override;
   void refuse(PeerId peer, const std::string& reason) override;
   void publish(const cluster::FrameMessage& frame) override;
-  LinkEvents collect(uint64_t frame, const std::set<PeerId>& awaited,
-                     LinkClock::time_point deadline) override;
+  LinkEvents collect(uint64_t frame, const std::set<PeerId>& awaited, LinkClock::duration quiet,
+                     LinkClock::time_point cap) override;
   void swap(uint64_t frame) override;
   void drop(PeerId peer, const std::string& reason) override;
   bool connected(PeerId peer) override;
@@ -57,6 +57,9 @@ class ZmqMasterLink final : public MasterLink {
   std::unique_ptr<Impl> m;
 };
 
+/// The socket is used by the caller's thread and, while working(), by the link's sign-of-life
+/// thread; a mutex hands it over between them (a ZeroMQ socket may change threads behind a full
+/// memory barrier, never be used by two at once).
 class ZmqNodeLink final : public NodeLink {
  public:
   /// Connects (lazily, as ZeroMQ does) to the master at `endpoint` ("tcp://HOST:7400").
@@ -69,6 +72,7 @@ class ZmqNodeLink final : public NodeLink {
   cluster::ClusterSetup join(const cluster::Hello& hello, LinkClock::time_point deadline) override;
   bool receive(cluster::ToNode& message, LinkClock::time_point deadline) override;
   bool pending() override;
+  void working(uint64_t frame) override;
   void report(const cluster::NodeReport& report) override;
 
  private:
