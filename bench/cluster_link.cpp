@@ -145,8 +145,9 @@ void evict(const fs::path& path) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  CLI::App app{"cluster_link: the cluster link's frame overhead (MPI against ZeroMQ) and a "
-               "fault timeline (kill -9, drop, restart, rejoin)"};
+  CLI::App app{
+      "cluster_link: the cluster link's frame overhead (MPI against ZeroMQ) and a "
+      "fault timeline (kill -9, drop, restart, rejoin)"};
   std::string out = TESSERA_BENCH_RESULTS_DIR, nodes_list = "1,2,4,8";
   int frames = 200, rounds = 3;
   double node_timeout_ms = 500;
@@ -179,7 +180,8 @@ int main(int argc, char** argv) {
       "y": 0.1, "z": 0}, "up": {"y": 1}}, "background": [0.05, 0.05, 0.08], "lodPixels": 8,
       "shading": "color"})";
   const std::string bin = fs::canonical("/proc/self/exe").parent_path().parent_path().string();
-  const std::string master = bin + "/master/tessera-master", node = bin + "/render_node/tessera-node";
+  const std::string master = bin + "/master/tessera-master",
+                    node = bin + "/render_node/tessera-node";
   const std::string mpirun =
       std::string("mpirun --oversubscribe") + (getuid() == 0 ? " --allow-run-as-root" : "");
 
@@ -208,9 +210,8 @@ int main(int argc, char** argv) {
                                (dir / "scene.json").string() + " --frames " +
                                std::to_string(frames) + " --stats " + stats.string();
     if (transport == "mpi") {
-      const std::string cmd = mpirun + " -np 1 " + master + common + " : -np " +
-                              std::to_string(k) + " " + node + " --headless > " + log.string() +
-                              " 2>&1";
+      const std::string cmd = mpirun + " -np 1 " + master + common + " : -np " + std::to_string(k) +
+                              " " + node + " --headless > " + log.string() + " 2>&1";
       if (std::system(cmd.c_str()) != 0) return std::nullopt;
     } else {
       std::vector<std::string> args = {master, "--transport", "zmq", "--listen",
@@ -241,9 +242,8 @@ int main(int argc, char** argv) {
         const auto o = overheadRun(transport, k);
         if (!o) {
           std::cerr << "cluster_link: the " << transport << " run with " << k
-                    << " nodes failed; see " << (dir / ("log-" + transport + "-" +
-                                                        std::to_string(k) + ".txt"))
-                    << "\n";
+                    << " nodes failed; see "
+                    << (dir / ("log-" + transport + "-" + std::to_string(k) + ".txt")) << "\n";
           return 1;
         }
         runs[{transport, k}].push_back(*o);
@@ -264,9 +264,9 @@ int main(int argc, char** argv) {
   for (int k : counts) {
     const Overhead a = medianRun(runs[{"mpi", k}]), z = medianRun(runs[{"zmq", k}]);
     char line[256];
-    std::snprintf(line, sizeof line, "%d,%.3f,%.3f,%.2f,%.2f,%.0f,%.0f,%.0f,%.0f", k,
-                  a.overhead_ms, z.overhead_ms, a.frame_ms, z.frame_ms, a.sent_per_frame,
-                  z.sent_per_frame, a.received_per_frame, z.received_per_frame);
+    std::snprintf(line, sizeof line, "%d,%.3f,%.3f,%.2f,%.2f,%.0f,%.0f,%.0f,%.0f", k, a.overhead_ms,
+                  z.overhead_ms, a.frame_ms, z.frame_ms, a.sent_per_frame, z.sent_per_frame,
+                  a.received_per_frame, z.received_per_frame);
     ocsv << line << "\n";
     std::cout << line << std::endl;
   }
@@ -278,8 +278,7 @@ int main(int argc, char** argv) {
                  log = dir / "log-faults.txt";
   std::ofstream(wall4) << tessera::bench::gridWallJson(4, 640, 360);
   // A slow opaque turn: frame times show the faults, not the scene.
-  std::ofstream(dir / "turn.json")
-      << R"({"name": "turn", "keyframes": [
+  std::ofstream(dir / "turn.json") << R"({"name": "turn", "keyframes": [
     {"time": 0, "eye": {"x": -0.027, "y": 0.12, "z": 0.38}, "target": {"x": -0.027, "y": 0.1, "z": 0},
      "up": {"y": 1}},
     {"time": 60, "eye": {"x": 0.3, "y": 0.14, "z": 0.2}, "target": {"x": -0.027, "y": 0.1, "z": 0},
@@ -287,10 +286,26 @@ int main(int argc, char** argv) {
   fs::remove(log);
   char timeout_text[32];
   std::snprintf(timeout_text, sizeof timeout_text, "%.0f", node_timeout_ms);
-  Process m({master, "--transport", "zmq", "--listen", "tcp://127.0.0.1:*", "--wall",
-             wall4.string(), "--scene", (dir / "scene.json").string(), "--script",
-             (dir / "turn.json").string(), "--frames", "100000", "--fps", "20", "--max-fps", "20",
-             "--node-timeout", timeout_text, "--stats",
+  Process m({master,
+             "--transport",
+             "zmq",
+             "--listen",
+             "tcp://127.0.0.1:*",
+             "--wall",
+             wall4.string(),
+             "--scene",
+             (dir / "scene.json").string(),
+             "--script",
+             (dir / "turn.json").string(),
+             "--frames",
+             "100000",
+             "--fps",
+             "20",
+             "--max-fps",
+             "20",
+             "--node-timeout",
+             timeout_text,
+             "--stats",
              stats.string()},
             log);
   if (!m.waitFor("listening on (tcp://\\S+)", 30)) return 1;
@@ -358,8 +373,7 @@ int main(int argc, char** argv) {
   // First frame after `t` in which the victim has state `state`.
   auto firstWith = [&](double t, const std::string& state) -> const Row* {
     for (const auto& [f, r] : frame_of)
-      if (end_s(r) >= t && victim_state.count(f) && victim_state[f] == state)
-        return &r;
+      if (end_s(r) >= t && victim_state.count(f) && victim_state[f] == state) return &r;
     return nullptr;
   };
   auto meanFrameMs = [&](double from, double to) {
@@ -407,7 +421,8 @@ int main(int argc, char** argv) {
       put(start + ": ms from process start to its pixels in the wall",
           (end_s(*back) - events[start]) * 1000.0);
   }
-  put("master kill -9: ms until the last node exited", (last_exit - events["master_kill"]) * 1000.0);
+  put("master kill -9: ms until the last node exited",
+      (last_exit - events["master_kill"]) * 1000.0);
   fcsv.close();
 
   // ---- chart ----
@@ -432,7 +447,8 @@ int main(int argc, char** argv) {
        << "set label '" << name << "' at " << t - t0 << ", graph 0.95 rotate by 90 right\n";
   gp << "plot '" << (res / "cluster_link_timeline.csv").string()
      << "' skip 1 using 2:3 with lines lw 1 lc rgb '#1f77b4' title 'frame ms', \\\n"
-     << "  '' skip 1 using (strcol(4) eq 'lost' ? $2 : 1/0):3 with points pt 7 ps 0.5 lc rgb '#d62728' "
+     << "  '' skip 1 using (strcol(4) eq 'lost' ? $2 : 1/0):3 with points pt 7 ps 0.5 lc rgb "
+        "'#d62728' "
         "title 'tile lost', \\\n"
      << "  " << node_timeout_ms << " with lines dt 3 lc rgb '#ff7f0e' title 'node timeout'\n"
      << "unset multiplot\n";

@@ -377,10 +377,10 @@ int Master::run() {
     // timeout; otherwise a report later than the timeout drops the tile.
     const bool complete = message_out.read_back() || (mOpt.frames > 0 && !mOpt.console);
     const auto quiet = std::chrono::microseconds(int64_t(timeout_ms * 1000.0));
-    sync::LinkEvents events = mLink.collect(
-        mFrame, awaited, quiet,
-        complete ? after(std::max(timeout_ms, mOpt.first_frame_timeout_s * 1000.0))
-                 : Clock::now() + quiet);
+    sync::LinkEvents events =
+        mLink.collect(mFrame, awaited, quiet,
+                      complete ? after(std::max(timeout_ms, mOpt.first_frame_timeout_s * 1000.0))
+                               : Clock::now() + quiet);
     std::vector<std::optional<cluster::NodeReport>> reports(tiles);
     std::vector<std::pair<sync::PeerId, cluster::NodeReport>> others;
     for (auto& [peer, report] : events.reports) {
@@ -452,8 +452,8 @@ int Master::run() {
       writeScreenshots(shots, mFrame, pixels);
     }
     if (mCsv)
-      writeStats(frame_start, mFrame, t, frame_bytes, sync_ms, barrier_ms, present_ms, msSince(frame_start),
-                 reports);
+      writeStats(frame_start, mFrame, t, frame_bytes, sync_ms, barrier_ms, present_ms,
+                 msSince(frame_start), reports);
     if (last) break;
     if (mOpt.max_fps > 0) {  // pace, handling joins meanwhile
       const auto next = frame_start + std::chrono::microseconds(int64_t(1e6 / mOpt.max_fps));
@@ -465,11 +465,12 @@ int Master::run() {
   }
   mLink.quit(0, "the session ended");
   const sync::LinkCounters c = mLink.counters();
-  std::printf("tessera-master: %s link: sent %llu bytes in %llu messages, received %llu bytes in "
-              "%llu messages, over %llu frames\n",
-              mLink.transport(), (unsigned long long)c.bytes_sent,
-              (unsigned long long)c.messages_sent, (unsigned long long)c.bytes_received,
-              (unsigned long long)c.messages_received, (unsigned long long)mFrame);
+  std::printf(
+      "tessera-master: %s link: sent %llu bytes in %llu messages, received %llu bytes in "
+      "%llu messages, over %llu frames\n",
+      mLink.transport(), (unsigned long long)c.bytes_sent, (unsigned long long)c.messages_sent,
+      (unsigned long long)c.bytes_received, (unsigned long long)c.messages_received,
+      (unsigned long long)mFrame);
   std::fflush(stdout);
   return kExitOk;
 }
@@ -509,9 +510,8 @@ void Master::writeStatsHeader() {
            "store_bytes,chunks_queued,state,start_s\n";
 }
 
-void Master::writeStats(Clock::time_point frame_start, uint64_t frame, double t,
-                        size_t frame_bytes, double sync_ms,
-                        double barrier_ms, double present_ms, double frame_ms,
+void Master::writeStats(Clock::time_point frame_start, uint64_t frame, double t, size_t frame_bytes,
+                        double sync_ms, double barrier_ms, double present_ms, double frame_ms,
                         const std::vector<std::optional<cluster::NodeReport>>& reports) {
   std::ofstream& csv = *mCsv;
   // The frame's start on the steady clock (CLOCK_MONOTONIC, shared by every process of the
@@ -533,8 +533,8 @@ void Master::writeStats(Clock::time_point frame_start, uint64_t frame, double t,
     csv << frame << "," << t << "," << slot.peer << "," << mTiles->name(i) << ",0,0,"
         << s.render_ms() << "," << s.barrier_ms() << "," << s.present_ms() << ",0," << s.frames()
         << "," << s.points() << "," << s.nodes() << "," << s.resident_bytes() << ","
-        << s.resident_disk_bytes() << "," << s.store_bytes() << "," << s.chunks_queued()
-        << ",live," << start << "\n";
+        << s.resident_disk_bytes() << "," << s.store_bytes() << "," << s.chunks_queued() << ",live,"
+        << start << "\n";
   }
   csv.flush();
 }

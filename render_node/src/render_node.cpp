@@ -274,8 +274,8 @@ struct RenderNode::Impl {
       } catch (const sync::MasterLost& e) {
         if (gContinued) {  // the connection died while this node was stopped: a new one
           gContinued = 0;
-          std::fprintf(stderr, "%s: %s after this node was stopped; joining again\n",
-                       who.c_str(), e.what());
+          std::fprintf(stderr, "%s: %s after this node was stopped; joining again\n", who.c_str(),
+                       e.what());
           continue;
         }
         std::fprintf(stderr, "%s: %s\n", who.c_str(), e.what());

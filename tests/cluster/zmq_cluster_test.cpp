@@ -420,3 +420,89 @@ TEST_F(ZmqWall, MpiAndZmqGiveByteIdenticalScreenshots) {
   EXPECT_TRUE(same(mRun / "shot-00.45.png", mRun / "mpi" / "shot-00.45.png"));
   EXPECT_TRUE(same(mRun / "shot-00.95.png", mRun / "mpi" / "shot-00.95.png"));
 }
+
+TEST_F(ZmqWall, NodeWaitingForAMasterJoinsTheNextOne) {
+  write(sDir->path() / "wall-one.json",
+        R"({"name": "one", "tiles": [{"name": "solo", "width": 0.48, "height": 0.27,
+            "pixelWidth": 320, "pixelHeight": 180}], "eye": {"x": 0.24, "y": 0.135, "z": 1.5}})");
+  auto first = startMaster({"--frames", "100000", "--max-fps", "20"}, "wall-one.json");
+  std::smatch port;
+  ASSERT_TRUE(std::regex_search(mEndpoint, port, std::regex(":(\\d+)$")));
+  auto n = std::make_unique<Process>(std::vector<std::string>{TESSERA_NODE, "--master", mEndpoint,
+                                                              "--headless", "--wait-master", "60"},
+                                     mRun / "node.log");
+  ASSERT_TRUE(first->waitFor("1 of 1 tiles have a node", 60)) << first->output();
+  first->signal(SIGKILL);
+  ASSERT_TRUE(n->waitFor("waiting up to 60 s for a master", 20)) << n->output();
+  // A new master on the same port: the node joins it by itself.
+  std::vector<std::string> argv = {TESSERA_MASTER,
+                                   "--transport",
+                                   "zmq",
+                                   "--listen",
+                                   "tcp://127.0.0.1:" + port[1].str(),
+                                   "--wall",
+                                   (sDir->path() / "wall-one.json").string(),
+                                   "--scene",
+                                   (sDir->path() / "scene.json").string(),
+                                   "--frames",
+                                   "5",
+                                   "--screenshot",
+                                   (mRun / "second.png").string()};
+  Process second(argv, mRun / "second-master.log");
+  ASSERT_EQ(second.wait(120), std::optional<int>(0)) << second.output();
+  EXPECT_EQ(n->wait(20), std::optional<int>(0)) << n->output();
+  const auto shots = screenshots(second.output());
+  ASSERT_EQ(shots.size(), 1u) << second.output();
+  EXPECT_EQ(int(looks(shots[0], "solo", "wall-one.json")), int(TileLooks::kReference));
+}
+
+TEST_F(ZmqWall, ANodeLyingAboutItsPixelsIsDropped) {
+  write(sDir->path() / "wall-one.json",
+        R"({"name": "one", "tiles": [{"name": "solo", "width": 0.48, "height": 0.27,
+            "pixelWidth": 320, "pixelHeight": 180}], "eye": {"x": 0.24, "y": 0.135, "z": 1.5}})");
+  auto master = startMaster({"--frames", "100000", "--max-fps", "20", "--node-timeout", "2000"},
+                            "wall-one.json");
+  // A peer that joins properly, then reports pixels the frame did not ask for.
+  zmq::context_t ctx;
+  zmq::socket_t s(ctx, zmq::socket_type::dealer);
+  s.set(zmq::sockopt::linger, 0);
+  s.set(zmq::sockopt::rcvtimeo, 20000);
+  s.connect(mEndpoint);
+  tessera::cluster::FromNode hello;
+  hello.mutable_hello()->set_tile("solo");
+  hello.mutable_hello()->set_host("liar");
+  s.send(zmq::buffer(tessera::sync::envelope(hello)));
+  auto next = [&] {
+    zmq::message_t m;
+    tessera::cluster::ToNode t;
+    if (s.recv(m)) {
+      EXPECT_TRUE(t.ParseFromArray(m.data(), int(m.size())));
+    }
+    return t;
+  };
+  ASSERT_TRUE(next().has_welcome());
+  tessera::cluster::FromNode startup;
+  startup.mutable_report();  // frame 0, NODE_OK
+  s.send(zmq::buffer(tessera::sync::envelope(startup)));
+  tessera::cluster::ToNode t;
+  do t = next();
+  while (t.kind_case() != tessera::cluster::ToNode::kFrame && t.kind_case() != 0);
+  ASSERT_TRUE(t.has_frame());
+  tessera::cluster::FromNode lie;
+  lie.mutable_report()->set_frame(1);
+  lie.mutable_report()->set_rgba(std::string(12, 'x'));
+  s.send(zmq::buffer(tessera::sync::envelope(lie)));
+  EXPECT_TRUE(master->waitFor(
+      "tile solo \\(host liar, pid 0\\) dropped: protocol error: 12 bytes of pixels for a frame "
+      "that asked for 0",
+      30))
+      << master->output();
+  do t = next();
+  while (t.kind_case() != tessera::cluster::ToNode::kDropped && t.kind_case() != 0);
+  EXPECT_TRUE(t.has_dropped());
+  // A real node takes the tile over; the wall goes on.
+  auto n = startNode("solo");
+  EXPECT_TRUE(master->waitFor("tile solo \\(host (?!liar)[^)]*\\) rejoined", 30))
+      << master->output();
+  EXPECT_TRUE(master->running());
+}
