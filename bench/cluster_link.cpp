@@ -133,6 +133,12 @@ bool waitForFrame(Process& master, const fs::path& stats, uint64_t frame, double
   return false;
 }
 
+/// The last frame in the stats CSV (0 before the first).
+uint64_t lastFrame(const fs::path& stats) {
+  const std::vector<Row> rows = readStats(stats);
+  return rows.empty() ? 0 : rows.back().frame;
+}
+
 /// Drops `path` from the page cache (clean pages only; no root needed).
 void evict(const fs::path& path) {
   const int fd = open(path.c_str(), O_RDONLY);
@@ -305,6 +311,8 @@ int main(int argc, char** argv) {
              "20",
              "--node-timeout",
              timeout_text,
+             "--join-wait",
+             "120",
              "--stats",
              stats.string()},
             log);
@@ -318,6 +326,10 @@ int main(int argc, char** argv) {
     ns.push_back(std::make_unique<Process>(
         std::vector<std::string>{node, "--master", endpoint, "--headless", "--tile", t},
         dir / ("node-faults-" + t + ".txt")));
+  if (!m.waitFor("4 of 4 tiles have a node", 120)) {
+    std::cerr << "cluster_link: the four nodes did not join; see " << log << "\n";
+    return 1;
+  }
   const std::string victim = "tile-1-0";
   std::map<std::string, double> events;
   auto restart = [&](const std::string& name) {
@@ -333,16 +345,16 @@ int main(int argc, char** argv) {
   events["kill"] = now_s();
   ns[1]->signal(SIGKILL);
   ns[1]->wait(5);
-  waitForFrame(m, stats, readStats(stats).back().frame + 60, 60);
+  waitForFrame(m, stats, lastFrame(stats) + 60, 60);
   restart("start_warm");
-  waitForFrame(m, stats, readStats(stats).back().frame + 90, 60);
+  waitForFrame(m, stats, lastFrame(stats) + 90, 60);
   events["kill_2"] = now_s();
   ns[1]->signal(SIGKILL);
   ns[1]->wait(5);
   evict(store);
-  waitForFrame(m, stats, readStats(stats).back().frame + 60, 60);
+  waitForFrame(m, stats, lastFrame(stats) + 60, 60);
   restart("start_cold");
-  waitForFrame(m, stats, readStats(stats).back().frame + 90, 60);
+  waitForFrame(m, stats, lastFrame(stats) + 90, 60);
   // The master dies: how soon every node notices and exits.
   events["master_kill"] = now_s();
   m.signal(SIGKILL);
@@ -393,7 +405,10 @@ int main(int argc, char** argv) {
   };
   for (const std::string kill : {"kill", "kill_2"}) {
     const Row* drop = firstWith(events[kill], "lost");
-    if (!drop) continue;
+    if (!drop) {
+      std::cerr << "cluster_link: " << kill << ": the tile was never dropped; see " << log << "\n";
+      continue;
+    }
     put(kill + ": ms from kill -9 to the tile dropped", (end_s(*drop) - events[kill]) * 1000.0);
     // A frame's delay: its time beyond the median frame of the 2 s before the kill.
     std::vector<double> before;

@@ -18,8 +18,9 @@ ctest --preset dev -j"$jobs" --timeout 600
 
 if [ "${TESSERA_SKIP_ASAN:-0}" != 1 ]; then
   # Decoders of outside bytes also run under AddressSanitizer and UBSan (STYLE.md).
-  echo "== sanitizer pass (asan: readers, decoders and the sync schema)"
+  # The scene draw list too: a loader decoding into a closed store would be a use-after-free.
+  echo "== sanitizer pass (asan: readers, decoders, the sync schema, the scene draw list)"
   cmake --preset asan >/dev/null
-  cmake --build --preset asan -j"$jobs" --target tessera_lod_tests tessera_sync_tests
-  ctest --preset asan -j"$jobs" --timeout 900 -L "lod|sync"
+  cmake --build --preset asan -j"$jobs" --target tessera_lod_tests tessera_sync_tests tessera_scene_tests
+  ctest --preset asan -j"$jobs" --timeout 900 -L "lod|sync|scene"
 fi

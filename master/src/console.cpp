@@ -53,9 +53,10 @@ render::ViewSetup Console::view(const config::Camera& camera) const {
 }
 
 void Console::draw(const sync::SceneGraph& graph) {
-  mInstances = mModels.update(graph);
+  render::ChunkStreamer* streamers[] = {&mRenderer->streamer()};
+  mInstances = mModels.update(graph, streamers);
   mLastView = view(graph.camera());
-  mRenderer->draw(mInstances, mLastView, render_node::SceneModels::options(graph, mSplatScale));
+  mRenderer->draw(mInstances, mLastView, render::SceneDrawList::options(graph, mSplatScale));
   drawOverlay();
   mWindow->present(mRenderer->imageBuffer(), mWidth, mHeight);
 }

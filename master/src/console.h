@@ -12,7 +12,7 @@
 #include <tessera/master/one_button_navigation.h>
 #include <tessera/render/view_renderer.h>
 #include <tessera/render/window.h>
-#include <tessera/render_node/scene_models.h>
+#include <tessera/render/scene_draw_list.h>
 #include <tessera/sync/scene_graph.h>
 
 namespace tessera::master {
@@ -40,7 +40,7 @@ class Console {
   uint32_t mWidth = 0, mHeight = 0;
   std::unique_ptr<render::Window> mWindow;
   std::unique_ptr<render::ViewRenderer> mRenderer;
-  render_node::SceneModels mModels;
+  render::SceneDrawList mModels;  // after mRenderer: its stores close once the renderer is gone
   std::vector<render::ModelInstance> mInstances;
   render::ViewSetup mLastView;
   OneButtonNavigation mNavigation;

@@ -10,7 +10,7 @@
 #include <tessera/render/gl_context.h>
 #include <tessera/render/view_renderer.h>
 #include <tessera/render/window.h>
-#include <tessera/render_node/scene_models.h>
+#include <tessera/render/scene_draw_list.h>
 #include <tessera/sync/scene_graph.h>
 #include <tessera/sync/wire.h>
 
@@ -58,7 +58,7 @@ struct RenderNode::Impl {
   std::unique_ptr<render::Window> window;
   std::unique_ptr<render::GlContext> context;
   sync::SceneGraph graph;
-  SceneModels models;
+  render::SceneDrawList models;
   std::vector<render::ModelInstance> instances;
   std::unique_ptr<render::ViewRenderer> renderer;  // destroyed first: needs the context
   cluster::NodeStatus status;                      // NODE_OK until something fails
@@ -82,7 +82,8 @@ struct RenderNode::Impl {
 
   void updateModels() {
     try {
-      instances = models.update(graph);
+      render::ChunkStreamer* streamers[] = {renderer ? &renderer->streamer() : nullptr};
+      instances = models.update(graph, streamers);
     } catch (const lod::StoreError& e) {
       throw NodeError(cluster::NODE_BAD_STORE, e.what());
     }
@@ -162,7 +163,7 @@ struct RenderNode::Impl {
       try {
         const render::ViewSetup view = render::tileView(setup.wall(), *tile, graph.camera());
         const render::RenderOptions options =
-            SceneModels::options(graph, setup.splat_scale() > 0 ? setup.splat_scale() : 2.0f);
+            render::SceneDrawList::options(graph, setup.splat_scale() > 0 ? setup.splat_scale() : 2.0f);
         render::RenderStats rs;
         // Settled frames (screenshots, deterministic scripted runs) wait for every chunk of the
         // cut, so their pixels are exactly what tessera-render --mosaic makes.

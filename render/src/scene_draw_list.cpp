@@ -1,8 +1,8 @@
-#include <tessera/render_node/scene_models.h>
+#include <tessera/render/scene_draw_list.h>
 
 #include <glm/gtc/type_ptr.hpp>
 
-namespace tessera::render_node {
+namespace tessera::render {
 
 namespace {
 
@@ -13,8 +13,9 @@ glm::dmat4 transformOf(const scene::SceneNode& node) {
 
 }  // namespace
 
-std::vector<render::ModelInstance> SceneModels::update(const sync::SceneGraph& graph) {
-  std::vector<render::ModelInstance> instances;
+std::vector<ModelInstance> SceneDrawList::update(const sync::SceneGraph& graph,
+                                                 std::span<ChunkStreamer* const> streamers) {
+  std::vector<ModelInstance> instances;
   std::map<std::string, std::unique_ptr<lod::PointStore>> kept;
   for (const sync::SceneGraph::NodeId id : graph.ids()) {
     const scene::SceneNode& node = graph.node(id);
@@ -28,8 +29,10 @@ std::vector<render::ModelInstance> SceneModels::update(const sync::SceneGraph& g
       try {
         kept.emplace(path, lod::PointStore::open(path));
       } catch (const lod::StoreError& e) {
-        throw lod::StoreError("render_node::SceneModels: model " + std::to_string(id) + " '" +
-                              node.name() + "': " + e.what());
+        // Left as it was: the stores taken over so far go back.
+        for (auto& [p, st] : kept) mStores.emplace(p, std::move(st));
+        throw lod::StoreError("render::SceneDrawList::update(): model " + std::to_string(id) +
+                              " '" + node.name() + "': " + e.what());
       }
     }
     // Up the tree: parents' transforms apply after the node's own; any hidden one hides it.
@@ -50,21 +53,32 @@ std::vector<render::ModelInstance> SceneModels::update(const sync::SceneGraph& g
       const scene::Color& c = node.model().color();
       color = glm::u8vec3(glm::clamp(glm::vec3(c.r(), c.g(), c.b()), 0.0f, 1.0f) * 255.0f + 0.5f);
     }
-    instances.push_back({store, world * render::storeModel(*store), opacity, color});
+    instances.push_back({store, world * storeModel(*store), opacity, color});
   }
-  mStores = std::move(kept);  // stores no model uses any more close here
+  // Stores no model uses any more: the loaders let go of them first, then they close.
+  for (auto& [path, store] : mStores)
+    for (ChunkStreamer* s : streamers)
+      if (s) s->forget(*store);
+  mStores = std::move(kept);
   return instances;
 }
 
-uint64_t SceneModels::storeBytes() const {
+void SceneDrawList::clear(std::span<ChunkStreamer* const> streamers) {
+  for (auto& [path, store] : mStores)
+    for (ChunkStreamer* s : streamers)
+      if (s) s->forget(*store);
+  mStores.clear();
+}
+
+uint64_t SceneDrawList::storeBytes() const {
   uint64_t bytes = 0;
   for (const auto& [path, store] : mStores) bytes += store->summary().file_bytes;
   return bytes;
 }
 
-render::RenderOptions SceneModels::options(const sync::SceneGraph& graph, float splat_scale) {
+RenderOptions SceneDrawList::options(const sync::SceneGraph& graph, float splat_scale) {
   const scene::Settings& s = graph.settings();
-  render::RenderOptions o;
+  RenderOptions o;
   o.lod_pixels = s.lod_pixels();
   o.background = glm::vec3(s.background().r(), s.background().g(), s.background().b());
   o.edl_strength = s.shading() == scene::SHADING_EDL ? 1.0f : 0.0f;
@@ -73,4 +87,4 @@ render::RenderOptions SceneModels::options(const sync::SceneGraph& graph, float 
   return o;
 }
 
-}  // namespace tessera::render_node
+}  // namespace tessera::render
