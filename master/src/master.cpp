@@ -259,6 +259,9 @@ void Master::absorb(sync::LinkEvents& events) {
     }
   }
   events.reports.clear();
+  for (sync::PeerId peer : events.gone)
+    if (const auto tile = mTiles->tileOf(peer)) loseTile(*tile, "dead: its connection closed");
+  events.gone.clear();
   handleJoins(events);
   events.joins.clear();
   events.faults.clear();

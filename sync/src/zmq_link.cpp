@@ -37,14 +37,17 @@ std::chrono::milliseconds until(LinkClock::time_point deadline) {
   return left.count() > 0 ? left : std::chrono::milliseconds(0);
 }
 
-/// Reads one monitor event: true when it says a connection closed.
-bool readMonitorEvent(zmq::socket_t& monitor) {
+/// Reads one monitor event: true when it says a connection closed; `fd` is then its socket.
+bool readMonitorEvent(zmq::socket_t& monitor, int* fd = nullptr) {
   std::vector<zmq::message_t> parts;
   if (!zmq::recv_multipart(monitor, std::back_inserter(parts), zmq::recv_flags::dontwait))
     return false;
-  if (parts.empty() || parts[0].size() < 2) return false;
+  if (parts.empty() || parts[0].size() < 6) return false;  // uint16 event, uint32 value
   uint16_t event = 0;
+  uint32_t value = 0;
   std::memcpy(&event, parts[0].data(), sizeof event);
+  std::memcpy(&value, static_cast<const char*>(parts[0].data()) + 2, sizeof value);
+  if (fd) *fd = int(value);
   return event == ZMQ_EVENT_DISCONNECTED;
 }
 
@@ -57,6 +60,7 @@ struct ZmqMasterLink::Impl {
     std::string routing;
     bool member = false;  // welcomed and not dropped: gets frames and swaps
     bool told = false;    // sent Dropped/Refused since its last join: stale reports are ignored
+    int fd = -1;          // the TCP socket its last message came from (ZMQ_SRCFD)
   };
 
   zmq::context_t ctx{1};
@@ -114,6 +118,10 @@ struct ZmqMasterLink::Impl {
     auto [it, is_new] = by_routing.emplace(routing, next);
     if (is_new) peers[next++].routing = routing;
     const PeerId id = it->second;
+    try {
+      peers[id].fd = parts.back().get(ZMQ_SRCFD);
+    } catch (const zmq::error_t&) {
+    }
     counters.messages_received += 1;
     for (const auto& p : parts) counters.bytes_received += p.size();
 
@@ -145,15 +153,25 @@ struct ZmqMasterLink::Impl {
     return true;
   }
 
-  /// Drains the monitor. A closed connection's pipe leaves the socket a moment after the event,
-  /// so for a while after one every member is probed (a send to a gone pipe fails:
-  /// ZMQ_ROUTER_MANDATORY) and the unreachable ones are reported gone.
+  /// Drains the monitor. A closed connection's socket names its peer (the fd its messages came
+  /// from, ZMQ_SRCFD). As a second way, the pipe of a closed connection leaves the socket a
+  /// moment after the event, so for a while after one every member is probed (a send to a gone
+  /// pipe fails: ZMQ_ROUTER_MANDATORY) and the unreachable ones are reported gone.
   void checkDisconnects(LinkEvents& events) {
     while (true) {
       zmq::pollitem_t item{monitor.handle(), 0, ZMQ_POLLIN, 0};
       if (zmq::poll(&item, 1, std::chrono::milliseconds(0)) <= 0) break;
-      if (readMonitorEvent(monitor))
-        probe_until = LinkClock::now() + std::chrono::milliseconds(300);
+      int fd = -1;
+      if (!readMonitorEvent(monitor, &fd)) continue;
+      probe_until = LinkClock::now() + std::chrono::milliseconds(300);
+      for (auto& [id, peer] : peers) {
+        if (fd < 0 || peer.fd != fd) continue;
+        peer.fd = -1;
+        if (peer.member) {
+          peer.member = false;
+          events.gone.insert(id);
+        }
+      }
     }
     if (LinkClock::now() >= probe_until) return;
     for (auto& [id, peer] : peers) {
