@@ -217,6 +217,10 @@ void expectDropAndReturn(ZmqWall* test, const std::vector<Shot>& shots, const st
     if (s.frame < lost_from) {
       EXPECT_EQ(int(v), int(TileLooks::kReference))
           << victim << " before the loss, frame " << s.frame;
+    } else if (s.frame == lost_from && lost_from > 0) {
+      // Dropped in this frame: while it was collected (lost), or between it and the next one
+      // (the node had sent this frame's pixels before it died).
+      EXPECT_NE(int(v), int(TileLooks::kOther)) << victim << " at the loss, frame " << s.frame;
     } else if (s.frame <= back_from) {
       EXPECT_EQ(int(v), int(TileLooks::kLost)) << victim << " while lost, frame " << s.frame;
       lost_shots += v == TileLooks::kLost;
