@@ -150,6 +150,7 @@ void ViewRenderer::drawSeeThrough(std::span<const ModelInstance> models, const V
     sig = mix(mix(mix(sig, b.buffer), b.count), b.seed);
     sig = mixBytes(sig, &b.spbr_k, sizeof b.spbr_k);
     sig = mixBytes(sig, &b.disc_k, sizeof b.disc_k);
+    sig = mixBytes(mix(sig, b.cells), &b.jitter_k, sizeof b.jitter_k);
   }
   if (sig != mSpbrSignature) {
     mSpbrSignature = sig;
@@ -157,10 +158,9 @@ void ViewRenderer::drawSeeThrough(std::span<const ModelInstance> models, const V
     mRaster.beginEnsembles();
   }
   const uint32_t n = std::min(o.ensembles, total - std::min(total, mSpbrDone));
-  // Point copies this frame: each point sits in min(k, L) of the L ensembles.
+  // Point copies this frame: each point has k copies over the L ensembles (spbr_k is capped).
   double copies = 0.0;
-  for (const DrawBatch& b : batches)
-    copies += double(b.count) * std::min<double>(b.spbr_k, total) * n / total;
+  for (const DrawBatch& b : batches) copies += double(b.count) * double(b.spbr_k) * n / total;
   if (copies > double(o.max_copies_per_frame)) {
     // Copies grow as -ln(1 - alpha): the opacities that fit scale that by budget / copies.
     const double f = double(o.max_copies_per_frame) / copies;
@@ -233,9 +233,14 @@ void ViewRenderer::addModel(const ModelInstance& instance, bool see_through, con
     if (see_through) {
       // Each node its own k and cross-section, from its own density and spacing (spbr.h), so
       // the opacity holds at every LOD level; opaque models sit in every ensemble.
-      const SpbrNodeParams p = spbrNodeParams(instance.opacity, chunk.density / (unit * unit),
-                                              n.spacing, total, options.spbr.max_k);
-      b.spbr_k = float(std::min<double>(p.k, total));
+      const SpbrOptions& so = options.spbr;
+      const bool jitter = so.copy_jitter > 0.0 && instance.opacity < 1.0f;
+      const SpbrNodeParams p =
+          spbrNodeParams(instance.opacity, chunk.density / (unit * unit), n.spacing, total,
+                         jitter ? std::min(so.max_k, so.max_share * total) : so.max_k);
+      b.spbr_k = float(p.k);
+      b.jitter_k = jitter ? float(so.copy_jitter * n.spacing * k) : 0.0f;
+      if (so.cell_weights && instance.opacity < 1.0f) b.cells = chunk.cells.name();
       b.disc_k = float(std::sqrt(p.cross_section / std::numbers::pi) * k);
       if (instance.opacity >= 1.0f) b.disc_k = 0.5f * b.spacing_k;
       b.seed = uint32_t(mix(key, n.id));

@@ -27,12 +27,30 @@ struct SpbrOptions {
   uint32_t progressive_max = 0;  ///< >L: a resting view keeps adding ensembles up to this many
   bool slant_shading = true;     ///< eq. 2's opacity gradation on slanted surfaces (off: s cos)
   /// Largest adjustment ratio k (eq. 4) before cross-sections grow instead. The default keeps
-  /// the paper's fixed cross-section (the opaque disc) and copies points as k requires, up to
-  /// one copy in each ensemble: sharp, and L ensembles average about L / k independent images.
+  /// the paper's fixed cross-section (the opaque disc) and copies points as k requires (up to
+  /// one copy in each ensemble, or max_share x L with copy_jitter).
   /// 1 makes every ensemble hold its own points (statistically independent, noise falls as
   /// 1/sqrt(L)) by growing the discs instead: smooth but blurred, since discs grow with L
   /// (bench/spbr measures both against an exact compositor; copies win on the fused bunny).
   double max_k = 1e9;
+  /// Sparse scans (2 to 8 points a pixel, where the paper assumes ~38): copy c of a point is
+  /// moved by a Gaussian offset of this standard deviation, in node spacings, in the image
+  /// plane (deterministic from the node, the point index and c), so the copies of one point in
+  /// different ensembles cover different pixels and the ensembles decorrelate. 0: every copy
+  /// where the point is (the paper; on sparse scans the L images then average only about L / k
+  /// independent ones and the picture is nearly binary noise). Blurs edges by about
+  /// 2.6 x this x the spacing in pixels (10-90%); costs nothing measurable.
+  double copy_jitter = 1.5;
+  /// With copy_jitter: the largest share of the L ensembles one point's copies fill before
+  /// cross-sections grow instead. Each ensemble is then a random thinning of the surface cover,
+  /// close to the independent placement eq. 1 assumes (nearly every point in every ensemble
+  /// makes an ensemble as regular as the cover, and more opaque than eq. 1 predicts).
+  double max_share = 0.5;
+  /// Scale each point's copies by its surface cell's area and centre them on the cell's
+  /// centroid (spbr.h surfaceCells(), when the streamer measured them): an even cover of the
+  /// surface from an uneven sample (a random sample's clumps and gaps otherwise stay in every
+  /// ensemble, however large L). Off with copy_jitter 0 gives the paper's method.
+  bool cell_weights = true;
   /// See-through views refine the LOD cut this much finer than opaque ones: denser nodes let
   /// each ensemble take fewer points of smaller cross-section.
   double lod_scale = 0.5;
@@ -59,8 +77,8 @@ struct SpbrNodeParams {
 
 /// Parameters for a node of areal `density` (points per unit area) and mean `spacing`, for
 /// opacity `alpha` in (0, 1] over `total_ensembles` ensembles. The cross-section is the disc
-/// the opaque renderer draws (diameter 2 x spacing), enlarged where k would exceed `max_k`
-/// (k scales as 1 / s). alpha = 1: every point in every ensemble.
+/// the opaque renderer draws (diameter 2 x spacing), enlarged where k would exceed `max_k` or
+/// `total_ensembles` (k scales as 1 / s). alpha = 1: every point in every ensemble.
 SpbrNodeParams spbrNodeParams(double alpha, double density, double spacing,
                               uint32_t total_ensembles, double max_k = 1.0);
 
@@ -87,5 +105,24 @@ std::vector<float> densityRatios(std::span<const glm::vec3> points, double radiu
 /// packed as 10:10:10 signed normalised integers (x in the low bits); 0 where fewer than 3
 /// points are near. For turning the slant shading off (cross-section s cos(theta), eq. 2).
 std::vector<uint32_t> estimateNormals(std::span<const glm::vec3> points, double radius);
+
+/// A point's share of its surface (surfaceCells()): where its copies are centred and how many
+/// it gets.
+struct SurfaceCell {
+  glm::vec3 offset{0.0f};  ///< from the point to its cell's centroid, the points' units
+  float weight = 1.0f;     ///< the cell's area times the node's density: 1 on average
+};
+
+/// Each point's Voronoi cell among its neighbours within `radius` (about 6 node spacings), in
+/// the tangent plane of those neighbours (PCA): the area relative to the node's mean
+/// (x `node_density`, points per unit area; clamped to [1/8, 8]) and the offset to the
+/// centroid. Points whose cell stays open (reaching radius / 2: the edge of the data, or of the
+/// node, whose neighbours beyond its faces are elsewhere), or with fewer than 3 neighbours, get
+/// weight 1 and no offset. Scaling each point's
+/// copies by its weight and centring them on the centroid turns the random sample of a sparse
+/// scan into an even cover of its surface (spbr_raster.comp). O(n) with ~20 neighbours a
+/// point; about twice the cost of decoding.
+std::vector<SurfaceCell> surfaceCells(std::span<const glm::vec3> points, double radius,
+                                      double node_density);
 
 }  // namespace tessera::render
