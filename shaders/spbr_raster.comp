@@ -88,6 +88,9 @@ void main() {
     position += vec3(xy, zw.x);
     k *= zw.y;
   }
+  // A large cell may ask for more copies than ensembles: the disc grows to keep its area.
+  float grow = k > float(uCopyCap) ? sqrt(k / float(uCopyCap)) : 1.0;
+  k = min(k, float(uCopyCap));
   float whole = floor(k);
   float u = float(hash(h ^ 0x85ebca6bu) >> 8) * (1.0 / 16777216.0);
   uint copies = min(uint(whole) + (u < k - whole ? 1u : 0u), uCopyCap);
@@ -104,7 +107,7 @@ void main() {
   if (ndc.z < -1.0 || ndc.z > 1.0) return;
   vec2 pos = (ndc.xy * 0.5 + 0.5) * vec2(uSize);
   uint d = floatBitsToUint(ndc.z * 0.5 + 0.5);
-  float r = uDiscK / c.w;
+  float r = grow * uDiscK / c.w;
   if (uSlantOff != 0) {
     // s cos(theta): the disc's area shrinks with the angle between the surface normal and the
     // line of sight, cancelling eq. 2's gain on slanted surfaces.

@@ -272,10 +272,13 @@ std::vector<SurfaceCell> surfaceCells(std::span<const glm::vec3> points, double 
       reach2 = 0;
       for (const glm::dvec2& v : poly) reach2 = std::max(reach2, glm::dot(v, v));
     }
-    // A cell still reaching half way to the square is open: the point is on the edge of the
-    // data (of the scan, or of the node, whose neighbours beyond its faces are not here). It
-    // keeps weight 1 and no offset.
-    if (poly.size() < 3 || reach2 > 0.25 * radius * radius) continue;
+    // A cell still touching the square is open: the point is on the edge of the data (of the
+    // scan, or of the node, whose neighbours beyond its faces are not here). It keeps weight 1
+    // and no offset. (Large closed cells are the gaps of a random sample: they keep their area.)
+    bool open = poly.size() < 3;
+    for (const glm::dvec2& v : poly)
+      open |= std::max(std::abs(v.x), std::abs(v.y)) > 0.999 * radius;
+    if (open) continue;
     double area = 0;
     glm::dvec2 centroid(0.0);
     for (size_t v = 0; v < poly.size(); ++v) {

@@ -116,8 +116,9 @@ struct SurfaceCell {
 /// Each point's Voronoi cell among its neighbours within `radius` (about 6 node spacings), in
 /// the tangent plane of those neighbours (PCA): the area relative to the node's mean
 /// (x `node_density`, points per unit area; clamped to [1/8, 8]) and the offset to the
-/// centroid. Points whose cell stays open (reaching radius / 2: the edge of the data, or of the
-/// node, whose neighbours beyond its faces are elsewhere), or with fewer than 3 neighbours, get
+/// centroid. Points whose cell stays open (still touching the radius-sized square it is cut from:
+/// the edge of the data, or of the node, whose neighbours beyond its faces are elsewhere), or
+/// with fewer than 3 neighbours, get
 /// weight 1 and no offset. Scaling each point's
 /// copies by its weight and centring them on the centroid turns the random sample of a sparse
 /// scan into an even cover of its surface (spbr_raster.comp). O(n) with ~20 neighbours a
