@@ -234,12 +234,13 @@ void ViewRenderer::addModel(const ModelInstance& instance, bool see_through, con
       // Each node its own k and cross-section, from its own density and spacing (spbr.h), so
       // the opacity holds at every LOD level; opaque models sit in every ensemble.
       const SpbrOptions& so = options.spbr;
-      const bool jitter = so.copy_jitter > 0.0 && instance.opacity < 1.0f;
+      // Independent ensembles (max_k <= 1: one copy at most) keep their points where they are.
+      const bool jitter = so.copy_jitter > 0.0 && so.max_k > 1.0 && instance.opacity < 1.0f;
       // Jittered copies over surface cells form an even cover, more regular than the
       // independent placement eq. 1 assumes: its discs overlap less, so the same lambda =
       // -ln(1 - alpha) covers more. Measured on the Figure 5 plane (bench/spbr, sparse),
       // coverage follows lambda (1.015 + 0.06 lambda); solve for the lambda that gives alpha.
-      if (so.cell_weights && instance.opacity < 1.0f) b.cells = chunk.cells.name();
+      if (so.cell_weights && jitter) b.cells = chunk.cells.name();
       double alpha = instance.opacity;
       if (jitter && so.cell_weights && b.cells && alpha < 1.0) {
         const double target = -std::log1p(-alpha);

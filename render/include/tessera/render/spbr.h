@@ -49,7 +49,8 @@ struct SpbrOptions {
   /// Scale each point's copies by its surface cell's area and centre them on the cell's
   /// centroid (spbr.h surfaceCells(), when the streamer measured them): an even cover of the
   /// surface from an uneven sample (a random sample's clumps and gaps otherwise stay in every
-  /// ensemble, however large L). Off with copy_jitter 0 gives the paper's method.
+  /// ensemble, however large L). Off with copy_jitter 0 gives the paper's method. Both apply
+  /// only with max_k > 1 (max_k 1: independent ensembles, as before).
   bool cell_weights = true;
   /// See-through views refine the LOD cut this much finer than opaque ones: denser nodes let
   /// each ensemble take fewer points of smaller cross-section.
