@@ -10,9 +10,9 @@
 //            against one opaque pass over the same adjusted points (goal: at most 2x);
 //  sparse    see-through on sparse scans (2 points a pixel; the paper assumes ~38): the paper's
 //            copies, independent ensembles (k <= 1), jittered copies, and jittered copies over
-//            surface cells (the default), on the Figure 5 plane at 10^6 points: std over pixels
-//            against the binomial 255 sqrt(a (1 - a) / L), mean error, the 10-90% width of a
-//            half-plane's edge, ms per frame; and each method's RMSE on the fused bunny;
+//            surface cells (the opt-in sparse method), on the Figure 5 plane at 10^6 points: std
+//            over pixels against the binomial 255 sqrt(a (1 - a) / L), mean error, the 10-90% width
+//            of a half-plane's edge, ms per frame; and each method's RMSE on the fused bunny;
 //  breaks    where the method's uniform-density assumption fails: a plane whose density jumps
 //            4x (per-node estimates against the paper's single global one), and alpha near 1
 //            (k with the paper's fixed cross-section, the copies and bytes it would take).
@@ -157,7 +157,7 @@ void figure5(const fs::path& out, const std::vector<size_t>& sizes) {
   for (size_t n : sizes) {
     auto store = lod::PointStore::open(planeStore(out / "inputs", n));
     for (int a = 1; a <= 38; ++a) {
-      // The default (jittered copies over surface cells), then independent ensembles (k <= 1).
+      // Copies as the paper (the default), then independent ensembles (k <= 1).
       const bool independent = a > 19;
       const float alpha = float(independent ? a - 19 : a) * 0.05f;
       render::ModelInstance inst{store.get(), render::storeModel(*store), alpha};
@@ -189,7 +189,7 @@ void figure5(const fs::path& out, const std::vector<size_t>& sizes) {
     const std::string f = (out / "spbr_figure5.csv").string();
     g << "set title 'n_raw = " << n << "'\nplot '" << f << "' using ($1==" << n
       << " && stringcolumn(8) eq 'copies' ? $2 - 0.006 : 1/0):3:4 with yerrorbars pt 7 ps 0.6 "
-         "title 'default (jittered copies over surface cells)', '"
+         "title 'default (copies, as the paper)', '"
       << f << "' using ($1==" << n
       << " && stringcolumn(8) eq 'independent' ? $2 + 0.006 : 1/0):3:4 with yerrorbars pt 6 ps "
          "0.6 title 'independent ensembles (k <= 1)', 255*x with lines lw 2 title '255 alpha'\n";
@@ -311,7 +311,8 @@ void accuracy(const fs::path& out, std::vector<Scene>& scenes) {
   gnuplot(out / "spbr_accuracy.gp");
 }
 
-/// A see-through method as options; the first is the default.
+/// A see-through method as options; the first is the default (the paper's copies), the second
+/// the opt-in sparse method (tessera-render --spbr-sparse).
 struct SparseMethod {
   std::string name;
   render::SpbrOptions spbr;
@@ -319,21 +320,18 @@ struct SparseMethod {
 
 std::vector<SparseMethod> sparseMethods(const std::vector<double>& jitters) {
   std::vector<SparseMethod> m;
-  const render::SpbrOptions defaults;
-  m.push_back({"default", defaults});
-  SparseMethod paper{"copies (paper)", defaults};
-  paper.spbr.copy_jitter = 0.0;
-  paper.spbr.cell_weights = false;
-  m.push_back(paper);
-  SparseMethod independent = paper;
-  independent.name = "independent (k <= 1)";
+  const render::SpbrOptions paper;
+  const render::SpbrOptions sparse = render::SpbrOptions::sparseScans();
+  m.push_back({"default: copies (paper)", paper});
+  m.push_back({"sparse", sparse});
+  SparseMethod independent{"independent (k <= 1)", paper};
   independent.spbr.max_k = 1.0;
   m.push_back(independent);
-  SparseMethod jitter_only{"jittered copies without cells", defaults};
+  SparseMethod jitter_only{"jittered copies without cells", sparse};
   jitter_only.spbr.cell_weights = false;
   m.push_back(jitter_only);
-  for (double j : jitters) {  // a sweep of the default's jitter
-    SparseMethod sweep{"cells, jitter " + std::to_string(j).substr(0, 4), defaults};
+  for (double j : jitters) {  // a sweep of the sparse method's jitter
+    SparseMethod sweep{"cells, jitter " + std::to_string(j).substr(0, 4), sparse};
     sweep.spbr.copy_jitter = j;
     m.push_back(sweep);
   }
@@ -353,7 +351,9 @@ void sparse(const fs::path& out, const std::vector<double>& jitters, bool with_b
   auto half = lod::PointStore::open(planeStore(out / "inputs", n / 2, 0.0));  // same density
   const render::ViewSetup v =
       lookAt({0.5, 0.5, 1.0}, {0.5, 0.5, 0.0}, {0, 1, 0}, 512, 512, 40.0, 0.1, 10.0);
-  auto streamer = std::make_shared<render::ChunkStreamer>();
+  render::StreamerOptions with_cells;  // for the sparse method; the others ignore them
+  with_cells.surface_cells = true;
+  auto streamer = std::make_shared<render::ChunkStreamer>(with_cells);
   const std::vector<SparseMethod> methods = sparseMethods(jitters);
   std::vector<render::Image> crops;
   for (const SparseMethod& m : methods) {
@@ -388,11 +388,11 @@ void sparse(const fs::path& out, const std::vector<double>& jitters, bool with_b
       }
     }
   }
-  // Before (the paper's copies), independent ensembles, after (the default), side by side.
+  // The paper's copies (the default), independent ensembles, the sparse method, side by side.
   const uint32_t gap = 8;
   render::Image strip{3 * 256 + 2 * gap, 256,
                       std::vector<uint8_t>(size_t(3 * 256 + 2 * gap) * 256 * 4, 255)};
-  const int order[3] = {1, 2, 0};
+  const int order[3] = {0, 2, 1};
   for (int k = 0; k < 3; ++k)
     for (uint32_t y = 0; y < 256; ++y)
       std::copy_n(&crops[order[k]].rgba[size_t(y) * 256 * 4], 256 * 4,
@@ -404,7 +404,7 @@ void sparse(const fs::path& out, const std::vector<double>& jitters, bool with_b
     std::cout << "method,L,bunny_rmse,bunny_frame_ms\n";
     Scene bunny = bunnyScene(out);
     const render::Image ref = render::referenceSeeThrough(bunny.models, bunny.view, {});
-    auto bunny_streamer = std::make_shared<render::ChunkStreamer>();
+    auto bunny_streamer = std::make_shared<render::ChunkStreamer>(with_cells);
     for (const SparseMethod& m : methods) {
       for (uint32_t l : {16u, 64u}) {
         render::RenderOptions o;
@@ -416,8 +416,8 @@ void sparse(const fs::path& out, const std::vector<double>& jitters, bool with_b
         std::snprintf(line, sizeof line, "%s,%u,%.2f,%.1f", m.name.c_str(), l, rmse(img, ref), ms);
         csv << line << "\n";
         std::cout << line << std::endl;
-        if (l == 64 && &m == &methods.front())
-          render::writePng((out / "spbr-bunny-default-64.png").string(), img);
+        if (l == 64 && &m == &methods[1])
+          render::writePng((out / "spbr-bunny-sparse-64.png").string(), img);
       }
     }
   }
@@ -639,7 +639,7 @@ int main(int argc, char** argv) {
   app.add_option("--speed-lod", speed_lod, "LOD threshold of the speed view")
       ->capture_default_str();
   app.add_option("--sparse-jitter", jitters,
-                 "sparse: also the default with these copy jitters (node spacings)");
+                 "sparse: also the sparse method with these copy jitters (node spacings)");
   app.add_option("--sparse-bunny", sparse_bunny, "sparse: each method's RMSE on the bunny")
       ->capture_default_str();
   CLI11_PARSE(app, argc, argv);

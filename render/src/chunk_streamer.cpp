@@ -117,11 +117,10 @@ struct ChunkStreamer::Impl {
           // Spheres four spacings wide hold about 50 points of a surface.
           out.density = sphereDensity(chunk->positions, 4.0 * out.spacing, 128, item.node, 16384);
           if (options.normals) out.normals = estimateNormals(chunk->positions, 2.5 * out.spacing);
-          const lod::NodeInfo info = item.store->node(item.node);
-          const glm::vec3 box(info.box_max - info.box_min);
           if (options.density_ratios) {
-            out.ratios = densityRatios(chunk->positions, 4.0 * out.spacing, glm::vec3(0.0f), box,
-                                       out.density);
+            const lod::NodeInfo info = item.store->node(item.node);
+            out.ratios = densityRatios(chunk->positions, 4.0 * out.spacing, glm::vec3(0.0f),
+                                       glm::vec3(info.box_max - info.box_min), out.density);
           }
           if (options.surface_cells) {
             // Six spacings hold ~28 neighbours: enough to close almost every cell.

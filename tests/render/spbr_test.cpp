@@ -210,13 +210,6 @@ class SpbrRenderTest : public ::testing::Test {
   }
   /// The sparse-scan goals on the 10^6-point plane at five alphas, edges at most `max_edge_px`.
   static void sparsePlane(double max_edge_px);
-  /// The paper's copies: every copy where its point is, no surface cells.
-  static SpbrOptions paperCopies() {
-    SpbrOptions o;
-    o.copy_jitter = 0.0;
-    o.cell_weights = false;
-    return o;
-  }
   static test::TempDir* sDir;
   static GlContext* sContext;
 };
@@ -248,8 +241,7 @@ TEST_F(SpbrRenderTest, WhitePlaneShowsTheRequestedOpacity) {
     EXPECT_LT(sd, 1.5 * ideal) << "ensembles are not independent at alpha " << alpha;
     // The paper's way (fixed cross-sections, copies for k > 1): the same mean, more noise.
     RenderOptions copies = opt;
-    copies.spbr = paperCopies();
-    copies.spbr.ensembles = 64;
+    copies.spbr.max_k = 1e9;
     ViewRenderer rc(v.width, v.height);
     const double mean_copies = meanIntensity(rc.renderSettled({&inst, 1}, v, copies));
     std::printf("  with copies: mean %.2f\n", mean_copies);
@@ -258,13 +250,14 @@ TEST_F(SpbrRenderTest, WhitePlaneShowsTheRequestedOpacity) {
 }
 
 // Sparse scans (issue 12): the same plane holds 2 points a pixel, where the paper assumes ~38.
-// With the default options (jittered copies over surface cells) the picture is the binomial
-// one: mean within 2.5% of 255 alpha and standard deviation at most 1.5x the binomial
-// 255 sqrt(alpha (1 - alpha) / L) of L independent ensembles. The goal for the edge (a
-// half-plane's 10-90% width at most 2 px) is not met yet: 1.8 to 2.15 px at copy_jitter 1.5
-// (smaller jitters sharpen it but miss the other two goals at alpha 0.8); this test holds the
-// measured width (2.25 px) and DISABLED_SparsePlaneEdgeMeetsTheGoal the goal.
-TEST_F(SpbrRenderTest, SparsePlaneByDefaultIsBinomialAndSharp) {
+// With the sparse method (SpbrOptions::sparseScans(): jittered copies over surface cells, which
+// the streamer must measure) the picture is the binomial one: mean within 2.5% of 255 alpha and
+// standard deviation at most 1.5x the binomial 255 sqrt(alpha (1 - alpha) / L) of L independent
+// ensembles. The goal for the edge (a half-plane's 10-90% width at most 2 px) is not met yet: 1.8
+// to 2.15 px at copy_jitter 1.5 (smaller jitters sharpen it but miss the other two goals at alpha
+// 0.8); this test holds the measured width (2.25 px) and DISABLED_SparsePlaneEdgeMeetsTheGoal the
+// goal.
+TEST_F(SpbrRenderTest, SparsePlaneWithTheSparseMethodIsBinomialAndSharp) {
   sparsePlane(2.25);
 }
 TEST_F(SpbrRenderTest, DISABLED_SparsePlaneEdgeMeetsTheGoal) {
@@ -275,9 +268,12 @@ void SpbrRenderTest::sparsePlane(double max_edge_px) {
   auto store = lod::PointStore::open(plane(1'000'000));
   auto half = lod::PointStore::open(plane(1'000'000, true));
   const ViewSetup v = topView();
-  auto streamer = std::make_shared<ChunkStreamer>();
+  StreamerOptions so;
+  so.surface_cells = true;
+  auto streamer = std::make_shared<ChunkStreamer>(so);
   for (float alpha : {0.05f, 0.2f, 0.5f, 0.8f, 0.95f}) {
     RenderOptions opt;
+    opt.spbr = SpbrOptions::sparseScans();
     opt.spbr.ensembles = 64;
     ModelInstance inst{store.get(), storeModel(*store), alpha};
     ViewRenderer r(v.width, v.height, streamer);
@@ -296,14 +292,13 @@ void SpbrRenderTest::sparsePlane(double max_edge_px) {
   }
 }
 
-// The same plane with the method switched off (the paper's copies: every copy where its point
-// is): the copies of a point fill most of the 64 ensembles alike, so the picture is nearly
+// The same plane with the default options (the paper's copies: every copy where its point is):
+// the copies of a point fill most of the 64 ensembles alike, so the picture is nearly
 // binary noise. Guards the test above against measuring something that cannot fail.
 TEST_F(SpbrRenderTest, SparsePlaneWithThePapersCopiesIsNoise) {
   auto store = lod::PointStore::open(plane(1'000'000));
   const ViewSetup v = topView();
   RenderOptions opt;
-  opt.spbr = paperCopies();
   opt.spbr.ensembles = 64;
   ModelInstance inst{store.get(), storeModel(*store), 0.5f};
   ViewRenderer r(v.width, v.height);

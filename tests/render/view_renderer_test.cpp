@@ -236,10 +236,9 @@ TEST_F(ViewRendererTest, GpuCacheEvictsLeastRecentlyUsedChunksUnderItsBudget) {
   for (const ViewSetup& v : views) {
     Image img = r.renderSettled({&inst, 1}, v, RenderOptions{}, &st);
     evicted += st.stream.evicted;
-    // Over budget only by what this very view draws, which is never evicted under it: each
-    // point and its surface cell (8 bytes, StreamerOptions::surface_cells).
+    // Over budget only by what this very view draws, which is never evicted under it.
     EXPECT_LE(st.stream.resident_bytes,
-              so.budget_bytes + st.points * (sizeof(GpuPoint) + 8) + 16 * st.nodes);
+              so.budget_bytes + st.points * sizeof(GpuPoint) + 16 * st.nodes);
     ViewRenderer fresh(200, 150);
     EXPECT_EQ(fresh.renderSettled({&inst, 1}, v, RenderOptions{}).rgba, img.rgba);
   }

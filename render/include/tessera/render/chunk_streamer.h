@@ -63,9 +63,10 @@ struct StreamerOptions {
   /// decoding; render nodes and see-through views turn it on.
   bool density_ratios = false;
   /// Each point's surface cell on loading (spbr.h surfaceCells(): area and centroid): what lets
-  /// see-through rendering of sparse scans cover their surfaces evenly. About twice the cost of
-  /// decoding, 8 GPU bytes a point.
-  bool surface_cells = true;
+  /// see-through rendering of sparse scans cover their surfaces evenly (SpbrOptions::sparseScans(),
+  /// cell_weights). About twice the cost of decoding, 8 GPU bytes a point: off unless a view
+  /// asks for the sparse-scan method.
+  bool surface_cells = false;
 };
 
 class ChunkStreamer {

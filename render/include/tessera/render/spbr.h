@@ -33,25 +33,31 @@ struct SpbrOptions {
   /// 1/sqrt(L)) by growing the discs instead: smooth but blurred, since discs grow with L
   /// (bench/spbr measures both against an exact compositor; copies win on the fused bunny).
   double max_k = 1e9;
-  /// Sparse scans (2 to 8 points a pixel, where the paper assumes ~38): copy c of a point is
-  /// moved by a Gaussian offset of this standard deviation, in node spacings, in the image
-  /// plane (deterministic from the node, the point index and c), so the copies of one point in
-  /// different ensembles cover different pixels and the ensembles decorrelate. 0: every copy
-  /// where the point is (the paper; on sparse scans the L images then average only about L / k
-  /// independent ones and the picture is nearly binary noise). Blurs edges by about
-  /// 2.6 x this x the spacing in pixels (10-90%); costs nothing measurable.
-  double copy_jitter = 1.5;
+  /// Sparse scans (2 to 8 points a pixel, where the paper assumes ~38), opt-in (sparseScans()):
+  /// copy c of a point is moved by a Gaussian offset of this standard deviation, in node
+  /// spacings, in the image plane (deterministic from the node, the point index and c), so the
+  /// copies of one point in different ensembles cover different pixels and the ensembles
+  /// decorrelate. 0 (the default, the paper): every copy where the point is; on sparse scans
+  /// the L images then average only about L / k independent ones and the picture is nearly
+  /// binary noise. Blurs edges by about 2.6 x this x the spacing in pixels (10-90%); costs
+  /// nothing measurable. Not the default: it costs accuracy on dense fused scans (bench/spbr
+  /// sparse: bunny RMSE to the exact compositor 24.2 against the paper's 15.1, L = 64).
+  double copy_jitter = 0.0;
   /// With copy_jitter: the largest share of the L ensembles one point's copies fill before
   /// cross-sections grow instead. Each ensemble is then a random thinning of the surface cover,
   /// close to the independent placement eq. 1 assumes (nearly every point in every ensemble
   /// makes an ensemble as regular as the cover, and more opaque than eq. 1 predicts).
   double max_share = 0.5;
-  /// Scale each point's copies by its surface cell's area and centre them on the cell's
-  /// centroid (spbr.h surfaceCells(), when the streamer measured them): an even cover of the
-  /// surface from an uneven sample (a random sample's clumps and gaps otherwise stay in every
-  /// ensemble, however large L). Off with copy_jitter 0 gives the paper's method. Both apply
-  /// only with max_k > 1 (max_k 1: independent ensembles, as before).
-  bool cell_weights = true;
+  /// With copy_jitter: scale each point's copies by its surface cell's area and centre them on
+  /// the cell's centroid (spbr.h surfaceCells(); only where the streamer measured them,
+  /// StreamerOptions::surface_cells): an even cover of the surface from an uneven sample (a
+  /// random sample's clumps and gaps otherwise stay in every ensemble, however large L). Both
+  /// apply only with max_k > 1 (max_k 1: independent ensembles, as before).
+  bool cell_weights = false;
+  /// The sparse-scan method as measured (bench/spbr sparse): copy_jitter 1.5, cell weights on,
+  /// the rest of `base` kept. Its views need StreamerOptions::surface_cells.
+  static SpbrOptions sparseScans(SpbrOptions base);
+  static SpbrOptions sparseScans() { return sparseScans(SpbrOptions()); }
   /// See-through views refine the LOD cut this much finer than opaque ones: denser nodes let
   /// each ensemble take fewer points of smaller cross-section.
   double lod_scale = 0.5;
@@ -64,6 +70,12 @@ struct SpbrOptions {
   /// them), the speed baseline SPBR is held to.
   bool single_layer_baseline = false;
 };
+
+inline SpbrOptions SpbrOptions::sparseScans(SpbrOptions base) {
+  base.copy_jitter = 1.5;
+  base.cell_weights = true;
+  return base;
+}
 
 /// Opacity of a segment of area S holding n points of cross-section s (eq. 1).
 double spbrOpacity(double n, double s, double S);
