@@ -8,6 +8,11 @@
 //            on the bunny's scans fused at two opacities and on Autzen;
 //  speed     1024x1024, L = 64, a ~10^7-point view of the 10^8-point store: the SPBR frame
 //            against one opaque pass over the same adjusted points (goal: at most 2x);
+//  sparse    see-through on sparse scans (2 points a pixel; the paper assumes ~38): the paper's
+//            copies, independent ensembles (k <= 1), jittered copies, and jittered copies over
+//            surface cells (the opt-in sparse method), on the Figure 5 plane at 10^6 points: std
+//            over pixels against the binomial 255 sqrt(a (1 - a) / L), mean error, the 10-90% width
+//            of a half-plane's edge, ms per frame; and each method's RMSE on the fused bunny;
 //  breaks    where the method's uniform-density assumption fails: a plane whose density jumps
 //            4x (per-node estimates against the paper's single global one), and alpha near 1
 //            (k with the paper's fixed cross-section, the copies and bytes it would take).
@@ -45,8 +50,8 @@ void gnuplot(const fs::path& script) {
     std::fprintf(stderr, "spbr: gnuplot failed on %s; the CSV is complete\n", script.c_str());
 }
 
-/// A store of `n` white points uniformly random on [0, width] x [0, 1] at z = 0, the right half
-/// (x > width / 2) `right_density` times denser. Cached in `dir`.
+/// A store of `n` white points uniformly random on [0, 1] x [0, 1] at z = 0, the right half
+/// (x > 1 / 2) `right_density` times denser (0: empty, a half-plane). Cached in `dir`.
 fs::path planeStore(const fs::path& dir, size_t n, double right_density = 1.0) {
   char name[96];
   std::snprintf(name, sizeof name, "plane-%zu-%g.tlod", n, right_density);
@@ -58,7 +63,7 @@ fs::path planeStore(const fs::path& dir, size_t n, double right_density = 1.0) {
   std::mt19937_64 rng(n);
   std::uniform_real_distribution<double> u(0.0, 1.0);
   // Left half: n / (1 + r) points, right half r times as many on the same area.
-  const size_t left = size_t(double(n) / (1.0 + right_density));
+  const size_t left = right_density > 0 ? size_t(double(n) / (1.0 + right_density)) : n;
   for (size_t i = 0; i < n; ++i) {
     const double x = i < left ? 0.5 * u(rng) : 0.5 + 0.5 * u(rng);
     b.positions.push_back({x, u(rng), 0.0});
@@ -152,7 +157,7 @@ void figure5(const fs::path& out, const std::vector<size_t>& sizes) {
   for (size_t n : sizes) {
     auto store = lod::PointStore::open(planeStore(out / "inputs", n));
     for (int a = 1; a <= 38; ++a) {
-      // Copies as the paper (fixed cross-sections), then independent ensembles (k <= 1).
+      // Copies as the paper (the default), then independent ensembles (k <= 1).
       const bool independent = a > 19;
       const float alpha = float(independent ? a - 19 : a) * 0.05f;
       render::ModelInstance inst{store.get(), render::storeModel(*store), alpha};
@@ -184,7 +189,7 @@ void figure5(const fs::path& out, const std::vector<size_t>& sizes) {
     const std::string f = (out / "spbr_figure5.csv").string();
     g << "set title 'n_raw = " << n << "'\nplot '" << f << "' using ($1==" << n
       << " && stringcolumn(8) eq 'copies' ? $2 - 0.006 : 1/0):3:4 with yerrorbars pt 7 ps 0.6 "
-         "title 'copies (as the paper)', '"
+         "title 'default (copies, as the paper)', '"
       << f << "' using ($1==" << n
       << " && stringcolumn(8) eq 'independent' ? $2 + 0.006 : 1/0):3:4 with yerrorbars pt 6 ps "
          "0.6 title 'independent ensembles (k <= 1)', 255*x with lines lw 2 title '255 alpha'\n";
@@ -200,6 +205,40 @@ struct Scene {
   std::vector<render::ModelInstance> models;
   render::ViewSetup view;
 };
+
+/// The bunny's ten scans in two groups, fused at two opacities (orange 0.3, blue 0.7), 640x480.
+Scene bunnyScene(const fs::path& dir) {
+  const std::string data = TESSERA_DATA_DIR;
+  Scene s;
+  s.name = "bunny";
+  const char* groups[2][5] = {{"bun000", "bun045", "bun315", "chin", "top2"},
+                              {"bun090", "bun180", "bun270", "top3", "ear_back"}};
+  std::ifstream conf_in(data + "/stanford-bunny/scans/bun.conf");
+  std::vector<std::string> lines;
+  for (std::string l; std::getline(conf_in, l);) lines.push_back(l);
+  const float opacity[2] = {0.3f, 0.7f};
+  const glm::u8vec3 color[2] = {{255, 170, 60}, {80, 160, 255}};
+  for (int gi = 0; gi < 2; ++gi) {
+    const fs::path conf = dir / "inputs" / ("bunny-group" + std::to_string(gi) + ".conf");
+    const fs::path store = dir / "inputs" / ("bunny-group" + std::to_string(gi) + ".tlod");
+    if (!fs::exists(store)) {
+      std::ofstream c(conf);
+      for (const std::string& l : lines)
+        for (const char* name : groups[gi])
+          if (l.rfind(std::string("bmesh ") + name + ".ply", 0) == 0)
+            c << "bmesh " << data << "/stanford-bunny/scans/" << l.substr(6) << "\n";
+      c.close();
+      lod::BuildOptions o;
+      o.quiet = true;
+      lod::buildStore({conf}, store, o);
+    }
+    s.stores.push_back(lod::PointStore::open(store));
+    s.models.push_back(
+        {s.stores.back().get(), render::storeModel(*s.stores.back()), opacity[gi], color[gi]});
+  }
+  s.view = lookAt({-0.02, 0.11, 0.3}, {-0.02, 0.1, 0.0}, {0, 1, 0}, 640, 480, 40.0, 0.01, 2.0);
+  return s;
+}
 
 void accuracy(const fs::path& out, std::vector<Scene>& scenes) {
   std::ofstream csv(out / "spbr_accuracy.csv");
@@ -270,6 +309,149 @@ void accuracy(const fs::path& out, std::vector<Scene>& scenes) {
   g << "unset multiplot\n";
   g.close();
   gnuplot(out / "spbr_accuracy.gp");
+}
+
+/// A see-through method as options; the first is the default (the paper's copies), the second
+/// the opt-in sparse method (tessera-render --spbr-sparse).
+struct SparseMethod {
+  std::string name;
+  render::SpbrOptions spbr;
+};
+
+std::vector<SparseMethod> sparseMethods(const std::vector<double>& jitters) {
+  std::vector<SparseMethod> m;
+  const render::SpbrOptions paper;
+  const render::SpbrOptions sparse = render::SpbrOptions::sparseScans();
+  m.push_back({"default: copies (paper)", paper});
+  m.push_back({"sparse", sparse});
+  SparseMethod independent{"independent (k <= 1)", paper};
+  independent.spbr.max_k = 1.0;
+  m.push_back(independent);
+  SparseMethod jitter_only{"jittered copies without cells", sparse};
+  jitter_only.spbr.cell_weights = false;
+  m.push_back(jitter_only);
+  for (double j : jitters) {  // a sweep of the sparse method's jitter
+    SparseMethod sweep{"cells, jitter " + std::to_string(j).substr(0, 4), sparse};
+    sweep.spbr.copy_jitter = j;
+    m.push_back(sweep);
+  }
+  return m;
+}
+
+void sparse(const fs::path& out, const std::vector<double>& jitters, bool with_bunny) {
+  const uint32_t L = 64;
+  const size_t n = 1'000'000;
+  std::ofstream csv(out / "spbr_sparse.csv");
+  csv << "method,alpha,mean,stddev,binomial,std_over_binomial,mean_error_pct,edge_10_90_px,"
+         "frame_ms\n";
+  std::cout << "\n== sparse scans: Figure 5 plane, 10^6 points (2 a pixel), 512x512, L = 64\n"
+               "method,alpha,mean,stddev,binomial,std_over_binomial,mean_error_pct,"
+               "edge_10_90_px,frame_ms\n";
+  auto plane = lod::PointStore::open(planeStore(out / "inputs", n));
+  auto half = lod::PointStore::open(planeStore(out / "inputs", n / 2, 0.0));  // same density
+  const render::ViewSetup v =
+      lookAt({0.5, 0.5, 1.0}, {0.5, 0.5, 0.0}, {0, 1, 0}, 512, 512, 40.0, 0.1, 10.0);
+  render::StreamerOptions with_cells;  // for the sparse method; the others ignore them
+  with_cells.surface_cells = true;
+  auto streamer = std::make_shared<render::ChunkStreamer>(with_cells);
+  const std::vector<SparseMethod> methods = sparseMethods(jitters);
+  std::vector<render::Image> crops;
+  for (const SparseMethod& m : methods) {
+    for (float alpha : {0.05f, 0.2f, 0.35f, 0.5f, 0.65f, 0.8f, 0.95f}) {
+      render::RenderOptions o;
+      o.spbr = m.spbr;
+      o.spbr.ensembles = L;
+      render::ModelInstance inst{plane.get(), render::storeModel(*plane), alpha};
+      render::Image img;
+      const double ms = timedFrame({&inst, 1}, v, o, streamer, 1, &img, nullptr);
+      double sd = 0;
+      const double mean = meanOf(img, 0, img.width, &sd);
+      render::ModelInstance edge_inst{half.get(), render::storeModel(*half), alpha};
+      render::ViewRenderer re(v.width, v.height, streamer);
+      const render::Image edge_img = re.renderSettled({&edge_inst, 1}, v, o);
+      const double binomial = 255.0 * std::sqrt(alpha * (1.0 - alpha) / L);
+      char line[256];
+      std::snprintf(line, sizeof line, "%s,%.2f,%.2f,%.2f,%.2f,%.3f,%.2f,%.2f,%.1f", m.name.c_str(),
+                    alpha, mean, sd, binomial, sd / binomial,
+                    100.0 * (mean / (255.0 * alpha) - 1.0), render::edgeWidth(edge_img, 256), ms);
+      csv << line << "\n";
+      std::cout << line << std::endl;
+      if (alpha == 0.5f && crops.size() < 3) {
+        // 128x128 around the edge, at 2x: the plateau's grain on the left, the edge, background.
+        render::Image c{256, 256, std::vector<uint8_t>(256 * 256 * 4)};
+        for (uint32_t y = 0; y < 256; ++y)
+          for (uint32_t x = 0; x < 256; ++x)
+            for (int ch = 0; ch < 4; ++ch)
+              c.rgba[(y * 256 + x) * 4 + ch] =
+                  edge_img.rgba[((192 + y / 2) * 512 + 160 + x / 2) * 4 + ch];
+        crops.push_back(std::move(c));
+      }
+    }
+  }
+  // The paper's copies (the default), independent ensembles, the sparse method, side by side.
+  const uint32_t gap = 8;
+  render::Image strip{3 * 256 + 2 * gap, 256,
+                      std::vector<uint8_t>(size_t(3 * 256 + 2 * gap) * 256 * 4, 255)};
+  const int order[3] = {0, 2, 1};
+  for (int k = 0; k < 3; ++k)
+    for (uint32_t y = 0; y < 256; ++y)
+      std::copy_n(&crops[order[k]].rgba[size_t(y) * 256 * 4], 256 * 4,
+                  &strip.rgba[(size_t(y) * strip.width + k * (256 + gap)) * 4]);
+  render::writePng((out / "spbr_sparse_crops.png").string(), strip);
+
+  if (with_bunny) {
+    csv << "\nmethod,L,bunny_rmse,bunny_frame_ms\n";
+    std::cout << "method,L,bunny_rmse,bunny_frame_ms\n";
+    Scene bunny = bunnyScene(out);
+    const render::Image ref = render::referenceSeeThrough(bunny.models, bunny.view, {});
+    auto bunny_streamer = std::make_shared<render::ChunkStreamer>(with_cells);
+    for (const SparseMethod& m : methods) {
+      for (uint32_t l : {16u, 64u}) {
+        render::RenderOptions o;
+        o.spbr = m.spbr;
+        o.spbr.ensembles = l;
+        render::Image img;
+        const double ms = timedFrame(bunny.models, bunny.view, o, bunny_streamer, 2, &img, nullptr);
+        char line[256];
+        std::snprintf(line, sizeof line, "%s,%u,%.2f,%.1f", m.name.c_str(), l, rmse(img, ref), ms);
+        csv << line << "\n";
+        std::cout << line << std::endl;
+        if (l == 64 && &m == &methods[1])
+          render::writePng((out / "spbr-bunny-sparse-64.png").string(), img);
+      }
+    }
+  }
+  csv.close();
+  const std::string f = (out / "spbr_sparse.csv").string();
+  std::ofstream g(out / "spbr_sparse.gp");
+  g << "set terminal pngcairo size 1200,820 font 'sans,10' noenhanced\nset output '"
+    << (out / "spbr_sparse.png").string() << "'\nset datafile separator ','\n"
+    << "set multiplot layout 2,2 title 'See-through on a sparse scan: the paper s Figure 5 "
+       "plane at 10^6 points (2 a pixel), 512x512, L = 64'\n"
+    << "set grid\nset xlabel 'alpha'\nset xrange [0:1]\nset key top left\n";
+  auto plot = [&](const char* title, const char* ylabel, int column, const char* goal) {
+    g << "set title '" << title << "'\nset ylabel '" << ylabel << "'\nplot ";
+    for (size_t k = 0; k < methods.size(); ++k)
+      g << "'" << f << "' using (stringcolumn(1) eq '" << methods[k].name
+        << "' ? $2 : 1/0):" << column << " with linespoints pt " << (k == 0 ? 7 : int(k) + 3)
+        << " lw " << (k == 0 ? 2 : 1) << " title '" << methods[k].name << "', ";
+    g << goal << "\n";
+  };
+  g << "set logscale y\n";
+  plot("standard deviation over pixels / binomial", "std / binomial", 6,
+       "1.5 with lines dt 2 lc rgb 'black' title 'goal 1.5'");
+  g << "unset logscale y\nset yrange [-5:5]\n";
+  plot("mean error", "% of 255 alpha", 7,
+       "2.5 with lines dt 2 lc rgb 'black' title 'goal +-2.5%', -2.5 with lines dt 2 lc rgb "
+       "'black' notitle");
+  g << "set yrange [0:8]\n";
+  plot("half-plane edge, 10-90% width (off the chart: noise, no edge)", "pixels", 8,
+       "2 with lines dt 2 lc rgb 'black' title 'goal 2 px'");
+  g << "set yrange [*:*]\n";
+  plot("frame time (llvmpipe, 2 cores)", "ms", 9, "1/0 notitle");
+  g << "unset multiplot\n";
+  g.close();
+  gnuplot(out / "spbr_sparse.gp");
 }
 
 void speed(const fs::path& out, const fs::path& store_path, double lod_px) {
@@ -447,12 +629,18 @@ int main(int argc, char** argv) {
       "spbr: see-through rendering: Figure 5, accuracy against an exact compositor, "
       "speed, and where it breaks"};
   std::string out = TESSERA_BENCH_RESULTS_DIR;
-  std::vector<std::string> parts{"figure5", "accuracy", "speed", "breaks"};
+  std::vector<std::string> parts{"figure5", "sparse", "accuracy", "speed", "breaks"};
   double speed_lod = 1.5;
+  std::vector<double> jitters;
+  bool sparse_bunny = true;
   app.add_option("--out", out, "Folder for inputs, CSV and charts")->capture_default_str();
-  app.add_option("--parts", parts, "Which parts: figure5 accuracy speed breaks")
+  app.add_option("--parts", parts, "Which parts: figure5 sparse accuracy speed breaks")
       ->capture_default_str();
   app.add_option("--speed-lod", speed_lod, "LOD threshold of the speed view")
+      ->capture_default_str();
+  app.add_option("--sparse-jitter", jitters,
+                 "sparse: also the sparse method with these copy jitters (node spacings)");
+  app.add_option("--sparse-bunny", sparse_bunny, "sparse: each method's RMSE on the bunny")
       ->capture_default_str();
   CLI11_PARSE(app, argc, argv);
   auto has = [&](const char* p) { return std::find(parts.begin(), parts.end(), p) != parts.end(); };
@@ -461,42 +649,11 @@ int main(int argc, char** argv) {
     fs::create_directories(dir / "inputs");
     auto ctx = render::GlContext::createHeadless();
     if (has("figure5")) figure5(dir, {1'000'000, 4'000'000});
+    if (has("sparse")) sparse(dir, jitters, sparse_bunny);
     if (has("accuracy")) {
       std::vector<Scene> scenes;
       const std::string data = TESSERA_DATA_DIR;
-      {
-        // The bunny's ten scans in two groups, fused at two opacities.
-        Scene s;
-        s.name = "bunny";
-        const char* groups[2][5] = {{"bun000", "bun045", "bun315", "chin", "top2"},
-                                    {"bun090", "bun180", "bun270", "top3", "ear_back"}};
-        std::ifstream conf_in(data + "/stanford-bunny/scans/bun.conf");
-        std::vector<std::string> lines;
-        for (std::string l; std::getline(conf_in, l);) lines.push_back(l);
-        const float opacity[2] = {0.3f, 0.7f};
-        const glm::u8vec3 color[2] = {{255, 170, 60}, {80, 160, 255}};
-        for (int gi = 0; gi < 2; ++gi) {
-          const fs::path conf = dir / "inputs" / ("bunny-group" + std::to_string(gi) + ".conf");
-          const fs::path store = dir / "inputs" / ("bunny-group" + std::to_string(gi) + ".tlod");
-          if (!fs::exists(store)) {
-            std::ofstream c(conf);
-            for (const std::string& l : lines)
-              for (const char* name : groups[gi])
-                if (l.rfind(std::string("bmesh ") + name + ".ply", 0) == 0)
-                  c << "bmesh " << data << "/stanford-bunny/scans/" << l.substr(6) << "\n";
-            c.close();
-            lod::BuildOptions o;
-            o.quiet = true;
-            lod::buildStore({conf}, store, o);
-          }
-          s.stores.push_back(lod::PointStore::open(store));
-          s.models.push_back({s.stores.back().get(), render::storeModel(*s.stores.back()),
-                              opacity[gi], color[gi]});
-        }
-        s.view =
-            lookAt({-0.02, 0.11, 0.3}, {-0.02, 0.1, 0.0}, {0, 1, 0}, 640, 480, 40.0, 0.01, 2.0);
-        scenes.push_back(std::move(s));
-      }
+      scenes.push_back(bunnyScene(dir));
       {
         Scene s;
         s.name = "autzen";

@@ -8,6 +8,14 @@
 // cross-section s is a disc facing the viewer (so slanted surfaces gather more points per pixel:
 // eq. 2's shading); it covers the pixels whose centres it contains, so its expected coverage is
 // exactly its projected area even below one pixel, which is what eq. 1 counts.
+//
+// Sparse scans (2 to 8 points a pixel; the paper assumes ~38): copy c of point i is moved in the
+// image plane by a Gaussian offset of uJitterK / w pixels, from a hash of (h(i), c), so copies of
+// one point in different ensembles cover different pixels and the ensembles decorrelate; with
+// uHasCells, copies are centred on the point's surface-cell centroid and their number scaled by
+// the cell's area (spbr.h surfaceCells()), so the clumps and gaps of a random sample do not stay
+// in every ensemble. Eq. 1 then holds per ensemble for a cover of the surface rather than for one
+// frozen sample of it.
 layout(local_size_x = 128) in;
 
 struct Point {
@@ -19,13 +27,17 @@ layout(std430, binding = 1) buffer Depth { uint depth[]; };    // uGroupCount la
 layout(std430, binding = 2) buffer Colors { uint colors[]; };  // uGroupCount layers
 layout(std430, binding = 4) readonly buffer Normals { uint normals[]; };  // 10:10:10 snorm
 layout(std430, binding = 6) readonly buffer Ratios { float ratios[]; };   // node / local density
+layout(std430, binding = 7) readonly buffer Cells { uvec2 cells[]; };  // half (dx, dy), (dz, w)
 
 uniform mat4 uClip;
 uniform uint uColorOverride;  // non-zero: 0x1000000 | rgb for every point of the batch
 uniform uint uCount;
 uniform ivec2 uSize;
 uniform float uDiscK;     // disc radius in pixels at view depth 1
-uniform float uK;         // copies per point over all uTotal ensembles, <= uTotal
+uniform float uK;         // copies per point over all uTotal ensembles, <= uCopyCap
+uniform uint uCopyCap;    // most copies of one point (uTotal)
+uniform float uJitterK;   // copies' offset standard deviation, pixels at view depth 1 (0: none)
+uniform int uHasCells;    // 1: cells[] centre and weigh each point's copies
 uniform uint uTotal;      // L
 uniform uint uGroupFirst;
 uniform uint uGroupCount;
@@ -70,39 +82,57 @@ void main() {
   if (i >= uCount) return;
   uint h = hash(uSeed ^ hash(i + 0x9e3779b9u));
   float k = uHasRatios != 0 ? uK * ratios[i] : uK;
+  vec3 position = points[i].position;
+  if (uHasCells != 0) {
+    vec2 xy = unpackHalf2x16(cells[i].x), zw = unpackHalf2x16(cells[i].y);
+    position += vec3(xy, zw.x);
+    k *= zw.y;
+  }
+  // A large cell may ask for more copies than ensembles: the disc grows to keep its area.
+  float grow = k > float(uCopyCap) ? sqrt(k / float(uCopyCap)) : 1.0;
+  k = min(k, float(uCopyCap));
   float whole = floor(k);
   float u = float(hash(h ^ 0x85ebca6bu) >> 8) * (1.0 / 16777216.0);
-  uint copies = min(uint(whole) + (u < k - whole ? 1u : 0u), uTotal);
+  uint copies = min(uint(whole) + (u < k - whole ? 1u : 0u), uCopyCap);
   if (copies == 0u) return;
-  // Copies sit in ensembles e0, e0 + 1, ... (mod L); a is the copy index of uGroupFirst.
+  // Copy c sits in ensemble (e0 + c) mod L; this dispatch draws [uGroupFirst, + uGroupCount).
   uint e0 = h % uTotal;
-  uint a = (uGroupFirst + uTotal - e0) % uTotal;
-  bool any = a < copies || a + uGroupCount > uTotal;
+  uint a = (uGroupFirst + uTotal - e0) % uTotal;  // copy index of uGroupFirst
+  bool any = copies >= uTotal || a < copies || a + uGroupCount > uTotal;
   if (!any) return;
 
-  vec4 c = uClip * vec4(points[i].position, 1.0);
+  vec4 c = uClip * vec4(position, 1.0);
   if (c.w <= 0.0) return;
   vec3 ndc = c.xyz / c.w;
   if (ndc.z < -1.0 || ndc.z > 1.0) return;
   vec2 pos = (ndc.xy * 0.5 + 0.5) * vec2(uSize);
-  ivec2 centre = ivec2(floor(pos));
   uint d = floatBitsToUint(ndc.z * 0.5 + 0.5);
-  float r = uDiscK / c.w;
+  float r = grow * uDiscK / c.w;
   if (uSlantOff != 0) {
     // s cos(theta): the disc's area shrinks with the angle between the surface normal and the
     // line of sight, cancelling eq. 2's gain on slanted surfaces.
     uint bits = normals[i];
     vec3 n = vec3(float(int(bits << 22) >> 22), float(int(bits << 12) >> 22),
                   float(int(bits << 2) >> 22)) / 511.0;
-    vec3 view = normalize(uEyeLocal - points[i].position);
+    vec3 view = normalize(uEyeLocal - position);
     float cosine = abs(dot(normalize(n + 1e-9), view));
     r *= sqrt(max(cosine, 0.02));
   }
   uint rgb = uColorOverride != 0u ? uColorOverride & 0xFFFFFFu : points[i].rgba & 0xFFFFFFu;
-  // Copies c in [a, a + count) map to layers c - a; wrapping past L, copies [0, ...) follow.
-  for (uint cc = a; cc < min(a + uGroupCount, copies); ++cc) splat(cc - a, pos, centre, r, d, rgb);
-  if (a + uGroupCount > uTotal) {
-    uint wrap = a + uGroupCount - uTotal;
-    for (uint cc = 0u; cc < min(wrap, copies); ++cc) splat(cc + uTotal - a, pos, centre, r, d, rgb);
+  float sigma = uJitterK / c.w;
+  for (uint cc = 0u; cc < copies; ++cc) {
+    uint layer = (e0 + cc) % uTotal + uTotal - uGroupFirst;  // ensemble - uGroupFirst, mod L
+    layer %= uTotal;
+    if (layer >= uGroupCount) continue;
+    vec2 p = pos;
+    if (sigma > 0.0) {
+      // Box-Muller from the copy's own hash: the same offset in both passes and on every tile.
+      uint g = hash(h ^ hash(cc * 0x27d4eb2fu + 0x165667b1u));
+      float u1 = (float(g >> 8) + 0.5) * (1.0 / 16777216.0);
+      float u2 = float(hash(g ^ 0x68e31da4u) >> 8) * (1.0 / 16777216.0);
+      float rho = sigma * sqrt(-2.0 * log(u1));
+      p += rho * vec2(cos(6.2831853 * u2), sin(6.2831853 * u2));
+    }
+    splat(layer, p, ivec2(floor(p)), r, d, rgb);
   }
 }

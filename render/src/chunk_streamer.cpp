@@ -9,6 +9,8 @@
 #include <unordered_set>
 #include <vector>
 
+#include <glm/gtc/packing.hpp>
+
 #include <tessera/render/point_rasterizer.h>
 #include <tessera/render/spbr.h>
 
@@ -48,11 +50,17 @@ struct Loaded {
   double spacing = 0.0, density = 0.0;
   std::vector<uint32_t> normals;
   std::vector<float> ratios;
+  std::vector<glm::uvec2> cells;  ///< SurfaceCell as half floats: (dx, dy), (dz, weight)
   bool page = false;
   bool failed = false;
   glm::dvec3 offset{0.0};
   std::vector<GpuPoint> points;
 };
+
+/// GPU bytes a resident chunk holds.
+uint64_t residentBytes(const GpuChunk& c) {
+  return c.buffer.bytes() + c.normals.bytes() + c.density_ratios.bytes() + c.cells.bytes();
+}
 
 }  // namespace
 
@@ -113,6 +121,17 @@ struct ChunkStreamer::Impl {
             const lod::NodeInfo info = item.store->node(item.node);
             out.ratios = densityRatios(chunk->positions, 4.0 * out.spacing, glm::vec3(0.0f),
                                        glm::vec3(info.box_max - info.box_min), out.density);
+          }
+          if (options.surface_cells) {
+            // Six spacings hold ~28 neighbours: enough to close almost every cell.
+            const std::vector<SurfaceCell> cells =
+                surfaceCells(chunk->positions, 6.0 * out.spacing, out.density);
+            out.cells.resize(cells.size());
+            for (size_t i = 0; i < cells.size(); ++i) {
+              const SurfaceCell& c = cells[i];
+              out.cells[i] = {glm::packHalf2x16(glm::vec2(c.offset.x, c.offset.y)),
+                              glm::packHalf2x16(glm::vec2(c.offset.z, c.weight))};
+            }
           }
           out.offset = chunk->offset;
           out.points.resize(chunk->size());
@@ -189,15 +208,10 @@ void ChunkStreamer::beginFrame() {
     c.disk_bytes = l.disk_bytes;
     c.spacing = l.spacing;
     c.density = l.density;
-    if (!l.normals.empty()) {
-      c.normals = GlBuffer(l.normals.size() * 4, l.normals.data());
-      s.resident_bytes += c.normals.bytes();
-    }
-    if (!l.ratios.empty()) {
-      c.density_ratios = GlBuffer(l.ratios.size() * 4, l.ratios.data());
-      s.resident_bytes += c.density_ratios.bytes();
-    }
-    s.resident_bytes += c.buffer.bytes();
+    if (!l.normals.empty()) c.normals = GlBuffer(l.normals.size() * 4, l.normals.data());
+    if (!l.ratios.empty()) c.density_ratios = GlBuffer(l.ratios.size() * 4, l.ratios.data());
+    if (!l.cells.empty()) c.cells = GlBuffer(l.cells.size() * 8, l.cells.data());
+    s.resident_bytes += residentBytes(c);
     s.resident_disk_bytes += c.disk_bytes;
     s.resident.emplace(l.key, std::move(c));
     ++mStats.uploaded;
@@ -214,8 +228,7 @@ void ChunkStreamer::beginFrame() {
     for (const auto& [used, k] : old) {
       if (s.resident_bytes <= s.options.budget_bytes) break;
       auto it = s.resident.find(k);
-      s.resident_bytes -= it->second.buffer.bytes() + it->second.normals.bytes() +
-                          it->second.density_ratios.bytes();
+      s.resident_bytes -= residentBytes(it->second);
       s.resident_disk_bytes -= it->second.disk_bytes;
       s.resident.erase(it);
       ++mStats.evicted;
@@ -302,8 +315,7 @@ void ChunkStreamer::forget(const lod::PointStore& store) {
   }
   for (auto it = s.resident.begin(); it != s.resident.end();) {
     if (it->first.store == &store) {
-      s.resident_bytes -= it->second.buffer.bytes() + it->second.normals.bytes() +
-                          it->second.density_ratios.bytes();
+      s.resident_bytes -= residentBytes(it->second);
       s.resident_disk_bytes -= it->second.disk_bytes;
       it = s.resident.erase(it);
     } else {

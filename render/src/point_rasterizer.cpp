@@ -172,6 +172,10 @@ RasterTimings PointRasterizer::drawEnsembles(std::span<const DrawBatch> batches,
         glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 6,
                          b.density_ratios ? b.density_ratios : mNoNormals);
         glUniform1i(glGetUniformLocation(mSpbrProgram, "uHasRatios"), b.density_ratios ? 1 : 0);
+        glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 7, b.cells ? b.cells : mNoNormals);
+        glUniform1i(glGetUniformLocation(mSpbrProgram, "uHasCells"), b.cells ? 1 : 0);
+        glUniform1f(glGetUniformLocation(mSpbrProgram, "uJitterK"), b.jitter_k);
+        glUniform1ui(glGetUniformLocation(mSpbrProgram, "uCopyCap"), total);
         glUniformMatrix4fv(u_clip, 1, GL_FALSE, &b.clip_from_local[0][0]);
         glUniform1f(u_disc, b.disc_k);
         glUniform1f(u_k, b.spbr_k);
@@ -351,6 +355,28 @@ Image PointRasterizer::read() const {
   img.rgba.resize(size_t(mWidth) * mHeight * 4);
   glGetNamedBufferSubData(mImage, 0, GLsizeiptr(img.rgba.size()), img.rgba.data());
   return img;
+}
+
+double edgeWidth(const Image& img, uint32_t edge) {
+  std::vector<double> col(img.width, 0.0);
+  for (uint32_t y = 0; y < img.height; ++y)
+    for (uint32_t x = 0; x < img.width; ++x)
+      col[x] += img.rgba[(size_t(y) * img.width + x) * 4] / double(img.height);
+  auto mean = [&](uint32_t x0, uint32_t x1) {
+    double s = 0;
+    for (uint32_t x = x0; x < x1; ++x) s += col[x];
+    return s / double(std::max(1u, x1 - x0));
+  };
+  const double hi = mean(edge / 4, 3 * edge / 4);
+  const double lo = mean(edge + (img.width - edge) / 4, edge + 3 * (img.width - edge) / 4);
+  // Where the profile falls through `level`, scanning from the plateau.
+  auto crossing = [&](double level) {
+    for (uint32_t x = edge / 2; x + 1 < img.width; ++x)
+      if (col[x] >= level && col[x + 1] < level)
+        return x + (col[x] - level) / (col[x] - col[x + 1]);
+    return double(img.width);
+  };
+  return crossing(lo + 0.1 * (hi - lo)) - crossing(lo + 0.9 * (hi - lo));
 }
 
 void writePng(const std::string& path, const Image& image) {

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <limits>
 #include <numbers>
+#include <utility>
 #include <vector>
 
 namespace tessera::render {
@@ -160,6 +161,46 @@ double sphereDensity(std::span<const glm::vec3> all, double radius, uint32_t cen
   return used ? sum / used / (std::numbers::pi * radius * radius) / q : 0.0;
 }
 
+namespace {
+
+/// The two leading eigenvectors of a 3x3 covariance (power iteration and deflation): they span
+/// the local tangent plane; their cross product is the normal.
+std::pair<glm::dvec3, glm::dvec3> tangentPlane(const glm::dmat3& cov) {
+  auto leading = [](const glm::dmat3& m, glm::dvec3 v) {
+    for (int it = 0; it < 24; ++it) {
+      const glm::dvec3 w = m * v;
+      const double len = glm::length(w);
+      if (!(len > 1e-300)) break;
+      v = w / len;
+    }
+    return v;
+  };
+  const glm::dvec3 e1 = leading(cov, glm::dvec3(0.57, 0.61, 0.55));
+  const double l1 = glm::dot(e1, cov * e1);
+  const glm::dmat3 deflated = cov - l1 * glm::outerProduct(e1, e1);
+  glm::dvec3 seed2 = glm::cross(e1, glm::dvec3(0.31, 0.47, 0.83));
+  if (glm::length(seed2) < 1e-6) seed2 = glm::cross(e1, glm::dvec3(1, 0, 0));
+  return {e1, leading(deflated, glm::normalize(seed2))};
+}
+
+/// Covariance of the offsets `q` (relative to a point), about their mean.
+struct Moments {
+  glm::dvec3 mean{0.0};
+  glm::dmat3 outer{0.0};
+  size_t count = 0;
+  void add(const glm::dvec3& q) {
+    mean += q;
+    outer += glm::outerProduct(q, q);
+    ++count;
+  }
+  glm::dmat3 covariance() const {
+    const glm::dvec3 m = mean / double(count);
+    return outer / double(count) - glm::outerProduct(m, m);
+  }
+};
+
+}  // namespace
+
 std::vector<uint32_t> estimateNormals(std::span<const glm::vec3> points, double radius) {
   const size_t n = points.size();
   std::vector<uint32_t> out(n, 0);
@@ -171,40 +212,88 @@ std::vector<uint32_t> estimateNormals(std::span<const glm::vec3> points, double 
   };
   for (size_t i = 0; i < n; ++i) {
     const glm::vec3 p = points[i];
-    glm::dvec3 mean(0.0);
-    glm::dmat3 outer(0.0);
-    size_t count = 0;
-    grid.near(p, float(radius), [&](uint32_t j) {
-      const glm::dvec3 q(points[j] - p);
-      mean += q;
-      outer += glm::outerProduct(q, q);
-      ++count;
-    });
-    if (count < 3) continue;  // no normal: 0, which the shader treats as facing the viewer
-    mean /= double(count);
-    const glm::dmat3 cov = outer / double(count) - glm::outerProduct(mean, mean);
+    Moments m;
+    grid.near(p, float(radius), [&](uint32_t j) { m.add(glm::dvec3(points[j] - p)); });
+    if (m.count < 3) continue;  // no normal: 0, which the shader treats as facing the viewer
     // The normal is the eigenvector of the smallest eigenvalue: the cross product of the two
-    // leading ones, found by power iteration (and deflation).
-    auto leading = [](const glm::dmat3& m, glm::dvec3 v) {
-      for (int it = 0; it < 24; ++it) {
-        const glm::dvec3 w = m * v;
-        const double len = glm::length(w);
-        if (!(len > 1e-300)) break;
-        v = w / len;
-      }
-      return v;
-    };
-    const glm::dvec3 e1 = leading(cov, glm::dvec3(0.57, 0.61, 0.55));
-    const double l1 = glm::dot(e1, cov * e1);
-    const glm::dmat3 deflated = cov - l1 * glm::outerProduct(e1, e1);
-    glm::dvec3 seed2 = glm::cross(e1, glm::dvec3(0.31, 0.47, 0.83));
-    if (glm::length(seed2) < 1e-6) seed2 = glm::cross(e1, glm::dvec3(1, 0, 0));
-    const glm::dvec3 e2 = leading(deflated, glm::normalize(seed2));
+    // leading ones.
+    const auto [e1, e2] = tangentPlane(m.covariance());
     const glm::dvec3 normal = glm::cross(e1, e2);
     const double len = glm::length(normal);
     if (len > 1e-9) out[i] = pack(glm::vec3(normal / len));
   }
   return out;
+}
+
+std::vector<SurfaceCell> surfaceCells(std::span<const glm::vec3> points, double radius,
+                                      double node_density) {
+  const size_t n = points.size();
+  std::vector<SurfaceCell> cells(n);
+  if (n < 8 || !(radius > 0) || !(node_density > 0)) return cells;
+  const CellGrid grid(points, radius);
+  const float r = float(radius);
+  struct Near {
+    float d2;
+    glm::vec3 q;
+  };
+  std::vector<Near> near;
+  std::vector<glm::dvec2> poly, clipped;
+  for (size_t i = 0; i < n; ++i) {
+    const glm::vec3 p = points[i];
+    near.clear();
+    Moments m;
+    grid.near(p, r, [&](uint32_t j) {
+      const glm::vec3 q = points[j] - p;
+      m.add(glm::dvec3(q));
+      if (j != i) near.push_back({glm::dot(q, q), q});
+    });
+    if (near.size() < 3) continue;
+    const auto [t1, t2] = tangentPlane(m.covariance());
+    // The Voronoi cell in the tangent plane: a square of the sphere's size clipped by the
+    // bisector of each neighbour, nearest first; neighbours farther than twice the cell's
+    // farthest corner cannot cut it.
+    std::sort(near.begin(), near.end(), [](const Near& a, const Near& b) { return a.d2 < b.d2; });
+    poly = {{-radius, -radius}, {radius, -radius}, {radius, radius}, {-radius, radius}};
+    double reach2 = 2.0 * radius * radius;
+    for (const Near& q : near) {
+      if (double(q.d2) > 4.0 * reach2) break;
+      const glm::dvec2 u(glm::dot(glm::dvec3(q.q), t1), glm::dot(glm::dvec3(q.q), t2));
+      const double h = 0.5 * glm::dot(u, u);  // keep points x with x . u <= |u|^2 / 2
+      if (!(h > 0)) continue;                 // a duplicate point: no bisector
+      clipped.clear();
+      for (size_t v = 0; v < poly.size(); ++v) {
+        const glm::dvec2 a = poly[v], b = poly[(v + 1) % poly.size()];
+        const double fa = glm::dot(a, u) - h, fb = glm::dot(b, u) - h;
+        if (fa <= 0) clipped.push_back(a);
+        if ((fa < 0) != (fb < 0)) clipped.push_back(a + (b - a) * (fa / (fa - fb)));
+      }
+      poly.swap(clipped);
+      if (poly.size() < 3) break;
+      reach2 = 0;
+      for (const glm::dvec2& v : poly) reach2 = std::max(reach2, glm::dot(v, v));
+    }
+    // A cell still touching the square is open: the point is on the edge of the data (of the
+    // scan, or of the node, whose neighbours beyond its faces are not here). It keeps weight 1
+    // and no offset. (Large closed cells are the gaps of a random sample: they keep their area.)
+    bool open = poly.size() < 3;
+    for (const glm::dvec2& v : poly)
+      open |= std::max(std::abs(v.x), std::abs(v.y)) > 0.999 * radius;
+    if (open) continue;
+    double area = 0;
+    glm::dvec2 centroid(0.0);
+    for (size_t v = 0; v < poly.size(); ++v) {
+      const glm::dvec2 a = poly[v], b = poly[(v + 1) % poly.size()];
+      const double cross = a.x * b.y - b.x * a.y;
+      area += cross;
+      centroid += (a + b) * cross;
+    }
+    area *= 0.5;
+    if (!(area > 0)) continue;
+    centroid /= 6.0 * area;
+    cells[i].offset = glm::vec3(centroid.x * t1 + centroid.y * t2);
+    cells[i].weight = float(std::clamp(area * node_density, 0.125, 8.0));
+  }
+  return cells;
 }
 
 std::vector<float> densityRatios(std::span<const glm::vec3> points, double radius,

@@ -32,6 +32,9 @@ struct GpuChunk {
   double density = 0.0;
   GlBuffer normals;         ///< 10:10:10 normals, when StreamerOptions::normals
   GlBuffer density_ratios;  ///< float per point (spbr.h densityRatios()), when asked for
+  /// Per point, 8 bytes: spbr.h SurfaceCell as half floats, (offset x, y), (offset z, weight);
+  /// when StreamerOptions::surface_cells.
+  GlBuffer cells;
 };
 
 /// Counters of the last frame (requested..evicted, pages_*) and the state after it.
@@ -59,6 +62,11 @@ struct StreamerOptions {
   /// out density jumps inside a node with it, e.g. overlapping scans). About as costly as
   /// decoding; render nodes and see-through views turn it on.
   bool density_ratios = false;
+  /// Each point's surface cell on loading (spbr.h surfaceCells(): area and centroid): what lets
+  /// see-through rendering of sparse scans cover their surfaces evenly (SpbrOptions::sparseScans(),
+  /// cell_weights). About twice the cost of decoding, 8 GPU bytes a point: off unless a view
+  /// asks for the sparse-scan method.
+  bool surface_cells = false;
 };
 
 class ChunkStreamer {

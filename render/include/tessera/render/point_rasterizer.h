@@ -40,6 +40,8 @@ struct DrawBatch {
   uint32_t normals = 0;         ///< GL buffer of 10:10:10 normals (slant shading off), or 0
   glm::vec3 eye_local{0.0f};    ///< the eye in the batch's frame
   uint32_t density_ratios = 0;  ///< GL buffer of per-point density ratios (k scale), or 0
+  uint32_t cells = 0;           ///< GL buffer of surface cells (chunk_streamer.h GpuChunk), or 0
+  float jitter_k = 0.0f;        ///< copies' offset standard deviation, pixels at view depth 1
   float point_alpha = 0.0f;     ///< blended baselines (renderBlended()): each point's opacity
 };
 
@@ -111,6 +113,11 @@ class PointRasterizer {
   uint32_t mLayers = 0;  ///< layers allocated
   uint32_t mOitProgram = 0, mOitResolveProgram = 0, mOitSums = 0;
 };
+
+/// The 10-90% width, in pixels, of a vertical edge near `column` between a plateau on its left
+/// and background on its right (the red channel's column means, linearly interpolated; plateau
+/// and background levels from the middle halves of either side). O(width x height).
+double edgeWidth(const Image& image, uint32_t column);
 
 /// Writes an 8-bit RGBA PNG. Throws RenderError naming the file on failure.
 void writePng(const std::string& path, const Image& image);

@@ -27,12 +27,37 @@ struct SpbrOptions {
   uint32_t progressive_max = 0;  ///< >L: a resting view keeps adding ensembles up to this many
   bool slant_shading = true;     ///< eq. 2's opacity gradation on slanted surfaces (off: s cos)
   /// Largest adjustment ratio k (eq. 4) before cross-sections grow instead. The default keeps
-  /// the paper's fixed cross-section (the opaque disc) and copies points as k requires, up to
-  /// one copy in each ensemble: sharp, and L ensembles average about L / k independent images.
+  /// the paper's fixed cross-section (the opaque disc) and copies points as k requires (up to
+  /// one copy in each ensemble, or max_share x L with copy_jitter).
   /// 1 makes every ensemble hold its own points (statistically independent, noise falls as
   /// 1/sqrt(L)) by growing the discs instead: smooth but blurred, since discs grow with L
   /// (bench/spbr measures both against an exact compositor; copies win on the fused bunny).
   double max_k = 1e9;
+  /// Sparse scans (2 to 8 points a pixel, where the paper assumes ~38), opt-in (sparseScans()):
+  /// copy c of a point is moved by a Gaussian offset of this standard deviation, in node
+  /// spacings, in the image plane (deterministic from the node, the point index and c), so the
+  /// copies of one point in different ensembles cover different pixels and the ensembles
+  /// decorrelate. 0 (the default, the paper): every copy where the point is; on sparse scans
+  /// the L images then average only about L / k independent ones and the picture is nearly
+  /// binary noise. Blurs edges by about 2.6 x this x the spacing in pixels (10-90%); costs
+  /// nothing measurable. Not the default: it costs accuracy on dense fused scans (bench/spbr
+  /// sparse: bunny RMSE to the exact compositor 24.2 against the paper's 15.1, L = 64).
+  double copy_jitter = 0.0;
+  /// With copy_jitter: the largest share of the L ensembles one point's copies fill before
+  /// cross-sections grow instead. Each ensemble is then a random thinning of the surface cover,
+  /// close to the independent placement eq. 1 assumes (nearly every point in every ensemble
+  /// makes an ensemble as regular as the cover, and more opaque than eq. 1 predicts).
+  double max_share = 0.5;
+  /// With copy_jitter: scale each point's copies by its surface cell's area and centre them on
+  /// the cell's centroid (spbr.h surfaceCells(); only where the streamer measured them,
+  /// StreamerOptions::surface_cells): an even cover of the surface from an uneven sample (a
+  /// random sample's clumps and gaps otherwise stay in every ensemble, however large L). Both
+  /// apply only with max_k > 1 (max_k 1: independent ensembles, as before).
+  bool cell_weights = false;
+  /// The sparse-scan method as measured (bench/spbr sparse): copy_jitter 1.5, cell weights on,
+  /// the rest of `base` kept. Its views need StreamerOptions::surface_cells.
+  static SpbrOptions sparseScans(SpbrOptions base);
+  static SpbrOptions sparseScans() { return sparseScans(SpbrOptions()); }
   /// See-through views refine the LOD cut this much finer than opaque ones: denser nodes let
   /// each ensemble take fewer points of smaller cross-section.
   double lod_scale = 0.5;
@@ -45,6 +70,12 @@ struct SpbrOptions {
   /// them), the speed baseline SPBR is held to.
   bool single_layer_baseline = false;
 };
+
+inline SpbrOptions SpbrOptions::sparseScans(SpbrOptions base) {
+  base.copy_jitter = 1.5;
+  base.cell_weights = true;
+  return base;
+}
 
 /// Opacity of a segment of area S holding n points of cross-section s (eq. 1).
 double spbrOpacity(double n, double s, double S);
@@ -59,8 +90,8 @@ struct SpbrNodeParams {
 
 /// Parameters for a node of areal `density` (points per unit area) and mean `spacing`, for
 /// opacity `alpha` in (0, 1] over `total_ensembles` ensembles. The cross-section is the disc
-/// the opaque renderer draws (diameter 2 x spacing), enlarged where k would exceed `max_k`
-/// (k scales as 1 / s). alpha = 1: every point in every ensemble.
+/// the opaque renderer draws (diameter 2 x spacing), enlarged where k would exceed `max_k` or
+/// `total_ensembles` (k scales as 1 / s). alpha = 1: every point in every ensemble.
 SpbrNodeParams spbrNodeParams(double alpha, double density, double spacing,
                               uint32_t total_ensembles, double max_k = 1.0);
 
@@ -87,5 +118,25 @@ std::vector<float> densityRatios(std::span<const glm::vec3> points, double radiu
 /// packed as 10:10:10 signed normalised integers (x in the low bits); 0 where fewer than 3
 /// points are near. For turning the slant shading off (cross-section s cos(theta), eq. 2).
 std::vector<uint32_t> estimateNormals(std::span<const glm::vec3> points, double radius);
+
+/// A point's share of its surface (surfaceCells()): where its copies are centred and how many
+/// it gets.
+struct SurfaceCell {
+  glm::vec3 offset{0.0f};  ///< from the point to its cell's centroid, the points' units
+  float weight = 1.0f;     ///< the cell's area times the node's density: 1 on average
+};
+
+/// Each point's Voronoi cell among its neighbours within `radius` (about 6 node spacings), in
+/// the tangent plane of those neighbours (PCA): the area relative to the node's mean
+/// (x `node_density`, points per unit area; clamped to [1/8, 8]) and the offset to the
+/// centroid. Points whose cell stays open (still touching the radius-sized square it is cut from:
+/// the edge of the data, or of the node, whose neighbours beyond its faces are elsewhere), or
+/// with fewer than 3 neighbours, get
+/// weight 1 and no offset. Scaling each point's
+/// copies by its weight and centring them on the centroid turns the random sample of a sparse
+/// scan into an even cover of its surface (spbr_raster.comp). O(n) with ~20 neighbours a
+/// point; about twice the cost of decoding.
+std::vector<SurfaceCell> surfaceCells(std::span<const glm::vec3> points, double radius,
+                                      double node_density);
 
 }  // namespace tessera::render
