@@ -455,7 +455,7 @@ int main(int argc, char** argv) {
      << "  '' skip 1 using 1:3 with linespoints lw 2 pt 5 title 'ZeroMQ'\n"
      << "unset logscale x\nset xtics auto\n"
      << "set title 'ZeroMQ, 4 nodes: master frame time; kill -9 and restarts of " << victim
-     << "'\nset xlabel 'seconds'\nset ylabel 'frame ms'\nset logscale y\n";
+     << "'\nset xlabel 'seconds'\nset ylabel 'frame ms'\nset logscale y\nset key bottom right\n";
   for (const auto& [name, t] : events)
     gp << "set arrow from " << t - t0 << ", graph 0 to " << t - t0
        << ", graph 1 nohead dt 2 lc rgb '#888888'\n"
