@@ -86,7 +86,7 @@ echo "== the same wall over ZeroMQ: nodes join on their own, one is killed (kill
 echo "   restarted; the wall goes on with the lost tile striped red, then the node rejoins from a"
 echo "   snapshot and its tile is exact again"
 mkdir -p "$out/zmq"
-rm -f "$out/zmq/"*.log
+rm -f "$out/zmq/"*.log "$out/zmq/stats.csv"
 "$master" --transport zmq --listen tcp://127.0.0.1:7400 --wall configs/walls/2x2.json \
   --scene configs/scenes/bunny-fused.json --script configs/paths/bunny-fused-orbit.json \
   --frames "${TESSERA_DEMO_FRAMES:-61}" --fps 5 --max-fps 4 --node-timeout 3000 \
@@ -107,8 +107,13 @@ wait_for() {  # wait_for PATTERN SECONDS: until the master's log has PATTERN
 }
 t0=$(date +%s.%N)
 stamp() { awk -v a="$(date +%s.%N)" -v b="$t0" -v m="$1" 'BEGIN { printf "  %6.2f s  %s\n", a - b, m }'; }
-if wait_for "frame 1[5-9]:" 120 || wait_for "wrote" 120; then
-  stamp "kill -9 tile-1-0 (pid ${node_pids[1]})"
+frames_done() {  # the last frame in the master's stats
+  awk -F, 'NR > 1 && $1 > f { f = $1 } END { print f + 0 }' "$out/zmq/stats.csv" 2>/dev/null || echo 0
+}
+end=$((SECONDS + 300))
+until (($(frames_done) >= 15)) || ((SECONDS > end)) || ! kill -0 "$master_pid" 2>/dev/null; do sleep 0.2; done
+if kill -0 "$master_pid" 2>/dev/null; then
+  stamp "frame $(frames_done): kill -9 tile-1-0 (pid ${node_pids[1]})"
   kill -9 "${node_pids[1]}"
   wait_for "tile-1-0 .* dropped" 30 && stamp "$(grep -m1 'tile-1-0 .* dropped' "$out/zmq/master.log")"
   sleep 2
