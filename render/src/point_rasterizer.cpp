@@ -6,6 +6,7 @@
 #include <chrono>
 #include <cstdio>
 #include <cstring>
+#include <iterator>
 #include <string>
 
 #define GL_GLEXT_PROTOTYPES
@@ -279,13 +280,13 @@ double PointRasterizer::resolveEnsembles(uint32_t accumulated) {
 }
 
 PointRasterizer::~PointRasterizer() {
-  GLuint buffers[] = {mPoints,     mDepth,       mColors, mImage,
-                      mLayerDepth, mLayerColors, mAccum,  mNoNormals};
-  glDeleteBuffers(8, buffers);
-  glDeleteProgram(mSpbrProgram);
-  glDeleteProgram(mAccumulateProgram);
-  glDeleteProgram(mRasterProgram);
-  glDeleteProgram(mResolveProgram);
+  // Every object this class creates (glDelete* ignores the zero names of those never made).
+  GLuint buffers[] = {mPoints,      mDepth, mColors,    mImage,  mLayerDepth,
+                      mLayerColors, mAccum, mNoNormals, mOitSums};
+  glDeleteBuffers(GLsizei(std::size(buffers)), buffers);
+  for (GLuint program : {mSpbrProgram, mAccumulateProgram, mRasterProgram, mResolveProgram,
+                         mOitProgram, mOitResolveProgram})
+    glDeleteProgram(program);
 }
 
 void PointRasterizer::setPoints(std::span<const GpuPoint> points) {
