@@ -7,6 +7,7 @@
 #include <thread>
 
 #include <tessera/core/stopwatch.h>
+#include <tessera/lod/store_cache.h>
 #include <tessera/master/tile_assignment.h>
 #include <tessera/render/gl_context.h>
 #include <tessera/render/wall_mosaic.h>
@@ -68,14 +69,21 @@ std::string Master::message(const std::string& text) const {
 
 void Master::prepare() {
   mWall = sync::loadWallConfig(mOpt.wall);
-  const config::SceneConfig scene = sync::loadSceneConfig(mOpt.scene);
+  config::SceneConfig scene = sync::loadSceneConfig(mOpt.scene);
+  // A raw scan (PLY, LAS, .conf ...) becomes a cached store before any node sees the scene, so
+  // the nodes of this host open the same file (lod/store_cache.h).
   for (int i = 0; i < scene.models_size(); ++i) {
-    const fs::path store = scene.models(i).store();
-    if (store.extension() != ".tlod")
+    config::Model& m = *scene.mutable_models(i);
+    if (fs::path(m.store()).extension() == ".tlod") continue;
+    try {
+      m.set_store(lod::cachedStoreFor(m.store(), "tessera-master").string());
+    } catch (const std::exception& e) {
       throw StartError("tessera-master: " + mOpt.scene + ": models[" + std::to_string(i) +
-                       "].store: " + store.string() +
-                       " is not a .tlod store; build one first: tessera-lod build " +
-                       store.string() + " -o " + store.stem().string() + ".tlod");
+                       "].store: " + m.store() +
+                       " is neither a .tlod store nor a scan that can "
+                       "be built into one: " +
+                       e.what());
+    }
   }
   if (!mOpt.script.empty()) {
     config::CameraPath path = sync::loadCameraPath(mOpt.script);

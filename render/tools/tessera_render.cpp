@@ -15,6 +15,7 @@
 
 #include <tessera/lod/point_reader.h>
 #include <tessera/lod/store_builder.h>
+#include <tessera/lod/store_cache.h>
 #include <tessera/render/gl_context.h>
 #include <tessera/render/view_renderer.h>
 #include <tessera/render/wall_mosaic.h>
@@ -63,28 +64,14 @@ config::Camera parseCamera(const std::string& s) {
   return c;
 }
 
-/// A .tlod as it is; any other readable file is converted once into a cache folder.
+/// A .tlod as it is; any other readable file is converted once into a cache folder
+/// (lod/store_cache.h). Read and build errors propagate to main's handler.
 fs::path storeFor(const fs::path& input) {
   if (input.extension() == ".tlod") return input;
   std::error_code ec;
-  auto size = fs::file_size(input, ec);
+  (void)fs::file_size(input, ec);
   if (ec) usage("--model " + input.string() + ": " + ec.message());
-  auto mtime = fs::last_write_time(input, ec).time_since_epoch().count();
-  const char* cache_env = std::getenv("XDG_CACHE_HOME");
-  fs::path cache = cache_env
-                       ? fs::path(cache_env)
-                       : fs::path(std::getenv("HOME") ? std::getenv("HOME") : "/tmp") / ".cache";
-  cache /= "tessera";
-  fs::create_directories(cache, ec);
-  size_t key = std::hash<std::string>{}(fs::absolute(input).string() + ":" + std::to_string(size) +
-                                        ":" + std::to_string(mtime));
-  fs::path out = cache / (input.stem().string() + "-" + std::to_string(key) + ".tlod");
-  if (!fs::exists(out)) {
-    std::fprintf(stderr, "tessera-render: converting %s into %s\n", input.c_str(), out.c_str());
-    lod::BuildOptions o;
-    lod::buildStore({input}, out, o);
-  }
-  return out;
+  return lod::cachedStoreFor(input, "tessera-render");
 }
 
 config::Camera fitCamera(const lod::PointStore& s) {

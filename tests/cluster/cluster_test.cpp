@@ -209,3 +209,37 @@ TEST_F(Cluster, ConsoleUnderXvfbDrivesTheWall) {
 #endif
 
 }  // namespace
+
+namespace {
+
+TEST_F(Cluster, SceneNamingARawScanIsConvertedOnceAndShared) {
+  // No build step: the scene names the registered scans' .conf; the master converts it into the
+  // cache before the nodes get the scene, and they open the same store.
+  const fs::path cache = sDir->path() / "cache";
+  write(sDir->path() / "raw.json", sceneJson(kData + "/stanford-bunny/scans/bun.conf"));
+  const std::string env = "env XDG_CACHE_HOME=" + cache.string() + " ";
+  const std::string wall = kConfigs + "/walls/1x2.json";
+  const CommandResult r =
+      cluster("--wall " + wall + " --scene raw.json --frames 2 --screenshot raw.png", 2, env);
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("tessera-master: converting " + kData + "/stanford-bunny/scans/bun.conf"),
+            std::string::npos)
+      << r.out;
+  size_t stores = 0;
+  for (const auto& e : fs::directory_iterator(cache / "tessera"))
+    stores += e.path().extension() == ".tlod";
+  EXPECT_EQ(stores, 1u);
+  // tessera-render --scene on the same scene finds the cached store and draws the same wall.
+  const std::regex line("wrote (\\S*raw.png) \\(\\d+x\\d+\\); camera (\\S+)");
+  std::smatch m;
+  ASSERT_TRUE(std::regex_search(r.out, m, line)) << r.out;
+  const CommandResult ref = run("cd " + sDir->path().string() + " && " + env + TESSERA_RENDER_TOOL +
+                                " --scene raw.json --wall " + wall + " --mosaic --camera '" +
+                                m[2].str() + "' -o raw-ref.png");
+  ASSERT_EQ(ref.code, 0) << ref.out;
+  EXPECT_EQ(ref.out.find("converting"), std::string::npos) << ref.out;
+  EXPECT_TRUE(tessera::test::readBytes(sDir->path() / "raw.png") ==
+              tessera::test::readBytes(sDir->path() / "raw-ref.png"));
+}
+
+}  // namespace

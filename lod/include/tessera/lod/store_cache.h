@@ -1,0 +1,24 @@
+// Raw scans as stores without a build step: any file a reader takes (PLY, LAS, .conf, XYZ, OBJ)
+// is built once into a .tlod in a cache folder and reused while the file is unchanged. The cache
+// is $XDG_CACHE_HOME/tessera (else ~/.cache/tessera); entries are keyed by the input's absolute
+// path, size and modification time, and written as .partial then renamed (store_builder.h), so a
+// killed build never leaves an entry that opens. tessera-render --model and the master's scenes
+// use it; the master converts before any node sees the scene, so the nodes of its host share the
+// entry.
+#pragma once
+
+#include <filesystem>
+#include <string>
+
+#include <tessera/lod/store_builder.h>
+
+namespace tessera::lod {
+
+/// `input` itself when it is a .tlod; else the cached store built from it (building it first
+/// when missing: progress on stderr unless `quiet`, a line "WHO: converting INPUT into STORE").
+/// Throws std::runtime_error (lod::StoreError, ReadError ...) naming the file when the input
+/// cannot be read or the store not written.
+std::filesystem::path cachedStoreFor(const std::filesystem::path& input, const std::string& who,
+                                     bool quiet = false);
+
+}  // namespace tessera::lod
