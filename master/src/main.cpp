@@ -7,6 +7,8 @@
 //   tessera-node --master tcp://HOST:7400 [--tile NAME] [--headless]
 #include <CLI/CLI.hpp>
 
+#include <tessera/core/cli_checks.h>
+
 #include <cstdio>
 #include <memory>
 
@@ -45,11 +47,11 @@ int main(int argc, char** argv) {
                  "rendered complete (0: real time until the script or console ends)")
       ->check(CLI::NonNegativeNumber);
   app.add_option("--fps", o.fps, "With --frames: script frames per second (fewer: coarser steps)")
-      ->check(CLI::Range(0.1, 1000.0))
+      ->check(finiteRange(0.1, 1000.0))
       ->capture_default_str();
   app.add_option("--max-fps", o.max_fps,
                  "Start frames at most this often, real time (0: as fast as the nodes go)")
-      ->check(CLI::Range(0.0, 1000.0))
+      ->check(finiteRange(0.0, 1000.0))
       ->capture_default_str();
   app.add_option("--screenshot", o.screenshot, "Write the wall picture (PNG) of the last frame");
   app.add_option("--stats", o.stats, "Per-frame, per-tile statistics (CSV)");
@@ -58,13 +60,13 @@ int main(int argc, char** argv) {
   app.add_flag("--console", o.console,
                "A window with the whole wall at low resolution and one-button navigation");
   app.add_option("--console-width", o.console_width, "Console width, pixels")
-      ->check(CLI::Range(64, 4096))
+      ->check(finiteRange(64, 4096))
       ->capture_default_str();
   app.add_option("--splat-scale", o.splat_scale, "As tessera-render --splat-scale")
-      ->check(CLI::Range(0.25, 8.0))
+      ->check(finiteRange(0.25, 8.0))
       ->capture_default_str();
   app.add_option("--gpu-budget-mb", o.gpu_budget_mb, "Per node GPU bytes for chunks, MiB")
-      ->check(CLI::Range(1.0, 1e6))
+      ->check(finiteRange(1.0, 1e6))
       ->capture_default_str();
   app.add_option("--transport", transport,
                  "mpi: one mpirun job, every node known at start, a lost node ends the job; "
@@ -76,19 +78,19 @@ int main(int argc, char** argv) {
   app.add_option("--node-timeout", o.node_timeout_ms,
                  "zmq: ms a live node's report may be late before its tile is dropped (0: five "
                  "times the slowest node's median frame, at least 1000)")
-      ->check(CLI::Range(0.0, 3.6e6))
+      ->check(finiteRange(0.0, 3.6e6))
       ->capture_default_str();
   app.add_option("--join-wait", o.join_wait_s,
                  "zmq: seconds to wait for a node per tile before the first frame")
-      ->check(CLI::Range(0.0, 3600.0))
+      ->check(finiteRange(0.0, 3600.0))
       ->capture_default_str();
   app.add_option("--first-frame-timeout", o.first_frame_timeout_s,
                  "Seconds a node may take to start and render its first frame (cold caches)")
-      ->check(CLI::Range(0.1, 3600.0))
+      ->check(finiteRange(0.1, 3600.0))
       ->capture_default_str();
   app.add_option("--timeout", timeout_s,
                  "mpi: seconds any rank may keep the others waiting before the job is aborted")
-      ->check(CLI::Range(0.1, 86400.0))
+      ->check(finiteRange(0.1, 86400.0))
       ->capture_default_str();
 
   // MPI removes its own arguments in MPI_Init, so with mpirun the transport comes first: a

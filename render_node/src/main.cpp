@@ -6,6 +6,8 @@
 //   tessera-node --master tcp://HOST:7400 [--tile NAME] [--headless] [--wait-master S]
 #include <CLI/CLI.hpp>
 
+#include <tessera/core/cli_checks.h>
+
 #include <cstdio>
 #include <memory>
 
@@ -28,20 +30,20 @@ int main(int argc, char** argv) {
   app.add_option("--tile", o.tile, "The wall tile to drive (default: the first free one)");
   app.add_option("--join-timeout", o.join_timeout_s,
                  "ZeroMQ: seconds to wait for the master's answer to the join")
-      ->check(CLI::Range(0.1, 3600.0))
+      ->check(finiteRange(0.1, 3600.0))
       ->capture_default_str();
   app.add_option("--wait-master", o.wait_master_s,
                  "ZeroMQ: after losing the master, wait this many seconds for a new one at the "
                  "same endpoint (0: exit at once)")
-      ->check(CLI::Range(0.0, 86400.0))
+      ->check(finiteRange(0.0, 86400.0))
       ->capture_default_str();
   app.add_option("--master-timeout", o.master_timeout_s,
                  "Seconds without any message from the master before the node gives up")
-      ->check(CLI::Range(1.0, 86400.0))
+      ->check(finiteRange(1.0, 86400.0))
       ->capture_default_str();
   app.add_option("--timeout", timeout_s,
                  "MPI: seconds to wait for the master at any step before aborting the job")
-      ->check(CLI::Range(0.1, 86400.0))
+      ->check(finiteRange(0.1, 86400.0))
       ->capture_default_str();
 
   bool want_mpi = true;

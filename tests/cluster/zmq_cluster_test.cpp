@@ -510,3 +510,31 @@ TEST_F(ZmqWall, ANodeLyingAboutItsPixelsIsDropped) {
       << master->output();
   EXPECT_TRUE(master->running());
 }
+
+TEST_F(ZmqWall, FewerLiveTilesThanTheMinimumStopTheWall) {
+  write(sDir->path() / "wall-min.json", wallJson("", R"(, "minLiveTiles": 4)"));
+  auto master = startMaster({"--frames", "100000", "--max-fps", "10", "--node-timeout", "1000"},
+                            "wall-min.json");
+  std::vector<std::unique_ptr<Process>> nodes;
+  for (const std::string& t : kTiles) nodes.push_back(startNode(t));
+  ASSERT_TRUE(master->waitFor("4 of 4 tiles have a node", 60)) << master->output();
+  nodes[2]->signal(SIGKILL);
+  EXPECT_EQ(master->wait(30), std::optional<int>(5)) << master->output();
+  EXPECT_NE(master->output().find("stopping the wall: 3 of 4 tiles have a node, fewer than the "
+                                  "wall's minLiveTiles 4"),
+            std::string::npos)
+      << master->output();
+}
+
+TEST_F(ZmqWall, NonFiniteTimeoutsAreRefused) {
+  for (const std::string bad : {"nan", "inf", "-1", "1e400"}) {
+    const auto r = tessera::test::runCommand(
+        std::string(TESSERA_MASTER) + " --transport zmq --wall x --scene y --node-timeout " + bad);
+    EXPECT_EQ(r.code, 105) << bad << ": " << r.out;  // CLI11's ValidationError
+    EXPECT_NE(r.out.find("--node-timeout"), std::string::npos) << r.out;
+    const auto n = tessera::test::runCommand(std::string(TESSERA_NODE) +
+                                             " --master tcp://127.0.0.1:1 --wait-master " + bad);
+    EXPECT_NE(n.code, 0) << bad;
+    EXPECT_NE(n.out.find("--wait-master"), std::string::npos) << n.out;
+  }
+}
