@@ -9,12 +9,9 @@
 #extension GL_NV_shader_atomic_float : require
 layout(local_size_x = 128) in;
 
-struct Point {
-  vec3 position;
-  uint rgba;
-};
-layout(std430, binding = 0) readonly buffer Points { Point points[]; };
-layout(std430, binding = 5) buffer Sums { float sums[]; };  // 5 floats a pixel
+// struct Point: shaders/shared_layout.h
+layout(std430, binding = TESSERA_BINDING_POINTS) readonly buffer Points { Point points[]; };
+layout(std430, binding = TESSERA_BINDING_ACCUM) buffer Sums { float sums[]; };  // 5 floats a pixel
 
 uniform mat4 uClip;
 uniform uint uColorOverride;  // non-zero: 0x1000000 | rgb for every point of the batch

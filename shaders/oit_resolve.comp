@@ -2,8 +2,8 @@
 // ln(1 - a)); rows flipped so row 0 is the top.
 layout(local_size_x = 16, local_size_y = 16) in;
 
-layout(std430, binding = 3) writeonly buffer Image { uint image[]; };
-layout(std430, binding = 5) readonly buffer Sums { float sums[]; };
+layout(std430, binding = TESSERA_BINDING_IMAGE) writeonly buffer Image { uint image[]; };
+layout(std430, binding = TESSERA_BINDING_ACCUM) readonly buffer Sums { float sums[]; };
 
 uniform ivec2 uSize;
 uniform vec3 uBackground;  // 0..255

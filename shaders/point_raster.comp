@@ -8,13 +8,10 @@
 // level without fat blobs behind near ones, radius capped at uRadius.
 layout(local_size_x = 128) in;
 
-struct Point {
-  vec3 position;  // relative to the batch's node
-  uint rgba;      // r in the low byte
-};
-layout(std430, binding = 0) readonly buffer Points { Point points[]; };
-layout(std430, binding = 1) buffer Depth { uint depth[]; };
-layout(std430, binding = 2) buffer Colors { uint colors[]; };  // rgb, 0xFFFFFFFF: none
+// struct Point: shaders/shared_layout.h
+layout(std430, binding = TESSERA_BINDING_POINTS) readonly buffer Points { Point points[]; };
+layout(std430, binding = TESSERA_BINDING_DEPTH) buffer Depth { uint depth[]; };
+layout(std430, binding = TESSERA_BINDING_COLORS) buffer Colors { uint colors[]; };  // rgb, 0xFFFFFFFF: none
 
 uniform mat4 uClip;
 uniform uint uColorOverride;  // non-zero: 0x1000000 | rgb for every point of the batch     // clip from the batch's node frame

@@ -4,9 +4,9 @@
 // d the linear view depth; neighbours without a point do not count. Needs no normals.
 layout(local_size_x = 16, local_size_y = 16) in;
 
-layout(std430, binding = 1) readonly buffer Depth { uint depth[]; };
-layout(std430, binding = 2) readonly buffer Colors { uint colors[]; };  // rgb of the winner
-layout(std430, binding = 3) writeonly buffer Image { uint image[]; };
+layout(std430, binding = TESSERA_BINDING_DEPTH) readonly buffer Depth { uint depth[]; };
+layout(std430, binding = TESSERA_BINDING_COLORS) readonly buffer Colors { uint colors[]; };  // rgb of the winner
+layout(std430, binding = TESSERA_BINDING_IMAGE) writeonly buffer Image { uint image[]; };
 
 uniform ivec2 uSize;
 uniform uint uBackground;  // rgba, r in the low byte

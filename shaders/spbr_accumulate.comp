@@ -5,10 +5,10 @@
 // row 0 is the top).
 layout(local_size_x = 16, local_size_y = 16) in;
 
-layout(std430, binding = 1) readonly buffer Depth { uint depth[]; };
-layout(std430, binding = 2) readonly buffer Colors { uint colors[]; };
-layout(std430, binding = 3) writeonly buffer Image { uint image[]; };
-layout(std430, binding = 5) buffer Accum { uint accum[]; };  // r, g, b sums per pixel
+layout(std430, binding = TESSERA_BINDING_DEPTH) readonly buffer Depth { uint depth[]; };
+layout(std430, binding = TESSERA_BINDING_COLORS) readonly buffer Colors { uint colors[]; };
+layout(std430, binding = TESSERA_BINDING_IMAGE) writeonly buffer Image { uint image[]; };
+layout(std430, binding = TESSERA_BINDING_ACCUM) buffer Accum { uint accum[]; };  // r, g, b sums per pixel
 
 uniform ivec2 uSize;
 uniform uint uLayers;

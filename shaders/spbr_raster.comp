@@ -18,16 +18,13 @@
 // frozen sample of it.
 layout(local_size_x = 128) in;
 
-struct Point {
-  vec3 position;
-  uint rgba;
-};
-layout(std430, binding = 0) readonly buffer Points { Point points[]; };
-layout(std430, binding = 1) buffer Depth { uint depth[]; };    // uGroupCount layers
-layout(std430, binding = 2) buffer Colors { uint colors[]; };  // uGroupCount layers
-layout(std430, binding = 4) readonly buffer Normals { uint normals[]; };  // 10:10:10 snorm
-layout(std430, binding = 6) readonly buffer Ratios { float ratios[]; };   // node / local density
-layout(std430, binding = 7) readonly buffer Cells { uvec2 cells[]; };  // half (dx, dy), (dz, w)
+// struct Point: shaders/shared_layout.h
+layout(std430, binding = TESSERA_BINDING_POINTS) readonly buffer Points { Point points[]; };
+layout(std430, binding = TESSERA_BINDING_DEPTH) buffer Depth { uint depth[]; };    // uGroupCount layers
+layout(std430, binding = TESSERA_BINDING_COLORS) buffer Colors { uint colors[]; };  // uGroupCount layers
+layout(std430, binding = TESSERA_BINDING_NORMALS) readonly buffer Normals { uint normals[]; };  // 10:10:10 snorm
+layout(std430, binding = TESSERA_BINDING_RATIOS) readonly buffer Ratios { float ratios[]; };   // node / local density
+layout(std430, binding = TESSERA_BINDING_CELLS) readonly buffer Cells { uvec2 cells[]; };  // half (dx, dy), (dz, w)
 
 uniform mat4 uClip;
 uniform uint uColorOverride;  // non-zero: 0x1000000 | rgb for every point of the batch

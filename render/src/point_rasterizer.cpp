@@ -15,14 +15,16 @@
 #include <tessera/render/gl_context.h>
 
 #include "shaders.h"
+#include "shared_layout.h"
 
 namespace tessera::render {
 namespace {
 
 uint32_t compileCompute(const char* source, const char* name) {
   GLuint shader = glCreateShader(GL_COMPUTE_SHADER);
-  const char* sources[] = {"#version 450 core\n", source};
-  glShaderSource(shader, 2, sources, nullptr);
+  // The shared layout goes first; #line keeps the shader's own line numbers in messages.
+  const char* sources[] = {"#version 450 core\n", shaders::kSharedLayout, "\n#line 1\n", source};
+  glShaderSource(shader, 4, sources, nullptr);
   glCompileShader(shader);
   GLint ok = 0;
   glGetShaderiv(shader, GL_COMPILE_STATUS, &ok);
@@ -155,8 +157,8 @@ RasterTimings PointRasterizer::drawEnsembles(std::span<const DrawBatch> batches,
                                 GL_RED_INTEGER, GL_UNSIGNED_INT, &all_ones);
     }
     glUseProgram(mSpbrProgram);
-    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, mLayerDepth);
-    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 2, mLayerColors);
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_DEPTH, mLayerDepth);
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_COLORS, mLayerColors);
     glUniform2i(glGetUniformLocation(mSpbrProgram, "uSize"), GLint(mWidth), GLint(mHeight));
     glUniform1ui(glGetUniformLocation(mSpbrProgram, "uTotal"), total);
     glUniform1i(glGetUniformLocation(mSpbrProgram, "uMaxRadius"), 16);
@@ -168,12 +170,15 @@ RasterTimings PointRasterizer::drawEnsembles(std::span<const DrawBatch> batches,
       glUniform1i(u_pass, pass);
       for (const DrawBatch& b : batches) {
         if (b.count == 0 || b.spbr_k <= 0.0f) continue;
-        glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, b.buffer ? b.buffer : mPoints);
-        glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 4, b.normals ? b.normals : mNoNormals);
-        glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 6,
+        glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_POINTS,
+                         b.buffer ? b.buffer : mPoints);
+        glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_NORMALS,
+                         b.normals ? b.normals : mNoNormals);
+        glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_RATIOS,
                          b.density_ratios ? b.density_ratios : mNoNormals);
         glUniform1i(glGetUniformLocation(mSpbrProgram, "uHasRatios"), b.density_ratios ? 1 : 0);
-        glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 7, b.cells ? b.cells : mNoNormals);
+        glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_CELLS,
+                         b.cells ? b.cells : mNoNormals);
         glUniform1i(glGetUniformLocation(mSpbrProgram, "uHasCells"), b.cells ? 1 : 0);
         glUniform1f(glGetUniformLocation(mSpbrProgram, "uJitterK"), b.jitter_k);
         glUniform1ui(glGetUniformLocation(mSpbrProgram, "uCopyCap"), total);
@@ -204,9 +209,9 @@ RasterTimings PointRasterizer::drawEnsembles(std::span<const DrawBatch> batches,
       (pass == 0 ? timings.depth_ms : timings.color_ms) += lap();
     }
     glUseProgram(mAccumulateProgram);
-    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, mLayerDepth);
-    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 2, mLayerColors);
-    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 5, mAccum);
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_DEPTH, mLayerDepth);
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_COLORS, mLayerColors);
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_ACCUM, mAccum);
     glUniform2i(glGetUniformLocation(mAccumulateProgram, "uSize"), GLint(mWidth), GLint(mHeight));
     glUniform1ui(glGetUniformLocation(mAccumulateProgram, "uLayers"), cleared);
     glUniform1ui(glGetUniformLocation(mAccumulateProgram, "uBackground"), packColor(background));
@@ -231,13 +236,14 @@ RasterTimings PointRasterizer::renderBlended(std::span<const DrawBatch> batches,
   const float zero = 0.0f;
   glClearNamedBufferData(mOitSums, GL_R32F, GL_RED, GL_FLOAT, &zero);
   glUseProgram(mOitProgram);
-  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 5, mOitSums);
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_ACCUM, mOitSums);
   glUniform2i(glGetUniformLocation(mOitProgram, "uSize"), GLint(mWidth), GLint(mHeight));
   glUniform1i(glGetUniformLocation(mOitProgram, "uMode"), weighted_blended ? 1 : 0);
   glUniform1i(glGetUniformLocation(mOitProgram, "uMaxRadius"), 16);
   for (const DrawBatch& b : batches) {
     if (b.count == 0 || b.point_alpha <= 0.0f) continue;
-    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, b.buffer ? b.buffer : mPoints);
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_POINTS,
+                     b.buffer ? b.buffer : mPoints);
     glUniformMatrix4fv(glGetUniformLocation(mOitProgram, "uClip"), 1, GL_FALSE,
                        &b.clip_from_local[0][0]);
     glUniform1f(glGetUniformLocation(mOitProgram, "uDiscK"), b.disc_k);
@@ -254,8 +260,8 @@ RasterTimings PointRasterizer::renderBlended(std::span<const DrawBatch> batches,
   glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
   timings.depth_ms = lap();
   glUseProgram(mOitResolveProgram);
-  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 3, mImage);
-  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 5, mOitSums);
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_IMAGE, mImage);
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_ACCUM, mOitSums);
   glUniform2i(glGetUniformLocation(mOitResolveProgram, "uSize"), GLint(mWidth), GLint(mHeight));
   const glm::vec3 bg = glm::clamp(background, 0.0f, 1.0f) * 255.0f;
   glUniform3f(glGetUniformLocation(mOitResolveProgram, "uBackground"), bg.r, bg.g, bg.b);
@@ -268,8 +274,8 @@ RasterTimings PointRasterizer::renderBlended(std::span<const DrawBatch> batches,
 double PointRasterizer::resolveEnsembles(uint32_t accumulated) {
   const auto t = std::chrono::steady_clock::now();
   glUseProgram(mAccumulateProgram);
-  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 3, mImage);
-  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 5, mAccum);
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_IMAGE, mImage);
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_ACCUM, mAccum);
   glUniform2i(glGetUniformLocation(mAccumulateProgram, "uSize"), GLint(mWidth), GLint(mHeight));
   glUniform1i(glGetUniformLocation(mAccumulateProgram, "uMode"), 1);
   glUniform1ui(glGetUniformLocation(mAccumulateProgram, "uAccumulated"), accumulated);
@@ -303,9 +309,9 @@ RasterTimings PointRasterizer::render(std::span<const DrawBatch> batches,
   const GLuint all_ones = 0xFFFFFFFFu;
   glClearNamedBufferData(mDepth, GL_R32UI, GL_RED_INTEGER, GL_UNSIGNED_INT, &all_ones);
   glClearNamedBufferData(mColors, GL_R32UI, GL_RED_INTEGER, GL_UNSIGNED_INT, &all_ones);
-  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, mDepth);
-  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 2, mColors);
-  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 3, mImage);
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_DEPTH, mDepth);
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_COLORS, mColors);
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_IMAGE, mImage);
   glUseProgram(mRasterProgram);
   const GLint u_clip = glGetUniformLocation(mRasterProgram, "uClip");
   const GLint u_first = glGetUniformLocation(mRasterProgram, "uFirst");
@@ -320,7 +326,8 @@ RasterTimings PointRasterizer::render(std::span<const DrawBatch> batches,
     glUniform1i(u_pass, pass);
     for (const DrawBatch& b : batches) {
       if (b.count == 0) continue;
-      glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, b.buffer ? b.buffer : mPoints);
+      glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_POINTS,
+                       b.buffer ? b.buffer : mPoints);
       glUniform1f(u_spacing, b.spacing_k);
       glUniform1ui(glGetUniformLocation(mRasterProgram, "uColorOverride"), b.color_override);
       glUniformMatrix4fv(u_clip, 1, GL_FALSE, &b.clip_from_local[0][0]);

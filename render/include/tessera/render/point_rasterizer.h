@@ -18,7 +18,7 @@ struct GpuPoint {
   glm::vec3 position;
   uint32_t rgba;
 };
-static_assert(sizeof(GpuPoint) == 16);
+static_assert(sizeof(GpuPoint) == 16);  // TESSERA_POINT_BYTES, shaders/shared_layout.h
 
 /// A range of GpuPoints drawn with one transform and splat size.
 struct DrawBatch {
