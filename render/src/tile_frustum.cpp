@@ -28,14 +28,20 @@ glm::dmat4 offAxisProjection(const glm::dvec3& eye, double x0, double x1, double
 }
 
 ViewSetup tileView(const config::WallConfig& wall, const config::Tile& tile,
-                   const config::Camera& camera) {
+                   const config::Camera& camera, const glm::dvec3& eye_offset) {
   ViewSetup v;
-  v.view = cameraView(camera);
-  v.projection = offAxisProjection(vec(wall.eye()), tile.x(), tile.x() + tile.width(), tile.y(),
-                                   tile.y() + tile.height(), wall.near(), wall.far());
+  // Camera space is the wall frame with the viewer's eye at the origin; an eye moved by
+  // `eye_offset` sees camera space moved the other way, through its own off-axis window.
+  const glm::dmat4 mono = cameraView(camera);
+  v.view = glm::translate(glm::dmat4(1.0), -eye_offset) * mono;
+  v.projection = offAxisProjection(vec(wall.eye()) + eye_offset, tile.x(), tile.x() + tile.width(),
+                                   tile.y(), tile.y() + tile.height(), wall.near(), wall.far());
   v.width = tile.pixel_width();
   v.height = tile.pixel_height();
-  v.eye_world = vec(camera.eye());
+  v.eye_offset = eye_offset;
+  v.eye_world = glm::dvec3(glm::inverse(mono) * glm::dvec4(eye_offset, 1.0));
+  v.pixels_per_metre =
+      glm::dvec2(tile.pixel_width() / tile.width(), tile.pixel_height() / tile.height());
   return v;
 }
 
@@ -61,6 +67,7 @@ ViewSetup wholeWallView(const config::WallConfig& wall, const config::Camera& ca
   v.projection = offAxisProjection(vec(wall.eye()), e.x, e.x + v.width / ppm_x,
                                    e.w - v.height / ppm_y, e.w, wall.near(), wall.far());
   v.eye_world = vec(camera.eye());
+  v.pixels_per_metre = glm::dvec2(ppm_x, ppm_y);
   return v;
 }
 

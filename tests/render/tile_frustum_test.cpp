@@ -74,6 +74,42 @@ TEST(TileFrustum, WallPlanePointsLandOnTheirTilePixel) {
   }
 }
 
+TEST(TileFrustum, StereoEyesAgreeOnTheWallPlaneAndDisagreeBehindIt) {
+  auto wall = sync::loadWallConfig(kConfigs + "/walls/3x2.json");
+  const config::Camera cam = camera();
+  const glm::dvec3 half_ipd(0.032, 0.0, 0.0);
+  // World position of a point given in the wall frame: camera space is the wall frame minus the
+  // viewer's eye.
+  const glm::dmat4 world_from_camera = glm::inverse(cameraView(cam));
+  const auto world = [&](const glm::dvec3& wall_point) {
+    const glm::dvec3 e(wall.eye().x(), wall.eye().y(), wall.eye().z());
+    return glm::dvec3(world_from_camera * glm::dvec4(wall_point - e, 1.0));
+  };
+  for (const auto& tile : wall.tiles()) {
+    const ViewSetup left = tileView(wall, tile, cam, -half_ipd);
+    const ViewSetup right = tileView(wall, tile, cam, half_ipd);
+    const ViewSetup mono = tileView(wall, tile, cam);
+    EXPECT_EQ(left.eye_offset, -half_ipd);
+    EXPECT_NEAR(left.pixels_per_metre.x, tile.pixel_width() / tile.width(), 1e-9);
+    // The eyes are 64 mm apart in the world too, on either side of the mono eye.
+    EXPECT_NEAR(glm::distance(left.eye_world, right.eye_world), 0.064, 1e-9);
+    EXPECT_NEAR(glm::distance(0.5 * (left.eye_world + right.eye_world), mono.eye_world), 0.0, 1e-9);
+    const glm::dvec3 on_wall(tile.x() + 0.3 * tile.width(), tile.y() + 0.6 * tile.height(), 0.0);
+    const glm::dvec2 l = pixelOf(left, world(on_wall)), r = pixelOf(right, world(on_wall));
+    EXPECT_NEAR(l.x, r.x, 1e-6);  // zero parallax at the screen
+    EXPECT_NEAR(l.y, r.y, 1e-6);
+    EXPECT_NEAR(l.x, pixelOf(mono, world(on_wall)).x, 1e-6);
+    // One metre behind the wall: the right eye sees it further right (positive parallax) by
+    // ipd * depth / (eye distance + depth) metres on the wall plane.
+    const glm::dvec3 behind = on_wall + glm::dvec3(0.0, 0.0, -1.0);
+    const double d = wall.eye().z();
+    const double expected_px = 0.064 * 1.0 / (d + 1.0) * tile.pixel_width() / tile.width();
+    const glm::dvec2 lb = pixelOf(left, world(behind)), rb = pixelOf(right, world(behind));
+    EXPECT_NEAR(rb.x - lb.x, expected_px, 1e-6);
+    EXPECT_NEAR(rb.y, lb.y, 1e-6);
+  }
+}
+
 TEST(TileFrustum, CentredEyeIsTheSymmetricPerspective) {
   const double fovy = glm::radians(45.0), aspect = 16.0 / 9.0, near = 0.1, far = 100.0;
   const double h = 2.0 * std::tan(fovy / 2), w = h * aspect;  // window at distance 1

@@ -17,12 +17,19 @@
 
 namespace tessera::render {
 
-/// What one view renders: world -> camera, camera -> clip, and its pixel size.
+/// What one view renders: world -> camera, camera -> clip, and its pixel size; for a wall view
+/// also which eye sees it and at what pixel density, so stereo eyes and insets at another
+/// density fit the same mosaic code.
 struct ViewSetup {
   glm::dmat4 view{1.0};
   glm::dmat4 projection{1.0};
   uint32_t width = 0, height = 0;
-  glm::dvec3 eye_world{0.0};  ///< camera position in the world
+  glm::dvec3 eye_world{0.0};  ///< this view's eye in the world (eye offset included)
+  /// The eye's offset from the wall's viewer eye, wall frame, metres (stereo: -/+ half the
+  /// interpupillary distance along x; 0 for a mono view).
+  glm::dvec3 eye_offset{0.0};
+  /// Pixels per metre on the wall plane, x and y (0 for views that are not of a wall).
+  glm::dvec2 pixels_per_metre{0.0};
 };
 
 /// World -> camera matrix of a scene camera (right-handed, looking down -z, y up).
@@ -33,9 +40,11 @@ glm::dmat4 cameraView(const config::Camera& camera);
 glm::dmat4 offAxisProjection(const glm::dvec3& eye, double x0, double x1, double y0, double y1,
                              double near, double far);
 
-/// The view of one tile.
+/// The view of one tile, seen from the wall's eye moved by `eye_offset` (wall frame, metres;
+/// a stereo pair is two views with -/+ half the interpupillary distance along x: points on the
+/// wall plane land on the same pixel in both, points behind it further apart).
 ViewSetup tileView(const config::WallConfig& wall, const config::Tile& tile,
-                   const config::Camera& camera);
+                   const config::Camera& camera, const glm::dvec3& eye_offset = glm::dvec3(0.0));
 
 /// The whole wall's extent as one view, at the pixel density of its first tile (pixels per metre),
 /// so tile pixels and whole-wall pixels line up one to one.
