@@ -73,21 +73,35 @@ struct ZmqMasterLink::Impl {
   std::string endpoint;
   LinkClock::time_point probe_until{};  // after a closed connection: probe the members
 
-  /// Sends to one peer without blocking. False when its connection is gone or its queue full.
-  bool send(PeerId id, const std::string& bytes) {
+  enum class Sent { kYes, kQueueFull, kGone };
+
+  /// Sends to one peer without blocking: a full queue is a connected node that does not read
+  /// (hung), a gone pipe a closed connection (ZMQ_ROUTER_MANDATORY's EHOSTUNREACH).
+  Sent send(PeerId id, const std::string& bytes) {
     auto it = peers.find(id);
-    if (it == peers.end()) return false;
+    if (it == peers.end()) return Sent::kGone;
     try {
       zmq::const_buffer route(it->second.routing.data(), it->second.routing.size());
-      if (!router.send(route, zmq::send_flags::sndmore | zmq::send_flags::dontwait)) return false;
+      if (!router.send(route, zmq::send_flags::sndmore | zmq::send_flags::dontwait))
+        return Sent::kQueueFull;
       if (!router.send(zmq::const_buffer(bytes.data(), bytes.size()), zmq::send_flags::dontwait))
-        return false;
-    } catch (const zmq::error_t&) {  // EHOSTUNREACH (ZMQ_ROUTER_MANDATORY): connection gone
-      return false;
+        return Sent::kQueueFull;
+    } catch (const zmq::error_t&) {
+      return Sent::kGone;
     }
     counters.bytes_sent += bytes.size() + it->second.routing.size();
     counters.messages_sent += 1;
-    return true;
+    return Sent::kYes;
+  }
+
+  /// Whether `id`'s connection is still open, by sending it a ToNode{ping} (nodes ignore it).
+  bool reachable(PeerId id) {
+    static const std::string ping = [] {
+      cluster::ToNode t;
+      t.mutable_ping();
+      return envelope(t);
+    }();
+    return send(id, ping) != Sent::kGone;
   }
 
   void sendTo(PeerId id, const cluster::ToNode& message) { send(id, envelope(message)); }
@@ -175,10 +189,7 @@ struct ZmqMasterLink::Impl {
     }
     if (LinkClock::now() >= probe_until) return;
     for (auto& [id, peer] : peers) {
-      if (!peer.member) continue;
-      cluster::ToNode ping;
-      ping.mutable_ping();
-      if (!send(id, envelope(ping))) {
+      if (peer.member && !reachable(id)) {
         peer.member = false;
         events.gone.insert(id);
       }
@@ -237,7 +248,7 @@ LinkEvents ZmqMasterLink::poll(LinkClock::time_point deadline) {
 void ZmqMasterLink::welcome(PeerId peer, const cluster::ClusterSetup& setup) {
   cluster::ToNode t;
   *t.mutable_welcome() = setup;
-  if (m->send(peer, envelope(t))) {
+  if (m->send(peer, envelope(t)) == Impl::Sent::kYes) {
     m->peers[peer].member = true;
     m->peers[peer].told = false;
   }
@@ -315,20 +326,7 @@ void ZmqMasterLink::drop(PeerId peer, const std::string& reason) {
 }
 
 bool ZmqMasterLink::connected(PeerId peer) {
-  cluster::ToNode ping;
-  ping.mutable_ping();
-  auto it = m->peers.find(peer);
-  if (it == m->peers.end()) return false;
-  // A full queue is a connected node that does not read: hung, not gone.
-  try {
-    zmq::const_buffer route(it->second.routing.data(), it->second.routing.size());
-    if (!m->router.send(route, zmq::send_flags::sndmore | zmq::send_flags::dontwait)) return true;
-    const std::string bytes = envelope(ping);
-    m->router.send(zmq::const_buffer(bytes.data(), bytes.size()), zmq::send_flags::dontwait);
-    return true;
-  } catch (const zmq::error_t&) {
-    return false;
-  }
+  return m->reachable(peer);
 }
 
 void ZmqMasterLink::quit(uint32_t code, const std::string& reason) {
