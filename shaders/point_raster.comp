@@ -2,7 +2,7 @@
 // compute atomicMin scatter ~100 M points/s). Without 64-bit atomics the nearest point wins in
 // two passes over the same points: pass 0 keeps the smallest depth per pixel (atomicMin on the
 // depth's float bits, which order like the floats for depths in [0, 1]); pass 1, among points at
-// that depth, keeps the smallest colour, so the result is the same whatever the thread order and
+// that depth, keeps the smallest colour (and pick id), so the result is the same whatever the thread order and
 // whichever buffer a point came from. Splats are round; their diameter follows the node's sample
 // spacing as it projects at each point (uSpacingK / w pixels), so surfaces close at every LOD
 // level without fat blobs behind near ones, radius capped at uRadius.
@@ -12,15 +12,33 @@ layout(local_size_x = 128) in;
 layout(std430, binding = TESSERA_BINDING_POINTS) readonly buffer Points { Point points[]; };
 layout(std430, binding = TESSERA_BINDING_DEPTH) buffer Depth { uint depth[]; };
 layout(std430, binding = TESSERA_BINDING_COLORS) buffer Colors { uint colors[]; };  // rgb, 0xFFFFFFFF: none
+layout(std430, binding = TESSERA_BINDING_PICK) buffer Pick { uint pick[]; };  // frame-wide point id
 
-uniform mat4 uClip;
-uniform uint uColorOverride;  // non-zero: 0x1000000 | rgb for every point of the batch     // clip from the batch's node frame
+uniform mat4 uClip;            // clip from the batch's node frame
+uniform uint uColorOverride;  // non-zero: 0x1000000 | rgb for every point of the batch
+uniform int uWriteColor;      // pass 1 writes colours (0: one colour for all, only pick ids)
+uniform int uWritePick;       // pass 1 writes pick ids uPickBase + i
+uniform uint uPickBase;       // pick id of this dispatch's first point
 uniform uint uFirst;    // first point of the batch in `points`
 uniform uint uCount;
 uniform ivec2 uSize;    // viewport in pixels
 uniform int uRadius;    // the largest splat radius, pixels (the radius when uSpacingK is 0)
 uniform float uSpacingK;  // node spacing in pixels at view depth 1 (0: fixed radius uRadius)
 uniform int uPass;      // 0: depth, 1: colour
+
+// Pass 0 keeps the nearest depth; pass 1, among the points at that depth, the smallest colour
+// and the smallest pick id (two points at exactly the same depth may give the colour of one and
+// the id of the other: either is a nearest point).
+void write(uint idx, uint d, uint gi, uint i) {
+  if (uPass == 0) {
+    atomicMin(depth[idx], d);
+  } else if (depth[idx] == d) {
+    if (uWriteColor != 0)
+      atomicMin(colors[idx], uColorOverride != 0u ? uColorOverride & 0xFFFFFFu
+                                                  : points[gi].rgba & 0xFFFFFFu);
+    if (uWritePick != 0) atomicMin(pick[idx], uPickBase + i);
+  }
+}
 
 void main() {
   uint i = gl_GlobalInvocationID.x;
@@ -44,12 +62,7 @@ void main() {
     // One pixel (fine LOD levels, far points): no loop, which llvmpipe runs much faster.
     if (centre.x < 0 || centre.y < 0 || centre.x >= uSize.x || centre.y >= uSize.y) return;
     uint idx = uint(centre.y) * uint(uSize.x) + uint(centre.x);
-    if (uPass == 0) {
-      atomicMin(depth[idx], d);
-    } else if (depth[idx] == d) {
-      atomicMin(colors[idx], uColorOverride != 0u ? uColorOverride & 0xFFFFFFu
-                                                  : points[gi].rgba & 0xFFFFFFu);
-    }
+    write(idx, d, gi, i);
     return;
   }
   int r2 = radius * radius + radius;
@@ -64,12 +77,7 @@ void main() {
       ivec2 q = centre + ivec2(dx, dy);
       if (q.x < 0 || q.y < 0 || q.x >= uSize.x || q.y >= uSize.y) continue;
       uint idx = uint(q.y) * uint(uSize.x) + uint(q.x);
-      if (uPass == 0) {
-        atomicMin(depth[idx], d);
-      } else if (depth[idx] == d) {
-        atomicMin(colors[idx], uColorOverride != 0u ? uColorOverride & 0xFFFFFFu
-                                                    : points[gi].rgba & 0xFFFFFFu);
-      }
+      write(idx, d, gi, i);
     }
   }
 }

@@ -11,7 +11,7 @@
 
 #include <glm/gtc/packing.hpp>
 
-#include <tessera/render/point_rasterizer.h>
+#include <tessera/render/point_pass.h>
 #include <tessera/render/spbr.h>
 
 namespace tessera::render {

@@ -20,7 +20,7 @@
 #include <string>
 
 #include <tessera/cluster.pb.h>
-#include <tessera/render/point_rasterizer.h>
+#include <tessera/render/image.h>
 #include <tessera/render/tile_frustum.h>
 #include <tessera/render/wall_mosaic.h>
 #include <tessera/sync/cluster_link.h>

@@ -19,7 +19,7 @@
 
 namespace tessera::render {
 
-/// A chunk resident on the GPU: GpuPoint records (point_rasterizer.h) relative to `offset`.
+/// A chunk resident on the GPU: GpuPoint records (point_pass.h) relative to `offset`.
 struct GpuChunk {
   GlBuffer buffer;
   uint32_t count = 0;
