@@ -1,5 +1,6 @@
-// Overlay primitives' colour: flat, textured, a round dot (antialiased edge) or a glyph (alpha
-// from the font atlas).
+// Overlay primitives' colour: flat, textured, a round dot or ring (antialiased edges) or a glyph
+// (alpha from the font atlas). The mode's low byte says which; rings keep their inner radius
+// (0..255 of the outer) in the next byte.
 in vec2 vUv;
 in vec4 vColor;
 flat in uint vMode;
@@ -10,14 +11,16 @@ out vec4 fragColor;
 
 void main() {
   vec4 c = vColor;
-  if (vMode == TESSERA_OVERLAY_TEXTURED) {
+  uint mode = vMode & 0xFFu;
+  if (mode == TESSERA_OVERLAY_TEXTURED) {
     c *= texture(uTexture, vUv);
-  } else if (vMode == TESSERA_OVERLAY_DOT) {
+  } else if (mode == TESSERA_OVERLAY_DOT) {
     float r = length(vUv * 2.0 - 1.0);
     float edge = max(fwidth(r), 1e-4);
-    if (r > 1.0) discard;
-    c.a *= clamp((1.0 - r) / edge, 0.0, 1.0);
-  } else if (vMode == TESSERA_OVERLAY_GLYPH) {
+    float hole = float(vMode >> 8) / 255.0;  // rings: the inner radius, 0 for a dot
+    if (r > 1.0 || r < hole - edge) discard;
+    c.a *= clamp((1.0 - r) / edge, 0.0, 1.0) * (hole > 0.0 ? clamp((r - hole) / edge, 0.0, 1.0) : 1.0);
+  } else if (mode == TESSERA_OVERLAY_GLYPH) {
     c.a *= texture(uTexture, vUv).r;
   }
   fragColor = c;

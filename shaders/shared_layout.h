@@ -34,7 +34,7 @@ struct Point {
 // C++: render::OverlayVertex (render/src/overlay_pass.cpp).
 #define TESSERA_OVERLAY_FLAT 0u      // the vertex colour
 #define TESSERA_OVERLAY_TEXTURED 1u  // colour x texture
-#define TESSERA_OVERLAY_DOT 2u       // a round dot inscribed in the quad (uv 0..1)
+#define TESSERA_OVERLAY_DOT 2u       // a round dot (or ring) inscribed in the quad (uv 0..1)
 #define TESSERA_OVERLAY_GLYPH 3u     // colour, alpha x the font atlas's coverage
 #define TESSERA_OVERLAY_VERTEX_BYTES 32
 #ifndef __cplusplus

@@ -10,9 +10,9 @@
 #include <vector>
 
 #include <tessera/master/one_button_navigation.h>
+#include <tessera/render/scene_draw_list.h>
 #include <tessera/render/view_renderer.h>
 #include <tessera/render/window.h>
-#include <tessera/render/scene_draw_list.h>
 #include <tessera/sync/scene_graph.h>
 
 namespace tessera::master {
@@ -26,6 +26,8 @@ class Console {
 
   /// Renders the scene as it is now (draw(): never waits for data) and shows it.
   void draw(const sync::SceneGraph& graph);
+  /// Writes what the window shows (its framebuffer) as a PNG. Throws render::RenderError.
+  void save(const std::string& path) const;
   /// Applies the input since the last call to `graph`: navigation to the camera, keys 1-9 select
   /// a model, + / - change its opacity by 0.1, H toggles its visibility, E toggles eye-dome
   /// lighting. Returns false once the window is closed (or Escape).
@@ -33,7 +35,7 @@ class Console {
 
  private:
   render::ViewSetup view(const config::Camera& camera) const;
-  void drawOverlay();  // the bar and the target marker, into the image buffer
+  render::Overlay overlay() const;  // the navigation's bar and the target marker
 
   config::WallConfig mWall;
   float mSplatScale;

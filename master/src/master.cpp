@@ -370,6 +370,7 @@ int Master::run() {
     if (mConsole) {  // the console renders while the nodes do
       const auto p = Clock::now();
       mConsole->draw(mGraph);
+      if (last && !mOpt.console_screenshot.empty()) mConsole->save(mOpt.console_screenshot);
       present_ms = msSince(p);
     }
 

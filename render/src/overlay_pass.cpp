@@ -225,8 +225,10 @@ double OverlayPass::run(FrameTarget& target, const ViewSetup& view, const Overla
     const glm::dvec4 a = s.clip(p.at);
     if (a.w <= 0.0) continue;
     const float r = 0.5f * p.size_px;
+    // A ring keeps radii above 1 - ring / r: the fraction rides in the mode's upper bits.
+    const float hole = p.ring_px > 0.0f ? std::clamp(1.0f - p.ring_px / r, 0.0f, 1.0f) : 0.0f;
     s.sprite(a, glm::vec2(-r), glm::vec2(r), glm::vec2(0), glm::vec2(1), pack(p.color),
-             TESSERA_OVERLAY_DOT);
+             TESSERA_OVERLAY_DOT | uint32_t(std::lround(hole * 255.0f)) << 8);
   }
   for (const OverlayLabel& l : overlay.labels) s.addLabel(l);
   for (const ScreenRect& r : overlay.rects) {

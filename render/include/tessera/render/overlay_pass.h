@@ -32,11 +32,13 @@ struct OverlayLine {
   float width_px = 2.0f;
 };
 
-/// A round dot at a world position, `size_px` across on every view.
+/// A round dot at a world position, `size_px` across on every view; with ring_px > 0 only its
+/// outer ring of that width (a marker that leaves what it marks visible).
 struct OverlayPoint {
   glm::dvec3 at{0.0};
   glm::u8vec4 color{255, 255, 255, 255};
   float size_px = 8.0f;
+  float ring_px = 0.0f;
 };
 
 /// Text at a world position: its box's top-left corner `offset_px` from where the position
