@@ -361,7 +361,8 @@ int Master::run() {
 
     mFrame = f + 1;
     cluster::FrameMessage message_out;
-    message_out.set_frame(sync::serializeFrame(mGraph.takeFrame(mFrame, uint64_t(t * 1e6))));
+    const scene::Frame taken = mGraph.takeFrame(mFrame, uint64_t(t * 1e6));
+    message_out.set_frame(sync::serializeFrame(taken));
     message_out.set_read_back(!shots.empty());
     const size_t frame_bytes = message_out.frame().size();
     mLink.publish(message_out);
@@ -369,7 +370,7 @@ int Master::run() {
     double present_ms = 0;
     if (mConsole) {  // the console renders while the nodes do
       const auto p = Clock::now();
-      mConsole->draw(mGraph);
+      mConsole->draw(mGraph, sync::SceneChanges::of(taken));
       if (last && !mOpt.console_screenshot.empty()) mConsole->save(mOpt.console_screenshot);
       present_ms = msSince(p);
     }

@@ -722,7 +722,19 @@ void SceneGraph::validateFrame(const scene::Frame& frame) const {
   checkAncestry(start, parentAfter, existsAfter, context);
 }
 
-void SceneGraph::apply(const scene::Frame& frame) {
+SceneChanges SceneChanges::of(const scene::Frame& frame) {
+  SceneChanges c;
+  for (const SceneNode& n : frame.changed()) c.nodes.push_back(n.id());
+  for (const SceneNode& n : frame.created()) c.nodes.push_back(n.id());
+  c.nodes.insert(c.nodes.end(), frame.deleted().begin(), frame.deleted().end());
+  std::sort(c.nodes.begin(), c.nodes.end());
+  c.nodes.erase(std::unique(c.nodes.begin(), c.nodes.end()), c.nodes.end());
+  c.camera = frame.has_camera();
+  c.settings = frame.has_settings();
+  return c;
+}
+
+SceneChanges SceneGraph::apply(const scene::Frame& frame) {
   TESSERA_CHECK(!hasPendingChanges(),
                 "sync::SceneGraph::apply(): the graph has local changes not taken as a frame");
   validateFrame(frame);  // throws before anything changes
@@ -753,9 +765,10 @@ void SceneGraph::apply(const scene::Frame& frame) {
   mSettings.DiscardUnknownFields();
   mVersion = frame.version();
   mFrameNumber = frame.number();
+  return SceneChanges::of(frame);
 }
 
-void SceneGraph::apply(const scene::Snapshot& snapshot) {
+SceneChanges SceneGraph::apply(const scene::Snapshot& snapshot) {
   TESSERA_CHECK(!hasPendingChanges(),
                 "sync::SceneGraph::apply(): the graph has local changes not taken as a frame");
   const std::string context =
@@ -796,6 +809,7 @@ void SceneGraph::apply(const scene::Snapshot& snapshot) {
   mVersion = snapshot.version();
   mFrameNumber = snapshot.frame();
   mCommands.clear();
+  return SceneChanges::all();
 }
 
 // ---------------------------------------------------------------------------------------------
