@@ -7,9 +7,9 @@
 #include <thread>
 
 #include <tessera/core/stopwatch.h>
-#include <tessera/lod/store_cache.h>
 #include <tessera/master/tile_assignment.h>
 #include <tessera/render/gl_context.h>
+#include <tessera/render/scene_draw_list.h>
 #include <tessera/render/wall_mosaic.h>
 #include <tessera/sync/camera_path.h>
 #include <tessera/sync/wire.h>
@@ -69,22 +69,9 @@ std::string Master::message(const std::string& text) const {
 
 void Master::prepare() {
   mWall = sync::loadWallConfig(mOpt.wall);
-  config::SceneConfig scene = sync::loadSceneConfig(mOpt.scene);
   // A raw scan (PLY, LAS, .conf ...) becomes a cached store before any node sees the scene, so
   // the nodes of this host open the same file (lod/store_cache.h).
-  for (int i = 0; i < scene.models_size(); ++i) {
-    config::Model& m = *scene.mutable_models(i);
-    if (fs::path(m.store()).extension() == ".tlod") continue;
-    try {
-      m.set_store(lod::cachedStoreFor(m.store(), "tessera-master").string());
-    } catch (const std::exception& e) {
-      throw StartError("tessera-master: " + mOpt.scene + ": models[" + std::to_string(i) +
-                       "].store: " + m.store() +
-                       " is neither a .tlod store nor a scan that can "
-                       "be built into one: " +
-                       e.what());
-    }
-  }
+  config::SceneConfig scene = render::loadSceneWithStores(mOpt.scene, "tessera-master");
   if (!mOpt.script.empty()) {
     config::CameraPath path = sync::loadCameraPath(mOpt.script);
     sync::checkPathModels(path, scene, mOpt.script);

@@ -1,6 +1,11 @@
 #include <tessera/render/scene_draw_list.h>
 
+#include <filesystem>
 #include <set>
+#include <stdexcept>
+
+#include <tessera/lod/store_cache.h>
+#include <tessera/sync/config.h>
 
 #include <glm/gtc/type_ptr.hpp>
 
@@ -14,6 +19,24 @@ glm::dmat4 transformOf(const scene::SceneNode& node) {
 }
 
 }  // namespace
+
+config::SceneConfig loadSceneWithStores(const std::string& path, const std::string& who) {
+  config::SceneConfig scene = sync::loadSceneConfig(path);
+  for (int i = 0; i < scene.models_size(); ++i) {
+    config::Model& m = *scene.mutable_models(i);
+    if (std::filesystem::path(m.store()).extension() == ".tlod") continue;
+    try {
+      m.set_store(lod::cachedStoreFor(m.store(), who).string());
+    } catch (const std::exception& e) {
+      throw std::runtime_error(who + ": " + path + ": models[" + std::to_string(i) +
+                               "].store: " + m.store() +
+                               " is neither a .tlod store nor a scan that can be built into "
+                               "one: " +
+                               e.what());
+    }
+  }
+  return scene;
+}
 
 const std::vector<ModelInstance>& SceneDrawList::update(const sync::SceneGraph& graph,
                                                         const sync::SceneChanges& changes,

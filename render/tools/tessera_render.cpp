@@ -17,6 +17,7 @@
 #include <tessera/lod/store_builder.h>
 #include <tessera/lod/store_cache.h>
 #include <tessera/render/gl_context.h>
+#include <tessera/render/scene_draw_list.h>
 #include <tessera/render/view_renderer.h>
 #include <tessera/render/wall_mosaic.h>
 #include <tessera/render/window.h>
@@ -227,26 +228,18 @@ int main(int argc, char** argv) {
     render::RenderOptions options;
     config::Camera cam;
     bool have_camera = false;
+    // A scene goes the way it goes on the wall: a scene graph, and the draw list that render
+    // nodes and the console use (render/scene_draw_list.h), so all draw it alike.
+    sync::SceneGraph graph;
+    render::SceneDrawList scene_list;
     if (!scene_path.empty()) {
-      config::SceneConfig scene = sync::loadSceneConfig(scene_path);
-      for (const auto& m : scene.models()) {
-        if (m.hidden()) continue;
-        stores.push_back(lod::PointStore::open(storeFor(m.store())));
-        glm::dmat4 t(1.0);
-        if (m.transform_size() == 16) t = glm::make_mat4(m.transform().data());
-        const float opacity = m.opacity() > 0.0 ? float(m.opacity()) : 1.0f;
-        glm::u8vec3 color(0);
-        if (m.color_size() == 3)
-          color = glm::u8vec3(glm::dvec3(m.color(0), m.color(1), m.color(2)) * 255.0 + 0.5);
-        instances.push_back(
-            {stores.back().get(), t * render::storeModel(*stores.back()), opacity, color});
-      }
-      cam = scene.camera();
+      graph =
+          sync::SceneGraph::fromConfig(render::loadSceneWithStores(scene_path, "tessera-render"));
+      const auto& listed = scene_list.update(graph, sync::SceneChanges::all());
+      instances.assign(listed.begin(), listed.end());
+      cam = graph.camera();
       have_camera = true;
-      options.lod_pixels = scene.lod_pixels();
-      options.background = glm::vec3(scene.background(0), scene.background(1), scene.background(2));
-      if (scene.shading() == "edl") options.edl_strength = 1.0f;
-      if (scene.spbr_ensembles() > 0) options.spbr.ensembles = scene.spbr_ensembles();
+      options = render::SceneDrawList::options(graph, float(splat_scale));
     }
     for (const std::string& m : models) {
       // FILE or FILE:OPACITY (a colon followed by a number, so paths with colons still work).
@@ -270,7 +263,7 @@ int main(int argc, char** argv) {
       cam = parseCamera(camera);
       have_camera = true;
     }
-    if (!have_camera) cam = fitCamera(*stores.front());
+    if (!have_camera) cam = fitCamera(*instances.front().store);
     if (lod_px > 0) options.lod_pixels = lod_px;
     if (edl) options.edl_strength = 1.0f;
     options.splat_scale = float(splat_scale);
@@ -308,6 +301,7 @@ int main(int argc, char** argv) {
       }
     }
     uint64_t store_bytes = 0;
+    store_bytes += scene_list.storeBytes();
     for (const auto& s : stores) store_bytes += s->summary().file_bytes;
     // Each view streams on its own, as the wall node driving that tile would.
     render::StreamerOptions stream_options;
@@ -353,7 +347,7 @@ int main(int argc, char** argv) {
       auto plainView = [&](const config::Camera& c) {
         render::ViewSetup v;
         v.view = render::cameraView(c);
-        const auto& sum = stores.front()->summary();
+        const auto& sum = instances.front().store->summary();
         double radius = 0.5 * glm::length(sum.bbox_max - sum.bbox_min);
         double dist = glm::length(glm::dvec3(c.eye().x(), c.eye().y(), c.eye().z()) -
                                   glm::dvec3(c.target().x(), c.target().y(), c.target().z()));
