@@ -24,10 +24,19 @@ FrameTarget::FrameTarget(uint32_t width, uint32_t height) : mWidth(width), mHeig
   mPick.clear(kNoPick);
 }
 
-void FrameTarget::clearGeometry(bool pick) {
+const GlBuffer& FrameTarget::colorSums() {
+  if (!mColorSums) mColorSums = GlBuffer(pixels() * 16, nullptr);
+  return mColorSums;
+}
+
+void FrameTarget::clearGeometry(bool pick, bool blend) {
   mDepth.clear(kEmptyDepth);
   mColors.clear(0xFFFFFFFFu);
   if (pick) mPick.clear(kNoPick);
+  if (blend) {
+    colorSums();
+    mColorSums.clear(0);
+  }
 }
 
 Image FrameTarget::readImage() const {

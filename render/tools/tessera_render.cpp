@@ -191,7 +191,7 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   uint32_t spbr_l = 0, spbr_progressive = 0;
   double spbr_max_k = 1e9;
-  bool no_slant = false, spbr_sparse = false;
+  bool no_slant = false, spbr_sparse = false, blend_colors = false;
   app.add_option("--spbr-L", spbr_l,
                  "See-through: ensembles per frame for models with opacity < 1 (default: the "
                  "scene's, else 16)")
@@ -203,6 +203,10 @@ int main(int argc, char** argv) {
                  "See-through: most copies of a point over the ensembles (default: as the "
                  "paper, up to L; 1: independent ensembles with larger discs, blurred)")
       ->check(CLI::Range(0.01, 1e9));
+  app.add_flag("--blend-colors", blend_colors,
+               "Colour points: blend the colours of the points within a splat's depth of the "
+               "nearest on each pixel (smooth, alias-free colour; as Potree's high-quality "
+               "splatting)");
   app.add_flag("--spbr-sparse", spbr_sparse,
                "See-through on sparse scans (a few points a pixel): copies jittered by 1.5 node "
                "spacings and weighted by their surface cells (even noise, ~2 px edges); off: "
@@ -272,6 +276,7 @@ int main(int argc, char** argv) {
     options.spbr.max_k = spbr_max_k;
     options.spbr.slant_shading = !no_slant;
     if (spbr_sparse) options.spbr = render::SpbrOptions::sparseScans(options.spbr);
+    options.blend_colors = blend_colors;
     if (!background.empty()) options.background = glm::vec3(parseVec(background, "--background"));
 
     std::unique_ptr<render::GlContext> ctx;

@@ -6,9 +6,11 @@
 
 #include <cmath>
 #include <cstring>
+#include <random>
 
 #include <glm/gtc/matrix_transform.hpp>
 
+#include <tessera/lod/point_writer.h>
 #include <tessera/lod/store_builder.h>
 #include <tessera/render/gl_context.h>
 #include <tessera/render/view_renderer.h>
@@ -249,6 +251,67 @@ TEST_F(FramePipelineTest, LabelsQuadsAndScreenRectsLandWhereTheyShould) {
     }
   EXPECT_GT(white, 150u) << "glyphs drawn";
   EXPECT_EQ(beyond, 0u) << "nothing outside the label's box";
+}
+
+}  // namespace
+}  // namespace tessera::render
+
+namespace tessera::render {
+namespace {
+
+TEST_F(FramePipelineTest, BlendedColoursAverageWhereNearestColoursAlias) {
+  // A plane of points coloured black or white at random, seen face on: keeping the nearest
+  // point's colour gives each pixel one sample (binary noise; every point of a plane facing the
+  // eye has the same depth, and ties must not go to the darker colour); blending the points
+  // within a splat's depth of the nearest averages the several on each pixel.
+  lod::PointBatch plane;
+  plane.reset(lod::kColor);
+  std::mt19937_64 rng(11);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  for (int i = 0; i < 300000; ++i) {
+    plane.positions.push_back({u(rng), u(rng), 0.0});
+    const uint8_t g = rng() % 2 ? 255 : 0;
+    plane.colors.push_back({g, g, g, 255});
+  }
+  lod::writePly(*sDir / "bw.ply", plane, glm::dvec3(0.0));
+  lod::BuildOptions o;
+  o.quiet = true;
+  lod::buildStore({*sDir / "bw.ply"}, *sDir / "bw.tlod", o);
+  auto s = lod::PointStore::open(*sDir / "bw.tlod");
+  ModelInstance inst{s.get(), storeModel(*s)};
+  glm::dvec3 c;
+  const ViewSetup v = frontView(*s, 1.2, 320, 240, &c);
+  auto stats = [&](const Image& img, double& mean, double& sd) {
+    double sum = 0, sum2 = 0, n = 0;
+    for (uint32_t y = 80; y < 160; ++y)  // the middle of the plane
+      for (uint32_t x = 120; x < 200; ++x) {
+        const double g = pixel(img, x, y)[0];
+        sum += g, sum2 += g * g, ++n;
+      }
+    mean = sum / n;
+    sd = std::sqrt(std::max(0.0, sum2 / n - mean * mean));
+  };
+  ViewRenderer r(v.width, v.height);
+  RenderOptions nearest;
+  // About 4 points a pixel, splats 3 pixels across: a pixel sees about 12 points.
+  nearest.splat_scale = 8.0f;
+  const Image a = r.renderSettled({&inst, 1}, v, nearest);
+  RenderOptions blended = nearest;
+  blended.blend_colors = true;
+  const Image b = r.renderSettled({&inst, 1}, v, blended);
+  double mean_a, sd_a, mean_b, sd_b;
+  stats(a, mean_a, sd_a);
+  stats(b, mean_b, sd_b);
+  std::printf("nearest: mean %.1f sd %.1f; blended: mean %.1f sd %.1f\n", mean_a, sd_a, mean_b,
+              sd_b);
+  EXPECT_NEAR(mean_a, 127.5, 0.05 * 255) << "ties go to either colour alike";
+  EXPECT_GT(sd_a, 0.9 * 127.5) << "nearest colours are binary";
+  EXPECT_NEAR(mean_b, 127.5, 0.05 * 255) << "blended: the plane's mean grey";
+  EXPECT_LT(sd_b, 0.5 * 127.5) << "blending averages several points a pixel";
+  // Blending changes colours, not coverage: the depth planes are the same.
+  const std::vector<uint32_t> depth_b = r.target().readDepth();
+  r.renderSettled({&inst, 1}, v, nearest);
+  EXPECT_TRUE(depth_b == r.target().readDepth());
 }
 
 }  // namespace
