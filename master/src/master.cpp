@@ -71,14 +71,13 @@ void Master::prepare() {
   mWall = sync::loadWallConfig(mOpt.wall);
   // A raw scan (PLY, LAS, .conf ...) becomes a cached store before any node sees the scene, so
   // the nodes of this host open the same file (lod/store_cache.h).
-  config::SceneConfig scene = render::loadSceneWithStores(mOpt.scene, "tessera-master");
+  mGraph = render::loadSceneWithStores(mOpt.scene, "tessera-master");
   if (!mOpt.script.empty()) {
     config::CameraPath path = sync::loadCameraPath(mOpt.script);
-    sync::checkPathModels(path, scene, mOpt.script);
+    sync::checkPathModels(path, mGraph, mOpt.script);
     mPlayer.emplace(std::move(path));
   }
   mTiles = std::make_unique<TileTable>(mWall, mOpt.wall);
-  mGraph = sync::SceneGraph::fromConfig(scene);
   (void)mGraph.takeFrame(0, 0);  // the loaded scene is the snapshot; frames count from 1
   if (!mOpt.stats.empty()) {
     mCsv = std::make_unique<std::ofstream>(mOpt.stats);

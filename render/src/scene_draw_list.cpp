@@ -20,22 +20,24 @@ glm::dmat4 transformOf(const scene::SceneNode& node) {
 
 }  // namespace
 
-config::SceneConfig loadSceneWithStores(const std::string& path, const std::string& who) {
-  config::SceneConfig scene = sync::loadSceneConfig(path);
-  for (int i = 0; i < scene.models_size(); ++i) {
-    config::Model& m = *scene.mutable_models(i);
+sync::SceneGraph loadSceneWithStores(const std::string& path, const std::string& who) {
+  scene::SceneFile scene = sync::loadSceneFile(path);
+  for (int i = 0; i < scene.nodes_size(); ++i) {
+    scene::SceneNode& n = *scene.mutable_nodes(i);
+    if (n.kind() != scene::SceneNode::MODEL) continue;
+    scene::ModelPayload& m = *n.mutable_model();
     if (std::filesystem::path(m.store()).extension() == ".tlod") continue;
     try {
       m.set_store(lod::cachedStoreFor(m.store(), who).string());
     } catch (const std::exception& e) {
-      throw std::runtime_error(who + ": " + path + ": models[" + std::to_string(i) +
-                               "].store: " + m.store() +
+      throw std::runtime_error(who + ": " + path + ": nodes[" + std::to_string(i) +
+                               "].model.store: " + m.store() +
                                " is neither a .tlod store nor a scan that can be built into "
                                "one: " +
                                e.what());
     }
   }
-  return scene;
+  return sync::SceneGraph::fromFile(scene);
 }
 
 const std::vector<ModelInstance>& SceneDrawList::update(const sync::SceneGraph& graph,

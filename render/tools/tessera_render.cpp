@@ -237,8 +237,7 @@ int main(int argc, char** argv) {
     sync::SceneGraph graph;
     render::SceneDrawList scene_list;
     if (!scene_path.empty()) {
-      graph =
-          sync::SceneGraph::fromConfig(render::loadSceneWithStores(scene_path, "tessera-render"));
+      graph = render::loadSceneWithStores(scene_path, "tessera-render");
       const auto& listed = scene_list.update(graph, sync::SceneChanges::all());
       instances.assign(listed.begin(), listed.end());
       cam = graph.camera();

@@ -25,12 +25,12 @@
 
 namespace tessera::render {
 
-/// A scene file (sync::loadSceneConfig) with every model's store ready: a model naming a raw
-/// scan (PLY, LAS, .conf ...) is built into the cached store for it on first use
+/// A scene file (sync::loadSceneFile) as a scene graph with every model's store ready: a model
+/// naming a raw scan (PLY, LAS, .conf ...) is built into the cached store for it on first use
 /// (lod/store_cache.h), shared by every program of this host, and the model then names that
-/// store. `who` prefixes progress lines. Throws std::runtime_error naming the file, the model
-/// and why a store cannot be had.
-config::SceneConfig loadSceneWithStores(const std::string& path, const std::string& who);
+/// store. `who` prefixes progress lines. Throws std::runtime_error (sync::ConfigError for the
+/// file itself) naming the file, the node and why.
+sync::SceneGraph loadSceneWithStores(const std::string& path, const std::string& who);
 
 class SceneDrawList {
  public:

@@ -81,10 +81,10 @@ class SceneGraph {
   /// with y up, settings defaultSettings().
   SceneGraph();
 
-  /// A master's scene from a loaded scene file (loadSceneConfig): one MODEL node per model,
-  /// ids 1, 2, ... in file order, under the root; its camera and settings. All of it is pending,
-  /// so the first takeFrame() carries it.
-  static SceneGraph fromConfig(const config::SceneConfig& config);
+  /// A master's scene from a scene file (loadSceneFile(): ids assigned, stores absolute): its
+  /// nodes, camera and settings (defaults where the file is silent), at version 0 with nothing
+  /// pending. Throws SyncError as apply(Snapshot) does for anything the graph refuses.
+  static SceneGraph fromFile(const scene::SceneFile& file);
 
   /// A node of `kind` as created: visible, opacity 1, identity transform, inherited shading and
   /// LOD threshold, empty name, parent root, the (empty) payload of its kind. Every field set.
