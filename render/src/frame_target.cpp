@@ -2,6 +2,7 @@
 
 #include <string>
 
+#include <tessera/core/check.h>
 #include <tessera/render/gl_context.h>
 
 namespace tessera::render {
@@ -61,6 +62,7 @@ std::vector<uint32_t> FrameTarget::readPick() const {
 }
 
 uint32_t FrameTarget::readAt(const GlBuffer& plane, uint32_t x, uint32_t y) const {
+  TESSERA_CHECK(x < mWidth && y < mHeight, "render::FrameTarget::readAt(): pixel outside");
   uint32_t v = 0;
   plane.read((size_t(mHeight - 1 - y) * mWidth + x) * 4, 4, &v);
   return v;

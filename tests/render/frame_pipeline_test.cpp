@@ -6,6 +6,7 @@
 
 #include <cmath>
 #include <cstring>
+#include <limits>
 #include <random>
 
 #include <glm/gtc/matrix_transform.hpp>
@@ -312,6 +313,46 @@ TEST_F(FramePipelineTest, BlendedColoursAverageWhereNearestColoursAlias) {
   const std::vector<uint32_t> depth_b = r.target().readDepth();
   r.renderSettled({&inst, 1}, v, nearest);
   EXPECT_TRUE(depth_b == r.target().readDepth());
+}
+
+}  // namespace
+}  // namespace tessera::render
+
+namespace tessera::render {
+namespace {
+
+TEST_F(FramePipelineTest, NonFiniteOverlayPrimitivesAreSkipped) {
+  // Sketches and labels will come from remote sites: NaN or infinite positions and sizes must
+  // draw nothing (not garbage across the image), and the rest of the overlay still draws.
+  auto s = lod::PointStore::open(*sDir / "b.tlod");
+  glm::dvec3 c;
+  const ViewSetup v = frontView(*s, 0.4, 160, 120, &c);
+  ViewRenderer r(v.width, v.height);
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  const double inf = std::numeric_limits<double>::infinity();
+  Overlay bad;
+  bad.lines.push_back({{nan, 0, 0}, c, {255, 0, 0, 255}, 3.0f});
+  bad.lines.push_back(
+      {c, c + glm::dvec3(0.1, 0, 0), {255, 0, 0, 255}, std::numeric_limits<float>::infinity()});
+  bad.points.push_back({{inf, 0, 0}, {255, 0, 0, 255}, 8.0f});
+  bad.points.push_back({c, {255, 0, 0, 255}, std::numeric_limits<float>::quiet_NaN()});
+  OverlayLabel label;
+  label.at = {0, nan, 0};
+  label.text = "x";
+  bad.labels.push_back(label);
+  OverlayQuad quad;
+  quad.corners = {c, c + glm::dvec3(inf, 0, 0), c, c};
+  bad.quads.push_back(quad);
+  bad.rects.push_back({{0, 0}, {float(nan), 10}, {255, 0, 0, 255}, nullptr});
+  const Image plain = r.render({}, v, RenderOptions{});
+  const Image drawn = r.render({}, v, RenderOptions{}, nullptr, &bad);
+  EXPECT_TRUE(drawn.rgba == plain.rgba) << "nothing drawn";
+  bad.points.push_back({c, {255, 0, 0, 255}, 8.0f});  // one good dot among the bad
+  const Image one = r.render({}, v, RenderOptions{}, nullptr, &bad);
+  size_t red = 0;
+  for (size_t i = 0; i < one.rgba.size(); i += 4) red += isRed(&one.rgba[i]);
+  EXPECT_GT(red, 20u);
+  EXPECT_LT(red, 80u);
 }
 
 }  // namespace
