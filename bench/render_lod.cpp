@@ -23,6 +23,7 @@
 
 #include <tessera/core/stopwatch.h>
 #include "bench_inputs.h"
+#include "bench_views.h"
 
 namespace {
 
@@ -79,17 +80,6 @@ Measure measure(std::span<const render::ModelInstance> models, const render::Vie
   return m;
 }
 
-config::Camera bunnyCamera() {
-  config::Camera c;
-  c.mutable_eye()->set_x(-0.02);
-  c.mutable_eye()->set_y(0.13);
-  c.mutable_eye()->set_z(0.26);
-  c.mutable_target()->set_x(-0.02);
-  c.mutable_target()->set_y(0.1);
-  c.mutable_up()->set_y(1);
-  return c;
-}
-
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -116,13 +106,8 @@ int main(int argc, char** argv) {
                  (unsigned long long)store->summary().points, store_bytes / 1e6);
     auto ctx = render::GlContext::createHeadless();
     render::ModelInstance inst{store.get(), render::storeModel(*store)};
-    const config::Camera cam = bunnyCamera();
-    render::ViewSetup view;
-    view.view = render::cameraView(cam);
-    view.projection = glm::perspective(glm::radians(45.0), 1920.0 / 1080.0, 0.01, 2.0);
-    view.width = 1920;
-    view.height = 1080;
-    view.eye_world = glm::dvec3(cam.eye().x(), cam.eye().y(), cam.eye().z());
+    const config::Camera cam = bench::bigBunnyCamera();
+    const render::ViewSetup view = bench::bigBunnyView();
     render::RenderOptions options;
     options.edl_strength = 1.0f;
     const uint64_t big_budget = 8ull << 30;
