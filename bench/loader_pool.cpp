@@ -76,14 +76,11 @@ void warmPageCache(const fs::path& path) {
 
 int main(int argc, char** argv) {
   CLI::App app{"loader_pool: settle time of a full-resolution view against loader threads"};
-  std::string out = TESSERA_BENCH_RESULTS_DIR, store_path;
-  uint64_t points = 100'000'000;
+  bench::StoreInputs in;
   std::vector<uint32_t> threads_list{1, 2, 4};
   int repeats = 2;
   double lod_px = 1e-9;
-  app.add_option("--out", out, "Folder for inputs, CSV and chart")->capture_default_str();
-  app.add_option("--store", store_path, "A .tlod to use (default: the virtual bunny scan)");
-  app.add_option("--points", points, "Points of the virtual bunny scan")->capture_default_str();
+  in.addOptions(app);
   app.add_option("--threads", threads_list, "Loader threads to compare (the cores are added)")
       ->delimiter(',')
       ->check(CLI::PositiveNumber)
@@ -95,10 +92,9 @@ int main(int argc, char** argv) {
       ->check(CLI::PositiveNumber)
       ->capture_default_str();
   CLI11_PARSE(app, argc, argv);
+  const std::string& out = in.out;
   try {
-    fs::create_directories(out);
-    if (store_path.empty())
-      store_path = bench::bigBunnyStore(fs::path(out), points, TESSERA_DATA_DIR).string();
+    const std::string store_path = in.storePath();
     const uint32_t cores = std::max(1u, std::thread::hardware_concurrency());
     if (std::find(threads_list.begin(), threads_list.end(), cores) == threads_list.end())
       threads_list.push_back(cores);

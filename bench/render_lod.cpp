@@ -84,22 +84,18 @@ Measure measure(std::span<const render::ModelInstance> models, const render::Vie
 
 int main(int argc, char** argv) {
   CLI::App app{"render_lod: frame time against PSNR for LOD thresholds; per-tile cost of a wall"};
-  std::string out = TESSERA_BENCH_RESULTS_DIR, store_path,
-              wall_path = TESSERA_CONFIG_DIR "/walls/2x2.json";
-  uint64_t points = 100'000'000;
+  bench::StoreInputs in;
+  std::string wall_path = TESSERA_CONFIG_DIR "/walls/2x2.json";
   int repeats = 3;
-  app.add_option("--out", out, "Folder for inputs, CSV and chart")->capture_default_str();
-  app.add_option("--store", store_path, "A .tlod to use (default: the virtual bunny scan)");
-  app.add_option("--points", points, "Points of the virtual bunny scan")->capture_default_str();
+  in.addOptions(app);
   app.add_option("--wall", wall_path, "Wall for the per-tile part")->capture_default_str();
   app.add_option("--repeats", repeats, "Timed frames per measure (best kept)")
       ->check(CLI::PositiveNumber)
       ->capture_default_str();
   CLI11_PARSE(app, argc, argv);
+  const std::string& out = in.out;
   try {
-    fs::create_directories(out);
-    if (store_path.empty())
-      store_path = bench::bigBunnyStore(fs::path(out), points, TESSERA_DATA_DIR).string();
+    const std::string store_path = in.storePath();
     auto store = lod::PointStore::open(store_path);
     const uint64_t store_bytes = store->summary().file_bytes;
     std::fprintf(stderr, "render_lod: %s, %llu points, %.1f MB\n", store_path.c_str(),
