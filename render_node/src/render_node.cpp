@@ -8,9 +8,9 @@
 
 #include <tessera/core/stopwatch.h>
 #include <tessera/render/gl_context.h>
+#include <tessera/render/scene_draw_list.h>
 #include <tessera/render/view_renderer.h>
 #include <tessera/render/window.h>
-#include <tessera/render/scene_draw_list.h>
 #include <tessera/sync/scene_graph.h>
 #include <tessera/sync/wire.h>
 
@@ -131,7 +131,9 @@ struct RenderNode::Impl {
     if (same_size && old_w == tile->pixel_width() && old_h == tile->pixel_height()) return;
     render::StreamerOptions stream;
     if (setup.gpu_budget_bytes() > 0) stream.budget_bytes = setup.gpu_budget_bytes();
-    stream.density_ratios = true;  // any model may turn see-through during the session
+    // Any model may turn see-through during the session; only chunks drawn see-through are
+    // measured (ChunkUse::kSeeThrough), the others cost nothing for it.
+    stream.density_ratios = true;
     renderer.reset();
     try {
       renderer = std::make_unique<render::ViewRenderer>(tile->pixel_width(), tile->pixel_height(),
@@ -162,8 +164,8 @@ struct RenderNode::Impl {
       const auto start_time = Clock::now();
       try {
         const render::ViewSetup view = render::tileView(setup.wall(), *tile, graph.camera());
-        const render::RenderOptions options =
-            render::SceneDrawList::options(graph, setup.splat_scale() > 0 ? setup.splat_scale() : 2.0f);
+        const render::RenderOptions options = render::SceneDrawList::options(
+            graph, setup.splat_scale() > 0 ? setup.splat_scale() : 2.0f);
         render::RenderStats rs;
         // Settled frames (screenshots, deterministic scripted runs) wait for every chunk of the
         // cut, so their pixels are exactly what tessera-render --mosaic makes.
