@@ -66,6 +66,7 @@ TEST_F(ChunkStreamerTest, APoolSettlesToTheSameImageAsOneThread) {
     ViewRenderer r(v.width, v.height, nullptr, measuring(1));
     EXPECT_EQ(r.streamer().loaderThreads(), 1u);
     one = r.renderSettled({&opaque, 1}, v, fullResolution());
+    // Turning see-through: every chunk loaded again, measured.
     one_see_through = r.renderSettled({&half, 1}, v, seeThrough());
   }
   for (uint32_t threads : {2u, 4u}) {
@@ -75,7 +76,8 @@ TEST_F(ChunkStreamerTest, APoolSettlesToTheSameImageAsOneThread) {
     const Image pool = r.renderSettled({&opaque, 1}, v, fullResolution());
     EXPECT_TRUE(pool.rgba == one.rgba);
   }
-  // Cold, see-through from the first frame: every chunk measured on one of four threads.
+  // Cold, see-through from the first frame: every chunk measured on one of four threads, and
+  // the same pixels as the chunks measured when the model turned see-through.
   ViewRenderer cold(v.width, v.height, nullptr, measuring(4));
   EXPECT_TRUE(cold.renderSettled({&half, 1}, v, seeThrough()).rgba == one_see_through.rgba);
   // 0: one loader thread a core.
@@ -148,10 +150,10 @@ TEST_F(ChunkStreamerTest, OnlyChunksDrawnSeeThroughAreMeasured) {
     EXPECT_EQ(r.streamer().find(*s, n.id, ChunkUse::kSeeThrough), nullptr);
   }
 
-  // The model turns see-through: its chunks are loaded again with their measurements, and the
-  // view settles to what a streamer that measured from the start shows.
+  // The model turns see-through: its chunks are loaded again with their measurements (the
+  // pixels are those of a streamer that measured from the start: the test above).
   inst.opacity = 0.5f;
-  const Image later = r.renderSettled({&inst, 1}, v, seeThrough());
+  r.renderSettled({&inst, 1}, v, seeThrough());
   size_t dense = 0;  // a chunk of a handful of points has no density (0)
   for (const CutNode& n : see_cut.nodes) {
     const GpuChunk* c = r.streamer().find(*s, n.id, ChunkUse::kSeeThrough);
@@ -161,8 +163,6 @@ TEST_F(ChunkStreamerTest, OnlyChunksDrawnSeeThroughAreMeasured) {
     dense += c->density > 0.0;
   }
   EXPECT_GT(dense, see_cut.nodes.size() / 2);
-  ViewRenderer cold(v.width, v.height, nullptr, measuring(2));
-  EXPECT_TRUE(later.rgba == cold.renderSettled({&inst, 1}, v, seeThrough()).rgba);
 
   // Opaque again: the measured chunks serve as they are.
   inst.opacity = 1.0f;
