@@ -264,6 +264,9 @@ void ViewRenderer::addModel(const ModelInstance& instance, bool see_through, con
   const double unit = std::cbrt(std::abs(glm::determinant(glm::dmat3(model))));
   const uint32_t total = std::max(options.spbr.ensembles, options.spbr.progressive_max);
   const uint64_t key = storeKey(store);
+  // See-through batches need the chunks' density (and ratios, normals, cells): only their
+  // chunks are measured on loading.
+  const ChunkUse use = see_through ? ChunkUse::kSeeThrough : ChunkUse::kOpaque;
   auto addBatch = [&](const CutNode& n, const GpuChunk& chunk) {
     DrawBatch b;
     b.buffer = chunk.buffer.name();
@@ -319,7 +322,7 @@ void ViewRenderer::addModel(const ModelInstance& instance, bool see_through, con
   };
   std::vector<bool> drawn_above(cut.above.size(), false);
   for (const CutNode& n : cut.nodes) {  // nearest first
-    if (const GpuChunk* chunk = mStreamer->find(store, n.id)) {
+    if (const GpuChunk* chunk = mStreamer->find(store, n.id, use)) {
       addBatch(n, *chunk);
       continue;
     }
@@ -327,20 +330,21 @@ void ViewRenderer::addModel(const ModelInstance& instance, bool see_through, con
     if (mStreamer->failed(store, n.id)) {
       ++stats.corrupt_chunks;
     } else {
-      mStreamer->request(store, n.id, n.level, n.distance);
+      mStreamer->request(store, n.id, n.level, n.distance, use);
     }
     // The nearest resident ancestor stands in; ancestors on the way are fetched too, coarse
     // first, so a new view fills in from coarse to fine.
     for (int32_t p = n.parent; p >= 0; p = cut.above[size_t(p)].parent) {
       const CutNode& a = cut.above[size_t(p)];
       if (drawn_above[size_t(p)]) break;
-      if (const GpuChunk* chunk = mStreamer->find(store, a.id)) {
+      if (const GpuChunk* chunk = mStreamer->find(store, a.id, use)) {
         addBatch(a, *chunk);
         drawn_above[size_t(p)] = true;
         ++stats.fallback_nodes;
         break;
       }
-      if (!mStreamer->failed(store, a.id)) mStreamer->request(store, a.id, a.level, a.distance);
+      if (!mStreamer->failed(store, a.id))
+        mStreamer->request(store, a.id, a.level, a.distance, use);
     }
   }
   stats.select_ms += msSince(t0);

@@ -189,6 +189,10 @@ int main(int argc, char** argv) {
   app.add_option("--gpu-budget-mb", budget_mb, "GPU bytes for resident chunks, MiB")
       ->check(CLI::Range(1.0, 1e6))
       ->capture_default_str();
+  uint32_t loader_threads = 0;
+  app.add_option("--loader-threads", loader_threads, "Threads decoding chunks (0: one a core)")
+      ->check(CLI::Range(0, 256))
+      ->capture_default_str();
   uint32_t spbr_l = 0, spbr_progressive = 0;
   double spbr_max_k = 1e9;
   bool no_slant = false, spbr_sparse = false, blend_colors = false;
@@ -310,6 +314,7 @@ int main(int argc, char** argv) {
     // Each view streams on its own, as the wall node driving that tile would.
     render::StreamerOptions stream_options;
     stream_options.budget_bytes = uint64_t(budget_mb * 1048576.0);
+    stream_options.loader_threads = loader_threads;
     stream_options.normals = no_slant;  // cos(theta) needs a normal per point
     for (const auto& m : instances) stream_options.density_ratios |= m.opacity < 1.0f;
     // Surface cells only for the sparse-scan method (SpbrOptions::cell_weights).

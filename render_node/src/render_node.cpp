@@ -128,7 +128,9 @@ struct RenderNode::Impl {
     if (same_size && old_w == tile->pixel_width() && old_h == tile->pixel_height()) return;
     render::StreamerOptions stream;
     if (setup.gpu_budget_bytes() > 0) stream.budget_bytes = setup.gpu_budget_bytes();
-    stream.density_ratios = true;  // any model may turn see-through during the session
+    // Any model may turn see-through during the session; only chunks drawn see-through are
+    // measured (ChunkUse::kSeeThrough), the others cost nothing for it.
+    stream.density_ratios = true;
     renderer.reset();
     try {
       renderer = std::make_unique<render::ViewRenderer>(tile->pixel_width(), tile->pixel_height(),
