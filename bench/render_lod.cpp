@@ -22,6 +22,7 @@
 #include <tessera/sync/config.h>
 
 #include <tessera/core/stopwatch.h>
+#include "bench_images.h"
 #include "bench_inputs.h"
 
 namespace {
@@ -29,30 +30,6 @@ namespace {
 using namespace tessera;
 namespace fs = std::filesystem;
 using Clock = std::chrono::steady_clock;
-
-/// PSNR of the RGB channels; with `box` > 1, of the images averaged over box x box blocks
-/// first (what a viewer a few metres from the wall resolves; the scan's sub-millimetre noise
-/// makes eye-dome lighting speckle pixel by pixel, which the raw PSNR counts as error).
-double psnr(const render::Image& a, const render::Image& b, uint32_t box = 1) {
-  double se = 0;
-  size_t n = 0;
-  for (uint32_t y = 0; y + box <= a.height; y += box)
-    for (uint32_t x = 0; x + box <= a.width; x += box)
-      for (int c = 0; c < 3; ++c) {
-        double sa = 0, sb = 0;
-        for (uint32_t dy = 0; dy < box; ++dy)
-          for (uint32_t dx = 0; dx < box; ++dx) {
-            const size_t i = (size_t(y + dy) * a.width + x + dx) * 4 + size_t(c);
-            sa += a.rgba[i];
-            sb += b.rgba[i];
-          }
-        const double d = (sa - sb) / double(box * box);
-        se += d * d;
-        ++n;
-      }
-  const double mse = se / double(n);
-  return mse > 0 ? 10.0 * std::log10(255.0 * 255.0 / mse) : 99.0;
-}
 
 struct Measure {
   render::Image image;
@@ -79,44 +56,26 @@ Measure measure(std::span<const render::ModelInstance> models, const render::Vie
   return m;
 }
 
-config::Camera bunnyCamera() {
-  config::Camera c;
-  c.mutable_eye()->set_x(-0.02);
-  c.mutable_eye()->set_y(0.13);
-  c.mutable_eye()->set_z(0.26);
-  c.mutable_target()->set_x(-0.02);
-  c.mutable_target()->set_y(0.1);
-  c.mutable_up()->set_y(1);
-  return c;
-}
-
 }  // namespace
 
 int main(int argc, char** argv) {
   CLI::App app{"render_lod: frame time against PSNR for LOD thresholds; per-tile cost of a wall"};
-  std::string out = TESSERA_BENCH_RESULTS_DIR, store_path,
-              wall_path = TESSERA_CONFIG_DIR "/walls/2x2.json";
-  uint64_t points = 100'000'000;
+  bench::BunnyStoreOptions input;
+  input.addTo(app);
+  std::string wall_path = TESSERA_CONFIG_DIR "/walls/2x2.json";
   int repeats = 3;
-  app.add_option("--out", out, "Folder for inputs, CSV and chart")->capture_default_str();
-  app.add_option("--store", store_path, "A .tlod to use (default: the virtual bunny scan)");
-  app.add_option("--points", points, "Points of the virtual bunny scan")->capture_default_str();
   app.add_option("--wall", wall_path, "Wall for the per-tile part")->capture_default_str();
   app.add_option("--repeats", repeats, "Timed frames per measure (best kept)")
       ->check(CLI::PositiveNumber)
       ->capture_default_str();
   CLI11_PARSE(app, argc, argv);
   try {
-    fs::create_directories(out);
-    if (store_path.empty())
-      store_path = bench::bigBunnyStore(fs::path(out), points, TESSERA_DATA_DIR).string();
-    auto store = lod::PointStore::open(store_path);
+    auto store = input.open("render_lod");
+    const std::string& out = input.out;
     const uint64_t store_bytes = store->summary().file_bytes;
-    std::fprintf(stderr, "render_lod: %s, %llu points, %.1f MB\n", store_path.c_str(),
-                 (unsigned long long)store->summary().points, store_bytes / 1e6);
     auto ctx = render::GlContext::createHeadless();
     render::ModelInstance inst{store.get(), render::storeModel(*store)};
-    const config::Camera cam = bunnyCamera();
+    const config::Camera cam = bench::bunnyCamera();
     render::ViewSetup view;
     view.view = render::cameraView(cam);
     view.projection = glm::perspective(glm::radians(45.0), 1920.0 / 1080.0, 0.01, 2.0);
@@ -124,7 +83,7 @@ int main(int argc, char** argv) {
     view.height = 1080;
     view.eye_world = glm::dvec3(cam.eye().x(), cam.eye().y(), cam.eye().z());
     render::RenderOptions options;
-    options.edl_strength = 1.0f;
+    options.edl.strength = 1.0f;
     const uint64_t big_budget = 8ull << 30;
 
     std::fprintf(stderr, "render_lod: full-resolution reference (every leaf)...\n");
@@ -154,7 +113,7 @@ int main(int argc, char** argv) {
       const Measure m = measure({&inst, 1}, view, o, big_budget, repeats);
       char name[32];
       std::snprintf(name, sizeof name, "%g", lod);
-      row(name, m, psnr(m.image, ref.image), psnr(m.image, ref.image, 4));
+      row(name, m, bench::psnr(m.image, ref.image), bench::psnr(m.image, ref.image, 4));
       render::writePng((fs::path(out) / ("render_lod-" + std::string(name) + ".png")).string(),
                        m.image);
     }

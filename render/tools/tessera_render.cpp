@@ -245,7 +245,7 @@ int main(int argc, char** argv) {
       have_camera = true;
       options.lod_pixels = scene.lod_pixels();
       options.background = glm::vec3(scene.background(0), scene.background(1), scene.background(2));
-      if (scene.shading() == "edl") options.edl_strength = 1.0f;
+      if (scene.shading() == "edl") options.edl.strength = 1.0f;
       if (scene.spbr_ensembles() > 0) options.spbr.ensembles = scene.spbr_ensembles();
     }
     for (const std::string& m : models) {
@@ -272,7 +272,7 @@ int main(int argc, char** argv) {
     }
     if (!have_camera) cam = fitCamera(*stores.front());
     if (lod_px > 0) options.lod_pixels = lod_px;
-    if (edl) options.edl_strength = 1.0f;
+    if (edl) options.edl.strength = 1.0f;
     options.splat_scale = float(splat_scale);
     if (spbr_l > 0) options.spbr.ensembles = spbr_l;
     options.spbr.progressive_max = spbr_progressive;
