@@ -63,6 +63,7 @@ std::vector<Variant> variants() {
   with("robust-f1", [](render::EdlOptions& o) { o.filter_radius = 1; });
   with("robust-f3", [](render::EdlOptions& o) { o.filter_radius = 3; });
   with("robust-mean", [](render::EdlOptions& o) { o.plane_fit = false; });
+  with("robust-self", [](render::EdlOptions& o) { o.median_reference = false; });
   with("robust-slope2", [](render::EdlOptions& o) { o.edge_slope = 2.0f; });
   with("robust-slope8", [](render::EdlOptions& o) { o.edge_slope = 8.0f; });
   return v;
@@ -248,7 +249,7 @@ int main(int argc, char** argv) {
       << store->summary().points / 1000000 << " M points)'\n"
       << "set xlabel 'EDL pass, ms (llvmpipe, 2 shared cores)'\n"
       << "set ylabel 'PSNR per pixel, dB'\nset key bottom right\n"
-      << "set offsets graph 0.08, graph 0.25, graph 0.08, graph 0.08\n"
+      << "set xrange [0:*]\nset offsets 0, graph 0.25, graph 0.08, graph 0.08\n"
       << "set arrow from graph 0, first 35 to graph 1, first 35 nohead dt 2 lc rgb 'gray40'\n"
       << "set label 'goal 35 dB' at graph 0.02, first 35.4 tc rgb 'gray40'\n"
       << "set arrow from graph 0, first " << off_psnr << " to graph 1, first " << off_psnr
@@ -260,7 +261,7 @@ int main(int argc, char** argv) {
          "'classic (today)', '' every ::1 using 6:(is('robust') ? $7 : 1/0) with points pt 5 "
          "ps 1.5 title 'robust', '' every ::1 using 6:(is('off') ? 1/0 : $7):1 with labels "
          "offset 0,0.9 font ',8' notitle\n"
-      << "unset arrow\nunset label\nset offsets 0,0,0,0\n"
+      << "unset arrow\nunset label\nset offsets 0,0,0,0\nset autoscale x\n"
       << "set title 'Flicker: mean absolute change for a " << orbit_deg
       << " degree orbit step (dashed: half of classic at lod-px 1)'\n"
       << "set xlabel ''\nset ylabel 'grey levels (0..255), every pixel'\n"

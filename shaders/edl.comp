@@ -1,5 +1,6 @@
-// The eye-dome lighting pass (Boucheny 2009, PhD thesis "Visualisation scientifique de grands
-// volumes de donnees", ch. 4; as in Potree's src/materials/shaders/edl.fs), a screen pass on the
+// The eye-dome lighting pass (C. Boucheny, "Visualisation scientifique interactive de grands
+// volumes de donnees: pour une approche perceptive", PhD thesis, Grenoble 2009, tel-00438464,
+// pp. 115 ff.; in the form of Potree's src/materials/shaders/edl.fs), a screen pass on the
 // resolved image: shade = exp(-300 k * mean over 8 neighbours of max(0, log2 d - log2 d_n)),
 // d the linear view depth, k the strength; the image's colour is multiplied by it. Needs no
 // normals, reads only depth, so it serves points and meshes alike. Two methods (EdlOptions):
@@ -14,14 +15,16 @@
 // pixel centre of a least-squares plane fitted to the depths of its (2 uFilterRadius + 1)^2
 // window: a depth plane over the splats, since Boucheny's shading is a function of the surface,
 // not of the sample that wins a pixel. Only window pixels on the same surface take part: their
-// log depth differs from the centre's by at most uEdgeTau (1 + distance in pixels), uEdgeTau
-// being log2(1 + s * pixel angle) for a surface slope s, so a depth step keeps its edge and its
-// halo. With too few inliers for a plane (or a singular fit), their mean. A fitted plane keeps a
-// slanted surface's log depth where a mean over a one-sided window (at silhouettes) would shift
-// it. Stage 1 shades from the denoised plane; the obscurance is normalised by the neighbours
-// that have a point (not by 8), so a pixel on a silhouette shades like one inside whichever of
-// its neighbours a level covers; the strength is divided by the radius, so a slope shades the
-// same at any radius (a plane's response grows with the neighbour distance).
+// log depth differs from the reference, the median of the 3x3 around the pixel, by at most
+// uEdgeTau (1 + distance in pixels), uEdgeTau being log2(1 + s * pixel angle) for a surface
+// slope s; so a depth step keeps its edge and its halo, and a lone sample of a layer behind
+// (another scan seen through this one's gaps) takes the surface's depth instead of its own.
+// With too few inliers for a plane (or a singular fit), their mean. A fitted plane keeps a
+// slanted surface's depth where a mean over a one-sided window (at silhouettes) would shift it.
+// Stage 1 shades from the denoised plane; the obscurance is normalised by the neighbours that
+// have a point (not by 8), so a pixel on a silhouette shades like one inside whichever of its
+// neighbours a level covers; the strength is divided by the radius, so a slope shades the same
+// at any radius (a plane's response grows with the neighbour distance).
 layout(local_size_x = 16, local_size_y = 16) in;
 
 layout(std430, binding = TESSERA_BINDING_DEPTH) readonly buffer Depth { uint depth[]; };
@@ -37,6 +40,7 @@ uniform int uEdlRadius;     // neighbour distance, pixels
 uniform int uFilterRadius;  // stage 0 window half-width, pixels, <= TESSERA_EDL_MAX_FILTER_RADIUS
 uniform float uEdgeTau;     // stage 0 same-surface bound, log2 depth per pixel of distance
 uniform int uPlaneFit;      // stage 0: 1 fits a plane, 0 takes the inliers' mean
+uniform int uMedian;        // stage 0: 1 judges inliers against the 3x3 median, 0 the pixel
 uniform float uP22;         // projection[2][2] and [3][2]: linear depth from NDC depth
 uniform float uP32;
 
@@ -76,19 +80,49 @@ void classic(ivec2 p) {
   shadeImage(p, exp(-sum / 8.0 * 300.0 * uEdlStrength));
 }
 
+// Sorts a pair: a gets the smaller.
+void order(inout float a, inout float b) {
+  float lo = min(a, b);
+  b = max(a, b);
+  a = lo;
+}
+
+// The median of the window depths of the 3x3 pixels around covered pixel p, empty or outside
+// ones standing in by the centre's `centre`: Paeth's 19-exchange network for 9 values (Graphics
+// Gems, 1990). One sample of a layer behind (a scan registered a little off showing through the
+// front one's gaps) or in front does not move it, so it cannot make its own window.
+float median3x3(ivec2 p, float centre) {
+  float v[9];
+  for (int k = 0; k < 9; ++k) {
+    ivec2 q = p + ivec2(k % 3 - 1, k / 3 - 1);
+    bool inside = q.x >= 0 && q.y >= 0 && q.x < uSize.x && q.y < uSize.y;
+    uint d = inside ? depth[uint(q.y) * uint(uSize.x) + uint(q.x)] : 0xFFFFFFFFu;
+    v[k] = d == 0xFFFFFFFFu ? centre : uintBitsToFloat(d);
+  }
+  order(v[1], v[2]), order(v[4], v[5]), order(v[7], v[8]);
+  order(v[0], v[1]), order(v[3], v[4]), order(v[6], v[7]);
+  order(v[1], v[2]), order(v[4], v[5]), order(v[7], v[8]);
+  order(v[0], v[3]), order(v[5], v[8]), order(v[4], v[7]);
+  order(v[3], v[6]), order(v[1], v[4]), order(v[2], v[5]);
+  order(v[4], v[7]), order(v[4], v[2]), order(v[6], v[4]);
+  order(v[4], v[2]);
+  return v[4];
+}
+
 // Stage 0: the denoised log depth of covered pixel p, depth plane value d. The plane is fitted
 // to window depth, not log depth: window depth is affine in 1 / z, and 1 / z of a planar surface
 // is affine in screen position, so a slanted plane fits exactly, and the taps need no logarithm
-// (only the fitted centre does). The same-surface bound is turned into window depth at the
-// centre: d ln z = -(z / P32) d ndc, and ndc = 2 window depth - 1.
+// (only the fitted centre does). Same surface means near the reference, the 3x3 median (or with
+// uMedian 0 the pixel's own depth); the bound is turned into window depth there:
+// d ln z = -(z / P32) d ndc, and ndc = 2 window depth - 1.
 float denoise(ivec2 p, uint d) {
   int r = uFilterRadius;
-  float centre = uintBitsToFloat(d);
   if (r == 0) return logOf(d);
+  float centre = uMedian != 0 ? median3x3(p, uintBitsToFloat(d)) : uintBitsToFloat(d);
   float z = uP32 / (centre * 2.0 - 1.0 + uP22);
   float tau = uEdgeTau * log(2.0) * abs(uP32) / (2.0 * z);
   // Sums over the inliers at offsets (x, y) of 1, x, y, xx, xy, yy, v, xv, yv, with v the window
-  // depth relative to the centre's (exact in float, so the small differences keep their bits).
+  // depth relative to the reference (exact in float, so the small differences keep their bits).
   float n = 0.0, sx = 0.0, sy = 0.0, sxx = 0.0, sxy = 0.0, syy = 0.0, sv = 0.0, sxv = 0.0,
         syv = 0.0;
   ivec2 lo = max(p - r, ivec2(0)) - p, hi = min(p + r, uSize - 1) - p;
@@ -110,7 +144,7 @@ float denoise(ivec2 p, uint d) {
       syv += y * v;
     }
   }
-  float value = centre + sv / n;  // n >= 1: the centre is its own inlier
+  float value = centre + sv / n;  // n >= 1: the reference is one of the window's depths
   if (uPlaneFit != 0 && n >= 6.0) {
     // v = a + b x + c y by least squares: the normal equations, a by Cramer's rule.
     float det =

@@ -66,6 +66,7 @@ double EdlPass::run(FrameTarget& target, const EdlOptions& options, const glm::d
   mProgram.set("uFilterRadius", options.filter_radius);
   mProgram.set("uEdgeTau", float(std::log2(1.0 + double(options.edge_slope) * pixel_angle)));
   mProgram.set("uPlaneFit", options.plane_fit ? 1 : 0);
+  mProgram.set("uMedian", options.median_reference ? 1 : 0);
   for (int stage = 0; stage < 2; ++stage) {
     mProgram.set("uStage", stage);
     dispatchPixels(target);

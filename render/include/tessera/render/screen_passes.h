@@ -49,6 +49,9 @@ struct EdlOptions {
   /// fit still takes as one surface across a window; steeper or a depth step: an edge.
   float edge_slope = 4.0f;
   bool plane_fit = true;  ///< false: the mean of the window's same-surface pixels
+  /// Same surface as the 3x3 median of depths (true) or as the pixel itself (false: a lone
+  /// sample of a layer behind keeps its depth and shades dark).
+  bool median_reference = true;
 
   /// The method before issue 12: kClassic at radius 1.
   static EdlOptions classic() {
