@@ -159,7 +159,7 @@ RenderOptions SceneDrawList::options(const sync::SceneGraph& graph, float splat_
   RenderOptions o;
   o.lod_pixels = s.lod_pixels();
   o.background = glm::vec3(s.background().r(), s.background().g(), s.background().b());
-  o.edl_strength = s.shading() == scene::SHADING_EDL ? 1.0f : 0.0f;
+  o.edl.strength = s.shading() == scene::SHADING_EDL ? 1.0f : 0.0f;
   o.splat_scale = splat_scale;
   o.spbr.ensembles = std::max<uint32_t>(1, s.spbr_ensembles());
   return o;

@@ -126,7 +126,7 @@ void ViewRenderer::draw(std::span<const ModelInstance> models, const ViewSetup& 
     st.depth_ms = t.depth_ms;
     st.color_ms = t.color_ms;
     st.resolve_ms = mResolve.run(mTarget, options.background, shading.uniform_color, shading.blend);
-    st.screen_ms = mEdl.run(mTarget, {options.edl_strength, options.edl_radius}, view.projection);
+    st.screen_ms = mEdl.run(mTarget, options.edl, view.projection);
   }
   if (overlay && !overlay->empty()) {
     if (!mOverlay) mOverlay = std::make_unique<OverlayPass>();

@@ -156,7 +156,7 @@ int main(int argc, char** argv) {
   std::string wall_path, tile_name, size = "1280x720", scene_path, camera, background, stats_path,
                                     out;
   std::vector<std::string> models;
-  bool mosaic = false, whole = false, edl = false, window = false;
+  bool mosaic = false, whole = false, edl = false, edl_classic = false, window = false;
   int frames = 0;
   double fovy = 45.0, lod_px = 0.0, splat_scale = 2.0, budget_mb = 1024.0;
   app.add_option("--wall", wall_path, "Wall configuration (JSON)");
@@ -182,6 +182,8 @@ int main(int argc, char** argv) {
   app.add_option("--background", background, "R,G,B in [0, 1]");
   app.add_flag("--edl", edl,
                "Eye-dome lighting (shape without normals; default: the scene's shading)");
+  app.add_flag("--edl-classic", edl_classic,
+               "Eye-dome lighting from raw depths, as before issue 12 (speckles on noisy scans)");
   app.add_option("--splat-scale", splat_scale,
                  "Splat size as a multiple of the projected sample spacing (raise for LiDAR)")
       ->check(CLI::Range(0.25, 8.0))
@@ -272,7 +274,8 @@ int main(int argc, char** argv) {
     }
     if (!have_camera) cam = fitCamera(*instances.front().store);
     if (lod_px > 0) options.lod_pixels = lod_px;
-    if (edl) options.edl_strength = 1.0f;
+    if (edl) options.edl.strength = 1.0f;
+    if (edl_classic) options.edl = render::EdlOptions::classic();
     options.splat_scale = float(splat_scale);
     if (spbr_l > 0) options.spbr.ensembles = spbr_l;
     options.spbr.progressive_max = spbr_progressive;
