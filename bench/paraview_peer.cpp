@@ -10,10 +10,11 @@
 //   budget    the defaults and a point budget per view (--budget, as Potree users set one)
 // For each: the first picture (store opened cold, every chunk of the cut resident), then the
 // frame time (best and median of --frames frames: cut selection, raster, readback), the points
-// drawn and the silhouette IoU against the full render. ParaView: load (reader), first render,
-// frame time (a camera nudge and Render() with glFinish, best and median). ParaView runs only
-// when pvbatch is on PATH (Debian `paraview`; under xvfb-run without a display); otherwise its
-// rows are left out with a message.
+// drawn and the silhouette IoU against the full render. The summary's speed-up is the median
+// over rounds of each round's ParaView frame over the variant's (best frames). ParaView: load
+// (reader), first render, frame time (a camera nudge and Render() with glFinish, best and median).
+// ParaView runs only when pvbatch is on PATH (Debian `paraview`; under xvfb-run without a display);
+// otherwise its rows are left out with a message.
 //
 // Prints CSV; writes OUT/paraview_peer.csv (every run), OUT/paraview_peer_summary.csv (medians
 // over rounds) and OUT/paraview_peer.png (gnuplot). Inputs are generated once into OUT/inputs:
@@ -149,7 +150,9 @@ size_t coveredPixels(const render::Image& a) {
 
 double median(std::vector<double> v) {
   std::sort(v.begin(), v.end());
-  return v.empty() ? 0.0 : v[v.size() / 2];
+  if (v.empty()) return 0.0;
+  const size_t m = v.size() / 2;
+  return v.size() % 2 ? v[m] : 0.5 * (v[m - 1] + v[m]);
 }
 
 struct Run {
@@ -396,11 +399,20 @@ int main(int argc, char** argv) {
         return median(x);
       };
       const double pv_ms = med("paraview", 0);
+      // The speed-up of each round's interleaved pair, then their median: the machine's load
+      // changes between rounds, less within one.
+      auto speedup = [&](const std::string& v) {
+        const auto& pv = all[{n, "paraview"}];
+        const auto& t = all[{n, v}];
+        std::vector<double> x;
+        for (size_t i = 0; i < pv.size() && i < t.size(); ++i) x.push_back(pv[i][0] / t[i][0]);
+        return median(x);
+      };
       for (const char* v : {"paraview", "full", "coverage", "budget"}) {
         if (all[{n, v}].empty()) continue;
         char line[256];
         std::snprintf(line, sizeof line, "%llu,%s,%.0f,%.1f,%.4f,%.2f", (unsigned long long)n, v,
-                      med(v, 1), med(v, 0), med(v, 2), pv_ms > 0 ? pv_ms / med(v, 0) : 0.0);
+                      med(v, 1), med(v, 0), med(v, 2), speedup(v));
         sum << line << "\n";
         std::cout << line << "\n";
       }

@@ -131,11 +131,25 @@ struct Selection {
     const double d = glm::length(eye - nearest) * unit;
     const double px =
         d > 0 ? double(n.spacing) * unit * k / d : std::numeric_limits<double>::infinity();
-    return {id,      std::isfinite(px) ? px : std::numeric_limits<double>::max(),
-            d,       double(n.spacing) * unit,
-            n.level, parent};
+    CutNode c;
+    c.id = id;
+    c.projected_spacing_px = std::isfinite(px) ? px : std::numeric_limits<double>::max();
+    c.distance = d;
+    c.spacing = double(n.spacing) * unit;
+    c.level = n.level;
+    c.cell = n.cell;
+    c.parent = parent;
+    return c;
   }
 };
+
+/// Whether `a` names a node before `b` (level, then cell): the same in every process.
+bool namedBefore(const CutNode& a, const CutNode& b) {
+  if (a.level != b.level) return a.level < b.level;
+  if (a.cell.x != b.cell.x) return a.cell.x < b.cell.x;
+  if (a.cell.y != b.cell.y) return a.cell.y < b.cell.y;
+  return a.cell.z < b.cell.z;
+}
 
 struct Pending {
   CutNode node;
@@ -143,11 +157,12 @@ struct Pending {
 };
 
 /// The spacing test, nearest node first, with the coverage stop when asked for.
-void refineNearestFirst(const Selection& s, Cut& cut, std::unordered_set<lod::NodeId>& refined) {
+void refineNearestFirst(const Selection& s, Cut& cut, std::unordered_set<lod::NodeId>& refined,
+                        std::unordered_set<lod::NodeId>& hidden) {
   const CutOptions& o = s.options;
-  auto later = [](const Pending& a, const Pending& b) {  // heap order: nearest, then lowest id
+  auto later = [](const Pending& a, const Pending& b) {  // heap order: nearest, then by name
     return a.node.distance != b.node.distance ? a.node.distance > b.node.distance
-                                              : a.node.id > b.node.id;
+                                              : namedBefore(b.node, a.node);
   };
   std::priority_queue<Pending, std::vector<Pending>, decltype(later)> queue(later);
   auto push = [&](lod::NodeId id, int32_t parent) {
@@ -182,10 +197,15 @@ void refineNearestFirst(const Selection& s, Cut& cut, std::unordered_set<lod::No
                   cut.nodes.size() < o.max_nodes;
     ScreenRect rect;
     const bool bounded = grid && screenRect(s.clip_from_local, n.box_min, n.box_max, s.view, rect);
-    if (refine && bounded) {
-      // Hidden if what nearer cut nodes drew covers the rectangle this node's own splats reach.
-      if (grid->covered(rect.grown(s.splatRadius(e.node.projected_spacing_px)),
-                        o.coverage_layers)) {
+    if (bounded) {
+      // What nodes entirely in front drew over the rectangle this node's own splats reach.
+      const ScreenRect reach = rect.grown(s.splatRadius(e.node.projected_spacing_px));
+      if (o.coverage_hide_layers > 0 && grid->covered(reach, o.coverage_hide_layers)) {
+        ++cut.hidden;
+        hidden.insert(e.node.id);
+        continue;
+      }
+      if (refine && grid->covered(reach, o.coverage_layers)) {
         refine = false;
         ++cut.covered;
       }
@@ -214,17 +234,19 @@ void refineNearestFirst(const Selection& s, Cut& cut, std::unordered_set<lod::No
 /// Redoes the refinements of `refined` in order of projected spacing, largest first, while the
 /// cut stays within the budget; the first that does not fit ends the refinement (Potree).
 Cut refineWithinBudget(const Selection& s, const Cut& full,
-                       const std::unordered_set<lod::NodeId>& refined) {
+                       const std::unordered_set<lod::NodeId>& refined,
+                       const std::unordered_set<lod::NodeId>& hidden) {
   Cut cut;
   cut.visited = full.visited;
   cut.culled = full.culled;
   cut.pages_deferred = full.pages_deferred;
   cut.covered = full.covered;
+  cut.hidden = full.hidden;
   auto lower = [](const Pending& a, const Pending& b) {  // heap order: largest spacing first
     if (a.node.projected_spacing_px != b.node.projected_spacing_px)
       return a.node.projected_spacing_px < b.node.projected_spacing_px;
     if (a.node.distance != b.node.distance) return a.node.distance > b.node.distance;
-    return a.node.id > b.node.id;
+    return namedBefore(b.node, a.node);
   };
   std::priority_queue<Pending, std::vector<Pending>, decltype(lower)> queue(lower);
   const lod::NodeInfo root = s.store.node(s.store.root());
@@ -242,7 +264,7 @@ Cut refineWithinBudget(const Selection& s, const Cut& full,
         uint64_t points = 0;
         for (lod::NodeId c : s.store.children(e.node.id)) {
           const lod::NodeInfo n = s.store.node(c);
-          if (!s.frustum.intersects(n.box_min, n.box_max)) continue;
+          if (hidden.count(c) || !s.frustum.intersects(n.box_min, n.box_max)) continue;
           children.push_back({s.measure(c, n, int32_t(cut.above.size())), n});
           points += n.points;
         }
@@ -283,17 +305,17 @@ Cut selectCut(lod::PointStore& store, const glm::dmat4& model, const ViewSetup& 
                     std::cbrt(std::abs(glm::determinant(glm::dmat3(model)))),
                     pixelsPerUnitAtDistanceOne(view)};
   Cut cut;
-  std::unordered_set<lod::NodeId> refined;
-  refineNearestFirst(s, cut, refined);
+  std::unordered_set<lod::NodeId> refined, hidden;
+  refineNearestFirst(s, cut, refined, hidden);
   if (options.point_budget > 0 && cut.points > options.point_budget)
-    cut = refineWithinBudget(s, cut, refined);
+    cut = refineWithinBudget(s, cut, refined, hidden);
   // A node around the eye has no bound: it is always refined, and reported as 0.
   for (auto* list : {&cut.nodes, &cut.above})
     for (CutNode& n : *list)
       if (n.projected_spacing_px == std::numeric_limits<double>::max()) n.projected_spacing_px = 0;
-  // Nearest first: the order a loader should fetch them in (ties by id: the same every time).
+  // Nearest first: the order a loader should fetch them in (ties by name: the same every time).
   std::sort(cut.nodes.begin(), cut.nodes.end(), [](const CutNode& a, const CutNode& b) {
-    return a.distance != b.distance ? a.distance < b.distance : a.id < b.id;
+    return a.distance != b.distance ? a.distance < b.distance : namedBefore(a, b);
   });
   return cut;
 }

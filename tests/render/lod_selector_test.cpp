@@ -89,7 +89,8 @@ TEST_F(LodSelector, FarViewsTakeFewPointsNearViewsMore) {
   EXPECT_EQ(selectCut(*s, model, away).nodes.size(), 0u);
 }
 
-/// Every leaf in the view's frustum has exactly one cut node on its path from the root.
+/// Every leaf in the view's frustum has exactly one cut node on its path from the root (at most
+/// one where the coverage stop hid nodes).
 void expectCoversEveryVisibleLeafOnce(lod::PointStore& s, const ViewSetup& v, const Cut& cut,
                                       size_t min_leaves = 5) {
   std::set<lod::NodeId> selected;
@@ -104,8 +105,12 @@ void expectCoversEveryVisibleLeafOnce(lod::PointStore& s, const ViewSetup& v, co
     int here = above + (selected.count(id) ? 1 : 0);
     if (n.leaf()) {
       if (f.intersects(n.box_min, n.box_max)) {
-        EXPECT_EQ(here, 1) << "leaf " << id;
-        ++leaves;
+        if (cut.hidden > 0) {
+          EXPECT_LE(here, 1) << "leaf " << id;
+        } else {
+          EXPECT_EQ(here, 1) << "leaf " << id;
+        }
+        leaves += here;
       }
       continue;
     }
@@ -203,10 +208,14 @@ TEST_F(LodSelectorCube, CoverageStopThinsAVolumeButStillCoversEveryLeaf) {
   CutOptions o;
   o.coverage_stop = true;
   const Cut covered = selectCut(*s, glm::dmat4(1.0), v, o);
-  std::printf("cube, 640x480: %llu points by spacing, %llu with the coverage stop (%zu stops)\n",
-              (unsigned long long)spacing_only.points, (unsigned long long)covered.points,
-              covered.covered);
+  std::printf(
+      "cube, 640x480: %llu points by spacing, %llu with the coverage stop (%zu stops, %zu "
+      "hidden)\n",
+      (unsigned long long)spacing_only.points, (unsigned long long)covered.points, covered.covered,
+      covered.hidden);
   EXPECT_GT(covered.covered, 0u);
+  EXPECT_GT(covered.hidden, 0u);
+  EXPECT_LT(double(covered.points), 0.4 * double(spacing_only.points));  // measured 0.34
   expectCoversEveryVisibleLeafOnce(*s, v, covered);
 }
 
@@ -239,8 +248,11 @@ TEST_F(LodSelectorCube, CutIsTheSameWhateverOrderPagesArriveIn) {
     EXPECT_GT(frames, 2u);
     ASSERT_EQ(cut.nodes.size(), reference.nodes.size()) << "stride " << stride;
     EXPECT_EQ(cut.points, reference.points);
-    for (size_t i = 0; i < cut.nodes.size(); ++i)
-      EXPECT_EQ(cut.nodes[i].id, reference.nodes[i].id) << "stride " << stride << ", node " << i;
+    // Node ids are given out as pages load: compare the nodes by name (level and cell).
+    for (size_t i = 0; i < cut.nodes.size(); ++i) {
+      EXPECT_EQ(cut.nodes[i].level, reference.nodes[i].level) << "stride " << stride << ", " << i;
+      EXPECT_EQ(cut.nodes[i].cell, reference.nodes[i].cell) << "stride " << stride << ", " << i;
+    }
   }
 }
 

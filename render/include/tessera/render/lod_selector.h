@@ -10,10 +10,11 @@
 //   projected spacing (the largest screen error first) while the cut's points stay within it;
 // - a coverage stop: nodes are visited nearest first and every cut node's splats are spread over
 //   a coarse grid of screen cells; a node whose footprint lies on cells that nearer cut nodes
-//   already cover many times over is not refined (what an opaque, depth-tested render of it
-//   would show is hidden). A volume of points then keeps a few points per pixel instead of every
-//   leaf; a surface, whose layers each cover a pixel about three times, is refined as before
-//   unless several of its layers lie in front.
+//   already cover many times over is not refined (an opaque, depth-tested render shows little
+//   of it), and one behind still more layers is left out. A volume of points then keeps its
+//   front instead of every leaf; a surface, whose layers each cover a pixel about three times,
+//   is refined as before unless several of its layers lie in front. The cut then covers every
+//   visible leaf at most once (exactly once but for the hidden ones).
 // Both depend only on the store and the view, never on timing, so a settled cut is the same
 // whatever the loader did.
 #pragma once
@@ -45,6 +46,11 @@ struct CutOptions {
   /// rectangle, which underestimates them on surfaces: the conservative side. One layer of a
   /// surface at the default splat scale counts about pi; random splats leave e^-layers open.
   double coverage_layers = 8.0;
+  /// A node whose reach lies on cells covered this many times over is left out of the cut
+  /// (hidden: no point of it would win a pixel); 0 keeps every node. Set well above
+  /// coverage_layers, so only what lies behind many layers (the inside of a volume) goes: at 8
+  /// the 10^7-point bunny scan loses 0.1 dB against the full render, at 16 and above nothing.
+  double coverage_hide_layers = 16.0;
   uint32_t coverage_cell_px = 8;  ///< side of a grid cell, pixels
   /// Splat radius as a multiple of the projected spacing (RenderOptions::splat_scale / 2) and
   /// its cap in pixels: a node is only stopped when its rectangle grown by its own splat radius
@@ -64,11 +70,14 @@ struct CutNode {
   double distance = 0.0;              ///< from the eye to the box, world units (load priority)
   double spacing = 0.0;               ///< the node's sample spacing, world units
   uint8_t level = 0;
+  /// Octree cell at `level`: with it, the node's name whatever order pages loaded in (ids are
+  /// given out as pages load), so ties are broken by it.
+  glm::u32vec3 cell{0};
   int32_t parent = -1;  ///< index of the parent in Cut::above, -1 for the root
 };
 
 struct Cut {
-  std::vector<CutNode> nodes;  ///< the cut, nearest first
+  std::vector<CutNode> nodes;  ///< the cut, nearest first (ties: level, then cell)
   /// Every refined node (an ancestor of cut nodes), parents before children: what a streaming
   /// renderer draws instead of a cut node whose chunk is not resident yet.
   std::vector<CutNode> above;
@@ -77,6 +86,7 @@ struct Cut {
   size_t culled = 0;          ///< nodes outside the frustum
   size_t pages_deferred = 0;  ///< refinements stopped because may_load_children said no
   size_t covered = 0;         ///< refinements stopped by the coverage stop
+  size_t hidden = 0;          ///< nodes left out by the coverage stop (coverage_hide_layers)
   size_t over_budget = 0;     ///< refinements left out to stay within the point budget
 };
 
