@@ -285,12 +285,12 @@ void chart(const fs::path& out) {
     << "set title 'Frame time, random points in a cube, 1920x1080 (llvmpipe, 2 cores)'\n"
     << "set style data histograms\nset style histogram clustered gap 1\n"
     << "set style fill solid 0.85 border -1\nset logscale y\nset ylabel 'ms per frame (log)'\n"
-    << "set grid ytics\nset key top left\nset yrange [1:*]\n"
+    << "set grid ytics\nset key top left\nset yrange [10:1e6]\n"
     << "plot '" << (out / "paraview_peer_chart.csv").string()
     << "' using 2:xtic(1) title 'ParaView 5.11, 1 px points', '' using 3 title 'Tessera, every "
        "leaf', '' using 4 title 'Tessera, coverage stop (default)', '' using 5 title 'Tessera, "
        "coverage stop + point budget'\n"
-    << "set title 'Points drawn per frame'\nset ylabel 'points (log)'\nset yrange [1e5:*]\n"
+    << "set title 'Points drawn per frame'\nset ylabel 'points (log)'\nset yrange [1e5:1e9]\n"
     << "plot '" << (out / "paraview_peer_chart.csv").string()
     << "' using 6:xtic(1) title 'ParaView and Tessera every leaf', '' using 7 title 'Tessera, "
        "coverage stop', '' using 8 title 'Tessera, coverage stop + budget'\n"
