@@ -6,11 +6,13 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <memory>
 #include <string>
 
 #include <CLI/CLI.hpp>
 
 #include <tessera/lod/mesh.h>
+#include <tessera/lod/point_store.h>
 #include <tessera/lod/store_builder.h>
 #include <tessera/lod/virtual_scanner.h>
 

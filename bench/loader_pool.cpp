@@ -128,7 +128,7 @@ int main(int argc, char** argv) {
     auto ctx = render::GlContext::createHeadless();
     const render::ViewSetup view = bench::bigBunnyView();
     render::RenderOptions options;
-    options.edl_strength = 1.0f;
+    options.edl.strength = 1.0f;
     options.lod_pixels = lod_px;
 
     std::ofstream csv(fs::path(out) / "loader_pool.csv");

@@ -22,6 +22,7 @@
 #include <tessera/sync/config.h>
 
 #include <tessera/core/stopwatch.h>
+#include "bench_images.h"
 #include "bench_inputs.h"
 #include "bench_views.h"
 
@@ -30,30 +31,6 @@ namespace {
 using namespace tessera;
 namespace fs = std::filesystem;
 using Clock = std::chrono::steady_clock;
-
-/// PSNR of the RGB channels; with `box` > 1, of the images averaged over box x box blocks
-/// first (what a viewer a few metres from the wall resolves; the scan's sub-millimetre noise
-/// makes eye-dome lighting speckle pixel by pixel, which the raw PSNR counts as error).
-double psnr(const render::Image& a, const render::Image& b, uint32_t box = 1) {
-  double se = 0;
-  size_t n = 0;
-  for (uint32_t y = 0; y + box <= a.height; y += box)
-    for (uint32_t x = 0; x + box <= a.width; x += box)
-      for (int c = 0; c < 3; ++c) {
-        double sa = 0, sb = 0;
-        for (uint32_t dy = 0; dy < box; ++dy)
-          for (uint32_t dx = 0; dx < box; ++dx) {
-            const size_t i = (size_t(y + dy) * a.width + x + dx) * 4 + size_t(c);
-            sa += a.rgba[i];
-            sb += b.rgba[i];
-          }
-        const double d = (sa - sb) / double(box * box);
-        se += d * d;
-        ++n;
-      }
-  const double mse = se / double(n);
-  return mse > 0 ? 10.0 * std::log10(255.0 * 255.0 / mse) : 99.0;
-}
 
 struct Measure {
   render::Image image;
@@ -98,14 +75,12 @@ int main(int argc, char** argv) {
     const std::string store_path = in.storePath();
     auto store = lod::PointStore::open(store_path);
     const uint64_t store_bytes = store->summary().file_bytes;
-    std::fprintf(stderr, "render_lod: %s, %llu points, %.1f MB\n", store_path.c_str(),
-                 (unsigned long long)store->summary().points, store_bytes / 1e6);
     auto ctx = render::GlContext::createHeadless();
     render::ModelInstance inst{store.get(), render::storeModel(*store)};
     const config::Camera cam = bench::bigBunnyCamera();
     const render::ViewSetup view = bench::bigBunnyView();
     render::RenderOptions options;
-    options.edl_strength = 1.0f;
+    options.edl.strength = 1.0f;
     const uint64_t big_budget = 8ull << 30;
 
     std::fprintf(stderr, "render_lod: full-resolution reference (every leaf)...\n");
@@ -135,7 +110,7 @@ int main(int argc, char** argv) {
       const Measure m = measure({&inst, 1}, view, o, big_budget, repeats);
       char name[32];
       std::snprintf(name, sizeof name, "%g", lod);
-      row(name, m, psnr(m.image, ref.image), psnr(m.image, ref.image, 4));
+      row(name, m, bench::psnr(m.image, ref.image), bench::psnr(m.image, ref.image, 4));
       render::writePng((fs::path(out) / ("render_lod-" + std::string(name) + ".png")).string(),
                        m.image);
     }

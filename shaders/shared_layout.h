@@ -18,6 +18,12 @@
 #define TESSERA_BINDING_PICK 8     // uint per pixel: the nearest element's frame-wide pick id
 #define TESSERA_BINDING_TARGET_DEPTH 9  // the frame target's depth (see-through: nearest copy)
 #define TESSERA_BINDING_OVERLAY 10      // overlay primitives (overlay_pass.h)
+#define TESSERA_BINDING_COLOR_SUMS 11   // uvec4 per pixel: weighted r, g, b sums and weight
+#define TESSERA_BINDING_SCREEN_SCRATCH 12  // float per pixel: a screen pass's own plane (EDL)
+
+// Eye-dome lighting (shaders/edl.comp, EdlOptions::filter_radius): the largest fitted window's
+// half-width, pixels.
+#define TESSERA_EDL_MAX_FILTER_RADIUS 4
 
 // A point as the GPU reads it: 16 bytes, position relative to its batch's node box (metres,
 // float), rgba with r in the low byte. C++: render::GpuPoint.

@@ -19,7 +19,7 @@ namespace tessera::render {
 namespace {
 
 struct Key {
-  const lod::PointStore* store;
+  const lod::LodHierarchy* store;
   lod::NodeId node;
   bool operator==(const Key&) const = default;
 };
@@ -31,7 +31,8 @@ struct KeyHash {
 };
 
 struct Item {
-  lod::PointStore* store;
+  lod::LodHierarchy* store;  ///< pages: any hierarchy; chunks: `points`
+  lod::PointStore* points;   ///< the point store whose chunk this is (null for pages)
   lod::NodeId node;
   bool page;     ///< a hierarchy page (the node's children), not a chunk
   bool measure;  ///< a chunk for see-through drawing: density and what StreamerOptions asks
@@ -140,10 +141,10 @@ struct ChunkStreamer::Impl {
       return out;
     }
     try {
-      auto chunk = item.store->decodeChunk(item.node);
+      auto chunk = item.points->decodeChunk(item.node);
       out.disk_bytes = item.store->chunkBytes(item.node);
       out.spacing = item.store->node(item.node).spacing;
-      if (item.measure) measure(*item.store, item.node, chunk->positions, out);
+      if (item.measure) measure(*item.points, item.node, chunk->positions, out);
       out.offset = chunk->offset;
       out.points.resize(chunk->size());
       const bool color = !chunk->colors.empty();
@@ -201,7 +202,7 @@ ChunkStreamer::ChunkStreamer(const StreamerOptions& options) : mImpl(std::make_u
   mStats.budget_bytes = options.budget_bytes;
   uint32_t threads = options.loader_threads;
   if (threads == 0) threads = std::max(1u, std::thread::hardware_concurrency());
-  mImpl->flight.assign(threads, Item{nullptr, lod::kNoNode, false, false, 0, 0.0});
+  mImpl->flight.assign(threads, Item{nullptr, nullptr, lod::kNoNode, false, false, 0, 0.0});
   for (size_t i = 0; i < threads; ++i)
     mImpl->loaders.emplace_back([impl = mImpl.get(), i] { impl->run(i); });
 }
@@ -280,7 +281,8 @@ void ChunkStreamer::beginFrame() {
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
 }
 
-const GpuChunk* ChunkStreamer::find(const lod::PointStore& store, lod::NodeId node, ChunkUse use) {
+const GpuChunk* ChunkStreamer::find(const lod::LodHierarchy& store, lod::NodeId node,
+                                    ChunkUse use) {
   auto it = mImpl->resident.find({&store, node});
   if (it == mImpl->resident.end()) return nullptr;
   if (use == ChunkUse::kSeeThrough && !it->second.measured) return nullptr;
@@ -301,19 +303,19 @@ void ChunkStreamer::request(lod::PointStore& store, lod::NodeId node, uint8_t le
     s.wanted[it->second].measure |= measure;  // one view opaque, another see-through
     return;
   }
-  s.wanted.push_back({&store, node, false, measure, level, distance});
+  s.wanted.push_back({&store, &store, node, false, measure, level, distance});
   ++mStats.requested;
 }
 
-void ChunkStreamer::requestChildren(lod::PointStore& store, lod::NodeId node) {
+void ChunkStreamer::requestChildren(lod::LodHierarchy& store, lod::NodeId node) {
   Impl& s = *mImpl;
   const Key k{&store, node};
   if (s.failed_pages.count(k) || !s.wanted_pages.insert(k).second) return;
-  s.wanted.push_back({&store, node, true, false, 0, 0.0});
+  s.wanted.push_back({&store, nullptr, node, true, false, 0, 0.0});
   ++mStats.pages_requested;
 }
 
-bool ChunkStreamer::failed(const lod::PointStore& store, lod::NodeId node) const {
+bool ChunkStreamer::failed(const lod::LodHierarchy& store, lod::NodeId node) const {
   return mImpl->failed.count({&store, node}) != 0;
 }
 
@@ -359,7 +361,7 @@ void ChunkStreamer::pauseLoader(bool paused) {
   mImpl->idle.notify_all();
 }
 
-void ChunkStreamer::forget(const lod::PointStore& store) {
+void ChunkStreamer::forget(const lod::LodHierarchy& store) {
   Impl& s = *mImpl;
   {
     std::unique_lock lock(s.mutex);

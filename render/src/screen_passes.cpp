@@ -1,11 +1,17 @@
 #include <tessera/render/screen_passes.h>
 
+#include <cmath>
+
+#include <tessera/core/check.h>
+
 #include "gpu_lap.h"
 #include "shaders.h"
 #include "shared_layout.h"
 
 namespace tessera::render {
 namespace {
+
+static_assert(kEdlMaxFilterRadius == TESSERA_EDL_MAX_FILTER_RADIUS);
 
 void dispatchPixels(const FrameTarget& target) {
   glDispatchCompute((target.width() + 15) / 16, (target.height() + 15) / 16, 1);
@@ -17,7 +23,8 @@ void dispatchPixels(const FrameTarget& target) {
 
 ResolvePass::ResolvePass() : mProgram(GlProgram::compute(shaders::kResolve, "resolve.comp")) {}
 
-double ResolvePass::run(FrameTarget& target, const glm::vec3& background, uint32_t uniform_color) {
+double ResolvePass::run(FrameTarget& target, const glm::vec3& background, uint32_t uniform_color,
+                        bool blended) {
   GpuLap lap;
   mProgram.use();
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_DEPTH, target.depth().name());
@@ -27,6 +34,10 @@ double ResolvePass::run(FrameTarget& target, const glm::vec3& background, uint32
   const glm::uvec3 bg = glm::uvec3(glm::clamp(background, 0.0f, 1.0f) * 255.0f + 0.5f);
   mProgram.set("uBackground", bg.r | bg.g << 8 | bg.b << 16 | 0xFF000000u);
   mProgram.set("uUniformColor", uniform_color);
+  mProgram.set("uBlended", blended ? 1 : 0);
+  if (blended)
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_COLOR_SUMS,
+                     target.colorSums().name());
   dispatchPixels(target);
   return lap();
 }
@@ -35,6 +46,9 @@ EdlPass::EdlPass() : mProgram(GlProgram::compute(shaders::kEdl, "edl.comp")) {}
 
 double EdlPass::run(FrameTarget& target, const EdlOptions& options, const glm::dmat4& projection) {
   if (options.strength <= 0.0f) return 0.0;
+  TESSERA_CHECK(options.radius >= 1, "render::EdlPass: the neighbour radius must be at least 1");
+  TESSERA_CHECK(options.filter_radius >= 0 && options.filter_radius <= kEdlMaxFilterRadius,
+                "render::EdlPass: filter_radius must be in [0, kEdlMaxFilterRadius]");
   GpuLap lap;
   mProgram.use();
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_DEPTH, target.depth().name());
@@ -44,7 +58,24 @@ double EdlPass::run(FrameTarget& target, const EdlOptions& options, const glm::d
   mProgram.set("uEdlRadius", options.radius);
   mProgram.set("uP22", float(projection[2][2]));
   mProgram.set("uP32", float(projection[3][2]));
-  dispatchPixels(target);
+  if (options.method == EdlMethod::kClassic) {
+    mProgram.set("uStage", 2);
+    dispatchPixels(target);
+    return lap();
+  }
+  if (mFiltered.bytes() != target.pixels() * 4) mFiltered = GlBuffer(target.pixels() * 4, nullptr);
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_SCREEN_SCRATCH, mFiltered.name());
+  // One pixel's angle at the view centre (radians): the projection maps tan(angle) to
+  // NDC y by projection[1][1], and NDC y spans 2 over the height.
+  const double pixel_angle = 2.0 / (projection[1][1] * target.height());
+  mProgram.set("uFilterRadius", options.filter_radius);
+  mProgram.set("uEdgeTau", float(std::log2(1.0 + double(options.edge_slope) * pixel_angle)));
+  mProgram.set("uPlaneFit", options.plane_fit ? 1 : 0);
+  mProgram.set("uMedian", options.median_reference ? 1 : 0);
+  for (int stage = 0; stage < 2; ++stage) {
+    mProgram.set("uStage", stage);
+    dispatchPixels(target);
+  }
   return lap();
 }
 

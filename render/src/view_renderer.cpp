@@ -119,12 +119,14 @@ void ViewRenderer::draw(std::span<const ModelInstance> models, const ViewSetup& 
     drawSeeThrough(models, view, options, batches, shading, st);
   } else {
     mSpbrSignature = 0;
-    mTarget.clearGeometry(pick);
+    shading.blend = options.blend_colors && shading.uniform_color == 0;
+    shading.projection = view.projection;
+    mTarget.clearGeometry(pick, shading.blend);
     const PassTimings t = mPoints.draw(mTarget, batches, shading);
     st.depth_ms = t.depth_ms;
     st.color_ms = t.color_ms;
-    st.resolve_ms = mResolve.run(mTarget, options.background, shading.uniform_color);
-    st.screen_ms = mEdl.run(mTarget, {options.edl_strength, options.edl_radius}, view.projection);
+    st.resolve_ms = mResolve.run(mTarget, options.background, shading.uniform_color, shading.blend);
+    st.screen_ms = mEdl.run(mTarget, options.edl, view.projection);
   }
   if (overlay && !overlay->empty()) {
     if (!mOverlay) mOverlay = std::make_unique<OverlayPass>();
@@ -274,6 +276,7 @@ void ViewRenderer::addModel(const ModelInstance& instance, bool see_through, con
     b.clip_from_local = glm::mat4(clip_from_world * world_from_local);
     b.spacing_k = float(n.spacing * k * options.splat_scale);
     b.splat_radius = options.max_splat_radius;
+    b.blend_depth = float(n.spacing * unit * options.splat_scale);
     if (instance.color != glm::u8vec3(0) && (store.summary().attributes & lod::kColor) == 0)
       b.color_override = 0x1000000u | packRgb(instance.color);
     if (see_through) {

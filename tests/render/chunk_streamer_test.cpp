@@ -35,7 +35,7 @@ class ChunkStreamerTest : public test::BunnyStoreTest {
   static RenderOptions fullResolution() {
     RenderOptions o;
     o.lod_pixels = 0.25;  // every leaf of the small bunny
-    o.edl_strength = 1.0f;
+    o.edl.strength = 1.0f;
     return o;
   }
   static RenderOptions seeThrough() {

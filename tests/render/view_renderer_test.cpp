@@ -126,7 +126,7 @@ TEST_F(ViewRendererTest, FarViewAtOnePixelDrawsFewPointsAndLooksLikeFullResoluti
   ModelInstance inst{s.get(), storeModel(*s)};
   ViewRenderer r(v.width, v.height);
   RenderOptions lod1;
-  lod1.edl_strength = 1.0f;
+  lod1.edl.strength = 1.0f;
   RenderOptions full = lod1;
   full.lod_pixels = 1e-6;  // every leaf: the full-resolution reference
   RenderStats st1, stf;
@@ -146,7 +146,7 @@ TEST_F(ViewRendererTest, FarViewAtOnePixelDrawsFewPointsAndLooksLikeFullResoluti
   std::printf("far view at 1 px: %llu of %llu points (%.1f%%), PSNR %.1f dB to full resolution\n",
               (unsigned long long)st1.points, (unsigned long long)stf.points,
               100.0 * st1.points / stf.points, psnr);
-  EXPECT_GE(psnr, 37.0);  // measured 40.2 dB with 1.7% of the points
+  EXPECT_GE(psnr, 37.0);  // measured 46.7 dB with 1.7% of the points (classic EDL: 40.2)
 }
 
 TEST_F(ViewRendererTest, ColdAndWarmRendersAreIdentical) {

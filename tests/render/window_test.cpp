@@ -41,7 +41,7 @@ TEST(Window, ShowsTheRenderersPixelsAndMatchesHeadless) {
   v.height = 240;
   v.eye_world = {-0.02, 0.11, 0.35};
   RenderOptions opt;
-  opt.edl_strength = 1.0f;
+  opt.edl.strength = 1.0f;
 
   Image windowed;
   {

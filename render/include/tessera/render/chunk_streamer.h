@@ -107,7 +107,7 @@ class ChunkStreamer {
   void beginFrame();
   /// The resident chunk of a node, marked used this frame; null when not resident, or, for
   /// ChunkUse::kSeeThrough, resident without its measurements (request() it again).
-  const GpuChunk* find(const lod::PointStore& store, lod::NodeId node,
+  const GpuChunk* find(const lod::LodHierarchy& store, lod::NodeId node,
                        ChunkUse use = ChunkUse::kOpaque);
   /// Asks for a missing chunk. Priority: lower levels first, then nearer (`distance`).
   /// Ignored for chunks already resident (for kSeeThrough: resident with measurements), failed,
@@ -115,9 +115,9 @@ class ChunkStreamer {
   void request(lod::PointStore& store, lod::NodeId node, uint8_t level, double distance,
                ChunkUse use = ChunkUse::kOpaque);
   /// Asks the loader to read the hierarchy page holding `node`'s children (ahead of chunks).
-  void requestChildren(lod::PointStore& store, lod::NodeId node);
+  void requestChildren(lod::LodHierarchy& store, lod::NodeId node);
   /// Whether a chunk failed to load (corrupt): the renderer draws an ancestor instead.
-  bool failed(const lod::PointStore& store, lod::NodeId node) const;
+  bool failed(const lod::LodHierarchy& store, lod::NodeId node) const;
   /// Hands this frame's requests to the loader, replacing earlier ones.
   void endFrame();
 
@@ -130,7 +130,7 @@ class ChunkStreamer {
   /// Drops every chunk of a store (before it is closed): removes its queued items, waits for
   /// every item of it in flight on any loader thread, discards what they produced and frees its
   /// resident chunks. After it returns no loader thread touches the store.
-  void forget(const lod::PointStore& store);
+  void forget(const lod::LodHierarchy& store);
   /// Loader threads (StreamerOptions::loader_threads resolved).
   uint32_t loaderThreads() const;
   /// Items the loader threads are working on at this moment (tests, tools).

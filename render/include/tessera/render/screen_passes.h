@@ -19,20 +19,58 @@ namespace tessera::render {
 class ResolvePass {
  public:
   ResolvePass();
-  double run(FrameTarget& target, const glm::vec3& background, uint32_t uniform_color);
+  /// `blended`: colours are the means of the target's colour sums (PointShading::blend).
+  double run(FrameTarget& target, const glm::vec3& background, uint32_t uniform_color,
+             bool blended = false);
 
  private:
   GlProgram mProgram;
 };
 
+/// EdlOptions::filter_radius's largest value (TESSERA_EDL_MAX_FILTER_RADIUS in
+/// shaders/shared_layout.h).
+constexpr int kEdlMaxFilterRadius = 4;
+
+enum class EdlMethod {
+  /// Today's (Potree's) form: raw depths, the sum over the 8 neighbours divided by 8. Speckles
+  /// on scans with range noise; kept as the baseline (bench/edl.cpp).
+  kClassic,
+  /// The same shade from a denoised depth: a plane fitted to each pixel's window of log depths,
+  /// same-surface pixels only; the obscurance normalised by the neighbours with a point.
+  kRobust,
+};
+
 struct EdlOptions {
   float strength = 1.0f;  ///< 0: off
-  int radius = 1;         ///< neighbour distance, pixels
+  int radius = 2;         ///< neighbour distance, pixels (kRobust: the strength is divided by it)
+  EdlMethod method = EdlMethod::kRobust;
+  // kRobust only:
+  /// The fitted window is (2 r + 1)^2 pixels (0: raw depth), r <= kEdlMaxFilterRadius.
+  int filter_radius = 2;
+  /// The steepest surface slope (tan of the angle between its normal and the view ray) that the
+  /// fit still takes as one surface across a window; steeper or a depth step: an edge.
+  float edge_slope = 4.0f;
+  bool plane_fit = true;  ///< false: the mean of the window's same-surface pixels
+  /// Same surface as the 3x3 median of depths (true) or as the pixel itself (false: a lone
+  /// sample of a layer behind keeps its depth and shades dark).
+  bool median_reference = true;
+
+  /// The method before issue 12: kClassic at radius 1.
+  static EdlOptions classic() {
+    EdlOptions o;
+    o.radius = 1;
+    o.method = EdlMethod::kClassic;
+    return o;
+  }
 };
 
 /// Eye-dome lighting (Boucheny 2009): multiplies each covered pixel of the image by a shade from
 /// the log-depth differences to its 8 neighbours at `radius`. `projection` is the one the depth
-/// was written with (for linear depth). Milliseconds. Cost: 9 depth reads a pixel.
+/// was written with (for linear depth and the pixel angle). Milliseconds.
+/// Cost: kClassic one pass over the pixels, 9 depth reads and logarithms a pixel; kRobust two
+/// passes, a plane fit over (2 filter_radius + 1)^2 depth reads and logarithms a pixel, then 9
+/// reads of the denoised plane (a float plane of its own, 4 bytes a pixel, reallocated when the
+/// target's size changes). On llvmpipe at 1920x1080 each pass costs about 75 ms before any work.
 class EdlPass {
  public:
   EdlPass();
@@ -40,6 +78,7 @@ class EdlPass {
 
  private:
   GlProgram mProgram;
+  GlBuffer mFiltered;  ///< kRobust: denoised log2 depth per pixel
 };
 
 }  // namespace tessera::render

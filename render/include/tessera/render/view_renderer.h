@@ -36,8 +36,8 @@ struct RenderOptions {
   double lod_pixels = 1.0;
   glm::vec3 background{0.0f};
   glm::u8vec3 default_color{200, 200, 200};  ///< for stores without colour (all must agree)
-  float edl_strength = 0.0f;                 ///< eye-dome lighting (0: off, 1: usual)
-  int edl_radius = 1;                        ///< EDL neighbour distance, pixels
+  /// Eye-dome lighting (screen_passes.h): off unless edl.strength is set (1: usual).
+  EdlOptions edl{.strength = 0.0f};
   /// Splat diameter as a multiple of the node's projected mean sample spacing (the mean nearest-
   /// neighbour distance). At 1 random samples leave 20% of a surface open; 2 closes them and
   /// LiDAR scan lines (tests/render/view_renderer_test.cpp measures it).
@@ -49,6 +49,10 @@ struct RenderOptions {
   /// Write pick ids for opaque frames, so pick() names the model and point under a pixel. Costs
   /// one more atomic per covered pixel, and the colour pass when all points have one colour.
   bool pick_ids = false;
+  /// Colour points: blend the colours of all points within a splat's depth of the nearest on
+  /// each pixel (high-quality splatting, as Potree's) instead of the nearest point's colour:
+  /// smooth, alias-free colour for 4 atomics per point and pixel more.
+  bool blend_colors = false;
 };
 
 /// One frame. `nodes`..`points` describe what was drawn.
