@@ -8,6 +8,8 @@
 #include <filesystem>
 #include <string>
 
+#include <CLI/CLI.hpp>
+
 #include <tessera/lod/mesh.h>
 #include <tessera/lod/store_builder.h>
 #include <tessera/lod/virtual_scanner.h>
@@ -62,5 +64,24 @@ inline std::filesystem::path bigBunnyStore(const std::filesystem::path& out, uin
   }
   return store;
 }
+
+/// The inputs of a benchmark on one store: --out (results and generated inputs), --store (a
+/// .tlod of the user's), --points (of the virtual bunny scan, when no store is named).
+struct StoreInputs {
+  std::string out = TESSERA_BENCH_RESULTS_DIR;
+  std::string store;
+  uint64_t points = 100'000'000;
+
+  void addOptions(CLI::App& app) {
+    app.add_option("--out", out, "Folder for inputs, CSV and chart")->capture_default_str();
+    app.add_option("--store", store, "A .tlod to use (default: the virtual bunny scan)");
+    app.add_option("--points", points, "Points of the virtual bunny scan")->capture_default_str();
+  }
+  /// Creates `out`; the store named, or bigBunnyStore(`points`) (built on first use).
+  std::string storePath() const {
+    std::filesystem::create_directories(out);
+    return store.empty() ? bigBunnyStore(out, points, TESSERA_DATA_DIR).string() : store;
+  }
+};
 
 }  // namespace tessera::bench

@@ -23,6 +23,7 @@
 
 #include <tessera/core/stopwatch.h>
 #include "bench_inputs.h"
+#include "bench_views.h"
 
 namespace {
 
@@ -79,50 +80,30 @@ Measure measure(std::span<const render::ModelInstance> models, const render::Vie
   return m;
 }
 
-config::Camera bunnyCamera() {
-  config::Camera c;
-  c.mutable_eye()->set_x(-0.02);
-  c.mutable_eye()->set_y(0.13);
-  c.mutable_eye()->set_z(0.26);
-  c.mutable_target()->set_x(-0.02);
-  c.mutable_target()->set_y(0.1);
-  c.mutable_up()->set_y(1);
-  return c;
-}
-
 }  // namespace
 
 int main(int argc, char** argv) {
   CLI::App app{"render_lod: frame time against PSNR for LOD thresholds; per-tile cost of a wall"};
-  std::string out = TESSERA_BENCH_RESULTS_DIR, store_path,
-              wall_path = TESSERA_CONFIG_DIR "/walls/2x2.json";
-  uint64_t points = 100'000'000;
+  bench::StoreInputs in;
+  std::string wall_path = TESSERA_CONFIG_DIR "/walls/2x2.json";
   int repeats = 3;
-  app.add_option("--out", out, "Folder for inputs, CSV and chart")->capture_default_str();
-  app.add_option("--store", store_path, "A .tlod to use (default: the virtual bunny scan)");
-  app.add_option("--points", points, "Points of the virtual bunny scan")->capture_default_str();
+  in.addOptions(app);
   app.add_option("--wall", wall_path, "Wall for the per-tile part")->capture_default_str();
   app.add_option("--repeats", repeats, "Timed frames per measure (best kept)")
       ->check(CLI::PositiveNumber)
       ->capture_default_str();
   CLI11_PARSE(app, argc, argv);
+  const std::string& out = in.out;
   try {
-    fs::create_directories(out);
-    if (store_path.empty())
-      store_path = bench::bigBunnyStore(fs::path(out), points, TESSERA_DATA_DIR).string();
+    const std::string store_path = in.storePath();
     auto store = lod::PointStore::open(store_path);
     const uint64_t store_bytes = store->summary().file_bytes;
     std::fprintf(stderr, "render_lod: %s, %llu points, %.1f MB\n", store_path.c_str(),
                  (unsigned long long)store->summary().points, store_bytes / 1e6);
     auto ctx = render::GlContext::createHeadless();
     render::ModelInstance inst{store.get(), render::storeModel(*store)};
-    const config::Camera cam = bunnyCamera();
-    render::ViewSetup view;
-    view.view = render::cameraView(cam);
-    view.projection = glm::perspective(glm::radians(45.0), 1920.0 / 1080.0, 0.01, 2.0);
-    view.width = 1920;
-    view.height = 1080;
-    view.eye_world = glm::dvec3(cam.eye().x(), cam.eye().y(), cam.eye().z());
+    const config::Camera cam = bench::bigBunnyCamera();
+    const render::ViewSetup view = bench::bigBunnyView();
     render::RenderOptions options;
     options.edl_strength = 1.0f;
     const uint64_t big_budget = 8ull << 30;

@@ -1,8 +1,8 @@
 // render_points: the point pass against its baselines, in one run, on one context, with the same
 // resident points at 1920x1080 (issue 4): (a) bare GL_POINTS into a depth-tested framebuffer,
 // (b) a bare compute atomicMin scatter (one pass, one pixel per point), (c) the renderer's point
-// pass (PointRasterizer: depth pass, id pass, resolve). Points come from a .tlod store's leaves.
-// Prints CSV, writes OUT/render_points.csv and OUT/render_points.png.
+// pass (PointPass: depth pass, colour pass; then ResolvePass). Points come from a .tlod store's
+// leaves. Prints CSV, writes OUT/render_points.csv and OUT/render_points.png.
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
@@ -17,46 +17,27 @@
 
 #include <tessera/lod/point_store.h>
 #include <tessera/render/gl_context.h>
-#include <tessera/render/point_rasterizer.h>
+#include <tessera/render/gl_objects.h>
+#include <tessera/render/point_pass.h>
+#include <tessera/render/screen_passes.h>
 
 namespace {
 
 using namespace tessera;
 using Clock = std::chrono::steady_clock;
 
-GLuint program(std::initializer_list<std::pair<GLenum, const char*>> stages) {
-  GLuint p = glCreateProgram();
-  for (auto [type, src] : stages) {
-    GLuint s = glCreateShader(type);
-    glShaderSource(s, 1, &src, nullptr);
-    glCompileShader(s);
-    GLint ok = 0;
-    glGetShaderiv(s, GL_COMPILE_STATUS, &ok);
-    if (!ok) {
-      char log[2048];
-      glGetShaderInfoLog(s, sizeof log, nullptr, log);
-      throw std::runtime_error(std::string("render_points: shader: ") + log);
-    }
-    glAttachShader(p, s);
-    glDeleteShader(s);
-  }
-  glLinkProgram(p);
-  return p;
-}
-
-const char* kVertex = R"(#version 450 core
+const char* kVertex = R"(
 layout(location = 0) in vec3 aPos;
 layout(location = 1) in uint aRgba;
 uniform mat4 uClip;
 flat out uint vRgba;
 void main() { gl_Position = uClip * vec4(aPos, 1.0); vRgba = aRgba; })";
-const char* kFragment = R"(#version 450 core
+const char* kFragment = R"(
 flat in uint vRgba;
 out vec4 color;
 void main() { color = unpackUnorm4x8(vRgba); })";
-const char* kScatter = R"(#version 450 core
+const char* kScatter = R"(
 layout(local_size_x = 128) in;
-struct Point { vec3 position; uint rgba; };
 layout(std430, binding = 0) readonly buffer Points { Point points[]; };
 layout(std430, binding = 1) buffer Depth { uint depth[]; };
 uniform mat4 uClip; uniform uint uFirst; uniform uint uCount; uniform ivec2 uSize;
@@ -145,51 +126,58 @@ int main(int argc, char** argv) {
   glCreateFramebuffers(1, &fbo);
   glNamedFramebufferRenderbuffer(fbo, GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER, color_rb);
   glNamedFramebufferRenderbuffer(fbo, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, depth_rb);
-  GLuint raster = program({{GL_VERTEX_SHADER, kVertex}, {GL_FRAGMENT_SHADER, kFragment}});
+  const auto raster = render::GlProgram::graphics(kVertex, kFragment, "GL_POINTS baseline");
   double t_points = best(repeats, [&] {
     glBindFramebuffer(GL_FRAMEBUFFER, fbo);
     glViewport(0, 0, W, H);
     glEnable(GL_DEPTH_TEST);
     glClearColor(0, 0, 0, 1);
     glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
-    glUseProgram(raster);
-    glUniformMatrix4fv(glGetUniformLocation(raster, "uClip"), 1, GL_FALSE, &clip[0][0]);
+    raster.use();
+    raster.set("uClip", clip);
     glBindVertexArray(vao);
     glDrawArrays(GL_POINTS, 0, GLsizei(n));
   });
   // (b) bare compute scatter.
-  GLuint scatter = program({{GL_COMPUTE_SHADER, kScatter}});
+  const auto scatter = render::GlProgram::compute(kScatter, "scatter baseline");
   GLuint depth;
   glCreateBuffers(1, &depth);
   glNamedBufferStorage(depth, GLsizeiptr(size_t(W) * H * 4), nullptr, GL_DYNAMIC_STORAGE_BIT);
   double t_scatter = best(repeats, [&] {
     const GLuint ones = 0xFFFFFFFFu;
     glClearNamedBufferData(depth, GL_R32UI, GL_RED_INTEGER, GL_UNSIGNED_INT, &ones);
-    glUseProgram(scatter);
+    scatter.use();
     glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, vbo);
     glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, depth);
-    glUniformMatrix4fv(glGetUniformLocation(scatter, "uClip"), 1, GL_FALSE, &clip[0][0]);
-    glUniform2i(glGetUniformLocation(scatter, "uSize"), W, H);
+    scatter.set("uClip", clip);
+    scatter.set("uSize", glm::ivec2(W, H));
     const uint32_t kMaxPoints = 65535u * 128u;  // work-group count limit per dispatch
     for (uint32_t done = 0; done < n; done += kMaxPoints) {
       const uint32_t count = std::min(kMaxPoints, n - done);
-      glUniform1ui(glGetUniformLocation(scatter, "uFirst"), done);
-      glUniform1ui(glGetUniformLocation(scatter, "uCount"), count);
+      scatter.set("uFirst", done);
+      scatter.set("uCount", count);
       glDispatchCompute((count + 127) / 128, 1, 1);
     }
     glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
   });
   // (c) the renderer's point pass.
-  render::PointRasterizer rast(W, H);
-  rast.setPoints(pts);
+  render::FrameTarget target(W, H);
+  render::PointPass points;
+  render::ResolvePass resolve;
+  points.setPoints(pts);
   render::DrawBatch batch;
   batch.count = n;
   batch.clip_from_local = clip;
-  render::RasterShading colored;  // per-point colours: depth pass + id pass + resolve
-  double t_renderer = best(repeats, [&] { rast.render({&batch, 1}, glm::vec3(0), colored); });
-  render::RasterShading uniform;  // one colour (scans without RGB): depth pass + resolve
+  auto frame = [&](const render::PointShading& shading) {
+    target.clearGeometry(shading.pick);
+    points.draw(target, {&batch, 1}, shading);
+    resolve.run(target, glm::vec3(0), shading.uniform_color);
+  };
+  render::PointShading colored;  // per-point colours: depth pass + colour pass + resolve
+  double t_renderer = best(repeats, [&] { frame(colored); });
+  render::PointShading uniform;  // one colour (scans without RGB): depth pass + resolve
   uniform.uniform_color = 0xFFC8C8C8u;
-  double t_uniform = best(repeats, [&] { rast.render({&batch, 1}, glm::vec3(0), uniform); });
+  double t_uniform = best(repeats, [&] { frame(uniform); });
 
   struct Row {
     const char* name;

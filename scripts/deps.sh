@@ -24,6 +24,8 @@ PACKAGES=(
   libsqlite3-dev libmeshoptimizer-dev libmetis-dev libimgui-dev libcli11-dev libspdlog-dev
   # virtual scanner ray casting, point chunk entropy coding, images
   libembree-dev libzstd-dev libpng-dev
+  # the overlay labels' font (render/overlay_pass.h; Dear ImGui's embedded font without it)
+  fonts-dejavu-core
 )
 
 missing=()

@@ -1,4 +1,4 @@
-// Buffer bindings and struct layouts shared by the C++ renderer (render/src/point_rasterizer.cpp)
+// Buffer bindings and struct layouts shared by the C++ renderer (render/src/*_pass.cpp)
 // and every compute shader here (STYLE.md; niagara's config.h): C++ includes this file, and the
 // render library puts it in front of each shader's source (after #version), so a binding or a
 // layout is written once. GLSL's preprocessor takes the #defines; the GLSL structs are guarded
@@ -15,6 +15,10 @@
 #define TESSERA_BINDING_ACCUM 5    // see-through: r, g, b sums per pixel; OIT: 5 floats a pixel
 #define TESSERA_BINDING_RATIOS 6   // float per point: node / local density (see-through)
 #define TESSERA_BINDING_CELLS 7    // uvec2 per point: surface cell (sparse see-through)
+#define TESSERA_BINDING_PICK 8     // uint per pixel: the nearest element's frame-wide pick id
+#define TESSERA_BINDING_TARGET_DEPTH 9  // the frame target's depth (see-through: nearest copy)
+#define TESSERA_BINDING_OVERLAY 10      // overlay primitives (overlay_pass.h)
+#define TESSERA_BINDING_COLOR_SUMS 11   // uvec4 per pixel: weighted r, g, b sums and weight
 
 // A point as the GPU reads it: 16 bytes, position relative to its batch's node box (metres,
 // float), rgba with r in the low byte. C++: render::GpuPoint.
@@ -23,6 +27,23 @@
 struct Point {
   vec3 position;
   uint rgba;
+};
+#endif
+
+// An overlay vertex (overlay_pass.h): clip position computed on the CPU, texture coordinates,
+// rgba (r in the low byte), and how the fragment is coloured. 32 bytes.
+// C++: render::OverlayVertex (render/src/overlay_pass.cpp).
+#define TESSERA_OVERLAY_FLAT 0u      // the vertex colour
+#define TESSERA_OVERLAY_TEXTURED 1u  // colour x texture
+#define TESSERA_OVERLAY_DOT 2u       // a round dot (or ring) inscribed in the quad (uv 0..1)
+#define TESSERA_OVERLAY_GLYPH 3u     // colour, alpha x the font atlas's coverage
+#define TESSERA_OVERLAY_VERTEX_BYTES 32
+#ifndef __cplusplus
+struct OverlayVertex {
+  vec4 clip;
+  vec2 uv;
+  uint rgba;
+  uint mode;
 };
 #endif
 

@@ -1,8 +1,5 @@
 #include "console.h"
 
-#define GL_GLEXT_PROTOTYPES
-#include <GL/glcorearb.h>
-
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -52,41 +49,40 @@ render::ViewSetup Console::view(const config::Camera& camera) const {
   return v;
 }
 
-void Console::draw(const sync::SceneGraph& graph) {
+void Console::draw(const sync::SceneGraph& graph, const sync::SceneChanges& changes) {
   render::ChunkStreamer* streamers[] = {&mRenderer->streamer()};
-  mInstances = mModels.update(graph, streamers);
+  mInstances = mModels.update(graph, changes, streamers);
   mLastView = view(graph.camera());
-  mRenderer->draw(mInstances, mLastView, render::SceneDrawList::options(graph, mSplatScale));
-  drawOverlay();
+  render::RenderOptions options = render::SceneDrawList::options(graph, mSplatScale);
+  options.pick_ids = true;  // the navigation's picks read the frame's ids
+  const render::Overlay marks = overlay();
+  mRenderer->draw(mInstances, mLastView, options, nullptr, &marks);
   mWindow->present(mRenderer->imageBuffer(), mWidth, mHeight);
 }
 
-void Console::drawOverlay() {
-  // A few thousand pixels read, tinted and written back: the right-hand bar of the navigation,
-  // and a ring where the target is.
-  const uint32_t buffer = mRenderer->imageBuffer();
-  const uint32_t bar_x = uint32_t(mWidth * (1.0 - OneButtonNavigation::kBarFraction));
-  std::vector<uint8_t> row((mWidth - bar_x) * 4);
-  for (uint32_t y = 0; y < mHeight; ++y) {
-    const GLintptr at = GLintptr((size_t(y) * mWidth + bar_x) * 4);
-    glGetNamedBufferSubData(buffer, at, GLsizeiptr(row.size()), row.data());
-    for (size_t i = 0; i < row.size(); i += 4)
-      for (int c = 0; c < 3; ++c) row[i + c] = uint8_t((row[i + c] * 3 + 255) / 4);
-    glNamedBufferSubData(buffer, at, GLsizeiptr(row.size()), row.data());
-  }
+void Console::save(const std::string& path) const {
+  render::Image shown;
+  shown.rgba = mWindow->readFramebuffer(shown.width, shown.height);
+  render::writePng(path, shown);
+  std::printf("tessera-master: wrote %s (%ux%u, the console)\n", path.c_str(), shown.width,
+              shown.height);
+}
+
+render::Overlay Console::overlay() const {
+  // The right-hand bar of the navigation, lightened (a quarter white over the scene), and a ring
+  // where the target is.
+  render::Overlay o;
+  const float bar_x = float(mWidth * (1.0 - OneButtonNavigation::kBarFraction));
+  o.rects.push_back({{bar_x, 0.0f}, {float(mWidth), float(mHeight)}, {255, 255, 255, 64}});
   if (const auto& target = mNavigation.target()) {
-    const glm::dvec4 clip = mLastView.projection * mLastView.view * glm::dvec4(*target, 1.0);
-    if (clip.w <= 0) return;
-    const double px = (clip.x / clip.w * 0.5 + 0.5) * mWidth,
-                 py = (0.5 - clip.y / clip.w * 0.5) * mHeight;
-    const uint8_t ring[4] = {255, 200, 40, 255};
-    for (int a = 0; a < 64; ++a) {
-      const double r = OneButtonNavigation::kTargetRadiusPx * 0.5, ang = a * 6.2831853 / 64;
-      const int x = int(px + r * std::cos(ang)), y = int(py + r * std::sin(ang));
-      if (x < 0 || y < 0 || x >= int(mWidth) || y >= int(mHeight)) continue;
-      glNamedBufferSubData(buffer, GLintptr((size_t(y) * mWidth + x) * 4), 4, ring);
-    }
+    render::OverlayPoint ring;
+    ring.at = *target;
+    ring.color = {255, 200, 40, 255};
+    ring.size_px = float(OneButtonNavigation::kTargetRadiusPx);
+    ring.ring_px = 2.0f;
+    o.points.push_back(ring);
   }
+  return o;
 }
 
 bool Console::handleInput(sync::SceneGraph& graph) {
@@ -110,6 +106,11 @@ bool Console::handleInput(sync::SceneGraph& graph) {
   const glm::dmat4 world_from_clip = glm::inverse(clip_from_world);
   const double fovy = 2.0 * std::atan(1.0 / mLastView.projection[1][1]);
   auto pick = [&](glm::dvec2 px) -> std::optional<glm::dvec3> {
+    // The frame's pick ids name the point under the pixel; a see-through frame has none: then
+    // a ray through the points (point_pick.h).
+    if (px.x >= 0 && px.y >= 0 && px.x < mWidth && px.y < mHeight) {
+      if (auto hit = mRenderer->pick(uint32_t(px.x), uint32_t(px.y))) return hit->world;
+    }
     const double nx = px.x / mWidth * 2.0 - 1.0, ny = 1.0 - px.y / mHeight * 2.0;
     glm::dvec4 a = world_from_clip * glm::dvec4(nx, ny, -1.0, 1.0);
     glm::dvec4 b = world_from_clip * glm::dvec4(nx, ny, 1.0, 1.0);

@@ -10,9 +10,9 @@
 #include <vector>
 
 #include <tessera/master/one_button_navigation.h>
+#include <tessera/render/scene_draw_list.h>
 #include <tessera/render/view_renderer.h>
 #include <tessera/render/window.h>
-#include <tessera/render/scene_draw_list.h>
 #include <tessera/sync/scene_graph.h>
 
 namespace tessera::master {
@@ -25,7 +25,10 @@ class Console {
   ~Console();
 
   /// Renders the scene as it is now (draw(): never waits for data) and shows it.
-  void draw(const sync::SceneGraph& graph);
+  /// One frame of `graph`, after `changes` (what the frame just taken changed).
+  void draw(const sync::SceneGraph& graph, const sync::SceneChanges& changes);
+  /// Writes what the window shows (its framebuffer) as a PNG. Throws render::RenderError.
+  void save(const std::string& path) const;
   /// Applies the input since the last call to `graph`: navigation to the camera, keys 1-9 select
   /// a model, + / - change its opacity by 0.1, H toggles its visibility, E toggles eye-dome
   /// lighting. Returns false once the window is closed (or Escape).
@@ -33,7 +36,7 @@ class Console {
 
  private:
   render::ViewSetup view(const config::Camera& camera) const;
-  void drawOverlay();  // the bar and the target marker, into the image buffer
+  render::Overlay overlay() const;  // the navigation's bar and the target marker
 
   config::WallConfig mWall;
   float mSplatScale;
@@ -41,7 +44,7 @@ class Console {
   std::unique_ptr<render::Window> mWindow;
   std::unique_ptr<render::ViewRenderer> mRenderer;
   render::SceneDrawList mModels;  // after mRenderer: its stores close once the renderer is gone
-  std::vector<render::ModelInstance> mInstances;
+  std::span<const render::ModelInstance> mInstances;  // mModels', until its next update
   render::ViewSetup mLastView;
   OneButtonNavigation mNavigation;
   size_t mSelected = 0;  // index among the MODEL nodes

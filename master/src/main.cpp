@@ -59,6 +59,8 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_flag("--console", o.console,
                "A window with the whole wall at low resolution and one-button navigation");
+  app.add_option("--console-screenshot", o.console_screenshot,
+                 "With --console: write what the console window shows at the last frame (PNG)");
   app.add_option("--console-width", o.console_width, "Console width, pixels")
       ->check(finiteRange(64, 4096))
       ->capture_default_str();

@@ -8,7 +8,8 @@
 
 namespace tessera::render {
 
-GlBuffer::GlBuffer(size_t bytes, const void* data) : mBytes(std::max<size_t>(bytes, 16)) {
+GlBuffer::GlBuffer(size_t bytes, const void* data, uint32_t flags)
+    : mBytes(std::max<size_t>(bytes, 16)) {
   // GL refuses empty storage; tiny contents are padded so the driver never reads past `data`.
   unsigned char padded[16] = {};
   if (data && bytes < 16) {
@@ -16,11 +17,19 @@ GlBuffer::GlBuffer(size_t bytes, const void* data) : mBytes(std::max<size_t>(byt
     data = padded;
   }
   glCreateBuffers(1, &mName);
-  glNamedBufferStorage(mName, GLsizeiptr(mBytes), data, 0);
+  glNamedBufferStorage(mName, GLsizeiptr(mBytes), data, flags);
 }
 
 GlBuffer::~GlBuffer() {
   if (mName) glDeleteBuffers(1, &mName);
+}
+
+void GlBuffer::clear(uint32_t word) {
+  glClearNamedBufferData(mName, GL_R32UI, GL_RED_INTEGER, GL_UNSIGNED_INT, &word);
+}
+
+void GlBuffer::read(size_t offset, size_t bytes, void* out) const {
+  glGetNamedBufferSubData(mName, GLintptr(offset), GLsizeiptr(bytes), out);
 }
 
 }  // namespace tessera::render

@@ -97,7 +97,7 @@ class CoverageGrid {
 
 /// What every node test of one selection needs.
 struct Selection {
-  lod::PointStore& store;
+  lod::LodHierarchy& store;
   const ViewSetup& view;
   const CutOptions& options;
   glm::dmat4 clip_from_local;
@@ -291,7 +291,7 @@ double pixelsPerUnitAtDistanceOne(const ViewSetup& view) {
   return view.projection[1][1] * 0.5 * double(view.height);
 }
 
-Cut selectCut(lod::PointStore& store, const glm::dmat4& model, const ViewSetup& view,
+Cut selectCut(lod::LodHierarchy& store, const glm::dmat4& model, const ViewSetup& view,
               const CutOptions& options) {
   const glm::dmat4 clip_from_local = view.projection * view.view * model;
   const glm::dmat4 local_from_world = glm::inverse(model);

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <iterator>
 #include <numbers>
 
 #include <glm/gtc/matrix_transform.hpp>
@@ -52,32 +53,49 @@ glm::dmat4 storeModel(const lod::PointStore& store) {
 ViewRenderer::ViewRenderer(uint32_t width, uint32_t height, std::shared_ptr<ChunkStreamer> streamer,
                            const StreamerOptions& stream_options)
     : mStreamer(streamer ? std::move(streamer) : std::make_shared<ChunkStreamer>(stream_options)),
-      mRaster(width, height) {}
+      mTarget(width, height) {}
 
 Image ViewRenderer::render(std::span<const ModelInstance> models, const ViewSetup& view,
-                           const RenderOptions& options, RenderStats* stats) {
+                           const RenderOptions& options, RenderStats* stats,
+                           const Overlay* overlay) {
   RenderStats st;
-  draw(models, view, options, &st);
+  draw(models, view, options, &st, overlay);
   const auto t0 = std::chrono::steady_clock::now();
-  Image img = mRaster.read();
+  Image img = mTarget.readImage();
   st.readback_ms = msSince(t0);
   if (stats) *stats = st;
   return img;
 }
 
 void ViewRenderer::draw(std::span<const ModelInstance> models, const ViewSetup& view,
-                        const RenderOptions& options, RenderStats* stats) {
+                        const RenderOptions& options, RenderStats* stats, const Overlay* overlay) {
+  TESSERA_CHECK(view.width == mTarget.width() && view.height == mTarget.height(),
+                "render::ViewRenderer: a view's size must be the renderer's");
   RenderStats st;
   mStreamer->beginFrame();
   st.upload_ms = mStreamer->stats().upload_ms;
   bool see_through = false;
   for (const ModelInstance& m : models) see_through |= m.opacity < 1.0f;
+  const bool pick = options.pick_ids && !see_through;
+  mPickRanges.clear();
+  mBatchNodes.clear();
   std::vector<DrawBatch> batches;
-  for (const ModelInstance& m : models) addModel(m, see_through, view, options, batches, st);
+  for (size_t i = 0; i < models.size(); ++i) {
+    const size_t first = batches.size();
+    addModel(models[i], see_through, view, options, batches, st);
+    for (size_t b = first; pick && b < batches.size(); ++b) {
+      const uint32_t base =
+          mPickRanges.empty() ? 0 : mPickRanges.back().base + mPickRanges.back().count;
+      batches[b].pick_base = base;
+      mPickRanges.push_back({base, batches[b].count, i, mBatchNodes[b]});
+    }
+  }
   mStreamer->endFrame();
   st.stream = mStreamer->stats();
+  mPickUnproject = glm::inverse(view.projection * view.view);
 
-  RasterShading shading;
+  PointShading shading;
+  shading.pick = pick;
   // Points of one colour (stores without colour, all drawn alike) need only the depth pass.
   bool one_color = true;
   for (const ModelInstance& m : models) {
@@ -89,30 +107,57 @@ void ViewRenderer::draw(std::span<const ModelInstance> models, const ViewSetup& 
         models.front().color == glm::u8vec3(0) ? options.default_color : models.front().color;
     shading.uniform_color = packRgb(c) | 0xFF000000u;
   }
-  shading.edl_strength = options.edl_strength;
-  shading.edl_radius = options.edl_radius;
-  shading.projection = view.projection;
   if (see_through && options.transparency != Transparency::kStochastic) {
     mSpbrSignature = 0;
     for (DrawBatch& b : batches) b.disc_k = 0.5f * b.spacing_k;  // the opaque disc
-    const RasterTimings t = mRaster.renderBlended(
-        batches, options.background, options.transparency == Transparency::kWeightedBlended);
+    const PassTimings t =
+        mPoints.drawBlended(mTarget, batches, options.background,
+                            options.transparency == Transparency::kWeightedBlended);
     st.depth_ms = t.depth_ms;
     st.resolve_ms = t.resolve_ms;
-    if (stats) *stats = st;
-    return;
-  }
-  if (see_through) {
+  } else if (see_through) {
     drawSeeThrough(models, view, options, batches, shading, st);
-    if (stats) *stats = st;
-    return;
+  } else {
+    mSpbrSignature = 0;
+    shading.blend = options.blend_colors && shading.uniform_color == 0;
+    shading.projection = view.projection;
+    mTarget.clearGeometry(pick, shading.blend);
+    const PassTimings t = mPoints.draw(mTarget, batches, shading);
+    st.depth_ms = t.depth_ms;
+    st.color_ms = t.color_ms;
+    st.resolve_ms = mResolve.run(mTarget, options.background, shading.uniform_color, shading.blend);
+    st.screen_ms = mEdl.run(mTarget, {options.edl_strength, options.edl_radius}, view.projection);
   }
-  mSpbrSignature = 0;
-  const RasterTimings t = mRaster.render(batches, options.background, shading);
-  st.depth_ms = t.depth_ms;
-  st.color_ms = t.color_ms;
-  st.resolve_ms = t.resolve_ms;
+  if (overlay && !overlay->empty()) {
+    if (!mOverlay) mOverlay = std::make_unique<OverlayPass>();
+    st.overlay_ms = mOverlay->run(mTarget, view, *overlay);
+  }
   if (stats) *stats = st;
+}
+
+std::optional<PickHit> ViewRenderer::pick(uint32_t x, uint32_t y) const {
+  if (x >= mTarget.width() || y >= mTarget.height() || mPickRanges.empty()) return std::nullopt;
+  const uint32_t id = mTarget.readAt(mTarget.pick(), x, y);
+  if (id == kNoPick) return std::nullopt;
+  // The range holding id: the last whose base is at most id.
+  auto it = std::upper_bound(mPickRanges.begin(), mPickRanges.end(), id,
+                             [](uint32_t v, const PickRange& r) { return v < r.base; });
+  if (it == mPickRanges.begin()) return std::nullopt;
+  const PickRange& r = *std::prev(it);
+  if (id - r.base >= r.count) return std::nullopt;
+  PickHit hit;
+  hit.model = r.model;
+  hit.node = r.node;
+  hit.point = id - r.base;
+  const uint32_t d = mTarget.readAt(mTarget.depth(), x, y);
+  float depth = 1.0f;
+  std::memcpy(&depth, &d, 4);
+  hit.depth = depth;
+  const glm::dvec4 ndc((x + 0.5) / mTarget.width() * 2.0 - 1.0,
+                       1.0 - (y + 0.5) / mTarget.height() * 2.0, 2.0 * depth - 1.0, 1.0);
+  const glm::dvec4 w = mPickUnproject * ndc;
+  hit.world = glm::dvec3(w) / w.w;
+  return hit;
 }
 
 Image ViewRenderer::renderSettled(std::span<const ModelInstance> models, const ViewSetup& view,
@@ -137,7 +182,7 @@ Image ViewRenderer::renderSettled(std::span<const ModelInstance> models, const V
 
 void ViewRenderer::drawSeeThrough(std::span<const ModelInstance> models, const ViewSetup& view,
                                   const RenderOptions& options, std::vector<DrawBatch>& batches,
-                                  const RasterShading& shading, RenderStats& st) {
+                                  const PointShading& shading, RenderStats& st) {
   const SpbrOptions& o = options.spbr;
   TESSERA_CHECK(o.ensembles >= 1, "render::ViewRenderer: see-through needs at least 1 ensemble");
   const uint32_t total = std::max(o.ensembles, o.progressive_max);
@@ -155,7 +200,7 @@ void ViewRenderer::drawSeeThrough(std::span<const ModelInstance> models, const V
   if (sig != mSpbrSignature) {
     mSpbrSignature = sig;
     mSpbrDone = 0;
-    mRaster.beginEnsembles();
+    mPoints.beginEnsembles(mTarget);
   }
   const uint32_t n = std::min(o.ensembles, total - std::min(total, mSpbrDone));
   // Point copies this frame: each point has k copies over the L ensembles (spbr_k is capped).
@@ -184,16 +229,16 @@ void ViewRenderer::drawSeeThrough(std::span<const ModelInstance> models, const V
   if (n > 0) {
     const size_t layer_bytes = size_t(view.width) * view.height * 8;
     const auto layers = uint32_t(std::max<size_t>(1, o.buffer_bytes / layer_bytes));
-    const RasterTimings t =
-        mRaster.drawEnsembles(batches, mSpbrDone, n, total, layers, options.background, shading,
-                              !o.slant_shading, o.single_layer_baseline);
+    const PassTimings t =
+        mPoints.drawEnsembles(mTarget, batches, mSpbrDone, n, total, layers, options.background,
+                              shading, !o.slant_shading, o.single_layer_baseline);
     mSpbrDone += n;
     st.depth_ms = t.depth_ms;
     st.color_ms = t.color_ms;
     st.resolve_ms = t.resolve_ms;
     st.copies = uint64_t(copies);
   }
-  st.resolve_ms += mRaster.resolveEnsembles(mSpbrDone);
+  st.resolve_ms += mPoints.resolveEnsembles(mTarget, mSpbrDone);
   st.ensembles = mSpbrDone;
   st.ensembles_drawn = n;
 }
@@ -223,6 +268,9 @@ void ViewRenderer::addModel(const ModelInstance& instance, bool see_through, con
   const double unit = std::cbrt(std::abs(glm::determinant(glm::dmat3(model))));
   const uint32_t total = std::max(options.spbr.ensembles, options.spbr.progressive_max);
   const uint64_t key = storeKey(store);
+  // See-through batches need the chunks' density (and ratios, normals, cells): only their
+  // chunks are measured on loading.
+  const ChunkUse use = see_through ? ChunkUse::kSeeThrough : ChunkUse::kOpaque;
   auto addBatch = [&](const CutNode& n, const GpuChunk& chunk) {
     DrawBatch b;
     b.buffer = chunk.buffer.name();
@@ -232,6 +280,7 @@ void ViewRenderer::addModel(const ModelInstance& instance, bool see_through, con
     b.clip_from_local = glm::mat4(clip_from_world * world_from_local);
     b.spacing_k = float(n.spacing * k * options.splat_scale);
     b.splat_radius = options.max_splat_radius;
+    b.blend_depth = float(n.spacing * unit * options.splat_scale);
     if (instance.color != glm::u8vec3(0) && (store.summary().attributes & lod::kColor) == 0)
       b.color_override = 0x1000000u | packRgb(instance.color);
     if (see_through) {
@@ -271,12 +320,13 @@ void ViewRenderer::addModel(const ModelInstance& instance, bool see_through, con
                           : float(1.0 - std::pow(1.0 - double(instance.opacity), 1.0 / m));
     }
     batches.push_back(b);
+    mBatchNodes.push_back(n.id);
     stats.points += chunk.count;
     ++stats.nodes;
   };
   std::vector<bool> drawn_above(cut.above.size(), false);
   for (const CutNode& n : cut.nodes) {  // nearest first
-    if (const GpuChunk* chunk = mStreamer->find(store, n.id)) {
+    if (const GpuChunk* chunk = mStreamer->find(store, n.id, use)) {
       addBatch(n, *chunk);
       continue;
     }
@@ -284,20 +334,21 @@ void ViewRenderer::addModel(const ModelInstance& instance, bool see_through, con
     if (mStreamer->failed(store, n.id)) {
       ++stats.corrupt_chunks;
     } else {
-      mStreamer->request(store, n.id, n.level, n.distance);
+      mStreamer->request(store, n.id, n.level, n.distance, use);
     }
     // The nearest resident ancestor stands in; ancestors on the way are fetched too, coarse
     // first, so a new view fills in from coarse to fine.
     for (int32_t p = n.parent; p >= 0; p = cut.above[size_t(p)].parent) {
       const CutNode& a = cut.above[size_t(p)];
       if (drawn_above[size_t(p)]) break;
-      if (const GpuChunk* chunk = mStreamer->find(store, a.id)) {
+      if (const GpuChunk* chunk = mStreamer->find(store, a.id, use)) {
         addBatch(a, *chunk);
         drawn_above[size_t(p)] = true;
         ++stats.fallback_nodes;
         break;
       }
-      if (!mStreamer->failed(store, a.id)) mStreamer->request(store, a.id, a.level, a.distance);
+      if (!mStreamer->failed(store, a.id))
+        mStreamer->request(store, a.id, a.level, a.distance, use);
     }
   }
   stats.select_ms += msSince(t0);

@@ -13,6 +13,8 @@
 #include <regex>
 #include <string>
 
+#include <tessera/render/image.h>
+
 #include "../support/command.h"
 #include "../support/temp_dir.h"
 
@@ -41,11 +43,11 @@ void write(const fs::path& p, const std::string& text) {
 
 /// The scene of configs/scenes/bunny.json with the store replaced and the given shading.
 std::string sceneJson(const std::string& store, const std::string& shading = "edl") {
-  return R"({"models": [{"name": "bunny scans", "store": ")" + store +
-         R"("}], "camera": {"eye": {"x": -0.027, "y": 0.12, "z": 0.38}, "target": {"x": -0.027,
-         "y": 0.1, "z": 0.0}, "up": {"x": 0, "y": 1, "z": 0}}, "background": [0.05, 0.05, 0.08],
-         "lodPixels": 1.0, "shading": ")" +
-         shading + R"("})";
+  return R"({"nodes": [{"kind": "MODEL", "name": "bunny scans", "model": {"store": ")" + store +
+         R"("}}], "camera": {"eye": {"x": -0.027, "y": 0.12, "z": 0.38}, "target": {"x": -0.027,
+         "y": 0.1, "z": 0.0}, "up": {"x": 0, "y": 1, "z": 0}}, "settings": {"background": {"r":
+         0.05, "g": 0.05, "b": 0.08}, "lodPixels": 1.0, "shading": ")" +
+         (shading == "edl" ? "SHADING_EDL" : "SHADING_COLOR") + R"("}})";
 }
 
 class Cluster : public ::testing::Test {
@@ -163,11 +165,13 @@ TEST_F(Cluster, NodeWithAnUnreadableStoreSaysWhichAndWhy) {
 }
 
 TEST_F(Cluster, BadSceneJsonNamesFileAndField) {
-  write(sDir->path() / "bad.json", R"({"models": [{"store": "bunny.tlod", "opacity": 2}]})");
+  write(sDir->path() / "bad.json",
+        R"({"nodes": [{"kind": "MODEL", "model": {"store": "bunny.tlod"}, "opacity": 2}],
+            "camera": {"eye": {"z": 1}, "target": {}, "up": {"y": 1}}})");
   const CommandResult r =
       cluster("--wall " + kConfigs + "/walls/1x2.json --scene bad.json --frames 2", 2);
   EXPECT_NE(r.code, 0) << r.out;
-  EXPECT_NE(r.out.find("bad.json: models[0].opacity"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("bad.json: nodes[0] (node 1): opacity"), std::string::npos) << r.out;
 }
 
 TEST_F(Cluster, BadScriptNamesFileAndField) {
@@ -200,11 +204,26 @@ TEST_F(Cluster, ConsoleUnderXvfbDrivesTheWall) {
   // a console), but a screenshot frame is rendered complete, so the wall picture is still exact.
   const std::string wall = kConfigs + "/walls/1x2.json";
   const CommandResult r =
-      cluster("--wall " + wall + " --scene scene.json --frames 4 --console --screenshot con.png", 2,
-              std::string(TESSERA_XVFB_RUN) + " -a -s '-screen 0 1280x720x24' ");
+      cluster("--wall " + wall +
+                  " --scene scene.json --frames 4 --console --screenshot con.png "
+                  "--console-screenshot console.png --console-width 640",
+              2, std::string(TESSERA_XVFB_RUN) + " -a -s '-screen 0 1280x720x24' ");
   ASSERT_EQ(r.code, 0) << r.out;
   EXPECT_NE(r.out.find("console open"), std::string::npos) << r.out;
   expectSameAsMosaic(r, "con.png", wall, "scene.json");
+  // The console shows the wall with the navigation's bar drawn by the overlay pass: a quarter
+  // white over the scene on its right 8%, so its background is lighter than the rest's.
+  const tessera::render::Image shown = tessera::render::readPng(sDir->path() / "console.png");
+  ASSERT_EQ(shown.width, 640u);
+  auto red = [&](uint32_t x, uint32_t y) {
+    return int(shown.rgba[(size_t(y) * shown.width + x) * 4]);
+  };
+  const int bg = red(2, 2), bar = red(shown.width - 2, 2);
+  EXPECT_NEAR(bar, bg * (191.0 / 255.0) + 64.0, 1.5) << "background " << bg;
+  size_t model = 0;  // the scene is drawn beside the bar
+  for (uint32_t y = 0; y < shown.height; ++y)
+    for (uint32_t x = 0; x < shown.width * 9 / 10; ++x) model += red(x, y) != bg;
+  EXPECT_GT(model, 1000u);
 }
 #endif
 

@@ -50,6 +50,7 @@ struct MasterOptions {
   double max_fps = 0;  ///< > 0: frames start at most this often (real time)
   bool console = false;
   uint32_t console_width = 960;
+  std::string console_screenshot;  ///< with the console: what it shows at the last frame (PNG)
   double splat_scale = 2.0, gpu_budget_mb = 1024.0;
   /// A live node's report may be this late (ms) before its tile is dropped; 0: automatic, five
   /// times the slowest node's median render time over the last 15 frames, at least 1000 ms.

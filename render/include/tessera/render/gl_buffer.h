@@ -11,9 +11,10 @@ namespace tessera::render {
 class GlBuffer {
  public:
   GlBuffer() = default;
-  /// Immutable storage of `bytes` (at least 16), filled from `data` when not null. Costs one copy
-  /// of `bytes` into the driver.
-  GlBuffer(size_t bytes, const void* data);
+  /// Immutable storage of `bytes` (at least 16), filled from `data` when not null, with GL
+  /// storage `flags` (0: written by the GPU and by clear() only). Costs one copy of `bytes` into
+  /// the driver.
+  GlBuffer(size_t bytes, const void* data, uint32_t flags = 0);
   ~GlBuffer();
   GlBuffer(GlBuffer&& o) noexcept : mName(std::exchange(o.mName, 0)), mBytes(o.mBytes) {}
   GlBuffer& operator=(GlBuffer&& o) noexcept {
@@ -26,6 +27,10 @@ class GlBuffer {
 
   uint32_t name() const { return mName; }
   size_t bytes() const { return mBytes; }
+  /// Sets every 32-bit word to `word`.
+  void clear(uint32_t word);
+  /// Copies `bytes` from `offset` into `out` (waits for the GL work that writes it).
+  void read(size_t offset, size_t bytes, void* out) const;
   explicit operator bool() const { return mName != 0; }
 
  private:

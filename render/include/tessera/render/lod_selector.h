@@ -95,7 +95,7 @@ struct Cut {
 /// says otherwise (may throw StoreError); decodes no chunk. Thread-safe with respect to the
 /// store. Costs O(visited nodes log visited); with the coverage stop, also the grid cells under
 /// each visited node's rectangle (a 1920x1080 view has 32400 cells of 8 px).
-Cut selectCut(lod::PointStore& store, const glm::dmat4& model, const ViewSetup& view,
+Cut selectCut(lod::LodHierarchy& store, const glm::dmat4& model, const ViewSetup& view,
               const CutOptions& options = {});
 
 /// Pixels per store unit at distance 1 along the view axis for this view (vertical).

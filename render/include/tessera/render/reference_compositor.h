@@ -9,7 +9,7 @@
 
 #include <span>
 
-#include <tessera/render/point_rasterizer.h>
+#include <tessera/render/image.h>
 #include <tessera/render/tile_frustum.h>
 #include <tessera/render/view_renderer.h>
 

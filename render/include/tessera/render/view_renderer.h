@@ -1,20 +1,25 @@
 // One view of point stores, end to end: the LOD cut for the view's frustum (lod_selector.h),
 // chunks streamed to the GPU by a loader thread (chunk_streamer.h), points rasterised by compute
-// shaders (point_rasterizer.h), the image read back. render() never waits on I/O: a cut node
-// whose chunk is not resident is drawn by its nearest resident ancestor, so a frame shows
-// coarse data at once and refines over the next frames. renderSettled() repeats frames until
-// every chunk of the cut is resident, for screenshots, tools and tests: its pixels depend only
-// on the inputs, not on the loader's timing. A GL 4.5 context must be current on the calling
-// thread for the object's whole life.
+// shaders into the view's frame target (point_pass.h), the screen passes (resolve, eye-dome
+// lighting: screen_passes.h) and overlays (overlay_pass.h) on it, the image read back. render()
+// never waits on I/O: a cut node whose chunk is not resident is drawn by its nearest resident
+// ancestor, so a frame shows coarse data at once and refines over the next frames. renderSettled()
+// repeats frames until every chunk of the cut is resident, for screenshots, tools and tests: its
+// pixels depend only on the inputs, not on the loader's timing. A GL 4.5 context must be current on
+// the calling thread for the object's whole life.
 #pragma once
 
 #include <memory>
+#include <optional>
 #include <span>
 
 #include <tessera/lod/point_store.h>
 #include <tessera/render/chunk_streamer.h>
+#include <tessera/render/frame_target.h>
 #include <tessera/render/lod_selector.h>
-#include <tessera/render/point_rasterizer.h>
+#include <tessera/render/overlay_pass.h>
+#include <tessera/render/point_pass.h>
+#include <tessera/render/screen_passes.h>
 #include <tessera/render/spbr.h>
 #include <tessera/render/tile_frustum.h>
 
@@ -49,6 +54,13 @@ struct RenderOptions {
   /// See-through rendering, used when a model's opacity is below 1.
   Transparency transparency = Transparency::kStochastic;
   SpbrOptions spbr;
+  /// Write pick ids for opaque frames, so pick() names the model and point under a pixel. Costs
+  /// one more atomic per covered pixel, and the colour pass when all points have one colour.
+  bool pick_ids = false;
+  /// Colour points: blend the colours of all points within a splat's depth of the nearest on
+  /// each pixel (high-quality splatting, as Potree's) instead of the nearest point's colour:
+  /// smooth, alias-free colour for 4 atomics per point and pixel more.
+  bool blend_colors = false;
 };
 
 /// One frame. `nodes`..`points` describe what was drawn.
@@ -61,12 +73,15 @@ struct RenderStats {
   size_t corrupt_chunks = 0;  ///< cut nodes whose chunk the store refused (drawn by ancestors)
   StreamStats stream;         ///< requested / uploaded / evicted, resident bytes
   double select_ms = 0, upload_ms = 0, depth_ms = 0, color_ms = 0, resolve_ms = 0, readback_ms = 0;
+  double screen_ms = 0;          ///< screen passes after the resolve (eye-dome lighting)
+  double overlay_ms = 0;         ///< the overlay pass
   size_t frames = 1;             ///< frames renderSettled() drew
   uint32_t ensembles = 0;        ///< see-through: ensembles averaged in the image (0: opaque)
   uint32_t ensembles_drawn = 0;  ///< ... of which this frame drew
   uint64_t copies = 0;           ///< see-through: point copies drawn this frame
   double totalMs() const {
-    return select_ms + upload_ms + depth_ms + color_ms + resolve_ms + readback_ms;
+    return select_ms + upload_ms + depth_ms + color_ms + resolve_ms + screen_ms + overlay_ms +
+           readback_ms;
   }
 };
 
@@ -82,6 +97,15 @@ struct ModelInstance {
   glm::u8vec3 color{0, 0, 0};
 };
 
+/// What a pixel shows, from the last frame's pick ids (RenderOptions::pick_ids).
+struct PickHit {
+  size_t model = 0;                 ///< index into the models drawn
+  lod::NodeId node = lod::kNoNode;  ///< the LOD node whose chunk holds the point
+  uint32_t point = 0;     ///< the point's index in that chunk (PointStore::readChunk order)
+  double depth = 1.0;     ///< window depth in [0, 1]
+  glm::dvec3 world{0.0};  ///< the pixel centre unprojected at that depth
+};
+
 class ViewRenderer {
  public:
   /// Renders `width` x `height` views, streaming through `streamer` (shared between views of
@@ -95,31 +119,55 @@ class ViewRenderer {
   /// ensembles up to options.spbr.progressive_max, and any change starts over. Throws
   /// RenderError when the opacities asked for need more point copies than
   /// options.spbr.max_copies_per_frame, naming the opacities that fit.
+  /// `overlay`, when given, is drawn on top (overlay_pass.h).
   void draw(std::span<const ModelInstance> models, const ViewSetup& view,
-            const RenderOptions& options, RenderStats* stats = nullptr);
+            const RenderOptions& options, RenderStats* stats = nullptr,
+            const Overlay* overlay = nullptr);
   /// draw() and read the image back.
   Image render(std::span<const ModelInstance> models, const ViewSetup& view,
-               const RenderOptions& options, RenderStats* stats = nullptr);
+               const RenderOptions& options, RenderStats* stats = nullptr,
+               const Overlay* overlay = nullptr);
   /// Frames until the whole cut is resident (or refused as corrupt) and, see-through, every
   /// ensemble up to options.spbr's maximum is averaged; the last one's image.
   /// `stats` holds the last frame's figures with `frames` counting all of them.
   Image renderSettled(std::span<const ModelInstance> models, const ViewSetup& view,
                       const RenderOptions& options, RenderStats* stats = nullptr);
 
+  /// What pixel (x right, y down from the top-left) of the last frame shows: the model, node and
+  /// point, its depth and world position. Empty where the pixel shows background, or when the
+  /// frame was see-through or drawn without RenderOptions::pick_ids. Reads two values back.
+  std::optional<PickHit> pick(uint32_t x, uint32_t y) const;
+
   ChunkStreamer& streamer() { return *mStreamer; }
-  /// The GL buffer with the last frame (PointRasterizer::imageBuffer()).
-  uint32_t imageBuffer() const { return mRaster.imageBuffer(); }
+  /// The view's frame target: the last frame's depth, colours, pick ids and image.
+  const FrameTarget& target() const { return mTarget; }
+  /// The GL buffer with the last frame's image (FrameTarget::image()).
+  uint32_t imageBuffer() const { return mTarget.image().name(); }
 
  private:
   void drawSeeThrough(std::span<const ModelInstance> models, const ViewSetup& view,
                       const RenderOptions& options, std::vector<DrawBatch>& batches,
-                      const RasterShading& shading, RenderStats& st);
+                      const PointShading& shading, RenderStats& st);
+  /// Adds the model's batches for this view, their nodes to mBatchNodes.
   void addModel(const ModelInstance& instance, bool see_through, const ViewSetup& view,
                 const RenderOptions& options, std::vector<DrawBatch>& batches, RenderStats& stats);
+  /// A range of pick ids: the points of one batch.
+  struct PickRange {
+    uint32_t base = 0, count = 0;
+    size_t model = 0;
+    lod::NodeId node = lod::kNoNode;
+  };
   std::shared_ptr<ChunkStreamer> mStreamer;
-  PointRasterizer mRaster;
-  uint64_t mSpbrSignature = 0;  ///< what the accumulated ensembles show
-  uint32_t mSpbrDone = 0;       ///< ensembles accumulated for it
+  FrameTarget mTarget;
+  PointPass mPoints;
+  ResolvePass mResolve;
+  EdlPass mEdl;
+  std::unique_ptr<OverlayPass> mOverlay;  ///< made on first use (builds a font atlas)
+  std::vector<PickRange> mPickRanges;     ///< the last frame's, by base
+  std::vector<lod::NodeId> mBatchNodes;   ///< this frame's batches' nodes
+  glm::dmat4 mPickUnproject{1.0};         ///< world from NDC, the last frame's
+  uint64_t mSpbrSignature = 0;            ///< what the accumulated ensembles show
+  uint32_t mSpbrDone = 0;                 ///< ensembles accumulated for it
 };
 
 /// The store's local frame in the world: a translation by its origin (world = origin + local).

@@ -7,7 +7,7 @@
 #include <cstdint>
 #include <span>
 
-#include <tessera/render/point_rasterizer.h>
+#include <tessera/render/image.h>
 #include <tessera/sync/config.h>
 
 namespace tessera::render {

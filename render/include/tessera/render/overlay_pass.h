@@ -1,0 +1,106 @@
+// The overlay pass: what is drawn on top of the scene, on the GPU, with depth test against the
+// frame target's depth so the model hides what is behind it: lines (measurements, sketches),
+// points (picks, avatars' heads), text labels (annotations) and textured quads (video insets) in
+// the world, and rectangles in screen space (the console's bars, screen-fixed insets). World
+// positions are in double precision and projected on the CPU, so georeferenced scenes stay
+// exact; an overlay holds hundreds to thousands of primitives, not millions.
+//
+// Cost, only when the overlay is not empty: one full-screen pass loading the image and depth
+// into a framebuffer, the primitives' triangles, and one read of the image back into the frame
+// target (about 3 ms at 1920x1080 on llvmpipe). A GL 4.5 context must be current for the
+// object's whole life.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <glm/glm.hpp>
+
+#include <tessera/render/frame_target.h>
+#include <tessera/render/gl_objects.h>
+#include <tessera/render/tile_frustum.h>
+
+namespace tessera::render {
+
+/// A segment in the world, `width` pixels wide on every view (square caps).
+struct OverlayLine {
+  glm::dvec3 a{0.0}, b{0.0};
+  glm::u8vec4 color{255, 255, 255, 255};
+  float width_px = 2.0f;
+};
+
+/// A round dot at a world position, `size_px` across on every view; with ring_px > 0 only its
+/// outer ring of that width (a marker that leaves what it marks visible).
+struct OverlayPoint {
+  glm::dvec3 at{0.0};
+  glm::u8vec4 color{255, 255, 255, 255};
+  float size_px = 8.0f;
+  float ring_px = 0.0f;
+};
+
+/// Text at a world position: its box's top-left corner `offset_px` from where the position
+/// projects (y down), `height_px` tall, over a `background` box (alpha 0: none). UTF-8; glyphs
+/// the font lacks show as '?'. Hidden when its anchor is.
+struct OverlayLabel {
+  glm::dvec3 at{0.0};
+  std::string text;
+  glm::u8vec4 color{255, 255, 255, 255};
+  glm::u8vec4 background{0, 0, 0, 160};
+  float height_px = 20.0f;
+  glm::vec2 offset_px{8.0f, -28.0f};
+};
+
+/// A textured quad in the world, corners in order (texture u, v): (0,0) (1,0) (1,1) (0,1), v = 0
+/// at the texture's top row. The texture must outlive the frame that draws it.
+struct OverlayQuad {
+  std::array<glm::dvec3, 4> corners{};
+  const GlTexture* texture = nullptr;  ///< null: a flat `tint`
+  glm::u8vec4 tint{255, 255, 255, 255};
+};
+
+/// A rectangle in the view's pixels (x right, y down from the top-left), over everything.
+struct ScreenRect {
+  glm::vec2 min{0.0f}, max{0.0f};
+  glm::u8vec4 color{255, 255, 255, 255};
+  const GlTexture* texture = nullptr;  ///< multiplied by `color`
+};
+
+struct Overlay {
+  std::vector<OverlayLine> lines;
+  std::vector<OverlayPoint> points;
+  std::vector<OverlayLabel> labels;
+  std::vector<OverlayQuad> quads;
+  std::vector<ScreenRect> rects;
+  /// World primitives are tested at their position moved towards the eye by this fraction of
+  /// its distance, so what lies on the model's surface is not hidden by the surface's own
+  /// samples (points' splats stand up to a spacing in front of it).
+  double depth_bias = 0.005;
+
+  bool empty() const {
+    return lines.empty() && points.empty() && labels.empty() && quads.empty() && rects.empty();
+  }
+};
+
+class OverlayPass {
+ public:
+  OverlayPass();
+  ~OverlayPass();
+  OverlayPass(const OverlayPass&) = delete;
+  OverlayPass& operator=(const OverlayPass&) = delete;
+
+  /// Draws `overlay` onto `target`'s image as seen from `view` (its size must be the target's),
+  /// alpha blended, world primitives depth-tested against the target's depth. Milliseconds.
+  double run(FrameTarget& target, const ViewSetup& view, const Overlay& overlay);
+
+  /// A label's box size in pixels (width, height) as run() lays it out.
+  glm::vec2 measure(const OverlayLabel& label) const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> mImpl;
+};
+
+}  // namespace tessera::render

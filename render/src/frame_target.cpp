@@ -1,0 +1,71 @@
+#include <tessera/render/frame_target.h>
+
+#include <string>
+
+#include <tessera/core/check.h>
+#include <tessera/render/gl_context.h>
+
+namespace tessera::render {
+namespace {
+
+GlBuffer plane(uint32_t width, uint32_t height) {
+  return GlBuffer(size_t(width) * height * 4, nullptr);
+}
+
+}  // namespace
+
+FrameTarget::FrameTarget(uint32_t width, uint32_t height) : mWidth(width), mHeight(height) {
+  if (width == 0 || height == 0 || width > 16384 || height > 16384)
+    throw RenderError("render::FrameTarget: a view of " + std::to_string(width) + "x" +
+                      std::to_string(height) + " pixels (1..16384 each way)");
+  mDepth = plane(width, height);
+  mColors = plane(width, height);
+  mPick = plane(width, height);
+  mImage = plane(width, height);
+  mPick.clear(kNoPick);
+}
+
+const GlBuffer& FrameTarget::colorSums() {
+  if (!mColorSums) mColorSums = GlBuffer(pixels() * 16, nullptr);
+  return mColorSums;
+}
+
+void FrameTarget::clearGeometry(bool pick, bool blend) {
+  mDepth.clear(kEmptyDepth);
+  mColors.clear(0xFFFFFFFFu);
+  if (pick) mPick.clear(kNoPick);
+  if (blend) {
+    colorSums();
+    mColorSums.clear(0);
+  }
+}
+
+Image FrameTarget::readImage() const {
+  Image img;
+  img.width = mWidth;
+  img.height = mHeight;
+  img.rgba.resize(pixels() * 4);
+  mImage.read(0, img.rgba.size(), img.rgba.data());
+  return img;
+}
+
+std::vector<uint32_t> FrameTarget::readDepth() const {
+  std::vector<uint32_t> v(pixels());
+  mDepth.read(0, v.size() * 4, v.data());
+  return v;
+}
+
+std::vector<uint32_t> FrameTarget::readPick() const {
+  std::vector<uint32_t> v(pixels());
+  mPick.read(0, v.size() * 4, v.data());
+  return v;
+}
+
+uint32_t FrameTarget::readAt(const GlBuffer& plane, uint32_t x, uint32_t y) const {
+  TESSERA_CHECK(x < mWidth && y < mHeight, "render::FrameTarget::readAt(): pixel outside");
+  uint32_t v = 0;
+  plane.read((size_t(mHeight - 1 - y) * mWidth + x) * 4, 4, &v);
+  return v;
+}
+
+}  // namespace tessera::render

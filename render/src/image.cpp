@@ -1,0 +1,80 @@
+#include <tessera/render/image.h>
+
+#include <png.h>
+
+#include <cstdio>
+#include <cstring>
+
+#include <tessera/render/gl_context.h>
+
+namespace tessera::render {
+
+double edgeWidth(const Image& img, uint32_t edge) {
+  std::vector<double> col(img.width, 0.0);
+  for (uint32_t y = 0; y < img.height; ++y)
+    for (uint32_t x = 0; x < img.width; ++x)
+      col[x] += img.rgba[(size_t(y) * img.width + x) * 4] / double(img.height);
+  auto mean = [&](uint32_t x0, uint32_t x1) {
+    double s = 0;
+    for (uint32_t x = x0; x < x1; ++x) s += col[x];
+    return s / double(std::max(1u, x1 - x0));
+  };
+  const double hi = mean(edge / 4, 3 * edge / 4);
+  const double lo = mean(edge + (img.width - edge) / 4, edge + 3 * (img.width - edge) / 4);
+  // Where the profile falls through `level`, scanning from the plateau.
+  auto crossing = [&](double level) {
+    for (uint32_t x = edge / 2; x + 1 < img.width; ++x)
+      if (col[x] >= level && col[x + 1] < level)
+        return x + (col[x] - level) / (col[x] - col[x + 1]);
+    return double(img.width);
+  };
+  return crossing(lo + 0.1 * (hi - lo)) - crossing(lo + 0.9 * (hi - lo));
+}
+
+void writePng(const std::string& path, const Image& image) {
+  FILE* f = std::fopen(path.c_str(), "wb");
+  if (!f) throw RenderError("render::writePng(): cannot create " + path);
+  png_structp png = png_create_write_struct(PNG_LIBPNG_VER_STRING, nullptr, nullptr, nullptr);
+  png_infop info = png ? png_create_info_struct(png) : nullptr;
+  if (!png || !info || setjmp(png_jmpbuf(png))) {
+    png_destroy_write_struct(&png, &info);
+    std::fclose(f);
+    throw RenderError("render::writePng(): writing " + path + " failed (disk full?)");
+  }
+  png_init_io(png, f);
+  png_set_IHDR(png, info, image.width, image.height, 8, PNG_COLOR_TYPE_RGBA, PNG_INTERLACE_NONE,
+               PNG_COMPRESSION_TYPE_DEFAULT, PNG_FILTER_TYPE_DEFAULT);
+  png_write_info(png, info);
+  for (uint32_t y = 0; y < image.height; ++y) {
+    png_write_row(png, const_cast<png_bytep>(image.rgba.data() + size_t(y) * image.width * 4));
+  }
+  png_write_end(png, nullptr);
+  png_destroy_write_struct(&png, &info);
+  if (std::fclose(f) != 0) throw RenderError("render::writePng(): closing " + path + " failed");
+}
+
+Image readPng(const std::string& path) {
+  png_image png;
+  std::memset(&png, 0, sizeof png);
+  png.version = PNG_IMAGE_VERSION;
+  if (!png_image_begin_read_from_file(&png, path.c_str()))
+    throw RenderError("render::readPng(): " + path + ": " + png.message);
+  png.format = PNG_FORMAT_RGBA;
+  if (png.width == 0 || png.height == 0 || png.width > 65536 || png.height > 65536) {
+    png_image_free(&png);
+    throw RenderError("render::readPng(): " + path + ": " + std::to_string(png.width) + "x" +
+                      std::to_string(png.height) + " pixels (1..65536 each way)");
+  }
+  Image img;
+  img.width = png.width;
+  img.height = png.height;
+  img.rgba.resize(PNG_IMAGE_SIZE(png));
+  if (!png_image_finish_read(&png, nullptr, img.rgba.data(), 0, nullptr)) {
+    const std::string why = png.message;
+    png_image_free(&png);
+    throw RenderError("render::readPng(): " + path + ": " + why);
+  }
+  return img;
+}
+
+}  // namespace tessera::render

@@ -1,0 +1,299 @@
+#include <tessera/render/overlay_pass.h>
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <limits>
+
+#include <imgui.h>
+
+#define GL_GLEXT_PROTOTYPES
+#include <GL/glcorearb.h>
+
+#include "gpu_lap.h"
+#include "shaders.h"
+#include "shared_layout.h"
+
+namespace tessera::render {
+namespace {
+
+/// C++ twin of shaders/shared_layout.h's OverlayVertex.
+struct OverlayVertex {
+  glm::vec4 clip;
+  glm::vec2 uv;
+  uint32_t rgba;
+  uint32_t mode;
+};
+static_assert(sizeof(OverlayVertex) == TESSERA_OVERLAY_VERTEX_BYTES);
+
+uint32_t pack(const glm::u8vec4& c) {
+  return uint32_t(c.r) | uint32_t(c.g) << 8 | uint32_t(c.b) << 16 | uint32_t(c.a) << 24;
+}
+
+/// The label font: DejaVu Sans (Debian's fonts-dejavu-core) rasterised at 32 px, else Dear
+/// ImGui's embedded ProggyClean at 13 px. Labels scale it to their height.
+constexpr const char* kFontFile = "/usr/share/fonts/truetype/dejavu/DejaVuSans.ttf";
+
+/// The next code point of UTF-8 `s` from `i` (advanced); U+FFFD for a malformed sequence.
+uint32_t nextCodePoint(const std::string& s, size_t& i) {
+  const auto b = uint8_t(s[i++]);
+  if (b < 0x80) return b;
+  const int extra = b >= 0xF0 ? 3 : b >= 0xE0 ? 2 : b >= 0xC0 ? 1 : -1;
+  if (extra < 0) return 0xFFFD;
+  uint32_t cp = b & (0x3F >> extra);
+  for (int k = 0; k < extra; ++k) {
+    if (i >= s.size() || (uint8_t(s[i]) & 0xC0) != 0x80) return 0xFFFD;
+    cp = cp << 6 | (uint8_t(s[i++]) & 0x3F);
+  }
+  return cp;
+}
+
+/// ImGui's glyph key (16 bits): code points beyond the Basic Multilingual Plane show as '?'.
+ImWchar glyphOf(uint32_t cp) {
+  return cp > 0xFFFF ? ImWchar('?') : ImWchar(cp);
+}
+
+/// A batch of vertices drawn with one texture.
+struct Run {
+  uint32_t texture = 0;
+  uint32_t first = 0, count = 0;
+  bool depth_test = true;
+};
+
+}  // namespace
+
+struct OverlayPass::Impl {
+  GlProgram load, draw;
+  ImFontAtlas atlas;
+  ImFont* font = nullptr;
+  GlTexture font_texture;
+  GlTexture white;
+  GlFramebuffer framebuffer;
+  uint32_t vao = 0;
+
+  // Per run():
+  std::vector<OverlayVertex> vertices;
+  std::vector<Run> runs;
+  glm::dmat4 clip_from_world{1.0};
+  glm::dvec3 eye{0.0};
+  glm::dvec2 size{1.0};
+  double bias = 0.0;
+
+  /// Clip position of a world point, pulled towards the eye by the bias, in the framebuffer's
+  /// convention (y flipped: row 0 is the image's top).
+  /// Non-finite positions (NaN, infinities from outside data) give a w of NaN: every caller
+  /// skips primitives whose w is not > 0, so they are never drawn.
+  glm::dvec4 clip(const glm::dvec3& world) const {
+    if (!std::isfinite(world.x) || !std::isfinite(world.y) || !std::isfinite(world.z))
+      return glm::dvec4(std::numeric_limits<double>::quiet_NaN());
+    const glm::dvec3 p = eye + (world - eye) * (1.0 - bias);
+    glm::dvec4 c = clip_from_world * glm::dvec4(p, 1.0);
+    c.y = -c.y;
+    return c;
+  }
+  /// Moves a clip position by `px` pixels (x right, y down).
+  glm::dvec4 shifted(glm::dvec4 c, const glm::dvec2& px) const {
+    c.x += px.x * 2.0 / size.x * c.w;
+    c.y += px.y * 2.0 / size.y * c.w;
+    return c;
+  }
+  void begin(uint32_t texture, bool depth_test) {
+    if (runs.empty() || runs.back().texture != texture || runs.back().depth_test != depth_test)
+      runs.push_back({texture, uint32_t(vertices.size()), 0, depth_test});
+  }
+  /// Two triangles a b c, a c d.
+  void quad(const std::array<glm::dvec4, 4>& c, const std::array<glm::vec2, 4>& uv, uint32_t rgba,
+            uint32_t mode) {
+    for (int k : {0, 1, 2, 0, 2, 3}) vertices.push_back({glm::vec4(c[k]), uv[k], rgba, mode});
+    runs.back().count += 6;
+  }
+  /// A pixel-space rectangle around a clip position (all corners at its depth).
+  void sprite(const glm::dvec4& anchor, glm::vec2 lo, glm::vec2 hi, glm::vec2 uv_lo,
+              glm::vec2 uv_hi, uint32_t rgba, uint32_t mode) {
+    quad({shifted(anchor, {lo.x, lo.y}), shifted(anchor, {hi.x, lo.y}),
+          shifted(anchor, {hi.x, hi.y}), shifted(anchor, {lo.x, hi.y})},
+         {glm::vec2(uv_lo.x, uv_lo.y), glm::vec2(uv_hi.x, uv_lo.y), glm::vec2(uv_hi.x, uv_hi.y),
+          glm::vec2(uv_lo.x, uv_hi.y)},
+         rgba, mode);
+  }
+
+  void addLine(const OverlayLine& l);
+  void addLabel(const OverlayLabel& l);
+  glm::vec2 layout(const OverlayLabel& l, const glm::dvec4* anchor);
+};
+
+void OverlayPass::Impl::addLine(const OverlayLine& l) {
+  glm::dvec4 a = clip(l.a), b = clip(l.b);
+  if (std::isnan(a.w) || std::isnan(b.w) || !(l.width_px > 0.0f) || !std::isfinite(l.width_px))
+    return;
+  // Clip against the near plane (z >= -w) so the screen-space widening stays valid.
+  const double da = a.z + a.w, db = b.z + b.w;
+  if (da < 0.0 && db < 0.0) return;
+  if (da < 0.0) a = b + (a - b) * (db / (db - da));
+  if (db < 0.0) b = a + (b - a) * (da / (da - db));
+  const glm::dvec2 sa = glm::dvec2(a) / a.w * size * 0.5, sb = glm::dvec2(b) / b.w * size * 0.5;
+  glm::dvec2 d = sb - sa;
+  const double len = glm::length(d);
+  d = len > 1e-9 ? d / len : glm::dvec2(1.0, 0.0);
+  const double h = 0.5 * double(l.width_px);
+  const glm::dvec2 along = d * h, across = glm::dvec2(-d.y, d.x) * h;
+  const uint32_t rgba = pack(l.color);
+  quad({shifted(a, -along - across), shifted(b, along - across), shifted(b, along + across),
+        shifted(a, -along + across)},
+       {glm::vec2(0), glm::vec2(0), glm::vec2(0), glm::vec2(0)}, rgba, TESSERA_OVERLAY_FLAT);
+}
+
+glm::vec2 OverlayPass::Impl::layout(const OverlayLabel& l, const glm::dvec4* anchor) {
+  const float scale = l.height_px / font->FontSize;
+  const float pad = 0.2f * l.height_px;
+  float width = 0.0f;
+  for (size_t i = 0; i < l.text.size();)
+    width += font->GetCharAdvance(glyphOf(nextCodePoint(l.text, i))) * scale;
+  const glm::vec2 box(width + 2.0f * pad, l.height_px + 2.0f * pad);
+  if (!anchor) return box;
+  const glm::vec2 o = l.offset_px;
+  if (l.background.a > 0) {
+    begin(white.name(), true);
+    sprite(*anchor, o, o + box, glm::vec2(0), glm::vec2(1), pack(l.background),
+           TESSERA_OVERLAY_FLAT);
+  }
+  begin(font_texture.name(), true);
+  float pen = o.x + pad;
+  const uint32_t rgba = pack(l.color);
+  for (size_t i = 0; i < l.text.size();) {
+    const uint32_t cp = nextCodePoint(l.text, i);
+    const ImFontGlyph* g = font->FindGlyph(glyphOf(cp));
+    if (!g) continue;
+    if (g->Visible) {
+      const glm::vec2 lo(pen + g->X0 * scale, o.y + pad + g->Y0 * scale);
+      const glm::vec2 hi(pen + g->X1 * scale, o.y + pad + g->Y1 * scale);
+      sprite(*anchor, lo, hi, {g->U0, g->V0}, {g->U1, g->V1}, rgba, TESSERA_OVERLAY_GLYPH);
+    }
+    pen += g->AdvanceX * scale;
+  }
+  return box;
+}
+
+void OverlayPass::Impl::addLabel(const OverlayLabel& l) {
+  const glm::dvec4 a = clip(l.at);
+  // Behind the eye, outside the depth range, not finite, or of no size.
+  if (!(a.w > 0.0) || a.z < -a.w || a.z > a.w || !(l.height_px > 0.0f) ||
+      !std::isfinite(l.height_px) || !std::isfinite(l.offset_px.x) || !std::isfinite(l.offset_px.y))
+    return;
+  layout(l, &a);
+}
+
+OverlayPass::OverlayPass() : mImpl(std::make_unique<Impl>()) {
+  Impl& s = *mImpl;
+  s.load = GlProgram::graphics(shaders::kOverlayFullscreenVert, shaders::kOverlayLoadFrag,
+                               "overlay_load.frag");
+  s.draw = GlProgram::graphics(shaders::kOverlayVert, shaders::kOverlayFrag, "overlay.vert/frag");
+  if (std::filesystem::exists(kFontFile)) s.font = s.atlas.AddFontFromFileTTF(kFontFile, 32.0f);
+  if (!s.font) s.font = s.atlas.AddFontDefault();
+  unsigned char* pixels = nullptr;
+  int w = 0, h = 0;
+  s.atlas.GetTexDataAsAlpha8(&pixels, &w, &h);
+  s.font_texture = GlTexture(uint32_t(w), uint32_t(h), GL_R8);
+  s.font_texture.upload(pixels);
+  s.atlas.ClearTexData();
+  s.white = GlTexture(1, 1, GL_RGBA8);
+  const uint32_t white = 0xFFFFFFFFu;
+  s.white.upload(&white);
+  glCreateVertexArrays(1, &s.vao);
+}
+
+OverlayPass::~OverlayPass() {
+  if (mImpl->vao) glDeleteVertexArrays(1, &mImpl->vao);
+}
+
+glm::vec2 OverlayPass::measure(const OverlayLabel& label) const {
+  return mImpl->layout(label, nullptr);
+}
+
+double OverlayPass::run(FrameTarget& target, const ViewSetup& view, const Overlay& overlay) {
+  if (overlay.empty()) return 0.0;
+  GpuLap lap;
+  Impl& s = *mImpl;
+  s.vertices.clear();
+  s.runs.clear();
+  s.clip_from_world = view.projection * view.view;
+  s.eye = view.eye_world;
+  s.size = glm::dvec2(target.width(), target.height());
+  s.bias = std::clamp(overlay.depth_bias, 0.0, 0.5);
+
+  for (const OverlayQuad& q : overlay.quads) {
+    s.begin(q.texture ? q.texture->name() : s.white.name(), true);
+    std::array<glm::dvec4, 4> c;
+    for (int k = 0; k < 4; ++k) c[k] = s.clip(q.corners[k]);
+    if (!(c[0].w > 0.0) || !(c[1].w > 0.0) || !(c[2].w > 0.0) || !(c[3].w > 0.0)) continue;
+    s.quad(c, {glm::vec2(0, 0), glm::vec2(1, 0), glm::vec2(1, 1), glm::vec2(0, 1)}, pack(q.tint),
+           TESSERA_OVERLAY_TEXTURED);
+  }
+  s.begin(s.white.name(), true);
+  for (const OverlayLine& l : overlay.lines) s.addLine(l);
+  for (const OverlayPoint& p : overlay.points) {
+    const glm::dvec4 a = s.clip(p.at);
+    if (!(a.w > 0.0) || !(p.size_px > 0.0f) || !std::isfinite(p.size_px)) continue;
+    const float r = 0.5f * p.size_px;
+    // A ring keeps radii above 1 - ring / r: the fraction rides in the mode's upper bits.
+    const float hole = p.ring_px > 0.0f ? std::clamp(1.0f - p.ring_px / r, 0.0f, 1.0f) : 0.0f;
+    s.sprite(a, glm::vec2(-r), glm::vec2(r), glm::vec2(0), glm::vec2(1), pack(p.color),
+             TESSERA_OVERLAY_DOT | uint32_t(std::lround(hole * 255.0f)) << 8);
+  }
+  for (const OverlayLabel& l : overlay.labels) s.addLabel(l);
+  for (const ScreenRect& r : overlay.rects) {
+    if (!std::isfinite(r.min.x) || !std::isfinite(r.min.y) || !std::isfinite(r.max.x) ||
+        !std::isfinite(r.max.y))
+      continue;
+    s.begin(r.texture ? r.texture->name() : s.white.name(), false);
+    const glm::dvec4 origin(-1.0, -1.0, -1.0, 1.0);  // the image's top-left corner, nearest
+    s.sprite(origin, r.min, r.max, glm::vec2(0), glm::vec2(1), pack(r.color),
+             TESSERA_OVERLAY_TEXTURED);
+  }
+
+  if (s.framebuffer.width() != target.width() || s.framebuffer.height() != target.height())
+    s.framebuffer = GlFramebuffer(target.width(), target.height(), true);
+  glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+  glBindFramebuffer(GL_FRAMEBUFFER, s.framebuffer.name());
+  glViewport(0, 0, GLsizei(target.width()), GLsizei(target.height()));
+  glBindVertexArray(s.vao);
+  glDisable(GL_BLEND);
+  glEnable(GL_DEPTH_TEST);
+  glDepthFunc(GL_ALWAYS);
+  glDepthMask(GL_TRUE);
+  s.load.use();
+  s.load.set("uSize", glm::ivec2(target.width(), target.height()));
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_DEPTH, target.depth().name());
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_IMAGE, target.image().name());
+  glDrawArrays(GL_TRIANGLES, 0, 3);
+
+  if (!s.vertices.empty()) {
+    const GlBuffer vertices(s.vertices.size() * sizeof(OverlayVertex), s.vertices.data());
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_OVERLAY, vertices.name());
+    s.draw.use();
+    s.draw.set("uTexture", 0);
+    glDepthMask(GL_FALSE);  // overlays do not hide each other: later ones draw on top
+    glEnable(GL_BLEND);
+    // Colour blends over the scene; the image's alpha stays opaque.
+    glBlendFuncSeparate(GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA, GL_ZERO, GL_ONE);
+    for (const Run& r : s.runs) {
+      if (r.count == 0) continue;
+      glDepthFunc(r.depth_test ? GL_LEQUAL : GL_ALWAYS);
+      glBindTextureUnit(0, r.texture);
+      glDrawArrays(GL_TRIANGLES, GLint(r.first), GLsizei(r.count));
+    }
+  }
+  glDisable(GL_BLEND);
+  glDisable(GL_DEPTH_TEST);
+  glDepthMask(GL_TRUE);
+  glBindBuffer(GL_PIXEL_PACK_BUFFER, target.image().name());
+  glPixelStorei(GL_PACK_ALIGNMENT, 4);
+  glReadPixels(0, 0, GLsizei(target.width()), GLsizei(target.height()), GL_RGBA, GL_UNSIGNED_BYTE,
+               nullptr);
+  glBindBuffer(GL_PIXEL_PACK_BUFFER, 0);
+  glBindFramebuffer(GL_FRAMEBUFFER, 0);
+  glBindVertexArray(0);
+  return lap();
+}
+
+}  // namespace tessera::render

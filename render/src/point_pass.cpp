@@ -1,0 +1,262 @@
+#include <tessera/render/point_pass.h>
+
+#include <algorithm>
+#include <chrono>
+
+#define GL_GLEXT_PROTOTYPES
+#include <GL/glcorearb.h>
+
+#include "gpu_lap.h"
+#include "shaders.h"
+#include "shared_layout.h"
+
+namespace tessera::render {
+namespace {
+
+/// Dispatches `count` points in slices of at most 65535 work groups of 128 (GL's guaranteed
+/// minimum, llvmpipe's limit); `setSlice(first, n)` sets each slice's uniforms and bindings.
+template <typename F>
+void dispatchSlices(uint32_t count, F&& setSlice) {
+  constexpr uint32_t kMaxPoints = 65535u * 128u;
+  for (uint32_t done = 0; done < count; done += kMaxPoints) {
+    const uint32_t n = std::min(kMaxPoints, count - done);
+    setSlice(done, n);
+    glDispatchCompute((n + 127) / 128, 1, 1);
+  }
+}
+
+void bind(uint32_t binding, const GlBuffer& b) {
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, binding, b.name());
+}
+
+}  // namespace
+
+uint32_t packColor(const glm::vec3& c) {
+  const glm::uvec3 u = glm::uvec3(glm::clamp(c, 0.0f, 1.0f) * 255.0f + 0.5f);
+  return u.r | u.g << 8 | u.b << 16 | 0xFF000000u;
+}
+
+PointPass::PointPass()
+    : mRaster(GlProgram::compute(shaders::kPointRaster, "point_raster.comp")), mNone(16, nullptr) {}
+
+void PointPass::setPoints(std::span<const GpuPoint> points) {
+  mPoints = GlBuffer(points.size_bytes(), points.empty() ? nullptr : points.data());
+}
+
+void PointPass::fit(const FrameTarget& target) {
+  if (mPlane == target.pixels()) return;
+  mPlane = target.pixels();
+  for (GlBuffer* b : {&mLayerDepth, &mLayerColors, &mAccum, &mOitSums}) *b = GlBuffer();
+  mLayers = 0;
+}
+
+PassTimings PointPass::draw(FrameTarget& target, std::span<const DrawBatch> batches,
+                            const PointShading& shading) {
+  PassTimings timings;
+  GpuLap lap;
+  bind(TESSERA_BINDING_DEPTH, target.depth());
+  bind(TESSERA_BINDING_COLORS, target.colors());
+  bind(TESSERA_BINDING_PICK, target.pick());
+  const bool blend = shading.blend && shading.uniform_color == 0;
+  if (blend) bind(TESSERA_BINDING_COLOR_SUMS, target.colorSums());
+  mRaster.use();
+  mRaster.set("uBlend", blend ? 1 : 0);
+  mRaster.set("uP22", float(shading.projection[2][2]));
+  mRaster.set("uP32", float(shading.projection[3][2]));
+  mRaster.set("uSize", glm::ivec2(target.width(), target.height()));
+  mRaster.set("uWriteColor", shading.uniform_color == 0 ? 1 : 0);
+  mRaster.set("uWritePick", shading.pick ? 1 : 0);
+  const int passes = shading.uniform_color != 0 && !shading.pick ? 1 : 2;
+  for (int pass = 0; pass < passes; ++pass) {
+    mRaster.set("uPass", pass);
+    for (const DrawBatch& b : batches) {
+      if (b.count == 0) continue;
+      glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_POINTS,
+                       b.buffer ? b.buffer : mPoints.name());
+      mRaster.set("uSpacingK", b.spacing_k);
+      mRaster.set("uColorOverride", b.color_override);
+      mRaster.set("uClip", b.clip_from_local);
+      mRaster.set("uRadius", b.splat_radius);
+      mRaster.set("uBlendDepth", b.blend_depth);
+      dispatchSlices(b.count, [&](uint32_t done, uint32_t count) {
+        mRaster.set("uFirst", b.first + done);
+        mRaster.set("uCount", count);
+        mRaster.set("uPickBase", b.pick_base + done);
+      });
+    }
+    glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+    (pass == 0 ? timings.depth_ms : timings.color_ms) = lap();
+  }
+  return timings;
+}
+
+void PointPass::beginEnsembles(FrameTarget& target) {
+  if (!mSpbr) {
+    mSpbr = GlProgram::compute(shaders::kSpbrRaster, "spbr_raster.comp");
+    mAccumulate = GlProgram::compute(shaders::kSpbrAccumulate, "spbr_accumulate.comp");
+  }
+  fit(target);
+  if (!mAccum) mAccum = GlBuffer(mPlane * 12, nullptr);
+  mAccum.clear(0);
+  target.clearGeometry(true);
+}
+
+PassTimings PointPass::drawEnsembles(FrameTarget& target, std::span<const DrawBatch> batches,
+                                     uint32_t first, uint32_t count, uint32_t total,
+                                     uint32_t max_layers, const glm::vec3& background,
+                                     const PointShading& shading, bool slant_off, bool one_layer) {
+  PassTimings timings;
+  GpuLap lap;
+  const size_t plane = mPlane;
+  const uint32_t layers = one_layer ? count : std::max<uint32_t>(1, std::min(max_layers, count));
+  const uint32_t allocated = one_layer ? 1 : layers;
+  if (allocated > mLayers) {
+    mLayerDepth = GlBuffer();  // the old layers go before the new ones come
+    mLayerColors = GlBuffer();
+    mLayerDepth = GlBuffer(plane * allocated * 4, nullptr);
+    mLayerColors = GlBuffer(plane * allocated * 4, nullptr);
+    mLayers = allocated;
+  }
+  const int passes = shading.uniform_color != 0 ? 1 : 2;
+  const glm::ivec2 size(target.width(), target.height());
+  for (uint32_t group = first; group < first + count; group += layers) {
+    const uint32_t n = std::min(layers, first + count - group);
+    const uint32_t cleared = one_layer ? 1 : n;
+    const GLuint all_ones = 0xFFFFFFFFu;
+    glClearNamedBufferSubData(mLayerDepth.name(), GL_R32UI, 0, GLsizeiptr(plane * cleared * 4),
+                              GL_RED_INTEGER, GL_UNSIGNED_INT, &all_ones);
+    if (passes == 2) {
+      glClearNamedBufferSubData(mLayerColors.name(), GL_R32UI, 0, GLsizeiptr(plane * cleared * 4),
+                                GL_RED_INTEGER, GL_UNSIGNED_INT, &all_ones);
+    }
+    mSpbr.use();
+    bind(TESSERA_BINDING_DEPTH, mLayerDepth);
+    bind(TESSERA_BINDING_COLORS, mLayerColors);
+    mSpbr.set("uSize", size);
+    mSpbr.set("uTotal", total);
+    mSpbr.set("uMaxRadius", 16);
+    mSpbr.set("uSlantOff", slant_off ? 1 : 0);
+    mSpbr.set("uOneLayer", one_layer ? 1 : 0);
+    mSpbr.set("uGroupFirst", group);
+    mSpbr.set("uGroupCount", n);
+    for (int pass = 0; pass < passes; ++pass) {
+      mSpbr.set("uPass", pass);
+      for (const DrawBatch& b : batches) {
+        if (b.count == 0 || b.spbr_k <= 0.0f) continue;
+        const GLuint points = b.buffer ? b.buffer : mPoints.name();
+        glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_POINTS, points);
+        glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_NORMALS,
+                         b.normals ? b.normals : mNone.name());
+        glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_RATIOS,
+                         b.density_ratios ? b.density_ratios : mNone.name());
+        mSpbr.set("uHasRatios", b.density_ratios ? 1 : 0);
+        glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_CELLS,
+                         b.cells ? b.cells : mNone.name());
+        mSpbr.set("uHasCells", b.cells ? 1 : 0);
+        mSpbr.set("uJitterK", b.jitter_k);
+        mSpbr.set("uCopyCap", total);
+        mSpbr.set("uClip", b.clip_from_local);
+        mSpbr.set("uDiscK", b.disc_k);
+        mSpbr.set("uK", b.spbr_k);
+        mSpbr.set("uSeed", b.seed);
+        mSpbr.set("uEyeLocal", b.eye_local);
+        mSpbr.set("uColorOverride", b.color_override);
+        // Batches with buffer 0 start at `first` in the pass's own buffer: offset the binding
+        // instead of the index, so point indices (and so ensembles) stay per batch.
+        if (!b.buffer && b.first) {
+          glBindBufferRange(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_POINTS, points,
+                            GLintptr(b.first) * 16, GLsizeiptr(b.count) * 16);
+        }
+        dispatchSlices(b.count, [&](uint32_t done, uint32_t c) {
+          mSpbr.set("uCount", c);
+          // Later slices of a huge batch: a bound range keeps indices within the slice; the
+          // seed changes with the slice so their points stay independent.
+          if (done) {
+            glBindBufferRange(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_POINTS, points,
+                              GLintptr(b.first + done) * 16, GLsizeiptr(c) * 16);
+            mSpbr.set("uSeed", b.seed ^ (done * 0x9E3779B9u));
+          }
+        });
+      }
+      glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+      (pass == 0 ? timings.depth_ms : timings.color_ms) += lap();
+    }
+    mAccumulate.use();
+    bind(TESSERA_BINDING_DEPTH, mLayerDepth);
+    bind(TESSERA_BINDING_COLORS, mLayerColors);
+    bind(TESSERA_BINDING_ACCUM, mAccum);
+    bind(TESSERA_BINDING_TARGET_DEPTH, target.depth());
+    mAccumulate.set("uSize", size);
+    mAccumulate.set("uLayers", cleared);
+    mAccumulate.set("uBackground", packColor(background));
+    mAccumulate.set("uUniformColor", shading.uniform_color);
+    mAccumulate.set("uMode", 0);
+    glDispatchCompute((target.width() + 15) / 16, (target.height() + 15) / 16, 1);
+    glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+    timings.resolve_ms += lap();
+  }
+  return timings;
+}
+
+double PointPass::resolveEnsembles(FrameTarget& target, uint32_t accumulated) {
+  const auto t = std::chrono::steady_clock::now();
+  mAccumulate.use();
+  bind(TESSERA_BINDING_IMAGE, target.image());
+  bind(TESSERA_BINDING_ACCUM, mAccum);
+  mAccumulate.set("uSize", glm::ivec2(target.width(), target.height()));
+  mAccumulate.set("uMode", 1);
+  mAccumulate.set("uAccumulated", accumulated);
+  glDispatchCompute((target.width() + 15) / 16, (target.height() + 15) / 16, 1);
+  glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT | GL_SHADER_STORAGE_BARRIER_BIT);
+  glFinish();
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t).count();
+}
+
+PassTimings PointPass::drawBlended(FrameTarget& target, std::span<const DrawBatch> batches,
+                                   const glm::vec3& background, bool weighted_blended) {
+  PassTimings timings;
+  GpuLap lap;
+  if (!mOit) {
+    mOit = GlProgram::compute(shaders::kOitAccumulate, "oit_accumulate.comp");
+    mOitResolve = GlProgram::compute(shaders::kOitResolve, "oit_resolve.comp");
+  }
+  fit(target);
+  if (!mOitSums) mOitSums = GlBuffer(mPlane * 20, nullptr);
+  const float zero = 0.0f;
+  glClearNamedBufferData(mOitSums.name(), GL_R32F, GL_RED, GL_FLOAT, &zero);
+  const glm::ivec2 size(target.width(), target.height());
+  mOit.use();
+  bind(TESSERA_BINDING_ACCUM, mOitSums);
+  mOit.set("uSize", size);
+  mOit.set("uMode", weighted_blended ? 1 : 0);
+  mOit.set("uMaxRadius", 16);
+  for (const DrawBatch& b : batches) {
+    if (b.count == 0 || b.point_alpha <= 0.0f) continue;
+    const GLuint points = b.buffer ? b.buffer : mPoints.name();
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_POINTS, points);
+    mOit.set("uClip", b.clip_from_local);
+    mOit.set("uDiscK", b.disc_k);
+    mOit.set("uAlpha", b.point_alpha);
+    mOit.set("uColorOverride", b.color_override);
+    dispatchSlices(b.count, [&](uint32_t done, uint32_t c) {
+      if (done) {
+        glBindBufferRange(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_POINTS, points,
+                          GLintptr(b.first + done) * 16, GLsizeiptr(c) * 16);
+      }
+      mOit.set("uCount", c);
+    });
+  }
+  glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+  timings.depth_ms = lap();
+  mOitResolve.use();
+  bind(TESSERA_BINDING_IMAGE, target.image());
+  bind(TESSERA_BINDING_ACCUM, mOitSums);
+  mOitResolve.set("uSize", size);
+  mOitResolve.set("uBackground", glm::clamp(background, 0.0f, 1.0f) * 255.0f);
+  glDispatchCompute((target.width() + 15) / 16, (target.height() + 15) / 16, 1);
+  glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT | GL_SHADER_STORAGE_BARRIER_BIT);
+  timings.resolve_ms = lap();
+  return timings;
+}
+
+}  // namespace tessera::render

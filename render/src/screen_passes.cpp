@@ -1,0 +1,56 @@
+#include <tessera/render/screen_passes.h>
+
+#include "gpu_lap.h"
+#include "shaders.h"
+#include "shared_layout.h"
+
+namespace tessera::render {
+namespace {
+
+void dispatchPixels(const FrameTarget& target) {
+  glDispatchCompute((target.width() + 15) / 16, (target.height() + 15) / 16, 1);
+  glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT | GL_SHADER_STORAGE_BARRIER_BIT |
+                  GL_PIXEL_BUFFER_BARRIER_BIT);
+}
+
+}  // namespace
+
+ResolvePass::ResolvePass() : mProgram(GlProgram::compute(shaders::kResolve, "resolve.comp")) {}
+
+double ResolvePass::run(FrameTarget& target, const glm::vec3& background, uint32_t uniform_color,
+                        bool blended) {
+  GpuLap lap;
+  mProgram.use();
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_DEPTH, target.depth().name());
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_COLORS, target.colors().name());
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_IMAGE, target.image().name());
+  mProgram.set("uSize", glm::ivec2(target.width(), target.height()));
+  const glm::uvec3 bg = glm::uvec3(glm::clamp(background, 0.0f, 1.0f) * 255.0f + 0.5f);
+  mProgram.set("uBackground", bg.r | bg.g << 8 | bg.b << 16 | 0xFF000000u);
+  mProgram.set("uUniformColor", uniform_color);
+  mProgram.set("uBlended", blended ? 1 : 0);
+  if (blended)
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_COLOR_SUMS,
+                     target.colorSums().name());
+  dispatchPixels(target);
+  return lap();
+}
+
+EdlPass::EdlPass() : mProgram(GlProgram::compute(shaders::kEdl, "edl.comp")) {}
+
+double EdlPass::run(FrameTarget& target, const EdlOptions& options, const glm::dmat4& projection) {
+  if (options.strength <= 0.0f) return 0.0;
+  GpuLap lap;
+  mProgram.use();
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_DEPTH, target.depth().name());
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_IMAGE, target.image().name());
+  mProgram.set("uSize", glm::ivec2(target.width(), target.height()));
+  mProgram.set("uEdlStrength", options.strength);
+  mProgram.set("uEdlRadius", options.radius);
+  mProgram.set("uP22", float(projection[2][2]));
+  mProgram.set("uP32", float(projection[3][2]));
+  dispatchPixels(target);
+  return lap();
+}
+
+}  // namespace tessera::render
