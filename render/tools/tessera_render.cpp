@@ -186,7 +186,7 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_flag("--no-coverage-stop", no_coverage_stop,
                "Refine also where nearer points already cover the pixels (a volume of points "
-               "then draws every leaf; by default it draws a few points per pixel)");
+               "then draws every leaf; by default only its front)");
   app.add_option("--background", background, "R,G,B in [0, 1]");
   app.add_flag("--edl", edl,
                "Eye-dome lighting (shape without normals; default: the scene's shading)");

@@ -39,8 +39,9 @@ struct RenderOptions {
   /// model's size, at the price of detail on views that need more.
   uint64_t point_budget = 0;
   /// Stop refining where the model's nearer points already cover the pixels densely
-  /// (lod_selector.h): a volume of points draws a few points per pixel, not every leaf; surfaces
-  /// are unchanged. Opaque frames only: see-through frames show what lies behind.
+  /// (lod_selector.h): a volume of points draws its front, not every leaf (about a third of the
+  /// points of a 10^7- or 5x10^7-point cube seen whole); surfaces are unchanged. Opaque frames
+  /// only: see-through frames show what lies behind.
   bool coverage_stop = true;
   glm::vec3 background{0.0f};
   glm::u8vec3 default_color{200, 200, 200};  ///< for stores without colour (all must agree)
