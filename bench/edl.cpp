@@ -258,15 +258,17 @@ int main(int argc, char** argv) {
       << " tc rgb 'gray50'\n"
       << "plot '" << data.string()
       << "' every ::1 using 6:(is('classic') ? $7 : 1/0) with points pt 7 ps 1.5 title "
-         "'classic (today)', '' every ::1 using 6:(is('robust') ? $7 : 1/0) with points pt 5 "
-         "ps 1.5 title 'robust', '' every ::1 using 6:(is('off') ? 1/0 : $7):1 with labels "
-         "offset 0,0.9 font ',8' notitle\n"
+         "'classic (today)', '' every ::1 using 6:(is('robust-') ? $7 : 1/0) with points pt 5 "
+         "ps 1.2 title 'robust, other settings', '' every ::1 using 6:(strcol(1) eq 'robust' ? "
+         "$7 : 1/0) with points pt 9 ps 2.2 lc rgb 'black' title 'robust (the default)', '' "
+         "every ::1 using 6:(is('off') ? 1/0 : $7):1 with labels offset 0,0.9 font ',7' "
+         "notitle\n"
       << "unset arrow\nunset label\nset offsets 0,0,0,0\nset autoscale x\n"
       << "set title 'Flicker: mean absolute change for a " << orbit_deg
       << " degree orbit step (dashed: half of classic at lod-px 1)'\n"
       << "set xlabel ''\nset ylabel 'grey levels (0..255), every pixel'\n"
       << "set style data histograms\nset style fill solid 0.8 border -1\nset yrange [0:*]\n"
-      << "set xtics rotate by -30\nset key top right\n"
+      << "set xtics rotate by -30\nset key top right\nset rmargin 6\n"
       << "set arrow from graph 0, first " << base_flicker / 2 << " to graph 1, first "
       << base_flicker / 2 << " nohead dt 2 lc rgb 'gray40'\n"
       << "plot '" << data.string()
