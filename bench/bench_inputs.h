@@ -67,26 +67,22 @@ inline std::filesystem::path bigBunnyStore(const std::filesystem::path& out, uin
   return store;
 }
 
-/// The options of the benches that measure on the virtual bunny scan: --out, --store, --points.
-struct BunnyStoreOptions {
+/// The inputs of a benchmark on one store: --out (results and generated inputs), --store (a
+/// .tlod of the user's), --points (of the virtual bunny scan, when no store is named).
+struct StoreInputs {
   std::string out = TESSERA_BENCH_RESULTS_DIR;
-  std::string store;  ///< empty: bigBunnyStore(out, points)
+  std::string store;
   uint64_t points = 100'000'000;
 
-  void addTo(CLI::App& app) {
-    app.add_option("--out", out, "Folder for inputs, CSV and charts")->capture_default_str();
+  void addOptions(CLI::App& app) {
+    app.add_option("--out", out, "Folder for inputs, CSV and chart")->capture_default_str();
     app.add_option("--store", store, "A .tlod to use (default: the virtual bunny scan)");
     app.add_option("--points", points, "Points of the virtual bunny scan")->capture_default_str();
   }
-  /// Creates `out`, builds the store there unless one was given, and opens it; `bench` names
-  /// the caller in the line it prints.
-  std::unique_ptr<lod::PointStore> open(const char* bench) {
+  /// Creates `out`; the store named, or bigBunnyStore(`points`) (built on first use).
+  std::string storePath() const {
     std::filesystem::create_directories(out);
-    if (store.empty()) store = bigBunnyStore(out, points, TESSERA_DATA_DIR).string();
-    auto s = lod::PointStore::open(store);
-    std::fprintf(stderr, "%s: %s, %llu points, %.1f MB\n", bench, store.c_str(),
-                 (unsigned long long)s->summary().points, s->summary().file_bytes / 1e6);
-    return s;
+    return store.empty() ? bigBunnyStore(out, points, TESSERA_DATA_DIR).string() : store;
   }
 };
 

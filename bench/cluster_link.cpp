@@ -181,10 +181,11 @@ int main(int argc, char** argv) {
   }
   // Light: a coarse LOD cut, plain colour.
   std::ofstream(dir / "scene.json")
-      << R"({"models": [{"name": "bunny scans", "store": ")" << fs::absolute(store).string()
-      << R"("}], "camera": {"eye": {"x": -0.027, "y": 0.12, "z": 0.38}, "target": {"x": -0.027,
-      "y": 0.1, "z": 0}, "up": {"y": 1}}, "background": [0.05, 0.05, 0.08], "lodPixels": 8,
-      "shading": "color"})";
+      << R"({"nodes": [{"kind": "MODEL", "name": "bunny scans", "model": {"store": ")"
+      << fs::absolute(store).string()
+      << R"("}}], "camera": {"eye": {"x": -0.027, "y": 0.12, "z": 0.38}, "target": {"x": -0.027,
+      "y": 0.1, "z": 0}, "up": {"y": 1}}, "settings": {"background": {"r": 0.05, "g": 0.05,
+      "b": 0.08}, "lodPixels": 8, "shading": "SHADING_COLOR"}})";
   const std::string bin = fs::canonical("/proc/self/exe").parent_path().parent_path().string();
   const std::string master = bin + "/master/tessera-master",
                     node = bin + "/render_node/tessera-node";

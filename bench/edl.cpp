@@ -31,6 +31,7 @@
 
 #include "bench_images.h"
 #include "bench_inputs.h"
+#include "bench_views.h"
 
 namespace {
 
@@ -76,17 +77,16 @@ struct Plane {
   glm::dmat4 projection;
 };
 
-render::ViewSetup orbitView(const config::Camera& cam, double degrees, uint32_t w, uint32_t h) {
+/// bench::bigBunnyView() with its eye turned by `degrees` about the up axis around the target.
+render::ViewSetup orbitView(double degrees, uint32_t w, uint32_t h) {
+  const config::Camera cam = bench::bigBunnyCamera();
   const glm::dvec3 eye(cam.eye().x(), cam.eye().y(), cam.eye().z());
   const glm::dvec3 target(cam.target().x(), cam.target().y(), cam.target().z());
   const glm::dvec3 up(cam.up().x(), cam.up().y(), cam.up().z());
   const glm::dmat4 turn = glm::rotate(glm::dmat4(1.0), glm::radians(degrees), up);
-  render::ViewSetup v;
+  render::ViewSetup v = bench::bigBunnyView(w, h);
   v.eye_world = target + glm::dvec3(turn * glm::dvec4(eye - target, 0.0));
   v.view = glm::lookAt(v.eye_world, target, up);
-  v.projection = glm::perspective(glm::radians(45.0), double(w) / h, 0.01, 2.0);
-  v.width = w;
-  v.height = h;
   return v;
 }
 
@@ -125,8 +125,8 @@ render::Image grid(const std::vector<render::Image>& cells, uint32_t columns) {
 
 int main(int argc, char** argv) {
   CLI::App app{"edl: eye-dome lighting's accuracy across LOD levels and its flicker, by method"};
-  bench::BunnyStoreOptions input;
-  input.addTo(app);
+  bench::StoreInputs input;
+  input.addOptions(app);
   int repeats = 5;
   double orbit_deg = 0.1;
   std::vector<uint32_t> crop_at{560, 200};
@@ -142,11 +142,10 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   CLI11_PARSE(app, argc, argv);
   try {
-    auto store = input.open("edl");
+    auto store = lod::PointStore::open(input.storePath());
     const std::string& out = input.out;
     auto ctx = render::GlContext::createHeadless();
     render::ModelInstance inst{store.get(), render::storeModel(*store)};
-    const config::Camera cam = bench::bunnyCamera();
     const uint32_t W = 1920, H = 1080;
 
     // The four depth planes. The renderer draws them without EDL; each is copied on the GPU.
@@ -159,7 +158,7 @@ int main(int argc, char** argv) {
       for (const double deg : {0.0, orbit_deg}) {
         render::RenderOptions o;
         o.lod_pixels = lod;
-        const render::ViewSetup v = orbitView(cam, deg, W, H);
+        const render::ViewSetup v = orbitView(deg, W, H);
         render::RenderStats st;
         const auto t = std::chrono::steady_clock::now();
         renderer.renderSettled({&inst, 1}, v, o, &st);

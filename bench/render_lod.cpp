@@ -24,6 +24,7 @@
 #include <tessera/core/stopwatch.h>
 #include "bench_images.h"
 #include "bench_inputs.h"
+#include "bench_views.h"
 
 namespace {
 
@@ -60,28 +61,24 @@ Measure measure(std::span<const render::ModelInstance> models, const render::Vie
 
 int main(int argc, char** argv) {
   CLI::App app{"render_lod: frame time against PSNR for LOD thresholds; per-tile cost of a wall"};
-  bench::BunnyStoreOptions input;
-  input.addTo(app);
+  bench::StoreInputs in;
   std::string wall_path = TESSERA_CONFIG_DIR "/walls/2x2.json";
   int repeats = 3;
+  in.addOptions(app);
   app.add_option("--wall", wall_path, "Wall for the per-tile part")->capture_default_str();
   app.add_option("--repeats", repeats, "Timed frames per measure (best kept)")
       ->check(CLI::PositiveNumber)
       ->capture_default_str();
   CLI11_PARSE(app, argc, argv);
+  const std::string& out = in.out;
   try {
-    auto store = input.open("render_lod");
-    const std::string& out = input.out;
+    const std::string store_path = in.storePath();
+    auto store = lod::PointStore::open(store_path);
     const uint64_t store_bytes = store->summary().file_bytes;
     auto ctx = render::GlContext::createHeadless();
     render::ModelInstance inst{store.get(), render::storeModel(*store)};
-    const config::Camera cam = bench::bunnyCamera();
-    render::ViewSetup view;
-    view.view = render::cameraView(cam);
-    view.projection = glm::perspective(glm::radians(45.0), 1920.0 / 1080.0, 0.01, 2.0);
-    view.width = 1920;
-    view.height = 1080;
-    view.eye_world = glm::dvec3(cam.eye().x(), cam.eye().y(), cam.eye().z());
+    const config::Camera cam = bench::bigBunnyCamera();
+    const render::ViewSetup view = bench::bigBunnyView();
     render::RenderOptions options;
     options.edl.strength = 1.0f;
     const uint64_t big_budget = 8ull << 30;

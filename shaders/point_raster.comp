@@ -2,8 +2,8 @@
 // compute atomicMin scatter ~100 M points/s). Without 64-bit atomics the nearest point wins in
 // two passes over the same points: pass 0 keeps the smallest depth per pixel (atomicMin on the
 // depth's float bits, which order like the floats for depths in [0, 1]); pass 1, among points at
-// that depth, keeps the smallest colour (and pick id), so the result is the same whatever the thread order and
-// whichever buffer a point came from. Splats are round; their diameter follows the node's sample
+// that depth, keeps the smallest (position hash, colour) key and pick id, so the result is the
+// same whatever the thread order and whichever buffer a point came from. Splats are round; their diameter follows the node's sample
 // spacing as it projects at each point (uSpacingK / w pixels), so surfaces close at every LOD
 // level without fat blobs behind near ones, radius capped at uRadius.
 layout(local_size_x = 128) in;
@@ -13,12 +13,17 @@ layout(std430, binding = TESSERA_BINDING_POINTS) readonly buffer Points { Point 
 layout(std430, binding = TESSERA_BINDING_DEPTH) buffer Depth { uint depth[]; };
 layout(std430, binding = TESSERA_BINDING_COLORS) buffer Colors { uint colors[]; };  // rgb, 0xFFFFFFFF: none
 layout(std430, binding = TESSERA_BINDING_PICK) buffer Pick { uint pick[]; };  // frame-wide point id
+layout(std430, binding = TESSERA_BINDING_COLOR_SUMS) buffer Sums { uint sums[]; };  // w r, w g, w b, w
 
 uniform mat4 uClip;            // clip from the batch's node frame
 uniform uint uColorOverride;  // non-zero: 0x1000000 | rgb for every point of the batch
 uniform int uWriteColor;      // pass 1 writes colours (0: one colour for all, only pick ids)
 uniform int uWritePick;       // pass 1 writes pick ids uPickBase + i
 uniform uint uPickBase;       // pick id of this dispatch's first point
+uniform int uBlend;           // pass 1 blends: every point within uBlendDepth of the nearest adds
+uniform float uBlendDepth;    // its colour, weighted by its splat's kernel, to sums[] (metres)
+uniform float uP22;           // projection[2][2] and [3][2]: view depth from window depth
+uniform float uP32;
 uniform uint uFirst;    // first point of the batch in `points`
 uniform uint uCount;
 uniform ivec2 uSize;    // viewport in pixels
@@ -26,17 +31,38 @@ uniform int uRadius;    // the largest splat radius, pixels (the radius when uSp
 uniform float uSpacingK;  // node spacing in pixels at view depth 1 (0: fixed radius uRadius)
 uniform int uPass;      // 0: depth, 1: colour
 
-// Pass 0 keeps the nearest depth; pass 1, among the points at that depth, the smallest colour
+// Pass 0 keeps the nearest depth; pass 1, among the points at that depth, one colour (below)
 // and the smallest pick id (two points at exactly the same depth may give the colour of one and
-// the id of the other: either is a nearest point).
-void write(uint idx, uint d, uint gi, uint i) {
+// the id of the other: either is a nearest point). Blending instead (high-quality splatting, as
+// Potree's: Botsch et al. 2005), pass 1 adds the colour of every point whose view depth w is
+// within uBlendDepth of the nearest's, weighted by its splat kernel `k`, so the colours of the
+// points that overlap on a surface average instead of the nearest one aliasing.
+void write(uint idx, uint d, uint gi, uint i, float w, float k) {
   if (uPass == 0) {
     atomicMin(depth[idx], d);
-  } else if (depth[idx] == d) {
-    if (uWriteColor != 0)
-      atomicMin(colors[idx], uColorOverride != 0u ? uColorOverride & 0xFFFFFFu
-                                                  : points[gi].rgba & 0xFFFFFFu);
-    if (uWritePick != 0) atomicMin(pick[idx], uPickBase + i);
+    return;
+  }
+  uint nearest = depth[idx];
+  if (nearest == d && uWritePick != 0) atomicMin(pick[idx], uPickBase + i);
+  uint rgb = uColorOverride != 0u ? uColorOverride & 0xFFFFFFu : points[gi].rgba & 0xFFFFFFu;
+  if (uBlend != 0) {
+    // The nearest point always counts: far away, window depth's float steps exceed the
+    // tolerance, and the view depth recovered from it may fall short of the point's own.
+    float near_w = uP32 / ((uintBitsToFloat(nearest) * 2.0 - 1.0) + uP22);
+    if (nearest != d && w > near_w + uBlendDepth) return;
+    uint q = uint(clamp(k, 1.0 / 64.0, 1.0) * 255.0 + 0.5);
+    atomicAdd(sums[idx * 4u], (rgb & 0xFFu) * q);
+    atomicAdd(sums[idx * 4u + 1u], ((rgb >> 8) & 0xFFu) * q);
+    atomicAdd(sums[idx * 4u + 2u], ((rgb >> 16) & 0xFFu) * q);
+    atomicAdd(sums[idx * 4u + 3u], q);
+  } else if (nearest == d && uWriteColor != 0) {
+    // Ties (a surface facing the eye puts many points at one depth) go to the smallest of a
+    // hash of the point's position in the top byte, then colour: an unbiased pick among the
+    // tied points, the same in every process. The smallest colour alone would always pick the
+    // darkest (a black-and-white plane came out black).
+    uvec3 b = floatBitsToUint(points[gi].position);
+    uint h = (b.x * 0x9E3779B1u) ^ (b.y * 0x85EBCA77u) ^ (b.z * 0xC2B2AE3Du);
+    atomicMin(colors[idx], (h ^ (h >> 15)) << 24 | rgb);
   }
 }
 
@@ -62,7 +88,7 @@ void main() {
     // One pixel (fine LOD levels, far points): no loop, which llvmpipe runs much faster.
     if (centre.x < 0 || centre.y < 0 || centre.x >= uSize.x || centre.y >= uSize.y) return;
     uint idx = uint(centre.y) * uint(uSize.x) + uint(centre.x);
-    write(idx, d, gi, i);
+    write(idx, d, gi, i, c.w, 1.0);
     return;
   }
   int r2 = radius * radius + radius;
@@ -77,7 +103,10 @@ void main() {
       ivec2 q = centre + ivec2(dx, dy);
       if (q.x < 0 || q.y < 0 || q.x >= uSize.x || q.y >= uSize.y) continue;
       uint idx = uint(q.y) * uint(uSize.x) + uint(q.x);
-      write(idx, d, gi, i);
+      // The splat kernel: 1 at the point, falling to 0 at the disc's edge.
+      vec2 o = vec2(q) + 0.5 - pos;
+      float r = uSpacingK > 0.0 ? disc : float(radius) + 0.5;
+      write(idx, d, gi, i, c.w, 1.0 - dot(o, o) / (r * r));
     }
   }
 }

@@ -16,9 +16,10 @@
 #define TESSERA_BINDING_RATIOS 6   // float per point: node / local density (see-through)
 #define TESSERA_BINDING_CELLS 7    // uvec2 per point: surface cell (sparse see-through)
 #define TESSERA_BINDING_PICK 8     // uint per pixel: the nearest element's frame-wide pick id
-#define TESSERA_BINDING_TARGET_DEPTH 9     // the frame target's depth (see-through: nearest copy)
-#define TESSERA_BINDING_OVERLAY 10         // overlay primitives (overlay_pass.h)
-#define TESSERA_BINDING_SCREEN_SCRATCH 11  // float per pixel: a screen pass's own plane (EDL)
+#define TESSERA_BINDING_TARGET_DEPTH 9  // the frame target's depth (see-through: nearest copy)
+#define TESSERA_BINDING_OVERLAY 10      // overlay primitives (overlay_pass.h)
+#define TESSERA_BINDING_COLOR_SUMS 11   // uvec4 per pixel: weighted r, g, b sums and weight
+#define TESSERA_BINDING_SCREEN_SCRATCH 12  // float per pixel: a screen pass's own plane (EDL)
 
 // Eye-dome lighting (shaders/edl.comp, EdlOptions::filter_radius): the largest fitted window's
 // half-width, pixels.

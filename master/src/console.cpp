@@ -49,9 +49,9 @@ render::ViewSetup Console::view(const config::Camera& camera) const {
   return v;
 }
 
-void Console::draw(const sync::SceneGraph& graph) {
+void Console::draw(const sync::SceneGraph& graph, const sync::SceneChanges& changes) {
   render::ChunkStreamer* streamers[] = {&mRenderer->streamer()};
-  mInstances = mModels.update(graph, streamers);
+  mInstances = mModels.update(graph, changes, streamers);
   mLastView = view(graph.camera());
   render::RenderOptions options = render::SceneDrawList::options(graph, mSplatScale);
   options.pick_ids = true;  // the navigation's picks read the frame's ids

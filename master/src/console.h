@@ -25,7 +25,8 @@ class Console {
   ~Console();
 
   /// Renders the scene as it is now (draw(): never waits for data) and shows it.
-  void draw(const sync::SceneGraph& graph);
+  /// One frame of `graph`, after `changes` (what the frame just taken changed).
+  void draw(const sync::SceneGraph& graph, const sync::SceneChanges& changes);
   /// Writes what the window shows (its framebuffer) as a PNG. Throws render::RenderError.
   void save(const std::string& path) const;
   /// Applies the input since the last call to `graph`: navigation to the camera, keys 1-9 select
@@ -43,7 +44,7 @@ class Console {
   std::unique_ptr<render::Window> mWindow;
   std::unique_ptr<render::ViewRenderer> mRenderer;
   render::SceneDrawList mModels;  // after mRenderer: its stores close once the renderer is gone
-  std::vector<render::ModelInstance> mInstances;
+  std::span<const render::ModelInstance> mInstances;  // mModels', until its next update
   render::ViewSetup mLastView;
   OneButtonNavigation mNavigation;
   size_t mSelected = 0;  // index among the MODEL nodes

@@ -7,9 +7,9 @@
 #include <thread>
 
 #include <tessera/core/stopwatch.h>
-#include <tessera/lod/store_cache.h>
 #include <tessera/master/tile_assignment.h>
 #include <tessera/render/gl_context.h>
+#include <tessera/render/scene_draw_list.h>
 #include <tessera/render/wall_mosaic.h>
 #include <tessera/sync/camera_path.h>
 #include <tessera/sync/wire.h>
@@ -69,29 +69,15 @@ std::string Master::message(const std::string& text) const {
 
 void Master::prepare() {
   mWall = sync::loadWallConfig(mOpt.wall);
-  config::SceneConfig scene = sync::loadSceneConfig(mOpt.scene);
   // A raw scan (PLY, LAS, .conf ...) becomes a cached store before any node sees the scene, so
   // the nodes of this host open the same file (lod/store_cache.h).
-  for (int i = 0; i < scene.models_size(); ++i) {
-    config::Model& m = *scene.mutable_models(i);
-    if (fs::path(m.store()).extension() == ".tlod") continue;
-    try {
-      m.set_store(lod::cachedStoreFor(m.store(), "tessera-master").string());
-    } catch (const std::exception& e) {
-      throw StartError("tessera-master: " + mOpt.scene + ": models[" + std::to_string(i) +
-                       "].store: " + m.store() +
-                       " is neither a .tlod store nor a scan that can "
-                       "be built into one: " +
-                       e.what());
-    }
-  }
+  mGraph = render::loadSceneWithStores(mOpt.scene, "tessera-master");
   if (!mOpt.script.empty()) {
     config::CameraPath path = sync::loadCameraPath(mOpt.script);
-    sync::checkPathModels(path, scene, mOpt.script);
+    sync::checkPathModels(path, mGraph, mOpt.script);
     mPlayer.emplace(std::move(path));
   }
   mTiles = std::make_unique<TileTable>(mWall, mOpt.wall);
-  mGraph = sync::SceneGraph::fromConfig(scene);
   (void)mGraph.takeFrame(0, 0);  // the loaded scene is the snapshot; frames count from 1
   if (!mOpt.stats.empty()) {
     mCsv = std::make_unique<std::ofstream>(mOpt.stats);
@@ -361,7 +347,8 @@ int Master::run() {
 
     mFrame = f + 1;
     cluster::FrameMessage message_out;
-    message_out.set_frame(sync::serializeFrame(mGraph.takeFrame(mFrame, uint64_t(t * 1e6))));
+    const scene::Frame taken = mGraph.takeFrame(mFrame, uint64_t(t * 1e6));
+    message_out.set_frame(sync::serializeFrame(taken));
     message_out.set_read_back(!shots.empty());
     const size_t frame_bytes = message_out.frame().size();
     mLink.publish(message_out);
@@ -369,7 +356,7 @@ int Master::run() {
     double present_ms = 0;
     if (mConsole) {  // the console renders while the nodes do
       const auto p = Clock::now();
-      mConsole->draw(mGraph);
+      mConsole->draw(mGraph, sync::SceneChanges::of(taken));
       if (last && !mOpt.console_screenshot.empty()) mConsole->save(mOpt.console_screenshot);
       present_ms = msSince(p);
     }

@@ -4,6 +4,7 @@
 #include <chrono>
 #include <condition_variable>
 #include <mutex>
+#include <span>
 #include <thread>
 #include <unordered_map>
 #include <unordered_set>
@@ -18,7 +19,7 @@ namespace tessera::render {
 namespace {
 
 struct Key {
-  const lod::PointStore* store;
+  const lod::LodHierarchy* store;
   lod::NodeId node;
   bool operator==(const Key&) const = default;
 };
@@ -30,9 +31,11 @@ struct KeyHash {
 };
 
 struct Item {
-  lod::PointStore* store;
+  lod::LodHierarchy* store;  ///< pages: any hierarchy; chunks: `points`
+  lod::PointStore* points;   ///< the point store whose chunk this is (null for pages)
   lod::NodeId node;
-  bool page;  ///< a hierarchy page (the node's children), not a chunk
+  bool page;     ///< a hierarchy page (the node's children), not a chunk
+  bool measure;  ///< a chunk for see-through drawing: density and what StreamerOptions asks
   uint8_t level;
   double distance;
 };
@@ -53,6 +56,7 @@ struct Loaded {
   std::vector<glm::uvec2> cells;  ///< SurfaceCell as half floats: (dx, dy), (dz, weight)
   bool page = false;
   bool failed = false;
+  bool measured = false;
   glm::dvec3 offset{0.0};
   std::vector<GpuPoint> points;
 };
@@ -68,16 +72,17 @@ struct ChunkStreamer::Impl {
   StreamerOptions options;
   uint32_t grey = 0;
 
-  // Shared with the loader thread, under `mutex`.
-  std::mutex mutex;
-  std::condition_variable wake;  ///< loader: work or stop
-  std::condition_variable idle;  ///< waiters: the loader finished an item
-  std::vector<Item> queue;
-  size_t next = 0;
-  const lod::PointStore* busy = nullptr;  ///< store of the item in flight
-  Key busy_key{nullptr, lod::kNoNode};    ///< the chunk in flight (not queued again)
+  // Shared with the loader threads, under `mutex`.
+  mutable std::mutex mutex;
+  std::condition_variable wake;  ///< loader threads: work or stop
+  std::condition_variable idle;  ///< waiters: a loader thread finished an item
+  std::vector<Item> queue;       ///< this frame's requests, highest priority first
+  size_t next = 0;               ///< the next item a loader thread takes
+  /// Per loader thread, the item it works on (store null: none). forget() waits on these.
+  std::vector<Item> flight;
   std::vector<Loaded> done;
-  std::unordered_set<Key, KeyHash> done_keys;  ///< in `done`: not to be queued again
+  /// Chunks in `done` (not to be queued again), mapped to whether they were measured.
+  std::unordered_map<Key, bool, KeyHash> done_keys;
   bool paused = false, stop = false;
 
   // GL thread only.
@@ -86,77 +91,107 @@ struct ChunkStreamer::Impl {
   uint64_t resident_bytes = 0, resident_disk_bytes = 0;
   std::unordered_set<Key, KeyHash> failed;
   std::unordered_set<Key, KeyHash> failed_pages;
-  std::vector<Item> wanted;  ///< this frame's requests
-  std::unordered_set<Key, KeyHash> wanted_keys, wanted_pages;
+  std::vector<Item> wanted;                                ///< this frame's requests
+  std::unordered_map<Key, size_t, KeyHash> wanted_chunks;  ///< index into `wanted`
+  std::unordered_set<Key, KeyHash> wanted_pages;
 
-  std::thread loader;
+  std::vector<std::thread> loaders;
 
-  void run() {
+  /// Whether a loader thread works on what `item` asks for (the same page, or the same chunk
+  /// with at least its measurements). Caller holds `mutex`.
+  bool covered(const Item& item) const {
+    return std::any_of(flight.begin(), flight.end(), [&](const Item& f) {
+      return f.store == item.store && f.node == item.node && f.page == item.page &&
+             (f.measure || !item.measure);
+    });
+  }
+
+  /// One loader thread: the highest-priority queued item, one at a time, until stopped.
+  void run(size_t slot) {
+    std::unique_lock lock(mutex);
     for (;;) {
-      std::unique_lock lock(mutex);
       wake.wait(lock, [&] { return stop || (!paused && next < queue.size()); });
       if (stop) return;
       const Item item = queue[next++];
-      busy = item.store;
-      busy_key = item.page ? Key{nullptr, lod::kNoNode} : Key{item.store, item.node};
+      flight[slot] = item;
       lock.unlock();
-      Loaded out;
-      out.key = {item.store, item.node};
-      out.page = item.page;
-      if (item.page) {
-        try {
-          item.store->children(item.node);
-        } catch (const lod::StoreError&) {
-          out.failed = true;
-        }
-      } else {
-        try {
-          auto chunk = item.store->decodeChunk(item.node);
-          out.disk_bytes = item.store->chunkBytes(item.node);
-          out.spacing = item.store->node(item.node).spacing;
-          // Spheres four spacings wide hold about 50 points of a surface.
-          out.density = sphereDensity(chunk->positions, 4.0 * out.spacing, 128, item.node, 16384);
-          if (options.normals) out.normals = estimateNormals(chunk->positions, 2.5 * out.spacing);
-          if (options.density_ratios) {
-            const lod::NodeInfo info = item.store->node(item.node);
-            out.ratios = densityRatios(chunk->positions, 4.0 * out.spacing, glm::vec3(0.0f),
-                                       glm::vec3(info.box_max - info.box_min), out.density);
-          }
-          if (options.surface_cells) {
-            // Six spacings hold ~28 neighbours: enough to close almost every cell.
-            const std::vector<SurfaceCell> cells =
-                surfaceCells(chunk->positions, 6.0 * out.spacing, out.density);
-            out.cells.resize(cells.size());
-            for (size_t i = 0; i < cells.size(); ++i) {
-              const SurfaceCell& c = cells[i];
-              out.cells[i] = {glm::packHalf2x16(glm::vec2(c.offset.x, c.offset.y)),
-                              glm::packHalf2x16(glm::vec2(c.offset.z, c.weight))};
-            }
-          }
-          out.offset = chunk->offset;
-          out.points.resize(chunk->size());
-          const bool color = !chunk->colors.empty();
-          for (size_t i = 0; i < chunk->size(); ++i) {
-            uint32_t rgb = grey;
-            if (color) {
-              const glm::u8vec4 c = chunk->colors[i];
-              rgb = uint32_t(c.r) | uint32_t(c.g) << 8 | uint32_t(c.b) << 16;
-            }
-            out.points[i] = {chunk->positions[i], rgb};
-          }
-        } catch (const lod::StoreError&) {
-          out.failed = true;  // corrupt chunk: never drawn as garbage, never retried
-        }
-      }
+      Loaded out = load(item);
       lock.lock();
-      busy = nullptr;
-      busy_key = Key{nullptr, lod::kNoNode};
+      flight[slot].store = nullptr;
       if (!item.page || out.failed) {
-        if (!item.page) done_keys.insert(out.key);
+        if (!item.page) done_keys[out.key] |= out.measured;
         done.push_back(std::move(out));
       }
       idle.notify_all();
     }
+  }
+
+  /// Reads a hierarchy page, or decodes (and measures) a chunk. Any loader thread, no lock:
+  /// PointStore reads are thread-safe and decode outside its locks.
+  Loaded load(const Item& item) const {
+    Loaded out;
+    out.key = {item.store, item.node};
+    out.page = item.page;
+    if (item.page) {
+      try {
+        item.store->children(item.node);
+      } catch (const lod::StoreError&) {
+        out.failed = true;
+      }
+      return out;
+    }
+    try {
+      auto chunk = item.points->decodeChunk(item.node);
+      out.disk_bytes = item.store->chunkBytes(item.node);
+      out.spacing = item.store->node(item.node).spacing;
+      if (item.measure) measure(*item.points, item.node, chunk->positions, out);
+      out.offset = chunk->offset;
+      out.points.resize(chunk->size());
+      const bool color = !chunk->colors.empty();
+      for (size_t i = 0; i < chunk->size(); ++i) {
+        uint32_t rgb = grey;
+        if (color) {
+          const glm::u8vec4 c = chunk->colors[i];
+          rgb = uint32_t(c.r) | uint32_t(c.g) << 8 | uint32_t(c.b) << 16;
+        }
+        out.points[i] = {chunk->positions[i], rgb};
+      }
+    } catch (const lod::StoreError&) {
+      out.failed = true;  // corrupt chunk: never drawn as garbage, never retried
+    }
+    return out;
+  }
+
+  /// What see-through rendering needs of a chunk (spbr.h), into `out`.
+  void measure(const lod::PointStore& store, lod::NodeId node, std::span<const glm::vec3> positions,
+               Loaded& out) const {
+    out.measured = true;
+    // Spheres four spacings wide hold about 50 points of a surface.
+    out.density = sphereDensity(positions, 4.0 * out.spacing, 128, node, 16384);
+    if (options.normals) out.normals = estimateNormals(positions, 2.5 * out.spacing);
+    if (options.density_ratios) {
+      const lod::NodeInfo info = store.node(node);
+      out.ratios = densityRatios(positions, 4.0 * out.spacing, glm::vec3(0.0f),
+                                 glm::vec3(info.box_max - info.box_min), out.density);
+    }
+    if (options.surface_cells) {
+      // Six spacings hold ~28 neighbours: enough to close almost every cell.
+      const std::vector<SurfaceCell> cells =
+          surfaceCells(positions, 6.0 * out.spacing, out.density);
+      out.cells.resize(cells.size());
+      for (size_t i = 0; i < cells.size(); ++i) {
+        const SurfaceCell& c = cells[i];
+        out.cells[i] = {glm::packHalf2x16(glm::vec2(c.offset.x, c.offset.y)),
+                        glm::packHalf2x16(glm::vec2(c.offset.z, c.weight))};
+      }
+    }
+  }
+
+  /// Frees a resident chunk's buffers and takes it out of the byte counts.
+  void erase(std::unordered_map<Key, GpuChunk, KeyHash>::iterator it) {
+    resident_bytes -= residentBytes(it->second);
+    resident_disk_bytes -= it->second.disk_bytes;
+    resident.erase(it);
   }
 };
 
@@ -165,7 +200,11 @@ ChunkStreamer::ChunkStreamer(const StreamerOptions& options) : mImpl(std::make_u
   mImpl->grey = uint32_t(options.default_color.r) | uint32_t(options.default_color.g) << 8 |
                 uint32_t(options.default_color.b) << 16;
   mStats.budget_bytes = options.budget_bytes;
-  mImpl->loader = std::thread([impl = mImpl.get()] { impl->run(); });
+  uint32_t threads = options.loader_threads;
+  if (threads == 0) threads = std::max(1u, std::thread::hardware_concurrency());
+  mImpl->flight.assign(threads, Item{nullptr, nullptr, lod::kNoNode, false, false, 0, 0.0});
+  for (size_t i = 0; i < threads; ++i)
+    mImpl->loaders.emplace_back([impl = mImpl.get(), i] { impl->run(i); });
 }
 
 ChunkStreamer::~ChunkStreamer() {
@@ -174,7 +213,7 @@ ChunkStreamer::~ChunkStreamer() {
     mImpl->stop = true;
   }
   mImpl->wake.notify_all();
-  mImpl->loader.join();
+  for (std::thread& t : mImpl->loaders) t.join();
 }
 
 void ChunkStreamer::beginFrame() {
@@ -199,7 +238,10 @@ void ChunkStreamer::beginFrame() {
       }
       continue;
     }
-    if (s.resident.count(l.key)) continue;
+    if (auto it = s.resident.find(l.key); it != s.resident.end()) {
+      if (it->second.measured || !l.measured) continue;
+      s.erase(it);  // measured for see-through: replaces the copy loaded without
+    }
     GpuChunk c;
     c.buffer = GlBuffer(l.points.size() * sizeof(GpuPoint), l.points.data());
     c.count = uint32_t(l.points.size());
@@ -207,6 +249,7 @@ void ChunkStreamer::beginFrame() {
     c.last_used = frame;
     c.disk_bytes = l.disk_bytes;
     c.spacing = l.spacing;
+    c.measured = l.measured;
     c.density = l.density;
     if (!l.normals.empty()) c.normals = GlBuffer(l.normals.size() * 4, l.normals.data());
     if (!l.ratios.empty()) c.density_ratios = GlBuffer(l.ratios.size() * 4, l.ratios.data());
@@ -227,45 +270,52 @@ void ChunkStreamer::beginFrame() {
     });
     for (const auto& [used, k] : old) {
       if (s.resident_bytes <= s.options.budget_bytes) break;
-      auto it = s.resident.find(k);
-      s.resident_bytes -= residentBytes(it->second);
-      s.resident_disk_bytes -= it->second.disk_bytes;
-      s.resident.erase(it);
+      s.erase(s.resident.find(k));
       ++mStats.evicted;
     }
   }
   s.wanted.clear();
-  s.wanted_keys.clear();
+  s.wanted_chunks.clear();
   s.wanted_pages.clear();
   mStats.upload_ms =
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
 }
 
-const GpuChunk* ChunkStreamer::find(const lod::PointStore& store, lod::NodeId node) {
+const GpuChunk* ChunkStreamer::find(const lod::LodHierarchy& store, lod::NodeId node,
+                                    ChunkUse use) {
   auto it = mImpl->resident.find({&store, node});
   if (it == mImpl->resident.end()) return nullptr;
+  if (use == ChunkUse::kSeeThrough && !it->second.measured) return nullptr;
   it->second.last_used = mImpl->frame;
   return &it->second;
 }
 
 void ChunkStreamer::request(lod::PointStore& store, lod::NodeId node, uint8_t level,
-                            double distance) {
+                            double distance, ChunkUse use) {
   Impl& s = *mImpl;
   const Key k{&store, node};
-  if (s.resident.count(k) || s.failed.count(k) || !s.wanted_keys.insert(k).second) return;
-  s.wanted.push_back({&store, node, false, level, distance});
+  const bool measure = use == ChunkUse::kSeeThrough || s.options.measure_every_chunk;
+  if (auto it = s.resident.find(k); it != s.resident.end() && (it->second.measured || !measure))
+    return;
+  if (s.failed.count(k)) return;
+  const auto [it, added] = s.wanted_chunks.try_emplace(k, s.wanted.size());
+  if (!added) {
+    s.wanted[it->second].measure |= measure;  // one view opaque, another see-through
+    return;
+  }
+  s.wanted.push_back({&store, &store, node, false, measure, level, distance});
   ++mStats.requested;
 }
 
-void ChunkStreamer::requestChildren(lod::PointStore& store, lod::NodeId node) {
+void ChunkStreamer::requestChildren(lod::LodHierarchy& store, lod::NodeId node) {
   Impl& s = *mImpl;
   const Key k{&store, node};
   if (s.failed_pages.count(k) || !s.wanted_pages.insert(k).second) return;
-  s.wanted.push_back({&store, node, true, 0, 0.0});
+  s.wanted.push_back({&store, nullptr, node, true, false, 0, 0.0});
   ++mStats.pages_requested;
 }
 
-bool ChunkStreamer::failed(const lod::PointStore& store, lod::NodeId node) const {
+bool ChunkStreamer::failed(const lod::LodHierarchy& store, lod::NodeId node) const {
   return mImpl->failed.count({&store, node}) != 0;
 }
 
@@ -277,8 +327,12 @@ void ChunkStreamer::endFrame() {
     s.queue.clear();
     s.next = 0;
     for (const Item& i : s.wanted) {
-      const Key k{i.store, i.node};
-      if (i.page || (!s.done_keys.count(k) && !(s.busy_key == k))) s.queue.push_back(i);
+      if (s.covered(i)) continue;  // in flight
+      if (!i.page) {
+        const auto d = s.done_keys.find({i.store, i.node});
+        if (d != s.done_keys.end() && (d->second || !i.measure)) continue;  // waits for upload
+      }
+      s.queue.push_back(i);
     }
     mStats.queued = s.queue.size();
   }
@@ -289,9 +343,13 @@ void ChunkStreamer::endFrame() {
 }
 
 void ChunkStreamer::waitForLoader() {
-  std::unique_lock lock(mImpl->mutex);
-  mImpl->idle.wait(
-      lock, [&] { return mImpl->paused || (mImpl->next >= mImpl->queue.size() && !mImpl->busy); });
+  Impl& s = *mImpl;
+  std::unique_lock lock(s.mutex);
+  s.idle.wait(lock, [&] {
+    return s.paused || (s.next >= s.queue.size() &&
+                        std::all_of(s.flight.begin(), s.flight.end(),
+                                    [](const Item& f) { return f.store == nullptr; }));
+  });
 }
 
 void ChunkStreamer::pauseLoader(bool paused) {
@@ -303,27 +361,37 @@ void ChunkStreamer::pauseLoader(bool paused) {
   mImpl->idle.notify_all();
 }
 
-void ChunkStreamer::forget(const lod::PointStore& store) {
+void ChunkStreamer::forget(const lod::LodHierarchy& store) {
   Impl& s = *mImpl;
   {
     std::unique_lock lock(s.mutex);
     s.queue.erase(std::remove_if(s.queue.begin() + std::ptrdiff_t(s.next), s.queue.end(),
                                  [&](const Item& i) { return i.store == &store; }),
                   s.queue.end());
-    s.idle.wait(lock, [&] { return s.busy != &store; });
+    // Every loader thread on an item of it finishes that item first.
+    s.idle.wait(lock, [&] {
+      return std::none_of(s.flight.begin(), s.flight.end(),
+                          [&](const Item& f) { return f.store == &store; });
+    });
     std::erase_if(s.done, [&](const Loaded& l) { return l.key.store == &store; });
+    std::erase_if(s.done_keys, [&](const auto& d) { return d.first.store == &store; });
   }
   for (auto it = s.resident.begin(); it != s.resident.end();) {
-    if (it->first.store == &store) {
-      s.resident_bytes -= residentBytes(it->second);
-      s.resident_disk_bytes -= it->second.disk_bytes;
-      it = s.resident.erase(it);
-    } else {
-      ++it;
-    }
+    auto here = it++;
+    if (here->first.store == &store) s.erase(here);
   }
   std::erase_if(s.failed, [&](const Key& k) { return k.store == &store; });
   std::erase_if(s.failed_pages, [&](const Key& k) { return k.store == &store; });
+}
+
+uint32_t ChunkStreamer::loaderThreads() const {
+  return uint32_t(mImpl->flight.size());
+}
+
+uint32_t ChunkStreamer::inFlight() const {
+  std::lock_guard lock(mImpl->mutex);
+  return uint32_t(std::count_if(mImpl->flight.begin(), mImpl->flight.end(),
+                                [](const Item& f) { return f.store != nullptr; }));
 }
 
 }  // namespace tessera::render

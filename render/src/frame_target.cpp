@@ -2,6 +2,7 @@
 
 #include <string>
 
+#include <tessera/core/check.h>
 #include <tessera/render/gl_context.h>
 
 namespace tessera::render {
@@ -24,10 +25,19 @@ FrameTarget::FrameTarget(uint32_t width, uint32_t height) : mWidth(width), mHeig
   mPick.clear(kNoPick);
 }
 
-void FrameTarget::clearGeometry(bool pick) {
+const GlBuffer& FrameTarget::colorSums() {
+  if (!mColorSums) mColorSums = GlBuffer(pixels() * 16, nullptr);
+  return mColorSums;
+}
+
+void FrameTarget::clearGeometry(bool pick, bool blend) {
   mDepth.clear(kEmptyDepth);
   mColors.clear(0xFFFFFFFFu);
   if (pick) mPick.clear(kNoPick);
+  if (blend) {
+    colorSums();
+    mColorSums.clear(0);
+  }
 }
 
 Image FrameTarget::readImage() const {
@@ -52,6 +62,7 @@ std::vector<uint32_t> FrameTarget::readPick() const {
 }
 
 uint32_t FrameTarget::readAt(const GlBuffer& plane, uint32_t x, uint32_t y) const {
+  TESSERA_CHECK(x < mWidth && y < mHeight, "render::FrameTarget::readAt(): pixel outside");
   uint32_t v = 0;
   plane.read((size_t(mHeight - 1 - y) * mWidth + x) * 4, 4, &v);
   return v;

@@ -11,7 +11,7 @@ double pixelsPerUnitAtDistanceOne(const ViewSetup& view) {
   return view.projection[1][1] * 0.5 * double(view.height);
 }
 
-Cut selectCut(lod::PointStore& store, const glm::dmat4& model, const ViewSetup& view,
+Cut selectCut(lod::LodHierarchy& store, const glm::dmat4& model, const ViewSetup& view,
               const CutOptions& options) {
   Cut cut;
   const glm::dmat4 clip_from_local = view.projection * view.view * model;

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <limits>
 
 #include <imgui.h>
 
@@ -80,7 +81,11 @@ struct OverlayPass::Impl {
 
   /// Clip position of a world point, pulled towards the eye by the bias, in the framebuffer's
   /// convention (y flipped: row 0 is the image's top).
+  /// Non-finite positions (NaN, infinities from outside data) give a w of NaN: every caller
+  /// skips primitives whose w is not > 0, so they are never drawn.
   glm::dvec4 clip(const glm::dvec3& world) const {
+    if (!std::isfinite(world.x) || !std::isfinite(world.y) || !std::isfinite(world.z))
+      return glm::dvec4(std::numeric_limits<double>::quiet_NaN());
     const glm::dvec3 p = eye + (world - eye) * (1.0 - bias);
     glm::dvec4 c = clip_from_world * glm::dvec4(p, 1.0);
     c.y = -c.y;
@@ -119,6 +124,8 @@ struct OverlayPass::Impl {
 
 void OverlayPass::Impl::addLine(const OverlayLine& l) {
   glm::dvec4 a = clip(l.a), b = clip(l.b);
+  if (std::isnan(a.w) || std::isnan(b.w) || !(l.width_px > 0.0f) || !std::isfinite(l.width_px))
+    return;
   // Clip against the near plane (z >= -w) so the screen-space widening stays valid.
   const double da = a.z + a.w, db = b.z + b.w;
   if (da < 0.0 && db < 0.0) return;
@@ -169,7 +176,10 @@ glm::vec2 OverlayPass::Impl::layout(const OverlayLabel& l, const glm::dvec4* anc
 
 void OverlayPass::Impl::addLabel(const OverlayLabel& l) {
   const glm::dvec4 a = clip(l.at);
-  if (a.w <= 0.0 || a.z < -a.w || a.z > a.w) return;  // behind the eye or outside depth range
+  // Behind the eye, outside the depth range, not finite, or of no size.
+  if (!(a.w > 0.0) || a.z < -a.w || a.z > a.w || !(l.height_px > 0.0f) ||
+      !std::isfinite(l.height_px) || !std::isfinite(l.offset_px.x) || !std::isfinite(l.offset_px.y))
+    return;
   layout(l, &a);
 }
 
@@ -215,7 +225,7 @@ double OverlayPass::run(FrameTarget& target, const ViewSetup& view, const Overla
     s.begin(q.texture ? q.texture->name() : s.white.name(), true);
     std::array<glm::dvec4, 4> c;
     for (int k = 0; k < 4; ++k) c[k] = s.clip(q.corners[k]);
-    if (c[0].w <= 0.0 || c[1].w <= 0.0 || c[2].w <= 0.0 || c[3].w <= 0.0) continue;
+    if (!(c[0].w > 0.0) || !(c[1].w > 0.0) || !(c[2].w > 0.0) || !(c[3].w > 0.0)) continue;
     s.quad(c, {glm::vec2(0, 0), glm::vec2(1, 0), glm::vec2(1, 1), glm::vec2(0, 1)}, pack(q.tint),
            TESSERA_OVERLAY_TEXTURED);
   }
@@ -223,7 +233,7 @@ double OverlayPass::run(FrameTarget& target, const ViewSetup& view, const Overla
   for (const OverlayLine& l : overlay.lines) s.addLine(l);
   for (const OverlayPoint& p : overlay.points) {
     const glm::dvec4 a = s.clip(p.at);
-    if (a.w <= 0.0) continue;
+    if (!(a.w > 0.0) || !(p.size_px > 0.0f) || !std::isfinite(p.size_px)) continue;
     const float r = 0.5f * p.size_px;
     // A ring keeps radii above 1 - ring / r: the fraction rides in the mode's upper bits.
     const float hole = p.ring_px > 0.0f ? std::clamp(1.0f - p.ring_px / r, 0.0f, 1.0f) : 0.0f;
@@ -232,6 +242,9 @@ double OverlayPass::run(FrameTarget& target, const ViewSetup& view, const Overla
   }
   for (const OverlayLabel& l : overlay.labels) s.addLabel(l);
   for (const ScreenRect& r : overlay.rects) {
+    if (!std::isfinite(r.min.x) || !std::isfinite(r.min.y) || !std::isfinite(r.max.x) ||
+        !std::isfinite(r.max.y))
+      continue;
     s.begin(r.texture ? r.texture->name() : s.white.name(), false);
     const glm::dvec4 origin(-1.0, -1.0, -1.0, 1.0);  // the image's top-left corner, nearest
     s.sprite(origin, r.min, r.max, glm::vec2(0), glm::vec2(1), pack(r.color),

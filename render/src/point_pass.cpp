@@ -57,7 +57,12 @@ PassTimings PointPass::draw(FrameTarget& target, std::span<const DrawBatch> batc
   bind(TESSERA_BINDING_DEPTH, target.depth());
   bind(TESSERA_BINDING_COLORS, target.colors());
   bind(TESSERA_BINDING_PICK, target.pick());
+  const bool blend = shading.blend && shading.uniform_color == 0;
+  if (blend) bind(TESSERA_BINDING_COLOR_SUMS, target.colorSums());
   mRaster.use();
+  mRaster.set("uBlend", blend ? 1 : 0);
+  mRaster.set("uP22", float(shading.projection[2][2]));
+  mRaster.set("uP32", float(shading.projection[3][2]));
   mRaster.set("uSize", glm::ivec2(target.width(), target.height()));
   mRaster.set("uWriteColor", shading.uniform_color == 0 ? 1 : 0);
   mRaster.set("uWritePick", shading.pick ? 1 : 0);
@@ -72,6 +77,7 @@ PassTimings PointPass::draw(FrameTarget& target, std::span<const DrawBatch> batc
       mRaster.set("uColorOverride", b.color_override);
       mRaster.set("uClip", b.clip_from_local);
       mRaster.set("uRadius", b.splat_radius);
+      mRaster.set("uBlendDepth", b.blend_depth);
       dispatchSlices(b.count, [&](uint32_t done, uint32_t count) {
         mRaster.set("uFirst", b.first + done);
         mRaster.set("uCount", count);

@@ -1,5 +1,12 @@
 #include <tessera/render/scene_draw_list.h>
 
+#include <filesystem>
+#include <set>
+#include <stdexcept>
+
+#include <tessera/lod/store_cache.h>
+#include <tessera/sync/config.h>
+
 #include <glm/gtc/type_ptr.hpp>
 
 namespace tessera::render {
@@ -13,27 +20,81 @@ glm::dmat4 transformOf(const scene::SceneNode& node) {
 
 }  // namespace
 
-std::vector<ModelInstance> SceneDrawList::update(const sync::SceneGraph& graph,
-                                                 std::span<ChunkStreamer* const> streamers) {
-  std::vector<ModelInstance> instances;
-  std::map<std::string, std::unique_ptr<lod::PointStore>> kept;
-  for (const sync::SceneGraph::NodeId id : graph.ids()) {
+sync::SceneGraph loadSceneWithStores(const std::string& path, const std::string& who) {
+  scene::SceneFile scene = sync::loadSceneFile(path);
+  for (int i = 0; i < scene.nodes_size(); ++i) {
+    scene::SceneNode& n = *scene.mutable_nodes(i);
+    if (n.kind() != scene::SceneNode::MODEL) continue;
+    scene::ModelPayload& m = *n.mutable_model();
+    if (std::filesystem::path(m.store()).extension() == ".tlod") continue;
+    try {
+      m.set_store(lod::cachedStoreFor(m.store(), who).string());
+    } catch (const std::exception& e) {
+      throw std::runtime_error(who + ": " + path + ": nodes[" + std::to_string(i) +
+                               "].model.store: " + m.store() +
+                               " is neither a .tlod store nor a scan that can be built into "
+                               "one: " +
+                               e.what());
+    }
+  }
+  return sync::SceneGraph::fromFile(scene);
+}
+
+const std::vector<ModelInstance>& SceneDrawList::update(const sync::SceneGraph& graph,
+                                                        const sync::SceneChanges& changes,
+                                                        std::span<ChunkStreamer* const> streamers) {
+  mVisited = 0;
+  const bool everything = changes.everything || !mStarted;
+  if (!everything && changes.nodes.empty()) return mInstances;
+
+  // The nodes to look at again: every node, or the changed ones and their subtrees (a group's
+  // transform, opacity or visibility reaches all models under it). Deleted ones go.
+  std::set<uint32_t> dirty, gone;
+  std::vector<uint32_t> stack;
+  if (everything) {
+    for (const auto& [id, e] : mEntries) gone.insert(id);
+    stack = graph.children(sync::SceneGraph::kRoot);
+  } else {
+    for (const uint32_t id : changes.nodes) {
+      if (graph.contains(id)) {
+        stack.push_back(id);
+      } else {
+        gone.insert(id);
+      }
+    }
+  }
+  while (!stack.empty()) {
+    const uint32_t id = stack.back();
+    stack.pop_back();
+    if (!dirty.insert(id).second) continue;
+    gone.erase(id);
+    for (const uint32_t c : graph.children(id)) stack.push_back(c);
+  }
+  mVisited = dirty.size();
+
+  // New stores first, so a failure leaves everything as it was.
+  std::map<std::string, std::unique_ptr<lod::PointStore>> opened;
+  for (const uint32_t id : dirty) {
     const scene::SceneNode& node = graph.node(id);
     if (node.kind() != scene::SceneNode::MODEL) continue;
     const std::string& path = node.model().store();
-    auto open = mStores.find(path);
-    if (open != mStores.end()) {
-      kept.emplace(path, std::move(open->second));
-      mStores.erase(open);
-    } else if (!kept.count(path)) {
-      try {
-        kept.emplace(path, lod::PointStore::open(path));
-      } catch (const lod::StoreError& e) {
-        // Left as it was: the stores taken over so far go back.
-        for (auto& [p, st] : kept) mStores.emplace(p, std::move(st));
-        throw lod::StoreError("render::SceneDrawList::update(): model " + std::to_string(id) +
-                              " '" + node.name() + "': " + e.what());
-      }
+    if (mStores.count(path) || opened.count(path)) continue;
+    try {
+      opened.emplace(path, lod::PointStore::open(path));
+    } catch (const lod::StoreError& e) {
+      throw lod::StoreError("render::SceneDrawList::update(): model " + std::to_string(id) + " '" +
+                            node.name() + "': " + e.what());
+    }
+  }
+  mStores.merge(opened);
+  mStarted = true;
+
+  for (const uint32_t id : gone) mEntries.erase(id);
+  for (const uint32_t id : dirty) {
+    const scene::SceneNode& node = graph.node(id);
+    if (node.kind() != scene::SceneNode::MODEL) {
+      mEntries.erase(id);
+      continue;
     }
     // Up the tree: parents' transforms apply after the node's own; any hidden one hides it.
     bool visible = node.visible();
@@ -46,21 +107,35 @@ std::vector<ModelInstance> SceneDrawList::update(const sync::SceneGraph& graph,
       world = transformOf(p) * world;
       parent = p.parent();
     }
-    if (!visible || opacity <= 0.0f) continue;
-    lod::PointStore* store = kept.at(path).get();
+    Entry& e = mEntries[id];
+    e.path = node.model().store();
+    lod::PointStore* store = mStores.at(e.path).get();
     glm::u8vec3 color(0);
     if (node.model().has_color()) {
       const scene::Color& c = node.model().color();
       color = glm::u8vec3(glm::clamp(glm::vec3(c.r(), c.g(), c.b()), 0.0f, 1.0f) * 255.0f + 0.5f);
     }
-    instances.push_back({store, world * storeModel(*store), opacity, color});
+    e.instance = {store, world * storeModel(*store), opacity, color};
+    e.visible = visible && opacity > 0.0f;
   }
+
   // Stores no model uses any more: the loaders let go of them first, then they close.
-  for (auto& [path, store] : mStores)
+  std::set<std::string> used;
+  mInstances.clear();
+  for (const auto& [id, e] : mEntries) {
+    used.insert(e.path);
+    if (e.visible) mInstances.push_back(e.instance);
+  }
+  for (auto it = mStores.begin(); it != mStores.end();) {
+    if (used.count(it->first)) {
+      ++it;
+      continue;
+    }
     for (ChunkStreamer* s : streamers)
-      if (s) s->forget(*store);
-  mStores = std::move(kept);
-  return instances;
+      if (s) s->forget(*it->second);
+    it = mStores.erase(it);
+  }
+  return mInstances;
 }
 
 void SceneDrawList::clear(std::span<ChunkStreamer* const> streamers) {
@@ -68,6 +143,9 @@ void SceneDrawList::clear(std::span<ChunkStreamer* const> streamers) {
     for (ChunkStreamer* s : streamers)
       if (s) s->forget(*store);
   mStores.clear();
+  mEntries.clear();
+  mInstances.clear();
+  mStarted = false;
 }
 
 uint64_t SceneDrawList::storeBytes() const {

@@ -23,7 +23,8 @@ void dispatchPixels(const FrameTarget& target) {
 
 ResolvePass::ResolvePass() : mProgram(GlProgram::compute(shaders::kResolve, "resolve.comp")) {}
 
-double ResolvePass::run(FrameTarget& target, const glm::vec3& background, uint32_t uniform_color) {
+double ResolvePass::run(FrameTarget& target, const glm::vec3& background, uint32_t uniform_color,
+                        bool blended) {
   GpuLap lap;
   mProgram.use();
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_DEPTH, target.depth().name());
@@ -33,6 +34,10 @@ double ResolvePass::run(FrameTarget& target, const glm::vec3& background, uint32
   const glm::uvec3 bg = glm::uvec3(glm::clamp(background, 0.0f, 1.0f) * 255.0f + 0.5f);
   mProgram.set("uBackground", bg.r | bg.g << 8 | bg.b << 16 | 0xFF000000u);
   mProgram.set("uUniformColor", uniform_color);
+  mProgram.set("uBlended", blended ? 1 : 0);
+  if (blended)
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_COLOR_SUMS,
+                     target.colorSums().name());
   dispatchPixels(target);
   return lap();
 }

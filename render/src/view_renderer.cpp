@@ -119,11 +119,13 @@ void ViewRenderer::draw(std::span<const ModelInstance> models, const ViewSetup& 
     drawSeeThrough(models, view, options, batches, shading, st);
   } else {
     mSpbrSignature = 0;
-    mTarget.clearGeometry(pick);
+    shading.blend = options.blend_colors && shading.uniform_color == 0;
+    shading.projection = view.projection;
+    mTarget.clearGeometry(pick, shading.blend);
     const PassTimings t = mPoints.draw(mTarget, batches, shading);
     st.depth_ms = t.depth_ms;
     st.color_ms = t.color_ms;
-    st.resolve_ms = mResolve.run(mTarget, options.background, shading.uniform_color);
+    st.resolve_ms = mResolve.run(mTarget, options.background, shading.uniform_color, shading.blend);
     st.screen_ms = mEdl.run(mTarget, options.edl, view.projection);
   }
   if (overlay && !overlay->empty()) {
@@ -262,6 +264,9 @@ void ViewRenderer::addModel(const ModelInstance& instance, bool see_through, con
   const double unit = std::cbrt(std::abs(glm::determinant(glm::dmat3(model))));
   const uint32_t total = std::max(options.spbr.ensembles, options.spbr.progressive_max);
   const uint64_t key = storeKey(store);
+  // See-through batches need the chunks' density (and ratios, normals, cells): only their
+  // chunks are measured on loading.
+  const ChunkUse use = see_through ? ChunkUse::kSeeThrough : ChunkUse::kOpaque;
   auto addBatch = [&](const CutNode& n, const GpuChunk& chunk) {
     DrawBatch b;
     b.buffer = chunk.buffer.name();
@@ -271,6 +276,7 @@ void ViewRenderer::addModel(const ModelInstance& instance, bool see_through, con
     b.clip_from_local = glm::mat4(clip_from_world * world_from_local);
     b.spacing_k = float(n.spacing * k * options.splat_scale);
     b.splat_radius = options.max_splat_radius;
+    b.blend_depth = float(n.spacing * unit * options.splat_scale);
     if (instance.color != glm::u8vec3(0) && (store.summary().attributes & lod::kColor) == 0)
       b.color_override = 0x1000000u | packRgb(instance.color);
     if (see_through) {
@@ -316,7 +322,7 @@ void ViewRenderer::addModel(const ModelInstance& instance, bool see_through, con
   };
   std::vector<bool> drawn_above(cut.above.size(), false);
   for (const CutNode& n : cut.nodes) {  // nearest first
-    if (const GpuChunk* chunk = mStreamer->find(store, n.id)) {
+    if (const GpuChunk* chunk = mStreamer->find(store, n.id, use)) {
       addBatch(n, *chunk);
       continue;
     }
@@ -324,20 +330,21 @@ void ViewRenderer::addModel(const ModelInstance& instance, bool see_through, con
     if (mStreamer->failed(store, n.id)) {
       ++stats.corrupt_chunks;
     } else {
-      mStreamer->request(store, n.id, n.level, n.distance);
+      mStreamer->request(store, n.id, n.level, n.distance, use);
     }
     // The nearest resident ancestor stands in; ancestors on the way are fetched too, coarse
     // first, so a new view fills in from coarse to fine.
     for (int32_t p = n.parent; p >= 0; p = cut.above[size_t(p)].parent) {
       const CutNode& a = cut.above[size_t(p)];
       if (drawn_above[size_t(p)]) break;
-      if (const GpuChunk* chunk = mStreamer->find(store, a.id)) {
+      if (const GpuChunk* chunk = mStreamer->find(store, a.id, use)) {
         addBatch(a, *chunk);
         drawn_above[size_t(p)] = true;
         ++stats.fallback_nodes;
         break;
       }
-      if (!mStreamer->failed(store, a.id)) mStreamer->request(store, a.id, a.level, a.distance);
+      if (!mStreamer->failed(store, a.id))
+        mStreamer->request(store, a.id, a.level, a.distance, use);
     }
   }
   stats.select_ms += msSince(t0);

@@ -17,6 +17,7 @@
 #include <tessera/lod/store_builder.h>
 #include <tessera/lod/store_cache.h>
 #include <tessera/render/gl_context.h>
+#include <tessera/render/scene_draw_list.h>
 #include <tessera/render/view_renderer.h>
 #include <tessera/render/wall_mosaic.h>
 #include <tessera/render/window.h>
@@ -190,9 +191,13 @@ int main(int argc, char** argv) {
   app.add_option("--gpu-budget-mb", budget_mb, "GPU bytes for resident chunks, MiB")
       ->check(CLI::Range(1.0, 1e6))
       ->capture_default_str();
+  uint32_t loader_threads = 0;
+  app.add_option("--loader-threads", loader_threads, "Threads decoding chunks (0: one a core)")
+      ->check(CLI::Range(0, 256))
+      ->capture_default_str();
   uint32_t spbr_l = 0, spbr_progressive = 0;
   double spbr_max_k = 1e9;
-  bool no_slant = false, spbr_sparse = false;
+  bool no_slant = false, spbr_sparse = false, blend_colors = false;
   app.add_option("--spbr-L", spbr_l,
                  "See-through: ensembles per frame for models with opacity < 1 (default: the "
                  "scene's, else 16)")
@@ -204,6 +209,10 @@ int main(int argc, char** argv) {
                  "See-through: most copies of a point over the ensembles (default: as the "
                  "paper, up to L; 1: independent ensembles with larger discs, blurred)")
       ->check(CLI::Range(0.01, 1e9));
+  app.add_flag("--blend-colors", blend_colors,
+               "Colour points: blend the colours of the points within a splat's depth of the "
+               "nearest on each pixel (smooth, alias-free colour; as Potree's high-quality "
+               "splatting)");
   app.add_flag("--spbr-sparse", spbr_sparse,
                "See-through on sparse scans (a few points a pixel): copies jittered by 1.5 node "
                "spacings and weighted by their surface cells (even noise, ~2 px edges); off: "
@@ -229,26 +238,17 @@ int main(int argc, char** argv) {
     render::RenderOptions options;
     config::Camera cam;
     bool have_camera = false;
+    // A scene goes the way it goes on the wall: a scene graph, and the draw list that render
+    // nodes and the console use (render/scene_draw_list.h), so all draw it alike.
+    sync::SceneGraph graph;
+    render::SceneDrawList scene_list;
     if (!scene_path.empty()) {
-      config::SceneConfig scene = sync::loadSceneConfig(scene_path);
-      for (const auto& m : scene.models()) {
-        if (m.hidden()) continue;
-        stores.push_back(lod::PointStore::open(storeFor(m.store())));
-        glm::dmat4 t(1.0);
-        if (m.transform_size() == 16) t = glm::make_mat4(m.transform().data());
-        const float opacity = m.opacity() > 0.0 ? float(m.opacity()) : 1.0f;
-        glm::u8vec3 color(0);
-        if (m.color_size() == 3)
-          color = glm::u8vec3(glm::dvec3(m.color(0), m.color(1), m.color(2)) * 255.0 + 0.5);
-        instances.push_back(
-            {stores.back().get(), t * render::storeModel(*stores.back()), opacity, color});
-      }
-      cam = scene.camera();
+      graph = render::loadSceneWithStores(scene_path, "tessera-render");
+      const auto& listed = scene_list.update(graph, sync::SceneChanges::all());
+      instances.assign(listed.begin(), listed.end());
+      cam = graph.camera();
       have_camera = true;
-      options.lod_pixels = scene.lod_pixels();
-      options.background = glm::vec3(scene.background(0), scene.background(1), scene.background(2));
-      if (scene.shading() == "edl") options.edl.strength = 1.0f;
-      if (scene.spbr_ensembles() > 0) options.spbr.ensembles = scene.spbr_ensembles();
+      options = render::SceneDrawList::options(graph, float(splat_scale));
     }
     for (const std::string& m : models) {
       // FILE or FILE:OPACITY (a colon followed by a number, so paths with colons still work).
@@ -272,7 +272,7 @@ int main(int argc, char** argv) {
       cam = parseCamera(camera);
       have_camera = true;
     }
-    if (!have_camera) cam = fitCamera(*stores.front());
+    if (!have_camera) cam = fitCamera(*instances.front().store);
     if (lod_px > 0) options.lod_pixels = lod_px;
     if (edl) options.edl.strength = 1.0f;
     if (edl_classic) options.edl = render::EdlOptions::classic();
@@ -282,6 +282,7 @@ int main(int argc, char** argv) {
     options.spbr.max_k = spbr_max_k;
     options.spbr.slant_shading = !no_slant;
     if (spbr_sparse) options.spbr = render::SpbrOptions::sparseScans(options.spbr);
+    options.blend_colors = blend_colors;
     if (!background.empty()) options.background = glm::vec3(parseVec(background, "--background"));
 
     std::unique_ptr<render::GlContext> ctx;
@@ -311,10 +312,12 @@ int main(int argc, char** argv) {
       }
     }
     uint64_t store_bytes = 0;
+    store_bytes += scene_list.storeBytes();
     for (const auto& s : stores) store_bytes += s->summary().file_bytes;
     // Each view streams on its own, as the wall node driving that tile would.
     render::StreamerOptions stream_options;
     stream_options.budget_bytes = uint64_t(budget_mb * 1048576.0);
+    stream_options.loader_threads = loader_threads;
     stream_options.normals = no_slant;  // cos(theta) needs a normal per point
     for (const auto& m : instances) stream_options.density_ratios |= m.opacity < 1.0f;
     // Surface cells only for the sparse-scan method (SpbrOptions::cell_weights).
@@ -356,7 +359,7 @@ int main(int argc, char** argv) {
       auto plainView = [&](const config::Camera& c) {
         render::ViewSetup v;
         v.view = render::cameraView(c);
-        const auto& sum = stores.front()->summary();
+        const auto& sum = instances.front().store->summary();
         double radius = 0.5 * glm::length(sum.bbox_max - sum.bbox_min);
         double dist = glm::length(glm::dvec3(c.eye().x(), c.eye().y(), c.eye().z()) -
                                   glm::dvec3(c.target().x(), c.target().y(), c.target().z()));

@@ -8,9 +8,9 @@
 
 #include <tessera/core/stopwatch.h>
 #include <tessera/render/gl_context.h>
+#include <tessera/render/scene_draw_list.h>
 #include <tessera/render/view_renderer.h>
 #include <tessera/render/window.h>
-#include <tessera/render/scene_draw_list.h>
 #include <tessera/sync/scene_graph.h>
 #include <tessera/sync/wire.h>
 
@@ -59,19 +59,16 @@ struct RenderNode::Impl {
   std::unique_ptr<render::GlContext> context;
   sync::SceneGraph graph;
   render::SceneDrawList models;
-  std::vector<render::ModelInstance> instances;
-  std::unique_ptr<render::ViewRenderer> renderer;  // destroyed first: needs the context
-  cluster::NodeStatus status;                      // NODE_OK until something fails
-  uint64_t reported = 0;                           // the last frame reported
+  std::span<const render::ModelInstance> instances;  // the draw list's, until its next update
+  std::unique_ptr<render::ViewRenderer> renderer;    // destroyed first: needs the context
+  cluster::NodeStatus status;                        // NODE_OK until something fails
+  uint64_t reported = 0;                             // the last frame reported
   Clock::time_point reported_at;
   double barrier_ms = 0, present_ms = 0;  // of the previous frame, sent with the next report
 
   Impl(sync::NodeLink& l, NodeOptions o) : link(l), opt(std::move(o)) {}
 
-  ~Impl() {
-    renderer.reset();
-    instances.clear();
-  }
+  ~Impl() { renderer.reset(); }
 
   void fail(cluster::NodeFailure code, const std::string& why) {
     if (status.code() != cluster::NODE_OK) return;
@@ -80,10 +77,10 @@ struct RenderNode::Impl {
     std::fprintf(stderr, "%s: %s\n", who.c_str(), why.c_str());
   }
 
-  void updateModels() {
+  void updateModels(const sync::SceneChanges& changes) {
     try {
       render::ChunkStreamer* streamers[] = {renderer ? &renderer->streamer() : nullptr};
-      instances = models.update(graph, streamers);
+      instances = models.update(graph, changes, streamers);
     } catch (const lod::StoreError& e) {
       throw NodeError(cluster::NODE_BAD_STORE, e.what());
     }
@@ -127,11 +124,13 @@ struct RenderNode::Impl {
     } catch (const sync::SyncError& e) {
       throw NodeError(cluster::NODE_BAD_FRAME, e.what());
     }
-    updateModels();
+    updateModels(sync::SceneChanges::all());
     if (same_size && old_w == tile->pixel_width() && old_h == tile->pixel_height()) return;
     render::StreamerOptions stream;
     if (setup.gpu_budget_bytes() > 0) stream.budget_bytes = setup.gpu_budget_bytes();
-    stream.density_ratios = true;  // any model may turn see-through during the session
+    // Any model may turn see-through during the session; only chunks drawn see-through are
+    // measured (ChunkUse::kSeeThrough), the others cost nothing for it.
+    stream.density_ratios = true;
     renderer.reset();
     try {
       renderer = std::make_unique<render::ViewRenderer>(tile->pixel_width(), tile->pixel_height(),
@@ -145,8 +144,7 @@ struct RenderNode::Impl {
   void apply(const cluster::FrameMessage& frame) {
     if (status.code() != cluster::NODE_OK) return;
     try {
-      graph.apply(sync::parseFrame(frame.frame()));
-      updateModels();
+      updateModels(graph.apply(sync::parseFrame(frame.frame())));
     } catch (const sync::SyncError& e) {
       fail(cluster::NODE_BAD_FRAME, e.what());
     } catch (const NodeError& e) {
@@ -162,8 +160,8 @@ struct RenderNode::Impl {
       const auto start_time = Clock::now();
       try {
         const render::ViewSetup view = render::tileView(setup.wall(), *tile, graph.camera());
-        const render::RenderOptions options =
-            render::SceneDrawList::options(graph, setup.splat_scale() > 0 ? setup.splat_scale() : 2.0f);
+        const render::RenderOptions options = render::SceneDrawList::options(
+            graph, setup.splat_scale() > 0 ? setup.splat_scale() : 2.0f);
         render::RenderStats rs;
         // Settled frames (screenshots, deterministic scripted runs) wait for every chunk of the
         // cut, so their pixels are exactly what tessera-render --mosaic makes.

@@ -114,12 +114,9 @@ config::CameraPath loadCameraPath(const std::filesystem::path& path) {
   return parseCameraPath(detail::readConfigFile(path, "sync::loadCameraPath()"), path.string());
 }
 
-void checkPathModels(const config::CameraPath& path, const config::SceneConfig& scene,
+void checkPathModels(const config::CameraPath& path, const SceneGraph& scene,
                      const std::string& name) {
-  auto known = [&](const std::string& model) {
-    return std::any_of(scene.models().begin(), scene.models().end(),
-                       [&](const config::Model& m) { return m.name() == model; });
-  };
+  auto known = [&](const std::string& model) { return scene.findByName(model).has_value(); };
   for (int i = 0; i < path.actions_size(); ++i) {
     const config::PathAction& a = path.actions(i);
     std::string model, field = "actions[" + std::to_string(i) + "]";

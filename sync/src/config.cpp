@@ -1,4 +1,5 @@
 #include <tessera/sync/config.h>
+#include <tessera/sync/scene_graph.h>
 
 #include <cmath>
 #include <set>
@@ -58,56 +59,50 @@ config::WallConfig loadWallConfig(const std::filesystem::path& path) {
   return parseWallConfig(detail::readConfigFile(path, "sync::loadWallConfig()"), path.string());
 }
 
-config::SceneConfig parseSceneConfig(const std::string& json, const std::string& name,
-                                     const std::filesystem::path& base_dir) {
-  const char* fn = "sync::loadSceneConfig()";
-  config::SceneConfig scene;
-  parseConfigJson(json, name, fn, scene);
-  for (int i = 0; i < scene.models_size(); ++i) {
-    config::Model& m = *scene.mutable_models(i);
-    const std::string f = "models[" + std::to_string(i) + "]";
-    if (m.store().empty()) fail(fn, name, f + ".store", "every model needs a store path");
-    std::filesystem::path p(m.store());
-    if (p.is_relative() && !base_dir.empty())
-      m.set_store((base_dir / p).lexically_normal().string());
-    if (m.opacity() == 0) m.set_opacity(1.0);
-    if (!(m.opacity() > 0 && m.opacity() <= 1)) fail(fn, name, f + ".opacity", "must be in (0, 1]");
-    if (m.color_size() != 0 && m.color_size() != 3)
-      fail(fn, name, f + ".color", "needs 3 numbers r, g, b in [0, 1]");
-    for (double c : m.color())
-      if (!(c >= 0 && c <= 1)) fail(fn, name, f + ".color", "components must be in [0, 1]");
-    if (m.transform_size() != 0 && m.transform_size() != 16) {
-      fail(fn, name, f + ".transform",
-           "needs 16 numbers (column-major 4x4), got " + std::to_string(m.transform_size()));
-    }
-    for (double v : m.transform()) {
-      if (!std::isfinite(v)) fail(fn, name, f + ".transform", "numbers must be finite");
-    }
-  }
-  if (!scene.has_camera())
+scene::SceneFile parseSceneFile(const std::string& json, const std::string& name,
+                                const std::filesystem::path& base_dir) {
+  const char* fn = "sync::loadSceneFile()";
+  scene::SceneFile file;
+  parseConfigJson(json, name, fn, file);
+  if (!file.has_camera())
     fail(fn, name, "camera", "a scene needs an initial camera (eye, target, up)");
-  detail::checkConfigCamera(scene.camera(), fn, name, "camera");
-  if (scene.background_size() == 0) {
-    for (int k = 0; k < 3; ++k) scene.add_background(0.0);
+  detail::checkConfigCamera(file.camera(), fn, name, "camera");
+  uint32_t next = 1;
+  for (const scene::SceneNode& n : file.nodes()) next = std::max(next, n.id() + 1);
+  for (int i = 0; i < file.nodes_size(); ++i) {
+    scene::SceneNode& n = *file.mutable_nodes(i);
+    const std::string f = "nodes[" + std::to_string(i) + "]";
+    if (!n.has_kind() || n.kind() == scene::SceneNode::KIND_UNSPECIFIED)
+      fail(fn, name, f + ".kind", "every node needs a kind (GROUP, MODEL, ANNOTATION, ...)");
+    if (n.id() == 0) {
+      if (next == 0) fail(fn, name, f + ".id", "no free id left");
+      n.set_id(next++);
+    }
+    if (n.kind() == scene::SceneNode::MODEL) {
+      if (n.model().store().empty()) fail(fn, name, f + ".model.store", "a model needs a store");
+      const std::filesystem::path p(n.model().store());
+      if (p.is_relative() && !base_dir.empty())
+        n.mutable_model()->set_store((base_dir / p).lexically_normal().string());
+    }
   }
-  if (scene.background_size() != 3)
-    fail(fn, name, "background", "needs 3 numbers (r g b in [0, 1])");
-  for (double v : scene.background()) {
-    if (!(v >= 0 && v <= 1)) fail(fn, name, "background", "components must be in [0, 1]");
+  // Everything else as the scene graph checks a snapshot (ranges, payloads, parents, cycles).
+  try {
+    (void)SceneGraph::fromFile(file);
+  } catch (const SyncError& e) {
+    // "sync::SceneGraph::apply(): snapshot at version 0: scene.nodes[i] (node N): field: what",
+    // named as the file names it: "nodes[i] (node N): field: what".
+    std::string why = e.what();
+    const size_t context = why.find("snapshot at version ");
+    if (context != std::string::npos) why = why.substr(why.find(": ", context) + 2);
+    if (why.rfind("scene.", 0) == 0) why = why.substr(6);
+    fail(fn, name, "", why);
   }
-  if (scene.lod_pixels() == 0) scene.set_lod_pixels(1.0);
-  if (!(scene.lod_pixels() > 0) || !std::isfinite(scene.lod_pixels()))
-    fail(fn, name, "lodPixels", "must be > 0");
-  if (scene.shading().empty()) scene.set_shading("color");
-  if (scene.shading() != "color" && scene.shading() != "edl") {
-    fail(fn, name, "shading", "'" + scene.shading() + "' is not one of color, edl");
-  }
-  return scene;
+  return file;
 }
 
-config::SceneConfig loadSceneConfig(const std::filesystem::path& path) {
-  return parseSceneConfig(detail::readConfigFile(path, "sync::loadSceneConfig()"), path.string(),
-                          path.parent_path());
+scene::SceneFile loadSceneFile(const std::filesystem::path& path) {
+  return parseSceneFile(detail::readConfigFile(path, "sync::loadSceneFile()"), path.string(),
+                        path.parent_path());
 }
 
 }  // namespace tessera::sync

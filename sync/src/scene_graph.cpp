@@ -280,29 +280,14 @@ SceneGraph::SceneGraph() : mSettings(defaultSettings()) {
   mCamera = encodeCamera(camera);
 }
 
-SceneGraph SceneGraph::fromConfig(const config::SceneConfig& config) {
+SceneGraph SceneGraph::fromFile(const scene::SceneFile& file) {
+  scene::Snapshot snapshot;
+  scene::Scene& sc = *snapshot.mutable_scene();
+  *sc.mutable_camera() = encodeCamera(file.camera());
+  *sc.mutable_settings() = file.settings();
+  for (const SceneNode& n : file.nodes()) *sc.add_nodes() = n;
   SceneGraph graph;
-  for (const config::Model& m : config.models()) {
-    const NodeId id = graph.add(SceneNode::MODEL, kRoot, m.name());
-    scene::ModelPayload model;
-    model.set_store(m.store());
-    if (m.color_size() == 3) {
-      model.mutable_color()->set_r(float(m.color(0)));
-      model.mutable_color()->set_g(float(m.color(1)));
-      model.mutable_color()->set_b(float(m.color(2)));
-    }
-    graph.setPayload(id, model);
-    graph.setOpacity(id, m.opacity() == 0 ? 1.0f : float(m.opacity()));
-    graph.setVisible(id, !m.hidden());
-    graph.setTransform(id, {m.transform().data(), size_t(m.transform_size())});
-  }
-  if (config.has_camera()) graph.setCamera(config.camera());
-  if (config.background_size() == 3)
-    graph.setBackground(float(config.background(0)), float(config.background(1)),
-                        float(config.background(2)));
-  if (config.lod_pixels() > 0) graph.setLodPixels(float(config.lod_pixels()));
-  if (config.spbr_ensembles() > 0) graph.setSpbrEnsembles(config.spbr_ensembles());
-  if (config.shading() == "edl") graph.setShading(scene::SHADING_EDL);
+  graph.apply(snapshot);
   return graph;
 }
 
@@ -722,7 +707,19 @@ void SceneGraph::validateFrame(const scene::Frame& frame) const {
   checkAncestry(start, parentAfter, existsAfter, context);
 }
 
-void SceneGraph::apply(const scene::Frame& frame) {
+SceneChanges SceneChanges::of(const scene::Frame& frame) {
+  SceneChanges c;
+  for (const SceneNode& n : frame.changed()) c.nodes.push_back(n.id());
+  for (const SceneNode& n : frame.created()) c.nodes.push_back(n.id());
+  c.nodes.insert(c.nodes.end(), frame.deleted().begin(), frame.deleted().end());
+  std::sort(c.nodes.begin(), c.nodes.end());
+  c.nodes.erase(std::unique(c.nodes.begin(), c.nodes.end()), c.nodes.end());
+  c.camera = frame.has_camera();
+  c.settings = frame.has_settings();
+  return c;
+}
+
+SceneChanges SceneGraph::apply(const scene::Frame& frame) {
   TESSERA_CHECK(!hasPendingChanges(),
                 "sync::SceneGraph::apply(): the graph has local changes not taken as a frame");
   validateFrame(frame);  // throws before anything changes
@@ -753,9 +750,10 @@ void SceneGraph::apply(const scene::Frame& frame) {
   mSettings.DiscardUnknownFields();
   mVersion = frame.version();
   mFrameNumber = frame.number();
+  return SceneChanges::of(frame);
 }
 
-void SceneGraph::apply(const scene::Snapshot& snapshot) {
+SceneChanges SceneGraph::apply(const scene::Snapshot& snapshot) {
   TESSERA_CHECK(!hasPendingChanges(),
                 "sync::SceneGraph::apply(): the graph has local changes not taken as a frame");
   const std::string context =
@@ -796,6 +794,7 @@ void SceneGraph::apply(const scene::Snapshot& snapshot) {
   mVersion = snapshot.version();
   mFrameNumber = snapshot.frame();
   mCommands.clear();
+  return SceneChanges::all();
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -43,11 +43,11 @@ void write(const fs::path& p, const std::string& text) {
 
 /// The scene of configs/scenes/bunny.json with the store replaced and the given shading.
 std::string sceneJson(const std::string& store, const std::string& shading = "edl") {
-  return R"({"models": [{"name": "bunny scans", "store": ")" + store +
-         R"("}], "camera": {"eye": {"x": -0.027, "y": 0.12, "z": 0.38}, "target": {"x": -0.027,
-         "y": 0.1, "z": 0.0}, "up": {"x": 0, "y": 1, "z": 0}}, "background": [0.05, 0.05, 0.08],
-         "lodPixels": 1.0, "shading": ")" +
-         shading + R"("})";
+  return R"({"nodes": [{"kind": "MODEL", "name": "bunny scans", "model": {"store": ")" + store +
+         R"("}}], "camera": {"eye": {"x": -0.027, "y": 0.12, "z": 0.38}, "target": {"x": -0.027,
+         "y": 0.1, "z": 0.0}, "up": {"x": 0, "y": 1, "z": 0}}, "settings": {"background": {"r":
+         0.05, "g": 0.05, "b": 0.08}, "lodPixels": 1.0, "shading": ")" +
+         (shading == "edl" ? "SHADING_EDL" : "SHADING_COLOR") + R"("}})";
 }
 
 class Cluster : public ::testing::Test {
@@ -165,11 +165,13 @@ TEST_F(Cluster, NodeWithAnUnreadableStoreSaysWhichAndWhy) {
 }
 
 TEST_F(Cluster, BadSceneJsonNamesFileAndField) {
-  write(sDir->path() / "bad.json", R"({"models": [{"store": "bunny.tlod", "opacity": 2}]})");
+  write(sDir->path() / "bad.json",
+        R"({"nodes": [{"kind": "MODEL", "model": {"store": "bunny.tlod"}, "opacity": 2}],
+            "camera": {"eye": {"z": 1}, "target": {}, "up": {"y": 1}}})");
   const CommandResult r =
       cluster("--wall " + kConfigs + "/walls/1x2.json --scene bad.json --frames 2", 2);
   EXPECT_NE(r.code, 0) << r.out;
-  EXPECT_NE(r.out.find("bad.json: models[0].opacity"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("bad.json: nodes[0] (node 1): opacity"), std::string::npos) << r.out;
 }
 
 TEST_F(Cluster, BadScriptNamesFileAndField) {

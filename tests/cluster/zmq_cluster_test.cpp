@@ -103,9 +103,10 @@ class ZmqWall : public ::testing::Test {
                                              (*sDir / "bunny.tlod").string() + " --quiet");
     ASSERT_EQ(r.code, 0) << r.out;
     write(*sDir / "scene.json",
-          R"({"models": [{"name": "bunny", "store": "bunny.tlod"}], "camera": {"eye": {"x": -0.027,
-          "y": 0.12, "z": 0.38}, "target": {"x": -0.027, "y": 0.1, "z": 0.0}, "up": {"y": 1}},
-          "background": [0.05, 0.05, 0.08], "lodPixels": 1.0, "shading": "edl"})");
+          R"({"nodes": [{"kind": "MODEL", "name": "bunny", "model": {"store": "bunny.tlod"}}],
+          "camera": {"eye": {"x": -0.027, "y": 0.12, "z": 0.38}, "target": {"x": -0.027, "y": 0.1,
+          "z": 0.0}, "up": {"y": 1}}, "settings": {"background": {"r": 0.05, "g": 0.05, "b": 0.08},
+          "lodPixels": 1.0, "shading": "SHADING_EDL"}})");
     write(*sDir / "wall.json", wallJson());
   }
   static void TearDownTestSuite() {

@@ -17,10 +17,15 @@ TEST(ScriptPlayer, CameraAndActionsOnceEachIntoTheGraph) {
                   {"time": 0.75, "setVisible": {"model": "m", "visible": false}},
                   {"time": 1, "screenshot": "end.png"}]})",
                                                         "p.json");
-  config::SceneConfig scene;
-  scene.add_models()->set_name("m");
-  scene.mutable_models(0)->set_store("/x.tlod");
-  sync::SceneGraph graph = sync::SceneGraph::fromConfig(scene);
+  scene::SceneFile scene;
+  scene::SceneNode& m = *scene.add_nodes();
+  m.set_id(1);
+  m.set_kind(scene::SceneNode::MODEL);
+  m.set_name("m");
+  m.mutable_model()->set_store("/x.tlod");
+  scene.mutable_camera()->mutable_eye()->set_z(1.0);
+  scene.mutable_camera()->mutable_up()->set_y(1.0);
+  sync::SceneGraph graph = sync::SceneGraph::fromFile(scene);
   master::ScriptPlayer player(path);
   EXPECT_DOUBLE_EQ(player.duration(), 1.0);
   const auto id = *graph.findByName("m");

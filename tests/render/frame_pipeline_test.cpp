@@ -6,9 +6,12 @@
 
 #include <cmath>
 #include <cstring>
+#include <limits>
+#include <random>
 
 #include <glm/gtc/matrix_transform.hpp>
 
+#include <tessera/lod/point_writer.h>
 #include <tessera/lod/store_builder.h>
 #include <tessera/render/gl_context.h>
 #include <tessera/render/view_renderer.h>
@@ -249,6 +252,107 @@ TEST_F(FramePipelineTest, LabelsQuadsAndScreenRectsLandWhereTheyShould) {
     }
   EXPECT_GT(white, 150u) << "glyphs drawn";
   EXPECT_EQ(beyond, 0u) << "nothing outside the label's box";
+}
+
+}  // namespace
+}  // namespace tessera::render
+
+namespace tessera::render {
+namespace {
+
+TEST_F(FramePipelineTest, BlendedColoursAverageWhereNearestColoursAlias) {
+  // A plane of points coloured black or white at random, seen face on: keeping the nearest
+  // point's colour gives each pixel one sample (binary noise; every point of a plane facing the
+  // eye has the same depth, and ties must not go to the darker colour); blending the points
+  // within a splat's depth of the nearest averages the several on each pixel.
+  lod::PointBatch plane;
+  plane.reset(lod::kColor);
+  std::mt19937_64 rng(11);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  for (int i = 0; i < 300000; ++i) {
+    plane.positions.push_back({u(rng), u(rng), 0.0});
+    const uint8_t g = rng() % 2 ? 255 : 0;
+    plane.colors.push_back({g, g, g, 255});
+  }
+  lod::writePly(*sDir / "bw.ply", plane, glm::dvec3(0.0));
+  lod::BuildOptions o;
+  o.quiet = true;
+  lod::buildStore({*sDir / "bw.ply"}, *sDir / "bw.tlod", o);
+  auto s = lod::PointStore::open(*sDir / "bw.tlod");
+  ModelInstance inst{s.get(), storeModel(*s)};
+  glm::dvec3 c;
+  const ViewSetup v = frontView(*s, 1.2, 320, 240, &c);
+  auto stats = [&](const Image& img, double& mean, double& sd) {
+    double sum = 0, sum2 = 0, n = 0;
+    for (uint32_t y = 80; y < 160; ++y)  // the middle of the plane
+      for (uint32_t x = 120; x < 200; ++x) {
+        const double g = pixel(img, x, y)[0];
+        sum += g, sum2 += g * g, ++n;
+      }
+    mean = sum / n;
+    sd = std::sqrt(std::max(0.0, sum2 / n - mean * mean));
+  };
+  ViewRenderer r(v.width, v.height);
+  RenderOptions nearest;
+  // About 4 points a pixel, splats 3 pixels across: a pixel sees about 12 points.
+  nearest.splat_scale = 8.0f;
+  const Image a = r.renderSettled({&inst, 1}, v, nearest);
+  RenderOptions blended = nearest;
+  blended.blend_colors = true;
+  const Image b = r.renderSettled({&inst, 1}, v, blended);
+  double mean_a, sd_a, mean_b, sd_b;
+  stats(a, mean_a, sd_a);
+  stats(b, mean_b, sd_b);
+  std::printf("nearest: mean %.1f sd %.1f; blended: mean %.1f sd %.1f\n", mean_a, sd_a, mean_b,
+              sd_b);
+  EXPECT_NEAR(mean_a, 127.5, 0.05 * 255) << "ties go to either colour alike";
+  EXPECT_GT(sd_a, 0.9 * 127.5) << "nearest colours are binary";
+  EXPECT_NEAR(mean_b, 127.5, 0.05 * 255) << "blended: the plane's mean grey";
+  EXPECT_LT(sd_b, 0.5 * 127.5) << "blending averages several points a pixel";
+  // Blending changes colours, not coverage: the depth planes are the same.
+  const std::vector<uint32_t> depth_b = r.target().readDepth();
+  r.renderSettled({&inst, 1}, v, nearest);
+  EXPECT_TRUE(depth_b == r.target().readDepth());
+}
+
+}  // namespace
+}  // namespace tessera::render
+
+namespace tessera::render {
+namespace {
+
+TEST_F(FramePipelineTest, NonFiniteOverlayPrimitivesAreSkipped) {
+  // Sketches and labels will come from remote sites: NaN or infinite positions and sizes must
+  // draw nothing (not garbage across the image), and the rest of the overlay still draws.
+  auto s = lod::PointStore::open(*sDir / "b.tlod");
+  glm::dvec3 c;
+  const ViewSetup v = frontView(*s, 0.4, 160, 120, &c);
+  ViewRenderer r(v.width, v.height);
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  const double inf = std::numeric_limits<double>::infinity();
+  Overlay bad;
+  bad.lines.push_back({{nan, 0, 0}, c, {255, 0, 0, 255}, 3.0f});
+  bad.lines.push_back(
+      {c, c + glm::dvec3(0.1, 0, 0), {255, 0, 0, 255}, std::numeric_limits<float>::infinity()});
+  bad.points.push_back({{inf, 0, 0}, {255, 0, 0, 255}, 8.0f});
+  bad.points.push_back({c, {255, 0, 0, 255}, std::numeric_limits<float>::quiet_NaN()});
+  OverlayLabel label;
+  label.at = {0, nan, 0};
+  label.text = "x";
+  bad.labels.push_back(label);
+  OverlayQuad quad;
+  quad.corners = {c, c + glm::dvec3(inf, 0, 0), c, c};
+  bad.quads.push_back(quad);
+  bad.rects.push_back({{0, 0}, {float(nan), 10}, {255, 0, 0, 255}, nullptr});
+  const Image plain = r.render({}, v, RenderOptions{});
+  const Image drawn = r.render({}, v, RenderOptions{}, nullptr, &bad);
+  EXPECT_TRUE(drawn.rgba == plain.rgba) << "nothing drawn";
+  bad.points.push_back({c, {255, 0, 0, 255}, 8.0f});  // one good dot among the bad
+  const Image one = r.render({}, v, RenderOptions{}, nullptr, &bad);
+  size_t red = 0;
+  for (size_t i = 0; i < one.rgba.size(); i += 4) red += isRed(&one.rgba[i]);
+  EXPECT_GT(red, 20u);
+  EXPECT_LT(red, 80u);
 }
 
 }  // namespace

@@ -123,3 +123,75 @@ TEST_F(LodSelector, CutCoversEveryVisibleLeafOnceWithinTheThreshold) {
 
 }  // namespace
 }  // namespace tessera::render
+
+namespace tessera::render {
+namespace {
+
+/// A hierarchy that is not a point store (a stand-in for mesh patches): a quadtree over the
+/// unit square at z = 0, depth 6, spacing halving per level, every page in memory.
+class QuadHierarchy : public lod::LodHierarchy {
+ public:
+  QuadHierarchy() { add(0, {0, 0}, 1.0); }
+  const std::filesystem::path& path() const override { return mPath; }
+  lod::NodeId root() const override { return 0; }
+  lod::NodeInfo node(lod::NodeId id) const override { return mNodes.at(id).info; }
+  std::vector<lod::NodeId> children(lod::NodeId id) override { return mNodes.at(id).children; }
+  bool childrenLoaded(lod::NodeId) const override { return true; }
+  uint32_t chunkBytes(lod::NodeId) const override { return 1000; }
+
+ private:
+  struct Node {
+    lod::NodeInfo info;
+    std::vector<lod::NodeId> children;
+  };
+  lod::NodeId add(uint8_t level, glm::dvec2 lo, double size) {
+    const auto id = lod::NodeId(mNodes.size());
+    mNodes.emplace_back();
+    lod::NodeInfo& n = mNodes.back().info;
+    n.level = level;
+    n.box_min = {lo, 0.0};
+    n.box_max = {lo + size, 0.0};
+    n.points = 64;
+    n.spacing = float(size / 8.0);
+    if (level < 6) {
+      std::vector<lod::NodeId> kids;
+      for (int k = 0; k < 4; ++k)
+        kids.push_back(
+            add(uint8_t(level + 1), lo + 0.5 * size * glm::dvec2(k & 1, k >> 1), 0.5 * size));
+      mNodes[id].children = kids;
+      mNodes[id].info.child_mask = 0xF;
+    }
+    return id;
+  }
+  std::vector<Node> mNodes;
+  std::filesystem::path mPath = "quadtree";
+};
+
+TEST(LodHierarchy, TheCutSelectionWorksOnAnyHierarchy) {
+  // The same selection code on a hierarchy that is not a point store: seen obliquely, the near
+  // edge of the square refines deeper than the far one, and every cut node meets the threshold
+  // or is a leaf.
+  QuadHierarchy q;
+  ViewSetup v;
+  v.eye_world = {0.5, -0.6, 0.4};
+  v.view = glm::lookAt(v.eye_world, glm::dvec3(0.5, 0.5, 0.0), glm::dvec3(0, 0, 1));
+  v.projection = glm::perspective(glm::radians(50.0), 16.0 / 9.0, 0.01, 10.0);
+  v.width = 1280;
+  v.height = 720;
+  CutOptions o;
+  o.pixel_threshold = 16.0;
+  const Cut cut = selectCut(q, glm::dmat4(1.0), v, o);
+  ASSERT_FALSE(cut.nodes.empty());
+  int near_level = 0, far_level = 99;
+  for (const CutNode& n : cut.nodes) {
+    const lod::NodeInfo info = q.node(n.id);
+    EXPECT_TRUE(n.projected_spacing_px <= o.pixel_threshold || info.leaf()) << n.id;
+    if (info.box_min.y == 0.0) near_level = std::max(near_level, int(info.level));
+    if (info.box_max.y == 1.0) far_level = std::min(far_level, int(info.level));
+  }
+  EXPECT_GT(near_level, far_level);
+  EXPECT_LT(near_level, 6) << "the threshold stops refinement before the leaves";
+}
+
+}  // namespace
+}  // namespace tessera::render

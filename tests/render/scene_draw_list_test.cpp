@@ -4,6 +4,9 @@
 // a loader decoding into a closed store is a use-after-free.
 #include <gtest/gtest.h>
 
+#include <filesystem>
+#include <random>
+
 #include <glm/gtc/matrix_transform.hpp>
 
 #include <tessera/lod/store_builder.h>
@@ -39,12 +42,16 @@ TEST(SceneDrawList, ModelRemovedMidStreamAndReAdded) {
 
   sync::SceneGraph graph;
   graph.setCamera(bunnyCamera());
+  sync::SceneChanges changes;  // of the last frame taken
+  const auto take = [&] {
+    changes = sync::SceneChanges::of(graph.takeFrame(graph.frameNumber() + 1, 0));
+  };
   const auto add = [&] {
     const auto id = graph.add(scene::SceneNode::MODEL, sync::SceneGraph::kRoot, "bunny");
     scene::ModelPayload p;
     p.set_store((dir / "b.tlod").string());
     graph.setPayload(id, p);
-    (void)graph.takeFrame(graph.frameNumber() + 1, 0);
+    take();
     return id;
   };
   const auto id = add();
@@ -60,19 +67,19 @@ TEST(SceneDrawList, ModelRemovedMidStreamAndReAdded) {
   SceneDrawList list;
   auto renderer = std::make_unique<ViewRenderer>(320, 240);
   ChunkStreamer* streamers[] = {&renderer->streamer()};
-  std::vector<ModelInstance> instances = list.update(graph, streamers);
+  std::vector<ModelInstance> instances = list.update(graph, changes, streamers);
   ASSERT_EQ(instances.size(), 1u);
   const Image before = renderer->renderSettled(instances, view, options);
 
   // A cold start, then the model goes while the loader holds its requests.
   renderer = std::make_unique<ViewRenderer>(320, 240);
   streamers[0] = &renderer->streamer();
-  instances = list.update(graph, streamers);
+  instances = list.update(graph, sync::SceneChanges::all(), streamers);
   renderer->draw(instances, view, options);  // queues the cut's chunks
   EXPECT_GT(renderer->streamer().stats().requested, 0u);
   graph.remove(id);
-  (void)graph.takeFrame(graph.frameNumber() + 1, 0);
-  instances = list.update(graph, streamers);  // forgets, then closes the store
+  take();
+  instances = list.update(graph, changes, streamers);  // forgets, then closes the store
   EXPECT_TRUE(instances.empty());
   EXPECT_EQ(list.storeBytes(), 0u);
   renderer->streamer().waitForLoader();
@@ -81,11 +88,106 @@ TEST(SceneDrawList, ModelRemovedMidStreamAndReAdded) {
 
   // Back again: the same pixels as before it left.
   add();
-  instances = list.update(graph, streamers);
+  instances = list.update(graph, changes, streamers);
   ASSERT_EQ(instances.size(), 1u);
   const Image after = renderer->renderSettled(instances, view, options);
   EXPECT_TRUE(after.rgba == before.rgba);
   list.clear(streamers);
+}
+
+bool sameInstances(std::span<const ModelInstance> a, std::span<const ModelInstance> b) {
+  if (a.size() != b.size()) return false;
+  for (size_t i = 0; i < a.size(); ++i) {
+    if (a[i].store->path() != b[i].store->path() || a[i].model != b[i].model ||
+        a[i].opacity != b[i].opacity || a[i].color != b[i].color)
+      return false;
+  }
+  return true;
+}
+
+TEST(SceneDrawList, IncrementalUpdatesEqualAFullRebuildAndEmptyFramesCostNothing) {
+  // A master mutates a scene of groups and models at random; a replica applies the frames and
+  // its draw list updates from what apply() returns. After every frame the list equals one
+  // rebuilt from scratch, and a frame without node changes visits no node.
+  test::TempDir dir;
+  lod::BuildOptions o;
+  o.quiet = true;
+  lod::buildStore({kData + "/stanford-bunny/scans/bun.conf"}, dir / "a.tlod", o);
+  std::filesystem::copy_file(dir / "a.tlod", dir / "b.tlod");
+  const std::string stores[] = {(dir / "a.tlod").string(), (dir / "b.tlod").string()};
+
+  sync::SceneGraph master, replica;
+  std::mt19937 rng(7);
+  auto pick = [&](size_t n) { return size_t(rng() % n); };
+  SceneDrawList incremental;
+  size_t visited_on_camera_frames = 0, camera_frames = 0, models_seen = 0;
+  for (int frame = 1; frame <= 300; ++frame) {
+    const std::vector<sync::SceneGraph::NodeId> ids = master.ids();
+    const int op = int(pick(10));
+    if (ids.size() < 3 || op == 0) {
+      const bool group = pick(3) == 0;
+      const auto parent = ids.empty() || pick(2) ? sync::SceneGraph::kRoot : ids[pick(ids.size())];
+      if (parent != sync::SceneGraph::kRoot &&
+          master.node(parent).kind() != scene::SceneNode::GROUP) {
+        continue;
+      }
+      const auto id =
+          master.add(group ? scene::SceneNode::GROUP : scene::SceneNode::MODEL, parent, "n");
+      if (!group) {
+        scene::ModelPayload p;
+        p.set_store(stores[pick(2)]);
+        master.setPayload(id, p);
+      }
+    } else {
+      const auto id = ids[pick(ids.size())];
+      switch (op) {
+        case 1:
+          master.setOpacity(id, float(pick(11)) / 10.0f);
+          break;
+        case 2:
+          master.setVisible(id, pick(2) == 0);
+          break;
+        case 3: {
+          std::vector<double> m(16, 0.0);
+          m[0] = m[5] = m[10] = m[15] = 1.0;
+          m[12] = double(pick(5)) * 0.1;
+          master.setTransform(id, m);
+          break;
+        }
+        case 4:
+          master.remove(id);
+          break;
+        case 5: {
+          if (master.node(id).kind() == scene::SceneNode::MODEL) {
+            scene::ModelPayload p;
+            p.set_store(stores[pick(2)]);
+            master.setPayload(id, p);
+          }
+          break;
+        }
+        default: {  // the camera only
+          config::Camera cam;
+          cam.mutable_eye()->set_z(1.0 + frame * 0.01);
+          cam.mutable_up()->set_y(1.0);
+          master.setCamera(cam);
+          break;
+        }
+      }
+    }
+    const sync::SceneChanges changes = replica.apply(master.takeFrame(uint64_t(frame), 0));
+    const std::vector<ModelInstance> got = incremental.update(replica, changes);
+    if (changes.nodes.empty()) {
+      ++camera_frames;
+      visited_on_camera_frames += incremental.lastVisited();
+    }
+    SceneDrawList full;
+    const std::vector<ModelInstance> want = full.update(replica, sync::SceneChanges::all());
+    ASSERT_TRUE(sameInstances(got, want)) << "frame " << frame;
+    models_seen += want.size();
+  }
+  EXPECT_GT(camera_frames, 50u);
+  EXPECT_EQ(visited_on_camera_frames, 0u);
+  EXPECT_GT(models_seen, 300u) << "the scenes had models to compare";
 }
 
 }  // namespace

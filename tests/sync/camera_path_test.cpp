@@ -40,7 +40,8 @@ TEST(CameraPath, ShippedPathsLoadAndFitTheirScenes) {
   const auto bunny = loadCameraPath(kConfigs + "/paths/bunny-orbit.json");
   EXPECT_GE(bunny.keyframes_size(), 5);
   EXPECT_DOUBLE_EQ(pathDuration(bunny), 12.0);
-  checkPathModels(bunny, loadSceneConfig(kConfigs + "/scenes/bunny.json"), "bunny-orbit.json");
+  checkPathModels(bunny, SceneGraph::fromFile(loadSceneFile(kConfigs + "/scenes/bunny.json")),
+                  "bunny-orbit.json");
   // The orbit keeps its distance to the bunny within 2 % between keyframes.
   const double radius =
       glm::length(vec(bunny.keyframes(0).eye()) - vec(bunny.keyframes(0).target()));
@@ -49,9 +50,12 @@ TEST(CameraPath, ShippedPathsLoadAndFitTheirScenes) {
     EXPECT_NEAR(glm::length(vec(c.eye()) - vec(c.target())), radius, 0.02 * radius) << t;
   }
   const auto autzen = loadCameraPath(kConfigs + "/paths/autzen-flyover.json");
-  checkPathModels(autzen, loadSceneConfig(kConfigs + "/scenes/autzen.json"), "autzen-flyover.json");
-  EXPECT_THROW(checkPathModels(autzen, loadSceneConfig(kConfigs + "/scenes/bunny.json"), "a.json"),
-               ConfigError);
+  checkPathModels(autzen, SceneGraph::fromFile(loadSceneFile(kConfigs + "/scenes/autzen.json")),
+                  "autzen-flyover.json");
+  EXPECT_THROW(
+      checkPathModels(autzen, SceneGraph::fromFile(loadSceneFile(kConfigs + "/scenes/bunny.json")),
+                      "a.json"),
+      ConfigError);
 }
 
 TEST(CameraPath, PassesThroughKeyframesSmoothly) {

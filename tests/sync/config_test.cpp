@@ -2,6 +2,7 @@
 #include <gtest/gtest.h>
 
 #include <tessera/sync/config.h>
+#include <tessera/sync/scene_graph.h>
 
 namespace tessera::sync {
 namespace {
@@ -58,38 +59,76 @@ TEST(WallConfig, BadFilesNameTheField) {
             std::string::npos);
 }
 
-TEST(SceneConfig, ShippedScenesLoadWithPathsBesideTheFile) {
-  auto bunny = loadSceneConfig(kConfigs + "/scenes/bunny.json");
-  ASSERT_EQ(bunny.models_size(), 1);
-  EXPECT_NE(bunny.models(0).store().find("out/demo/stores/bunny.tlod"), std::string::npos);
-  EXPECT_TRUE(std::filesystem::path(bunny.models(0).store()).is_absolute());
-  EXPECT_EQ(bunny.shading(), "edl");
-  EXPECT_EQ(loadSceneConfig(kConfigs + "/scenes/autzen.json").lod_pixels(), 1.0);
+TEST(SceneFile, ShippedScenesLoadWithPathsBesideTheFile) {
+  const scene::SceneFile bunny = loadSceneFile(kConfigs + "/scenes/bunny.json");
+  ASSERT_EQ(bunny.nodes_size(), 1);
+  EXPECT_EQ(bunny.nodes(0).id(), 1u) << "ids assigned in file order";
+  EXPECT_EQ(bunny.nodes(0).kind(), scene::SceneNode::MODEL);
+  EXPECT_NE(bunny.nodes(0).model().store().find("out/demo/stores/bunny.tlod"), std::string::npos);
+  EXPECT_TRUE(std::filesystem::path(bunny.nodes(0).model().store()).is_absolute());
+  EXPECT_EQ(bunny.settings().shading(), scene::SHADING_EDL);
+  EXPECT_EQ(loadSceneFile(kConfigs + "/scenes/autzen.json").settings().lod_pixels(), 1.0f);
+  EXPECT_EQ(loadSceneFile(kConfigs + "/scenes/bunny-fused.json").nodes_size(), 2);
 }
 
-TEST(SceneConfig, BadScenesNameTheField) {
+TEST(SceneFile, EveryNodeKindAndGroupsLoad) {
+  const scene::SceneFile f = parseSceneFile(R"({"camera": {"eye": {"z": 1}, "target": {},
+      "up": {"y": 1}}, "nodes": [
+        {"id": 5, "kind": "GROUP", "name": "site", "transform": {"m": [1,0,0,0, 0,1,0,0,
+         0,0,1,0, 2,0,0,1]}},
+        {"kind": "MODEL", "parent": 5, "model": {"store": "a.tlod"}, "opacity": 0.5},
+        {"kind": "ANNOTATION", "parent": 5, "annotation": {"text": "crack", "anchor": {"x": 1},
+         "layer": "survey/2026"}},
+        {"kind": "SKETCH", "sketch": {"points": [0, 0, 0, 1, 1, 1], "width": 2}}]})",
+                                            "s.json", "/data");
+  ASSERT_EQ(f.nodes_size(), 4);
+  EXPECT_EQ(f.nodes(1).id(), 6u);
+  EXPECT_EQ(f.nodes(1).model().store(), "/data/a.tlod");
+  const SceneGraph g = SceneGraph::fromFile(f);
+  EXPECT_EQ(g.size(), 4u);
+  EXPECT_EQ(g.node(6).parent(), 5u);
+  EXPECT_EQ(g.node(7).annotation().text(), "crack");
+  EXPECT_EQ(g.node(6).opacity(), 0.5f);
+}
+
+TEST(SceneFile, BadScenesNameTheField) {
   auto err = [](const std::string& json) {
-    return errorOf([&] { parseSceneConfig(json, "s.json"); });
+    return errorOf([&] { parseSceneFile(json, "s.json"); });
   };
   const std::string cam = R"("camera": {"eye": {"z": 1}, "target": {}, "up": {"y": 1}})";
-  EXPECT_NE(err(R"({"models": [{"store": "a.tlod", "opacity": 1.5}], )" + cam + "}")
-                .find("models[0].opacity"),
+  auto model = [&](const std::string& fields) {
+    return R"({"nodes": [{"kind": "MODEL", "model": {"store": "a.tlod"})" + fields + "}], " + cam +
+           "}";
+  };
+  EXPECT_NE(err(model(R"(, "opacity": 1.5)")).find("s.json: nodes[0] (node 1): opacity"),
+            std::string::npos)
+      << err(model(R"(, "opacity": 1.5)"));
+  EXPECT_NE(err(model(R"(, "opacity": "NaN")")).find("nodes[0] (node 1): opacity"),
             std::string::npos);
-  EXPECT_NE(err(R"({"models": [{"store": "a.tlod", "color": [1, 0.5]}], )" + cam + "}")
-                .find("models[0].color"),
+  EXPECT_NE(err(model(R"(, "transform": {"m": [1, 2]})")).find("nodes[0] (node 1): transform"),
             std::string::npos);
-  EXPECT_NE(err(R"({"models": [{"store": "a.tlod", "color": [1, 0.5, 2]}], )" + cam + "}")
-                .find("models[0].color"),
+  EXPECT_NE(err(model(R"(, "parent": 9)")).find("s.json: node 1: parent 9 does not exist"),
             std::string::npos);
-  EXPECT_NE(err(R"({"models": [{"store": "a.tlod", "transform": [1, 2]}], )" + cam + "}")
-                .find("models[0].transform"),
+  EXPECT_NE(err(R"({"nodes": [{"kind": "MODEL"}], )" + cam + "}").find("nodes[0].model.store"),
             std::string::npos);
-  EXPECT_NE(err(R"({"models": [{}], )" + cam + "}").find("models[0].store"), std::string::npos);
+  EXPECT_NE(err(R"({"nodes": [{"name": "x"}], )" + cam + "}").find("nodes[0].kind"),
+            std::string::npos);
+  EXPECT_NE(
+      err(R"({"nodes": [{"id": 2, "kind": "GROUP"}, {"id": 2, "kind": "GROUP"}], )" + cam + "}")
+          .find("twice"),
+      std::string::npos);
+  EXPECT_NE(err(R"({"nodes": [{"id": 1, "kind": "GROUP", "parent": 2}, {"id": 2, "kind":
+                "GROUP", "parent": 1}], )" +
+                cam + "}")
+                .find("cycle"),
+            std::string::npos);
   EXPECT_NE(err(R"({"camera": {"eye": {"z": 1}, "target": {}, "up": {"z": 1}}})").find("camera.up"),
             std::string::npos);
-  EXPECT_NE(err("{" + cam + R"(, "shading": "toon"})").find("shading: 'toon' is not one of"),
+  EXPECT_NE(err("{" + cam + R"(, "settings": {"shading": "toon"}})").find("s.json"),
             std::string::npos);
-  EXPECT_NE(err("{" + cam + R"(, "background": [2, 0, 0]})").find("background"), std::string::npos);
+  EXPECT_NE(err("{" + cam + R"(, "settings": {"background": {"r": 2}}})").find("background"),
+            std::string::npos);
+  EXPECT_NE(err(R"({"models": []})").find("not a valid SceneFile"), std::string::npos);
   EXPECT_NE(err("{}").find("camera: a scene needs an initial camera"), std::string::npos);
 }
 

@@ -234,8 +234,8 @@ TEST(SceneGraph, SnapshotLeavesPendingChangesOut) {
   EXPECT_TRUE(late == g) << differences(late, g);
 }
 
-TEST(SceneGraph, FromConfigMakesTheSceneFilesModels) {
-  SceneGraph g = SceneGraph::fromConfig(loadSceneConfig(kConfigs + "/scenes/bunny.json"));
+TEST(SceneGraph, FromFileMakesTheSceneFilesNodes) {
+  SceneGraph g = SceneGraph::fromFile(loadSceneFile(kConfigs + "/scenes/bunny.json"));
   ASSERT_EQ(g.size(), 1u);
   const SceneNode& n = g.node(1);
   EXPECT_EQ(n.kind(), SceneNode::MODEL);
@@ -244,8 +244,10 @@ TEST(SceneGraph, FromConfigMakesTheSceneFilesModels) {
   EXPECT_EQ(g.settings().shading(), scene::SHADING_EDL);
   EXPECT_NEAR(vec(g.camera().eye()).z, 0.38, 1e-12);
   EXPECT_EQ(g.findByName("bunny scans"), std::optional<NodeId>(1));
+  // Nothing is pending: replicas start from the snapshot, as a joining node does.
+  EXPECT_FALSE(g.hasPendingChanges());
   SceneGraph replica;
-  replica.apply(wire(g.takeFrame(0, 0)));
+  replica.apply(parseSnapshot(serializeSnapshot(g.snapshot())));
   EXPECT_TRUE(replica == g) << differences(replica, g);
 }
 

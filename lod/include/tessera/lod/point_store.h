@@ -12,6 +12,7 @@
 #include <string>
 #include <vector>
 
+#include <tessera/lod/lod_hierarchy.h>
 #include <tessera/lod/point_batch.h>
 
 namespace tessera::lod {
@@ -40,21 +41,6 @@ struct ChunkPoints {
   size_t byteSize() const;
 };
 
-using NodeId = uint32_t;
-constexpr NodeId kNoNode = ~NodeId(0);
-
-struct NodeInfo {
-  uint8_t level = 0;
-  glm::u32vec3 cell{0};     ///< octree cell at `level`
-  glm::dvec3 box_min{0.0};  ///< local frame
-  glm::dvec3 box_max{0.0};
-  uint32_t points = 0;
-  float spacing = 0.f;      ///< mean distance between this node's samples
-  float error_bound = 0.f;  ///< max stored-position error
-  uint8_t child_mask = 0;
-  bool leaf() const { return child_mask == 0; }
-};
-
 struct StoreSummary {
   uint32_t version = 0;
   glm::dvec3 origin{0.0};
@@ -78,26 +64,28 @@ struct CacheStats {
   uint64_t corrupt = 0;  ///< chunks refused because their checksum or decoding failed
 };
 
-class PointStore {
+/// The point LOD hierarchy (lod_hierarchy.h): nodes are point chunks, spacing their mean
+/// sample distance.
+class PointStore : public LodHierarchy {
  public:
   /// Opens the store: reads and checks the header and the root hierarchy page only (fast for
   /// any size). `cache_bytes` bounds the decoded chunks kept in memory. Throws StoreError.
   static std::unique_ptr<PointStore> open(const std::filesystem::path& path,
                                           uint64_t cache_bytes = 512ull << 20);
-  ~PointStore();
+  ~PointStore() override;
 
   const StoreSummary& summary() const { return mSummary; }
   const std::vector<std::string>& sources() const { return mSources; }
-  const std::filesystem::path& path() const { return mPath; }
+  const std::filesystem::path& path() const override { return mPath; }
 
-  NodeId root() const { return 0; }
+  NodeId root() const override { return 0; }
   /// Node metadata. Thread-safe. Copies, because loading pages may grow the table.
-  NodeInfo node(NodeId id) const;
+  NodeInfo node(NodeId id) const override;
   /// Children of a node (loads their hierarchy page on first use; may throw StoreError for a
   /// corrupt page). Thread-safe.
-  std::vector<NodeId> children(NodeId id);
+  std::vector<NodeId> children(NodeId id) override;
   /// Whether the children of `id` are already in memory (no I/O needed to list them).
-  bool childrenLoaded(NodeId id) const;
+  bool childrenLoaded(NodeId id) const override;
   /// Number of nodes whose metadata is in memory.
   size_t loadedNodes() const;
 
@@ -108,7 +96,7 @@ class PointStore {
   /// Like loadChunk but bypassing the cache (verification, benchmarks).
   std::shared_ptr<ChunkPoints> decodeChunk(NodeId id) const;
   /// Compressed bytes of a node's chunk on disk.
-  uint32_t chunkBytes(NodeId id) const;
+  uint32_t chunkBytes(NodeId id) const override;
 
   CacheStats cacheStats() const;
 

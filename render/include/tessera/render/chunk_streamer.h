@@ -1,7 +1,8 @@
 // Streaming of point chunks to the GPU (Bettio et al. 2009, section 4.1: the renderer never
-// waits for data; it draws what is resident and refines as chunks arrive). One loader thread
-// reads and decodes chunks (and hierarchy pages) in priority order, coarse and near first; the
-// GL thread uploads finished chunks into buffers kept under a byte budget with LRU eviction.
+// waits for data; it draws what is resident and refines as chunks arrive). A pool of loader
+// threads reads and decodes chunks (and hierarchy pages) in priority order, coarse and near
+// first: each worker takes the highest-priority item queued. The GL thread uploads finished
+// chunks into buffers kept under a byte budget with LRU eviction.
 //
 // Per frame, on the GL thread: beginFrame() uploads what the loader finished and evicts; the
 // renderer asks find() for each chunk it wants and request()s the missing ones; endFrame() hands
@@ -9,6 +10,12 @@
 // does not keep stale work queued). Chunks used in the previous frame are never evicted, so a
 // resting view settles even when its cut is larger than the budget (the budget is then exceeded
 // and says so in the stats).
+//
+// What see-through rendering needs of a chunk besides its points (density, and normals, density
+// ratios and surface cells as StreamerOptions asks) is measured only for chunks requested for
+// see-through drawing (ChunkUse::kSeeThrough), since they cost the loader more than decoding. A
+// chunk resident without them counts as missing for a see-through view and is loaded again with
+// them, so a model that turns see-through later gets its measurements.
 #pragma once
 
 #include <cstdint>
@@ -27,13 +34,16 @@ struct GpuChunk {
   uint64_t last_used = 0;   ///< frame number
   uint32_t disk_bytes = 0;  ///< the chunk's compressed size in the store
   double spacing = 0.0;     ///< the node's mean sample spacing, store units
+  /// Whether the measurements below were taken (the chunk was loaded for see-through drawing,
+  /// ChunkUse::kSeeThrough); without them the chunk can only be drawn opaque.
+  bool measured = false;
   /// Points per unit area (store units) by sphere counts on the chunk's own points (spbr.h),
-  /// for see-through rendering; 0 when too few points.
+  /// for see-through rendering; 0 when too few points or not `measured`.
   double density = 0.0;
-  GlBuffer normals;         ///< 10:10:10 normals, when StreamerOptions::normals
+  GlBuffer normals;         ///< 10:10:10 normals, when `measured` and StreamerOptions::normals
   GlBuffer density_ratios;  ///< float per point (spbr.h densityRatios()), when asked for
   /// Per point, 8 bytes: spbr.h SurfaceCell as half floats, (offset x, y), (offset z, weight);
-  /// when StreamerOptions::surface_cells.
+  /// when `measured` and StreamerOptions::surface_cells.
   GlBuffer cells;
 };
 
@@ -67,14 +77,27 @@ struct StreamerOptions {
   /// cell_weights). About twice the cost of decoding, 8 GPU bytes a point: off unless a view
   /// asks for the sparse-scan method.
   bool surface_cells = false;
+  /// Loader threads decoding (and measuring) in parallel; 0: std::thread::hardware_concurrency().
+  uint32_t loader_threads = 0;
+  /// Measure every chunk as if it were drawn see-through (the loader before issue 12 did):
+  /// benchmarks compare against it; views that may turn see-through at any moment need not, a
+  /// chunk is measured again when first wanted see-through.
+  bool measure_every_chunk = false;
+};
+
+/// What a view draws a chunk for (request(), find()).
+enum class ChunkUse : uint8_t {
+  kOpaque,      ///< its points only
+  kSeeThrough,  ///< its points and the measurements see-through rendering takes
+                ///< (GpuChunk::measured)
 };
 
 class ChunkStreamer {
  public:
-  /// Starts the loader thread. A GL context must be current on the constructing thread, which
+  /// Starts the loader threads. A GL context must be current on the constructing thread, which
   /// is the only thread that may call the methods below.
   explicit ChunkStreamer(const StreamerOptions& options = {});
-  /// Stops the loader (finishing the chunk in flight) and frees every buffer.
+  /// Stops the loader (finishing the items in flight) and frees every buffer.
   ~ChunkStreamer();
   ChunkStreamer(const ChunkStreamer&) = delete;
   ChunkStreamer& operator=(const ChunkStreamer&) = delete;
@@ -82,25 +105,36 @@ class ChunkStreamer {
   /// Starts the next frame: uploads the loader's finished chunks, evicts beyond the budget,
   /// resets the per-frame counters.
   void beginFrame();
-  /// The resident chunk of a node, marked used this frame; null when not resident.
-  const GpuChunk* find(const lod::PointStore& store, lod::NodeId node);
+  /// The resident chunk of a node, marked used this frame; null when not resident, or, for
+  /// ChunkUse::kSeeThrough, resident without its measurements (request() it again).
+  const GpuChunk* find(const lod::LodHierarchy& store, lod::NodeId node,
+                       ChunkUse use = ChunkUse::kOpaque);
   /// Asks for a missing chunk. Priority: lower levels first, then nearer (`distance`).
-  /// Ignored for chunks already resident, failed or finished and waiting for upload.
-  void request(lod::PointStore& store, lod::NodeId node, uint8_t level, double distance);
+  /// Ignored for chunks already resident (for kSeeThrough: resident with measurements), failed,
+  /// or finished or in flight with what `use` needs.
+  void request(lod::PointStore& store, lod::NodeId node, uint8_t level, double distance,
+               ChunkUse use = ChunkUse::kOpaque);
   /// Asks the loader to read the hierarchy page holding `node`'s children (ahead of chunks).
-  void requestChildren(lod::PointStore& store, lod::NodeId node);
+  void requestChildren(lod::LodHierarchy& store, lod::NodeId node);
   /// Whether a chunk failed to load (corrupt): the renderer draws an ancestor instead.
-  bool failed(const lod::PointStore& store, lod::NodeId node) const;
+  bool failed(const lod::LodHierarchy& store, lod::NodeId node) const;
   /// Hands this frame's requests to the loader, replacing earlier ones.
   void endFrame();
 
-  /// Blocks until the loader has nothing queued or in flight (tools, tests, screenshots).
+  /// Blocks until the loader has nothing queued or in flight, or is paused (tools, tests,
+  /// screenshots).
   void waitForLoader();
-  /// Holds (true) or releases the loader before its next item: lets tests observe frames drawn
-  /// while data is missing.
+  /// Holds (true) or releases every loader thread before its next item (items in flight are
+  /// finished): lets tests observe frames drawn while data is missing.
   void pauseLoader(bool paused);
-  /// Drops every chunk of a store (before it is closed).
-  void forget(const lod::PointStore& store);
+  /// Drops every chunk of a store (before it is closed): removes its queued items, waits for
+  /// every item of it in flight on any loader thread, discards what they produced and frees its
+  /// resident chunks. After it returns no loader thread touches the store.
+  void forget(const lod::LodHierarchy& store);
+  /// Loader threads (StreamerOptions::loader_threads resolved).
+  uint32_t loaderThreads() const;
+  /// Items the loader threads are working on at this moment (tests, tools).
+  uint32_t inFlight() const;
 
   const StreamStats& stats() const { return mStats; }
 

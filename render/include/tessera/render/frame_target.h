@@ -40,9 +40,13 @@ class FrameTarget {
   const GlBuffer& pick() const { return mPick; }
   /// RGBA8, top row first: what a window shows and a screenshot saves.
   const GlBuffer& image() const { return mImage; }
+  /// Blended colours (PointShading::blend): per pixel the weighted r, g, b sums and the weight
+  /// (16 bytes), made on first use. Raster order.
+  const GlBuffer& colorSums();
 
-  /// Starts a frame's geometry: depth and colours empty; pick ids empty when `pick`.
-  void clearGeometry(bool pick);
+  /// Starts a frame's geometry: depth and colours empty; pick ids empty when `pick`; colour
+  /// sums zero when `blend`.
+  void clearGeometry(bool pick, bool blend = false);
 
   Image readImage() const;
   /// One plane read back, raster order.
@@ -53,7 +57,7 @@ class FrameTarget {
 
  private:
   uint32_t mWidth, mHeight;
-  GlBuffer mDepth, mColors, mPick, mImage;
+  GlBuffer mDepth, mColors, mPick, mImage, mColorSums;
 };
 
 }  // namespace tessera::render

@@ -50,7 +50,7 @@ struct Cut {
 /// (world = model * local). Loads hierarchy pages on demand unless options.may_load_children
 /// says otherwise (may throw StoreError); decodes no chunk. Thread-safe with respect to the
 /// store.
-Cut selectCut(lod::PointStore& store, const glm::dmat4& model, const ViewSetup& view,
+Cut selectCut(lod::LodHierarchy& store, const glm::dmat4& model, const ViewSetup& view,
               const CutOptions& options = {});
 
 /// Pixels per store unit at distance 1 along the view axis for this view (vertical).

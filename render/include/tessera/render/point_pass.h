@@ -43,6 +43,9 @@ struct DrawBatch {
   /// With PointShading::pick: point i of the batch writes pick id pick_base + i where it is the
   /// nearest (the view keeps which batch owns which range).
   uint32_t pick_base = 0;
+  /// With PointShading::blend: points whose view depth is within this of the nearest's (world
+  /// units: about a splat's diameter) blend their colours on the pixel.
+  float blend_depth = 0.0f;
 
   // See-through (drawEnsembles() only; spbr.h):
   float spbr_k = 0.0f;          ///< copies per point over all ensembles (eq. 4), <= total ensembles
@@ -63,6 +66,12 @@ struct PointShading {
   /// Write pick ids (DrawBatch::pick_base + index) for the nearest points: one more atomic per
   /// covered pixel of the colour pass.
   bool pick = false;
+  /// Blend the colours of the points near the nearest (DrawBatch::blend_depth) into the target's
+  /// colour sums instead of keeping the nearest point's: smooth, alias-free colour (Potree's
+  /// high-quality splatting). Costs 4 atomics per blended point and pixel. `projection` is the
+  /// view's (for view depth from window depth).
+  bool blend = false;
+  glm::dmat4 projection{1.0};
 };
 
 /// Milliseconds per step of the last call, measured on the CPU with the GL work finished after

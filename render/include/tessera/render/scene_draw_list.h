@@ -25,24 +25,38 @@
 
 namespace tessera::render {
 
+/// A scene file (sync::loadSceneFile) as a scene graph with every model's store ready: a model
+/// naming a raw scan (PLY, LAS, .conf ...) is built into the cached store for it on first use
+/// (lod/store_cache.h), shared by every program of this host, and the model then names that
+/// store. `who` prefixes progress lines. Throws std::runtime_error (sync::ConfigError for the
+/// file itself) naming the file, the node and why.
+sync::SceneGraph loadSceneWithStores(const std::string& path, const std::string& who);
+
 class SceneDrawList {
  public:
-  /// The visible MODEL nodes in ascending id (the scene file's order), each drawn with
-  /// world = (ancestors' transforms) * (its transform) * storeModel(store) and
-  /// opacity = the product of its own and its ancestors' opacities; a node is hidden when it or
-  /// an ancestor is. Opens each store path once; a store no model uses any more is forgotten by
-  /// every streamer in `streamers` (ChunkStreamer::forget: waits for a chunk in flight), then
-  /// closed. Throws lod::StoreError naming the model when a store cannot be opened (the list is
-  /// left as it was). Cost: the scene's size, plus opening new stores (their header and root
-  /// page). The instances' store pointers stay valid until the next update().
-  std::vector<ModelInstance> update(const sync::SceneGraph& graph,
-                                    std::span<ChunkStreamer* const> streamers = {});
+  /// Brings the list up to date with `graph` after `changes` (what SceneGraph::apply() returned,
+  /// or SceneChanges::of() the frame the master took; SceneChanges::all() rebuilds). The list
+  /// holds the visible MODEL nodes in ascending id (the scene file's order), each drawn with
+  /// world = (ancestors' transforms) * (its transform) * storeModel(store) and opacity = the
+  /// product of its own and its ancestors' opacities; a node is hidden when it or an ancestor
+  /// is. Opens each store path once; a store no model uses any more is forgotten by every
+  /// streamer in `streamers` (ChunkStreamer::forget: cancels the loader's work on it, waits for
+  /// a chunk in flight, frees its resident chunks), then closed. Throws lod::StoreError naming
+  /// the model when a store cannot be opened (the list is left as it was).
+  /// Cost: nothing for a frame that changed no node; else the changed nodes' subtrees, plus
+  /// opening new stores (their header and root page) and one pass over the models.
+  /// The returned instances (and their store pointers) stay valid until the next update().
+  const std::vector<ModelInstance>& update(const sync::SceneGraph& graph,
+                                           const sync::SceneChanges& changes,
+                                           std::span<ChunkStreamer* const> streamers = {});
 
   /// Forgets and closes every store (before the streamers go).
   void clear(std::span<ChunkStreamer* const> streamers);
 
   /// The open stores' file sizes together, bytes.
   uint64_t storeBytes() const;
+  /// Scene nodes the last update() looked at (0 for a frame that changed no node).
+  size_t lastVisited() const { return mVisited; }
 
   /// The wall-level settings: background, eye-dome lighting (strength 1) when the shading is
   /// EDL, LOD threshold; `splat_scale` as tessera-render's --splat-scale. Per-node shading and
@@ -50,7 +64,17 @@ class SceneDrawList {
   static RenderOptions options(const sync::SceneGraph& graph, float splat_scale);
 
  private:
+  /// A MODEL node as drawn: its store path and instance (`visible` false: hidden, not drawn).
+  struct Entry {
+    std::string path;
+    ModelInstance instance;
+    bool visible = false;
+  };
   std::map<std::string, std::unique_ptr<lod::PointStore>> mStores;  // by store path
+  std::map<uint32_t, Entry> mEntries;                               // by node id
+  std::vector<ModelInstance> mInstances;
+  bool mStarted = false;
+  size_t mVisited = 0;
 };
 
 }  // namespace tessera::render

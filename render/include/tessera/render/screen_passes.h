@@ -19,7 +19,9 @@ namespace tessera::render {
 class ResolvePass {
  public:
   ResolvePass();
-  double run(FrameTarget& target, const glm::vec3& background, uint32_t uniform_color);
+  /// `blended`: colours are the means of the target's colour sums (PointShading::blend).
+  double run(FrameTarget& target, const glm::vec3& background, uint32_t uniform_color,
+             bool blended = false);
 
  private:
   GlProgram mProgram;

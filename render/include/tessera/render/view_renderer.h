@@ -49,6 +49,10 @@ struct RenderOptions {
   /// Write pick ids for opaque frames, so pick() names the model and point under a pixel. Costs
   /// one more atomic per covered pixel, and the colour pass when all points have one colour.
   bool pick_ids = false;
+  /// Colour points: blend the colours of all points within a splat's depth of the nearest on
+  /// each pixel (high-quality splatting, as Potree's) instead of the nearest point's colour:
+  /// smooth, alias-free colour for 4 atomics per point and pixel more.
+  bool blend_colors = false;
 };
 
 /// One frame. `nodes`..`points` describe what was drawn.

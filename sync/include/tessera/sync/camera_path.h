@@ -11,6 +11,7 @@
 #include <tessera/camera_path.pb.h>
 #include <tessera/config.pb.h>
 #include <tessera/sync/config.h>
+#include <tessera/sync/scene_graph.h>
 
 namespace tessera::sync {
 
@@ -25,9 +26,10 @@ config::CameraPath loadCameraPath(const std::filesystem::path& path);
 /// Same from JSON text (`name` is used in messages).
 config::CameraPath parseCameraPath(const std::string& json, const std::string& name);
 
-/// Checks that every model an action names is in `scene`; ConfigError names `name` (the path's
-/// file) and the action, e.g. "actions[1].setOpacity.model: no model 'x' in the scene".
-void checkPathModels(const config::CameraPath& path, const config::SceneConfig& scene,
+/// Checks that every model an action names is a node of `scene` (by name); ConfigError names
+/// `name` (the path's file) and the action, e.g.
+/// "actions[1].setOpacity.model: no model 'x' in the scene".
+void checkPathModels(const config::CameraPath& path, const SceneGraph& scene,
                      const std::string& name);
 
 /// The time of the last keyframe or action, whichever is later (seconds).

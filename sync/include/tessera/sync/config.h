@@ -1,5 +1,5 @@
-// Loading wall and scene configurations (JSON through protobuf's JSON mapping) with checks: a bad
-// file gives a ConfigError naming the file and the field, never a half-usable config.
+// Loading wall configurations and scene files (JSON through protobuf's JSON mapping) with checks: a
+// bad file gives a ConfigError naming the file and the field, never a half-usable config.
 #pragma once
 
 #include <filesystem>
@@ -7,6 +7,7 @@
 #include <string>
 
 #include "tessera/config.pb.h"
+#include "tessera/scene.pb.h"
 
 namespace tessera::sync {
 
@@ -22,12 +23,13 @@ config::WallConfig loadWallConfig(const std::filesystem::path& path);
 /// Same from JSON text (`name` is used in messages).
 config::WallConfig parseWallConfig(const std::string& json, const std::string& name);
 
-/// Reads and validates a scene: models with a store path, opacity in (0, 1], transforms of 16
-/// numbers, a camera whose eye differs from its target and whose up is not along the view,
-/// background of 3 numbers in [0, 1], lod_pixels > 0. Store paths are made absolute relative to
-/// the scene file's folder.
-config::SceneConfig loadSceneConfig(const std::filesystem::path& path);
-config::SceneConfig parseSceneConfig(const std::string& json, const std::string& name,
-                                     const std::filesystem::path& base_dir = {});
+/// Reads and validates a scene file (scene.proto SceneFile: the scene schema in JSON): a camera
+/// whose eye differs from its target and whose up is not along the view; nodes with a kind,
+/// unique ids (0: assigned), parents that exist and no cycle, every field as the scene graph
+/// checks it (sync::SceneGraph::apply()); MODEL nodes with a store path, made absolute relative
+/// to the file's folder. Throws ConfigError "sync::loadSceneFile(): FILE: FIELD: what".
+scene::SceneFile loadSceneFile(const std::filesystem::path& path);
+scene::SceneFile parseSceneFile(const std::string& json, const std::string& name,
+                                const std::filesystem::path& base_dir = {});
 
 }  // namespace tessera::sync

@@ -53,6 +53,24 @@ class SyncError : public std::runtime_error {
   Code mCode;
 };
 
+/// What a frame or a snapshot changed, for what updates incrementally from it (the renderer's
+/// scene draw list): an empty frame changes nothing, so costs its consumers nothing.
+struct SceneChanges {
+  bool everything = false;      ///< a snapshot (or a first look): the whole scene is new
+  std::vector<uint32_t> nodes;  ///< ids created, changed or deleted, ascending, each once
+  bool camera = false, settings = false;
+
+  bool empty() const { return !everything && nodes.empty() && !camera && !settings; }
+  static SceneChanges all() {
+    SceneChanges c;
+    c.everything = true;
+    return c;
+  }
+  /// What `frame` changes (the master knows it from the frame it took; replicas get it from
+  /// apply()). Cost: the frame's size.
+  static SceneChanges of(const scene::Frame& frame);
+};
+
 class SceneGraph {
  public:
   using NodeId = uint32_t;
@@ -63,10 +81,10 @@ class SceneGraph {
   /// with y up, settings defaultSettings().
   SceneGraph();
 
-  /// A master's scene from a loaded scene file (loadSceneConfig): one MODEL node per model,
-  /// ids 1, 2, ... in file order, under the root; its camera and settings. All of it is pending,
-  /// so the first takeFrame() carries it.
-  static SceneGraph fromConfig(const config::SceneConfig& config);
+  /// A master's scene from a scene file (loadSceneFile(): ids assigned, stores absolute): its
+  /// nodes, camera and settings (defaults where the file is silent), at version 0 with nothing
+  /// pending. Throws SyncError as apply(Snapshot) does for anything the graph refuses.
+  static SceneGraph fromFile(const scene::SceneFile& file);
 
   /// A node of `kind` as created: visible, opacity 1, identity transform, inherited shading and
   /// LOD threshold, empty name, parent root, the (empty) payload of its kind. Every field set.
@@ -137,9 +155,10 @@ class SceneGraph {
   /// Applies one frame (see scene::Frame for the order and the version rule). Commands are not
   /// executed here; the caller reads them from the frame. Cost: the size of the frame, plus the
   /// depth of the tree for each node whose parent changed.
-  void apply(const scene::Frame& frame);
-  /// Replaces the whole state with a snapshot's. Cost: the snapshot's size.
-  void apply(const scene::Snapshot& snapshot);
+  /// Returns what it changed (SceneChanges::of(frame)).
+  SceneChanges apply(const scene::Frame& frame);
+  /// Replaces the whole state with a snapshot's. Cost: the snapshot's size. Returns all().
+  SceneChanges apply(const scene::Snapshot& snapshot);
 
   // ---- Queries (the current state, pending changes included).
 
