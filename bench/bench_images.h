@@ -1,4 +1,4 @@
-// Picture measures and the bunny view the rendering benchmarks share (render_lod, edl).
+// Picture measures the rendering benchmarks share (render_lod, edl).
 #pragma once
 
 #include <cmath>
@@ -6,7 +6,6 @@
 #include <cstdlib>
 
 #include <tessera/render/image.h>
-#include <tessera/sync/config.h>
 
 namespace tessera::bench {
 
@@ -42,19 +41,6 @@ inline double meanAbsChange(const render::Image& a, const render::Image& b) {
   for (size_t i = 0; i < a.rgba.size(); i += 4)
     for (size_t c = 0; c < 3; ++c) sum += uint64_t(std::abs(int(a.rgba[i + c]) - b.rgba[i + c]));
   return double(sum) / double(a.rgba.size() / 4 * 3);
-}
-
-/// The camera of the bunny-scan benchmarks: 26 cm in front of the bunny's face, 1920x1080 at
-/// 45 degrees showing all of it (one pixel is about 0.2 mm there, the scan's range noise).
-inline config::Camera bunnyCamera() {
-  config::Camera c;
-  c.mutable_eye()->set_x(-0.02);
-  c.mutable_eye()->set_y(0.13);
-  c.mutable_eye()->set_z(0.26);
-  c.mutable_target()->set_x(-0.02);
-  c.mutable_target()->set_y(0.1);
-  c.mutable_up()->set_y(1);
-  return c;
 }
 
 }  // namespace tessera::bench

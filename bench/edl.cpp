@@ -31,6 +31,7 @@
 
 #include "bench_images.h"
 #include "bench_inputs.h"
+#include "bench_views.h"
 
 namespace {
 
@@ -76,17 +77,16 @@ struct Plane {
   glm::dmat4 projection;
 };
 
-render::ViewSetup orbitView(const config::Camera& cam, double degrees, uint32_t w, uint32_t h) {
+/// bench::bigBunnyView() with its eye turned by `degrees` about the up axis around the target.
+render::ViewSetup orbitView(double degrees, uint32_t w, uint32_t h) {
+  const config::Camera cam = bench::bigBunnyCamera();
   const glm::dvec3 eye(cam.eye().x(), cam.eye().y(), cam.eye().z());
   const glm::dvec3 target(cam.target().x(), cam.target().y(), cam.target().z());
   const glm::dvec3 up(cam.up().x(), cam.up().y(), cam.up().z());
   const glm::dmat4 turn = glm::rotate(glm::dmat4(1.0), glm::radians(degrees), up);
-  render::ViewSetup v;
+  render::ViewSetup v = bench::bigBunnyView(w, h);
   v.eye_world = target + glm::dvec3(turn * glm::dvec4(eye - target, 0.0));
   v.view = glm::lookAt(v.eye_world, target, up);
-  v.projection = glm::perspective(glm::radians(45.0), double(w) / h, 0.01, 2.0);
-  v.width = w;
-  v.height = h;
   return v;
 }
 
@@ -146,7 +146,6 @@ int main(int argc, char** argv) {
     const std::string& out = input.out;
     auto ctx = render::GlContext::createHeadless();
     render::ModelInstance inst{store.get(), render::storeModel(*store)};
-    const config::Camera cam = bench::bunnyCamera();
     const uint32_t W = 1920, H = 1080;
 
     // The four depth planes. The renderer draws them without EDL; each is copied on the GPU.
@@ -160,7 +159,7 @@ int main(int argc, char** argv) {
         render::RenderOptions o;
         o.lod_pixels = lod;
         o.coverage_stop = lod > 1e-3;  // the reference draws every leaf
-        const render::ViewSetup v = orbitView(cam, deg, W, H);
+        const render::ViewSetup v = orbitView(deg, W, H);
         render::RenderStats st;
         const auto t = std::chrono::steady_clock::now();
         renderer.renderSettled({&inst, 1}, v, o, &st);
@@ -259,15 +258,17 @@ int main(int argc, char** argv) {
       << " tc rgb 'gray50'\n"
       << "plot '" << data.string()
       << "' every ::1 using 6:(is('classic') ? $7 : 1/0) with points pt 7 ps 1.5 title "
-         "'classic (today)', '' every ::1 using 6:(is('robust') ? $7 : 1/0) with points pt 5 "
-         "ps 1.5 title 'robust', '' every ::1 using 6:(is('off') ? 1/0 : $7):1 with labels "
-         "offset 0,0.9 font ',8' notitle\n"
+         "'classic (today)', '' every ::1 using 6:(is('robust-') ? $7 : 1/0) with points pt 5 "
+         "ps 1.2 title 'robust, other settings', '' every ::1 using 6:(strcol(1) eq 'robust' ? "
+         "$7 : 1/0) with points pt 9 ps 2.2 lc rgb 'black' title 'robust (the default)', '' "
+         "every ::1 using 6:(is('off') ? 1/0 : $7):1 with labels offset 0,0.9 font ',7' "
+         "notitle\n"
       << "unset arrow\nunset label\nset offsets 0,0,0,0\nset autoscale x\n"
       << "set title 'Flicker: mean absolute change for a " << orbit_deg
       << " degree orbit step (dashed: half of classic at lod-px 1)'\n"
       << "set xlabel ''\nset ylabel 'grey levels (0..255), every pixel'\n"
       << "set style data histograms\nset style fill solid 0.8 border -1\nset yrange [0:*]\n"
-      << "set xtics rotate by -30\nset key top right\n"
+      << "set xtics rotate by -30\nset key top right\nset rmargin 6\n"
       << "set arrow from graph 0, first " << base_flicker / 2 << " to graph 1, first "
       << base_flicker / 2 << " nohead dt 2 lc rgb 'gray40'\n"
       << "plot '" << data.string()
