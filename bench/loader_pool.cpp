@@ -6,7 +6,11 @@
 // The baseline, one loader thread measuring every chunk, is the loader before issue 12; every
 // configuration runs in this one process, interleaved over the repeats, each with a store
 // opened anew (no hierarchy page in memory) and the file in the page cache. The settled images
-// are compared byte for byte with the baseline's.
+// are compared byte for byte with the baseline's. Per run: settle_ms, of which last_frame_ms is
+// the frame that finds everything resident (upload_ms: its upload of the last chunks) and the
+// rest the loader's work with the frames before; frame_ms is one more frame, drawing alone;
+// cpu_s the CPU time of all the process's threads while settling (a machine shared with other
+// work stretches wall-clock times, hardly CPU times).
 // Prints CSV; writes OUT/loader_pool.csv (every run), OUT/loader_pool_best.csv (best run of
 // each configuration) and OUT/loader_pool.png.
 #include <algorithm>
@@ -18,6 +22,8 @@
 #include <map>
 #include <thread>
 #include <vector>
+
+#include <sys/resource.h>
 
 #include <CLI/CLI.hpp>
 
@@ -39,9 +45,18 @@ struct Run {
   bool every_chunk = false;  ///< the loader measures every chunk (before issue 12)
   double settle_ms = 0;      ///< cold streamer and store to the settled image
   double frame_ms = 0;       ///< one more frame, everything resident
+  double cpu_s = 0;          ///< CPU time of every thread of the process while settling
   render::RenderStats stats;
   render::Image image;
 };
+
+/// User and system CPU time of the whole process (llvmpipe's threads and the loader's too).
+double cpuSeconds() {
+  rusage u{};
+  getrusage(RUSAGE_SELF, &u);
+  return double(u.ru_utime.tv_sec + u.ru_stime.tv_sec) +
+         1e-6 * double(u.ru_utime.tv_usec + u.ru_stime.tv_usec);
+}
 
 Run settle(const fs::path& store_path, uint32_t threads, bool every_chunk,
            const render::ViewSetup& view, const render::RenderOptions& options) {
@@ -55,9 +70,11 @@ Run settle(const fs::path& store_path, uint32_t threads, bool every_chunk,
   so.loader_threads = threads;
   so.measure_every_chunk = every_chunk;
   render::ViewRenderer r(view.width, view.height, nullptr, so);
+  const double cpu0 = cpuSeconds();
   auto t = Clock::now();
   run.image = r.renderSettled({&inst, 1}, view, options, &run.stats);
   run.settle_ms = msSince(t);
+  run.cpu_s = cpuSeconds() - cpu0;
   t = Clock::now();
   r.draw({&inst, 1}, view, options);
   run.frame_ms = msSince(t);
@@ -116,7 +133,8 @@ int main(int argc, char** argv) {
 
     std::ofstream csv(fs::path(out) / "loader_pool.csv");
     const std::string header =
-        "repeat,loader_threads,measure,settle_ms,frames,points,gpu_mb,frame_ms,same_image";
+        "repeat,loader_threads,measure,settle_ms,last_frame_ms,upload_ms,frames,points,gpu_mb,"
+        "frame_ms,cpu_s,same_image";
     csv << header << "\n";
     std::cout << header << "\n";
     render::Image baseline;
@@ -128,10 +146,11 @@ int main(int argc, char** argv) {
           const Run r = settle(store_path, threads, every, view, options);
           if (baseline.rgba.empty()) baseline = r.image;  // 1 thread, every chunk: the first
           char line[512];
-          std::snprintf(line, sizeof line, "%d,%u,%s,%.1f,%zu,%llu,%.1f,%.1f,%d", rep, threads,
-                        every ? "every_chunk" : "see_through_only", r.settle_ms, r.stats.frames,
+          std::snprintf(line, sizeof line, "%d,%u,%s,%.1f,%.1f,%.1f,%zu,%llu,%.1f,%.1f,%.2f,%d",
+                        rep, threads, every ? "every_chunk" : "see_through_only", r.settle_ms,
+                        r.stats.totalMs(), r.stats.upload_ms, r.stats.frames,
                         (unsigned long long)r.stats.points, r.stats.stream.resident_bytes / 1e6,
-                        r.frame_ms, r.image.rgba == baseline.rgba ? 1 : 0);
+                        r.frame_ms, r.cpu_s, r.image.rgba == baseline.rgba ? 1 : 0);
           csv << line << "\n";
           std::cout << line << std::endl;
           auto [it, added] = best.try_emplace({every, threads}, r.settle_ms);

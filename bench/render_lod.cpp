@@ -86,6 +86,7 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "render_lod: full-resolution reference (every leaf)...\n");
     render::RenderOptions full = options;
     full.lod_pixels = 1e-9;
+    full.coverage_stop = false;
     const Measure ref = measure({&inst, 1}, view, full, big_budget, 1);
     std::ofstream csv(fs::path(out) / "render_lod.csv");
     const std::string header =

@@ -251,6 +251,10 @@ void ViewRenderer::addModel(const ModelInstance& instance, bool see_through, con
   auto t0 = std::chrono::steady_clock::now();
   CutOptions co;
   co.pixel_threshold = options.lod_pixels * (see_through ? options.spbr.lod_scale : 1.0);
+  co.point_budget = options.point_budget;
+  co.coverage_stop = options.coverage_stop && !see_through;
+  co.splat_radius_per_spacing = 0.5 * options.splat_scale;  // the splat diameter of addBatch
+  co.max_splat_radius_px = options.max_splat_radius;
   // Hierarchy pages not in memory are read by the loader; refinement waits a frame for them.
   co.may_load_children = [&](lod::NodeId id) {
     mStreamer->requestChildren(store, id);

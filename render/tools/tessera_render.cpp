@@ -179,6 +179,14 @@ int main(int argc, char** argv) {
                  "eye=X,Y,Z;target=X,Y,Z;up=X,Y,Z (default: the scene's, else fitted)");
   app.add_option("--lod-px", lod_px, "LOD threshold in pixels (default: the scene's, else 1)")
       ->check(CLI::PositiveNumber);
+  uint64_t point_budget = 0;
+  bool no_coverage_stop = false;
+  app.add_option("--point-budget", point_budget,
+                 "Most points per model and view, refined largest screen error first (0: none)")
+      ->capture_default_str();
+  app.add_flag("--no-coverage-stop", no_coverage_stop,
+               "Refine also where nearer points already cover the pixels (a volume of points "
+               "then draws every leaf; by default it draws a few points per pixel)");
   app.add_option("--background", background, "R,G,B in [0, 1]");
   app.add_flag("--edl", edl,
                "Eye-dome lighting (shape without normals; default: the scene's shading)");
@@ -277,6 +285,8 @@ int main(int argc, char** argv) {
     if (edl) options.edl.strength = 1.0f;
     if (edl_classic) options.edl = render::EdlOptions::classic();
     options.splat_scale = float(splat_scale);
+    options.point_budget = point_budget;
+    options.coverage_stop = !no_coverage_stop;
     if (spbr_l > 0) options.spbr.ensembles = spbr_l;
     options.spbr.progressive_max = spbr_progressive;
     options.spbr.max_k = spbr_max_k;

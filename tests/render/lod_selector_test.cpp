@@ -1,8 +1,10 @@
 // View-dependent LOD selection on the real bunny scans: far views take few points, near views
-// more; the cut covers every visible leaf exactly once and respects the pixel threshold.
+// more; the cut covers every visible leaf exactly once and respects the pixel threshold. The
+// point budget bounds the cut; the coverage stop thins a volume of points, not a surface; both
+// give the same cut whatever the order pages arrive in.
 #include <gtest/gtest.h>
 
-#include <map>
+#include <set>
 
 #include <glm/gtc/constants.hpp>
 #include <glm/gtc/matrix_transform.hpp>
@@ -10,6 +12,7 @@
 #include <tessera/lod/store_builder.h>
 #include <tessera/render/lod_selector.h>
 
+#include "../support/random_cube.h"
 #include "../support/temp_dir.h"
 
 namespace tessera::render {
@@ -86,39 +89,171 @@ TEST_F(LodSelector, FarViewsTakeFewPointsNearViewsMore) {
   EXPECT_EQ(selectCut(*s, model, away).nodes.size(), 0u);
 }
 
+/// Every leaf in the view's frustum has exactly one cut node on its path from the root (at most
+/// one where the coverage stop hid nodes).
+void expectCoversEveryVisibleLeafOnce(lod::PointStore& s, const ViewSetup& v, const Cut& cut,
+                                      size_t min_leaves = 5) {
+  std::set<lod::NodeId> selected;
+  for (const CutNode& n : cut.nodes) selected.insert(n.id);
+  const Frustum f = Frustum::fromMatrix(v.projection * v.view);
+  size_t leaves = 0;
+  std::vector<std::pair<lod::NodeId, int>> stack{{s.root(), 0}};
+  while (!stack.empty()) {
+    auto [id, above] = stack.back();
+    stack.pop_back();
+    lod::NodeInfo n = s.node(id);
+    int here = above + (selected.count(id) ? 1 : 0);
+    if (n.leaf()) {
+      if (f.intersects(n.box_min, n.box_max)) {
+        if (cut.hidden > 0) {
+          EXPECT_LE(here, 1) << "leaf " << id;
+        } else {
+          EXPECT_EQ(here, 1) << "leaf " << id;
+        }
+        leaves += here;
+      }
+      continue;
+    }
+    for (lod::NodeId c : s.children(id)) stack.push_back({c, here});
+  }
+  EXPECT_GT(leaves, min_leaves);
+}
+
 TEST_F(LodSelector, CutCoversEveryVisibleLeafOnceWithinTheThreshold) {
   auto s = lod::PointStore::open(*sDir / "b.tlod");
   ViewSetup v = view(*s, 0.3);
   Cut cut = selectCut(*s, glm::dmat4(1.0), v);
-  std::map<lod::NodeId, bool> selected;
   for (const CutNode& n : cut.nodes) {
-    selected[n.id] = true;
     if (!s->node(n.id).leaf()) {
       EXPECT_LE(n.projected_spacing_px, 1.0);
     }
   }
   // Walk the whole hierarchy: each visible leaf has exactly one selected node on its path.
-  const Frustum f = Frustum::fromMatrix(v.projection * v.view);
-  size_t leaves = 0;
-  std::vector<std::pair<lod::NodeId, int>> stack{{s->root(), 0}};
-  while (!stack.empty()) {
-    auto [id, above] = stack.back();
-    stack.pop_back();
-    lod::NodeInfo n = s->node(id);
-    int here = above + (selected.count(id) ? 1 : 0);
-    if (n.leaf()) {
-      if (f.intersects(n.box_min, n.box_max)) {
-        EXPECT_EQ(here, 1) << "leaf " << id;
-        ++leaves;
-      }
-      continue;
-    }
-    for (lod::NodeId c : s->children(id)) stack.push_back({c, here});
-  }
-  EXPECT_GT(leaves, 5u);
+  expectCoversEveryVisibleLeafOnce(*s, v, cut);
   // Nearest first.
   for (size_t i = 1; i < cut.nodes.size(); ++i)
     EXPECT_LE(cut.nodes[i - 1].distance, cut.nodes[i].distance);
+}
+
+/// A `width` x `height` view with a 45 degree vertical field of view from `eye` to `target`.
+ViewSetup lookAt(glm::dvec3 eye, glm::dvec3 target, uint32_t width, uint32_t height) {
+  ViewSetup v;
+  v.view = glm::lookAt(eye, target, glm::dvec3(0, 0, 1));
+  v.projection = glm::perspective(glm::radians(45.0), double(width) / height, 0.01, 100.0);
+  v.width = width;
+  v.height = height;
+  v.eye_world = eye;
+  return v;
+}
+
+TEST_F(LodSelector, PointBudgetBoundsTheCutRefiningTheLargestErrorsFirst) {
+  auto s = lod::PointStore::open(*sDir / "b.tlod");
+  const ViewSetup v = view(*s, 0.3);
+  const Cut free = selectCut(*s, glm::dmat4(1.0), v);
+  ASSERT_GT(free.points, 100000u);
+  const uint64_t root = s->node(s->root()).points;
+  uint64_t previous = 0;
+  for (uint64_t budget : {root + 1, free.points / 20, free.points / 5, free.points / 2}) {
+    CutOptions o;
+    o.point_budget = budget;
+    const Cut cut = selectCut(*s, glm::dmat4(1.0), v, o);
+    uint64_t sum = 0;
+    for (const CutNode& n : cut.nodes) sum += s->node(n.id).points;
+    EXPECT_EQ(sum, cut.points);
+    EXPECT_LE(cut.points, budget);
+    EXPECT_GE(cut.points, previous) << "a larger budget never draws fewer points";
+    EXPECT_GT(cut.over_budget, 0u);
+    previous = cut.points;
+    // Still a complete cut, only coarser; what was left refinable has no larger error than
+    // what was refined (the order of refinement is the order of projected spacing).
+    expectCoversEveryVisibleLeafOnce(*s, v, cut);
+    double refined_min = 1e300;
+    for (const CutNode& n : cut.above) refined_min = std::min(refined_min, n.projected_spacing_px);
+    for (const CutNode& n : cut.nodes) {
+      if (!s->node(n.id).leaf() && n.projected_spacing_px > 1.0) {
+        EXPECT_LE(n.projected_spacing_px, refined_min + 1e-9);
+      }
+    }
+    std::printf("budget %llu: %llu points in %zu nodes\n", (unsigned long long)budget,
+                (unsigned long long)cut.points, cut.nodes.size());
+  }
+  // A budget the free cut fits in changes nothing; one below the root keeps the root.
+  CutOptions o;
+  o.point_budget = free.points;
+  const Cut same = selectCut(*s, glm::dmat4(1.0), v, o);
+  EXPECT_EQ(same.points, free.points);
+  EXPECT_EQ(same.nodes.size(), free.nodes.size());
+  o.point_budget = 1;
+  const Cut coarsest = selectCut(*s, glm::dmat4(1.0), v, o);
+  ASSERT_EQ(coarsest.nodes.size(), 1u);
+  EXPECT_EQ(coarsest.nodes[0].id, s->root());
+}
+
+class LodSelectorCube : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    sDir = new test::TempDir();
+    test::randomCubeStore(sDir->path(), 1'000'000, 100);  // deep: several pages
+  }
+  static void TearDownTestSuite() { delete sDir; }
+  static test::TempDir* sDir;
+};
+test::TempDir* LodSelectorCube::sDir = nullptr;
+
+TEST_F(LodSelectorCube, CoverageStopThinsAVolumeButStillCoversEveryLeaf) {
+  auto s = lod::PointStore::open(*sDir / "cube.tlod");
+  // About 130 px across: ~60 points per covered pixel, each leaf's spacing still above 1 px.
+  const ViewSetup v = lookAt({4.5, -4.5, 3.8}, {0.5, 0.5, 0.5}, 640, 480);
+  const Cut spacing_only = selectCut(*s, glm::dmat4(1.0), v);
+  CutOptions o;
+  o.coverage_stop = true;
+  const Cut covered = selectCut(*s, glm::dmat4(1.0), v, o);
+  std::printf(
+      "cube, 640x480: %llu points by spacing, %llu with the coverage stop (%zu stops, %zu "
+      "hidden)\n",
+      (unsigned long long)spacing_only.points, (unsigned long long)covered.points, covered.covered,
+      covered.hidden);
+  EXPECT_GT(covered.covered, 0u);
+  EXPECT_GT(covered.hidden, 0u);
+  EXPECT_LT(double(covered.points), 0.4 * double(spacing_only.points));  // measured 0.34
+  expectCoversEveryVisibleLeafOnce(*s, v, covered);
+}
+
+TEST_F(LodSelectorCube, CutIsTheSameWhateverOrderPagesArriveIn) {
+  CutOptions o;
+  o.coverage_stop = true;
+  o.point_budget = 200000;
+  const ViewSetup v = lookAt({1.9, -1.2, 1.4}, {0.5, 0.5, 0.5}, 800, 600);
+  auto reference_store = lod::PointStore::open(*sDir / "cube.tlod");
+  const Cut reference = selectCut(*reference_store, glm::dmat4(1.0), v, o);
+  ASSERT_GT(reference.over_budget, 0u);
+  ASSERT_GT(reference.covered, 0u);
+  // A streaming renderer: pages arrive a few per frame, in an order of their own.
+  for (uint32_t stride : {1u, 3u, 7u}) {
+    auto s = lod::PointStore::open(*sDir / "cube.tlod");
+    Cut cut;
+    size_t frames = 0;
+    for (bool deferred = true; deferred; ++frames) {
+      std::vector<lod::NodeId> asked;
+      CutOptions streaming = o;
+      streaming.may_load_children = [&](lod::NodeId id) {
+        asked.push_back(id);
+        return false;
+      };
+      cut = selectCut(*s, glm::dmat4(1.0), v, streaming);
+      deferred = cut.pages_deferred > 0;
+      for (size_t i = 0; i < asked.size(); i += stride) s->children(asked[i]);
+      ASSERT_LT(frames, 1000u);
+    }
+    EXPECT_GT(frames, 2u);
+    ASSERT_EQ(cut.nodes.size(), reference.nodes.size()) << "stride " << stride;
+    EXPECT_EQ(cut.points, reference.points);
+    // Node ids are given out as pages load: compare the nodes by name (level and cell).
+    for (size_t i = 0; i < cut.nodes.size(); ++i) {
+      EXPECT_EQ(cut.nodes[i].level, reference.nodes[i].level) << "stride " << stride << ", " << i;
+      EXPECT_EQ(cut.nodes[i].cell, reference.nodes[i].cell) << "stride " << stride << ", " << i;
+    }
+  }
 }
 
 }  // namespace

@@ -240,6 +240,7 @@ class EdlBunnyTest : public ::testing::Test {
     lod1.edl = edl;
     RenderOptions full = lod1;
     full.lod_pixels = 1e-9;  // every leaf
+    full.coverage_stop = false;
     Frames f;
     RenderStats st;
     f.full = r.renderSettled({&inst, 1}, view(0.0), full, &st);

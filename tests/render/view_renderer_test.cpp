@@ -14,6 +14,7 @@
 #include <tessera/render/view_renderer.h>
 
 #include "../support/bunny_store_test.h"
+#include "../support/random_cube.h"
 #include "../support/temp_dir.h"
 
 namespace tessera::render {
@@ -129,6 +130,7 @@ TEST_F(ViewRendererTest, FarViewAtOnePixelDrawsFewPointsAndLooksLikeFullResoluti
   lod1.edl.strength = 1.0f;
   RenderOptions full = lod1;
   full.lod_pixels = 1e-6;  // every leaf: the full-resolution reference
+  full.coverage_stop = false;
   RenderStats st1, stf;
   Image a = r.renderSettled({&inst, 1}, v, lod1, &st1);
   Image b = r.renderSettled({&inst, 1}, v, full, &stf);
@@ -308,6 +310,98 @@ TEST_F(ViewRendererTest, SplatsCloseSurfacesAtEveryLevelWithoutFatBlobs) {
         EXPECT_GT(hole_fraction, 0.05) << "the mean spacing alone cannot close random samples";
       }
     }
+  }
+}
+
+/// Covered pixels (any channel set) in both images over those in either.
+double silhouetteIou(const Image& a, const Image& b) {
+  size_t both = 0, either = 0;
+  for (size_t i = 0; i < a.rgba.size(); i += 4) {
+    const bool pa = a.rgba[i] != 0 || a.rgba[i + 1] != 0 || a.rgba[i + 2] != 0;
+    const bool pb = b.rgba[i] != 0 || b.rgba[i + 1] != 0 || b.rgba[i + 2] != 0;
+    both += pa && pb;
+    either += pa || pb;
+  }
+  return either ? double(both) / double(either) : 1.0;
+}
+
+double psnr(const Image& a, const Image& b) {
+  double se = 0;
+  for (size_t i = 0; i < a.rgba.size(); i += 4) {
+    for (int c = 0; c < 3; ++c) {
+      const double d = double(a.rgba[i + c]) - double(b.rgba[i + c]);
+      se += d * d;
+    }
+  }
+  const double mse = se / double(a.rgba.size() / 4 * 3);
+  return mse > 0 ? 10.0 * std::log10(255.0 * 255.0 / mse) : 99.0;
+}
+
+// A volume of points (the ParaView comparison's scene, smaller): the coverage stop (on by
+// default) and a point budget draw a fraction of the points with the silhouette of every leaf.
+TEST_F(ViewRendererTest, CoverageStopAndBudgetKeepTheSilhouetteOfAVolume) {
+  test::TempDir dir;
+  auto s = lod::PointStore::open(test::randomCubeStore(dir.path(), 1'000'000, 500));
+  ModelInstance inst{s.get(), storeModel(*s)};
+  config::Camera cam;
+  // About 140 px across: ~50 points per covered pixel, each leaf's spacing still above 1 px.
+  cam.mutable_eye()->set_x(4.5);
+  cam.mutable_eye()->set_y(-4.5);
+  cam.mutable_eye()->set_z(3.8);
+  cam.mutable_target()->set_x(0.5);
+  cam.mutable_target()->set_y(0.5);
+  cam.mutable_target()->set_z(0.5);
+  cam.mutable_up()->set_z(1);
+  const ViewSetup v = plainView(cam, 640, 480);
+  RenderOptions full;
+  full.lod_pixels = 1e-6;
+  full.coverage_stop = false;
+  RenderOptions budget;
+  budget.point_budget = 300000;  // the root alone holds 110,583
+  ViewRenderer r(v.width, v.height);
+  RenderStats sf, sd, sb;
+  const Image ref = r.renderSettled({&inst, 1}, v, full, &sf);
+  const Image def = r.renderSettled({&inst, 1}, v, RenderOptions{}, &sd);
+  const Image bud = r.renderSettled({&inst, 1}, v, budget, &sb);
+  EXPECT_EQ(sf.points, 1'000'000u);
+  const double iou_default = silhouetteIou(ref, def), iou_budget = silhouetteIou(ref, bud);
+  std::printf(
+      "cube: every leaf %llu points; default %llu (IoU %.4f); budget 3x10^5: %llu (IoU "
+      "%.4f)\n",
+      (unsigned long long)sf.points, (unsigned long long)sd.points, iou_default,
+      (unsigned long long)sb.points, iou_budget);
+  EXPECT_LT(double(sd.points), 0.5 * double(sf.points));  // measured 0.46
+  EXPECT_GE(iou_default, 0.99);
+  EXPECT_LE(sb.points, 300000u);
+  EXPECT_GT(sb.points, 150000u);
+  EXPECT_GE(iou_budget, 0.99);
+}
+
+// Surfaces: the coverage stop (the default) leaves their accuracy against the full-resolution
+// render as it was without it, near and far.
+TEST_F(ViewRendererTest, CoverageStopLeavesSurfacesAsAccurate) {
+  auto s = lod::PointStore::open(*sDir / "b.tlod");
+  ModelInstance inst{s.get(), storeModel(*s)};
+  for (double distance : {0.3, 1.2}) {
+    const ViewSetup v = plainView(camera(*s, distance), 320, 240);
+    ViewRenderer r(v.width, v.height);
+    RenderOptions on;
+    on.edl.strength = 1.0f;
+    RenderOptions off = on;
+    off.coverage_stop = false;
+    RenderOptions full = off;
+    full.lod_pixels = 1e-6;
+    RenderStats st_on, st_off;
+    const Image ref = r.renderSettled({&inst, 1}, v, full);
+    const Image a = r.renderSettled({&inst, 1}, v, on, &st_on);
+    const Image b = r.renderSettled({&inst, 1}, v, off, &st_off);
+    const double p_on = psnr(a, ref), p_off = psnr(b, ref);
+    std::printf(
+        "bunny at %.1f m: coverage stop %llu points, %.2f dB; without %llu points, %.2f "
+        "dB\n",
+        distance, (unsigned long long)st_on.points, p_on, (unsigned long long)st_off.points, p_off);
+    EXPECT_GE(p_on, p_off - 0.1) << "distance " << distance;
+    EXPECT_GE(silhouetteIou(a, ref), silhouetteIou(b, ref) - 1e-3);
   }
 }
 

@@ -34,6 +34,14 @@ enum class Transparency {
 
 struct RenderOptions {
   double lod_pixels = 1.0;
+  /// Most points in each model's cut for a view (0: no limit), refined largest projected
+  /// spacing first (lod_selector.h; Potree's point budget). Bounds a frame's cost whatever the
+  /// model's size, at the price of detail on views that need more.
+  uint64_t point_budget = 0;
+  /// Stop refining where the model's nearer points already cover the pixels densely
+  /// (lod_selector.h): a volume of points draws a few points per pixel, not every leaf; surfaces
+  /// are unchanged. Opaque frames only: see-through frames show what lies behind.
+  bool coverage_stop = true;
   glm::vec3 background{0.0f};
   glm::u8vec3 default_color{200, 200, 200};  ///< for stores without colour (all must agree)
   /// Eye-dome lighting (screen_passes.h): off unless edl.strength is set (1: usual).
