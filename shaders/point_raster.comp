@@ -3,9 +3,10 @@
 // two passes over the same points: pass 0 keeps the smallest depth per pixel (atomicMin on the
 // depth's float bits, which order like the floats for depths in [0, 1]); pass 1, among points at
 // that depth, keeps the smallest (position hash, colour) key and pick id, so the result is the
-// same whatever the thread order and whichever buffer a point came from. Splats are round; their diameter follows the node's sample
-// spacing as it projects at each point (uSpacingK / w pixels), so surfaces close at every LOD
-// level without fat blobs behind near ones, radius capped at uRadius.
+// same whatever the thread order and whichever buffer a point came from. Splats are round; their
+// diameter follows the node's sample spacing as it projects at each point (uSpacingK / w
+// pixels), times the point's own scale on leaves, so surfaces close at every LOD level without
+// fat blobs behind near ones, radius capped at uRadius.
 layout(local_size_x = 128) in;
 
 // struct Point: shaders/shared_layout.h
@@ -80,7 +81,10 @@ void main() {
   // With a spacing, the splat is the disc of diameter (projected spacing) around the point's
   // exact position: it covers the pixels whose centres it contains, and always its own pixel.
   // Fixed splats cover the integer disc of radius uRadius around the point's pixel.
-  float disc = uSpacingK > 0.0 ? min(0.5 * uSpacingK / c.w, float(uRadius)) : 0.0;
+  // A leaf point's own scale (render/splat_sizes.h) widens its disc to close the gaps of its
+  // sampling pattern (scan lines): 1 + top byte / 64.
+  float scale = 1.0 + float(points[gi].rgba >> 24) / 64.0;
+  float disc = uSpacingK > 0.0 ? min(0.5 * uSpacingK * scale / c.w, float(uRadius)) : 0.0;
   // A neighbour k pixels away has its centre at least k - 1/2 from the point: a disc of radius
   // up to 1/2 stays in the point's own pixel.
   int radius = uSpacingK > 0.0 ? int(ceil(disc - 0.5)) : uRadius;

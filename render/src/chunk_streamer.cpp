@@ -14,6 +14,7 @@
 
 #include <tessera/render/point_pass.h>
 #include <tessera/render/spbr.h>
+#include <tessera/render/splat_sizes.h>
 
 namespace tessera::render {
 namespace {
@@ -34,11 +35,21 @@ struct Item {
   lod::LodHierarchy* store;  ///< pages: any hierarchy; chunks: `points`
   lod::PointStore* points;   ///< the point store whose chunk this is (null for pages)
   lod::NodeId node;
-  bool page;     ///< a hierarchy page (the node's children), not a chunk
-  bool measure;  ///< a chunk for see-through drawing: density and what StreamerOptions asks
+  bool page;  ///< a hierarchy page (the node's children), not a chunk
+  /// What a chunk is decoded with beyond its points: kMeasure, kSplatSizes.
+  uint8_t needs;
   uint8_t level;
   double distance;
 };
+
+/// Item::needs and GpuChunk's record of them: see-through measurements (density and what
+/// StreamerOptions asks), the points' own splat sizes (leaves seen close).
+constexpr uint8_t kMeasure = 1, kSplatSizes = 2;
+
+/// What a resident chunk was decoded with (Item::needs).
+uint8_t has(const GpuChunk& c) {
+  return uint8_t((c.measured ? kMeasure : 0) | (c.splat_sized ? kSplatSizes : 0));
+}
 
 /// Loader order: hierarchy pages first (they unlock refinement), then coarse, then near.
 bool before(const Item& a, const Item& b) {
@@ -57,6 +68,7 @@ struct Loaded {
   bool page = false;
   bool failed = false;
   bool measured = false;
+  bool splat_sized = false;  ///< splat sizes asked for (measured if a leaf)
   glm::dvec3 offset{0.0};
   std::vector<GpuPoint> points;
 };
@@ -81,8 +93,8 @@ struct ChunkStreamer::Impl {
   /// Per loader thread, the item it works on (store null: none). forget() waits on these.
   std::vector<Item> flight;
   std::vector<Loaded> done;
-  /// Chunks in `done` (not to be queued again), mapped to whether they were measured.
-  std::unordered_map<Key, bool, KeyHash> done_keys;
+  /// Chunks in `done` (not to be queued again), mapped to what they were decoded with.
+  std::unordered_map<Key, uint8_t, KeyHash> done_keys;
   bool paused = false, stop = false;
 
   // GL thread only.
@@ -98,11 +110,11 @@ struct ChunkStreamer::Impl {
   std::vector<std::thread> loaders;
 
   /// Whether a loader thread works on what `item` asks for (the same page, or the same chunk
-  /// with at least its measurements). Caller holds `mutex`.
+  /// with at least what it needs). Caller holds `mutex`.
   bool covered(const Item& item) const {
     return std::any_of(flight.begin(), flight.end(), [&](const Item& f) {
       return f.store == item.store && f.node == item.node && f.page == item.page &&
-             (f.measure || !item.measure);
+             (f.needs & item.needs) == item.needs;
     });
   }
 
@@ -119,7 +131,7 @@ struct ChunkStreamer::Impl {
       lock.lock();
       flight[slot].store = nullptr;
       if (!item.page || out.failed) {
-        if (!item.page) done_keys[out.key] |= out.measured;
+        if (!item.page) done_keys[out.key] |= item.needs;
         done.push_back(std::move(out));
       }
       idle.notify_all();
@@ -144,16 +156,23 @@ struct ChunkStreamer::Impl {
       auto chunk = item.points->decodeChunk(item.node);
       out.disk_bytes = item.store->chunkBytes(item.node);
       out.spacing = item.store->node(item.node).spacing;
-      if (item.measure) measure(*item.points, item.node, chunk->positions, out);
+      if (item.needs & kMeasure) measure(*item.points, item.node, chunk->positions, out);
       out.offset = chunk->offset;
       out.points.resize(chunk->size());
       const bool color = !chunk->colors.empty();
+      // Leaves hold the scan's own sampling pattern (scan lines); inner nodes are even
+      // subsamples whose discs already close them.
+      std::vector<uint8_t> scales;
+      out.splat_sized = (item.needs & kSplatSizes) != 0;
+      if (out.splat_sized && item.store->node(item.node).leaf())
+        scales = splatScales(chunk->positions, out.spacing);
       for (size_t i = 0; i < chunk->size(); ++i) {
         uint32_t rgb = grey;
         if (color) {
           const glm::u8vec4 c = chunk->colors[i];
           rgb = uint32_t(c.r) | uint32_t(c.g) << 8 | uint32_t(c.b) << 16;
         }
+        if (!scales.empty()) rgb |= uint32_t(scales[i]) << 24;
         out.points[i] = {chunk->positions[i], rgb};
       }
     } catch (const lod::StoreError&) {
@@ -202,7 +221,7 @@ ChunkStreamer::ChunkStreamer(const StreamerOptions& options) : mImpl(std::make_u
   mStats.budget_bytes = options.budget_bytes;
   uint32_t threads = options.loader_threads;
   if (threads == 0) threads = std::max(1u, std::thread::hardware_concurrency());
-  mImpl->flight.assign(threads, Item{nullptr, nullptr, lod::kNoNode, false, false, 0, 0.0});
+  mImpl->flight.assign(threads, Item{nullptr, nullptr, lod::kNoNode, false, 0, 0, 0.0});
   for (size_t i = 0; i < threads; ++i)
     mImpl->loaders.emplace_back([impl = mImpl.get(), i] { impl->run(i); });
 }
@@ -238,9 +257,12 @@ void ChunkStreamer::beginFrame() {
       }
       continue;
     }
+    const uint8_t loaded = uint8_t((l.measured ? kMeasure : 0) | (l.splat_sized ? kSplatSizes : 0));
     if (auto it = s.resident.find(l.key); it != s.resident.end()) {
-      if (it->second.measured || !l.measured) continue;
-      s.erase(it);  // measured for see-through: replaces the copy loaded without
+      // A decode with more (measured for see-through, splat sizes) replaces the copy without.
+      const uint8_t old = has(it->second);
+      if ((old | loaded) == old || (old & loaded) != old) continue;
+      s.erase(it);
     }
     GpuChunk c;
     c.buffer = GlBuffer(l.points.size() * sizeof(GpuPoint), l.points.data());
@@ -250,6 +272,7 @@ void ChunkStreamer::beginFrame() {
     c.disk_bytes = l.disk_bytes;
     c.spacing = l.spacing;
     c.measured = l.measured;
+    c.splat_sized = l.splat_sized;
     c.density = l.density;
     if (!l.normals.empty()) c.normals = GlBuffer(l.normals.size() * 4, l.normals.data());
     if (!l.ratios.empty()) c.density_ratios = GlBuffer(l.ratios.size() * 4, l.ratios.data());
@@ -291,19 +314,24 @@ const GpuChunk* ChunkStreamer::find(const lod::LodHierarchy& store, lod::NodeId 
 }
 
 void ChunkStreamer::request(lod::PointStore& store, lod::NodeId node, uint8_t level,
-                            double distance, ChunkUse use) {
+                            double distance, ChunkUse use, bool splat_sizes) {
   Impl& s = *mImpl;
   const Key k{&store, node};
-  const bool measure = use == ChunkUse::kSeeThrough || s.options.measure_every_chunk;
-  if (auto it = s.resident.find(k); it != s.resident.end() && (it->second.measured || !measure))
-    return;
+  uint8_t needs =
+      uint8_t((use == ChunkUse::kSeeThrough || s.options.measure_every_chunk ? kMeasure : 0) |
+              (splat_sizes && s.options.point_splat_sizes ? kSplatSizes : 0));
+  if (auto it = s.resident.find(k); it != s.resident.end()) {
+    const uint8_t old = has(it->second);
+    if ((old & needs) == needs) return;
+    needs |= old;  // a new decode keeps what the resident copy had
+  }
   if (s.failed.count(k)) return;
   const auto [it, added] = s.wanted_chunks.try_emplace(k, s.wanted.size());
   if (!added) {
-    s.wanted[it->second].measure |= measure;  // one view opaque, another see-through
+    s.wanted[it->second].needs |= needs;  // one view opaque, another see-through
     return;
   }
-  s.wanted.push_back({&store, &store, node, false, measure, level, distance});
+  s.wanted.push_back({&store, &store, node, false, needs, level, distance});
   ++mStats.requested;
 }
 
@@ -311,7 +339,7 @@ void ChunkStreamer::requestChildren(lod::LodHierarchy& store, lod::NodeId node) 
   Impl& s = *mImpl;
   const Key k{&store, node};
   if (s.failed_pages.count(k) || !s.wanted_pages.insert(k).second) return;
-  s.wanted.push_back({&store, nullptr, node, true, false, 0, 0.0});
+  s.wanted.push_back({&store, nullptr, node, true, 0, 0, 0.0});
   ++mStats.pages_requested;
 }
 
@@ -330,7 +358,8 @@ void ChunkStreamer::endFrame() {
       if (s.covered(i)) continue;  // in flight
       if (!i.page) {
         const auto d = s.done_keys.find({i.store, i.node});
-        if (d != s.done_keys.end() && (d->second || !i.measure)) continue;  // waits for upload
+        if (d != s.done_keys.end() && (d->second & i.needs) == i.needs)
+          continue;  // waits for upload
       }
       s.queue.push_back(i);
     }

@@ -1,5 +1,7 @@
 #include <tessera/render/spbr.h>
 
+#include "point_neighbourhood.h"
+
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -10,65 +12,9 @@
 
 namespace tessera::render {
 
-namespace {
-
-/// Points bucketed by a hash of their cell of side `cell` (a counting sort into a flat table: no
-/// allocation per cell, as this runs on every chunk the loader decodes): a sphere of radius
-/// `cell` around any point meets the 27 cells around its own.
-class CellGrid {
- public:
-  CellGrid(std::span<const glm::vec3> points, double cell) : mPoints(points), mCell(float(cell)) {
-    mLo = glm::vec3(std::numeric_limits<float>::max());
-    for (const glm::vec3& p : points) mLo = glm::min(mLo, p);
-    size_t buckets = 16;
-    while (buckets < 2 * points.size()) buckets *= 2;
-    mMask = buckets - 1;
-    mStart.assign(buckets + 1, 0);
-    for (const glm::vec3& p : points) ++mStart[bucket(cellOf(p)) + 1];
-    for (size_t b = 0; b < buckets; ++b) mStart[b + 1] += mStart[b];
-    mOrder.resize(points.size());
-    std::vector<uint32_t> fill(mStart.begin(), mStart.end() - 1);
-    for (size_t i = 0; i < points.size(); ++i)
-      mOrder[fill[bucket(cellOf(points[i]))]++] = uint32_t(i);
-  }
-  /// Calls f(j) for every point j within `radius` (<= cell) of `p`.
-  template <typename F>
-  void near(const glm::vec3& p, float radius, F&& f) const {
-    const glm::ivec3 c = cellOf(p);
-    // Neighbouring cells may share a bucket: visit each bucket once.
-    std::array<size_t, 27> visit;
-    size_t n = 0;
-    for (int dz = -1; dz <= 1; ++dz)
-      for (int dy = -1; dy <= 1; ++dy)
-        for (int dx = -1; dx <= 1; ++dx) visit[n++] = bucket(c + glm::ivec3(dx, dy, dz));
-    std::sort(visit.begin(), visit.end());
-    const float r2 = radius * radius;
-    for (size_t k = 0; k < visit.size(); ++k) {
-      if (k && visit[k] == visit[k - 1]) continue;
-      for (uint32_t o = mStart[visit[k]]; o < mStart[visit[k] + 1]; ++o) {
-        const uint32_t j = mOrder[o];
-        const glm::vec3 d = mPoints[j] - p;
-        if (glm::dot(d, d) <= r2) f(j);
-      }
-    }
-  }
-
- private:
-  glm::ivec3 cellOf(const glm::vec3& p) const { return glm::ivec3(glm::floor((p - mLo) / mCell)); }
-  size_t bucket(const glm::ivec3& c) const {
-    const uint64_t h = (uint64_t(uint32_t(c.x)) * 0x9E3779B97F4A7C15ull) ^
-                       (uint64_t(uint32_t(c.y)) * 0xC2B2AE3D27D4EB4Full) ^
-                       (uint64_t(uint32_t(c.z)) * 0x165667B19E3779F9ull);
-    return size_t(h >> 24) & mMask;
-  }
-  std::span<const glm::vec3> mPoints;
-  float mCell;
-  glm::vec3 mLo;
-  size_t mMask = 0;
-  std::vector<uint32_t> mStart, mOrder;
-};
-
-}  // namespace
+using detail::CellGrid;
+using detail::Moments;
+using detail::tangentPlane;
 
 double spbrOpacity(double n, double s, double S) {
   return 1.0 - std::pow(1.0 - s / S, n);
@@ -161,46 +107,6 @@ double sphereDensity(std::span<const glm::vec3> all, double radius, uint32_t cen
   return used ? sum / used / (std::numbers::pi * radius * radius) / q : 0.0;
 }
 
-namespace {
-
-/// The two leading eigenvectors of a 3x3 covariance (power iteration and deflation): they span
-/// the local tangent plane; their cross product is the normal.
-std::pair<glm::dvec3, glm::dvec3> tangentPlane(const glm::dmat3& cov) {
-  auto leading = [](const glm::dmat3& m, glm::dvec3 v) {
-    for (int it = 0; it < 24; ++it) {
-      const glm::dvec3 w = m * v;
-      const double len = glm::length(w);
-      if (!(len > 1e-300)) break;
-      v = w / len;
-    }
-    return v;
-  };
-  const glm::dvec3 e1 = leading(cov, glm::dvec3(0.57, 0.61, 0.55));
-  const double l1 = glm::dot(e1, cov * e1);
-  const glm::dmat3 deflated = cov - l1 * glm::outerProduct(e1, e1);
-  glm::dvec3 seed2 = glm::cross(e1, glm::dvec3(0.31, 0.47, 0.83));
-  if (glm::length(seed2) < 1e-6) seed2 = glm::cross(e1, glm::dvec3(1, 0, 0));
-  return {e1, leading(deflated, glm::normalize(seed2))};
-}
-
-/// Covariance of the offsets `q` (relative to a point), about their mean.
-struct Moments {
-  glm::dvec3 mean{0.0};
-  glm::dmat3 outer{0.0};
-  size_t count = 0;
-  void add(const glm::dvec3& q) {
-    mean += q;
-    outer += glm::outerProduct(q, q);
-    ++count;
-  }
-  glm::dmat3 covariance() const {
-    const glm::dvec3 m = mean / double(count);
-    return outer / double(count) - glm::outerProduct(m, m);
-  }
-};
-
-}  // namespace
-
 std::vector<uint32_t> estimateNormals(std::span<const glm::vec3> points, double radius) {
   const size_t n = points.size();
   std::vector<uint32_t> out(n, 0);
@@ -232,52 +138,17 @@ std::vector<SurfaceCell> surfaceCells(std::span<const glm::vec3> points, double 
   if (n < 8 || !(radius > 0) || !(node_density > 0)) return cells;
   const CellGrid grid(points, radius);
   const float r = float(radius);
-  struct Near {
-    float d2;
-    glm::vec3 q;
-  };
-  std::vector<Near> near;
-  std::vector<glm::dvec2> poly, clipped;
+  std::vector<detail::Neighbour> near;
+  std::vector<glm::dvec2> poly, scratch;
+  glm::dvec3 t1, t2;
   for (size_t i = 0; i < n; ++i) {
-    const glm::vec3 p = points[i];
-    near.clear();
-    Moments m;
-    grid.near(p, r, [&](uint32_t j) {
-      const glm::vec3 q = points[j] - p;
-      m.add(glm::dvec3(q));
-      if (j != i) near.push_back({glm::dot(q, q), q});
-    });
-    if (near.size() < 3) continue;
-    const auto [t1, t2] = tangentPlane(m.covariance());
-    // The Voronoi cell in the tangent plane: a square of the sphere's size clipped by the
-    // bisector of each neighbour, nearest first; neighbours farther than twice the cell's
-    // farthest corner cannot cut it.
-    std::sort(near.begin(), near.end(), [](const Near& a, const Near& b) { return a.d2 < b.d2; });
-    poly = {{-radius, -radius}, {radius, -radius}, {radius, radius}, {-radius, radius}};
-    double reach2 = 2.0 * radius * radius;
-    for (const Near& q : near) {
-      if (double(q.d2) > 4.0 * reach2) break;
-      const glm::dvec2 u(glm::dot(glm::dvec3(q.q), t1), glm::dot(glm::dvec3(q.q), t2));
-      const double h = 0.5 * glm::dot(u, u);  // keep points x with x . u <= |u|^2 / 2
-      if (!(h > 0)) continue;                 // a duplicate point: no bisector
-      clipped.clear();
-      for (size_t v = 0; v < poly.size(); ++v) {
-        const glm::dvec2 a = poly[v], b = poly[(v + 1) % poly.size()];
-        const double fa = glm::dot(a, u) - h, fb = glm::dot(b, u) - h;
-        if (fa <= 0) clipped.push_back(a);
-        if ((fa < 0) != (fb < 0)) clipped.push_back(a + (b - a) * (fa / (fa - fb)));
-      }
-      poly.swap(clipped);
-      if (poly.size() < 3) break;
-      reach2 = 0;
-      for (const glm::dvec2& v : poly) reach2 = std::max(reach2, glm::dot(v, v));
-    }
+    if (!detail::tangentNeighbours(grid, points, i, r, near, t1, t2)) continue;
+    detail::tangentCell(near, t1, t2, radius, poly, scratch);
     // A cell still touching the square is open: the point is on the edge of the data (of the
     // scan, or of the node, whose neighbours beyond its faces are not here). It keeps weight 1
     // and no offset. (Large closed cells are the gaps of a random sample: they keep their area.)
     bool open = poly.size() < 3;
-    for (const glm::dvec2& v : poly)
-      open |= std::max(std::abs(v.x), std::abs(v.y)) > 0.999 * radius;
+    for (const glm::dvec2& v : poly) open |= detail::onSquare(v, radius);
     if (open) continue;
     double area = 0;
     glm::dvec2 centroid(0.0);

@@ -324,17 +324,25 @@ void ViewRenderer::addModel(const ModelInstance& instance, bool see_through, con
     stats.points += chunk.count;
     ++stats.nodes;
   };
+  // Opaque leaves whose discs reach 2 px (at their nearest) show their sampling's gaps (scan
+  // lines): the loader measures each of their points' own splat size (splat_sizes.h).
+  auto close = [&](const CutNode& n) {
+    return !see_through && 0.5 * options.splat_scale * n.projected_spacing_px >= 2.0 &&
+           store.node(n.id).leaf();
+  };
   std::vector<bool> drawn_above(cut.above.size(), false);
   for (const CutNode& n : cut.nodes) {  // nearest first
     if (const GpuChunk* chunk = mStreamer->find(store, n.id, use)) {
       addBatch(n, *chunk);
+      if (close(n) && !chunk->splat_sized)
+        mStreamer->request(store, n.id, n.level, n.distance, use, true);
       continue;
     }
     ++stats.missing_nodes;
     if (mStreamer->failed(store, n.id)) {
       ++stats.corrupt_chunks;
     } else {
-      mStreamer->request(store, n.id, n.level, n.distance, use);
+      mStreamer->request(store, n.id, n.level, n.distance, use, close(n));
     }
     // The nearest resident ancestor stands in; ancestors on the way are fetched too, coarse
     // first, so a new view fills in from coarse to fine.

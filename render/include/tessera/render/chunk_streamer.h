@@ -37,6 +37,9 @@ struct GpuChunk {
   /// Whether the measurements below were taken (the chunk was loaded for see-through drawing,
   /// ChunkUse::kSeeThrough); without them the chunk can only be drawn opaque.
   bool measured = false;
+  /// Whether its points' own splat sizes were asked for (StreamerOptions::point_splat_sizes;
+  /// on leaves they are in the points' top bytes).
+  bool splat_sized = false;
   /// Points per unit area (store units) by sphere counts on the chunk's own points (spbr.h),
   /// for see-through rendering; 0 when too few points or not `measured`.
   double density = 0.0;
@@ -77,6 +80,11 @@ struct StreamerOptions {
   /// cell_weights). About twice the cost of decoding, 8 GPU bytes a point: off unless a view
   /// asks for the sparse-scan method.
   bool surface_cells = false;
+  /// Each leaf point's own splat size (splat_sizes.h: the disc that closes the surface around
+  /// it, in the GPU point's top byte), for the chunks request() asks them for (leaves seen
+  /// close): closes the gaps between scan lines. Several times the cost of decoding, so only
+  /// where discs are large; no GPU bytes.
+  bool point_splat_sizes = true;
   /// Loader threads decoding (and measuring) in parallel; 0: std::thread::hardware_concurrency().
   uint32_t loader_threads = 0;
   /// Measure every chunk as if it were drawn see-through (the loader before issue 12 did):
@@ -111,9 +119,11 @@ class ChunkStreamer {
                        ChunkUse use = ChunkUse::kOpaque);
   /// Asks for a missing chunk. Priority: lower levels first, then nearer (`distance`).
   /// Ignored for chunks already resident (for kSeeThrough: resident with measurements), failed,
-  /// or finished or in flight with what `use` needs.
+  /// or finished or in flight with what `use` needs. `splat_sizes`: with the points' own splat
+  /// sizes (StreamerOptions::point_splat_sizes); a resident chunk without is decoded again
+  /// and replaced when the new copy arrives.
   void request(lod::PointStore& store, lod::NodeId node, uint8_t level, double distance,
-               ChunkUse use = ChunkUse::kOpaque);
+               ChunkUse use = ChunkUse::kOpaque, bool splat_sizes = false);
   /// Asks the loader to read the hierarchy page holding `node`'s children (ahead of chunks).
   void requestChildren(lod::LodHierarchy& store, lod::NodeId node);
   /// Whether a chunk failed to load (corrupt): the renderer draws an ancestor instead.
