@@ -15,6 +15,11 @@ layout(std430, binding = TESSERA_BINDING_DEPTH) buffer Depth { uint depth[]; };
 layout(std430, binding = TESSERA_BINDING_COLORS) buffer Colors { uint colors[]; };  // rgb, 0xFFFFFFFF: none
 layout(std430, binding = TESSERA_BINDING_PICK) buffer Pick { uint pick[]; };  // frame-wide point id
 layout(std430, binding = TESSERA_BINDING_COLOR_SUMS) buffer Sums { uint sums[]; };  // w r, w g, w b, w
+// A bit per point of the draw: whether it was at or in front of the nearest depth when it wrote
+// in pass 0 (depths only fall, so a point that was behind then is behind at the end). Pass 1
+// skips the others without reading them: most points of a surface seen edge-on, or of every
+// layer behind the first, are out after one bit.
+layout(std430, binding = TESSERA_BINDING_CANDIDATES) buffer Candidates { uint candidates[]; };
 
 uniform mat4 uClip;            // clip from the batch's node frame
 uniform uint uColorOverride;  // non-zero: 0x1000000 | rgb for every point of the batch
@@ -31,6 +36,10 @@ uniform ivec2 uSize;    // viewport in pixels
 uniform int uRadius;    // the largest splat radius, pixels (the radius when uSpacingK is 0)
 uniform float uSpacingK;  // node spacing in pixels at view depth 1 (0: fixed radius uRadius)
 uniform int uPass;      // 0: depth, 1: colour
+uniform int uCandidates;  // pass 0 marks, pass 1 reads the candidates (not when blending)
+uniform uint uFlagBase;   // this dispatch's first point's bit in `candidates`
+
+bool gCandidate = false;  // pass 0: this point lowered or matched the depth at some pixel
 
 // Pass 0 keeps the nearest depth; pass 1, among the points at that depth, one colour (below)
 // and the smallest pick id (two points at exactly the same depth may give the colour of one and
@@ -40,7 +49,7 @@ uniform int uPass;      // 0: depth, 1: colour
 // points that overlap on a surface average instead of the nearest one aliasing.
 void write(uint idx, uint d, uint gi, uint i, float w, float k) {
   if (uPass == 0) {
-    atomicMin(depth[idx], d);
+    if (d <= atomicMin(depth[idx], d)) gCandidate = true;
     return;
   }
   uint nearest = depth[idx];
@@ -67,9 +76,7 @@ void write(uint idx, uint d, uint gi, uint i, float w, float k) {
   }
 }
 
-void main() {
-  uint i = gl_GlobalInvocationID.x;
-  if (i >= uCount) return;
+void raster(uint i) {
   uint gi = uFirst + i;
   vec4 c = uClip * vec4(points[gi].position, 1.0);
   if (c.w <= 0.0) return;
@@ -113,4 +120,13 @@ void main() {
       write(idx, d, gi, i, c.w, 1.0 - dot(o, o) / (r * r));
     }
   }
+}
+
+void main() {
+  uint i = gl_GlobalInvocationID.x;
+  if (i >= uCount) return;
+  uint bit = uFlagBase + i;
+  if (uCandidates != 0 && uPass == 1 && (candidates[bit >> 5] & (1u << (bit & 31u))) == 0u) return;
+  raster(i);
+  if (uCandidates != 0 && uPass == 0 && gCandidate) atomicOr(candidates[bit >> 5], 1u << (bit & 31u));
 }

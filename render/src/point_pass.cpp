@@ -67,8 +67,22 @@ PassTimings PointPass::draw(FrameTarget& target, std::span<const DrawBatch> batc
   mRaster.set("uWriteColor", shading.uniform_color == 0 ? 1 : 0);
   mRaster.set("uWritePick", shading.pick ? 1 : 0);
   const int passes = shading.uniform_color != 0 && !shading.pick ? 1 : 2;
+  // Pass 0 marks the points that may be nearest, pass 1 draws only those (blending needs every
+  // point near the nearest, so it reads them all).
+  uint64_t total = 0;
+  for (const DrawBatch& b : batches) total += b.count;
+  const bool candidates = passes == 2 && !blend && total < (uint64_t(1) << 32);
+  bind(TESSERA_BINDING_CANDIDATES, mNone);
+  if (candidates) {
+    const size_t bytes = size_t((total + 31) / 32) * 4;
+    if (mCandidates.bytes() < bytes) mCandidates = GlBuffer(std::max<size_t>(bytes, 64), nullptr);
+    mCandidates.clear(0);
+    bind(TESSERA_BINDING_CANDIDATES, mCandidates);
+  }
+  mRaster.set("uCandidates", candidates ? 1 : 0);
   for (int pass = 0; pass < passes; ++pass) {
     mRaster.set("uPass", pass);
+    uint32_t flag_base = 0;
     for (const DrawBatch& b : batches) {
       if (b.count == 0) continue;
       glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_POINTS,
@@ -82,7 +96,9 @@ PassTimings PointPass::draw(FrameTarget& target, std::span<const DrawBatch> batc
         mRaster.set("uFirst", b.first + done);
         mRaster.set("uCount", count);
         mRaster.set("uPickBase", b.pick_base + done);
+        mRaster.set("uFlagBase", flag_base + done);
       });
+      flag_base += b.count;
     }
     glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
     (pass == 0 ? timings.depth_ms : timings.color_ms) = lap();

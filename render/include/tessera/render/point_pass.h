@@ -122,6 +122,7 @@ class PointPass {
   GlBuffer mPoints;
   size_t mPlane = 0;  ///< pixels the buffers below are sized for
   GlBuffer mLayerDepth, mLayerColors, mAccum, mOitSums, mNone;
+  GlBuffer mCandidates;  ///< draw(): a bit per point, may be nearest (point_raster.comp)
   uint32_t mLayers = 0;  ///< layers allocated
 };
 
