@@ -7,6 +7,16 @@
 // diameter follows the node's sample spacing as it projects at each point (uSpacingK / w
 // pixels), times the point's own scale on leaves, so surfaces close at every LOD level without
 // fat blobs behind near ones, radius capped at uRadius.
+//
+// Variants (render/src/point_pass.cpp compiles each, STYLE.md: no run-time branch that llvmpipe
+// would execute on both sides): PASS 0 or 1; ONE_PIXEL 1 when every splat of the dispatch is
+// one pixel (far points, fine levels: no disc code at all).
+#ifndef PASS
+#define PASS 0
+#endif
+#ifndef ONE_PIXEL
+#define ONE_PIXEL 0
+#endif
 layout(local_size_x = 128) in;
 
 // struct Point: shaders/shared_layout.h
@@ -15,11 +25,6 @@ layout(std430, binding = TESSERA_BINDING_DEPTH) buffer Depth { uint depth[]; };
 layout(std430, binding = TESSERA_BINDING_COLORS) buffer Colors { uint colors[]; };  // rgb, 0xFFFFFFFF: none
 layout(std430, binding = TESSERA_BINDING_PICK) buffer Pick { uint pick[]; };  // frame-wide point id
 layout(std430, binding = TESSERA_BINDING_COLOR_SUMS) buffer Sums { uint sums[]; };  // w r, w g, w b, w
-// A bit per point of the draw: whether it was at or in front of the nearest depth when it wrote
-// in pass 0 (depths only fall, so a point that was behind then is behind at the end). Pass 1
-// skips the others without reading them: most points of a surface seen edge-on, or of every
-// layer behind the first, are out after one bit.
-layout(std430, binding = TESSERA_BINDING_CANDIDATES) buffer Candidates { uint candidates[]; };
 
 uniform mat4 uClip;            // clip from the batch's node frame
 uniform uint uColorOverride;  // non-zero: 0x1000000 | rgb for every point of the batch
@@ -35,11 +40,7 @@ uniform uint uCount;
 uniform ivec2 uSize;    // viewport in pixels
 uniform int uRadius;    // the largest splat radius, pixels (the radius when uSpacingK is 0)
 uniform float uSpacingK;  // node spacing in pixels at view depth 1 (0: fixed radius uRadius)
-uniform int uPass;      // 0: depth, 1: colour
-uniform int uCandidates;  // pass 0 marks, pass 1 reads the candidates (not when blending)
-uniform uint uFlagBase;   // this dispatch's first point's bit in `candidates`
 
-bool gCandidate = false;  // pass 0: this point lowered or matched the depth at some pixel
 
 // Pass 0 keeps the nearest depth; pass 1, among the points at that depth, one colour (below)
 // and the smallest pick id (two points at exactly the same depth may give the colour of one and
@@ -48,10 +49,12 @@ bool gCandidate = false;  // pass 0: this point lowered or matched the depth at 
 // within uBlendDepth of the nearest's, weighted by its splat kernel `k`, so the colours of the
 // points that overlap on a surface average instead of the nearest one aliasing.
 void write(uint idx, uint d, uint gi, uint i, float w, float k) {
-  if (uPass == 0) {
-    if (d <= atomicMin(depth[idx], d)) gCandidate = true;
-    return;
-  }
+#if PASS == 0
+  // A read before the atomic: most points of a scan are behind the nearest (depth complexity),
+  // and a read costs llvmpipe far less than an atomic.
+  if (d > depth[idx]) return;
+  atomicMin(depth[idx], d);
+#else
   uint nearest = depth[idx];
   if (nearest == d && uWritePick != 0) atomicMin(pick[idx], uPickBase + i);
   uint rgb = uColorOverride != 0u ? uColorOverride & 0xFFFFFFu : points[gi].rgba & 0xFFFFFFu;
@@ -74,6 +77,7 @@ void write(uint idx, uint d, uint gi, uint i, float w, float k) {
     uint h = (b.x * 0x9E3779B1u) ^ (b.y * 0x85EBCA77u) ^ (b.z * 0xC2B2AE3Du);
     atomicMin(colors[idx], (h ^ (h >> 15)) << 24 | rgb);
   }
+#endif
 }
 
 void raster(uint i) {
@@ -85,6 +89,10 @@ void raster(uint i) {
   vec2 pos = (ndc.xy * 0.5 + 0.5) * vec2(uSize);  // pixels, sub-pixel exact
   ivec2 centre = ivec2(floor(pos));
   uint d = floatBitsToUint(ndc.z * 0.5 + 0.5);
+#if ONE_PIXEL
+  if (centre.x < 0 || centre.y < 0 || centre.x >= uSize.x || centre.y >= uSize.y) return;
+  write(uint(centre.y) * uint(uSize.x) + uint(centre.x), d, gi, i, c.w, 1.0);
+#else
   // With a spacing, the splat is the disc of diameter (projected spacing) around the point's
   // exact position: it covers the pixels whose centres it contains, and always its own pixel.
   // Fixed splats cover the integer disc of radius uRadius around the point's pixel.
@@ -120,13 +128,11 @@ void raster(uint i) {
       write(idx, d, gi, i, c.w, 1.0 - dot(o, o) / (r * r));
     }
   }
+#endif
 }
 
 void main() {
   uint i = gl_GlobalInvocationID.x;
   if (i >= uCount) return;
-  uint bit = uFlagBase + i;
-  if (uCandidates != 0 && uPass == 1 && (candidates[bit >> 5] & (1u << (bit & 31u))) == 0u) return;
   raster(i);
-  if (uCandidates != 0 && uPass == 0 && gCandidate) atomicOr(candidates[bit >> 5], 1u << (bit & 31u));
 }

@@ -20,7 +20,6 @@
 #define TESSERA_BINDING_OVERLAY 10      // overlay primitives (overlay_pass.h)
 #define TESSERA_BINDING_COLOR_SUMS 11   // uvec4 per pixel: weighted r, g, b sums and weight
 #define TESSERA_BINDING_SCREEN_SCRATCH 12  // float per pixel: a screen pass's own plane (EDL)
-#define TESSERA_BINDING_CANDIDATES 13      // bit per point of a draw: may be nearest (point pass)
 
 // Eye-dome lighting (shaders/edl.comp, EdlOptions::filter_radius): the largest fitted window's
 // half-width, pixels.

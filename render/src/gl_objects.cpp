@@ -12,11 +12,13 @@
 namespace tessera::render {
 namespace {
 
-GLuint compileStage(GLenum stage, const char* source, const char* label) {
+GLuint compileStage(GLenum stage, const char* source, const char* label,
+                    const std::string& defines = {}) {
   GLuint shader = glCreateShader(stage);
   // The shared layout goes first; #line keeps the shader's own line numbers in messages.
-  const char* sources[] = {"#version 450 core\n", shaders::kSharedLayout, "\n#line 1\n", source};
-  glShaderSource(shader, 4, sources, nullptr);
+  const char* sources[] = {"#version 450 core\n", defines.c_str(), shaders::kSharedLayout,
+                           "\n#line 1\n", source};
+  glShaderSource(shader, 5, sources, nullptr);
   glCompileShader(shader);
   GLint ok = 0;
   glGetShaderiv(shader, GL_COMPILE_STATUS, &ok);
@@ -47,9 +49,9 @@ GLuint link(std::initializer_list<GLuint> stages, const char* label) {
 
 }  // namespace
 
-GlProgram GlProgram::compute(const char* source, const char* label) {
+GlProgram GlProgram::compute(const char* source, const char* label, const std::string& defines) {
   GlProgram p;
-  p.mName = link({compileStage(GL_COMPUTE_SHADER, source, label)}, label);
+  p.mName = link({compileStage(GL_COMPUTE_SHADER, source, label, defines)}, label);
   return p;
 }
 

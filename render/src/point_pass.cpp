@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <string>
 
 #define GL_GLEXT_PROTOTYPES
 #include <GL/glcorearb.h>
@@ -36,8 +37,9 @@ uint32_t packColor(const glm::vec3& c) {
   return u.r | u.g << 8 | u.b << 16 | 0xFF000000u;
 }
 
-PointPass::PointPass()
-    : mRaster(GlProgram::compute(shaders::kPointRaster, "point_raster.comp")), mNone(16, nullptr) {}
+PointPass::PointPass() : mNone(16, nullptr) {
+  raster(0, false);  // compiles now: a shader error shows at construction
+}
 
 void PointPass::setPoints(std::span<const GpuPoint> points) {
   mPoints = GlBuffer(points.size_bytes(), points.empty() ? nullptr : points.data());
@@ -50,6 +52,16 @@ void PointPass::fit(const FrameTarget& target) {
   mLayers = 0;
 }
 
+const GlProgram& PointPass::raster(int pass, bool one_pixel) {
+  GlProgram& p = mRaster[pass][one_pixel];
+  if (!p) {
+    const std::string defines = "#define PASS " + std::to_string(pass) + "\n#define ONE_PIXEL " +
+                                std::to_string(int(one_pixel)) + "\n";
+    p = GlProgram::compute(shaders::kPointRaster, "point_raster.comp", defines);
+  }
+  return p;
+}
+
 PassTimings PointPass::draw(FrameTarget& target, std::span<const DrawBatch> batches,
                             const PointShading& shading) {
   PassTimings timings;
@@ -59,46 +71,36 @@ PassTimings PointPass::draw(FrameTarget& target, std::span<const DrawBatch> batc
   bind(TESSERA_BINDING_PICK, target.pick());
   const bool blend = shading.blend && shading.uniform_color == 0;
   if (blend) bind(TESSERA_BINDING_COLOR_SUMS, target.colorSums());
-  mRaster.use();
-  mRaster.set("uBlend", blend ? 1 : 0);
-  mRaster.set("uP22", float(shading.projection[2][2]));
-  mRaster.set("uP32", float(shading.projection[3][2]));
-  mRaster.set("uSize", glm::ivec2(target.width(), target.height()));
-  mRaster.set("uWriteColor", shading.uniform_color == 0 ? 1 : 0);
-  mRaster.set("uWritePick", shading.pick ? 1 : 0);
   const int passes = shading.uniform_color != 0 && !shading.pick ? 1 : 2;
-  // Pass 0 marks the points that may be nearest, pass 1 draws only those (blending needs every
-  // point near the nearest, so it reads them all).
-  uint64_t total = 0;
-  for (const DrawBatch& b : batches) total += b.count;
-  const bool candidates = passes == 2 && !blend && total < (uint64_t(1) << 32);
-  bind(TESSERA_BINDING_CANDIDATES, mNone);
-  if (candidates) {
-    const size_t bytes = size_t((total + 31) / 32) * 4;
-    if (mCandidates.bytes() < bytes) mCandidates = GlBuffer(std::max<size_t>(bytes, 64), nullptr);
-    mCandidates.clear(0);
-    bind(TESSERA_BINDING_CANDIDATES, mCandidates);
-  }
-  mRaster.set("uCandidates", candidates ? 1 : 0);
   for (int pass = 0; pass < passes; ++pass) {
-    mRaster.set("uPass", pass);
-    uint32_t flag_base = 0;
+    const GlProgram* in_use = nullptr;
     for (const DrawBatch& b : batches) {
       if (b.count == 0) continue;
+      // Every splat one pixel: the variant without disc code.
+      const bool one_pixel = b.spacing_k > 0.0f ? b.max_disc_px <= 0.5f : b.splat_radius == 0;
+      const GlProgram& program = raster(pass, one_pixel);
+      if (&program != in_use) {
+        in_use = &program;
+        program.use();
+        program.set("uBlend", blend ? 1 : 0);
+        program.set("uP22", float(shading.projection[2][2]));
+        program.set("uP32", float(shading.projection[3][2]));
+        program.set("uSize", glm::ivec2(target.width(), target.height()));
+        program.set("uWriteColor", shading.uniform_color == 0 ? 1 : 0);
+        program.set("uWritePick", shading.pick ? 1 : 0);
+      }
       glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_POINTS,
                        b.buffer ? b.buffer : mPoints.name());
-      mRaster.set("uSpacingK", b.spacing_k);
-      mRaster.set("uColorOverride", b.color_override);
-      mRaster.set("uClip", b.clip_from_local);
-      mRaster.set("uRadius", b.splat_radius);
-      mRaster.set("uBlendDepth", b.blend_depth);
+      program.set("uSpacingK", b.spacing_k);
+      program.set("uColorOverride", b.color_override);
+      program.set("uClip", b.clip_from_local);
+      program.set("uRadius", b.splat_radius);
+      program.set("uBlendDepth", b.blend_depth);
       dispatchSlices(b.count, [&](uint32_t done, uint32_t count) {
-        mRaster.set("uFirst", b.first + done);
-        mRaster.set("uCount", count);
-        mRaster.set("uPickBase", b.pick_base + done);
-        mRaster.set("uFlagBase", flag_base + done);
+        program.set("uFirst", b.first + done);
+        program.set("uCount", count);
+        program.set("uPickBase", b.pick_base + done);
       });
-      flag_base += b.count;
     }
     glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
     (pass == 0 ? timings.depth_ms : timings.color_ms) = lap();

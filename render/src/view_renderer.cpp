@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <cstring>
 #include <iterator>
+#include <limits>
 #include <numbers>
 
 #include <glm/gtc/matrix_transform.hpp>
@@ -13,6 +14,7 @@
 #include <tessera/core/check.h>
 #include <tessera/core/stopwatch.h>
 #include <tessera/render/gl_context.h>
+#include <tessera/render/splat_sizes.h>
 
 namespace tessera::render {
 namespace {
@@ -280,6 +282,21 @@ void ViewRenderer::addModel(const ModelInstance& instance, bool see_through, con
     b.clip_from_local = glm::mat4(clip_from_world * world_from_local);
     b.spacing_k = float(n.spacing * k * options.splat_scale);
     b.splat_radius = options.max_splat_radius;
+    // The discs' bound: the node's nearest view depth (at a corner of its box), a leaf's
+    // largest point scale.
+    const lod::NodeInfo info = store.node(n.id);
+    const glm::dmat4 view_from_local = view.view * world_from_local;
+    double nearest_w = std::numeric_limits<double>::infinity();
+    for (int c = 0; c < 8; ++c) {
+      const glm::dvec3 corner((c & 1 ? info.box_max : info.box_min).x,
+                              (c & 2 ? info.box_max : info.box_min).y,
+                              (c & 4 ? info.box_max : info.box_min).z);
+      nearest_w =
+          std::min(nearest_w, -(view_from_local * glm::dvec4(corner - chunk.offset, 1.0)).z);
+    }
+    if (nearest_w > 0)
+      b.max_disc_px =
+          float(0.5 * b.spacing_k * (chunk.splat_sized ? kMaxPointSplatScale : 1.0) / nearest_w);
     b.blend_depth = float(n.spacing * unit * options.splat_scale);
     if (instance.color != glm::u8vec3(0) && (store.summary().attributes & lod::kColor) == 0)
       b.color_override = 0x1000000u | packRgb(instance.color);

@@ -21,8 +21,10 @@ class GlProgram {
  public:
   GlProgram() = default;
   /// A compute shader: `#version 450`, then shaders/shared_layout.h, then `source` (with #line 1,
-  /// so messages keep the file's line numbers). Throws RenderError naming `label` and GL's log.
-  static GlProgram compute(const char* source, const char* label);
+  /// so messages keep the file's line numbers). `defines` (lines of `#define NAME VALUE`) go
+  /// right after #version: variants of one source. Throws RenderError naming `label` and GL's
+  /// log.
+  static GlProgram compute(const char* source, const char* label, const std::string& defines = {});
   /// A vertex and a fragment shader, each prefixed like compute().
   static GlProgram graphics(const char* vertex, const char* fragment, const char* label);
   ~GlProgram();

@@ -11,6 +11,7 @@
 #pragma once
 
 #include <cstdint>
+#include <limits>
 #include <span>
 
 #include <glm/glm.hpp>
@@ -39,6 +40,9 @@ struct DrawBatch {
   /// splat has radius splat_radius (0: one pixel).
   float spacing_k = 0.0f;
   int splat_radius = 0;
+  /// With spacing_k > 0: a bound on the batch's disc radii, pixels (from its box's nearest view
+  /// depth); at most 0.5 draws every point as one pixel with the variant that has no disc code.
+  float max_disc_px = std::numeric_limits<float>::infinity();
   uint32_t color_override = 0;  ///< non-zero: 0x1000000 | rgb for every point (r low byte)
   /// With PointShading::pick: point i of the batch writes pick id pick_base + i where it is the
   /// nearest (the view keeps which batch owns which range).
@@ -118,11 +122,13 @@ class PointPass {
  private:
   /// (Re)allocates the per-pixel buffers of the see-through modes for `target`.
   void fit(const FrameTarget& target);
-  GlProgram mRaster, mSpbr, mAccumulate, mOit, mOitResolve;
+  /// The point_raster.comp variant for a pass, compiled on first use.
+  const GlProgram& raster(int pass, bool one_pixel);
+  GlProgram mRaster[2][2];  ///< [pass][one pixel]
+  GlProgram mSpbr, mAccumulate, mOit, mOitResolve;
   GlBuffer mPoints;
   size_t mPlane = 0;  ///< pixels the buffers below are sized for
   GlBuffer mLayerDepth, mLayerColors, mAccum, mOitSums, mNone;
-  GlBuffer mCandidates;  ///< draw(): a bit per point, may be nearest (point_raster.comp)
   uint32_t mLayers = 0;  ///< layers allocated
 };
 
