@@ -56,6 +56,7 @@ void write(uint idx, uint d, uint gi, uint i, float w, float k) {
   atomicMin(depth[idx], d);
 #else
   uint nearest = depth[idx];
+  if (nearest != d && uBlend == 0) return;  // behind: most points, nothing more to read
   if (nearest == d && uWritePick != 0) atomicMin(pick[idx], uPickBase + i);
   uint rgb = uColorOverride != 0u ? uColorOverride & 0xFFFFFFu : points[gi].rgba & 0xFFFFFFu;
   if (uBlend != 0) {
