@@ -344,7 +344,9 @@ void ViewRenderer::addModel(const ModelInstance& instance, bool see_through, con
   // Opaque leaves whose discs reach 2 px (at their nearest) show their sampling's gaps (scan
   // lines): the loader measures each of their points' own splat size (splat_sizes.h).
   auto close = [&](const CutNode& n) {
-    return !see_through && 0.5 * options.splat_scale * n.projected_spacing_px >= 2.0 &&
+    // (A node around the eye has no bound: distance and projected spacing 0.)
+    return !see_through &&
+           (n.distance == 0.0 || 0.5 * options.splat_scale * n.projected_spacing_px >= 2.0) &&
            store.node(n.id).leaf();
   };
   std::vector<bool> drawn_above(cut.above.size(), false);
