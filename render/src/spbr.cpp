@@ -78,6 +78,39 @@ double spbrPointsFor(double alpha, double s, double S) {
   return std::log1p(-alpha) / std::log1p(-s / S);
 }
 
+double spbrCoverAlpha(double alpha, SpbrCopies copies) {
+  if (!(alpha > 0.0) || alpha >= 1.0 || copies == SpbrCopies::kAtPoint) return alpha;
+  const double target = -std::log1p(-alpha);  // the lambda that should show
+  double lambda = target;
+  if (copies == SpbrCopies::kGaussian) {
+    // Measured -ln(1 - shown) = lambda (1.015 + 0.06 lambda): solve the quadratic.
+    lambda = (-1.015 + std::sqrt(1.015 * 1.015 + 0.24 * target)) / 0.12;
+  } else {
+    // Copies in cells, measured (lambda asked of eq. 1, -ln(1 - shown)), max_share 0.5: each
+    // ensemble holds at most one copy per cell, so discs overlap less than eq. 1's Poisson
+    // placement, the more so as a point fills more ensembles (up to lambda ~0.4) and then as
+    // discs grow. Piecewise linear, inverted; beyond the table, its last ratio.
+    static constexpr std::array<std::pair<double, double>, 8> kShown{{{0.0, 0.0},
+                                                                       {0.0513, 0.0525},
+                                                                       {0.2231, 0.2392},
+                                                                       {0.4308, 0.4894},
+                                                                       {0.6931, 0.8174},
+                                                                       {1.0498, 1.2949},
+                                                                       {1.6094, 2.0837},
+                                                                       {2.9957, 4.1059}}};
+    lambda = target * kShown.back().first / kShown.back().second;
+    for (size_t i = 1; i < kShown.size(); ++i) {
+      if (target <= kShown[i].second) {
+        const auto [a0, s0] = kShown[i - 1];
+        const auto [a1, s1] = kShown[i];
+        lambda = a0 + (a1 - a0) * (target - s0) / (s1 - s0);
+        break;
+      }
+    }
+  }
+  return -std::expm1(-lambda);
+}
+
 SpbrNodeParams spbrNodeParams(double alpha, double density, double spacing,
                               uint32_t total_ensembles, double max_k) {
   SpbrNodeParams p;
@@ -249,6 +282,12 @@ std::vector<SurfaceCell> surfaceCells(std::span<const glm::vec3> points, double 
     });
     if (near.size() < 3) continue;
     const auto [t1, t2] = tangentPlane(m.covariance());
+    // Open cells (below) spread their copies over the node's mean cell, a square of area
+    // 1 / density around the point: decorrelated like the rest, and no farther out than half a
+    // spacing (an edge of the data stays where it is).
+    const double half_side = 0.5 / std::sqrt(node_density);
+    cells[i].axis_u = glm::vec3(half_side * t1);
+    cells[i].axis_v = glm::vec3(half_side * t2);
     // The Voronoi cell in the tangent plane: a square of the sphere's size clipped by the
     // bisector of each neighbour, nearest first; neighbours farther than twice the cell's
     // farthest corner cannot cut it.
@@ -279,17 +318,33 @@ std::vector<SurfaceCell> surfaceCells(std::span<const glm::vec3> points, double 
     for (const glm::dvec2& v : poly)
       open |= std::max(std::abs(v.x), std::abs(v.y)) > 0.999 * radius;
     if (open) continue;
-    double area = 0;
+    // Area, centroid and second moments of the polygon (Green's theorem over its edges).
+    double area = 0, ixx = 0, iyy = 0, ixy = 0;
     glm::dvec2 centroid(0.0);
     for (size_t v = 0; v < poly.size(); ++v) {
       const glm::dvec2 a = poly[v], b = poly[(v + 1) % poly.size()];
       const double cross = a.x * b.y - b.x * a.y;
       area += cross;
       centroid += (a + b) * cross;
+      ixx += cross * (a.x * a.x + a.x * b.x + b.x * b.x);
+      iyy += cross * (a.y * a.y + a.y * b.y + b.y * b.y);
+      ixy += cross * (a.x * b.y + 2.0 * a.x * a.y + 2.0 * b.x * b.y + b.x * a.y);
     }
     area *= 0.5;
     if (!(area > 0)) continue;
     centroid /= 6.0 * area;
+    // Covariance of a uniform point of the cell, about its centroid.
+    const double cxx = ixx / (12.0 * area) - centroid.x * centroid.x;
+    const double cyy = iyy / (12.0 * area) - centroid.y * centroid.y;
+    const double cxy = ixy / (24.0 * area) - centroid.x * centroid.y;
+    // Its principal axes; a uniform [-h, h] has variance h^2 / 3, so the rectangle's half-sides
+    // are sqrt(3 lambda).
+    const double mid = 0.5 * (cxx + cyy), dev = std::hypot(0.5 * (cxx - cyy), cxy);
+    const double angle = 0.5 * std::atan2(2.0 * cxy, cxx - cyy);
+    const glm::dvec3 e1 = std::cos(angle) * t1 + std::sin(angle) * t2;
+    const glm::dvec3 e2 = -std::sin(angle) * t1 + std::cos(angle) * t2;
+    cells[i].axis_u = glm::vec3(std::sqrt(3.0 * std::max(mid + dev, 0.0)) * e1);
+    cells[i].axis_v = glm::vec3(std::sqrt(3.0 * std::max(mid - dev, 0.0)) * e2);
     cells[i].offset = glm::vec3(centroid.x * t1 + centroid.y * t2);
     cells[i].weight = float(std::clamp(area * node_density, 0.125, 8.0));
   }
