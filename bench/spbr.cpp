@@ -403,6 +403,10 @@ void sparse(const fs::path& out, const std::vector<double>& jitters,
       const double ms = timedFrame({&inst, 1}, v, o, streamer, 1, &img, nullptr);
       double sd = 0;
       const double mean = meanOf(img, 0, img.width, &sd);
+      if (&m == &methods.front() && (alpha == 0.5f || alpha == 0.8f))
+        render::writePng(
+            (out / ("spbr-sparse-plane-" + std::to_string(int(alpha * 100)) + ".png")).string(),
+            img);
       render::ModelInstance edge_inst{half.get(), render::storeModel(*half), alpha};
       render::ViewRenderer re(v.width, v.height, streamer);
       const render::Image edge_img = re.renderSettled({&edge_inst, 1}, v, o);

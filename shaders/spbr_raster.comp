@@ -43,6 +43,8 @@ uniform float uJitterK;   // copies' offset standard deviation, pixels at view d
 uniform int uHasCells;    // 1: cells[] centre and weigh each point's copies
 uniform int uInCell;      // 1: copies stratified over the cell's rectangle (needs uHasCells)
 uniform float uCellUnit;  // store units of the cells' axes
+uniform float uEnsembleShift;  // uInCell: pixels over which whole ensembles shift (1: a pixel)
+uniform float uCellSpread;  // uInCell: how far copies spread over their cells (spbrCellSpread())
 uniform uint uTotal;      // L
 uniform uint uGroupFirst;
 uniform uint uGroupCount;
@@ -95,8 +97,17 @@ void main() {
     axis_u = vec3(a, b.x) * uCellUnit;
     axis_v = vec3(b.y, e) * uCellUnit;
     vec2 centre = unpackSnorm4x8(cell.w).zw * 4.0;  // the centroid in the rectangle's frame
+    float weight = unpackHalf2x16(cell.w).x;
+    if (uInCell != 0) {
+      // Part way (uCellSpread < 1): the rectangle, the centroid and the weight scaled towards
+      // the paper's copies at the point.
+      centre *= uCellSpread;
+      weight = 1.0 + (weight - 1.0) * uCellSpread;
+      axis_u *= uCellSpread;
+      axis_v *= uCellSpread;
+    }
     position += centre.x * axis_u + centre.y * axis_v;
-    k *= unpackHalf2x16(cell.w).x;
+    k *= weight;
   }
   // A large cell may ask for more copies than ensembles: the disc grows to keep its area.
   float grow = k > float(uCopyCap) ? sqrt(k / float(uCopyCap)) : 1.0;
@@ -150,6 +161,12 @@ void main() {
       // Copy cc at the cc-th point of R2 (1 / phi2, 1 / phi2^2), phi2 the plastic number.
       vec2 q = fract(r2 + float(cc) * vec2(0.7548776662, 0.5698402910)) * 2.0 - 1.0;
       p += q.x * du + q.y * dv;
+      // The whole ensemble shifted within the pixel (its index on R2): the average samples each
+      // pixel at L places, a box filter over what remains of the cover's own structure.
+      uint ensemble = (e0 + cc) % uTotal;
+      uint se = hash(ensemble * 0x9e3779b9u + 0x7f4a7c15u);
+      p += (vec2(float(se >> 16), float(se & 0xFFFFu)) * (1.0 / 65536.0) - 0.5) * uCellSpread *
+           uEnsembleShift;
     } else if (sigma > 0.0) {
       // Box-Muller from the copy's own hash: the same offset in both passes and on every tile.
       uint g = hash(h ^ hash(cc * 0x27d4eb2fu + 0x165667b1u));

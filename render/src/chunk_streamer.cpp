@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <cstdlib>
 #include <condition_variable>
 #include <mutex>
 #include <span>
@@ -65,30 +64,20 @@ struct Loaded {
 
 /// A surface cell as spbr_raster.comp reads it, 16 bytes: the rectangle's half-sides in node
 /// spacings as half floats (u.x, u.y), (u.z, v.x), (v.y, v.z), then the weight as a half float
-/// and the centroid in the rectangle's frame (offset = cu u + cv v) as two snorm8 of cu / 4, cv / 4.
+/// and the centroid in the rectangle's frame (offset = cu u + cv v) as two snorm8 of cu / 4, cv
+/// / 4.
 glm::uvec4 packCell(const SurfaceCell& c, double spacing) {
   const float unit = spacing > 0 ? float(1.0 / spacing) : 1.0f;
-  glm::vec3 u = c.axis_u * unit, v = c.axis_v * unit;
-  const glm::vec3 o = c.offset * unit;
-  float weight = c.weight;
-  static const float kClamp = std::getenv("TESSERA_CELL_CLAMP") ? std::atof(std::getenv("TESSERA_CELL_CLAMP")) : 1e9f;
-  const float lu = glm::length(u), lv = glm::length(v);
-  if (lu > kClamp) { weight *= kClamp / lu; u *= kClamp / lu; }
-  if (lv > kClamp) { weight *= kClamp / lv; v *= kClamp / lv; }
-  static const bool kNoWeight = std::getenv("TESSERA_CELL_NOWEIGHT");
-  static const bool kNoSpread = std::getenv("TESSERA_CELL_NOSPREAD");
-  if (kNoWeight) weight = 1.0f;
-  if (kNoSpread) u = v = glm::vec3(0.0f);
+  const glm::vec3 u = c.axis_u * unit, v = c.axis_v * unit, o = c.offset * unit;
   auto along = [&](const glm::vec3& axis) {
-    if (kNoWeight) return 0u;
     const float len2 = glm::dot(axis, axis);
     const float t = len2 > 0.0f ? glm::dot(o, axis) / len2 : 0.0f;
     return uint32_t(int32_t(std::lround(std::clamp(t * 0.25f, -1.0f, 1.0f) * 127.0f)) & 0xFF);
   };
-  return {glm::packHalf2x16(glm::vec2(u.x, u.y)), glm::packHalf2x16(glm::vec2(u.z, v.x)),
-          glm::packHalf2x16(glm::vec2(v.y, v.z)),
-          (glm::packHalf2x16(glm::vec2(weight, 0.0f)) & 0xFFFFu) | along(u) << 16 |
-              along(v) << 24};
+  return {
+      glm::packHalf2x16(glm::vec2(u.x, u.y)), glm::packHalf2x16(glm::vec2(u.z, v.x)),
+      glm::packHalf2x16(glm::vec2(v.y, v.z)),
+      (glm::packHalf2x16(glm::vec2(c.weight, 0.0f)) & 0xFFFFu) | along(u) << 16 | along(v) << 24};
 }
 
 /// GPU bytes a resident chunk holds.
@@ -206,8 +195,10 @@ struct ChunkStreamer::Impl {
     }
     if (options.surface_cells) {
       // Six spacings hold ~28 neighbours: enough to close almost every cell.
+      const lod::NodeInfo info = store.node(node);
       const std::vector<SurfaceCell> cells =
-          surfaceCells(positions, 6.0 * out.spacing, out.density);
+          surfaceCells(positions, 6.0 * out.spacing, out.density, glm::vec3(0.0f),
+                       glm::vec3(info.box_max - info.box_min));
       out.cells.resize(cells.size());
       for (size_t i = 0; i < cells.size(); ++i) out.cells[i] = packCell(cells[i], out.spacing);
     }

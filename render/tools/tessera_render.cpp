@@ -295,8 +295,7 @@ int main(int argc, char** argv) {
     options.spbr.max_k = spbr_max_k;
     options.spbr.slant_shading = !no_slant;
     if (spbr_copies == "paper") options.spbr = render::SpbrOptions::papersCopies(options.spbr);
-    if (spbr_copies == "gaussian")
-      options.spbr = render::SpbrOptions::gaussianJitter(options.spbr);
+    if (spbr_copies == "gaussian") options.spbr = render::SpbrOptions::gaussianJitter(options.spbr);
     options.blend_colors = blend_colors;
     if (!background.empty()) options.background = glm::vec3(parseVec(background, "--background"));
 

@@ -59,6 +59,8 @@ struct DrawBatch {
   float jitter_k = 0.0f;        ///< kGaussian: copies' offset standard deviation, px at depth 1
   SpbrCopies copies = SpbrCopies::kAtPoint;  ///< where copies go (with `cells`: kInCell)
   float cell_unit = 0.0f;       ///< store units of the cells' axes (the chunk's spacing)
+  float cell_spread = 0.0f;     ///< kInCell: share of the cell copies spread over (spbr.h)
+  float ensemble_shift = 0.0f;  ///< kInCell: pixels whole ensembles shift over (x cell_spread)
   float point_alpha = 0.0f;     ///< blended baselines (drawBlended()): each point's opacity
 };
 

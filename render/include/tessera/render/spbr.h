@@ -14,6 +14,7 @@
 #pragma once
 
 #include <cstdint>
+#include <limits>
 #include <span>
 #include <string>
 #include <vector>
@@ -62,9 +63,17 @@ struct SpbrOptions {
   /// spacing in pixels (10-90%).
   double copy_jitter = 1.5;
   /// kGaussian and kInCell: the largest share of the L ensembles one point's copies fill before
-  /// cross-sections grow instead. Each ensemble is then a random thinning of the surface cover,
-  /// closer to the independent placement eq. 1 assumes.
-  double max_share = 0.5;
+  /// cross-sections grow instead. Below 1 each ensemble is a random thinning of the surface
+  /// cover, closer to the independent placement eq. 1 assumes, but discs grow sooner (blur).
+  double max_share = 1.0;
+  /// kInCell: each ensemble is shifted as a whole by a random sub-pixel offset within a square
+  /// of this side, pixels (x the node's spread; from a hash of the ensemble index, the same on
+  /// every tile), as a temporal antialiasing jitter: the average then samples each pixel at L
+  /// places, a box filter over what structure of the cover remains at the scale of a cell (the
+  /// rectangles only approximate the cells), which dominates the noise near alpha 1 (bench/spbr
+  /// sparse: std 1.63x the binomial at alpha 0.95 without, 1.21x with). Widens edges by about
+  /// 0.4 px (10-90%); 0: off.
+  double ensemble_shift = 1.0;
   /// kGaussian: scale each point's copies by its surface cell's area and centre them on the
   /// cell's centroid (needs StreamerOptions::surface_cells).
   bool cell_weights = true;
@@ -106,11 +115,22 @@ double spbrOpacity(double n, double s, double S);
 /// Points per segment area S that give opacity alpha with cross-section s (eq. 1 inverted).
 double spbrPointsFor(double alpha, double s, double S);
 
-/// The opacity to ask of eq. 1 so that copies moved over surface cells (`copies`, with cells)
-/// show `alpha`. Such a cover is more regular than the independent placement eq. 1 assumes:
-/// its discs overlap less, so the same lambda = -ln(1 - alpha) covers more. Fitted on the
-/// Figure 5 plane (bench/spbr sparse); `alpha` itself for SpbrCopies::kAtPoint.
-double spbrCoverAlpha(double alpha, SpbrCopies copies);
+/// How far SpbrCopies::kInCell spreads a node's copies over their cells, in [0, 1], from the
+/// node's points per disc rho s = `density` x pi `spacing`^2 (s the cross-section, the opaque
+/// disc). Below 1 the mean cell (1 / density) is larger than a disc: copies at their points
+/// leave holes in every ensemble's cover that no number of ensembles closes, the binary noise
+/// of a random sample (rho s = pi / 4 for uniformly random points, whose mean spacing is half
+/// the mean distance). From 1 on the discs cover the cells (scan grids: 1 to 2.5 on the
+/// bunny's scans) and what gaps remain are the data's, which an exact compositor shows: copies
+/// stay at their points, as the paper. 1 up to rho s = 0.85, 0 from 1, linear between.
+double spbrCellSpread(double density, double spacing);
+
+/// The opacity to ask of eq. 1 so that copies moved over surface cells (`copies`, spread by
+/// `spread`, spbrCellSpread()) show `alpha`. Such a cover is more regular than the independent
+/// placement eq. 1 assumes: its discs overlap less, so the same lambda = -ln(1 - alpha) covers
+/// more. Fitted on the Figure 5 plane (bench/spbr sparse); `alpha` itself for
+/// SpbrCopies::kAtPoint or spread 0.
+double spbrCoverAlpha(double alpha, SpbrCopies copies, double spread = 1.0);
 
 /// One node's SPBR parameters.
 struct SpbrNodeParams {
@@ -163,17 +183,20 @@ struct SurfaceCell {
 };
 
 /// Each point's Voronoi cell among its neighbours within `radius` (about 6 node spacings), in
-/// the tangent plane of those neighbours (PCA): the area relative to the node's mean
-/// (x `node_density`, points per unit area; clamped to [1/8, 8]) and the offset to the
-/// centroid, and the rectangle of its area moments (SurfaceCell::axis_u, axis_v). Points whose
-/// cell stays open (still touching the radius-sized square it is cut from: the edge of the data,
-/// or of the node, whose neighbours beyond its faces are elsewhere) get weight 1, no offset and
-/// the square of the mean cell around themselves; points with fewer than 3 neighbours get
+/// the tangent plane of those neighbours (PCA), cut by the node's box [`box_min`, `box_max`]
+/// (the points' frame; the cells of neighbouring nodes then meet at its faces): the area relative
+/// to the node's mean (x `node_density`, points per unit area; clamped to [1/8, 8]) and the offset
+/// to the centroid, and the rectangle of its area moments (SurfaceCell::axis_u, axis_v). Points
+/// whose cell stays open (still touching the radius-sized square it is cut from: the edge of the
+/// data, or of the node, whose neighbours beyond its faces are elsewhere) get weight 1, no offset
+/// and the square of the mean cell around themselves; points with fewer than 3 neighbours get
 /// weight 1 and nothing else. Spreading each point's copies over its rectangle, their number
 /// scaled by its weight, turns the random sample of a sparse scan into an even cover of its
 /// surface (spbr_raster.comp). O(n) with ~20 neighbours a point; about twice the cost of
 /// decoding.
-std::vector<SurfaceCell> surfaceCells(std::span<const glm::vec3> points, double radius,
-                                      double node_density);
+std::vector<SurfaceCell> surfaceCells(
+    std::span<const glm::vec3> points, double radius, double node_density,
+    const glm::vec3& box_min = glm::vec3(-std::numeric_limits<float>::infinity()),
+    const glm::vec3& box_max = glm::vec3(std::numeric_limits<float>::infinity()));
 
 }  // namespace tessera::render
