@@ -11,6 +11,11 @@
 // cross-section follows its spacing, so the opacity holds at every level. Copies are never
 // stored: the shader deals copy c of point i into ensemble (h(i) + c) mod L, h a stable hash of
 // the node and the point index, so tiles of a wall agree and no point is invented.
+//
+// Sparse scans (2 to 8 points a pixel, where the paper assumes ~38): by default (SpbrCopies::
+// kInCell) a node whose discs do not cover its points' cells (spbrCellSpread()) spreads each
+// point's copies, stratified, over its surface cell (surfaceCells()) and shifts every ensemble
+// within the pixel, so the L ensembles decorrelate while copies stay within the local spacing.
 #pragma once
 
 #include <cstdint>
@@ -129,7 +134,7 @@ double spbrCellSpread(double density, double spacing);
 /// `spread`, spbrCellSpread()) show `alpha`. Such a cover is more regular than the independent
 /// placement eq. 1 assumes: its discs overlap less, so the same lambda = -ln(1 - alpha) covers
 /// more. Fitted on the Figure 5 plane (bench/spbr sparse); `alpha` itself for
-/// SpbrCopies::kAtPoint or spread 0.
+/// SpbrCopies::kAtPoint, and for kInCell with spread 0.
 double spbrCoverAlpha(double alpha, SpbrCopies copies, double spread = 1.0);
 
 /// One node's SPBR parameters.
