@@ -158,7 +158,7 @@ void figure5(const fs::path& out, const std::vector<size_t>& sizes) {
   for (size_t n : sizes) {
     auto store = lod::PointStore::open(planeStore(out / "inputs", n));
     for (int a = 1; a <= 38; ++a) {
-      // Copies as the paper (the default), then independent ensembles (k <= 1).
+      // The paper's copies, then independent ensembles (k <= 1).
       const bool independent = a > 19;
       const float alpha = float(independent ? a - 19 : a) * 0.05f;
       render::ModelInstance inst{store.get(), render::storeModel(*store), alpha};
@@ -191,7 +191,7 @@ void figure5(const fs::path& out, const std::vector<size_t>& sizes) {
     const std::string f = (out / "spbr_figure5.csv").string();
     g << "set title 'n_raw = " << n << "'\nplot '" << f << "' using ($1==" << n
       << " && stringcolumn(8) eq 'copies' ? $2 - 0.006 : 1/0):3:4 with yerrorbars pt 7 ps 0.6 "
-         "title 'default (copies, as the paper)', '"
+         "title 'the paper s copies (--spbr-copies paper)', '"
       << f << "' using ($1==" << n
       << " && stringcolumn(8) eq 'independent' ? $2 + 0.006 : 1/0):3:4 with yerrorbars pt 6 ps "
          "0.6 title 'independent ensembles (k <= 1)', 255*x with lines lw 2 title '255 alpha'\n";
