@@ -8,11 +8,12 @@
 //            on the bunny's scans fused at two opacities and on Autzen;
 //  speed     1024x1024, L = 64, a ~10^7-point view of the 10^8-point store: the SPBR frame
 //            against one opaque pass over the same adjusted points (goal: at most 2x);
-//  sparse    see-through on sparse scans (2 points a pixel; the paper assumes ~38): the paper's
-//            copies, independent ensembles (k <= 1), jittered copies, and jittered copies over
-//            surface cells (the opt-in sparse method), on the Figure 5 plane at 10^6 points: std
-//            over pixels against the binomial 255 sqrt(a (1 - a) / L), mean error, the 10-90% width
-//            of a half-plane's edge, ms per frame; and each method's RMSE on the fused bunny;
+//  sparse    see-through on sparse scans (2 points a pixel; the paper assumes ~38): the default
+//            (copies stratified over surface cells), the paper's copies, the Gaussian jitter over
+//            cells (the earlier sparse method), independent ensembles (k <= 1) and Gaussian jitter
+//            alone, on the Figure 5 plane at 10^6 points: std over pixels against the binomial
+//            255 sqrt(a (1 - a) / L), mean error, the 10-90% width of a half-plane's edge, ms per
+//            frame, crops of the edge at alpha 0.5; and each method's RMSE on the fused bunny;
 //  breaks    where the method's uniform-density assumption fails: a plane whose density jumps
 //            4x (per-node estimates against the paper's single global one), and alpha near 1
 //            (k with the paper's fixed cross-section, the copies and bytes it would take).
@@ -157,11 +158,12 @@ void figure5(const fs::path& out, const std::vector<size_t>& sizes) {
   for (size_t n : sizes) {
     auto store = lod::PointStore::open(planeStore(out / "inputs", n));
     for (int a = 1; a <= 38; ++a) {
-      // Copies as the paper (the default), then independent ensembles (k <= 1).
+      // The paper's copies, then independent ensembles (k <= 1).
       const bool independent = a > 19;
       const float alpha = float(independent ? a - 19 : a) * 0.05f;
       render::ModelInstance inst{store.get(), render::storeModel(*store), alpha};
       render::RenderOptions o;
+      o.spbr = render::SpbrOptions::papersCopies();
       o.spbr.ensembles = 64;
       if (independent) o.spbr.max_k = 1.0;
       render::ViewRenderer r(512, 512);
@@ -189,7 +191,7 @@ void figure5(const fs::path& out, const std::vector<size_t>& sizes) {
     const std::string f = (out / "spbr_figure5.csv").string();
     g << "set title 'n_raw = " << n << "'\nplot '" << f << "' using ($1==" << n
       << " && stringcolumn(8) eq 'copies' ? $2 - 0.006 : 1/0):3:4 with yerrorbars pt 7 ps 0.6 "
-         "title 'default (copies, as the paper)', '"
+         "title 'the paper s copies (--spbr-copies paper)', '"
       << f << "' using ($1==" << n
       << " && stringcolumn(8) eq 'independent' ? $2 + 0.006 : 1/0):3:4 with yerrorbars pt 6 ps "
          "0.6 title 'independent ensembles (k <= 1)', 255*x with lines lw 2 title '255 alpha'\n";
@@ -267,8 +269,12 @@ void accuracy(const fs::path& out, std::vector<Scene>& scenes) {
     };
     for (uint32_t L : {4u, 16u, 64u, 256u}) {
       render::RenderOptions o;
+      o.spbr = render::SpbrOptions::papersCopies();
       o.spbr.ensembles = L;
       row("spbr", L, o);
+      render::RenderOptions cell;  // the default: copies in surface cells
+      cell.spbr.ensembles = L;
+      row("spbr-cell", L, cell);
       // Independent ensembles (k <= 1): discs grow with L instead of points being copied.
       o.spbr.max_k = 1.0;
       row("spbr-independent", L, o);
@@ -311,34 +317,60 @@ void accuracy(const fs::path& out, std::vector<Scene>& scenes) {
   gnuplot(out / "spbr_accuracy.gp");
 }
 
-/// A see-through method as options; the first is the default (the paper's copies), the second
-/// the opt-in sparse method (tessera-render --spbr-sparse).
+/// A see-through method as options; the first is the default (copies in surface cells), then
+/// the paper's copies and the earlier sparse method (Gaussian jitter over cells).
 struct SparseMethod {
   std::string name;
   render::SpbrOptions spbr;
 };
 
-std::vector<SparseMethod> sparseMethods(const std::vector<double>& jitters) {
+std::vector<SparseMethod> sparseMethods(const std::vector<double>& jitters,
+                                        const std::vector<double>& shares) {
   std::vector<SparseMethod> m;
-  const render::SpbrOptions paper;
-  const render::SpbrOptions sparse = render::SpbrOptions::sparseScans();
-  m.push_back({"default: copies (paper)", paper});
-  m.push_back({"sparse", sparse});
+  const render::SpbrOptions cell;
+  const render::SpbrOptions paper = render::SpbrOptions::papersCopies();
+  const render::SpbrOptions gaussian = render::SpbrOptions::gaussianJitter();
+  m.push_back({"default: copies in cells", cell});
+  m.push_back({"paper: copies at the point", paper});
+  m.push_back({"gaussian: jitter 1.5 over cells", gaussian});
   SparseMethod independent{"independent (k <= 1)", paper};
   independent.spbr.max_k = 1.0;
   m.push_back(independent);
-  SparseMethod jitter_only{"jittered copies without cells", sparse};
+  SparseMethod jitter_only{"gaussian without cells", gaussian};
   jitter_only.spbr.cell_weights = false;
   m.push_back(jitter_only);
-  for (double j : jitters) {  // a sweep of the sparse method's jitter
-    SparseMethod sweep{"cells, jitter " + std::to_string(j).substr(0, 4), sparse};
+  for (double j : jitters) {  // a sweep of the Gaussian method's jitter
+    SparseMethod sweep{"gaussian, jitter " + std::to_string(j).substr(0, 4), gaussian};
     sweep.spbr.copy_jitter = j;
+    m.push_back(sweep);
+  }
+  for (double share : shares) {  // a sweep of the default's max_share
+    SparseMethod sweep{"cells, max_share " + std::to_string(share).substr(0, 4), cell};
+    sweep.spbr.max_share = share;
     m.push_back(sweep);
   }
   return m;
 }
 
-void sparse(const fs::path& out, const std::vector<double>& jitters, bool with_bunny) {
+/// Images side by side on white, `gap` pixels apart.
+render::Image sideBySide(const std::vector<const render::Image*>& images, uint32_t gap) {
+  uint32_t w = 0, h = 0;
+  for (const render::Image* i : images) w += i->width, h = std::max(h, i->height);
+  w += gap * uint32_t(images.size() - 1);
+  render::Image out{w, h, std::vector<uint8_t>(size_t(w) * h * 4, 255)};
+  uint32_t x0 = 0;
+  for (const render::Image* i : images) {
+    for (uint32_t y = 0; y < i->height; ++y)
+      std::copy_n(&i->rgba[size_t(y) * i->width * 4], size_t(i->width) * 4,
+                  &out.rgba[(size_t(y) * w + x0) * 4]);
+    x0 += i->width + gap;
+  }
+  return out;
+}
+
+void sparse(const fs::path& out, const std::vector<double>& jitters,
+            const std::vector<double>& shares, const std::vector<std::string>& only,
+            bool with_bunny) {
   const uint32_t L = 64;
   const size_t n = 1'000'000;
   std::ofstream csv(out / "spbr_sparse.csv");
@@ -354,8 +386,13 @@ void sparse(const fs::path& out, const std::vector<double>& jitters, bool with_b
   render::StreamerOptions with_cells;  // for the sparse method; the others ignore them
   with_cells.surface_cells = true;
   auto streamer = std::make_shared<render::ChunkStreamer>(with_cells);
-  const std::vector<SparseMethod> methods = sparseMethods(jitters);
-  std::vector<render::Image> crops;
+  std::vector<SparseMethod> methods = sparseMethods(jitters, shares);
+  if (!only.empty())  // methods whose names start with one of `only`
+    std::erase_if(methods, [&](const SparseMethod& m) {
+      return std::none_of(only.begin(), only.end(),
+                          [&](const std::string& o) { return m.name.rfind(o, 0) == 0; });
+    });
+  std::vector<render::Image> crops(methods.size());
   for (const SparseMethod& m : methods) {
     for (float alpha : {0.05f, 0.2f, 0.35f, 0.5f, 0.65f, 0.8f, 0.95f}) {
       render::RenderOptions o;
@@ -366,6 +403,10 @@ void sparse(const fs::path& out, const std::vector<double>& jitters, bool with_b
       const double ms = timedFrame({&inst, 1}, v, o, streamer, 1, &img, nullptr);
       double sd = 0;
       const double mean = meanOf(img, 0, img.width, &sd);
+      if (&m == &methods.front() && (alpha == 0.5f || alpha == 0.8f))
+        render::writePng(
+            (out / ("spbr-sparse-plane-" + std::to_string(int(alpha * 100)) + ".png")).string(),
+            img);
       render::ModelInstance edge_inst{half.get(), render::storeModel(*half), alpha};
       render::ViewRenderer re(v.width, v.height, streamer);
       const render::Image edge_img = re.renderSettled({&edge_inst, 1}, v, o);
@@ -376,7 +417,7 @@ void sparse(const fs::path& out, const std::vector<double>& jitters, bool with_b
                     100.0 * (mean / (255.0 * alpha) - 1.0), render::edgeWidth(edge_img, 256), ms);
       csv << line << "\n";
       std::cout << line << std::endl;
-      if (alpha == 0.5f && crops.size() < 3) {
+      if (alpha == 0.5f) {
         // 128x128 around the edge, at 2x: the plateau's grain on the left, the edge, background.
         render::Image c{256, 256, std::vector<uint8_t>(256 * 256 * 4)};
         for (uint32_t y = 0; y < 256; ++y)
@@ -384,20 +425,20 @@ void sparse(const fs::path& out, const std::vector<double>& jitters, bool with_b
             for (int ch = 0; ch < 4; ++ch)
               c.rgba[(y * 256 + x) * 4 + ch] =
                   edge_img.rgba[((192 + y / 2) * 512 + 160 + x / 2) * 4 + ch];
-        crops.push_back(std::move(c));
+        crops[size_t(&m - methods.data())] = std::move(c);
       }
     }
   }
-  // The paper's copies (the default), independent ensembles, the sparse method, side by side.
-  const uint32_t gap = 8;
-  render::Image strip{3 * 256 + 2 * gap, 256,
-                      std::vector<uint8_t>(size_t(3 * 256 + 2 * gap) * 256 * 4, 255)};
-  const int order[3] = {0, 2, 1};
-  for (int k = 0; k < 3; ++k)
-    for (uint32_t y = 0; y < 256; ++y)
-      std::copy_n(&crops[order[k]].rgba[size_t(y) * 256 * 4], 256 * 4,
-                  &strip.rgba[(size_t(y) * strip.width + k * (256 + gap)) * 4]);
-  render::writePng((out / "spbr_sparse_crops.png").string(), strip);
+  // The paper's copies, independent ensembles, the Gaussian method and the default (copies in
+  // cells), side by side.
+  if (only.empty()) {
+    render::writePng((out / "spbr_sparse_crops.png").string(),
+                     sideBySide({&crops[1], &crops[3], &crops[2], &crops[0]}, 8));
+  } else {
+    std::vector<const render::Image*> all;
+    for (const render::Image& c : crops) all.push_back(&c);
+    render::writePng((out / "spbr_sparse_crops.png").string(), sideBySide(all, 8));
+  }
 
   if (with_bunny) {
     csv << "\nmethod,L,bunny_rmse,bunny_frame_ms\n";
@@ -405,6 +446,8 @@ void sparse(const fs::path& out, const std::vector<double>& jitters, bool with_b
     Scene bunny = bunnyScene(out);
     const render::Image ref = render::referenceSeeThrough(bunny.models, bunny.view, {});
     auto bunny_streamer = std::make_shared<render::ChunkStreamer>(with_cells);
+    render::writePng((out / "spbr-bunny-reference.png").string(), ref);
+    std::vector<render::Image> bunny64(methods.size());
     for (const SparseMethod& m : methods) {
       for (uint32_t l : {16u, 64u}) {
         render::RenderOptions o;
@@ -416,10 +459,14 @@ void sparse(const fs::path& out, const std::vector<double>& jitters, bool with_b
         std::snprintf(line, sizeof line, "%s,%u,%.2f,%.1f", m.name.c_str(), l, rmse(img, ref), ms);
         csv << line << "\n";
         std::cout << line << std::endl;
-        if (l == 64 && &m == &methods[1])
-          render::writePng((out / "spbr-bunny-sparse-64.png").string(), img);
+        if (l == 64) bunny64[size_t(&m - methods.data())] = std::move(img);
       }
     }
+    // The reference beside each method at L = 64 (default, paper, Gaussian first).
+    std::vector<const render::Image*> row{&ref};
+    for (const render::Image& i : bunny64) row.push_back(&i);
+    if (row.size() > 4) row.resize(4);
+    render::writePng((out / "spbr_sparse_bunny.png").string(), sideBySide(row, 8));
   }
   csv.close();
   const std::string f = (out / "spbr_sparse.csv").string();
@@ -461,6 +508,7 @@ void speed(const fs::path& out, const fs::path& store_path, double lod_px) {
       lookAt({-0.02, 0.13, 0.26}, {-0.02, 0.1, 0.0}, {0, 1, 0}, 1024, 1024, 45.0, 0.01, 2.0);
   auto streamer = std::make_shared<render::ChunkStreamer>(render::StreamerOptions{8ull << 30});
   render::RenderOptions o;
+  o.spbr = render::SpbrOptions::papersCopies();  // as the README's speed figures
   o.lod_pixels = lod_px;
   o.spbr.ensembles = 64;
   render::RenderStats st;
@@ -500,6 +548,7 @@ void bunnyOverlap(const fs::path& out, std::ofstream& csv) {
   const render::ViewSetup v =
       lookAt({-0.02, 0.11, 0.3}, {-0.02, 0.1, 0.0}, {0, 1, 0}, 640, 480, 40.0, 0.01, 2.0);
   render::RenderOptions o;
+  o.spbr = render::SpbrOptions::papersCopies();  // as the README's overlap figures
   o.spbr.ensembles = 64;
   render::ViewRenderer r(v.width, v.height);
   const render::Image spbr = r.renderSettled({&inst, 1}, v, o);
@@ -588,6 +637,7 @@ void breaks(const fs::path& out) {
   for (float alpha : {0.2f, 0.5f, 0.8f}) {
     render::ModelInstance inst{store.get(), render::storeModel(*store), alpha};
     render::RenderOptions o;
+    o.spbr = render::SpbrOptions::papersCopies();  // as the README's density-jump figures
     render::ViewRenderer r(512, 512);
     const render::Image img = r.renderSettled({&inst, 1}, v, o);
     // Columns away from the jump (x = 256) by 32 pixels.
@@ -631,7 +681,8 @@ int main(int argc, char** argv) {
   std::string out = TESSERA_BENCH_RESULTS_DIR;
   std::vector<std::string> parts{"figure5", "sparse", "accuracy", "speed", "breaks"};
   double speed_lod = 1.5;
-  std::vector<double> jitters;
+  std::vector<double> jitters, shares;
+  std::vector<std::string> only;
   bool sparse_bunny = true;
   app.add_option("--out", out, "Folder for inputs, CSV and charts")->capture_default_str();
   app.add_option("--parts", parts, "Which parts: figure5 sparse accuracy speed breaks")
@@ -640,6 +691,9 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--sparse-jitter", jitters,
                  "sparse: also the sparse method with these copy jitters (node spacings)");
+  app.add_option("--sparse-share", shares,
+                 "sparse: also the default method with these max_share values");
+  app.add_option("--sparse-only", only, "sparse: only the methods whose names start so");
   app.add_option("--sparse-bunny", sparse_bunny, "sparse: each method's RMSE on the bunny")
       ->capture_default_str();
   CLI11_PARSE(app, argc, argv);
@@ -649,7 +703,7 @@ int main(int argc, char** argv) {
     fs::create_directories(dir / "inputs");
     auto ctx = render::GlContext::createHeadless();
     if (has("figure5")) figure5(dir, {1'000'000, 4'000'000});
-    if (has("sparse")) sparse(dir, jitters, sparse_bunny);
+    if (has("sparse")) sparse(dir, jitters, shares, only, sparse_bunny);
     if (has("accuracy")) {
       std::vector<Scene> scenes;
       const std::string data = TESSERA_DATA_DIR;

@@ -9,13 +9,19 @@
 // eq. 2's shading); it covers the pixels whose centres it contains, so its expected coverage is
 // exactly its projected area even below one pixel, which is what eq. 1 counts.
 //
-// Sparse scans (2 to 8 points a pixel; the paper assumes ~38): copy c of point i is moved in the
-// image plane by a Gaussian offset of uJitterK / w pixels, from a hash of (h(i), c), so copies of
-// one point in different ensembles cover different pixels and the ensembles decorrelate; with
-// uHasCells, copies are centred on the point's surface-cell centroid and their number scaled by
-// the cell's area (spbr.h surfaceCells()), so the clumps and gaps of a random sample do not stay
-// in every ensemble. Eq. 1 then holds per ensemble for a cover of the surface rather than for one
-// frozen sample of it.
+// Sparse scans (2 to 8 points a pixel; the paper assumes ~38), where the copies of a point would
+// fill most ensembles alike and the L images average to binary noise:
+// - uInCell (SpbrCopies::kInCell, the default): copy c of point i lands uniformly in the
+//   rectangle of the point's surface cell (spbr.h surfaceCells(): its Voronoi cell in the tangent
+//   plane, by area moments), at the c-th point of an R2 sequence (Roberts 2018) shifted by a hash
+//   of h(i): the copies of one point are stratified over its cell across the ensembles, the
+//   number of copies follows the cell's area, so every ensemble is an even cover of the surface
+//   and the copies never leave the point's cell (edges stay within a spacing).
+// - uJitterK > 0 (SpbrCopies::kGaussian): copy c moves in the image plane by a Gaussian offset
+//   of uJitterK / w pixels from a hash of (h(i), c); with uHasCells, copies are centred on the
+//   cell's centroid and their number scaled by the cell's area.
+// Eq. 1 then holds per ensemble for a cover of the surface rather than for one frozen sample of
+// it (with a correction for the cover's regularity, view_renderer.cpp).
 layout(local_size_x = 128) in;
 
 // struct Point: shaders/shared_layout.h
@@ -24,7 +30,7 @@ layout(std430, binding = TESSERA_BINDING_DEPTH) buffer Depth { uint depth[]; }; 
 layout(std430, binding = TESSERA_BINDING_COLORS) buffer Colors { uint colors[]; };  // uGroupCount layers
 layout(std430, binding = TESSERA_BINDING_NORMALS) readonly buffer Normals { uint normals[]; };  // 10:10:10 snorm
 layout(std430, binding = TESSERA_BINDING_RATIOS) readonly buffer Ratios { float ratios[]; };   // node / local density
-layout(std430, binding = TESSERA_BINDING_CELLS) readonly buffer Cells { uvec2 cells[]; };  // half (dx, dy), (dz, w)
+layout(std430, binding = TESSERA_BINDING_CELLS) readonly buffer Cells { uvec4 cells[]; };  // packCell()
 
 uniform mat4 uClip;
 uniform uint uColorOverride;  // non-zero: 0x1000000 | rgb for every point of the batch
@@ -35,6 +41,10 @@ uniform float uK;         // copies per point over all uTotal ensembles, <= uCop
 uniform uint uCopyCap;    // most copies of one point (uTotal)
 uniform float uJitterK;   // copies' offset standard deviation, pixels at view depth 1 (0: none)
 uniform int uHasCells;    // 1: cells[] centre and weigh each point's copies
+uniform int uInCell;      // 1: copies stratified over the cell's rectangle (needs uHasCells)
+uniform float uCellUnit;  // store units of the cells' axes
+uniform float uEnsembleShift;  // uInCell: pixels over which whole ensembles shift (1: a pixel)
+uniform float uCellSpread;  // uInCell: how far copies spread over their cells (spbrCellSpread())
 uniform uint uTotal;      // L
 uniform uint uGroupFirst;
 uniform uint uGroupCount;
@@ -80,10 +90,24 @@ void main() {
   uint h = hash(uSeed ^ hash(i + 0x9e3779b9u));
   float k = uHasRatios != 0 ? uK * ratios[i] : uK;
   vec3 position = points[i].position;
+  vec3 axis_u = vec3(0.0), axis_v = vec3(0.0);
   if (uHasCells != 0) {
-    vec2 xy = unpackHalf2x16(cells[i].x), zw = unpackHalf2x16(cells[i].y);
-    position += vec3(xy, zw.x);
-    k *= zw.y;
+    uvec4 cell = cells[i];
+    vec2 a = unpackHalf2x16(cell.x), b = unpackHalf2x16(cell.y), e = unpackHalf2x16(cell.z);
+    axis_u = vec3(a, b.x) * uCellUnit;
+    axis_v = vec3(b.y, e) * uCellUnit;
+    vec2 centre = unpackSnorm4x8(cell.w).zw * 4.0;  // the centroid in the rectangle's frame
+    float weight = unpackHalf2x16(cell.w).x;
+    if (uInCell != 0) {
+      // Part way (uCellSpread < 1): the rectangle, the centroid and the weight scaled towards
+      // the paper's copies at the point.
+      centre *= uCellSpread;
+      weight = 1.0 + (weight - 1.0) * uCellSpread;
+      axis_u *= uCellSpread;
+      axis_v *= uCellSpread;
+    }
+    position += centre.x * axis_u + centre.y * axis_v;
+    k *= weight;
   }
   // A large cell may ask for more copies than ensembles: the disc grows to keep its area.
   float grow = k > float(uCopyCap) ? sqrt(k / float(uCopyCap)) : 1.0;
@@ -117,12 +141,33 @@ void main() {
   }
   uint rgb = uColorOverride != 0u ? uColorOverride & 0xFFFFFFu : points[i].rgba & 0xFFFFFFu;
   float sigma = uJitterK / c.w;
+  // The cell's rectangle on the screen (affine: a cell is a fraction of a pixel to a few).
+  vec2 du = vec2(0.0), dv = vec2(0.0);
+  vec2 r2 = vec2(0.0);
+  if (uInCell != 0) {
+    vec4 cu = uClip * vec4(position + axis_u, 1.0), cv = uClip * vec4(position + axis_v, 1.0);
+    du = (cu.xy / cu.w - ndc.xy) * 0.5 * vec2(uSize);
+    dv = (cv.xy / cv.w - ndc.xy) * 0.5 * vec2(uSize);
+    // The R2 sequence's start, per point (Cranley-Patterson rotation).
+    r2 = vec2(float(hash(h ^ 0x3c6ef372u) >> 8), float(hash(h ^ 0xa54ff53au) >> 8)) *
+         (1.0 / 16777216.0);
+  }
   for (uint cc = 0u; cc < copies; ++cc) {
     uint layer = (e0 + cc) % uTotal + uTotal - uGroupFirst;  // ensemble - uGroupFirst, mod L
     layer %= uTotal;
     if (layer >= uGroupCount) continue;
     vec2 p = pos;
-    if (sigma > 0.0) {
+    if (uInCell != 0) {
+      // Copy cc at the cc-th point of R2 (1 / phi2, 1 / phi2^2), phi2 the plastic number.
+      vec2 q = fract(r2 + float(cc) * vec2(0.7548776662, 0.5698402910)) * 2.0 - 1.0;
+      p += q.x * du + q.y * dv;
+      // The whole ensemble shifted within the pixel (its index on R2): the average samples each
+      // pixel at L places, a box filter over what remains of the cover's own structure.
+      uint ensemble = (e0 + cc) % uTotal;
+      uint se = hash(ensemble * 0x9e3779b9u + 0x7f4a7c15u);
+      p += (vec2(float(se >> 16), float(se & 0xFFFFu)) * (1.0 / 65536.0) - 0.5) * uCellSpread *
+           uEnsembleShift;
+    } else if (sigma > 0.0) {
       // Box-Muller from the copy's own hash: the same offset in both passes and on every tile.
       uint g = hash(h ^ hash(cc * 0x27d4eb2fu + 0x165667b1u));
       float u1 = (float(g >> 8) + 0.5) * (1.0 / 16777216.0);

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <condition_variable>
 #include <mutex>
 #include <span>
@@ -64,7 +65,7 @@ struct Loaded {
   double spacing = 0.0, density = 0.0;
   std::vector<uint32_t> normals;
   std::vector<float> ratios;
-  std::vector<glm::uvec2> cells;  ///< SurfaceCell as half floats: (dx, dy), (dz, weight)
+  std::vector<glm::uvec4> cells;  ///< SurfaceCell packed (packCell())
   bool page = false;
   bool failed = false;
   bool measured = false;
@@ -72,6 +73,24 @@ struct Loaded {
   glm::dvec3 offset{0.0};
   std::vector<GpuPoint> points;
 };
+
+/// A surface cell as spbr_raster.comp reads it, 16 bytes: the rectangle's half-sides in node
+/// spacings as half floats (u.x, u.y), (u.z, v.x), (v.y, v.z), then the weight as a half float
+/// and the centroid in the rectangle's frame (offset = cu u + cv v) as two snorm8 of cu / 4, cv
+/// / 4.
+glm::uvec4 packCell(const SurfaceCell& c, double spacing) {
+  const float unit = spacing > 0 ? float(1.0 / spacing) : 1.0f;
+  const glm::vec3 u = c.axis_u * unit, v = c.axis_v * unit, o = c.offset * unit;
+  auto along = [&](const glm::vec3& axis) {
+    const float len2 = glm::dot(axis, axis);
+    const float t = len2 > 0.0f ? glm::dot(o, axis) / len2 : 0.0f;
+    return uint32_t(int32_t(std::lround(std::clamp(t * 0.25f, -1.0f, 1.0f) * 127.0f)) & 0xFF);
+  };
+  return {
+      glm::packHalf2x16(glm::vec2(u.x, u.y)), glm::packHalf2x16(glm::vec2(u.z, v.x)),
+      glm::packHalf2x16(glm::vec2(v.y, v.z)),
+      (glm::packHalf2x16(glm::vec2(c.weight, 0.0f)) & 0xFFFFu) | along(u) << 16 | along(v) << 24};
+}
 
 /// GPU bytes a resident chunk holds.
 uint64_t residentBytes(const GpuChunk& c) {
@@ -195,14 +214,12 @@ struct ChunkStreamer::Impl {
     }
     if (options.surface_cells) {
       // Six spacings hold ~28 neighbours: enough to close almost every cell.
+      const lod::NodeInfo info = store.node(node);
       const std::vector<SurfaceCell> cells =
-          surfaceCells(positions, 6.0 * out.spacing, out.density);
+          surfaceCells(positions, 6.0 * out.spacing, out.density, glm::vec3(0.0f),
+                       glm::vec3(info.box_max - info.box_min));
       out.cells.resize(cells.size());
-      for (size_t i = 0; i < cells.size(); ++i) {
-        const SurfaceCell& c = cells[i];
-        out.cells[i] = {glm::packHalf2x16(glm::vec2(c.offset.x, c.offset.y)),
-                        glm::packHalf2x16(glm::vec2(c.offset.z, c.weight))};
-      }
+      for (size_t i = 0; i < cells.size(); ++i) out.cells[i] = packCell(cells[i], out.spacing);
     }
   }
 
@@ -276,7 +293,7 @@ void ChunkStreamer::beginFrame() {
     c.density = l.density;
     if (!l.normals.empty()) c.normals = GlBuffer(l.normals.size() * 4, l.normals.data());
     if (!l.ratios.empty()) c.density_ratios = GlBuffer(l.ratios.size() * 4, l.ratios.data());
-    if (!l.cells.empty()) c.cells = GlBuffer(l.cells.size() * 8, l.cells.data());
+    if (!l.cells.empty()) c.cells = GlBuffer(l.cells.size() * 16, l.cells.data());
     s.resident_bytes += residentBytes(c);
     s.resident_disk_bytes += c.disk_bytes;
     s.resident.emplace(l.key, std::move(c));

@@ -137,33 +137,52 @@ inline bool tangentNeighbours(const CellGrid& grid, std::span<const glm::vec3> p
   return true;
 }
 
-/// The Voronoi cell of a point among `near` (its neighbours within `radius`, sorted nearest
-/// first) in the tangent plane (t1, t2): the square of half-width `radius` around it clipped by
-/// the bisector of each neighbour, nearest first (neighbours beyond twice the cell's farthest
-/// corner cannot cut it). Into `poly` (tangent-plane coordinates, counter-clockwise); `scratch`
-/// is reused between calls. Fewer than 3 vertices: no cell (degenerate neighbours).
-inline void tangentCell(std::span<const Neighbour> near, const glm::dvec3& t1, const glm::dvec3& t2,
-                        double radius, std::vector<glm::dvec2>& poly,
+/// Keeps the part of the convex polygon `poly` where x . u <= h (`scratch` is reused).
+inline void clipPolygon(std::vector<glm::dvec2>& poly, const glm::dvec2& u, double h,
                         std::vector<glm::dvec2>& scratch) {
+  scratch.clear();
+  for (size_t v = 0; v < poly.size(); ++v) {
+    const glm::dvec2 a = poly[v], b = poly[(v + 1) % poly.size()];
+    const double fa = glm::dot(a, u) - h, fb = glm::dot(b, u) - h;
+    if (fa <= 0) scratch.push_back(a);
+    if ((fa < 0) != (fb < 0)) scratch.push_back(a + (b - a) * (fa / (fa - fb)));
+  }
+  poly.swap(scratch);
+}
+
+/// The square of half-width `radius` around a point, in its tangent plane: where a Voronoi cell
+/// starts before any neighbour cuts it (counter-clockwise).
+inline void cellSquare(double radius, std::vector<glm::dvec2>& poly) {
   poly = {{-radius, -radius}, {radius, -radius}, {radius, radius}, {-radius, radius}};
+}
+
+/// Cuts `poly` (a point's cell so far, tangent-plane coordinates) by the bisector of each of
+/// `near` (its neighbours within `radius`, sorted nearest first) in the tangent plane (t1, t2):
+/// neighbours beyond twice the cell's farthest corner cannot cut it. Fewer than 3 vertices left:
+/// no cell (degenerate neighbours).
+inline void cutByNeighbours(std::span<const Neighbour> near, const glm::dvec3& t1,
+                            const glm::dvec3& t2, double radius, std::vector<glm::dvec2>& poly,
+                            std::vector<glm::dvec2>& scratch) {
   double reach2 = 2.0 * radius * radius;
   for (const Neighbour& q : near) {
-    if (double(q.d2) > 4.0 * reach2) break;
+    if (double(q.d2) > 4.0 * reach2 || poly.size() < 3) break;
     const glm::dvec2 u(glm::dot(glm::dvec3(q.q), t1), glm::dot(glm::dvec3(q.q), t2));
     const double h = 0.5 * glm::dot(u, u);  // keep points x with x . u <= |u|^2 / 2
     if (!(h > 0)) continue;                 // a duplicate point: no bisector
-    scratch.clear();
-    for (size_t v = 0; v < poly.size(); ++v) {
-      const glm::dvec2 a = poly[v], b = poly[(v + 1) % poly.size()];
-      const double fa = glm::dot(a, u) - h, fb = glm::dot(b, u) - h;
-      if (fa <= 0) scratch.push_back(a);
-      if ((fa < 0) != (fb < 0)) scratch.push_back(a + (b - a) * (fa / (fa - fb)));
-    }
-    poly.swap(scratch);
+    clipPolygon(poly, u, h, scratch);
     if (poly.size() < 3) return;
     reach2 = 0;
     for (const glm::dvec2& v : poly) reach2 = std::max(reach2, glm::dot(v, v));
   }
+}
+
+/// The Voronoi cell of a point among `near` (its neighbours within `radius`, sorted nearest
+/// first) in the tangent plane (t1, t2): cellSquare() cut by cutByNeighbours(). Into `poly`.
+inline void tangentCell(std::span<const Neighbour> near, const glm::dvec3& t1, const glm::dvec3& t2,
+                        double radius, std::vector<glm::dvec2>& poly,
+                        std::vector<glm::dvec2>& scratch) {
+  cellSquare(radius, poly);
+  cutByNeighbours(near, t1, t2, radius, poly, scratch);
 }
 
 /// Whether a cell vertex lies on the square tangentCell() started from (the cell is open there:

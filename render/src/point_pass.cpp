@@ -172,6 +172,10 @@ PassTimings PointPass::drawEnsembles(FrameTarget& target, std::span<const DrawBa
                          b.cells ? b.cells : mNone.name());
         mSpbr.set("uHasCells", b.cells ? 1 : 0);
         mSpbr.set("uJitterK", b.jitter_k);
+        mSpbr.set("uInCell", b.cells && b.copies == SpbrCopies::kInCell ? 1 : 0);
+        mSpbr.set("uCellUnit", b.cell_unit);
+        mSpbr.set("uCellSpread", b.cell_spread);
+        mSpbr.set("uEnsembleShift", b.ensemble_shift);
         mSpbr.set("uCopyCap", total);
         mSpbr.set("uClip", b.clip_from_local);
         mSpbr.set("uDiscK", b.disc_k);

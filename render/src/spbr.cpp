@@ -24,6 +24,48 @@ double spbrPointsFor(double alpha, double s, double S) {
   return std::log1p(-alpha) / std::log1p(-s / S);
 }
 
+double spbrCellSpread(double density, double spacing) {
+  const double per_disc = density * std::numbers::pi * spacing * spacing;
+  return std::clamp((1.0 - per_disc) / 0.15, 0.0, 1.0);
+}
+
+double spbrCoverAlpha(double alpha, SpbrCopies copies, double spread) {
+  if (!(alpha > 0.0) || alpha >= 1.0 || copies == SpbrCopies::kAtPoint) return alpha;
+  if (copies == SpbrCopies::kInCell && !(spread > 0.0)) return alpha;
+  const double target = -std::log1p(-alpha);  // the lambda that should show
+  double lambda = target;
+  if (copies == SpbrCopies::kGaussian) {
+    // Measured -ln(1 - shown) = lambda (1.015 + 0.06 lambda) (max_share 0.5; re-measured with
+    // cells cut by the node's box: 1.018 + 0.061 lambda): the quadratic.
+    lambda = (-1.015 + std::sqrt(1.015 * 1.015 + 0.24 * target)) / 0.12;
+  } else {
+    // Copies in cells, measured on the Figure 5 plane at 10^6 points (rho s = 0.8, spread 1,
+    // max_share 1, L = 64): (lambda asked of eq. 1, -ln(1 - shown)). Each ensemble holds at
+    // most one copy of a point, stratified over its cell, so discs overlap far less than eq. 1's
+    // Poisson placement, the more so as points fill more of the ensembles. Piecewise linear,
+    // inverted; beyond the table its last ratio; blended with eq. 1 by the spread.
+    static constexpr std::array<std::pair<double, double>, 8> kShown{{{0.0, 0.0},
+                                                                      {0.0513, 0.0525},
+                                                                      {0.2231, 0.2392},
+                                                                      {0.4308, 0.4912},
+                                                                      {0.6931, 0.8484},
+                                                                      {1.0498, 1.3972},
+                                                                      {1.6094, 2.3745},
+                                                                      {2.9957, 5.2412}}};
+    double fitted = target * kShown.back().first / kShown.back().second;
+    for (size_t i = 1; i < kShown.size(); ++i) {
+      if (target <= kShown[i].second) {
+        const auto [a0, s0] = kShown[i - 1];
+        const auto [a1, s1] = kShown[i];
+        fitted = a0 + (a1 - a0) * (target - s0) / (s1 - s0);
+        break;
+      }
+    }
+    lambda = target + (fitted - target) * std::min(spread, 1.0);
+  }
+  return -std::expm1(-lambda);
+}
+
 SpbrNodeParams spbrNodeParams(double alpha, double density, double spacing,
                               uint32_t total_ensembles, double max_k) {
   SpbrNodeParams p;
@@ -132,7 +174,8 @@ std::vector<uint32_t> estimateNormals(std::span<const glm::vec3> points, double 
 }
 
 std::vector<SurfaceCell> surfaceCells(std::span<const glm::vec3> points, double radius,
-                                      double node_density) {
+                                      double node_density, const glm::vec3& box_min,
+                                      const glm::vec3& box_max) {
   const size_t n = points.size();
   std::vector<SurfaceCell> cells(n);
   if (n < 8 || !(radius > 0) || !(node_density > 0)) return cells;
@@ -143,24 +186,58 @@ std::vector<SurfaceCell> surfaceCells(std::span<const glm::vec3> points, double 
   glm::dvec3 t1, t2;
   for (size_t i = 0; i < n; ++i) {
     if (!detail::tangentNeighbours(grid, points, i, r, near, t1, t2)) continue;
-    detail::tangentCell(near, t1, t2, radius, poly, scratch);
+    const glm::vec3 p = points[i];
+    // Open cells (below) spread their copies over the node's mean cell, a square of area
+    // 1 / density around the point: decorrelated like the rest, and no farther out than half a
+    // spacing (an edge of the data stays where it is).
+    const double half_side = 0.5 / std::sqrt(node_density);
+    cells[i].axis_u = glm::vec3(half_side * t1);
+    cells[i].axis_v = glm::vec3(half_side * t2);
+    detail::cellSquare(radius, poly);
+    // The node's box first: the neighbours beyond its faces belong to other nodes, whose cells
+    // stop at the same faces, so the cells of all nodes tile the surface between them.
+    for (int a = 0; a < 3 && poly.size() >= 3; ++a) {
+      const glm::dvec2 g(t1[a], t2[a]);     // the axis in the tangent plane
+      if (glm::length(g) < 1e-3) continue;  // the plane is parallel to these faces
+      if (std::isfinite(box_max[a]))
+        detail::clipPolygon(poly, g, double(box_max[a]) - double(p[a]), scratch);
+      if (std::isfinite(box_min[a]) && poly.size() >= 3)
+        detail::clipPolygon(poly, -g, double(p[a]) - double(box_min[a]), scratch);
+    }
+    detail::cutByNeighbours(near, t1, t2, radius, poly, scratch);
     // A cell still touching the square is open: the point is on the edge of the data (of the
     // scan, or of the node, whose neighbours beyond its faces are not here). It keeps weight 1
     // and no offset. (Large closed cells are the gaps of a random sample: they keep their area.)
     bool open = poly.size() < 3;
     for (const glm::dvec2& v : poly) open |= detail::onSquare(v, radius);
     if (open) continue;
-    double area = 0;
+    // Area, centroid and second moments of the polygon (Green's theorem over its edges).
+    double area = 0, ixx = 0, iyy = 0, ixy = 0;
     glm::dvec2 centroid(0.0);
     for (size_t v = 0; v < poly.size(); ++v) {
       const glm::dvec2 a = poly[v], b = poly[(v + 1) % poly.size()];
       const double cross = a.x * b.y - b.x * a.y;
       area += cross;
       centroid += (a + b) * cross;
+      ixx += cross * (a.x * a.x + a.x * b.x + b.x * b.x);
+      iyy += cross * (a.y * a.y + a.y * b.y + b.y * b.y);
+      ixy += cross * (a.x * b.y + 2.0 * a.x * a.y + 2.0 * b.x * b.y + b.x * a.y);
     }
     area *= 0.5;
     if (!(area > 0)) continue;
     centroid /= 6.0 * area;
+    // Covariance of a uniform point of the cell, about its centroid.
+    const double cxx = ixx / (12.0 * area) - centroid.x * centroid.x;
+    const double cyy = iyy / (12.0 * area) - centroid.y * centroid.y;
+    const double cxy = ixy / (24.0 * area) - centroid.x * centroid.y;
+    // Its principal axes; a uniform [-h, h] has variance h^2 / 3, so the rectangle's half-sides
+    // are sqrt(3 lambda).
+    const double mid = 0.5 * (cxx + cyy), dev = std::hypot(0.5 * (cxx - cyy), cxy);
+    const double angle = 0.5 * std::atan2(2.0 * cxy, cxx - cyy);
+    const glm::dvec3 e1 = std::cos(angle) * t1 + std::sin(angle) * t2;
+    const glm::dvec3 e2 = -std::sin(angle) * t1 + std::cos(angle) * t2;
+    cells[i].axis_u = glm::vec3(std::sqrt(3.0 * std::max(mid + dev, 0.0)) * e1);
+    cells[i].axis_v = glm::vec3(std::sqrt(3.0 * std::max(mid - dev, 0.0)) * e2);
     cells[i].offset = glm::vec3(centroid.x * t1 + centroid.y * t2);
     cells[i].weight = float(std::clamp(area * node_density, 0.125, 8.0));
   }

@@ -197,7 +197,9 @@ void ViewRenderer::drawSeeThrough(std::span<const ModelInstance> models, const V
     sig = mix(mix(mix(sig, b.buffer), b.count), b.seed);
     sig = mixBytes(sig, &b.spbr_k, sizeof b.spbr_k);
     sig = mixBytes(sig, &b.disc_k, sizeof b.disc_k);
-    sig = mixBytes(mix(sig, b.cells), &b.jitter_k, sizeof b.jitter_k);
+    sig = mixBytes(mix(mix(sig, b.cells), uint32_t(b.copies)), &b.jitter_k, sizeof b.jitter_k);
+    sig = mixBytes(sig, &b.cell_spread, sizeof b.cell_spread);
+    sig = mixBytes(sig, &b.ensemble_shift, sizeof b.ensemble_shift);
   }
   if (sig != mSpbrSignature) {
     mSpbrSignature = sig;
@@ -305,23 +307,30 @@ void ViewRenderer::addModel(const ModelInstance& instance, bool see_through, con
       // the opacity holds at every LOD level; opaque models sit in every ensemble.
       const SpbrOptions& so = options.spbr;
       // Independent ensembles (max_k <= 1: one copy at most) keep their points where they are.
-      const bool jitter = so.copy_jitter > 0.0 && so.max_k > 1.0 && instance.opacity < 1.0f;
-      // Jittered copies over surface cells form an even cover, more regular than the
-      // independent placement eq. 1 assumes: its discs overlap less, so the same lambda =
-      // -ln(1 - alpha) covers more. Measured on the Figure 5 plane (bench/spbr, sparse),
-      // coverage follows lambda (1.015 + 0.06 lambda); solve for the lambda that gives alpha.
-      if (so.cell_weights && jitter) b.cells = chunk.cells.name();
+      const bool moved =
+          so.copies != SpbrCopies::kAtPoint && so.max_k > 1.0 && instance.opacity < 1.0f;
+      const double density = chunk.density / (unit * unit);
+      const bool gaussian = moved && so.copies == SpbrCopies::kGaussian && so.copy_jitter > 0.0;
+      // Copies in cells only where the node's discs do not cover its cells (spbr.h).
+      const double spread = moved && so.copies == SpbrCopies::kInCell && chunk.cells.name() != 0
+                                ? spbrCellSpread(density, n.spacing)
+                                : 0.0;
+      if ((gaussian && so.cell_weights) || spread > 0.0) b.cells = chunk.cells.name();
       double alpha = instance.opacity;
-      if (jitter && so.cell_weights && b.cells && alpha < 1.0) {
-        const double target = -std::log1p(-alpha);
-        const double lambda = (-1.015 + std::sqrt(1.015 * 1.015 + 0.24 * target)) / 0.12;
-        alpha = -std::expm1(-lambda);
-      }
+      if (b.cells && alpha < 1.0) alpha = spbrCoverAlpha(alpha, so.copies, spread);
+      // Moved copies fill at most max_share of the ensembles (in cells, as far as they spread).
+      const double share = gaussian ? so.max_share : 1.0 + (so.max_share - 1.0) * spread;
       const SpbrNodeParams p =
-          spbrNodeParams(alpha, chunk.density / (unit * unit), n.spacing, total,
-                         jitter ? std::min(so.max_k, so.max_share * total) : so.max_k);
+          spbrNodeParams(alpha, density, n.spacing, total,
+                         gaussian || spread > 0.0 ? std::min(so.max_k, share * total) : so.max_k);
       b.spbr_k = float(p.k);
-      b.jitter_k = jitter ? float(so.copy_jitter * n.spacing * k) : 0.0f;
+      b.jitter_k = gaussian ? float(so.copy_jitter * n.spacing * k) : 0.0f;
+      b.copies = spread > 0.0 ? SpbrCopies::kInCell
+                 : gaussian   ? SpbrCopies::kGaussian
+                              : SpbrCopies::kAtPoint;
+      b.cell_spread = float(spread);
+      b.ensemble_shift = float(so.ensemble_shift);
+      b.cell_unit = float(chunk.spacing);
       b.disc_k = float(std::sqrt(p.cross_section / std::numbers::pi) * k);
       if (instance.opacity >= 1.0f) b.disc_k = 0.5f * b.spacing_k;
       b.seed = uint32_t(mix(key, n.id));

@@ -205,7 +205,8 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   uint32_t spbr_l = 0, spbr_progressive = 0;
   double spbr_max_k = 1e9;
-  bool no_slant = false, spbr_sparse = false, blend_colors = false;
+  bool no_slant = false, blend_colors = false;
+  std::string spbr_copies = "cell";
   app.add_option("--spbr-L", spbr_l,
                  "See-through: ensembles per frame for models with opacity < 1 (default: the "
                  "scene's, else 16)")
@@ -221,11 +222,13 @@ int main(int argc, char** argv) {
                "Colour points: blend the colours of the points within a splat's depth of the "
                "nearest on each pixel (smooth, alias-free colour; as Potree's high-quality "
                "splatting)");
-  app.add_flag("--spbr-sparse", spbr_sparse,
-               "See-through on sparse scans (a few points a pixel): copies jittered by 1.5 node "
-               "spacings and weighted by their surface cells (even noise, ~2 px edges); off: "
-               "the paper's copies, more accurate on dense fused scans. Costs 8 GPU bytes a "
-               "point and loader time");
+  app.add_option("--spbr-copies", spbr_copies,
+                 "See-through: where a point's copies go. cell (default): stratified over the "
+                 "point's surface cell (binomial noise on sparse scans, sharp edges; 16 GPU bytes "
+                 "a point and loader time); paper: where the point is (binary noise on sparse "
+                 "scans); gaussian: jittered 1.5 node spacings over surface cells (blurs edges)")
+      ->check(CLI::IsMember({"cell", "paper", "gaussian"}))
+      ->capture_default_str();
   app.add_flag("--no-slant-shading", no_slant,
                "See-through: cross-sections s cos(theta), no opacity gain on slanted surfaces");
   app.add_option("--stats", stats_path, "Append per-view statistics as CSV");
@@ -291,7 +294,8 @@ int main(int argc, char** argv) {
     options.spbr.progressive_max = spbr_progressive;
     options.spbr.max_k = spbr_max_k;
     options.spbr.slant_shading = !no_slant;
-    if (spbr_sparse) options.spbr = render::SpbrOptions::sparseScans(options.spbr);
+    if (spbr_copies == "paper") options.spbr = render::SpbrOptions::papersCopies(options.spbr);
+    if (spbr_copies == "gaussian") options.spbr = render::SpbrOptions::gaussianJitter(options.spbr);
     options.blend_colors = blend_colors;
     if (!background.empty()) options.background = glm::vec3(parseVec(background, "--background"));
 
@@ -330,8 +334,9 @@ int main(int argc, char** argv) {
     stream_options.loader_threads = loader_threads;
     stream_options.normals = no_slant;  // cos(theta) needs a normal per point
     for (const auto& m : instances) stream_options.density_ratios |= m.opacity < 1.0f;
-    // Surface cells only for the sparse-scan method (SpbrOptions::cell_weights).
-    stream_options.surface_cells = stream_options.density_ratios && options.spbr.cell_weights;
+    // Surface cells only where copies move over them (SpbrOptions::copies).
+    stream_options.surface_cells =
+        stream_options.density_ratios && options.spbr.copies != render::SpbrCopies::kAtPoint;
     auto renderView = [&](const std::string& name, const render::ViewSetup& v) {
       render::ViewRenderer r(v.width, v.height, nullptr, stream_options);
       render::RenderStats st;

@@ -45,8 +45,9 @@ struct GpuChunk {
   double density = 0.0;
   GlBuffer normals;         ///< 10:10:10 normals, when `measured` and StreamerOptions::normals
   GlBuffer density_ratios;  ///< float per point (spbr.h densityRatios()), when asked for
-  /// Per point, 8 bytes: spbr.h SurfaceCell as half floats, (offset x, y), (offset z, weight);
-  /// when `measured` and StreamerOptions::surface_cells.
+  /// Per point, 16 bytes: spbr.h SurfaceCell, its axes in units of `spacing` as half floats,
+  /// weight and centroid (chunk_streamer.cpp packCell()); when `measured` and
+  /// StreamerOptions::surface_cells.
   GlBuffer cells;
 };
 
@@ -75,11 +76,11 @@ struct StreamerOptions {
   /// out density jumps inside a node with it, e.g. overlapping scans). About as costly as
   /// decoding; render nodes and see-through views turn it on.
   bool density_ratios = false;
-  /// Each point's surface cell on loading (spbr.h surfaceCells(): area and centroid): what lets
-  /// see-through rendering of sparse scans cover their surfaces evenly (SpbrOptions::sparseScans(),
-  /// cell_weights). About twice the cost of decoding, 8 GPU bytes a point: off unless a view
-  /// asks for the sparse-scan method.
-  bool surface_cells = false;
+  /// Each point's surface cell on loading (spbr.h surfaceCells(): area, centroid and extent),
+  /// for see-through chunks only: what lets see-through rendering of sparse scans cover their
+  /// surfaces evenly (SpbrCopies::kInCell, the default, and kGaussian with cell_weights). About
+  /// twice the cost of decoding, 16 GPU bytes a point; without it copies stay on their points.
+  bool surface_cells = true;
   /// Each leaf point's own splat size (splat_sizes.h: the disc that closes the surface around
   /// it, in the GPU point's top byte), for the chunks request() asks them for (leaves seen
   /// close): closes the gaps between scan lines. Several times the cost of decoding, so only

@@ -18,6 +18,7 @@
 
 #include <tessera/render/frame_target.h>
 #include <tessera/render/gl_objects.h>
+#include <tessera/render/spbr.h>
 
 namespace tessera::render {
 
@@ -59,7 +60,11 @@ struct DrawBatch {
   glm::vec3 eye_local{0.0f};    ///< the eye in the batch's frame
   uint32_t density_ratios = 0;  ///< GL buffer of per-point density ratios (k scale), or 0
   uint32_t cells = 0;           ///< GL buffer of surface cells (chunk_streamer.h GpuChunk), or 0
-  float jitter_k = 0.0f;        ///< copies' offset standard deviation, pixels at view depth 1
+  float jitter_k = 0.0f;        ///< kGaussian: copies' offset standard deviation, px at depth 1
+  SpbrCopies copies = SpbrCopies::kAtPoint;  ///< where copies go (with `cells`: kInCell)
+  float cell_unit = 0.0f;       ///< store units of the cells' axes (the chunk's spacing)
+  float cell_spread = 0.0f;     ///< kInCell: share of the cell copies spread over (spbr.h)
+  float ensemble_shift = 0.0f;  ///< kInCell: pixels whole ensembles shift over (x cell_spread)
   float point_alpha = 0.0f;     ///< blended baselines (drawBlended()): each point's opacity
 };
 

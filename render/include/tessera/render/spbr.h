@@ -11,9 +11,15 @@
 // cross-section follows its spacing, so the opacity holds at every level. Copies are never
 // stored: the shader deals copy c of point i into ensemble (h(i) + c) mod L, h a stable hash of
 // the node and the point index, so tiles of a wall agree and no point is invented.
+//
+// Sparse scans (2 to 8 points a pixel, where the paper assumes ~38): by default (SpbrCopies::
+// kInCell) a node whose discs do not cover its points' cells (spbrCellSpread()) spreads each
+// point's copies, stratified, over its surface cell (surfaceCells()) and shifts every ensemble
+// within the pixel, so the L ensembles decorrelate while copies stay within the local spacing.
 #pragma once
 
 #include <cstdint>
+#include <limits>
 #include <span>
 #include <string>
 #include <vector>
@@ -22,42 +28,67 @@
 
 namespace tessera::render {
 
+/// Where the copies of a point go (eq. 4's k > 1). The paper copies a point where it is, which
+/// assumes ~38 points a pixel; scans give 2 to 8, and then the L ensembles hold nearly the same
+/// points and average to binary noise (bench/spbr sparse).
+enum class SpbrCopies {
+  /// The paper (section 3.2.2): every copy where its point is. Sharp, exact for dense data;
+  /// binary noise on sparse scans (std 2.1 - 8.0x the binomial on the Figure 5 plane at 10^6).
+  kAtPoint,
+  /// Copy c moved by a Gaussian of `copy_jitter` node spacings in the image plane, optionally
+  /// over surface cells (`cell_weights`). Binomial on sparse scans, but blurs edges (1.8 - 2.2 px)
+  /// and the fused bunny (RMSE 24.2 against 15.1).
+  kGaussian,
+  /// The default: copies stratified over the point's surface cell (surfaceCells(): its Voronoi
+  /// cell in the tangent plane, sampled as the rectangle of the same second moments), their
+  /// number in proportion to the cell's area, copy c at the c-th point of a randomly shifted
+  /// R2 low-discrepancy sequence (Roberts 2018) in the rectangle. The copies of all points then
+  /// cover the surface evenly in every ensemble, and a point's copies never leave its cell, so
+  /// the jitter is bounded by the local spacing: sharp on edges, nearly still on dense scans.
+  /// Needs StreamerOptions::surface_cells (on by default); chunks without cells get kAtPoint.
+  kInCell,
+};
+
 struct SpbrOptions {
   uint32_t ensembles = 16;       ///< L: ensembles per frame
   uint32_t progressive_max = 0;  ///< >L: a resting view keeps adding ensembles up to this many
   bool slant_shading = true;     ///< eq. 2's opacity gradation on slanted surfaces (off: s cos)
   /// Largest adjustment ratio k (eq. 4) before cross-sections grow instead. The default keeps
   /// the paper's fixed cross-section (the opaque disc) and copies points as k requires (up to
-  /// one copy in each ensemble, or max_share x L with copy_jitter).
+  /// one copy in each ensemble, or max_share x L with copies moved off their point).
   /// 1 makes every ensemble hold its own points (statistically independent, noise falls as
   /// 1/sqrt(L)) by growing the discs instead: smooth but blurred, since discs grow with L
-  /// (bench/spbr measures both against an exact compositor; copies win on the fused bunny).
+  /// (bench/spbr measures both against an exact compositor).
   double max_k = 1e9;
-  /// Sparse scans (2 to 8 points a pixel, where the paper assumes ~38), opt-in (sparseScans()):
-  /// copy c of a point is moved by a Gaussian offset of this standard deviation, in node
-  /// spacings, in the image plane (deterministic from the node, the point index and c), so the
-  /// copies of one point in different ensembles cover different pixels and the ensembles
-  /// decorrelate. 0 (the default, the paper): every copy where the point is; on sparse scans
-  /// the L images then average only about L / k independent ones and the picture is nearly
-  /// binary noise. Blurs edges by about 2.6 x this x the spacing in pixels (10-90%); costs
-  /// nothing measurable. Not the default: it costs accuracy on dense fused scans (bench/spbr
-  /// sparse: bunny RMSE to the exact compositor 24.2 against the paper's 15.1, L = 64).
-  double copy_jitter = 0.0;
-  /// With copy_jitter: the largest share of the L ensembles one point's copies fill before
-  /// cross-sections grow instead. Each ensemble is then a random thinning of the surface cover,
-  /// close to the independent placement eq. 1 assumes (nearly every point in every ensemble
-  /// makes an ensemble as regular as the cover, and more opaque than eq. 1 predicts).
-  double max_share = 0.5;
-  /// With copy_jitter: scale each point's copies by its surface cell's area and centre them on
-  /// the cell's centroid (spbr.h surfaceCells(); only where the streamer measured them,
-  /// StreamerOptions::surface_cells): an even cover of the surface from an uneven sample (a
-  /// random sample's clumps and gaps otherwise stay in every ensemble, however large L). Both
-  /// apply only with max_k > 1 (max_k 1: independent ensembles, as before).
-  bool cell_weights = false;
-  /// The sparse-scan method as measured (bench/spbr sparse): copy_jitter 1.5, cell weights on,
-  /// the rest of `base` kept. Its views need StreamerOptions::surface_cells.
-  static SpbrOptions sparseScans(SpbrOptions base);
-  static SpbrOptions sparseScans() { return sparseScans(SpbrOptions()); }
+  /// Where copies go (see SpbrCopies); all apply only with max_k > 1 (max_k 1: independent
+  /// ensembles, no copies).
+  SpbrCopies copies = SpbrCopies::kInCell;
+  /// kGaussian: the offset's standard deviation in node spacings, in the image plane
+  /// (deterministic from the node, the point index and c). Blurs edges by about 2.6 x this x the
+  /// spacing in pixels (10-90%).
+  double copy_jitter = 1.5;
+  /// kGaussian and kInCell: the largest share of the L ensembles one point's copies fill before
+  /// cross-sections grow instead. Below 1 each ensemble is a random thinning of the surface
+  /// cover, closer to the independent placement eq. 1 assumes, but discs grow sooner (blur).
+  double max_share = 1.0;
+  /// kInCell: each ensemble is shifted as a whole by a random sub-pixel offset within a square
+  /// of this side, pixels (x the node's spread; from a hash of the ensemble index, the same on
+  /// every tile), as a temporal antialiasing jitter: the average then samples each pixel at L
+  /// places, a box filter over what structure of the cover remains at the scale of a cell (the
+  /// rectangles only approximate the cells), which dominates the noise near alpha 1 (bench/spbr
+  /// sparse: std 1.63x the binomial at alpha 0.95 without, 1.21x with). Widens edges by about
+  /// 0.4 px (10-90%); 0: off.
+  double ensemble_shift = 1.0;
+  /// kGaussian: scale each point's copies by its surface cell's area and centre them on the
+  /// cell's centroid (needs StreamerOptions::surface_cells).
+  bool cell_weights = true;
+  /// The paper's copies (SpbrCopies::kAtPoint), the rest of `base` kept.
+  static SpbrOptions papersCopies(SpbrOptions base);
+  static SpbrOptions papersCopies() { return papersCopies(SpbrOptions()); }
+  /// The sparse-scan method before copies in cells (bench/spbr sparse, "gaussian"): copies
+  /// jittered by a Gaussian of 1.5 spacings over surface cells, the rest of `base` kept.
+  static SpbrOptions gaussianJitter(SpbrOptions base);
+  static SpbrOptions gaussianJitter() { return gaussianJitter(SpbrOptions()); }
   /// See-through views refine the LOD cut this much finer than opaque ones: denser nodes let
   /// each ensemble take fewer points of smaller cross-section.
   double lod_scale = 0.5;
@@ -71,9 +102,16 @@ struct SpbrOptions {
   bool single_layer_baseline = false;
 };
 
-inline SpbrOptions SpbrOptions::sparseScans(SpbrOptions base) {
+inline SpbrOptions SpbrOptions::papersCopies(SpbrOptions base) {
+  base.copies = SpbrCopies::kAtPoint;
+  return base;
+}
+
+inline SpbrOptions SpbrOptions::gaussianJitter(SpbrOptions base) {
+  base.copies = SpbrCopies::kGaussian;
   base.copy_jitter = 1.5;
   base.cell_weights = true;
+  base.max_share = 0.5;
   return base;
 }
 
@@ -81,6 +119,23 @@ inline SpbrOptions SpbrOptions::sparseScans(SpbrOptions base) {
 double spbrOpacity(double n, double s, double S);
 /// Points per segment area S that give opacity alpha with cross-section s (eq. 1 inverted).
 double spbrPointsFor(double alpha, double s, double S);
+
+/// How far SpbrCopies::kInCell spreads a node's copies over their cells, in [0, 1], from the
+/// node's points per disc rho s = `density` x pi `spacing`^2 (s the cross-section, the opaque
+/// disc). Below 1 the mean cell (1 / density) is larger than a disc: copies at their points
+/// leave holes in every ensemble's cover that no number of ensembles closes, the binary noise
+/// of a random sample (rho s = pi / 4 for uniformly random points, whose mean spacing is half
+/// the mean distance). From 1 on the discs cover the cells (scan grids: 1 to 2.5 on the
+/// bunny's scans) and what gaps remain are the data's, which an exact compositor shows: copies
+/// stay at their points, as the paper. 1 up to rho s = 0.85, 0 from 1, linear between.
+double spbrCellSpread(double density, double spacing);
+
+/// The opacity to ask of eq. 1 so that copies moved over surface cells (`copies`, spread by
+/// `spread`, spbrCellSpread()) show `alpha`. Such a cover is more regular than the independent
+/// placement eq. 1 assumes: its discs overlap less, so the same lambda = -ln(1 - alpha) covers
+/// more. Fitted on the Figure 5 plane (bench/spbr sparse); `alpha` itself for
+/// SpbrCopies::kAtPoint, and for kInCell with spread 0.
+double spbrCoverAlpha(double alpha, SpbrCopies copies, double spread = 1.0);
 
 /// One node's SPBR parameters.
 struct SpbrNodeParams {
@@ -119,24 +174,34 @@ std::vector<float> densityRatios(std::span<const glm::vec3> points, double radiu
 /// points are near. For turning the slant shading off (cross-section s cos(theta), eq. 2).
 std::vector<uint32_t> estimateNormals(std::span<const glm::vec3> points, double radius);
 
-/// A point's share of its surface (surfaceCells()): where its copies are centred and how many
-/// it gets.
+/// A point's share of its surface (surfaceCells()): where its copies are centred, over what
+/// they spread and how many it gets.
 struct SurfaceCell {
   glm::vec3 offset{0.0f};  ///< from the point to its cell's centroid, the points' units
   float weight = 1.0f;     ///< the cell's area times the node's density: 1 on average
+  /// Half-sides of the rectangle with the cell's area moments (its principal axes, in the
+  /// tangent plane, orthogonal; the points' units): copies spread uniformly over
+  /// offset + [-1, 1] axis_u + [-1, 1] axis_v. Open cells get the square of the node's mean
+  /// cell area (1 / node_density) around the point; points without a tangent plane, zero.
+  glm::vec3 axis_u{0.0f};
+  glm::vec3 axis_v{0.0f};
 };
 
 /// Each point's Voronoi cell among its neighbours within `radius` (about 6 node spacings), in
-/// the tangent plane of those neighbours (PCA): the area relative to the node's mean
-/// (x `node_density`, points per unit area; clamped to [1/8, 8]) and the offset to the
-/// centroid. Points whose cell stays open (still touching the radius-sized square it is cut from:
-/// the edge of the data, or of the node, whose neighbours beyond its faces are elsewhere), or
-/// with fewer than 3 neighbours, get
-/// weight 1 and no offset. Scaling each point's
-/// copies by its weight and centring them on the centroid turns the random sample of a sparse
-/// scan into an even cover of its surface (spbr_raster.comp). O(n) with ~20 neighbours a
-/// point; about twice the cost of decoding.
-std::vector<SurfaceCell> surfaceCells(std::span<const glm::vec3> points, double radius,
-                                      double node_density);
+/// the tangent plane of those neighbours (PCA), cut by the node's box [`box_min`, `box_max`]
+/// (the points' frame; the cells of neighbouring nodes then meet at its faces): the area relative
+/// to the node's mean (x `node_density`, points per unit area; clamped to [1/8, 8]) and the offset
+/// to the centroid, and the rectangle of its area moments (SurfaceCell::axis_u, axis_v). Points
+/// whose cell stays open (still touching the radius-sized square it is cut from: the edge of the
+/// data, or of the node, whose neighbours beyond its faces are elsewhere) get weight 1, no offset
+/// and the square of the mean cell around themselves; points with fewer than 3 neighbours get
+/// weight 1 and nothing else. Spreading each point's copies over its rectangle, their number
+/// scaled by its weight, turns the random sample of a sparse scan into an even cover of its
+/// surface (spbr_raster.comp). O(n) with ~20 neighbours a point; about twice the cost of
+/// decoding.
+std::vector<SurfaceCell> surfaceCells(
+    std::span<const glm::vec3> points, double radius, double node_density,
+    const glm::vec3& box_min = glm::vec3(-std::numeric_limits<float>::infinity()),
+    const glm::vec3& box_max = glm::vec3(std::numeric_limits<float>::infinity()));
 
 }  // namespace tessera::render
