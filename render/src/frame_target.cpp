@@ -30,13 +30,22 @@ const GlBuffer& FrameTarget::colorSums() {
   return mColorSums;
 }
 
-void FrameTarget::clearGeometry(bool pick, bool blend) {
+const GlBuffer& FrameTarget::splatRadii() {
+  if (!mSplatRadii) mSplatRadii = plane(mWidth, mHeight);
+  return mSplatRadii;
+}
+
+void FrameTarget::clearGeometry(bool pick, bool blend, bool radii) {
   mDepth.clear(kEmptyDepth);
   mColors.clear(0xFFFFFFFFu);
   if (pick) mPick.clear(kNoPick);
   if (blend) {
     colorSums();
     mColorSums.clear(0);
+  }
+  if (radii) {
+    splatRadii();
+    mSplatRadii.clear(0);
   }
 }
 

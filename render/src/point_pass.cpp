@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 
 #define GL_GLEXT_PROTOTYPES
 #include <GL/glcorearb.h>
@@ -59,7 +60,9 @@ PassTimings PointPass::draw(FrameTarget& target, std::span<const DrawBatch> batc
   bind(TESSERA_BINDING_PICK, target.pick());
   const bool blend = shading.blend && shading.uniform_color == 0;
   if (blend) bind(TESSERA_BINDING_COLOR_SUMS, target.colorSums());
+  if (shading.fill) bind(TESSERA_BINDING_SPLAT_RADII, target.splatRadii());
   mRaster.use();
+  mRaster.set("uFill", shading.fill ? 1 : 0);
   mRaster.set("uBlend", blend ? 1 : 0);
   mRaster.set("uP22", float(shading.projection[2][2]));
   mRaster.set("uP32", float(shading.projection[3][2]));
@@ -73,10 +76,12 @@ PassTimings PointPass::draw(FrameTarget& target, std::span<const DrawBatch> batc
       if (b.count == 0) continue;
       glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_POINTS,
                        b.buffer ? b.buffer : mPoints.name());
-      mRaster.set("uSpacingK", b.spacing_k);
+      // A spacing that is not a number (bad input upstream) draws single pixels.
+      const bool no_spacing = std::isnan(b.spacing_k);
+      mRaster.set("uSpacingK", no_spacing ? 0.0f : b.spacing_k);
       mRaster.set("uColorOverride", b.color_override);
       mRaster.set("uClip", b.clip_from_local);
-      mRaster.set("uRadius", b.splat_radius);
+      mRaster.set("uRadius", no_spacing ? 0 : b.splat_radius);
       mRaster.set("uBlendDepth", b.blend_depth);
       dispatchSlices(b.count, [&](uint32_t done, uint32_t count) {
         mRaster.set("uFirst", b.first + done);

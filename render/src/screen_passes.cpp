@@ -1,5 +1,6 @@
 #include <tessera/render/screen_passes.h>
 
+#include <algorithm>
 #include <cmath>
 
 #include <tessera/core/check.h>
@@ -12,11 +13,16 @@ namespace tessera::render {
 namespace {
 
 static_assert(kEdlMaxFilterRadius == TESSERA_EDL_MAX_FILTER_RADIUS);
+static_assert(kFillMaxLevels == TESSERA_FILL_MAX_LEVELS);
 
-void dispatchPixels(const FrameTarget& target) {
-  glDispatchCompute((target.width() + 15) / 16, (target.height() + 15) / 16, 1);
+void dispatchPixels(uint32_t width, uint32_t height) {
+  glDispatchCompute((width + 15) / 16, (height + 15) / 16, 1);
   glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT | GL_SHADER_STORAGE_BARRIER_BIT |
                   GL_PIXEL_BUFFER_BARRIER_BIT);
+}
+
+void dispatchPixels(const FrameTarget& target) {
+  dispatchPixels(target.width(), target.height());
 }
 
 }  // namespace
@@ -76,6 +82,72 @@ double EdlPass::run(FrameTarget& target, const EdlOptions& options, const glm::d
     mProgram.set("uStage", stage);
     dispatchPixels(target);
   }
+  return lap();
+}
+
+FillPass::FillPass() : mProgram(GlProgram::compute(shaders::kFill, "fill.comp")) {}
+
+double FillPass::run(FrameTarget& target, const glm::dmat4& projection, float max_radius,
+                     bool colors, bool pick) {
+  if (!(max_radius >= 1.0f)) return 0.0;
+  GpuLap lap;
+  // Levels whose 3x3 neighbourhood reaches max_radius from anywhere in the centre texel.
+  int levels = 0;
+  while (levels < kFillMaxLevels && float(1 << levels) < max_radius) ++levels;
+  max_radius = std::min(max_radius, float(1 << levels));
+  const uint32_t w = target.width(), h = target.height();
+  if (mPixels != target.pixels()) {
+    mPixels = target.pixels();
+    size_t texels = 0;
+    for (int l = 1; l <= kFillMaxLevels; ++l)
+      texels += size_t((w + (1u << l) - 1) >> l) * ((h + (1u << l) - 1) >> l);
+    for (GlBuffer* b : {&mPyramid, &mDepth, &mColors, &mPick}) *b = GlBuffer();
+    mWinners = uint32_t(texels);
+    mPyramid = GlBuffer(texels * 16, nullptr);  // the pull's samples, then the push's winners
+    mDepth = GlBuffer(mPixels * 4, nullptr);
+  }
+  if (colors && !mColors) mColors = GlBuffer(mPixels * 4, nullptr);
+  if (pick && !mPick) mPick = GlBuffer(mPixels * 4, nullptr);
+  mProgram.use();
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_DEPTH, target.depth().name());
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_COLORS, target.colors().name());
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_PICK, target.pick().name());
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_SPLAT_RADII,
+                   target.splatRadii().name());
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_FILL_PYRAMID, mPyramid.name());
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_FILL_DEPTH, mDepth.name());
+  // Unused output planes are bound to the depth output (never written: uWrite* is 0).
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_FILL_COLORS,
+                   colors ? mColors.name() : mDepth.name());
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_FILL_PICK,
+                   pick ? mPick.name() : mDepth.name());
+  mProgram.set("uSize", glm::ivec2(w, h));
+  mProgram.set("uLevels", levels);
+  mProgram.set("uWinners", mWinners);
+  mProgram.set("uMaxRadius", max_radius);
+  mProgram.set("uTolerance", kFillDepthTolerance);
+  mProgram.set("uPixelK", float(2.0 / (projection[1][1] * h)));
+  mProgram.set("uP22", float(projection[2][2]));
+  mProgram.set("uP32", float(projection[3][2]));
+  mProgram.set("uWriteColor", colors ? 1 : 0);
+  mProgram.set("uWritePick", pick ? 1 : 0);
+  mProgram.set("uStage", 0);
+  for (int l = 1; l < levels; ++l) {  // the push at level l reads the samples of l - 1
+    mProgram.set("uLevel", l);
+    dispatchPixels((w + (1u << l) - 1) >> l, (h + (1u << l) - 1) >> l);
+  }
+  mProgram.set("uStage", 2);
+  for (int l = levels; l >= 1; --l) {
+    mProgram.set("uLevel", l);
+    dispatchPixels((w + (1u << l) - 1) >> l, (h + (1u << l) - 1) >> l);
+  }
+  mProgram.set("uStage", 1);
+  dispatchPixels(w, h);
+  const auto bytes = GLsizeiptr(mPixels * 4);
+  glCopyNamedBufferSubData(mDepth.name(), target.depth().name(), 0, 0, bytes);
+  if (colors) glCopyNamedBufferSubData(mColors.name(), target.colors().name(), 0, 0, bytes);
+  if (pick) glCopyNamedBufferSubData(mPick.name(), target.pick().name(), 0, 0, bytes);
+  glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT | GL_SHADER_STORAGE_BARRIER_BIT);
   return lap();
 }
 

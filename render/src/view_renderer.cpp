@@ -121,10 +121,16 @@ void ViewRenderer::draw(std::span<const ModelInstance> models, const ViewSetup& 
     mSpbrSignature = 0;
     shading.blend = options.blend_colors && shading.uniform_color == 0;
     shading.projection = view.projection;
-    mTarget.clearGeometry(pick, shading.blend);
+    shading.fill = options.fill == SurfaceFill::kPullPush && !shading.blend;
+    mTarget.clearGeometry(pick, shading.blend, shading.fill);
     const PassTimings t = mPoints.draw(mTarget, batches, shading);
     st.depth_ms = t.depth_ms;
     st.color_ms = t.color_ms;
+    if (shading.fill) {
+      if (!mFill) mFill = std::make_unique<FillPass>();
+      st.fill_ms = mFill->run(mTarget, view.projection, float(options.max_splat_radius),
+                              shading.uniform_color == 0, pick);
+    }
     st.resolve_ms = mResolve.run(mTarget, options.background, shading.uniform_color, shading.blend);
     st.screen_ms = mEdl.run(mTarget, options.edl, view.projection);
   }

@@ -43,10 +43,14 @@ class FrameTarget {
   /// Blended colours (PointShading::blend): per pixel the weighted r, g, b sums and the weight
   /// (16 bytes), made on first use. Raster order.
   const GlBuffer& colorSums();
+  /// Splat radii for the pull-push fill (PointShading::fill, FillPass): per pixel the largest
+  /// radius in pixels (float) that the splats drawn on it as single points would have had as
+  /// discs, 0 where none; made on first use (4 bytes a pixel). Raster order.
+  const GlBuffer& splatRadii();
 
   /// Starts a frame's geometry: depth and colours empty; pick ids empty when `pick`; colour
-  /// sums zero when `blend`.
-  void clearGeometry(bool pick, bool blend = false);
+  /// sums zero when `blend`; splat radii zero when `radii`.
+  void clearGeometry(bool pick, bool blend = false, bool radii = false);
 
   Image readImage() const;
   /// One plane read back, raster order.
@@ -57,7 +61,7 @@ class FrameTarget {
 
  private:
   uint32_t mWidth, mHeight;
-  GlBuffer mDepth, mColors, mPick, mImage, mColorSums;
+  GlBuffer mDepth, mColors, mPick, mImage, mColorSums, mSplatRadii;
 };
 
 }  // namespace tessera::render

@@ -72,6 +72,11 @@ struct PointShading {
   /// view's (for view depth from window depth).
   bool blend = false;
   glm::dmat4 projection{1.0};
+  /// For the pull-push fill (FillPass; Marroquim et al. 2007): every point on screen is one
+  /// pixel, and the depth pass also keeps per pixel the largest radius its disc would have had
+  /// (the target's splatRadii(); one more read, sometimes an atomic, per point). Points off
+  /// screen still draw their discs, so what reaches into the view from outside is as before.
+  bool fill = false;
 };
 
 /// Milliseconds per step of the last call, measured on the CPU with the GL work finished after

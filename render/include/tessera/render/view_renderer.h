@@ -32,6 +32,15 @@ enum class Transparency {
   kWeightedBlended,  ///< baseline: McGuire and Bavoil's weighted blended OIT (depth weights)
 };
 
+/// How opaque points close surfaces (RenderOptions::fill).
+enum class SurfaceFill {
+  /// Each point a disc of its splat size: cost grows with the splats' area.
+  kDiscs,
+  /// Each point one pixel, then the pull-push fill (FillPass; Marroquim et al. 2007) closes
+  /// what the discs would have covered: cost grows with the pixels, whatever the splat size.
+  kPullPush,
+};
+
 struct RenderOptions {
   double lod_pixels = 1.0;
   /// Most points in each model's cut for a view (0: no limit), refined largest projected
@@ -62,6 +71,9 @@ struct RenderOptions {
   /// each pixel (high-quality splatting, as Potree's) instead of the nearest point's colour:
   /// smooth, alias-free colour for 4 atomics per point and pixel more.
   bool blend_colors = false;
+  /// Opaque frames without blend_colors: discs or 1 px points and the pull-push fill (see-
+  /// through and blended frames always draw discs).
+  SurfaceFill fill = SurfaceFill::kDiscs;
 };
 
 /// One frame. `nodes`..`points` describe what was drawn.
@@ -74,6 +86,7 @@ struct RenderStats {
   size_t corrupt_chunks = 0;  ///< cut nodes whose chunk the store refused (drawn by ancestors)
   StreamStats stream;         ///< requested / uploaded / evicted, resident bytes
   double select_ms = 0, upload_ms = 0, depth_ms = 0, color_ms = 0, resolve_ms = 0, readback_ms = 0;
+  double fill_ms = 0;            ///< the pull-push fill (SurfaceFill::kPullPush)
   double screen_ms = 0;          ///< screen passes after the resolve (eye-dome lighting)
   double overlay_ms = 0;         ///< the overlay pass
   size_t frames = 1;             ///< frames renderSettled() drew
@@ -81,8 +94,8 @@ struct RenderStats {
   uint32_t ensembles_drawn = 0;  ///< ... of which this frame drew
   uint64_t copies = 0;           ///< see-through: point copies drawn this frame
   double totalMs() const {
-    return select_ms + upload_ms + depth_ms + color_ms + resolve_ms + screen_ms + overlay_ms +
-           readback_ms;
+    return select_ms + upload_ms + depth_ms + color_ms + fill_ms + resolve_ms + screen_ms +
+           overlay_ms + readback_ms;
   }
 };
 
@@ -163,6 +176,7 @@ class ViewRenderer {
   PointPass mPoints;
   ResolvePass mResolve;
   EdlPass mEdl;
+  std::unique_ptr<FillPass> mFill;        ///< made on first use
   std::unique_ptr<OverlayPass> mOverlay;  ///< made on first use (builds a font atlas)
   std::vector<PickRange> mPickRanges;     ///< the last frame's, by base
   std::vector<lod::NodeId> mBatchNodes;   ///< this frame's batches' nodes
