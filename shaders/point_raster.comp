@@ -14,8 +14,9 @@ layout(std430, binding = TESSERA_BINDING_DEPTH) buffer Depth { uint depth[]; };
 layout(std430, binding = TESSERA_BINDING_COLORS) buffer Colors { uint colors[]; };  // rgb, 0xFFFFFFFF: none
 layout(std430, binding = TESSERA_BINDING_PICK) buffer Pick { uint pick[]; };  // frame-wide point id
 layout(std430, binding = TESSERA_BINDING_COLOR_SUMS) buffer Sums { uint sums[]; };  // w r, w g, w b, w
-// uFill: per pixel the largest splat footprint drawn on it as a point (radius and position).
-layout(std430, binding = TESSERA_BINDING_SPLAT_RADII) buffer Radii { uint radii[]; };
+// uFill: per pixel the footprint of the nearest point drawn on it (radius and position) and
+// whether more than one point fell there: two words a pixel.
+layout(std430, binding = TESSERA_BINDING_SPLAT_FOOTPRINTS) buffer Footprints { uint footprints[]; };
 
 uniform mat4 uClip;            // clip from the batch's node frame
 uniform uint uColorOverride;  // non-zero: 0x1000000 | rgb for every point of the batch
@@ -32,7 +33,7 @@ uniform ivec2 uSize;    // viewport in pixels
 uniform int uRadius;    // the largest splat radius, pixels (the radius when uSpacingK is 0)
 uniform float uSpacingK;  // node spacing in pixels at view depth 1 (0: fixed radius uRadius)
 uniform int uPass;      // 0: depth, 1: colour
-uniform int uFill;      // 1 px points plus their splat radii, for the pull-push fill (fill.comp)
+uniform int uFill;      // 1 px points plus their splat footprints, for the pull-push fill (fill.comp)
 
 // Pass 0 keeps the nearest depth; pass 1, among the points at that depth, one colour (below)
 // and the smallest pick id (two points at exactly the same depth may give the colour of one and
@@ -95,33 +96,32 @@ void main() {
   int radius = uSpacingK > 0.0 ? int(ceil(disc - 0.5)) : max(uRadius, 0);
   bool on_screen = centre.x >= 0 && centre.y >= 0 && centre.x < uSize.x && centre.y < uSize.y;
   if (uFill != 0 && on_screen) {
-    // Fill mode (Marroquim et al. 2007): the point as one pixel and, in the depth pass, the
-    // radius its disc would have had, measured between pixel centres as fill.comp tests it (the
-    // fixed disc covers the pixel offsets with dx^2 + dy^2 <= r^2 + r). Points off screen keep
-    // their discs: the fill has no samples beyond the viewport, and their discs reach into it
-    // exactly as without the fill (the tiles of a wall meet as before).
+    // Fill mode (Marroquim et al. 2007): the point as one pixel and the footprint its disc would
+    // have had. Points off screen keep their discs: the fill has no samples beyond the viewport,
+    // and their discs reach into it exactly as without the fill (the tiles of a wall meet as
+    // before).
+    uint idx = uint(centre.y) * uint(uSize.x) + uint(centre.x);
     if (uPass == 0) {
-      // The footprint, packed as fill.comp reads it: the radius in 1/256 pixels in the top 16
-      // bits, the point's position in its pixel in 1/256 pixels in the next 8 (x) and 7 (y), so
-      // the fill tests reach exactly as the disc loop below does (a fixed disc is centred on its
-      // pixel); the pixel's largest radius wins. Bit 0 says a second point fell on the pixel,
-      // whose position is lost: the fill then reaches from anywhere in the pixel. Whatever the
-      // order the points arrive in, the flag ends set exactly when two or more did.
-      float reach = uSpacingK > 0.0 ? disc : sqrt(float(radius * radius + radius));
-      vec2 in_pixel = uSpacingK > 0.0 ? clamp(pos - vec2(centre), 0.0, 1.0) : vec2(0.5);
-      uvec2 sub = uvec2(min(in_pixel * vec2(256.0, 128.0), vec2(255.0, 127.0)));
-      uint print = uint(min(reach, 255.99) * 256.0) << 16 | sub.x << 8 | sub.y << 1;
-      uint idx = uint(centre.y) * uint(uSize.x) + uint(centre.x);
-      uint seen = radii[idx];
-      uint mine = print | (seen != 0u ? 1u : 0u);
-      if (mine > seen) {
-        uint old = atomicMax(radii[idx], mine);
-        if (old != 0u && (max(old, mine) & 1u) == 0u) atomicOr(radii[idx], 1u);
-      } else if ((seen & 1u) == 0u) {
-        atomicOr(radii[idx], 1u);
+      // The footprint, packed as fill.comp reads it: the top 16 bits of the inverted depth (so
+      // the nearest point's wins), the radius in 1/8 pixels (bits 8-15) and the point's
+      // position in its pixel in 1/16 pixels (x bits 4-7, y bits 0-3), so the fill tests reach
+      // as the disc loop below does (a fixed disc is centred on its pixel). Only a point that
+      // comes nearer than all before it writes one (atomicMin tells), so a pixel sees a few
+      // atomics, not one per point; the next word says that more than one point fell there
+      // (their other positions are lost). The same whatever order the points arrive in.
+      uint old = atomicMin(depth[idx], d);
+      if (old != 0xFFFFFFFFu && footprints[2u * idx + 1u] == 0u) footprints[2u * idx + 1u] = 1u;
+      if (d <= old) {
+        float reach = uSpacingK > 0.0 ? disc : sqrt(float(radius * radius + radius));
+        vec2 in_pixel = uSpacingK > 0.0 ? clamp(pos - vec2(centre), 0.0, 1.0) : vec2(0.5);
+        uvec2 sub = uvec2(min(in_pixel * 16.0, vec2(15.0)));
+        uint print = (~d & 0xFFFF0000u) | uint(min(reach * 8.0, 255.0)) << 8 | sub.x << 4 | sub.y;
+        if (print > footprints[2u * idx]) atomicMax(footprints[2u * idx], print);
       }
+      return;
     }
-    radius = 0;
+    write(idx, d, gi, i, c.w, 1.0);
+    return;
   }
   if (radius == 0) {
     // One pixel (fine LOD levels, far points): no loop, which llvmpipe runs much faster.

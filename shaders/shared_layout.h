@@ -20,7 +20,7 @@
 #define TESSERA_BINDING_OVERLAY 10      // overlay primitives (overlay_pass.h)
 #define TESSERA_BINDING_COLOR_SUMS 11   // uvec4 per pixel: weighted r, g, b sums and weight
 #define TESSERA_BINDING_SCREEN_SCRATCH 12  // float per pixel: a screen pass's own plane (EDL)
-#define TESSERA_BINDING_SPLAT_RADII 13     // float per pixel: largest splat radius drawn as a point
+#define TESSERA_BINDING_SPLAT_FOOTPRINTS 13  // uvec2 per pixel: the nearest point's splat (fill)
 #define TESSERA_BINDING_FILL_PYRAMID 14    // uvec2 per texel: the fill's pyramid (fill.comp)
 #define TESSERA_BINDING_FILL_DEPTH 15      // the fill's output planes: depth, colours, pick ids
 #define TESSERA_BINDING_FILL_COLORS 16

@@ -30,12 +30,12 @@ const GlBuffer& FrameTarget::colorSums() {
   return mColorSums;
 }
 
-const GlBuffer& FrameTarget::splatRadii() {
-  if (!mSplatRadii) mSplatRadii = plane(mWidth, mHeight);
-  return mSplatRadii;
+const GlBuffer& FrameTarget::splatFootprints() {
+  if (!mSplatFootprints) mSplatFootprints = GlBuffer(pixels() * 8, nullptr);
+  return mSplatFootprints;
 }
 
-void FrameTarget::clearGeometry(bool pick, bool blend, bool radii) {
+void FrameTarget::clearGeometry(bool pick, bool blend, bool footprints) {
   mDepth.clear(kEmptyDepth);
   mColors.clear(0xFFFFFFFFu);
   if (pick) mPick.clear(kNoPick);
@@ -43,9 +43,9 @@ void FrameTarget::clearGeometry(bool pick, bool blend, bool radii) {
     colorSums();
     mColorSums.clear(0);
   }
-  if (radii) {
-    splatRadii();
-    mSplatRadii.clear(0);
+  if (footprints) {
+    splatFootprints();
+    mSplatFootprints.clear(0);
   }
 }
 

@@ -60,7 +60,7 @@ PassTimings PointPass::draw(FrameTarget& target, std::span<const DrawBatch> batc
   bind(TESSERA_BINDING_PICK, target.pick());
   const bool blend = shading.blend && shading.uniform_color == 0;
   if (blend) bind(TESSERA_BINDING_COLOR_SUMS, target.colorSums());
-  if (shading.fill) bind(TESSERA_BINDING_SPLAT_RADII, target.splatRadii());
+  if (shading.fill) bind(TESSERA_BINDING_SPLAT_FOOTPRINTS, target.splatFootprints());
   mRaster.use();
   mRaster.set("uFill", shading.fill ? 1 : 0);
   mRaster.set("uBlend", blend ? 1 : 0);

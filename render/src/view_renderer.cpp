@@ -285,7 +285,7 @@ void ViewRenderer::addModel(const ModelInstance& instance, bool see_through, con
     const glm::dmat4 world_from_local = model * glm::translate(glm::dmat4(1.0), chunk.offset);
     b.clip_from_local = glm::mat4(clip_from_world * world_from_local);
     b.spacing_k = float(n.spacing * k * options.splat_scale);
-    b.splat_radius = options.max_splat_radius;
+    b.splat_radius = options.fill == SurfaceFill::kNone ? 0 : options.max_splat_radius;
     b.blend_depth = float(n.spacing * unit * options.splat_scale);
     if (instance.color != glm::u8vec3(0) && (store.summary().attributes & lod::kColor) == 0)
       b.color_override = 0x1000000u | packRgb(instance.color);

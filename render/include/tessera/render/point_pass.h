@@ -73,9 +73,10 @@ struct PointShading {
   bool blend = false;
   glm::dmat4 projection{1.0};
   /// For the pull-push fill (FillPass; Marroquim et al. 2007): every point on screen is one
-  /// pixel, and the depth pass also keeps per pixel the largest radius its disc would have had
-  /// (the target's splatRadii(); one more read, sometimes an atomic, per point). Points off
-  /// screen still draw their discs, so what reaches into the view from outside is as before.
+  /// pixel, and the colour pass (run even for one colour) also keeps per pixel the footprint of
+  /// the nearest point's disc (the target's splatFootprints(); a read per point, an atomic per
+  /// pixel). Points off screen still draw their discs, so what reaches into the view from
+  /// outside is as before.
   bool fill = false;
 };
 

@@ -39,6 +39,9 @@ enum class SurfaceFill {
   /// Each point one pixel, then the pull-push fill (FillPass; Marroquim et al. 2007) closes
   /// what the discs would have covered: cost grows with the pixels, whatever the splat size.
   kPullPush,
+  /// Each point one pixel, nothing filled: surfaces stay open. The cost floor the others are
+  /// measured against (bench/fill), and a quick preview.
+  kNone,
 };
 
 struct RenderOptions {
