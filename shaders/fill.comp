@@ -6,7 +6,7 @@
 // splats' area.
 //
 // Samples: every texel of every level holds one sample as a uvec2 (kEmpty in .y: none): .x its
-// view depth (half float, low 16 bits), its radius (1/8 px, bits 16-23) and its point's position
+// view depth (half float, low 16 bits), its radius (1/16 px, bits 16-23) and its point's position
 // in its pixel (1/16 px, x bits 24-27, y bits 28-31); .y its level-0 pixel, y << 16 | x, from
 // which the winner's depth, colour and pick id are read. Two words a candidate, since llvmpipe
 // reads buffers lane by lane and the reads are the cost. Where several points fell on a pixel
@@ -45,7 +45,7 @@ layout(std430, binding = TESSERA_BINDING_DEPTH) readonly buffer Depth { uint dep
 layout(std430, binding = TESSERA_BINDING_COLORS) readonly buffer Colors { uint colors[]; };
 layout(std430, binding = TESSERA_BINDING_PICK) readonly buffer Pick { uint pick[]; };
 // Per pixel the footprint of its nearest point (point_raster.comp): the top 16 bits of its
-// inverted depth, its radius in 1/8 pixels (bits 8-15), its position in the pixel in 1/16
+// inverted depth, its radius in 1/16 pixels (bits 8-15), its position in the pixel in 1/16
 // pixels (x bits 4-7, y bits 0-3); then non-zero when more than one point fell on the pixel.
 layout(std430, binding = TESSERA_BINDING_SPLAT_FOOTPRINTS) readonly buffer Footprints {
   uint footprints[];
@@ -113,7 +113,7 @@ struct Sample {
 
 Sample unpack(uvec2 s) {
   vec2 sub = (vec2((s.x >> 24) & 0xFu, s.x >> 28) + 0.5) / 16.0;
-  float w = unpackHalf2x16(s.x).x, r = float((s.x >> 16) & 0xFFu) / 8.0;
+  float w = unpackHalf2x16(s.x).x, r = float((s.x >> 16) & 0xFFu) / 16.0;
   return Sample(w, r, vec2(float(s.y & 0xFFFFu), float(s.y >> 16)) + sub,
                 uTolerance * max(r, 1.0) * w * uPixelK);
 }
@@ -155,11 +155,11 @@ uvec2 packPixel(ivec2 p) {
   uint f = footprints[2u * pixel];
   // The footprint is the nearest point's unless that was a disc from off screen (no footprint).
   bool nearest = d != kEmpty && (f >> 16) == (~d >> 16);
-  float r = nearest ? min(float((f >> 8) & 0xFFu) / 8.0, uMaxRadius) : 0.0;
+  float r = nearest ? min(float((f >> 8) & 0xFFu) / 16.0, uMaxRadius) : 0.0;
   bool several = footprints[2u * pixel + 1u] != 0u;
   uvec2 sub = several ? uvec2(8u) : uvec2((f >> 4) & 0xFu, f & 0xFu);
   if (several && r > 0.0) r += 0.70711;
-  uint r8 = uint(min(r * 8.0, 255.0));  // rounded down: never reaches further than the disc
+  uint r8 = uint(min(r * 16.0 + 0.5, 255.0));  // to 1/32 px of the disc's
   uvec2 s = uvec2(0u, kEmpty);
   if (r8 > 0u)
     s = uvec2((packHalf2x16(vec2(viewDepth(d), 0.0)) & 0xFFFFu) | r8 << 16 | sub.x << 24 |

@@ -103,7 +103,7 @@ void main() {
     uint idx = uint(centre.y) * uint(uSize.x) + uint(centre.x);
     if (uPass == 0) {
       // The footprint, packed as fill.comp reads it: the top 16 bits of the inverted depth (so
-      // the nearest point's wins), the radius in 1/8 pixels (bits 8-15) and the point's
+      // the nearest point's wins), the radius in 1/16 pixels (bits 8-15, to 15.9) and the point's
       // position in its pixel in 1/16 pixels (x bits 4-7, y bits 0-3), so the fill tests reach
       // as the disc loop below does (a fixed disc is centred on its pixel). Only a point that
       // comes nearer than all before it writes one (atomicMin tells), so a pixel sees a few
@@ -115,7 +115,8 @@ void main() {
         float reach = uSpacingK > 0.0 ? disc : sqrt(float(radius * radius + radius));
         vec2 in_pixel = uSpacingK > 0.0 ? clamp(pos - vec2(centre), 0.0, 1.0) : vec2(0.5);
         uvec2 sub = uvec2(min(in_pixel * 16.0, vec2(15.0)));
-        uint print = (~d & 0xFFFF0000u) | uint(min(reach * 8.0, 255.0)) << 8 | sub.x << 4 | sub.y;
+        uint print = (~d & 0xFFFF0000u) | uint(min(reach * 16.0 + 0.5, 255.0)) << 8 | sub.x << 4 |
+                     sub.y;
         if (print > footprints[2u * idx]) atomicMax(footprints[2u * idx], print);
       }
       return;

@@ -28,7 +28,7 @@
 
 // The pull-push fill (shaders/fill.comp, FillPass): most pyramid levels above the frame (reach
 // 2^levels pixels).
-#define TESSERA_FILL_MAX_LEVELS 5
+#define TESSERA_FILL_MAX_LEVELS 4
 
 // Eye-dome lighting (shaders/edl.comp, EdlOptions::filter_radius): the largest fitted window's
 // half-width, pixels.

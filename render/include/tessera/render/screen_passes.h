@@ -28,11 +28,11 @@ class ResolvePass {
 };
 
 /// FillPass's most pyramid levels (TESSERA_FILL_MAX_LEVELS in shaders/shared_layout.h): radii
-/// up to 2^5 = 32 pixels are filled in full (footprints hold up to 31.9).
-constexpr int kFillMaxLevels = 5;
+/// up to 2^4 = 16 pixels are filled in full (footprints hold radii to 15.9 px in 1/16 px).
+constexpr int kFillMaxLevels = 4;
 
 /// The pull-push fill's depth tolerance, in splat radii (FillPass).
-constexpr float kFillDepthTolerance = 2.0f;
+constexpr float kFillDepthTolerance = 4.0f;
 
 /// Screen-space surface reconstruction for points drawn as single pixels with their splat
 /// footprints (PointShading::fill; R. Marroquim, M. Kraus, P. R. Cavalcanti, "Efficient
