@@ -21,20 +21,20 @@
 // Marroquim's depth test, so a back surface seen through the front's holes does not climb the
 // pyramid), the one whose disc holds the texel's centre deepest.
 // Push (2 for levels uLevels .. 1, then 3 for the pixels): coarse to fine, as the paper's push
-// phase. A texel of level l >= 1 takes the best of the level l - 1 samples under it and a ring
-// of one around them (4x4) and of the winners of the 3x3 level l + 1 texels around its parent,
-// which carry what reaches from further away; a pixel the best of the samples of its 2x2 block
-// and the ring around it and of the winners of its block's level-1 texel and the 8 around. Where the paper interpolates coarser texels
-// into every empty pixel and limits the fill by each sample's projected ellipse, here a sample
-// counts only where its disc reaches (the disc rule of point_raster.comp: the pixel centre lies
-// within the splat's radius of the point; above level 0, any part of the texel), so silhouettes
-// grow no further than the discs would and background stays background. Among the samples that
-// reach, the front surface wins (one nearer by more than the depth tolerance replaces the one
-// kept), and on that surface the one whose disc holds the centre deepest (the lowest power
-// distance, squared distance minus squared radius). A pixel keeps its own
-// sample unless it has none or the winner lies in front of it by more than the tolerance (a back
-// surface seen through a hole of the front, which the front's disc would cover). The result
-// goes to the pass's own planes, so no invocation reads another's output.
+// phase. A texel of level l >= 1 takes the best of the level l - 1 samples under it and a ring of
+// one around them (4x4) and of the winners of the 3x3 level l + 1 texels around its parent, which
+// carry what reaches from further away; a pixel the best of the samples of its 2x2 block and the
+// ring around it and of the winners of its block's level-1 texel and the 8 around. Where the paper
+// interpolates coarser texels into every empty pixel and limits the fill by each sample's projected
+// ellipse, here a sample counts only where its disc reaches (the disc rule of point_raster.comp:
+// the pixel centre lies within the splat's radius of the point; above level 0, any part of the
+// texel), so silhouettes grow no further than the discs would and background stays background.
+// Among the samples that reach, the front surface wins (one nearer by more than the depth tolerance
+// replaces the one kept), and on that surface the one whose disc holds the centre deepest (the
+// lowest power distance, squared distance minus squared radius). A pixel keeps its own sample
+// unless it has none or the winner lies in front of it by more than the tolerance (a back surface
+// seen through a hole of the front, which the front's disc would cover). The result goes to the
+// pass's own planes, so no invocation reads another's output.
 //
 // Depth tolerance: uTolerance splat radii at the sample's view depth (the radius in pixels times
 // the world size of a pixel there), at least one pixel's worth: the depth change across a disc of
