@@ -1,9 +1,11 @@
-// Picture measures the rendering benchmarks share (render_lod, edl).
+// Picture measures and figure helpers the rendering benchmarks share (render_lod, edl, fill).
 #pragma once
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <cstdlib>
+#include <vector>
 
 #include <tessera/render/image.h>
 
@@ -41,6 +43,37 @@ inline double meanAbsChange(const render::Image& a, const render::Image& b) {
   for (size_t i = 0; i < a.rgba.size(); i += 4)
     for (size_t c = 0; c < 3; ++c) sum += uint64_t(std::abs(int(a.rgba[i + c]) - b.rgba[i + c]));
   return double(sum) / double(a.rgba.size() / 4 * 3);
+}
+
+/// A w x h window of `img` at (x, y), each pixel `zoom` x `zoom`.
+inline render::Image crop(const render::Image& img, uint32_t x, uint32_t y, uint32_t w, uint32_t h,
+                          uint32_t zoom) {
+  render::Image c;
+  c.width = w * zoom;
+  c.height = h * zoom;
+  c.rgba.resize(size_t(c.width) * c.height * 4);
+  for (uint32_t j = 0; j < c.height; ++j)
+    for (uint32_t i = 0; i < c.width; ++i)
+      std::copy_n(&img.rgba[(size_t(y + j / zoom) * img.width + x + i / zoom) * 4], 4,
+                  &c.rgba[(size_t(j) * c.width + i) * 4]);
+  return c;
+}
+
+/// `cells` (all the same size) in a grid of `columns`, 4 px white gaps.
+inline render::Image grid(const std::vector<render::Image>& cells, uint32_t columns) {
+  const uint32_t gap = 4, w = cells[0].width, h = cells[0].height;
+  const auto rows = uint32_t((cells.size() + columns - 1) / columns);
+  render::Image g;
+  g.width = columns * w + (columns - 1) * gap;
+  g.height = rows * h + (rows - 1) * gap;
+  g.rgba.assign(size_t(g.width) * g.height * 4, 255);
+  for (size_t k = 0; k < cells.size(); ++k) {
+    const uint32_t x0 = uint32_t(k % columns) * (w + gap), y0 = uint32_t(k / columns) * (h + gap);
+    for (uint32_t y = 0; y < h; ++y)
+      std::copy_n(&cells[k].rgba[size_t(y) * w * 4], w * 4,
+                  &g.rgba[(size_t(y0 + y) * g.width + x0) * 4]);
+  }
+  return g;
 }
 
 }  // namespace tessera::bench

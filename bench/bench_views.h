@@ -1,6 +1,8 @@
-// Views the renderer benchmarks share (bench/render_lod, bench/loader_pool).
+// Views the renderer benchmarks share (bench/render_lod, bench/loader_pool, bench/edl,
+// bench/paraview_peer, bench/fill).
 #pragma once
 
+#include <cmath>
 #include <cstdint>
 
 #include <glm/gtc/matrix_transform.hpp>
@@ -33,6 +35,32 @@ inline render::ViewSetup bigBunnyView(uint32_t width = 1920, uint32_t height = 1
   view.height = height;
   view.eye_world = glm::dvec3(cam.eye().x(), cam.eye().y(), cam.eye().z());
   return view;
+}
+
+/// ParaView's reset camera for the unit cube of random points (bench/paraview_peer, bench/fill):
+/// the bounding sphere fits the 30 degree view, looking along (1, -0.8, 0.6) at the centre, z up.
+struct CubeCamera {
+  glm::dvec3 eye, target{0.5}, up{0, 0, 1};
+  double fovy = 30.0;
+};
+
+inline CubeCamera cubeCamera() {
+  CubeCamera c;
+  const double radius = std::sqrt(3.0) / 2.0;
+  const double distance = radius / std::sin(glm::radians(c.fovy) / 2.0);
+  c.eye = c.target + glm::normalize(glm::dvec3(1.0, -0.8, 0.6)) * distance;
+  return c;
+}
+
+inline render::ViewSetup cubeView(const CubeCamera& c, uint32_t w = 1920, uint32_t h = 1080) {
+  render::ViewSetup v;
+  v.view = glm::lookAt(c.eye, c.target, c.up);
+  const double d = glm::length(c.eye - c.target);
+  v.projection = glm::perspective(glm::radians(c.fovy), double(w) / h, 0.05 * d, 4.0 * d);
+  v.width = w;
+  v.height = h;
+  v.eye_world = c.eye;
+  return v;
 }
 
 }  // namespace tessera::bench

@@ -90,37 +90,6 @@ render::ViewSetup orbitView(double degrees, uint32_t w, uint32_t h) {
   return v;
 }
 
-/// A w x h window of `img` at (x, y), each pixel `zoom` x `zoom`.
-render::Image crop(const render::Image& img, uint32_t x, uint32_t y, uint32_t w, uint32_t h,
-                   uint32_t zoom) {
-  render::Image c;
-  c.width = w * zoom;
-  c.height = h * zoom;
-  c.rgba.resize(size_t(c.width) * c.height * 4);
-  for (uint32_t j = 0; j < c.height; ++j)
-    for (uint32_t i = 0; i < c.width; ++i)
-      std::copy_n(&img.rgba[(size_t(y + j / zoom) * img.width + x + i / zoom) * 4], 4,
-                  &c.rgba[(size_t(j) * c.width + i) * 4]);
-  return c;
-}
-
-/// `cells` (all the same size) in a grid of `columns`, 4 px white gaps.
-render::Image grid(const std::vector<render::Image>& cells, uint32_t columns) {
-  const uint32_t gap = 4, w = cells[0].width, h = cells[0].height;
-  const auto rows = uint32_t((cells.size() + columns - 1) / columns);
-  render::Image g;
-  g.width = columns * w + (columns - 1) * gap;
-  g.height = rows * h + (rows - 1) * gap;
-  g.rgba.assign(size_t(g.width) * g.height * 4, 255);
-  for (size_t k = 0; k < cells.size(); ++k) {
-    const uint32_t x0 = uint32_t(k % columns) * (w + gap), y0 = uint32_t(k / columns) * (h + gap);
-    for (uint32_t y = 0; y < h; ++y)
-      std::copy_n(&cells[k].rgba[size_t(y) * w * 4], w * 4,
-                  &g.rgba[(size_t(y0 + y) * g.width + x0) * 4]);
-  }
-  return g;
-}
-
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -225,8 +194,8 @@ int main(int argc, char** argv) {
       const auto row = std::find(crop_rows.begin(), crop_rows.end(), var.name);
       if (row != crop_rows.end()) {
         const size_t cell = 2 * size_t(row - crop_rows.begin());
-        crops[cell] = crop(img[0], crop_at[0], crop_at[1], 320, 180, 2);
-        crops[cell + 1] = crop(img[2], crop_at[0], crop_at[1], 320, 180, 2);
+        crops[cell] = bench::crop(img[0], crop_at[0], crop_at[1], 320, 180, 2);
+        crops[cell + 1] = bench::crop(img[2], crop_at[0], crop_at[1], 320, 180, 2);
         render::writePng((fs::path(out) / ("edl-" + var.name + "-full.png")).string(), img[0]);
         render::writePng((fs::path(out) / ("edl-" + var.name + "-lod1.png")).string(), img[2]);
       }
@@ -237,7 +206,7 @@ int main(int argc, char** argv) {
                      p, base_psnr, flicker_lod1, base_flicker, flicker_lod1 / base_flicker);
     }
     csv.close();
-    render::writePng((fs::path(out) / "edl_crops.png").string(), grid(crops, 2));
+    render::writePng((fs::path(out) / "edl_crops.png").string(), bench::grid(crops, 2));
 
     const fs::path gp = fs::path(out) / "edl.gp", data = fs::path(out) / "edl.csv";
     std::ofstream g(gp);

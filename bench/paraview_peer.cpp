@@ -8,6 +8,8 @@
 //   full      every leaf (lod-px 1e-9, coverage stop off): the reference picture
 //   coverage  the defaults: lod-px 1, the coverage stop (lod_selector.h)
 //   budget    the defaults and a point budget per view (--budget, as Potree users set one)
+//   pullpush, pullpush-budget   coverage and budget with 1 px points and the pull-push fill
+//             (SurfaceFill::kPullPush; the three above draw discs)
 // For each: the first picture (store opened cold, every chunk of the cut resident), then the
 // frame time (best and median of --frames frames: cut selection, raster, readback), the points
 // drawn and the silhouette IoU against the full render. The summary's speed-up is the median
@@ -42,6 +44,8 @@
 #include <tessera/lod/store_builder.h>
 #include <tessera/render/gl_context.h>
 #include <tessera/render/view_renderer.h>
+
+#include "bench_views.h"
 
 namespace {
 
@@ -101,31 +105,6 @@ Inputs cubeInputs(const fs::path& dir, uint64_t n) {
                msSince(t) / 1000.0);
   fs::remove(ply);
   return in;
-}
-
-struct Camera {
-  glm::dvec3 eye, target{0.5}, up{0, 0, 1};
-  double fovy = 30.0;
-};
-
-/// ParaView's ResetCamera for the unit cube: the bounding sphere fits the view angle.
-Camera resetCamera() {
-  Camera c;
-  const double radius = std::sqrt(3.0) / 2.0;
-  const double distance = radius / std::sin(glm::radians(c.fovy) / 2.0);
-  c.eye = c.target + glm::normalize(glm::dvec3(1.0, -0.8, 0.6)) * distance;
-  return c;
-}
-
-render::ViewSetup viewOf(const Camera& c, uint32_t w, uint32_t h) {
-  render::ViewSetup v;
-  v.view = glm::lookAt(c.eye, c.target, c.up);
-  const double d = glm::length(c.eye - c.target);
-  v.projection = glm::perspective(glm::radians(c.fovy), double(w) / h, 0.05 * d, 4.0 * d);
-  v.width = w;
-  v.height = h;
-  v.eye_world = c.eye;
-  return v;
 }
 
 bool covered(const uint8_t* p) {
@@ -240,8 +219,8 @@ bool onPath(const std::string& tool) {
 }
 
 /// One pvbatch process; false (with a message) if it failed.
-bool runParaView(const fs::path& out, const fs::path& vtk, const Camera& c, uint32_t w, uint32_t h,
-                 int frames, Run& run) {
+bool runParaView(const fs::path& out, const fs::path& vtk, const bench::CubeCamera& c, uint32_t w,
+                 uint32_t h, int frames, Run& run) {
   const fs::path script = out / "paraview_peer.py";
   std::ofstream(script) << kPvScript;
   const fs::path png = out / "paraview_peer-paraview.png";
@@ -289,7 +268,8 @@ void chart(const fs::path& out) {
     << "plot '" << (out / "paraview_peer_chart.csv").string()
     << "' using 2:xtic(1) title 'ParaView 5.11, 1 px points', '' using 3 title 'Tessera, every "
        "leaf', '' using 4 title 'Tessera, coverage stop (default)', '' using 5 title 'Tessera, "
-       "coverage stop + point budget'\n"
+       "coverage stop + point budget', '' using 9 title 'Tessera, coverage stop, pull-push fill', "
+       "'' using 10 title 'Tessera, pull-push fill + budget'\n"
     << "set title 'Points drawn per frame'\nset ylabel 'points (log)'\nset yrange [1e5:1e9]\n"
     << "plot '" << (out / "paraview_peer_chart.csv").string()
     << "' using 6:xtic(1) title 'ParaView and Tessera every leaf', '' using 7 title 'Tessera, "
@@ -333,16 +313,27 @@ int main(int argc, char** argv) {
                    "paraview_peer: pvbatch (Debian package paraview; xvfb-run without a display) "
                    "not found or --no-paraview: measuring Tessera alone\n");
     const uint32_t w = 1920, h = 1080;
-    const Camera cam = resetCamera();
-    const render::ViewSetup view = viewOf(cam, w, h);
+    const bench::CubeCamera cam = bench::cubeCamera();
+    const render::ViewSetup view = bench::cubeView(cam, w, h);
     auto ctx = render::GlContext::createHeadless();
     render::RenderOptions full;
     full.lod_pixels = 1e-9;
     full.coverage_stop = false;
-    render::RenderOptions budgeted;
+    full.fill = render::SurfaceFill::kDiscs;  // the reference picture: discs as before
+    render::RenderOptions coverage;
+    coverage.fill = render::SurfaceFill::kDiscs;
+    render::RenderOptions budgeted = coverage;
     budgeted.point_budget = budget;
-    const std::array<std::pair<const char*, render::RenderOptions>, 3> variants{
-        {{"full", full}, {"coverage", render::RenderOptions{}}, {"budget", budgeted}}};
+    render::RenderOptions pullpush = coverage;
+    pullpush.fill = render::SurfaceFill::kPullPush;
+    render::RenderOptions pullpush_budget = pullpush;
+    pullpush_budget.point_budget = budget;
+    const std::array<std::pair<const char*, render::RenderOptions>, 5> variants{
+        {{"full", full},
+         {"coverage", coverage},
+         {"budget", budgeted},
+         {"pullpush", pullpush},
+         {"pullpush-budget", pullpush_budget}}};
 
     std::ofstream csv(dir / "paraview_peer.csv");
     const std::string header =
@@ -408,7 +399,8 @@ int main(int argc, char** argv) {
         for (size_t i = 0; i < pv.size() && i < t.size(); ++i) x.push_back(pv[i][0] / t[i][0]);
         return median(x);
       };
-      for (const char* v : {"paraview", "full", "coverage", "budget"}) {
+      for (const char* v :
+           {"paraview", "full", "coverage", "budget", "pullpush", "pullpush-budget"}) {
         if (all[{n, v}].empty()) continue;
         char line[256];
         std::snprintf(line, sizeof line, "%llu,%s,%.0f,%.1f,%.4f,%.2f", (unsigned long long)n, v,
@@ -417,9 +409,10 @@ int main(int argc, char** argv) {
         std::cout << line << "\n";
       }
       char line[256];
-      std::snprintf(line, sizeof line, "%.0fx10^6,%.1f,%.1f,%.1f,%.1f,%.0f,%.0f,%.0f",
+      std::snprintf(line, sizeof line, "%.0fx10^6,%.1f,%.1f,%.1f,%.1f,%.0f,%.0f,%.0f,%.1f,%.1f",
                     double(n) / 1e6, pv_ms > 0 ? pv_ms : 1e-9, med("full", 0), med("coverage", 0),
-                    med("budget", 0), med("full", 1), med("coverage", 1), med("budget", 1));
+                    med("budget", 0), med("full", 1), med("coverage", 1), med("budget", 1),
+                    med("pullpush", 0), med("pullpush-budget", 0));
       tab << line << "\n";
     }
     sum.close();

@@ -25,6 +25,9 @@ layout(std430, binding = TESSERA_BINDING_DEPTH) buffer Depth { uint depth[]; };
 layout(std430, binding = TESSERA_BINDING_COLORS) buffer Colors { uint colors[]; };  // rgb, 0xFFFFFFFF: none
 layout(std430, binding = TESSERA_BINDING_PICK) buffer Pick { uint pick[]; };  // frame-wide point id
 layout(std430, binding = TESSERA_BINDING_COLOR_SUMS) buffer Sums { uint sums[]; };  // w r, w g, w b, w
+// uFill: per pixel the footprint of the nearest point drawn on it (radius and position) and
+// whether more than one point fell there: two words a pixel.
+layout(std430, binding = TESSERA_BINDING_SPLAT_FOOTPRINTS) buffer Footprints { uint footprints[]; };
 
 uniform mat4 uClip;            // clip from the batch's node frame
 uniform uint uColorOverride;  // non-zero: 0x1000000 | rgb for every point of the batch
@@ -40,7 +43,7 @@ uniform uint uCount;
 uniform ivec2 uSize;    // viewport in pixels
 uniform int uRadius;    // the largest splat radius, pixels (the radius when uSpacingK is 0)
 uniform float uSpacingK;  // node spacing in pixels at view depth 1 (0: fixed radius uRadius)
-
+uniform int uFill;      // 1 px points plus their splat footprints, for the pull-push fill (fill.comp)
 
 // Pass 0 keeps the nearest depth; pass 1, among the points at that depth, one colour (below)
 // and the smallest pick id (two points at exactly the same depth may give the colour of one and
@@ -88,6 +91,9 @@ void raster(uint i) {
   vec3 ndc = c.xyz / c.w;
   if (ndc.z < -1.0 || ndc.z > 1.0) return;
   vec2 pos = (ndc.xy * 0.5 + 0.5) * vec2(uSize);  // pixels, sub-pixel exact
+  // Far off screen, or NaN (a bad position or transform): nothing to draw.
+  vec2 margin = vec2(float(uRadius) + 2.0);
+  if (!(all(greaterThan(pos, -margin)) && all(lessThan(pos, vec2(uSize) + margin)))) return;
   ivec2 centre = ivec2(floor(pos));
   uint d = floatBitsToUint(ndc.z * 0.5 + 0.5);
 #if ONE_PIXEL
@@ -97,13 +103,49 @@ void raster(uint i) {
   // With a spacing, the splat is the disc of diameter (projected spacing) around the point's
   // exact position: it covers the pixels whose centres it contains, and always its own pixel.
   // Fixed splats cover the integer disc of radius uRadius around the point's pixel.
-  // A leaf point's own scale (render/splat_sizes.h) widens its disc to close the gaps of its
-  // sampling pattern (scan lines): 1 + top byte / 64.
+  // This is the one place a splat's size is decided: the discs below and the pull-push fill's
+  // radii (uFill) both follow it. A leaf point's own scale (render/splat_sizes.h) widens its
+  // disc to close the gaps of its sampling pattern (scan lines): 1 + top byte / 64. NaN (a bad
+  // spacing) draws a single pixel.
   float scale = 1.0 + float(points[gi].rgba >> 24) / 64.0;
   float disc = uSpacingK > 0.0 ? min(0.5 * uSpacingK * scale / c.w, float(uRadius)) : 0.0;
+  if (!(disc >= 0.0)) disc = 0.0;
   // A neighbour k pixels away has its centre at least k - 1/2 from the point: a disc of radius
   // up to 1/2 stays in the point's own pixel.
-  int radius = uSpacingK > 0.0 ? int(ceil(disc - 0.5)) : uRadius;
+  int radius = uSpacingK > 0.0 ? int(ceil(disc - 0.5)) : max(uRadius, 0);
+  bool on_screen = centre.x >= 0 && centre.y >= 0 && centre.x < uSize.x && centre.y < uSize.y;
+  if (uFill != 0 && on_screen) {
+    // Fill mode (Marroquim et al. 2007): the point as one pixel and the footprint its disc would
+    // have had. Points off screen keep their discs: the fill has no samples beyond the viewport,
+    // and their discs reach into it exactly as without the fill (the tiles of a wall meet as
+    // before).
+    uint idx = uint(centre.y) * uint(uSize.x) + uint(centre.x);
+#if PASS == 0
+    {
+      // The footprint, packed as fill.comp reads it: the top 16 bits of the inverted depth (so
+      // the nearest point's wins), the radius in 1/16 pixels (bits 8-15, to 15.9) and the point's
+      // position in its pixel in 1/16 pixels (x bits 4-7, y bits 0-3), so the fill tests reach
+      // as the disc loop below does (a fixed disc is centred on its pixel). Only a point that
+      // comes nearer than all before it writes one (atomicMin tells), so a pixel sees a few
+      // atomics, not one per point; the next word says that more than one point fell there
+      // (their other positions are lost). The same whatever order the points arrive in.
+      uint old = atomicMin(depth[idx], d);
+      if (old != 0xFFFFFFFFu && footprints[2u * idx + 1u] == 0u) footprints[2u * idx + 1u] = 1u;
+      if (d <= old) {
+        float reach = uSpacingK > 0.0 ? disc : sqrt(float(radius * radius + radius));
+        vec2 in_pixel = uSpacingK > 0.0 ? clamp(pos - vec2(centre), 0.0, 1.0) : vec2(0.5);
+        uvec2 sub = uvec2(min(in_pixel * 16.0, vec2(15.0)));
+        uint print = (~d & 0xFFFF0000u) | uint(min(reach * 16.0 + 0.5, 255.0)) << 8 | sub.x << 4 |
+                     sub.y;
+        if (print > footprints[2u * idx]) atomicMax(footprints[2u * idx], print);
+      }
+      return;
+    }
+#else
+    write(idx, d, gi, i, c.w, 1.0);
+    return;
+#endif
+  }
   if (radius == 0) {
     // One pixel (fine LOD levels, far points): no loop, which llvmpipe runs much faster.
     if (centre.x < 0 || centre.y < 0 || centre.x >= uSize.x || centre.y >= uSize.y) return;

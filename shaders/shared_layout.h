@@ -20,6 +20,15 @@
 #define TESSERA_BINDING_OVERLAY 10      // overlay primitives (overlay_pass.h)
 #define TESSERA_BINDING_COLOR_SUMS 11   // uvec4 per pixel: weighted r, g, b sums and weight
 #define TESSERA_BINDING_SCREEN_SCRATCH 12  // float per pixel: a screen pass's own plane (EDL)
+#define TESSERA_BINDING_SPLAT_FOOTPRINTS 13  // uvec2 per pixel: the nearest point's splat (fill)
+#define TESSERA_BINDING_FILL_PYRAMID 14    // uvec2 per texel: the fill's pyramid (fill.comp)
+#define TESSERA_BINDING_FILL_DEPTH 15      // the fill's output planes: depth, colours, pick ids
+#define TESSERA_BINDING_FILL_COLORS 16
+#define TESSERA_BINDING_FILL_PICK 17
+
+// The pull-push fill (shaders/fill.comp, FillPass): most pyramid levels above the frame (reach
+// 2^levels pixels).
+#define TESSERA_FILL_MAX_LEVELS 4
 
 // Eye-dome lighting (shaders/edl.comp, EdlOptions::filter_radius): the largest fitted window's
 // half-width, pixels.

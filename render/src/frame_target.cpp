@@ -30,13 +30,22 @@ const GlBuffer& FrameTarget::colorSums() {
   return mColorSums;
 }
 
-void FrameTarget::clearGeometry(bool pick, bool blend) {
+const GlBuffer& FrameTarget::splatFootprints() {
+  if (!mSplatFootprints) mSplatFootprints = GlBuffer(pixels() * 8, nullptr);
+  return mSplatFootprints;
+}
+
+void FrameTarget::clearGeometry(bool pick, bool blend, bool footprints) {
   mDepth.clear(kEmptyDepth);
   mColors.clear(0xFFFFFFFFu);
   if (pick) mPick.clear(kNoPick);
   if (blend) {
     colorSums();
     mColorSums.clear(0);
+  }
+  if (footprints) {
+    splatFootprints();
+    mSplatFootprints.clear(0);
   }
 }
 

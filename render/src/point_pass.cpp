@@ -2,7 +2,9 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <string>
+#include <vector>
 
 #define GL_GLEXT_PROTOTYPES
 #include <GL/glcorearb.h>
@@ -42,7 +44,9 @@ PointPass::PointPass() : mNone(16, nullptr) {
 }
 
 void PointPass::setPoints(std::span<const GpuPoint> points) {
-  mPoints = GlBuffer(points.size_bytes(), points.empty() ? nullptr : points.data());
+  std::vector<GpuPoint> rgb(points.begin(), points.end());
+  for (GpuPoint& p : rgb) p.rgba &= 0xFFFFFFu;
+  mPoints = GlBuffer(rgb.size() * sizeof(GpuPoint), rgb.empty() ? nullptr : rgb.data());
 }
 
 void PointPass::fit(const FrameTarget& target) {
@@ -71,17 +75,21 @@ PassTimings PointPass::draw(FrameTarget& target, std::span<const DrawBatch> batc
   bind(TESSERA_BINDING_PICK, target.pick());
   const bool blend = shading.blend && shading.uniform_color == 0;
   if (blend) bind(TESSERA_BINDING_COLOR_SUMS, target.colorSums());
+  if (shading.fill) bind(TESSERA_BINDING_SPLAT_FOOTPRINTS, target.splatFootprints());
   const int passes = shading.uniform_color != 0 && !shading.pick ? 1 : 2;
   for (int pass = 0; pass < passes; ++pass) {
     const GlProgram* in_use = nullptr;
     for (const DrawBatch& b : batches) {
       if (b.count == 0) continue;
-      // Every splat one pixel: the variant without disc code.
-      const bool one_pixel = b.spacing_k > 0.0f ? b.max_disc_px <= 0.5f : b.splat_radius == 0;
+      // Every splat one pixel: the variant without disc code (not for the fill, whose points
+      // leave their footprints).
+      const bool one_pixel = !shading.fill && (b.splat_radius == 0 || std::isnan(b.spacing_k) ||
+                                               (b.spacing_k > 0.0f && b.max_disc_px <= 0.5f));
       const GlProgram& program = raster(pass, one_pixel);
       if (&program != in_use) {
         in_use = &program;
         program.use();
+        program.set("uFill", shading.fill ? 1 : 0);
         program.set("uBlend", blend ? 1 : 0);
         program.set("uP22", float(shading.projection[2][2]));
         program.set("uP32", float(shading.projection[3][2]));
@@ -91,10 +99,12 @@ PassTimings PointPass::draw(FrameTarget& target, std::span<const DrawBatch> batc
       }
       glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_POINTS,
                        b.buffer ? b.buffer : mPoints.name());
-      program.set("uSpacingK", b.spacing_k);
+      // A spacing that is not a number (bad input upstream) draws single pixels.
+      const bool no_spacing = std::isnan(b.spacing_k);
+      program.set("uSpacingK", no_spacing ? 0.0f : b.spacing_k);
       program.set("uColorOverride", b.color_override);
       program.set("uClip", b.clip_from_local);
-      program.set("uRadius", b.splat_radius);
+      program.set("uRadius", no_spacing ? 0 : b.splat_radius);
       program.set("uBlendDepth", b.blend_depth);
       dispatchSlices(b.count, [&](uint32_t done, uint32_t count) {
         program.set("uFirst", b.first + done);

@@ -1,6 +1,8 @@
 #include <tessera/render/screen_passes.h>
 
+#include <algorithm>
 #include <cmath>
+#include <string>
 
 #include <tessera/core/check.h>
 
@@ -12,11 +14,16 @@ namespace tessera::render {
 namespace {
 
 static_assert(kEdlMaxFilterRadius == TESSERA_EDL_MAX_FILTER_RADIUS);
+static_assert(kFillMaxLevels == TESSERA_FILL_MAX_LEVELS);
 
-void dispatchPixels(const FrameTarget& target) {
-  glDispatchCompute((target.width() + 15) / 16, (target.height() + 15) / 16, 1);
+void dispatchPixels(uint32_t width, uint32_t height) {
+  glDispatchCompute((width + 15) / 16, (height + 15) / 16, 1);
   glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT | GL_SHADER_STORAGE_BARRIER_BIT |
                   GL_PIXEL_BUFFER_BARRIER_BIT);
+}
+
+void dispatchPixels(const FrameTarget& target) {
+  dispatchPixels(target.width(), target.height());
 }
 
 }  // namespace
@@ -76,6 +83,76 @@ double EdlPass::run(FrameTarget& target, const EdlOptions& options, const glm::d
     mProgram.set("uStage", stage);
     dispatchPixels(target);
   }
+  return lap();
+}
+
+FillPass::FillPass() {
+  for (int stage = 1; stage < 4; ++stage) {
+    const std::string source =
+        "#define TESSERA_FILL_STAGE " + std::to_string(stage) + "\n" + shaders::kFill;
+    mStages[stage] = GlProgram::compute(source.c_str(), "fill.comp");
+  }
+}
+
+double FillPass::run(FrameTarget& target, const glm::dmat4& projection, float max_radius,
+                     bool colors, bool pick) {
+  if (!(max_radius >= 1.0f)) return 0.0;
+  GpuLap lap;
+  // Levels whose winners reach max_radius: 2^levels pixels (at least 1: the pixels read level
+  // 1's winners).
+  int levels = 1;
+  while (levels < kFillMaxLevels && float(1 << levels) < max_radius) ++levels;
+  max_radius = std::min(max_radius, float(1 << levels));
+  const uint32_t w = target.width(), h = target.height();
+  if (mPixels != target.pixels()) {
+    mPixels = target.pixels();
+    // Samples of levels 0 .. kFillMaxLevels, then winners of levels 1 .. kFillMaxLevels.
+    size_t texels = 0;
+    for (int l = 0; l <= kFillMaxLevels; ++l)
+      texels += size_t((w + (1u << l) - 1) >> l) * ((h + (1u << l) - 1) >> l);
+    mWinners = uint32_t(texels - mPixels);  // winners of level l at mWinners + offset of l
+    for (GlBuffer* b : {&mPyramid, &mDepth, &mColors, &mPick}) *b = GlBuffer();
+    mPyramid = GlBuffer((2 * texels - mPixels) * 8, nullptr);
+    mDepth = GlBuffer(mPixels * 4, nullptr);
+  }
+  if (colors && !mColors) mColors = GlBuffer(mPixels * 4, nullptr);
+  if (pick && !mPick) mPick = GlBuffer(mPixels * 4, nullptr);
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_DEPTH, target.depth().name());
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_COLORS, target.colors().name());
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_PICK, target.pick().name());
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_SPLAT_FOOTPRINTS,
+                   target.splatFootprints().name());
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_FILL_PYRAMID, mPyramid.name());
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_FILL_DEPTH, mDepth.name());
+  // Unused output planes are bound to the depth output (never written: uWrite* is 0).
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_FILL_COLORS,
+                   colors ? mColors.name() : mDepth.name());
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_FILL_PICK,
+                   pick ? mPick.name() : mDepth.name());
+  auto level = [&](int stage, int l) {
+    const GlProgram& p = mStages[stage];
+    p.use();
+    p.set("uSize", glm::ivec2(w, h));
+    p.set("uLevels", levels);
+    p.set("uWinners", mWinners);
+    p.set("uMaxRadius", max_radius);
+    p.set("uTolerance", kFillDepthTolerance);
+    p.set("uPixelK", float(2.0 / (projection[1][1] * h)));
+    p.set("uP22", float(projection[2][2]));
+    p.set("uP32", float(projection[3][2]));
+    p.set("uWriteColor", colors ? 1 : 0);
+    p.set("uWritePick", pick ? 1 : 0);
+    p.set("uLevel", l);
+    dispatchPixels((w + (1u << l) - 1) >> l, (h + (1u << l) - 1) >> l);
+  };
+  for (int l = 1; l < std::max(levels, 2); ++l) level(1, l);  // pack level 0, pull levels
+  for (int l = levels; l >= 1; --l) level(2, l);              // push, coarse to fine
+  level(3, 1);  // push the pixels, a 2x2 block an invocation
+  const auto bytes = GLsizeiptr(mPixels * 4);
+  glCopyNamedBufferSubData(mDepth.name(), target.depth().name(), 0, 0, bytes);
+  if (colors) glCopyNamedBufferSubData(mColors.name(), target.colors().name(), 0, 0, bytes);
+  if (pick) glCopyNamedBufferSubData(mPick.name(), target.pick().name(), 0, 0, bytes);
+  glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT | GL_SHADER_STORAGE_BARRIER_BIT);
   return lap();
 }
 

@@ -23,7 +23,8 @@ std::vector<uint8_t> splatScales(std::span<const glm::vec3> points, double spaci
     double reach2 = 0;
     for (const glm::dvec2& v : poly)
       if (!detail::onSquare(v, radius)) reach2 = std::max(reach2, glm::dot(v, v));
-    const double scale = std::clamp(std::sqrt(reach2) / spacing, 1.0, double(kMaxPointSplatScale));
+    const double scale =
+        std::clamp(kCellMargin * std::sqrt(reach2) / spacing, 1.0, double(kMaxPointSplatScale));
     codes[i] = uint8_t(std::lround((scale - 1.0) * 64.0));
   }
   return codes;

@@ -19,6 +19,16 @@
 namespace tessera::render {
 namespace {
 
+/// The largest splat radius a frame draws, pixels: the discs' cap; with the pull-push fill,
+/// whose cost does not grow with the splats' area, at least the fill's reach (so close views of
+/// sparse scans close); 0 for single pixels.
+int splatRadiusCap(const RenderOptions& o) {
+  if (o.fill == SurfaceFill::kNone) return 0;
+  if (o.fill == SurfaceFill::kPullPush && !o.blend_colors)
+    return std::max(o.max_splat_radius, 1 << kFillMaxLevels);
+  return o.max_splat_radius;
+}
+
 uint32_t packRgb(const glm::u8vec3& c) {
   return uint32_t(c.r) | uint32_t(c.g) << 8 | uint32_t(c.b) << 16;
 }
@@ -123,10 +133,16 @@ void ViewRenderer::draw(std::span<const ModelInstance> models, const ViewSetup& 
     mSpbrSignature = 0;
     shading.blend = options.blend_colors && shading.uniform_color == 0;
     shading.projection = view.projection;
-    mTarget.clearGeometry(pick, shading.blend);
+    shading.fill = options.fill == SurfaceFill::kPullPush && !shading.blend;
+    mTarget.clearGeometry(pick, shading.blend, shading.fill);
     const PassTimings t = mPoints.draw(mTarget, batches, shading);
     st.depth_ms = t.depth_ms;
     st.color_ms = t.color_ms;
+    if (shading.fill) {
+      if (!mFill) mFill = std::make_unique<FillPass>();
+      st.fill_ms = mFill->run(mTarget, view.projection, float(splatRadiusCap(options)),
+                              shading.uniform_color == 0, pick);
+    }
     st.resolve_ms = mResolve.run(mTarget, options.background, shading.uniform_color, shading.blend);
     st.screen_ms = mEdl.run(mTarget, options.edl, view.projection);
   }
@@ -283,7 +299,7 @@ void ViewRenderer::addModel(const ModelInstance& instance, bool see_through, con
     const glm::dmat4 world_from_local = model * glm::translate(glm::dmat4(1.0), chunk.offset);
     b.clip_from_local = glm::mat4(clip_from_world * world_from_local);
     b.spacing_k = float(n.spacing * k * options.splat_scale);
-    b.splat_radius = options.max_splat_radius;
+    b.splat_radius = splatRadiusCap(options);
     // The discs' bound: the node's nearest view depth (at a corner of its box), a leaf's
     // largest point scale.
     const lod::NodeInfo info = store.node(n.id);

@@ -196,6 +196,15 @@ int main(int argc, char** argv) {
                  "Splat size as a multiple of the projected sample spacing (raise for LiDAR)")
       ->check(CLI::Range(0.25, 8.0))
       ->capture_default_str();
+  std::string fill =
+      render::RenderOptions{}.fill == render::SurfaceFill::kPullPush ? "pullpush" : "discs";
+  app.add_option("--fill", fill,
+                 "How opaque points close surfaces: discs (each point a disc of its splat size) "
+                 "or pullpush (1 px points, then a screen-space pull-push fill reaching as far as "
+                 "the discs would: cost by pixels, not splat area), or none (1 px points, open: "
+                 "the cost floor)")
+      ->check(CLI::IsMember({"discs", "pullpush", "none"}))
+      ->capture_default_str();
   app.add_option("--gpu-budget-mb", budget_mb, "GPU bytes for resident chunks, MiB")
       ->check(CLI::Range(1.0, 1e6))
       ->capture_default_str();
@@ -297,6 +306,9 @@ int main(int argc, char** argv) {
     if (spbr_copies == "paper") options.spbr = render::SpbrOptions::papersCopies(options.spbr);
     if (spbr_copies == "gaussian") options.spbr = render::SpbrOptions::gaussianJitter(options.spbr);
     options.blend_colors = blend_colors;
+    options.fill = fill == "pullpush" ? render::SurfaceFill::kPullPush
+                   : fill == "none"   ? render::SurfaceFill::kNone
+                                      : render::SurfaceFill::kDiscs;
     if (!background.empty()) options.background = glm::vec3(parseVec(background, "--background"));
 
     std::unique_ptr<render::GlContext> ctx;

@@ -81,42 +81,50 @@ TEST_F(FramePipelineTest, PickIdsNameTheModelAndThePointUnderThePixel) {
   const glm::dmat4 base = storeModel(*s);
   ModelInstance m[2] = {{s.get(), glm::translate(glm::dmat4(1.0), {-0.09, 0, 0}) * base},
                         {s.get(), glm::translate(glm::dmat4(1.0), {0.09, 0, 0}) * base}};
-  ViewRenderer r(v.width, v.height);
-  RenderOptions o;
-  o.pick_ids = true;
-  const Image img = r.renderSettled(m, v, o);
-  size_t hits = 0, checked = 0;
-  for (uint32_t y = 0; y < v.height; y += 3) {
-    for (uint32_t x = 0; x < v.width; x += 3) {
-      const std::optional<PickHit> hit = r.pick(x, y);
-      const uint8_t* p = pixel(img, x, y);
-      const bool covered = p[0] || p[1] || p[2];
-      ASSERT_EQ(hit.has_value(), covered) << "at " << x << "," << y;
-      if (!hit) continue;
-      ++hits;
-      ASSERT_LT(hit->model, 2u);
-      EXPECT_EQ(hit->model, x < v.width / 2 ? 0u : 1u) << "at " << x << "," << y;
-      if (hits % 7) continue;  // every 7th hit: the point itself, from the store
-      ++checked;
-      auto chunk = s->loadChunk(hit->node);
-      ASSERT_LT(hit->point, chunk->size());
-      const glm::dvec3 world =
-          glm::dvec3(m[hit->model].model *
-                     glm::dvec4(chunk->offset + glm::dvec3(chunk->positions[hit->point]), 1.0));
-      const glm::dvec3 at = project(v, world);
-      // The point's splat covers the pixel: within the largest splat radius (8) of it.
-      EXPECT_LE(std::abs(at.x - (x + 0.5)), 8.5) << "at " << x << "," << y;
-      EXPECT_LE(std::abs(at.y - (y + 0.5)), 8.5) << "at " << x << "," << y;
-      EXPECT_NEAR(at.z, hit->depth, 1e-5);
-      // The unprojected pixel lies on the point's depth plane, a splat away from it.
-      EXPECT_LT(glm::length(hit->world - world), 0.01);
+  // With discs and with the pull-push fill, whose filled pixels take the depth and pick id of
+  // the sample that fills them.
+  for (const SurfaceFill fill : {SurfaceFill::kDiscs, SurfaceFill::kPullPush}) {
+    SCOPED_TRACE(fill == SurfaceFill::kDiscs ? "discs" : "pull-push");
+    ViewRenderer r(v.width, v.height);
+    RenderOptions o;
+    o.pick_ids = true;
+    o.fill = fill;
+    const Image img = r.renderSettled(m, v, o);
+    size_t hits = 0, checked = 0;
+    for (uint32_t y = 0; y < v.height; y += 3) {
+      for (uint32_t x = 0; x < v.width; x += 3) {
+        const std::optional<PickHit> hit = r.pick(x, y);
+        const uint8_t* p = pixel(img, x, y);
+        const bool covered = p[0] || p[1] || p[2];
+        ASSERT_EQ(hit.has_value(), covered) << "at " << x << "," << y;
+        if (!hit) continue;
+        ++hits;
+        ASSERT_LT(hit->model, 2u);
+        EXPECT_EQ(hit->model, x < v.width / 2 ? 0u : 1u) << "at " << x << "," << y;
+        if (hits % 7) continue;  // every 7th hit: the point itself, from the store
+        ++checked;
+        auto chunk = s->loadChunk(hit->node);
+        ASSERT_LT(hit->point, chunk->size());
+        const glm::dvec3 world =
+            glm::dvec3(m[hit->model].model *
+                       glm::dvec4(chunk->offset + glm::dvec3(chunk->positions[hit->point]), 1.0));
+        const glm::dvec3 at = project(v, world);
+        // The point's splat covers the pixel: within the largest splat radius (8) of it.
+        EXPECT_LE(std::abs(at.x - (x + 0.5)), 8.5) << "at " << x << "," << y;
+        EXPECT_LE(std::abs(at.y - (y + 0.5)), 8.5) << "at " << x << "," << y;
+        EXPECT_NEAR(at.z, hit->depth, 1e-5);
+        // The unprojected pixel lies on the point's depth plane, a splat away from it.
+        EXPECT_LT(glm::length(hit->world - world), 0.01);
+      }
     }
+    EXPECT_GT(hits, 1000u);
+    EXPECT_GT(checked, 100u);
+    // A frame without pick ids answers nothing.
+    RenderOptions no_pick;
+    no_pick.fill = fill;
+    r.renderSettled(m, v, no_pick);
+    EXPECT_FALSE(r.pick(v.width / 4, v.height / 2).has_value());
   }
-  EXPECT_GT(hits, 1000u);
-  EXPECT_GT(checked, 100u);
-  // A frame without pick ids answers nothing.
-  r.renderSettled(m, v, RenderOptions{});
-  EXPECT_FALSE(r.pick(v.width / 4, v.height / 2).has_value());
 }
 
 TEST_F(FramePipelineTest, OverlayLineAcrossTheBezelMeetsOnTheNextTile) {

@@ -5,8 +5,10 @@
 // classic method over a 0.1 degree orbit step.
 #include <gtest/gtest.h>
 
+#include <bit>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <memory>
 #include <random>
 
@@ -307,6 +309,197 @@ TEST_F(EdlBunnyTest, OrbitStepFlickersAtMostHalfAsMuchAsClassic) {
       f_robust, f_classic, meanAbsChange(robust().full, robust().full_orbit),
       meanAbsChange(classic().full, classic().full_orbit));
   EXPECT_LE(f_robust, 0.5 * f_classic);  // measured 0.70 against 4.99
+}
+
+// The pull-push fill (FillPass, shaders/fill.comp; Marroquim et al. 2007) on points given in
+// view space, drawn by the point pass as 1 px points with their splat radii (or as discs, to
+// compare): radius 0.5 spacing_k / w pixels at view depth w.
+class FillTest : public EdlTest {};
+
+struct Frame {
+  Image image;
+  std::vector<uint32_t> depth, pick;  // raster order (row 0 at the bottom)
+};
+
+enum class Mode { kDiscs, kPoints, kPullPush };  // kPoints: 1 px points, no fill
+
+/// Draws `batches` of `points` (pick ids: index in `points`) and resolves them on black.
+Frame drawFill(const std::vector<GpuPoint>& points, std::vector<DrawBatch> batches, Mode mode) {
+  FrameTarget target(kSize, kSize);
+  PointPass pass;
+  pass.setPoints(points);
+  PointShading shading;
+  shading.pick = true;
+  shading.fill = mode != Mode::kDiscs;
+  for (DrawBatch& b : batches) {
+    b.clip_from_local = glm::mat4(squareProjection());
+    b.pick_base = b.first;
+    if (b.splat_radius == 0) b.splat_radius = 8;
+  }
+  target.clearGeometry(true, false, shading.fill);
+  pass.draw(target, batches, shading);
+  if (mode == Mode::kPullPush) FillPass().run(target, squareProjection(), 8.0f, true, true);
+  ResolvePass().run(target, glm::vec3(0.0f), 0);
+  return {target.readImage(), target.readDepth(), target.readPick()};
+}
+
+/// Uniformly random points at view depth z over x in [x0, x1] and y in [-y1, y1] (in units of
+/// the view's half-width at that depth, z tan(20 deg)), `per_pixel` points a pixel on average,
+/// colour rgba; the depth grows by `slope` y.
+void addRandomPlane(std::vector<GpuPoint>& out, double z, double x0, double x1, double per_pixel,
+                    uint32_t rgba, uint64_t seed, double slope = 0.0, double y1 = 1.0) {
+  std::mt19937_64 rng(seed);
+  const double half = z * std::tan(glm::radians(20.0));
+  std::uniform_real_distribution<double> ux(x0 * half, x1 * half), uy(-y1 * half, y1 * half);
+  const double pixels = (x1 - x0) / 2.0 * y1 * kSize * kSize;
+  for (size_t i = 0; i < size_t(pixels * per_pixel); ++i) {
+    const double x = ux(rng), y = uy(rng);
+    out.push_back({glm::vec3(x, y, -(z + slope * y)), rgba});
+  }
+}
+
+/// Pixel (x right, y down) of the image and of a raster-order plane.
+const uint8_t* at(const Frame& f, uint32_t x, uint32_t y) {
+  return &f.image.rgba[(size_t(y) * kSize + x) * 4];
+}
+uint32_t planeAt(const std::vector<uint32_t>& plane, uint32_t x, uint32_t y) {
+  return plane[size_t(kSize - 1 - y) * kSize + x];
+}
+
+/// Splats of radius `radius_px` pixels at view depth z.
+DrawBatch splats(size_t first, size_t count, double z, double radius_px) {
+  DrawBatch b;
+  b.first = uint32_t(first);
+  b.count = uint32_t(count);
+  b.spacing_k = float(2.0 * radius_px * z);
+  return b;
+}
+
+TEST_F(FillTest, BackgroundFarFromThePointsStaysBackgroundAndSilhouettesDoNotGrow) {
+  // A surface on the left half, one point per 4 pixels: 1 px points leave most pixels open,
+  // discs of 4 px close it.
+  std::vector<GpuPoint> pts;
+  addRandomPlane(pts, 2.0, -1.0, 0.0, 1.0 / 4.0, 0xFF0000FFu, 3);
+  const std::vector<DrawBatch> b{splats(0, pts.size(), 2.0, 4.0)};
+  const Frame discs = drawFill(pts, b, Mode::kDiscs);
+  const Frame fill = drawFill(pts, b, Mode::kPullPush);
+  const Frame points = drawFill(pts, b, Mode::kPoints);
+  size_t inside = 0, open_fill = 0, open_points = 0, open_discs = 0, grown = 0, covered = 0;
+  for (uint32_t y = 0; y < kSize; ++y)
+    for (uint32_t x = 0; x < kSize; ++x) {
+      const bool f = at(fill, x, y)[0] != 0;
+      covered += f;
+      if (x >= kSize / 2 + 5) {  // more than the 4 px radius right of the surface's edge
+        EXPECT_FALSE(f) << "at " << x << "," << y;
+        EXPECT_EQ(planeAt(fill.depth, x, y), kEmptyDepth);
+        EXPECT_EQ(planeAt(fill.pick, x, y), kNoPick);
+      }
+      // Nothing the discs leave open, but a pixel next to what they cover (several points on
+      // one pixel reach from anywhere in it: half a pixel's diagonal).
+      bool near_disc = false;
+      for (int dy = -1; dy <= 1; ++dy)
+        for (int dx = -1; dx <= 1; ++dx) {
+          const int u = int(x) + dx, v = int(y) + dy;
+          near_disc |= u >= 0 && v >= 0 && u < int(kSize) && v < int(kSize) &&
+                       at(discs, uint32_t(u), uint32_t(v))[0] != 0;
+        }
+      grown += f && !near_disc;
+      if (x >= 5 && x + 5 < kSize / 2 && y >= 5 && y + 5 < kSize) {
+        ++inside;
+        open_fill += !f;
+        open_points += at(points, x, y)[0] == 0;
+        open_discs += at(discs, x, y)[0] == 0;
+      }
+    }
+  std::printf("half plane: %zu pixels inside, open: 1 px points %zu, discs %zu, pull-push %zu\n",
+              inside, open_points, open_discs, open_fill);
+  EXPECT_GT(open_points, inside / 2);  // the points alone do not close it
+  EXPECT_EQ(open_fill, 0u);
+  EXPECT_EQ(grown, 0u);
+  EXPECT_GT(covered, size_t(kSize) * kSize / 2 - 4 * kSize);
+}
+
+TEST_F(FillTest, BackSurfaceDoesNotShowThroughTheFrontSurfacesHoles) {
+  // Front: red, one point per 3 pixels, 4 px discs. Back: blue, two metres further, 4 points a
+  // pixel, so it shows in every hole the 1 px front points leave.
+  std::vector<GpuPoint> pts;
+  addRandomPlane(pts, 2.0, -1.0, 1.0, 1.0 / 3.0, 0xFF0000FFu, 4);
+  const size_t front = pts.size();
+  addRandomPlane(pts, 4.0, -1.0, 1.0, 4.0, 0xFFFF0000u, 5);
+  const std::vector<DrawBatch> b{splats(0, front, 2.0, 4.0),
+                                 splats(front, pts.size() - front, 4.0, 0.5)};
+  auto blue = [](const Frame& f) {
+    size_t n = 0;
+    for (uint32_t y = 5; y + 5 < kSize; ++y)
+      for (uint32_t x = 5; x + 5 < kSize; ++x) n += at(f, x, y)[2] > 128;
+    return n;
+  };
+  const size_t through_points = blue(drawFill(pts, b, Mode::kPoints));
+  const Frame fill = drawFill(pts, b, Mode::kPullPush);
+  const size_t through_discs = blue(drawFill(pts, b, Mode::kDiscs));
+  std::printf("back surface seen through the front: 1 px points %zu px, discs %zu, pull-push %zu\n",
+              through_points, through_discs, blue(fill));
+  EXPECT_GT(through_points, size_t(kSize) * kSize / 2);
+  EXPECT_EQ(through_discs, 0u);
+  EXPECT_EQ(blue(fill), 0u);
+  // Depth says the same: the front's (view depth 2, window depth below that of 3 m).
+  const glm::dvec4 mid = squareProjection() * glm::dvec4(0.0, 0.0, -3.0, 1.0);
+  const auto mid_bits = std::bit_cast<uint32_t>(float(mid.z / mid.w * 0.5 + 0.5));
+  for (uint32_t y = 5; y + 5 < kSize; ++y)
+    for (uint32_t x = 5; x + 5 < kSize; ++x)
+      ASSERT_LT(planeAt(fill.depth, x, y), mid_bits) << "at " << x << "," << y;
+}
+
+TEST_F(FillTest, FilledPixelsTakeTheDepthAndPickIdOfTheSampleThatReachesThem) {
+  // A slanted surface (depth changing across it) inside the view, one point per 5 pixels, 2.5 px
+  // discs at its middle; then a batch with a NaN spacing (bad input) that must draw single
+  // pixels only.
+  std::vector<GpuPoint> pts;
+  addRandomPlane(pts, 2.0, -0.6, 0.6, 1.0 / 5.0, 0xFF00FF00u, 6, 0.5, 0.6);
+  const size_t surface = pts.size();
+  pts.push_back({glm::vec3(0.6f, 0.6f, -2.0f), 0xFFFFFFFFu});
+  std::vector<DrawBatch> b{splats(0, surface, 2.0, 2.5), splats(surface, 1, 2.0, 0.0)};
+  b[1].spacing_k = std::numeric_limits<float>::quiet_NaN();
+  const Frame f = drawFill(pts, b, Mode::kPullPush);
+  const glm::mat4 clip = glm::mat4(squareProjection());
+  size_t filled = 0, checked = 0;
+  for (uint32_t y = 0; y < kSize; ++y)
+    for (uint32_t x = 0; x < kSize; ++x) {
+      const uint32_t d = planeAt(f.depth, x, y), id = planeAt(f.pick, x, y);
+      ASSERT_EQ(d == kEmptyDepth, id == kNoPick) << "at " << x << "," << y;
+      if (id == kNoPick) continue;
+      ASSERT_LT(id, pts.size());
+      const glm::vec4 c = clip * glm::vec4(pts[id].position, 1.0f);
+      const glm::vec2 px((c.x / c.w * 0.5f + 0.5f) * kSize, (0.5f - c.y / c.w * 0.5f) * kSize);
+      const float dist = glm::length(px - glm::vec2(x + 0.5f, y + 0.5f));
+      const float radius = id < surface ? 0.5f * b[0].spacing_k / c.w : 0.0f;
+      // Within the sample's radius; where several points fell on the sample's pixel, the
+      // nearest of them gives depth and pick id, the largest splat the reach from anywhere in
+      // the pixel: up to the pixel's diagonal further.
+      EXPECT_LE(dist, radius + 1.4143f) << "at " << x << "," << y;
+      EXPECT_NEAR(std::bit_cast<float>(d), c.z / c.w * 0.5f + 0.5f, 1e-6f)
+          << "at " << x << "," << y;
+      filled += dist > 0.7072f;
+      ++checked;
+    }
+  EXPECT_GT(filled, checked / 2);  // most pixels are filled, not drawn
+  // The NaN batch's point is one pixel, with nothing filled around it.
+  size_t white = 0;
+  for (size_t i = 0; i < f.image.rgba.size(); i += 4) white += f.image.rgba[i + 2] == 255;
+  EXPECT_EQ(white, 1u);
+}
+
+TEST_F(FillTest, BadSizesAndRadiiAreRefusedOrIgnored) {
+  EXPECT_THROW(FrameTarget(0, 16), RenderError);
+  FrameTarget target(16, 16);
+  target.clearGeometry(true, false, true);
+  FillPass fill;
+  EXPECT_EQ(
+      fill.run(target, squareProjection(), std::numeric_limits<float>::quiet_NaN(), true, true),
+      0.0);
+  EXPECT_EQ(fill.run(target, squareProjection(), 0.0f, true, true), 0.0);
+  fill.run(target, squareProjection(), 1e9f, true, true);  // clamped to the deepest pyramid
+  for (uint32_t d : target.readDepth()) ASSERT_EQ(d, kEmptyDepth);
 }
 
 }  // namespace

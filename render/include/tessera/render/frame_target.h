@@ -43,10 +43,16 @@ class FrameTarget {
   /// Blended colours (PointShading::blend): per pixel the weighted r, g, b sums and the weight
   /// (16 bytes), made on first use. Raster order.
   const GlBuffer& colorSums();
+  /// Splat footprints for the pull-push fill (PointShading::fill, FillPass): per pixel two words,
+  /// the disc the pixel's nearest point would have had (radius and position in the pixel,
+  /// packed as shaders/point_raster.comp describes; 0 where no point was drawn as one pixel) and
+  /// non-zero when points behind it fell on the pixel too. Made on first use (8 bytes a
+  /// pixel). Raster order.
+  const GlBuffer& splatFootprints();
 
   /// Starts a frame's geometry: depth and colours empty; pick ids empty when `pick`; colour
-  /// sums zero when `blend`.
-  void clearGeometry(bool pick, bool blend = false);
+  /// sums zero when `blend`; splat footprints zero when `footprints`.
+  void clearGeometry(bool pick, bool blend = false, bool footprints = false);
 
   Image readImage() const;
   /// One plane read back, raster order.
@@ -57,7 +63,7 @@ class FrameTarget {
 
  private:
   uint32_t mWidth, mHeight;
-  GlBuffer mDepth, mColors, mPick, mImage, mColorSums;
+  GlBuffer mDepth, mColors, mPick, mImage, mColorSums, mSplatFootprints;
 };
 
 }  // namespace tessera::render

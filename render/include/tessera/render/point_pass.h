@@ -22,8 +22,9 @@
 
 namespace tessera::render {
 
-/// One point as the GPU holds it: position relative to its batch's frame, colour packed RGBA
-/// (r in the low byte). 16 bytes.
+/// One point as the GPU holds it: position relative to its batch's frame, colour packed in the
+/// low three bytes (r lowest); the top byte is not alpha but the point's splat scale
+/// (splat_sizes.h pointSplatScale(): 0 draws the node's disc). 16 bytes.
 struct GpuPoint {
   glm::vec3 position;
   uint32_t rgba;
@@ -81,6 +82,12 @@ struct PointShading {
   /// view's (for view depth from window depth).
   bool blend = false;
   glm::dmat4 projection{1.0};
+  /// For the pull-push fill (FillPass; Marroquim et al. 2007): every point on screen is one
+  /// pixel, and the colour pass (run even for one colour) also keeps per pixel the footprint of
+  /// the nearest point's disc (the target's splatFootprints(); a read per point, an atomic per
+  /// pixel). Points off screen still draw their discs, so what reaches into the view from
+  /// outside is as before.
+  bool fill = false;
 };
 
 /// Milliseconds per step of the last call, measured on the CPU with the GL work finished after
@@ -93,7 +100,8 @@ class PointPass {
  public:
   PointPass();
 
-  /// Replaces the pass's own point buffer (batches with buffer 0 read it).
+  /// Replaces the pass's own point buffer (batches with buffer 0 read it). The points' top bytes
+  /// are dropped (callers pack colours with alpha there): each draws its node's disc.
   void setPoints(std::span<const GpuPoint> points);
   /// Opaque points into `target`'s depth, colours (and pick ids): depth pass, then colour pass.
   /// Does not clear the target (FrameTarget::clearGeometry()), so several geometry passes can

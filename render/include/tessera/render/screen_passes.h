@@ -27,6 +27,50 @@ class ResolvePass {
   GlProgram mProgram;
 };
 
+/// FillPass's most pyramid levels (TESSERA_FILL_MAX_LEVELS in shaders/shared_layout.h): radii
+/// up to 2^4 = 16 pixels are filled in full (footprints hold radii to 15.9 px in 1/16 px).
+constexpr int kFillMaxLevels = 4;
+
+/// The pull-push fill's depth tolerance, in splat radii (FillPass).
+constexpr float kFillDepthTolerance = 4.0f;
+
+/// Screen-space surface reconstruction for points drawn as single pixels with their splat
+/// footprints (PointShading::fill; R. Marroquim, M. Kraus, P. R. Cavalcanti, "Efficient
+/// point-based rendering using image reconstruction", SPBG 2007; shaders/fill.comp): the pull
+/// phase builds a pyramid keeping one front-surface sample per 2x2 block, the push phase, coarse
+/// to fine, gives each texel and then each pixel the front sample whose disc reaches it. A pixel
+/// without a sample, or lying behind that sample by more than kFillDepthTolerance radii (a back
+/// surface seen through a hole of the front), takes it; so does its depth, colour (when
+/// `colors`) and pick id (when `pick`), so later passes and pick() see the filled surface. Pixels
+/// no disc reaches stay empty: silhouettes grow no more than the discs' (half a pixel more where
+/// several points share a pixel). Where discs overlap, the surface shows the sample whose disc
+/// holds the pixel deepest rather than the nearest in depth. Run after the point pass and before
+/// the resolve. Milliseconds.
+///
+/// Cost: levels = ceil(log2(max_radius)) (1 to kFillMaxLevels). One pass over the pixels in 2x2
+/// blocks reading the frame's depth and footprints (3 words a pixel) into packed samples (8
+/// bytes); pull and push passes over each level's texels (a quarter of the pixels and less; 4
+/// and 25 samples read a texel); one pass over the pixels in 2x2 blocks (25 samples read a
+/// block); copies of the planes written. At 1920x1080 on llvmpipe about 4 resolve passes. Owns
+/// two pyramids of 8 bytes a texel (level 0 included: 2.7 times the pixels) and output planes
+/// of 4 bytes a pixel, reallocated when the target's size changes.
+class FillPass {
+ public:
+  FillPass();
+  /// `projection`: the one the depth was written with (view depth and a pixel's size for the
+  /// depth tolerance). `max_radius`: the largest splat radius drawn, pixels (larger radii in
+  /// the target are clamped to it, and to 2^kFillMaxLevels). Does nothing for a max_radius
+  /// below 1 (or NaN).
+  double run(FrameTarget& target, const glm::dmat4& projection, float max_radius, bool colors,
+             bool pick);
+
+ private:
+  GlProgram mStages[4];  ///< shaders/fill.comp's stages 1-3: pull, push a level, the pixels
+  GlBuffer mPyramid, mDepth, mColors, mPick;
+  size_t mPixels = 0;     ///< target size the buffers are for
+  uint32_t mWinners = 0;  ///< first texel of the push phase's winners in mPyramid
+};
+
 /// EdlOptions::filter_radius's largest value (TESSERA_EDL_MAX_FILTER_RADIUS in
 /// shaders/shared_layout.h).
 constexpr int kEdlMaxFilterRadius = 4;

@@ -20,6 +20,11 @@ namespace tessera::render {
 /// wider (a stray point in a tree, an outlier) is capped at it.
 constexpr float kMaxPointSplatScale = 4.0f;
 
+/// How much wider than its cell's radius a point's disc is drawn: the disc is a circle on the
+/// screen sized at the point's own depth, while the cell's far vertices lie nearer or farther on
+/// a slanted surface, so exact discs leave slivers where three cells meet.
+constexpr double kCellMargin = 1.1;
+
 /// The splat scale in a GPU point's top byte (GpuPoint::rgba >> 24): 1 + byte / 64, so 0 is the
 /// node's own disc and points without a measured scale draw as before.
 constexpr float pointSplatScale(uint32_t rgba) {
@@ -27,8 +32,8 @@ constexpr float pointSplatScale(uint32_t rgba) {
 }
 
 /// Per point of a chunk, the byte of pointSplatScale(): the radius that closes the surface
-/// around it, as a multiple of `spacing` (the node's mean spacing, which the disc is at the
-/// default splat scale 2), at least 1 and at most kMaxPointSplatScale. The Voronoi cell is
+/// around it (times kCellMargin), as a multiple of `spacing` (the node's mean spacing, which the
+/// disc is at the default splat scale 2), at least 1 and at most kMaxPointSplatScale. The Voronoi cell is
 /// taken among the neighbours within 4 spacings (a gap wider than about 4 spacings is not the
 /// sampling's but the data's, and stays); its vertices on that search square (the cell is open:
 /// the edge of the data or of the node) do not count. Empty `points`, a non-finite or
