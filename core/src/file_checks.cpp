@@ -59,4 +59,15 @@ std::optional<std::filesystem::path> sameFileAs(const std::filesystem::path& out
   return std::nullopt;
 }
 
+std::string whyNotWritable(const std::filesystem::path& path, int error) {
+  std::error_code ec;
+  const std::filesystem::path folder = path.parent_path();
+  if (!folder.empty() && !std::filesystem::exists(folder, ec))
+    return "the folder " + folder.string() + " does not exist";
+  if (!folder.empty() && !std::filesystem::is_directory(folder, ec))
+    return folder.string() + " is not a folder";
+  if (std::filesystem::is_directory(path, ec)) return "it is a folder";
+  return std::strerror(error);
+}
+
 }  // namespace tessera

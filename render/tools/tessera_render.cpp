@@ -16,6 +16,7 @@
 #include <sstream>
 
 #include <tessera/core/cli.h>
+#include <tessera/core/file_checks.h>
 #include <tessera/lod/point_reader.h>
 #include <tessera/lod/store_builder.h>
 #include <tessera/lod/store_cache.h>
@@ -333,14 +334,8 @@ int run(int argc, char** argv) {
     if (!stats_path.empty()) {
       bool fresh = !fs::exists(stats_path);
       stats_file.open(stats_path, std::ios::app);
-      if (!stats_file) {
-        const int err = errno;
-        const fs::path folder = fs::path(stats_path).parent_path();
-        usage("--stats " + stats_path + ": cannot write: " +
-              (!folder.empty() && !fs::is_directory(folder, ec)
-                   ? "the folder " + folder.string() + " does not exist"
-                   : std::string(std::strerror(err))));
-      }
+      if (!stats_file)
+        usage("--stats " + stats_path + ": cannot write: " + whyNotWritable(stats_path, errno));
       if (fresh) {
         stats_file << "view,width,height,frames,cut_nodes,nodes,points,corrupt_chunks,"
                       "resident_chunks,resident_bytes,store_bytes,select_ms,upload_ms,depth_ms,"

@@ -23,13 +23,18 @@ std::string contentOf(const std::filesystem::path& p) {
   return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
 }
 
+/// A 1065-point store, dir/s.tlod ("" if it could not be built).
+std::string smallStore(const TempDir& dir) {
+  const std::string store = (dir / "s.tlod").string();
+  const CommandResult r = runCommand(std::string(TESSERA_LOD_TOOL) + " build " + kData +
+                                     "/lidar/1.2-with-color.las -o " + store + " --quiet");
+  return r.code == 0 ? store : "";
+}
+
 TEST(ToolOutputs, RenderNeverWritesOverItsInputs) {
   TempDir dir;
-  const std::string store = (dir / "s.tlod").string();
-  ASSERT_EQ(runCommand(std::string(TESSERA_LOD_TOOL) + " build " + kData +
-                       "/lidar/1.2-with-color.las -o " + store + " --quiet")
-                .code,
-            0);
+  const std::string store = smallStore(dir);
+  ASSERT_FALSE(store.empty());
   std::filesystem::create_symlink(store, dir / "link.tlod");
   const std::string before = contentOf(store);
   const std::string render = "EGL_PLATFORM=surfaceless timeout 120 " +
@@ -68,6 +73,26 @@ TEST(ToolOutputs, MasterNeverWritesOverItsConfigs) {
     EXPECT_EQ(contentOf(dir / "w.json"), "{}");
     EXPECT_EQ(contentOf(dir / "s.json"), "{}");
   }
+}
+
+TEST(ToolOutputs, MasterSaysWhyItsStatsCannotBeWritten) {
+  TempDir dir;
+  const std::string store = smallStore(dir);
+  ASSERT_FALSE(store.empty());
+  std::ofstream(dir / "s.json") << R"({"camera": {"eye": {"z": 100}, "target": {}, "up": {"y": 1}},
+    "nodes": [{"kind": "MODEL", "model": {"store": "s.tlod"}}]})";
+  std::ofstream(dir / "w.json") << R"({"tiles": [{"name": "a", "width": 1, "height": 1,
+    "pixelWidth": 16, "pixelHeight": 16}], "eye": {"z": 2}})";
+  // Before: "--stats ...: cannot write", without the reason.
+  const CommandResult r =
+      runCommand("timeout 60 " + std::string(TESSERA_MASTER) +
+                 " --transport zmq --listen tcp://127.0.0.1:* --join-wait 0 --wall " +
+                 (dir / "w.json").string() + " --scene " + (dir / "s.json").string() + " --stats " +
+                 (dir / "none" / "stats.csv").string());
+  EXPECT_EQ(r.code, 1) << r.out;
+  EXPECT_NE(r.out.find("cannot write: the folder " + (dir / "none").string() + " does not exist"),
+            std::string::npos)
+      << r.out;
 }
 
 }  // namespace

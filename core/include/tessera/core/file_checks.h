@@ -24,4 +24,8 @@ std::optional<std::string> notRegularFile(const std::filesystem::path& path);
 std::optional<std::filesystem::path> sameFileAs(const std::filesystem::path& output,
                                                 std::span<const std::filesystem::path> inputs);
 
+/// Why `path` could not be opened for writing, given the errno of the failure: "the folder F
+/// does not exist", "F is not a folder", "it is a folder", else the errno text.
+std::string whyNotWritable(const std::filesystem::path& path, int error);
+
 }  // namespace tessera
