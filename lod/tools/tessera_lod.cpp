@@ -8,6 +8,7 @@
 
 #include <tessera/core/check.h>
 #include <tessera/core/cli.h>
+#include <tessera/core/file_checks.h>
 #include <tessera/lod/mesh.h>
 #include <tessera/lod/photo_points.h>
 #include <tessera/lod/point_writer.h>
@@ -296,6 +297,13 @@ int run(int argc, char** argv) {
   photo->add_option("-o,--output", photo_out, "Output store (.tlod) or points (.ply)")->required();
   photo->add_flag("--quiet", pbo.quiet, "No progress output");
 
+  // CLI11 reads the --config file before any validator runs: a FIFO there would block it.
+  for (int i = 1; i + 1 < argc; ++i) {
+    if (std::string(argv[i]) != "--config") continue;
+    if (const auto why = tessera::notRegularFile(argv[i + 1]);
+        why && std::filesystem::exists(argv[i + 1]))
+      throw cli::UsageError(std::string("--config ") + argv[i + 1] + ": " + *why);
+  }
   if (const auto code = cli::parse(app, argc, argv, "tessera-lod")) return *code;
   if (*photo) {
     po.image = photo_image;

@@ -251,6 +251,13 @@ TEST(TesseraLodHardening, FifosAndDevicesAreRefusedNotWaitedOn) {
     EXPECT_NE(r.out.find("not a regular file"), std::string::npos) << args << ": " << r.out;
   }
   EXPECT_FALSE(std::filesystem::exists(dir / "o.tlod.build-tmp"));
+  // The options file is read by CLI11 itself, before any validator.
+  CommandResult config = tessera::test::runCommand("timeout 20 " + kTool + " --config " +
+                                                   fifo.string() + " info " + fifo.string());
+  EXPECT_EQ(config.code, 2) << config.out;
+  EXPECT_NE(config.out.find("--config " + fifo.string() + ": not a regular file (a FIFO"),
+            std::string::npos)
+      << config.out;
 }
 
 TEST(TesseraLodHardening, AConfThatNamesItselfIsACycleNotACrash) {
