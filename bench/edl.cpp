@@ -24,7 +24,7 @@
 #define GL_GLEXT_PROTOTYPES
 #include <GL/glcorearb.h>
 
-#include <tessera/core/cli_checks.h>
+#include <tessera/core/cli.h>
 #include <tessera/core/stopwatch.h>
 #include <tessera/render/gl_context.h>
 #include <tessera/render/view_renderer.h>
@@ -103,7 +103,7 @@ int main(int argc, char** argv) {
       ->check(CLI::PositiveNumber)
       ->capture_default_str();
   app.add_option("--orbit", orbit_deg, "Orbit step between the two frames, degrees")
-      ->check(tessera::finiteRange(-10.0, 10.0))
+      ->check(tessera::cli::finiteRange(-10.0, 10.0))
       ->capture_default_str();
   app.add_option("--crop", crop_at, "Top-left pixel of the 320x180 crops")
       ->expected(2)

@@ -27,7 +27,7 @@
 #include <CLI/CLI.hpp>
 #include <glm/gtc/matrix_transform.hpp>
 
-#include <tessera/core/cli_checks.h>
+#include <tessera/core/cli.h>
 #include <tessera/lod/point_store.h>
 #include <tessera/lod/store_cache.h>
 #include <tessera/render/chunk_streamer.h>
@@ -120,7 +120,7 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--width", width, "View width, pixels")->check(CLI::Range(64, 4096));
   app.add_option("--height", height, "View height, pixels")->check(CLI::Range(64, 4096));
-  CLI11_PARSE(app, argc, argv);
+  if (const auto code = cli::parse(app, argc, argv, "splat_sizes")) return *code;
   fs::create_directories(out);
 
   const std::vector<Scene> scenes = {

@@ -1,5 +1,6 @@
 // The body shared by the reader fuzz targets: open the bytes as one forced format, drain every
-// batch with a small batch size and check what the PointBatch contract promises. ReadError is
+// batch with a small batch size and check what the PointBatch contract promises (checkReader(),
+// also used by the .conf target, conf_fuzz.h). ReadError is
 // the only failure a reader may report; anything else escapes and libFuzzer reports it.
 #pragma once
 
@@ -24,12 +25,12 @@ inline bool finite(const glm::dvec3& p) {
   return std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z);
 }
 
-inline int readAll(const uint8_t* data, size_t size, lod::Format format, const char* name) {
+/// Drains `reader` in batches of 7 points, checking what the PointBatch contract promises.
+/// ReadError propagates.
+inline void checkReader(lod::PointReader& reader_ref) {
   using namespace tessera::lod;
-  try {
-    ReaderOptions options;
-    options.format = format;
-    auto reader = openPointReader(std::span<const uint8_t>(data, size), name, options);
+  PointReader* reader = &reader_ref;
+  {
     require(finite(reader->info().origin), "non-finite origin");
     PointBatch batch;
     uint64_t points = 0, triangles = 0;
@@ -43,7 +44,8 @@ inline int readAll(const uint8_t* data, size_t size, lod::Format format, const c
       require(!(a & kIntensity) || batch.intensities.size() == n, "intensities.size() != size()");
       require(!(a & kConfidence) || batch.confidences.size() == n, "confidences.size() != size()");
       require(!(a & kGridPosition) || batch.grid_positions.size() == n, "grid_positions.size()");
-      require(!(a & kClassification) || batch.classifications.size() == n, "classifications.size()");
+      require(!(a & kClassification) || batch.classifications.size() == n,
+              "classifications.size()");
       for (const glm::dvec3& p : batch.positions) require(finite(p), "non-finite position");
       for (const Triangle& t : batch.triangles) {
         max_index = std::max({max_index, t.x, t.y, t.z});
@@ -54,6 +56,16 @@ inline int readAll(const uint8_t* data, size_t size, lod::Format format, const c
     require(triangles == 0 || max_index < points, "triangle names a vertex never delivered");
     require(reader->stats().points == points, "stats().points != points delivered");
     require(reader->stats().triangles == triangles, "stats().triangles != triangles delivered");
+  }
+}
+
+inline int readAll(const uint8_t* data, size_t size, lod::Format format, const char* name) {
+  using namespace tessera::lod;
+  try {
+    ReaderOptions options;
+    options.format = format;
+    auto reader = openPointReader(std::span<const uint8_t>(data, size), name, options);
+    checkReader(*reader);
   } catch (const ReadError&) {
   }
   return 0;

@@ -3,19 +3,22 @@
 # build/fuzz/corpus/<target>/ from small real files and hand-made inputs, then runs each fuzzer
 # for SECONDS (default 300), one at a time. Crashing inputs land in fuzz/regressions/<target>/,
 # which is also replayed first, so a regression that comes back fails at once.
-# Usage: fuzz/run.sh [SECONDS] [TARGET...]   (targets: ply las text obj frame link; default all)
+# Usage: fuzz/run.sh [SECONDS] [TARGET...]
+#   (targets: ply las text obj conf tlod chunk frame link; default all)
 set -euo pipefail
 
 cd "$(dirname "$0")/.."
 SECONDS_PER_TARGET=${1:-300}
 shift || true
-TARGETS=("${@:-ply las text obj frame link}")
+TARGETS=("${@:-ply las text obj conf tlod chunk frame link}")
 read -r -a TARGETS <<<"${TARGETS[*]}"
 DATA=${TESSERA_DATA_DIR:-$(cd .. && pwd)/shared/data}
 BUILD=build/fuzz
 
 cmake --preset fuzz >/dev/null
-cmake --build "$BUILD" -j1 --target "${TARGETS[@]/%/_fuzzer}"
+# tessera-lod (same build) writes the seed stores of the tlod and chunk targets.
+cmake --build "$BUILD" -j1 --target "${TARGETS[@]/%/_fuzzer}" tessera-lod
+LOD_TOOL=$(pwd)/$BUILD/lod/tessera-lod
 
 # poke FILE OFFSET WIDTH VALUE: writes VALUE as a WIDTH-byte little-endian integer at OFFSET.
 poke() {
@@ -96,6 +99,35 @@ g side\nusemtl red\nf 1 2 3\nf 1/1 3/1 4/1\nf -4//1 -3//1 -2//1 -1//1\nf 1 2\nf 
   printf 'v 0.5 0.5 0.5 0.1 0.2 0.3\nv 1 2 3 0.4 0.5 0.6\nv 4 5 6\nf 1 2 3\n' >unit-colors.obj
 }
 
+# .conf listings against the fixture folder conf_fuzz.h writes (a.ply, b.xyz, self.conf, ...).
+seed_conf() {
+  printf '# two scans\ncamera 0 0 0 0 0 0 1\nbmesh a.ply 0 0 0 0 0 0 1\nbmesh b.xyz 1 2 3 0 0 0.7071068 0.7071068\n' >two.conf
+  printf 'bmesh nest.conf 0 0 0 0 0 0 1\r\nbmesh a.ply 0 0 0 1 0 0 0\r\n' >nested.conf
+  printf 'bmesh ping.conf 0 0 0 0 0 0 1\n' >cycle.conf
+  printf 'bmesh missing.ply 0 0 0 0 0 0 1\n' >missing.conf
+}
+
+# Stores: one node (1065 points, colour and intensity), and a root with children (a 26^3 grid:
+# more points than a leaf holds, and small, as regular positions compress to almost nothing).
+seed_tlod() {
+  "$LOD_TOOL" build "$DATA/lidar/1.2-with-color.las" -o one-node.tlod --quiet >/dev/null
+  awk 'BEGIN { for (i = 0; i < 26; i++) for (j = 0; j < 26; j++) for (k = 0; k < 26; k++)
+    print i, j, k }' >grid.xyz
+  "$LOD_TOOL" build grid.xyz -o grid.tlod --quiet >/dev/null
+  rm grid.xyz
+}
+
+# Chunk payloads: a one-node store's payload is exactly its chunk (header fields at byte 144:
+# payload_offset, 152: payload_size).
+seed_chunk() {
+  "$LOD_TOOL" build "$DATA/lidar/1.2-with-color.las" -o one.tlod --quiet >/dev/null
+  local off size
+  off=$(od -An -t u8 -j 144 -N 8 one.tlod | tr -d ' ')
+  size=$(od -An -t u8 -j 152 -N 8 one.tlod | tr -d ' ')
+  dd if=one.tlod of=color.chunk iflag=skip_bytes,count_bytes skip="$off" count="$size" status=none
+  rm one.tlod
+}
+
 # Frames and snapshots written from protobuf text format (protoc --encode), against the scene
 # the fuzzer applies them to: nodes 1 > 2 > 3 and 4, at version 1.
 seed_frame() {
@@ -163,7 +195,8 @@ protocol: 2 quit { code: 5 reason: "critical tile lost" }
 END
 }
 
-declare -A MAX_LEN=([ply]=8192 [las]=8192 [text]=4096 [obj]=4096 [frame]=4096 [link]=4096)
+declare -A MAX_LEN=([ply]=8192 [las]=8192 [text]=4096 [obj]=4096 [conf]=1024 [tlod]=32768
+  [chunk]=8192 [frame]=4096 [link]=4096)
 export UBSAN_OPTIONS=halt_on_error=1:print_stacktrace=1
 status=0
 summary=()

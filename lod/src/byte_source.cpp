@@ -9,6 +9,7 @@
 #include <cstring>
 #include <utility>
 
+#include <tessera/core/file_checks.h>
 #include <tessera/lod/point_reader.h>
 
 namespace tessera::lod {
@@ -20,13 +21,15 @@ constexpr size_t kChunk = size_t(4) << 20;  // 4 MiB reads: page-cache speed, sm
 ByteSource ByteSource::openFile(const std::filesystem::path& path, const std::string& component) {
   ByteSource s;
   s.mName = path.string();
-  s.mFd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  std::string why;
+  s.mFd = openRegularFile(path, why);  // a FIFO or device is refused, never waited on
   if (s.mFd < 0) {
-    throw ReadError(component + ": " + s.mName + ": cannot open: " + std::strerror(errno));
+    throw ReadError(component + ": " + s.mName +
+                    (why.starts_with("not a") ? ": " : ": cannot open: ") + why);
   }
   struct stat st {};
-  if (::fstat(s.mFd, &st) != 0 || !S_ISREG(st.st_mode)) {
-    throw ReadError(component + ": " + s.mName + ": not a regular file");
+  if (::fstat(s.mFd, &st) != 0) {
+    throw ReadError(component + ": " + s.mName + ": cannot stat: " + std::strerror(errno));
   }
   s.mSize = uint64_t(st.st_size);
   s.mBuffer = ReadBuffer(kChunk);

@@ -262,7 +262,10 @@ void decodeChunk(std::span<const uint8_t> bytes, const glm::dvec3& box_min, Chun
   std::memcpy(&h, bytes.data(), sizeof h);
   if (uint64_t(sizeof h) + h.pc_size + h.extra_size != bytes.size())
     corrupt(what, "frame sizes do not add up");
-  if (h.bits < 1 || h.bits > kMaxBits || !(h.step > 0.0) || !std::isfinite(h.step))
+  // Positions are float(step) * cell with cell < 2^bits: that must be finite and not zero
+  // (a double step beyond float's range decoded to infinite or NaN positions; fuzz target).
+  if (h.bits < 1 || h.bits > kMaxBits || !(h.step > 0.0) || !std::isfinite(h.step) ||
+      !(float(h.step) > 0.0f) || !std::isfinite(float(h.step) * float(1u << h.bits)))
     corrupt(what, "bad quantisation");
   if ((h.attributes & ~(kColor | kExtra)) != 0) corrupt(what, "unknown attributes");
   if (h.points > (1u << 26)) corrupt(what, "implausible point count");

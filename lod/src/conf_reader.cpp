@@ -8,7 +8,10 @@
 // it to the camera). With this the 10 bunny scans lie a median 0.07 mm from the merged surface;
 // with R(q) p + t whole scans land centimetres off (tests/lod/conf_reader_test.cpp).
 #include <algorithm>
+#include <cctype>
 #include <fstream>
+
+#include <tessera/core/file_checks.h>
 
 #include "byte_source.h"
 #include "reader_util.h"
@@ -38,21 +41,64 @@ RigidPose parsePose(std::string_view& rest, const std::string& file, uint64_t li
   return RigidPose{glm::dvec3(v[0], v[1], v[2]), glm::conjugate(q / len)};
 }
 
+/// .conf files may list .conf files; deeper than this is refused (a listing loop without a
+/// cycle by path, e.g. ever longer names, would otherwise recurse until the stack ends).
+constexpr size_t kMaxConfNesting = 8;
+
+bool isConfName(const std::filesystem::path& p) {
+  std::string ext = p.extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(),
+                 [](unsigned char c) { return char(std::tolower(c)); });
+  return ext == ".conf";
+}
+
 class ConfReader final : public PointReader {
  public:
-  explicit ConfReader(const std::filesystem::path& conf);
+  /// `src` holds the listing; scans are found beside `conf`. `chain`: the .conf files being
+  /// read around this one, outermost first (their scans include this one).
+  ConfReader(ByteSource src, const std::filesystem::path& conf,
+             std::vector<std::filesystem::path> chain);
   bool next(PointBatch& batch, size_t max_points) override;
 
  private:
+  /// Refuses a scan that is a .conf already being read (a cycle) or nested too deep.
+  void checkNesting(const ScanInfo& scan, uint64_t line) const;
+  /// A scan's reader; a nested .conf gets the chain, so its own cycles are found.
+  std::unique_ptr<PointReader> openScan(const ScanInfo& scan) const;
+
   std::string mName;
+  std::vector<std::filesystem::path> mChain;  // outer .confs, then this one
   size_t mScan = 0;
   std::unique_ptr<PointReader> mCurrent;
   uint64_t mBase = 0;  // points delivered by earlier scans (offsets triangle indices)
   PointBatch mTmp;
 };
 
-ConfReader::ConfReader(const std::filesystem::path& conf) : mName(conf.string()) {
-  ByteSource src = ByteSource::openFile(conf, kComponent);
+void ConfReader::checkNesting(const ScanInfo& scan, uint64_t line) const {
+  if (!isConfName(scan.path)) return;
+  if (const auto same = sameFileAs(scan.path, mChain)) {
+    std::string loop;
+    for (const auto& p : mChain) loop += p.string() + " -> ";
+    fail(kComponent, mName, atLine(line),
+         "scan " + shown(scan.name) + " is " + same->string() +
+             ", a .conf already being read: the listing is a cycle (" + loop + scan.path.string() +
+             ")");
+  }
+  if (mChain.size() >= kMaxConfNesting)
+    fail(kComponent, mName, atLine(line),
+         "scan " + shown(scan.name) + ": .conf files nested more than " +
+             std::to_string(kMaxConfNesting) + " deep");
+}
+
+std::unique_ptr<PointReader> ConfReader::openScan(const ScanInfo& scan) const {
+  if (!isConfName(scan.path)) return openPointReader(scan.path);
+  return openStanfordConf(scan.path, mChain);
+}
+
+ConfReader::ConfReader(ByteSource src, const std::filesystem::path& conf,
+                       std::vector<std::filesystem::path> chain)
+    : mName(conf.string()), mChain(std::move(chain)) {
+  mChain.push_back(conf);
   std::string_view line;
   AttributeMask common = ~0u;
   while (src.readLine(line, 1 << 16)) {
@@ -69,9 +115,10 @@ ConfReader::ConfReader(const std::filesystem::path& conf) : mName(conf.string())
       scan.name = std::string(file);
       scan.pose = parsePose(rest, mName, src.lineNumber());
       scan.path = conf.parent_path() / scan.name;
+      checkNesting(scan, src.lineNumber());
       std::unique_ptr<PointReader> r;
       try {
-        r = openPointReader(scan.path);
+        r = openScan(scan);
       } catch (const ReadError& e) {
         fail(kComponent, mName, atLine(src.lineNumber()),
              std::string("scan ") + shown(scan.name) + ": " + e.what());
@@ -103,7 +150,7 @@ bool ConfReader::next(PointBatch& batch, size_t max_points) {
   batch.reset(mInfo.attributes);
   while (mScan < mInfo.scans.size()) {
     const ScanInfo& scan = mInfo.scans[mScan];
-    if (!mCurrent) mCurrent = openPointReader(scan.path);
+    if (!mCurrent) mCurrent = openScan(scan);
     if (!mCurrent->next(mTmp, max_points)) {
       for (auto& [reason, count] : mCurrent->stats().skipped) {
         mStats.skipped[reason] += count;
@@ -146,8 +193,16 @@ bool ConfReader::next(PointBatch& batch, size_t max_points) {
 
 }  // namespace
 
-std::unique_ptr<PointReader> openStanfordConf(const std::filesystem::path& conf) {
-  return std::make_unique<ConfReader>(conf);
+std::unique_ptr<PointReader> openStanfordConf(const std::filesystem::path& conf,
+                                              std::vector<std::filesystem::path> chain) {
+  return std::make_unique<ConfReader>(ByteSource::openFile(conf, kComponent), conf,
+                                      std::move(chain));
+}
+
+std::unique_ptr<PointReader> openStanfordConf(ByteSource listing,
+                                              const std::filesystem::path& conf) {
+  return std::make_unique<ConfReader>(std::move(listing), conf,
+                                      std::vector<std::filesystem::path>{});
 }
 
 }  // namespace tessera::lod::detail

@@ -7,6 +7,7 @@
 #include <vector>
 
 #include <tessera/core/check.h>
+#include <tessera/core/file_checks.h>
 #include <tessera/lod/point_reader.h>
 
 namespace tessera::lod {
@@ -20,6 +21,8 @@ struct Picture {
 
 Picture readPng(const std::filesystem::path& path, png_uint_32 format, int channels,
                 uint64_t max_pixels, const char* what) {
+  if (const auto why = notRegularFile(path))  // a FIFO would block libpng's fopen()
+    throw ReadError(std::string("lod::photoPoints(): ") + what + " " + path.string() + ": " + *why);
   png_image image{};
   image.version = PNG_IMAGE_VERSION;
   if (!png_image_begin_read_from_file(&image, path.c_str())) {

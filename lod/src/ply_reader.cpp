@@ -289,8 +289,7 @@ class PlyReader final : public PointReader {
 
 void PlyReader::parseHeader() {
   std::string_view line;
-  if (mSrc.ensure(4) < 4 || std::memcmp(mSrc.data(), "ply", 3) != 0 ||
-      (mSrc.data()[3] != '\n' && mSrc.data()[3] != '\r')) {
+  if (!isPlyMagic(mSrc.data(), mSrc.ensure(kPlyMagicProbe))) {
     fail(kComponent, mSrc.name(), atByte(0), "not a PLY file (missing 'ply' magic line)");
   }
   mSrc.readLine(line);

@@ -107,9 +107,7 @@ std::string lowerExtension(const std::string& name) {
 
 /// Magic bytes first (they cannot lie about a renamed file), then the extension.
 std::optional<Format> detect(const uint8_t* head, size_t n, const std::string& name) {
-  if (n >= 4 && std::memcmp(head, "ply", 3) == 0 && (head[3] == '\n' || head[3] == '\r')) {
-    return Format::kPly;
-  }
+  if (detail::isPlyMagic(head, n)) return Format::kPly;
   if (n >= 4 && std::memcmp(head, "LASF", 4) == 0) return Format::kLas;
   std::string ext = lowerExtension(name);
   if (ext == ".conf") return Format::kStanfordConf;
@@ -152,7 +150,7 @@ std::unique_ptr<PointReader> openWith(Format format, ByteSource src) {
 }
 
 std::unique_ptr<PointReader> openSource(ByteSource src, const ReaderOptions& options) {
-  size_t n = src.ensure(8);
+  size_t n = src.ensure(detail::kPlyMagicProbe);
   auto format = options.format ? options.format : detect(src.data(), n, src.name());
   if (!format) unknownFormat(src);
   if (src.size() == 0)
@@ -172,6 +170,16 @@ std::unique_ptr<PointReader> openPointReader(const std::filesystem::path& path,
                              : lowerExtension(path.string()) == ".conf";
   if (conf) return detail::openStanfordConf(path);
   return openSource(ByteSource::openFile(path, "lod::openPointReader()"), options);
+}
+
+std::vector<std::filesystem::path> filesRead(const std::filesystem::path& path) {
+  std::vector<std::filesystem::path> files{path};
+  if (lowerExtension(path.string()) != ".conf") return files;
+  auto conf = openPointReader(path);  // a cycle of .confs is refused here
+  for (const ScanInfo& s : conf->info().scans) {
+    for (auto& f : filesRead(s.path)) files.push_back(std::move(f));
+  }
+  return files;
 }
 
 std::unique_ptr<PointReader> openPointReader(std::span<const uint8_t> bytes,

@@ -12,6 +12,7 @@
 #include <unordered_map>
 
 #include <tessera/core/check.h>
+#include <tessera/core/file_checks.h>
 #include <tessera/lod/store_format.h>
 
 #include "chunk_codec.h"
@@ -156,11 +157,11 @@ std::unique_ptr<PointStore> PointStore::open(const std::filesystem::path& path,
   s->mImpl = std::make_unique<Impl>();
   Impl& m = *s->mImpl;
   m.name = path.string();
-  m.fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
-  if (m.fd < 0)
-    throw StoreError("lod::PointStore: " + m.name + ": cannot open: " + std::strerror(errno));
+  std::string why;
+  m.fd = openRegularFile(path, why);  // a FIFO or device is refused, never waited on
+  if (m.fd < 0) m.fail(why.starts_with("not a") ? why : "cannot open: " + why);
   struct stat st {};
-  if (::fstat(m.fd, &st) != 0 || !S_ISREG(st.st_mode)) m.fail("not a regular file");
+  if (::fstat(m.fd, &st) != 0) m.fail(std::string("cannot stat: ") + std::strerror(errno));
   m.file_size = uint64_t(st.st_size);
   store::FileHeader h;
   if (m.file_size < sizeof h)

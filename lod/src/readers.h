@@ -1,8 +1,11 @@
 // Constructors of the concrete readers behind openPointReader().
 #pragma once
 
+#include <cstdint>
+#include <cstring>
 #include <filesystem>
 #include <memory>
+#include <vector>
 
 #include <tessera/lod/point_reader.h>
 
@@ -10,10 +13,30 @@
 
 namespace tessera::lod::detail {
 
+/// Bytes looked at to recognise a PLY magic line (ByteSource::ensure() this many first).
+constexpr size_t kPlyMagicProbe = 64;
+
+/// The PLY magic line: "ply", optional blanks (some exporters write "ply "), the line's end.
+inline bool isPlyMagic(const uint8_t* head, size_t n) {
+  if (n < 4 || std::memcmp(head, "ply", 3) != 0) return false;
+  for (size_t i = 3; i < n; ++i) {
+    if (head[i] == '\n' || head[i] == '\r') return true;
+    if (head[i] != ' ' && head[i] != '\t') return false;
+  }
+  return false;
+}
+
 std::unique_ptr<PointReader> openPly(ByteSource source);
 std::unique_ptr<PointReader> openLas(ByteSource source);
 std::unique_ptr<PointReader> openText(ByteSource source);
 std::unique_ptr<PointReader> openObj(ByteSource source);
-std::unique_ptr<PointReader> openStanfordConf(const std::filesystem::path& conf);
+/// A Stanford .conf file. `chain`: the .conf files being read around it, outermost first (a
+/// .conf may list .conf files; one that lists itself, directly or not, is refused).
+std::unique_ptr<PointReader> openStanfordConf(const std::filesystem::path& conf,
+                                              std::vector<std::filesystem::path> chain = {});
+
+/// A .conf listing from bytes (the fuzz target); its scans are found beside `conf`.
+std::unique_ptr<PointReader> openStanfordConf(ByteSource listing,
+                                              const std::filesystem::path& conf);
 
 }  // namespace tessera::lod::detail

@@ -6,6 +6,7 @@
 #include <limits>
 #include <sstream>
 
+#include <tessera/core/file_checks.h>
 #include <tessera/core/progress.h>
 
 namespace tessera::lod {
@@ -58,6 +59,7 @@ namespace {
 
 bool isStore(const std::filesystem::path& path) {
   if (path.extension() == ".tlod") return true;
+  if (notRegularFile(path)) return false;  // the reader says why; an ifstream would block on a FIFO
   std::ifstream in(path, std::ios::binary);
   char magic[4] = {};
   in.read(magic, 4);

@@ -11,6 +11,7 @@
 #include <memory>
 #include <numbers>
 #include <stdexcept>
+#include <system_error>
 #include <thread>
 
 #include <tessera/core/check.h>
@@ -175,6 +176,12 @@ ScanResult scanMesh(const Mesh& mesh, const std::filesystem::path& out_dir, cons
   TESSERA_CHECK(o.noise_mm >= 0.0 && std::isfinite(o.noise_mm),
                 "lod::scanMesh(): noise must be >= 0");
   TESSERA_CHECK(!mesh.triangles.empty(), "lod::scanMesh(): mesh has no triangles");
+  TESSERA_CHECK(o.threads >= 0 && o.threads <= kMaxScanThreads,
+                "lod::scanMesh(): threads must be 0..." + std::to_string(kMaxScanThreads));
+  TESSERA_CHECK(std::isfinite(o.units_per_mm) && o.units_per_mm > 0.0,
+                "lod::scanMesh(): units per mm must be a positive number");
+  TESSERA_CHECK(o.max_incidence_deg >= 0.0 && o.max_incidence_deg <= 90.0,
+                "lod::scanMesh(): max incidence must be 0..90 degrees");
 
   auto [lo, hi] = mesh.bounds();
   glm::dvec3 center = 0.5 * (lo + hi);
@@ -256,7 +263,11 @@ ScanResult scanMesh(const Mesh& mesh, const std::filesystem::path& out_dir, cons
       }
     };
     std::vector<std::thread> pool;
-    for (int k = 1; k < threads; ++k) pool.emplace_back(work);
+    try {
+      for (int k = 1; k < threads; ++k) pool.emplace_back(work);
+    } catch (const std::system_error&) {
+      // No more threads: the ones started share the rows (never terminate with joinables).
+    }
     work();
     for (auto& th : pool) th.join();
 

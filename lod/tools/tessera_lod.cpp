@@ -7,6 +7,8 @@
 #include <tuple>
 
 #include <tessera/core/check.h>
+#include <tessera/core/cli.h>
+#include <tessera/core/file_checks.h>
 #include <tessera/lod/mesh.h>
 #include <tessera/lod/photo_points.h>
 #include <tessera/lod/point_writer.h>
@@ -17,10 +19,22 @@
 namespace {
 
 using namespace tessera::lod;
+namespace cli = tessera::cli;
 
-// Exit codes: 0 success, 1 bad input data, 2 bad command line (CLI11), 3 I/O failure writing.
-constexpr int kExitBadInput = 1;
-constexpr int kExitWriteFailed = 3;
+// Exit codes (README, "Exit codes"): 0 success, 1 bad input data, 2 bad command line (also an
+// output that is an input), 3 I/O failure writing, 4 verification failed.
+constexpr int kExitBadInput = cli::kExitBadInput;
+constexpr int kExitBadCommandLine = cli::kExitBadCommandLine;
+constexpr int kExitWriteFailed = cli::kExitWriteFailed;
+
+/// Every file reading `inputs` opens (a .conf's scans too); ReadError propagates (exit 1).
+std::vector<std::filesystem::path> filesReadBy(const std::vector<std::filesystem::path>& inputs) {
+  std::vector<std::filesystem::path> files;
+  for (const auto& in : inputs) {
+    for (auto& f : filesRead(in)) files.push_back(std::move(f));
+  }
+  return files;
+}
 
 int runInfo(const std::vector<std::string>& files, bool json, bool quiet) {
   int rc = 0;
@@ -44,16 +58,18 @@ int runInfo(const std::vector<std::string>& files, bool json, bool quiet) {
 
 int runScan(const std::string& mesh_path, const std::string& out, const std::string& resolution,
             ScanOptions o) {
-  unsigned w = 0, h = 0;
-  char extra;
-  if (std::sscanf(resolution.c_str(), "%ux%u%c", &w, &h, &extra) != 2 || w == 0 || h == 0 ||
-      w > 65535 || h > 65535) {
-    std::cerr << "tessera-lod scan: --resolution " << resolution
-              << ": expected WxH, e.g. 512x400\n";
-    return 2;
+  const cli::Size size = cli::parseSize(resolution, "--resolution", 65535);
+  o.columns = size.width;
+  o.rows = size.height;
+  // The scans and the .conf the scan writes must not be the mesh it reads.
+  const std::filesystem::path dir(out);
+  const std::vector<std::filesystem::path> mesh_files{mesh_path};
+  cli::refuseOverwrite(dir / "scans.conf", mesh_files, "-o");
+  for (int i = 0; i < o.scanners; ++i) {
+    char name[32];
+    std::snprintf(name, sizeof name, "scan_%03d.ply", i);
+    cli::refuseOverwrite(dir / name, mesh_files, "-o");
   }
-  o.columns = w;
-  o.rows = h;
   Mesh mesh;
   try {
     mesh = readMesh(mesh_path);
@@ -68,7 +84,7 @@ int runScan(const std::string& mesh_path, const std::string& out, const std::str
               << " points of " << r.rays << " rays\nwrote " << r.conf.string() << "\n";
   } catch (const tessera::PreconditionError& e) {
     std::cerr << "tessera-lod scan: " << e.what() << "\n";
-    return 2;
+    return kExitBadCommandLine;
   } catch (const std::exception& e) {
     std::cerr << "tessera-lod scan: " << e.what() << "\n";
     return kExitWriteFailed;
@@ -83,6 +99,7 @@ int runBuild(const std::vector<std::string>& inputs, const std::string& out,
              const BuildOptions& o) {
   std::vector<std::filesystem::path> paths(inputs.begin(), inputs.end());
   try {
+    cli::refuseOverwrite(out, filesReadBy(paths), "-o");
     BuildReport r = buildStore(paths, out, o);
     std::printf(
         "built %s: %llu points (%llu skipped), %llu nodes, depth %u, %llu chunks, overhead %.3fx\n",
@@ -98,6 +115,9 @@ int runBuild(const std::vector<std::string>& inputs, const std::string& out,
                 r.seconds_read, r.seconds_process, r.seconds_write,
                 double(r.points) / r.seconds / 1e6);
     return 0;
+  } catch (const cli::UsageError& e) {
+    std::fprintf(stderr, "tessera-lod build: %s\n", e.what());
+    return kExitBadCommandLine;
   } catch (const ReadError& e) {
     std::fprintf(stderr, "tessera-lod build: %s\n", e.what());
     return kExitBadInput;
@@ -129,21 +149,19 @@ int runVerify(const std::string& store, const std::vector<std::string>& inputs,
   }
 }
 
-/// `X,Y,Z` into a vector; false when malformed.
-bool parseVec3(const std::string& s, glm::dvec3& v) {
-  char extra;
-  return std::sscanf(s.c_str(), "%lf,%lf,%lf%c", &v.x, &v.y, &v.z, &extra) == 3 &&
-         std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z);
-}
-
 int runPhoto(const PhotoOptions& o, const std::string& out, const BuildOptions& bo) {
   try {
     glm::dvec3 origin;
     PhotoReport r;
+    const std::filesystem::path target(out);
+    std::vector<std::filesystem::path> read{o.image};
+    if (!o.height.empty()) read.push_back(o.height);
+    cli::refuseOverwrite(target, read, "-o");
+    if (target.extension() != ".ply")
+      cli::refuseOverwrite(target.string() + ".points.ply", read, "-o (its temporary points)");
     const PointBatch points = photoPoints(o, origin, &r);
     std::printf("photo %s: %ux%u pixels -> %llu points (1/cos(phi) up to %.2f)\n", o.image.c_str(),
                 r.width, r.height, (unsigned long long)r.points, r.max_copies);
-    const std::filesystem::path target(out);
     if (target.extension() == ".ply") {
       writePly(target, points, origin);
     } else {
@@ -163,18 +181,19 @@ int runPhoto(const PhotoOptions& o, const std::string& out, const BuildOptions& 
   } catch (const ReadError& e) {
     std::fprintf(stderr, "tessera-lod photo: %s\n", e.what());
     return kExitBadInput;
+  } catch (const cli::UsageError& e) {
+    std::fprintf(stderr, "tessera-lod photo: %s\n", e.what());
+    return kExitBadCommandLine;
   } catch (const tessera::PreconditionError& e) {
     std::fprintf(stderr, "tessera-lod photo: %s\n", e.what());
-    return 2;
+    return kExitBadCommandLine;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "tessera-lod photo: %s\n", e.what());
     return kExitWriteFailed;
   }
 }
 
-}  // namespace
-
-int main(int argc, char** argv) {
+int run(int argc, char** argv) {
   CLI::App app{"tessera-lod: read, inspect and generate scanned 3D data for Tessera"};
   app.require_subcommand(1);
   app.set_config("--config", "", "Read options from a TOML file ([scan] section for scan options)");
@@ -196,23 +215,27 @@ int main(int argc, char** argv) {
   scan->add_option("-o,--output", scan_out, "Output folder (scan_NNN.ply and scans.conf)")
       ->required();
   scan->add_option("--scanners", so.scanners, "Number of scanner poses")
-      ->check(CLI::Range(1, 10000))
+      ->check(cli::integerRange(1, 10000))
       ->capture_default_str();
   scan->add_option("--resolution", scan_res, "Range grid WxH per scanner")->capture_default_str();
   scan->add_flag("--panoramic", so.panoramic, "Scanners inside the model, 360-degree panoramas");
   scan->add_option("--noise-mm", so.noise_mm, "Gaussian range noise (standard deviation, mm)")
-      ->check(CLI::NonNegativeNumber)
+      ->check(cli::finiteRange(0.0, 1e6))
       ->capture_default_str();
   scan->add_option("--units-per-mm", so.units_per_mm, "Model units per millimetre (metres: 0.001)")
-      ->check(CLI::PositiveNumber)
+      ->check(cli::positiveFinite(1e12))
       ->capture_default_str();
-  scan->add_option("--seed", so.seed, "Noise seed (same seed, same scans)")->capture_default_str();
+  scan->add_option("--seed", so.seed, "Noise seed (same seed, same scans)")
+      ->check(cli::anyInteger<uint64_t>())
+      ->capture_default_str();
   scan->add_option("--max-incidence", so.max_incidence_deg,
                    "Drop hits more oblique than this (degrees)")
-      ->check(CLI::Range(0.0, 90.0))
+      ->check(cli::finiteRange(0.0, 90.0))
       ->capture_default_str();
   scan->add_flag("--binary", so.binary, "Write binary little-endian PLY (for large scans)");
-  scan->add_option("--threads", so.threads, "Threads (0: every core)")->capture_default_str();
+  scan->add_option("--threads", so.threads, "Threads (0: every core)")
+      ->check(cli::integerRange(0, kMaxScanThreads))
+      ->capture_default_str();
   scan->add_flag("--quiet", so.quiet, "No progress output");
 
   std::vector<std::string> build_in;
@@ -229,9 +252,11 @@ int main(int argc, char** argv) {
   build
       ->add_option("--memory-mb", bo.memory_mb,
                    "Memory budget in MB (peak stays within it plus a small constant)")
-      ->check(CLI::Range(64, 1 << 20))
+      ->check(cli::integerRange<uint64_t>(64, 1 << 20))
       ->capture_default_str();
-  build->add_option("--threads", bo.threads, "Threads (0: every core)")->capture_default_str();
+  build->add_option("--threads", bo.threads, "Threads (0: every core)")
+      ->check(cli::integerRange(0, kMaxThreads))
+      ->capture_default_str();
   build->add_option("--temp-dir", bo.temp_dir,
                     "Folder for temporary files (default: beside the output)");
   build->add_flag("--quiet", bo.quiet, "No progress output");
@@ -243,7 +268,9 @@ int main(int argc, char** argv) {
       "verify", "Check that every input point is in a store within its error bound");
   verify->add_option("STORE", verify_store, "The .tlod store")->required();
   verify->add_option("IN", verify_in, "The inputs it was built from")->required();
-  verify->add_option("--memory-mb", vo.memory_mb, "Memory budget in MB")->capture_default_str();
+  verify->add_option("--memory-mb", vo.memory_mb, "Memory budget in MB")
+      ->check(cli::integerRange<uint64_t>(64, 1 << 20))
+      ->capture_default_str();
   verify->add_flag("--quiet", vo.quiet, "No progress output");
 
   PhotoOptions po;
@@ -256,6 +283,7 @@ int main(int argc, char** argv) {
   photo->add_option("IMAGE", photo_image, "The photo (PNG)")->required();
   photo->add_option("--height", photo_height, "Height map (PNG, grey levels)");
   photo->add_option("--height-scale", po.height_scale, "Metres at full grey level")
+      ->check(cli::finiteRange(0.0, 1e9))
       ->capture_default_str();
   photo->add_option("--corner", photo_corner, "X,Y,Z of the picture's lower-left corner")
       ->required();
@@ -263,32 +291,39 @@ int main(int argc, char** argv) {
       ->required();
   photo->add_option("--v", photo_v, "X,Y,Z: the picture's height, lower-left to upper-left")
       ->required();
-  photo->add_option("--seed", po.seed, "Seed of the fractional copies")->capture_default_str();
+  photo->add_option("--seed", po.seed, "Seed of the fractional copies")
+      ->check(cli::anyInteger<decltype(po.seed)>())
+      ->capture_default_str();
   photo->add_option("-o,--output", photo_out, "Output store (.tlod) or points (.ply)")->required();
   photo->add_flag("--quiet", pbo.quiet, "No progress output");
 
-  CLI11_PARSE(app, argc, argv);
+  // CLI11 reads the --config file before any validator runs: a FIFO there would block it.
+  for (int i = 1; i + 1 < argc; ++i) {
+    if (std::string(argv[i]) != "--config") continue;
+    if (const auto why = tessera::notRegularFile(argv[i + 1]);
+        why && std::filesystem::exists(argv[i + 1]))
+      throw cli::UsageError(std::string("--config ") + argv[i + 1] + ": " + *why);
+  }
+  if (const auto code = cli::parse(app, argc, argv, "tessera-lod")) return *code;
   if (*photo) {
     po.image = photo_image;
     po.height = photo_height;
-    for (auto [text, dst, name] :
-         {std::tuple{&photo_corner, &po.corner, "--corner"}, std::tuple{&photo_u, &po.u, "--u"},
-          std::tuple{&photo_v, &po.v, "--v"}}) {
-      if (!parseVec3(*text, *dst)) {
-        std::fprintf(stderr, "tessera-lod photo: %s: expected X,Y,Z, got '%s'\n", name,
-                     text->c_str());
-        return 2;
-      }
-    }
-    if (!photo_height.empty() && !(po.height_scale > 0)) {
-      std::fprintf(stderr, "tessera-lod photo: --height needs a positive --height-scale\n");
-      return 2;
-    }
+    po.corner = cli::parseVec3(photo_corner, "--corner");
+    po.u = cli::parseVec3(photo_u, "--u");
+    po.v = cli::parseVec3(photo_v, "--v");
+    if (!photo_height.empty() && !(po.height_scale > 0))
+      throw cli::UsageError("--height needs a positive --height-scale");
     return runPhoto(po, photo_out, pbo);
   }
   if (*build) return runBuild(build_in, build_out, bo);
   if (*verify) return runVerify(verify_store, verify_in, vo);
   if (*info) return runInfo(info_files, info_json, info_quiet);
   if (*scan) return runScan(scan_mesh, scan_out, scan_res, so);
-  return 2;
+  return kExitBadCommandLine;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  return cli::runMain("tessera-lod", [&] { return run(argc, argv); });
 }

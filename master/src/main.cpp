@@ -7,10 +7,13 @@
 //   tessera-node --master tcp://HOST:7400 [--tile NAME] [--headless]
 #include <CLI/CLI.hpp>
 
-#include <tessera/core/cli_checks.h>
+#include <tessera/core/cli.h>
 
 #include <cstdio>
+#include <filesystem>
 #include <memory>
+#include <utility>
+#include <vector>
 
 #include <tessera/master/master.h>
 #include <tessera/sync/mpi_link.h>
@@ -29,9 +32,7 @@ void refuseEveryone(sync::MasterLink& link, const std::string& reason) {
   link.quit(master::kExitStart, reason);
 }
 
-}  // namespace
-
-int main(int argc, char** argv) {
+int run(int argc, char** argv) {
   master::MasterOptions o;
   std::string transport = "mpi", listen = "tcp://*:7400";
   double timeout_s = 120.0;
@@ -45,13 +46,13 @@ int main(int argc, char** argv) {
   app.add_option("--frames", o.frames,
                  "Run this many frames, deterministic: script time = frame / fps, every frame "
                  "rendered complete (0: real time until the script or console ends)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(cli::integerRange(0, 1 << 30));
   app.add_option("--fps", o.fps, "With --frames: script frames per second (fewer: coarser steps)")
-      ->check(finiteRange(0.1, 1000.0))
+      ->check(cli::finiteRange(0.1, 1000.0))
       ->capture_default_str();
   app.add_option("--max-fps", o.max_fps,
                  "Start frames at most this often, real time (0: as fast as the nodes go)")
-      ->check(finiteRange(0.0, 1000.0))
+      ->check(cli::finiteRange(0.0, 1000.0))
       ->capture_default_str();
   app.add_option("--screenshot", o.screenshot, "Write the wall picture (PNG) of the last frame");
   app.add_option("--stats", o.stats, "Per-frame, per-tile statistics (CSV)");
@@ -62,13 +63,13 @@ int main(int argc, char** argv) {
   app.add_option("--console-screenshot", o.console_screenshot,
                  "With --console: write what the console window shows at the last frame (PNG)");
   app.add_option("--console-width", o.console_width, "Console width, pixels")
-      ->check(finiteRange(64, 4096))
+      ->check(cli::integerRange<uint32_t>(64, 4096))
       ->capture_default_str();
   app.add_option("--splat-scale", o.splat_scale, "As tessera-render --splat-scale")
-      ->check(finiteRange(0.25, 8.0))
+      ->check(cli::finiteRange(0.25, 8.0))
       ->capture_default_str();
   app.add_option("--gpu-budget-mb", o.gpu_budget_mb, "Per node GPU bytes for chunks, MiB")
-      ->check(finiteRange(1.0, 1e6))
+      ->check(cli::finiteRange(1.0, 1e6))
       ->capture_default_str();
   app.add_option("--transport", transport,
                  "mpi: one mpirun job, every node known at start, a lost node ends the job; "
@@ -80,19 +81,19 @@ int main(int argc, char** argv) {
   app.add_option("--node-timeout", o.node_timeout_ms,
                  "zmq: ms a live node's report may be late before its tile is dropped (0: five "
                  "times the slowest node's median frame, at least 1000)")
-      ->check(finiteRange(0.0, 3.6e6))
+      ->check(cli::finiteRange(0.0, 3.6e6))
       ->capture_default_str();
   app.add_option("--join-wait", o.join_wait_s,
                  "zmq: seconds to wait for a node per tile before the first frame")
-      ->check(finiteRange(0.0, 3600.0))
+      ->check(cli::finiteRange(0.0, 3600.0))
       ->capture_default_str();
   app.add_option("--first-frame-timeout", o.first_frame_timeout_s,
                  "Seconds a node may take to start and render its first frame (cold caches)")
-      ->check(finiteRange(0.1, 3600.0))
+      ->check(cli::finiteRange(0.1, 3600.0))
       ->capture_default_str();
   app.add_option("--timeout", timeout_s,
                  "mpi: seconds any rank may keep the others waiting before the job is aborted")
-      ->check(finiteRange(0.1, 86400.0))
+      ->check(cli::finiteRange(0.1, 86400.0))
       ->capture_default_str();
 
   // MPI removes its own arguments in MPI_Init, so with mpirun the transport comes first: a
@@ -121,12 +122,28 @@ int main(int argc, char** argv) {
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
-    const int code = app.exit(e);
+    const int code = cli::exitCode(app, e, "tessera-master");
     if (mpi) {
       sync::MpiMasterLink l(*mpi);
       refuseEveryone(l, "the master's command line: " + std::string(e.what()));
     }
     return code;
+  }
+  // What the master writes must never be what it reads (by any path).
+  try {
+    const std::vector<std::filesystem::path> read{o.wall, o.scene, o.script};
+    for (const auto& [path, option] :
+         {std::pair{&o.screenshot, "--screenshot"}, std::pair{&o.stats, "--stats"},
+          std::pair{&o.console_screenshot, "--console-screenshot"}}) {
+      if (!path->empty()) cli::refuseOverwrite(*path, read, option);
+    }
+  } catch (const cli::UsageError& e) {
+    std::fprintf(stderr, "tessera-master: %s\n", e.what());
+    if (mpi) {
+      sync::MpiMasterLink l(*mpi);
+      refuseEveryone(l, e.what());
+    }
+    return cli::kExitBadCommandLine;
   }
   if (mpi) {
     mpi->setTimeout(timeout_s);
@@ -155,7 +172,7 @@ int main(int argc, char** argv) {
   master::Master m(*link, o);
   try {
     m.prepare();
-  } catch (const std::runtime_error& e) {  // StartError, ConfigError
+  } catch (const std::exception& e) {  // StartError, ConfigError, out of memory
     std::fprintf(stderr, "%s\n", e.what());
     refuseEveryone(*link, e.what());
     return master::kExitStart;
@@ -163,10 +180,16 @@ int main(int argc, char** argv) {
   try {
     m.openConsole();
     return m.run();
-  } catch (const std::runtime_error& e) {  // the console's stores, the stats file
+  } catch (const std::exception& e) {  // the console's stores, the stats file, out of memory
     std::fprintf(stderr, "tessera-master: %s\n", e.what());
     if (mpi) mpi->abort(1, "stopping the wall");
     link->quit(1, e.what());
     return 1;
   }
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  return tessera::cli::runMain("tessera-master", [&] { return run(argc, argv); });
 }

@@ -1,11 +1,13 @@
 #include <tessera/master/master.h>
 
 #include <algorithm>
+#include <cerrno>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <thread>
 
+#include <tessera/core/file_checks.h>
 #include <tessera/core/stopwatch.h>
 #include <tessera/master/tile_assignment.h>
 #include <tessera/render/gl_context.h>
@@ -81,7 +83,9 @@ void Master::prepare() {
   (void)mGraph.takeFrame(0, 0);  // the loaded scene is the snapshot; frames count from 1
   if (!mOpt.stats.empty()) {
     mCsv = std::make_unique<std::ofstream>(mOpt.stats);
-    if (!*mCsv) throw StartError("tessera-master: --stats " + mOpt.stats + ": cannot write");
+    if (!*mCsv)
+      throw StartError("tessera-master: --stats " + mOpt.stats +
+                       ": cannot write: " + whyNotWritable(mOpt.stats, errno));
     writeStatsHeader();
   }
 }

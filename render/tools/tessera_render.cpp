@@ -2,10 +2,12 @@
 // or the wall's whole extent to PNG, headless. `tessera-render --help` lists the options.
 #include <CLI/CLI.hpp>
 
+#include <cerrno>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <optional>
 #include <span>
 
 #include <cstring>
@@ -13,6 +15,8 @@
 #include <glm/gtc/type_ptr.hpp>
 #include <sstream>
 
+#include <tessera/core/cli.h>
+#include <tessera/core/file_checks.h>
 #include <tessera/lod/point_reader.h>
 #include <tessera/lod/store_builder.h>
 #include <tessera/lod/store_cache.h>
@@ -28,17 +32,9 @@ namespace {
 using namespace tessera;
 namespace fs = std::filesystem;
 
+/// A bad command line: main() reports it and exits 2 (cli::runMain).
 [[noreturn]] void usage(const std::string& what) {
-  std::fprintf(stderr, "tessera-render: %s\n", what.c_str());
-  std::exit(2);
-}
-
-glm::dvec3 parseVec(const std::string& s, const std::string& what) {
-  glm::dvec3 v;
-  char extra;
-  if (std::sscanf(s.c_str(), "%lf,%lf,%lf%c", &v.x, &v.y, &v.z, &extra) != 3)
-    usage(what + ": expected X,Y,Z, got '" + s + "'");
-  return v;
+  throw cli::UsageError(what);
 }
 
 /// `eye=X,Y,Z;target=X,Y,Z;up=X,Y,Z`
@@ -50,7 +46,7 @@ config::Camera parseCamera(const std::string& s) {
     auto eq = part.find('=');
     if (eq == std::string::npos) usage("--camera: expected eye=X,Y,Z;target=X,Y,Z;up=X,Y,Z");
     std::string key = part.substr(0, eq);
-    glm::dvec3 v = parseVec(part.substr(eq + 1), "--camera " + key);
+    glm::dvec3 v = cli::parseVec3(part.substr(eq + 1), "--camera " + key);
     config::Vec3* dst = key == "eye"      ? c.mutable_eye()
                         : key == "target" ? c.mutable_target()
                         : key == "up"     ? c.mutable_up()
@@ -62,6 +58,9 @@ config::Camera parseCamera(const std::string& s) {
     ++seen;
   }
   if (seen != 3) usage("--camera: give eye, target and up");
+  cli::checkView({c.eye().x(), c.eye().y(), c.eye().z()},
+                 {c.target().x(), c.target().y(), c.target().z()},
+                 {c.up().x(), c.up().y(), c.up().z()}, "--camera");
   return c;
 }
 
@@ -147,9 +146,7 @@ config::Camera interactive(render::Window& win, config::Camera cam,
   return cam;
 }
 
-}  // namespace
-
-int main(int argc, char** argv) {
+int run(int argc, char** argv) {
   CLI::App app{
       "tessera-render: render point stores headless to PNG: a view, a wall tile, the mosaic or the "
       "whole wall"};
@@ -169,7 +166,7 @@ int main(int argc, char** argv) {
   mosaic_opt->excludes(whole_opt);
   app.add_option("--size", size, "Plain view size WxH (without --wall)")->capture_default_str();
   app.add_option("--fovy", fovy, "Plain view vertical field of view, degrees")
-      ->check(CLI::Range(1.0, 170.0))
+      ->check(cli::finiteRange(1.0, 170.0))
       ->capture_default_str();
   app.add_option("--scene", scene_path,
                  "Scene configuration (JSON): models, camera, background, lod");
@@ -178,11 +175,12 @@ int main(int argc, char** argv) {
   app.add_option("--camera", camera,
                  "eye=X,Y,Z;target=X,Y,Z;up=X,Y,Z (default: the scene's, else fitted)");
   app.add_option("--lod-px", lod_px, "LOD threshold in pixels (default: the scene's, else 1)")
-      ->check(CLI::PositiveNumber);
+      ->check(cli::positiveFinite(1e6));
   uint64_t point_budget = 0;
   bool no_coverage_stop = false;
   app.add_option("--point-budget", point_budget,
                  "Most points per model and view, refined largest screen error first (0: none)")
+      ->check(cli::anyInteger<uint64_t>())
       ->capture_default_str();
   app.add_flag("--no-coverage-stop", no_coverage_stop,
                "Refine also where nearer points already cover the pixels (a volume of points "
@@ -194,7 +192,7 @@ int main(int argc, char** argv) {
                "Eye-dome lighting from raw depths, as before issue 12 (speckles on noisy scans)");
   app.add_option("--splat-scale", splat_scale,
                  "Splat size as a multiple of the projected sample spacing (raise for LiDAR)")
-      ->check(CLI::Range(0.25, 8.0))
+      ->check(cli::finiteRange(0.25, 8.0))
       ->capture_default_str();
   std::string fill =
       render::RenderOptions{}.fill == render::SurfaceFill::kPullPush ? "pullpush" : "discs";
@@ -206,11 +204,11 @@ int main(int argc, char** argv) {
       ->check(CLI::IsMember({"discs", "pullpush", "none"}))
       ->capture_default_str();
   app.add_option("--gpu-budget-mb", budget_mb, "GPU bytes for resident chunks, MiB")
-      ->check(CLI::Range(1.0, 1e6))
+      ->check(cli::finiteRange(1.0, 1e6))
       ->capture_default_str();
   uint32_t loader_threads = 0;
   app.add_option("--loader-threads", loader_threads, "Threads decoding chunks (0: one a core)")
-      ->check(CLI::Range(0, 256))
+      ->check(cli::integerRange<uint32_t>(0, 256))
       ->capture_default_str();
   uint32_t spbr_l = 0, spbr_progressive = 0;
   double spbr_max_k = 1e9;
@@ -219,14 +217,14 @@ int main(int argc, char** argv) {
   app.add_option("--spbr-L", spbr_l,
                  "See-through: ensembles per frame for models with opacity < 1 (default: the "
                  "scene's, else 16)")
-      ->check(CLI::Range(1, 4096));
+      ->check(cli::integerRange<uint32_t>(1, 4096));
   app.add_option("--spbr-progressive", spbr_progressive,
                  "See-through: keep adding ensembles up to this many while the view rests")
-      ->check(CLI::Range(0, 65536));
+      ->check(cli::integerRange<uint32_t>(0, 65536));
   app.add_option("--spbr-max-k", spbr_max_k,
                  "See-through: most copies of a point over the ensembles (default: as the "
                  "paper, up to L; 1: independent ensembles with larger discs, blurred)")
-      ->check(CLI::Range(0.01, 1e9));
+      ->check(cli::finiteRange(0.01, 1e9));
   app.add_flag("--blend-colors", blend_colors,
                "Colour points: blend the colours of the points within a splat's depth of the "
                "nearest on each pixel (smooth, alias-free colour; as Potree's high-quality "
@@ -245,12 +243,18 @@ int main(int argc, char** argv) {
                "Show the plain view in a window (GLFW): left drag orbits, right drag pans, wheel "
                "zooms, Esc quits; -o then saves the last view");
   app.add_option("--frames", frames, "With --window: quit after this many frames (0: on close)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(cli::integerRange(0, 1 << 30));
   auto* out_opt = app.add_option("-o,--output", out, "Output PNG (required without --window)");
-  CLI11_PARSE(app, argc, argv);
+  if (const auto code = cli::parse(app, argc, argv, "tessera-render")) return *code;
   if (out.empty() && !window) usage("-o OUT.png is required (or --window)");
   if (window && !wall_path.empty()) usage("--window shows a plain view: drop --wall");
   (void)out_opt;
+  // Every value is checked before any file is opened: a bad one never costs a load.
+  const cli::Size plain_size = cli::parseSize(size, "--size", 16384);
+  const std::optional<config::Camera> camera_given =
+      camera.empty() ? std::nullopt : std::optional(parseCamera(camera));
+  const glm::dvec3 background_rgb =
+      background.empty() ? glm::dvec3(0.0) : cli::parseVec3(background, "--background", 0.0, 1.0);
 
   try {
     std::vector<std::unique_ptr<lod::PointStore>> stores;
@@ -287,9 +291,12 @@ int main(int argc, char** argv) {
       stores.push_back(lod::PointStore::open(storeFor(file)));
       instances.push_back({stores.back().get(), render::storeModel(*stores.back()), opacity});
     }
-    if (instances.empty()) usage("nothing to render: give --scene or --model");
-    if (!camera.empty()) {
-      cam = parseCamera(camera);
+    if (instances.empty())
+      usage(scene_path.empty()
+                ? "nothing to render: give --scene or --model"
+                : "nothing to render: every model of " + scene_path + " is hidden or at opacity 0");
+    if (camera_given) {
+      cam = *camera_given;
       have_camera = true;
     }
     if (!have_camera) cam = fitCamera(*instances.front().store);
@@ -309,16 +316,29 @@ int main(int argc, char** argv) {
     options.fill = fill == "pullpush" ? render::SurfaceFill::kPullPush
                    : fill == "none"   ? render::SurfaceFill::kNone
                                       : render::SurfaceFill::kDiscs;
-    if (!background.empty()) options.background = glm::vec3(parseVec(background, "--background"));
+    if (!background.empty()) options.background = glm::vec3(background_rgb);
+
+    // What this run reads must never be what it writes (-o, --stats), by any path.
+    std::vector<fs::path> read;
+    for (const std::string& p : {scene_path, wall_path}) {
+      if (!p.empty()) read.push_back(p);
+    }
+    for (const auto& m : instances) read.push_back(m.store->path());
+    for (const std::string& m : models) read.push_back(m.substr(0, m.rfind(':')));
+    for (const std::string& m : models) read.push_back(m);
+    if (!out.empty()) cli::refuseOverwrite(out, read, "-o");
+    if (!stats_path.empty()) cli::refuseOverwrite(stats_path, read, "--stats");
+    std::error_code ec;
+    if (!out.empty() && !stats_path.empty() &&
+        fs::weakly_canonical(out, ec) == fs::weakly_canonical(stats_path, ec))
+      usage("-o " + out + " and --stats " + stats_path + " are the same file");
 
     std::unique_ptr<render::GlContext> ctx;
     std::unique_ptr<render::Window> win;
     if (window) {
       try {
-        unsigned ww = 1280, wh = 720;
-        std::sscanf(size.c_str(), "%ux%u", &ww, &wh);  // checked below
-        win = render::Window::open(std::clamp(ww, 64u, 4096u), std::clamp(wh, 64u, 4096u),
-                                   "tessera-render");
+        win = render::Window::open(std::clamp(plain_size.width, 64u, 4096u),
+                                   std::clamp(plain_size.height, 64u, 4096u), "tessera-render");
       } catch (const render::RenderError& e) {
         std::fprintf(stderr, "tessera-render: %s; rendering headless\n", e.what());
         window = false;
@@ -330,7 +350,8 @@ int main(int argc, char** argv) {
     if (!stats_path.empty()) {
       bool fresh = !fs::exists(stats_path);
       stats_file.open(stats_path, std::ios::app);
-      if (!stats_file) usage("--stats " + stats_path + ": cannot write");
+      if (!stats_file)
+        usage("--stats " + stats_path + ": cannot write: " + whyNotWritable(stats_path, errno));
       if (fresh) {
         stats_file << "view,width,height,frames,cut_nodes,nodes,points,corrupt_chunks,"
                       "resident_chunks,resident_bytes,store_bytes,select_ms,upload_ms,depth_ms,"
@@ -377,12 +398,7 @@ int main(int argc, char** argv) {
 
     render::Image result;
     if (wall_path.empty()) {
-      unsigned w = 0, h = 0;
-      char extra;
-      if (std::sscanf(size.c_str(), "%ux%u%c", &w, &h, &extra) != 2 || w == 0 || h == 0 ||
-          w > 16384 || h > 16384) {
-        usage("--size " + size + ": expected WxH, e.g. 1280x720");
-      }
+      const unsigned w = plain_size.width, h = plain_size.height;
       auto plainView = [&](const config::Camera& c) {
         render::ViewSetup v;
         v.view = render::cameraView(c);
@@ -426,6 +442,8 @@ int main(int argc, char** argv) {
     render::writePng(out, result);
     std::printf("wrote %s (%ux%u)\n", out.c_str(), result.width, result.height);
     return 0;
+  } catch (const cli::UsageError&) {
+    throw;                                  // cli::runMain: exit 2
   } catch (const render::RenderError& e) {  // no usable GL, or the PNG cannot be written
     std::fprintf(stderr, "tessera-render: %s\n", e.what());
     return 3;
@@ -434,4 +452,10 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "tessera-render: %s\n", e.what());
     return 1;
   }
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  return cli::runMain("tessera-render", [&] { return run(argc, argv); });
 }

@@ -6,7 +6,7 @@
 //   tessera-node --master tcp://HOST:7400 [--tile NAME] [--headless] [--wait-master S]
 #include <CLI/CLI.hpp>
 
-#include <tessera/core/cli_checks.h>
+#include <tessera/core/cli.h>
 
 #include <cstdio>
 #include <memory>
@@ -15,7 +15,9 @@
 #include <tessera/sync/mpi_link.h>
 #include <tessera/sync/zmq_link.h>
 
-int main(int argc, char** argv) {
+namespace {
+
+int run(int argc, char** argv) {
   using namespace tessera;
   render_node::NodeOptions o;
   std::string master;
@@ -30,20 +32,20 @@ int main(int argc, char** argv) {
   app.add_option("--tile", o.tile, "The wall tile to drive (default: the first free one)");
   app.add_option("--join-timeout", o.join_timeout_s,
                  "ZeroMQ: seconds to wait for the master's answer to the join")
-      ->check(finiteRange(0.1, 3600.0))
+      ->check(cli::finiteRange(0.1, 3600.0))
       ->capture_default_str();
   app.add_option("--wait-master", o.wait_master_s,
                  "ZeroMQ: after losing the master, wait this many seconds for a new one at the "
                  "same endpoint (0: exit at once)")
-      ->check(finiteRange(0.0, 86400.0))
+      ->check(cli::finiteRange(0.0, 86400.0))
       ->capture_default_str();
   app.add_option("--master-timeout", o.master_timeout_s,
                  "Seconds without any message from the master before the node gives up")
-      ->check(finiteRange(1.0, 86400.0))
+      ->check(cli::finiteRange(1.0, 86400.0))
       ->capture_default_str();
   app.add_option("--timeout", timeout_s,
                  "MPI: seconds to wait for the master at any step before aborting the job")
-      ->check(finiteRange(0.1, 86400.0))
+      ->check(cli::finiteRange(0.1, 86400.0))
       ->capture_default_str();
 
   bool want_mpi = true;
@@ -56,7 +58,7 @@ int main(int argc, char** argv) {
     try {
       app.parse(argc, argv);
     } catch (const CLI::ParseError& e) {
-      return app.exit(e);
+      return cli::exitCode(app, e, "tessera-node");
     }
     try {
       sync::ZmqNodeLink link(master);
@@ -77,7 +79,7 @@ int main(int argc, char** argv) {
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
-    if (mpi->rank() == 0) return app.exit(e);
+    if (mpi->rank() == 0) return cli::exitCode(app, e, "tessera-node");
     mpi->abort(2, std::string("bad command line: ") + e.what());
   }
   mpi->setTimeout(timeout_s);
@@ -89,4 +91,11 @@ int main(int argc, char** argv) {
   }
   sync::MpiNodeLink link(*mpi);
   return render_node::RenderNode(link, o).run();
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  return tessera::cli::runMain(
+      "tessera-node", [&] { return run(argc, argv); }, tessera::cluster::NODE_INTERNAL);
 }

@@ -1,7 +1,9 @@
 #include <tessera/sync/config.h>
 #include <tessera/sync/scene_graph.h>
 
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <set>
 
 #include "config_json.h"
@@ -10,6 +12,10 @@ namespace tessera::sync {
 namespace {
 
 using detail::parseConfigJson;
+
+/// Bounds of the whole-wall picture (render::wholeWallView()): 2^28 pixels are 1 GiB of RGBA.
+constexpr double kMaxWallPixelsPerSide = 65536.0;
+constexpr double kMaxWallPixels = double(1u << 28);
 
 [[noreturn]] void fail(const char* fn, const std::string& file, const std::string& field,
                        const std::string& what) {
@@ -39,6 +45,28 @@ config::WallConfig parseWallConfig(const std::string& json, const std::string& n
     if (t.pixel_width() == 0 || t.pixel_height() == 0 || t.pixel_width() > 16384 ||
         t.pixel_height() > 16384) {
       fail(fn, name, f, "pixelWidth and pixelHeight must be 1..16384");
+    }
+  }
+  {
+    // The whole wall as one picture (screenshots, --mosaic, --whole) at the first tile's pixel
+    // density: bounded, so tiles far apart are refused here, not by std::bad_alloc later.
+    const config::Tile& first = wall.tiles(0);
+    double x0 = first.x(), y0 = first.y(), x1 = x0 + first.width(), y1 = y0 + first.height();
+    for (const auto& t : wall.tiles()) {
+      x0 = std::min(x0, t.x());
+      y0 = std::min(y0, t.y());
+      x1 = std::max(x1, t.x() + t.width());
+      y1 = std::max(y1, t.y() + t.height());
+    }
+    const double w = (x1 - x0) * first.pixel_width() / first.width();
+    const double h = (y1 - y0) * first.pixel_height() / first.height();
+    if (!(w <= kMaxWallPixelsPerSide && h <= kMaxWallPixelsPerSide && w * h <= kMaxWallPixels)) {
+      char what[256];
+      std::snprintf(what, sizeof what,
+                    "the tiles span %.6g x %.6g m, %.0f x %.0f pixels at tiles[0]'s density: "
+                    "the whole-wall picture may have at most %.0f pixels a side and %.0f in all",
+                    x1 - x0, y1 - y0, w, h, kMaxWallPixelsPerSide, kMaxWallPixels);
+      fail(fn, name, "tiles", what);
     }
   }
   if (!wall.has_eye() || !detail::finite(wall.eye()) || !(wall.eye().z() > 0)) {

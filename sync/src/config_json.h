@@ -12,6 +12,7 @@
 
 #include <glm/glm.hpp>
 
+#include <tessera/core/file_checks.h>
 #include <tessera/sync/config.h>
 
 #include "vec3.h"
@@ -25,6 +26,9 @@ namespace tessera::sync::detail {
 }
 
 inline std::string readConfigFile(const std::filesystem::path& path, const char* fn) {
+  // A FIFO or device would block the reader or never end.
+  if (const auto why = notRegularFile(path))
+    failConfig(fn, path.string(), "", "cannot open: " + *why);
   std::ifstream in(path, std::ios::binary);
   if (!in) failConfig(fn, path.string(), "", "cannot open");
   std::ostringstream s;

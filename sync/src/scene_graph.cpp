@@ -77,6 +77,10 @@ bool equal(const Message& a, const Message& b) {
 
 using Problem = std::optional<std::string>;
 
+/// Largest magnitude of a transform entry: scales and moves beyond it put a model out of any
+/// view, or overflow to infinity once multiplied by coordinates (1e300).
+constexpr double kMaxTransformValue = 1e9;
+
 std::string num(double v) {
   char buf[32];
   std::snprintf(buf, sizeof buf, "%g", v);
@@ -146,18 +150,41 @@ Problem checkPayload(const SceneNode& n) {
   }
 }
 
+/// A node transform: none, or 16 finite numbers (column-major) of an affine, invertible map
+/// with every entry within kMaxTransformValue.
+Problem checkTransform(std::span<const double> m) {
+  if (m.size() != 0 && m.size() != 16)
+    return "transform: needs 16 numbers (column-major 4x4) or none, got " +
+           std::to_string(m.size());
+  for (double v : m) {
+    if (!std::isfinite(v)) return std::string("transform: numbers must be finite");
+    if (std::abs(v) > kMaxTransformValue)
+      return "transform: " + num(v) + " is beyond +-" + num(kMaxTransformValue) +
+             " (the model would leave every view)";
+  }
+  if (m.size() == 16) {
+    // Column-major: the last row is m[3], m[7], m[11], m[15].
+    if (m[3] != 0.0 || m[7] != 0.0 || m[11] != 0.0 || m[15] != 1.0)
+      return std::string("transform: the last row must be 0 0 0 1 (an affine transform)");
+    const double det = m[0] * (m[5] * m[10] - m[9] * m[6]) - m[4] * (m[1] * m[10] - m[9] * m[2]) +
+                       m[8] * (m[1] * m[6] - m[5] * m[2]);
+    double largest = 0.0;
+    for (int i : {0, 1, 2, 4, 5, 6, 8, 9, 10}) largest = std::max(largest, std::abs(m[i]));
+    // Relative to the matrix's own scale, so a small uniform scale is still invertible.
+    if (!(std::abs(det) > 1e-9 * largest * largest * largest))
+      return "transform: singular (determinant " + num(det) +
+             "): the model would collapse to a plane, a line or a point";
+  }
+  return {};
+}
+
 /// The fields present in `n` (a full state or a delta) for a node of `kind`.
 Problem checkNodeFields(const SceneNode& n, SceneGraph::Kind kind) {
   if (n.has_opacity() && !(n.opacity() >= 0.0f && n.opacity() <= 1.0f))
     return "opacity: " + num(n.opacity()) + " is not in [0, 1]";
   if (n.has_transform()) {
     const auto& m = n.transform().m();
-    if (m.size() != 0 && m.size() != 16)
-      return "transform: needs 16 numbers (column-major 4x4) or none, got " +
-             std::to_string(m.size());
-    for (double v : m) {
-      if (!std::isfinite(v)) return std::string("transform: numbers must be finite");
-    }
+    if (auto p = checkTransform(std::span<const double>(m.data(), size_t(m.size())))) return p;
   }
   if (n.has_shading() && !scene::Shading_IsValid(n.shading()))
     return "shading: unknown value " + std::to_string(int(n.shading()));
@@ -441,9 +468,8 @@ void SceneGraph::setOpacity(NodeId id, float opacity) {
 void SceneGraph::setTransform(NodeId id, std::span<const double> matrix) {
   TESSERA_CHECK(matrix.empty() || matrix.size() == 16,
                 "sync::SceneGraph::setTransform(): needs 16 numbers or none");
-  TESSERA_CHECK(
-      std::all_of(matrix.begin(), matrix.end(), [](double v) { return std::isfinite(v); }),
-      "sync::SceneGraph::setTransform(): numbers must be finite");
+  const Problem problem = checkTransform(matrix);
+  TESSERA_CHECK(!problem, "sync::SceneGraph::setTransform(): " + problem.value_or(""));
   mutableNode(id).mutable_transform()->mutable_m()->Assign(matrix.begin(), matrix.end());
 }
 

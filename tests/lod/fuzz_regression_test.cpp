@@ -4,7 +4,9 @@
 
 #include <filesystem>
 
+#include "../../fuzz/conf_fuzz.h"
 #include "../../fuzz/fuzz_reader.h"
+#include "../../fuzz/store_fuzz.h"
 #include "../support/temp_dir.h"
 
 namespace tessera::lod {
@@ -28,6 +30,33 @@ TEST(FuzzRegressions, EveryRecordedCrashInputIsHandled) {
     }
   }
   EXPECT_GT(replayed, 0u) << "no regression inputs found in " << kRegressions;
+}
+
+TEST(FuzzRegressions, EveryRecordedConfStoreAndChunkInputIsHandled) {
+  test::TempDir fixture;
+  fuzz::writeConfFixture(fixture.path());
+  const std::pair<const char*, int (*)(const uint8_t*, size_t, const std::filesystem::path&)>
+      targets[] = {
+          {"conf", [](const uint8_t* d, size_t n,
+                      const std::filesystem::path& dir) { return fuzz::readConf(d, n, dir); }},
+          {"tlod", [](const uint8_t* d, size_t n,
+                      const std::filesystem::path&) { return fuzz::readStore(d, n); }},
+          {"chunk", [](const uint8_t* d, size_t n, const std::filesystem::path&) {
+             return fuzz::decodeChunkBytes(d, n);
+           }}};
+  size_t replayed = 0;
+  for (auto [dir, replay] : targets) {
+    const std::filesystem::path folder = kRegressions / dir;
+    if (!std::filesystem::exists(folder)) continue;
+    for (const auto& entry : std::filesystem::directory_iterator(folder)) {
+      auto bytes = test::readBytes(entry.path());
+      SCOPED_TRACE(entry.path().string());
+      // Before issue 10 the .conf cycles here recursed until the stack overflowed (SIGSEGV).
+      replay(bytes.data(), bytes.size(), fixture.path());
+      ++replayed;
+    }
+  }
+  EXPECT_GE(replayed, 3u) << "the .conf cycle inputs are missing from " << kRegressions;
 }
 
 }  // namespace

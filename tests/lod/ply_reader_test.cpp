@@ -2,6 +2,8 @@
 // input (truncation, NaN, wrong magic, unknown types) giving errors that say where.
 #include <gtest/gtest.h>
 
+#include <sys/stat.h>
+
 #include <cmath>
 #include <cstring>
 
@@ -284,6 +286,41 @@ TEST(PlyReader, TruncatedRealFilesFailCleanly) {
     std::string msg = readErrorOf([&] { readAll(dir / "cut.ply"); });
     EXPECT_NE(msg.find("byte "), std::string::npos) << cut << ": " << msg;
   }
+}
+
+TEST(PlyReader, MagicLineWithTrailingBlanksIsRead) {
+  // Some exporters write "ply " or "ply\t" (issue 10); before, "not a PLY file". From memory,
+  // and from a file named .ply and not (detection by magic).
+  const std::string body =
+      "format ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\n"
+      "property float z\nend_header\n1 2 3\n4 5 6\n";
+  for (const char* magic : {"ply \n", "ply\t\r\n", "ply   \n"}) {
+    SCOPED_TRACE(magic);
+    EXPECT_EQ(readAllMemory(magic + body, "a.ply").points.size(), 2u);
+    test::TempDir dir;
+    for (const char* name : {"a.ply", "a.dat"}) {
+      test::writeText(dir / name, magic + body);
+      auto r = openPointReader(dir / name);
+      EXPECT_EQ(r->info().format, Format::kPly);
+      EXPECT_EQ(readAll(*r).points.size(), 2u);
+    }
+  }
+  // Still refused: another word after "ply", or no line end in the probe.
+  for (const char* bad : {"ply x\nformat ascii 1.0\n", "plyx\nformat ascii 1.0\n"}) {
+    const std::string msg = readErrorOf([&] { readAllMemory(bad, "a.ply"); });
+    EXPECT_NE(msg.find("not a PLY file"), std::string::npos) << bad << ": " << msg;
+  }
+}
+
+TEST(PlyReader, FifoAndDevicesAreRefusedNotWaitedOn) {
+  test::TempDir dir;
+  const auto fifo = dir / "f.ply";
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  // Before: open() blocked forever waiting for a writer.
+  std::string msg = readErrorOf([&] { openPointReader(fifo); });
+  EXPECT_NE(msg.find("f.ply: not a regular file (a FIFO"), std::string::npos) << msg;
+  msg = readErrorOf([] { openPointReader("/dev/null"); });
+  EXPECT_NE(msg.find("character device"), std::string::npos) << msg;
 }
 
 TEST(PlyReader, MissingFileIsAReadError) {

@@ -1,10 +1,15 @@
 // The tessera-lod command as a user runs it: output, JSON keys and exit codes.
 #include <gtest/gtest.h>
 
+#include <sys/stat.h>
 #include <sys/wait.h>
+
 #include <array>
 #include <cstdio>
+#include <filesystem>
+#include <fstream>
 #include <string>
+#include <vector>
 
 #include "../support/command.h"
 #include "../support/temp_dir.h"
@@ -162,6 +167,130 @@ TEST(TesseraLodBuild, KilledBuildLeavesNoHalfFile) {
     CommandResult i = run("info " + out + ".partial");
     EXPECT_NE(i.code, 0) << "a partial file must never open as a store";
   }
+}
+
+}  // namespace
+
+// Issue 10: no lost input, no crash, no hang from anything a user can type.
+namespace {
+
+using tessera::test::TempDir;
+
+/// Bytes of a file, to show it was not touched.
+std::string contentOf(const std::filesystem::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+
+TEST(TesseraLodHardening, AnOutputThatIsAnInputIsRefusedBeforeAnythingIsWritten) {
+  TempDir dir;
+  const auto scan = dir / "copy.las";
+  std::filesystem::copy_file(kData + "/lidar/1.2-with-color.las", scan);
+  const std::string before = contentOf(scan);
+  std::filesystem::create_symlink(scan, dir / "link.las");
+  std::filesystem::create_hard_link(scan, dir / "hard.las");
+  // Before: exit 0, and copy.las was a store.
+  for (const std::string& out : {scan.string(), (dir / "." / "copy.las").string(),
+                                 (dir / "link.las").string(), (dir / "hard.las").string()}) {
+    CommandResult r = run("build " + scan.string() + " -o " + out + " --quiet");
+    EXPECT_EQ(r.code, 2) << out << ": " << r.out;
+    EXPECT_NE(r.out.find("refusing to write over an input"), std::string::npos) << r.out;
+    EXPECT_TRUE(contentOf(scan) == before) << out;
+    EXPECT_FALSE(std::filesystem::exists(out + ".partial"));
+    EXPECT_FALSE(std::filesystem::exists(out + ".build-tmp"));
+  }
+  // One input among several, and a scan a .conf lists.
+  CommandResult several = run("build " + kData + "/lidar/autzen_trim.las " + scan.string() +
+                              " -o " + (dir / "link.las").string() + " --quiet");
+  EXPECT_EQ(several.code, 2) << several.out;
+  std::filesystem::copy_file(kData + "/stanford-bunny/scans/bun000.ply", dir / "bun000.ply");
+  tessera::test::writeText(dir / "one.conf", "bmesh bun000.ply 0 0 0 0 0 0 1\n");
+  const std::string scan_before = contentOf(dir / "bun000.ply");
+  CommandResult conf = run("build " + (dir / "one.conf").string() + " -o " +
+                           (dir / "bun000.ply").string() + " --quiet");
+  EXPECT_EQ(conf.code, 2) << conf.out;
+  EXPECT_TRUE(contentOf(dir / "bun000.ply") == scan_before);
+  EXPECT_TRUE(contentOf(scan) == before);
+}
+
+TEST(TesseraLodHardening, PhotoAndScanNeverWriteOverTheirInput) {
+  TempDir dir;
+  // Never decoded: the refusal comes before anything is read or written.
+  tessera::test::writeText(dir / "p.png", "the user's only copy of the photo");
+  const std::string before = contentOf(dir / "p.png");
+  for (const char* out : {"p.png", "./p.png"}) {
+    CommandResult r = run("photo " + (dir / "p.png").string() +
+                          " --corner 0,0,0 --u 1,0,0 --v 0,1,0 --quiet -o " + (dir / out).string());
+    EXPECT_EQ(r.code, 2) << r.out;
+    EXPECT_NE(r.out.find("refusing to write over an input"), std::string::npos) << r.out;
+    EXPECT_TRUE(contentOf(dir / "p.png") == before);
+  }
+  // The scanner writes scan_NNN.ply and scans.conf into -o: the mesh may be one of them.
+  std::filesystem::copy_file(kData + "/stanford-bunny/reconstruction/bun_zipper_res4.ply",
+                             dir / "scan_001.ply");
+  const std::string mesh = contentOf(dir / "scan_001.ply");
+  CommandResult s = run("scan " + (dir / "scan_001.ply").string() + " -o " + dir.path().string() +
+                        " --scanners 3 --resolution 16x16 --quiet");
+  EXPECT_EQ(s.code, 2) << s.out;
+  EXPECT_NE(s.out.find("refusing to write over an input"), std::string::npos) << s.out;
+  EXPECT_TRUE(contentOf(dir / "scan_001.ply") == mesh);
+  EXPECT_FALSE(std::filesystem::exists(dir / "scans.conf"));
+}
+
+TEST(TesseraLodHardening, FifosAndDevicesAreRefusedNotWaitedOn) {
+  TempDir dir;
+  const auto fifo = dir / "f.ply";
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  // Before: blocked forever in open(); `timeout` turns a hang into exit 124.
+  for (const std::string& args :
+       {"info " + fifo.string(), "build " + fifo.string() + " -o " + (dir / "o.tlod").string(),
+        "verify " + fifo.string() + " " + kData + "/lidar/1.2-with-color.las",
+        std::string("info /dev/zero"), "build /dev/null -o " + (dir / "n.tlod").string()}) {
+    CommandResult r = tessera::test::runCommand("timeout 20 " + kTool + " " + args + " --quiet");
+    EXPECT_EQ(r.code, 1) << args << ": " << r.out;
+    EXPECT_NE(r.out.find("not a regular file"), std::string::npos) << args << ": " << r.out;
+  }
+  EXPECT_FALSE(std::filesystem::exists(dir / "o.tlod.build-tmp"));
+  // The options file is read by CLI11 itself, before any validator.
+  CommandResult config = tessera::test::runCommand("timeout 20 " + kTool + " --config " +
+                                                   fifo.string() + " info " + fifo.string());
+  EXPECT_EQ(config.code, 2) << config.out;
+  EXPECT_NE(config.out.find("--config " + fifo.string() + ": not a regular file (a FIFO"),
+            std::string::npos)
+      << config.out;
+}
+
+TEST(TesseraLodHardening, AConfThatNamesItselfIsACycleNotACrash) {
+  TempDir dir;
+  tessera::test::writeText(dir / "self.conf", "bmesh self.conf 0 0 0 0 0 0 1\n");
+  tessera::test::writeText(dir / "a.conf", "bmesh b.conf 0 0 0 0 0 0 1\n");
+  tessera::test::writeText(dir / "b.conf", "bmesh ./a.conf 0 0 0 0 0 0 1\n");
+  // Before: recursion until SIGSEGV (exit -1 here).
+  for (const char* conf : {"self.conf", "a.conf"}) {
+    for (const std::string& args :
+         {"info " + (dir / conf).string(),
+          "build " + (dir / conf).string() + " -o " + (dir / "x.tlod").string() + " --quiet"}) {
+      CommandResult r = run(args);
+      EXPECT_EQ(r.code, 1) << args << ": " << r.out;
+      EXPECT_NE(r.out.find("cycle"), std::string::npos) << r.out;
+      EXPECT_NE(r.out.find(conf), std::string::npos) << r.out;
+    }
+  }
+}
+
+TEST(TesseraLodHardening, TooManyThreadsIsABadCommandLineAndLeavesNothing) {
+  TempDir dir;
+  const std::string out = (dir / "t.tlod").string();
+  // Before: an uncaught std::system_error (abort) and t.tlod.build-tmp left behind.
+  CommandResult r =
+      run("build " + kData + "/lidar/1.2-with-color.las -o " + out + " --threads 100000 --quiet");
+  EXPECT_EQ(r.code, 2) << r.out;
+  EXPECT_NE(r.out.find("--threads: at most 256"), std::string::npos) << r.out;
+  EXPECT_TRUE(std::filesystem::is_empty(dir.path()));
+  CommandResult ok =
+      run("build " + kData + "/lidar/1.2-with-color.las -o " + out + " --threads 256 --quiet");
+  EXPECT_EQ(ok.code, 0) << ok.out;
+  EXPECT_FALSE(std::filesystem::exists(out + ".build-tmp"));
 }
 
 }  // namespace

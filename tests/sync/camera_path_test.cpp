@@ -148,7 +148,9 @@ TEST(CameraPath, BadFilesNameTheField) {
     loadCameraPath("/nonexistent/path.json");
     FAIL();
   } catch (const ConfigError& e) {
-    EXPECT_STREQ(e.what(), "sync::loadCameraPath(): /nonexistent/path.json: cannot open");
+    EXPECT_STREQ(e.what(),
+                 "sync::loadCameraPath(): /nonexistent/path.json: cannot open: No such file or "
+                 "directory");
   }
 }
 

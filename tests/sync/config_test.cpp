@@ -132,5 +132,57 @@ TEST(SceneFile, BadScenesNameTheField) {
   EXPECT_NE(err("{}").find("camera: a scene needs an initial camera"), std::string::npos);
 }
 
+// Issue 10: a zero or 1e300 model transform gave a blank picture while reporting points drawn.
+TEST(SceneFile, DegenerateTransformsAreRefusedWhenRead) {
+  auto err = [](const std::string& m) {
+    return errorOf([&] {
+      parseSceneFile(
+          R"({"nodes": [{"kind": "MODEL", "model": {"store": "a.tlod"}, "transform": {"m": [)" + m +
+              R"(]}}], "camera": {"eye": {"z": 1}, "target": {}, "up": {"y": 1}}})",
+          "s.json");
+    });
+  };
+  const std::string zero = "0,0,0,0, 0,0,0,0, 0,0,0,0, 0,0,0,1";
+  EXPECT_NE(err(zero).find("s.json: nodes[0] (node 1): transform: singular"), std::string::npos)
+      << err(zero);
+  const std::string huge = "1e300,0,0,0, 0,1e300,0,0, 0,0,1e300,0, 0,0,0,1";
+  EXPECT_NE(err(huge).find("transform: 1e+300 is beyond"), std::string::npos) << err(huge);
+  const std::string flat = "1,0,0,0, 0,1,0,0, 0,0,0,0, 0,0,0,1";  // squashed onto a plane
+  EXPECT_NE(err(flat).find("singular"), std::string::npos) << err(flat);
+  const std::string projective = "1,0,0,0.5, 0,1,0,0, 0,0,1,0, 0,0,0,1";
+  EXPECT_NE(err(projective).find("affine"), std::string::npos) << err(projective);
+  // Still fine: a small uniform scale (millimetres to metres), a rotation, a georeferenced move.
+  EXPECT_EQ(err("0.001,0,0,0, 0,0.001,0,0, 0,0,0.001,0, 636590,847900,10,1"), "");
+  EXPECT_EQ(err("0,1,0,0, -1,0,0,0, 0,0,1,0, 0,0,0,1"), "");
+}
+
+TEST(SceneFile, SettingsLimitsAreCheckedWhenRead) {
+  const std::string e = errorOf([] {
+    parseSceneFile(R"({"settings": {"spbrEnsembles": 100000}, "camera": {"eye": {"z": 1},
+                     "target": {}, "up": {"y": 1}}})",
+                   "s.json");
+  });
+  EXPECT_NE(e.find("s.json"), std::string::npos) << e;
+  EXPECT_NE(e.find("spbr_ensembles"), std::string::npos) << e;
+}
+
+// Issue 10: tiles 100 km apart made --mosaic and the master's screenshot die of std::bad_alloc
+// (at 1 km they allocated 4 to 9 GB and wrote a 0-byte PNG).
+TEST(WallConfig, AWallTooLargeToPictureIsRefusedWhenRead) {
+  auto wall = [](double x) {
+    return R"({"tiles": [{"name": "a", "width": 0.5, "height": 0.3, "pixelWidth": 960,
+               "pixelHeight": 540}, {"name": "b", "x": )" +
+           std::to_string(x) + R"(, "width": 0.5, "height": 0.3, "pixelWidth": 960,
+               "pixelHeight": 540}], "eye": {"z": 2}})";
+  };
+  for (double x : {100000.0, 1000.0, 40.0}) {
+    const std::string e = errorOf([&] { parseWallConfig(wall(x), "w.json"); });
+    EXPECT_NE(e.find("w.json: tiles: the tiles span"), std::string::npos) << x << ": " << e;
+    EXPECT_NE(e.find("at most 65536 pixels a side"), std::string::npos) << e;
+  }
+  EXPECT_NO_THROW(parseWallConfig(wall(0.52), "w.json"));
+  EXPECT_NO_THROW(parseWallConfig(wall(10.0), "w.json"));  // 20160 pixels wide
+}
+
 }  // namespace
 }  // namespace tessera::sync

@@ -521,7 +521,8 @@ class RandomScene {
       std::vector<double> m;
       if (pick(4) != 0) {
         for (int i = 0; i < 16; ++i) m.push_back(i % 5 == 0 ? 1.0 : double(pick(2001) - 1000) / 7);
-        m[12] += 636590.0;  // georeferenced translation
+        m[3] = m[7] = m[11] = 0.0;  // affine (SceneGraph refuses projective transforms)
+        m[12] += 636590.0;          // georeferenced translation
       }
       g.setTransform(id, m);
     } else if (op < 67) {

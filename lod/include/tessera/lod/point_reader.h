@@ -119,4 +119,9 @@ std::unique_ptr<PointReader> openPointReader(std::span<const uint8_t> bytes,
                                              const std::string& name,
                                              const ReaderOptions& options = {});
 
+/// Every file that reading `path` opens: `path` itself and, for a Stanford .conf, the scans it
+/// lists (and theirs, for a nested .conf). What a writer must never write over. Throws
+/// ReadError as openPointReader() does.
+std::vector<std::filesystem::path> filesRead(const std::filesystem::path& path);
+
 }  // namespace tessera::lod

@@ -19,9 +19,13 @@
 
 namespace tessera::lod {
 
+/// Most threads a build, a verify or a virtual scan takes (BuildOptions::threads,
+/// ScanOptions::threads): more only cost memory and thread stacks.
+constexpr int kMaxThreads = 256;
+
 struct BuildOptions {
   uint64_t memory_mb = 2048;
-  int threads = 0;     ///< 0: every core
+  int threads = 0;     ///< 0: every core; at most kMaxThreads
   bool quiet = false;  ///< no progress output
   int zstd_level = 5;
   uint32_t leaf_max = 16384;  ///< nodes with at most this many points stay leaves
@@ -48,7 +52,9 @@ struct BuildReport {
 };
 
 /// Builds `output` from `inputs`. Throws ReadError for bad input, StoreError for failures writing
-/// (disk full, ...). On any failure the output path is left untouched (no half file).
+/// (disk full, ...) and, before anything is written, when `output` is one of the files read
+/// (filesRead(), by any path). On any failure the output path is left untouched (no half file).
+/// PreconditionError: options.threads outside [0, kMaxThreads].
 BuildReport buildStore(const std::vector<std::filesystem::path>& inputs,
                        const std::filesystem::path& output, const BuildOptions& options = {});
 

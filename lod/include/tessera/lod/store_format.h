@@ -22,8 +22,9 @@ constexpr char kMagic[4] = {'T', 'L', 'O', 'D'};
 constexpr uint32_t kVersion = 1;
 constexpr uint32_t kHeaderSize = 4096;
 constexpr int kGrid = 48;  ///< sampling grid per node and axis: inner nodes hold <= kGrid^3 points
-/// An inner node holds at most this fraction of the points below it (a coarser sampling grid
-/// where needed), which bounds the copies to f / (1 - f) = 0.25 of the input.
+/// An inner node holds at most this fraction of the input points below it (a coarser sampling
+/// grid where needed): each level of inner nodes adds at most f of the input. Not a geometric
+/// bound (nodes sample the input, not their children's samples): volumes reach 1.4x.
 constexpr double kMaxInnerFraction = 0.2;
 constexpr int kPageLevels = 4;  ///< levels per hierarchy page
 constexpr int kMaxLevel = 30;   ///< deepest node level (duplicates stop subdividing there)

@@ -12,6 +12,9 @@
 
 namespace tessera::lod {
 
+/// Most threads a scan takes (ScanOptions::threads).
+constexpr int kMaxScanThreads = 256;
+
 struct ScanOptions {
   int scanners = 8;        ///< number of scanner poses
   uint32_t columns = 512;  ///< range-grid width (rays per row)
@@ -26,7 +29,7 @@ struct ScanOptions {
   /// as on a real scanner.
   double max_incidence_deg = 85.0;
   bool binary = false;  ///< binary_little_endian PLY instead of ASCII (large scans)
-  int threads = 0;      ///< 0: every core
+  int threads = 0;      ///< 0: every core; at most kMaxScanThreads
   bool quiet = false;   ///< no progress output
 };
 

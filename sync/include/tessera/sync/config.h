@@ -17,8 +17,10 @@ class ConfigError : public std::runtime_error {
 };
 
 /// Reads and validates a wall: at least one tile, unique names, positive sizes and pixel
-/// counts, the eye in front of the wall (z > 0), 0 < near < far. Fills defaults (near 0.05,
-/// far 1000). Throws ConfigError "sync::loadWallConfig(): FILE: FIELD: what".
+/// counts, the whole wall at most 65536 pixels a side and 2^28 in all at the first tile's pixel
+/// density (its screenshot), the eye in front of the wall (z > 0), 0 < near < far. Fills
+/// defaults (near 0.05, far 1000). Only regular files are read (a FIFO would block). Throws
+/// ConfigError "sync::loadWallConfig(): FILE: FIELD: what".
 config::WallConfig loadWallConfig(const std::filesystem::path& path);
 /// Same from JSON text (`name` is used in messages).
 config::WallConfig parseWallConfig(const std::string& json, const std::string& name);

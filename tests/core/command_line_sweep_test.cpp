@@ -1,0 +1,188 @@
+// Every numeric command-line option of every tool, given NaN, infinities, zero, negative and
+// overflowing values, as a user would type them: each must exit 2 (README, "Exit codes") with
+// a message naming the option, before any work. Real processes; each base command line is
+// otherwise valid but names nothing that exists, so a value wrongly taken ends the run at once
+// (exit 1) instead of rendering or building. No network beyond loopback.
+#include <gtest/gtest.h>
+
+#include <string>
+#include <vector>
+
+#include "../support/command.h"
+
+namespace {
+
+using tessera::test::CommandResult;
+
+struct Tool {
+  const char* name;
+  std::string base;  ///< the tool and an otherwise valid command line
+};
+
+/// One numeric option and what it takes.
+struct Option {
+  const char* name;
+  bool zero_ok;      ///< 0 is a valid value
+  bool integer;      ///< an integer option: 1.5 is refused
+  bool wide = true;  ///< false: 32 bits, so 4294967297 is refused too
+};
+
+const std::string kTimeout = "timeout 60 ";
+
+Tool lodScan() {
+  return {"tessera-lod scan",
+          kTimeout + TESSERA_LOD_TOOL + " scan /nonexistent.ply -o /nonexistent-dir"};
+}
+Tool lodBuild() {
+  return {"tessera-lod build",
+          kTimeout + TESSERA_LOD_TOOL + " build /nonexistent.las -o /nonexistent.tlod"};
+}
+Tool lodVerify() {
+  return {"tessera-lod verify",
+          kTimeout + TESSERA_LOD_TOOL + " verify /nonexistent.tlod /nonexistent.las"};
+}
+/// `photo` with its required vectors, but for `without` (the one under test).
+Tool lodPhoto(const std::string& without = "") {
+  std::string base = kTimeout + TESSERA_LOD_TOOL + " photo /nonexistent.png -o /nonexistent.tlod";
+  for (const char* v : {"--corner=0,0,0", "--u=1,0,0", "--v=0,1,0"}) {
+    if (without.empty() || std::string(v).rfind(without + "=", 0) != 0)
+      base += " " + std::string(v);
+  }
+  return {"tessera-lod photo", base};
+}
+Tool render() {
+  return {"tessera-render",
+          kTimeout + TESSERA_RENDER_TOOL + " --model /nonexistent.tlod -o /nonexistent.png"};
+}
+Tool master() {
+  return {"tessera-master",
+          kTimeout + TESSERA_MASTER +
+              " --transport zmq --listen tcp://127.0.0.1:* --wall /nonexistent.json --scene "
+              "/nonexistent.json"};
+}
+Tool node() {
+  // --join-timeout keeps a wrongly taken value's join short (nothing listens on port 9).
+  return {"tessera-node", kTimeout + TESSERA_NODE + " --master tcp://127.0.0.1:9 --headless"};
+}
+
+std::vector<std::string> badValues(const Option& o) {
+  std::vector<std::string> v = {
+      "nan", "NaN", "inf", "-inf", "-1", "1e400", "-1e400", "18446744073709551617", "abc", "''"};
+  if (!o.zero_ok) v.push_back("0");
+  if (o.integer) {
+    v.insert(v.end(), {"1.5", "1e3", "0x10", "99999999999999999999999"});
+    if (!o.wide) v.push_back("4294967297");
+  }
+  return v;
+}
+
+void expectRefused(const Tool& tool, const std::string& option, const std::string& value) {
+  // OPTION=VALUE: "-1" after a space could be taken for a short option by CLI11.
+  const std::string cmd = tool.base + " " + option + "=" + value;
+  const CommandResult r = tessera::test::runCommand(cmd);
+  EXPECT_EQ(r.code, 2) << cmd << "\n" << r.out;
+  EXPECT_NE(r.out.find(option), std::string::npos)
+      << cmd << ": the message does not name " << option << ":\n"
+      << r.out;
+}
+
+void sweep(const Tool& tool, const std::vector<Option>& options) {
+  for (const Option& o : options) {
+    for (const std::string& value : badValues(o)) expectRefused(tool, o.name, value);
+  }
+}
+
+TEST(CommandLineSweep, TesseraLod) {
+  sweep(lodScan(), {{"--scanners", false, true, false},
+                    {"--noise-mm", true, false},
+                    {"--units-per-mm", false, false},
+                    {"--seed", true, true},
+                    {"--max-incidence", true, false},
+                    {"--threads", true, true, false}});
+  sweep(lodBuild(), {{"--memory-mb", false, true}, {"--threads", true, true, false}});
+  sweep(lodVerify(), {{"--memory-mb", false, true}});
+  sweep(lodPhoto(), {{"--height-scale", true, false}, {"--seed", true, true}});
+}
+
+TEST(CommandLineSweep, TesseraLodComposites) {
+  for (const char* res : {"4294967297x480", "512x4294967296", "0x480", "512x0", "-1x480", "nanx480",
+                          "512x", "x400", "512x400x3", "65536x1", "1.5x400"}) {
+    expectRefused(lodScan(), "--resolution", res);
+  }
+  for (const char* opt : {"--corner", "--u", "--v"}) {
+    for (const char* v : {"nan,0,0", "0,inf,0", "0,0,-inf", "1e400,0,0", "1,2", "1,2,3,4"})
+      expectRefused(lodPhoto(opt), opt, v);
+  }
+}
+
+TEST(CommandLineSweep, TesseraRender) {
+  sweep(render(), {{"--fovy", false, false},
+                   {"--lod-px", false, false},
+                   {"--point-budget", true, true},
+                   {"--splat-scale", false, false},
+                   {"--gpu-budget-mb", false, false},
+                   {"--loader-threads", true, true, false},
+                   {"--spbr-L", false, true, false},
+                   {"--spbr-progressive", true, true, false},
+                   {"--spbr-max-k", false, false},
+                   {"--frames", true, true, false}});
+}
+
+TEST(CommandLineSweep, TesseraRenderComposites) {
+  for (const char* size :
+       {"4294967297x480", "1280x4294967297", "0x480", "-1x480", "nanx480", "16385x480", "1280"}) {
+    expectRefused(render(), "--size", size);
+  }
+  for (const char* bg : {"5,-1,nan", "nan,0,0", "0,0,inf", "2,0,0", "0,-0.5,0", "1,1"}) {
+    expectRefused(render(), "--background", bg);
+  }
+  for (const char* camera :
+       {"'eye=nan,0,0;target=0,0,0;up=0,1,0'", "'eye=0,0,5;target=0,0,inf;up=0,1,0'",
+        "'eye=1,2,3;target=1,2,3;up=0,1,0'", "'eye=0,0,5;target=0,0,0;up=0,0,0'",
+        "'eye=0,0,5;target=0,0,0;up=0,0,1'", "'eye=0,0,5;target=0,0,0;up=0,0,-3'",
+        "'eye=0,0,5;target=0,0,0'", "'eye=0,0,5;target=0,0,0;up=0,1,0;up=0,1,0'"}) {
+    expectRefused(render(), "--camera", camera);
+  }
+}
+
+TEST(CommandLineSweep, TesseraMaster) {
+  sweep(master(), {{"--frames", true, true, false},
+                   {"--fps", false, false},
+                   {"--max-fps", true, false},
+                   {"--console-width", false, true, false},
+                   {"--splat-scale", false, false},
+                   {"--gpu-budget-mb", false, false},
+                   {"--node-timeout", true, false},
+                   {"--join-wait", true, false},
+                   {"--first-frame-timeout", false, false},
+                   {"--timeout", false, false}});
+}
+
+TEST(CommandLineSweep, TesseraNode) {
+  sweep(node(), {{"--join-timeout", false, false},
+                 {"--wait-master", true, false},
+                 {"--master-timeout", false, false},
+                 {"--timeout", false, false}});
+}
+
+TEST(CommandLineSweep, ParseErrorsExitTwoAndHelpZero) {
+  // Before: CLI11's own codes (105 validation, 106 required, 109 extras).
+  for (const Tool& t : {lodScan(), render(), master(), node()}) {
+    const CommandResult extra = tessera::test::runCommand(t.base + " --no-such-option");
+    EXPECT_EQ(extra.code, 2) << t.name << "\n" << extra.out;
+    EXPECT_NE(extra.out.find("--no-such-option"), std::string::npos) << extra.out;
+  }
+  for (const std::string& tool : {std::string(TESSERA_LOD_TOOL) + " build",
+                                  std::string(TESSERA_MASTER) + " --transport zmq"}) {
+    const CommandResult missing = tessera::test::runCommand(kTimeout + tool);
+    EXPECT_EQ(missing.code, 2) << tool << "\n" << missing.out;
+    EXPECT_NE(missing.out.find("required"), std::string::npos) << missing.out;
+  }
+  for (const std::string& tool : {std::string(TESSERA_LOD_TOOL), std::string(TESSERA_RENDER_TOOL),
+                                  std::string(TESSERA_MASTER), std::string(TESSERA_NODE)}) {
+    const CommandResult help = tessera::test::runCommand(kTimeout + tool + " --help");
+    EXPECT_EQ(help.code, 0) << tool << "\n" << help.out;
+  }
+}
+
+}  // namespace
