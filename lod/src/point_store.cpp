@@ -10,6 +10,7 @@
 #include <deque>
 #include <list>
 #include <unordered_map>
+#include <unordered_set>
 
 #include <tessera/core/check.h>
 #include <tessera/core/file_checks.h>
@@ -50,6 +51,7 @@ struct PointStore::Impl {
   std::list<NodeId> lru;  // front: most recent
   std::unordered_map<NodeId, Cached> cache;
   CacheStats stats;
+  std::unordered_set<NodeId> corrupt_pages;  // nodes whose children's page was refused
 
   ~Impl() {
     if (fd >= 0) ::close(fd);
@@ -252,7 +254,21 @@ std::vector<NodeId> PointStore::children(NodeId id) {
     }
   }
   std::unique_lock lock(m.nodes_mutex);
-  if (!m.nodes[id].children_loaded) m.loadPage(m.nodes[id].page_offset, m.nodes[id].page_size, id);
+  if (!m.nodes[id].children_loaded) {
+    const size_t known = m.nodes.size();
+    try {
+      m.loadPage(m.nodes[id].page_offset, m.nodes[id].page_size, id);
+    } catch (const StoreError&) {
+      // Undo what the page added before it failed, and never read it again: the node has no
+      // children from now on, and the page is counted so a renderer can say what is missing.
+      m.nodes.resize(known);
+      m.nodes[id].children.fill(kNoNode);
+      m.nodes[id].children_loaded = true;
+      std::lock_guard stats_lock(m.cache_mutex);
+      if (m.corrupt_pages.insert(id).second) ++m.stats.corrupt_pages;
+      throw;
+    }
+  }
   std::vector<NodeId> out;
   for (NodeId c : m.nodes[id].children) {
     if (c != kNoNode) out.push_back(c);

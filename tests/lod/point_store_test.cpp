@@ -181,6 +181,57 @@ std::string storeErrorOf(const std::function<void()>& fn) {
   return "";
 }
 
+// Issue 10: a corrupt child hierarchy page dropped its nodes without a word.
+TEST(PointStore, ACorruptChildPageIsCountedAndItsNodesLeaveCleanly) {
+  test::TempDir dir;
+  buildStore({kBunny}, dir / "d.tlod", quiet(20000, 400));
+  auto bytes = test::readBytes(dir / "d.tlod");
+  store::FileHeader h;
+  std::memcpy(&h, bytes.data(), sizeof h);
+  store::PageHeader root;
+  std::memcpy(&root, bytes.data() + h.root_page_offset, sizeof root);
+  // The first node of the root page whose children are on a page of their own.
+  uint64_t page = 0;
+  for (uint32_t i = 0; i < root.nodes && page == 0; ++i) {
+    store::NodeRecord r;
+    std::memcpy(&r, bytes.data() + h.root_page_offset + sizeof root + i * sizeof r, sizeof r);
+    if (r.flags & store::kHasPage) page = r.page_offset;
+  }
+  ASSERT_NE(page, 0u) << "the store has no child pages";
+  bytes[page + sizeof(store::PageHeader) + 5] ^= 0x5A;  // inside the records: checksum mismatch
+  test::writeBytes(dir / "c.tlod", bytes);
+  auto s = PointStore::open(dir / "c.tlod");
+  auto walk = [&](int& failures) {
+    std::vector<NodeId> out, stack{s->root()};
+    while (!stack.empty()) {
+      const NodeId id = stack.back();
+      stack.pop_back();
+      out.push_back(id);
+      const std::string msg = storeErrorOf([&] {
+        for (NodeId c : s->children(id)) stack.push_back(c);
+      });
+      if (!msg.empty()) {
+        ++failures;
+        EXPECT_NE(msg.find("c.tlod: hierarchy page at byte " + std::to_string(page)),
+                  std::string::npos)
+            << msg;
+      }
+    }
+    return out.size();
+  };
+  int failures = 0;
+  const size_t first = walk(failures);
+  EXPECT_EQ(failures, 1);
+  EXPECT_EQ(s->cacheStats().corrupt_pages, 1u);
+  EXPECT_LT(first, s->summary().nodes);
+  // The page is not read again and left nothing half-linked: the same nodes, no new failure.
+  int again = 0;
+  EXPECT_EQ(walk(again), first);
+  EXPECT_EQ(again, 0);
+  EXPECT_EQ(s->cacheStats().corrupt_pages, 1u);
+  EXPECT_EQ(s->loadedNodes(), first);
+}
+
 TEST(PointStore, CorruptChunksAreReportedAndSkippedNeverDrawn) {
   test::TempDir dir;
   buildStore({kAutzen}, dir / "a.tlod", quiet(0, 2000));
