@@ -179,8 +179,10 @@ std::unique_ptr<PointStore> PointStore::open(const std::filesystem::path& path,
   uint32_t crc = h.header_crc;
   h.header_crc = 0;
   if (crc32c(&h, sizeof h) != crc) m.fail("header is corrupt (checksum mismatch)");
-  if (!(h.cube_size > 0) || h.root_page_offset + h.root_page_size > m.file_size ||
-      h.source_table_offset + h.source_table_size > m.file_size || h.sources > 65536) {
+  // Offset and size each within the file first: their sum must not wrap around.
+  if (!(h.cube_size > 0) || h.root_page_offset > m.file_size ||
+      h.root_page_size > m.file_size - h.root_page_offset || h.source_table_offset > m.file_size ||
+      h.source_table_size > m.file_size - h.source_table_offset || h.sources > 65536) {
     m.fail("header is inconsistent with the file size (truncated?)");
   }
   m.frame.origin = glm::dvec3(h.origin[0], h.origin[1], h.origin[2]);
@@ -207,6 +209,8 @@ std::unique_ptr<PointStore> PointStore::open(const std::filesystem::path& path,
 
   std::string table(h.source_table_size, '\0');
   m.readAt(h.source_table_offset, table.data(), table.size(), "the source table");
+  if (h.version >= 2 && crc32c(table.data(), table.size()) != h.source_table_crc)
+    m.fail("source table is corrupt (checksum mismatch)");
   for (size_t a = 0; a < table.size();) {
     size_t b = table.find('\n', a);
     if (b == std::string::npos) break;

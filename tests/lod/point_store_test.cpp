@@ -16,6 +16,7 @@
 #include <tessera/lod/store_builder.h>
 #include <tessera/lod/store_format.h>
 
+#include "../../lod/src/crc32c.h"
 #include "../support/temp_dir.h"
 
 namespace tessera::lod {
@@ -291,6 +292,37 @@ TEST(PointStore, BadStoresAreRefusedWithTheReason) {
     auto b = bytes;
     b[0] = 'X';
     EXPECT_NE(openErr(b).find("not a Tessera point store"), std::string::npos);
+  }
+  store::FileHeader h;
+  std::memcpy(&h, bytes.data(), sizeof h);
+  // Issue 10: the source table had no checksum, so a flipped byte renamed a source silently.
+  {
+    auto b = bytes;
+    b[h.source_table_offset] ^= 0x20;
+    EXPECT_NE(openErr(b).find("source table is corrupt (checksum mismatch)"), std::string::npos)
+        << openErr(b);
+  }
+  // A version 1 store (no source table checksum, the field was reserved) still opens.
+  {
+    auto b = bytes;
+    store::FileHeader v1 = h;
+    v1.version = 1;
+    v1.source_table_crc = 0;
+    v1.header_crc = 0;
+    v1.header_crc = crc32c(&v1, sizeof v1);
+    std::memcpy(b.data(), &v1, sizeof v1);
+    EXPECT_EQ(openErr(b), "");
+  }
+  // Offsets and sizes whose sum wraps around are refused before anything is allocated.
+  {
+    auto b = bytes;
+    store::FileHeader w = h;
+    w.source_table_offset = ~uint64_t(0) - 10;
+    w.source_table_size = 0xFFFFFF00u;
+    w.header_crc = 0;
+    w.header_crc = crc32c(&w, sizeof w);
+    std::memcpy(b.data(), &w, sizeof w);
+    EXPECT_NE(openErr(b).find("inconsistent with the file size"), std::string::npos) << openErr(b);
   }
 }
 
