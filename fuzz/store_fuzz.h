@@ -44,8 +44,9 @@ inline void checkChunk(const lod::ChunkPoints& c) {
             "non-finite decoded position");
 }
 
-/// Makes the CRCs of `file` right: the header's, and for each page reachable from the root
-/// page (at most 64) the page's and its nodes' payloads' where they lie inside the file.
+/// Makes the CRCs of `file` right: the header's, the source table's, and for each page
+/// reachable from the root page (at most 64) the page's and its nodes' payloads' where they
+/// lie inside the file.
 inline void fixChecksums(std::vector<uint8_t>& file) {
   using namespace tessera::lod::store;
   if (file.size() < sizeof(FileHeader)) return;
@@ -74,6 +75,9 @@ inline void fixChecksums(std::vector<uint8_t>& file) {
     ph.crc = lod::crc32c(recs, ph.nodes * sizeof(NodeRecord));
     std::memcpy(file.data() + off, &ph, sizeof ph);
   }
+  if (h.source_table_offset <= file.size() &&
+      h.source_table_size <= file.size() - h.source_table_offset)
+    h.source_table_crc = lod::crc32c(file.data() + h.source_table_offset, h.source_table_size);
   h.header_crc = 0;
   h.header_crc = lod::crc32c(&h, sizeof h);
   std::memcpy(file.data(), &h, sizeof h);

@@ -10,6 +10,7 @@
 #include <deque>
 #include <list>
 #include <unordered_map>
+#include <unordered_set>
 
 #include <tessera/core/check.h>
 #include <tessera/core/file_checks.h>
@@ -50,6 +51,7 @@ struct PointStore::Impl {
   std::list<NodeId> lru;  // front: most recent
   std::unordered_map<NodeId, Cached> cache;
   CacheStats stats;
+  std::unordered_set<NodeId> corrupt_pages;  // nodes whose children's page was refused
 
   ~Impl() {
     if (fd >= 0) ::close(fd);
@@ -177,8 +179,10 @@ std::unique_ptr<PointStore> PointStore::open(const std::filesystem::path& path,
   uint32_t crc = h.header_crc;
   h.header_crc = 0;
   if (crc32c(&h, sizeof h) != crc) m.fail("header is corrupt (checksum mismatch)");
-  if (!(h.cube_size > 0) || h.root_page_offset + h.root_page_size > m.file_size ||
-      h.source_table_offset + h.source_table_size > m.file_size || h.sources > 65536) {
+  // Offset and size each within the file first: their sum must not wrap around.
+  if (!(h.cube_size > 0) || h.root_page_offset > m.file_size ||
+      h.root_page_size > m.file_size - h.root_page_offset || h.source_table_offset > m.file_size ||
+      h.source_table_size > m.file_size - h.source_table_offset || h.sources > 65536) {
     m.fail("header is inconsistent with the file size (truncated?)");
   }
   m.frame.origin = glm::dvec3(h.origin[0], h.origin[1], h.origin[2]);
@@ -205,6 +209,8 @@ std::unique_ptr<PointStore> PointStore::open(const std::filesystem::path& path,
 
   std::string table(h.source_table_size, '\0');
   m.readAt(h.source_table_offset, table.data(), table.size(), "the source table");
+  if (h.version >= 2 && crc32c(table.data(), table.size()) != h.source_table_crc)
+    m.fail("source table is corrupt (checksum mismatch)");
   for (size_t a = 0; a < table.size();) {
     size_t b = table.find('\n', a);
     if (b == std::string::npos) break;
@@ -252,7 +258,21 @@ std::vector<NodeId> PointStore::children(NodeId id) {
     }
   }
   std::unique_lock lock(m.nodes_mutex);
-  if (!m.nodes[id].children_loaded) m.loadPage(m.nodes[id].page_offset, m.nodes[id].page_size, id);
+  if (!m.nodes[id].children_loaded) {
+    const size_t known = m.nodes.size();
+    try {
+      m.loadPage(m.nodes[id].page_offset, m.nodes[id].page_size, id);
+    } catch (const StoreError&) {
+      // Undo what the page added before it failed, and never read it again: the node has no
+      // children from now on, and the page is counted so a renderer can say what is missing.
+      m.nodes.resize(known);
+      m.nodes[id].children.fill(kNoNode);
+      m.nodes[id].children_loaded = true;
+      std::lock_guard stats_lock(m.cache_mutex);
+      if (m.corrupt_pages.insert(id).second) ++m.stats.corrupt_pages;
+      throw;
+    }
+  }
   std::vector<NodeId> out;
   for (NodeId c : m.nodes[id].children) {
     if (c != kNoNode) out.push_back(c);

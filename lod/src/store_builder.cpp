@@ -473,6 +473,7 @@ BuildReport buildStore(const std::vector<std::filesystem::path>& inputs,
   h.root_page_size = root_size;
   h.source_table_offset = table_off;
   h.source_table_size = uint32_t(table.size());
+  h.source_table_crc = crc32c(table.data(), table.size());
   h.input_precision = dist.inputPrecision();
   h.spacing_root = nodes[index.at(CellKey{})].spacing;
   h.spacing_finest = finest;

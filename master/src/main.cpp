@@ -16,6 +16,7 @@
 #include <vector>
 
 #include <tessera/master/master.h>
+#include <tessera/sync/config.h>
 #include <tessera/sync/mpi_link.h>
 #include <tessera/sync/zmq_link.h>
 
@@ -131,7 +132,14 @@ int run(int argc, char** argv) {
   }
   // What the master writes must never be what it reads (by any path).
   try {
-    const std::vector<std::filesystem::path> read{o.wall, o.scene, o.script};
+    std::vector<std::filesystem::path> read{o.wall, o.scene, o.script};
+    try {  // and the scene's stores (a bad scene is reported by prepare())
+      const scene::SceneFile scene_file = sync::loadSceneFile(o.scene);
+      for (const auto& n : scene_file.nodes()) {
+        if (n.has_model()) read.push_back(n.model().store());
+      }
+    } catch (const sync::ConfigError&) {
+    }
     for (const auto& [path, option] :
          {std::pair{&o.screenshot, "--screenshot"}, std::pair{&o.stats, "--stats"},
           std::pair{&o.console_screenshot, "--console-screenshot"}}) {

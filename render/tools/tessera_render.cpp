@@ -8,6 +8,7 @@
 #include <fstream>
 #include <functional>
 #include <optional>
+#include <set>
 #include <span>
 
 #include <cstring>
@@ -438,6 +439,16 @@ int run(int argc, char** argv) {
                 " (give --tile, --mosaic or --whole)");
         result = renderView(tile->name(), render::tileView(wall, *tile, cam));
       }
+    }
+    // A corrupt hierarchy page leaves out the nodes below it: the picture is written, but said.
+    std::set<const lod::PointStore*> warned;
+    for (const auto& m : instances) {
+      const uint64_t pages = m.store->cacheStats().corrupt_pages;
+      if (pages > 0 && warned.insert(m.store).second)
+        std::fprintf(stderr,
+                     "tessera-render: warning: %s: %llu corrupt hierarchy pages; the nodes below "
+                     "them are not drawn\n",
+                     m.store->path().c_str(), (unsigned long long)pages);
     }
     render::writePng(out, result);
     std::printf("wrote %s (%ux%u)\n", out.c_str(), result.width, result.height);

@@ -104,6 +104,12 @@ struct RenderNode::Impl {
       throw NodeError(cluster::NODE_BAD_TILE,
                       "tile " + tile->name() + " is " + std::to_string(tile->pixel_width()) + "x" +
                           std::to_string(tile->pixel_height()) + " pixels (1..16384 each way)");
+    // The master's numbers are checked as its command line's are (0: the default).
+    if (!(setup.splat_scale() == 0.0f ||
+          (setup.splat_scale() >= 0.25f && setup.splat_scale() <= 8.0f)))
+      throw NodeError(cluster::NODE_BAD_FRAME, "the master's splat scale " +
+                                                   std::to_string(setup.splat_scale()) +
+                                                   " is not in [0.25, 8]");
     try {
       if (!window && !context) {
         if (!opt.headless) {

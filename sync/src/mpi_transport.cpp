@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <thread>
@@ -20,7 +21,8 @@ using Clock = std::chrono::steady_clock;
 }  // namespace
 
 MpiTransport::MpiTransport(int* argc, char*** argv, std::string who, double timeout_s)
-    : mWho(std::move(who)), mTimeoutS(timeout_s) {
+    : mWho(std::move(who)) {
+  setTimeout(timeout_s);
   int initialized = 0;
   MPI_Initialized(&initialized);
   if (!initialized && MPI_Init(argc, argv) != MPI_SUCCESS)
@@ -33,6 +35,12 @@ MpiTransport::MpiTransport(int* argc, char*** argv, std::string who, double time
   int len = 0;
   MPI_Get_processor_name(name, &len);
   mHost.assign(name, size_t(len));
+}
+
+void MpiTransport::setTimeout(double seconds) {
+  TESSERA_CHECK(std::isfinite(seconds) && seconds > 0.0,
+                "sync::MpiTransport: the timeout must be a finite number of seconds > 0");
+  mTimeoutS = seconds;
 }
 
 MpiTransport::~MpiTransport() {
@@ -59,7 +67,7 @@ void MpiTransport::wait(void* request_ptr, const char* what) {
       abort(3, std::string("MPI failed while waiting for ") + what);
     if (done) return;
     const double ms = msSince(start);
-    if (ms > mTimeoutS * 1000.0) {
+    if (!(ms <= mTimeoutS * 1000.0)) {  // written so that a NaN timeout aborts, never waits
       char why[256];
       std::snprintf(why, sizeof why, "no %s after %.0f s (a rank hung or died); aborting the job",
                     what, mTimeoutS);

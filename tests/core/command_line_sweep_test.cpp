@@ -5,6 +5,10 @@
 // (exit 1) instead of rendering or building. No network beyond loopback.
 #include <gtest/gtest.h>
 
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
 #include <string>
 #include <vector>
 
@@ -113,6 +117,25 @@ TEST(CommandLineSweep, TesseraLodComposites) {
     for (const char* v : {"nan,0,0", "0,inf,0", "0,0,-inf", "1e400,0,0", "1,2", "1,2,3,4"})
       expectRefused(lodPhoto(opt), opt, v);
   }
+}
+
+TEST(CommandLineSweep, TesseraLodConfigFileValuesAreCheckedAsTheCommandLine) {
+  // tessera-lod --config F.toml: the same validators (before: noise-mm = nan was taken).
+  const auto dir =
+      std::filesystem::temp_directory_path() / ("tessera-sweep-" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  for (const char* line : {"noise-mm = nan", "threads = 100000", "units-per-mm = 0",
+                           "scanners = 4294967297", "seed = -1", "max-incidence = inf"}) {
+    const auto toml = dir / "scan.toml";
+    std::ofstream(toml) << "[scan]\n" << line << "\n";
+    const std::string option = "--" + std::string(line).substr(0, std::string(line).find(' '));
+    const CommandResult r =
+        tessera::test::runCommand(kTimeout + TESSERA_LOD_TOOL + " --config " + toml.string() +
+                                  " scan /nonexistent.ply -o /nonexistent-dir");
+    EXPECT_EQ(r.code, 2) << line << "\n" << r.out;
+    EXPECT_NE(r.out.find(option), std::string::npos) << line << "\n" << r.out;
+  }
+  std::filesystem::remove_all(dir);
 }
 
 TEST(CommandLineSweep, TesseraRender) {

@@ -75,20 +75,32 @@ TEST(ToolOutputs, MasterNeverWritesOverItsConfigs) {
   }
 }
 
-TEST(ToolOutputs, MasterSaysWhyItsStatsCannotBeWritten) {
-  TempDir dir;
-  const std::string store = smallStore(dir);
-  ASSERT_FALSE(store.empty());
+/// tessera-master on a one-tile wall (w.json) and a scene of dir/s.tlod (s.json) in `dir`, over
+/// ZeroMQ on loopback, with `args`; the store is built first.
+CommandResult runMaster(const TempDir& dir, const std::string& args) {
+  if (smallStore(dir).empty()) return {};
   std::ofstream(dir / "s.json") << R"({"camera": {"eye": {"z": 100}, "target": {}, "up": {"y": 1}},
     "nodes": [{"kind": "MODEL", "model": {"store": "s.tlod"}}]})";
   std::ofstream(dir / "w.json") << R"({"tiles": [{"name": "a", "width": 1, "height": 1,
     "pixelWidth": 16, "pixelHeight": 16}], "eye": {"z": 2}})";
+  return runCommand("timeout 60 " + std::string(TESSERA_MASTER) +
+                    " --transport zmq --listen tcp://127.0.0.1:* --join-wait 0 --wall " +
+                    (dir / "w.json").string() + " --scene " + (dir / "s.json").string() + " " +
+                    args);
+}
+
+TEST(ToolOutputs, MasterNeverWritesOverTheScenesStores) {
+  TempDir dir;
+  const CommandResult r = runMaster(dir, "--screenshot " + (dir / "." / "s.tlod").string());
+  EXPECT_EQ(r.code, 2) << r.out;
+  EXPECT_NE(r.out.find("refusing to write over an input"), std::string::npos) << r.out;
+  EXPECT_EQ(contentOf(dir / "s.tlod").substr(0, 4), "TLOD");
+}
+
+TEST(ToolOutputs, MasterSaysWhyItsStatsCannotBeWritten) {
+  TempDir dir;
   // Before: "--stats ...: cannot write", without the reason.
-  const CommandResult r =
-      runCommand("timeout 60 " + std::string(TESSERA_MASTER) +
-                 " --transport zmq --listen tcp://127.0.0.1:* --join-wait 0 --wall " +
-                 (dir / "w.json").string() + " --scene " + (dir / "s.json").string() + " --stats " +
-                 (dir / "none" / "stats.csv").string());
+  const CommandResult r = runMaster(dir, "--stats " + (dir / "none" / "stats.csv").string());
   EXPECT_EQ(r.code, 1) << r.out;
   EXPECT_NE(r.out.find("cannot write: the folder " + (dir / "none").string() + " does not exist"),
             std::string::npos)

@@ -16,6 +16,7 @@
 #include <tessera/lod/store_builder.h>
 #include <tessera/lod/store_format.h>
 
+#include "../../lod/src/crc32c.h"
 #include "../support/temp_dir.h"
 
 namespace tessera::lod {
@@ -181,6 +182,57 @@ std::string storeErrorOf(const std::function<void()>& fn) {
   return "";
 }
 
+// Issue 10: a corrupt child hierarchy page dropped its nodes without a word.
+TEST(PointStore, ACorruptChildPageIsCountedAndItsNodesLeaveCleanly) {
+  test::TempDir dir;
+  buildStore({kBunny}, dir / "d.tlod", quiet(20000, 400));
+  auto bytes = test::readBytes(dir / "d.tlod");
+  store::FileHeader h;
+  std::memcpy(&h, bytes.data(), sizeof h);
+  store::PageHeader root;
+  std::memcpy(&root, bytes.data() + h.root_page_offset, sizeof root);
+  // The first node of the root page whose children are on a page of their own.
+  uint64_t page = 0;
+  for (uint32_t i = 0; i < root.nodes && page == 0; ++i) {
+    store::NodeRecord r;
+    std::memcpy(&r, bytes.data() + h.root_page_offset + sizeof root + i * sizeof r, sizeof r);
+    if (r.flags & store::kHasPage) page = r.page_offset;
+  }
+  ASSERT_NE(page, 0u) << "the store has no child pages";
+  bytes[page + sizeof(store::PageHeader) + 5] ^= 0x5A;  // inside the records: checksum mismatch
+  test::writeBytes(dir / "c.tlod", bytes);
+  auto s = PointStore::open(dir / "c.tlod");
+  auto walk = [&](int& failures) {
+    std::vector<NodeId> out, stack{s->root()};
+    while (!stack.empty()) {
+      const NodeId id = stack.back();
+      stack.pop_back();
+      out.push_back(id);
+      const std::string msg = storeErrorOf([&] {
+        for (NodeId c : s->children(id)) stack.push_back(c);
+      });
+      if (!msg.empty()) {
+        ++failures;
+        EXPECT_NE(msg.find("c.tlod: hierarchy page at byte " + std::to_string(page)),
+                  std::string::npos)
+            << msg;
+      }
+    }
+    return out.size();
+  };
+  int failures = 0;
+  const size_t first = walk(failures);
+  EXPECT_EQ(failures, 1);
+  EXPECT_EQ(s->cacheStats().corrupt_pages, 1u);
+  EXPECT_LT(first, s->summary().nodes);
+  // The page is not read again and left nothing half-linked: the same nodes, no new failure.
+  int again = 0;
+  EXPECT_EQ(walk(again), first);
+  EXPECT_EQ(again, 0);
+  EXPECT_EQ(s->cacheStats().corrupt_pages, 1u);
+  EXPECT_EQ(s->loadedNodes(), first);
+}
+
 TEST(PointStore, CorruptChunksAreReportedAndSkippedNeverDrawn) {
   test::TempDir dir;
   buildStore({kAutzen}, dir / "a.tlod", quiet(0, 2000));
@@ -240,6 +292,37 @@ TEST(PointStore, BadStoresAreRefusedWithTheReason) {
     auto b = bytes;
     b[0] = 'X';
     EXPECT_NE(openErr(b).find("not a Tessera point store"), std::string::npos);
+  }
+  store::FileHeader h;
+  std::memcpy(&h, bytes.data(), sizeof h);
+  // Issue 10: the source table had no checksum, so a flipped byte renamed a source silently.
+  {
+    auto b = bytes;
+    b[h.source_table_offset] ^= 0x20;
+    EXPECT_NE(openErr(b).find("source table is corrupt (checksum mismatch)"), std::string::npos)
+        << openErr(b);
+  }
+  // A version 1 store (no source table checksum, the field was reserved) still opens.
+  {
+    auto b = bytes;
+    store::FileHeader v1 = h;
+    v1.version = 1;
+    v1.source_table_crc = 0;
+    v1.header_crc = 0;
+    v1.header_crc = crc32c(&v1, sizeof v1);
+    std::memcpy(b.data(), &v1, sizeof v1);
+    EXPECT_EQ(openErr(b), "");
+  }
+  // Offsets and sizes whose sum wraps around are refused before anything is allocated.
+  {
+    auto b = bytes;
+    store::FileHeader w = h;
+    w.source_table_offset = ~uint64_t(0) - 10;
+    w.source_table_size = 0xFFFFFF00u;
+    w.header_crc = 0;
+    w.header_crc = crc32c(&w, sizeof w);
+    std::memcpy(b.data(), &w, sizeof w);
+    EXPECT_NE(openErr(b).find("inconsistent with the file size"), std::string::npos) << openErr(b);
   }
 }
 

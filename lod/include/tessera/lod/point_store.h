@@ -62,6 +62,9 @@ struct CacheStats {
   uint64_t hits = 0, misses = 0, evictions = 0;
   uint64_t bytes = 0, budget = 0;
   uint64_t corrupt = 0;  ///< chunks refused because their checksum or decoding failed
+  /// Hierarchy pages refused (checksum, header, node keys): the nodes below them are missing
+  /// from children(), so whoever draws should say so.
+  uint64_t corrupt_pages = 0;
 };
 
 /// The point LOD hierarchy (lod_hierarchy.h): nodes are point chunks, spacing their mean
@@ -82,7 +85,7 @@ class PointStore : public LodHierarchy {
   /// Node metadata. Thread-safe. Copies, because loading pages may grow the table.
   NodeInfo node(NodeId id) const override;
   /// Children of a node (loads their hierarchy page on first use; may throw StoreError for a
-  /// corrupt page). Thread-safe.
+  /// corrupt page, counted once per page in cacheStats().corrupt_pages). Thread-safe.
   std::vector<NodeId> children(NodeId id) override;
   /// Whether the children of `id` are already in memory (no I/O needed to list them).
   bool childrenLoaded(NodeId id) const override;

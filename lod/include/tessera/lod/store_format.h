@@ -1,4 +1,5 @@
-// The .tlod point store file format (version 1). Little-endian, every structure checksummed.
+// The .tlod point store file format (version 2; version 1 stores are read too: they lack the
+// source table's checksum). Little-endian, every structure checksummed.
 //
 //   [Header, 4096 bytes at offset 0]
 //   [Payload: one compressed chunk per node, ordered by (level, Morton key of the node cell):
@@ -19,7 +20,7 @@
 namespace tessera::lod::store {
 
 constexpr char kMagic[4] = {'T', 'L', 'O', 'D'};
-constexpr uint32_t kVersion = 1;
+constexpr uint32_t kVersion = 2;  ///< 2: source_table_crc (was reserved in 1)
 constexpr uint32_t kHeaderSize = 4096;
 constexpr int kGrid = 48;  ///< sampling grid per node and axis: inner nodes hold <= kGrid^3 points
 /// An inner node holds at most this fraction of the input points below it (a coarser sampling
@@ -51,8 +52,8 @@ struct FileHeader {
   uint32_t reserved0;
   uint64_t source_table_offset;
   uint32_t source_table_size;
-  uint32_t reserved1;
-  double input_precision;  ///< finest coordinate resolution the inputs declared (0: unknown)
+  uint32_t source_table_crc;  ///< CRC-32C of the source table (version >= 2; 0 in version 1)
+  double input_precision;     ///< finest coordinate resolution the inputs declared (0: unknown)
   double spacing_root;
   double spacing_finest;                  ///< smallest node spacing
   uint64_t payload_position_color_bytes;  ///< bytes of the position + colour streams

@@ -24,7 +24,8 @@ class TransportError : public std::runtime_error {
 
 class MpiTransport {
  public:
-  /// MPI_Init. `timeout_s` bounds every wait (seconds). `who` names this process in messages
+  /// MPI_Init. `timeout_s` bounds every wait (seconds; PreconditionError unless finite and > 0:
+  /// NaN would switch hang detection off). `who` names this process in messages
   /// ("tessera-master", "tessera-node"). Throws TransportError if MPI is unusable.
   MpiTransport(int* argc, char*** argv, std::string who, double timeout_s);
   /// MPI_Finalize.
@@ -36,7 +37,8 @@ class MpiTransport {
   int size() const { return mSize; }
   /// MPI_Get_processor_name of this rank.
   const std::string& host() const { return mHost; }
-  void setTimeout(double seconds) { mTimeoutS = seconds; }
+  /// As the constructor's `timeout_s`.
+  void setTimeout(double seconds);
 
   /// Rank 0 sends `bytes`; the others receive them into theirs. Returns the bytes moved. `what`
   /// names the wait in a timeout message.
