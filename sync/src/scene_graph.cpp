@@ -139,8 +139,15 @@ Problem checkPayload(const SceneNode& n) {
       if (auto p = checkColor(s.color(), "sketch.color")) return p;
       return checkNonNegative(s.width(), "sketch.width");
     }
-    case SceneNode::kAvatar:
-      return checkColor(n.avatar().color(), "avatar.color");
+    case SceneNode::kAvatar: {
+      const auto& a = n.avatar();
+      if (auto p = checkColor(a.color(), "avatar.color")) return p;
+      if (!(a.fovy_deg() >= 0.0f && a.fovy_deg() < 180.0f))
+        return "avatar.fovy_deg: must be in [0, 180), got " + num(a.fovy_deg());
+      if (auto p = checkNonNegative(a.aspect(), "avatar.aspect")) return p;
+      if (a.aspect() > 100.0f) return "avatar.aspect: at most 100, got " + num(a.aspect());
+      return checkNonNegative(a.reach(), "avatar.reach");
+    }
     case SceneNode::kVideoInset: {
       if (auto p = checkNonNegative(n.video_inset().width(), "video_inset.width")) return p;
       return checkNonNegative(n.video_inset().height(), "video_inset.height");
@@ -191,6 +198,9 @@ Problem checkNodeFields(const SceneNode& n, SceneGraph::Kind kind) {
   if (n.has_lod_pixels()) {
     if (auto p = checkNonNegative(n.lod_pixels(), "lod_pixels")) return p;
   }
+  if (n.has_author() && n.author().size() > SceneGraph::kMaxParticipantName)
+    return "author: at most " + std::to_string(SceneGraph::kMaxParticipantName) + " bytes, got " +
+           std::to_string(n.author().size());
   if (n.has_kind() && n.kind() != kind)
     return "kind: " + std::to_string(int(n.kind())) + " differs from the node's kind " +
            std::to_string(int(kind)) + " (a new kind is a delete and a create)";
@@ -212,6 +222,9 @@ Problem checkSettings(const scene::Settings& s) {
     return "settings.lod_pixels: must be finite and > 0, got " + num(s.lod_pixels());
   if (s.has_spbr_ensembles() && (s.spbr_ensembles() < 1 || s.spbr_ensembles() > 4096))
     return "settings.spbr_ensembles: must be 1..4096, got " + std::to_string(s.spbr_ensembles());
+  if (s.has_leader() && s.leader().size() > SceneGraph::kMaxParticipantName)
+    return "settings.leader: at most " + std::to_string(SceneGraph::kMaxParticipantName) + " bytes, got " +
+           std::to_string(s.leader().size());
   return {};
 }
 
@@ -329,6 +342,7 @@ SceneNode SceneGraph::defaultNode(NodeId id, Kind kind) {
   n.set_kind(kind);
   n.set_shading(scene::SHADING_INHERIT);
   n.set_lod_pixels(0.0f);
+  n.set_author("");
   switch (payloadCaseOf(kind)) {
     case SceneNode::kModel:
       n.mutable_model();
@@ -357,6 +371,7 @@ scene::Settings SceneGraph::defaultSettings() {
   s.set_shading(scene::SHADING_COLOR);
   s.set_lod_pixels(1.0f);
   s.set_spbr_ensembles(16);
+  s.set_leader("");
   return s;
 }
 
@@ -453,6 +468,12 @@ void SceneGraph::setParent(NodeId id, NodeId parent) {
 
 void SceneGraph::setName(NodeId id, std::string_view name) {
   mutableNode(id).set_name(std::string(name));
+}
+
+void SceneGraph::setAuthor(NodeId id, std::string_view author) {
+  TESSERA_CHECK(author.size() <= kMaxParticipantName,
+                "sync::SceneGraph::setAuthor(): a participant's name is at most 64 bytes");
+  mutableNode(id).set_author(std::string(author));
 }
 
 void SceneGraph::setVisible(NodeId id, bool visible) {
@@ -560,6 +581,13 @@ void SceneGraph::setSpbrEnsembles(uint32_t ensembles) {
                 "sync::SceneGraph::setSpbrEnsembles(): must be 1..4096");
   touchSettings();
   mSettings.set_spbr_ensembles(ensembles);
+}
+
+void SceneGraph::setLeader(std::string_view leader) {
+  TESSERA_CHECK(leader.size() <= kMaxParticipantName,
+                "sync::SceneGraph::setLeader(): a participant's name is at most 64 bytes");
+  touchSettings();
+  mSettings.set_leader(std::string(leader));
 }
 
 void SceneGraph::addCommand(const scene::Command& command) {

@@ -76,6 +76,8 @@ class SceneGraph {
   using NodeId = uint32_t;
   using Kind = scene::SceneNode::Kind;
   static constexpr NodeId kRoot = 0;
+  /// A participant's name (a node's author, the leader) is at most this many bytes.
+  static constexpr size_t kMaxParticipantName = 64;
 
   /// An empty scene at version 0, frame 0: no nodes, camera at (0, 0, 1) looking at the origin
   /// with y up, settings defaultSettings().
@@ -105,6 +107,9 @@ class SceneGraph {
   /// Moves `id` under `parent`, which must not be `id` or in its subtree.
   void setParent(NodeId id, NodeId parent);
   void setName(NodeId id, std::string_view name);
+  /// Who made the node's last change ("" the master; a site's name, at most
+  /// kMaxParticipantName bytes). The caller sets it with each change it applies for someone.
+  void setAuthor(NodeId id, std::string_view author);
   void setVisible(NodeId id, bool visible);
   /// opacity in [0, 1].
   void setOpacity(NodeId id, float opacity);
@@ -132,6 +137,9 @@ class SceneGraph {
   void setLodPixels(float pixels);
   /// 1..64.
   void setSpbrEnsembles(uint32_t ensembles);
+
+  /// Who leads the view ("" nobody; at most kMaxParticipantName bytes): scene::Settings::leader.
+  void setLeader(std::string_view leader);
 
   /// Queues a command (screenshot, quit) for the next frame. It does not change the scene.
   void addCommand(const scene::Command& command);
