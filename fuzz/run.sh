@@ -4,13 +4,13 @@
 # for SECONDS (default 300), one at a time. Crashing inputs land in fuzz/regressions/<target>/,
 # which is also replayed first, so a regression that comes back fails at once.
 # Usage: fuzz/run.sh [SECONDS] [TARGET...]
-#   (targets: ply las text obj conf tlod chunk frame link; default all)
+#   (targets: ply las text obj conf tlod chunk frame link site; default all)
 set -euo pipefail
 
 cd "$(dirname "$0")/.."
 SECONDS_PER_TARGET=${1:-300}
 shift || true
-TARGETS=("${@:-ply las text obj conf tlod chunk frame link}")
+TARGETS=("${@:-ply las text obj conf tlod chunk frame link site}")
 read -r -a TARGETS <<<"${TARGETS[*]}"
 DATA=${TESSERA_DATA_DIR:-$(cd .. && pwd)/shared/data}
 BUILD=build/fuzz
@@ -195,8 +195,33 @@ protocol: 2 quit { code: 5 reason: "critical tile lost" }
 END
 }
 
+# Site messages (site.proto ToMaster), each behind a 2-byte little-endian length, as
+# site_fuzzer.cpp splits them: a session of poses, strokes and requests, and single messages.
+seed_site() {
+  local sp="$OLDPWD/sync/proto" cp="$OLDPWD/collab/proto"
+  one() {
+    protoc --encode=tessera.site.ToMaster -I "$sp" -I "$cp" "$cp/tessera/site.proto" >m.bin
+    local n
+    n=$(stat -c %s m.bin)
+    # shellcheck disable=SC2059
+    printf "$(printf '\\x%02x\\x%02x' $((n & 255)) $((n >> 8)))" >>"$1"
+    cat m.bin >>"$1"
+    rm m.bin
+  }
+  one session.msgs <<<'pose { sequence: 1 eye: [0, 0, 2] target: [0, 0, 0] up: [0, 1, 0] fovy_deg: 45 aspect: 1.5 }'
+  one session.msgs <<<'stroke { points: [0, 0, 0, 0.1, 0, 0, 0.2, 0.1, 0] color { r: 1 } width: 4 }'
+  one session.msgs <<<'lead {}'
+  one session.msgs <<<'pose { sequence: 2 eye: [636590.5, 847900.25, 1400] target: [636590, 847901, 0] up: [0, 0, 1] fovy_deg: 60 aspect: 1 }'
+  one session.msgs <<<'undo {}'
+  one session.msgs <<<'clear {}'
+  one session.msgs <<<'release {}'
+  one session.msgs <<<'bye {}'
+  one hello.msgs <<<'hello { protocol: 2 name: "Kyoto lab" }'
+  one stroke.msgs <<<'stroke { points: [1e8, 1e8, 1e8, -1e8, -1e8, -1e8] color { b: 1 } width: 64 }'
+}
+
 declare -A MAX_LEN=([ply]=8192 [las]=8192 [text]=4096 [obj]=4096 [conf]=1024 [tlod]=32768
-  [chunk]=8192 [frame]=4096 [link]=4096)
+  [chunk]=8192 [frame]=4096 [link]=4096 [site]=4096)
 export UBSAN_OPTIONS=halt_on_error=1:print_stacktrace=1
 status=0
 summary=()

@@ -15,6 +15,8 @@
 #include <utility>
 #include <vector>
 
+#include <tessera/collab/curve.h>
+#include <tessera/collab/site_hub.h>
 #include <tessera/master/master.h>
 #include <tessera/sync/config.h>
 #include <tessera/sync/mpi_link.h>
@@ -92,6 +94,21 @@ int run(int argc, char** argv) {
                  "Seconds a node may take to start and render its first frame (cold caches)")
       ->check(cli::finiteRange(0.1, 3600.0))
       ->capture_default_str();
+  collab::SiteHubOptions sites;
+  sites.endpoint.clear();
+  app.add_option("--sites", sites.endpoint,
+                 "Remote sites join here over encrypted ZeroMQ (tessera-site), e.g. tcp://*:7401; "
+                 "needs --site-key and --allow");
+  app.add_option("--site-key", sites.key_file,
+                 "The master's CURVE key pair for --sites (tessera-site keygen -o FILE; mode 0600)");
+  app.add_option("--allow", sites.allow_list,
+                 "The sites' public keys that may join, one per line with an optional name (read "
+                 "again when it changes)");
+  app.add_option("--site-timeout", sites.silent_timeout_s,
+                 "Seconds a site may be silent before its avatar goes (a closed connection: at "
+                 "once)")
+      ->check(cli::finiteRange(0.5, 3600.0))
+      ->capture_default_str();
   app.add_option("--timeout", timeout_s,
                  "mpi: seconds any rank may keep the others waiting before the job is aborted")
       ->check(cli::finiteRange(0.1, 86400.0))
@@ -153,6 +170,24 @@ int run(int argc, char** argv) {
     }
     return cli::kExitBadCommandLine;
   }
+  if (!sites.endpoint.empty() && (sites.key_file.empty() || sites.allow_list.empty())) {
+    const std::string why = "--sites needs --site-key and --allow (remote sites are never let in "
+                            "without encryption and an allow list)";
+    std::fprintf(stderr, "tessera-master: %s\n", why.c_str());
+    if (mpi) {
+      sync::MpiMasterLink l(*mpi);
+      refuseEveryone(l, why);
+    }
+    return cli::kExitBadCommandLine;
+  }
+  if (sites.endpoint.empty() && (!sites.key_file.empty() || !sites.allow_list.empty())) {
+    std::fprintf(stderr, "tessera-master: --site-key and --allow need --sites ENDPOINT\n");
+    if (mpi) {
+      sync::MpiMasterLink l(*mpi);
+      refuseEveryone(l, "--site-key and --allow need --sites");
+    }
+    return cli::kExitBadCommandLine;
+  }
   if (mpi) {
     mpi->setTimeout(timeout_s);
     auto l = std::make_unique<sync::MpiMasterLink>(*mpi);
@@ -184,6 +219,19 @@ int run(int argc, char** argv) {
     std::fprintf(stderr, "%s\n", e.what());
     refuseEveryone(*link, e.what());
     return master::kExitStart;
+  }
+  std::unique_ptr<collab::SiteHub> hub;
+  if (!sites.endpoint.empty()) {
+    try {
+      hub = std::make_unique<collab::SiteHub>(sites);
+      std::printf("tessera-master: remote sites join on %s\n", hub->endpoint().c_str());
+      std::fflush(stdout);
+      m.setParticipants(hub.get());
+    } catch (const std::exception& e) {  // KeyError, a busy port
+      std::fprintf(stderr, "tessera-master: --sites: %s\n", e.what());
+      refuseEveryone(*link, e.what());
+      return master::kExitStart;
+    }
   }
   try {
     m.openConsole();

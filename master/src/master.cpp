@@ -342,6 +342,10 @@ int Master::run() {
     bool last = deterministic ? f + 1 >= uint64_t(mOpt.frames)
                               : (mPlayer ? t >= mPlayer->duration() : !mConsole);
     if (mConsole && !mConsole->handleInput(mGraph)) last = true;
+    // After the script and the console: a remote leader's camera wins.
+    if (mParticipants)
+      mParticipants->beforeFrame(
+          mGraph, f + 1, std::chrono::duration<double>(Clock::now() - session_start).count());
     if (last && !mOpt.screenshot.empty()) shots.push_back(mOpt.screenshot);
     for (const std::string& s : shots) {
       scene::Command c;
@@ -356,6 +360,7 @@ int Master::run() {
     message_out.set_read_back(!shots.empty());
     const size_t frame_bytes = message_out.frame().size();
     mLink.publish(message_out);
+    if (mParticipants) mParticipants->afterFrame(mGraph, message_out.frame());
     const double sync_ms = msSince(frame_start);
     double present_ms = 0;
     if (mConsole) {  // the console renders while the nodes do
@@ -442,6 +447,7 @@ int Master::run() {
       std::fprintf(stderr, "tessera-master: frame %llu: stopping the wall: %s\n",
                    (unsigned long long)mFrame, mStopReason.c_str());
       mLink.quit(uint32_t(mStopCode), mStopReason);
+      if (mParticipants) mParticipants->end("the wall stopped: " + mStopReason);
       return mStopCode;
     }
     const auto swap_start = Clock::now();
@@ -467,6 +473,7 @@ int Master::run() {
     }
   }
   mLink.quit(0, "the session ended");
+  if (mParticipants) mParticipants->end("the session ended");
   const sync::LinkCounters c = mLink.counters();
   std::printf(
       "tessera-master: %s link: sent %llu bytes in %llu messages, received %llu bytes in "

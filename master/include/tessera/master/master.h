@@ -33,6 +33,21 @@ namespace tessera::master {
 
 class Console;
 
+/// The session's other participants, outside the cluster (remote sites: collab/site_hub.h).
+/// They change the scene before each frame is taken (avatars, sketches, the leader's camera)
+/// and get every frame after; they never make the wall wait.
+class Participants {
+ public:
+  virtual ~Participants() = default;
+  /// Before frame `frame` is taken: apply what the participants asked for since the last one.
+  /// `session_s`: seconds since the session started (real time).
+  virtual void beforeFrame(sync::SceneGraph& graph, uint64_t frame, double session_s) = 0;
+  /// After it was taken: `bytes` is its serialized scene::Frame.
+  virtual void afterFrame(const sync::SceneGraph& graph, const std::string& bytes) = 0;
+  /// The session ends (every participant is told why).
+  virtual void end(const std::string& reason) = 0;
+};
+
 /// A reason to stop before rendering (bad config, nodes that cannot start): exit code 1.
 struct StartError : std::runtime_error {
   using std::runtime_error::runtime_error;
@@ -77,6 +92,11 @@ class Master {
   int run();
 
   const config::WallConfig& wall() const { return mWall; }
+  /// The scene, after prepare().
+  const sync::SceneGraph& scene() const { return mGraph; }
+
+  /// Remote participants that join the session (not owned; must outlive run()).
+  void setParticipants(Participants* participants) { mParticipants = participants; }
 
  private:
   struct Pending;  // per-frame collection state
@@ -106,6 +126,7 @@ class Master {
   sync::SceneGraph mGraph;
   std::optional<ScriptPlayer> mPlayer;
   std::unique_ptr<Console> mConsole;
+  Participants* mParticipants = nullptr;
   std::unique_ptr<std::ofstream> mCsv;
   std::vector<double> mRenderMs;  // the slowest node's render time, last frames
   uint64_t mFrame = 0;            // the last frame published

@@ -1,0 +1,76 @@
+// The master's side of the remote sites (issue 13; DESIGN.md, collab/): one CURVE ROUTER socket
+// that sites join over the internet (collab/curve.h: only keys on the allow list get in), as
+// master::Participants of the master's loop.
+//
+// Before each frame the hub drains what the sites sent, checks every message
+// (site_messages.h) and rate (a token bucket per site for messages and bytes), and applies the
+// requests to the master's scene, which then reaches every node and site as ordinary frames:
+//   hello   the site is welcomed with its participant id, colour and the scene's snapshot;
+//           an AVATAR node stands for it from then on
+//   pose    the avatar moves there, smoothly: each pose is reached over the measured interval
+//           between poses (at most 100 ms), position linearly and orientation by slerp; the
+//           leader's pose also moves the scene camera
+//   stroke  a SKETCH node (a 3D polyline the site placed on the model) in the site's layer, a
+//           GROUP node "sketches/NAME"; undo removes its newest, clear all of its sketches
+//   lead    the scene's leader becomes the site (Settings::leader); release gives the view back
+//   bye     the avatar goes (its sketches stay); a site silent for the timeout goes too
+// Concurrent edits of one field: the last applied wins, and the node's author says who.
+//
+// After each frame every welcomed site gets the frame; a site whose queue is full (it does not
+// read fast enough) misses it and gets a snapshot with the next frame instead. Sends never
+// block; a site that breaks the protocol or floods is disconnected with a message, and its
+// later messages are discarded unread, so it costs the wall nothing beyond receiving them.
+//
+// Not thread-safe: the master's loop thread uses it (the ZAP handler has its own thread).
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <tessera/collab/site_roster.h>
+#include <tessera/master/master.h>
+
+namespace tessera::collab {
+
+struct SiteHubOptions {
+  std::string endpoint = "tcp://*:7401";  ///< where sites connect
+  std::string key_file;                   ///< the master's key pair (curve.h key file)
+  std::string allow_list;                 ///< site public keys (curve.h allow list)
+  double silent_timeout_s = 10.0;  ///< no message for this long: the site is gone (a closed connection: at once)
+  /// Token buckets per site: sustained rates, bursts of `burst_s` seconds' worth.
+  double messages_per_s = 200.0, bytes_per_s = 4.0 * 1024 * 1024, burst_s = 2.0;
+  int send_queue = 256;  ///< messages queued per site (ZMQ_SNDHWM) before it falls behind
+};
+
+struct SiteHubCounters {
+  uint64_t joined = 0, left = 0, dropped = 0, refused = 0;
+  uint64_t messages_in = 0, bytes_in = 0, messages_out = 0, bytes_out = 0;
+  uint64_t snapshots_resent = 0;  ///< snapshots sent to sites that fell behind
+  uint64_t discarded = 0;         ///< messages of dropped sites, discarded unread
+};
+
+class SiteHub final : public master::Participants {
+ public:
+  /// Reads the key pair and the allow list, starts the ZAP handler and binds the endpoint.
+  /// Throws collab::KeyError (keys, list) or std::runtime_error (the endpoint) naming them.
+  explicit SiteHub(SiteHubOptions options);
+  ~SiteHub() override;
+
+  /// The bound endpoint with its real port ("tcp://0.0.0.0:7401").
+  std::string endpoint() const;
+
+  void beforeFrame(sync::SceneGraph& graph, uint64_t frame, double session_s) override;
+  void afterFrame(const sync::SceneGraph& graph, const std::string& bytes) override;
+  void end(const std::string& reason) override;
+
+  std::vector<SiteInfo> sites() const;
+  SiteHubCounters counters() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> m;
+};
+
+}  // namespace tessera::collab

@@ -1,0 +1,44 @@
+// What a site may send (site.proto's ToMaster), checked before the master looks at it: the
+// master is never disturbed by a misbehaving site (issue 13). Sizes, counts, ids and numbers
+// are bounded; names are UTF-8; everything a check refuses names the message and the field.
+#pragma once
+
+#include <cstddef>
+#include <optional>
+#include <string>
+#include <string_view>
+
+#include <glm/glm.hpp>
+
+#include <tessera/config.pb.h>
+#include <tessera/site.pb.h>
+
+namespace tessera::collab {
+
+/// The largest message a site may send, bytes (a stroke of kMaxStrokePoints is about 72 kB).
+constexpr size_t kMaxSiteMessageBytes = 128 * 1024;
+/// Samples in one stroke (a long, slow stroke at 60 Hz for 50 s).
+constexpr int kMaxStrokePoints = 3000;
+/// Sketches one site may keep in the scene; more is refused (undo or clear first).
+constexpr size_t kMaxSketchesPerSite = 1000;
+/// Coordinates beyond this are refused (metres; georeferenced scenes stay far below it).
+constexpr double kMaxCoordinate = 1e8;
+
+/// Parses and checks one message from a site. Returns the reason it is refused ("pose.eye:
+/// numbers must be finite"), or std::nullopt with `out` filled.
+std::optional<std::string> parseToMaster(std::string_view bytes, site::ToMaster& out);
+
+/// The check alone (what parseToMaster() does after parsing).
+std::optional<std::string> checkToMaster(const site::ToMaster& message);
+
+/// A participant's name: 1..64 bytes of valid UTF-8 without control characters.
+std::optional<std::string> checkName(std::string_view name, const std::string& field);
+
+/// A checked pose as a camera (eye, target, up as sent).
+config::Camera poseCamera(const site::SitePose& pose);
+
+/// The pose's camera frame as a node transform (column-major 4x4: right, up, back, eye), the
+/// form of an AVATAR node's transform (scene.proto). Precondition: a checked pose.
+glm::dmat4 poseFrame(const glm::dvec3& eye, const glm::dvec3& target, const glm::dvec3& up);
+
+}  // namespace tessera::collab

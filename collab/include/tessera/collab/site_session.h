@@ -1,0 +1,49 @@
+// tessera-site's loop (issue 13), a library class as the master's and the node's are: join the
+// master's session over the site link (site_client.h), keep a replica of the scene, render it
+// locally with the renderer and the scene path every node uses (render::SceneDrawList, the
+// scene overlay: every avatar but its own, every sketch), and send its pose about 30 times a
+// second. Headless it plays a script (site.proto SiteScript): camera moves, strokes placed on the
+// model through the depth buffer, undo and clear, lead, follow, screenshots, goodbye.
+#pragma once
+
+#include <memory>
+#include <string>
+
+#include <tessera/collab/site_client.h>
+#include <tessera/site.pb.h>
+
+namespace tessera::collab {
+
+/// Exit codes of SiteSession::run().
+constexpr int kSiteOk = 0;         ///< the script ended, or the master ended the session
+constexpr int kSiteFailed = 1;     ///< bad script, no GL, a failure the message names
+constexpr int kSiteRefused = 16;   ///< the master refused or dropped this site
+constexpr int kSiteMasterLost = 17;  ///< no master, or it went silent
+
+struct SiteSessionOptions {
+  SiteClientOptions client;
+  std::string script;        ///< a SiteScript JSON file ("" : stay still until the master quits)
+  std::string out_dir = "."; ///< screenshots and strokes.csv
+  bool render = true;        ///< false: poses and requests only (benchmarks of the master's cost)
+  double join_timeout_s = 15.0;
+};
+
+/// A site script from a file, checked: fps in (0, 240], a view of 16..8192 pixels, fovy in
+/// (0, 180), actions in frame order with valid cameras, strokes of 2.. points. Throws
+/// sync::ConfigError "collab::loadSiteScript(): FILE: FIELD: what".
+site::SiteScript loadSiteScript(const std::string& path);
+
+class SiteSession {
+ public:
+  explicit SiteSession(SiteSessionOptions options);
+  ~SiteSession();
+  /// Joins, plays the script, leaves. Returns an exit code (kSite*); messages on stdout (joins,
+  /// actions, screenshots) and stderr (failures).
+  int run();
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> m;
+};
+
+}  // namespace tessera::collab

@@ -1,0 +1,316 @@
+#include <tessera/collab/site_hub.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <map>
+
+#include <zmq.hpp>
+
+#include <tessera/collab/curve.h>
+#include <tessera/collab/site_messages.h>
+#include <tessera/sync/cluster_link.h>
+#include <tessera/sync/wire.h>
+
+namespace tessera::collab {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double seconds(Clock::time_point t) {
+  return std::chrono::duration<double>(t.time_since_epoch()).count();
+}
+
+struct TokenBucket {
+  double rate = 0, capacity = 0, level = 0, at = 0;
+  void start(double r, double burst_s, double now) {
+    rate = r;
+    capacity = r * burst_s;
+    level = capacity;
+    at = now;
+  }
+  /// Takes `amount`; false when the bucket ran dry (the rate is exceeded).
+  bool take(double amount, double now) {
+    level = std::min(capacity, level + (now - at) * rate);
+    at = now;
+    level -= amount;
+    return level >= 0.0;
+  }
+};
+
+/// A connection on the site socket (one routing id).
+struct Peer {
+  std::string id, key;  // routing id; the Z85 key CURVE authenticated
+  uint32_t participant = 0;  // 0 until welcomed
+  double last_seen = 0;
+  TokenBucket messages, bytes;
+  bool behind = false, gone = false;
+  std::string gone_reason;
+};
+
+std::string shortKey(const std::string& key) {
+  return key.substr(0, 8);
+}
+
+}  // namespace
+
+struct SiteHub::Impl {
+  SiteHubOptions opt;
+  KeyPair keys;
+  std::shared_ptr<AllowList> allow;
+  zmq::context_t context{1};
+  std::unique_ptr<ZapHandler> zap;
+  zmq::socket_t socket;
+  SiteRoster roster;
+  std::map<std::string, Peer> peers;        // by routing id
+  std::map<std::string, double> discarded;  // routing ids of dropped sites -> since
+  uint64_t allow_generation = 0;
+  double last_reload = 0;
+  SiteHubCounters counters;
+
+  void say(const std::string& text) {
+    std::printf("tessera-master: sites: %s\n", text.c_str());
+    std::fflush(stdout);
+  }
+
+  std::string who(const Peer& p) const {
+    return p.participant ? roster.info(p.participant).name + " (key " + shortKey(p.key) + ")"
+                         : "a site (key " + shortKey(p.key) + ")";
+  }
+
+  /// Sends one message; false when the site is gone (EHOSTUNREACH) or its queue is full.
+  bool send(Peer& p, const std::string& bytes) {
+    try {
+      if (!socket.send(zmq::buffer(p.id), zmq::send_flags::sndmore | zmq::send_flags::dontwait))
+        return false;
+      socket.send(zmq::buffer(bytes), zmq::send_flags::dontwait);
+      counters.messages_out++;
+      counters.bytes_out += bytes.size();
+      return true;
+    } catch (const zmq::error_t& e) {
+      if (e.num() == EHOSTUNREACH) {
+        p.gone = true;
+        p.gone_reason = "its connection closed";
+      }
+      return false;
+    }
+  }
+
+  /// Removes a peer: its avatar goes, its lead ends; its sketches stay in the scene. A dropped
+  /// peer is told why and its later messages are discarded unread.
+  void remove(sync::SceneGraph& graph, const std::string& id, const std::string& why,
+              bool dropped) {
+    auto it = peers.find(id);
+    if (it == peers.end()) return;
+    Peer& p = it->second;
+    say(who(p) + (dropped ? " dropped: " : " left: ") + why);
+    if (p.participant) roster.leave(graph, p.participant);
+    if (dropped) {
+      site::ToSite m;
+      m.mutable_dropped()->set_reason(why);
+      send(p, m.SerializeAsString());
+      discarded[id] = seconds(Clock::now());
+      counters.dropped++;
+    } else {
+      counters.left++;
+    }
+    peers.erase(it);
+  }
+
+  void welcome(sync::SceneGraph& graph, Peer& p, const site::SiteHello& hello) {
+    if (hello.protocol() != sync::kProtocolVersion) {
+      site::ToSite m;
+      m.mutable_refused()->set_reason("protocol " + std::to_string(hello.protocol()) +
+                                      ", this master speaks " +
+                                      std::to_string(sync::kProtocolVersion));
+      send(p, m.SerializeAsString());
+      counters.refused++;
+      say("refused " + who(p) + ": " + m.refused().reason());
+      p.gone = true;
+      p.gone_reason = "refused";
+      return;
+    }
+    // The snapshot is the scene as of the last frame taken; the avatar made now comes with
+    // the next frame, the first this site gets.
+    site::ToSite m;
+    site::SiteWelcome& w = *m.mutable_welcome();
+    w.set_snapshot(sync::serializeSnapshot(graph.snapshot()));
+    p.participant = roster.join(graph, hello.name(), p.key);
+    w.set_participant(p.participant);
+    *w.mutable_color() = roster.color(p.participant);
+    w.set_name(roster.info(p.participant).name);
+    send(p, m.SerializeAsString());
+    counters.joined++;
+    say(who(p) + " joined as participant " + std::to_string(p.participant) +
+        " from the snapshot of frame " + std::to_string(graph.frameNumber()));
+  }
+
+  void drain(sync::SceneGraph& graph, double now) {
+    for (int budget = 100000; budget > 0; --budget) {
+      zmq::message_t id, payload;
+      if (!socket.recv(id, zmq::recv_flags::dontwait)) return;
+      if (!id.more()) continue;  // cannot happen on a ROUTER
+      (void)socket.recv(payload, zmq::recv_flags::dontwait);
+      bool multipart = false;
+      for (bool more = payload.more(); more;) {  // a multipart message: not a site's
+        zmq::message_t rest;
+        if (!socket.recv(rest, zmq::recv_flags::dontwait)) break;
+        more = rest.more();
+        multipart = true;
+      }
+      const std::string rid = id.to_string();
+      counters.messages_in++;
+      counters.bytes_in += payload.size();
+      if (discarded.count(rid)) {
+        counters.discarded++;
+        continue;
+      }
+      auto [it, fresh] = peers.try_emplace(rid);
+      Peer& p = it->second;
+      if (fresh) {
+        p.id = rid;
+        const char* key = payload.gets("User-Id");
+        p.key = key ? key : "";
+        p.messages.start(opt.messages_per_s, opt.burst_s, now);
+        p.bytes.start(opt.bytes_per_s, opt.burst_s, now);
+        p.last_seen = now;
+      }
+      if (p.gone) continue;
+      if (!p.messages.take(1.0, now) || !p.bytes.take(double(payload.size()), now)) {
+        remove(graph, rid,
+               "flooding: more than " + std::to_string(int(opt.messages_per_s)) + " messages or " +
+                   std::to_string(int(opt.bytes_per_s / 1024)) + " KiB a second (sustained)",
+               true);
+        continue;
+      }
+      if (multipart) {
+        remove(graph, rid, "a bad message: more than one part", true);
+        continue;
+      }
+      site::ToMaster m;
+      if (auto why = parseToMaster(
+              std::string_view(static_cast<const char*>(payload.data()), payload.size()), m)) {
+        remove(graph, rid, "a bad message: " + *why, true);
+        continue;
+      }
+      if (!p.participant && m.kind_case() != site::ToMaster::kHello) {
+        remove(graph, rid, "a message before its hello", true);
+        continue;
+      }
+      p.last_seen = now;
+      if (m.kind_case() == site::ToMaster::kHello) {
+        if (!p.participant) welcome(graph, p, m.hello());
+      } else if (m.kind_case() == site::ToMaster::kBye) {
+        p.gone = true;
+        p.gone_reason = "it said goodbye";
+      } else {
+        roster.apply(graph, p.participant, m, now);
+      }
+    }
+  }
+};
+
+SiteHub::SiteHub(SiteHubOptions options) : m(std::make_unique<Impl>()) {
+  m->opt = std::move(options);
+  m->keys = readKeyFile(m->opt.key_file);
+  m->allow = std::make_shared<AllowList>(m->opt.allow_list);
+  m->allow_generation = m->allow->generation();
+  m->zap = std::make_unique<ZapHandler>(m->context, m->allow);
+  m->socket = zmq::socket_t(m->context, zmq::socket_type::router);
+  curveServer(m->socket, m->keys);
+  m->socket.set(zmq::sockopt::router_mandatory, 1);
+  m->socket.set(zmq::sockopt::sndhwm, m->opt.send_queue);
+  m->socket.set(zmq::sockopt::rcvhwm, 10000);
+  m->socket.set(zmq::sockopt::maxmsgsize, int64_t(kMaxSiteMessageBytes));
+  m->socket.set(zmq::sockopt::heartbeat_ivl, 1000);
+  m->socket.set(zmq::sockopt::heartbeat_timeout, 5000);
+  m->socket.set(zmq::sockopt::linger, 0);
+  try {
+    m->socket.bind(m->opt.endpoint);
+  } catch (const zmq::error_t& e) {
+    throw std::runtime_error("collab::SiteHub: cannot listen on " + m->opt.endpoint + ": " +
+                             e.what());
+  }
+}
+
+SiteHub::~SiteHub() {
+  if (!m) return;
+  m->socket.close();
+  m->zap.reset();
+}
+
+std::string SiteHub::endpoint() const {
+  return m->socket.get(zmq::sockopt::last_endpoint);
+}
+
+void SiteHub::beforeFrame(sync::SceneGraph& graph, uint64_t, double) {
+  const double now = seconds(Clock::now());
+  if (now - m->last_reload > 0.5) {
+    m->last_reload = now;
+    if (auto why = m->allow->reload()) m->say("allow list " + m->opt.allow_list + ": " + *why);
+    if (m->allow->generation() != m->allow_generation) {
+      m->allow_generation = m->allow->generation();
+      std::vector<std::string> removed;
+      for (const auto& [rid, p] : m->peers)
+        if (!m->allow->find(p.key)) removed.push_back(rid);
+      for (const std::string& rid : removed)
+        m->remove(graph, rid, "its key was taken off the allow list", true);
+    }
+    std::erase_if(m->discarded, [&](const auto& d) { return now - d.second > 60.0; });
+  }
+  m->drain(graph, now);
+  std::vector<std::pair<std::string, std::string>> gone;
+  for (const auto& [rid, p] : m->peers) {
+    if (p.gone) {
+      gone.emplace_back(rid, p.gone_reason);
+    } else if (now - p.last_seen > m->opt.silent_timeout_s) {
+      char why[64];
+      std::snprintf(why, sizeof why, "silent for %.1f s", now - p.last_seen);
+      gone.emplace_back(rid, why);
+    }
+  }
+  for (const auto& [rid, why] : gone) m->remove(graph, rid, why, false);
+  m->roster.animate(graph, now);
+}
+
+void SiteHub::afterFrame(const sync::SceneGraph& graph, const std::string& bytes) {
+  site::ToSite frame;
+  frame.set_frame(bytes);
+  const std::string frame_bytes = frame.SerializeAsString();
+  std::string snapshot_bytes;
+  for (auto& [rid, s] : m->peers) {
+    if (!s.participant || s.gone) continue;
+    if (s.behind) {
+      if (snapshot_bytes.empty()) {
+        site::ToSite snap;
+        snap.set_snapshot(sync::serializeSnapshot(graph.snapshot()));
+        snapshot_bytes = snap.SerializeAsString();
+      }
+      if (m->send(s, snapshot_bytes)) {
+        s.behind = false;
+        m->counters.snapshots_resent++;
+      }
+      continue;
+    }
+    if (!m->send(s, frame_bytes) && !s.gone) s.behind = true;
+  }
+}
+
+void SiteHub::end(const std::string& reason) {
+  site::ToSite q;
+  q.mutable_quit()->set_reason(reason);
+  const std::string bytes = q.SerializeAsString();
+  for (auto& [rid, p] : m->peers)
+    if (p.participant) m->send(p, bytes);
+}
+
+std::vector<SiteInfo> SiteHub::sites() const {
+  return m->roster.sites();
+}
+
+SiteHubCounters SiteHub::counters() const {
+  return m->counters;
+}
+
+}  // namespace tessera::collab

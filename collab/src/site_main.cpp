@@ -1,0 +1,84 @@
+// tessera-site: a remote site of a Tessera session (issue 13). Parses the command line and runs
+// collab::SiteSession (site_session.h); `keygen` makes the CURVE key pairs of sites and masters.
+//   tessera-site keygen -o site.key        # prints the public key for the master's allow list
+//   tessera-site --master tcp://HOST:7401 --master-key MASTER_PUBLIC_KEY|FILE --name "Kyoto lab"
+//                --key site.key --headless -o DIR [--script PATH.json] [--no-render]
+#include <CLI/CLI.hpp>
+
+#include <cstdio>
+
+#include <tessera/collab/curve.h>
+#include <tessera/collab/site_messages.h>
+#include <tessera/collab/site_session.h>
+#include <tessera/core/cli.h>
+
+namespace {
+
+using namespace tessera;
+
+int run(int argc, char** argv) {
+  CLI::App app{
+      "tessera-site: join a Tessera session from another place: see the scene from your own "
+      "viewpoint, appear on the wall as an avatar, draw on the model, lead or follow the view"};
+  app.require_subcommand(0, 1);
+  std::string keygen_out;
+  CLI::App* keygen = app.add_subcommand(
+      "keygen", "Write a new CURVE key pair (mode 0600) and print its public key (for the "
+                "master's --allow list, or for the sites' --master-key)");
+  keygen->add_option("-o,--output", keygen_out, "The key file to write (never overwritten)")
+      ->required();
+
+  collab::SiteSessionOptions o;
+  std::string key_file, master_key;
+  bool headless = false, no_render = false;
+  app.add_option("--master", o.client.master, "The master's site endpoint, tcp://HOST:7401");
+  app.add_option("--master-key", master_key,
+                 "The master's public key (40 Z85 characters), or a file holding it");
+  app.add_option("--name", o.client.name, "Shown on this site's avatar (1..64 bytes of UTF-8)");
+  app.add_option("--key", key_file, "This site's key pair (tessera-site keygen; mode 0600)");
+  app.add_flag("--headless", headless, "No window: play --script, screenshots to -o");
+  app.add_option("-o,--out-dir", o.out_dir, "Screenshots and strokes.csv (headless)")
+      ->capture_default_str();
+  app.add_option("--script", o.script,
+                 "Headless: what to do at which frame (JSON: site.proto SiteScript)");
+  app.add_flag("--no-render", no_render,
+               "Send poses and requests without rendering (load tests of the master)");
+  app.add_option("--join-timeout", o.join_timeout_s, "Seconds to wait for the master's welcome")
+      ->check(cli::finiteRange(0.1, 3600.0))
+      ->capture_default_str();
+  if (const auto code = cli::parse(app, argc, argv, "tessera-site")) return *code;
+
+  if (keygen->parsed()) {
+    const collab::KeyPair keys = collab::generateKeyPair();
+    collab::writeKeyFile(keygen_out, keys);
+    std::printf("%s\n", keys.public_key.c_str());
+    std::fprintf(stderr, "tessera-site: wrote %s (mode 0600); its public key is above\n",
+                 keygen_out.c_str());
+    return 0;
+  }
+  for (const auto& [value, option] : {std::pair{&o.client.master, "--master"},
+                                      std::pair{&master_key, "--master-key"},
+                                      std::pair{&o.client.name, "--name"},
+                                      std::pair{&key_file, "--key"}}) {
+    if (value->empty()) throw cli::UsageError(std::string(option) + " is required");
+  }
+  if (!headless)
+    throw cli::UsageError(
+        "--headless is required: this build of tessera-site has no window yet (use --script)");
+  if (auto why = collab::checkName(o.client.name, "--name")) throw cli::UsageError(*why);
+  try {
+    o.client.master_key = collab::readPublicKey(master_key, "--master-key");
+    o.client.keys = collab::readKeyFile(key_file);
+  } catch (const collab::KeyError& e) {
+    throw cli::UsageError(e.what());
+  }
+  o.render = !no_render;
+  collab::SiteSession session(o);
+  return session.run();
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  return tessera::cli::runMain("tessera-site", [&] { return run(argc, argv); });
+}

@@ -1,0 +1,150 @@
+#include <tessera/collab/site_messages.h>
+
+#include <cmath>
+
+namespace tessera::collab {
+
+namespace {
+
+using Problem = std::optional<std::string>;
+
+Problem checkCoordinates(const google::protobuf::RepeatedField<double>& v, int count,
+                         const std::string& field) {
+  if (v.size() != count)
+    return field + ": needs " + std::to_string(count) + " numbers, got " +
+           std::to_string(v.size());
+  for (double x : v) {
+    if (!std::isfinite(x)) return field + ": numbers must be finite";
+    if (std::abs(x) > kMaxCoordinate)
+      return field + ": " + std::to_string(x) + " is beyond +-1e8 m";
+  }
+  return {};
+}
+
+glm::dvec3 vec(const google::protobuf::RepeatedField<double>& v) {
+  return {v[0], v[1], v[2]};
+}
+
+Problem checkPose(const site::SitePose& p) {
+  if (auto e = checkCoordinates(p.eye(), 3, "pose.eye")) return e;
+  if (auto e = checkCoordinates(p.target(), 3, "pose.target")) return e;
+  if (auto e = checkCoordinates(p.up(), 3, "pose.up")) return e;
+  const glm::dvec3 view = vec(p.target()) - vec(p.eye()), up = vec(p.up());
+  const double lv = glm::length(view), lu = glm::length(up);
+  if (!(lv > 1e-9 * std::max(1.0, glm::length(vec(p.eye())))))
+    return std::string("pose: the target is at the eye");
+  if (!(lu > 0.0)) return std::string("pose.up: zero vector");
+  if (glm::length(glm::cross(view / lv, up / lu)) < 1e-6)
+    return std::string("pose.up: along the view direction");
+  if (!(p.fovy_deg() > 0.0f && p.fovy_deg() < 180.0f))
+    return "pose.fovy_deg: must be in (0, 180), got " + std::to_string(p.fovy_deg());
+  if (!(p.aspect() > 0.0f && p.aspect() <= 100.0f))
+    return "pose.aspect: must be in (0, 100], got " + std::to_string(p.aspect());
+  return {};
+}
+
+Problem checkColor(const scene::Color& c, const std::string& field) {
+  for (float v : {c.r(), c.g(), c.b()})
+    if (!(v >= 0.0f && v <= 1.0f)) return field + ": components must be in [0, 1]";
+  return {};
+}
+
+Problem checkStroke(const site::SiteStroke& s) {
+  const int n = s.points_size();
+  if (n % 3 != 0)
+    return "stroke.points: needs x y z triples, got " + std::to_string(n) + " numbers";
+  if (n / 3 < 2 || n / 3 > kMaxStrokePoints)
+    return "stroke.points: needs 2.." + std::to_string(kMaxStrokePoints) + " points, got " +
+           std::to_string(n / 3);
+  for (double x : s.points()) {
+    if (!std::isfinite(x)) return std::string("stroke.points: numbers must be finite");
+    if (std::abs(x) > kMaxCoordinate) return std::string("stroke.points: beyond +-1e8 m");
+  }
+  if (auto e = checkColor(s.color(), "stroke.color")) return e;
+  if (!(s.width() > 0.0f && s.width() <= 64.0f))
+    return "stroke.width: must be in (0, 64] pixels, got " + std::to_string(s.width());
+  return {};
+}
+
+}  // namespace
+
+Problem checkName(std::string_view name, const std::string& field) {
+  if (name.empty() || name.size() > 64)
+    return field + ": needs 1..64 bytes, got " + std::to_string(name.size());
+  // UTF-8: well-formed sequences, no overlongs or surrogates, no control characters.
+  for (size_t i = 0; i < name.size();) {
+    const unsigned char c = static_cast<unsigned char>(name[i]);
+    if (c < 0x20 || c == 0x7F) return field + ": holds a control character";
+    int extra = c < 0x80 ? 0 : (c >> 5) == 0x6 ? 1 : (c >> 4) == 0xE ? 2 : (c >> 3) == 0x1E ? 3 : -1;
+    if (extra < 0 || i + size_t(extra) >= name.size())
+      return field + ": not valid UTF-8";
+    uint32_t cp = extra == 0 ? c : c & (0x3F >> extra);
+    for (int k = 1; k <= extra; ++k) {
+      const unsigned char d = static_cast<unsigned char>(name[i + size_t(k)]);
+      if ((d >> 6) != 0x2) return field + ": not valid UTF-8";
+      cp = (cp << 6) | (d & 0x3F);
+    }
+    static constexpr uint32_t kMin[] = {0, 0x80, 0x800, 0x10000};
+    if (cp < kMin[extra] || cp > 0x10FFFF || (cp >= 0xD800 && cp <= 0xDFFF))
+      return field + ": not valid UTF-8";
+    if (cp >= 0x80 && cp < 0xA0) return field + ": holds a control character";
+    i += size_t(extra) + 1;
+  }
+  return {};
+}
+
+Problem checkToMaster(const site::ToMaster& m) {
+  switch (m.kind_case()) {
+    case site::ToMaster::kHello:
+      return checkName(m.hello().name(), "hello.name");
+    case site::ToMaster::kPose:
+      return checkPose(m.pose());
+    case site::ToMaster::kStroke:
+      return checkStroke(m.stroke());
+    case site::ToMaster::kUndo:
+    case site::ToMaster::kClear:
+    case site::ToMaster::kLead:
+    case site::ToMaster::kRelease:
+    case site::ToMaster::kBye:
+      return {};
+    default:
+      return std::string("message: no known kind (empty, or from a newer protocol)");
+  }
+}
+
+Problem parseToMaster(std::string_view bytes, site::ToMaster& out) {
+  if (bytes.size() > kMaxSiteMessageBytes)
+    return "message: " + std::to_string(bytes.size()) + " bytes, more than the " +
+           std::to_string(kMaxSiteMessageBytes) + " a site may send";
+  if (!out.ParseFromArray(bytes.data(), int(bytes.size())))
+    return "message: " + std::to_string(bytes.size()) + " bytes are not a site message";
+  out.DiscardUnknownFields();
+  return checkToMaster(out);
+}
+
+config::Camera poseCamera(const site::SitePose& p) {
+  config::Camera c;
+  auto set = [](config::Vec3* v, const google::protobuf::RepeatedField<double>& s) {
+    v->set_x(s[0]);
+    v->set_y(s[1]);
+    v->set_z(s[2]);
+  };
+  set(c.mutable_eye(), p.eye());
+  set(c.mutable_target(), p.target());
+  set(c.mutable_up(), p.up());
+  return c;
+}
+
+glm::dmat4 poseFrame(const glm::dvec3& eye, const glm::dvec3& target, const glm::dvec3& up) {
+  const glm::dvec3 f = glm::normalize(target - eye);
+  const glm::dvec3 r = glm::normalize(glm::cross(f, up));
+  const glm::dvec3 u = glm::cross(r, f);
+  glm::dmat4 m(1.0);
+  m[0] = glm::dvec4(r, 0.0);
+  m[1] = glm::dvec4(u, 0.0);
+  m[2] = glm::dvec4(-f, 0.0);
+  m[3] = glm::dvec4(eye, 1.0);
+  return m;
+}
+
+}  // namespace tessera::collab

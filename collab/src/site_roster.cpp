@@ -1,0 +1,264 @@
+#include <tessera/collab/site_roster.h>
+
+#include <algorithm>
+#include <cstdio>
+
+#include <glm/glm.hpp>
+#include <glm/gtc/matrix_transform.hpp>
+#include <glm/gtc/quaternion.hpp>
+#include <glm/gtc/type_ptr.hpp>
+
+#include <tessera/collab/site_messages.h>
+
+namespace tessera::collab {
+
+namespace {
+
+using NodeId = sync::SceneGraph::NodeId;
+
+/// Eight colours told apart on a dark wall and by most colour-blind viewers (Okabe and Ito's
+/// palette, then two more).
+constexpr float kPalette[][3] = {{0.90f, 0.62f, 0.00f}, {0.34f, 0.71f, 0.91f},
+                                 {0.00f, 0.62f, 0.45f}, {0.94f, 0.89f, 0.26f},
+                                 {0.00f, 0.45f, 0.70f}, {0.84f, 0.37f, 0.00f},
+                                 {0.80f, 0.47f, 0.65f}, {0.95f, 0.95f, 0.95f}};
+
+/// A pose as the avatar shows it: eye, orientation (camera to world), distance to the target.
+struct PoseState {
+  glm::dvec3 eye{0.0};
+  glm::dquat orientation{1.0, 0.0, 0.0, 0.0};
+  double reach = 1.0;
+  float fovy_deg = 45.0f, aspect = 1.0f;
+
+  static PoseState of(const site::SitePose& p) {
+    PoseState s;
+    s.eye = {p.eye(0), p.eye(1), p.eye(2)};
+    const glm::dvec3 target{p.target(0), p.target(1), p.target(2)};
+    const glm::dmat4 frame = poseFrame(s.eye, target, {p.up(0), p.up(1), p.up(2)});
+    s.orientation = glm::normalize(glm::quat_cast(glm::dmat3(frame)));
+    s.reach = glm::length(target - s.eye);
+    s.fovy_deg = p.fovy_deg();
+    s.aspect = p.aspect();
+    return s;
+  }
+  glm::dmat4 frame() const {
+    glm::dmat4 m = glm::mat4_cast(orientation);
+    m[3] = glm::dvec4(eye, 1.0);
+    return m;
+  }
+  static PoseState mix(const PoseState& a, const PoseState& b, double s) {
+    if (s >= 1.0) return b;
+    PoseState r = b;
+    r.eye = glm::mix(a.eye, b.eye, s);
+    r.orientation = glm::normalize(glm::slerp(a.orientation, b.orientation, s));
+    r.reach = glm::mix(a.reach, b.reach, s);
+    return r;
+  }
+};
+
+}  // namespace
+
+struct SiteRoster::Site {
+  SiteInfo info;
+  scene::Color color;
+  bool has_pose = false;
+  uint64_t sequence = 0;
+  PoseState from, to;  // the avatar moves from `from` at `start` to `to` over `duration`
+  double start = 0, duration = 0, last_pose_at = 0, interval = 1.0 / 30.0;
+  glm::dmat4 shown{0.0};
+  NodeId layer = 0;              // its sketches' group (0: none yet)
+  std::vector<NodeId> sketches;  // oldest first
+
+  PoseState current(double now) const {
+    if (duration <= 0.0) return to;
+    return PoseState::mix(from, to, std::clamp((now - start) / duration, 0.0, 1.0));
+  }
+};
+
+SiteRoster::SiteRoster() = default;
+SiteRoster::~SiteRoster() = default;
+
+bool SiteRoster::contains(uint32_t participant) const {
+  return mSites.count(participant) != 0;
+}
+
+const SiteInfo& SiteRoster::info(uint32_t participant) const {
+  return mSites.at(participant).info;
+}
+
+scene::Color SiteRoster::color(uint32_t participant) const {
+  return mSites.at(participant).color;
+}
+
+std::vector<SiteInfo> SiteRoster::sites() const {
+  std::vector<SiteInfo> out;
+  for (const auto& [id, s] : mSites) out.push_back(s.info);
+  return out;
+}
+
+uint32_t SiteRoster::join(sync::SceneGraph& graph, const std::string& wanted,
+                          const std::string& key) {
+  auto taken = [&](const std::string& n) {
+    if (n == "console") return true;
+    for (const auto& [id, s] : mSites)
+      if (s.info.name == n) return true;
+    return false;
+  };
+  std::string name = wanted;
+  for (int k = 2; taken(name); ++k) name = wanted.substr(0, 56) + " (" + std::to_string(k) + ")";
+  const uint32_t id = mNext++;
+  Site& s = mSites[id];
+  s.info.name = name;
+  s.info.key = key;
+  s.info.participant = id;
+  const float* c = kPalette[(id - 1) % std::size(kPalette)];
+  s.color.set_r(c[0]);
+  s.color.set_g(c[1]);
+  s.color.set_b(c[2]);
+  s.info.avatar = graph.add(scene::SceneNode::AVATAR, sync::SceneGraph::kRoot, "avatar: " + name);
+  scene::AvatarPayload a;
+  a.set_site(name);
+  *a.mutable_color() = s.color;
+  graph.setPayload(s.info.avatar, a);
+  graph.setVisible(s.info.avatar, false);
+  graph.setAuthor(s.info.avatar, name);
+  return id;
+}
+
+void SiteRoster::leave(sync::SceneGraph& graph, uint32_t participant) {
+  auto it = mSites.find(participant);
+  if (it == mSites.end()) return;
+  const Site& s = it->second;
+  if (s.info.avatar && graph.contains(s.info.avatar)) graph.remove(s.info.avatar);
+  if (graph.settings().leader() == s.info.name) graph.setLeader("");
+  mSites.erase(it);
+}
+
+void SiteRoster::apply(sync::SceneGraph& graph, uint32_t participant, const site::ToMaster& m,
+                       double now) {
+  auto it = mSites.find(participant);
+  if (it == mSites.end()) return;
+  Site& s = it->second;
+  // Sketches the master removed meanwhile are forgotten.
+  std::erase_if(s.sketches, [&](NodeId id) { return !graph.contains(id); });
+  if (s.layer && !graph.contains(s.layer)) s.layer = 0;
+  switch (m.kind_case()) {
+    case site::ToMaster::kPose: {
+      const site::SitePose& p = m.pose();
+      if (s.has_pose && p.sequence() <= s.sequence) return;  // late or repeated
+      const PoseState next = PoseState::of(p);
+      if (s.has_pose) {
+        s.interval = 0.8 * s.interval + 0.2 * std::clamp(now - s.last_pose_at, 0.0, 0.5);
+        s.from = s.current(now);
+      } else {
+        s.from = next;
+      }
+      s.to = next;
+      // It arrived at some time since the previous frame: the motion starts there, so the
+      // first frame after it already moves.
+      s.start = mLastFrame >= 0 ? std::min(now, mLastFrame) : now;
+      s.duration = std::clamp(s.interval, 0.0, 0.1);
+      s.last_pose_at = now;
+      s.sequence = p.sequence();
+      s.has_pose = true;
+      s.info.poses++;
+      return;
+    }
+    case site::ToMaster::kStroke: {
+      const site::SiteStroke& st = m.stroke();
+      if (s.sketches.size() >= kMaxSketchesPerSite) {
+        std::printf("tessera-master: sites: %s: stroke ignored: it has %zu sketches, the most a "
+                    "site may keep (undo or clear first)\n",
+                    s.info.name.c_str(), s.sketches.size());
+        return;
+      }
+      if (!s.layer) {
+        const std::string layer = "sketches/" + s.info.name;
+        const auto found = graph.findByName(layer);
+        s.layer = found && graph.node(*found).kind() == scene::SceneNode::GROUP
+                      ? *found
+                      : graph.add(scene::SceneNode::GROUP, sync::SceneGraph::kRoot, layer);
+        graph.setAuthor(s.layer, s.info.name);
+      }
+      const NodeId id =
+          graph.add(scene::SceneNode::SKETCH, s.layer, "sketch " + std::to_string(s.info.strokes + 1));
+      // Points relative to the first, in float; the transform holds the first in double, so
+      // georeferenced scenes keep millimetres.
+      const glm::dvec3 origin{st.points(0), st.points(1), st.points(2)};
+      scene::SketchPayload p;
+      for (int i = 0; i < st.points_size(); i += 3)
+        for (int k = 0; k < 3; ++k) p.add_points(float(st.points(i + k) - origin[k]));
+      *p.mutable_color() = st.color();
+      p.set_width(st.width());
+      graph.setPayload(id, p);
+      const glm::dmat4 t = glm::translate(glm::dmat4(1.0), origin);
+      graph.setTransform(id, std::span<const double>(glm::value_ptr(t), 16));
+      graph.setAuthor(id, s.info.name);
+      s.sketches.push_back(id);
+      s.info.strokes++;
+      return;
+    }
+    case site::ToMaster::kUndo:
+      if (!s.sketches.empty()) {
+        graph.remove(s.sketches.back());
+        s.sketches.pop_back();
+      }
+      return;
+    case site::ToMaster::kClear:
+      for (NodeId id : s.sketches) graph.remove(id);
+      s.sketches.clear();
+      return;
+    case site::ToMaster::kLead:
+      if (graph.settings().leader() != s.info.name) {
+        graph.setLeader(s.info.name);
+        std::printf("tessera-master: sites: %s leads the view\n", s.info.name.c_str());
+      }
+      return;
+    case site::ToMaster::kRelease:
+      if (graph.settings().leader() == s.info.name) {
+        graph.setLeader("");
+        std::printf("tessera-master: sites: %s gave the view back\n", s.info.name.c_str());
+      }
+      return;
+    default:
+      return;
+  }
+}
+
+void SiteRoster::animate(sync::SceneGraph& graph, double now) {
+  for (auto& [id, s] : mSites) {
+    s.info.leader = graph.settings().leader() == s.info.name;
+    if (!s.has_pose || !graph.contains(s.info.avatar)) continue;
+    const PoseState p = s.current(now);
+    const glm::dmat4 frame = p.frame();
+    if (frame != s.shown) {
+      graph.setTransform(s.info.avatar, std::span<const double>(glm::value_ptr(frame), 16));
+      s.shown = frame;
+    }
+    const scene::AvatarPayload& old = graph.node(s.info.avatar).avatar();
+    if (old.fovy_deg() != p.fovy_deg || old.aspect() != p.aspect || old.reach() != float(p.reach)) {
+      scene::AvatarPayload a = old;
+      a.set_fovy_deg(p.fovy_deg);
+      a.set_aspect(p.aspect);
+      a.set_reach(float(p.reach));
+      graph.setPayload(s.info.avatar, a);
+    }
+    if (!graph.node(s.info.avatar).visible()) graph.setVisible(s.info.avatar, true);
+    if (s.info.leader) {
+      const glm::dvec3 f = -glm::dvec3(frame[2]), u = glm::dvec3(frame[1]);
+      config::Camera c;
+      auto set = [](config::Vec3* v, const glm::dvec3& x) {
+        v->set_x(x.x);
+        v->set_y(x.y);
+        v->set_z(x.z);
+      };
+      set(c.mutable_eye(), p.eye);
+      set(c.mutable_target(), p.eye + f * p.reach);
+      set(c.mutable_up(), u);
+      graph.setCamera(c);
+    }
+  }
+  mLastFrame = now;
+}
+
+}  // namespace tessera::collab

@@ -1,0 +1,451 @@
+#include <tessera/collab/site_session.h>
+
+#include <google/protobuf/util/json_util.h>
+
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <thread>
+
+#include <glm/gtc/matrix_transform.hpp>
+
+#include <tessera/core/file_checks.h>
+#include <tessera/render/gl_context.h>
+#include <tessera/render/scene_draw_list.h>
+#include <tessera/render/scene_overlay.h>
+#include <tessera/render/view_renderer.h>
+#include <tessera/sync/camera_state.h>
+#include <tessera/sync/config.h>
+
+namespace tessera::collab {
+
+namespace {
+
+namespace fs = std::filesystem;
+using Clock = std::chrono::steady_clock;
+using Why = SiteSessionEnded::Why;
+
+[[noreturn]] void fail(const std::string& file, const std::string& field, const std::string& what) {
+  throw sync::ConfigError("collab::loadSiteScript(): " + file + ": " +
+                          (field.empty() ? "" : field + ": ") + what);
+}
+
+glm::dvec3 vec(const config::Vec3& v) {
+  return {v.x(), v.y(), v.z()};
+}
+
+void setVec(config::Vec3* v, const glm::dvec3& x) {
+  v->set_x(x.x);
+  v->set_y(x.y);
+  v->set_z(x.z);
+}
+
+bool finite(const config::Vec3& v) {
+  return std::isfinite(v.x()) && std::isfinite(v.y()) && std::isfinite(v.z());
+}
+
+std::optional<std::string> cameraProblem(const config::Camera& c) {
+  if (!finite(c.eye()) || !finite(c.target()) || !finite(c.up()))
+    return std::string("numbers must be finite");
+  const glm::dvec3 view = vec(c.target()) - vec(c.eye());
+  if (!(glm::length(view) > 0)) return std::string("eye and target coincide");
+  if (glm::length(glm::cross(view, vec(c.up()))) <=
+      1e-9 * glm::length(view) * glm::length(vec(c.up())))
+    return std::string("up must not be zero or along the view direction");
+  return std::nullopt;
+}
+
+/// The camera every process of the session would decode from it (the wire's rounding), so a
+/// leader and its followers render the very same view.
+config::Camera asSent(const config::Camera& c) {
+  return sync::decodeCamera(sync::encodeCamera(c));
+}
+
+config::Camera mixCameras(const config::Camera& a, const config::Camera& b, double s) {
+  config::Camera c;
+  const glm::dvec3 eye = glm::mix(vec(a.eye()), vec(b.eye()), s);
+  const glm::dvec3 target = glm::mix(vec(a.target()), vec(b.target()), s);
+  glm::dvec3 up = glm::mix(vec(a.up()), vec(b.up()), s);
+  if (glm::length(up) < 1e-9) up = vec(b.up());
+  setVec(c.mutable_eye(), eye);
+  setVec(c.mutable_target(), glm::length(target - eye) > 0 ? target : vec(b.target()));
+  setVec(c.mutable_up(), up);
+  return cameraProblem(c) ? b : c;
+}
+
+}  // namespace
+
+site::SiteScript loadSiteScript(const std::string& path) {
+  if (const auto why = notRegularFile(path)) fail(path, "", "cannot open: " + *why);
+  std::ifstream in(path, std::ios::binary);
+  if (!in) fail(path, "", "cannot open");
+  std::ostringstream text;
+  text << in.rdbuf();
+  site::SiteScript s;
+  google::protobuf::util::JsonParseOptions options;
+  options.ignore_unknown_fields = false;
+  const auto status = google::protobuf::util::JsonStringToMessage(text.str(), &s, options);
+  if (!status.ok()) fail(path, "", "not a valid SiteScript: " + std::string(status.message()));
+  if (s.fps() == 0) s.set_fps(30);
+  if (s.width() == 0) s.set_width(640);
+  if (s.height() == 0) s.set_height(480);
+  if (s.fovy_deg() == 0) s.set_fovy_deg(45);
+  if (!(s.fps() > 0 && s.fps() <= 240)) fail(path, "fps", "must be in (0, 240]");
+  if (s.width() < 16 || s.width() > 8192 || s.height() < 16 || s.height() > 8192)
+    fail(path, "width/height", "16..8192 pixels each");
+  if (!(s.fovy_deg() > 0 && s.fovy_deg() < 180)) fail(path, "fovyDeg", "must be in (0, 180)");
+  uint32_t previous = 0;
+  for (int i = 0; i < s.actions_size(); ++i) {
+    const site::SiteAction& a = s.actions(i);
+    const std::string field = "actions[" + std::to_string(i) + "]";
+    if (a.frame() < previous) fail(path, field + ".frame", "actions must be in frame order");
+    previous = a.frame();
+    switch (a.action_case()) {
+      case site::SiteAction::kCamera:
+        if (auto why = cameraProblem(a.camera())) fail(path, field + ".camera", *why);
+        break;
+      case site::SiteAction::kStroke: {
+        const site::StrokeAction& st = a.stroke();
+        if (st.pixels_size() % 2 != 0 || st.world_size() % 3 != 0)
+          fail(path, field + ".stroke", "pixels are x y pairs, world points x y z triples");
+        if ((st.pixels_size() > 0) == (st.world_size() > 0))
+          fail(path, field + ".stroke", "needs pixels or world points (one of them)");
+        const int n = st.pixels_size() / 2 + st.world_size() / 3;
+        if (n < 2 || n > kMaxStrokePoints)
+          fail(path, field + ".stroke", "needs 2.." + std::to_string(kMaxStrokePoints) + " points");
+        for (float v : st.pixels())
+          if (!std::isfinite(v)) fail(path, field + ".stroke.pixels", "numbers must be finite");
+        for (double v : st.world())
+          if (!std::isfinite(v) || std::abs(v) > kMaxCoordinate)
+            fail(path, field + ".stroke.world", "numbers must be finite, within 1e8 m");
+        for (float v : {st.color().r(), st.color().g(), st.color().b()})
+          if (!(v >= 0 && v <= 1)) fail(path, field + ".stroke.color", "components in [0, 1]");
+        if (!(st.width() >= 0 && st.width() <= 64))
+          fail(path, field + ".stroke.width", "must be in [0, 64] pixels");
+        break;
+      }
+      case site::SiteAction::kScreenshot:
+        if (a.screenshot().empty() || a.screenshot().find('/') != std::string::npos)
+          fail(path, field + ".screenshot", "a file name in the output folder");
+        break;
+      case site::SiteAction::ACTION_NOT_SET:
+        fail(path, field, "names no action");
+      default:
+        break;
+    }
+  }
+  return s;
+}
+
+struct SiteSession::Impl {
+  SiteSessionOptions opt;
+  site::SiteScript script;
+  std::unique_ptr<SiteClient> client;
+  site::SiteWelcome welcome;
+  sync::SceneGraph graph;
+  std::unique_ptr<render::GlContext> context;
+  render::SceneDrawList models;
+  std::span<const render::ModelInstance> instances;
+  std::unique_ptr<render::ViewRenderer> renderer;  // destroyed before the context
+  config::Camera own, follow_from;
+  bool following = false;
+  double follow_start = 0;
+  uint64_t sequence = 0;
+  std::ofstream strokes_csv;
+  uint64_t strokes = 0;
+
+  ~Impl() {
+    if (renderer) {
+      render::ChunkStreamer* s[] = {&renderer->streamer()};
+      models.clear(s);
+    }
+    renderer.reset();
+  }
+
+  void say(const std::string& text) {
+    std::printf("tessera-site %s: %s\n", welcome.name().empty() ? opt.client.name.c_str()
+                                                                : welcome.name().c_str(),
+                text.c_str());
+    std::fflush(stdout);
+  }
+
+  void update(const sync::SceneChanges& changes) {
+    if (!renderer || changes.empty()) return;
+    render::ChunkStreamer* s[] = {&renderer->streamer()};
+    instances = models.update(graph, changes, s);
+  }
+
+  /// A perspective view of `camera` whose depth range holds every model.
+  render::ViewSetup view(const config::Camera& camera) const {
+    render::ViewSetup v;
+    v.view = render::cameraView(camera);
+    v.width = script.width();
+    v.height = script.height();
+    v.eye_world = vec(camera.eye());
+    glm::dvec3 lo(1e300), hi(-1e300);
+    for (const render::ModelInstance& inst : instances) {
+      const auto& sum = inst.store->summary();
+      for (int k = 0; k < 8; ++k) {
+        const glm::dvec3 c((k & 1) ? sum.bbox_max.x : sum.bbox_min.x,
+                           (k & 2) ? sum.bbox_max.y : sum.bbox_min.y,
+                           (k & 4) ? sum.bbox_max.z : sum.bbox_min.z);
+        const glm::dvec3 w = glm::dvec3(inst.model * glm::dvec4(c, 1.0));
+        lo = glm::min(lo, w);
+        hi = glm::max(hi, w);
+      }
+    }
+    double radius = 1.0, dist = glm::length(vec(camera.target()) - vec(camera.eye()));
+    if (!instances.empty()) {
+      radius = std::max(1e-6, 0.5 * glm::length(hi - lo));
+      dist = glm::length(0.5 * (lo + hi) - vec(camera.eye()));
+    }
+    const double near = std::max(1e-4 * radius, (dist - 2.0 * radius) * 0.5);
+    v.projection = glm::perspective(glm::radians(double(script.fovy_deg())),
+                                    double(script.width()) / script.height(), near,
+                                    dist + 2.0 * radius);
+    return v;
+  }
+
+  render::Overlay overlay() const {
+    render::Overlay o;
+    render::appendSceneOverlay(graph, o);
+    return o;
+  }
+
+  /// The camera this site shows now.
+  config::Camera camera(double now) {
+    if (!following) return own;
+    const config::Camera target = graph.camera();
+    const double s = std::clamp((now - follow_start) / 0.5, 0.0, 1.0);
+    own = s >= 1.0 ? target : mixCameras(follow_from, target, s * s * (3.0 - 2.0 * s));
+    return own;
+  }
+
+  void sendPose(const config::Camera& c) {
+    site::ToMaster m;
+    site::SitePose& p = *m.mutable_pose();
+    p.set_sequence(++sequence);
+    auto add = [](google::protobuf::RepeatedField<double>* f, const config::Vec3& v) {
+      f->Add(v.x());
+      f->Add(v.y());
+      f->Add(v.z());
+    };
+    add(p.mutable_eye(), c.eye());
+    add(p.mutable_target(), c.target());
+    add(p.mutable_up(), c.up());
+    p.set_fovy_deg(script.fovy_deg());
+    p.set_aspect(float(double(script.width()) / script.height()));
+    client->send(m);
+  }
+
+  render::RenderOptions options() const {
+    return render::SceneDrawList::options(graph, 2.0f);
+  }
+
+  render::Image settled(const config::Camera& c) {
+    const render::Overlay o = overlay();
+    return renderer->renderSettled(instances, view(c), options(), nullptr, o.empty() ? nullptr : &o);
+  }
+
+  void stroke(const site::StrokeAction& a, const config::Camera& c) {
+    site::ToMaster m;
+    site::SiteStroke& s = *m.mutable_stroke();
+    *s.mutable_color() = a.color();
+    s.set_width(a.width() > 0 ? a.width() : 4.0f);
+    const uint64_t index = ++strokes;
+    if (a.world_size() > 0) {
+      for (double v : a.world()) s.add_points(v);
+    } else {
+      if (!renderer) {
+        say("stroke " + std::to_string(index) + " skipped: pixels need rendering (--no-render)");
+        return;
+      }
+      (void)settled(c);
+      const render::ViewSetup v = view(c);
+      const std::vector<uint32_t> depth = renderer->target().readDepth();
+      const glm::dmat4 unproject = glm::inverse(v.projection * v.view);
+      for (int i = 0; i + 1 < a.pixels_size(); i += 2) {
+        const double px = a.pixels(i), py = a.pixels(i + 1);
+        if (!(px >= 0 && py >= 0 && px < v.width && py < v.height)) continue;
+        const uint32_t x = uint32_t(px), y = uint32_t(py);
+        const uint32_t d = depth[size_t(v.height - 1 - y) * v.width + x];
+        if (d == render::kEmptyDepth) continue;  // no surface under it: skipped
+        float z = 1.0f;
+        std::memcpy(&z, &d, 4);
+        const glm::dvec4 ndc((x + 0.5) / v.width * 2.0 - 1.0, 1.0 - (y + 0.5) / v.height * 2.0,
+                             2.0 * z - 1.0, 1.0);
+        const glm::dvec4 w = unproject * ndc;
+        const glm::dvec3 p = glm::dvec3(w) / w.w;
+        s.add_points(p.x);
+        s.add_points(p.y);
+        s.add_points(p.z);
+        if (strokes_csv) {
+          char line[256];
+          std::snprintf(line, sizeof line, "%llu,%u,%u,%.17g,%.17g,%.17g,%.9g\n",
+                        (unsigned long long)index, x, y, p.x, p.y, p.z, double(z));
+          strokes_csv << line;
+        }
+      }
+      strokes_csv.flush();
+    }
+    if (s.points_size() < 6) {
+      say("stroke " + std::to_string(index) + " skipped: fewer than 2 of its pixels are on the model");
+      return;
+    }
+    say("stroke " + std::to_string(index) + ": " + std::to_string(s.points_size() / 3) +
+        " points placed on the model");
+    client->send(m);
+  }
+
+  void simple(site::ToMaster m) { client->send(m); }
+
+  /// One script action at this frame. False: the site leaves.
+  bool act(const site::SiteAction& a, double now) {
+    site::ToMaster m;
+    switch (a.action_case()) {
+      case site::SiteAction::kCamera:
+        own = asSent(a.camera());
+        following = false;
+        break;
+      case site::SiteAction::kStroke:
+        stroke(a.stroke(), asSent(camera(now)));
+        break;
+      case site::SiteAction::kUndo:
+        m.mutable_undo();
+        simple(m);
+        break;
+      case site::SiteAction::kClear:
+        m.mutable_clear();
+        simple(m);
+        break;
+      case site::SiteAction::kLead:
+        m.mutable_lead();
+        simple(m);
+        following = false;
+        say("leads the view");
+        break;
+      case site::SiteAction::kRelease:
+        m.mutable_release();
+        simple(m);
+        break;
+      case site::SiteAction::kFollow:
+        following = true;
+        follow_from = own;
+        follow_start = now;
+        say("follows the view");
+        break;
+      case site::SiteAction::kScreenshot: {
+        if (!renderer) break;
+        const std::string path = (fs::path(opt.out_dir) / a.screenshot()).string();
+        render::writePng(path, settled(asSent(camera(now))));
+        say("wrote " + path + " (frame version " + std::to_string(graph.version()) + ")");
+        break;
+      }
+      case site::SiteAction::kBye:
+        return false;
+      default:
+        break;
+    }
+    return true;
+  }
+
+  int session() {
+    if (!opt.script.empty()) {
+      script = loadSiteScript(opt.script);
+    } else {
+      script.set_fps(30);
+      script.set_width(640);
+      script.set_height(480);
+      script.set_fovy_deg(45);
+    }
+    if (opt.render) {
+      context = render::GlContext::createHeadless();
+      render::StreamerOptions stream;
+      stream.density_ratios = true;
+      renderer = std::make_unique<render::ViewRenderer>(script.width(), script.height(), nullptr,
+                                                        stream);
+      std::error_code ec;
+      fs::create_directories(opt.out_dir, ec);
+      strokes_csv.open(fs::path(opt.out_dir) / "strokes.csv");
+      if (!strokes_csv)
+        throw std::runtime_error("-o " + opt.out_dir + ": cannot write strokes.csv: " +
+                                 whyNotWritable((fs::path(opt.out_dir) / "strokes.csv").string(), errno));
+      strokes_csv << "stroke,px,py,x,y,z,depth\n";
+    }
+    client = std::make_unique<SiteClient>(opt.client);
+    welcome = client->join(graph, Clock::now() + std::chrono::milliseconds(int64_t(opt.join_timeout_s * 1000)));
+    say("joined as participant " + std::to_string(welcome.participant()) + " at scene version " +
+        std::to_string(graph.version()));
+    update(sync::SceneChanges::all());
+    own = graph.camera();
+    const auto period = std::chrono::duration<double>(1.0 / script.fps());
+    const auto start = Clock::now();
+    int next_action = 0;
+    for (uint64_t frame = 0;; ++frame) {
+      const auto tick = start + std::chrono::duration_cast<Clock::duration>(period * double(frame));
+      std::this_thread::sleep_until(tick);
+      const double now = std::chrono::duration<double>(Clock::now() - start).count();
+      update(client->receive(graph, Clock::now()));
+      while (next_action < script.actions_size() && script.actions(next_action).frame() <= frame) {
+        if (!act(script.actions(next_action++), now)) {
+          site::ToMaster bye;
+          bye.mutable_bye();
+          client->send(bye);
+          say("left");
+          return kSiteOk;
+        }
+      }
+      const config::Camera c = asSent(camera(now));
+      sendPose(c);
+      if (renderer) {
+        const render::Overlay o = overlay();
+        renderer->draw(instances, view(c), options(), nullptr, o.empty() ? nullptr : &o);
+      }
+      if (script.frames() > 0 && frame + 1 >= script.frames()) {
+        site::ToMaster bye;
+        bye.mutable_bye();
+        client->send(bye);
+        say("left after " + std::to_string(script.frames()) + " frames");
+        return kSiteOk;
+      }
+    }
+  }
+};
+
+SiteSession::SiteSession(SiteSessionOptions options) : m(std::make_unique<Impl>()) {
+  m->opt = std::move(options);
+}
+
+SiteSession::~SiteSession() = default;
+
+int SiteSession::run() {
+  try {
+    return m->session();
+  } catch (const SiteSessionEnded& e) {
+    switch (e.why) {
+      case Why::kQuit:
+        m->say(e.what());
+        return kSiteOk;
+      case Why::kRefused:
+      case Why::kDropped:
+        std::fprintf(stderr, "tessera-site: %s\n", e.what());
+        return kSiteRefused;
+      case Why::kMasterLost:
+        std::fprintf(stderr, "tessera-site: %s\n", e.what());
+        return kSiteMasterLost;
+      default:
+        std::fprintf(stderr, "tessera-site: %s\n", e.what());
+        return kSiteFailed;
+    }
+  } catch (const sync::ConfigError& e) {
+    std::fprintf(stderr, "tessera-site: %s\n", e.what());
+    return kSiteFailed;
+  } catch (const render::RenderError& e) {
+    std::fprintf(stderr, "tessera-site: no usable GL: %s\n", e.what());
+    return kSiteFailed;
+  }
+}
+
+}  // namespace tessera::collab

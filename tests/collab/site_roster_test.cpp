@@ -1,0 +1,242 @@
+// The site messages' checks (collab/site_messages.h) and what the roster does with them to the
+// master's scene (collab/site_roster.h): avatars that follow poses smoothly, sketches in a layer
+// per site with undo and clear, follow-me through the scene's leader and camera, unique names.
+// The scene graph is the real one; every effect is read back from a replica that applied the
+// frames, as a node or a site would see it.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+
+#include <glm/glm.hpp>
+#include <glm/gtc/type_ptr.hpp>
+
+#include <tessera/collab/site_messages.h>
+#include <tessera/collab/site_roster.h>
+#include <tessera/sync/scene_graph.h>
+
+namespace {
+
+using namespace tessera;
+
+site::ToMaster pose(uint64_t seq, glm::dvec3 eye, glm::dvec3 target, glm::dvec3 up = {0, 1, 0}) {
+  site::ToMaster m;
+  site::SitePose& p = *m.mutable_pose();
+  p.set_sequence(seq);
+  for (int k = 0; k < 3; ++k) {
+    p.add_eye(eye[k]);
+    p.add_target(target[k]);
+    p.add_up(up[k]);
+  }
+  p.set_fovy_deg(45);
+  p.set_aspect(1.5f);
+  return m;
+}
+
+site::ToMaster stroke(std::initializer_list<double> xyz) {
+  site::ToMaster m;
+  for (double v : xyz) m.mutable_stroke()->add_points(v);
+  m.mutable_stroke()->mutable_color()->set_r(1);
+  m.mutable_stroke()->set_width(4);
+  return m;
+}
+
+glm::dvec3 avatarEye(const sync::SceneGraph& g, uint32_t id) {
+  const auto& m = g.node(id).transform().m();
+  return {m[12], m[13], m[14]};
+}
+
+/// A replica kept up to date with the master's frames, as nodes and sites keep theirs.
+struct Session {
+  sync::SceneGraph master, replica;
+  collab::SiteRoster roster;
+  uint64_t frame = 0;
+  void step(double now) {
+    roster.animate(master, now);
+    replica.apply(master.takeFrame(++frame, uint64_t(now * 1e6)));
+  }
+};
+
+TEST(SiteMessages, RefusesNonFiniteDegenerateAndOversizedInput) {
+  site::ToMaster ok = pose(1, {0, 0, 2}, {0, 0, 0});
+  EXPECT_FALSE(collab::checkToMaster(ok));
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_EQ(collab::checkToMaster(pose(1, {nan, 0, 2}, {0, 0, 0})).value_or(""),
+            "pose.eye: numbers must be finite");
+  EXPECT_EQ(collab::checkToMaster(pose(1, {0, 0, 0}, {0, 0, 0})).value_or(""),
+            "pose: the target is at the eye");
+  EXPECT_EQ(collab::checkToMaster(pose(1, {0, 0, 2}, {0, 0, 0}, {0, 0, 0})).value_or(""),
+            "pose.up: zero vector");
+  EXPECT_EQ(collab::checkToMaster(pose(1, {0, 0, 2}, {0, 0, 0}, {0, 0, 1})).value_or(""),
+            "pose.up: along the view direction");
+  EXPECT_TRUE(collab::checkToMaster(pose(1, {1e9, 0, 2}, {0, 0, 0})));
+  site::ToMaster fov = ok;
+  fov.mutable_pose()->set_fovy_deg(180);
+  EXPECT_TRUE(collab::checkToMaster(fov));
+  site::ToMaster two_eyes = ok;
+  two_eyes.mutable_pose()->add_eye(1);
+  EXPECT_TRUE(collab::checkToMaster(two_eyes));
+
+  EXPECT_FALSE(collab::checkToMaster(stroke({0, 0, 0, 1, 1, 1})));
+  EXPECT_TRUE(collab::checkToMaster(stroke({0, 0, 0})));           // one point
+  EXPECT_TRUE(collab::checkToMaster(stroke({0, 0, 0, 1, 1})));     // not triples
+  EXPECT_TRUE(collab::checkToMaster(stroke({0, 0, 0, 1, nan, 1})));
+  site::ToMaster wide = stroke({0, 0, 0, 1, 1, 1});
+  wide.mutable_stroke()->set_width(65);
+  EXPECT_TRUE(collab::checkToMaster(wide));
+  site::ToMaster colour = stroke({0, 0, 0, 1, 1, 1});
+  colour.mutable_stroke()->mutable_color()->set_g(-0.1f);
+  EXPECT_TRUE(collab::checkToMaster(colour));
+  site::ToMaster many;
+  for (int i = 0; i < 3 * (collab::kMaxStrokePoints + 1); ++i) many.mutable_stroke()->add_points(0);
+  many.mutable_stroke()->set_width(1);
+  EXPECT_TRUE(collab::checkToMaster(many));
+
+  EXPECT_TRUE(collab::checkToMaster(site::ToMaster()));  // no kind
+  site::ToMaster m;
+  EXPECT_TRUE(collab::parseToMaster("\xff\xff\xff garbage", m));
+  EXPECT_TRUE(collab::parseToMaster(std::string(collab::kMaxSiteMessageBytes + 1, '\0'), m));
+}
+
+TEST(SiteMessages, NamesAreShortPrintableUtf8) {
+  EXPECT_FALSE(collab::checkName("Kyoto lab", "name"));
+  EXPECT_FALSE(collab::checkName("京都ラボ", "name"));
+  EXPECT_TRUE(collab::checkName("", "name"));
+  EXPECT_TRUE(collab::checkName(std::string(65, 'a'), "name"));
+  EXPECT_TRUE(collab::checkName("tab\there", "name"));
+  EXPECT_TRUE(collab::checkName("\xc0\xaf", "name"));          // overlong '/'
+  EXPECT_TRUE(collab::checkName("\xed\xa0\x80", "name"));      // a surrogate
+  EXPECT_TRUE(collab::checkName("cut \xe4\xba", "name"));      // truncated sequence
+  EXPECT_TRUE(collab::checkName("\xc2\x85", "name"));          // C1 control (NEL)
+}
+
+TEST(SiteRoster, AvatarFollowsPosesSmoothlyAndLeavesWithItsSite) {
+  Session s;
+  const uint32_t a = s.roster.join(s.master, "Kyoto lab", "k1");
+  s.step(0.0);
+  const uint32_t avatar = s.roster.info(a).avatar;
+  ASSERT_TRUE(s.replica.contains(avatar));
+  EXPECT_FALSE(s.replica.node(avatar).visible()) << "no pose yet";
+  EXPECT_EQ(s.replica.node(avatar).avatar().site(), "Kyoto lab");
+  EXPECT_EQ(s.replica.node(avatar).author(), "Kyoto lab");
+
+  // Poses 1/30 s apart; the wall at 60 Hz.
+  s.roster.apply(s.master, a, pose(1, {0, 0, 2}, {0, 0, 0}), 0.01);
+  s.step(1.0 / 60);
+  EXPECT_TRUE(s.replica.node(avatar).visible());
+  EXPECT_NEAR(glm::length(avatarEye(s.replica, avatar) - glm::dvec3(0, 0, 2)), 0.0, 1e-12);
+  EXPECT_FLOAT_EQ(s.replica.node(avatar).avatar().reach(), 2.0f);
+  // Frame of the avatar: right, up, back (the view negated), eye.
+  const auto& m = s.replica.node(avatar).transform().m();
+  EXPECT_NEAR(m[8] * 0 + m[10], 1.0, 1e-12) << "back = +z for a view down -z";
+
+  double t = 1.0 / 60;
+  s.roster.apply(s.master, a, pose(2, {1, 0, 2}, {1, 0, 0}), t + 0.005);
+  std::vector<double> xs;
+  for (int f = 0; f < 6; ++f) {
+    t += 1.0 / 60;
+    s.step(t);
+    xs.push_back(avatarEye(s.replica, avatar).x);
+  }
+  EXPECT_GT(xs[0], 0.0) << "the first frame after a pose already moves";
+  EXPECT_LT(xs[0], 1.0) << "... but does not jump";
+  for (size_t i = 1; i < xs.size(); ++i) EXPECT_GE(xs[i], xs[i - 1]);
+  EXPECT_DOUBLE_EQ(xs.back(), 1.0) << "reached within the pose interval";
+
+  // An older pose (out of order) is ignored.
+  s.roster.apply(s.master, a, pose(1, {5, 5, 5}, {0, 0, 0}), t);
+  s.step(t += 0.05);
+  EXPECT_DOUBLE_EQ(avatarEye(s.replica, avatar).x, 1.0);
+
+  s.roster.leave(s.master, a);
+  s.step(t += 0.05);
+  EXPECT_FALSE(s.replica.contains(avatar));
+  EXPECT_EQ(s.replica, s.master);
+}
+
+TEST(SiteRoster, StrokesAreSketchesInTheSitesLayerWithUndoAndClear) {
+  Session s;
+  const uint32_t a = s.roster.join(s.master, "Kyoto lab", "k1");
+  const uint32_t b = s.roster.join(s.master, "Kyoto lab", "k2");
+  EXPECT_EQ(s.roster.info(b).name, "Kyoto lab (2)") << "names are unique";
+  // Georeferenced: millimetres at 10^6 m survive (float points relative to a double origin).
+  s.roster.apply(s.master, a, stroke({636590.001, 847900.002, 100.003, 636590.5, 847900.25, 100.5}), 0);
+  s.roster.apply(s.master, a, stroke({0, 0, 0, 1, 0, 0, 1, 1, 0}), 0);
+  s.roster.apply(s.master, b, stroke({0, 0, 0, 0, 1, 0}), 0);
+  s.step(0.0);
+  const auto layer_a = s.replica.findByName("sketches/Kyoto lab");
+  const auto layer_b = s.replica.findByName("sketches/Kyoto lab (2)");
+  ASSERT_TRUE(layer_a && layer_b);
+  std::vector<uint32_t> sketches = s.replica.children(*layer_a);
+  ASSERT_EQ(sketches.size(), 2u);
+  const scene::SceneNode& first = s.replica.node(sketches[0]);
+  EXPECT_EQ(first.author(), "Kyoto lab");
+  const auto& t = first.transform().m();
+  const auto& p = first.sketch().points();
+  EXPECT_NEAR(t[12] + p[3], 636590.5, 1e-3);
+  EXPECT_NEAR(t[13] + p[4], 847900.25, 1e-3);
+  EXPECT_NEAR(t[12] + p[0], 636590.001, 1e-6);
+
+  s.roster.apply(s.master, a, site::ToMaster(), 0);  // nothing
+  site::ToMaster undo;
+  undo.mutable_undo();
+  s.roster.apply(s.master, a, undo, 0);
+  s.step(0.1);
+  EXPECT_EQ(s.replica.children(*layer_a), std::vector<uint32_t>{sketches[0]}) << "the newest goes";
+  // The master removed the other one itself: undo then has nothing of a's left, b's stay.
+  s.master.remove(sketches[0]);
+  s.roster.apply(s.master, a, undo, 0);
+  site::ToMaster clear;
+  clear.mutable_clear();
+  s.step(0.2);
+  EXPECT_TRUE(s.replica.children(*layer_a).empty());
+  EXPECT_EQ(s.replica.children(*layer_b).size(), 1u);
+  s.roster.apply(s.master, b, clear, 0);
+  s.step(0.3);
+  EXPECT_TRUE(s.replica.children(*layer_b).empty());
+  // A site that leaves keeps its sketches in the scene (nothing else changes).
+  s.roster.apply(s.master, b, stroke({0, 0, 0, 0, 1, 0}), 0);
+  s.roster.leave(s.master, b);
+  s.step(0.4);
+  EXPECT_EQ(s.replica.children(*layer_b).size(), 1u);
+}
+
+TEST(SiteRoster, TheLeadersPoseMovesTheSceneCameraUntilReleased) {
+  Session s;
+  const uint32_t a = s.roster.join(s.master, "A", "k1");
+  const uint32_t b = s.roster.join(s.master, "B", "k2");
+  s.roster.apply(s.master, a, pose(1, {0.3, 0.2, 1.0}, {0, 0.1, 0}), 0);
+  s.roster.apply(s.master, b, pose(1, {-1, 0, 1}, {0, 0, 0}), 0);
+  s.step(0.0);
+  const config::Camera before = s.replica.camera();
+  site::ToMaster lead;
+  lead.mutable_lead();
+  s.roster.apply(s.master, a, lead, 0.01);
+  s.step(0.2);
+  EXPECT_EQ(s.replica.settings().leader(), "A");
+  const config::Camera c = s.replica.camera();
+  EXPECT_NEAR(c.eye().x(), 0.3, 1e-9);
+  EXPECT_NEAR(c.eye().z(), 1.0, 1e-9);
+  // The view direction is the pose's (the camera is stored rounded: floats relative to the eye).
+  const glm::dvec3 view = glm::normalize(glm::dvec3(c.target().x() - c.eye().x(),
+                                                    c.target().y() - c.eye().y(),
+                                                    c.target().z() - c.eye().z()));
+  EXPECT_NEAR(glm::length(view - glm::normalize(glm::dvec3(-0.3, -0.1, -1.0))), 0, 1e-6);
+  // B takes the lead: last writer wins.
+  s.roster.apply(s.master, b, lead, 0.3);
+  s.step(0.5);
+  EXPECT_EQ(s.replica.settings().leader(), "B");
+  EXPECT_NEAR(s.replica.camera().eye().x(), -1.0, 1e-9);
+  // A's release does nothing now (it does not lead); B's gives the view back.
+  site::ToMaster release;
+  release.mutable_release();
+  s.roster.apply(s.master, a, release, 0.6);
+  s.step(0.7);
+  EXPECT_EQ(s.replica.settings().leader(), "B");
+  s.roster.leave(s.master, b);  // a leader that leaves gives the view back too
+  s.step(0.8);
+  EXPECT_EQ(s.replica.settings().leader(), "");
+  (void)before;
+}
+
+}  // namespace
