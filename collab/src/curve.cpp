@@ -39,12 +39,14 @@ constexpr int kZapEnforceDomain = ZMQ_ZAP_ENFORCE_DOMAIN;
 constexpr int kZapEnforceDomain = 93;  // zmq_draft.h of libzmq 4.3
 #endif
 
-std::string errnoText(int error) { return std::strerror(error); }
+std::string errnoText(int error) {
+  return std::strerror(error);
+}
 
 std::string trim(const std::string& s) {
-  const size_t first = s.find_first_not_of(" \t\r");
+  const size_t first = s.find_first_not_of(" \t\r\n");
   if (first == std::string::npos) return "";
-  const size_t last = s.find_last_not_of(" \t\r");
+  const size_t last = s.find_last_not_of(" \t\r\n");
   return s.substr(first, last - first + 1);
 }
 
@@ -364,13 +366,12 @@ KeyNames parseAllowList(const std::filesystem::path& path, FileStamp& stamp) {
   const std::vector<std::string> all = lines(file.bytes);
   for (size_t i = 0; i < all.size(); ++i) {
     const std::string line = trim(all[i]);
-    if (line.empty()) continue;
+    // '#' is a Z85 character, but never a key's first: a 5-character group beginning with it
+    // (84 * 85^4) exceeds 2^32 - 1. So a line beginning with '#' is always a comment.
+    if (line.empty() || line[0] == '#') continue;
     const size_t space = line.find_first_of(" \t");
     const std::string first = line.substr(0, space);
-    // '#' is a Z85 character: a line whose first word is a key is a key line even when the key
-    // begins with '#'; any other line beginning with '#' is a comment.
     if (!isZ85Key(first)) {
-      if (line[0] == '#') continue;
       throw KeyError(std::string(who) + ": " + name + ":" + std::to_string(i + 1) + ": '" +
                      first.substr(0, 48) + "' is not a Z85 public key (" +
                      std::to_string(kKeyChars) + " characters of the Z85 alphabet)");
@@ -390,7 +391,7 @@ struct AllowList::Impl {
   std::filesystem::path path;
   mutable std::mutex mutex;  // the ZAP thread's find() and reload() against the master's
   KeyNames keys;
-  FileStamp stamp;           // of the last version read, good or bad
+  FileStamp stamp;  // of the last version read, good or bad
   uint64_t generation = 0;
 };
 
@@ -448,7 +449,9 @@ uint64_t AllowList::generation() const {
   return m->generation;
 }
 
-const std::filesystem::path& AllowList::path() const { return m->path; }
+const std::filesystem::path& AllowList::path() const {
+  return m->path;
+}
 
 // ---- ZAP handler -----------------------------------------------------------------------------
 
@@ -482,7 +485,9 @@ class RateLimitedLog {
 };
 
 /// A key's first characters for a log line: enough to find it in an allow list, not all of it.
-std::string keyPrefix(const std::string& key) { return key.substr(0, 8) + "..."; }
+std::string keyPrefix(const std::string& key) {
+  return key.substr(0, 8) + "...";
+}
 
 }  // namespace
 
@@ -492,7 +497,7 @@ struct ZapHandler::Impl {
   std::atomic<bool> stop{false};
   mutable std::mutex mutex;  // counters: the ZAP thread writes, counters() reads
   ZapCounters counters;
-  RateLimitedLog log;        // ZAP thread only
+  RateLimitedLog log;  // ZAP thread only
   std::thread thread;
 
   Impl(zmq::context_t& c, std::shared_ptr<AllowList> a) : context(c), allow(std::move(a)) {}
@@ -501,7 +506,7 @@ struct ZapHandler::Impl {
     std::string status, text, user_id;
   };
 
-  void count(uint64_t ZapCounters::* field) {
+  void count(uint64_t ZapCounters::*field) {
     std::lock_guard lock(mutex);
     counters.*field += 1;
   }
@@ -511,10 +516,13 @@ struct ZapHandler::Impl {
   Reply decide(const std::vector<zmq::message_t>& frames) {
     if (frames.size() < 6 || frames[0].to_string_view() != "1.0") {
       count(&ZapCounters::malformed);
-      log.say("malformed", "a malformed ZAP request (" + std::to_string(frames.size()) +
-                               " frames" + (frames.empty() ? "" : ", version '" +
-                               std::string(frames[0].to_string_view().substr(0, 8)) + "'") +
-                               ")");
+      log.say(
+          "malformed",
+          "a malformed ZAP request (" + std::to_string(frames.size()) + " frames" +
+              (frames.empty()
+                   ? ""
+                   : ", version '" + std::string(frames[0].to_string_view().substr(0, 8)) + "'") +
+              ")");
       return {"500", "malformed ZAP request", ""};
     }
     const std::string domain = frames[2].to_string();
@@ -522,8 +530,8 @@ struct ZapHandler::Impl {
     const std::string mechanism = frames[5].to_string();
     if (mechanism != "CURVE") {
       count(&ZapCounters::refused_mechanism);
-      log.say("mechanism " + mechanism, "refused " + address + ": mechanism " + mechanism +
-                                            " (site links are CURVE only)");
+      log.say("mechanism " + mechanism,
+              "refused " + address + ": mechanism " + mechanism + " (site links are CURVE only)");
       return {"400", "CURVE only", ""};
     }
     if (domain != kZapDomain) {
@@ -565,12 +573,9 @@ struct ZapHandler::Impl {
         // A REP socket must answer before it can receive again, even a request it cannot read.
         const std::string request_id = frames.size() > 1 ? frames[1].to_string() : "";
         std::array<zmq::const_buffer, 6> parts = {
-            zmq::str_buffer("1.0"),
-            zmq::buffer(request_id),
-            zmq::buffer(reply.status),
-            zmq::buffer(reply.text),
-            zmq::buffer(reply.user_id),
-            zmq::const_buffer(nullptr, 0),  // metadata: none
+            zmq::str_buffer("1.0"),     zmq::buffer(request_id),
+            zmq::buffer(reply.status),  zmq::buffer(reply.text),
+            zmq::buffer(reply.user_id), zmq::const_buffer(nullptr, 0),  // metadata: none
         };
         zmq::send_multipart(socket, parts);
       } catch (const zmq::error_t& e) {
@@ -609,8 +614,7 @@ ZapHandler::ZapHandler(zmq::context_t& context, std::shared_ptr<AllowList> allow
   } catch (const zmq::error_t& e) {
     m->thread.join();
     throw KeyError(std::string("collab::ZapHandler: cannot bind ") + kZapEndpoint + " (" +
-                   e.what() + (e.num() == EADDRINUSE ? "; one ZAP handler per context" : "") +
-                   ")");
+                   e.what() + (e.num() == EADDRINUSE ? "; one ZAP handler per context" : "") + ")");
   }
 }
 

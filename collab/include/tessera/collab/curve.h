@@ -15,10 +15,9 @@
 //   secret = "JTKVSB%%)wK0E.X)V>+}o?pNmC{O&4W4b!Ni{Lh6"
 //
 // The allow list is text, one site per line: its public key, then optionally its name; '#'
-// starts a comment. '#' is also a Z85 character, so a line whose first word is a 40-character
-// key is a key line even when the key begins with '#'. It is read again when its modification
-// time, size or inode changes, and refused when group or others may write it (whoever can
-// write it can let anyone in).
+// starts a comment (a Z85 character, but never a key's first one: the group it began would
+// exceed 2^32). It is read again when its modification time, size or inode changes, and
+// refused when group or others may write it (whoever can write it can let anyone in).
 //
 // ZapHandler lifetime: libzmq admits every CURVE client of a server socket whose context has no
 // ZAP handler unless ZMQ_ZAP_ENFORCE_DOMAIN is set; curveServer() sets it (libzmq 4.3 accepts
