@@ -615,6 +615,9 @@ ZapHandler::ZapHandler(zmq::context_t& context, std::shared_ptr<AllowList> allow
     m->thread.join();
     throw KeyError(std::string("collab::ZapHandler: cannot bind ") + kZapEndpoint + " (" +
                    e.what() + (e.num() == EADDRINUSE ? "; one ZAP handler per context" : "") + ")");
+  } catch (...) {
+    m->thread.join();  // a joinable std::thread must not be destroyed
+    throw;
   }
 }
 
