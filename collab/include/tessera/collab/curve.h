@@ -15,7 +15,14 @@
 //   secret = "JTKVSB%%)wK0E.X)V>+}o?pNmC{O&4W4b!Ni{Lh6"
 //
 // The allow list is text, one site per line: its public key, then optionally its name; '#'
-// starts a comment. It is read again when its modification time or size changes.
+// starts a comment (a Z85 character, but never a key's first one: the group it began would
+// exceed 2^32). It is read again when its modification time, size or inode changes, and
+// refused when group or others may write it (whoever can write it can let anyone in).
+//
+// ZapHandler lifetime: libzmq admits every CURVE client of a server socket whose context has no
+// ZAP handler unless ZMQ_ZAP_ENFORCE_DOMAIN is set; curveServer() sets it (libzmq 4.3 accepts
+// it although zmq.h lists it as draft), so without a handler every handshake is refused. Keep
+// the ZapHandler alive as long as the server socket all the same.
 #pragma once
 
 #include <cstdint>
@@ -90,6 +97,8 @@ class AllowList {
 /// What the ZAP handler decided so far (for messages and tests).
 struct ZapCounters {
   uint64_t allowed = 0, refused_unknown_key = 0, refused_mechanism = 0, malformed = 0;
+  /// A request for another ZAP domain than "tessera" (another socket of the context).
+  uint64_t refused_domain = 0;
 };
 
 /// The ZAP handler (RFC 27) of `context`: a thread answering inproc://zeromq.zap.01 for every
