@@ -55,7 +55,7 @@ void Console::draw(const sync::SceneGraph& graph, const sync::SceneChanges& chan
   mLastView = view(graph.camera());
   render::RenderOptions options = render::SceneDrawList::options(graph, mSplatScale);
   options.pick_ids = true;  // the navigation's picks read the frame's ids
-  const render::Overlay marks = overlay();
+  const render::Overlay marks = overlay(mSceneOverlay.update(graph, changes));
   mRenderer->draw(mInstances, mLastView, options, nullptr, &marks);
   mWindow->present(mRenderer->imageBuffer(), mWidth, mHeight);
 }
@@ -68,10 +68,10 @@ void Console::save(const std::string& path) const {
               shown.height);
 }
 
-render::Overlay Console::overlay() const {
+render::Overlay Console::overlay(const render::Overlay& scene) const {
   // The right-hand bar of the navigation, lightened (a quarter white over the scene), and a ring
-  // where the target is.
-  render::Overlay o;
+  // where the target is, after the scene's own (so on top of them).
+  render::Overlay o = scene;
   const float bar_x = float(mWidth * (1.0 - OneButtonNavigation::kBarFraction));
   o.rects.push_back({{bar_x, 0.0f}, {float(mWidth), float(mHeight)}, {255, 255, 255, 64}});
   if (const auto& target = mNavigation.target()) {

@@ -11,6 +11,7 @@
 
 #include <tessera/master/one_button_navigation.h>
 #include <tessera/render/scene_draw_list.h>
+#include <tessera/render/scene_overlay.h>
 #include <tessera/render/view_renderer.h>
 #include <tessera/render/window.h>
 #include <tessera/sync/scene_graph.h>
@@ -36,7 +37,9 @@ class Console {
 
  private:
   render::ViewSetup view(const config::Camera& camera) const;
-  render::Overlay overlay() const;  // the navigation's bar and the target marker
+  /// The scene's overlay (sketches, avatars, annotations) with the navigation's bar and the
+  /// target marker on top.
+  render::Overlay overlay(const render::Overlay& scene) const;
 
   config::WallConfig mWall;
   float mSplatScale;
@@ -45,6 +48,7 @@ class Console {
   std::unique_ptr<render::ViewRenderer> mRenderer;
   render::SceneDrawList mModels;  // after mRenderer: its stores close once the renderer is gone
   std::span<const render::ModelInstance> mInstances;  // mModels', until its next update
+  render::SceneOverlay mSceneOverlay;
   render::ViewSetup mLastView;
   OneButtonNavigation mNavigation;
   size_t mSelected = 0;  // index among the MODEL nodes

@@ -151,7 +151,7 @@ glm::vec2 OverlayPass::Impl::layout(const OverlayLabel& l, const glm::dvec4* anc
     width += font->GetCharAdvance(glyphOf(nextCodePoint(l.text, i))) * scale;
   const glm::vec2 box(width + 2.0f * pad, l.height_px + 2.0f * pad);
   if (!anchor) return box;
-  const glm::vec2 o = l.offset_px;
+  const glm::vec2 o = l.offset_px - glm::clamp(l.align, glm::vec2(0.0f), glm::vec2(1.0f)) * box;
   if (l.background.a > 0) {
     begin(white.name(), true);
     sprite(*anchor, o, o + box, glm::vec2(0), glm::vec2(1), pack(l.background),
@@ -178,7 +178,8 @@ void OverlayPass::Impl::addLabel(const OverlayLabel& l) {
   const glm::dvec4 a = clip(l.at);
   // Behind the eye, outside the depth range, not finite, or of no size.
   if (!(a.w > 0.0) || a.z < -a.w || a.z > a.w || !(l.height_px > 0.0f) ||
-      !std::isfinite(l.height_px) || !std::isfinite(l.offset_px.x) || !std::isfinite(l.offset_px.y))
+      !std::isfinite(l.height_px) || !std::isfinite(l.offset_px.x) ||
+      !std::isfinite(l.offset_px.y) || !std::isfinite(l.align.x) || !std::isfinite(l.align.y))
     return;
   layout(l, &a);
 }

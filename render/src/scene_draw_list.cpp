@@ -20,6 +20,23 @@ glm::dmat4 transformOf(const scene::SceneNode& node) {
 
 }  // namespace
 
+NodePlacement placeNode(const sync::SceneGraph& graph, sync::SceneGraph::NodeId id) {
+  const scene::SceneNode& node = graph.node(id);
+  // Up the tree: parents' transforms apply after the node's own; any hidden one hides it.
+  NodePlacement p;
+  p.visible = node.visible();
+  p.opacity = node.opacity();
+  p.world = transformOf(node);
+  for (auto parent = node.parent(); p.visible && parent != sync::SceneGraph::kRoot;) {
+    const scene::SceneNode& up = graph.node(parent);
+    p.visible = up.visible();
+    p.opacity *= up.opacity();
+    p.world = transformOf(up) * p.world;
+    parent = up.parent();
+  }
+  return p;
+}
+
 sync::SceneGraph loadSceneWithStores(const std::string& path, const std::string& who) {
   scene::SceneFile scene = sync::loadSceneFile(path);
   for (int i = 0; i < scene.nodes_size(); ++i) {
@@ -96,17 +113,7 @@ const std::vector<ModelInstance>& SceneDrawList::update(const sync::SceneGraph& 
       mEntries.erase(id);
       continue;
     }
-    // Up the tree: parents' transforms apply after the node's own; any hidden one hides it.
-    bool visible = node.visible();
-    float opacity = node.opacity();
-    glm::dmat4 world = transformOf(node);
-    for (auto parent = node.parent(); visible && parent != sync::SceneGraph::kRoot;) {
-      const scene::SceneNode& p = graph.node(parent);
-      visible = p.visible();
-      opacity *= p.opacity();
-      world = transformOf(p) * world;
-      parent = p.parent();
-    }
+    const NodePlacement placed = placeNode(graph, id);
     Entry& e = mEntries[id];
     e.path = node.model().store();
     lod::PointStore* store = mStores.at(e.path).get();
@@ -115,8 +122,8 @@ const std::vector<ModelInstance>& SceneDrawList::update(const sync::SceneGraph& 
       const scene::Color& c = node.model().color();
       color = glm::u8vec3(glm::clamp(glm::vec3(c.r(), c.g(), c.b()), 0.0f, 1.0f) * 255.0f + 0.5f);
     }
-    e.instance = {store, world * storeModel(*store), opacity, color};
-    e.visible = visible && opacity > 0.0f;
+    e.instance = {store, placed.world * storeModel(*store), placed.opacity, color};
+    e.visible = placed.visible && placed.opacity > 0.0f;
   }
 
   // Stores no model uses any more: the loaders let go of them first, then they close.

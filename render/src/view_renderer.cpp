@@ -179,14 +179,15 @@ std::optional<PickHit> ViewRenderer::pick(uint32_t x, uint32_t y) const {
 }
 
 Image ViewRenderer::renderSettled(std::span<const ModelInstance> models, const ViewSetup& view,
-                                  const RenderOptions& options, RenderStats* stats) {
+                                  const RenderOptions& options, RenderStats* stats,
+                                  const Overlay* overlay) {
   RenderStats st;
   Image img;
   // Each round either finds the cut complete or makes the loader fetch at least one missing
   // chunk or page, so this ends; the bound only guards against a bug.
   const uint32_t ensembles = std::max(options.spbr.ensembles, options.spbr.progressive_max);
   for (size_t frame = 1; frame <= 100000; ++frame) {
-    img = render(models, view, options, &st);
+    img = render(models, view, options, &st, overlay);
     st.frames = frame;
     if (st.stream.requested == 0 && st.stream.pages_requested == 0) {
       if (st.ensembles == 0 || st.ensembles >= ensembles) break;

@@ -23,6 +23,7 @@
 #include <tessera/lod/store_cache.h>
 #include <tessera/render/gl_context.h>
 #include <tessera/render/scene_draw_list.h>
+#include <tessera/render/scene_overlay.h>
 #include <tessera/render/view_renderer.h>
 #include <tessera/render/wall_mosaic.h>
 #include <tessera/render/window.h>
@@ -113,12 +114,13 @@ config::Camera interactive(render::Window& win, config::Camera cam,
                            const std::function<render::ViewSetup(const config::Camera&)>& viewOf,
                            std::span<const render::ModelInstance> instances,
                            const render::RenderOptions& options,
-                           const render::StreamerOptions& stream_options, int frames) {
+                           const render::StreamerOptions& stream_options,
+                           const render::Overlay* overlay, int frames) {
   const render::ViewSetup first = viewOf(cam);
   render::ViewRenderer r(first.width, first.height, nullptr, stream_options);
   for (int frame = 1; !win.closing() && (frames == 0 || frame <= frames); ++frame) {
     render::RenderStats st;
-    r.draw(instances, viewOf(cam), options, &st);
+    r.draw(instances, viewOf(cam), options, &st, overlay);
     win.present(r.imageBuffer(), first.width, first.height);
     char title[160];
     std::snprintf(title, sizeof title, "tessera-render: %llu points, %.0f ms, %zu chunks loading",
@@ -267,6 +269,7 @@ int run(int argc, char** argv) {
     // nodes and the console use (render/scene_draw_list.h), so all draw it alike.
     sync::SceneGraph graph;
     render::SceneDrawList scene_list;
+    render::Overlay scene_overlay;  // the scene's sketches, avatars and annotations
     if (!scene_path.empty()) {
       graph = render::loadSceneWithStores(scene_path, "tessera-render");
       const auto& listed = scene_list.update(graph, sync::SceneChanges::all());
@@ -274,6 +277,7 @@ int run(int argc, char** argv) {
       cam = graph.camera();
       have_camera = true;
       options = render::SceneDrawList::options(graph, float(splat_scale));
+      render::appendSceneOverlay(graph, scene_overlay);
     }
     for (const std::string& m : models) {
       // FILE or FILE:OPACITY (a colon followed by a number, so paths with colons still work).
@@ -371,10 +375,11 @@ int run(int argc, char** argv) {
     // Surface cells only where copies move over them (SpbrOptions::copies).
     stream_options.surface_cells =
         stream_options.density_ratios && options.spbr.copies != render::SpbrCopies::kAtPoint;
+    const render::Overlay* overlay = scene_overlay.empty() ? nullptr : &scene_overlay;
     auto renderView = [&](const std::string& name, const render::ViewSetup& v) {
       render::ViewRenderer r(v.width, v.height, nullptr, stream_options);
       render::RenderStats st;
-      render::Image img = r.renderSettled(instances, v, options, &st);
+      render::Image img = r.renderSettled(instances, v, options, &st, overlay);
       std::fprintf(stderr,
                    "%s: %ux%u, %zu nodes, %llu points, %.1f MB resident after %zu frames; last "
                    "frame %.1f ms (select %.1f, depth %.1f, colour %.1f, resolve %.1f)%s\n",
@@ -415,7 +420,9 @@ int run(int argc, char** argv) {
         v.eye_world = glm::dvec3(c.eye().x(), c.eye().y(), c.eye().z());
         return v;
       };
-      if (win) cam = interactive(*win, cam, plainView, instances, options, stream_options, frames);
+      if (win)
+        cam =
+            interactive(*win, cam, plainView, instances, options, stream_options, overlay, frames);
       if (out.empty()) return 0;
       const render::ViewSetup v = plainView(cam);
       result = renderView("view", v);

@@ -9,6 +9,7 @@
 #include <tessera/core/stopwatch.h>
 #include <tessera/render/gl_context.h>
 #include <tessera/render/scene_draw_list.h>
+#include <tessera/render/scene_overlay.h>
 #include <tessera/render/view_renderer.h>
 #include <tessera/render/window.h>
 #include <tessera/sync/scene_graph.h>
@@ -60,6 +61,7 @@ struct RenderNode::Impl {
   sync::SceneGraph graph;
   render::SceneDrawList models;
   std::span<const render::ModelInstance> instances;  // the draw list's, until its next update
+  render::SceneOverlay overlay;                      // sketches, avatars, annotations
   std::unique_ptr<render::ViewRenderer> renderer;    // destroyed first: needs the context
   cluster::NodeStatus status;                        // NODE_OK until something fails
   uint64_t reported = 0;                             // the last frame reported
@@ -78,6 +80,7 @@ struct RenderNode::Impl {
   }
 
   void updateModels(const sync::SceneChanges& changes) {
+    overlay.update(graph, changes);  // rebuilt only when nodes changed
     try {
       render::ChunkStreamer* streamers[] = {renderer ? &renderer->streamer() : nullptr};
       instances = models.update(graph, changes, streamers);
@@ -175,10 +178,11 @@ struct RenderNode::Impl {
           // Settling can take many frames (loading, see-through ensembles): the link says
           // now and then that this node is at work, so the master tells slow from hung.
           link.working(graph.frameNumber());
-          render::Image image = renderer->renderSettled(instances, view, options, &rs);
+          render::Image image =
+              renderer->renderSettled(instances, view, options, &rs, overlay.drawn());
           if (read_back) r.set_rgba(image.rgba.data(), image.rgba.size());
         } else {
-          renderer->draw(instances, view, options, &rs);
+          renderer->draw(instances, view, options, &rs, overlay.drawn());
         }
         cluster::NodeFrameStats& st = *r.mutable_stats();
         st.set_render_ms(msSince(start_time));

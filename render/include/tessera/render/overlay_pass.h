@@ -42,8 +42,10 @@ struct OverlayPoint {
 };
 
 /// Text at a world position: its box's top-left corner `offset_px` from where the position
-/// projects (y down), `height_px` tall, over a `background` box (alpha 0: none). UTF-8; glyphs
-/// the font lacks show as '?'. Hidden when its anchor is.
+/// projects (y down), then moved by -align times the box's size (so align (0.5, 1) puts the
+/// box's bottom centre at the offset: text centred above its anchor), `height_px` tall, over a
+/// `background` box (alpha 0: none). UTF-8; glyphs the font lacks show as '?'. Hidden when its
+/// anchor is.
 struct OverlayLabel {
   glm::dvec3 at{0.0};
   std::string text;
@@ -51,6 +53,7 @@ struct OverlayLabel {
   glm::u8vec4 background{0, 0, 0, 160};
   float height_px = 20.0f;
   glm::vec2 offset_px{8.0f, -28.0f};
+  glm::vec2 align{0.0f};  ///< fractions of the box's width and height, each in [0, 1]
 };
 
 /// A textured quad in the world, corners in order (texture u, v): (0,0) (1,0) (1,1) (0,1), v = 0

@@ -32,6 +32,18 @@ namespace tessera::render {
 /// file itself) naming the file, the node and why.
 sync::SceneGraph loadSceneWithStores(const std::string& path, const std::string& who);
 
+/// Where a scene node is and how it shows: world = (ancestors' transforms) * (its transform),
+/// multiplied in double; opacity the product of its own and its ancestors'; visible false when
+/// it or an ancestor is hidden (then world and opacity stop at the hidden one). Every scene
+/// consumer (the draw list, scene_overlay.h) places nodes with it. Cost: the node's depth.
+/// Precondition: graph.contains(id).
+struct NodePlacement {
+  glm::dmat4 world{1.0};
+  float opacity = 1.0f;
+  bool visible = true;
+};
+NodePlacement placeNode(const sync::SceneGraph& graph, sync::SceneGraph::NodeId id);
+
 class SceneDrawList {
  public:
   /// Brings the list up to date with `graph` after `changes` (what SceneGraph::apply() returned,

@@ -150,9 +150,11 @@ class ViewRenderer {
                const Overlay* overlay = nullptr);
   /// Frames until the whole cut is resident (or refused as corrupt) and, see-through, every
   /// ensemble up to options.spbr's maximum is averaged; the last one's image.
-  /// `stats` holds the last frame's figures with `frames` counting all of them.
+  /// `stats` holds the last frame's figures with `frames` counting all of them. `overlay`, when
+  /// given, is drawn on every frame's image, so the settled one shows it (screenshots).
   Image renderSettled(std::span<const ModelInstance> models, const ViewSetup& view,
-                      const RenderOptions& options, RenderStats* stats = nullptr);
+                      const RenderOptions& options, RenderStats* stats = nullptr,
+                      const Overlay* overlay = nullptr);
 
   /// What pixel (x right, y down from the top-left) of the last frame shows: the model, node and
   /// point, its depth and world position. Empty where the pixel shows background, or when the

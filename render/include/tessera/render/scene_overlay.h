@@ -1,0 +1,72 @@
+// The scene overlay (issue 13): the scene graph's SKETCH, AVATAR and ANNOTATION nodes as overlay
+// primitives (overlay_pass.h), so every tile of every wall and the master's console draw the
+// same sketches, remote participants' glyphs and notes, depth-tested against the models. Render
+// nodes, the console and `tessera-render --scene` all build it here, as they build their models
+// with scene_draw_list.h.
+//
+// Frames: a node's payload is in its node frame; its world transform is its ancestors'
+// transforms times its own, multiplied in double, and payload positions (floats) are taken to
+// the world in double, so a sketch 10^6 m from the origin keeps its millimetres. A node is
+// hidden when it or an ancestor is invisible; its colours' alpha is multiplied by its own and
+// its ancestors' opacities (a node at opacity 0 adds nothing).
+//
+// What each kind becomes:
+//  - SKETCH: its points as a polyline of OverlayLines, `width` pixels (0: sketch_width_px), an
+//    OverlayPoint of the line's width on each interior vertex for round joins; a single point is
+//    one dot. Joins blend twice where a see-through sketch overlaps itself.
+//  - AVATAR: the participant's camera pose is its transform (columns right, up, back, eye): a
+//    head (a dot at the eye over a dark ring), its view frustum out to `reach` metres (the 4
+//    edges from the eye and the far rectangle; left out when fovy_deg, aspect or reach is 0),
+//    and its name (the payload's site, else the node's name) centred above the head.
+//  - ANNOTATION: its text at its anchor over a dark box, and a small dot at the anchor.
+//
+// Cost: one pass over the scene's node ids, plus for each overlay node its ancestors (the tree's
+// depth) and its payload (a sketch's points); no GL. Cheap enough to rebuild per frame;
+// SceneOverlay rebuilds only on frames that changed nodes.
+#pragma once
+
+#include <cstddef>
+
+#include <tessera/render/overlay_pass.h>
+#include <tessera/sync/scene_graph.h>
+
+namespace tessera::render {
+
+/// Sizes of what the scene overlay draws, pixels.
+struct SceneOverlayOptions {
+  float sketch_width_px = 2.0f;  ///< a sketch whose width is 0
+  float avatar_head_px = 14.0f;  ///< the head dot's diameter
+  float avatar_ring_px = 3.0f;   ///< the dark ring around it (0: none)
+  float avatar_frustum_px = 1.5f;
+  float label_px = 16.0f;  ///< avatar names and annotation texts, the text's height
+  float annotation_dot_px = 7.0f;
+};
+
+/// Whether the node kind is one the scene overlay draws (SKETCH, AVATAR, ANNOTATION).
+bool isOverlayKind(sync::SceneGraph::Kind kind);
+
+/// Appends the primitives of the graph's visible SKETCH, AVATAR and ANNOTATION nodes (in
+/// ascending id) to `out`, whose other content and depth_bias are left as they are. Returns how
+/// many nodes it drew.
+size_t appendSceneOverlay(const sync::SceneGraph& graph, Overlay& out,
+                          const SceneOverlayOptions& options = {});
+
+/// A scene overlay kept up to date with a replica: update() rebuilds it when a frame changed
+/// nodes (any node: a group's transform, visibility or opacity moves what is below it) and
+/// keeps it otherwise, so a frame that moved only the camera costs nothing.
+class SceneOverlay {
+ public:
+  explicit SceneOverlay(const SceneOverlayOptions& options = {}) : mOptions(options) {}
+  /// `changes` as for SceneDrawList::update(). The reference stays valid until the next call.
+  const Overlay& update(const sync::SceneGraph& graph, const sync::SceneChanges& changes);
+  const Overlay& overlay() const { return mOverlay; }
+  /// The overlay to pass to ViewRenderer::draw(): null while it is empty.
+  const Overlay* drawn() const { return mOverlay.empty() ? nullptr : &mOverlay; }
+
+ private:
+  SceneOverlayOptions mOptions;
+  Overlay mOverlay;
+  bool mStarted = false;
+};
+
+}  // namespace tessera::render

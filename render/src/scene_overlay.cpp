@@ -1,0 +1,154 @@
+#include <tessera/render/scene_overlay.h>
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+
+#include <tessera/render/scene_draw_list.h>
+
+namespace tessera::render {
+
+namespace {
+
+/// Colours when a payload has none.
+constexpr glm::u8vec3 kSketchDefault{255, 255, 255};
+constexpr glm::u8vec3 kAvatarDefault{255, 160, 40};
+constexpr glm::u8vec3 kAnnotationDot{255, 210, 60};
+
+glm::u8vec4 colorOf(bool has, const scene::Color& c, glm::u8vec3 fallback, float opacity) {
+  const glm::u8vec3 rgb =
+      has ? glm::u8vec3(glm::clamp(glm::vec3(c.r(), c.g(), c.b()), 0.0f, 1.0f) * 255.0f + 0.5f)
+          : fallback;
+  return {rgb, uint8_t(std::lround(std::clamp(opacity, 0.0f, 1.0f) * 255.0f))};
+}
+
+/// `alpha` (0..255) scaled by the opacity.
+uint8_t fade(uint8_t alpha, float opacity) {
+  return uint8_t(std::lround(alpha * std::clamp(opacity, 0.0f, 1.0f)));
+}
+
+glm::dvec3 toWorld(const glm::dmat4& world, double x, double y, double z) {
+  return glm::dvec3(world * glm::dvec4(x, y, z, 1.0));
+}
+
+void addSketch(const scene::SketchPayload& s, const glm::dmat4& world, float opacity,
+               const SceneOverlayOptions& o, Overlay& out) {
+  const size_t n = size_t(s.points_size()) / 3;
+  if (n == 0) return;
+  const glm::u8vec4 color = colorOf(s.has_color(), s.color(), kSketchDefault, opacity);
+  const float width = s.width() > 0.0f ? s.width() : o.sketch_width_px;
+  const auto& p = s.points();
+  auto at = [&](size_t i) { return toWorld(world, p[3 * i], p[3 * i + 1], p[3 * i + 2]); };
+  glm::dvec3 a = at(0);
+  bool segments = false;
+  for (size_t i = 1; i < n; ++i) {
+    const glm::dvec3 b = at(i);
+    // A repeated point (a pen held still) adds nothing: no zero-length segment, no extra join.
+    if (b == a) continue;
+    if (segments) out.points.push_back({a, color, width});  // a round join over the square caps
+    out.lines.push_back({a, b, color, width});
+    segments = true;
+    a = b;
+  }
+  if (!segments) out.points.push_back({a, color, width});  // one point (or all the same): a dot
+}
+
+void addAvatar(const scene::SceneNode& node, const glm::dmat4& world, float opacity,
+               const SceneOverlayOptions& o, Overlay& out) {
+  const scene::AvatarPayload& a = node.avatar();
+  const glm::u8vec4 color = colorOf(a.has_color(), a.color(), kAvatarDefault, opacity);
+  const glm::dvec3 eye = toWorld(world, 0.0, 0.0, 0.0);
+  // The view frustum in the node frame (the participant's camera: looking down -z, y up), out to
+  // the far face at `reach`.
+  const double half_h =
+      double(a.reach()) * std::tan(double(a.fovy_deg()) * std::numbers::pi / 360.0);
+  const double half_w = half_h * double(a.aspect());
+  if (a.fovy_deg() > 0.0f && a.aspect() > 0.0f && a.reach() > 0.0f && std::isfinite(half_w) &&
+      half_w > 0.0 && half_h > 0.0) {
+    const double z = -double(a.reach());
+    const glm::dvec3 c[4] = {toWorld(world, -half_w, -half_h, z),
+                             toWorld(world, half_w, -half_h, z), toWorld(world, half_w, half_h, z),
+                             toWorld(world, -half_w, half_h, z)};
+    for (int k = 0; k < 4; ++k) {
+      out.lines.push_back({eye, c[k], color, o.avatar_frustum_px});
+      out.lines.push_back({c[k], c[(k + 1) % 4], color, o.avatar_frustum_px});
+    }
+  }
+  // The head: a dark disc, then the coloured dot on it (overlays drawn later lie on top).
+  if (o.avatar_ring_px > 0.0f)
+    out.points.push_back(
+        {eye, {16, 16, 16, fade(255, opacity)}, o.avatar_head_px + 2.0f * o.avatar_ring_px});
+  out.points.push_back({eye, color, o.avatar_head_px});
+  const std::string& name = a.site().empty() ? node.name() : a.site();
+  if (name.empty()) return;
+  OverlayLabel label;
+  label.at = eye;
+  label.text = name;
+  label.color = color;
+  label.background = {0, 0, 0, fade(200, opacity)};
+  label.height_px = o.label_px;
+  label.offset_px = {0.0f, -(0.5f * o.avatar_head_px + o.avatar_ring_px + 3.0f)};
+  label.align = {0.5f, 1.0f};  // centred above the head
+  out.labels.push_back(std::move(label));
+}
+
+void addAnnotation(const scene::AnnotationPayload& a, const glm::dmat4& world, float opacity,
+                   const SceneOverlayOptions& o, Overlay& out) {
+  const glm::dvec3 at = toWorld(world, a.anchor().x(), a.anchor().y(), a.anchor().z());
+  out.points.push_back({at, {kAnnotationDot, fade(255, opacity)}, o.annotation_dot_px});
+  if (a.text().empty()) return;
+  OverlayLabel label;
+  label.at = at;
+  label.text = a.text();
+  label.color = {255, 255, 255, fade(255, opacity)};
+  label.background = {0, 0, 0, fade(200, opacity)};
+  label.height_px = o.label_px;
+  const float gap = 0.5f * o.annotation_dot_px + 2.0f;
+  label.offset_px = {gap, -gap};
+  label.align = {0.0f, 1.0f};  // up and right of the dot
+  out.labels.push_back(std::move(label));
+}
+
+}  // namespace
+
+bool isOverlayKind(sync::SceneGraph::Kind kind) {
+  return kind == scene::SceneNode::SKETCH || kind == scene::SceneNode::AVATAR ||
+         kind == scene::SceneNode::ANNOTATION;
+}
+
+size_t appendSceneOverlay(const sync::SceneGraph& graph, Overlay& out,
+                          const SceneOverlayOptions& options) {
+  size_t drawn = 0;
+  for (const sync::SceneGraph::NodeId id : graph.ids()) {
+    const scene::SceneNode& node = graph.node(id);
+    if (!isOverlayKind(node.kind())) continue;
+    const NodePlacement placed = placeNode(graph, id);
+    if (!placed.visible || !(placed.opacity > 0.0f)) continue;
+    switch (node.kind()) {
+      case scene::SceneNode::SKETCH:
+        addSketch(node.sketch(), placed.world, placed.opacity, options, out);
+        break;
+      case scene::SceneNode::AVATAR:
+        addAvatar(node, placed.world, placed.opacity, options, out);
+        break;
+      case scene::SceneNode::ANNOTATION:
+        addAnnotation(node.annotation(), placed.world, placed.opacity, options, out);
+        break;
+      default:
+        break;
+    }
+    ++drawn;
+  }
+  return drawn;
+}
+
+const Overlay& SceneOverlay::update(const sync::SceneGraph& graph,
+                                    const sync::SceneChanges& changes) {
+  if (mStarted && !changes.everything && changes.nodes.empty()) return mOverlay;
+  mStarted = true;
+  mOverlay = Overlay();
+  appendSceneOverlay(graph, mOverlay, mOptions);
+  return mOverlay;
+}
+
+}  // namespace tessera::render
