@@ -81,7 +81,7 @@ site::SiteWelcome SiteClient::join(sync::SceneGraph& graph, Clock::time_point de
       case site::ToSite::kDropped:
         throw SiteSessionEnded(Why::kDropped, "dropped by the master: " + reply->dropped().reason());
       case site::ToSite::kQuit:
-        throw SiteSessionEnded(Why::kQuit, "the session ended: " + reply->quit().reason());
+        throw SiteSessionEnded(Why::kQuit, "the master ended the session (" + reply->quit().reason() + ")");
       default:
         break;  // frames of an earlier session on this connection
     }
@@ -114,7 +114,7 @@ sync::SceneChanges SiteClient::receive(sync::SceneGraph& graph, Clock::time_poin
         case site::ToSite::kDropped:
           throw SiteSessionEnded(Why::kDropped, "dropped by the master: " + msg->dropped().reason());
         case site::ToSite::kQuit:
-          throw SiteSessionEnded(Why::kQuit, "the session ended: " + msg->quit().reason());
+          throw SiteSessionEnded(Why::kQuit, "the master ended the session (" + msg->quit().reason() + ")");
         case site::ToSite::kRefused:
           throw SiteSessionEnded(Why::kRefused, "refused: " + msg->refused().reason());
         default:

@@ -303,6 +303,18 @@ void SiteHub::end(const std::string& reason) {
   const std::string bytes = q.SerializeAsString();
   for (auto& [rid, p] : m->peers)
     if (p.participant) m->send(p, bytes);
+  const SiteHubCounters& c = m->counters;
+  char line[320];
+  std::snprintf(line, sizeof line,
+                "%llu joined, %llu left, %llu dropped, %llu refused; received %llu bytes in %llu "
+                "messages, sent %llu bytes in %llu messages (%llu snapshots to sites that fell "
+                "behind)",
+                (unsigned long long)c.joined, (unsigned long long)c.left,
+                (unsigned long long)c.dropped, (unsigned long long)c.refused,
+                (unsigned long long)c.bytes_in, (unsigned long long)c.messages_in,
+                (unsigned long long)c.bytes_out, (unsigned long long)c.messages_out,
+                (unsigned long long)c.snapshots_resent);
+  m->say(line);
 }
 
 std::vector<SiteInfo> SiteHub::sites() const {

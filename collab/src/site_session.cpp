@@ -11,6 +11,7 @@
 
 #include <glm/gtc/matrix_transform.hpp>
 
+#include <tessera/collab/site_messages.h>
 #include <tessera/core/file_checks.h>
 #include <tessera/render/gl_context.h>
 #include <tessera/render/scene_draw_list.h>
@@ -208,9 +209,14 @@ struct SiteSession::Impl {
     return v;
   }
 
-  render::Overlay overlay() const {
+  /// Every sketch and avatar but its own and any at its eye (its leader's, when it follows).
+  render::Overlay overlay(const config::Camera& c) const {
     render::Overlay o;
-    render::appendSceneOverlay(graph, o);
+    render::SceneOverlayOptions so;
+    so.hide_site = welcome.name();
+    so.viewer_eye = vec(c.eye());
+    so.hide_near_m = 1e-3 * std::max(1e-3, glm::length(vec(c.target()) - vec(c.eye())));
+    render::appendSceneOverlay(graph, o, so);
     return o;
   }
 
@@ -245,7 +251,7 @@ struct SiteSession::Impl {
   }
 
   render::Image settled(const config::Camera& c) {
-    const render::Overlay o = overlay();
+    const render::Overlay o = overlay(c);
     return renderer->renderSettled(instances, view(c), options(), nullptr, o.empty() ? nullptr : &o);
   }
 
@@ -270,7 +276,12 @@ struct SiteSession::Impl {
         const double px = a.pixels(i), py = a.pixels(i + 1);
         if (!(px >= 0 && py >= 0 && px < v.width && py < v.height)) continue;
         const uint32_t x = uint32_t(px), y = uint32_t(py);
-        const uint32_t d = depth[size_t(v.height - 1 - y) * v.width + x];
+        // The nearest surface under the cursor: the least depth of its 3x3 pixels, so a sample
+        // never falls through a gap between splats onto what lies behind.
+        uint32_t d = render::kEmptyDepth;
+        for (uint32_t yy = y > 0 ? y - 1 : 0; yy <= std::min(y + 1, v.height - 1); ++yy)
+          for (uint32_t xx = x > 0 ? x - 1 : 0; xx <= std::min(x + 1, v.width - 1); ++xx)
+            d = std::min(d, depth[size_t(v.height - 1 - yy) * v.width + xx]);
         if (d == render::kEmptyDepth) continue;  // no surface under it: skipped
         float z = 1.0f;
         std::memcpy(&z, &d, 4);
@@ -400,7 +411,7 @@ struct SiteSession::Impl {
       const config::Camera c = asSent(camera(now));
       sendPose(c);
       if (renderer) {
-        const render::Overlay o = overlay();
+        const render::Overlay o = overlay(c);
         renderer->draw(instances, view(c), options(), nullptr, o.empty() ? nullptr : &o);
       }
       if (script.frames() > 0 && frame + 1 >= script.frames()) {

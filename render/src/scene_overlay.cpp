@@ -128,9 +128,16 @@ size_t appendSceneOverlay(const sync::SceneGraph& graph, Overlay& out,
       case scene::SceneNode::SKETCH:
         addSketch(node.sketch(), placed.world, placed.opacity, options, out);
         break;
-      case scene::SceneNode::AVATAR:
+      case scene::SceneNode::AVATAR: {
+        // A participant's own glyph, or any standing at the viewer's eye (a follower and its
+        // leader), would fill the view from inside: left out.
+        if (!options.hide_site.empty() && node.avatar().site() == options.hide_site) continue;
+        if (options.hide_near_m > 0.0 &&
+            glm::length(glm::dvec3(placed.world[3]) - options.viewer_eye) <= options.hide_near_m)
+          continue;
         addAvatar(node, placed.world, placed.opacity, options, out);
         break;
+      }
       case scene::SceneNode::ANNOTATION:
         addAnnotation(node.annotation(), placed.world, placed.opacity, options, out);
         break;

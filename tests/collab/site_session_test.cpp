@@ -15,8 +15,13 @@
 #include <sstream>
 
 #include <glm/glm.hpp>
+#include <zmq.hpp>
 
+#include <tessera/collab/curve.h>
+#include <tessera/collab/site_messages.h>
 #include <tessera/lod/mesh.h>
+#include <tessera/site.pb.h>
+#include <tessera/sync/cluster_link.h>
 #include <tessera/render/image.h>
 #include <tessera/render/tile_frustum.h>
 #include <tessera/render/wall_mosaic.h>
@@ -68,9 +73,21 @@ std::string cameraJson(glm::dvec3 eye, glm::dvec3 target) {
 const glm::dvec3 kTarget{-0.027, 0.1, 0.0};
 const glm::dvec3 kWallEye{-0.027, 0.11, 0.75};
 const glm::dvec3 kEyeA{-0.09, 0.13, 0.32}, kEyeB{0.04, 0.08, 0.36}, kEyeC{0.0, 0.16, 0.42};
-// The master's palette: participants 1, 2, 3 (collab/src/site_roster.cpp).
-const glm::vec3 kColorA{0.90f, 0.62f, 0.00f}, kColorB{0.34f, 0.71f, 0.91f},
-    kColorC{0.00f, 0.62f, 0.45f};
+/// The master's palette by participant id (collab/src/site_roster.cpp).
+glm::vec3 participantColor(int participant) {
+  static const glm::vec3 palette[] = {{0.90f, 0.62f, 0.00f}, {0.34f, 0.71f, 0.91f},
+                                      {0.00f, 0.62f, 0.45f}, {0.94f, 0.89f, 0.26f}};
+  return palette[(participant - 1) % 4];
+}
+
+/// The participant id the master gave the site `name` (its log line).
+int participantOf(const std::string& master_log, const std::string& name) {
+  std::smatch m;
+  if (!std::regex_search(master_log, m,
+                         std::regex(name + " \\(key \\S+\\) joined as participant (\\d+)")))
+    return 0;
+  return std::stoi(m[1].str());
+}
 
 /// Where `world` lands in the wall screenshot (bezels included), if on a tile.
 std::optional<glm::dvec2> onWall(const tessera::config::WallConfig& wall,
@@ -241,6 +258,10 @@ TEST_F(SiteSession, AvatarsSketchFollowMeAndAKilledSiteOnTheWall) {
   EXPECT_EQ(c->wait(1), std::optional<int>(-SIGKILL));
   const std::string log = master->output();
   EXPECT_EQ(log.find("dropped"), std::string::npos) << "no tile or site was dropped:\n" << log;
+  const int pa = participantOf(log, "A"), pb = participantOf(log, "B"), pc = participantOf(log, "C");
+  ASSERT_TRUE(pa && pb && pc) << log;
+  const glm::vec3 kColorA = participantColor(pa), kColorB = participantColor(pb),
+                  kColorC = participantColor(pc);
 
   // The wall at the last frame: the camera is the master's again (A gave it back).
   const auto wall = tessera::sync::loadWallConfig(*sDir / "wall.json");
@@ -330,3 +351,177 @@ TEST_F(SiteSession, AvatarsSketchFollowMeAndAKilledSiteOnTheWall) {
 }
 
 }  // namespace
+
+namespace {
+
+/// A raw ZeroMQ client of the master's site socket, as an attacker would write one.
+struct RawSite {
+  zmq::context_t context{1};
+  zmq::socket_t socket{context, zmq::socket_type::dealer};
+  RawSite(const std::string& endpoint, const tessera::collab::KeyPair* keys,
+          const std::string& server_key) {
+    if (keys) tessera::collab::curveClient(socket, *keys, server_key);
+    socket.set(zmq::sockopt::linger, 0);
+    socket.connect(endpoint);
+  }
+  void send(const std::string& bytes) { socket.send(zmq::buffer(bytes), zmq::send_flags::none); }
+  void send(const tessera::site::ToMaster& m) { send(m.SerializeAsString()); }
+  /// The next message within `seconds`, parsed.
+  std::optional<tessera::site::ToSite> receive(double seconds) {
+    zmq::pollitem_t item{socket.handle(), 0, ZMQ_POLLIN, 0};
+    const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(seconds);
+    while (std::chrono::steady_clock::now() < end) {
+      if (zmq::poll(&item, 1, std::chrono::milliseconds(50)) <= 0) continue;
+      zmq::message_t msg;
+      if (!socket.recv(msg, zmq::recv_flags::dontwait)) continue;
+      tessera::site::ToSite m;
+      m.ParseFromArray(msg.data(), int(msg.size()));
+      return m;
+    }
+    return std::nullopt;
+  }
+  /// Messages until one of `kind` (skipping frames), or nothing within `seconds`.
+  std::optional<tessera::site::ToSite> until(tessera::site::ToSite::KindCase kind, double seconds) {
+    const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(seconds);
+    while (std::chrono::steady_clock::now() < end) {
+      auto m = receive(std::chrono::duration<double>(end - std::chrono::steady_clock::now()).count());
+      if (m && m->kind_case() == kind) return m;
+    }
+    return std::nullopt;
+  }
+};
+
+tessera::site::ToMaster hello(const std::string& name) {
+  tessera::site::ToMaster m;
+  m.mutable_hello()->set_protocol(tessera::sync::kProtocolVersion);
+  m.mutable_hello()->set_name(name);
+  return m;
+}
+
+tessera::site::ToMaster rawPose(uint64_t seq, double x) {
+  tessera::site::ToMaster m;
+  auto& p = *m.mutable_pose();
+  p.set_sequence(seq);
+  for (double v : {x, 0.1, 0.5}) p.add_eye(v);
+  for (double v : {0.0, 0.1, 0.0}) p.add_target(v);
+  for (double v : {0.0, 1.0, 0.0}) p.add_up(v);
+  p.set_fovy_deg(45);
+  p.set_aspect(1.3f);
+  return m;
+}
+
+}  // namespace
+
+TEST_F(SiteSession, StrangersPlaintextWrongKeysGarbageAndFloodsGetNothingAndTheWallGoesOn) {
+  using tessera::site::ToSite;
+  auto master = startMaster(16.0);
+  auto nodes = startNodes();
+  ASSERT_TRUE(master->waitFor("4 of 4 tiles have a node", 60)) << master->output();
+  const auto keys_a = tessera::collab::readKeyFile(*sDir / "a.key");
+  const auto keys_b = tessera::collab::readKeyFile(*sDir / "b.key");
+  const auto keys_c = tessera::collab::readKeyFile(*sDir / "c.key");
+  const auto stranger = tessera::collab::readKeyFile(*sDir / "stranger.key");
+  const std::string server = sKeys["master"];
+
+  // The control: an allowed key with the right server key is welcomed with the snapshot.
+  {
+    RawSite ok(mSites, &keys_a, server);
+    ok.send(hello("control"));
+    const auto w = ok.until(ToSite::kWelcome, 20);
+    ASSERT_TRUE(w) << master->output();
+    EXPECT_GT(w->welcome().snapshot().size(), 20u);
+    EXPECT_TRUE(ok.until(ToSite::kFrame, 10)) << "frames follow the welcome";
+    tessera::site::ToMaster bye;
+    bye.mutable_bye();
+    ok.send(bye);
+  }
+  // Nothing at all (not the snapshot, not a frame) for: a key not on the allow list, a
+  // plaintext client, a client that trusts another server key.
+  {
+    RawSite unknown(mSites, &stranger, server);
+    RawSite plain(mSites, nullptr, "");
+    tessera::collab::KeyPair other_server = tessera::collab::generateKeyPair();
+    RawSite wrong_server(mSites, &keys_b, other_server.public_key);
+    for (RawSite* s : {&unknown, &plain, &wrong_server}) s->send(hello("intruder"));
+    for (RawSite* s : {&unknown, &plain, &wrong_server}) EXPECT_FALSE(s->receive(3.0));
+  }
+  // tessera-site with the stranger's key: no welcome, exit 17, and it says why.
+  auto refused = startSite("stranger", "Stranger", R"({"frames": 30})", {"--join-timeout", "3"});
+  EXPECT_EQ(refused->wait(30), std::optional<int>(17)) << refused->output();
+  EXPECT_NE(refused->output().find("allow list"), std::string::npos) << refused->output();
+  // A key file others can read is refused before anything is sent.
+  fs::copy_file(*sDir / "c.key", mRun / "open.key");
+  fs::permissions(mRun / "open.key", fs::perms::owner_read | fs::perms::owner_write |
+                                         fs::perms::group_read | fs::perms::others_read);
+  const auto open_key = tessera::test::runCommand(
+      std::string(TESSERA_SITE) + " --master " + mSites + " --master-key '" + server +
+      "' --name x --key " + (mRun / "open.key").string() + " --headless");
+  EXPECT_EQ(open_key.code, 2) << open_key.out;
+  EXPECT_NE(open_key.out.find("readable by others"), std::string::npos) << open_key.out;
+
+  // Allowed keys that misbehave are dropped with the reason, and the wall goes on.
+  {
+    RawSite garbage(mSites, &keys_b, server);
+    garbage.send(hello("garbage"));
+    ASSERT_TRUE(garbage.until(ToSite::kWelcome, 20));
+    garbage.send(std::string("\xff\xfe\x01 not a message", 17));
+    const auto d = garbage.until(ToSite::kDropped, 10);
+    ASSERT_TRUE(d);
+    EXPECT_NE(d->dropped().reason().find("a bad message"), std::string::npos)
+        << d->dropped().reason();
+  }
+  {
+    RawSite nan_pose(mSites, &keys_c, server);
+    nan_pose.send(hello("nan"));
+    ASSERT_TRUE(nan_pose.until(ToSite::kWelcome, 20));
+    tessera::site::ToMaster p = rawPose(1, 0.1);
+    p.mutable_pose()->set_eye(0, std::nan(""));
+    nan_pose.send(p);
+    const auto d = nan_pose.until(ToSite::kDropped, 10);
+    ASSERT_TRUE(d);
+    EXPECT_EQ(d->dropped().reason(), "a bad message: pose.eye: numbers must be finite");
+  }
+  {
+    RawSite early(mSites, &keys_c, server);
+    early.send(rawPose(1, 0.1));
+    const auto d = early.until(ToSite::kDropped, 10);
+    ASSERT_TRUE(d);
+    EXPECT_EQ(d->dropped().reason(), "a message before its hello");
+  }
+  {
+    RawSite flood(mSites, &keys_a, server);
+    flood.send(hello("flood"));
+    ASSERT_TRUE(flood.until(ToSite::kWelcome, 20));
+    for (uint64_t i = 0; i < 3000; ++i) flood.send(rawPose(i + 1, 0.1 + 1e-5 * double(i)));
+    const auto d = flood.until(ToSite::kDropped, 20);
+    ASSERT_TRUE(d);
+    EXPECT_NE(d->dropped().reason().find("flooding"), std::string::npos) << d->dropped().reason();
+  }
+  {
+    // Larger than any site message: libzmq closes the connection at ZMQ_MAXMSGSIZE.
+    RawSite oversize(mSites, &keys_b, server);
+    oversize.send(hello("oversize"));
+    ASSERT_TRUE(oversize.until(ToSite::kWelcome, 20));
+    oversize.send(std::string(tessera::collab::kMaxSiteMessageBytes + 1000, 'x'));
+    ASSERT_TRUE(master->waitFor("oversize \\(key \\S+\\) left: its connection closed", 20))
+        << master->output();
+  }
+
+  ASSERT_EQ(master->wait(120), std::optional<int>(0)) << master->output();
+  for (auto& n : nodes) EXPECT_EQ(n->wait(15), std::optional<int>(0)) << n->output();
+  const std::string log = master->output();
+  EXPECT_EQ(std::regex_search(log, std::regex("tile \\S+ \\([^)]*\\) dropped")), false) << log;
+  // The avatars of the misbehaving sites are gone: nobody stays in the scene.
+  EXPECT_NE(log.find("garbage (key"), std::string::npos);
+  std::istringstream stats(read(mRun / "stats.csv"));
+  std::string line;
+  std::getline(stats, line);
+  uint64_t last = 0;
+  while (std::getline(stats, line)) {
+    if (line.find(",master,") == std::string::npos) continue;
+    const uint64_t f = std::stoull(line.substr(0, line.find(',')));
+    EXPECT_EQ(f, last + 1) << "every frame of the session";
+    last = f;
+  }
+  EXPECT_GE(last, 50u);
+}

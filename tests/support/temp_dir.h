@@ -1,6 +1,7 @@
 // A fresh folder per test, removed afterwards, and small file helpers.
 #pragma once
 
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <random>
@@ -20,7 +21,9 @@ class TempDir {
             ("tessera-test-" + name + "-" + std::to_string(std::random_device{}()));
     std::filesystem::create_directories(mPath);
   }
+  /// Removes the folder, unless TESSERA_KEEP_TEST_DIRS is set (to look at what a test wrote).
   ~TempDir() {
+    if (std::getenv("TESSERA_KEEP_TEST_DIRS")) return;
     std::error_code ec;
     std::filesystem::remove_all(mPath, ec);
   }

@@ -26,6 +26,9 @@
 #pragma once
 
 #include <cstddef>
+#include <string>
+
+#include <glm/glm.hpp>
 
 #include <tessera/render/overlay_pass.h>
 #include <tessera/sync/scene_graph.h>
@@ -40,6 +43,12 @@ struct SceneOverlayOptions {
   float avatar_frustum_px = 1.5f;
   float label_px = 16.0f;  ///< avatar names and annotation texts, the text's height
   float annotation_dot_px = 7.0f;
+  /// A site's own view: its own avatar (payload site == hide_site) is not drawn ("": all are),
+  /// nor any avatar whose eye is within hide_near_m metres of viewer_eye (0: none), such as a
+  /// leader's seen by its follower.
+  std::string hide_site;
+  glm::dvec3 viewer_eye{0.0};
+  double hide_near_m = 0.0;
 };
 
 /// Whether the node kind is one the scene overlay draws (SKETCH, AVATAR, ANNOTATION).
