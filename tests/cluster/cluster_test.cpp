@@ -8,10 +8,14 @@
 #include <unistd.h>
 
 #include <array>
+#include <cmath>
 #include <cstdio>
 #include <fstream>
 #include <regex>
 #include <string>
+
+#include <glm/glm.hpp>
+#include <glm/gtc/matrix_transform.hpp>
 
 #include <tessera/render/image.h>
 
@@ -122,6 +126,56 @@ TEST_F(Cluster, TwoNodesWallScreenshotIsTheMosaic) {
   }
   EXPECT_EQ(rows, 9);
   EXPECT_EQ(node_rows_with_points, 6);
+}
+
+TEST_F(Cluster, SketchesAvatarsAndAnnotationsAreDrawnOnEveryTile) {
+  // The scene overlay (render/scene_overlay.h) on the nodes' settled frames: a magenta stroke in
+  // front of the bunny across the bezel, a remote site's avatar and a note. The wall screenshot
+  // is tessera-render --mosaic's, and the stroke shows on both tiles.
+  std::string stroke;
+  for (int k = 0; k <= 20; ++k) {
+    const double t = k / 20.0;
+    char xyz[96];
+    std::snprintf(xyz, sizeof xyz, "%s%.6f, %.6f, 0.065", k ? ", " : "", -0.1 + 0.15 * t,
+                  0.08 + 0.04 * std::sin(3.0 * t));
+    stroke += xyz;
+  }
+  const glm::dmat4 pose = glm::inverse(
+      glm::lookAt(glm::dvec3(0.07, 0.16, 0.17), glm::dvec3(-0.027, 0.1, 0.0), glm::dvec3(0, 1, 0)));
+  std::string m;
+  for (int i = 0; i < 16; ++i) {
+    char v[40];
+    std::snprintf(v, sizeof v, "%s%.17g", i ? ", " : "", pose[i / 4][i % 4]);
+    m += v;
+  }
+  std::string scene = sceneJson("bunny.tlod", "color");
+  scene.insert(scene.find("}}]") + 2,
+               R"(, {"kind": "SKETCH", "sketch": {"points": [)" + stroke +
+                   R"(], "color": {"r": 1, "g": 0, "b": 1}, "width": 4}},
+               {"kind": "AVATAR", "name": "pisa", "transform": {"m": [)" +
+                   m +
+                   R"(]}, "avatar": {"site": "Pisa", "color": {"r": 0.2, "g": 0.9, "b": 0.4},
+               "fovyDeg": 40, "aspect": 1.5, "reach": 0.07}},
+               {"kind": "ANNOTATION", "annotation": {"text": "left ear", "anchor": {"x": -0.07,
+               "y": 0.15, "z": 0.03}}})");
+  write(sDir->path() / "overlay.json", scene);
+  const std::string wall = kConfigs + "/walls/1x2.json";
+  const CommandResult r =
+      cluster("--wall " + wall + " --scene overlay.json --frames 2 --screenshot ov.png", 2);
+  ASSERT_EQ(r.code, 0) << r.out;
+  expectSameAsMosaic(r, "ov.png", wall, "overlay.json");
+  const tessera::render::Image img = tessera::render::readPng((sDir->path() / "ov.png").string());
+  size_t left = 0, right = 0, avatar = 0;
+  for (uint32_t y = 0; y < img.height; ++y) {
+    for (uint32_t x = 0; x < img.width; ++x) {
+      const uint8_t* p = &img.rgba[(size_t(y) * img.width + x) * 4];
+      if (p[0] > 230 && p[1] < 30 && p[2] > 230) (x < img.width / 2 ? left : right) += 1;
+      avatar += p[0] < 80 && p[1] > 200 && p[2] > 80 && p[2] < 130;
+    }
+  }
+  EXPECT_GT(left, 300u);
+  EXPECT_GT(right, 300u);
+  EXPECT_GT(avatar, 100u);
 }
 
 TEST_F(Cluster, FourNodesFollowTheScriptAndMatchTheMosaic) {
