@@ -276,12 +276,21 @@ struct SiteSession::Impl {
         const double px = a.pixels(i), py = a.pixels(i + 1);
         if (!(px >= 0 && py >= 0 && px < v.width && py < v.height)) continue;
         const uint32_t x = uint32_t(px), y = uint32_t(py);
-        // The nearest surface under the cursor: the least depth of its 3x3 pixels, so a sample
-        // never falls through a gap between splats onto what lies behind.
-        uint32_t d = render::kEmptyDepth;
+        // The surface under the cursor: the median depth of its 3x3 pixels that show the
+        // model, so a sample never falls through a gap between splats onto what lies behind,
+        // nor takes a neighbouring splat that stands in front on a slanted surface. Empty when
+        // most of them show the background.
+        std::vector<uint32_t> around;
         for (uint32_t yy = y > 0 ? y - 1 : 0; yy <= std::min(y + 1, v.height - 1); ++yy)
-          for (uint32_t xx = x > 0 ? x - 1 : 0; xx <= std::min(x + 1, v.width - 1); ++xx)
-            d = std::min(d, depth[size_t(v.height - 1 - yy) * v.width + xx]);
+          for (uint32_t xx = x > 0 ? x - 1 : 0; xx <= std::min(x + 1, v.width - 1); ++xx) {
+            const uint32_t dd = depth[size_t(v.height - 1 - yy) * v.width + xx];
+            if (dd != render::kEmptyDepth) around.push_back(dd);
+          }
+        uint32_t d = render::kEmptyDepth;
+        if (around.size() >= 5) {
+          std::nth_element(around.begin(), around.begin() + around.size() / 2, around.end());
+          d = around[around.size() / 2];  // float bits order like the depths
+        }
         if (d == render::kEmptyDepth) continue;  // no surface under it: skipped
         float z = 1.0f;
         std::memcpy(&z, &d, 4);

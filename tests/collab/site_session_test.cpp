@@ -257,7 +257,7 @@ TEST_F(SiteSession, AvatarsSketchFollowMeAndAKilledSiteOnTheWall) {
   EXPECT_EQ(b->wait(15), std::optional<int>(0)) << b->output();
   EXPECT_EQ(c->wait(1), std::optional<int>(-SIGKILL));
   const std::string log = master->output();
-  EXPECT_EQ(log.find("dropped"), std::string::npos) << "no tile or site was dropped:\n" << log;
+  EXPECT_EQ(log.find("dropped:"), std::string::npos) << "no tile or site was dropped:\n" << log;
   const int pa = participantOf(log, "A"), pb = participantOf(log, "B"), pc = participantOf(log, "C");
   ASSERT_TRUE(pa && pb && pc) << log;
   const glm::vec3 kColorA = participantColor(pa), kColorB = participantColor(pb),
