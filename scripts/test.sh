@@ -21,6 +21,7 @@ if [ "${TESSERA_SKIP_ASAN:-0}" != 1 ]; then
   # The scene draw list too: a loader decoding into a closed store would be a use-after-free.
   echo "== sanitizer pass (asan: readers, decoders, the sync schema, the scene draw list)"
   cmake --preset asan >/dev/null
-  cmake --build --preset asan -j"$jobs" --target tessera_lod_tests tessera_sync_tests tessera_scene_tests
+  cmake --build --preset asan -j"$jobs" --target tessera_lod_tests tessera_sync_tests tessera_scene_tests \
+    tessera_site_unit_tests
   ctest --preset asan -j"$jobs" --timeout 900 -L "lod|sync|scene"
 fi

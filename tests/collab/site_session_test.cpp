@@ -219,7 +219,7 @@ tessera::test::TempDir* SiteSession::sDir = nullptr;
 std::map<std::string, std::string> SiteSession::sKeys;
 
 TEST_F(SiteSession, AvatarsSketchFollowMeAndAKilledSiteOnTheWall) {
-  auto master = startMaster(24.0);
+  auto master = startMaster(36.0);
   auto nodes = startNodes();
   ASSERT_TRUE(master->waitFor("4 of 4 tiles have a node", 60)) << master->output();
 
@@ -232,7 +232,7 @@ TEST_F(SiteSession, AvatarsSketchFollowMeAndAKilledSiteOnTheWall) {
       {"frame": 8, "stroke": {"pixels": [)" + stroke_px + R"(], "color": {"r": 1}, "width": 5}},
       {"frame": 20, "lead": true},
       {"frame": 60, "screenshot": "lead.png"},
-      {"frame": 240, "release": true}]})");
+      {"frame": 150, "release": true}]})");
   ASSERT_TRUE(a->waitFor("leads the view", 60)) << a->output();
   // B joins while A leads, follows it, takes a screenshot, then goes its own way.
   auto b = startSite("b", "B", R"({"width": 320, "height": 240, "actions": [
