@@ -1,0 +1,403 @@
+// bench/sites: what remote sites cost the wall and how fast their poses reach it (issue 13).
+//
+//  1. The master's frame rate with 0, 4 and 16 sites (goal: 16 sites cost at most 10%). The
+//     wall is one tessera-node tile (640x360); the sites are real tessera-site processes with
+//     local rendering off (--no-render), each sending its pose 30 times a second along a moving
+//     path, a stroke of 40 samples every second and an undo every two, over CURVE; so the figure
+//     is the master's cost (checking, applying, sending frames to every site) and not this
+//     machine's two cores shared by 16 renderers. Each count runs the same seconds of real time.
+//  2. Latency from a site's pose message to the frame that carries it: an in-process site
+//     (collab::SiteClient) moves its pose every half second and times the frame whose avatar
+//     has moved (the frame the nodes render at the same moment), and the frame in which the
+//     avatar has reached the pose; the wall's median frame time is added for the glass.
+//  3. Bytes per second per site, each way, at 30 Hz poses.
+//
+//   sites [--seconds S] [--counts 0,4,16] [--out DIR]
+//
+// Writes DIR/sites_overhead.csv, DIR/sites_latency.csv and DIR/sites.png (gnuplot); prints the
+// figures. Every process runs on THIS machine (2 cores).
+#include <CLI/CLI.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <map>
+#include <regex>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include <tessera/collab/curve.h>
+#include <tessera/collab/site_client.h>
+#include <tessera/core/cli.h>
+#include <tessera/lod/store_builder.h>
+#include <tessera/sync/cluster_link.h>
+
+#include "../tests/support/process.h"
+#include "bench_walls.h"
+
+namespace {
+
+namespace fs = std::filesystem;
+using tessera::test::Process;
+using Clock = std::chrono::steady_clock;
+
+double now_s() {
+  return std::chrono::duration<double>(Clock::now().time_since_epoch()).count();
+}
+
+std::string slurp(const fs::path& p) {
+  std::ifstream in(p);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+double percentile(std::vector<double> v, double q) {
+  if (v.empty()) return 0;
+  std::sort(v.begin(), v.end());
+  return v[std::min(v.size() - 1, size_t(q * double(v.size())))];
+}
+
+/// The master's own rows of --stats: frame start (steady clock s) and frame ms.
+std::vector<std::pair<double, double>> masterFrames(const fs::path& csv) {
+  std::vector<std::pair<double, double>> out;
+  std::ifstream in(csv);
+  std::string line;
+  std::getline(in, line);
+  while (std::getline(in, line)) {
+    std::vector<std::string> f;
+    std::stringstream ss(line);
+    for (std::string c; std::getline(ss, c, ',');) f.push_back(c);
+    if (f.size() < 19 || f[3] != "master") continue;
+    out.emplace_back(std::stod(f[18]), std::stod(f[9]));
+  }
+  return out;
+}
+
+std::string cameraJson(double x, double y, double z) {
+  char s[200];
+  std::snprintf(s, sizeof s,
+                R"({"eye": {"x": %.6f, "y": %.6f, "z": %.6f}, "target": {"x": -0.027, "y": 0.1, "z": 0}, "up": {"y": 1}})",
+                x, y, z);
+  return s;
+}
+
+struct Setup {
+  fs::path dir;
+  std::string master_bin, node_bin, site_bin;
+  std::string master_public;
+  std::vector<fs::path> site_keys;
+};
+
+/// A master with one node, the sites' socket open; returns once the tile has its node.
+struct Wall {
+  std::unique_ptr<Process> master, node;
+  std::string sites;  // the site endpoint
+  fs::path stats, log;
+};
+
+Wall startWall(const Setup& s, const std::string& name, double seconds) {
+  Wall w;
+  const fs::path run = s.dir / name;
+  fs::create_directories(run);
+  std::ofstream(run / "hold.json")
+      << R"({"name": "hold", "keyframes": [{"time": 0, )" << cameraJson(-0.027, 0.12, 0.6).substr(1)
+      << R"(, {"time": )" << seconds << ", " << cameraJson(-0.027, 0.12, 0.6).substr(1) << "]}";
+  w.stats = run / "stats.csv";
+  w.log = run / "master.log";
+  fs::remove(w.log);
+  w.master = std::make_unique<Process>(
+      std::vector<std::string>{s.master_bin, "--transport", "zmq", "--listen",
+                               "tcp://127.0.0.1:*", "--wall", (s.dir / "wall.json").string(),
+                               "--scene", (s.dir / "scene.json").string(), "--script",
+                               (run / "hold.json").string(), "--stats", w.stats.string(),
+                               "--sites", "tcp://127.0.0.1:*", "--site-key",
+                               (s.dir / "master.key").string(), "--allow",
+                               (s.dir / "allow.txt").string(), "--site-timeout", "30"},
+      w.log);
+  if (!w.master->waitFor("remote sites join on tcp://[^:]+:(\\d+)", 30))
+    throw std::runtime_error("the master did not start: " + w.master->output());
+  const std::string out = w.master->output();
+  std::smatch m;
+  std::regex_search(out, m, std::regex("listening on (tcp://\\S+)"));
+  const std::string wall_endpoint = m[1].str();
+  std::regex_search(out, m, std::regex("remote sites join on tcp://[^:]+:(\\d+)"));
+  w.sites = "tcp://127.0.0.1:" + m[1].str();
+  w.node = std::make_unique<Process>(
+      std::vector<std::string>{s.node_bin, "--master", wall_endpoint, "--headless"},
+      run / "node.log");
+  if (!w.master->waitFor("1 of 1 tiles have a node", 60))
+    throw std::runtime_error("the node did not join: " + w.master->output());
+  return w;
+}
+
+/// A no-render site's script: a slow circle of poses, a stroke a second, an undo every two.
+std::string trafficScript(int index, double seconds) {
+  std::ostringstream j;
+  j << R"({"fps": 30, "frames": )" << int(seconds * 30) << R"(, "actions": [)";
+  bool first = true;
+  for (int f = 0; f < int(seconds * 30); ++f) {
+    const double a = 0.05 * f + index;
+    j << (first ? "" : ",") << R"({"frame": )" << f << R"(, "camera": )"
+      << cameraJson(-0.027 + 0.3 * std::cos(a), 0.15, 0.3 * std::sin(a) + 0.05) << "}";
+    first = false;
+    if (f % 30 == 15) {
+      j << R"(,{"frame": )" << f << R"(, "stroke": {"world": [)";
+      for (int k = 0; k < 40; ++k)
+        j << (k ? "," : "") << -0.05 + 0.002 * k << "," << 0.1 + 0.001 * index << ",0.02";
+      j << R"(], "color": {"g": 1}, "width": 3}})";
+    }
+    if (f % 60 == 59) j << R"(,{"frame": )" << f << R"(, "undo": true})";
+  }
+  j << "]}";
+  return j.str();
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  return tessera::cli::runMain("sites", [&]() -> int {
+    CLI::App app{"bench/sites: the master's frame rate with remote sites, pose latency, bytes"};
+    double seconds = 12.0;
+    std::string counts_text = "0,4,16", out = std::string(TESSERA_BENCH_RESULTS_DIR);
+    app.add_option("--seconds", seconds, "Seconds of real time per measurement")
+        ->check(tessera::cli::finiteRange(4.0, 600.0))
+        ->capture_default_str();
+    app.add_option("--counts", counts_text, "Site counts for the overhead")->capture_default_str();
+    app.add_option("--out", out, "Output folder")->capture_default_str();
+    if (const auto code = tessera::cli::parse(app, argc, argv, "sites")) return *code;
+    std::vector<int> counts;
+    {
+      std::stringstream ks(counts_text);
+      for (std::string k; std::getline(ks, k, ',');) {
+        int v = 0;
+        if (auto why = tessera::cli::parseInteger<int>(k, 0, 64, v))
+          throw tessera::cli::UsageError("--counts " + k + ": " + *why);
+        counts.push_back(v);
+      }
+    }
+
+    Setup s;
+    s.dir = fs::path(out) / "sites-work";
+    fs::remove_all(s.dir);
+    fs::create_directories(s.dir);
+    const std::string bin = fs::canonical("/proc/self/exe").parent_path().parent_path().string();
+    s.master_bin = bin + "/master/tessera-master";
+    s.node_bin = bin + "/render_node/tessera-node";
+    s.site_bin = bin + "/collab/tessera-site";
+    const fs::path store = fs::path(out) / "inputs" / "bunny-scans.tlod";
+    if (!fs::exists(store)) {
+      fs::create_directories(store.parent_path());
+      tessera::lod::BuildOptions o;
+      o.quiet = true;
+      tessera::lod::buildStore({std::string(TESSERA_DATA_DIR) + "/stanford-bunny/scans/bun.conf"},
+                               store.string(), o);
+    }
+    std::ofstream(s.dir / "scene.json")
+        << R"({"nodes": [{"kind": "MODEL", "name": "bunny", "model": {"store": ")"
+        << fs::absolute(store).string() << R"("}}], "camera": )" << cameraJson(-0.027, 0.12, 0.6)
+        << R"(, "settings": {"background": {"r": 0.05, "g": 0.05, "b": 0.08}, "lodPixels": 2}})";
+    std::ofstream(s.dir / "wall.json") << tessera::bench::gridWallJson(1, 640, 360);
+    const tessera::collab::KeyPair master_keys = tessera::collab::generateKeyPair();
+    tessera::collab::writeKeyFile(s.dir / "master.key", master_keys);
+    s.master_public = master_keys.public_key;
+    std::ofstream allow(s.dir / "allow.txt");
+    const int most = std::max(1, *std::max_element(counts.begin(), counts.end()) + 1);
+    std::vector<tessera::collab::KeyPair> site_keys;
+    for (int i = 0; i < most; ++i) {
+      site_keys.push_back(tessera::collab::generateKeyPair());
+      s.site_keys.push_back(s.dir / ("site-" + std::to_string(i) + ".key"));
+      tessera::collab::writeKeyFile(s.site_keys.back(), site_keys.back());
+      allow << site_keys.back().public_key << " bench site " << i << "\n";
+    }
+    allow.close();
+    fs::permissions(s.dir / "allow.txt", fs::perms::owner_read | fs::perms::owner_write);
+
+    // ---- 1. overhead ----
+    std::ofstream ocsv(fs::path(out) / "sites_overhead.csv");
+    ocsv << "sites,frames_per_s,frame_ms_median,frame_ms_p99,ratio_to_no_sites,"
+            "in_bytes_per_site_s,out_bytes_per_site_s\n";
+    double base_fps = 0;
+    std::printf("master frame rate with sites (1 tile 640x360, %.0f s each, sites --no-render):\n",
+                seconds);
+    for (int k : counts) {
+      const double total = seconds + 12.0;  // joins, then the measured window
+      Wall w = startWall(s, "overhead-" + std::to_string(k), total);
+      std::vector<std::unique_ptr<Process>> sites;
+      for (int i = 0; i < k; ++i) {
+        const fs::path script = s.dir / ("traffic-" + std::to_string(i) + ".json");
+        std::ofstream(script) << trafficScript(i, total);
+        sites.push_back(std::make_unique<Process>(
+            std::vector<std::string>{s.site_bin, "--master", w.sites, "--master-key",
+                                     s.master_public, "--name", "site " + std::to_string(i),
+                                     "--key", s.site_keys[size_t(i)].string(), "--headless",
+                                     "--no-render", "--script", script.string(), "-o",
+                                     (s.dir / "site-out").string()},
+            s.dir / ("overhead-" + std::to_string(k)) / ("site-" + std::to_string(i) + ".log")));
+      }
+      // The window: from the moment every site joined, `seconds` long.
+      const double join_deadline = now_s() + 30;
+      while (now_s() < join_deadline) {
+        const std::string log = slurp(w.log);
+        const auto joined = std::distance(
+            std::sregex_iterator(log.begin(), log.end(), std::regex("joined as participant")),
+            std::sregex_iterator());
+        if (joined >= k) break;
+        std::this_thread::sleep_for(std::chrono::milliseconds(50));
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(500));
+      const double from = now_s();
+      std::this_thread::sleep_for(std::chrono::duration<double>(seconds));
+      const double to = now_s();
+      std::vector<double> ms;
+      for (const auto& [start, frame_ms] : masterFrames(w.stats))
+        if (start >= from && start + frame_ms / 1000.0 <= to) ms.push_back(frame_ms);
+      (void)w.master->wait(total + 60);
+      for (auto& p : sites) (void)p->wait(10);
+      (void)w.node->wait(10);
+      const double fps = double(ms.size()) / (to - from);
+      if (k == 0) base_fps = fps;
+      double in_rate = 0, out_rate = 0;
+      std::smatch m;
+      const std::string log = slurp(w.log);
+      if (k > 0 && std::regex_search(log, m,
+                                     std::regex("received (\\d+) bytes in \\d+ messages, sent "
+                                                "(\\d+) bytes"))) {
+        in_rate = std::stod(m[1].str()) / total / k;
+        out_rate = std::stod(m[2].str()) / total / k;
+      }
+      const double ratio = base_fps > 0 ? fps / base_fps : 1.0;
+      ocsv << k << "," << fps << "," << percentile(ms, 0.5) << "," << percentile(ms, 0.99) << ","
+           << ratio << "," << in_rate << "," << out_rate << "\n";
+      std::printf("  %2d sites: %6.1f frames/s (%.2f of none), frame %.2f ms median, %.2f ms p99; "
+                  "per site %.0f B/s in, %.0f B/s out\n",
+                  k, fps, ratio, percentile(ms, 0.5), percentile(ms, 0.99), in_rate, out_rate);
+      std::fflush(stdout);
+    }
+    ocsv.close();
+
+    // ---- 2. latency, 3. bytes ----
+    Wall w = startWall(s, "latency", seconds + 8.0);
+    tessera::collab::SiteClientOptions co;
+    co.master = w.sites;
+    co.master_key = s.master_public;
+    co.keys = site_keys.back();
+    co.name = "latency probe";
+    tessera::collab::SiteClient client(co);
+    tessera::sync::SceneGraph replica;
+    const tessera::site::SiteWelcome welcome =
+        client.join(replica, Clock::now() + std::chrono::seconds(20));
+    std::ofstream lcsv(fs::path(out) / "sites_latency.csv");
+    lcsv << "move,first_frame_ms,reached_ms\n";
+    std::vector<double> first_ms, reached_ms;
+    uint64_t seq = 0;
+    double x = 0.1, moved_at = 0;
+    bool waiting_first = false, waiting_reach = false;
+    int moves = 0;
+    const double start = now_s();
+    const uint64_t sent0 = client.bytesSent(), received0 = client.bytesReceived();
+    std::optional<uint32_t> avatar;
+    auto avatarX = [&]() -> std::optional<double> {
+      if (!avatar)
+        for (uint32_t id : replica.ids())
+          if (replica.node(id).kind() == tessera::scene::SceneNode::AVATAR &&
+              replica.node(id).avatar().site() == welcome.name())
+            avatar = id;
+      if (!avatar || !replica.contains(*avatar) || !replica.node(*avatar).visible()) return {};
+      return replica.node(*avatar).transform().m(12);
+    };
+    for (int frame = 0; now_s() - start < seconds; ++frame) {
+      const double tick = start + frame / 30.0;
+      // Receive until the next tick, timing each frame as it arrives.
+      while (now_s() < tick) {
+        client.receive(replica, Clock::now() + std::chrono::milliseconds(2));
+        const auto ax = avatarX();
+        if (!ax) continue;
+        const double t = now_s();
+        if (waiting_first && std::abs(*ax - (x - 0.1)) > 1e-9) {
+          first_ms.push_back((t - moved_at) * 1000);
+          waiting_first = false;
+        }
+        if (waiting_reach && std::abs(*ax - x) < 1e-9) {
+          reached_ms.push_back((t - moved_at) * 1000);
+          lcsv << moves << "," << first_ms.back() << "," << reached_ms.back() << "\n";
+          waiting_reach = false;
+        }
+      }
+      // Every half second (once the last move arrived), the pose moves 10 cm.
+      const bool move = frame % 15 == 14 && !waiting_first && !waiting_reach && avatarX();
+      if (move) {
+        x += 0.1;
+        ++moves;
+      }
+      tessera::site::ToMaster m;
+      auto& p = *m.mutable_pose();
+      p.set_sequence(++seq);
+      for (double v : {x, 0.15, 0.5}) p.add_eye(v);
+      for (double v : {-0.027, 0.1, 0.0}) p.add_target(v);
+      for (double v : {0.0, 1.0, 0.0}) p.add_up(v);
+      p.set_fovy_deg(45);
+      p.set_aspect(1.5f);
+      client.send(m);
+      if (move) {
+        moved_at = now_s();
+        waiting_first = waiting_reach = true;
+      }
+    }
+    const double elapsed = now_s() - start;
+    const double up = double(client.bytesSent() - sent0) / elapsed,
+                 down = double(client.bytesReceived() - received0) / elapsed;
+    lcsv.close();
+    (void)w.master->wait(60);
+    (void)w.node->wait(10);
+    std::vector<double> wall_ms;
+    for (const auto& [st, ms] : masterFrames(w.stats)) wall_ms.push_back(ms);
+    const double wall_median = percentile(wall_ms, 0.5);
+    std::printf("\npose to frame (loopback, %zu moves): first frame that shows it %.1f ms median, "
+                "%.1f ms p99; reached %.1f ms median, %.1f ms p99; the wall's frame %.1f ms "
+                "median (glass: + one frame)\n",
+                first_ms.size(), percentile(first_ms, 0.5), percentile(first_ms, 0.99),
+                percentile(reached_ms, 0.5), percentile(reached_ms, 0.99), wall_median);
+    std::printf("bytes per site at 30 Hz poses: %.0f B/s to the master, %.0f B/s from it\n", up,
+                down);
+    std::ofstream(fs::path(out) / "sites_summary.csv")
+        << "what,value\nfirst_frame_ms_median," << percentile(first_ms, 0.5)
+        << "\nfirst_frame_ms_p99," << percentile(first_ms, 0.99) << "\nreached_ms_median,"
+        << percentile(reached_ms, 0.5) << "\nreached_ms_p99," << percentile(reached_ms, 0.99)
+        << "\nwall_frame_ms_median," << wall_median << "\nsite_up_bytes_per_s," << up
+        << "\nsite_down_bytes_per_s," << down << "\n";
+
+    // ---- chart ----
+    const fs::path res = fs::path(out);
+    std::ofstream gp(res / "sites.gp");
+    gp << "set terminal pngcairo noenhanced size 1300,480 font ',10'\n"
+       << "set output '" << (res / "sites.png").string() << "'\n"
+       << "set datafile separator ','\nset multiplot layout 1,2\nset grid\n"
+       << "set title 'Master frame rate with remote sites (1 tile 640x360, sites --no-render, 2 "
+          "cores)'\nset xlabel 'sites'\nset ylabel 'frames per second'\nset yrange [0:*]\n"
+       << "set style fill solid 0.6\nset boxwidth 0.6\nset key top right\n"
+       << "plot '" << (res / "sites_overhead.csv").string()
+       << "' skip 1 using 0:2:xtic(1) with boxes lc rgb '#1f77b4' title 'frames/s', \\\n"
+       << "  '' skip 1 using 0:($2*0+" << base_fps * 0.9
+       << ") with lines dt 2 lw 2 lc rgb '#d62728' title 'goal: 90% of no sites'\n"
+       << "set title 'Pose message to the frame that carries it (loopback)'\n"
+       << "set xlabel 'move'\nset ylabel 'ms'\nset yrange [0:*]\nset key top left\n"
+       << "plot '" << (res / "sites_latency.csv").string()
+       << "' skip 1 using 1:2 with points pt 7 title 'first frame that moves', \\\n"
+       << "  '' skip 1 using 1:3 with points pt 6 title 'frame that reaches it', \\\n"
+       << "  " << wall_median << " with lines dt 2 title \"the wall's median frame\"\n"
+       << "unset multiplot\n";
+    gp.close();
+    std::string gnuplot = TESSERA_GNUPLOT;
+    if (gnuplot.empty()) gnuplot = "gnuplot";
+    if (std::system(("'" + gnuplot + "' '" + (res / "sites.gp").string() + "'").c_str()))
+      std::cerr << "sites: gnuplot failed; the CSVs are still there\n";
+    else
+      std::cerr << "chart: " << (res / "sites.png").string() << "\n";
+    return 0;
+  });
+}
