@@ -1,11 +1,14 @@
 // bench/sites: what remote sites cost the wall and how fast their poses reach it (issue 13).
 //
 //  1. The master's frame rate with 0, 4 and 16 sites (goal: 16 sites cost at most 10%). The
-//     wall is one tessera-node tile (640x360); the sites are real tessera-site processes with
-//     local rendering off (--no-render), each sending its pose 30 times a second along a moving
-//     path, a stroke of 40 samples every second and an undo every two, over CURVE; so the figure
-//     is the master's cost (checking, applying, sending frames to every site) and not this
-//     machine's two cores shared by 16 renderers. Each count runs the same seconds of real time.
+//     wall is one tessera-node tile (640x360); the sites are K real site connections (CURVE,
+//     each its own key, replica and name) without rendering, driven from one thread of this
+//     process: each sends its pose 30 times a second along a moving path, a stroke of 40
+//     samples every second and an undo every two, and applies every frame; so the figure is the
+//     master's and the node's cost (checking, applying, sending frames to every site, drawing
+//     the avatars and sketches) and not this machine's two cores shared by K site processes.
+//     Each count runs the same seconds of real time; the master's own time before the nodes
+//     render (its `sync_ms`, the sites' work included) is reported too.
 //  2. Latency from a site's pose message to the frame that carries it: an in-process site
 //     (collab::SiteClient) moves its pose every half second and times the frame whose avatar
 //     has moved (the frame the nodes render at the same moment), and the frame in which the
@@ -19,6 +22,8 @@
 #include <CLI/CLI.hpp>
 
 #include <algorithm>
+#include <array>
+#include <atomic>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -28,12 +33,18 @@
 #include <regex>
 #include <sstream>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include <tessera/collab/curve.h>
 #include <tessera/collab/site_client.h>
 #include <tessera/core/cli.h>
+#include <tessera/lod/point_store.h>
 #include <tessera/lod/store_builder.h>
+#include <tessera/render/gl_context.h>
+#include <tessera/render/scene_draw_list.h>
+#include <tessera/render/scene_overlay.h>
+#include <tessera/render/view_renderer.h>
 #include <tessera/sync/cluster_link.h>
 
 #include "../tests/support/process.h"
@@ -62,8 +73,9 @@ double percentile(std::vector<double> v, double q) {
   return v[std::min(v.size() - 1, size_t(q * double(v.size())))];
 }
 
-/// The master's own rows of --stats: frame start (steady clock s) and frame ms.
-std::vector<std::pair<double, double>> masterFrames(const fs::path& csv) {
+/// The master's own rows of --stats: frame start (steady clock s) and a column (9: frame ms,
+/// 5: sync ms, everything the master does before the nodes render, the sites' work included).
+std::vector<std::pair<double, double>> masterFrames(const fs::path& csv, int column = 9) {
   std::vector<std::pair<double, double>> out;
   std::ifstream in(csv);
   std::string line;
@@ -73,16 +85,17 @@ std::vector<std::pair<double, double>> masterFrames(const fs::path& csv) {
     std::stringstream ss(line);
     for (std::string c; std::getline(ss, c, ',');) f.push_back(c);
     if (f.size() < 19 || f[3] != "master") continue;
-    out.emplace_back(std::stod(f[18]), std::stod(f[9]));
+    out.emplace_back(std::stod(f[18]), std::stod(f[size_t(column)]));
   }
   return out;
 }
 
 std::string cameraJson(double x, double y, double z) {
   char s[200];
-  std::snprintf(s, sizeof s,
-                R"({"eye": {"x": %.6f, "y": %.6f, "z": %.6f}, "target": {"x": -0.027, "y": 0.1, "z": 0}, "up": {"y": 1}})",
-                x, y, z);
+  std::snprintf(
+      s, sizeof s,
+      R"({"eye": {"x": %.6f, "y": %.6f, "z": %.6f}, "target": {"x": -0.027, "y": 0.1, "z": 0}, "up": {"y": 1}})",
+      x, y, z);
   return s;
 }
 
@@ -110,15 +123,28 @@ Wall startWall(const Setup& s, const std::string& name, double seconds) {
   w.stats = run / "stats.csv";
   w.log = run / "master.log";
   fs::remove(w.log);
-  w.master = std::make_unique<Process>(
-      std::vector<std::string>{s.master_bin, "--transport", "zmq", "--listen",
-                               "tcp://127.0.0.1:*", "--wall", (s.dir / "wall.json").string(),
-                               "--scene", (s.dir / "scene.json").string(), "--script",
-                               (run / "hold.json").string(), "--stats", w.stats.string(),
-                               "--sites", "tcp://127.0.0.1:*", "--site-key",
-                               (s.dir / "master.key").string(), "--allow",
-                               (s.dir / "allow.txt").string(), "--site-timeout", "30"},
-      w.log);
+  w.master = std::make_unique<Process>(std::vector<std::string>{s.master_bin,
+                                                                "--transport",
+                                                                "zmq",
+                                                                "--listen",
+                                                                "tcp://127.0.0.1:*",
+                                                                "--wall",
+                                                                (s.dir / "wall.json").string(),
+                                                                "--scene",
+                                                                (s.dir / "scene.json").string(),
+                                                                "--script",
+                                                                (run / "hold.json").string(),
+                                                                "--stats",
+                                                                w.stats.string(),
+                                                                "--sites",
+                                                                "tcp://127.0.0.1:*",
+                                                                "--site-key",
+                                                                (s.dir / "master.key").string(),
+                                                                "--allow",
+                                                                (s.dir / "allow.txt").string(),
+                                                                "--site-timeout",
+                                                                "30"},
+                                       w.log);
   if (!w.master->waitFor("remote sites join on tcp://[^:]+:(\\d+)", 30))
     throw std::runtime_error("the master did not start: " + w.master->output());
   const std::string out = w.master->output();
@@ -135,26 +161,148 @@ Wall startWall(const Setup& s, const std::string& name, double seconds) {
   return w;
 }
 
-/// A no-render site's script: a slow circle of poses, a stroke a second, an undo every two.
-std::string trafficScript(int index, double seconds) {
-  std::ostringstream j;
-  j << R"({"fps": 30, "frames": )" << int(seconds * 30) << R"(, "actions": [)";
-  bool first = true;
-  for (int f = 0; f < int(seconds * 30); ++f) {
-    const double a = 0.05 * f + index;
-    j << (first ? "" : ",") << R"({"frame": )" << f << R"(, "camera": )"
-      << cameraJson(-0.027 + 0.3 * std::cos(a), 0.15, 0.3 * std::sin(a) + 0.05) << "}";
-    first = false;
-    if (f % 30 == 15) {
-      j << R"(,{"frame": )" << f << R"(, "stroke": {"world": [)";
-      for (int k = 0; k < 40; ++k)
-        j << (k ? "," : "") << -0.05 + 0.002 * k << "," << 0.1 + 0.001 * index << ",0.02";
-      j << R"(], "color": {"g": 1}, "width": 3}})";
+/// K sites in one thread of this process, each on its own CURVE connection with its own key,
+/// replica and name, as K remote machines would be: 30 poses a second along a moving circle, a
+/// stroke of 40 samples every second and an undo every two, every frame from the master applied.
+/// One light process instead of K, so the wall's figures are the master's and the node's cost,
+/// not this machine's two cores shared with K site processes.
+class TrafficSites {
+ public:
+  TrafficSites(const std::string& endpoint, const std::string& master_key,
+               const std::vector<tessera::collab::KeyPair>& keys, int k) {
+    for (int i = 0; i < k; ++i) {
+      tessera::collab::SiteClientOptions o;
+      o.master = endpoint;
+      o.master_key = master_key;
+      o.keys = keys[size_t(i)];
+      o.name = "traffic " + std::to_string(i);
+      mSites.push_back({std::make_unique<tessera::collab::SiteClient>(o), {}});
+      mSites.back().client->join(mSites.back().replica, Clock::now() + std::chrono::seconds(30));
     }
-    if (f % 60 == 59) j << R"(,{"frame": )" << f << R"(, "undo": true})";
+    mThread = std::thread([this] { run(); });
   }
-  j << "]}";
-  return j.str();
+  ~TrafficSites() {
+    mStop = true;
+    if (mThread.joinable()) mThread.join();
+  }
+
+ private:
+  struct Site {
+    std::unique_ptr<tessera::collab::SiteClient> client;
+    tessera::sync::SceneGraph replica;
+  };
+  void run() {
+    const auto start = Clock::now();
+    for (uint64_t f = 0; !mStop; ++f) {
+      std::this_thread::sleep_until(start + std::chrono::microseconds(int64_t(f * 1e6 / 30)));
+      for (size_t i = 0; i < mSites.size(); ++i) {
+        Site& s = mSites[i];
+        try {
+          s.client->receive(s.replica, Clock::now());
+        } catch (const tessera::collab::SiteSessionEnded&) {
+          return;  // the master ended the session
+        }
+        const double a = 0.05 * double(f) + double(i);
+        tessera::site::ToMaster m;
+        auto& p = *m.mutable_pose();
+        p.set_sequence(f + 1);
+        for (double v : {-0.027 + 0.3 * std::cos(a), 0.15, 0.05 + 0.3 * std::sin(a)}) p.add_eye(v);
+        for (double v : {-0.027, 0.1, 0.0}) p.add_target(v);
+        for (double v : {0.0, 1.0, 0.0}) p.add_up(v);
+        p.set_fovy_deg(45);
+        p.set_aspect(1.5f);
+        s.client->send(m);
+        if (f % 30 == 15) {
+          tessera::site::ToMaster st;
+          for (int k = 0; k < 40; ++k)
+            for (double v : {-0.05 + 0.002 * k, 0.1 + 0.001 * double(i), 0.02})
+              st.mutable_stroke()->add_points(v);
+          st.mutable_stroke()->mutable_color()->set_g(1);
+          st.mutable_stroke()->set_width(3);
+          s.client->send(st);
+        }
+        if (f % 60 == 59) {
+          tessera::site::ToMaster u;
+          u.mutable_undo();
+          s.client->send(u);
+        }
+      }
+    }
+  }
+  std::vector<Site> mSites;
+  std::atomic<bool> mStop{false};
+  std::thread mThread;
+};
+
+/// What K avatars (head, frustum, name; moving every frame) cost one node's frame at 640x360:
+/// the median frame time and its overlay pass, in this process, each count after a warm-up.
+std::vector<std::array<double, 3>> avatarDrawCost(const fs::path& store,
+                                                  const std::vector<int>& counts) {
+  auto context = tessera::render::GlContext::createHeadless();
+  std::vector<std::array<double, 3>> out;
+  tessera::render::ViewRenderer renderer(640, 360);
+  auto points = tessera::lod::PointStore::open(store);
+  tessera::render::ModelInstance model;
+  model.store = points.get();
+  model.model = tessera::render::storeModel(*points);
+  const auto wall =
+      tessera::sync::parseWallConfig(tessera::bench::gridWallJson(1, 640, 360), "wall");
+  tessera::config::Camera cam;
+  cam.mutable_eye()->set_x(-0.027);
+  cam.mutable_eye()->set_y(0.12);
+  cam.mutable_eye()->set_z(0.6);
+  cam.mutable_target()->set_x(-0.027);
+  cam.mutable_target()->set_y(0.1);
+  cam.mutable_up()->set_y(1);
+  const tessera::render::ViewSetup view = tessera::render::tileView(wall, wall.tiles(0), cam);
+  tessera::render::RenderOptions options;
+  options.edl.strength = 1.0f;
+  (void)renderer.renderSettled({&model, 1}, view, options);
+  for (int k : counts) {
+    std::vector<double> frame_ms, overlay_ms;
+    for (int f = 0; f < 40; ++f) {
+      tessera::sync::SceneGraph g;
+      for (int i = 0; i < k; ++i) {
+        const uint32_t id = g.add(tessera::scene::SceneNode::AVATAR);
+        const double a = 0.4 * i + 0.02 * f;
+        const double m[16] = {1,
+                              0,
+                              0,
+                              0,
+                              0,
+                              1,
+                              0,
+                              0,
+                              0,
+                              0,
+                              1,
+                              0,
+                              -0.027 + 0.3 * std::cos(a),
+                              0.15,
+                              0.05 + 0.3 * std::sin(a),
+                              1};
+        g.setTransform(id, m);
+        tessera::scene::AvatarPayload p;
+        p.set_site("site " + std::to_string(i));
+        p.mutable_color()->set_r(1);
+        p.set_fovy_deg(45);
+        p.set_aspect(1.5f);
+        p.set_reach(0.3f);
+        g.setPayload(id, p);
+      }
+      tessera::render::Overlay o;
+      tessera::render::appendSceneOverlay(g, o);
+      tessera::render::RenderStats st;
+      const auto t0 = Clock::now();
+      (void)renderer.render({&model, 1}, view, options, &st, o.empty() ? nullptr : &o);
+      if (f >= 5) {
+        frame_ms.push_back(std::chrono::duration<double, std::milli>(Clock::now() - t0).count());
+        overlay_ms.push_back(st.overlay_ms);
+      }
+    }
+    out.push_back({double(k), percentile(frame_ms, 0.5), percentile(overlay_ms, 0.5)});
+  }
+  return out;
 }
 
 }  // namespace
@@ -217,38 +365,29 @@ int main(int argc, char** argv) {
     allow.close();
     fs::permissions(s.dir / "allow.txt", fs::perms::owner_read | fs::perms::owner_write);
 
+    // ---- 0. what drawing avatars costs a node ----
+    std::ofstream dcsv(fs::path(out) / "sites_draw.csv");
+    dcsv << "avatars,frame_ms_median,overlay_ms_median\n";
+    std::printf("a node's frame (640x360, the bunny, eye-dome lighting) with K moving avatars:\n");
+    for (const auto& [k, frame, overlay] : avatarDrawCost(store, counts)) {
+      dcsv << k << "," << frame << "," << overlay << "\n";
+      std::printf("  %2.0f avatars: frame %.2f ms median, of which the overlay pass %.2f ms\n", k,
+                  frame, overlay);
+    }
+    dcsv.close();
+
     // ---- 1. overhead ----
     std::ofstream ocsv(fs::path(out) / "sites_overhead.csv");
     ocsv << "sites,frames_per_s,frame_ms_median,frame_ms_p99,ratio_to_no_sites,"
-            "in_bytes_per_site_s,out_bytes_per_site_s\n";
+            "in_bytes_per_site_s,out_bytes_per_site_s,master_sync_ms_mean\n";
     double base_fps = 0;
     std::printf("master frame rate with sites (1 tile 640x360, %.0f s each, sites --no-render):\n",
                 seconds);
     for (int k : counts) {
       const double total = seconds + 12.0;  // joins, then the measured window
       Wall w = startWall(s, "overhead-" + std::to_string(k), total);
-      std::vector<std::unique_ptr<Process>> sites;
-      for (int i = 0; i < k; ++i) {
-        const fs::path script = s.dir / ("traffic-" + std::to_string(i) + ".json");
-        std::ofstream(script) << trafficScript(i, total);
-        sites.push_back(std::make_unique<Process>(
-            std::vector<std::string>{s.site_bin, "--master", w.sites, "--master-key",
-                                     s.master_public, "--name", "site " + std::to_string(i),
-                                     "--key", s.site_keys[size_t(i)].string(), "--headless",
-                                     "--no-render", "--script", script.string(), "-o",
-                                     (s.dir / "site-out").string()},
-            s.dir / ("overhead-" + std::to_string(k)) / ("site-" + std::to_string(i) + ".log")));
-      }
-      // The window: from the moment every site joined, `seconds` long.
-      const double join_deadline = now_s() + 30;
-      while (now_s() < join_deadline) {
-        const std::string log = slurp(w.log);
-        const auto joined = std::distance(
-            std::sregex_iterator(log.begin(), log.end(), std::regex("joined as participant")),
-            std::sregex_iterator());
-        if (joined >= k) break;
-        std::this_thread::sleep_for(std::chrono::milliseconds(50));
-      }
+      std::unique_ptr<TrafficSites> sites;
+      if (k > 0) sites = std::make_unique<TrafficSites>(w.sites, s.master_public, site_keys, k);
       std::this_thread::sleep_for(std::chrono::milliseconds(500));
       const double from = now_s();
       std::this_thread::sleep_for(std::chrono::duration<double>(seconds));
@@ -256,8 +395,11 @@ int main(int argc, char** argv) {
       std::vector<double> ms;
       for (const auto& [start, frame_ms] : masterFrames(w.stats))
         if (start >= from && start + frame_ms / 1000.0 <= to) ms.push_back(frame_ms);
+      std::vector<double> sync_ms;
+      for (const auto& [start, frame_ms] : masterFrames(w.stats, 5))
+        if (start >= from && start <= to) sync_ms.push_back(frame_ms);
       (void)w.master->wait(total + 60);
-      for (auto& p : sites) (void)p->wait(10);
+      sites.reset();
       (void)w.node->wait(10);
       const double fps = double(ms.size()) / (to - from);
       if (k == 0) base_fps = fps;
@@ -271,11 +413,14 @@ int main(int argc, char** argv) {
         out_rate = std::stod(m[2].str()) / total / k;
       }
       const double ratio = base_fps > 0 ? fps / base_fps : 1.0;
+      double sync_mean = 0;
+      for (double v : sync_ms) sync_mean += v / double(std::max<size_t>(1, sync_ms.size()));
       ocsv << k << "," << fps << "," << percentile(ms, 0.5) << "," << percentile(ms, 0.99) << ","
-           << ratio << "," << in_rate << "," << out_rate << "\n";
-      std::printf("  %2d sites: %6.1f frames/s (%.2f of none), frame %.2f ms median, %.2f ms p99; "
-                  "per site %.0f B/s in, %.0f B/s out\n",
-                  k, fps, ratio, percentile(ms, 0.5), percentile(ms, 0.99), in_rate, out_rate);
+           << ratio << "," << in_rate << "," << out_rate << "," << sync_mean << "\n";
+      std::printf(
+          "  %2d sites: %6.1f frames/s (%.2f of none), frame %.2f ms median, %.2f ms p99; "
+          "master before the nodes %.2f ms; per site %.0f B/s in, %.0f B/s out\n",
+          k, fps, ratio, percentile(ms, 0.5), percentile(ms, 0.99), sync_mean, in_rate, out_rate);
       std::fflush(stdout);
     }
     ocsv.close();
@@ -357,11 +502,12 @@ int main(int argc, char** argv) {
     std::vector<double> wall_ms;
     for (const auto& [st, ms] : masterFrames(w.stats)) wall_ms.push_back(ms);
     const double wall_median = percentile(wall_ms, 0.5);
-    std::printf("\npose to frame (loopback, %zu moves): first frame that shows it %.1f ms median, "
-                "%.1f ms p99; reached %.1f ms median, %.1f ms p99; the wall's frame %.1f ms "
-                "median (glass: + one frame)\n",
-                first_ms.size(), percentile(first_ms, 0.5), percentile(first_ms, 0.99),
-                percentile(reached_ms, 0.5), percentile(reached_ms, 0.99), wall_median);
+    std::printf(
+        "\npose to frame (loopback, %zu moves): first frame that shows it %.1f ms median, "
+        "%.1f ms p99; reached %.1f ms median, %.1f ms p99; the wall's frame %.1f ms "
+        "median (glass: + one frame)\n",
+        first_ms.size(), percentile(first_ms, 0.5), percentile(first_ms, 0.99),
+        percentile(reached_ms, 0.5), percentile(reached_ms, 0.99), wall_median);
     std::printf("bytes per site at 30 Hz poses: %.0f B/s to the master, %.0f B/s from it\n", up,
                 down);
     std::ofstream(fs::path(out) / "sites_summary.csv")

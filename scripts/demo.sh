@@ -12,11 +12,12 @@ out="${TESSERA_DEMO_OUT:-$root/out/demo}"
 
 ./scripts/deps.sh || exit 1
 cmake --preset release >/dev/null || exit 1
-cmake --build --preset release -j"$(nproc)" --target tessera-lod tessera-render tessera-master tessera-node || exit 1
+cmake --build --preset release -j"$(nproc)" --target tessera-lod tessera-render tessera-master tessera-node tessera-site || exit 1
 lod="$root/build/release/lod/tessera-lod"
 render="$root/build/release/render/tessera-render"
 master="$root/build/release/master/tessera-master"
 node="$root/build/release/render_node/tessera-node"
+site="$root/build/release/collab/tessera-site"
 mkdir -p "$out"
 
 echo "== tessera-lod info on every file in $data"
@@ -98,13 +99,14 @@ for tile in tile-0-0 tile-1-0 tile-0-1 tile-1-1; do
   "$node" --master tcp://127.0.0.1:7400 --headless --tile "$tile" >"$out/zmq/node-$tile.log" 2>&1 &
   node_pids+=($!)
 done
-wait_for() {  # wait_for PATTERN SECONDS: until the master's log has PATTERN
-  local end=$((SECONDS + $2))
-  until grep -q "$1" "$out/zmq/master.log"; do
+wait_in() {  # wait_in FILE PATTERN SECONDS: until FILE has PATTERN (or the master ended)
+  local end=$((SECONDS + $3))
+  until grep -q "$2" "$1" 2>/dev/null; do
     if ((SECONDS > end)) || ! kill -0 "$master_pid" 2>/dev/null; then return 1; fi
     sleep 0.2
   done
 }
+wait_for() { wait_in "$out/zmq/master.log" "$1" "$2"; }  # wait_for PATTERN SECONDS: the master's log
 t0=$(date +%s.%N)
 stamp() { awk -v a="$(date +%s.%N)" -v b="$t0" -v m="$1" 'BEGIN { printf "  %6.2f s  %s\n", a - b, m }'; }
 frames_done() {  # the last frame in the master's stats
@@ -129,6 +131,40 @@ awk -F, '$4 == "master" && NR > 1 { n++; s += $10; if ($10 > m) m = $10 }
   END { if (n) printf "  %d frames, mean %.0f ms, slowest %.0f ms\n", n, s / n, m }' "$out/zmq/stats.csv"
 
 echo
+echo "== two remote sites join the wall over encrypted ZeroMQ (CURVE keys, an allow list): Kyoto"
+echo "   draws a stroke on the bunny and leads the view, Leiden follows it, then both go their own"
+echo "   way; their avatars and the sketch are on every tile"
+sd="$out/sites"
+rm -rf "$sd" && mkdir -p "$sd/kyoto" "$sd/leiden" && chmod 700 "$sd"
+"$site" keygen -o "$sd/master.key" >"$sd/master.pub" 2>/dev/null
+"$site" keygen -o "$sd/kyoto.key" >"$sd/kyoto.pub" 2>/dev/null
+"$site" keygen -o "$sd/leiden.key" >"$sd/leiden.pub" 2>/dev/null
+{ echo "$(cat "$sd/kyoto.pub")  Kyoto lab"; echo "$(cat "$sd/leiden.pub")  Leiden museum"; } >"$sd/allow.txt"
+chmod 600 "$sd/allow.txt"
+"$master" --transport zmq --listen tcp://127.0.0.1:7410 --wall configs/walls/2x2.json \
+  --scene configs/scenes/bunny.json --script configs/paths/bunny-sites.json --max-fps 15 \
+  --sites tcp://127.0.0.1:7411 --site-key "$sd/master.key" --allow "$sd/allow.txt" \
+  --screenshot "$sd/wall-with-sites.png" --stats "$sd/stats.csv" >"$sd/master.log" 2>&1 &
+master_pid=$!
+node_pids=()
+for tile in tile-0-0 tile-1-0 tile-0-1 tile-1-1; do
+  "$node" --master tcp://127.0.0.1:7410 --headless --tile "$tile" >"$sd/node-$tile.log" 2>&1 &
+  node_pids+=($!)
+done
+wait_in "$sd/master.log" "4 of 4 tiles have a node" 120
+"$site" --master tcp://127.0.0.1:7411 --master-key "$(cat "$sd/master.pub")" --name "Kyoto lab" \
+  --key "$sd/kyoto.key" --headless -o "$sd/kyoto" --script configs/sites/kyoto.json >"$sd/kyoto.log" 2>&1 &
+kyoto_pid=$!
+wait_in "$sd/kyoto.log" "leads the view" 120
+"$site" --master tcp://127.0.0.1:7411 --master-key "$(cat "$sd/master.pub")" --name "Leiden museum" \
+  --key "$sd/leiden.key" --headless -o "$sd/leiden" --script configs/sites/leiden.json >"$sd/leiden.log" 2>&1 &
+leiden_pid=$!
+wait "$master_pid" || { echo "the wall with sites failed: $sd/master.log"; exit 1; }
+for p in "${node_pids[@]}" "$kyoto_pid" "$leiden_pid"; do wait "$p" 2>/dev/null || true; done
+grep "sites:" "$sd/master.log" | sed 's/^/  /'
+cat "$sd/kyoto.log" "$sd/leiden.log" | sed 's/^/  /'
+
+echo
 echo "Outputs:"
 echo "  $out/info.txt                      description of every data file"
 echo "  $out/info.json                     the same as JSON"
@@ -147,3 +183,6 @@ echo "  $out/cluster/stats.csv              per frame and node: sync, render, ba
 echo "  $out/cluster/master.txt             the master's log (each screenshot's camera, for tessera-render --camera)"
 echo "  $out/zmq/                           the ZeroMQ wall: master.log (joins, the drop, the rejoin), stats.csv,"
 echo "                                      the path's screenshots (the lost tile striped red), node logs"
+echo "  $out/sites/wall-with-sites.png      the wall with two remote sites: their avatars (head, view frustum,"
+echo "                                      name) and Kyoto's sketch on the bunny; master.log (joins, lead)"
+echo "  $out/sites/kyoto/, leiden/          the sites' own views, Leiden's while following Kyoto, strokes.csv"

@@ -13,7 +13,7 @@ PACKAGES=(
   libglfw3-dev libglm-dev libegl-dev libgl-dev libopengl-dev libegl1-mesa-dev
   libgl1-mesa-dri libegl-mesa0
   # a virtual X server: windowed GL (GLFW + GLX) tested headless
-  xvfb xauth
+  xvfb xauth xdotool
   # video insets and audio for remote sites
   libavcodec-dev libavformat-dev libswscale-dev libavutil-dev libopus-dev
   # one schema for configs, wire and snapshots

@@ -18,9 +18,11 @@ struct SiteClient::Impl {
 
   /// The next message until `deadline`, or nothing.
   std::optional<site::ToSite> next(Clock::time_point deadline) {
-    const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - Clock::now());
+    const auto left =
+        std::chrono::duration_cast<std::chrono::milliseconds>(deadline - Clock::now());
     zmq::pollitem_t item{socket.handle(), 0, ZMQ_POLLIN, 0};
-    if (zmq::poll(&item, 1, std::max<std::chrono::milliseconds>(left, std::chrono::milliseconds(0))) <= 0)
+    if (zmq::poll(&item, 1,
+                  std::max<std::chrono::milliseconds>(left, std::chrono::milliseconds(0))) <= 0)
       return std::nullopt;
     zmq::message_t msg;
     if (!socket.recv(msg, zmq::recv_flags::dontwait)) return std::nullopt;
@@ -71,17 +73,20 @@ site::SiteWelcome SiteClient::join(sync::SceneGraph& graph, Clock::time_point de
           graph = sync::SceneGraph();
           graph.apply(sync::parseSnapshot(reply->welcome().snapshot()));
         } catch (const sync::SyncError& e) {
-          throw SiteSessionEnded(Why::kBadMessage, std::string("the welcome's snapshot: ") + e.what());
+          throw SiteSessionEnded(Why::kBadMessage,
+                                 std::string("the welcome's snapshot: ") + e.what());
         }
         return reply->welcome();
       }
       case site::ToSite::kRefused:
-        throw SiteSessionEnded(Why::kRefused, "the master refused this site: " +
-                                                  reply->refused().reason());
+        throw SiteSessionEnded(Why::kRefused,
+                               "the master refused this site: " + reply->refused().reason());
       case site::ToSite::kDropped:
-        throw SiteSessionEnded(Why::kDropped, "dropped by the master: " + reply->dropped().reason());
+        throw SiteSessionEnded(Why::kDropped,
+                               "dropped by the master: " + reply->dropped().reason());
       case site::ToSite::kQuit:
-        throw SiteSessionEnded(Why::kQuit, "the master ended the session (" + reply->quit().reason() + ")");
+        throw SiteSessionEnded(Why::kQuit,
+                               "the master ended the session (" + reply->quit().reason() + ")");
       default:
         break;  // frames of an earlier session on this connection
     }
@@ -112,9 +117,11 @@ sync::SceneChanges SiteClient::receive(sync::SceneGraph& graph, Clock::time_poin
           break;
         }
         case site::ToSite::kDropped:
-          throw SiteSessionEnded(Why::kDropped, "dropped by the master: " + msg->dropped().reason());
+          throw SiteSessionEnded(Why::kDropped,
+                                 "dropped by the master: " + msg->dropped().reason());
         case site::ToSite::kQuit:
-          throw SiteSessionEnded(Why::kQuit, "the master ended the session (" + msg->quit().reason() + ")");
+          throw SiteSessionEnded(Why::kQuit,
+                                 "the master ended the session (" + msg->quit().reason() + ")");
         case site::ToSite::kRefused:
           throw SiteSessionEnded(Why::kRefused, "refused: " + msg->refused().reason());
         default:
@@ -125,8 +132,9 @@ sync::SceneChanges SiteClient::receive(sync::SceneGraph& graph, Clock::time_poin
     }
   }
   if (Clock::now() - m->last_heard > std::chrono::duration<double>(m->opt.master_timeout_s))
-    throw SiteSessionEnded(Why::kMasterLost, "no frame from the master for " +
-                                                 std::to_string(int(m->opt.master_timeout_s)) + " s");
+    throw SiteSessionEnded(
+        Why::kMasterLost,
+        "no frame from the master for " + std::to_string(int(m->opt.master_timeout_s)) + " s");
   std::sort(all.nodes.begin(), all.nodes.end());
   all.nodes.erase(std::unique(all.nodes.begin(), all.nodes.end()), all.nodes.end());
   return all;

@@ -41,7 +41,7 @@ struct TokenBucket {
 
 /// A connection on the site socket (one routing id).
 struct Peer {
-  std::string id, key;  // routing id; the Z85 key CURVE authenticated
+  std::string id, key;       // routing id; the Z85 key CURVE authenticated
   uint32_t participant = 0;  // 0 until welcomed
   double last_seen = 0;
   TokenBucket messages, bytes;

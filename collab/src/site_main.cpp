@@ -22,9 +22,10 @@ int run(int argc, char** argv) {
       "viewpoint, appear on the wall as an avatar, draw on the model, lead or follow the view"};
   app.require_subcommand(0, 1);
   std::string keygen_out;
-  CLI::App* keygen = app.add_subcommand(
-      "keygen", "Write a new CURVE key pair (mode 0600) and print its public key (for the "
-                "master's --allow list, or for the sites' --master-key)");
+  CLI::App* keygen =
+      app.add_subcommand("keygen",
+                         "Write a new CURVE key pair (mode 0600) and print its public key (for the "
+                         "master's --allow list, or for the sites' --master-key)");
   keygen->add_option("-o,--output", keygen_out, "The key file to write (never overwritten)")
       ->required();
 
@@ -36,6 +37,13 @@ int run(int argc, char** argv) {
                  "The master's public key (40 Z85 characters), or a file holding it");
   app.add_option("--name", o.client.name, "Shown on this site's avatar (1..64 bytes of UTF-8)");
   app.add_option("--key", key_file, "This site's key pair (tessera-site keygen; mode 0600)");
+  std::string size = "960x640";
+  bool window = false;
+  app.add_flag("--window", window,
+               "A window: left button navigates (one button: click a target, drag to orbit, "
+               "right-hand bar forward/back, wheel zooms), right-button drag draws on the model; "
+               "keys L lead, R release, F follow, U undo, C clear, P picture, Esc quit");
+  app.add_option("--size", size, "--window: its size in pixels, WxH")->capture_default_str();
   app.add_flag("--headless", headless, "No window: play --script, screenshots to -o");
   app.add_option("-o,--out-dir", o.out_dir, "Screenshots and strokes.csv (headless)")
       ->capture_default_str();
@@ -56,15 +64,19 @@ int run(int argc, char** argv) {
                  keygen_out.c_str());
     return 0;
   }
-  for (const auto& [value, option] : {std::pair{&o.client.master, "--master"},
-                                      std::pair{&master_key, "--master-key"},
-                                      std::pair{&o.client.name, "--name"},
-                                      std::pair{&key_file, "--key"}}) {
+  for (const auto& [value, option] :
+       {std::pair{&o.client.master, "--master"}, std::pair{&master_key, "--master-key"},
+        std::pair{&o.client.name, "--name"}, std::pair{&key_file, "--key"}}) {
     if (value->empty()) throw cli::UsageError(std::string(option) + " is required");
   }
-  if (!headless)
-    throw cli::UsageError(
-        "--headless is required: this build of tessera-site has no window yet (use --script)");
+  if (headless == window)
+    throw cli::UsageError("give one of --window (a person at the site) and --headless (a script)");
+  if (window && no_render) throw cli::UsageError("--window draws: it cannot go with --no-render");
+  const cli::Size wh = cli::parseSize(size, "--size", 8192);
+  if (wh.width < 16 || wh.height < 16) throw cli::UsageError("--size " + size + ": at least 16x16");
+  o.window = window;
+  o.window_width = wh.width;
+  o.window_height = wh.height;
   if (auto why = collab::checkName(o.client.name, "--name")) throw cli::UsageError(*why);
   try {
     o.client.master_key = collab::readPublicKey(master_key, "--master-key");

@@ -11,8 +11,7 @@ using Problem = std::optional<std::string>;
 Problem checkCoordinates(const google::protobuf::RepeatedField<double>& v, int count,
                          const std::string& field) {
   if (v.size() != count)
-    return field + ": needs " + std::to_string(count) + " numbers, got " +
-           std::to_string(v.size());
+    return field + ": needs " + std::to_string(count) + " numbers, got " + std::to_string(v.size());
   for (double x : v) {
     if (!std::isfinite(x)) return field + ": numbers must be finite";
     if (std::abs(x) > kMaxCoordinate)
@@ -75,9 +74,12 @@ Problem checkName(std::string_view name, const std::string& field) {
   for (size_t i = 0; i < name.size();) {
     const unsigned char c = static_cast<unsigned char>(name[i]);
     if (c < 0x20 || c == 0x7F) return field + ": holds a control character";
-    int extra = c < 0x80 ? 0 : (c >> 5) == 0x6 ? 1 : (c >> 4) == 0xE ? 2 : (c >> 3) == 0x1E ? 3 : -1;
-    if (extra < 0 || i + size_t(extra) >= name.size())
-      return field + ": not valid UTF-8";
+    int extra = c < 0x80           ? 0
+                : (c >> 5) == 0x6  ? 1
+                : (c >> 4) == 0xE  ? 2
+                : (c >> 3) == 0x1E ? 3
+                                   : -1;
+    if (extra < 0 || i + size_t(extra) >= name.size()) return field + ": not valid UTF-8";
     uint32_t cp = extra == 0 ? c : c & (0x3F >> extra);
     for (int k = 1; k <= extra; ++k) {
       const unsigned char d = static_cast<unsigned char>(name[i + size_t(k)]);

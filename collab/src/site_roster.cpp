@@ -18,10 +18,9 @@ using NodeId = sync::SceneGraph::NodeId;
 
 /// Eight colours told apart on a dark wall and by most colour-blind viewers (Okabe and Ito's
 /// palette, then two more).
-constexpr float kPalette[][3] = {{0.90f, 0.62f, 0.00f}, {0.34f, 0.71f, 0.91f},
-                                 {0.00f, 0.62f, 0.45f}, {0.94f, 0.89f, 0.26f},
-                                 {0.00f, 0.45f, 0.70f}, {0.84f, 0.37f, 0.00f},
-                                 {0.80f, 0.47f, 0.65f}, {0.95f, 0.95f, 0.95f}};
+constexpr float kPalette[][3] = {
+    {0.90f, 0.62f, 0.00f}, {0.34f, 0.71f, 0.91f}, {0.00f, 0.62f, 0.45f}, {0.94f, 0.89f, 0.26f},
+    {0.00f, 0.45f, 0.70f}, {0.84f, 0.37f, 0.00f}, {0.80f, 0.47f, 0.65f}, {0.95f, 0.95f, 0.95f}};
 
 /// A pose as the avatar shows it: eye, orientation (camera to world), distance to the target.
 struct PoseState {
@@ -167,9 +166,10 @@ void SiteRoster::apply(sync::SceneGraph& graph, uint32_t participant, const site
     case site::ToMaster::kStroke: {
       const site::SiteStroke& st = m.stroke();
       if (s.sketches.size() >= kMaxSketchesPerSite) {
-        std::printf("tessera-master: sites: %s: stroke ignored: it has %zu sketches, the most a "
-                    "site may keep (undo or clear first)\n",
-                    s.info.name.c_str(), s.sketches.size());
+        std::printf(
+            "tessera-master: sites: %s: stroke ignored: it has %zu sketches, the most a "
+            "site may keep (undo or clear first)\n",
+            s.info.name.c_str(), s.sketches.size());
         return;
       }
       if (!s.layer) {
@@ -180,8 +180,8 @@ void SiteRoster::apply(sync::SceneGraph& graph, uint32_t participant, const site
                       : graph.add(scene::SceneNode::GROUP, sync::SceneGraph::kRoot, layer);
         graph.setAuthor(s.layer, s.info.name);
       }
-      const NodeId id =
-          graph.add(scene::SceneNode::SKETCH, s.layer, "sketch " + std::to_string(s.info.strokes + 1));
+      const NodeId id = graph.add(scene::SceneNode::SKETCH, s.layer,
+                                  "sketch " + std::to_string(s.info.strokes + 1));
       // Points relative to the first, in float; the transform holds the first in double, so
       // georeferenced scenes keep millimetres.
       const glm::dvec3 origin{st.points(0), st.points(1), st.points(2)};
@@ -212,12 +212,14 @@ void SiteRoster::apply(sync::SceneGraph& graph, uint32_t participant, const site
       if (graph.settings().leader() != s.info.name) {
         graph.setLeader(s.info.name);
         std::printf("tessera-master: sites: %s leads the view\n", s.info.name.c_str());
+        std::fflush(stdout);
       }
       return;
     case site::ToMaster::kRelease:
       if (graph.settings().leader() == s.info.name) {
         graph.setLeader("");
         std::printf("tessera-master: sites: %s gave the view back\n", s.info.name.c_str());
+        std::fflush(stdout);
       }
       return;
     default:

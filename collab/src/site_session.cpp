@@ -13,10 +13,12 @@
 
 #include <tessera/collab/site_messages.h>
 #include <tessera/core/file_checks.h>
+#include <tessera/master/one_button_navigation.h>
 #include <tessera/render/gl_context.h>
 #include <tessera/render/scene_draw_list.h>
 #include <tessera/render/scene_overlay.h>
 #include <tessera/render/view_renderer.h>
+#include <tessera/render/window.h>
 #include <tessera/sync/camera_state.h>
 #include <tessera/sync/config.h>
 
@@ -146,6 +148,7 @@ struct SiteSession::Impl {
   std::unique_ptr<SiteClient> client;
   site::SiteWelcome welcome;
   sync::SceneGraph graph;
+  std::unique_ptr<render::Window> window;  // --window: the user's view and input
   std::unique_ptr<render::GlContext> context;
   render::SceneDrawList models;
   std::span<const render::ModelInstance> instances;
@@ -156,9 +159,15 @@ struct SiteSession::Impl {
   uint64_t sequence = 0;
   std::ofstream strokes_csv;
   uint64_t strokes = 0;
+  // --window: one-button navigation (left button, wheel), strokes (right-button drag).
+  master::OneButtonNavigation navigation;
+  render::ViewSetup last_view;
+  std::vector<float> drag;  // the right-button drag's pixels so far
+  bool right_held = false;
+  Clock::time_point last_input = Clock::now();
 
   ~Impl() {
-    if (renderer) {
+    if (renderer) {  // the window's or the headless context is current
       render::ChunkStreamer* s[] = {&renderer->streamer()};
       models.clear(s);
     }
@@ -166,8 +175,8 @@ struct SiteSession::Impl {
   }
 
   void say(const std::string& text) {
-    std::printf("tessera-site %s: %s\n", welcome.name().empty() ? opt.client.name.c_str()
-                                                                : welcome.name().c_str(),
+    std::printf("tessera-site %s: %s\n",
+                welcome.name().empty() ? opt.client.name.c_str() : welcome.name().c_str(),
                 text.c_str());
     std::fflush(stdout);
   }
@@ -203,9 +212,9 @@ struct SiteSession::Impl {
       dist = glm::length(0.5 * (lo + hi) - vec(camera.eye()));
     }
     const double near = std::max(1e-4 * radius, (dist - 2.0 * radius) * 0.5);
-    v.projection = glm::perspective(glm::radians(double(script.fovy_deg())),
-                                    double(script.width()) / script.height(), near,
-                                    dist + 2.0 * radius);
+    v.projection =
+        glm::perspective(glm::radians(double(script.fovy_deg())),
+                         double(script.width()) / script.height(), near, dist + 2.0 * radius);
     return v;
   }
 
@@ -217,6 +226,23 @@ struct SiteSession::Impl {
     so.viewer_eye = vec(c.eye());
     so.hide_near_m = 1e-3 * std::max(1e-3, glm::length(vec(c.target()) - vec(c.eye())));
     render::appendSceneOverlay(graph, o, so);
+    if (window) {  // the navigation's bar and target, as the master's console shows them
+      const float w = float(script.width()), h = float(script.height());
+      const float bar = w * float(1.0 - master::OneButtonNavigation::kBarFraction);
+      o.rects.push_back({{bar, 0.0f}, {w, h}, {255, 255, 255, 64}});
+      if (const auto& t = navigation.target()) {
+        render::OverlayPoint ring;
+        ring.at = *t;
+        ring.size_px = 2.0f * float(master::OneButtonNavigation::kTargetRadiusPx);
+        ring.ring_px = 3.0f;
+        ring.color = {255, 255, 255, 230};
+        o.points.push_back(ring);
+      }
+      for (size_t i = 0; i + 3 < drag.size(); i += 2)  // the stroke being drawn, on top
+        o.rects.push_back({{drag[i] - 2.0f, drag[i + 1] - 2.0f},
+                           {drag[i] + 2.0f, drag[i + 1] + 2.0f},
+                           {255, 255, 255, 200}});
+    }
     return o;
   }
 
@@ -246,13 +272,12 @@ struct SiteSession::Impl {
     client->send(m);
   }
 
-  render::RenderOptions options() const {
-    return render::SceneDrawList::options(graph, 2.0f);
-  }
+  render::RenderOptions options() const { return render::SceneDrawList::options(graph, 2.0f); }
 
   render::Image settled(const config::Camera& c) {
     const render::Overlay o = overlay(c);
-    return renderer->renderSettled(instances, view(c), options(), nullptr, o.empty() ? nullptr : &o);
+    return renderer->renderSettled(instances, view(c), options(), nullptr,
+                                   o.empty() ? nullptr : &o);
   }
 
   void stroke(const site::StrokeAction& a, const config::Camera& c) {
@@ -272,8 +297,22 @@ struct SiteSession::Impl {
       const render::ViewSetup v = view(c);
       const std::vector<uint32_t> depth = renderer->target().readDepth();
       const glm::dmat4 unproject = glm::inverse(v.projection * v.view);
+      // The pixels the stroke passes, at most 2 px apart (as a mouse drag gives them), so the
+      // polyline follows the surface between the samples given instead of cutting chords under
+      // it.
+      std::vector<glm::dvec2> path;
       for (int i = 0; i + 1 < a.pixels_size(); i += 2) {
-        const double px = a.pixels(i), py = a.pixels(i + 1);
+        const glm::dvec2 p(a.pixels(i), a.pixels(i + 1));
+        if (!path.empty()) {
+          const int steps = int(std::min(4096.0, std::ceil(glm::length(p - path.back()) / 2.0)));
+          const glm::dvec2 from = path.back();
+          for (int k = 1; k < steps; ++k) path.push_back(glm::mix(from, p, double(k) / steps));
+        }
+        path.push_back(p);
+      }
+      if (path.size() > size_t(kMaxStrokePoints)) path.resize(size_t(kMaxStrokePoints));
+      for (const glm::dvec2& pixel : path) {
+        const double px = pixel.x, py = pixel.y;
         if (!(px >= 0 && py >= 0 && px < v.width && py < v.height)) continue;
         const uint32_t x = uint32_t(px), y = uint32_t(py);
         // The surface under the cursor: the median depth of its 3x3 pixels that show the
@@ -311,7 +350,8 @@ struct SiteSession::Impl {
       strokes_csv.flush();
     }
     if (s.points_size() < 6) {
-      say("stroke " + std::to_string(index) + " skipped: fewer than 2 of its pixels are on the model");
+      say("stroke " + std::to_string(index) +
+          " skipped: fewer than 2 of its pixels are on the model");
       return;
     }
     say("stroke " + std::to_string(index) + ": " + std::to_string(s.points_size() / 3) +
@@ -359,8 +399,14 @@ struct SiteSession::Impl {
       case site::SiteAction::kScreenshot: {
         if (!renderer) break;
         const std::string path = (fs::path(opt.out_dir) / a.screenshot()).string();
-        render::writePng(path, settled(asSent(camera(now))));
-        say("wrote " + path + " (frame version " + std::to_string(graph.version()) + ")");
+        const config::Camera c = asSent(camera(now));
+        render::writePng(path, settled(c));
+        char cam[320];
+        std::snprintf(cam, sizeof cam, "eye=%.9g,%.9g,%.9g;target=%.9g,%.9g,%.9g;up=%.9g,%.9g,%.9g",
+                      c.eye().x(), c.eye().y(), c.eye().z(), c.target().x(), c.target().y(),
+                      c.target().z(), c.up().x(), c.up().y(), c.up().z());
+        say("wrote " + path + " (scene version " + std::to_string(graph.version()) + "); camera " +
+            cam);
         break;
       }
       case site::SiteAction::kBye:
@@ -368,6 +414,99 @@ struct SiteSession::Impl {
       default:
         break;
     }
+    return true;
+  }
+
+  /// --window: the user's input since the last frame. False when the window closes.
+  bool interact(double now) {
+    const render::WindowInput in = window->poll();
+    if (window->closing()) return false;
+    const auto t = Clock::now();
+    const double dt = std::chrono::duration<double>(t - last_input).count();
+    last_input = t;
+    const glm::dvec2 scale(script.width() / std::max(1.0, double(in.size.x)),
+                           script.height() / std::max(1.0, double(in.size.y)));
+    master::PointerInput p;
+    p.cursor = in.cursor * scale;
+    p.down = in.left;
+    p.pressed = in.left_pressed;
+    p.released = in.left_released;
+    p.scroll = in.scroll;
+    p.size = glm::dvec2(script.width(), script.height());
+    if (p.pressed || p.down || p.released || p.scroll != 0 || navigation.flying()) {
+      if (following && (p.pressed || p.scroll != 0)) {
+        following = false;  // taking control back
+        say("stops following");
+      }
+      const glm::dmat4 clip_from_world = last_view.projection * last_view.view;
+      const double fovy = glm::radians(double(script.fovy_deg()));
+      auto pick = [&](glm::dvec2 px) -> std::optional<glm::dvec3> {
+        if (!(px.x >= 0 && px.y >= 0 && px.x < script.width() && px.y < script.height()))
+          return std::nullopt;
+        if (auto hit = renderer->pick(uint32_t(px.x), uint32_t(px.y))) return hit->world;
+        return std::nullopt;
+      };
+      auto project = [&](const glm::dvec3& w) -> std::optional<glm::dvec2> {
+        const glm::dvec4 c = clip_from_world * glm::dvec4(w, 1.0);
+        if (c.w <= 0) return std::nullopt;
+        return glm::dvec2((c.x / c.w * 0.5 + 0.5) * script.width(),
+                          (0.5 - c.y / c.w * 0.5) * script.height());
+      };
+      if (!following) own = navigation.update(own, p, dt, fovy, pick, project);
+    }
+    // A right-button drag draws a stroke, placed on the model when the button goes up.
+    const glm::vec2 at(p.cursor);
+    if (in.right) {
+      if (drag.empty() || glm::length(at - glm::vec2(drag[drag.size() - 2], drag.back())) >= 1.0f) {
+        drag.push_back(at.x);
+        drag.push_back(at.y);
+      }
+    } else if (right_held) {
+      if (drag.size() >= 4) {
+        site::StrokeAction a;
+        for (float v : drag) a.add_pixels(v);
+        *a.mutable_color() = welcome.color();
+        a.set_width(4.0f);
+        stroke(a, asSent(camera(now)));
+      }
+      drag.clear();
+    }
+    right_held = in.right;
+    // Keys (GLFW codes): L lead, R release, F follow, U undo, C clear, P screenshot.
+    for (int key : in.keys) {
+      site::SiteAction a;
+      switch (key) {
+        case 76:
+          a.set_lead(true);
+          break;
+        case 82:
+          a.set_release(true);
+          break;
+        case 70:
+          a.set_follow(true);
+          break;
+        case 85:
+          a.set_undo(true);
+          break;
+        case 67:
+          a.set_clear(true);
+          break;
+        case 80:
+          a.set_screenshot("site-" + std::to_string(uint64_t(now * 1000)) + ".png");
+          break;
+        default:
+          continue;
+      }
+      act(a, now);
+    }
+    const std::string& leader = graph.settings().leader();
+    window->setTitle("tessera-site: " + welcome.name() +
+                     (leader == welcome.name() ? " | leading the view"
+                      : following
+                          ? " | following " + (leader.empty() ? std::string("the wall") : leader)
+                          : "") +
+                     " | left: navigate, right: draw; L lead, R release, F follow, U undo, C "
+                     "clear, P picture, Esc quit");
     return true;
   }
 
@@ -380,22 +519,32 @@ struct SiteSession::Impl {
       script.set_height(480);
       script.set_fovy_deg(45);
     }
+    if (opt.window) {
+      script.set_width(opt.window_width);
+      script.set_height(opt.window_height);
+    }
     if (opt.render) {
-      context = render::GlContext::createHeadless();
+      if (opt.window)
+        window = render::Window::open(script.width(), script.height(),
+                                      "tessera-site: " + opt.client.name);
+      else
+        context = render::GlContext::createHeadless();
       render::StreamerOptions stream;
       stream.density_ratios = true;
-      renderer = std::make_unique<render::ViewRenderer>(script.width(), script.height(), nullptr,
-                                                        stream);
+      renderer =
+          std::make_unique<render::ViewRenderer>(script.width(), script.height(), nullptr, stream);
       std::error_code ec;
       fs::create_directories(opt.out_dir, ec);
       strokes_csv.open(fs::path(opt.out_dir) / "strokes.csv");
       if (!strokes_csv)
-        throw std::runtime_error("-o " + opt.out_dir + ": cannot write strokes.csv: " +
-                                 whyNotWritable((fs::path(opt.out_dir) / "strokes.csv").string(), errno));
+        throw std::runtime_error(
+            "-o " + opt.out_dir + ": cannot write strokes.csv: " +
+            whyNotWritable((fs::path(opt.out_dir) / "strokes.csv").string(), errno));
       strokes_csv << "stroke,px,py,x,y,z,depth\n";
     }
     client = std::make_unique<SiteClient>(opt.client);
-    welcome = client->join(graph, Clock::now() + std::chrono::milliseconds(int64_t(opt.join_timeout_s * 1000)));
+    welcome = client->join(
+        graph, Clock::now() + std::chrono::milliseconds(int64_t(opt.join_timeout_s * 1000)));
     say("joined as participant " + std::to_string(welcome.participant()) + " at scene version " +
         std::to_string(graph.version()));
     update(sync::SceneChanges::all());
@@ -417,11 +566,20 @@ struct SiteSession::Impl {
           return kSiteOk;
         }
       }
+      if (window && !interact(now)) {
+        site::ToMaster bye;
+        bye.mutable_bye();
+        client->send(bye);
+        say("left (its window closed)");
+        return kSiteOk;
+      }
       const config::Camera c = asSent(camera(now));
       sendPose(c);
       if (renderer) {
         const render::Overlay o = overlay(c);
-        renderer->draw(instances, view(c), options(), nullptr, o.empty() ? nullptr : &o);
+        last_view = view(c);
+        renderer->draw(instances, last_view, options(), nullptr, o.empty() ? nullptr : &o);
+        if (window) window->present(renderer->imageBuffer(), script.width(), script.height());
       }
       if (script.frames() > 0 && frame + 1 >= script.frames()) {
         site::ToMaster bye;

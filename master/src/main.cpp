@@ -99,8 +99,9 @@ int run(int argc, char** argv) {
   app.add_option("--sites", sites.endpoint,
                  "Remote sites join here over encrypted ZeroMQ (tessera-site), e.g. tcp://*:7401; "
                  "needs --site-key and --allow");
-  app.add_option("--site-key", sites.key_file,
-                 "The master's CURVE key pair for --sites (tessera-site keygen -o FILE; mode 0600)");
+  app.add_option(
+      "--site-key", sites.key_file,
+      "The master's CURVE key pair for --sites (tessera-site keygen -o FILE; mode 0600)");
   app.add_option("--allow", sites.allow_list,
                  "The sites' public keys that may join, one per line with an optional name (read "
                  "again when it changes)");
@@ -171,8 +172,9 @@ int run(int argc, char** argv) {
     return cli::kExitBadCommandLine;
   }
   if (!sites.endpoint.empty() && (sites.key_file.empty() || sites.allow_list.empty())) {
-    const std::string why = "--sites needs --site-key and --allow (remote sites are never let in "
-                            "without encryption and an allow list)";
+    const std::string why =
+        "--sites needs --site-key and --allow (remote sites are never let in "
+        "without encryption and an allow list)";
     std::fprintf(stderr, "tessera-master: %s\n", why.c_str());
     if (mpi) {
       sync::MpiMasterLink l(*mpi);

@@ -223,8 +223,8 @@ Problem checkSettings(const scene::Settings& s) {
   if (s.has_spbr_ensembles() && (s.spbr_ensembles() < 1 || s.spbr_ensembles() > 4096))
     return "settings.spbr_ensembles: must be 1..4096, got " + std::to_string(s.spbr_ensembles());
   if (s.has_leader() && s.leader().size() > SceneGraph::kMaxParticipantName)
-    return "settings.leader: at most " + std::to_string(SceneGraph::kMaxParticipantName) + " bytes, got " +
-           std::to_string(s.leader().size());
+    return "settings.leader: at most " + std::to_string(SceneGraph::kMaxParticipantName) +
+           " bytes, got " + std::to_string(s.leader().size());
   return {};
 }
 

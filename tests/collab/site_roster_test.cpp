@@ -78,8 +78,8 @@ TEST(SiteMessages, RefusesNonFiniteDegenerateAndOversizedInput) {
   EXPECT_TRUE(collab::checkToMaster(two_eyes));
 
   EXPECT_FALSE(collab::checkToMaster(stroke({0, 0, 0, 1, 1, 1})));
-  EXPECT_TRUE(collab::checkToMaster(stroke({0, 0, 0})));           // one point
-  EXPECT_TRUE(collab::checkToMaster(stroke({0, 0, 0, 1, 1})));     // not triples
+  EXPECT_TRUE(collab::checkToMaster(stroke({0, 0, 0})));        // one point
+  EXPECT_TRUE(collab::checkToMaster(stroke({0, 0, 0, 1, 1})));  // not triples
   EXPECT_TRUE(collab::checkToMaster(stroke({0, 0, 0, 1, nan, 1})));
   site::ToMaster wide = stroke({0, 0, 0, 1, 1, 1});
   wide.mutable_stroke()->set_width(65);
@@ -104,10 +104,10 @@ TEST(SiteMessages, NamesAreShortPrintableUtf8) {
   EXPECT_TRUE(collab::checkName("", "name"));
   EXPECT_TRUE(collab::checkName(std::string(65, 'a'), "name"));
   EXPECT_TRUE(collab::checkName("tab\there", "name"));
-  EXPECT_TRUE(collab::checkName("\xc0\xaf", "name"));          // overlong '/'
-  EXPECT_TRUE(collab::checkName("\xed\xa0\x80", "name"));      // a surrogate
-  EXPECT_TRUE(collab::checkName("cut \xe4\xba", "name"));      // truncated sequence
-  EXPECT_TRUE(collab::checkName("\xc2\x85", "name"));          // C1 control (NEL)
+  EXPECT_TRUE(collab::checkName("\xc0\xaf", "name"));      // overlong '/'
+  EXPECT_TRUE(collab::checkName("\xed\xa0\x80", "name"));  // a surrogate
+  EXPECT_TRUE(collab::checkName("cut \xe4\xba", "name"));  // truncated sequence
+  EXPECT_TRUE(collab::checkName("\xc2\x85", "name"));      // C1 control (NEL)
 }
 
 TEST(SiteRoster, AvatarFollowsPosesSmoothlyAndLeavesWithItsSite) {
@@ -160,7 +160,8 @@ TEST(SiteRoster, StrokesAreSketchesInTheSitesLayerWithUndoAndClear) {
   const uint32_t b = s.roster.join(s.master, "Kyoto lab", "k2");
   EXPECT_EQ(s.roster.info(b).name, "Kyoto lab (2)") << "names are unique";
   // Georeferenced: millimetres at 10^6 m survive (float points relative to a double origin).
-  s.roster.apply(s.master, a, stroke({636590.001, 847900.002, 100.003, 636590.5, 847900.25, 100.5}), 0);
+  s.roster.apply(s.master, a, stroke({636590.001, 847900.002, 100.003, 636590.5, 847900.25, 100.5}),
+                 0);
   s.roster.apply(s.master, a, stroke({0, 0, 0, 1, 0, 0, 1, 1, 0}), 0);
   s.roster.apply(s.master, b, stroke({0, 0, 0, 0, 1, 0}), 0);
   s.step(0.0);
@@ -218,9 +219,8 @@ TEST(SiteRoster, TheLeadersPoseMovesTheSceneCameraUntilReleased) {
   EXPECT_NEAR(c.eye().x(), 0.3, 1e-9);
   EXPECT_NEAR(c.eye().z(), 1.0, 1e-9);
   // The view direction is the pose's (the camera is stored rounded: floats relative to the eye).
-  const glm::dvec3 view = glm::normalize(glm::dvec3(c.target().x() - c.eye().x(),
-                                                    c.target().y() - c.eye().y(),
-                                                    c.target().z() - c.eye().z()));
+  const glm::dvec3 view = glm::normalize(glm::dvec3(
+      c.target().x() - c.eye().x(), c.target().y() - c.eye().y(), c.target().z() - c.eye().z()));
   EXPECT_NEAR(glm::length(view - glm::normalize(glm::dvec3(-0.3, -0.1, -1.0))), 0, 1e-6);
   // B takes the lead: last writer wins.
   s.roster.apply(s.master, b, lead, 0.3);

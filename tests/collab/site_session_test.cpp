@@ -20,11 +20,11 @@
 #include <tessera/collab/curve.h>
 #include <tessera/collab/site_messages.h>
 #include <tessera/lod/mesh.h>
-#include <tessera/site.pb.h>
-#include <tessera/sync/cluster_link.h>
 #include <tessera/render/image.h>
 #include <tessera/render/tile_frustum.h>
 #include <tessera/render/wall_mosaic.h>
+#include <tessera/site.pb.h>
+#include <tessera/sync/cluster_link.h>
 #include <tessera/sync/config.h>
 
 #include "../support/command.h"
@@ -57,15 +57,16 @@ std::string wallJson() {
            R"(, "width": 0.48, "height": 0.27, "pixelWidth": 320, "pixelHeight": 180})";
   };
   return R"({"name": "small 2x2", "tiles": [)" + tile("tile-0-0", 0, 0.29) + "," +
-         tile("tile-1-0", 0.5, 0.29) + "," + tile("tile-0-1", 0, 0) + "," + tile("tile-1-1", 0.5, 0) +
-         R"(], "eye": {"x": 0.49, "y": 0.28, "z": 1.5}})";
+         tile("tile-1-0", 0.5, 0.29) + "," + tile("tile-0-1", 0, 0) + "," +
+         tile("tile-1-1", 0.5, 0) + R"(], "eye": {"x": 0.49, "y": 0.28, "z": 1.5}})";
 }
 
 std::string cameraJson(glm::dvec3 eye, glm::dvec3 target) {
   char s[256];
-  std::snprintf(s, sizeof s,
-                R"({"eye": {"x": %.17g, "y": %.17g, "z": %.17g}, "target": {"x": %.17g, "y": %.17g, "z": %.17g}, "up": {"y": 1}})",
-                eye.x, eye.y, eye.z, target.x, target.y, target.z);
+  std::snprintf(
+      s, sizeof s,
+      R"({"eye": {"x": %.17g, "y": %.17g, "z": %.17g}, "target": {"x": %.17g, "y": %.17g, "z": %.17g}, "up": {"y": 1}})",
+      eye.x, eye.y, eye.z, target.x, target.y, target.z);
   return s;
 }
 
@@ -75,8 +76,8 @@ const glm::dvec3 kWallEye{-0.027, 0.11, 0.75};
 const glm::dvec3 kEyeA{-0.09, 0.13, 0.32}, kEyeB{0.04, 0.08, 0.36}, kEyeC{0.0, 0.16, 0.42};
 /// The master's palette by participant id (collab/src/site_roster.cpp).
 glm::vec3 participantColor(int participant) {
-  static const glm::vec3 palette[] = {{0.90f, 0.62f, 0.00f}, {0.34f, 0.71f, 0.91f},
-                                      {0.00f, 0.62f, 0.45f}, {0.94f, 0.89f, 0.26f}};
+  static const glm::vec3 palette[] = {
+      {0.90f, 0.62f, 0.00f}, {0.34f, 0.71f, 0.91f}, {0.00f, 0.62f, 0.45f}, {0.94f, 0.89f, 0.26f}};
   return palette[(participant - 1) % 4];
 }
 
@@ -136,7 +137,8 @@ class SiteSession : public ::testing::Test {
     ASSERT_EQ(r.code, 0) << r.out;
     write(*sDir / "scene.json",
           R"({"nodes": [{"kind": "MODEL", "name": "bunny", "model": {"store": "bunny.tlod"}}],
-          "camera": )" + cameraJson(kWallEye, kTarget) +
+          "camera": )" +
+              cameraJson(kWallEye, kTarget) +
               R"(, "settings": {"background": {"r": 0.05, "g": 0.05, "b": 0.08},
           "lodPixels": 1.0, "shading": "SHADING_EDL"}})");
     write(*sDir / "wall.json", wallJson());
@@ -169,13 +171,31 @@ class SiteSession : public ::testing::Test {
                                   cameraJson(kWallEye, kTarget).substr(1) + R"(, {"time": )" +
                                   std::to_string(seconds) + ", " +
                                   cameraJson(kWallEye, kTarget).substr(1) + "]}");
-    const std::vector<std::string> argv = {
-        TESSERA_MASTER, "--transport", "zmq", "--listen", "tcp://127.0.0.1:*", "--wall",
-        (*sDir / "wall.json").string(), "--scene", (*sDir / "scene.json").string(), "--script",
-        (mRun / "hold.json").string(), "--max-fps", "30", "--screenshot",
-        (mRun / "wall.png").string(), "--stats", (mRun / "stats.csv").string(), "--sites",
-        "tcp://127.0.0.1:*", "--site-key", (*sDir / "master.key").string(), "--allow",
-        (*sDir / "allow.txt").string(), "--node-timeout", "5000"};
+    const std::vector<std::string> argv = {TESSERA_MASTER,
+                                           "--transport",
+                                           "zmq",
+                                           "--listen",
+                                           "tcp://127.0.0.1:*",
+                                           "--wall",
+                                           (*sDir / "wall.json").string(),
+                                           "--scene",
+                                           (*sDir / "scene.json").string(),
+                                           "--script",
+                                           (mRun / "hold.json").string(),
+                                           "--max-fps",
+                                           "30",
+                                           "--screenshot",
+                                           (mRun / "wall.png").string(),
+                                           "--stats",
+                                           (mRun / "stats.csv").string(),
+                                           "--sites",
+                                           "tcp://127.0.0.1:*",
+                                           "--site-key",
+                                           (*sDir / "master.key").string(),
+                                           "--allow",
+                                           (*sDir / "allow.txt").string(),
+                                           "--node-timeout",
+                                           "5000"};
     auto m = std::make_unique<Process>(argv, mRun / "master.log");
     EXPECT_TRUE(m->waitFor("remote sites join on (tcp://\\S+)", 30)) << m->output();
     std::smatch match;
@@ -201,10 +221,19 @@ class SiteSession : public ::testing::Test {
                                      std::vector<std::string> extra = {}) {
     write(mRun / (name + ".json"), script_json);
     fs::create_directories(mRun / name);
-    std::vector<std::string> argv = {TESSERA_SITE,  "--master", mSites, "--master-key",
-                                     sKeys["master"], "--name",  name,   "--key",
-                                     (*sDir / (key + ".key")).string(), "--headless", "-o",
-                                     (mRun / name).string(), "--script",
+    std::vector<std::string> argv = {TESSERA_SITE,
+                                     "--master",
+                                     mSites,
+                                     "--master-key",
+                                     sKeys["master"],
+                                     "--name",
+                                     name,
+                                     "--key",
+                                     (*sDir / (key + ".key")).string(),
+                                     "--headless",
+                                     "-o",
+                                     (mRun / name).string(),
+                                     "--script",
                                      (mRun / (name + ".json")).string()};
     argv.insert(argv.end(), extra.begin(), extra.end());
     return std::make_unique<Process>(argv, mRun / (name + ".log"));
@@ -226,23 +255,30 @@ TEST_F(SiteSession, AvatarsSketchFollowMeAndAKilledSiteOnTheWall) {
   // A: its own view of the bunny; a stroke across the bunny's middle placed on the surface;
   // leads the view for a while (a screenshot meanwhile), then gives it back.
   std::string stroke_px;
-  for (int x = 110; x <= 210; x += 4) stroke_px += (stroke_px.empty() ? "" : ", ") + std::to_string(x) + ", 130";
-  auto a = startSite("a", "A", R"({"width": 320, "height": 240, "actions": [
-      {"frame": 0, "camera": )" + cameraJson(kEyeA, kTarget) + R"(},
-      {"frame": 8, "stroke": {"pixels": [)" + stroke_px + R"(], "color": {"r": 1}, "width": 5}},
+  for (int x = 110; x <= 210; x += 4)
+    stroke_px += (stroke_px.empty() ? "" : ", ") + std::to_string(x) + ", 130";
+  auto a = startSite("a", "A",
+                     R"({"width": 320, "height": 240, "actions": [
+      {"frame": 0, "camera": )" +
+                         cameraJson(kEyeA, kTarget) + R"(},
+      {"frame": 8, "stroke": {"pixels": [)" +
+                         stroke_px + R"(], "color": {"r": 1}, "width": 5}},
       {"frame": 20, "lead": true},
       {"frame": 60, "screenshot": "lead.png"},
       {"frame": 150, "release": true}]})");
   ASSERT_TRUE(a->waitFor("leads the view", 60)) << a->output();
   // B joins while A leads, follows it, takes a screenshot, then goes its own way.
-  auto b = startSite("b", "B", R"({"width": 320, "height": 240, "actions": [
-      {"frame": 0, "camera": )" + cameraJson(kEyeB, kTarget) + R"(},
+  auto b = startSite("b", "B",
+                     R"({"width": 320, "height": 240, "actions": [
+      {"frame": 0, "camera": )" +
+                         cameraJson(kEyeB, kTarget) + R"(},
       {"frame": 5, "follow": true},
       {"frame": 45, "screenshot": "follow.png"},
-      {"frame": 60, "camera": )" + cameraJson(kEyeB, kTarget) + R"(}]})");
+      {"frame": 60, "camera": )" +
+                         cameraJson(kEyeB, kTarget) + R"(}]})");
   // C joins without rendering and is killed.
-  auto c = startSite("c", "C", R"({"actions": [{"frame": 0, "camera": )" +
-                                   cameraJson(kEyeC, kTarget) + "}]}",
+  auto c = startSite("c", "C",
+                     R"({"actions": [{"frame": 0, "camera": )" + cameraJson(kEyeC, kTarget) + "}]}",
                      {"--no-render"});
   ASSERT_TRUE(master->waitFor("C \\(key \\S+\\) joined", 60)) << master->output();
   ASSERT_TRUE(b->waitFor("wrote \\S+follow.png", 90)) << b->output();
@@ -258,7 +294,8 @@ TEST_F(SiteSession, AvatarsSketchFollowMeAndAKilledSiteOnTheWall) {
   EXPECT_EQ(c->wait(1), std::optional<int>(-SIGKILL));
   const std::string log = master->output();
   EXPECT_EQ(log.find("dropped:"), std::string::npos) << "no tile or site was dropped:\n" << log;
-  const int pa = participantOf(log, "A"), pb = participantOf(log, "B"), pc = participantOf(log, "C");
+  const int pa = participantOf(log, "A"), pb = participantOf(log, "B"),
+            pc = participantOf(log, "C");
   ASSERT_TRUE(pa && pb && pc) << log;
   const glm::vec3 kColorA = participantColor(pa), kColorB = participantColor(pb),
                   kColorC = participantColor(pc);
@@ -280,15 +317,16 @@ TEST_F(SiteSession, AvatarsSketchFollowMeAndAKilledSiteOnTheWall) {
     const auto at = onWall(wall, camera, eye);
     ASSERT_TRUE(at) << name << "'s eye is off the wall: the test's geometry is wrong";
     // The head is a 14 px dot; its centre within 2 px of where the pose projects.
-    EXPECT_GE(pixelsNear(shot, *at, 2, colour), 9) << name << "'s avatar head at " << at->x << ","
-                                                    << at->y << " in " << mRun / "wall.png";
+    EXPECT_GE(pixelsNear(shot, *at, 2, colour), 9)
+        << name << "'s avatar head at " << at->x << "," << at->y << " in " << mRun / "wall.png";
   }
   const auto at_c = onWall(wall, camera, kEyeC);
   ASSERT_TRUE(at_c);
   EXPECT_EQ(pixelsNear(shot, *at_c, 6, kColorC), 0) << "the killed site's avatar is gone";
 
   // A's stroke: every sample on the bunny within a pixel of A's view, and drawn on the wall.
-  const tessera::lod::Mesh recon = tessera::lod::readMesh(kData + "/stanford-bunny/reconstruction/bun_zipper.ply");
+  const tessera::lod::Mesh recon =
+      tessera::lod::readMesh(kData + "/stanford-bunny/reconstruction/bun_zipper.ply");
   const tessera::test::MeshDistance surface(recon.positions, recon.triangles, 0.004);
   std::istringstream csv(read(mRun / "A" / "strokes.csv"));
   std::string line;
@@ -297,7 +335,8 @@ TEST_F(SiteSession, AvatarsSketchFollowMeAndAKilledSiteOnTheWall) {
   double worst_px = 0;
   while (std::getline(csv, line)) {
     double s, px, py, x, y, z, d;
-    ASSERT_EQ(std::sscanf(line.c_str(), "%lf,%lf,%lf,%lf,%lf,%lf,%lf", &s, &px, &py, &x, &y, &z, &d), 7);
+    ASSERT_EQ(
+        std::sscanf(line.c_str(), "%lf,%lf,%lf,%lf,%lf,%lf,%lf", &s, &px, &py, &x, &y, &z, &d), 7);
     const glm::dvec3 p(x, y, z);
     // One pixel of A's view (320x240, 45 degrees) at the sample's distance.
     const double pixel = 2.0 * glm::length(p - kEyeA) * std::tan(glm::radians(22.5)) / 240.0;
@@ -384,7 +423,8 @@ struct RawSite {
   std::optional<tessera::site::ToSite> until(tessera::site::ToSite::KindCase kind, double seconds) {
     const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(seconds);
     while (std::chrono::steady_clock::now() < end) {
-      auto m = receive(std::chrono::duration<double>(end - std::chrono::steady_clock::now()).count());
+      auto m =
+          receive(std::chrono::duration<double>(end - std::chrono::steady_clock::now()).count());
       if (m && m->kind_case() == kind) return m;
     }
     return std::nullopt;
@@ -524,4 +564,80 @@ TEST_F(SiteSession, StrangersPlaintextWrongKeysGarbageAndFloodsGetNothingAndTheW
     last = f;
   }
   EXPECT_GE(last, 50u);
+}
+
+// A person at a site: tessera-site --window on a virtual X server, driven with xdotool as a
+// user's mouse and keys would: a right-button drag over the bunny becomes a sketch placed on it,
+// the wheel moves the site's camera (and so its avatar), L leads the view, R gives it back, P
+// saves a picture, Esc leaves.
+TEST_F(SiteSession, AWindowDrivenByMouseAndKeys) {
+  const char* xvfb = "/usr/bin/Xvfb";
+  const char* xdotool = "/usr/bin/xdotool";
+  if (!fs::exists(xvfb) || !fs::exists(xdotool))
+    GTEST_SKIP() << "needs Xvfb and xdotool (scripts/deps.sh installs them)";
+  int display = 60 + int(getpid() % 300);
+  while (fs::exists("/tmp/.X11-unix/X" + std::to_string(display))) ++display;
+  const std::string d = ":" + std::to_string(display);
+  Process x({xvfb, d, "-screen", "0", "1024x768x24", "-nolisten", "tcp"}, mRun / "xvfb.log");
+  for (int i = 0; i < 100 && !fs::exists("/tmp/.X11-unix/X" + std::to_string(display)); ++i)
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  setenv("DISPLAY", d.c_str(), 1);
+  auto master = startMaster(40.0);
+  auto nodes = startNodes();
+  ASSERT_TRUE(master->waitFor("4 of 4 tiles have a node", 60)) << master->output();
+  write(mRun / "W.json", "{}");
+  fs::create_directories(mRun / "W");
+  auto site = std::make_unique<Process>(
+      std::vector<std::string>{TESSERA_SITE, "--master", mSites, "--master-key", sKeys["master"],
+                               "--name", "W", "--key", (*sDir / "a.key").string(), "--window",
+                               "--size", "480x320", "-o", (mRun / "W").string()},
+      mRun / "W.log");
+  ASSERT_TRUE(site->waitFor("joined as participant", 60)) << site->output();
+  auto xdo = [&](const std::string& args) {
+    const auto r = tessera::test::runCommand("DISPLAY=" + d + " " + xdotool + " " + args);
+    EXPECT_EQ(r.code, 0) << args << ": " << r.out;
+    return r.out;
+  };
+  std::string wid;
+  for (int i = 0; i < 100 && wid.empty(); ++i) {
+    const auto r =
+        tessera::test::runCommand("DISPLAY=" + d + " " + xdotool + " search --name 'tessera-site'");
+    if (r.code == 0) wid = r.out.substr(0, r.out.find('\n'));
+    if (wid.empty()) std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  }
+  ASSERT_FALSE(wid.empty()) << "no tessera-site window on " << d;
+  std::this_thread::sleep_for(std::chrono::seconds(2));  // its first frames
+  xdo("key --window " + wid + " p");
+  ASSERT_TRUE(site->waitFor("wrote \\S+site-\\d+\\.png", 60)) << site->output();
+  // The drag: across the middle of the view, where the wall's camera shows the bunny.
+  xdo("mousemove --window " + wid + " 150 150 mousedown 3");
+  for (int px = 160; px <= 330; px += 10) {
+    xdo("mousemove --window " + wid + " " + std::to_string(px) + " 150");
+    std::this_thread::sleep_for(std::chrono::milliseconds(60));
+  }
+  xdo("mouseup 3");
+  ASSERT_TRUE(site->waitFor("stroke 1: \\d+ points placed on the model", 60)) << site->output();
+  // The wheel zooms: the site's camera (its next picture's) moves.
+  xdo("mousemove --window " + wid + " 240 160");
+  for (int i = 0; i < 4; ++i) xdo("click --window " + wid + " 4");
+  std::this_thread::sleep_for(std::chrono::seconds(1));
+  xdo("key --window " + wid + " l");
+  ASSERT_TRUE(master->waitFor("W leads the view", 30)) << master->output();
+  xdo("key --window " + wid + " p");
+  ASSERT_TRUE(site->waitFor("wrote \\S+site-\\d+\\.png[\\s\\S]*wrote \\S+site-\\d+\\.png", 60))
+      << site->output();
+  xdo("key --window " + wid + " r");
+  ASSERT_TRUE(master->waitFor("W gave the view back", 30)) << master->output();
+  xdo("key --window " + wid + " Escape");
+  EXPECT_EQ(site->wait(30), std::optional<int>(0)) << site->output();
+  ASSERT_TRUE(master->waitFor("W \\(key \\S+\\) left: it said goodbye", 30)) << master->output();
+  const std::string out = site->output();
+  std::vector<std::string> cameras;
+  const std::regex shot("wrote \\S+site-\\d+\\.png \\([^)]*\\); camera (\\S+)");
+  for (std::sregex_iterator it(out.begin(), out.end(), shot), end; it != end; ++it)
+    cameras.push_back((*it)[1].str());
+  ASSERT_EQ(cameras.size(), 2u) << out;
+  EXPECT_NE(cameras[0], cameras[1]) << "the wheel moved the site's camera";
+  master->signal(SIGTERM);
+  unsetenv("DISPLAY");
 }

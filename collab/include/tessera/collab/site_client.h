@@ -24,11 +24,12 @@ struct SiteSessionEnded : std::runtime_error {
 };
 
 struct SiteClientOptions {
-  std::string master;      ///< "tcp://HOST:7401"
-  std::string master_key;  ///< the master's public key, Z85
-  KeyPair keys;            ///< this site's
-  std::string name;        ///< shown on its avatar
-  double master_timeout_s = 30.0;  ///< nothing from the master for this long: it is lost (a wall screenshot may take seconds)
+  std::string master;              ///< "tcp://HOST:7401"
+  std::string master_key;          ///< the master's public key, Z85
+  KeyPair keys;                    ///< this site's
+  std::string name;                ///< shown on its avatar
+  double master_timeout_s = 30.0;  ///< nothing from the master for this long: it is lost (a wall
+                                   ///< screenshot may take seconds)
 };
 
 class SiteClient {

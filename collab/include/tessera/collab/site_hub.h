@@ -38,7 +38,8 @@ struct SiteHubOptions {
   std::string endpoint = "tcp://*:7401";  ///< where sites connect
   std::string key_file;                   ///< the master's key pair (curve.h key file)
   std::string allow_list;                 ///< site public keys (curve.h allow list)
-  double silent_timeout_s = 10.0;  ///< no message for this long: the site is gone (a closed connection: at once)
+  double silent_timeout_s =
+      10.0;  ///< no message for this long: the site is gone (a closed connection: at once)
   /// Token buckets per site: sustained rates, bursts of `burst_s` seconds' worth.
   double messages_per_s = 200.0, bytes_per_s = 4.0 * 1024 * 1024, burst_s = 2.0;
   int send_queue = 256;  ///< messages queued per site (ZMQ_SNDHWM) before it falls behind

@@ -15,16 +15,20 @@
 namespace tessera::collab {
 
 /// Exit codes of SiteSession::run().
-constexpr int kSiteOk = 0;         ///< the script ended, or the master ended the session
-constexpr int kSiteFailed = 1;     ///< bad script, no GL, a failure the message names
-constexpr int kSiteRefused = 16;   ///< the master refused or dropped this site
+constexpr int kSiteOk = 0;           ///< the script ended, or the master ended the session
+constexpr int kSiteFailed = 1;       ///< bad script, no GL, a failure the message names
+constexpr int kSiteRefused = 16;     ///< the master refused or dropped this site
 constexpr int kSiteMasterLost = 17;  ///< no master, or it went silent
 
 struct SiteSessionOptions {
   SiteClientOptions client;
-  std::string script;        ///< a SiteScript JSON file ("" : stay still until the master quits)
-  std::string out_dir = "."; ///< screenshots and strokes.csv
-  bool render = true;        ///< false: poses and requests only (benchmarks of the master's cost)
+  std::string script;         ///< a SiteScript JSON file ("" : stay still until the master quits)
+  std::string out_dir = ".";  ///< screenshots and strokes.csv
+  /// A window (one-button navigation, strokes with the right button, keys for lead, follow,
+  /// undo, clear) of this size instead of headless; the script, if any, still plays.
+  bool window = false;
+  uint32_t window_width = 960, window_height = 640;
+  bool render = true;  ///< false: poses and requests only (benchmarks of the master's cost)
   double join_timeout_s = 15.0;
 };
 

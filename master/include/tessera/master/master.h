@@ -114,9 +114,8 @@ class Master {
                         const std::vector<std::string>& pixels);
   void writeStatsHeader();
   void writeStats(sync::LinkClock::time_point frame_start, uint64_t frame, double t,
-                  size_t frame_bytes, double sync_ms, double barrier_ms,
-                  double present_ms, double frame_ms,
-                  const std::vector<std::optional<cluster::NodeReport>>& reports);
+                  size_t frame_bytes, double sync_ms, double barrier_ms, double present_ms,
+                  double frame_ms, const std::vector<std::optional<cluster::NodeReport>>& reports);
   std::string message(const std::string& text) const;
 
   sync::MasterLink& mLink;
