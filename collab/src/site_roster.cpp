@@ -9,6 +9,7 @@
 #include <glm/gtc/type_ptr.hpp>
 
 #include <tessera/collab/site_messages.h>
+#include <tessera/sync/scene_edits.h>
 
 namespace tessera::collab {
 
@@ -172,28 +173,12 @@ void SiteRoster::apply(sync::SceneGraph& graph, uint32_t participant, const site
             s.info.name.c_str(), s.sketches.size());
         return;
       }
-      if (!s.layer) {
-        const std::string layer = "sketches/" + s.info.name;
-        const auto found = graph.findByName(layer);
-        s.layer = found && graph.node(*found).kind() == scene::SceneNode::GROUP
-                      ? *found
-                      : graph.add(scene::SceneNode::GROUP, sync::SceneGraph::kRoot, layer);
-        graph.setAuthor(s.layer, s.info.name);
-      }
-      const NodeId id = graph.add(scene::SceneNode::SKETCH, s.layer,
-                                  "sketch " + std::to_string(s.info.strokes + 1));
-      // Points relative to the first, in float; the transform holds the first in double, so
-      // georeferenced scenes keep millimetres.
-      const glm::dvec3 origin{st.points(0), st.points(1), st.points(2)};
-      scene::SketchPayload p;
-      for (int i = 0; i < st.points_size(); i += 3)
-        for (int k = 0; k < 3; ++k) p.add_points(float(st.points(i + k) - origin[k]));
-      *p.mutable_color() = st.color();
-      p.set_width(st.width());
-      graph.setPayload(id, p);
-      const glm::dmat4 t = glm::translate(glm::dmat4(1.0), origin);
-      graph.setTransform(id, std::span<const double>(glm::value_ptr(t), 16));
-      graph.setAuthor(id, s.info.name);
+      if (!s.layer) s.layer = sync::layerGroup(graph, "sketches/" + s.info.name, s.info.name);
+      std::vector<glm::dvec3> points;
+      for (int i = 0; i + 2 < st.points_size(); i += 3)
+        points.emplace_back(st.points(i), st.points(i + 1), st.points(i + 2));
+      const NodeId id =
+          sync::addSketch(graph, s.layer, s.info.name, points, st.color(), st.width());
       s.sketches.push_back(id);
       s.info.strokes++;
       return;

@@ -6,6 +6,7 @@
 
 #include <tessera/master/point_pick.h>
 #include <tessera/render/gl_context.h>
+#include <tessera/sync/scene_edits.h>
 
 namespace tessera::master {
 
@@ -13,7 +14,10 @@ namespace {
 
 // GLFW key codes (glfw3.h), kept here so this file needs no GLFW header.
 constexpr int kKey1 = 49, kKey9 = 57, kKeyEqual = 61, kKeyMinus = 45, kKeyH = 72, kKeyE = 69,
-              kKeyPadAdd = 334, kKeyPadSubtract = 333;
+              kKeyPadAdd = 334, kKeyPadSubtract = 333, kKeyL = 76, kKeyU = 85, kKeyC = 67;
+
+/// The console's own name as a participant (sketch layer, author, leader).
+constexpr const char* kConsole = "console";
 
 std::vector<sync::SceneGraph::NodeId> modelIds(const sync::SceneGraph& graph) {
   std::vector<sync::SceneGraph::NodeId> ids;
@@ -130,8 +134,50 @@ bool Console::handleInput(sync::SceneGraph& graph) {
     if (after.SerializeAsString() != before.SerializeAsString()) graph.setCamera(after);
   }
 
+  // A right-button drag draws a sketch, placed on the model through the frame's depth (the
+  // point under each pixel) when the button goes up; pixels without a model are skipped.
+  if (in.right) {
+    const glm::dvec2 at = p.cursor;
+    if (mDrag.empty() || glm::length(at - mDrag.back()) >= 1.0) mDrag.push_back(at);
+  } else if (mRightHeld) {
+    std::vector<glm::dvec3> points;
+    for (const glm::dvec2& px : mDrag) {
+      if (points.size() >= 3000) break;
+      if (!(px.x >= 0 && px.y >= 0 && px.x < mWidth && px.y < mHeight)) continue;
+      if (auto hit = mRenderer->pick(uint32_t(px.x), uint32_t(px.y))) points.push_back(hit->world);
+    }
+    if (points.size() >= 2) {
+      scene::Color pink;  // the console's colour: no site's (collab/site_roster.cpp)
+      pink.set_r(0.95f);
+      pink.set_g(0.30f);
+      pink.set_b(0.75f);
+      const auto layer = sync::layerGroup(graph, std::string("sketches/") + kConsole, kConsole);
+      mSketches.push_back(sync::addSketch(graph, layer, kConsole, points, pink, 4.0f));
+      std::printf("tessera-master: console: sketch of %zu points placed on the model\n",
+                  points.size());
+      std::fflush(stdout);
+    }
+    mDrag.clear();
+  }
+  mRightHeld = in.right;
+
   const auto models = modelIds(graph);
   for (int key : in.keys) {
+    std::erase_if(mSketches, [&](auto id) { return !graph.contains(id); });
+    if (key == kKeyL) {  // the wall's console leads (sites' poses no longer move the view)
+      const bool leads = graph.settings().leader() == kConsole;
+      graph.setLeader(leads ? "" : kConsole);
+      std::printf("tessera-master: console: %s\n", leads ? "gave the view back" : "leads the view");
+      std::fflush(stdout);
+    }
+    if (key == kKeyU && !mSketches.empty()) {
+      graph.remove(mSketches.back());
+      mSketches.pop_back();
+    }
+    if (key == kKeyC) {
+      for (auto id : mSketches) graph.remove(id);
+      mSketches.clear();
+    }
     if (key >= kKey1 && key <= kKey9 && size_t(key - kKey1) < models.size())
       mSelected = size_t(key - kKey1);
     if (models.empty()) continue;

@@ -32,7 +32,9 @@ class Console {
   void save(const std::string& path) const;
   /// Applies the input since the last call to `graph`: navigation to the camera, keys 1-9 select
   /// a model, + / - change its opacity by 0.1, H toggles its visibility, E toggles eye-dome
-  /// lighting. Returns false once the window is closed (or Escape).
+  /// lighting; a right-button drag draws a sketch on the model (layer "sketches/console"), U
+  /// undoes the newest, C clears them; L makes the console lead the view (a site that led stops
+  /// moving it), again gives it back. Returns false once the window is closed (or Escape).
   bool handleInput(sync::SceneGraph& graph);
 
  private:
@@ -52,6 +54,9 @@ class Console {
   render::ViewSetup mLastView;
   OneButtonNavigation mNavigation;
   size_t mSelected = 0;  // index among the MODEL nodes
+  std::vector<glm::dvec2> mDrag;                   // the right-button drag's pixels so far
+  bool mRightHeld = false;
+  std::vector<sync::SceneGraph::NodeId> mSketches;  // the console's, oldest first
   std::chrono::steady_clock::time_point mLastInput = std::chrono::steady_clock::now();
 };
 

@@ -97,7 +97,8 @@ void Master::openConsole() {
     std::printf(
         "tessera-master: console open (one button: click sets a target, drag orbits "
         "it, click it to fly there; right-hand bar: forward/back; wheel zooms; 1-9 "
-        "select a model, +/- opacity, H hide, E eye-dome lighting; Esc quits)\n");
+        "select a model, +/- opacity, H hide, E eye-dome lighting; right-button drag draws "
+        "on the model, U undo, C clear; L leads the view; Esc quits)\n");
   } catch (const render::RenderError& e) {
     std::printf("tessera-master: --console: %s; running headless\n", e.what());
   }

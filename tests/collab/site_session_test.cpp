@@ -166,36 +166,37 @@ class SiteSession : public ::testing::Test {
 
   /// The master (wall over ZeroMQ, sites over CURVE), holding the camera at kWallEye for
   /// `seconds` of real time, then the wall's screenshot; returns once both sockets listen.
-  std::unique_ptr<Process> startMaster(double seconds) {
+  std::unique_ptr<Process> startMaster(double seconds, std::vector<std::string> extra = {}) {
     write(mRun / "hold.json", R"({"name": "hold", "keyframes": [{"time": 0, )" +
                                   cameraJson(kWallEye, kTarget).substr(1) + R"(, {"time": )" +
                                   std::to_string(seconds) + ", " +
                                   cameraJson(kWallEye, kTarget).substr(1) + "]}");
-    const std::vector<std::string> argv = {TESSERA_MASTER,
-                                           "--transport",
-                                           "zmq",
-                                           "--listen",
-                                           "tcp://127.0.0.1:*",
-                                           "--wall",
-                                           (*sDir / "wall.json").string(),
-                                           "--scene",
-                                           (*sDir / "scene.json").string(),
-                                           "--script",
-                                           (mRun / "hold.json").string(),
-                                           "--max-fps",
-                                           "30",
-                                           "--screenshot",
-                                           (mRun / "wall.png").string(),
-                                           "--stats",
-                                           (mRun / "stats.csv").string(),
-                                           "--sites",
-                                           "tcp://127.0.0.1:*",
-                                           "--site-key",
-                                           (*sDir / "master.key").string(),
-                                           "--allow",
-                                           (*sDir / "allow.txt").string(),
-                                           "--node-timeout",
-                                           "5000"};
+    std::vector<std::string> argv = {TESSERA_MASTER,
+                                     "--transport",
+                                     "zmq",
+                                     "--listen",
+                                     "tcp://127.0.0.1:*",
+                                     "--wall",
+                                     (*sDir / "wall.json").string(),
+                                     "--scene",
+                                     (*sDir / "scene.json").string(),
+                                     "--script",
+                                     (mRun / "hold.json").string(),
+                                     "--max-fps",
+                                     "30",
+                                     "--screenshot",
+                                     (mRun / "wall.png").string(),
+                                     "--stats",
+                                     (mRun / "stats.csv").string(),
+                                     "--sites",
+                                     "tcp://127.0.0.1:*",
+                                     "--site-key",
+                                     (*sDir / "master.key").string(),
+                                     "--allow",
+                                     (*sDir / "allow.txt").string(),
+                                     "--node-timeout",
+                                     "5000"};
+    argv.insert(argv.end(), extra.begin(), extra.end());
     auto m = std::make_unique<Process>(argv, mRun / "master.log");
     EXPECT_TRUE(m->waitFor("remote sites join on (tcp://\\S+)", 30)) << m->output();
     std::smatch match;
@@ -570,18 +571,65 @@ TEST_F(SiteSession, StrangersPlaintextWrongKeysGarbageAndFloodsGetNothingAndTheW
 // user's mouse and keys would: a right-button drag over the bunny becomes a sketch placed on it,
 // the wheel moves the site's camera (and so its avatar), L leads the view, R gives it back, P
 // saves a picture, Esc leaves.
+namespace {
+
+/// A virtual X server (Xvfb) on a free display, with xdotool to drive its windows as a user's
+/// mouse and keys would; DISPLAY is set for the processes the test starts meanwhile.
+struct VirtualDisplay {
+  static constexpr const char* kXvfb = "/usr/bin/Xvfb";
+  static constexpr const char* kXdotool = "/usr/bin/xdotool";
+  static bool available() { return fs::exists(kXvfb) && fs::exists(kXdotool); }
+
+  explicit VirtualDisplay(const fs::path& log) {
+    int n = 60 + int(getpid() % 300);
+    while (fs::exists("/tmp/.X11-unix/X" + std::to_string(n))) ++n;
+    name = ":" + std::to_string(n);
+    server = std::make_unique<Process>(
+        std::vector<std::string>{kXvfb, name, "-screen", "0", "1024x768x24", "-nolisten", "tcp"},
+        log);
+    for (int i = 0; i < 100 && !fs::exists("/tmp/.X11-unix/X" + std::to_string(n)); ++i)
+      std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    setenv("DISPLAY", name.c_str(), 1);
+  }
+  ~VirtualDisplay() { unsetenv("DISPLAY"); }
+
+  /// xdotool ARGS on this display; its output.
+  std::string operator()(const std::string& args) const {
+    const auto r = tessera::test::runCommand("DISPLAY=" + name + " " + kXdotool + " " + args);
+    EXPECT_EQ(r.code, 0) << args << ": " << r.out;
+    return r.out;
+  }
+  /// The first window whose title matches `title`, waiting up to 10 s ("" if none).
+  std::string window(const std::string& title) const {
+    for (int i = 0; i < 100; ++i) {
+      const auto r = tessera::test::runCommand("DISPLAY=" + name + " " + kXdotool +
+                                               " search --name '" + title + "'");
+      if (r.code == 0 && !r.out.empty()) return r.out.substr(0, r.out.find('\n'));
+      std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    }
+    return "";
+  }
+  /// A right-button drag along a row of the window, from x0 to x1 at y.
+  void rightDrag(const std::string& wid, int x0, int x1, int y) const {
+    (*this)("mousemove --window " + wid + " " + std::to_string(x0) + " " + std::to_string(y) +
+            " mousedown 3");
+    for (int x = x0 + 10; x <= x1; x += 10) {
+      (*this)("mousemove --window " + wid + " " + std::to_string(x) + " " + std::to_string(y));
+      std::this_thread::sleep_for(std::chrono::milliseconds(60));
+    }
+    (*this)("mouseup 3");
+  }
+
+  std::string name;
+  std::unique_ptr<Process> server;
+};
+
+}  // namespace
+
 TEST_F(SiteSession, AWindowDrivenByMouseAndKeys) {
-  const char* xvfb = "/usr/bin/Xvfb";
-  const char* xdotool = "/usr/bin/xdotool";
-  if (!fs::exists(xvfb) || !fs::exists(xdotool))
+  if (!VirtualDisplay::available())
     GTEST_SKIP() << "needs Xvfb and xdotool (scripts/deps.sh installs them)";
-  int display = 60 + int(getpid() % 300);
-  while (fs::exists("/tmp/.X11-unix/X" + std::to_string(display))) ++display;
-  const std::string d = ":" + std::to_string(display);
-  Process x({xvfb, d, "-screen", "0", "1024x768x24", "-nolisten", "tcp"}, mRun / "xvfb.log");
-  for (int i = 0; i < 100 && !fs::exists("/tmp/.X11-unix/X" + std::to_string(display)); ++i)
-    std::this_thread::sleep_for(std::chrono::milliseconds(50));
-  setenv("DISPLAY", d.c_str(), 1);
+  const VirtualDisplay xdo(mRun / "xvfb.log");
   auto master = startMaster(40.0);
   auto nodes = startNodes();
   ASSERT_TRUE(master->waitFor("4 of 4 tiles have a node", 60)) << master->output();
@@ -593,29 +641,13 @@ TEST_F(SiteSession, AWindowDrivenByMouseAndKeys) {
                                "--size", "480x320", "-o", (mRun / "W").string()},
       mRun / "W.log");
   ASSERT_TRUE(site->waitFor("joined as participant", 60)) << site->output();
-  auto xdo = [&](const std::string& args) {
-    const auto r = tessera::test::runCommand("DISPLAY=" + d + " " + xdotool + " " + args);
-    EXPECT_EQ(r.code, 0) << args << ": " << r.out;
-    return r.out;
-  };
-  std::string wid;
-  for (int i = 0; i < 100 && wid.empty(); ++i) {
-    const auto r =
-        tessera::test::runCommand("DISPLAY=" + d + " " + xdotool + " search --name 'tessera-site'");
-    if (r.code == 0) wid = r.out.substr(0, r.out.find('\n'));
-    if (wid.empty()) std::this_thread::sleep_for(std::chrono::milliseconds(100));
-  }
-  ASSERT_FALSE(wid.empty()) << "no tessera-site window on " << d;
+  const std::string wid = xdo.window("tessera-site");
+  ASSERT_FALSE(wid.empty()) << "no tessera-site window on " << xdo.name;
   std::this_thread::sleep_for(std::chrono::seconds(2));  // its first frames
   xdo("key --window " + wid + " p");
   ASSERT_TRUE(site->waitFor("wrote \\S+site-\\d+\\.png", 60)) << site->output();
   // The drag: across the middle of the view, where the wall's camera shows the bunny.
-  xdo("mousemove --window " + wid + " 150 150 mousedown 3");
-  for (int px = 160; px <= 330; px += 10) {
-    xdo("mousemove --window " + wid + " " + std::to_string(px) + " 150");
-    std::this_thread::sleep_for(std::chrono::milliseconds(60));
-  }
-  xdo("mouseup 3");
+  xdo.rightDrag(wid, 150, 330, 150);
   ASSERT_TRUE(site->waitFor("stroke 1: \\d+ points placed on the model", 60)) << site->output();
   // The wheel zooms: the site's camera (its next picture's) moves.
   xdo("mousemove --window " + wid + " 240 160");
@@ -639,5 +671,38 @@ TEST_F(SiteSession, AWindowDrivenByMouseAndKeys) {
   ASSERT_EQ(cameras.size(), 2u) << out;
   EXPECT_NE(cameras[0], cameras[1]) << "the wheel moved the site's camera";
   master->signal(SIGTERM);
-  unsetenv("DISPLAY");
+}
+
+// The wall's own console takes part as a participant: it takes the lead from a site that led,
+// and a right-button drag on it draws a sketch on the model that every tile shows.
+TEST_F(SiteSession, TheConsoleLeadsAndDraws) {
+  if (!VirtualDisplay::available())
+    GTEST_SKIP() << "needs Xvfb and xdotool (scripts/deps.sh installs them)";
+  const VirtualDisplay xdo(mRun / "xvfb.log");
+  auto master = startMaster(40.0, {"--console", "--console-width", "640", "--console-screenshot",
+                                   (mRun / "console.png").string()});
+  auto nodes = startNodes();
+  ASSERT_TRUE(master->waitFor("4 of 4 tiles have a node", 60)) << master->output();
+  auto a = startSite("a", "A", R"({"actions": [{"frame": 2, "lead": true}]})", {"--no-render"});
+  ASSERT_TRUE(master->waitFor("A leads the view", 60)) << master->output();
+  const std::string wid = xdo.window("tessera-master");
+  ASSERT_FALSE(wid.empty()) << "no console window on " << xdo.name;
+  xdo("key --window " + wid + " l");
+  ASSERT_TRUE(master->waitFor("console: leads the view", 30)) << master->output();
+  // The console shows the whole wall at 640 px wide: the bunny is in the middle.
+  xdo.rightDrag(wid, 270, 370, 225);
+  ASSERT_TRUE(master->waitFor("console: sketch of \\d+ points placed on the model", 30))
+      << master->output();
+  xdo("key --window " + wid + " Escape");
+  ASSERT_EQ(master->wait(60), std::optional<int>(0)) << master->output();
+  for (auto& n : nodes) EXPECT_EQ(n->wait(15), std::optional<int>(0)) << n->output();
+  EXPECT_EQ(a->wait(15), std::optional<int>(0)) << a->output();
+  // The wall's last frame shows the console's pink sketch where it drew it (the same camera:
+  // the console led), on the tiles' pixels at the drag's row, scaled to the wall.
+  const tessera::render::Image wall = tessera::render::readPng((mRun / "wall.png").string());
+  const double scale = double(wall.width) / 640.0;
+  int white = 0;
+  for (int x = 280; x <= 360; x += 4)
+    white += pixelsNear(wall, glm::dvec2(x * scale, 225 * scale), 3, {0.95f, 0.30f, 0.75f}) > 0;
+  EXPECT_GE(white, 15) << "the console's sketch on the wall, " << mRun / "wall.png";
 }

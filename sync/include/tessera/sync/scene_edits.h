@@ -1,0 +1,26 @@
+// Edits that more than one participant makes the same way (the master's console, remote sites'
+// requests through collab/site_roster.h), so a sketch drawn at the wall and one drawn in Kyoto
+// are the same nodes.
+#pragma once
+
+#include <span>
+#include <string_view>
+
+#include <glm/glm.hpp>
+
+#include <tessera/sync/scene_graph.h>
+
+namespace tessera::sync {
+
+/// The GROUP node named `name` under the root (the first such), made when there is none.
+SceneGraph::NodeId layerGroup(SceneGraph& graph, std::string_view name, std::string_view author);
+
+/// A SKETCH node (a 3D polyline, metres, scene frame) under `layer`, recorded as `author`'s:
+/// points relative to the first in float, the first in the node's transform in double, so a
+/// georeferenced sketch keeps its millimetres. Returns its id. Preconditions (TESSERA_CHECK):
+/// 2..3000 finite points within 1e8 m, colour in [0, 1], width in (0, 64] pixels.
+SceneGraph::NodeId addSketch(SceneGraph& graph, SceneGraph::NodeId layer, std::string_view author,
+                             std::span<const glm::dvec3> points, const scene::Color& color,
+                             float width);
+
+}  // namespace tessera::sync

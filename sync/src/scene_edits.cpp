@@ -1,0 +1,49 @@
+#include <tessera/sync/scene_edits.h>
+
+#include <cmath>
+#include <string>
+
+#include <glm/gtc/matrix_transform.hpp>
+#include <glm/gtc/type_ptr.hpp>
+
+#include <tessera/core/check.h>
+
+namespace tessera::sync {
+
+SceneGraph::NodeId layerGroup(SceneGraph& graph, std::string_view name, std::string_view author) {
+  for (SceneGraph::NodeId id : graph.children(SceneGraph::kRoot)) {
+    const scene::SceneNode& n = graph.node(id);
+    if (n.kind() == scene::SceneNode::GROUP && n.name() == name) return id;
+  }
+  const SceneGraph::NodeId id = graph.add(scene::SceneNode::GROUP, SceneGraph::kRoot, name);
+  graph.setAuthor(id, author);
+  return id;
+}
+
+SceneGraph::NodeId addSketch(SceneGraph& graph, SceneGraph::NodeId layer, std::string_view author,
+                             std::span<const glm::dvec3> points, const scene::Color& color,
+                             float width) {
+  TESSERA_CHECK(points.size() >= 2 && points.size() <= 3000,
+                "sync::addSketch(): needs 2..3000 points");
+  for (const glm::dvec3& p : points)
+    for (int k = 0; k < 3; ++k)
+      TESSERA_CHECK(std::isfinite(p[k]) && std::abs(p[k]) <= 1e8,
+                    "sync::addSketch(): points must be finite, within 1e8 m");
+  TESSERA_CHECK(width > 0.0f && width <= 64.0f, "sync::addSketch(): width in (0, 64] pixels");
+  const SceneGraph::NodeId id =
+      graph.add(scene::SceneNode::SKETCH, layer,
+                "sketch " + std::to_string(graph.children(layer).size() + 1));
+  const glm::dvec3 origin = points.front();
+  scene::SketchPayload p;
+  for (const glm::dvec3& q : points)
+    for (int k = 0; k < 3; ++k) p.add_points(float(q[k] - origin[k]));
+  *p.mutable_color() = color;
+  p.set_width(width);
+  graph.setPayload(id, p);  // checks the colour
+  const glm::dmat4 t = glm::translate(glm::dmat4(1.0), origin);
+  graph.setTransform(id, std::span<const double>(glm::value_ptr(t), 16));
+  graph.setAuthor(id, author);
+  return id;
+}
+
+}  // namespace tessera::sync
