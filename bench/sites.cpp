@@ -38,6 +38,8 @@
 
 #include <tessera/collab/curve.h>
 #include <tessera/collab/site_client.h>
+#include <tessera/collab/site_messages.h>
+#include <tessera/collab/site_roster.h>
 #include <tessera/core/cli.h>
 #include <tessera/lod/point_store.h>
 #include <tessera/lod/store_builder.h>
@@ -305,6 +307,58 @@ std::vector<std::array<double, 3>> avatarDrawCost(const fs::path& store,
   return out;
 }
 
+/// The master's own work per frame for K sites, in this process without sockets: each frame
+/// every site's newest pose (moving) and, once a second, a stroke and an undo go through the
+/// message check and the roster, then the avatars are animated and the frame is taken and
+/// serialized, as SiteHub and the master's loop do at 30 frames a second. Microseconds, median.
+std::vector<std::array<double, 2>> masterWork(const std::vector<int>& counts) {
+  std::vector<std::array<double, 2>> out;
+  for (int k : counts) {
+    tessera::sync::SceneGraph g;
+    tessera::collab::SiteRoster roster;
+    std::vector<uint32_t> ids;
+    for (int i = 0; i < k; ++i) ids.push_back(roster.join(g, "site " + std::to_string(i), "key"));
+    std::vector<double> us;
+    for (int f = 0; f < 600; ++f) {
+      const double now = f / 30.0;
+      const auto t0 = Clock::now();
+      for (int i = 0; i < k; ++i) {
+        const double a = 0.05 * f + i;
+        tessera::site::ToMaster m;
+        auto& p = *m.mutable_pose();
+        p.set_sequence(uint64_t(f + 1));
+        for (double v : {-0.027 + 0.3 * std::cos(a), 0.15, 0.05 + 0.3 * std::sin(a)}) p.add_eye(v);
+        for (double v : {-0.027, 0.1, 0.0}) p.add_target(v);
+        for (double v : {0.0, 1.0, 0.0}) p.add_up(v);
+        p.set_fovy_deg(45);
+        p.set_aspect(1.5f);
+        tessera::site::ToMaster parsed;
+        if (!tessera::collab::parseToMaster(m.SerializeAsString(), parsed))
+          roster.apply(g, ids[size_t(i)], parsed, now);
+        if (f % 30 == (i % 30)) {
+          tessera::site::ToMaster st;
+          for (int q = 0; q < 40; ++q)
+            for (double v : {-0.05 + 0.002 * q, 0.1, 0.02}) st.mutable_stroke()->add_points(v);
+          st.mutable_stroke()->mutable_color()->set_g(1);
+          st.mutable_stroke()->set_width(3);
+          roster.apply(g, ids[size_t(i)], st, now);
+        }
+        if (f % 60 == (i % 60)) {
+          tessera::site::ToMaster u;
+          u.mutable_undo();
+          roster.apply(g, ids[size_t(i)], u, now);
+        }
+      }
+      roster.animate(g, now);
+      const std::string bytes = g.takeFrame(uint64_t(f + 1), uint64_t(now * 1e6)).SerializeAsString();
+      if (f >= 60) us.push_back(std::chrono::duration<double, std::micro>(Clock::now() - t0).count());
+      if (bytes.empty() && k > 0) std::abort();
+    }
+    out.push_back({double(k), percentile(us, 0.5)});
+  }
+  return out;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -365,7 +419,16 @@ int main(int argc, char** argv) {
     allow.close();
     fs::permissions(s.dir / "allow.txt", fs::perms::owner_read | fs::perms::owner_write);
 
-    // ---- 0. what drawing avatars costs a node ----
+    // ---- 0. the master's work for K sites, and what drawing avatars costs a node ----
+    std::ofstream wcsv(fs::path(out) / "sites_master_work.csv");
+    wcsv << "sites,master_us_per_frame_median\n";
+    std::printf("the master's work per frame for K sites (checks, roster, frame), in process:\n");
+    for (const auto& [k, us] : masterWork(counts)) {
+      wcsv << k << "," << us << "\n";
+      std::printf("  %2.0f sites: %.0f us\n", k, us);
+    }
+    wcsv.close();
+
     std::ofstream dcsv(fs::path(out) / "sites_draw.csv");
     dcsv << "avatars,frame_ms_median,overlay_ms_median\n";
     std::printf("a node's frame (640x360, the bunny, eye-dome lighting) with K moving avatars:\n");

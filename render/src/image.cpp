@@ -2,9 +2,11 @@
 
 #include <png.h>
 
+#include <cerrno>
 #include <cstdio>
 #include <cstring>
 
+#include <tessera/core/file_checks.h>
 #include <tessera/render/gl_context.h>
 
 namespace tessera::render {
@@ -33,7 +35,9 @@ double edgeWidth(const Image& img, uint32_t edge) {
 
 void writePng(const std::string& path, const Image& image) {
   FILE* f = std::fopen(path.c_str(), "wb");
-  if (!f) throw RenderError("render::writePng(): cannot create " + path);
+  if (!f)
+    throw RenderError("render::writePng(): cannot create " + path + ": " +
+                      whyNotWritable(path, errno));
   png_structp png = png_create_write_struct(PNG_LIBPNG_VER_STRING, nullptr, nullptr, nullptr);
   png_infop info = png ? png_create_info_struct(png) : nullptr;
   if (!png || !info || setjmp(png_jmpbuf(png))) {

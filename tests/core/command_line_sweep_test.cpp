@@ -69,6 +69,15 @@ Tool node() {
   return {"tessera-node", kTimeout + TESSERA_NODE + " --master tcp://127.0.0.1:9 --headless"};
 }
 
+Tool site() {
+  // A syntactically valid master key; the key file does not exist, so a wrongly taken value
+  // ends at reading it (a message that does not name the option under test).
+  return {"tessera-site", kTimeout + TESSERA_SITE +
+                              " --master tcp://127.0.0.1:9 --master-key "
+                              "'rq:rM>}U?@Lns47E1%kR.o@n%FcmmsL/@{H8]yf7' --name x --key "
+                              "/nonexistent.key --headless"};
+}
+
 std::vector<std::string> badValues(const Option& o) {
   std::vector<std::string> v = {
       "nan", "NaN", "inf", "-inf", "-1", "1e400", "-1e400", "18446744073709551617", "abc", "''"};
@@ -178,7 +187,36 @@ TEST(CommandLineSweep, TesseraMaster) {
                    {"--node-timeout", true, false},
                    {"--join-wait", true, false},
                    {"--first-frame-timeout", false, false},
+                   {"--site-timeout", false, false},
                    {"--timeout", false, false}});
+}
+
+TEST(CommandLineSweep, TesseraSite) {
+  sweep(site(), {{"--join-timeout", false, false}});
+  for (const std::string size : {"0x480", "4294967297x480", "640x0", "nanx480", "640", "15x15"}) {
+    const CommandResult r =
+        tessera::test::runCommand(site().base + " --size " + size + " --window --headless");
+    EXPECT_EQ(r.code, 2) << size << "\n" << r.out;
+  }
+  for (const std::string size : {"0x480", "4294967297x480", "nanx480", "15x15"}) {
+    const std::string cmd = kTimeout + TESSERA_SITE +
+                            " --master tcp://127.0.0.1:9 --master-key "
+                            "'rq:rM>}U?@Lns47E1%kR.o@n%FcmmsL/@{H8]yf7' --name x --key "
+                            "/nonexistent.key --window --size " + size;
+    const CommandResult r = tessera::test::runCommand(cmd);
+    EXPECT_EQ(r.code, 2) << cmd << "\n" << r.out;
+    EXPECT_NE(r.out.find("--size"), std::string::npos) << cmd << "\n" << r.out;
+  }
+  // Names that are not 1..64 bytes of printable UTF-8, and keys that are not keys.
+  for (const std::string bad : {"--name ''", "--name $'a\\tb'", "--name " + std::string(65, 'n'),
+                                "--master-key short"}) {
+    const std::string cmd = kTimeout + TESSERA_SITE +
+                            " --master tcp://127.0.0.1:9 --master-key "
+                            "'rq:rM>}U?@Lns47E1%kR.o@n%FcmmsL/@{H8]yf7' --name x --key "
+                            "/nonexistent.key --headless " + bad;
+    const CommandResult r = tessera::test::runCommand("bash -c \"" + cmd + "\"");
+    EXPECT_EQ(r.code, 2) << cmd << "\n" << r.out;
+  }
 }
 
 TEST(CommandLineSweep, TesseraNode) {
@@ -190,7 +228,7 @@ TEST(CommandLineSweep, TesseraNode) {
 
 TEST(CommandLineSweep, ParseErrorsExitTwoAndHelpZero) {
   // Before: CLI11's own codes (105 validation, 106 required, 109 extras).
-  for (const Tool& t : {lodScan(), render(), master(), node()}) {
+  for (const Tool& t : {lodScan(), render(), master(), node(), site()}) {
     const CommandResult extra = tessera::test::runCommand(t.base + " --no-such-option");
     EXPECT_EQ(extra.code, 2) << t.name << "\n" << extra.out;
     EXPECT_NE(extra.out.find("--no-such-option"), std::string::npos) << extra.out;
@@ -202,7 +240,8 @@ TEST(CommandLineSweep, ParseErrorsExitTwoAndHelpZero) {
     EXPECT_NE(missing.out.find("required"), std::string::npos) << missing.out;
   }
   for (const std::string& tool : {std::string(TESSERA_LOD_TOOL), std::string(TESSERA_RENDER_TOOL),
-                                  std::string(TESSERA_MASTER), std::string(TESSERA_NODE)}) {
+                                  std::string(TESSERA_MASTER), std::string(TESSERA_NODE),
+                                  std::string(TESSERA_SITE)}) {
     const CommandResult help = tessera::test::runCommand(kTimeout + tool + " --help");
     EXPECT_EQ(help.code, 0) << tool << "\n" << help.out;
   }

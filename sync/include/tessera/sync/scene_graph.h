@@ -91,7 +91,7 @@ class SceneGraph {
   /// A node of `kind` as created: visible, opacity 1, identity transform, inherited shading and
   /// LOD threshold, empty name, parent root, the (empty) payload of its kind. Every field set.
   static scene::SceneNode defaultNode(NodeId id, Kind kind);
-  /// Background black, shading colour, LOD threshold 1 pixel, 1 SPBR ensemble.
+  /// Background black, shading colour, LOD threshold 1 pixel, 16 SPBR ensembles, no leader.
   static scene::Settings defaultSettings();
 
   // ---- Master: mutations. Preconditions are TESSERA_CHECKs (PreconditionError): they name
@@ -135,7 +135,7 @@ class SceneGraph {
   void setShading(scene::Shading shading);
   /// pixels > 0.
   void setLodPixels(float pixels);
-  /// 1..64.
+  /// 1..4096 (scene::Settings::spbr_ensembles).
   void setSpbrEnsembles(uint32_t ensembles);
 
   /// Who leads the view ("" nobody; at most kMaxParticipantName bytes): scene::Settings::leader.
