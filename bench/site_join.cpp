@@ -44,6 +44,13 @@ struct Join {
   double snapshot_bytes = 0, joined_s = 0, first_s = 0, settled_s = 0, fetched = 0;
 };
 
+std::string slurp(const fs::path& p) {
+  std::ifstream in(p);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
 double median(std::vector<double> v) {
   if (v.empty()) return 0;
   std::sort(v.begin(), v.end());
@@ -75,6 +82,15 @@ struct Bench {
                                                                      std::string& sites) {
     const fs::path run = dir / ("wall-" + std::to_string(int(mbit)));
     fs::create_directories(run);
+    // The scene's camera held for longer than the runs take (the master is killed after them).
+    std::smatch cam;
+    const std::string scene = slurp(dir / "scene.json");
+    if (!std::regex_search(scene, cam,
+                           std::regex("\"camera\"\\s*:\\s*(\\{[^}]*\\}[^}]*\\}[^}]*\\}[^}]*\\})")))
+      throw std::runtime_error("site_join: no camera in " + (dir / "scene.json").string());
+    const std::string keys = cam[1].str().substr(1, cam[1].str().size() - 2);
+    std::ofstream(run / "hold.json") << R"({"name": "hold", "keyframes": [{"time": 0, )" << keys
+                                     << R"(}, {"time": 3600, )" << keys << "}]}";
     auto master = std::make_unique<Process>(std::vector<std::string>{master_bin,
                                                                      "--transport",
                                                                      "zmq",
@@ -96,6 +112,8 @@ struct Bench {
                                                                      std::to_string(mbit),
                                                                      "--site-timeout",
                                                                      "60",
+                                                                     "--script",
+                                                                     (run / "hold.json").string(),
                                                                      "--max-fps",
                                                                      "30"},
                                             run / "master.log");

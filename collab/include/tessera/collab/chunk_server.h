@@ -34,7 +34,7 @@ struct ChunkServerOptions {
   std::string endpoint = "tcp://*:7402";
   /// Per site, bytes per second of replies (tessera-master --chunk-rate, in Mbit/s).
   double bytes_per_s = 100e6 / 8;
-  double burst_s = 0.25;
+  double burst_s = 0.05;  ///< small: the rate holds from the first reply on
   size_t queue_per_site = 256;
   /// Requests per second a site may send (refusals included) before the excess is discarded
   /// unanswered.
