@@ -4,13 +4,13 @@
 # for SECONDS (default 300), one at a time. Crashing inputs land in fuzz/regressions/<target>/,
 # which is also replayed first, so a regression that comes back fails at once.
 # Usage: fuzz/run.sh [SECONDS] [TARGET...]
-#   (targets: ply las text obj conf tlod chunk frame link site; default all)
+#   (targets: ply las text obj conf tlod chunk frame link site chunk_request; default all)
 set -euo pipefail
 
 cd "$(dirname "$0")/.."
 SECONDS_PER_TARGET=${1:-300}
 shift || true
-TARGETS=("${@:-ply las text obj conf tlod chunk frame link site}")
+TARGETS=("${@:-ply las text obj conf tlod chunk frame link site chunk_request}")
 read -r -a TARGETS <<<"${TARGETS[*]}"
 DATA=${TESSERA_DATA_DIR:-$(cd .. && pwd)/shared/data}
 BUILD=build/fuzz
@@ -220,8 +220,23 @@ seed_site() {
   one stroke.msgs <<<'stroke { points: [1e8, 1e8, 1e8, -1e8, -1e8, -1e8] color { b: 1 } width: 64 }'
 }
 
+# Chunk requests (site.proto ChunkRequest), one a file: a range, an identity request, the
+# largest range, and ones the server refuses (past the end, overflowing, too long).
+seed_chunk_request() {
+  local sp="$OLDPWD/sync/proto" cp="$OLDPWD/collab/proto"
+  one() {
+    protoc --encode=tessera.site.ChunkRequest -I "$sp" -I "$cp" "$cp/tessera/site.proto" >"$1"
+  }
+  one range.req <<<'id: 7 store: "/data/bunny.tlod" offset: 4096 length: 65536'
+  one info.req <<<'id: 1 store: "bunny.tlod" length: 0'
+  one largest.req <<<'id: 2 store: "b.tlod" offset: 0 length: 8388608'
+  one past.req <<<'id: 3 store: "b.tlod" offset: 746460 length: 100'
+  one overflow.req <<<'id: 4 store: "b.tlod" offset: 18446744073709551610 length: 100'
+  one long.req <<<'id: 5 store: "b.tlod" offset: 0 length: 8388609'
+}
+
 declare -A MAX_LEN=([ply]=8192 [las]=8192 [text]=4096 [obj]=4096 [conf]=1024 [tlod]=32768
-  [chunk]=8192 [frame]=4096 [link]=4096 [site]=4096)
+  [chunk]=8192 [frame]=4096 [link]=4096 [site]=4096 [chunk_request]=1024)
 export UBSAN_OPTIONS=halt_on_error=1:print_stacktrace=1
 status=0
 summary=()

@@ -7,10 +7,14 @@
 
 #include <zmq.hpp>
 
+#include <tessera/collab/chunk_server.h>
 #include <tessera/collab/curve.h>
 #include <tessera/collab/site_messages.h>
 #include <tessera/sync/cluster_link.h>
 #include <tessera/sync/wire.h>
+
+#include "server_socket.h"
+#include "token_bucket.h"
 
 namespace tessera::collab {
 
@@ -21,23 +25,6 @@ using Clock = std::chrono::steady_clock;
 double seconds(Clock::time_point t) {
   return std::chrono::duration<double>(t.time_since_epoch()).count();
 }
-
-struct TokenBucket {
-  double rate = 0, capacity = 0, level = 0, at = 0;
-  void start(double r, double burst_s, double now) {
-    rate = r;
-    capacity = r * burst_s;
-    level = capacity;
-    at = now;
-  }
-  /// Takes `amount`; false when the bucket ran dry (the rate is exceeded).
-  bool take(double amount, double now) {
-    level = std::min(capacity, level + (now - at) * rate);
-    at = now;
-    level -= amount;
-    return level >= 0.0;
-  }
-};
 
 /// A connection on the site socket (one routing id).
 struct Peer {
@@ -62,6 +49,7 @@ struct SiteHub::Impl {
   zmq::context_t context{1};
   std::unique_ptr<ZapHandler> zap;
   zmq::socket_t socket;
+  std::unique_ptr<ChunkServer> chunks;  // in `context`: the same ZAP handler admits its sites
   SiteRoster roster;
   std::map<std::string, Peer> peers;        // by routing id
   std::map<std::string, double> discarded;  // routing ids of dropped sites -> since
@@ -140,6 +128,7 @@ struct SiteHub::Impl {
     w.set_participant(p.participant);
     *w.mutable_color() = roster.color(p.participant);
     w.set_name(roster.info(p.participant).name);
+    if (chunks) w.set_chunks(chunks->endpoint());
     send(p, m.SerializeAsString());
     counters.joined++;
     say(who(p) + " joined as participant " + std::to_string(p.participant) +
@@ -217,31 +206,29 @@ SiteHub::SiteHub(SiteHubOptions options) : m(std::make_unique<Impl>()) {
   m->allow = std::make_shared<AllowList>(m->opt.allow_list);
   m->allow_generation = m->allow->generation();
   m->zap = std::make_unique<ZapHandler>(m->context, m->allow);
-  m->socket = zmq::socket_t(m->context, zmq::socket_type::router);
-  curveServer(m->socket, m->keys);
-  m->socket.set(zmq::sockopt::router_mandatory, 1);
-  m->socket.set(zmq::sockopt::sndhwm, m->opt.send_queue);
-  m->socket.set(zmq::sockopt::rcvhwm, 10000);
-  m->socket.set(zmq::sockopt::maxmsgsize, int64_t(kMaxSiteMessageBytes));
-  m->socket.set(zmq::sockopt::heartbeat_ivl, 1000);
-  m->socket.set(zmq::sockopt::heartbeat_timeout, 5000);
-  m->socket.set(zmq::sockopt::linger, 0);
-  try {
-    m->socket.bind(m->opt.endpoint);
-  } catch (const zmq::error_t& e) {
-    throw std::runtime_error("collab::SiteHub: cannot listen on " + m->opt.endpoint + ": " +
-                             e.what());
+  m->socket = bindSiteServer(m->context, m->keys, m->opt.endpoint, m->opt.send_queue,
+                             int64_t(kMaxSiteMessageBytes), "collab::SiteHub");
+  if (!m->opt.chunks_endpoint.empty()) {
+    ChunkServerOptions co;
+    co.endpoint = m->opt.chunks_endpoint;
+    co.bytes_per_s = m->opt.chunk_bytes_per_s;
+    m->chunks = std::make_unique<ChunkServer>(m->context, m->keys, co);
   }
 }
 
 SiteHub::~SiteHub() {
   if (!m) return;
+  m->chunks.reset();
   m->socket.close();
   m->zap.reset();
 }
 
 std::string SiteHub::endpoint() const {
   return m->socket.get(zmq::sockopt::last_endpoint);
+}
+
+std::string SiteHub::chunksEndpoint() const {
+  return m->chunks ? m->chunks->endpoint() : std::string();
 }
 
 void SiteHub::beforeFrame(sync::SceneGraph& graph, uint64_t, double) {
@@ -258,6 +245,14 @@ void SiteHub::beforeFrame(sync::SceneGraph& graph, uint64_t, double) {
         m->remove(graph, rid, "its key was taken off the allow list", true);
     }
     std::erase_if(m->discarded, [&](const auto& d) { return now - d.second > 60.0; });
+    if (m->chunks) {  // the chunk server serves what the scene's models name, nothing else
+      std::vector<std::string> stores;
+      for (const auto id : graph.ids()) {
+        const scene::SceneNode& n = graph.node(id);
+        if (n.kind() == scene::SceneNode::MODEL) stores.push_back(n.model().store());
+      }
+      m->chunks->setStores(std::move(stores));
+    }
   }
   m->drain(graph, now);
   std::vector<std::pair<std::string, std::string>> gone;
@@ -315,6 +310,16 @@ void SiteHub::end(const std::string& reason) {
                 (unsigned long long)c.bytes_out, (unsigned long long)c.messages_out,
                 (unsigned long long)c.snapshots_resent);
   m->say(line);
+  if (m->chunks) {
+    const ChunkServerCounters k = m->chunks->counters();
+    std::snprintf(line, sizeof line,
+                  "chunk server: %llu requests, %llu replies (%llu range bytes), %llu refused, "
+                  "%llu discarded (over the request rate)",
+                  (unsigned long long)k.requests, (unsigned long long)k.replies,
+                  (unsigned long long)k.bytes_out, (unsigned long long)k.refused,
+                  (unsigned long long)k.discarded);
+    m->say(line);
+  }
 }
 
 std::vector<SiteInfo> SiteHub::sites() const {
@@ -322,7 +327,14 @@ std::vector<SiteInfo> SiteHub::sites() const {
 }
 
 SiteHubCounters SiteHub::counters() const {
-  return m->counters;
+  SiteHubCounters c = m->counters;
+  if (m->chunks) {
+    const ChunkServerCounters k = m->chunks->counters();
+    c.chunk_requests = k.requests;
+    c.chunk_refused = k.refused;
+    c.chunk_bytes_out = k.bytes_out;
+  }
+  return c;
 }
 
 }  // namespace tessera::collab

@@ -3,6 +3,7 @@
 //   tessera-site keygen -o site.key        # prints the public key for the master's allow list
 //   tessera-site --master tcp://HOST:7401 --master-key MASTER_PUBLIC_KEY|FILE --name "Kyoto lab"
 //                --key site.key --headless -o DIR [--script PATH.json] [--no-render]
+//                [--cache DIR] [--remote-stores]
 #include <CLI/CLI.hpp>
 
 #include <cstdio>
@@ -52,6 +53,15 @@ int run(int argc, char** argv) {
   app.add_flag("--no-render", no_render,
                "Send poses and requests without rendering (load tests of the master)");
   app.add_option("--join-timeout", o.join_timeout_s, "Seconds to wait for the master's welcome")
+      ->check(cli::finiteRange(0.1, 3600.0))
+      ->capture_default_str();
+  app.add_flag("--remote-stores", o.remote_stores,
+               "Take every store from the master's chunk server (tessera-master --chunks), even "
+               "where this host has a file at the scene's path (without it: only stores not here)");
+  app.add_option("--cache", o.cache_dir,
+                 "Keep the chunks fetched from the master in this folder between sessions");
+  app.add_option("--chunk-timeout", o.chunk_timeout_s,
+                 "Seconds a chunk request may go unanswered before it is sent again (once)")
       ->check(cli::finiteRange(0.1, 3600.0))
       ->capture_default_str();
   if (const auto code = cli::parse(app, argc, argv, "tessera-site")) return *code;

@@ -1,6 +1,7 @@
 #include <tessera/collab/site_messages.h>
 
 #include <cmath>
+#include <cstdint>
 
 namespace tessera::collab {
 
@@ -122,6 +123,33 @@ Problem parseToMaster(std::string_view bytes, site::ToMaster& out) {
     return "message: " + std::to_string(bytes.size()) + " bytes are not a site message";
   out.DiscardUnknownFields();
   return checkToMaster(out);
+}
+
+Problem parseChunkRequest(std::string_view bytes, site::ChunkRequest& out) {
+  if (bytes.size() > kMaxChunkRequestBytes)
+    return "chunk request: " + std::to_string(bytes.size()) + " bytes, more than the " +
+           std::to_string(kMaxChunkRequestBytes) + " a request may take";
+  if (!out.ParseFromArray(bytes.data(), int(bytes.size())))
+    return "chunk request: " + std::to_string(bytes.size()) + " bytes are not a chunk request";
+  out.DiscardUnknownFields();
+  if (out.store().empty() || out.store().size() > kMaxStorePathBytes)
+    return "chunk request.store: needs 1.." + std::to_string(kMaxStorePathBytes) + " bytes, got " +
+           std::to_string(out.store().size());
+  if (out.store().find('\0') != std::string::npos)
+    return std::string("chunk request.store: holds a NUL byte");
+  if (out.length() > kMaxChunkRangeBytes)
+    return "chunk request.length: " + std::to_string(out.length()) + " bytes, more than the " +
+           std::to_string(kMaxChunkRangeBytes) + " one request may ask for";
+  if (out.offset() > UINT64_MAX - out.length())
+    return "chunk request.offset: " + std::to_string(out.offset()) + " + length overflows";
+  return {};
+}
+
+Problem checkChunkRange(const site::ChunkRequest& r, uint64_t size) {
+  if (r.offset() > size || r.length() > size - r.offset())
+    return "bytes " + std::to_string(r.offset()) + ".." + std::to_string(r.offset() + r.length()) +
+           " lie beyond the end of " + r.store() + " (" + std::to_string(size) + " bytes)";
+  return {};
 }
 
 config::Camera poseCamera(const site::SitePose& p) {

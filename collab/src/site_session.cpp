@@ -11,6 +11,7 @@
 
 #include <glm/gtc/matrix_transform.hpp>
 
+#include <tessera/collab/chunk_client.h>
 #include <tessera/collab/site_messages.h>
 #include <tessera/core/file_checks.h>
 #include <tessera/master/one_button_navigation.h>
@@ -144,8 +145,11 @@ site::SiteScript loadSiteScript(const std::string& path) {
 
 struct SiteSession::Impl {
   SiteSessionOptions opt;
+  const Clock::time_point started = Clock::now();
   site::SiteScript script;
   std::unique_ptr<SiteClient> client;
+  std::unique_ptr<ChunkClient> chunks;  // stopped first: loaders waiting on it give up at once
+  bool first_image = false, view_settled = false;
   site::SiteWelcome welcome;
   sync::SceneGraph graph;
   std::unique_ptr<render::Window> window;  // --window: the user's view and input
@@ -167,6 +171,21 @@ struct SiteSession::Impl {
   Clock::time_point last_input = Clock::now();
 
   ~Impl() {
+    if (chunks) {
+      const ChunkClientCounters c = chunks->counters();
+      char line[320];
+      std::snprintf(line, sizeof line,
+                    "chunks: fetched %llu bytes in %llu requests (%llu sent again); %llu ranges "
+                    "(%llu bytes) from the cache, %llu cached ranges failed their checksum or "
+                    "size and were fetched again",
+                    (unsigned long long)c.fetched_bytes, (unsigned long long)c.requests,
+                    (unsigned long long)c.retries, (unsigned long long)c.cache_hits,
+                    (unsigned long long)c.cache_bytes, (unsigned long long)c.refetched);
+      say(line);
+      if (!chunks->cacheProblem().empty())
+        say("chunks: the disk cache is not complete: " + chunks->cacheProblem());
+      chunks.reset();
+    }
     if (renderer) {  // the window's or the headless context is current
       render::ChunkStreamer* s[] = {&renderer->streamer()};
       models.clear(s);
@@ -274,10 +293,72 @@ struct SiteSession::Impl {
 
   render::RenderOptions options() const { return render::SceneDrawList::options(graph, 2.0f); }
 
+  double elapsed() const { return std::chrono::duration<double>(Clock::now() - started).count(); }
+
+  /// Frames until the whole cut is resident (render::ViewRenderer::renderSettled(), but the
+  /// link goes on meanwhile: frames are applied and poses sent while chunks arrive, which over
+  /// a slow link may take many seconds).
   render::Image settled(const config::Camera& c) {
     const render::Overlay o = overlay(c);
-    return renderer->renderSettled(instances, view(c), options(), nullptr,
-                                   o.empty() ? nullptr : &o);
+    const render::RenderOptions ro = options();
+    const uint32_t ensembles = std::max(ro.spbr.ensembles, ro.spbr.progressive_max);
+    render::RenderStats st;
+    render::Image img;
+    const auto period = std::chrono::duration<double>(1.0 / script.fps());
+    for (size_t frame = 1; frame <= 100000; ++frame) {
+      img = renderer->render(instances, view(c), ro, &st, o.empty() ? nullptr : &o);
+      noteProgress(st);
+      if (st.stream.requested == 0 && st.stream.pages_requested == 0) {
+        if (st.ensembles == 0 || st.ensembles >= ensembles) break;
+        continue;  // a resting see-through view: more ensembles
+      }
+      update(client->receive(graph,
+                             Clock::now() + std::chrono::duration_cast<Clock::duration>(period)));
+      sendPose(c);
+    }
+    return img;
+  }
+
+  /// Opens a store the scene names: from this host, or from the master's chunk server.
+  std::unique_ptr<lod::PointStore> openStore(const std::string& path) {
+    std::error_code ec;
+    const bool here = fs::is_regular_file(path, ec);
+    if (!chunks || (here && !opt.remote_stores)) {
+      if (here || chunks) return lod::PointStore::open(path);
+      try {
+        return lod::PointStore::open(path);
+      } catch (const lod::StoreError& e) {
+        throw lod::StoreError(std::string(e.what()) +
+                              " (not on this host, and the master serves no chunks: start it "
+                              "with --chunks to stream them)");
+      }
+    }
+    try {
+      return lod::PointStore::open(chunks->open(path));
+    } catch (const lod::RangeError& e) {
+      throw lod::StoreError("lod::PointStore: " + path + ": from the chunk server: " + e.what());
+    }
+  }
+
+  /// After a frame: when this site first showed data, and when its view first settled (join
+  /// time, bench/sites).
+  void noteProgress(const render::RenderStats& st) {
+    auto note = [&](const char* what) {
+      char line[160];
+      std::snprintf(line, sizeof line, "%s at %.3f s: %zu chunks drawn, %llu bytes fetched", what,
+                    elapsed(), st.nodes,
+                    (unsigned long long)(chunks ? chunks->counters().fetched_bytes : 0));
+      say(line);
+    };
+    if (!first_image && st.nodes > 0) {
+      first_image = true;
+      note("first image");
+    }
+    if (first_image && !view_settled && st.stream.requested == 0 &&
+        st.stream.pages_requested == 0 && st.stream.queued == 0) {
+      view_settled = true;
+      note("view settled");
+    }
   }
 
   void stroke(const site::StrokeAction& a, const config::Camera& c) {
@@ -531,8 +612,11 @@ struct SiteSession::Impl {
         context = render::GlContext::createHeadless();
       render::StreamerOptions stream;
       stream.density_ratios = true;
-      renderer =
-          std::make_unique<render::ViewRenderer>(script.width(), script.height(), nullptr, stream);
+      // Loaders reading over the link mostly wait: more of them keep more requests in flight
+      // (Bettio et al. 4: pipelined requests), as many as fill the link.
+      if (opt.remote_stores || !opt.cache_dir.empty()) stream.loader_threads = 8;
+      renderer = std::make_unique<render::ViewRenderer>(script.width(), script.height(), nullptr,
+                                                        stream);
       std::error_code ec;
       fs::create_directories(opt.out_dir, ec);
       strokes_csv.open(fs::path(opt.out_dir) / "strokes.csv");
@@ -543,10 +627,30 @@ struct SiteSession::Impl {
       strokes_csv << "stroke,px,py,x,y,z,depth\n";
     }
     client = std::make_unique<SiteClient>(opt.client);
-    welcome = client->join(
-        graph, Clock::now() + std::chrono::milliseconds(int64_t(opt.join_timeout_s * 1000)));
-    say("joined as participant " + std::to_string(welcome.participant()) + " at scene version " +
-        std::to_string(graph.version()));
+    welcome = client->join(graph, Clock::now() + std::chrono::milliseconds(int64_t(opt.join_timeout_s * 1000)));
+    {
+      char line[200];
+      std::snprintf(line, sizeof line,
+                    "joined as participant %u at scene version %llu (snapshot %zu bytes, %.3f s)",
+                    welcome.participant(), (unsigned long long)graph.version(),
+                    welcome.snapshot().size(), elapsed());
+      say(line);
+    }
+    if (!welcome.chunks().empty() && opt.render) {
+      ChunkClientOptions co;
+      co.endpoint = chunkEndpointFor(welcome.chunks(), opt.client.master);
+      co.master_key = opt.client.master_key;
+      co.keys = opt.client.keys;
+      co.cache_dir = opt.cache_dir;
+      co.timeout_s = opt.chunk_timeout_s;
+      chunks = std::make_unique<ChunkClient>(co);
+      say("chunks from " + co.endpoint +
+          (co.cache_dir.empty() ? std::string(" (no disk cache)") : ", cached in " + co.cache_dir));
+    } else if (opt.remote_stores && opt.render) {
+      throw lod::StoreError(
+          "--remote-stores: the master serves no chunks (start it with --chunks)");
+    }
+    models.setStoreOpener([this](const std::string& path) { return openStore(path); });
     update(sync::SceneChanges::all());
     own = graph.camera();
     const auto period = std::chrono::duration<double>(1.0 / script.fps());
@@ -578,7 +682,9 @@ struct SiteSession::Impl {
       if (renderer) {
         const render::Overlay o = overlay(c);
         last_view = view(c);
-        renderer->draw(instances, last_view, options(), nullptr, o.empty() ? nullptr : &o);
+        render::RenderStats st;
+        renderer->draw(instances, last_view, options(), &st, o.empty() ? nullptr : &o);
+        noteProgress(st);
         if (window) window->present(renderer->imageBuffer(), script.width(), script.height());
       }
       if (script.frames() > 0 && frame + 1 >= script.frames()) {
@@ -622,6 +728,9 @@ int SiteSession::run() {
     return kSiteFailed;
   } catch (const render::RenderError& e) {
     std::fprintf(stderr, "tessera-site: no usable GL: %s\n", e.what());
+    return kSiteFailed;
+  } catch (const lod::StoreError& e) {
+    std::fprintf(stderr, "tessera-site: %s\n", e.what());
     return kSiteFailed;
   }
 }

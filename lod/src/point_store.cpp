@@ -1,9 +1,5 @@
 #include <tessera/lod/point_store.h>
 
-#include <fcntl.h>
-#include <sys/stat.h>
-#include <unistd.h>
-
 #include <array>
 #include <cerrno>
 #include <cstring>
@@ -13,7 +9,7 @@
 #include <unordered_set>
 
 #include <tessera/core/check.h>
-#include <tessera/core/file_checks.h>
+#include <tessera/lod/range_source.h>
 #include <tessera/lod/store_format.h>
 
 #include "chunk_codec.h"
@@ -39,7 +35,7 @@ struct PointStore::Impl {
     uint64_t bytes = 0;
   };
 
-  int fd = -1;
+  std::unique_ptr<RangeSource> source;
   uint64_t file_size = 0;
   std::string name;
   CubeFrame frame;
@@ -53,10 +49,6 @@ struct PointStore::Impl {
   CacheStats stats;
   std::unordered_set<NodeId> corrupt_pages;  // nodes whose children's page was refused
 
-  ~Impl() {
-    if (fd >= 0) ::close(fd);
-  }
-
   [[noreturn]] void fail(const std::string& what) const {
     throw StoreError("lod::PointStore: " + name + ": " + what);
   }
@@ -64,15 +56,22 @@ struct PointStore::Impl {
   void readAt(uint64_t off, void* dst, size_t n, const char* what) const {
     if (off > file_size || n > file_size - off)
       fail(std::string(what) + " lies beyond the end of the file (truncated?)");
-    size_t done = 0;
-    while (done < n) {
-      ssize_t got = ::pread(fd, static_cast<uint8_t*>(dst) + done, n - done, off_t(off + done));
-      if (got < 0 && errno == EINTR) continue;
-      if (got <= 0)
-        fail(std::string("reading ") + what +
-             " failed: " + (got < 0 ? std::strerror(errno) : "end of file"));
-      done += size_t(got);
+    try {
+      source->read(off, dst, n);
+    } catch (const RangeError& e) {
+      fail(std::string("reading ") + what + " failed: " + e.what());
     }
+  }
+
+  /// readAt(), then `intact()` on the bytes; when they fail it and the source can fetch them
+  /// again (a cached copy was corrupt: range_source.h), reads once more. Returns intact().
+  template <class Intact>
+  bool readChecked(uint64_t off, void* dst, size_t n, const char* what, Intact intact) const {
+    readAt(off, dst, n, what);
+    if (intact()) return true;
+    if (!source->refetch(off, n)) return false;
+    readAt(off, dst, n, what);
+    return intact();
   }
 
   /// Reads a hierarchy page. `expand`: the node whose children it holds (its first record must
@@ -81,17 +80,23 @@ struct PointStore::Impl {
     store::PageHeader ph;
     if (size < sizeof ph)
       fail("hierarchy page at byte " + std::to_string(offset) + " is too small");
-    readAt(offset, &ph, sizeof ph, "a hierarchy page");
-    if (std::memcmp(ph.magic, "TPAG", 4) != 0 ||
-        uint64_t(ph.nodes) * sizeof(store::NodeRecord) + sizeof ph != size || ph.nodes == 0) {
+    // One read for the whole page: one round trip when the bytes come over a link.
+    std::vector<uint8_t> bytes(size);
+    std::vector<store::NodeRecord> recs;
+    bool header_ok = false;
+    const bool intact = readChecked(offset, bytes.data(), bytes.size(), "a hierarchy page", [&] {
+      std::memcpy(&ph, bytes.data(), sizeof ph);
+      header_ok = std::memcmp(ph.magic, "TPAG", 4) == 0 &&
+                  uint64_t(ph.nodes) * sizeof(store::NodeRecord) + sizeof ph == size &&
+                  ph.nodes != 0;
+      return header_ok && crc32c(bytes.data() + sizeof ph, size - sizeof ph) == ph.crc;
+    });
+    if (!header_ok)
       fail("hierarchy page at byte " + std::to_string(offset) + " is corrupt (bad header)");
-    }
-    std::vector<store::NodeRecord> recs(ph.nodes);
-    readAt(offset + sizeof ph, recs.data(), recs.size() * sizeof(store::NodeRecord),
-           "a hierarchy page");
-    if (crc32c(recs.data(), recs.size() * sizeof(store::NodeRecord)) != ph.crc) {
+    if (!intact)
       fail("hierarchy page at byte " + std::to_string(offset) + " is corrupt (checksum mismatch)");
-    }
+    recs.resize(ph.nodes);
+    std::memcpy(recs.data(), bytes.data() + sizeof ph, recs.size() * sizeof(store::NodeRecord));
     std::unordered_map<CellKey, NodeId, CellKeyHash> local;
     for (size_t i = 0; i < recs.size(); ++i) {
       const store::NodeRecord& r = recs[i];
@@ -154,21 +159,33 @@ struct PointStore::Impl {
 
 std::unique_ptr<PointStore> PointStore::open(const std::filesystem::path& path,
                                              uint64_t cache_bytes) {
+  std::unique_ptr<RangeSource> source;
+  try {
+    source = std::make_unique<FileRangeSource>(path);
+  } catch (const RangeError& e) {
+    throw StoreError("lod::PointStore: " + path.string() + ": " + e.what());
+  }
+  return open(std::move(source), cache_bytes);
+}
+
+std::unique_ptr<PointStore> PointStore::open(std::unique_ptr<RangeSource> source,
+                                             uint64_t cache_bytes) {
+  TESSERA_CHECK(source != nullptr, "lod::PointStore::open(): no source");
   std::unique_ptr<PointStore> s(new PointStore());
-  s->mPath = path;
+  s->mPath = source->name();
   s->mImpl = std::make_unique<Impl>();
   Impl& m = *s->mImpl;
-  m.name = path.string();
-  std::string why;
-  m.fd = openRegularFile(path, why);  // a FIFO or device is refused, never waited on
-  if (m.fd < 0) m.fail(why.starts_with("not a") ? why : "cannot open: " + why);
-  struct stat st {};
-  if (::fstat(m.fd, &st) != 0) m.fail(std::string("cannot stat: ") + std::strerror(errno));
-  m.file_size = uint64_t(st.st_size);
+  m.name = source->name();
+  m.file_size = source->size();
+  m.source = std::move(source);
   store::FileHeader h;
   if (m.file_size < sizeof h)
     m.fail("too small to be a point store (" + std::to_string(m.file_size) + " bytes)");
-  m.readAt(0, &h, sizeof h, "the header");
+  const bool header_intact = m.readChecked(0, &h, sizeof h, "the header", [&] {
+    store::FileHeader zeroed = h;
+    zeroed.header_crc = 0;
+    return crc32c(&zeroed, sizeof zeroed) == h.header_crc;
+  });
   if (std::memcmp(h.magic, store::kMagic, 4) != 0) m.fail("not a Tessera point store (bad magic)");
   if (h.version > store::kVersion) {
     m.fail("store format version " + std::to_string(h.version) +
@@ -176,9 +193,7 @@ std::unique_ptr<PointStore> PointStore::open(const std::filesystem::path& path,
            "): update Tessera or rebuild the store");
   }
   if (h.version == 0) m.fail("bad format version 0");
-  uint32_t crc = h.header_crc;
-  h.header_crc = 0;
-  if (crc32c(&h, sizeof h) != crc) m.fail("header is corrupt (checksum mismatch)");
+  if (!header_intact) m.fail("header is corrupt (checksum mismatch)");
   // Offset and size each within the file first: their sum must not wrap around.
   if (!(h.cube_size > 0) || h.root_page_offset > m.file_size ||
       h.root_page_size > m.file_size - h.root_page_offset || h.source_table_offset > m.file_size ||
@@ -208,8 +223,9 @@ std::unique_ptr<PointStore> PointStore::open(const std::filesystem::path& path,
   sum.input_precision = h.input_precision;
 
   std::string table(h.source_table_size, '\0');
-  m.readAt(h.source_table_offset, table.data(), table.size(), "the source table");
-  if (h.version >= 2 && crc32c(table.data(), table.size()) != h.source_table_crc)
+  if (!m.readChecked(h.source_table_offset, table.data(), table.size(), "the source table", [&] {
+        return h.version < 2 || crc32c(table.data(), table.size()) == h.source_table_crc;
+      }))
     m.fail("source table is corrupt (checksum mismatch)");
   for (size_t a = 0; a < table.size();) {
     size_t b = table.find('\n', a);
@@ -302,8 +318,8 @@ std::shared_ptr<ChunkPoints> PointStore::decodeChunk(NodeId id) const {
   const std::string what = m.name + ": node " + std::to_string(id) + " (level " +
                            std::to_string(e.info.level) + ", payload at byte " +
                            std::to_string(e.payload_offset) + ")";
-  m.readAt(e.payload_offset, bytes.data(), bytes.size(), "a chunk payload");
-  if (crc32c(bytes.data(), bytes.size()) != e.crc) {
+  if (!m.readChecked(e.payload_offset, bytes.data(), bytes.size(), "a chunk payload",
+                     [&] { return crc32c(bytes.data(), bytes.size()) == e.crc; })) {
     throw StoreError("lod::PointStore: " + what + ": corrupt chunk (checksum mismatch); skipped");
   }
   lod::decodeChunk(bytes, e.info.box_min, *out, what);

@@ -110,6 +110,14 @@ int run(int argc, char** argv) {
                  "once)")
       ->check(cli::finiteRange(0.5, 3600.0))
       ->capture_default_str();
+  double chunk_rate_mbit = 100.0;
+  app.add_option("--chunks", sites.chunks_endpoint,
+                 "Serve the scene's stores to sites that do not have them (chunks on demand, "
+                 "over CURVE with --sites' keys and allow list), e.g. tcp://*:7402; needs --sites");
+  app.add_option("--chunk-rate", chunk_rate_mbit,
+                 "With --chunks: each site's bandwidth for chunks, Mbit/s (a token bucket)")
+      ->check(cli::finiteRange(0.01, 1e5))
+      ->capture_default_str();
   app.add_option("--timeout", timeout_s,
                  "mpi: seconds any rank may keep the others waiting before the job is aborted")
       ->check(cli::finiteRange(0.1, 86400.0))
@@ -190,6 +198,17 @@ int run(int argc, char** argv) {
     }
     return cli::kExitBadCommandLine;
   }
+  if (sites.endpoint.empty() && !sites.chunks_endpoint.empty()) {
+    std::fprintf(stderr,
+                 "tessera-master: --chunks needs --sites ENDPOINT (its keys and allow "
+                 "list admit the sites)\n");
+    if (mpi) {
+      sync::MpiMasterLink l(*mpi);
+      refuseEveryone(l, "--chunks needs --sites");
+    }
+    return cli::kExitBadCommandLine;
+  }
+  sites.chunk_bytes_per_s = chunk_rate_mbit * 1e6 / 8.0;
   if (mpi) {
     mpi->setTimeout(timeout_s);
     auto l = std::make_unique<sync::MpiMasterLink>(*mpi);
@@ -227,6 +246,9 @@ int run(int argc, char** argv) {
     try {
       hub = std::make_unique<collab::SiteHub>(sites);
       std::printf("tessera-master: remote sites join on %s\n", hub->endpoint().c_str());
+      if (!sites.chunks_endpoint.empty())
+        std::printf("tessera-master: chunks served on %s (%g Mbit/s per site)\n",
+                    hub->chunksEndpoint().c_str(), chunk_rate_mbit);
       std::fflush(stdout);
       m.setParticipants(hub.get());
     } catch (const std::exception& e) {  // KeyError, a busy port

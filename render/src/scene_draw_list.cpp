@@ -97,7 +97,7 @@ const std::vector<ModelInstance>& SceneDrawList::update(const sync::SceneGraph& 
     const std::string& path = node.model().store();
     if (mStores.count(path) || opened.count(path)) continue;
     try {
-      opened.emplace(path, lod::PointStore::open(path));
+      opened.emplace(path, mOpener ? mOpener(path) : lod::PointStore::open(path));
     } catch (const lod::StoreError& e) {
       throw lod::StoreError("render::SceneDrawList::update(): model " + std::to_string(id) + " '" +
                             node.name() + "': " + e.what());

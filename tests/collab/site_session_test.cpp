@@ -30,6 +30,7 @@
 #include "../support/command.h"
 #include "../support/mesh_distance.h"
 #include "../support/process.h"
+#include "../support/site_scripts.h"
 #include "../support/temp_dir.h"
 
 namespace {
@@ -38,15 +39,13 @@ namespace fs = std::filesystem;
 using tessera::test::Process;
 const std::string kData = TESSERA_DATA_DIR;
 
+using tessera::test::cameraJson;
+using tessera::test::publicKeyOf;
 void write(const fs::path& p, const std::string& text) {
-  std::ofstream(p) << text;
+  tessera::test::writeText(p, text);
 }
-
 std::string read(const fs::path& p) {
-  std::ifstream in(p);
-  std::stringstream s;
-  s << in.rdbuf();
-  return s.str();
+  return tessera::test::readText(p);
 }
 
 /// A small 2x2 wall (320x180 tiles, 2 cm bezels) so that many processes share two cores.
@@ -59,15 +58,6 @@ std::string wallJson() {
   return R"({"name": "small 2x2", "tiles": [)" + tile("tile-0-0", 0, 0.29) + "," +
          tile("tile-1-0", 0.5, 0.29) + "," + tile("tile-0-1", 0, 0) + "," +
          tile("tile-1-1", 0.5, 0) + R"(], "eye": {"x": 0.49, "y": 0.28, "z": 1.5}})";
-}
-
-std::string cameraJson(glm::dvec3 eye, glm::dvec3 target) {
-  char s[256];
-  std::snprintf(
-      s, sizeof s,
-      R"({"eye": {"x": %.17g, "y": %.17g, "z": %.17g}, "target": {"x": %.17g, "y": %.17g, "z": %.17g}, "up": {"y": 1}})",
-      eye.x, eye.y, eye.z, target.x, target.y, target.z);
-  return s;
 }
 
 // The bunny's middle; the wall looks at it from further back than the sites stand.
@@ -118,13 +108,6 @@ int pixelsNear(const tessera::render::Image& img, glm::dvec2 at, int radius, glm
         ++n;
     }
   return n;
-}
-
-std::string publicKeyOf(const std::string& keygen_output) {
-  std::smatch m;
-  if (!std::regex_search(keygen_output, m, std::regex("^(\\S{40})$", std::regex::multiline)))
-    return "";
-  return m[1].str();
 }
 
 class SiteSession : public ::testing::Test {

@@ -8,6 +8,7 @@
 #include <fstream>
 #include <functional>
 #include <map>
+#include <mutex>
 #include <set>
 #include <thread>
 #include <tuple>
@@ -327,4 +328,84 @@ TEST(PointStore, BadStoresAreRefusedWithTheReason) {
 }
 
 }  // namespace
+namespace {
+
+/// A store's bytes in memory whose reads at `broken_offset` are corrupt until refetch() is
+/// called for them (a cache's bad copy), or forever when not `mendable` (bad bytes at the
+/// source). Remembers the last range read.
+class FlakySource final : public RangeSource {
+ public:
+  FlakySource(const std::vector<uint8_t>& bytes, bool mendable, uint64_t broken_offset)
+      : mBytes(bytes), mMendable(mendable), mBroken(broken_offset) {}
+  uint64_t size() const override { return mBytes.size(); }
+  std::string name() const override { return "flaky.tlod"; }
+  void read(uint64_t offset, void* dst, size_t n) const override {
+    std::lock_guard lock(mMutex);
+    std::memcpy(dst, mBytes.data() + offset, n);
+    last_offset = offset;
+    if (offset == mBroken && !mMended) static_cast<uint8_t*>(dst)[n / 2] ^= 0x40;
+  }
+  bool refetch(uint64_t offset, size_t) const override {
+    std::lock_guard lock(mMutex);
+    ++refetches;
+    if (!mMendable || offset != mBroken) return false;
+    mMended = true;
+    return true;
+  }
+  mutable uint64_t last_offset = 0, refetches = 0;
+
+ private:
+  const std::vector<uint8_t>& mBytes;
+  bool mMendable;
+  uint64_t mBroken;
+  mutable bool mMended = false;
+  mutable std::mutex mMutex;
+};
+
+}  // namespace
+
+// Issue 13: a store read through a RangeSource (a chunk server and its disk cache) decodes the
+// same points as from its file; bytes that fail a checksum are read once more when the source
+// can fetch them again, else refused as before, naming the source.
+TEST(PointStore, RangeSourcesReadTheSameStoreAndACorruptCopyIsFetchedAgain) {
+  test::TempDir dir;
+  buildStore({kBunny}, dir / "b.tlod", quiet());
+  auto file = PointStore::open(dir / "b.tlod");
+  const std::vector<uint8_t> bytes = test::readBytes(dir / "b.tlod");
+  auto whole = std::make_unique<FlakySource>(bytes, true, ~0ull);
+  FlakySource* probe = whole.get();
+  auto same = PointStore::open(std::move(whole));
+  EXPECT_EQ(same->path(), "flaky.tlod");
+  NodeId victim = kNoNode;
+  for (NodeId id : allNodes(*same)) {
+    const auto a = file->decodeChunk(id);
+    const auto b = same->decodeChunk(id);
+    ASSERT_EQ(a->positions, b->positions) << "node " << id;
+    ASSERT_EQ(a->colors, b->colors) << "node " << id;
+    if (victim == kNoNode && id != same->root() && a->size() > 0) victim = id;
+  }
+  ASSERT_NE(victim, kNoNode);
+  (void)same->decodeChunk(victim);
+  const uint64_t payload = probe->last_offset;  // one read per chunk: its payload's range
+
+  // A cached copy gone bad: refused by the CRC, fetched again, decoded right.
+  auto mend = std::make_unique<FlakySource>(bytes, true, payload);
+  FlakySource* m = mend.get();
+  auto mended = PointStore::open(std::move(mend));
+  (void)allNodes(*mended);
+  EXPECT_EQ(mended->decodeChunk(victim)->positions, file->decodeChunk(victim)->positions);
+  EXPECT_EQ(m->refetches, 1u);
+  // Bad at the source: refused as a corrupt chunk, as from a file.
+  auto bad = PointStore::open(std::make_unique<FlakySource>(bytes, false, payload));
+  (void)allNodes(*bad);
+  const std::string msg = storeErrorOf([&] { bad->decodeChunk(victim); });
+  EXPECT_NE(msg.find("flaky.tlod"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("corrupt chunk (checksum mismatch)"), std::string::npos) << msg;
+  // The header itself from a bad copy: fetched again too.
+  auto header = std::make_unique<FlakySource>(bytes, true, 0);
+  FlakySource* h = header.get();
+  EXPECT_NO_THROW(PointStore::open(std::move(header)));
+  EXPECT_EQ(h->refetches, 1u);
+}
+
 }  // namespace tessera::lod

@@ -43,6 +43,10 @@ struct SiteHubOptions {
   /// Token buckets per site: sustained rates, bursts of `burst_s` seconds' worth.
   double messages_per_s = 200.0, bytes_per_s = 4.0 * 1024 * 1024, burst_s = 2.0;
   int send_queue = 256;  ///< messages queued per site (ZMQ_SNDHWM) before it falls behind
+  /// The chunk server's endpoint (chunk_server.h; tessera-master --chunks), "" for none: sites
+  /// then need the stores themselves. It serves the stores the scene's models name now.
+  std::string chunks_endpoint;
+  double chunk_bytes_per_s = 100e6 / 8;  ///< per site (--chunk-rate, Mbit/s)
 };
 
 struct SiteHubCounters {
@@ -50,6 +54,7 @@ struct SiteHubCounters {
   uint64_t messages_in = 0, bytes_in = 0, messages_out = 0, bytes_out = 0;
   uint64_t snapshots_resent = 0;  ///< snapshots sent to sites that fell behind
   uint64_t discarded = 0;         ///< messages of dropped sites, discarded unread
+  uint64_t chunk_requests = 0, chunk_refused = 0, chunk_bytes_out = 0;  ///< the chunk server's
 };
 
 class SiteHub final : public master::Participants {
@@ -61,6 +66,8 @@ class SiteHub final : public master::Participants {
 
   /// The bound endpoint with its real port ("tcp://0.0.0.0:7401").
   std::string endpoint() const;
+  /// The chunk server's bound endpoint, "" without one.
+  std::string chunksEndpoint() const;
 
   void beforeFrame(sync::SceneGraph& graph, uint64_t frame, double session_s) override;
   void afterFrame(const sync::SceneGraph& graph, const std::string& bytes) override;

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <cstddef>
+#include <cstdint>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -24,9 +25,25 @@ constexpr size_t kMaxSketchesPerSite = 1000;
 /// Coordinates beyond this are refused (metres; georeferenced scenes stay far below it).
 constexpr double kMaxCoordinate = 1e8;
 
+/// Chunks on demand (site.proto ChunkRequest): the largest request message, the largest range
+/// one request may ask for, and the longest store path.
+constexpr size_t kMaxChunkRequestBytes = 8 * 1024;
+constexpr uint32_t kMaxChunkRangeBytes = 8u << 20;
+constexpr size_t kMaxStorePathBytes = 4096;
+
 /// Parses and checks one message from a site. Returns the reason it is refused ("pose.eye:
 /// numbers must be finite"), or std::nullopt with `out` filled.
 std::optional<std::string> parseToMaster(std::string_view bytes, site::ToMaster& out);
+
+/// Parses and checks a chunk request: its size, the store path (1..kMaxStorePathBytes, no NUL),
+/// the length (0..kMaxChunkRangeBytes) and that offset + length does not overflow. Whether the
+/// store is served and the range lies within it is the server's to check. Returns the reason
+/// it is refused, or std::nullopt with `out` filled.
+std::optional<std::string> parseChunkRequest(std::string_view bytes, site::ChunkRequest& out);
+
+/// Whether a checked range request lies within a store of `store_size` bytes (a length-0
+/// request, for the store's identity, always does). Returns the reason it does not.
+std::optional<std::string> checkChunkRange(const site::ChunkRequest& request, uint64_t store_size);
 
 /// The check alone (what parseToMaster() does after parsing).
 std::optional<std::string> checkToMaster(const site::ToMaster& message);

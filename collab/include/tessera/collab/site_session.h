@@ -2,7 +2,9 @@
 // master's session over the site link (site_client.h), keep a replica of the scene, render it
 // locally with the renderer and the scene path every node uses (render::SceneDrawList, the
 // scene overlay: every avatar but its own, every sketch), and send its pose about 30 times a
-// second. Headless it plays a script (site.proto SiteScript): camera moves, strokes placed on the
+// second. Stores it does not have come from the master's chunk server in byte ranges, as its own
+// cut needs them, and stay in a disk cache between sessions (chunk_client.h). Headless it plays
+// a script (site.proto SiteScript): camera moves, strokes placed on the
 // model through the depth buffer, undo and clear, lead, follow, screenshots, goodbye.
 #pragma once
 
@@ -30,6 +32,12 @@ struct SiteSessionOptions {
   uint32_t window_width = 960, window_height = 640;
   bool render = true;  ///< false: poses and requests only (benchmarks of the master's cost)
   double join_timeout_s = 15.0;
+  /// Stores: a store the scene names is opened from this host when the file is there, else
+  /// through the master's chunk server (chunk_client.h) when the master announces one;
+  /// `remote_stores` takes every store from the chunk server.
+  bool remote_stores = false;
+  std::string cache_dir;        ///< the chunks' disk cache ("" : none)
+  double chunk_timeout_s = 30;  ///< a chunk request unanswered for this long is sent again
 };
 
 /// A site script from a file, checked: fps in (0, 240], a view of 16..8192 pixels, fovy in

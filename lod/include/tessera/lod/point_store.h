@@ -14,6 +14,7 @@
 
 #include <tessera/lod/lod_hierarchy.h>
 #include <tessera/lod/point_batch.h>
+#include <tessera/lod/range_source.h>
 
 namespace tessera::lod {
 
@@ -74,6 +75,13 @@ class PointStore : public LodHierarchy {
   /// Opens the store: reads and checks the header and the root hierarchy page only (fast for
   /// any size). `cache_bytes` bounds the decoded chunks kept in memory. Throws StoreError.
   static std::unique_ptr<PointStore> open(const std::filesystem::path& path,
+                                          uint64_t cache_bytes = 512ull << 20);
+  /// The same over any source of the store's bytes (range_source.h: a file, or ranges fetched
+  /// from a chunk server); path() is the source's name. Every read is one byte range checked
+  /// by its CRC-32C; one that fails it is read once more when the source can fetch it again
+  /// (RangeSource::refetch()). A read that fails (RangeError) is a StoreError naming the
+  /// store and what was read. Throws StoreError.
+  static std::unique_ptr<PointStore> open(std::unique_ptr<RangeSource> source,
                                           uint64_t cache_bytes = 512ull << 20);
   ~PointStore() override;
 

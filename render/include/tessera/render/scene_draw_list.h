@@ -12,6 +12,7 @@
 // is thread-safe).
 #pragma once
 
+#include <functional>
 #include <map>
 #include <memory>
 #include <span>
@@ -46,6 +47,14 @@ NodePlacement placeNode(const sync::SceneGraph& graph, sync::SceneGraph::NodeId 
 
 class SceneDrawList {
  public:
+  /// Opens the store a MODEL node names (its path exactly as in the scene). Throws
+  /// lod::StoreError naming the store and why. The default is lod::PointStore::open(path); a
+  /// remote site opens through the master's chunk server (collab/chunk_client.h).
+  using StoreOpener = std::function<std::unique_ptr<lod::PointStore>(const std::string& path)>;
+
+  /// Sets how update() opens stores from now on (stores already open stay). Empty: the default.
+  void setStoreOpener(StoreOpener opener) { mOpener = std::move(opener); }
+
   /// Brings the list up to date with `graph` after `changes` (what SceneGraph::apply() returned,
   /// or SceneChanges::of() the frame the master took; SceneChanges::all() rebuilds). The list
   /// holds the visible MODEL nodes in ascending id (the scene file's order), each drawn with
@@ -87,6 +96,7 @@ class SceneDrawList {
   std::vector<ModelInstance> mInstances;
   bool mStarted = false;
   size_t mVisited = 0;
+  StoreOpener mOpener;
 };
 
 }  // namespace tessera::render
