@@ -208,13 +208,15 @@ TEST(CommandLineSweep, TesseraSite) {
     EXPECT_NE(r.out.find("--size"), std::string::npos) << cmd << "\n" << r.out;
   }
   // Names that are not 1..64 bytes of printable UTF-8, and keys that are not keys.
-  for (const std::string bad : {"--name ''", "--name $'a\\tb'", "--name " + std::string(65, 'n'),
-                                "--master-key short"}) {
+  for (const std::string& bad : std::vector<std::string>{"--name ''", "--name 'a\tb'",
+                                                         "--name " + std::string(65, 'n'),
+                                                         "--master-key short"}) {
     const std::string cmd = kTimeout + TESSERA_SITE +
                             " --master tcp://127.0.0.1:9 --master-key "
                             "'rq:rM>}U?@Lns47E1%kR.o@n%FcmmsL/@{H8]yf7' --name x --key "
-                            "/nonexistent.key --headless " + bad;
-    const CommandResult r = tessera::test::runCommand("bash -c \"" + cmd + "\"");
+                            "/nonexistent.key --headless " +
+                            bad;
+    const CommandResult r = tessera::test::runCommand(cmd);
     EXPECT_EQ(r.code, 2) << cmd << "\n" << r.out;
   }
 }
