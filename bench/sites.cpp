@@ -4,7 +4,7 @@
 //     wall is one tessera-node tile (640x360); the sites are K real site connections (CURVE,
 //     each its own key, replica and name) without rendering, driven from one thread of this
 //     process: each sends its pose 30 times a second along a moving path, a stroke of 40
-//     samples every second and an undo every two, and applies every frame; so the figure is the
+//     samples every two seconds undone a second later, and applies every frame; so the figure is the
 //     master's and the node's cost (checking, applying, sending frames to every site, drawing
 //     the avatars and sketches) and not this machine's two cores shared by K site processes.
 //     Each count runs the same seconds of real time; the master's own time before the nodes
@@ -20,6 +20,9 @@
 // Writes DIR/sites_overhead.csv, DIR/sites_latency.csv and DIR/sites.png (gnuplot); prints the
 // figures. Every process runs on THIS machine (2 cores).
 #include <CLI/CLI.hpp>
+
+#include <time.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <array>
@@ -40,6 +43,7 @@
 #include <tessera/collab/site_client.h>
 #include <tessera/collab/site_messages.h>
 #include <tessera/collab/site_roster.h>
+#include <tessera/sync/scene_edits.h>
 #include <tessera/core/cli.h>
 #include <tessera/lod/point_store.h>
 #include <tessera/lod/store_builder.h>
@@ -48,6 +52,7 @@
 #include <tessera/render/scene_overlay.h>
 #include <tessera/render/view_renderer.h>
 #include <tessera/sync/cluster_link.h>
+#include <tessera/sync/wire.h>
 
 #include "../tests/support/process.h"
 #include "bench_walls.h"
@@ -90,6 +95,20 @@ std::vector<std::pair<double, double>> masterFrames(const fs::path& csv, int col
     out.emplace_back(std::stod(f[18]), std::stod(f[size_t(column)]));
   }
   return out;
+}
+
+/// CPU seconds (user + system) a process has used so far (/proc/PID/stat), or 0.
+double cpuSeconds(pid_t pid) {
+  std::ifstream in("/proc/" + std::to_string(pid) + "/stat");
+  std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const size_t close = text.rfind(')');
+  if (close == std::string::npos) return 0;
+  std::istringstream fields(text.substr(close + 2));
+  std::string f;
+  double ticks = 0;
+  for (int i = 3; i <= 15 && fields >> f; ++i)
+    if (i == 14 || i == 15) ticks += std::stod(f);  // utime, stime
+  return ticks / double(sysconf(_SC_CLK_TCK));
 }
 
 std::string cameraJson(double x, double y, double z) {
@@ -165,13 +184,15 @@ Wall startWall(const Setup& s, const std::string& name, double seconds) {
 
 /// K sites in one thread of this process, each on its own CURVE connection with its own key,
 /// replica and name, as K remote machines would be: 30 poses a second along a moving circle, a
-/// stroke of 40 samples every second and an undo every two, every frame from the master applied.
+/// stroke of 40 samples every two seconds, undone a second later (so each site keeps at most one
+/// sketch: the scene stays the same size), every frame from the master applied.
 /// One light process instead of K, so the wall's figures are the master's and the node's cost,
 /// not this machine's two cores shared with K site processes.
 class TrafficSites {
  public:
   TrafficSites(const std::string& endpoint, const std::string& master_key,
-               const std::vector<tessera::collab::KeyPair>& keys, int k) {
+               const std::vector<tessera::collab::KeyPair>& keys, int k, bool still)
+      : mStill(still) {
     for (int i = 0; i < k; ++i) {
       tessera::collab::SiteClientOptions o;
       o.master = endpoint;
@@ -204,7 +225,7 @@ class TrafficSites {
         } catch (const tessera::collab::SiteSessionEnded&) {
           return;  // the master ended the session
         }
-        const double a = 0.05 * double(f) + double(i);
+        const double a = (mStill ? 0.0 : 0.05 * double(f)) + double(i);
         tessera::site::ToMaster m;
         auto& p = *m.mutable_pose();
         p.set_sequence(f + 1);
@@ -214,7 +235,7 @@ class TrafficSites {
         p.set_fovy_deg(45);
         p.set_aspect(1.5f);
         s.client->send(m);
-        if (f % 30 == 15) {
+        if (f % 60 == 15) {
           tessera::site::ToMaster st;
           for (int k = 0; k < 40; ++k)
             for (double v : {-0.05 + 0.002 * k, 0.1 + 0.001 * double(i), 0.02})
@@ -223,7 +244,7 @@ class TrafficSites {
           st.mutable_stroke()->set_width(3);
           s.client->send(st);
         }
-        if (f % 60 == 59) {
+        if (f % 60 == 45) {
           tessera::site::ToMaster u;
           u.mutable_undo();
           s.client->send(u);
@@ -232,77 +253,102 @@ class TrafficSites {
     }
   }
   std::vector<Site> mSites;
+  bool mStill = false;  // poses held: only strokes and undos change the scene
   std::atomic<bool> mStop{false};
   std::thread mThread;
 };
 
-/// What K avatars (head, frustum, name; moving every frame) cost one node's frame at 640x360:
-/// the median frame time and its overlay pass, in this process, each count after a warm-up.
-std::vector<std::array<double, 3>> avatarDrawCost(const fs::path& store,
-                                                  const std::vector<int>& counts) {
+/// What K avatars (head, frustum, name; moving every frame) and K sketches (one per site, 40
+/// samples, as the traffic below keeps) cost one node's frame at 640x360, as a node meets them:
+/// the master's scene (the bunny, the avatars, the sketches) moves the avatars every frame,
+/// the frames are applied to a replica, the scene draw list and the scene overlay follow it, and
+/// the view is drawn and read back. Per count: the median frame (wall time), this process's CPU
+/// time per frame (every thread: llvmpipe's, the loaders'), and the overlay pass.
+std::vector<std::array<double, 4>> avatarDrawCost(const fs::path& store,
+                                                  const std::vector<int>& counts, bool sketches) {
   auto context = tessera::render::GlContext::createHeadless();
-  std::vector<std::array<double, 3>> out;
+  std::vector<std::array<double, 4>> out;
   tessera::render::ViewRenderer renderer(640, 360);
-  auto points = tessera::lod::PointStore::open(store);
-  tessera::render::ModelInstance model;
-  model.store = points.get();
-  model.model = tessera::render::storeModel(*points);
   const auto wall =
       tessera::sync::parseWallConfig(tessera::bench::gridWallJson(1, 640, 360), "wall");
-  tessera::config::Camera cam;
-  cam.mutable_eye()->set_x(-0.027);
-  cam.mutable_eye()->set_y(0.12);
-  cam.mutable_eye()->set_z(0.6);
-  cam.mutable_target()->set_x(-0.027);
-  cam.mutable_target()->set_y(0.1);
-  cam.mutable_up()->set_y(1);
-  const tessera::render::ViewSetup view = tessera::render::tileView(wall, wall.tiles(0), cam);
-  tessera::render::RenderOptions options;
-  options.edl.strength = 1.0f;
-  (void)renderer.renderSettled({&model, 1}, view, options);
+  auto cpu = [] {
+    timespec t{};
+    clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &t);
+    return double(t.tv_sec) * 1e3 + double(t.tv_nsec) * 1e-6;
+  };
   for (int k : counts) {
-    std::vector<double> frame_ms, overlay_ms;
-    for (int f = 0; f < 40; ++f) {
-      tessera::sync::SceneGraph g;
-      for (int i = 0; i < k; ++i) {
-        const uint32_t id = g.add(tessera::scene::SceneNode::AVATAR);
-        const double a = 0.4 * i + 0.02 * f;
-        const double m[16] = {1,
-                              0,
-                              0,
-                              0,
-                              0,
-                              1,
-                              0,
-                              0,
-                              0,
-                              0,
-                              1,
-                              0,
-                              -0.027 + 0.3 * std::cos(a),
-                              0.15,
-                              0.05 + 0.3 * std::sin(a),
-                              1};
-        g.setTransform(id, m);
-        tessera::scene::AvatarPayload p;
-        p.set_site("site " + std::to_string(i));
-        p.mutable_color()->set_r(1);
-        p.set_fovy_deg(45);
-        p.set_aspect(1.5f);
-        p.set_reach(0.3f);
-        g.setPayload(id, p);
-      }
-      tessera::render::Overlay o;
-      tessera::render::appendSceneOverlay(g, o);
-      tessera::render::RenderStats st;
+    tessera::sync::SceneGraph master, replica;
+    const uint32_t bunny = master.add(tessera::scene::SceneNode::MODEL);
+    tessera::scene::ModelPayload mp;
+    mp.set_store(fs::absolute(store).string());
+    master.setPayload(bunny, mp);
+    tessera::config::Camera cam;
+    cam.mutable_eye()->set_x(-0.027);
+    cam.mutable_eye()->set_y(0.12);
+    cam.mutable_eye()->set_z(0.6);
+    cam.mutable_target()->set_x(-0.027);
+    cam.mutable_target()->set_y(0.1);
+    cam.mutable_up()->set_y(1);
+    master.setCamera(cam);
+    master.setShading(tessera::scene::SHADING_EDL);
+    std::vector<uint32_t> avatars;
+    for (int i = 0; i < k; ++i) {
+      avatars.push_back(master.add(tessera::scene::SceneNode::AVATAR));
+      tessera::scene::AvatarPayload p;
+      p.set_site("site " + std::to_string(i));
+      p.mutable_color()->set_r(1);
+      p.set_fovy_deg(45);
+      p.set_aspect(1.5f);
+      p.set_reach(0.3f);
+      master.setPayload(avatars.back(), p);
+    }
+    // And one sketch per site, as the traffic keeps at most one: 40 samples across the bunny.
+    const uint32_t layer = sketches ? tessera::sync::layerGroup(master, "sketches", "bench") : 0;
+    for (int i = 0; sketches && i < k; ++i) {
+      std::vector<glm::dvec3> pts;
+      for (int q = 0; q < 40; ++q) pts.emplace_back(-0.05 + 0.002 * q, 0.1 + 0.001 * i, 0.02);
+      tessera::scene::Color green;
+      green.set_g(1);
+      tessera::sync::addSketch(master, layer, "bench", pts, green, 3.0f);
+    }
+    (void)master.takeFrame(0, 0);
+    replica.apply(master.snapshot());
+    tessera::render::SceneDrawList models;
+    tessera::render::SceneOverlay overlay;
+    tessera::render::ChunkStreamer* streamers[] = {&renderer.streamer()};
+    auto instances = models.update(replica, tessera::sync::SceneChanges::all(), streamers);
+    const tessera::render::ViewSetup view =
+        tessera::render::tileView(wall, wall.tiles(0), replica.camera());
+    const tessera::render::RenderOptions options =
+        tessera::render::SceneDrawList::options(replica, 2.0f);
+    (void)renderer.renderSettled(instances, view, options);
+    std::vector<double> frame_ms, cpu_ms, overlay_ms;
+    for (int f = 1; f <= 45; ++f) {
+      const double t_cpu = cpu();
       const auto t0 = Clock::now();
-      (void)renderer.render({&model, 1}, view, options, &st, o.empty() ? nullptr : &o);
-      if (f >= 5) {
+      for (int i = 0; i < k; ++i) {  // as the traffic's poses: on a circle, facing the bunny
+        const double a = 0.05 * f + i;
+        const glm::dmat4 m = tessera::collab::poseFrame(
+            {-0.027 + 0.3 * std::cos(a), 0.15, 0.05 + 0.3 * std::sin(a)}, {-0.027, 0.1, 0.0},
+            {0.0, 1.0, 0.0});
+        master.setTransform(avatars[size_t(i)], std::span<const double>(&m[0][0], 16));
+      }
+      const tessera::sync::SceneChanges changes =
+          replica.apply(tessera::sync::parseFrame(
+              tessera::sync::serializeFrame(master.takeFrame(uint64_t(f), uint64_t(f) * 33333))));
+      instances = models.update(replica, changes, streamers);
+      const tessera::render::Overlay& o = overlay.update(replica, changes);
+      tessera::render::RenderStats st;
+      (void)renderer.render(instances, view, options, &st, o.empty() ? nullptr : &o);
+      if (f > 5) {
         frame_ms.push_back(std::chrono::duration<double, std::milli>(Clock::now() - t0).count());
+        cpu_ms.push_back(cpu() - t_cpu);
         overlay_ms.push_back(st.overlay_ms);
       }
     }
-    out.push_back({double(k), percentile(frame_ms, 0.5), percentile(overlay_ms, 0.5)});
+    models.clear(streamers);
+    out.push_back({double(k), percentile(frame_ms, 0.5), percentile(cpu_ms, 0.5),
+                   percentile(overlay_ms, 0.5)});
   }
   return out;
 }
@@ -371,6 +417,10 @@ int main(int argc, char** argv) {
         ->capture_default_str();
     app.add_option("--counts", counts_text, "Site counts for the overhead")->capture_default_str();
     app.add_option("--out", out, "Output folder")->capture_default_str();
+    bool still = false;
+    app.add_flag("--still", still,
+                 "The sites hold their poses (only strokes and undos change the scene): the cost "
+                 "of sites that look, against sites that move");
     if (const auto code = tessera::cli::parse(app, argc, argv, "sites")) return *code;
     std::vector<int> counts;
     {
@@ -430,19 +480,20 @@ int main(int argc, char** argv) {
     wcsv.close();
 
     std::ofstream dcsv(fs::path(out) / "sites_draw.csv");
-    dcsv << "avatars,frame_ms_median,overlay_ms_median\n";
+    dcsv << "avatars,frame_ms_median,cpu_ms_median,overlay_ms_median\n";
     std::printf("a node's frame (640x360, the bunny, eye-dome lighting) with K moving avatars:\n");
-    for (const auto& [k, frame, overlay] : avatarDrawCost(store, counts)) {
-      dcsv << k << "," << frame << "," << overlay << "\n";
-      std::printf("  %2.0f avatars: frame %.2f ms median, of which the overlay pass %.2f ms\n", k,
-                  frame, overlay);
+    for (const auto& [k, frame, cpu_ms, overlay] : avatarDrawCost(store, counts, true)) {
+      dcsv << k << "," << frame << "," << cpu_ms << "," << overlay << "\n";
+      std::printf("  %2.0f avatars: frame %.2f ms, CPU %.2f ms (medians), the overlay pass %.2f ms\n",
+                  k, frame, cpu_ms, overlay);
     }
     dcsv.close();
 
     // ---- 1. overhead ----
     std::ofstream ocsv(fs::path(out) / "sites_overhead.csv");
     ocsv << "sites,frames_per_s,frame_ms_median,frame_ms_p99,ratio_to_no_sites,"
-            "in_bytes_per_site_s,out_bytes_per_site_s,master_sync_ms_mean\n";
+            "in_bytes_per_site_s,out_bytes_per_site_s,master_sync_ms_mean,master_cpu_ms_per_frame,"
+            "node_cpu_ms_per_frame,traffic_cpu_percent\n";
     double base_fps = 0;
     std::printf("master frame rate with sites (1 tile 640x360, %.0f s each, sites --no-render):\n",
                 seconds);
@@ -450,11 +501,17 @@ int main(int argc, char** argv) {
       const double total = seconds + 12.0;  // joins, then the measured window
       Wall w = startWall(s, "overhead-" + std::to_string(k), total);
       std::unique_ptr<TrafficSites> sites;
-      if (k > 0) sites = std::make_unique<TrafficSites>(w.sites, s.master_public, site_keys, k);
+      if (k > 0)
+        sites = std::make_unique<TrafficSites>(w.sites, s.master_public, site_keys, k, still);
       std::this_thread::sleep_for(std::chrono::milliseconds(500));
       const double from = now_s();
+      const double master_cpu0 = cpuSeconds(w.master->pid()), node_cpu0 = cpuSeconds(w.node->pid()),
+                   sites_cpu0 = cpuSeconds(getpid());
       std::this_thread::sleep_for(std::chrono::duration<double>(seconds));
       const double to = now_s();
+      const double master_cpu = cpuSeconds(w.master->pid()) - master_cpu0,
+                   node_cpu = cpuSeconds(w.node->pid()) - node_cpu0,
+                   sites_cpu = cpuSeconds(getpid()) - sites_cpu0;
       std::vector<double> ms;
       for (const auto& [start, frame_ms] : masterFrames(w.stats))
         if (start >= from && start + frame_ms / 1000.0 <= to) ms.push_back(frame_ms);
@@ -478,12 +535,18 @@ int main(int argc, char** argv) {
       const double ratio = base_fps > 0 ? fps / base_fps : 1.0;
       double sync_mean = 0;
       for (double v : sync_ms) sync_mean += v / double(std::max<size_t>(1, sync_ms.size()));
+      const double frames_n = std::max<double>(1.0, double(ms.size()));
+      const double master_cpu_ms = master_cpu * 1000.0 / frames_n,
+                   node_cpu_ms = node_cpu * 1000.0 / frames_n;
       ocsv << k << "," << fps << "," << percentile(ms, 0.5) << "," << percentile(ms, 0.99) << ","
-           << ratio << "," << in_rate << "," << out_rate << "," << sync_mean << "\n";
-      std::printf(
-          "  %2d sites: %6.1f frames/s (%.2f of none), frame %.2f ms median, %.2f ms p99; "
-          "master before the nodes %.2f ms; per site %.0f B/s in, %.0f B/s out\n",
-          k, fps, ratio, percentile(ms, 0.5), percentile(ms, 0.99), sync_mean, in_rate, out_rate);
+           << ratio << "," << in_rate << "," << out_rate << "," << sync_mean << ","
+           << master_cpu_ms << "," << node_cpu_ms << "," << 100.0 * sites_cpu / (to - from) << "\n";
+      std::printf("  %2d sites: %6.1f frames/s (%.2f of none), frame %.2f ms median, %.2f ms p99; "
+                  "master before the nodes %.2f ms; CPU per frame: master %.2f ms, node %.2f ms; "
+                  "the K sites' traffic itself %.0f%% of a core; per site %.0f B/s in, %.0f B/s "
+                  "out\n",
+                  k, fps, ratio, percentile(ms, 0.5), percentile(ms, 0.99), sync_mean,
+                  master_cpu_ms, node_cpu_ms, 100.0 * sites_cpu / (to - from), in_rate, out_rate);
       std::fflush(stdout);
     }
     ocsv.close();
@@ -586,7 +649,7 @@ int main(int argc, char** argv) {
     gp << "set terminal pngcairo noenhanced size 1300,480 font ',10'\n"
        << "set output '" << (res / "sites.png").string() << "'\n"
        << "set datafile separator ','\nset multiplot layout 1,2\nset grid\n"
-       << "set title 'Master frame rate with remote sites (1 tile 640x360, sites --no-render, 2 "
+       << "set title 'Master frame rate with remote sites (1 tile 640x360, sites without rendering, 2 "
           "cores)'\nset xlabel 'sites'\nset ylabel 'frames per second'\nset yrange [0:*]\n"
        << "set style fill solid 0.6\nset boxwidth 0.6\nset key top right\n"
        << "plot '" << (res / "sites_overhead.csv").string()

@@ -1,6 +1,12 @@
 // Overlay primitives' colour: flat, textured, a round dot or ring (antialiased edges) or a glyph
 // (alpha from the font atlas). The mode's low byte says which; rings keep their inner radius
-// (0..255 of the outer) in the next byte.
+// (0..255 of the outer) in the next byte. World primitives are depth-tested here against the
+// frame target's depth (a fragment behind the scene's nearest point is discarded, as LEQUAL),
+// so the pass needs no depth attachment loaded per pixel of the view.
+layout(std430, binding = TESSERA_BINDING_DEPTH) readonly buffer Depth { uint depth[]; };  // raster order
+
+uniform ivec2 uSize;
+uniform int uDepthTest;
 in vec2 vUv;
 in vec4 vColor;
 flat in uint vMode;
@@ -10,6 +16,12 @@ uniform sampler2D uTexture;
 out vec4 fragColor;
 
 void main() {
+  if (uDepthTest != 0) {
+    // Framebuffer row 0 is the image's top row; the depth plane is bottom row first.
+    ivec2 p = ivec2(gl_FragCoord.xy);
+    uint d = depth[uint(uSize.y - 1 - p.y) * uint(uSize.x) + uint(p.x)];
+    if (d != 0xFFFFFFFFu && gl_FragCoord.z > uintBitsToFloat(d)) discard;
+  }
   vec4 c = vColor;
   uint mode = vMode & 0xFFu;
   if (mode == TESSERA_OVERLAY_TEXTURED) {

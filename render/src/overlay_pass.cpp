@@ -63,7 +63,7 @@ struct Run {
 }  // namespace
 
 struct OverlayPass::Impl {
-  GlProgram load, draw;
+  GlProgram draw;
   ImFontAtlas atlas;
   ImFont* font = nullptr;
   GlTexture font_texture;
@@ -186,8 +186,6 @@ void OverlayPass::Impl::addLabel(const OverlayLabel& l) {
 
 OverlayPass::OverlayPass() : mImpl(std::make_unique<Impl>()) {
   Impl& s = *mImpl;
-  s.load = GlProgram::graphics(shaders::kOverlayFullscreenVert, shaders::kOverlayLoadFrag,
-                               "overlay_load.frag");
   s.draw = GlProgram::graphics(shaders::kOverlayVert, shaders::kOverlayFrag, "overlay.vert/frag");
   if (std::filesystem::exists(kFontFile)) s.font = s.atlas.AddFontFromFileTTF(kFontFile, 32.0f);
   if (!s.font) s.font = s.atlas.AddFontDefault();
@@ -253,40 +251,42 @@ double OverlayPass::run(FrameTarget& target, const ViewSetup& view, const Overla
   }
 
   if (s.framebuffer.width() != target.width() || s.framebuffer.height() != target.height())
-    s.framebuffer = GlFramebuffer(target.width(), target.height(), true);
-  glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+    s.framebuffer = GlFramebuffer(target.width(), target.height(), false);
+  // The image into the framebuffer's colour (row 0 = the image's top row): a copy from the
+  // buffer, no shader. The depth test reads the frame target's depth in the overlay's fragment
+  // shader, where a primitive covers a pixel, so nothing is done per pixel of the view.
+  glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT | GL_PIXEL_BUFFER_BARRIER_BIT |
+                  GL_TEXTURE_UPDATE_BARRIER_BIT);
+  glBindBuffer(GL_PIXEL_UNPACK_BUFFER, target.image().name());
+  glPixelStorei(GL_UNPACK_ALIGNMENT, 4);
+  glPixelStorei(GL_UNPACK_ROW_LENGTH, 0);
+  glTextureSubImage2D(s.framebuffer.color().name(), 0, 0, 0, GLsizei(target.width()),
+                      GLsizei(target.height()), GL_RGBA, GL_UNSIGNED_BYTE, nullptr);
+  glBindBuffer(GL_PIXEL_UNPACK_BUFFER, 0);
   glBindFramebuffer(GL_FRAMEBUFFER, s.framebuffer.name());
   glViewport(0, 0, GLsizei(target.width()), GLsizei(target.height()));
   glBindVertexArray(s.vao);
-  glDisable(GL_BLEND);
-  glEnable(GL_DEPTH_TEST);
-  glDepthFunc(GL_ALWAYS);
-  glDepthMask(GL_TRUE);
-  s.load.use();
-  s.load.set("uSize", glm::ivec2(target.width(), target.height()));
-  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_DEPTH, target.depth().name());
-  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_IMAGE, target.image().name());
-  glDrawArrays(GL_TRIANGLES, 0, 3);
+  glDisable(GL_DEPTH_TEST);
 
   if (!s.vertices.empty()) {
     const GlBuffer vertices(s.vertices.size() * sizeof(OverlayVertex), s.vertices.data());
     glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_OVERLAY, vertices.name());
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_DEPTH, target.depth().name());
     s.draw.use();
     s.draw.set("uTexture", 0);
-    glDepthMask(GL_FALSE);  // overlays do not hide each other: later ones draw on top
+    s.draw.set("uSize", glm::ivec2(target.width(), target.height()));
+    // Overlays do not hide each other (later ones draw on top); colour blends over the scene,
+    // the image's alpha stays opaque.
     glEnable(GL_BLEND);
-    // Colour blends over the scene; the image's alpha stays opaque.
     glBlendFuncSeparate(GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA, GL_ZERO, GL_ONE);
     for (const Run& r : s.runs) {
       if (r.count == 0) continue;
-      glDepthFunc(r.depth_test ? GL_LEQUAL : GL_ALWAYS);
+      s.draw.set("uDepthTest", r.depth_test ? 1 : 0);
       glBindTextureUnit(0, r.texture);
       glDrawArrays(GL_TRIANGLES, GLint(r.first), GLsizei(r.count));
     }
   }
   glDisable(GL_BLEND);
-  glDisable(GL_DEPTH_TEST);
-  glDepthMask(GL_TRUE);
   glBindBuffer(GL_PIXEL_PACK_BUFFER, target.image().name());
   glPixelStorei(GL_PACK_ALIGNMENT, 4);
   glReadPixels(0, 0, GLsizei(target.width()), GLsizei(target.height()), GL_RGBA, GL_UNSIGNED_BYTE,

@@ -39,15 +39,21 @@ void addSketch(const scene::SketchPayload& s, const glm::dmat4& world, float opa
   const float width = s.width() > 0.0f ? s.width() : o.sketch_width_px;
   const auto& p = s.points();
   auto at = [&](size_t i) { return toWorld(world, p[3 * i], p[3 * i + 1], p[3 * i + 2]); };
-  glm::dvec3 a = at(0);
+  glm::dvec3 a = at(0), previous_dir(0.0);
   bool segments = false;
   for (size_t i = 1; i < n; ++i) {
     const glm::dvec3 b = at(i);
     // A repeated point (a pen held still) adds nothing: no zero-length segment, no extra join.
     if (b == a) continue;
-    if (segments) out.points.push_back({a, color, width});  // a round join over the square caps
+    const glm::dvec3 dir = glm::normalize(b - a);
+    // A round join over the square caps where the stroke turns by more than 25 degrees; below
+    // that the caps overlap with at most a fifth of the width open on the outside, under a
+    // pixel for strokes up to 4 px (a dense stroke turns little at each sample: this halves its
+    // primitives, which llvmpipe sets up one by one).
+    if (segments && glm::dot(dir, previous_dir) < 0.906) out.points.push_back({a, color, width});
     out.lines.push_back({a, b, color, width});
     segments = true;
+    previous_dir = dir;
     a = b;
   }
   if (!segments) out.points.push_back({a, color, width});  // one point (or all the same): a dot

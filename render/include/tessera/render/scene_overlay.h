@@ -12,7 +12,8 @@
 //
 // What each kind becomes:
 //  - SKETCH: its points as a polyline of OverlayLines, `width` pixels (0: sketch_width_px), an
-//    OverlayPoint of the line's width on each interior vertex for round joins; a single point is
+//    OverlayPoint of the line's width on each interior vertex where it turns by more than 25
+//    degrees, for round joins; a single point is
 //    one dot. Joins blend twice where a see-through sketch overlaps itself.
 //  - AVATAR: the participant's camera pose is its transform (columns right, up, back, eye): a
 //    head (a dot at the eye over a dark ring), its view frustum out to `reach` metres (the 4
