@@ -32,6 +32,7 @@
 #include <tessera/lod/store_builder.h>
 
 #include "../tests/support/process.h"
+#include "../tests/support/site_scripts.h"
 #include "bench_walls.h"
 
 namespace {
@@ -88,35 +89,11 @@ struct Bench {
     if (!std::regex_search(scene, cam,
                            std::regex("\"camera\"\\s*:\\s*(\\{[^}]*\\}[^}]*\\}[^}]*\\}[^}]*\\})")))
       throw std::runtime_error("site_join: no camera in " + (dir / "scene.json").string());
-    const std::string keys = cam[1].str().substr(1, cam[1].str().size() - 2);
-    std::ofstream(run / "hold.json") << R"({"name": "hold", "keyframes": [{"time": 0, )" << keys
-                                     << R"(}, {"time": 3600, )" << keys << "}]}";
-    auto master = std::make_unique<Process>(std::vector<std::string>{master_bin,
-                                                                     "--transport",
-                                                                     "zmq",
-                                                                     "--listen",
-                                                                     "tcp://127.0.0.1:*",
-                                                                     "--wall",
-                                                                     (dir / "wall.json").string(),
-                                                                     "--scene",
-                                                                     (dir / "scene.json").string(),
-                                                                     "--sites",
-                                                                     "tcp://127.0.0.1:*",
-                                                                     "--site-key",
-                                                                     (dir / "master.key").string(),
-                                                                     "--allow",
-                                                                     (dir / "allow.txt").string(),
-                                                                     "--chunks",
-                                                                     "tcp://127.0.0.1:*",
-                                                                     "--chunk-rate",
-                                                                     std::to_string(mbit),
-                                                                     "--site-timeout",
-                                                                     "60",
-                                                                     "--script",
-                                                                     (run / "hold.json").string(),
-                                                                     "--max-fps",
-                                                                     "30"},
-                                            run / "master.log");
+    auto master = std::make_unique<Process>(
+        tessera::test::masterWithSites(master_bin, dir, run, 3600, cam[1].str(),
+                                       {"--chunks", "tcp://127.0.0.1:*", "--chunk-rate",
+                                        std::to_string(mbit), "--site-timeout", "60"}),
+        run / "master.log");
     if (!master->waitFor("chunks served on tcp://", 30))
       throw std::runtime_error("the master did not start: " + master->output());
     const std::string out = master->output();

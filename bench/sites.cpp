@@ -4,8 +4,8 @@
 //     wall is one tessera-node tile (640x360); the sites are K real site connections (CURVE,
 //     each its own key, replica and name) without rendering, driven from one thread of this
 //     process: each sends its pose 30 times a second along a moving path, a stroke of 40
-//     samples every two seconds undone a second later, and applies every frame; so the figure is the
-//     master's and the node's cost (checking, applying, sending frames to every site, drawing
+//     samples every two seconds undone a second later, and applies every frame; so the figure is
+//     the master's and the node's cost (checking, applying, sending frames to every site, drawing
 //     the avatars and sketches) and not this machine's two cores shared by K site processes.
 //     Each count runs the same seconds of real time; the master's own time before the nodes
 //     render (its `sync_ms`, the sites' work included) is reported too.
@@ -43,7 +43,6 @@
 #include <tessera/collab/site_client.h>
 #include <tessera/collab/site_messages.h>
 #include <tessera/collab/site_roster.h>
-#include <tessera/sync/scene_edits.h>
 #include <tessera/core/cli.h>
 #include <tessera/lod/point_store.h>
 #include <tessera/lod/store_builder.h>
@@ -52,6 +51,7 @@
 #include <tessera/render/scene_overlay.h>
 #include <tessera/render/view_renderer.h>
 #include <tessera/sync/cluster_link.h>
+#include <tessera/sync/scene_edits.h>
 #include <tessera/sync/wire.h>
 
 #include "../tests/support/process.h"
@@ -328,14 +328,13 @@ std::vector<std::array<double, 4>> avatarDrawCost(const fs::path& store,
       const auto t0 = Clock::now();
       for (int i = 0; i < k; ++i) {  // as the traffic's poses: on a circle, facing the bunny
         const double a = 0.05 * f + i;
-        const glm::dmat4 m = tessera::collab::poseFrame(
-            {-0.027 + 0.3 * std::cos(a), 0.15, 0.05 + 0.3 * std::sin(a)}, {-0.027, 0.1, 0.0},
-            {0.0, 1.0, 0.0});
+        const glm::dmat4 m =
+            tessera::collab::poseFrame({-0.027 + 0.3 * std::cos(a), 0.15, 0.05 + 0.3 * std::sin(a)},
+                                       {-0.027, 0.1, 0.0}, {0.0, 1.0, 0.0});
         master.setTransform(avatars[size_t(i)], std::span<const double>(&m[0][0], 16));
       }
-      const tessera::sync::SceneChanges changes =
-          replica.apply(tessera::sync::parseFrame(
-              tessera::sync::serializeFrame(master.takeFrame(uint64_t(f), uint64_t(f) * 33333))));
+      const tessera::sync::SceneChanges changes = replica.apply(tessera::sync::parseFrame(
+          tessera::sync::serializeFrame(master.takeFrame(uint64_t(f), uint64_t(f) * 33333))));
       instances = models.update(replica, changes, streamers);
       const tessera::render::Overlay& o = overlay.update(replica, changes);
       tessera::render::RenderStats st;
@@ -396,8 +395,10 @@ std::vector<std::array<double, 2>> masterWork(const std::vector<int>& counts) {
         }
       }
       roster.animate(g, now);
-      const std::string bytes = g.takeFrame(uint64_t(f + 1), uint64_t(now * 1e6)).SerializeAsString();
-      if (f >= 60) us.push_back(std::chrono::duration<double, std::micro>(Clock::now() - t0).count());
+      const std::string bytes =
+          g.takeFrame(uint64_t(f + 1), uint64_t(now * 1e6)).SerializeAsString();
+      if (f >= 60)
+        us.push_back(std::chrono::duration<double, std::micro>(Clock::now() - t0).count());
       if (bytes.empty() && k > 0) std::abort();
     }
     out.push_back({double(k), percentile(us, 0.5)});
@@ -484,8 +485,9 @@ int main(int argc, char** argv) {
     std::printf("a node's frame (640x360, the bunny, eye-dome lighting) with K moving avatars:\n");
     for (const auto& [k, frame, cpu_ms, overlay] : avatarDrawCost(store, counts, true)) {
       dcsv << k << "," << frame << "," << cpu_ms << "," << overlay << "\n";
-      std::printf("  %2.0f avatars: frame %.2f ms, CPU %.2f ms (medians), the overlay pass %.2f ms\n",
-                  k, frame, cpu_ms, overlay);
+      std::printf(
+          "  %2.0f avatars: frame %.2f ms, CPU %.2f ms (medians), the overlay pass %.2f ms\n", k,
+          frame, cpu_ms, overlay);
     }
     dcsv.close();
 
@@ -539,14 +541,15 @@ int main(int argc, char** argv) {
       const double master_cpu_ms = master_cpu * 1000.0 / frames_n,
                    node_cpu_ms = node_cpu * 1000.0 / frames_n;
       ocsv << k << "," << fps << "," << percentile(ms, 0.5) << "," << percentile(ms, 0.99) << ","
-           << ratio << "," << in_rate << "," << out_rate << "," << sync_mean << ","
-           << master_cpu_ms << "," << node_cpu_ms << "," << 100.0 * sites_cpu / (to - from) << "\n";
-      std::printf("  %2d sites: %6.1f frames/s (%.2f of none), frame %.2f ms median, %.2f ms p99; "
-                  "master before the nodes %.2f ms; CPU per frame: master %.2f ms, node %.2f ms; "
-                  "the K sites' traffic itself %.0f%% of a core; per site %.0f B/s in, %.0f B/s "
-                  "out\n",
-                  k, fps, ratio, percentile(ms, 0.5), percentile(ms, 0.99), sync_mean,
-                  master_cpu_ms, node_cpu_ms, 100.0 * sites_cpu / (to - from), in_rate, out_rate);
+           << ratio << "," << in_rate << "," << out_rate << "," << sync_mean << "," << master_cpu_ms
+           << "," << node_cpu_ms << "," << 100.0 * sites_cpu / (to - from) << "\n";
+      std::printf(
+          "  %2d sites: %6.1f frames/s (%.2f of none), frame %.2f ms median, %.2f ms p99; "
+          "master before the nodes %.2f ms; CPU per frame: master %.2f ms, node %.2f ms; "
+          "the K sites' traffic itself %.0f%% of a core; per site %.0f B/s in, %.0f B/s "
+          "out\n",
+          k, fps, ratio, percentile(ms, 0.5), percentile(ms, 0.99), sync_mean, master_cpu_ms,
+          node_cpu_ms, 100.0 * sites_cpu / (to - from), in_rate, out_rate);
       std::fflush(stdout);
     }
     ocsv.close();
@@ -649,7 +652,8 @@ int main(int argc, char** argv) {
     gp << "set terminal pngcairo noenhanced size 1300,480 font ',10'\n"
        << "set output '" << (res / "sites.png").string() << "'\n"
        << "set datafile separator ','\nset multiplot layout 1,2\nset grid\n"
-       << "set title 'Master frame rate with remote sites (1 tile 640x360, sites without rendering, 2 "
+       << "set title 'Master frame rate with remote sites (1 tile 640x360, sites without "
+          "rendering, 2 "
           "cores)'\nset xlabel 'sites'\nset ylabel 'frames per second'\nset yrange [0:*]\n"
        << "set style fill solid 0.6\nset boxwidth 0.6\nset key top right\n"
        << "plot '" << (res / "sites_overhead.csv").string()

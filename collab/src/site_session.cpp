@@ -615,8 +615,8 @@ struct SiteSession::Impl {
       // Loaders reading over the link mostly wait: more of them keep more requests in flight
       // (Bettio et al. 4: pipelined requests), as many as fill the link.
       if (opt.remote_stores || !opt.cache_dir.empty()) stream.loader_threads = 8;
-      renderer = std::make_unique<render::ViewRenderer>(script.width(), script.height(), nullptr,
-                                                        stream);
+      renderer =
+          std::make_unique<render::ViewRenderer>(script.width(), script.height(), nullptr, stream);
       std::error_code ec;
       fs::create_directories(opt.out_dir, ec);
       strokes_csv.open(fs::path(opt.out_dir) / "strokes.csv");
@@ -627,7 +627,8 @@ struct SiteSession::Impl {
       strokes_csv << "stroke,px,py,x,y,z,depth\n";
     }
     client = std::make_unique<SiteClient>(opt.client);
-    welcome = client->join(graph, Clock::now() + std::chrono::milliseconds(int64_t(opt.join_timeout_s * 1000)));
+    welcome = client->join(
+        graph, Clock::now() + std::chrono::milliseconds(int64_t(opt.join_timeout_s * 1000)));
     {
       char line[200];
       std::snprintf(line, sizeof line,

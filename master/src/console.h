@@ -53,8 +53,8 @@ class Console {
   render::SceneOverlay mSceneOverlay;
   render::ViewSetup mLastView;
   OneButtonNavigation mNavigation;
-  size_t mSelected = 0;  // index among the MODEL nodes
-  std::vector<glm::dvec2> mDrag;                   // the right-button drag's pixels so far
+  size_t mSelected = 0;           // index among the MODEL nodes
+  std::vector<glm::dvec2> mDrag;  // the right-button drag's pixels so far
   bool mRightHeld = false;
   std::vector<sync::SceneGraph::NodeId> mSketches;  // the console's, oldest first
   std::chrono::steady_clock::time_point mLastInput = std::chrono::steady_clock::now();

@@ -129,49 +129,17 @@ class RemoteChunks : public ::testing::Test {
   /// The master for `seconds` of real time with its chunk server at `mbit` Mbit/s per site,
   /// and its one node; returns once the tile has its node.
   std::unique_ptr<Process> startMaster(double seconds, double mbit) {
-    const std::string hold = cameraJson(kWallEye, kTarget).substr(1);
-    writeText(mRun / "hold.json", R"({"name": "hold", "keyframes": [{"time": 0, )" + hold +
-                                      R"(, {"time": )" + std::to_string(seconds) + ", " + hold +
-                                      "]}");
-    const std::vector<std::string> argv = {TESSERA_MASTER,
-                                           "--transport",
-                                           "zmq",
-                                           "--listen",
-                                           "tcp://127.0.0.1:*",
-                                           "--wall",
-                                           (*sDir / "wall.json").string(),
-                                           "--scene",
-                                           (*sDir / "scene.json").string(),
-                                           "--script",
-                                           (mRun / "hold.json").string(),
-                                           "--max-fps",
-                                           "30",
-                                           "--stats",
-                                           (mRun / "stats.csv").string(),
-                                           "--sites",
-                                           "tcp://127.0.0.1:*",
-                                           "--site-key",
-                                           (*sDir / "master.key").string(),
-                                           "--allow",
-                                           (*sDir / "allow.txt").string(),
-                                           "--chunks",
-                                           "tcp://127.0.0.1:*",
-                                           "--chunk-rate",
-                                           std::to_string(mbit),
-                                           "--site-timeout",
-                                           "60",
-                                           "--node-timeout",
-                                           "5000"};
+    const auto argv = tessera::test::masterWithSites(
+        TESSERA_MASTER, sDir->path(), mRun, seconds, cameraJson(kWallEye, kTarget),
+        {"--chunks", "tcp://127.0.0.1:*", "--chunk-rate", std::to_string(mbit), "--site-timeout",
+         "60"});
     auto m = std::make_unique<Process>(argv, mRun / "master.log");
     EXPECT_TRUE(m->waitFor("chunks served on (tcp://\\S+)", 30)) << m->output();
     const std::string out = m->output();
-    std::smatch match;
-    std::regex_search(out, match, std::regex("listening on (tcp://\\S+)"));
-    const std::string wall = match[1].str();
-    std::regex_search(out, match, std::regex("remote sites join on tcp://[^:]+:(\\d+)"));
-    mSites = "tcp://127.0.0.1:" + match[1].str();
-    std::regex_search(out, match, std::regex("chunks served on (tcp://\\S+)"));
-    mChunks = match[1].str();
+    const std::string wall = tessera::test::captured(out, "listening on (tcp://\\S+)");
+    mSites = "tcp://127.0.0.1:" +
+             tessera::test::captured(out, "remote sites join on tcp://[^:]+:(\\d+)");
+    mChunks = tessera::test::captured(out, "chunks served on (tcp://\\S+)");
     mNode = std::make_unique<Process>(
         std::vector<std::string>{TESSERA_NODE, "--master", wall, "--headless", "--tile", "tile"},
         mRun / "node.log");
@@ -187,21 +155,9 @@ class RemoteChunks : public ::testing::Test {
                                            R"(},
         {"frame": 2, "screenshot": "view.png"}, {"frame": 4, "bye": true}]})");
     fs::create_directories(mRun / name);
-    std::vector<std::string> argv = {TESSERA_SITE,
-                                     "--master",
-                                     mSites,
-                                     "--master-key",
-                                     sKeys["master"],
-                                     "--name",
-                                     name,
-                                     "--key",
-                                     (*sDir / (key + ".key")).string(),
-                                     "--headless",
-                                     "-o",
-                                     (mRun / name).string(),
-                                     "--script",
-                                     (mRun / (name + ".json")).string()};
-    argv.insert(argv.end(), extra.begin(), extra.end());
+    const auto argv = tessera::test::headlessSite(TESSERA_SITE, mSites, sKeys["master"], name,
+                                                  *sDir / (key + ".key"), mRun / name,
+                                                  mRun / (name + ".json"), extra);
     return std::make_unique<Process>(argv, mRun / (name + ".log"));
   }
 

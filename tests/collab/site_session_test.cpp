@@ -150,44 +150,16 @@ class SiteSession : public ::testing::Test {
   /// The master (wall over ZeroMQ, sites over CURVE), holding the camera at kWallEye for
   /// `seconds` of real time, then the wall's screenshot; returns once both sockets listen.
   std::unique_ptr<Process> startMaster(double seconds, std::vector<std::string> extra = {}) {
-    write(mRun / "hold.json", R"({"name": "hold", "keyframes": [{"time": 0, )" +
-                                  cameraJson(kWallEye, kTarget).substr(1) + R"(, {"time": )" +
-                                  std::to_string(seconds) + ", " +
-                                  cameraJson(kWallEye, kTarget).substr(1) + "]}");
-    std::vector<std::string> argv = {TESSERA_MASTER,
-                                     "--transport",
-                                     "zmq",
-                                     "--listen",
-                                     "tcp://127.0.0.1:*",
-                                     "--wall",
-                                     (*sDir / "wall.json").string(),
-                                     "--scene",
-                                     (*sDir / "scene.json").string(),
-                                     "--script",
-                                     (mRun / "hold.json").string(),
-                                     "--max-fps",
-                                     "30",
-                                     "--screenshot",
-                                     (mRun / "wall.png").string(),
-                                     "--stats",
-                                     (mRun / "stats.csv").string(),
-                                     "--sites",
-                                     "tcp://127.0.0.1:*",
-                                     "--site-key",
-                                     (*sDir / "master.key").string(),
-                                     "--allow",
-                                     (*sDir / "allow.txt").string(),
-                                     "--node-timeout",
-                                     "5000"};
-    argv.insert(argv.end(), extra.begin(), extra.end());
+    std::vector<std::string> args = {"--screenshot", (mRun / "wall.png").string()};
+    args.insert(args.end(), extra.begin(), extra.end());
+    const auto argv = tessera::test::masterWithSites(TESSERA_MASTER, sDir->path(), mRun, seconds,
+                                                     cameraJson(kWallEye, kTarget), args);
     auto m = std::make_unique<Process>(argv, mRun / "master.log");
     EXPECT_TRUE(m->waitFor("remote sites join on (tcp://\\S+)", 30)) << m->output();
-    std::smatch match;
     const std::string out = m->output();
-    std::regex_search(out, match, std::regex("listening on (tcp://\\S+)"));
-    mWall = match[1].str();
-    std::regex_search(out, match, std::regex("remote sites join on tcp://[^:]+:(\\d+)"));
-    mSites = "tcp://127.0.0.1:" + match[1].str();
+    mWall = tessera::test::captured(out, "listening on (tcp://\\S+)");
+    mSites = "tcp://127.0.0.1:" +
+             tessera::test::captured(out, "remote sites join on tcp://[^:]+:(\\d+)");
     return m;
   }
 
@@ -205,21 +177,9 @@ class SiteSession : public ::testing::Test {
                                      std::vector<std::string> extra = {}) {
     write(mRun / (name + ".json"), script_json);
     fs::create_directories(mRun / name);
-    std::vector<std::string> argv = {TESSERA_SITE,
-                                     "--master",
-                                     mSites,
-                                     "--master-key",
-                                     sKeys["master"],
-                                     "--name",
-                                     name,
-                                     "--key",
-                                     (*sDir / (key + ".key")).string(),
-                                     "--headless",
-                                     "-o",
-                                     (mRun / name).string(),
-                                     "--script",
-                                     (mRun / (name + ".json")).string()};
-    argv.insert(argv.end(), extra.begin(), extra.end());
+    const auto argv = tessera::test::headlessSite(TESSERA_SITE, mSites, sKeys["master"], name,
+                                                  *sDir / (key + ".key"), mRun / name,
+                                                  mRun / (name + ".json"), extra);
     return std::make_unique<Process>(argv, mRun / (name + ".log"));
   }
 

@@ -202,15 +202,15 @@ TEST(CommandLineSweep, TesseraSite) {
     const std::string cmd = kTimeout + TESSERA_SITE +
                             " --master tcp://127.0.0.1:9 --master-key "
                             "'rq:rM>}U?@Lns47E1%kR.o@n%FcmmsL/@{H8]yf7' --name x --key "
-                            "/nonexistent.key --window --size " + size;
+                            "/nonexistent.key --window --size " +
+                            size;
     const CommandResult r = tessera::test::runCommand(cmd);
     EXPECT_EQ(r.code, 2) << cmd << "\n" << r.out;
     EXPECT_NE(r.out.find("--size"), std::string::npos) << cmd << "\n" << r.out;
   }
   // Names that are not 1..64 bytes of printable UTF-8, and keys that are not keys.
-  for (const std::string& bad : std::vector<std::string>{"--name ''", "--name 'a\tb'",
-                                                         "--name " + std::string(65, 'n'),
-                                                         "--master-key short"}) {
+  for (const std::string& bad : std::vector<std::string>{
+           "--name ''", "--name 'a\tb'", "--name " + std::string(65, 'n'), "--master-key short"}) {
     const std::string cmd = kTimeout + TESSERA_SITE +
                             " --master tcp://127.0.0.1:9 --master-key "
                             "'rq:rM>}U?@Lns47E1%kR.o@n%FcmmsL/@{H8]yf7' --name x --key "
@@ -241,9 +241,9 @@ TEST(CommandLineSweep, ParseErrorsExitTwoAndHelpZero) {
     EXPECT_EQ(missing.code, 2) << tool << "\n" << missing.out;
     EXPECT_NE(missing.out.find("required"), std::string::npos) << missing.out;
   }
-  for (const std::string& tool : {std::string(TESSERA_LOD_TOOL), std::string(TESSERA_RENDER_TOOL),
-                                  std::string(TESSERA_MASTER), std::string(TESSERA_NODE),
-                                  std::string(TESSERA_SITE)}) {
+  for (const std::string& tool :
+       {std::string(TESSERA_LOD_TOOL), std::string(TESSERA_RENDER_TOOL),
+        std::string(TESSERA_MASTER), std::string(TESSERA_NODE), std::string(TESSERA_SITE)}) {
     const CommandResult help = tessera::test::runCommand(kTimeout + tool + " --help");
     EXPECT_EQ(help.code, 0) << tool << "\n" << help.out;
   }

@@ -8,6 +8,7 @@
 #include <regex>
 #include <sstream>
 #include <string>
+#include <vector>
 
 #include <glm/glm.hpp>
 
@@ -30,6 +31,68 @@ inline std::string cameraJson(glm::dvec3 eye, glm::dvec3 target) {
       R"({"eye": {"x": %.17g, "y": %.17g, "z": %.17g}, "target": {"x": %.17g, "y": %.17g, "z": %.17g}, "up": {"y": 1}})",
       eye.x, eye.y, eye.z, target.x, target.y, target.z);
   return s;
+}
+
+/// tessera-master holding `camera_json` (a config.proto Camera as JSON) for `seconds` of real time
+/// (30 frames a second at most), the wall over ZeroMQ and remote sites over CURVE on ephemeral
+/// loopback ports: the argv, after writing its script to `run`/hold.json. `dir` holds
+/// wall.json, scene.json, master.key and allow.txt; `extra` is appended.
+inline std::vector<std::string> masterWithSites(const std::string& master,
+                                                const std::filesystem::path& dir,
+                                                const std::filesystem::path& run, double seconds,
+                                                const std::string& camera_json,
+                                                const std::vector<std::string>& extra) {
+  const std::string hold = camera_json.substr(1, camera_json.size() - 2);
+  writeText(run / "hold.json", R"({"name": "hold", "keyframes": [{"time": 0, )" + hold +
+                                   R"(}, {"time": )" + std::to_string(seconds) + ", " + hold +
+                                   "}]}");
+  std::vector<std::string> argv = {master,
+                                   "--transport",
+                                   "zmq",
+                                   "--listen",
+                                   "tcp://127.0.0.1:*",
+                                   "--wall",
+                                   (dir / "wall.json").string(),
+                                   "--scene",
+                                   (dir / "scene.json").string(),
+                                   "--script",
+                                   (run / "hold.json").string(),
+                                   "--max-fps",
+                                   "30",
+                                   "--stats",
+                                   (run / "stats.csv").string(),
+                                   "--sites",
+                                   "tcp://127.0.0.1:*",
+                                   "--site-key",
+                                   (dir / "master.key").string(),
+                                   "--allow",
+                                   (dir / "allow.txt").string(),
+                                   "--node-timeout",
+                                   "5000"};
+  argv.insert(argv.end(), extra.begin(), extra.end());
+  return argv;
+}
+
+/// A headless tessera-site joining `sites` as `name` with `key_file`, playing `script`, writing
+/// to `out`; `extra` is appended.
+inline std::vector<std::string> headlessSite(const std::string& site, const std::string& sites,
+                                             const std::string& master_key, const std::string& name,
+                                             const std::filesystem::path& key_file,
+                                             const std::filesystem::path& out,
+                                             const std::filesystem::path& script,
+                                             const std::vector<std::string>& extra) {
+  std::vector<std::string> argv = {
+      site,     "--master",   sites,      "--master-key",    master_key,
+      "--name", name,         "--key",    key_file.string(), "--headless",
+      "-o",     out.string(), "--script", script.string()};
+  argv.insert(argv.end(), extra.begin(), extra.end());
+  return argv;
+}
+
+/// The first capture of `pattern` in `log` ("" when none).
+inline std::string captured(const std::string& log, const std::string& pattern) {
+  std::smatch m;
+  return std::regex_search(log, m, std::regex(pattern)) ? m[1].str() : "";
 }
 
 /// The public key in what `tessera-site keygen` printed ("" when none).
