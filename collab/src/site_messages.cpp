@@ -165,6 +165,30 @@ config::Camera poseCamera(const site::SitePose& p) {
   return c;
 }
 
+config::Camera blendCameras(const config::Camera& a, const config::Camera& b, double s) {
+  auto v = [](const config::Vec3& x) { return glm::dvec3(x.x(), x.y(), x.z()); };
+  auto set = [](config::Vec3* x, const glm::dvec3& y) {
+    x->set_x(y.x);
+    x->set_y(y.y);
+    x->set_z(y.z);
+  };
+  const glm::dvec3 eye = glm::mix(v(a.eye()), v(b.eye()), s);
+  const glm::dvec3 target = glm::mix(v(a.target()), v(b.target()), s);
+  const glm::dvec3 up = glm::mix(v(a.up()), v(b.up()), s);
+  const glm::dvec3 view = target - eye;
+  const double lv = glm::length(view), lu = glm::length(up);
+  bool finite = true;
+  for (int k = 0; k < 3; ++k)
+    finite &= std::isfinite(eye[k]) && std::isfinite(target[k]) && std::isfinite(up[k]);
+  if (!finite || !(lv > 0.0) || !(lu > 0.0) || glm::length(glm::cross(view / lv, up / lu)) < 1e-6)
+    return b;
+  config::Camera c;
+  set(c.mutable_eye(), eye);
+  set(c.mutable_target(), target);
+  set(c.mutable_up(), up);
+  return c;
+}
+
 glm::dmat4 poseFrame(const glm::dvec3& eye, const glm::dvec3& target, const glm::dvec3& up) {
   const glm::dvec3 f = glm::normalize(target - eye);
   const glm::dvec3 r = glm::normalize(glm::cross(f, up));

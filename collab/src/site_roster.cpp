@@ -196,6 +196,8 @@ void SiteRoster::apply(sync::SceneGraph& graph, uint32_t participant, const site
     case site::ToMaster::kLead:
       if (graph.settings().leader() != s.info.name) {
         graph.setLeader(s.info.name);
+        mLeadFrom = graph.camera();
+        mLeadStart = now;
         std::printf("tessera-master: sites: %s leads the view\n", s.info.name.c_str());
         std::fflush(stdout);
       }
@@ -242,7 +244,9 @@ void SiteRoster::animate(sync::SceneGraph& graph, double now) {
       set(c.mutable_eye(), p.eye);
       set(c.mutable_target(), p.eye + f * p.reach);
       set(c.mutable_up(), u);
-      graph.setCamera(c);
+      const double t =
+          mLeadStart >= 0 ? std::clamp((now - mLeadStart) / kLeadBlendSeconds, 0.0, 1.0) : 1.0;
+      graph.setCamera(t < 1.0 ? blendCameras(mLeadFrom, c, t * t * (3.0 - 2.0 * t)) : c);
     }
   }
   mLastFrame = now;

@@ -67,18 +67,6 @@ config::Camera asSent(const config::Camera& c) {
   return sync::decodeCamera(sync::encodeCamera(c));
 }
 
-config::Camera mixCameras(const config::Camera& a, const config::Camera& b, double s) {
-  config::Camera c;
-  const glm::dvec3 eye = glm::mix(vec(a.eye()), vec(b.eye()), s);
-  const glm::dvec3 target = glm::mix(vec(a.target()), vec(b.target()), s);
-  glm::dvec3 up = glm::mix(vec(a.up()), vec(b.up()), s);
-  if (glm::length(up) < 1e-9) up = vec(b.up());
-  setVec(c.mutable_eye(), eye);
-  setVec(c.mutable_target(), glm::length(target - eye) > 0 ? target : vec(b.target()));
-  setVec(c.mutable_up(), up);
-  return cameraProblem(c) ? b : c;
-}
-
 }  // namespace
 
 site::SiteScript loadSiteScript(const std::string& path) {
@@ -270,7 +258,7 @@ struct SiteSession::Impl {
     if (!following) return own;
     const config::Camera target = graph.camera();
     const double s = std::clamp((now - follow_start) / 0.5, 0.0, 1.0);
-    own = s >= 1.0 ? target : mixCameras(follow_from, target, s * s * (3.0 - 2.0 * s));
+    own = s >= 1.0 ? target : blendCameras(follow_from, target, s * s * (3.0 - 2.0 * s));
     return own;
   }
 

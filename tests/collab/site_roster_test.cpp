@@ -215,6 +215,11 @@ TEST(SiteRoster, TheLeadersPoseMovesTheSceneCameraUntilReleased) {
   s.roster.apply(s.master, a, lead, 0.01);
   s.step(0.2);
   EXPECT_EQ(s.replica.settings().leader(), "A");
+  // Half a second's hand-over: on the way from the wall's camera to A's pose, not a jump.
+  const double mid = s.replica.camera().eye().x();
+  EXPECT_GT(mid, before.eye().x() + 0.01);
+  EXPECT_LT(mid, 0.3 - 0.01);
+  s.step(0.6);
   const config::Camera c = s.replica.camera();
   EXPECT_NEAR(c.eye().x(), 0.3, 1e-9);
   EXPECT_NEAR(c.eye().z(), 1.0, 1e-9);
@@ -223,20 +228,19 @@ TEST(SiteRoster, TheLeadersPoseMovesTheSceneCameraUntilReleased) {
       c.target().x() - c.eye().x(), c.target().y() - c.eye().y(), c.target().z() - c.eye().z()));
   EXPECT_NEAR(glm::length(view - glm::normalize(glm::dvec3(-0.3, -0.1, -1.0))), 0, 1e-6);
   // B takes the lead: last writer wins.
-  s.roster.apply(s.master, b, lead, 0.3);
-  s.step(0.5);
+  s.roster.apply(s.master, b, lead, 0.7);
+  s.step(1.3);
   EXPECT_EQ(s.replica.settings().leader(), "B");
   EXPECT_NEAR(s.replica.camera().eye().x(), -1.0, 1e-9);
   // A's release does nothing now (it does not lead); B's gives the view back.
   site::ToMaster release;
   release.mutable_release();
-  s.roster.apply(s.master, a, release, 0.6);
-  s.step(0.7);
+  s.roster.apply(s.master, a, release, 1.4);
+  s.step(1.5);
   EXPECT_EQ(s.replica.settings().leader(), "B");
   s.roster.leave(s.master, b);  // a leader that leaves gives the view back too
-  s.step(0.8);
+  s.step(1.6);
   EXPECT_EQ(s.replica.settings().leader(), "");
-  (void)before;
 }
 
 }  // namespace

@@ -54,6 +54,10 @@ std::optional<std::string> checkName(std::string_view name, const std::string& f
 /// A checked pose as a camera (eye, target, up as sent).
 config::Camera poseCamera(const site::SitePose& pose);
 
+/// The camera `s` of the way from `a` to `b` (eye, target and up interpolated linearly; `b`
+/// where the mix would not be a view). For smooth hand-overs of the view (follow-me).
+config::Camera blendCameras(const config::Camera& a, const config::Camera& b, double s);
+
 /// The pose's camera frame as a node transform (column-major 4x4: right, up, back, eye), the
 /// form of an AVATAR node's transform (scene.proto). Precondition: a checked pose.
 glm::dmat4 poseFrame(const glm::dvec3& eye, const glm::dvec3& target, const glm::dvec3& up);

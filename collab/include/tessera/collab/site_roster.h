@@ -6,7 +6,9 @@
 // Avatar motion: each pose is reached over the measured interval between poses (at most 100 ms),
 // position linearly, orientation by slerp, starting at the previous frame (the pose arrived
 // since), so the first frame after a pose already moves and 30 Hz poses look smooth at 60 Hz.
-// Concurrent edits of one field: the last applied wins, and the node's author says who.
+// Follow-me: when a site takes the lead the scene camera flies from where it was to the leader's
+// pose over half a second (smoothstep), then follows the pose. Concurrent edits of one field:
+// the last applied wins, and the node's author says who.
 #pragma once
 
 #include <cstdint>
@@ -29,6 +31,7 @@ struct SiteInfo {
 
 class SiteRoster {
  public:
+  static constexpr double kLeadBlendSeconds = 0.5;
   SiteRoster();
   ~SiteRoster();
 
@@ -54,6 +57,10 @@ class SiteRoster {
   std::map<uint32_t, Site> mSites;
   uint32_t mNext = 1;
   double mLastFrame = -1.0;
+  // The hand-over of the view to a new leader: the scene camera blends from where it was to
+  // the leader's over kLeadBlendSeconds.
+  config::Camera mLeadFrom;
+  double mLeadStart = -1.0;
 };
 
 }  // namespace tessera::collab
