@@ -40,12 +40,6 @@ glm::dvec3 vec(const config::Vec3& v) {
   return {v.x(), v.y(), v.z()};
 }
 
-void setVec(config::Vec3* v, const glm::dvec3& x) {
-  v->set_x(x.x);
-  v->set_y(x.y);
-  v->set_z(x.z);
-}
-
 bool finite(const config::Vec3& v) {
   return std::isfinite(v.x()) && std::isfinite(v.y()) && std::isfinite(v.z());
 }
