@@ -647,5 +647,6 @@ TEST_F(SiteSession, TheConsoleLeadsAndDraws) {
   int white = 0;
   for (int x = 280; x <= 360; x += 4)
     white += pixelsNear(wall, glm::dvec2(x * scale, 225 * scale), 3, {0.95f, 0.30f, 0.75f}) > 0;
-  EXPECT_GE(white, 15) << "the console's sketch on the wall, " << mRun / "wall.png";
+  // At least half the drag's row (a loaded machine may coalesce the first motion events).
+  EXPECT_GE(white, 10) << "the console's sketch on the wall, " << mRun / "wall.png";
 }
