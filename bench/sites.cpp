@@ -122,7 +122,7 @@ std::string cameraJson(double x, double y, double z) {
 
 struct Setup {
   fs::path dir;
-  std::string master_bin, node_bin, site_bin;
+  std::string master_bin, node_bin;
   std::string master_public;
   std::vector<fs::path> site_keys;
 };
@@ -441,7 +441,6 @@ int main(int argc, char** argv) {
     const std::string bin = fs::canonical("/proc/self/exe").parent_path().parent_path().string();
     s.master_bin = bin + "/master/tessera-master";
     s.node_bin = bin + "/render_node/tessera-node";
-    s.site_bin = bin + "/collab/tessera-site";
     const fs::path store = fs::path(out) / "inputs" / "bunny-scans.tlod";
     if (!fs::exists(store)) {
       fs::create_directories(store.parent_path());

@@ -63,6 +63,14 @@ config::Camera asSent(const config::Camera& c) {
 
 }  // namespace
 
+/// The script's defaults where it is silent: 30 frames a second, 640x480, 45 degrees.
+static void withDefaults(site::SiteScript& s) {
+  if (s.fps() == 0) s.set_fps(30);
+  if (s.width() == 0) s.set_width(640);
+  if (s.height() == 0) s.set_height(480);
+  if (s.fovy_deg() == 0) s.set_fovy_deg(45);
+}
+
 site::SiteScript loadSiteScript(const std::string& path) {
   if (const auto why = notRegularFile(path)) fail(path, "", "cannot open: " + *why);
   std::ifstream in(path, std::ios::binary);
@@ -74,10 +82,7 @@ site::SiteScript loadSiteScript(const std::string& path) {
   options.ignore_unknown_fields = false;
   const auto status = google::protobuf::util::JsonStringToMessage(text.str(), &s, options);
   if (!status.ok()) fail(path, "", "not a valid SiteScript: " + std::string(status.message()));
-  if (s.fps() == 0) s.set_fps(30);
-  if (s.width() == 0) s.set_width(640);
-  if (s.height() == 0) s.set_height(480);
-  if (s.fovy_deg() == 0) s.set_fovy_deg(45);
+  withDefaults(s);
   if (!(s.fps() > 0 && s.fps() <= 240)) fail(path, "fps", "must be in (0, 240]");
   if (s.width() < 16 || s.width() > 8192 || s.height() < 16 || s.height() > 8192)
     fail(path, "width/height", "16..8192 pixels each");
@@ -574,14 +579,10 @@ struct SiteSession::Impl {
   }
 
   int session() {
-    if (!opt.script.empty()) {
+    if (!opt.script.empty())
       script = loadSiteScript(opt.script);
-    } else {
-      script.set_fps(30);
-      script.set_width(640);
-      script.set_height(480);
-      script.set_fovy_deg(45);
-    }
+    else
+      withDefaults(script);
     if (opt.window) {
       script.set_width(opt.window_width);
       script.set_height(opt.window_height);

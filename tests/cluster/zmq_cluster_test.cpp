@@ -28,6 +28,7 @@
 
 #include "../support/command.h"
 #include "../support/process.h"
+#include "../support/small_wall.h"
 #include "../support/temp_dir.h"
 
 namespace {
@@ -40,18 +41,7 @@ void write(const fs::path& p, const std::string& text) {
   std::ofstream(p) << text;
 }
 
-/// A small 2x2 wall (320x180 tiles, 2 cm bezels) so that five processes share two cores.
-std::string wallJson(const std::string& extra_tile_1_1 = "", const std::string& extra = "") {
-  auto tile = [](const std::string& name, double x, double y, const std::string& more) {
-    return R"({"name": ")" + name + R"(", "x": )" + std::to_string(x) + R"(, "y": )" +
-           std::to_string(y) +
-           R"(, "width": 0.48, "height": 0.27, "pixelWidth": 320, "pixelHeight": 180)" + more + "}";
-  };
-  return R"({"name": "small 2x2", "tiles": [)" + tile("tile-0-0", 0, 0.29, "") + "," +
-         tile("tile-1-0", 0.5, 0.29, "") + "," + tile("tile-0-1", 0, 0, "") + "," +
-         tile("tile-1-1", 0.5, 0, extra_tile_1_1) +
-         R"(], "eye": {"x": 0.49, "y": 0.28, "z": 1.5})" + extra + "}";
-}
+using tessera::test::smallWallJson;
 
 /// A slow turn around the bunny with a screenshot every half second of script time.
 std::string orbitJson(double seconds) {
@@ -107,7 +97,7 @@ class ZmqWall : public ::testing::Test {
           "camera": {"eye": {"x": -0.027, "y": 0.12, "z": 0.38}, "target": {"x": -0.027, "y": 0.1,
           "z": 0.0}, "up": {"y": 1}}, "settings": {"background": {"r": 0.05, "g": 0.05, "b": 0.08},
           "lodPixels": 1.0, "shading": "SHADING_EDL"}})");
-    write(*sDir / "wall.json", wallJson());
+    write(*sDir / "wall.json", smallWallJson());
   }
   static void TearDownTestSuite() {
     delete sDir;
@@ -382,7 +372,7 @@ TEST_F(ZmqWall, BadPeersAreRefusedAndTheWallIsUndisturbed) {
 }
 
 TEST_F(ZmqWall, LosingACriticalTileStopsTheWall) {
-  write(sDir->path() / "wall-critical.json", wallJson(R"(, "critical": true)"));
+  write(sDir->path() / "wall-critical.json", smallWallJson(R"(, "critical": true)"));
   auto master = startMaster({"--frames", "100000", "--max-fps", "10", "--node-timeout", "1000"},
                             "wall-critical.json");
   std::vector<std::unique_ptr<Process>> nodes;
@@ -513,7 +503,7 @@ TEST_F(ZmqWall, ANodeLyingAboutItsPixelsIsDropped) {
 }
 
 TEST_F(ZmqWall, FewerLiveTilesThanTheMinimumStopTheWall) {
-  write(sDir->path() / "wall-min.json", wallJson("", R"(, "minLiveTiles": 4)"));
+  write(sDir->path() / "wall-min.json", smallWallJson("", R"(, "minLiveTiles": 4)"));
   auto master = startMaster({"--frames", "100000", "--max-fps", "10", "--node-timeout", "1000"},
                             "wall-min.json");
   std::vector<std::unique_ptr<Process>> nodes;

@@ -31,6 +31,7 @@
 #include "../support/mesh_distance.h"
 #include "../support/process.h"
 #include "../support/site_scripts.h"
+#include "../support/small_wall.h"
 #include "../support/temp_dir.h"
 
 namespace {
@@ -48,17 +49,7 @@ std::string read(const fs::path& p) {
   return tessera::test::readText(p);
 }
 
-/// A small 2x2 wall (320x180 tiles, 2 cm bezels) so that many processes share two cores.
-std::string wallJson() {
-  auto tile = [](const std::string& name, double x, double y) {
-    return R"({"name": ")" + name + R"(", "x": )" + std::to_string(x) + R"(, "y": )" +
-           std::to_string(y) +
-           R"(, "width": 0.48, "height": 0.27, "pixelWidth": 320, "pixelHeight": 180})";
-  };
-  return R"({"name": "small 2x2", "tiles": [)" + tile("tile-0-0", 0, 0.29) + "," +
-         tile("tile-1-0", 0.5, 0.29) + "," + tile("tile-0-1", 0, 0) + "," +
-         tile("tile-1-1", 0.5, 0) + R"(], "eye": {"x": 0.49, "y": 0.28, "z": 1.5}})";
-}
+using tessera::test::smallWallJson;
 
 // The bunny's middle; the wall looks at it from further back than the sites stand.
 const glm::dvec3 kTarget{-0.027, 0.1, 0.0};
@@ -124,7 +115,7 @@ class SiteSession : public ::testing::Test {
               cameraJson(kWallEye, kTarget) +
               R"(, "settings": {"background": {"r": 0.05, "g": 0.05, "b": 0.08},
           "lodPixels": 1.0, "shading": "SHADING_EDL"}})");
-    write(*sDir / "wall.json", wallJson());
+    write(*sDir / "wall.json", smallWallJson());
     std::string allow = "# the sites of the test\n";
     for (const std::string name : {"master", "a", "b", "c", "stranger"}) {
       const auto k = tessera::test::runCommand(std::string(TESSERA_SITE) + " keygen -o " +
