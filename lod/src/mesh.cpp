@@ -21,9 +21,12 @@ Mesh readMesh(const std::filesystem::path& path) {
   mesh.origin = reader->info().origin;
   PointBatch batch;
   bool colors = reader->info().attributes & kColor;
+  bool normals = reader->info().attributes & kNormal;
   while (reader->next(batch)) {
     mesh.positions.insert(mesh.positions.end(), batch.positions.begin(), batch.positions.end());
     if (colors) mesh.colors.insert(mesh.colors.end(), batch.colors.begin(), batch.colors.end());
+    if (normals)
+      mesh.normals.insert(mesh.normals.end(), batch.normals.begin(), batch.normals.end());
     mesh.triangles.insert(mesh.triangles.end(), batch.triangles.begin(), batch.triangles.end());
   }
   if (mesh.triangles.empty()) {

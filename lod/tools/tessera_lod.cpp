@@ -10,6 +10,7 @@
 #include <tessera/core/cli.h>
 #include <tessera/core/file_checks.h>
 #include <tessera/lod/mesh.h>
+#include <tessera/lod/mesh_builder.h>
 #include <tessera/lod/photo_points.h>
 #include <tessera/lod/point_writer.h>
 #include <tessera/lod/source_summary.h>
@@ -36,8 +37,56 @@ std::vector<std::filesystem::path> filesReadBy(const std::vector<std::filesystem
   return files;
 }
 
+/// A mesh store's summary and its levels.
+void printMeshInfo(const std::string& file) {
+  const auto store = MeshStore::open(file);
+  const MeshSummary& s = store->summary();
+  std::printf("%s: Tessera mesh store (.tmesh) version %u\n", file.c_str(), s.version);
+  std::printf("  %llu input triangles, %llu vertices%s; %llu nodes, depth %u, %llu stored triangles "
+              "(%.2fx)\n",
+              (unsigned long long)s.input_triangles, (unsigned long long)s.input_vertices,
+              s.colors ? ", colour" : "", (unsigned long long)s.nodes, s.depth,
+              (unsigned long long)s.stored_triangles,
+              double(s.stored_triangles) / double(std::max<uint64_t>(1, s.input_triangles)));
+  std::printf("  origin %.9g %.9g %.9g, size %.6g x %.6g x %.6g, grid step %.3g\n", s.origin.x,
+              s.origin.y, s.origin.z, s.bbox_max.x, s.bbox_max.y, s.bbox_max.z, s.step);
+  std::printf("  %llu bytes: %.2f bytes per input triangle\n", (unsigned long long)s.file_bytes,
+              double(s.file_bytes) / double(std::max<uint64_t>(1, s.input_triangles)));
+  std::vector<uint32_t> depth(store->nodeCount(), 0);
+  std::vector<uint64_t> tris, count;
+  std::vector<double> err;
+  for (NodeId id = 0; id < store->nodeCount(); ++id) {
+    const MeshNodeRecord& r = store->record(id);
+    for (uint32_t c = 0; c < r.child_count; ++c) depth[r.first_child + c] = depth[id] + 1;
+    if (depth[id] >= tris.size()) {
+      tris.resize(depth[id] + 1, 0);
+      count.resize(depth[id] + 1, 0);
+      err.resize(depth[id] + 1, 0.0);
+    }
+    tris[depth[id]] += r.triangles;
+    ++count[depth[id]];
+    err[depth[id]] = std::max(err[depth[id]], double(r.error));
+  }
+  for (size_t d = 0; d < tris.size(); ++d)
+    std::printf("  depth %zu: %llu patches, %llu triangles, error up to %.3g\n", d,
+                (unsigned long long)count[d], (unsigned long long)tris[d], err[d]);
+}
+
 int runInfo(const std::vector<std::string>& files, bool json, bool quiet) {
   int rc = 0;
+  if (!json) {
+    bool all_meshes = true;
+    for (const auto& f : files) all_meshes &= isMeshStore(f);
+    if (all_meshes) {
+      try {
+        for (const auto& f : files) printMeshInfo(f);
+        return 0;
+      } catch (const StoreError& e) {
+        std::cerr << "tessera-lod info: " << e.what() << "\n";
+        return kExitBadInput;
+      }
+    }
+  }
   if (json && files.size() > 1) std::cout << "[\n";
   for (size_t i = 0; i < files.size(); ++i) {
     SourceSummary s = summarizeSource(files[i], quiet);
@@ -95,9 +144,68 @@ int runScan(const std::string& mesh_path, const std::string& out, const std::str
 // Exit codes for build/verify: 0 ok, 1 bad input, 3 failed writing, 4 verification failed.
 constexpr int kExitVerifyFailed = 4;
 
+int runMeshBuild(const std::vector<std::filesystem::path>& paths, const std::string& out,
+                 const MeshBuildOptions& o) {
+  try {
+    cli::refuseOverwrite(out, filesReadBy(paths), "-o");
+    const MeshBuildReport r = buildMeshStore(paths, out, o);
+    std::printf("built %s: %llu triangles (%llu dropped), %llu vertices, %llu patches (%llu "
+                "leaves), depth %u, %.2fx stored\n",
+                out.c_str(), (unsigned long long)r.triangles,
+                (unsigned long long)r.dropped_triangles, (unsigned long long)r.vertices,
+                (unsigned long long)r.nodes, (unsigned long long)r.leaves, r.depth,
+                double(r.stored_triangles) / double(r.triangles));
+    std::printf("  %.2f bytes/triangle, grid step %.3g (quantisation error %.3g), root error %.3g\n",
+                double(r.file_bytes) / double(r.triangles), r.step, r.quant_error, r.root_error);
+    std::printf("  %.2f s (read %.2f, partition %.2f, simplify %.2f, write %.2f): %.2f M "
+                "triangles/s\n",
+                r.seconds, r.seconds_read, r.seconds_partition, r.seconds_simplify,
+                r.seconds_write, double(r.triangles) / r.seconds / 1e6);
+    return 0;
+  } catch (const cli::UsageError& e) {
+    std::fprintf(stderr, "tessera-lod build: %s\n", e.what());
+    return kExitBadCommandLine;
+  } catch (const ReadError& e) {
+    std::fprintf(stderr, "tessera-lod build: %s\n", e.what());
+    return kExitBadInput;
+  } catch (const StoreError& e) {
+    std::fprintf(stderr, "tessera-lod build: %s\n", e.what());
+    return kExitWriteFailed;
+  }
+}
+
+int runMeshVerify(const std::string& store, const std::vector<std::filesystem::path>& paths,
+                  bool quiet) {
+  try {
+    const MeshVerifyReport r = verifyMeshStore(store, paths, quiet);
+    std::printf("%s: %llu input triangles, %llu at the leaves, %llu matched, %llu missing, %llu "
+                "extra, %llu corrupt patches, %llu errors below a child's\n",
+                store.c_str(), (unsigned long long)r.input_triangles,
+                (unsigned long long)r.leaf_triangles, (unsigned long long)r.matched,
+                (unsigned long long)r.missing, (unsigned long long)r.extra,
+                (unsigned long long)r.corrupt_patches,
+                (unsigned long long)r.error_order_violations);
+    std::printf("depth  triangles  stated-error  max-to-input  max-from-input  mean-to-input\n");
+    for (const MeshLevelError& e : r.levels)
+      std::printf("%5u  %9llu  %12.4g  %12.4g  %14.4g  %13.4g\n", e.depth,
+                  (unsigned long long)e.triangles, e.stated, e.max_to_input, e.max_from_input,
+                  e.mean_to_input);
+    std::printf("%s\n", r.ok() ? "OK: every input triangle is stored once at the leaves"
+                               : "FAILED");
+    return r.ok() ? 0 : kExitVerifyFailed;
+  } catch (const ReadError& e) {
+    std::fprintf(stderr, "tessera-lod verify: %s\n", e.what());
+    return kExitBadInput;
+  } catch (const StoreError& e) {
+    std::fprintf(stderr, "tessera-lod verify: %s\n", e.what());
+    return kExitBadInput;
+  }
+}
+
 int runBuild(const std::vector<std::string>& inputs, const std::string& out,
-             const BuildOptions& o) {
+             const BuildOptions& o, const MeshBuildOptions& mo) {
   std::vector<std::filesystem::path> paths(inputs.begin(), inputs.end());
+  if (std::filesystem::path(out).extension() == ".tmesh") return runMeshBuild(paths, out, mo);
   try {
     cli::refuseOverwrite(out, filesReadBy(paths), "-o");
     BuildReport r = buildStore(paths, out, o);
@@ -130,6 +238,7 @@ int runBuild(const std::vector<std::string>& inputs, const std::string& out,
 int runVerify(const std::string& store, const std::vector<std::string>& inputs,
               const BuildOptions& o) {
   std::vector<std::filesystem::path> paths(inputs.begin(), inputs.end());
+  if (isMeshStore(store)) return runMeshVerify(store, paths, o.quiet);
   try {
     VerifyReport r = verifyStore(store, paths, o);
     std::printf(
@@ -242,13 +351,16 @@ int run(int argc, char** argv) {
   std::string build_out;
   BuildOptions bo;
   auto* build = app.add_subcommand(
-      "build", "Build an out-of-core multiresolution point store (.tlod) from inputs");
+      "build",
+      "Build an out-of-core multiresolution point store (.tlod) from inputs, or a mesh patch "
+      "hierarchy (.tmesh) from PLY/OBJ meshes when the output ends in .tmesh");
   build
       ->add_option(
           "IN", build_in,
           "Input files (any readable format); several are fused, each point keeps its source")
       ->required();
-  build->add_option("-o,--output", build_out, "Output store (.tlod)")->required();
+  build->add_option("-o,--output", build_out, "Output store (.tlod, or .tmesh for meshes)")
+      ->required();
   build
       ->add_option("--memory-mb", bo.memory_mb,
                    "Memory budget in MB (peak stays within it plus a small constant)")
@@ -260,13 +372,22 @@ int run(int argc, char** argv) {
   build->add_option("--temp-dir", bo.temp_dir,
                     "Folder for temporary files (default: beside the output)");
   build->add_flag("--quiet", bo.quiet, "No progress output");
+  MeshBuildOptions mbo;
+  build
+      ->add_option("--patch-triangles", mbo.patch_triangles,
+                   ".tmesh: triangles per patch (leaves, and inner nodes' target)")
+      ->check(cli::integerRange<uint32_t>(64, 1u << 20))
+      ->capture_default_str();
+  build->add_option("--arity", mbo.arity, ".tmesh: children per inner patch")
+      ->check(cli::integerRange<uint32_t>(2, 8))
+      ->capture_default_str();
 
   std::string verify_store;
   std::vector<std::string> verify_in;
   BuildOptions vo;
   auto* verify = app.add_subcommand(
       "verify", "Check that every input point is in a store within its error bound");
-  verify->add_option("STORE", verify_store, "The .tlod store")->required();
+  verify->add_option("STORE", verify_store, "The .tlod or .tmesh store")->required();
   verify->add_option("IN", verify_in, "The inputs it was built from")->required();
   verify->add_option("--memory-mb", vo.memory_mb, "Memory budget in MB")
       ->check(cli::integerRange<uint64_t>(64, 1 << 20))
@@ -315,7 +436,12 @@ int run(int argc, char** argv) {
       throw cli::UsageError("--height needs a positive --height-scale");
     return runPhoto(po, photo_out, pbo);
   }
-  if (*build) return runBuild(build_in, build_out, bo);
+  if (*build) {
+    mbo.threads = bo.threads;
+    mbo.quiet = bo.quiet;
+    if (bo.memory_mb != BuildOptions{}.memory_mb) mbo.memory_mb = bo.memory_mb;
+    return runBuild(build_in, build_out, bo, mbo);
+  }
   if (*verify) return runVerify(verify_store, verify_in, vo);
   if (*info) return runInfo(info_files, info_json, info_quiet);
   if (*scan) return runScan(scan_mesh, scan_out, scan_res, so);

@@ -13,6 +13,7 @@
 
 #include <glm/gtc/packing.hpp>
 
+#include <tessera/render/mesh_pass.h>
 #include <tessera/render/point_pass.h>
 #include <tessera/render/spbr.h>
 #include <tessera/render/splat_sizes.h>
@@ -34,7 +35,8 @@ struct KeyHash {
 
 struct Item {
   lod::LodHierarchy* store;  ///< pages: any hierarchy; chunks: `points`
-  lod::PointStore* points;   ///< the point store whose chunk this is (null for pages)
+  lod::PointStore* points;   ///< the point store whose chunk this is (null for pages, patches)
+  lod::MeshStore* mesh;      ///< the mesh store whose patch this is (null otherwise)
   lod::NodeId node;
   bool page;  ///< a hierarchy page (the node's children), not a chunk
   /// What a chunk is decoded with beyond its points: kMeasure, kSplatSizes.
@@ -72,6 +74,8 @@ struct Loaded {
   bool splat_sized = false;  ///< splat sizes asked for (measured if a leaf)
   glm::dvec3 offset{0.0};
   std::vector<GpuPoint> points;
+  std::vector<GpuMeshVertex> mesh_vertices;  ///< a mesh patch
+  std::vector<uint32_t> mesh_indices;
 };
 
 /// A surface cell as spbr_raster.comp reads it, 16 bytes: the rectangle's half-sides in node
@@ -94,7 +98,8 @@ glm::uvec4 packCell(const SurfaceCell& c, double spacing) {
 
 /// GPU bytes a resident chunk holds.
 uint64_t residentBytes(const GpuChunk& c) {
-  return c.buffer.bytes() + c.normals.bytes() + c.density_ratios.bytes() + c.cells.bytes();
+  return c.buffer.bytes() + c.indices.bytes() + c.normals.bytes() + c.density_ratios.bytes() +
+         c.cells.bytes();
 }
 
 }  // namespace
@@ -171,6 +176,10 @@ struct ChunkStreamer::Impl {
       }
       return out;
     }
+    if (item.mesh) {
+      loadPatch(item, out);
+      return out;
+    }
     try {
       auto chunk = item.points->decodeChunk(item.node);
       out.disk_bytes = item.store->chunkBytes(item.node);
@@ -198,6 +207,28 @@ struct ChunkStreamer::Impl {
       out.failed = true;  // corrupt chunk: never drawn as garbage, never retried
     }
     return out;
+  }
+
+  /// Decodes a mesh patch into the mesh pass's vertex layout.
+  void loadPatch(const Item& item, Loaded& out) const {
+    try {
+      const lod::MeshPatch p = item.mesh->readPatch(item.node);
+      out.disk_bytes = item.store->chunkBytes(item.node);
+      out.spacing = item.store->node(item.node).spacing;
+      out.offset = p.offset;
+      out.mesh_vertices.resize(p.positions.size());
+      for (size_t i = 0; i < p.positions.size(); ++i) {
+        uint32_t rgba = grey | 0xFF000000u;
+        if (!p.colors.empty()) {
+          const glm::u8vec4 c = p.colors[i];
+          rgba = uint32_t(c.r) | uint32_t(c.g) << 8 | uint32_t(c.b) << 16 | 0xFF000000u;
+        }
+        out.mesh_vertices[i] = {p.positions[i], packNormal1010102(p.normals[i]), rgba};
+      }
+      out.mesh_indices = p.indices;
+    } catch (const lod::StoreError&) {
+      out.failed = true;  // corrupt patch: its ancestor stands in, never retried
+    }
   }
 
   /// What see-through rendering needs of a chunk (spbr.h), into `out`.
@@ -238,7 +269,7 @@ ChunkStreamer::ChunkStreamer(const StreamerOptions& options) : mImpl(std::make_u
   mStats.budget_bytes = options.budget_bytes;
   uint32_t threads = options.loader_threads;
   if (threads == 0) threads = std::max(1u, std::thread::hardware_concurrency());
-  mImpl->flight.assign(threads, Item{nullptr, nullptr, lod::kNoNode, false, 0, 0, 0.0});
+  mImpl->flight.assign(threads, Item{nullptr, nullptr, nullptr, lod::kNoNode, false, 0, 0, 0.0});
   for (size_t i = 0; i < threads; ++i)
     mImpl->loaders.emplace_back([impl = mImpl.get(), i] { impl->run(i); });
 }
@@ -282,8 +313,15 @@ void ChunkStreamer::beginFrame() {
       s.erase(it);
     }
     GpuChunk c;
-    c.buffer = GlBuffer(l.points.size() * sizeof(GpuPoint), l.points.data());
-    c.count = uint32_t(l.points.size());
+    if (!l.mesh_indices.empty()) {
+      c.buffer = GlBuffer(l.mesh_vertices.size() * sizeof(GpuMeshVertex), l.mesh_vertices.data());
+      c.count = uint32_t(l.mesh_vertices.size());
+      c.indices = GlBuffer(l.mesh_indices.size() * 4, l.mesh_indices.data());
+      c.index_count = uint32_t(l.mesh_indices.size());
+    } else {
+      c.buffer = GlBuffer(l.points.size() * sizeof(GpuPoint), l.points.data());
+      c.count = uint32_t(l.points.size());
+    }
     c.offset = l.offset;
     c.last_used = frame;
     c.disk_bytes = l.disk_bytes;
@@ -348,7 +386,17 @@ void ChunkStreamer::request(lod::PointStore& store, lod::NodeId node, uint8_t le
     s.wanted[it->second].needs |= needs;  // one view opaque, another see-through
     return;
   }
-  s.wanted.push_back({&store, &store, node, false, needs, level, distance});
+  s.wanted.push_back({&store, &store, nullptr, node, false, needs, level, distance});
+  ++mStats.requested;
+}
+
+void ChunkStreamer::request(lod::MeshStore& store, lod::NodeId node, uint8_t level,
+                            double distance) {
+  Impl& s = *mImpl;
+  const Key k{&store, node};
+  if (s.resident.count(k) || s.failed.count(k)) return;
+  if (!s.wanted_chunks.try_emplace(k, s.wanted.size()).second) return;
+  s.wanted.push_back({&store, nullptr, &store, node, false, 0, level, distance});
   ++mStats.requested;
 }
 
@@ -356,7 +404,7 @@ void ChunkStreamer::requestChildren(lod::LodHierarchy& store, lod::NodeId node) 
   Impl& s = *mImpl;
   const Key k{&store, node};
   if (s.failed_pages.count(k) || !s.wanted_pages.insert(k).second) return;
-  s.wanted.push_back({&store, nullptr, node, true, 0, 0, 0.0});
+  s.wanted.push_back({&store, nullptr, nullptr, node, true, 0, 0, 0.0});
   ++mStats.pages_requested;
 }
 

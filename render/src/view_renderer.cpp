@@ -84,20 +84,47 @@ void ViewRenderer::draw(std::span<const ModelInstance> models, const ViewSetup& 
   TESSERA_CHECK(view.width == mTarget.width() && view.height == mTarget.height(),
                 "render::ViewRenderer: a view's size must be the renderer's");
   RenderStats st;
+  bool see_through = false, meshes = false;
+  for (const ModelInstance& m : models) {
+    TESSERA_CHECK((m.store != nullptr) != (m.mesh != nullptr),
+                  "render::ViewRenderer: a model is a point store or a mesh store");
+    if (m.mesh && m.opacity < 1.0f)
+      throw RenderError("render::ViewRenderer: " + m.mesh->path().filename().string() +
+                        " is a mesh at opacity " + std::to_string(m.opacity) +
+                        ": see-through meshes are not supported yet (draw it opaque)");
+    see_through |= m.store && m.opacity < 1.0f;
+    meshes |= m.mesh != nullptr;
+  }
+  if (see_through && meshes)
+    throw RenderError(
+        "render::ViewRenderer: a see-through frame with mesh models: meshes are drawn only in "
+        "opaque frames yet (set every point model's opacity to 1, or hide the meshes)");
   mStreamer->beginFrame();
   st.upload_ms = mStreamer->stats().upload_ms;
-  bool see_through = false;
-  for (const ModelInstance& m : models) see_through |= m.opacity < 1.0f;
   const bool pick = options.pick_ids && !see_through;
   mPickRanges.clear();
   mBatchNodes.clear();
   std::vector<DrawBatch> batches;
+  std::vector<MeshBatch> mesh_batches;
+  std::vector<lod::NodeId> mesh_nodes;
+  auto nextBase = [&] {
+    return mPickRanges.empty() ? 0u : mPickRanges.back().base + mPickRanges.back().count;
+  };
   for (size_t i = 0; i < models.size(); ++i) {
+    if (models[i].mesh) {
+      const size_t first = mesh_batches.size();
+      addMeshModel(models[i], view, options, mesh_batches, mesh_nodes, st);
+      for (size_t b = first; pick && b < mesh_batches.size(); ++b) {
+        mesh_batches[b].pick_base = nextBase();
+        mPickRanges.push_back(
+            {nextBase(), mesh_batches[b].index_count / 3, i, mesh_nodes[b], true});
+      }
+      continue;
+    }
     const size_t first = batches.size();
     addModel(models[i], see_through, view, options, batches, st);
     for (size_t b = first; pick && b < batches.size(); ++b) {
-      const uint32_t base =
-          mPickRanges.empty() ? 0 : mPickRanges.back().base + mPickRanges.back().count;
+      const uint32_t base = nextBase();
       batches[b].pick_base = base;
       mPickRanges.push_back({base, batches[b].count, i, mBatchNodes[b]});
     }
@@ -109,8 +136,9 @@ void ViewRenderer::draw(std::span<const ModelInstance> models, const ViewSetup& 
   PointShading shading;
   shading.pick = pick;
   // Points of one colour (stores without colour, all drawn alike) need only the depth pass.
-  bool one_color = true;
+  bool one_color = mesh_batches.empty();  // shaded triangles have colours of their own
   for (const ModelInstance& m : models) {
+    if (!m.store) continue;
     one_color &= (m.store->summary().attributes & lod::kColor) == 0 &&
                  (m.color == glm::u8vec3(0) || m.color == models.front().color);
   }
@@ -135,6 +163,10 @@ void ViewRenderer::draw(std::span<const ModelInstance> models, const ViewSetup& 
     shading.projection = view.projection;
     shading.fill = options.fill == SurfaceFill::kPullPush && !shading.blend;
     mTarget.clearGeometry(pick, shading.blend, shading.fill);
+    if (!mesh_batches.empty()) {
+      if (!mMeshes) mMeshes = std::make_unique<MeshPass>();
+      st.mesh_ms = mMeshes->draw(mTarget, mesh_batches, MeshShading{.flat = false, .pick = pick});
+    }
     const PassTimings t = mPoints.draw(mTarget, batches, shading);
     st.depth_ms = t.depth_ms;
     st.color_ms = t.color_ms;
@@ -167,6 +199,7 @@ std::optional<PickHit> ViewRenderer::pick(uint32_t x, uint32_t y) const {
   hit.model = r.model;
   hit.node = r.node;
   hit.point = id - r.base;
+  hit.triangle = r.triangles;
   const uint32_t d = mTarget.readAt(mTarget.depth(), x, y);
   float depth = 1.0f;
   std::memcpy(&depth, &d, 4);
@@ -232,7 +265,7 @@ void ViewRenderer::drawSeeThrough(std::span<const ModelInstance> models, const V
     const double f = double(o.max_copies_per_frame) / copies;
     std::string fits;
     for (const ModelInstance& m : models) {
-      if (m.opacity >= 1.0f) continue;
+      if (m.opacity >= 1.0f || !m.store) continue;
       char line[512];
       std::snprintf(line, sizeof line, "%s%s at opacity %.3g fits at %.3g",
                     fits.empty() ? "" : "; ", m.store->path().filename().c_str(), m.opacity,
@@ -402,6 +435,70 @@ void ViewRenderer::addModel(const ModelInstance& instance, bool see_through, con
       }
       if (!mStreamer->failed(store, a.id))
         mStreamer->request(store, a.id, a.level, a.distance, use);
+    }
+  }
+  stats.select_ms += msSince(t0);
+}
+
+void ViewRenderer::addMeshModel(const ModelInstance& instance, const ViewSetup& view,
+                                const RenderOptions& options, std::vector<MeshBatch>& batches,
+                                std::vector<lod::NodeId>& nodes, RenderStats& stats) {
+  lod::MeshStore& store = *instance.mesh;
+  const auto t0 = std::chrono::steady_clock::now();
+  CutOptions co;
+  co.pixel_threshold = options.lod_pixels;  // a patch's error, projected, in pixels
+  const Cut cut = selectCut(store, instance.model, view, co);
+  stats.cut_nodes += cut.nodes.size();
+  // A cut node not resident is drawn by its nearest resident ancestor, which then stands in for
+  // every cut node below it: one level per place on the surface, so no two levels overlap, and
+  // any cut of the tree is crack-free (locked borders, mesh_store.h).
+  std::vector<const GpuChunk*> chunk_of(cut.nodes.size(), nullptr);
+  std::vector<const GpuChunk*> stand_in(cut.above.size(), nullptr);
+  for (size_t i = 0; i < cut.nodes.size(); ++i) {
+    const CutNode& n = cut.nodes[i];
+    if ((chunk_of[i] = mStreamer->find(store, n.id))) continue;
+    ++stats.missing_nodes;
+    if (mStreamer->failed(store, n.id)) {
+      ++stats.corrupt_chunks;
+    } else {
+      mStreamer->request(store, n.id, n.level, n.distance);
+    }
+    for (int32_t p = n.parent; p >= 0; p = cut.above[size_t(p)].parent) {
+      const CutNode& a = cut.above[size_t(p)];
+      if (stand_in[size_t(p)]) break;
+      if ((stand_in[size_t(p)] = mStreamer->find(store, a.id))) break;
+      if (!mStreamer->failed(store, a.id)) mStreamer->request(store, a.id, a.level, a.distance);
+    }
+  }
+  auto under_stand_in = [&](int32_t p) {
+    for (; p >= 0; p = cut.above[size_t(p)].parent)
+      if (stand_in[size_t(p)]) return true;
+    return false;
+  };
+  const glm::dmat4 clip_from_world = view.projection * view.view;
+  auto add = [&](const CutNode& n, const GpuChunk& chunk) {
+    MeshBatch b;
+    b.vertices = chunk.buffer.name();
+    b.indices = chunk.indices.name();
+    b.index_count = chunk.index_count;
+    const glm::dmat4 world_from_local =
+        instance.model * glm::translate(glm::dmat4(1.0), chunk.offset);
+    b.clip_from_local = glm::mat4(clip_from_world * world_from_local);
+    b.eye_local = glm::vec3(glm::inverse(world_from_local) * glm::dvec4(view.eye_world, 1.0));
+    if (instance.color != glm::u8vec3(0) && !store.summary().colors)
+      b.color_override = 0x1000000u | packRgb(instance.color);
+    batches.push_back(b);
+    nodes.push_back(n.id);
+    stats.triangles += chunk.index_count / 3;
+    ++stats.mesh_patches;
+    ++stats.nodes;
+  };
+  for (size_t i = 0; i < cut.nodes.size(); ++i)
+    if (chunk_of[i] && !under_stand_in(cut.nodes[i].parent)) add(cut.nodes[i], *chunk_of[i]);
+  for (size_t p = 0; p < cut.above.size(); ++p) {
+    if (stand_in[p] && !under_stand_in(cut.above[p].parent)) {
+      add(cut.above[p], *stand_in[p]);
+      ++stats.fallback_nodes;
     }
   }
   stats.select_ms += msSince(t0);

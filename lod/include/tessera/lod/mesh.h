@@ -13,6 +13,7 @@ struct Mesh {
   glm::dvec3 origin{0.0};
   std::vector<Triangle> triangles;
   std::vector<glm::u8vec4> colors;  ///< per vertex, empty when the file has none
+  std::vector<glm::vec3> normals;    ///< per vertex, empty when the file has none
 
   /// Axis-aligned bounds of the vertices (relative to origin). Empty mesh: min > max.
   std::pair<glm::dvec3, glm::dvec3> bounds() const;

@@ -21,15 +21,19 @@
 #include <cstdint>
 #include <memory>
 
+#include <tessera/lod/mesh_store.h>
 #include <tessera/lod/point_store.h>
 #include <tessera/render/gl_buffer.h>
 
 namespace tessera::render {
 
-/// A chunk resident on the GPU: GpuPoint records (point_pass.h) relative to `offset`.
+/// A chunk resident on the GPU: GpuPoint records (point_pass.h) relative to `offset`; for a mesh
+/// patch (lod/mesh_store.h), GpuMeshVertex records (mesh_pass.h) and `indices`.
 struct GpuChunk {
   GlBuffer buffer;
-  uint32_t count = 0;
+  uint32_t count = 0;  ///< points, or a patch's vertices
+  GlBuffer indices;    ///< a mesh patch's triangles: uint32, 3 a triangle
+  uint32_t index_count = 0;
   glm::dvec3 offset{0.0};   ///< store-local position of the points' frame
   uint64_t last_used = 0;   ///< frame number
   uint32_t disk_bytes = 0;  ///< the chunk's compressed size in the store
@@ -125,6 +129,9 @@ class ChunkStreamer {
   /// and replaced when the new copy arrives.
   void request(lod::PointStore& store, lod::NodeId node, uint8_t level, double distance,
                ChunkUse use = ChunkUse::kOpaque, bool splat_sizes = false);
+  /// Asks for a missing mesh patch (lod::MeshStore::readPatch, then the GPU layout of
+  /// mesh_pass.h). Priority as for points; ignored when resident, failed, done or in flight.
+  void request(lod::MeshStore& store, lod::NodeId node, uint8_t level, double distance);
   /// Asks the loader to read the hierarchy page holding `node`'s children (ahead of chunks).
   void requestChildren(lod::LodHierarchy& store, lod::NodeId node);
   /// Whether a chunk failed to load (corrupt): the renderer draws an ancestor instead.

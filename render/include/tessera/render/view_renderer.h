@@ -17,6 +17,7 @@
 #include <tessera/render/chunk_streamer.h>
 #include <tessera/render/frame_target.h>
 #include <tessera/render/lod_selector.h>
+#include <tessera/render/mesh_pass.h>
 #include <tessera/render/overlay_pass.h>
 #include <tessera/render/point_pass.h>
 #include <tessera/render/screen_passes.h>
@@ -94,6 +95,9 @@ struct RenderStats {
   StreamStats stream;         ///< requested / uploaded / evicted, resident bytes
   double select_ms = 0, upload_ms = 0, depth_ms = 0, color_ms = 0, resolve_ms = 0, readback_ms = 0;
   double fill_ms = 0;            ///< the pull-push fill (SurfaceFill::kPullPush)
+  double mesh_ms = 0;            ///< the mesh pass (mesh_pass.h)
+  uint64_t triangles = 0;        ///< mesh triangles drawn
+  size_t mesh_patches = 0;       ///< mesh patches drawn (stand-ins included)
   double screen_ms = 0;          ///< screen passes after the resolve (eye-dome lighting)
   double overlay_ms = 0;         ///< the overlay pass
   size_t frames = 1;             ///< frames renderSettled() drew
@@ -101,28 +105,38 @@ struct RenderStats {
   uint32_t ensembles_drawn = 0;  ///< ... of which this frame drew
   uint64_t copies = 0;           ///< see-through: point copies drawn this frame
   double totalMs() const {
-    return select_ms + upload_ms + depth_ms + color_ms + fill_ms + resolve_ms + screen_ms +
-           overlay_ms + readback_ms;
+    return select_ms + upload_ms + mesh_ms + depth_ms + color_ms + fill_ms + resolve_ms +
+           screen_ms + overlay_ms + readback_ms;
   }
 };
 
-/// A store placed in the world: world = model * local.
+/// A store placed in the world: world = model * local. Either a point store (`store`) or a mesh
+/// store (`mesh`, lod/mesh_store.h: drawn by the mesh pass, opaque only).
 struct ModelInstance {
   lod::PointStore* store = nullptr;
   glm::dmat4 model{1.0};
   /// (0, 1]: below 1 the view is drawn see-through with stochastic point-based rendering
   /// (spbr.h; issue 5), every model with its own opacity.
   float opacity = 1.0f;
-  /// The colour of every point of a store without colours (0, 0, 0: RenderOptions's
-  /// default_color), e.g. to tell fused scans apart.
+  /// The colour of every point (or triangle) of a store without colours (0, 0, 0:
+  /// RenderOptions's default_color), e.g. to tell fused scans apart.
   glm::u8vec3 color{0, 0, 0};
+  /// A mesh store instead of `store` (last, so positional initialisers of point models stay).
+  lod::MeshStore* mesh = nullptr;
+  /// The store drawn, whichever kind it is.
+  lod::LodHierarchy* hierarchy() const {
+    return mesh ? static_cast<lod::LodHierarchy*>(mesh) : store;
+  }
 };
 
 /// What a pixel shows, from the last frame's pick ids (RenderOptions::pick_ids).
 struct PickHit {
   size_t model = 0;                 ///< index into the models drawn
-  lod::NodeId node = lod::kNoNode;  ///< the LOD node whose chunk holds the point
-  uint32_t point = 0;     ///< the point's index in that chunk (PointStore::readChunk order)
+  lod::NodeId node = lod::kNoNode;  ///< the LOD node whose chunk (or patch) holds the element
+  /// The point's index in that chunk (PointStore::readChunk order), or for a mesh model the
+  /// triangle's index in its patch (MeshStore::readPatch order).
+  uint32_t point = 0;
+  bool triangle = false;  ///< the element is a mesh triangle
   double depth = 1.0;     ///< window depth in [0, 1]
   glm::dvec3 world{0.0};  ///< the pixel centre unprojected at that depth
 };
@@ -141,6 +155,9 @@ class ViewRenderer {
   /// RenderError when the opacities asked for need more point copies than
   /// options.spbr.max_copies_per_frame, naming the opacities that fit.
   /// `overlay`, when given, is drawn on top (overlay_pass.h).
+  /// Mesh models (ModelInstance::mesh) are drawn by the mesh pass first, opaque, their cut
+  /// chosen by projected geometric error; a frame that is see-through or whose mesh models have
+  /// an opacity below 1 throws RenderError (see-through meshes are not there yet).
   void draw(std::span<const ModelInstance> models, const ViewSetup& view,
             const RenderOptions& options, RenderStats* stats = nullptr,
             const Overlay* overlay = nullptr);
@@ -174,15 +191,22 @@ class ViewRenderer {
   /// Adds the model's batches for this view, their nodes to mBatchNodes.
   void addModel(const ModelInstance& instance, bool see_through, const ViewSetup& view,
                 const RenderOptions& options, std::vector<DrawBatch>& batches, RenderStats& stats);
-  /// A range of pick ids: the points of one batch.
+  /// Adds a mesh model's patches for this view: the cut by projected error, a missing patch's
+  /// nearest resident ancestor standing in for every cut node below it.
+  void addMeshModel(const ModelInstance& instance, const ViewSetup& view,
+                    const RenderOptions& options, std::vector<MeshBatch>& batches,
+                    std::vector<lod::NodeId>& nodes, RenderStats& stats);
+  /// A range of pick ids: the points of one batch, or the triangles of one patch.
   struct PickRange {
     uint32_t base = 0, count = 0;
     size_t model = 0;
     lod::NodeId node = lod::kNoNode;
+    bool triangles = false;
   };
   std::shared_ptr<ChunkStreamer> mStreamer;
   FrameTarget mTarget;
   PointPass mPoints;
+  std::unique_ptr<MeshPass> mMeshes;      ///< made on first use
   ResolvePass mResolve;
   EdlPass mEdl;
   std::unique_ptr<FillPass> mFill;        ///< made on first use

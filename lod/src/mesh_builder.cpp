@@ -1,0 +1,685 @@
+#include <tessera/lod/mesh_builder.h>
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <functional>
+#include <mutex>
+#include <numeric>
+#include <thread>
+#include <tuple>
+#include <unordered_map>
+
+#include <meshoptimizer.h>
+#include <metis.h>
+
+#include <tessera/core/check.h>
+#include <tessera/core/progress.h>
+#include <tessera/lod/point_reader.h>
+
+#include "crc32c.h"
+#include "file_io.h"
+#include "mesh_format.h"
+#include "triangle_grid.h"
+
+#include <fcntl.h>
+#include <unistd.h>
+
+namespace tessera::lod {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double since(Clock::time_point t0) {
+  return std::chrono::duration<double>(Clock::now() - t0).count();
+}
+
+/// Runs f(i) for i in [0, n) on `threads` threads (the calling one among them).
+void parallelFor(size_t n, uint32_t threads, const std::function<void(size_t)>& f) {
+  std::atomic<size_t> next{0};
+  std::exception_ptr error;
+  std::mutex error_mutex;
+  auto work = [&] {
+    for (size_t i; (i = next.fetch_add(1)) < n;) {
+      try {
+        f(i);
+      } catch (...) {
+        std::lock_guard lock(error_mutex);
+        if (!error) error = std::current_exception();
+        next = n;
+      }
+    }
+  };
+  std::vector<std::thread> pool;
+  for (uint32_t t = 1; t < std::min<size_t>(threads, n); ++t) pool.emplace_back(work);
+  work();
+  for (std::thread& t : pool) t.join();
+  if (error) std::rethrow_exception(error);
+}
+
+/// The mesh as the builder works on it: usable triangles, grid positions, normals.
+struct Prepared {
+  glm::dvec3 origin{0.0}, lo{0.0}, hi{0.0};
+  double step = 1.0, quant_error = 0.0;
+  std::vector<glm::i32vec3> grid;  ///< per vertex
+  std::vector<glm::dvec3> pos;     ///< per vertex: lo + grid * step (what the store holds)
+  std::vector<uint16_t> normals;   ///< octahedral
+  std::vector<glm::u8vec4> colors;
+  std::vector<Triangle> tris;
+  uint64_t dropped = 0;
+};
+
+Prepared prepare(const Mesh& mesh) {
+  Prepared p;
+  p.origin = mesh.origin;
+  const size_t nv = mesh.positions.size();
+  p.tris.reserve(mesh.triangles.size());
+  for (const Triangle& t : mesh.triangles) {
+    if (t.x >= nv || t.y >= nv || t.z >= nv || t.x == t.y || t.y == t.z || t.x == t.z) {
+      ++p.dropped;
+      continue;
+    }
+    p.tris.push_back(t);
+  }
+  if (p.tris.empty()) throw ReadError("lod::buildMeshStore(): no usable triangles");
+  if (nv > 0xFFFFFFF0ull) throw ReadError("lod::buildMeshStore(): more than 2^32 vertices");
+  p.lo = glm::dvec3(std::numeric_limits<double>::max());
+  p.hi = -p.lo;
+  for (const Triangle& t : p.tris)
+    for (int k = 0; k < 3; ++k) {
+      const glm::dvec3& v = mesh.positions[t[k]];
+      if (!std::isfinite(v.x) || !std::isfinite(v.y) || !std::isfinite(v.z))
+        throw ReadError("lod::buildMeshStore(): vertex " + std::to_string(t[k]) +
+                        " is not finite");
+      p.lo = glm::min(p.lo, v);
+      p.hi = glm::max(p.hi, v);
+    }
+  // The grid: a 256th of the median edge (sampled), so quantisation stays far below the
+  // detail the mesh resolves; never finer than 2^30 steps over the box (int32 coordinates).
+  std::vector<double> edges;
+  const size_t stride = std::max<size_t>(1, p.tris.size() / 4096);
+  for (size_t i = 0; i < p.tris.size(); i += stride) {
+    const double e = glm::length(mesh.positions[p.tris[i].x] - mesh.positions[p.tris[i].y]);
+    if (e > 0) edges.push_back(e);
+  }
+  const double extent = std::max({p.hi.x - p.lo.x, p.hi.y - p.lo.y, p.hi.z - p.lo.z, 1e-30});
+  double median = extent / 1024.0;
+  if (!edges.empty()) {
+    std::nth_element(edges.begin(), edges.begin() + edges.size() / 2, edges.end());
+    median = edges[edges.size() / 2];
+  }
+  p.step = std::max(median / 256.0, extent / double(1 << 30));
+  p.grid.resize(nv);
+  p.pos.resize(nv);
+  for (size_t i = 0; i < nv; ++i) {
+    const glm::dvec3 v = mesh.positions[i];
+    if (!std::isfinite(v.x) || !std::isfinite(v.y) || !std::isfinite(v.z)) continue;  // unused
+    const glm::dvec3 q = glm::clamp(glm::round((v - p.lo) / p.step), glm::dvec3(0.0),
+                                    glm::dvec3(double(1 << 30)));
+    p.grid[i] = glm::i32vec3(q);
+    p.pos[i] = q * p.step;  // store-local: relative to the box minimum
+    p.quant_error = std::max(p.quant_error, glm::length(p.pos[i] - (v - p.lo)));
+  }
+  // Normals: the file's, else area-weighted face normals of the whole mesh (so neighbouring
+  // patches shade their shared vertices alike).
+  std::vector<glm::vec3> n(nv, glm::vec3(0.0f));
+  const bool file_normals = mesh.normals.size() == nv;
+  if (file_normals) {
+    n = mesh.normals;
+  } else {
+    for (const Triangle& t : p.tris) {
+      const glm::dvec3 f = glm::cross(p.pos[t.y] - p.pos[t.x], p.pos[t.z] - p.pos[t.x]);
+      for (int k = 0; k < 3; ++k) n[t[k]] += glm::vec3(f);
+    }
+  }
+  p.normals.resize(nv);
+  for (size_t i = 0; i < nv; ++i) p.normals[i] = meshfmt::octEncode(n[i]);
+  if (mesh.colors.size() == nv) p.colors = mesh.colors;
+  return p;
+}
+
+/// A node while building: its triangles (global vertex ids), error, children.
+struct BuildNode {
+  std::vector<Triangle> tris;
+  std::vector<uint32_t> children;  ///< indices into the node list
+  float error = 0.0f;
+  uint8_t level = 0;  ///< 0 for leaves, counted up
+  glm::dvec3 lo{0.0}, hi{0.0};
+};
+
+/// METIS k-way partition of a CSR graph into `parts`; part ids dense from 0 (empty parts
+/// dropped). Returns the part count.
+uint32_t partition(std::vector<idx_t>& xadj, std::vector<idx_t>& adjncy, std::vector<idx_t>* vwgt,
+                   std::vector<idx_t>* adjwgt, uint32_t parts, std::vector<uint32_t>& out) {
+  idx_t n = idx_t(xadj.size() - 1);
+  out.assign(size_t(n), 0);
+  if (parts <= 1 || n <= 1) return n > 0 ? 1 : 0;
+  if (parts >= uint32_t(n)) {
+    std::iota(out.begin(), out.end(), 0u);
+    return uint32_t(n);
+  }
+  idx_t ncon = 1, nparts = idx_t(parts), objval = 0;
+  idx_t options[METIS_NOPTIONS];
+  METIS_SetDefaultOptions(options);
+  options[METIS_OPTION_SEED] = 42;  // the same store from the same mesh
+  options[METIS_OPTION_NUMBERING] = 0;
+  std::vector<idx_t> part(size_t(n), 0);
+  const int rc = METIS_PartGraphKway(&n, &ncon, xadj.data(), adjncy.data(),
+                                     vwgt ? vwgt->data() : nullptr, nullptr,
+                                     adjwgt ? adjwgt->data() : nullptr, &nparts, nullptr, nullptr,
+                                     options, &objval, part.data());
+  if (rc != METIS_OK)
+    throw std::runtime_error("lod::buildMeshStore(): METIS failed (" + std::to_string(rc) + ")");
+  std::vector<int64_t> dense(parts, -1);
+  uint32_t count = 0;
+  for (size_t i = 0; i < part.size(); ++i) {
+    auto& d = dense[size_t(part[i])];
+    if (d < 0) d = count++;
+    out[i] = uint32_t(d);
+  }
+  return count;
+}
+
+/// Simplifies a group's merged triangles with its border locked; returns the parent's triangles
+/// and the largest distance from the group's vertices to them (sampled Hausdorff, one side).
+std::pair<std::vector<Triangle>, double> simplifyGroup(const Prepared& p,
+                                                       const std::vector<Triangle>& tris,
+                                                       uint32_t target) {
+  // Local vertices (meshoptimizer allocates per vertex: keep it to the group's).
+  std::vector<uint32_t> ids;
+  ids.reserve(tris.size() * 3);
+  for (const Triangle& t : tris) ids.insert(ids.end(), {t.x, t.y, t.z});
+  std::vector<uint32_t> verts = ids;
+  std::sort(verts.begin(), verts.end());
+  verts.erase(std::unique(verts.begin(), verts.end()), verts.end());
+  std::vector<uint32_t> local(ids.size());
+  for (size_t i = 0; i < ids.size(); ++i)
+    local[i] = uint32_t(std::lower_bound(verts.begin(), verts.end(), ids[i]) - verts.begin());
+  std::vector<glm::vec3> pos(verts.size());
+  glm::dvec3 base = p.pos[verts[0]];
+  for (size_t i = 0; i < verts.size(); ++i) pos[i] = glm::vec3(p.pos[verts[i]] - base);
+  std::vector<uint32_t> out(local.size());
+  float rel_error = 0.0f;
+  const size_t kept =
+      meshopt_simplify(out.data(), local.data(), local.size(), &pos[0].x, pos.size(),
+                       sizeof(glm::vec3), size_t(target) * 3, 1.0f,
+                       meshopt_SimplifyLockBorder, &rel_error);
+  out.resize(kept);
+  std::vector<Triangle> result(kept / 3);
+  for (size_t t = 0; t < result.size(); ++t)
+    result[t] = Triangle(verts[out[3 * t]], verts[out[3 * t + 1]], verts[out[3 * t + 2]]);
+  // Measured: the group's vertices against the simplified surface (the parent's vertices are a
+  // subset of them, so this is where detail was lost).
+  std::vector<uint32_t> flat(result.size() * 3);
+  for (size_t t = 0; t < result.size(); ++t)
+    for (int k = 0; k < 3; ++k) flat[3 * t + k] = result[t][k];
+  double measured = 0.0;
+  if (!result.empty()) {
+    TriangleGrid grid(p.pos, flat);
+    for (uint32_t v : verts) measured = std::max(measured, grid.distance(p.pos[v]));
+  }
+  const double estimated = double(rel_error) * meshopt_simplifyScale(&pos[0].x, pos.size(), sizeof(glm::vec3));
+  return {std::move(result), std::max(measured, estimated)};
+}
+
+void bounds(const Prepared& p, BuildNode& n) {
+  n.lo = glm::dvec3(std::numeric_limits<double>::max());
+  n.hi = -n.lo;
+  for (const Triangle& t : n.tris)
+    for (int k = 0; k < 3; ++k) {
+      n.lo = glm::min(n.lo, p.pos[t[k]]);
+      n.hi = glm::max(n.hi, p.pos[t[k]]);
+    }
+}
+
+/// The triangles' dual graph (triangles sharing an edge), CSR for METIS.
+void dualGraph(const Prepared& p, std::vector<idx_t>& xadj, std::vector<idx_t>& adjncy) {
+  const size_t nv = p.grid.size(), nt = p.tris.size();
+  std::vector<uint32_t> start(nv + 1, 0), items(nt * 3);
+  for (const Triangle& t : p.tris)
+    for (int k = 0; k < 3; ++k) ++start[t[k] + 1];
+  for (size_t v = 1; v <= nv; ++v) start[v] += start[v - 1];
+  std::vector<uint32_t> fill(start.begin(), start.end() - 1);
+  for (size_t i = 0; i < nt; ++i)
+    for (int k = 0; k < 3; ++k) items[fill[p.tris[i][k]]++] = uint32_t(i);
+  xadj.assign(nt + 1, 0);
+  adjncy.clear();
+  adjncy.reserve(nt * 3);
+  for (size_t i = 0; i < nt; ++i) {
+    const Triangle& t = p.tris[i];
+    const size_t first = adjncy.size();
+    for (int k = 0; k < 3; ++k) {
+      const uint32_t a = t[k], b = t[(k + 1) % 3];
+      for (uint32_t s = start[a]; s < start[a + 1]; ++s) {
+        const uint32_t u = items[s];
+        if (u == i) continue;
+        const Triangle& o = p.tris[u];
+        if (o.x != b && o.y != b && o.z != b) continue;
+        if (std::find(adjncy.begin() + std::ptrdiff_t(first), adjncy.end(), idx_t(u)) ==
+            adjncy.end())
+          adjncy.push_back(idx_t(u));
+      }
+    }
+    xadj[i + 1] = idx_t(adjncy.size());
+  }
+}
+
+/// The inputs fused into one mesh in the first one's frame.
+Mesh readMeshes(const std::vector<std::filesystem::path>& inputs) {
+  Mesh mesh;
+  for (const auto& in : inputs) {
+    Mesh m = readMesh(in);
+    if (mesh.positions.empty()) {
+      mesh = std::move(m);
+      continue;
+    }
+    const uint32_t base = uint32_t(mesh.positions.size());
+    const glm::dvec3 shift = m.origin - mesh.origin;
+    for (const glm::dvec3& v : m.positions) mesh.positions.push_back(v + shift);
+    for (const Triangle& t : m.triangles) mesh.triangles.push_back(t + base);
+    // Attributes survive only when every input has them.
+    if (mesh.colors.size() + m.colors.size() == mesh.positions.size()) {
+      mesh.colors.insert(mesh.colors.end(), m.colors.begin(), m.colors.end());
+    } else {
+      mesh.colors.clear();
+    }
+    if (mesh.normals.size() + m.normals.size() == mesh.positions.size()) {
+      mesh.normals.insert(mesh.normals.end(), m.normals.begin(), m.normals.end());
+    } else {
+      mesh.normals.clear();
+    }
+  }
+  return mesh;
+}
+
+}  // namespace
+
+MeshBuildReport buildMeshStore(const std::vector<std::filesystem::path>& inputs,
+                               const std::filesystem::path& out, const MeshBuildOptions& o) {
+  TESSERA_CHECK(!inputs.empty(), "lod::buildMeshStore(): no inputs");
+  const auto t0 = Clock::now();
+  const Mesh mesh = readMeshes(inputs);
+  return buildMeshStore(mesh, out, o, since(t0));
+}
+
+MeshBuildReport buildMeshStore(const Mesh& mesh, const std::filesystem::path& out,
+                               const MeshBuildOptions& o, double seconds_read) {
+  TESSERA_CHECK(o.patch_triangles >= 64 && o.patch_triangles <= (1u << 20),
+                "lod::buildMeshStore(): patch_triangles must be in 64..1048576");
+  TESSERA_CHECK(o.arity >= 2 && o.arity <= 8, "lod::buildMeshStore(): arity must be in 2..8");
+  TESSERA_CHECK(o.threads <= kMaxMeshThreads, "lod::buildMeshStore(): at most 256 threads");
+  const auto t0 = Clock::now();
+  MeshBuildReport r;
+  r.seconds_read = seconds_read;
+  const uint64_t need = uint64_t(mesh.triangles.size()) * 120 + mesh.positions.size() * 64;
+  r.peak_bytes = need;
+  if (need > o.memory_mb * (1ull << 20))
+    throw ReadError("lod::buildMeshStore(): " + std::to_string(mesh.triangles.size()) +
+                    " triangles need about " + std::to_string(need >> 20) +
+                    " MB to build, beyond --memory-mb " + std::to_string(o.memory_mb) +
+                    " (this builder holds the whole mesh)");
+  const uint32_t threads =
+      o.threads ? o.threads : std::max(1u, std::thread::hardware_concurrency());
+  const Prepared p = prepare(mesh);
+  r.triangles = p.tris.size();
+  r.dropped_triangles = p.dropped;
+  r.step = p.step;
+  r.quant_error = p.quant_error;
+  {
+    size_t used = 0;
+    std::vector<uint8_t> seen(p.grid.size(), 0);
+    for (const Triangle& t : p.tris)
+      for (int k = 0; k < 3; ++k) used += seen[t[k]]++ == 0;
+    r.vertices = used;
+  }
+
+  // Leaves: METIS patches of the dual graph.
+  const auto tp = Clock::now();
+  std::vector<BuildNode> nodes;
+  std::vector<uint32_t> level_nodes;  // the current level's node indices
+  std::vector<std::unordered_map<uint32_t, uint32_t>> adjacency;  // per current node: shared edges
+  {
+    std::vector<idx_t> xadj, adjncy;
+    dualGraph(p, xadj, adjncy);
+    std::vector<uint32_t> part;
+    const uint32_t want = uint32_t((p.tris.size() + o.patch_triangles - 1) / o.patch_triangles);
+    const uint32_t parts = partition(xadj, adjncy, nullptr, nullptr, want, part);
+    nodes.resize(parts);
+    for (size_t t = 0; t < p.tris.size(); ++t) nodes[part[t]].tris.push_back(p.tris[t]);
+    adjacency.resize(parts);
+    for (size_t t = 0; t < p.tris.size(); ++t)
+      for (idx_t e = xadj[t]; e < xadj[t + 1]; ++e) {
+        const uint32_t a = part[t], b = part[size_t(adjncy[size_t(e)])];
+        if (a != b) ++adjacency[a][b];
+      }
+    for (uint32_t i = 0; i < parts; ++i) {
+      level_nodes.push_back(i);
+      bounds(p, nodes[i]);
+      nodes[i].error = float(p.quant_error);
+    }
+  }
+  r.leaves = nodes.size();
+  r.seconds_partition = since(tp);
+
+  // Bottom up: group neighbours, merge, simplify with the group's border locked.
+  const auto ts = Clock::now();
+  uint64_t groups_total = 0;
+  for (size_t n = level_nodes.size(); n > 1; n = (n + o.arity - 1) / o.arity) groups_total += (n + o.arity - 1) / o.arity;
+  Progress progress("simplify", groups_total, "patches", o.quiet);
+  uint8_t level = 0;
+  while (level_nodes.size() > 1) {
+    ++level;
+    const size_t n = level_nodes.size();
+    std::vector<uint32_t> group;
+    uint32_t groups = 1;
+    if (n > o.arity) {
+      std::vector<idx_t> xadj(n + 1, 0), adjncy, vwgt(n), adjwgt;
+      for (size_t i = 0; i < n; ++i) {
+        for (const auto& [j, w] : adjacency[i]) {
+          adjncy.push_back(idx_t(j));
+          adjwgt.push_back(idx_t(std::min<uint32_t>(w, 1u << 30)));
+        }
+        xadj[i + 1] = idx_t(adjncy.size());
+        vwgt[i] = idx_t(std::max<size_t>(1, nodes[level_nodes[i]].tris.size()));
+      }
+      groups = partition(xadj, adjncy, &vwgt, &adjwgt, uint32_t((n + o.arity - 1) / o.arity), group);
+    } else {
+      group.assign(n, 0);
+    }
+    // METIS may make a group larger than the arity allows (child_count is a byte): split those.
+    std::vector<std::vector<uint32_t>> members(groups);
+    for (size_t i = 0; i < n; ++i) members[group[i]].push_back(uint32_t(i));
+    std::vector<std::vector<uint32_t>> split;
+    for (auto& m : members) {
+      for (size_t s = 0; s < m.size(); s += meshfmt::kMaxChildren)
+        split.emplace_back(m.begin() + std::ptrdiff_t(s),
+                           m.begin() + std::ptrdiff_t(std::min(m.size(), s + meshfmt::kMaxChildren)));
+    }
+    std::vector<uint32_t> group_of(n);
+    for (size_t g = 0; g < split.size(); ++g)
+      for (uint32_t i : split[g]) group_of[i] = uint32_t(g);
+    const size_t first = nodes.size();
+    nodes.resize(first + split.size());
+    std::mutex progress_mutex;
+    parallelFor(split.size(), threads, [&](size_t g) {
+      BuildNode& parent = nodes[first + g];
+      std::vector<Triangle> merged;
+      float child_error = 0.0f;
+      for (uint32_t i : split[g]) {
+        const BuildNode& c = nodes[level_nodes[i]];
+        merged.insert(merged.end(), c.tris.begin(), c.tris.end());
+        parent.children.push_back(level_nodes[i]);
+        child_error = std::max(child_error, c.error);
+      }
+      const uint32_t target =
+          uint32_t(std::min<size_t>(o.patch_triangles, std::max<size_t>(1, merged.size() / 2)));
+      auto [tris, measured] = simplifyGroup(p, merged, target);
+      parent.tris = std::move(tris);
+      parent.error = float(double(child_error) + measured);
+      parent.error = std::nextafter(parent.error, std::numeric_limits<float>::infinity());
+      parent.level = level;
+      bounds(p, parent);
+      for (uint32_t i : split[g]) {  // a parent's box holds its children's (culling)
+        parent.lo = glm::min(parent.lo, nodes[level_nodes[i]].lo);
+        parent.hi = glm::max(parent.hi, nodes[level_nodes[i]].hi);
+      }
+      std::lock_guard lock(progress_mutex);
+      progress.add(1);
+    });
+    std::vector<std::unordered_map<uint32_t, uint32_t>> next(split.size());
+    for (size_t i = 0; i < n; ++i)
+      for (const auto& [j, w] : adjacency[i])
+        if (group_of[i] != group_of[j]) next[group_of[i]][group_of[j]] += w;
+    adjacency = std::move(next);
+    level_nodes.resize(split.size());
+    std::iota(level_nodes.begin(), level_nodes.end(), uint32_t(first));
+  }
+  progress.finish();
+  r.seconds_simplify = since(ts);
+
+  // Ids breadth-first from the root (children contiguous), payloads depth-first.
+  const auto tw = Clock::now();
+  const uint32_t root = level_nodes.front();
+  std::vector<uint32_t> bfs{root};
+  for (size_t i = 0; i < bfs.size(); ++i)
+    for (uint32_t c : nodes[bfs[i]].children) bfs.push_back(c);
+  std::vector<uint32_t> id_of(nodes.size());
+  for (size_t i = 0; i < bfs.size(); ++i) id_of[bfs[i]] = uint32_t(i);
+  std::vector<MeshNodeRecord> records(bfs.size());
+  std::vector<std::vector<uint8_t>> payloads(bfs.size());
+  const bool colors = !p.colors.empty();
+  parallelFor(bfs.size(), threads, [&](size_t id) {
+    const BuildNode& b = nodes[bfs[id]];
+    std::unordered_map<uint32_t, uint32_t> local;
+    std::vector<meshfmt::QuantVertex> verts;
+    std::vector<uint32_t> idx;
+    idx.reserve(b.tris.size() * 3);
+    for (const Triangle& t : b.tris)
+      for (int k = 0; k < 3; ++k) {
+        auto [it, added] = local.try_emplace(t[k], uint32_t(verts.size()));
+        if (added) {
+          meshfmt::QuantVertex v;
+          v.grid = p.grid[t[k]];
+          v.normal = p.normals[t[k]];
+          if (colors) v.color = p.colors[t[k]];
+          verts.push_back(v);
+        }
+        idx.push_back(it->second);
+      }
+    MeshNodeRecord& rec = records[id];
+    payloads[id] = meshfmt::encodePatch(std::move(verts), std::move(idx), colors, rec);
+    rec.payload_bytes = uint32_t(payloads[id].size());
+    rec.payload_crc = crc32c(payloads[id].data(), payloads[id].size());
+    rec.box_min = glm::vec3(b.lo);
+    rec.box_max = glm::vec3(b.hi);
+    rec.error = b.error;
+    rec.level = b.level;
+    rec.child_count = uint8_t(b.children.size());
+    rec.first_child = b.children.empty() ? 0 : id_of[b.children.front()];
+  });
+  // Children were pushed in order, so their ids are contiguous; check it.
+  for (size_t id = 0; id < bfs.size(); ++id) {
+    const BuildNode& b = nodes[bfs[id]];
+    for (size_t c = 0; c < b.children.size(); ++c)
+      TESSERA_CHECK(id_of[b.children[c]] == records[id].first_child + c,
+                    "lod::buildMeshStore(): children not contiguous");
+  }
+  MeshSummary s;
+  s.origin = p.origin + p.lo;  // store-local frame: the box minimum at 0
+  s.bbox_min = glm::dvec3(0.0);
+  s.bbox_max = p.hi - p.lo;
+  s.step = p.step;
+  s.input_triangles = r.triangles;
+  s.input_vertices = r.vertices;
+  s.nodes = records.size();
+  s.colors = colors;
+  uint32_t depth = 0;
+  for (const auto& rec : records) {
+    s.stored_triangles += rec.triangles;
+    depth = std::max<uint32_t>(depth, rec.level);
+  }
+  s.depth = depth + 1;
+  // Depth-first payload order (a subtree's patches lie together on disk).
+  std::vector<uint32_t> dfs, stack{0};
+  while (!stack.empty()) {
+    const uint32_t id = stack.back();
+    stack.pop_back();
+    dfs.push_back(id);
+    for (uint32_t c = records[id].child_count; c-- > 0;) stack.push_back(records[id].first_child + c);
+  }
+  uint64_t at = meshfmt::kHeaderBytes;
+  for (uint32_t id : dfs) {
+    records[id].payload_offset = at;
+    at += records[id].payload_bytes;
+  }
+  const uint64_t table_offset = at;
+  std::vector<uint8_t> table;
+  for (const auto& rec : records) {
+    const auto bytes = meshfmt::writeNode(rec);
+    table.insert(table.end(), bytes.begin(), bytes.end());
+  }
+  s.file_bytes = table_offset + table.size();
+  const std::filesystem::path partial = out.string() + ".partial";
+  {
+    ScopedFd fd(partial, O_WRONLY | O_CREAT | O_TRUNC, "the mesh store being written");
+    const auto header = meshfmt::writeHeader(s, table_offset, crc32c(table.data(), table.size()));
+    pwriteAll(fd.get(), header.data(), header.size(), 0, fd.name());
+    for (uint32_t id : dfs)
+      pwriteAll(fd.get(), payloads[id].data(), payloads[id].size(), records[id].payload_offset,
+                fd.name());
+    pwriteAll(fd.get(), table.data(), table.size(), table_offset, fd.name());
+    if (::fsync(fd.get()) != 0) throw StoreError("lod::buildMeshStore(): fsync " + fd.name() + " failed");
+  }
+  std::error_code ec;
+  std::filesystem::rename(partial, out, ec);
+  if (ec) {
+    std::filesystem::remove(partial, ec);
+    throw StoreError("lod::buildMeshStore(): cannot rename " + partial.string() + " to " +
+                     out.string());
+  }
+  r.nodes = records.size();
+  r.depth = s.depth;
+  r.stored_triangles = s.stored_triangles;
+  r.file_bytes = s.file_bytes;
+  r.root_error = records[0].error;
+  r.seconds_write = since(tw);
+  r.seconds = seconds_read + since(t0);
+  return r;
+}
+
+
+namespace {
+
+/// A triangle by its vertices' grid positions, rotated so the smallest comes first (the
+/// orientation kept): the same key wherever the triangle is stored.
+uint64_t triangleKey(glm::i32vec3 a, glm::i32vec3 b, glm::i32vec3 c) {
+  auto less = [](const glm::i32vec3& x, const glm::i32vec3& y) {
+    return std::tie(x.x, x.y, x.z) < std::tie(y.x, y.y, y.z);
+  };
+  if (less(b, a) && !less(c, b)) std::tie(a, b, c) = std::make_tuple(b, c, a);
+  else if (less(c, a) && less(c, b)) std::tie(a, b, c) = std::make_tuple(c, a, b);
+  uint64_t h = 0x243F6A8885A308D3ull;
+  for (const glm::i32vec3* v : {&a, &b, &c})
+    for (int k = 0; k < 3; ++k) {
+      h ^= uint64_t(uint32_t((*v)[k])) + 0x9E3779B97F4A7C15ull + (h << 6) + (h >> 2);
+      h = (h ^ (h >> 31)) * 0xBF58476D1CE4E5B9ull;
+    }
+  return h;
+}
+
+}  // namespace
+
+MeshVerifyReport verifyMeshStore(const std::filesystem::path& store_path,
+                                 const std::vector<std::filesystem::path>& inputs, bool quiet) {
+  auto store = MeshStore::open(store_path);
+  const MeshSummary& s = store->summary();
+  const Mesh mesh = readMeshes(inputs);
+  MeshVerifyReport r;
+  // The input on the store's grid, in the store's local frame.
+  const glm::dvec3 shift = s.origin - mesh.origin;
+  std::vector<glm::i32vec3> grid(mesh.positions.size());
+  std::vector<glm::dvec3> input_pos(mesh.positions.size());
+  for (size_t i = 0; i < mesh.positions.size(); ++i) {
+    const glm::dvec3 q = glm::round((mesh.positions[i] - shift) / s.step);
+    grid[i] = glm::i32vec3(glm::clamp(q, glm::dvec3(-2e9), glm::dvec3(2e9)));
+    input_pos[i] = mesh.positions[i] - shift;
+  }
+  std::vector<uint64_t> want;
+  std::vector<uint32_t> input_idx;
+  const size_t nv = mesh.positions.size();
+  for (const Triangle& t : mesh.triangles) {
+    if (t.x >= nv || t.y >= nv || t.z >= nv || t.x == t.y || t.y == t.z || t.x == t.z) continue;
+    want.push_back(triangleKey(grid[t.x], grid[t.y], grid[t.z]));
+    input_idx.insert(input_idx.end(), {t.x, t.y, t.z});
+  }
+  r.input_triangles = want.size();
+  // Decode every patch once: leaves' keys, each node's triangles for the level cuts.
+  std::vector<std::vector<glm::dvec3>> patch_pos(store->nodeCount());
+  std::vector<std::vector<uint32_t>> patch_idx(store->nodeCount());
+  std::vector<uint64_t> have;
+  std::vector<uint32_t> depth_of(store->nodeCount(), 0);
+  Progress progress("verify", store->nodeCount(), "patches", quiet);
+  for (NodeId id = 0; id < store->nodeCount(); ++id) {
+    const MeshNodeRecord& rec = store->record(id);
+    for (uint32_t c = 0; c < rec.child_count; ++c) {
+      depth_of[rec.first_child + c] = depth_of[id] + 1;
+      if (store->record(rec.first_child + c).error > rec.error) ++r.error_order_violations;
+    }
+    try {
+      MeshPatch patch = store->readPatch(id);
+      for (const glm::i32vec3& g : patch.grid) patch_pos[id].push_back(glm::dvec3(g) * s.step);
+      patch_idx[id] = patch.indices;
+      if (rec.child_count == 0) {
+        for (size_t t = 0; t < patch.triangles(); ++t)
+          have.push_back(triangleKey(patch.grid[patch.indices[3 * t]],
+                                     patch.grid[patch.indices[3 * t + 1]],
+                                     patch.grid[patch.indices[3 * t + 2]]));
+      }
+    } catch (const StoreError& e) {
+      std::fprintf(stderr, "%s\n", e.what());
+      ++r.corrupt_patches;
+    }
+    progress.add(1);
+  }
+  progress.finish();
+  r.leaf_triangles = have.size();
+  std::sort(want.begin(), want.end());
+  std::sort(have.begin(), have.end());
+  size_t i = 0, j = 0;
+  while (i < want.size() || j < have.size()) {
+    if (j == have.size() || (i < want.size() && want[i] < have[j])) {
+      ++r.missing;
+      ++i;
+    } else if (i == want.size() || have[j] < want[i]) {
+      ++r.extra;
+      ++j;
+    } else {
+      ++r.matched;
+      ++i;
+      ++j;
+    }
+  }
+  // Each level's cut against the input surface, both ways, sampled.
+  const TriangleGrid input_grid(input_pos, input_idx);
+  const uint32_t max_depth = *std::max_element(depth_of.begin(), depth_of.end());
+  constexpr size_t kSamples = 20000;
+  for (uint32_t d = 0; d <= max_depth; ++d) {
+    MeshLevelError e;
+    e.depth = d;
+    std::vector<glm::dvec3> pos;
+    std::vector<uint32_t> idx;
+    for (NodeId id = 0; id < store->nodeCount(); ++id) {
+      const bool on_cut = depth_of[id] == d || (depth_of[id] < d && store->record(id).child_count == 0);
+      if (!on_cut) continue;
+      e.stated = std::max(e.stated, double(store->record(id).error));
+      const uint32_t base = uint32_t(pos.size());
+      pos.insert(pos.end(), patch_pos[id].begin(), patch_pos[id].end());
+      for (uint32_t k : patch_idx[id]) idx.push_back(base + k);
+    }
+    e.triangles = idx.size() / 3;
+    if (idx.empty()) continue;
+    const TriangleGrid cut(pos, idx);
+    // The cut's triangles (centroids and edge midpoints) to the input.
+    const size_t nt = idx.size() / 3, step_t = std::max<size_t>(1, nt / kSamples);
+    double sum = 0.0;
+    size_t count = 0;
+    for (size_t t = 0; t < nt; t += step_t) {
+      const glm::dvec3 a = pos[idx[3 * t]], b = pos[idx[3 * t + 1]], c = pos[idx[3 * t + 2]];
+      for (const glm::dvec3& q : {(a + b + c) / 3.0, (a + b) / 2.0, (b + c) / 2.0}) {
+        const double dist = input_grid.distance(q);
+        e.max_to_input = std::max(e.max_to_input, dist);
+        sum += dist;
+        ++count;
+      }
+    }
+    e.mean_to_input = count ? sum / double(count) : 0.0;
+    const size_t step_v = std::max<size_t>(1, input_idx.size() / kSamples);
+    for (size_t k = 0; k < input_idx.size(); k += step_v)
+      e.max_from_input = std::max(e.max_from_input, cut.distance(input_pos[input_idx[k]]));
+    r.levels.push_back(e);
+  }
+  return r;
+}
+
+}  // namespace tessera::lod

@@ -1,0 +1,143 @@
+// Closest points on a triangle soup through a uniform grid: the mesh builder's and verifier's
+// distance between two versions of a surface (mesh_builder.cpp). Header-only, not thread-safe
+// to build, thread-safe to query.
+#pragma once
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <span>
+#include <vector>
+
+#include <glm/glm.hpp>
+
+namespace tessera::lod {
+
+/// The point of triangle abc closest to p (Ericson, "Real-Time Collision Detection", 5.1.5).
+inline glm::dvec3 closestOnTriangle(const glm::dvec3& p, const glm::dvec3& a, const glm::dvec3& b,
+                                    const glm::dvec3& c) {
+  const glm::dvec3 ab = b - a, ac = c - a, ap = p - a;
+  const double d1 = glm::dot(ab, ap), d2 = glm::dot(ac, ap);
+  if (d1 <= 0 && d2 <= 0) return a;
+  const glm::dvec3 bp = p - b;
+  const double d3 = glm::dot(ab, bp), d4 = glm::dot(ac, bp);
+  if (d3 >= 0 && d4 <= d3) return b;
+  const double vc = d1 * d4 - d3 * d2;
+  if (vc <= 0 && d1 >= 0 && d3 <= 0) return a + ab * (d1 / (d1 - d3));
+  const glm::dvec3 cp = p - c;
+  const double d5 = glm::dot(ab, cp), d6 = glm::dot(ac, cp);
+  if (d6 >= 0 && d5 <= d6) return c;
+  const double vb = d5 * d2 - d1 * d6;
+  if (vb <= 0 && d2 >= 0 && d6 <= 0) return a + ac * (d2 / (d2 - d6));
+  const double va = d3 * d6 - d5 * d4;
+  if (va <= 0 && (d4 - d3) >= 0 && (d5 - d6) >= 0)
+    return b + (c - b) * ((d4 - d3) / ((d4 - d3) + (d5 - d6)));
+  const double denom = va + vb + vc;
+  if (!(std::abs(denom) > 0)) return a;  // degenerate: a vertex is as good as any
+  const double v = vb / denom, w = vc / denom;
+  return a + ab * v + ac * w;
+}
+
+class TriangleGrid {
+ public:
+  /// `positions` and `indices` (3 a triangle) must outlive the grid. About 2 triangles a cell.
+  TriangleGrid(std::span<const glm::dvec3> positions, std::span<const uint32_t> indices)
+      : mPos(positions), mIdx(indices) {
+    const size_t n = indices.size() / 3;
+    mLo = glm::dvec3(std::numeric_limits<double>::max());
+    glm::dvec3 hi(-std::numeric_limits<double>::max());
+    for (uint32_t i : indices) {
+      mLo = glm::min(mLo, positions[i]);
+      hi = glm::max(hi, positions[i]);
+    }
+    if (n == 0) {
+      mLo = hi = glm::dvec3(0.0);
+    }
+    const glm::dvec3 ext = glm::max(hi - mLo, glm::dvec3(1e-12));
+    const double volume_cell = ext.x * ext.y * ext.z / std::max<double>(1.0, double(n) / 2.0);
+    // Surfaces fill few cells of a volume: size cells by area instead when the box is flat.
+    const double area_cell = (ext.x * ext.y + ext.y * ext.z + ext.x * ext.z) / std::max(1.0, n / 2.0);
+    mCell = std::max({std::cbrt(volume_cell), std::sqrt(area_cell), 1e-12});
+    for (int a = 0; a < 3; ++a)
+      mDims[a] = int(std::clamp(std::ceil(ext[a] / mCell), 1.0, 1024.0));
+    mStart.assign(size_t(mDims.x) * mDims.y * mDims.z + 1, 0);
+    auto range = [&](size_t t, glm::ivec3& a, glm::ivec3& b) {
+      glm::dvec3 lo = positions[indices[3 * t]], hi2 = lo;
+      for (int k = 1; k < 3; ++k) {
+        lo = glm::min(lo, positions[indices[3 * t + k]]);
+        hi2 = glm::max(hi2, positions[indices[3 * t + k]]);
+      }
+      a = cellOf(lo);
+      b = cellOf(hi2);
+    };
+    for (int pass = 0; pass < 2; ++pass) {
+      for (size_t t = 0; t < n; ++t) {
+        glm::ivec3 a, b;
+        range(t, a, b);
+        for (int z = a.z; z <= b.z; ++z)
+          for (int y = a.y; y <= b.y; ++y)
+            for (int x = a.x; x <= b.x; ++x) {
+              const size_t c = index({x, y, z});
+              if (pass == 0) {
+                ++mStart[c + 1];
+              } else {
+                mItems[mFill[c]++] = uint32_t(t);
+              }
+            }
+      }
+      if (pass == 0) {
+        for (size_t c = 1; c < mStart.size(); ++c) mStart[c] += mStart[c - 1];
+        mItems.resize(mStart.back());
+        mFill.assign(mStart.begin(), mStart.end() - 1);
+      }
+    }
+  }
+
+  /// Distance from p to the nearest triangle (infinity when there is none). Searches shells of
+  /// cells outwards until the nearest found is closer than the next shell.
+  double distance(const glm::dvec3& p) const {
+    if (mIdx.empty()) return std::numeric_limits<double>::infinity();
+    const glm::ivec3 c = cellOf(p);
+    // Distance from p to the grid box: cells nearer than that do not exist.
+    double best = std::numeric_limits<double>::infinity();
+    const int max_r = std::max({mDims.x, mDims.y, mDims.z});
+    for (int r = 0; r <= max_r; ++r) {
+      // Every triangle not yet seen lies at least (r - 1) cells away from p.
+      if (r > 0 && best <= (r - 1) * mCell) break;
+      for (int z = c.z - r; z <= c.z + r; ++z)
+        for (int y = c.y - r; y <= c.y + r; ++y)
+          for (int x = c.x - r; x <= c.x + r; ++x) {
+            if (std::max({std::abs(x - c.x), std::abs(y - c.y), std::abs(z - c.z)}) != r) continue;
+            if (x < 0 || y < 0 || z < 0 || x >= mDims.x || y >= mDims.y || z >= mDims.z) continue;
+            const size_t cell = index({x, y, z});
+            for (uint32_t k = mStart[cell]; k < mStart[cell + 1]; ++k) {
+              const uint32_t t = mItems[k];
+              const glm::dvec3 q = closestOnTriangle(p, mPos[mIdx[3 * t]], mPos[mIdx[3 * t + 1]],
+                                                     mPos[mIdx[3 * t + 2]]);
+              best = std::min(best, glm::length(q - p));
+            }
+          }
+    }
+    return best;
+  }
+
+ private:
+  glm::ivec3 cellOf(const glm::dvec3& p) const {
+    glm::ivec3 c;
+    for (int a = 0; a < 3; ++a)
+      c[a] = int(std::clamp(std::floor((p[a] - mLo[a]) / mCell), 0.0, double(mDims[a] - 1)));
+    return c;
+  }
+  size_t index(const glm::ivec3& c) const {
+    return (size_t(c.z) * mDims.y + c.y) * mDims.x + c.x;
+  }
+  std::span<const glm::dvec3> mPos;
+  std::span<const uint32_t> mIdx;
+  glm::dvec3 mLo{0.0};
+  double mCell = 1.0;
+  glm::ivec3 mDims{1};
+  std::vector<uint32_t> mStart, mFill, mItems;
+};
+
+}  // namespace tessera::lod

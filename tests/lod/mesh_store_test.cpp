@@ -1,0 +1,208 @@
+// The mesh patch hierarchy (lod/mesh_builder.h, lod/mesh_store.h) on the real bunny
+// reconstruction: every input triangle once at the leaves, errors monotone, every cut crack-free,
+// corrupt bytes refused.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <random>
+#include <tuple>
+
+#include <tessera/lod/mesh_builder.h>
+#include <tessera/lod/mesh_store.h>
+#include <tessera/lod/point_reader.h>
+
+#include "../support/temp_dir.h"
+
+namespace tessera::lod {
+namespace {
+
+const std::filesystem::path kBunny =
+    std::filesystem::path(TESSERA_DATA_DIR) / "stanford-bunny/reconstruction/bun_zipper.ply";
+
+class MeshStoreTest : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    dir_ = new test::TempDir();
+    store_ = dir_->path() / "bunny.tmesh";
+    MeshBuildOptions o;
+    o.patch_triangles = 1024;
+    o.quiet = true;
+    report_ = buildMeshStore(std::vector<std::filesystem::path>{kBunny}, store_, o);
+  }
+  static void TearDownTestSuite() { delete dir_; }
+  static test::TempDir* dir_;
+  static std::filesystem::path store_;
+  static MeshBuildReport report_;
+};
+test::TempDir* MeshStoreTest::dir_ = nullptr;
+std::filesystem::path MeshStoreTest::store_;
+MeshBuildReport MeshStoreTest::report_;
+
+using Key = std::tuple<int32_t, int32_t, int32_t>;
+Key key(const glm::i32vec3& g) { return {g.x, g.y, g.z}; }
+
+/// Edges used by exactly one triangle of a set of patches (the open border of their union),
+/// by grid positions, directed as the triangle walks them.
+std::multiset<std::pair<Key, Key>> openEdges(const std::vector<MeshPatch>& patches) {
+  std::map<std::pair<Key, Key>, int> count;  // undirected, smaller key first
+  std::map<std::pair<Key, Key>, std::pair<Key, Key>> directed;
+  for (const MeshPatch& p : patches) {
+    for (size_t t = 0; t < p.triangles(); ++t) {
+      for (int k = 0; k < 3; ++k) {
+        const Key a = key(p.grid[p.indices[3 * t + k]]);
+        const Key b = key(p.grid[p.indices[3 * t + (k + 1) % 3]]);
+        const auto e = std::minmax(a, b);
+        ++count[{e.first, e.second}];
+        directed[{e.first, e.second}] = {a, b};
+      }
+    }
+  }
+  std::multiset<std::pair<Key, Key>> open;
+  for (const auto& [e, n] : count)
+    if (n == 1) open.insert(directed[e]);
+  return open;
+}
+
+TEST_F(MeshStoreTest, BuildsAHierarchyOfTheBunny) {
+  EXPECT_EQ(report_.triangles, 69451u);  // the reconstruction's triangles, none dropped
+  EXPECT_EQ(report_.dropped_triangles, 0u);
+  EXPECT_GE(report_.leaves, 60u);
+  EXPECT_GE(report_.depth, 4u);
+  auto store = MeshStore::open(store_);
+  EXPECT_EQ(store->summary().input_triangles, 69451u);
+  const NodeInfo root = store->node(store->root());
+  EXPECT_LE(root.points, 1024u * 2);  // the root is simplified (borders locked inside only)
+  EXPECT_GT(root.spacing, 0.0f);
+  // The bunny is 0.155 m wide; its coarsest level stays within a few millimetres.
+  EXPECT_LT(root.spacing, 0.01f);
+}
+
+TEST_F(MeshStoreTest, VerifyFindsEveryTriangleOnceAndErrorsWithinTheirBounds) {
+  const MeshVerifyReport r = verifyMeshStore(store_, {kBunny}, true);
+  EXPECT_TRUE(r.ok());
+  EXPECT_EQ(r.matched, 69451u);
+  EXPECT_EQ(r.missing, 0u);
+  EXPECT_EQ(r.extra, 0u);
+  EXPECT_EQ(r.error_order_violations, 0u);
+  ASSERT_GE(r.levels.size(), 4u);
+  for (const MeshLevelError& e : r.levels) {
+    SCOPED_TRACE("depth " + std::to_string(e.depth));
+    // The stated bound is measured from the children's vertices; the verifier samples other
+    // points (edge midpoints, centroids) and the input's vertices, both ways.
+    EXPECT_LE(e.max_from_input, e.stated * 1.0001 + 1e-7);
+    EXPECT_LE(e.max_to_input, e.stated * 1.5 + 1e-7);
+  }
+  // Coarser levels are further from the input, and the leaves are on it (up to quantisation).
+  EXPECT_GT(r.levels.front().mean_to_input, r.levels.back().mean_to_input);
+  EXPECT_LT(r.levels.back().max_to_input, report_.step);
+}
+
+TEST_F(MeshStoreTest, EveryCutIsCrackFree) {
+  // A cut mixing levels at random: the open border of its union must be the input's own open
+  // border (the bunny has holes at the bottom), edge for edge.
+  auto store = MeshStore::open(store_);
+  std::vector<MeshPatch> leaves;
+  for (NodeId id = 0; id < store->nodeCount(); ++id)
+    if (store->record(id).child_count == 0) leaves.push_back(store->readPatch(id));
+  const auto input_border = openEdges(leaves);
+  EXPECT_GT(input_border.size(), 10u);
+  std::mt19937 rng(7);
+  int mixed_cuts = 0;
+  for (int trial = 0; trial < 8; ++trial) {
+    std::vector<MeshPatch> cut;
+    std::vector<NodeId> stack{store->root()};
+    size_t mixed_levels = 0;
+    while (!stack.empty()) {
+      const NodeId id = stack.back();
+      stack.pop_back();
+      const auto kids = store->children(id);
+      if (!kids.empty() &&
+          (id == store->root() || std::uniform_real_distribution<double>(0, 1)(rng) < 0.7)) {
+        stack.insert(stack.end(), kids.begin(), kids.end());
+      } else {
+        cut.push_back(store->readPatch(id));
+        mixed_levels |= size_t(1) << store->record(id).level;
+      }
+    }
+    SCOPED_TRACE("trial " + std::to_string(trial));
+    EXPECT_EQ(openEdges(cut), input_border);
+    mixed_cuts += __builtin_popcountll(mixed_levels) > 1;
+  }
+  EXPECT_GE(mixed_cuts, 6);  // the cuts did mix levels
+}
+
+TEST_F(MeshStoreTest, ACorruptPatchIsRefused) {
+  const std::filesystem::path copy = dir_->path() / "corrupt.tmesh";
+  std::filesystem::copy_file(store_, copy, std::filesystem::copy_options::overwrite_existing);
+  auto store = MeshStore::open(copy);
+  const NodeId victim = NodeId(store->nodeCount() - 1);
+  const uint64_t at = store->record(victim).payload_offset + store->record(victim).payload_bytes / 2;
+  store.reset();
+  {
+    std::fstream f(copy, std::ios::in | std::ios::out | std::ios::binary);
+    f.seekg(std::streamoff(at));
+    char c = 0;
+    f.read(&c, 1);
+    c = char(c ^ 0x5A);
+    f.seekp(std::streamoff(at));
+    f.write(&c, 1);
+  }
+  store = MeshStore::open(copy);  // the table is fine
+  try {
+    store->readPatch(victim);
+    FAIL() << "a corrupt patch decoded";
+  } catch (const StoreError& e) {
+    EXPECT_NE(std::string(e.what()).find("patch " + std::to_string(victim)), std::string::npos);
+    EXPECT_NE(std::string(e.what()).find("checksum"), std::string::npos);
+  }
+  EXPECT_NO_THROW(store->readPatch(0));
+  const MeshVerifyReport r = verifyMeshStore(copy, {kBunny}, true);
+  EXPECT_EQ(r.corrupt_patches, 1u);
+  EXPECT_FALSE(r.ok());
+}
+
+TEST_F(MeshStoreTest, TruncatedAndForeignFilesAreRefusedByName) {
+  const std::filesystem::path cut = dir_->path() / "truncated.tmesh";
+  std::filesystem::copy_file(store_, cut, std::filesystem::copy_options::overwrite_existing);
+  std::filesystem::resize_file(cut, std::filesystem::file_size(store_) - 100);
+  EXPECT_THROW(
+      {
+        try {
+          MeshStore::open(cut);
+        } catch (const StoreError& e) {
+          EXPECT_NE(std::string(e.what()).find("truncated.tmesh"), std::string::npos);
+          throw;
+        }
+      },
+      StoreError);
+  EXPECT_THROW(MeshStore::open(kBunny), StoreError);  // a PLY, not a store
+  EXPECT_FALSE(isMeshStore(kBunny));
+  EXPECT_TRUE(isMeshStore(store_));
+}
+
+TEST(MeshBuilder, RefusesMeshesWithoutUsableTrianglesAndBadOptions) {
+  test::TempDir dir;
+  Mesh m;
+  m.positions = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}};
+  m.triangles = {{0, 0, 1}, {0, 1, 7}};  // a repeated vertex, an index out of range
+  MeshBuildOptions o;
+  o.quiet = true;
+  EXPECT_THROW(buildMeshStore(m, dir.path() / "x.tmesh", o), ReadError);
+  EXPECT_FALSE(std::filesystem::exists(dir.path() / "x.tmesh"));
+  m.triangles = {{0, 1, 2}};
+  m.positions[1].x = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_THROW(buildMeshStore(m, dir.path() / "x.tmesh", o), ReadError);
+  m.positions[1].x = 1.0;
+  o.arity = 1;
+  EXPECT_ANY_THROW(buildMeshStore(m, dir.path() / "x.tmesh", o));
+  o.arity = 4;
+  const MeshBuildReport r = buildMeshStore(m, dir.path() / "x.tmesh", o);  // one triangle: a leaf
+  EXPECT_EQ(r.nodes, 1u);
+  EXPECT_EQ(MeshStore::open(dir.path() / "x.tmesh")->readPatch(0).triangles(), 1u);
+}
+
+}  // namespace
+}  // namespace tessera::lod
