@@ -202,15 +202,9 @@ struct SiteSession::Impl {
     v.eye_world = vec(camera.eye());
     glm::dvec3 lo(1e300), hi(-1e300);
     for (const render::ModelInstance& inst : instances) {
-      const auto& sum = inst.store->summary();
-      for (int k = 0; k < 8; ++k) {
-        const glm::dvec3 c((k & 1) ? sum.bbox_max.x : sum.bbox_min.x,
-                           (k & 2) ? sum.bbox_max.y : sum.bbox_min.y,
-                           (k & 4) ? sum.bbox_max.z : sum.bbox_min.z);
-        const glm::dvec3 w = glm::dvec3(inst.model * glm::dvec4(c, 1.0));
-        lo = glm::min(lo, w);
-        hi = glm::max(hi, w);
-      }
+      const auto [a, b] = render::worldBounds(inst);
+      lo = glm::min(lo, a);
+      hi = glm::max(hi, b);
     }
     double radius = 1.0, dist = glm::length(vec(camera.target()) - vec(camera.eye()));
     if (!instances.empty()) {

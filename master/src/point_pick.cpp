@@ -34,6 +34,7 @@ std::optional<glm::dvec3> pickPoint(std::span<const render::ModelInstance> model
   double best_world = std::numeric_limits<double>::infinity();
   std::optional<glm::dvec3> best;
   for (const render::ModelInstance& m : models) {
+    if (!m.store) continue;  // meshes are picked through the frame's pick ids
     lod::PointStore& store = *m.store;
     // Into the store's local frame; distances there are scaled by the model's scale, which the
     // hit test absorbs by comparing in local units and ranking hits in world units.

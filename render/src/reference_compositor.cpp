@@ -29,6 +29,7 @@ Image referenceSeeThrough(std::span<const ModelInstance> models, const ViewSetup
   const double kpx = pixelsPerUnitAtDistanceOne(view);
   for (size_t mi = 0; mi < models.size(); ++mi) {
     const ModelInstance& m = models[mi];
+    if (!m.store) continue;  // the reference composites points only
     lod::PointStore& store = *m.store;
     const double unit = std::cbrt(std::abs(glm::determinant(glm::dmat3(m.model))));
     const glm::dmat4 clip_from_local = view.projection * view.view * m.model;

@@ -43,7 +43,9 @@ sync::SceneGraph loadSceneWithStores(const std::string& path, const std::string&
     scene::SceneNode& n = *scene.mutable_nodes(i);
     if (n.kind() != scene::SceneNode::MODEL) continue;
     scene::ModelPayload& m = *n.mutable_model();
-    if (std::filesystem::path(m.store()).extension() == ".tlod") continue;
+    if (std::filesystem::path(m.store()).extension() == ".tlod" ||
+        SceneDrawList::isMeshPath(m.store()))
+      continue;
     try {
       m.set_store(lod::cachedStoreFor(m.store(), who).string());
     } catch (const std::exception& e) {
@@ -55,6 +57,10 @@ sync::SceneGraph loadSceneWithStores(const std::string& path, const std::string&
     }
   }
   return sync::SceneGraph::fromFile(scene);
+}
+
+bool SceneDrawList::isMeshPath(const std::string& path) {
+  return std::filesystem::path(path).extension() == ".tmesh";
 }
 
 const std::vector<ModelInstance>& SceneDrawList::update(const sync::SceneGraph& graph,
@@ -91,19 +97,27 @@ const std::vector<ModelInstance>& SceneDrawList::update(const sync::SceneGraph& 
 
   // New stores first, so a failure leaves everything as it was.
   std::map<std::string, std::unique_ptr<lod::PointStore>> opened;
+  std::map<std::string, std::unique_ptr<lod::MeshStore>> opened_meshes;
   for (const uint32_t id : dirty) {
     const scene::SceneNode& node = graph.node(id);
     if (node.kind() != scene::SceneNode::MODEL) continue;
     const std::string& path = node.model().store();
-    if (mStores.count(path) || opened.count(path)) continue;
+    if (mStores.count(path) || opened.count(path) || mMeshStores.count(path) ||
+        opened_meshes.count(path))
+      continue;
     try {
-      opened.emplace(path, mOpener ? mOpener(path) : lod::PointStore::open(path));
+      if (isMeshPath(path)) {
+        opened_meshes.emplace(path, lod::MeshStore::open(path));
+      } else {
+        opened.emplace(path, mOpener ? mOpener(path) : lod::PointStore::open(path));
+      }
     } catch (const lod::StoreError& e) {
       throw lod::StoreError("render::SceneDrawList::update(): model " + std::to_string(id) + " '" +
                             node.name() + "': " + e.what());
     }
   }
   mStores.merge(opened);
+  mMeshStores.merge(opened_meshes);
   mStarted = true;
 
   for (const uint32_t id : gone) mEntries.erase(id);
@@ -116,13 +130,18 @@ const std::vector<ModelInstance>& SceneDrawList::update(const sync::SceneGraph& 
     const NodePlacement placed = placeNode(graph, id);
     Entry& e = mEntries[id];
     e.path = node.model().store();
-    lod::PointStore* store = mStores.at(e.path).get();
     glm::u8vec3 color(0);
     if (node.model().has_color()) {
       const scene::Color& c = node.model().color();
       color = glm::u8vec3(glm::clamp(glm::vec3(c.r(), c.g(), c.b()), 0.0f, 1.0f) * 255.0f + 0.5f);
     }
-    e.instance = {store, placed.world * storeModel(*store), placed.opacity, color};
+    if (isMeshPath(e.path)) {
+      lod::MeshStore* mesh = mMeshStores.at(e.path).get();
+      e.instance = {nullptr, placed.world * storeModel(*mesh), placed.opacity, color, mesh};
+    } else {
+      lod::PointStore* store = mStores.at(e.path).get();
+      e.instance = {store, placed.world * storeModel(*store), placed.opacity, color};
+    }
     e.visible = placed.visible && placed.opacity > 0.0f;
   }
 
@@ -133,15 +152,19 @@ const std::vector<ModelInstance>& SceneDrawList::update(const sync::SceneGraph& 
     used.insert(e.path);
     if (e.visible) mInstances.push_back(e.instance);
   }
-  for (auto it = mStores.begin(); it != mStores.end();) {
-    if (used.count(it->first)) {
-      ++it;
-      continue;
+  auto close_unused = [&](auto& stores) {
+    for (auto it = stores.begin(); it != stores.end();) {
+      if (used.count(it->first)) {
+        ++it;
+        continue;
+      }
+      for (ChunkStreamer* s : streamers)
+        if (s) s->forget(*it->second);
+      it = stores.erase(it);
     }
-    for (ChunkStreamer* s : streamers)
-      if (s) s->forget(*it->second);
-    it = mStores.erase(it);
-  }
+  };
+  close_unused(mStores);
+  close_unused(mMeshStores);
   return mInstances;
 }
 
@@ -149,7 +172,11 @@ void SceneDrawList::clear(std::span<ChunkStreamer* const> streamers) {
   for (auto& [path, store] : mStores)
     for (ChunkStreamer* s : streamers)
       if (s) s->forget(*store);
+  for (auto& [path, store] : mMeshStores)
+    for (ChunkStreamer* s : streamers)
+      if (s) s->forget(*store);
   mStores.clear();
+  mMeshStores.clear();
   mEntries.clear();
   mInstances.clear();
   mStarted = false;
@@ -158,6 +185,7 @@ void SceneDrawList::clear(std::span<ChunkStreamer* const> streamers) {
 uint64_t SceneDrawList::storeBytes() const {
   uint64_t bytes = 0;
   for (const auto& [path, store] : mStores) bytes += store->summary().file_bytes;
+  for (const auto& [path, store] : mMeshStores) bytes += store->summary().file_bytes;
   return bytes;
 }
 

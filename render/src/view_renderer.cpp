@@ -62,6 +62,23 @@ glm::dmat4 storeModel(const lod::PointStore& store) {
   return glm::translate(glm::dmat4(1.0), store.summary().origin);
 }
 
+glm::dmat4 storeModel(const lod::MeshStore& store) {
+  return glm::translate(glm::dmat4(1.0), store.summary().origin);
+}
+
+std::pair<glm::dvec3, glm::dvec3> worldBounds(const ModelInstance& m) {
+  const glm::dvec3 lo = m.mesh ? m.mesh->summary().bbox_min : m.store->summary().bbox_min;
+  const glm::dvec3 hi = m.mesh ? m.mesh->summary().bbox_max : m.store->summary().bbox_max;
+  glm::dvec3 wlo(std::numeric_limits<double>::max()), whi(-std::numeric_limits<double>::max());
+  for (int k = 0; k < 8; ++k) {
+    const glm::dvec3 c((k & 1) ? hi.x : lo.x, (k & 2) ? hi.y : lo.y, (k & 4) ? hi.z : lo.z);
+    const glm::dvec3 w = glm::dvec3(m.model * glm::dvec4(c, 1.0));
+    wlo = glm::min(wlo, w);
+    whi = glm::max(whi, w);
+  }
+  return {wlo, whi};
+}
+
 ViewRenderer::ViewRenderer(uint32_t width, uint32_t height, std::shared_ptr<ChunkStreamer> streamer,
                            const StreamerOptions& stream_options)
     : mStreamer(streamer ? std::move(streamer) : std::make_shared<ChunkStreamer>(stream_options)),

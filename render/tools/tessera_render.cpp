@@ -69,16 +69,16 @@ config::Camera parseCamera(const std::string& s) {
 /// A .tlod as it is; any other readable file is converted once into a cache folder
 /// (lod/store_cache.h). Read and build errors propagate to main's handler.
 fs::path storeFor(const fs::path& input) {
-  if (input.extension() == ".tlod") return input;
+  if (input.extension() == ".tlod" || input.extension() == ".tmesh") return input;
   std::error_code ec;
   (void)fs::file_size(input, ec);
   if (ec) usage("--model " + input.string() + ": " + ec.message());
   return lod::cachedStoreFor(input, "tessera-render");
 }
 
-config::Camera fitCamera(const lod::PointStore& s) {
-  const auto& sum = s.summary();
-  glm::dvec3 lo = sum.origin + sum.bbox_min, hi = sum.origin + sum.bbox_max, c = 0.5 * (lo + hi);
+config::Camera fitCamera(const render::ModelInstance& m) {
+  const auto [lo, hi] = render::worldBounds(m);
+  const glm::dvec3 c = 0.5 * (lo + hi);
   glm::dvec3 ext = hi - lo;
   double r = 0.5 * glm::length(ext);
   // Flat data (terrain, LiDAR) seen from the south and above with z up; objects from the front.
@@ -261,6 +261,7 @@ int run(int argc, char** argv) {
 
   try {
     std::vector<std::unique_ptr<lod::PointStore>> stores;
+    std::vector<std::unique_ptr<lod::MeshStore>> mesh_stores;
     std::vector<render::ModelInstance> instances;
     render::RenderOptions options;
     config::Camera cam;
@@ -293,6 +294,12 @@ int run(int argc, char** argv) {
         file = m.substr(0, colon);
         opacity = float(v);
       }
+      if (render::SceneDrawList::isMeshPath(file)) {
+        mesh_stores.push_back(lod::MeshStore::open(file));
+        instances.push_back({nullptr, render::storeModel(*mesh_stores.back()), opacity,
+                             glm::u8vec3(0), mesh_stores.back().get()});
+        continue;
+      }
       stores.push_back(lod::PointStore::open(storeFor(file)));
       instances.push_back({stores.back().get(), render::storeModel(*stores.back()), opacity});
     }
@@ -304,7 +311,7 @@ int run(int argc, char** argv) {
       cam = *camera_given;
       have_camera = true;
     }
-    if (!have_camera) cam = fitCamera(*instances.front().store);
+    if (!have_camera) cam = fitCamera(instances.front());
     if (lod_px > 0) options.lod_pixels = lod_px;
     if (edl) options.edl.strength = 1.0f;
     if (edl_classic) options.edl = render::EdlOptions::classic();
@@ -328,7 +335,7 @@ int run(int argc, char** argv) {
     for (const std::string& p : {scene_path, wall_path}) {
       if (!p.empty()) read.push_back(p);
     }
-    for (const auto& m : instances) read.push_back(m.store->path());
+    for (const auto& m : instances) read.push_back(m.hierarchy()->path());
     for (const std::string& m : models) read.push_back(m.substr(0, m.rfind(':')));
     for (const std::string& m : models) read.push_back(m);
     if (!out.empty()) cli::refuseOverwrite(out, read, "-o");
@@ -366,6 +373,7 @@ int run(int argc, char** argv) {
     uint64_t store_bytes = 0;
     store_bytes += scene_list.storeBytes();
     for (const auto& s : stores) store_bytes += s->summary().file_bytes;
+    for (const auto& s : mesh_stores) store_bytes += s->summary().file_bytes;
     // Each view streams on its own, as the wall node driving that tile would.
     render::StreamerOptions stream_options;
     stream_options.budget_bytes = uint64_t(budget_mb * 1048576.0);
@@ -381,11 +389,12 @@ int run(int argc, char** argv) {
       render::RenderStats st;
       render::Image img = r.renderSettled(instances, v, options, &st, overlay);
       std::fprintf(stderr,
-                   "%s: %ux%u, %zu nodes, %llu points, %.1f MB resident after %zu frames; last "
-                   "frame %.1f ms (select %.1f, depth %.1f, colour %.1f, resolve %.1f)%s\n",
+                   "%s: %ux%u, %zu nodes, %llu points, %llu triangles, %.1f MB resident after %zu "
+                   "frames; last frame %.1f ms (select %.1f, meshes %.1f, depth %.1f, colour "
+                   "%.1f, resolve %.1f)%s\n",
                    name.c_str(), v.width, v.height, st.nodes, (unsigned long long)st.points,
-                   st.stream.resident_bytes / 1e6, st.frames, st.totalMs(), st.select_ms,
-                   st.depth_ms, st.color_ms, st.resolve_ms,
+                   (unsigned long long)st.triangles, st.stream.resident_bytes / 1e6, st.frames,
+                   st.totalMs(), st.select_ms, st.mesh_ms, st.depth_ms, st.color_ms, st.resolve_ms,
                    st.corrupt_chunks ? (", " + std::to_string(st.corrupt_chunks) +
                                         " corrupt chunks drawn by their ancestors")
                                            .c_str()
@@ -408,8 +417,8 @@ int run(int argc, char** argv) {
       auto plainView = [&](const config::Camera& c) {
         render::ViewSetup v;
         v.view = render::cameraView(c);
-        const auto& sum = instances.front().store->summary();
-        double radius = 0.5 * glm::length(sum.bbox_max - sum.bbox_min);
+        const auto [lo, hi] = render::worldBounds(instances.front());
+        double radius = 0.5 * glm::length(hi - lo);
         double dist = glm::length(glm::dvec3(c.eye().x(), c.eye().y(), c.eye().z()) -
                                   glm::dvec3(c.target().x(), c.target().y(), c.target().z()));
         v.projection = glm::perspective(
@@ -450,6 +459,7 @@ int run(int argc, char** argv) {
     // A corrupt hierarchy page leaves out the nodes below it: the picture is written, but said.
     std::set<const lod::PointStore*> warned;
     for (const auto& m : instances) {
+      if (!m.store) continue;
       const uint64_t pages = m.store->cacheStats().corrupt_pages;
       if (pages > 0 && warned.insert(m.store).second)
         std::fprintf(stderr,

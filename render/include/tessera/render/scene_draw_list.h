@@ -19,6 +19,7 @@
 #include <string>
 #include <vector>
 
+#include <tessera/lod/mesh_store.h>
 #include <tessera/lod/point_store.h>
 #include <tessera/render/chunk_streamer.h>
 #include <tessera/render/view_renderer.h>
@@ -47,7 +48,11 @@ NodePlacement placeNode(const sync::SceneGraph& graph, sync::SceneGraph::NodeId 
 
 class SceneDrawList {
  public:
-  /// Opens the store a MODEL node names (its path exactly as in the scene). Throws
+  /// Whether a scene's store path names a mesh store (.tmesh, lod/mesh_store.h): opened as a
+  /// MeshStore and drawn by the mesh pass. Remote sites open meshes from a local copy only.
+  static bool isMeshPath(const std::string& path);
+
+  /// Opens the (point) store a MODEL node names (its path exactly as in the scene). Throws
   /// lod::StoreError naming the store and why. The default is lod::PointStore::open(path); a
   /// remote site opens through the master's chunk server (collab/chunk_client.h).
   using StoreOpener = std::function<std::unique_ptr<lod::PointStore>(const std::string& path)>;
@@ -92,6 +97,7 @@ class SceneDrawList {
     bool visible = false;
   };
   std::map<std::string, std::unique_ptr<lod::PointStore>> mStores;  // by store path
+  std::map<std::string, std::unique_ptr<lod::MeshStore>> mMeshStores;  // .tmesh, by path
   std::map<uint32_t, Entry> mEntries;                               // by node id
   std::vector<ModelInstance> mInstances;
   bool mStarted = false;

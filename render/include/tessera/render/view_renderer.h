@@ -220,5 +220,9 @@ class ViewRenderer {
 
 /// The store's local frame in the world: a translation by its origin (world = origin + local).
 glm::dmat4 storeModel(const lod::PointStore& store);
+glm::dmat4 storeModel(const lod::MeshStore& store);
+/// A model's box in the world: its store's local box (either kind) through `model`, corner by
+/// corner. Min > max when the store is empty.
+std::pair<glm::dvec3, glm::dvec3> worldBounds(const ModelInstance& m);
 
 }  // namespace tessera::render
