@@ -1,18 +1,31 @@
 // The mesh pass's vertices (render/mesh_pass.h): a patch's vertex in its store's local frame,
-// its normal (10:10:10 snorm) and colour, to clip space with the batch's transform.
+// its normal (10:10:10 snorm) and colour, to clip space with the batch's transform. Smooth
+// shading is done here (a two-sided headlight per vertex, interpolated): triangles of scans
+// are about a pixel, so per-vertex lighting looks the same and keeps fragments cheap.
 layout(location = 0) in vec3 aPosition;
 layout(location = 1) in vec4 aNormal;
 layout(location = 2) in vec4 aColor;
 
 uniform mat4 uClipFromLocal;
+uniform vec3 uEyeLocal;
+uniform uint uColorOverride;  // non-zero: 0x1000000 | rgb
 
 out vec3 vLocal;
-out vec3 vNormal;
-out vec4 vColor;
+out vec3 vBase;   // the unlit colour (flat shading lights it per fragment)
+out vec3 vColor;  // lit (smooth shading)
 
 void main() {
   gl_Position = uClipFromLocal * vec4(aPosition, 1.0);
   vLocal = aPosition;
-  vNormal = aNormal.xyz;
-  vColor = aColor;
+  vBase = uColorOverride != 0u
+              ? vec3(uColorOverride & 0xFFu, (uColorOverride >> 8) & 0xFFu,
+                     (uColorOverride >> 16) & 0xFFu) / 255.0
+              : aColor.rgb;
+  vec3 n = aNormal.xyz;
+  float len = length(n);
+  vec3 toEye = uEyeLocal - aPosition;
+  float d = length(toEye);
+  // Two-sided headlight: scans are open surfaces seen from both sides.
+  float lambert = len > 0.0 && d > 0.0 ? abs(dot(n / len, toEye / d)) : 1.0;
+  vColor = vBase * (0.2 + 0.8 * lambert);
 }

@@ -182,7 +182,8 @@ uint32_t partition(std::vector<idx_t>& xadj, std::vector<idx_t>& adjncy, std::ve
 }
 
 /// Simplifies a group's merged triangles with its border locked; returns the parent's triangles
-/// and the largest distance from the group's vertices to them (sampled Hausdorff, one side).
+/// and its error: the larger of meshoptimizer's quadric estimate and the largest distance from
+/// the group's removed vertices (a sample of them) to the parent's triangles.
 std::pair<std::vector<Triangle>, double> simplifyGroup(const Prepared& p,
                                                        const std::vector<Triangle>& tris,
                                                        uint32_t target) {
@@ -214,10 +215,20 @@ std::pair<std::vector<Triangle>, double> simplifyGroup(const Prepared& p,
   std::vector<uint32_t> flat(result.size() * 3);
   for (size_t t = 0; t < result.size(); ++t)
     for (int k = 0; k < 3; ++k) flat[3 * t + k] = result[t][k];
+  // Kept vertices lie on it; the removed ones are sampled (at most kErrorSamples, evenly over
+  // the group) so the measurement costs a bounded share of the build.
+  constexpr size_t kErrorSamples = 1024;
   double measured = 0.0;
   if (!result.empty()) {
+    std::vector<uint8_t> kept_vertex(verts.size(), 0);
+    for (uint32_t i : out) kept_vertex[i] = 1;
+    std::vector<uint32_t> removed;
+    for (size_t i = 0; i < verts.size(); ++i)
+      if (!kept_vertex[i]) removed.push_back(verts[i]);
+    const size_t stride = std::max<size_t>(1, removed.size() / kErrorSamples);
     TriangleGrid grid(p.pos, flat);
-    for (uint32_t v : verts) measured = std::max(measured, grid.distance(p.pos[v]));
+    for (size_t i = 0; i < removed.size(); i += stride)
+      measured = std::max(measured, grid.distance(p.pos[removed[i]]));
   }
   const double estimated = double(rel_error) * meshopt_simplifyScale(&pos[0].x, pos.size(), sizeof(glm::vec3));
   return {std::move(result), std::max(measured, estimated)};

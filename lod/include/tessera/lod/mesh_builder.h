@@ -8,9 +8,11 @@
 //    simplifier with the group's border locked (meshopt_SimplifyLockBorder), so the group's
 //    border stays made of input edges and any cut of the tree is crack-free. Groups of one level
 //    are simplified in parallel (the thesis' "future work").
-// A node's error is measured, not estimated: the largest distance from its children's vertices
-// to its triangles, plus the largest of its children's errors (the triangle inequality makes it
-// an upper bound on the distance to the input surface, up to the sampling by vertices).
+// A node's error is measured as well as estimated: the larger of meshoptimizer's quadric error
+// and the largest distance from its children's removed vertices (up to 1024 of them, evenly
+// sampled) to its triangles, plus the largest of its children's errors (by the triangle
+// inequality an upper bound on the distance to the input surface, up to that sampling;
+// `tessera-lod verify` measures each level against the input both ways).
 //
 // Memory: the whole mesh is held (about 120 bytes a triangle at the peak, with METIS); a mesh
 // beyond `memory_mb` is refused before reading further (out-of-core building is not there yet).

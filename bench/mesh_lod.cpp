@@ -1,0 +1,289 @@
+// mesh_lod: the mesh patch hierarchy (issue 15), build and drawing, in one process.
+//
+// Build, against the patch-LOD thesis' timings (../shared/papers/patch-lod-annotation-thesis.txt,
+// Table 6.3.1: the bunny, 69,451 triangles, in 13.1 s; the Happy Buddha, 1.09 M, in 292 s):
+//   the bunny reconstruction, and a mesh of --large-levels midpoint subdivisions of it (each
+//   level 4x the triangles; new vertices displaced along the normal by a hashed 2% of the edge
+//   so the surface keeps detail to simplify: 4 levels make 17.8 M triangles); seconds, triangles
+//   per second, bytes per triangle on disk, peak memory (VmHWM).
+// Drawing, on the large mesh, one view at --size:
+//   frame time and PSNR against the full-resolution cut, across pixel thresholds (0 = every
+//   leaf); and the mesh pass's triangles per second against a bare glDrawElements of the same
+//   leaf patches in the same context (MeshPass::drawBare: GL's depth test, a constant colour).
+// Prints CSV; writes OUT/mesh_lod_build.csv, OUT/mesh_lod_frames.csv and OUT/mesh_lod.png.
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <string>
+#include <unordered_map>
+#include <vector>
+
+#include <CLI/CLI.hpp>
+#include <glm/gtc/matrix_transform.hpp>
+
+#include <tessera/core/cli.h>
+#include <tessera/lod/mesh.h>
+#include <tessera/lod/mesh_builder.h>
+#include <tessera/render/gl_context.h>
+#include <tessera/render/mesh_pass.h>
+#include <tessera/render/view_renderer.h>
+
+#include "bench_images.h"
+
+namespace {
+
+using namespace tessera;
+namespace fs = std::filesystem;
+using Clock = std::chrono::steady_clock;
+
+double since(Clock::time_point t0) {
+  return std::chrono::duration<double>(Clock::now() - t0).count();
+}
+
+/// Peak resident memory of this process since the last reset, bytes (Linux VmHWM).
+uint64_t peakBytes() {
+  std::ifstream in("/proc/self/status");
+  std::string line;
+  while (std::getline(in, line))
+    if (line.rfind("VmHWM:", 0) == 0) return std::stoull(line.substr(6)) * 1024;
+  return 0;
+}
+void resetPeak() { std::ofstream("/proc/self/clear_refs") << "5"; }
+
+/// One midpoint subdivision: every triangle into four, shared edges sharing their midpoint, which
+/// moves along the vertex normals' mean by a hashed +-2% of the edge length.
+lod::Mesh subdivide(const lod::Mesh& in) {
+  lod::Mesh out;
+  out.origin = in.origin;
+  out.positions = in.positions;
+  std::vector<glm::dvec3> normals(in.positions.size(), glm::dvec3(0.0));
+  for (const lod::Triangle& t : in.triangles) {
+    const glm::dvec3 f = glm::cross(in.positions[t.y] - in.positions[t.x],
+                                    in.positions[t.z] - in.positions[t.x]);
+    for (int k = 0; k < 3; ++k) normals[t[k]] += f;
+  }
+  std::unordered_map<uint64_t, uint32_t> mid;
+  mid.reserve(in.triangles.size() * 2);
+  auto midpoint = [&](uint32_t a, uint32_t b) {
+    const uint64_t key = uint64_t(std::min(a, b)) << 32 | std::max(a, b);
+    auto [it, added] = mid.try_emplace(key, uint32_t(out.positions.size()));
+    if (added) {
+      const glm::dvec3 pa = in.positions[a], pb = in.positions[b];
+      glm::dvec3 n = normals[a] + normals[b];
+      const double len = glm::length(n);
+      n = len > 0 ? n / len : glm::dvec3(0.0);
+      uint64_t h = key * 0x9E3779B97F4A7C15ull;
+      h ^= h >> 29;
+      const double u = double(h % 2001) / 1000.0 - 1.0;  // [-1, 1]
+      out.positions.push_back(0.5 * (pa + pb) + n * (0.02 * u * glm::length(pb - pa)));
+    }
+    return it->second;
+  };
+  out.triangles.reserve(in.triangles.size() * 4);
+  for (const lod::Triangle& t : in.triangles) {
+    const uint32_t ab = midpoint(t.x, t.y), bc = midpoint(t.y, t.z), ca = midpoint(t.z, t.x);
+    out.triangles.push_back({t.x, ab, ca});
+    out.triangles.push_back({ab, t.y, bc});
+    out.triangles.push_back({ca, bc, t.z});
+    out.triangles.push_back({ab, bc, ca});
+  }
+  return out;
+}
+
+struct BuildRow {
+  std::string mesh;
+  uint64_t triangles;
+  double seconds, tri_per_s, bytes_per_tri, peak_mb, thesis_seconds;
+};
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  return cli::runMain("mesh_lod", [&]() -> int {
+    CLI::App app{"mesh_lod: the mesh patch hierarchy's build and drawing (issue 15)"};
+    std::string out = TESSERA_BENCH_RESULTS_DIR;
+    int levels = 4;
+    std::string size = "1920x1080";
+    int repeats = 3;
+    app.add_option("--out", out, "Folder for the CSV, the chart and the inputs")
+        ->capture_default_str();
+    app.add_option("--large-levels", levels, "Subdivisions of the bunny for the large mesh")
+        ->check(cli::integerRange(1, 5))
+        ->capture_default_str();
+    app.add_option("--size", size, "View size WxH")->capture_default_str();
+    app.add_option("--repeats", repeats, "Frames per measurement (the best counts)")
+        ->check(cli::integerRange(1, 100))
+        ->capture_default_str();
+    if (const auto code = cli::parse(app, argc, argv, "mesh_lod")) return *code;
+    const cli::Size view_size = cli::parseSize(size, "--size", 8192);
+    fs::create_directories(out);
+    const std::string bunny_path =
+        std::string(TESSERA_DATA_DIR) + "/stanford-bunny/reconstruction/bun_zipper.ply";
+
+    // Build.
+    std::vector<BuildRow> rows;
+    lod::MeshBuildOptions bo;
+    bo.quiet = true;
+    const lod::Mesh bunny = lod::readMesh(bunny_path);
+    auto build = [&](const std::string& name, const lod::Mesh& m, const fs::path& file,
+                     double thesis) {
+      resetPeak();
+      const auto t0 = Clock::now();
+      const lod::MeshBuildReport r = lod::buildMeshStore(m, file, bo);
+      const double s = since(t0);
+      rows.push_back({name, r.triangles, s, double(r.triangles) / s,
+                      double(r.file_bytes) / double(r.triangles), double(peakBytes()) / 1e6,
+                      thesis});
+      std::fprintf(stderr,
+                   "mesh_lod: built %s: %llu triangles in %.2f s (partition %.2f, simplify %.2f, "
+                   "write %.2f), %.2f B/triangle\n",
+                   name.c_str(), (unsigned long long)r.triangles, s, r.seconds_partition,
+                   r.seconds_simplify, r.seconds_write, rows.back().bytes_per_tri);
+    };
+    build("bunny", bunny, fs::path(out) / "mesh_lod_bunny.tmesh", 13.1);
+    lod::Mesh large = bunny;
+    {
+      const auto t0 = Clock::now();
+      for (int i = 0; i < levels; ++i) large = subdivide(large);
+      std::fprintf(stderr, "mesh_lod: subdivided the bunny %d times: %zu triangles (%.1f s)\n",
+                   levels, large.triangles.size(), since(t0));
+    }
+    const fs::path large_store = fs::path(out) / "mesh_lod_large.tmesh";
+    build("bunny x4^" + std::to_string(levels), large, large_store, 0.0);
+    large = lod::Mesh{};  // free it before drawing
+    std::ofstream bcsv(fs::path(out) / "mesh_lod_build.csv");
+    const char* bhead = "mesh,triangles,seconds,triangles_per_s,bytes_per_triangle,peak_mb,thesis_seconds,speedup_per_triangle\n";
+    bcsv << bhead;
+    std::printf("%s", bhead);
+    for (const BuildRow& r : rows) {
+      // The thesis' bunny rate (69,451 triangles in 13.1 s) scaled to this mesh's size.
+      const double thesis_rate = 69451.0 / 13.1;
+      char line[512];
+      std::snprintf(line, sizeof line, "%s,%llu,%.3f,%.0f,%.3f,%.0f,%.1f,%.1f\n", r.mesh.c_str(),
+                    (unsigned long long)r.triangles, r.seconds, r.tri_per_s, r.bytes_per_tri,
+                    r.peak_mb, r.thesis_seconds, r.tri_per_s / thesis_rate);
+      bcsv << line;
+      std::printf("%s", line);
+    }
+    bcsv.close();
+
+    // Drawing.
+    auto context = render::GlContext::createHeadless();
+    auto store = lod::MeshStore::open(large_store);
+    render::ModelInstance m;
+    m.mesh = store.get();
+    m.model = render::storeModel(*store);
+    const auto [lo, hi] = render::worldBounds(m);
+    const glm::dvec3 c = 0.5 * (lo + hi);
+    const double r = 0.5 * glm::length(hi - lo);
+    render::ViewSetup v;
+    v.eye_world = c + glm::dvec3(0.3 * r, 0.2 * r, 2.2 * r);
+    v.view = glm::lookAt(v.eye_world, c, glm::dvec3(0, 1, 0));
+    v.projection = glm::perspective(glm::radians(40.0), double(view_size.width) / view_size.height,
+                                    0.1 * r, 10.0 * r);
+    v.width = view_size.width;
+    v.height = view_size.height;
+    render::StreamerOptions so;
+    so.budget_bytes = 4ull << 30;
+    render::ViewRenderer renderer(v.width, v.height, nullptr, so);
+    render::RenderOptions o;
+    auto frame = [&](double px, render::RenderStats& st) {
+      o.lod_pixels = px;
+      render::Image img = renderer.renderSettled({&m, 1}, v, o, &st);
+      double best = 1e300;
+      for (int i = 0; i < repeats; ++i) {
+        img = renderer.render({&m, 1}, v, o, &st);
+        best = std::min(best, st.totalMs() - st.readback_ms);
+      }
+      st.frames = 0;
+      return std::make_pair(img, best);
+    };
+    render::RenderStats full_st;
+    const auto [full, full_ms] = frame(1e-9, full_st);
+    render::writePng((fs::path(out) / "mesh_lod_full.png").string(), full);
+    std::ofstream fcsv(fs::path(out) / "mesh_lod_frames.csv");
+    const char* fhead = "threshold_px,triangles,patches,frame_ms,mesh_ms,psnr_db\n";
+    fcsv << fhead;
+    std::printf("%s", fhead);
+    for (double px : {0.0, 0.25, 0.5, 1.0, 2.0, 4.0, 8.0, 16.0}) {
+      render::RenderStats st;
+      const auto [img, ms] = px == 0.0 ? std::make_pair(full, full_ms) : frame(px, st);
+      if (px == 0.0) st = full_st;
+      if (px == 1.0) render::writePng((fs::path(out) / "mesh_lod_1px.png").string(), img);
+      char line[256];
+      std::snprintf(line, sizeof line, "%g,%llu,%zu,%.1f,%.1f,%.2f\n", px,
+                    (unsigned long long)st.triangles, st.mesh_patches, ms, st.mesh_ms,
+                    bench::psnr(img, full));
+      fcsv << line;
+      std::printf("%s", line);
+    }
+    fcsv.close();
+
+    // The pass against a bare glDrawElements: every leaf patch, one context, interleaved.
+    std::vector<render::GlBuffer> buffers;
+    std::vector<render::MeshBatch> batches;
+    uint64_t triangles = 0;
+    for (lod::NodeId id = 0; id < store->nodeCount(); ++id) {
+      if (store->record(id).child_count) continue;
+      const lod::MeshPatch p = store->readPatch(id);
+      std::vector<render::GpuMeshVertex> verts(p.positions.size());
+      for (size_t i = 0; i < verts.size(); ++i)
+        verts[i] = {p.positions[i], render::packNormal1010102(p.normals[i]), 0xFFC8C8C8u};
+      buffers.emplace_back(verts.size() * sizeof(render::GpuMeshVertex), verts.data());
+      buffers.emplace_back(p.indices.size() * 4, p.indices.data());
+      render::MeshBatch b;
+      b.vertices = buffers[buffers.size() - 2].name();
+      b.indices = buffers.back().name();
+      b.index_count = uint32_t(p.indices.size());
+      const glm::dmat4 wl = m.model * glm::translate(glm::dmat4(1.0), p.offset);
+      b.clip_from_local = glm::mat4(v.projection * v.view * wl);
+      b.eye_local = glm::vec3(glm::inverse(wl) * glm::dvec4(v.eye_world, 1.0));
+      batches.push_back(b);
+      triangles += p.triangles();
+    }
+    render::FrameTarget target(v.width, v.height);
+    render::MeshPass pass;
+    double bare = 1e300, full_pass = 1e300;
+    for (int i = 0; i < repeats; ++i) {
+      bare = std::min(bare, pass.drawBare(target, batches));
+      target.clearGeometry(false);
+      full_pass = std::min(full_pass, pass.draw(target, batches, render::MeshShading{}));
+    }
+    std::ofstream pcsv(fs::path(out) / "mesh_lod_pass.csv");
+    const char* phead = "triangles,bare_ms,pass_ms,bare_mtri_s,pass_mtri_s,ratio\n";
+    char line[256];
+    std::snprintf(line, sizeof line, "%llu,%.1f,%.1f,%.1f,%.1f,%.3f\n",
+                  (unsigned long long)triangles, bare, full_pass, triangles / bare / 1e3,
+                  triangles / full_pass / 1e3, bare / full_pass);
+    pcsv << phead << line;
+    std::printf("%s%s", phead, line);
+    pcsv.close();
+
+    const fs::path gp = fs::path(out) / "mesh_lod.gp";
+    std::ofstream g(gp);
+    g << "set terminal pngcairo size 1100,420 font 'DejaVu Sans,10'\n"
+      << "set output '" << (fs::path(out) / "mesh_lod.png").string() << "'\n"
+      << "set datafile separator ','\nset key autotitle columnhead\nset grid\n"
+      << "set multiplot layout 1,2 title 'Mesh LOD (" << size << ", "
+      << full_st.triangles << " triangles at full resolution)'\n"
+      << "set title 'Frame time against accuracy'\nset xlabel 'frame (ms)'\n"
+      << "set ylabel 'PSNR to the full cut (dB, 99 = equal)'\n"
+      << "plot '" << (fs::path(out) / "mesh_lod_frames.csv").string()
+      << "' using 4:6:(sprintf('%g px', $1)) with labels offset 2,0.6 notitle, '' using 4:6 "
+         "with linespoints pt 7 title 'cut by pixel threshold'\n"
+      << "set title 'Build throughput'\nset xlabel 'mesh'\nset ylabel 'triangles per second'\n"
+      << "set style data histograms\nset style fill solid 0.7\nset logscale y\n"
+      << "plot '" << (fs::path(out) / "mesh_lod_build.csv").string()
+      << "' using 4:xtic(1) title 'Tessera (2 cores)', '' using ($7 > 0 ? 69451.0/13.1 : "
+         "1/0) title 'thesis (bunny, 13.1 s)'\n"
+      << "unset multiplot\n";
+    g.close();
+    const std::string cmd = std::string(TESSERA_GNUPLOT) + " '" + gp.string() + "'";
+    if (std::system(cmd.c_str()) != 0)
+      std::fprintf(stderr, "mesh_lod: gnuplot failed; the CSVs are complete\n");
+    return 0;
+  });
+}
