@@ -49,6 +49,16 @@ export EGL_PLATFORM=surfaceless
   --camera "eye=-0.03,0.12,0.42;target=-0.026,0.1,0;up=0,1,0" --background 0.05,0.05,0.08 \
   --stats "$out/render-stats.csv" -o "$out/wall-2x2.png" || exit 1
 
+echo "== meshes: the bunny reconstruction as a patch hierarchy (.tmesh), verified, drawn beside the"
+echo "   scans in one picture (points and triangles hide each other), one view and the 2x2 wall"
+"$lod" build "$data/stanford-bunny/reconstruction/bun_zipper.ply" -o "$out/stores/bunny.tmesh" || exit 1
+"$lod" verify "$out/stores/bunny.tmesh" "$data/stanford-bunny/reconstruction/bun_zipper.ply" --quiet \
+  | tee "$out/stores/bunny-tmesh-verify.txt" || exit 1
+"$render" --scene configs/scenes/bunny-mesh.json --size 1280x720 --stats "$out/render-stats.csv" \
+  -o "$out/mesh-and-points.png" || exit 1
+"$render" --scene configs/scenes/bunny-mesh.json --wall configs/walls/2x2.json --mosaic \
+  --stats "$out/render-stats.csv" -o "$out/mesh-and-points-wall-2x2.png" || exit 1
+
 echo "== see-through (stochastic point-based rendering): the bunny's ten scans in two groups,"
 echo "   fused at two opacities, and a photo fused with the scans"
 scans="$data/stanford-bunny/scans"
@@ -81,6 +91,11 @@ mkdir -p "$out/cluster"
   --script configs/paths/bunny-fused-orbit.json --frames "${TESSERA_DEMO_FRAMES:-61}" --fps 5 \
   --out-dir "$out/cluster" --screenshot "$out/cluster/wall-2x2-cluster.png" \
   --stats "$out/cluster/stats.csv" : -np 4 "$node" --headless | tee "$out/cluster/master.txt" || exit 1
+# The same wall with the mesh scene: every node streams the patches its own tile needs.
+"${mpi[@]}" -np 1 "$master" --wall configs/walls/2x2.json --scene configs/scenes/bunny-mesh.json \
+  --frames "${TESSERA_DEMO_MESH_FRAMES:-5}" --fps 5 --out-dir "$out/cluster" \
+  --screenshot "$out/cluster/wall-2x2-mesh-cluster.png" --stats "$out/cluster/mesh-stats.csv" \
+  : -np 4 "$node" --headless | tee "$out/cluster/mesh-master.txt" || exit 1
 
 echo
 echo "== the same wall over ZeroMQ: nodes join on their own, one is killed (kill -9) on the way and"
