@@ -230,8 +230,10 @@ int main(int argc, char** argv) {
       if (store->record(id).child_count) continue;
       const lod::MeshPatch p = store->readPatch(id);
       std::vector<render::GpuMeshVertex> verts(p.positions.size());
-      for (size_t i = 0; i < verts.size(); ++i)
-        verts[i] = {p.positions[i], render::packNormal1010102(p.normals[i]), 0xFFC8C8C8u};
+      for (size_t i = 0; i < verts.size(); ++i) {
+        const uint32_t n = render::packNormal1010102(p.normals[i]);
+        verts[i] = {p.positions[i], n, 0xFFC8C8C8u, p.positions[i], n};
+      }
       buffers.emplace_back(verts.size() * sizeof(render::GpuMeshVertex), verts.data());
       buffers.emplace_back(p.indices.size() * 4, p.indices.data());
       render::MeshBatch b;

@@ -5,6 +5,7 @@
 
 #include "crc32c.h"
 #include "mesh_format.h"
+#include "triangle_grid.h"
 
 namespace tessera::lod {
 namespace {
@@ -119,6 +120,10 @@ std::unique_ptr<MeshStore> MeshStore::open(std::unique_ptr<RangeSource> source) 
                        std::to_string(parents[i]) + " parents: not a tree");
   }
   m.payload_bytes = payload;
+  s->mParents.assign(m.nodes, kNoNode);
+  for (size_t i = 0; i < m.nodes; ++i)
+    for (uint32_t c = 0; c < s->mNodes[i].child_count; ++c)
+      s->mParents[s->mNodes[i].first_child + c] = NodeId(i);
   s->mSource = std::move(source);
   return s;
 }
@@ -156,6 +161,40 @@ MeshPatch MeshStore::readPatch(NodeId id) const {
     throw StoreError(where + ": " + e.what());
   }
   return meshfmt::decodePatch(bytes.data(), bytes.size(), r, mSummary, where);
+}
+
+MeshStore::MorphTargets MeshStore::morphTargets(NodeId id, const MeshPatch& patch) const {
+  const NodeId up = parent(id);
+  if (up == kNoNode) return {patch.positions, patch.normals};
+  const MeshPatch p = readPatch(up);
+  // Both patches are in the store's one frame (MeshPatch::offset is the store's box minimum).
+  std::vector<glm::dvec3> parent_pos(p.positions.begin(), p.positions.end());
+  const TriangleGrid grid(parent_pos, p.indices);
+  MorphTargets out;
+  out.positions.resize(patch.positions.size());
+  out.normals.resize(patch.positions.size());
+  for (size_t i = 0; i < out.positions.size(); ++i) {
+    uint32_t t = 0;
+    const glm::dvec3 q = grid.closest(glm::dvec3(patch.positions[i]), &t);
+    out.positions[i] = glm::vec3(q);
+    // The parent's normal at q: its vertex normals by q's barycentric coordinates.
+    const glm::dvec3 a = parent_pos[p.indices[3 * t]], b = parent_pos[p.indices[3 * t + 1]],
+                     c = parent_pos[p.indices[3 * t + 2]];
+    const glm::dvec3 n = glm::cross(b - a, c - a);
+    const double area = glm::dot(n, n);
+    glm::dvec3 w(1.0 / 3.0);
+    if (area > 0) {
+      w.x = glm::dot(glm::cross(c - b, q - b), n) / area;
+      w.y = glm::dot(glm::cross(a - c, q - c), n) / area;
+      w.z = 1.0 - w.x - w.y;
+    }
+    const glm::vec3 m = float(w.x) * p.normals[p.indices[3 * t]] +
+                        float(w.y) * p.normals[p.indices[3 * t + 1]] +
+                        float(w.z) * p.normals[p.indices[3 * t + 2]];
+    const float len = glm::length(m);
+    out.normals[i] = len > 0 ? m / len : patch.normals[i];
+  }
+  return out;
 }
 
 }  // namespace tessera::lod

@@ -94,13 +94,20 @@ class TriangleGrid {
     }
   }
 
-  /// Distance from p to the nearest triangle (infinity when there is none). Searches shells of
-  /// cells outwards until the nearest found is closer than the next shell.
+  /// Distance from p to the nearest triangle (infinity when there is none).
   double distance(const glm::dvec3& p) const {
     if (mIdx.empty()) return std::numeric_limits<double>::infinity();
+    return glm::length(closest(p) - p);
+  }
+
+  /// The nearest point of the triangles to p (p itself when there are none). Searches shells
+  /// of cells outwards until the nearest found is closer than the next shell.
+  /// `triangle`, when given, receives the nearest triangle's index (unchanged when none).
+  glm::dvec3 closest(const glm::dvec3& p, uint32_t* triangle = nullptr) const {
+    if (mIdx.empty()) return p;
     const glm::ivec3 c = cellOf(p);
-    // Distance from p to the grid box: cells nearer than that do not exist.
     double best = std::numeric_limits<double>::infinity();
+    glm::dvec3 best_q = p;
     const int max_r = std::max({mDims.x, mDims.y, mDims.z});
     for (int r = 0; r <= max_r; ++r) {
       // Every triangle not yet seen lies at least (r - 1) cells away from p.
@@ -115,11 +122,16 @@ class TriangleGrid {
               const uint32_t t = mItems[k];
               const glm::dvec3 q = closestOnTriangle(p, mPos[mIdx[3 * t]], mPos[mIdx[3 * t + 1]],
                                                      mPos[mIdx[3 * t + 2]]);
-              best = std::min(best, glm::length(q - p));
+              const double d = glm::length(q - p);
+              if (d < best) {
+                best = d;
+                best_q = q;
+                if (triangle) *triangle = t;
+              }
             }
           }
     }
-    return best;
+    return best_q;
   }
 
  private:

@@ -216,6 +216,7 @@ struct ChunkStreamer::Impl {
       out.disk_bytes = item.store->chunkBytes(item.node);
       out.spacing = item.store->node(item.node).spacing;
       out.offset = p.offset;
+      const lod::MeshStore::MorphTargets morph = item.mesh->morphTargets(item.node, p);
       out.mesh_vertices.resize(p.positions.size());
       for (size_t i = 0; i < p.positions.size(); ++i) {
         uint32_t rgba = grey | 0xFF000000u;
@@ -223,7 +224,8 @@ struct ChunkStreamer::Impl {
           const glm::u8vec4 c = p.colors[i];
           rgba = uint32_t(c.r) | uint32_t(c.g) << 8 | uint32_t(c.b) << 16 | 0xFF000000u;
         }
-        out.mesh_vertices[i] = {p.positions[i], packNormal1010102(p.normals[i]), rgba};
+        out.mesh_vertices[i] = {p.positions[i], packNormal1010102(p.normals[i]), rgba,
+                                morph.positions[i], packNormal1010102(morph.normals[i])};
       }
       out.mesh_indices = p.indices;
     } catch (const lod::StoreError&) {

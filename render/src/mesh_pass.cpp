@@ -33,10 +33,14 @@ struct MeshPass::Impl {
     glEnableVertexArrayAttrib(vao, 0);
     glEnableVertexArrayAttrib(vao, 1);
     glEnableVertexArrayAttrib(vao, 2);
+    glEnableVertexArrayAttrib(vao, 3);
+    glEnableVertexArrayAttrib(vao, 4);
     glVertexArrayAttribFormat(vao, 0, 3, GL_FLOAT, GL_FALSE, 0);
     glVertexArrayAttribFormat(vao, 1, 4, GL_INT_2_10_10_10_REV, GL_TRUE, 12);
     glVertexArrayAttribFormat(vao, 2, 4, GL_UNSIGNED_BYTE, GL_TRUE, 16);
-    for (uint32_t a = 0; a < 3; ++a) glVertexArrayAttribBinding(vao, a, 0);
+    glVertexArrayAttribFormat(vao, 3, 3, GL_FLOAT, GL_FALSE, 20);
+    glVertexArrayAttribFormat(vao, 4, 4, GL_INT_2_10_10_10_REV, GL_TRUE, 32);
+    for (uint32_t a = 0; a < 5; ++a) glVertexArrayAttribBinding(vao, a, 0);
   }
   ~Impl() {
     release();
@@ -100,6 +104,7 @@ struct MeshPass::Impl {
       program.set("uEyeLocal", b.eye_local);
       program.set("uColorOverride", b.color_override);
       program.set("uPickBase", b.pick_base);
+      program.set("uMorph", std::clamp(b.morph, 0.0f, 1.0f));
       glVertexArrayVertexBuffer(vao, 0, b.vertices, 0, sizeof(GpuMeshVertex));
       glVertexArrayElementBuffer(vao, b.indices);
       glDrawElements(GL_TRIANGLES, GLsizei(b.index_count), GL_UNSIGNED_INT, nullptr);

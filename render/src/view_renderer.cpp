@@ -493,8 +493,17 @@ void ViewRenderer::addMeshModel(const ModelInstance& instance, const ViewSetup& 
     return false;
   };
   const glm::dmat4 clip_from_world = view.projection * view.view;
+  // Geomorphing: 0 the moment a patch replaces its parent (the parent's error just above the
+  // threshold on screen), 1 once the parent's error is (1 + range) x the threshold.
+  auto morph = [&](const CutNode& n) {
+    if (n.parent < 0 || !(options.geomorph_range > 0.0)) return 1.0f;
+    const double parent_px = cut.above[size_t(n.parent)].projected_spacing_px;
+    const double t = (parent_px / co.pixel_threshold - 1.0) / options.geomorph_range;
+    return float(std::clamp(std::isfinite(t) ? t : 1.0, 0.0, 1.0));
+  };
   auto add = [&](const CutNode& n, const GpuChunk& chunk) {
     MeshBatch b;
+    b.morph = morph(n);
     b.vertices = chunk.buffer.name();
     b.indices = chunk.indices.name();
     b.index_count = chunk.index_count;

@@ -96,6 +96,17 @@ class MeshStore : public LodHierarchy {
   /// naming the node when its bytes fail their CRC or do not decode to what the table says.
   /// Cost: one read of chunkBytes(id) and about 1 ms per 10^4 triangles to decode.
   MeshPatch readPatch(NodeId id) const;
+  /// The node's parent (kNoNode for the root).
+  NodeId parent(NodeId id) const { return mParents.at(id); }
+  /// Geomorphing targets of a decoded patch: for each vertex, the nearest point of its parent's
+  /// surface (in the patch's frame) and the parent's normal there, where the vertex sits while
+  /// the patch replaces its parent (render/mesh_pass.h). Border vertices are the parent's own
+  /// (locked), so they stay and no crack opens while a patch morphs. The root's targets are its
+  /// own. Reads and decodes the parent: about twice readPatch()'s cost.
+  struct MorphTargets {
+    std::vector<glm::vec3> positions, normals;
+  };
+  MorphTargets morphTargets(NodeId id, const MeshPatch& patch) const;
 
  private:
   MeshStore() = default;
@@ -103,6 +114,7 @@ class MeshStore : public LodHierarchy {
   std::unique_ptr<RangeSource> mSource;
   MeshSummary mSummary;
   std::vector<MeshNodeRecord> mNodes;
+  std::vector<NodeId> mParents;
 };
 
 /// Whether a file starts like a mesh store (its magic), without opening it further.

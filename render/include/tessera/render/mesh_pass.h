@@ -9,6 +9,12 @@
 // Shading: a two-sided headlight on per-vertex normals (smooth) or screen-derivative facet
 // normals (flat), times per-vertex colour or the model's colour.
 //
+// Geomorphing: each vertex carries the nearest point of its parent patch's surface; a batch
+// draws its vertices at mix(target, position, morph), morph rising from 0 when the patch
+// replaces its parent to 1 as the parent's error grows on screen (ViewRenderer), so a change of
+// level never pops. Border vertices are locked, hence their own targets: no crack while
+// morphing.
+//
 // Cost (llvmpipe): GL's triangle rate for the batches, plus one pass over the pixels for the
 // merge (about 2 ms at 1920x1080 on this machine; bench/mesh_lod measures both against a bare
 // glDrawElements). A GL 4.5 context must be current on the calling thread for the object's
@@ -25,14 +31,18 @@
 
 namespace tessera::render {
 
-/// One vertex as the GPU holds it, 20 bytes: position relative to the patch's frame (float),
-/// normal as 10:10:10:2 snorm (w unused), rgba (r low byte).
+/// One vertex as the GPU holds it, 36 bytes: position relative to the patch's frame (float),
+/// normal as 10:10:10:2 snorm (w unused), rgba (r low byte), and the geomorphing target
+/// (lod::MeshStore::morphTargets(): the nearest point of the parent's surface, same frame, and
+/// the parent's normal there).
 struct GpuMeshVertex {
   glm::vec3 position;
   uint32_t normal;
   uint32_t rgba;
+  glm::vec3 morph;
+  uint32_t morph_normal;
 };
-static_assert(sizeof(GpuMeshVertex) == 20);
+static_assert(sizeof(GpuMeshVertex) == 36);
 
 /// Packs a unit normal as GL_INT_2_10_10_10_REV (x lowest).
 uint32_t packNormal1010102(const glm::vec3& n);
@@ -46,6 +56,9 @@ struct MeshBatch {
   glm::vec3 eye_local{0.0f};    ///< the eye in the patch's frame (headlight)
   uint32_t color_override = 0;  ///< non-zero: 0x1000000 | rgb for every triangle
   uint32_t pick_base = 0;       ///< triangle t writes pick id pick_base + t (with `pick`)
+  /// Geomorphing: vertices at mix(morph target, position, morph). 1: the patch's own shape; 0:
+  /// on its parent's surface (what it looks like the moment it replaces its parent).
+  float morph = 1.0f;
 };
 
 struct MeshShading {

@@ -82,6 +82,10 @@ struct RenderOptions {
   /// 0.3-0.6 s at 1920x1080 on llvmpipe, less than the discs only where they are large (a
   /// volume of points, splat scale 4; bench/fill and the README's figures).
   SurfaceFill fill = SurfaceFill::kDiscs;
+  /// Mesh models: geomorphing (mesh_pass.h). A patch morphs from its parent's surface to its
+  /// own shape while its parent's error grows on screen from lod_pixels to (1 + this) x
+  /// lod_pixels; 0 turns it off (a level change then pops).
+  double geomorph_range = 1.0;
 };
 
 /// One frame. `nodes`..`points` describe what was drawn.
