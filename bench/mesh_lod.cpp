@@ -108,6 +108,7 @@ int main(int argc, char** argv) {
     int levels = 4;
     std::string size = "1920x1080";
     int repeats = 3;
+    bool build_only = false;
     app.add_option("--out", out, "Folder for the CSV, the chart and the inputs")
         ->capture_default_str();
     app.add_option("--large-levels", levels, "Subdivisions of the bunny for the large mesh")
@@ -117,6 +118,7 @@ int main(int argc, char** argv) {
     app.add_option("--repeats", repeats, "Frames per measurement (the best counts)")
         ->check(cli::integerRange(1, 100))
         ->capture_default_str();
+    app.add_flag("--build-only", build_only, "Measure the builds only (no drawing, no chart)");
     if (const auto code = cli::parse(app, argc, argv, "mesh_lod")) return *code;
     const cli::Size view_size = cli::parseSize(size, "--size", 8192);
     fs::create_directories(out);
@@ -169,6 +171,7 @@ int main(int argc, char** argv) {
       std::printf("%s", line);
     }
     bcsv.close();
+    if (build_only) return 0;
 
     // Drawing.
     auto context = render::GlContext::createHeadless();

@@ -110,8 +110,9 @@ class TriangleGrid {
     glm::dvec3 best_q = p;
     const int max_r = std::max({mDims.x, mDims.y, mDims.z});
     for (int r = 0; r <= max_r; ++r) {
-      // Every triangle not yet seen lies at least (r - 1) cells away from p.
-      if (r > 0 && best <= (r - 1) * mCell) break;
+      // Every triangle not yet seen lies outside the block of cells within r - 1 of c: at least
+      // as far as p is from that block's faces (p inside the grid), or (r - 1) cells (outside).
+      if (r > 0 && best <= shellBound(p, c, r)) break;
       for (int z = c.z - r; z <= c.z + r; ++z)
         for (int y = c.y - r; y <= c.y + r; ++y)
           for (int x = c.x - r; x <= c.x + r; ++x) {
@@ -135,6 +136,18 @@ class TriangleGrid {
   }
 
  private:
+  /// A lower bound on the distance from p (in cell c) to any cell outside the block of cells
+  /// within Chebyshev distance r - 1 of c.
+  double shellBound(const glm::dvec3& p, const glm::ivec3& c, int r) const {
+    double bound = std::numeric_limits<double>::infinity();
+    for (int a = 0; a < 3; ++a) {
+      const double lo = mLo[a] + double(c[a] - (r - 1)) * mCell;
+      const double hi = mLo[a] + double(c[a] + r) * mCell;
+      if (p[a] < lo || p[a] > hi) return double(r - 1) * mCell;  // p outside the grid
+      bound = std::min({bound, p[a] - lo, hi - p[a]});
+    }
+    return bound;
+  }
   glm::ivec3 cellOf(const glm::dvec3& p) const {
     glm::ivec3 c;
     for (int a = 0; a < 3; ++a)
