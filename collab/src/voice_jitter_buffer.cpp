@@ -13,6 +13,11 @@ constexpr int64_t kOutOfRange = 5 * kVoiceRate;
 constexpr int kResetAfter = 8;
 /// Timestamps remembered as played, to tell a duplicate from a late packet.
 constexpr size_t kPlayedMemory = 64;
+/// The share of the fastest transits left out of the base (see baseTransit()).
+constexpr double kBaseQuantile = 0.01;
+/// A packet whose transit is this much below the base came "before it was sent": its timestamp
+/// is wrong (a genuine faster path moves the base by far less), and it is refused.
+constexpr double kFutureTolerance_s = 0.5;
 
 /// RTP-style extension of a wrapping counter to 64 bits, around the newest value seen
 /// (RFC 3550 appendix A.1): the nearest 64-bit value with the same low bits.
@@ -57,7 +62,10 @@ void JitterBuffer::push(const VoicePacket& packet, double arrival) {
   const int64_t ts = extend32(packet.timestamp, mMaxTimestamp);
   const int64_t seq = extend16(packet.sequence, mMaxSequence);
   const int64_t reference = mPlaying ? mNext : mMaxTimestamp;
-  if (ts < reference - kOutOfRange || ts > reference + kOutOfRange ||
+  const bool from_the_future =
+      !mTransits.empty() &&
+      arrival - double(ts - mOrigin) / kRate < baseTransit() - kFutureTolerance_s;
+  if (ts < reference - kOutOfRange || ts > reference + kOutOfRange || from_the_future ||
       packet.frame_samples <= 0 || packet.frame_samples > kMaxVoiceFrameSamples) {
     mStats.refused += 1;
     if (++mOutOfRange >= kResetAfter) {
@@ -68,20 +76,25 @@ void JitterBuffer::push(const VoicePacket& packet, double arrival) {
   }
   mOutOfRange = 0;
 
+  bool measured = false;
   if (mPlaying && ts < mNext) {
     if (std::find(mPlayed.begin(), mPlayed.end(), ts) != mPlayed.end()) {
       mStats.duplicates += 1;
       return;
     }
+    // A late packet measures the jitter too: leaving it out would keep the target below the
+    // delays that made it late.
+    updateJitter(ts, arrival);
+    measured = true;
     if (mGap != Gap::kNone && mQuiet && seq == mLastSequence + 1) {
       // The first packet after DTX silence, later than the silence's schedule: start the
       // talkspurt from it (the delay grows by what it was late; silence absorbs it).
-      resolveGap(false);
+      resolveGap(0);
       mNext = ts;
       mGap = Gap::kDtx;  // not continuous: the talkspurt's first packet is never skipped
     } else {
       mStats.late += 1;
-      if (mGap == Gap::kUnknown) resolveGap(true);
+      if (mGap == Gap::kUnknown) resolveGap(mGapFrames);
       return;
     }
   }
@@ -96,8 +109,8 @@ void JitterBuffer::push(const VoicePacket& packet, double arrival) {
   mStats.received += 1;
   mMaxTimestamp = std::max(mMaxTimestamp, ts);
   mMaxSequence = std::max(mMaxSequence, seq);
-  updateJitter(ts, arrival);
-  if (mGap == Gap::kUnknown) resolveGap(seq != mLastSequence + 1);
+  if (!measured) updateJitter(ts, arrival);
+  if (mGap == Gap::kUnknown) resolveGap(seq - mLastSequence - 1);
   mPackets.emplace(ts, Held{seq, packet.frame_samples, packet.payload});
 }
 
@@ -114,33 +127,40 @@ void JitterBuffer::updateJitter(int64_t timestamp, double arrival) {
   if (mTransits.size() > mSettings.window) mTransits.pop_front();
 }
 
+double JitterBuffer::transitQuantile(double q) const {
+  std::vector<double> t(mTransits.begin(), mTransits.end());
+  const size_t k = size_t(std::floor(q * double(t.size() - 1) + 0.5));
+  std::nth_element(t.begin(), t.begin() + ptrdiff_t(k), t.end());
+  return t[k];
+}
+
+double JitterBuffer::baseTransit() const {
+  // The fastest packets' transit, taken as a low quantile rather than the minimum: one packet
+  // with a wrong timestamp must not move the whole schedule.
+  return mTransits.empty() ? 0.0 : transitQuantile(kBaseQuantile);
+}
+
 double JitterBuffer::targetDelay() const {
   if (mTransits.empty()) return mSettings.min_delay_s;
-  std::vector<double> t(mTransits.begin(), mTransits.end());
-  const double fastest = *std::min_element(t.begin(), t.end());
-  const size_t k = size_t(std::floor(mSettings.quantile * double(t.size() - 1) + 0.5));
-  std::nth_element(t.begin(), t.begin() + ptrdiff_t(k), t.end());
-  return std::clamp(t[k] - fastest, mSettings.min_delay_s, mSettings.max_delay_s);
+  return std::clamp(transitQuantile(mSettings.quantile) - baseTransit(), mSettings.min_delay_s,
+                    mSettings.max_delay_s);
 }
 
 double JitterBuffer::delayAt(double t) const {
-  // How long before `t` the fastest packet of the window would have brought frame mNext.
-  if (mTransits.empty()) return 0;
-  const double fastest = *std::min_element(mTransits.begin(), mTransits.end());
-  return t - (double(mNext - mOrigin) / kRate + fastest);
+  // How long before `t` the fastest packets would have brought frame mNext.
+  return t - (double(mNext - mOrigin) / kRate + baseTransit());
 }
 
-void JitterBuffer::resolveGap(bool lost) {
-  if (lost) {
-    mStats.concealed += mGapFrames;
-  } else {
-    mStats.dtx += mGapFrames;
-    // The gap's frames were recorded as concealed until it was known they were silence.
-    for (size_t i = mHistory.size(), n = 0; i > 0 && n < mGapFrames; --i) {
-      if (mHistory[i - 1].kind != PlayedFrame::Kind::kConcealed) continue;
-      mHistory[i - 1].kind = PlayedFrame::Kind::kDtx;
-      ++n;
-    }
+void JitterBuffer::resolveGap(int64_t lost_packets) {
+  // At most one concealed frame per lost packet: the rest of the gap was DTX silence.
+  const uint64_t lost = std::min<uint64_t>(mGapFrames, uint64_t(std::max<int64_t>(0, lost_packets)));
+  mStats.concealed += lost;
+  mStats.dtx += mGapFrames - lost;
+  // The gap's frames were recorded as concealed until it was known which were silence.
+  for (size_t i = mHistory.size(), n = 0; i > 0 && n < mGapFrames - lost; --i) {
+    if (mHistory[i - 1].kind != PlayedFrame::Kind::kConcealed) continue;
+    mHistory[i - 1].kind = PlayedFrame::Kind::kDtx;
+    ++n;
   }
   mGapFrames = 0;
   mGap = Gap::kNone;
@@ -189,7 +209,7 @@ void JitterBuffer::playFrame(double t) {
         emit(Kind::kInserted, mNext, held.frame_samples);
         return;
       }
-      if (mGap != Gap::kNone) resolveGap(held.sequence != mLastSequence + 1);
+      if (mGap != Gap::kNone) resolveGap(held.sequence - mLastSequence - 1);
       if (!mDecoder.decode(held.payload, mFrame)) mStats.decode_errors += 1;
       mStats.decoded += 1;
       mLastSequence = held.sequence;

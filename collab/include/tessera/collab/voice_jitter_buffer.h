@@ -103,10 +103,12 @@ class JitterBuffer {
   };
   enum class Gap { kNone, kUnknown, kDtx };
 
+  double transitQuantile(double q) const;
+  double baseTransit() const;
   double targetDelay() const;
   double delayAt(double t) const;
   void updateJitter(int64_t timestamp, double arrival);
-  void resolveGap(bool lost);
+  void resolveGap(int64_t lost_packets);
   void reset();
   void playFrame(double t);
   void emit(PlayedFrame::Kind kind, int64_t timestamp, int samples);
