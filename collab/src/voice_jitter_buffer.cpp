@@ -18,6 +18,10 @@ constexpr double kBaseQuantile = 0.01;
 /// A packet whose transit is this much below the base came "before it was sent": its timestamp
 /// is wrong (a genuine faster path moves the base by far less), and it is refused.
 constexpr double kFutureTolerance_s = 0.5;
+/// Losses at least this share of the window's packets: FEC is worth a frame of delay.
+constexpr double kFecLossShare = 0.01;
+/// Times within this of each other are equal (the playout clock's own rounding).
+constexpr double kSlack_s = 1e-4;
 
 /// RTP-style extension of a wrapping counter to 64 bits, around the newest value seen
 /// (RFC 3550 appendix A.1): the nearest 64-bit value with the same low bits.
@@ -84,7 +88,7 @@ void JitterBuffer::push(const VoicePacket& packet, double arrival) {
     }
     // A late packet measures the jitter too: leaving it out would keep the target below the
     // delays that made it late.
-    updateJitter(ts, arrival);
+    updateJitter(ts, seq, arrival);
     measured = true;
     if (mGap != Gap::kNone && mQuiet && seq == mLastSequence + 1) {
       // The first packet after DTX silence, later than the silence's schedule: start the
@@ -94,7 +98,7 @@ void JitterBuffer::push(const VoicePacket& packet, double arrival) {
       mGap = Gap::kDtx;  // not continuous: the talkspurt's first packet is never skipped
     } else {
       mStats.late += 1;
-      if (mGap == Gap::kUnknown) resolveGap(mGapFrames);
+      if (mGap == Gap::kUnknown) resolveGap(mLostInGap + int64_t(mGapFrames));
       return;
     }
   }
@@ -109,12 +113,12 @@ void JitterBuffer::push(const VoicePacket& packet, double arrival) {
   mStats.received += 1;
   mMaxTimestamp = std::max(mMaxTimestamp, ts);
   mMaxSequence = std::max(mMaxSequence, seq);
-  if (!measured) updateJitter(ts, arrival);
+  if (!measured) updateJitter(ts, seq, arrival);
   if (mGap == Gap::kUnknown) resolveGap(seq - mLastSequence - 1);
   mPackets.emplace(ts, Held{seq, packet.frame_samples, packet.payload});
 }
 
-void JitterBuffer::updateJitter(int64_t timestamp, double arrival) {
+void JitterBuffer::updateJitter(int64_t timestamp, int64_t sequence, double arrival) {
   // Transit against the first packet's timestamp, so the doubles stay small.
   const double transit = arrival - double(timestamp - mOrigin) / kRate;
   if (!mTransits.empty()) {
@@ -124,7 +128,11 @@ void JitterBuffer::updateJitter(int64_t timestamp, double arrival) {
   }
   mLastTransit = transit;
   mTransits.push_back(transit);
-  if (mTransits.size() > mSettings.window) mTransits.pop_front();
+  mSequences.push_back(sequence);
+  if (mTransits.size() > mSettings.window) {
+    mTransits.pop_front();
+    mSequences.pop_front();
+  }
 }
 
 double JitterBuffer::transitQuantile(double q) const {
@@ -140,10 +148,20 @@ double JitterBuffer::baseTransit() const {
   return mTransits.empty() ? 0.0 : transitQuantile(kBaseQuantile);
 }
 
+double JitterBuffer::lossShare() const {
+  if (mSequences.size() < 2) return 0;
+  const auto [lo, hi] = std::minmax_element(mSequences.begin(), mSequences.end());
+  return 1.0 - double(mSequences.size()) / double(*hi - *lo + 1);
+}
+
 double JitterBuffer::targetDelay() const {
   if (mTransits.empty()) return mSettings.min_delay_s;
-  return std::clamp(transitQuantile(mSettings.quantile) - baseTransit(), mSettings.min_delay_s,
-                    mSettings.max_delay_s);
+  double target = std::clamp(transitQuantile(mSettings.quantile) - baseTransit(),
+                             mSettings.min_delay_s, mSettings.max_delay_s);
+  // A lost frame comes back from the next packet's FEC only if that packet is here when the
+  // frame is due: one frame more (the next packet's delay has the same quantile).
+  if (lossShare() >= kFecLossShare) target += double(mFrameSamples) / kRate;
+  return std::min(target, mSettings.max_delay_s);
 }
 
 double JitterBuffer::delayAt(double t) const {
@@ -153,7 +171,10 @@ double JitterBuffer::delayAt(double t) const {
 
 void JitterBuffer::resolveGap(int64_t lost_packets) {
   // At most one concealed frame per lost packet: the rest of the gap was DTX silence.
-  const uint64_t lost = std::min<uint64_t>(mGapFrames, uint64_t(std::max<int64_t>(0, lost_packets)));
+  // (The first frames of a gap are taken as the lost ones: which they were is not known.)
+  const uint64_t lost =
+      std::min<uint64_t>(mGapFrames, uint64_t(std::max<int64_t>(0, lost_packets - mLostInGap)));
+  mLostInGap += int64_t(lost);
   mStats.concealed += lost;
   mStats.dtx += mGapFrames - lost;
   // The gap's frames were recorded as concealed until it was known which were silence.
@@ -185,24 +206,35 @@ void JitterBuffer::playFrame(double t) {
     const double delay = delayAt(t);
     mStats.target_s = target;
     mStats.delay_s = delay;
+    mStats.loss_share = lossShare();
     const auto next = mPackets.begin();
     const bool present = next != mPackets.end() && next->first == mNext;
     const double frame_s = double(present ? next->second.frame_samples : mFrameSamples) / kRate;
     // Half a frame of hysteresis: after a frame is skipped the delay is still over target.
-    const bool over = delay > target + 1.5 * frame_s;
+    const bool over = delay > target + 1.5 * frame_s + kSlack_s;
 
     if (present) {
       Held& held = next->second;
       const bool continuous = mGap == Gap::kNone;
-      if (delay > target + mSettings.shrink_in_speech_s || (over && mQuiet && continuous)) {
+      mFrame.resize(size_t(held.frame_samples));
+      bool drop = delay > target + mSettings.shrink_in_speech_s;  // far over: even in speech
+      bool decoded = false;
+      if (!drop && over && mQuiet && continuous) {
+        // Over target in silence: decode the frame (the decoder's state goes on) and skip it
+        // if it is silence too.
+        if (!mDecoder.decode(held.payload, mFrame)) mStats.decode_errors += 1;
+        decoded = true;
+        drop = rms(mFrame) < mSettings.silence_rms;
+      }
+      if (drop) {
         mStats.dropped += 1;
         mLastSequence = held.sequence;
+        mLostInGap = 0;
         mNext += held.frame_samples;
         mPackets.erase(next);
         continue;
       }
-      mFrame.resize(size_t(held.frame_samples));
-      if (mQuiet && delay < target) {
+      if (mQuiet && delay < target - kSlack_s) {
         // Silence before this packet: grow the delay by a frame of comfort noise.
         mDecoder.conceal(mFrame);
         mStats.inserted += 1;
@@ -210,9 +242,10 @@ void JitterBuffer::playFrame(double t) {
         return;
       }
       if (mGap != Gap::kNone) resolveGap(held.sequence - mLastSequence - 1);
-      if (!mDecoder.decode(held.payload, mFrame)) mStats.decode_errors += 1;
+      if (!decoded && !mDecoder.decode(held.payload, mFrame)) mStats.decode_errors += 1;
       mStats.decoded += 1;
       mLastSequence = held.sequence;
+      mLostInGap = 0;
       mFrameSamples = held.frame_samples;
       mPlayed.push_back(mNext);
       if (mPlayed.size() > kPlayedMemory) mPlayed.pop_front();
@@ -234,14 +267,17 @@ void JitterBuffer::playFrame(double t) {
       }
     }
     mFrame.resize(size_t(samples));
-    if (delay < target) {
+    if (delay < target - kSlack_s) {
       // Underflow below target: wait for the packet with a concealed frame (grows the delay).
       mDecoder.conceal(mFrame);
       mStats.inserted += 1;
       emit(Kind::kInserted, mNext, samples);
       return;
     }
-    const bool dtx = next != mPackets.end() && next->second.sequence == mLastSequence + 1;
+    // DTX when every packet between the last one played and the next one held is accounted
+    // for by frames already concealed.
+    const bool dtx =
+        next != mPackets.end() && next->second.sequence - mLastSequence - 1 <= mLostInGap;
     if (over && mQuiet && (dtx || next == mPackets.end())) {
       // Skip a frame of silence: shrinks the delay.
       mStats.dropped += 1;
@@ -263,6 +299,7 @@ void JitterBuffer::playFrame(double t) {
       // A sequence gap: lost. FEC from the packet right after it (RFC 6716 section 2.1.7),
       // else concealment.
       mStats.concealed += 1;
+      mLostInGap += 1;
       if (next->first == mNext + samples) {
         if (!mDecoder.decodeFec(next->second.payload, mFrame)) mStats.decode_errors += 1;
         mStats.fec += 1;
@@ -290,7 +327,7 @@ void JitterBuffer::pull(double now, std::span<float> out) {
     }
     const double t = now + double(k) / kRate;
     if (!mPlaying) {
-      if (mPackets.empty() || t < mFirstArrival + targetDelay()) {
+      if (mPackets.empty() || t < mFirstArrival + targetDelay() - kSlack_s) {
         std::fill(out.begin() + ptrdiff_t(k), out.end(), 0.0f);
         mOutput += out.size() - k;
         return;

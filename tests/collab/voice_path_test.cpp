@@ -105,9 +105,10 @@ void sweep(const char* what, const std::vector<float>& x, const Bounds& bounds) 
     if (kLosses[i] > 0) {
       EXPECT_GT(m.path.stats.fec, 0u) << "no frame came back from FEC";
     }
-    // The buffer followed the jitter (10 ms mean, exponential: its 97th percentile is 35 ms).
+    // The buffer followed the jitter (10 ms mean, exponential: its 97th percentile is 35 ms),
+    // plus a frame for FEC under loss.
     EXPECT_GT(m.path.stats.target_s, 0.020);
-    EXPECT_LT(m.path.stats.target_s, 0.060);
+    EXPECT_LT(m.path.stats.target_s, kLosses[i] > 0 ? 0.075 : 0.055);
     EXPECT_EQ(m.path.packets_refused, 0u);
   }
 }
@@ -170,6 +171,7 @@ TEST(VoicePath, CorruptTruncatedAndOversizedPacketsAreRefusedAndTheStreamGoesOn)
   net.duplicate = 0.05;
   net.seed = 21;
   const Measured plain = measure(x, net, clean);
+  report("plain", 0, plain);
   // Around every fifth packet: its truncations, an oversized copy, random bytes, a flipped
   // header byte; every packet still goes through once, intact.
   test::VoicePathOptions options;

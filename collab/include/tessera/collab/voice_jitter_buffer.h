@@ -8,6 +8,8 @@
 //   delay that lets that share of packets arrive in time), clamped to [min_delay, max_delay].
 //   This is WebRTC NetEq's relative-delay histogram in spirit (its "delay manager"); the RFC 3550
 //   (section 6.4.1, A.8) interarrival jitter J += (|D| - J) / 16 is kept too, for the stats.
+//   When the window's sequence numbers show losses (1% or more), the target grows by a frame so
+//   the packet after a lost one is there in time to give its FEC.
 // - Adaptation: the delay is changed where it cannot be heard. It grows when the next frame is
 //   missing and the delay is below target (a concealed frame is played without advancing, so
 //   the late packet can still play: NetEq's "expand"), and in silence (DTX gaps and quiet
@@ -65,6 +67,7 @@ struct JitterStats {
   double jitter_s = 0;        ///< RFC 3550 interarrival jitter, seconds
   double target_s = 0;        ///< the current target delay
   double delay_s = 0;         ///< the delay at the last frame played (against the fastest packet)
+  double loss_share = 0;      ///< packets missing from the window's sequence numbers
 
   /// Frames played since playout began (not counting the silence before it).
   uint64_t frames() const { return decoded + concealed + dtx + inserted; }
@@ -104,10 +107,11 @@ class JitterBuffer {
   enum class Gap { kNone, kUnknown, kDtx };
 
   double transitQuantile(double q) const;
+  double lossShare() const;
   double baseTransit() const;
   double targetDelay() const;
   double delayAt(double t) const;
-  void updateJitter(int64_t timestamp, double arrival);
+  void updateJitter(int64_t timestamp, int64_t sequence, double arrival);
   void resolveGap(int64_t lost_packets);
   void reset();
   void playFrame(double t);
@@ -118,6 +122,7 @@ class JitterBuffer {
   JitterStats mStats;
   std::map<int64_t, Held> mPackets;  ///< by extended timestamp
   std::deque<double> mTransits;      ///< arrival - timestamp / rate of the last `window` packets
+  std::deque<int64_t> mSequences;    ///< their sequence numbers (the loss share)
   std::deque<int64_t> mPlayed;       ///< extended timestamps recently played from packets
   std::vector<float> mFrame;         ///< the frame being played out
   size_t mFrameAt = 0;               ///< samples of mFrame already given out
@@ -134,6 +139,7 @@ class JitterBuffer {
   int mFrameSamples = kMaxVoiceFrameSamples;
   Gap mGap = Gap::kNone;      ///< what the frames since the last packet played are
   uint64_t mGapFrames = 0;    ///< frames played since then, not yet counted
+  int64_t mLostInGap = 0;     ///< frames since the last packet played counted as lost
   bool mQuiet = true;         ///< the last frame played was silence
   double mLastTransit = 0;    ///< for the RFC 3550 estimate
   int mOutOfRange = 0;        ///< consecutive refused packets
