@@ -28,7 +28,7 @@ void VoiceMixer::clear() {
   mSources.clear();
 }
 
-void VoiceMixer::add(uint16_t source, std::span<const float> pcm) {
+void VoiceMixer::add(uint32_t source, std::span<const float> pcm) {
   TESSERA_CHECK(pcm.size() == mTotal.size(),
                 "collab::VoiceMixer::add(): source " + std::to_string(source) + " gave " +
                     std::to_string(pcm.size()) + " samples, the block is " +
@@ -40,7 +40,7 @@ void VoiceMixer::add(uint16_t source, std::span<const float> pcm) {
   }
 }
 
-void VoiceMixer::minus(uint16_t source, std::span<float> out) const {
+void VoiceMixer::minus(uint32_t source, std::span<float> out) const {
   TESSERA_CHECK(out.size() == mTotal.size(), "collab::VoiceMixer: the output is not one block");
   const auto own = mSources.find(source);
   for (size_t i = 0; i < out.size(); ++i) {
@@ -51,6 +51,6 @@ void VoiceMixer::minus(uint16_t source, std::span<float> out) const {
 
 void VoiceMixer::roomMix(std::span<float> out) const { minus(kWallSite, out); }
 
-void VoiceMixer::mixMinus(uint16_t site, std::span<float> out) const { minus(site, out); }
+void VoiceMixer::mixMinus(uint32_t site, std::span<float> out) const { minus(site, out); }
 
 }  // namespace tessera::collab

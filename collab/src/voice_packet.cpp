@@ -97,4 +97,9 @@ std::optional<std::vector<uint8_t>> VoiceSender::send(std::span<const float> pcm
   return bytes;
 }
 
+void VoiceSender::skip() {
+  mSilent = true;
+  mPacket.timestamp += uint32_t(mEncoder.frameSamples());
+}
+
 }  // namespace tessera::collab

@@ -27,21 +27,21 @@ class VoiceMixer {
   void clear();
   /// Adds a source's block: kWallSite (0) is the wall room's microphone, others are sites.
   /// A source added twice in a block adds up. Precondition (TESSERA_CHECK): block_samples long.
-  void add(uint16_t source, std::span<const float> pcm);
+  void add(uint32_t source, std::span<const float> pcm);
   /// The wall room's speakers: every site, limited. Precondition: out is block_samples long.
   void roomMix(std::span<float> out) const;
   /// What `site` hears: every source but itself (the wall's microphone included), limited.
-  void mixMinus(uint16_t site, std::span<float> out) const;
+  void mixMinus(uint32_t site, std::span<float> out) const;
 
   size_t blockSamples() const { return mTotal.size(); }
   /// The sources added to this block, by id.
-  const std::map<uint16_t, std::vector<float>>& sources() const { return mSources; }
+  const std::map<uint32_t, std::vector<float>>& sources() const { return mSources; }
 
  private:
-  void minus(uint16_t source, std::span<float> out) const;
+  void minus(uint32_t source, std::span<float> out) const;
 
   std::vector<float> mTotal;  ///< the sum of every source, unlimited
-  std::map<uint16_t, std::vector<float>> mSources;
+  std::map<uint32_t, std::vector<float>> mSources;
 };
 
 }  // namespace tessera::collab

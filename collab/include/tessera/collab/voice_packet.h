@@ -61,6 +61,9 @@ class VoiceSender {
   /// One frame of frameSamples() samples; returns the packet's bytes, or std::nullopt when
   /// DTX leaves the frame out.
   std::optional<std::vector<uint8_t>> send(std::span<const float> pcm);
+  /// A frame not even encoded (the caller knows it is digital silence): as DTX, the timestamp
+  /// advances and the next packet starts a talkspurt.
+  void skip();
 
   int frameSamples() const { return mEncoder.frameSamples(); }
   VoiceEncoder& encoder() { return mEncoder; }
