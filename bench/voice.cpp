@@ -187,6 +187,8 @@ int main(int argc, char** argv) {
     else
       std::printf("(espeak-ng not installed: the synthetic voice only)\n");
     std::ofstream qual(res / "voice_quality.csv");
+    // fec_percent: frames taken from the next packet's FEC data (with FEC off the stream has
+    // none, and libopus conceals them instead: the same frames, the same count).
     qual << "signal,fec,loss_percent,snr_clean_db,snr_sent_db,concealed_percent,fec_percent\n";
     std::printf("== quality against loss (10 ms mean jitter, %d seeds)\n", seeds);
     for (const auto& [name, x] : signals) {
@@ -213,7 +215,7 @@ int main(int argc, char** argv) {
                         mean.concealed * 100, mean.fec * 100);
           qual << row << "\n";
           std::printf("%-9s FEC %-3s loss %2d%%: SNR %5.1f dB against the clean path, %5.1f dB "
-                      "against the sent signal; concealed %5.2f%% (FEC %5.2f%%)\n",
+                      "against the sent signal; concealed %5.2f%% (from the next packet %5.2f%%)\n",
                       name.c_str(), fec ? "on" : "off", loss, mean.snr_clean, mean.snr_sent,
                       mean.concealed * 100, mean.fec * 100);
         }
@@ -231,15 +233,15 @@ int main(int argc, char** argv) {
        << "set title 'Voice quality against packet loss (Opus 32 kb/s, 20 ms, 10 ms mean "
           "jitter)'\nset xlabel 'packet loss (%)'\nset ylabel 'SNR against the clean path (dB)'\n"
        << "set y2label 'concealed frames (%)'\nset y2tics\nset ytics nomirror\nset key top right\n"
-       << "plot '" << q << "' using ($1 eq 'synthetic' && $2 eq 'on' ? $3 : 1/0):4 w lp pt 7 lc "
+       << "plot '" << q << "' skip 1 using (strcol(1) eq 'synthetic' && strcol(2) eq 'on' ? $3 : 1/0):4 w lp pt 7 lc "
           "rgb '#1f77b4' title 'synthetic voice, FEC on', \\\n"
-       << "  '' using ($1 eq 'synthetic' && $2 eq 'off' ? $3 : 1/0):4 w lp pt 6 dt 2 lc rgb "
+       << "  '' skip 1 using (strcol(1) eq 'synthetic' && strcol(2) eq 'off' ? $3 : 1/0):4 w lp pt 6 dt 2 lc rgb "
           "'#1f77b4' title 'synthetic voice, FEC off', \\\n"
-       << "  '' using ($1 eq 'espeak' && $2 eq 'on' ? $3 : 1/0):4 w lp pt 5 lc rgb '#d62728' "
+       << "  '' skip 1 using (strcol(1) eq 'espeak' && strcol(2) eq 'on' ? $3 : 1/0):4 w lp pt 5 lc rgb '#d62728' "
           "title 'espeak-ng sentence, FEC on', \\\n"
-       << "  '' using ($1 eq 'espeak' && $2 eq 'off' ? $3 : 1/0):4 w lp pt 4 dt 2 lc rgb "
+       << "  '' skip 1 using (strcol(1) eq 'espeak' && strcol(2) eq 'off' ? $3 : 1/0):4 w lp pt 4 dt 2 lc rgb "
           "'#d62728' title 'espeak-ng sentence, FEC off', \\\n"
-       << "  '' using ($1 eq 'synthetic' && $2 eq 'on' ? $3 : 1/0):6 axes x1y2 w l lw 2 lc rgb "
+       << "  '' skip 1 using (strcol(1) eq 'synthetic' && strcol(2) eq 'on' ? $3 : 1/0):6 axes x1y2 w l lw 2 lc rgb "
           "'#2ca02c' title 'concealed (synthetic, FEC on), right axis'\n"
        << "unset y2label\nunset y2tics\nset ytics mirror\n"
        << "set title 'Mouth-to-ear on loopback against network jitter (20 ms fixed network delay "

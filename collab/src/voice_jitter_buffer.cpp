@@ -22,6 +22,8 @@ constexpr double kFutureTolerance_s = 0.5;
 constexpr double kFecLossShare = 0.01;
 /// Times within this of each other are equal (the playout clock's own rounding).
 constexpr double kSlack_s = 1e-4;
+/// How far over target by more than a frame the delay must be before a frame is skipped.
+constexpr double kHysteresis_s = 0.002;
 
 /// RTP-style extension of a wrapping counter to 64 bits, around the newest value seen
 /// (RFC 3550 appendix A.1): the nearest 64-bit value with the same low bits.
@@ -210,8 +212,9 @@ void JitterBuffer::playFrame(double t) {
     const auto next = mPackets.begin();
     const bool present = next != mPackets.end() && next->first == mNext;
     const double frame_s = double(present ? next->second.frame_samples : mFrameSamples) / kRate;
-    // Half a frame of hysteresis: after a frame is skipped the delay is still over target.
-    const bool over = delay > target + 1.5 * frame_s + kSlack_s;
+    // A frame over target (and a little): after a frame is skipped the delay is still at or
+    // over target, so skipping and inserting never alternate.
+    const bool over = delay > target + frame_s + kHysteresis_s;
 
     if (present) {
       Held& held = next->second;
