@@ -70,24 +70,6 @@ std::vector<double> latencies(const VoicePath& path) {
   return out;
 }
 
-struct Quality {
-  double snr_clean = 0, snr_sent = 0, concealed = 0, fec = 0;
-};
-
-Quality quality(const std::vector<float>& x, const VoicePath& clean, const VoicePath& path) {
-  Quality q;
-  const size_t settle = size_t(0.3 * collab::kVoiceRate);
-  const int lag = test::bestLag(x, path.in_sender_time, 2000);
-  q.snr_sent = test::snrDb(x, path.in_sender_time, lag, settle, x.size());
-  const size_t l = size_t(clean.lookahead);
-  q.snr_clean = test::snrDb(std::span<const float>(clean.in_sender_time).subspan(l),
-                            path.in_sender_time, int(l), settle, x.size());
-  const double frames = double(std::max<uint64_t>(1, path.stats.frames()));
-  q.concealed = double(path.stats.concealed) / frames;
-  q.fec = double(path.stats.fec) / frames;
-  return q;
-}
-
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -197,13 +179,13 @@ int main(int argc, char** argv) {
         o.codec.fec = fec;
         const VoicePath clean = runVoicePath(x, NetworkModel{}, o);
         for (int loss = 0; loss <= 20; loss += 2) {
-          Quality mean;
+          test::PathQuality mean;
           for (int seed = 0; seed < seeds; ++seed) {
             NetworkModel net;
             net.loss = loss / 100.0;
             net.jitter_ms = 10;
             net.seed = uint32_t(100 + seed);
-            const Quality q = quality(x, clean, runVoicePath(x, net, o));
+            const test::PathQuality q = test::pathQuality(x, clean, runVoicePath(x, net, o));
             mean.snr_clean += q.snr_clean / seeds;
             mean.snr_sent += q.snr_sent / seeds;
             mean.concealed += q.concealed / seeds;

@@ -216,19 +216,15 @@ int run(int argc, char** argv) {
     }
     return cli::kExitBadCommandLine;
   }
-  if ((!sites.audio_in.empty() || !sites.audio_out.empty()) && !sites.voice) {
-    std::fprintf(stderr, "tessera-master: --audio-in and --audio-out need --voice\n");
+  const char* voice_problem =
+      (!sites.audio_in.empty() || !sites.audio_out.empty()) && !sites.voice
+          ? "--audio-in and --audio-out need --voice"
+          : (sites.endpoint.empty() && sites.voice ? "--voice needs --sites ENDPOINT" : nullptr);
+  if (voice_problem) {
+    std::fprintf(stderr, "tessera-master: %s\n", voice_problem);
     if (mpi) {
       sync::MpiMasterLink l(*mpi);
-      refuseEveryone(l, "--audio-in and --audio-out need --voice");
-    }
-    return cli::kExitBadCommandLine;
-  }
-  if (sites.endpoint.empty() && sites.voice) {
-    std::fprintf(stderr, "tessera-master: --voice needs --sites ENDPOINT\n");
-    if (mpi) {
-      sync::MpiMasterLink l(*mpi);
-      refuseEveryone(l, "--voice needs --sites");
+      refuseEveryone(l, voice_problem);
     }
     return cli::kExitBadCommandLine;
   }

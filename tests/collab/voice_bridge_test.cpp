@@ -5,7 +5,6 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
-#include <numbers>
 #include <random>
 
 #include <tessera/collab/voice_bridge.h>
@@ -16,29 +15,9 @@ namespace {
 
 using namespace tessera::collab;
 
-/// Power of `hz` in x[from, to) (Goertzel), per sample.
-double power(const std::vector<float>& x, double hz, size_t from, size_t to) {
-  const double w = 2 * std::numbers::pi * hz / kVoiceRate, c = 2 * std::cos(w);
-  double s1 = 0, s2 = 0;
-  to = std::min(to, x.size());
-  for (size_t n = from; n < to; ++n) {
-    const double s = x[n] + c * s1 - s2;
-    s2 = s1;
-    s1 = s;
-  }
-  const double n = double(to > from ? to - from : 1);
-  return (s1 * s1 + s2 * s2 - c * s1 * s2) / (n * n);
-}
-
-double db(double p) { return 10 * std::log10(std::max(p, 1e-30)); }
-
-/// A tone at `hz` that pauses for 0.4 s every 1.2 s (so DTX and talkspurts happen).
-std::vector<float> talking(double hz, double seconds) {
-  std::vector<float> x = tessera::test::tone(hz, seconds, 0.25f);
-  for (size_t n = 0; n < x.size(); ++n)
-    if (std::fmod(double(n) / kVoiceRate, 1.2) > 0.8) x[n] = 0;
-  return x;
-}
+using tessera::test::db;
+using tessera::test::power;
+using tessera::test::talking;
 
 struct InFlight {
   double at;

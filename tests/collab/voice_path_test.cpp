@@ -17,33 +17,22 @@ using namespace tessera;
 using test::NetworkModel;
 using test::runVoicePath;
 
-struct Measured {
-  int lag = 0;
-  double snr_sent = 0;   ///< against the sent signal, dB
-  double snr_clean = 0;  ///< against the clean path's output, dB
-  double concealed = 0;  ///< share of frames played
-  float step = 0;        ///< largest sample step of what was played
+struct Measured : test::PathQuality {
+  float step = 0;  ///< largest sample step of what was played
   test::VoicePath path;
 };
-
-/// The first 0.3 s are left out of the SNR: the buffer is still learning the jitter.
-constexpr size_t kSettle = size_t(0.3 * collab::kVoiceRate);
 
 Measured measure(const std::vector<float>& x, const NetworkModel& net,
                  const test::VoicePath& clean, const test::VoicePathOptions& options = {}) {
   Measured m;
   m.path = runVoicePath(x, net, options);
-  const auto& y = m.path.in_sender_time;
-  m.lag = test::bestLag(x, y, 2000);
-  m.snr_sent = test::snrDb(x, y, m.lag, kSettle, x.size());
-  // The clean path at the same place: both are the sent signal delayed by the lookahead.
-  const size_t lag = size_t(clean.lookahead);
-  m.snr_clean = test::snrDb(std::span<const float>(clean.in_sender_time).subspan(lag), y,
-                            int(lag), kSettle, x.size());
-  m.concealed = double(m.path.stats.concealed) / double(std::max<uint64_t>(1, m.path.stats.frames()));
+  static_cast<test::PathQuality&>(m) = test::pathQuality(x, clean, m.path);
   m.step = test::maxStep(m.path.played);
   return m;
 }
+
+/// The first 0.3 s are left out of the SNR: the buffer is still learning the jitter.
+constexpr size_t kSettle = size_t(0.3 * collab::kVoiceRate);
 
 void report(const char* what, double loss, const Measured& m) {
   const auto& s = m.path.stats;

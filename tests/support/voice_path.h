@@ -268,4 +268,54 @@ inline float maxStep(std::span<const float> x) {
   return step;
 }
 
+/// How well `path` carried `x`, against the sent signal and against `clean` (the same codec
+/// without loss or jitter): the received signal aligned by cross-correlation (`lag`, samples),
+/// SNRs in dB over x[settle, end) (the buffer is still learning the jitter before), and the
+/// shares of frames played that were concealed and that came from the next packet's FEC.
+struct PathQuality {
+  int lag = 0;
+  double snr_sent = 0, snr_clean = 0, concealed = 0, fec = 0;
+};
+
+inline PathQuality pathQuality(std::span<const float> x, const VoicePath& clean,
+                               const VoicePath& path, size_t settle = size_t(0.3 * kVoiceRate)) {
+  PathQuality q;
+  const auto& y = path.in_sender_time;
+  q.lag = bestLag(x, y, 2000);
+  q.snr_sent = snrDb(x, y, q.lag, settle, x.size());
+  // The clean path at the same place: both are the sent signal delayed by the lookahead.
+  const size_t l = size_t(clean.lookahead);
+  q.snr_clean =
+      snrDb(std::span<const float>(clean.in_sender_time).subspan(l), y, int(l), settle, x.size());
+  const double frames = double(std::max<uint64_t>(1, path.stats.frames()));
+  q.concealed = double(path.stats.concealed) / frames;
+  q.fec = double(path.stats.fec) / frames;
+  return q;
+}
+
+/// Power of `hz` in x[from, to) (Goertzel), per sample: who is heard in a mix of tones.
+inline double power(std::span<const float> x, double hz, size_t from, size_t to) {
+  const double w = 2 * std::numbers::pi * hz / kVoiceRate, c = 2 * std::cos(w);
+  double s1 = 0, s2 = 0;
+  to = std::min(to, x.size());
+  for (size_t n = from; n < to; ++n) {
+    const double s = x[n] + c * s1 - s2;
+    s2 = s1;
+    s1 = s;
+  }
+  const double n = double(to > from ? to - from : 1);
+  return (s1 * s1 + s2 * s2 - c * s1 * s2) / (n * n);
+}
+
+inline double db(double p) { return 10 * std::log10(std::max(p, 1e-30)); }
+
+/// A voice of its own pitch: a tone at `hz` (0.25 peak) that pauses for 0.4 s every 1.2 s (so
+/// DTX and talkspurts happen).
+inline std::vector<float> talking(double hz, double seconds) {
+  std::vector<float> x = tone(hz, seconds, 0.25f);
+  for (size_t n = 0; n < x.size(); ++n)
+    if (std::fmod(double(n) / kVoiceRate, 1.2) > 0.8) x[n] = 0;
+  return x;
+}
+
 }  // namespace tessera::test
