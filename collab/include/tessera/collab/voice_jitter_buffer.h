@@ -3,8 +3,9 @@
 // packets long enough to absorb the network's jitter and no longer:
 //
 // - Jitter: every packet's transit (arrival - timestamp / 48 kHz) is kept for the last
-//   `window` packets. The fastest of them is the base; a packet's relative delay is its transit
-//   minus the base, and the target playout delay is the `quantile` of the relative delays (the
+//   `window` packets. The fastest of them (the 1st percentile, so one packet with a wrong
+//   timestamp moves nothing) is the base; a packet's relative delay is its transit minus the
+//   base, and the target playout delay is the `quantile` of the relative delays (the
 //   delay that lets that share of packets arrive in time), clamped to [min_delay, max_delay].
 //   This is WebRTC NetEq's relative-delay histogram in spirit (its "delay manager"); the RFC 3550
 //   (section 6.4.1, A.8) interarrival jitter J += (|D| - J) / 16 is kept too, for the stats.
@@ -13,19 +14,20 @@
 // - Adaptation: the delay is changed where it cannot be heard. It grows when the next frame is
 //   missing and the delay is below target (a concealed frame is played without advancing, so
 //   the late packet can still play: NetEq's "expand"), and in silence (DTX gaps and quiet
-//   frames); it shrinks by skipping frames of silence, or any frame when it is more than
-//   `shrink_in_speech` over target (after a jitter spike). A talkspurt that starts after DTX is
-//   scheduled from its own arrival (Ramjee et al. 1994, "Adaptive playout mechanisms for
-//   packetized audio applications in wide-area networks", algorithm 1's per-talkspurt playout),
-//   so its first words are never dropped as late.
+//   frames); it shrinks by skipping frames of silence when it is more than a frame over target,
+//   or any frame when it is more than `shrink_in_speech` over (after a jitter spike). A
+//   talkspurt that starts after DTX is scheduled from its own arrival (per-talkspurt playout
+//   adjustment, Ramjee et al. 1994, "Adaptive playout mechanisms for packetized audio
+//   applications in wide-area networks"), so its first words are never dropped as late.
 // - Losses: a missing frame whose next packet is here is recovered from that packet's in-band
 //   FEC; otherwise it is concealed (Opus PLC). A sequence gap is a loss; a timestamp gap with no
 //   sequence gap is DTX silence (comfort noise, not counted as concealed).
 // - Packets older than the playout point are dropped (late); duplicates are ignored; a packet
 //   far out of range is refused, and a run of them (a sender that restarted) resets the stream.
 //
-// Deterministic: the output depends only on the packets and the times passed in. Not thread-
-// safe: push() and pull() from one thread (the audio thread, or a queue feeding it).
+// Deterministic: the output depends only on the packets and the times passed in. Cost: one
+// Opus decode per frame played and two selections over the window's transits. Not thread-safe:
+// push() and pull() from one thread (the audio thread, or a queue feeding it).
 #pragma once
 
 #include <cstddef>
