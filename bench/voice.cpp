@@ -110,14 +110,15 @@ int main(int argc, char** argv) {
         const double conc = 100.0 * double(p.stats.concealed) / double(p.stats.frames());
         char row[256];
         std::snprintf(row, sizeof row, "%d,%.0f,%.2f,%.1f,%.1f,%.1f,%.1f,%.2f", frame_ms, jitter,
-                      p.stats.jitter_s * 1e3, p.stats.target_s * 1e3,
-                      percentile(delays, 0.5) * 1e3, percentile(l, 0.5), percentile(l, 0.95), conc);
+                      p.stats.jitter_s * 1e3, p.stats.target_s * 1e3, percentile(delays, 0.5) * 1e3,
+                      percentile(l, 0.5), percentile(l, 0.95), conc);
         lat << row << "\n";
-        std::printf("frame %2d ms, jitter mean %4.0f ms (RFC 3550 J %5.2f ms): target %5.1f ms, "
-                    "buffer %5.1f ms, mouth-to-ear median %5.1f ms, p95 %5.1f ms, concealed "
-                    "%.2f%%\n",
-                    frame_ms, jitter, p.stats.jitter_s * 1e3, p.stats.target_s * 1e3,
-                    percentile(delays, 0.5) * 1e3, percentile(l, 0.5), percentile(l, 0.95), conc);
+        std::printf(
+            "frame %2d ms, jitter mean %4.0f ms (RFC 3550 J %5.2f ms): target %5.1f ms, "
+            "buffer %5.1f ms, mouth-to-ear median %5.1f ms, p95 %5.1f ms, concealed "
+            "%.2f%%\n",
+            frame_ms, jitter, p.stats.jitter_s * 1e3, p.stats.target_s * 1e3,
+            percentile(delays, 0.5) * 1e3, percentile(l, 0.5), percentile(l, 0.95), conc);
       }
     }
     lat.close();
@@ -152,10 +153,11 @@ int main(int argc, char** argv) {
       const double kbps = double(bytes) * 8 / audio_s / 1000;
       cpu << complexity << "," << encode_s / audio_s * 1000 << "," << decode_s / audio_s * 1000
           << "," << kbps << "\n";
-      std::printf("complexity %2d: encode %.2f ms, decode %.2f ms CPU per second of audio "
-                  "(%.2f%% and %.2f%% of a core), %.1f kbit/s\n",
-                  complexity, encode_s / audio_s * 1000, decode_s / audio_s * 1000,
-                  encode_s / audio_s * 100, decode_s / audio_s * 100, kbps);
+      std::printf(
+          "complexity %2d: encode %.2f ms, decode %.2f ms CPU per second of audio "
+          "(%.2f%% and %.2f%% of a core), %.1f kbit/s\n",
+          complexity, encode_s / audio_s * 1000, decode_s / audio_s * 1000,
+          encode_s / audio_s * 100, decode_s / audio_s * 100, kbps);
     }
     cpu.close();
 
@@ -196,10 +198,11 @@ int main(int argc, char** argv) {
                         fec ? "on" : "off", loss, mean.snr_clean, mean.snr_sent,
                         mean.concealed * 100, mean.fec * 100);
           qual << row << "\n";
-          std::printf("%-9s FEC %-3s loss %2d%%: SNR %5.1f dB against the clean path, %5.1f dB "
-                      "against the sent signal; concealed %5.2f%% (from the next packet %5.2f%%)\n",
-                      name.c_str(), fec ? "on" : "off", loss, mean.snr_clean, mean.snr_sent,
-                      mean.concealed * 100, mean.fec * 100);
+          std::printf(
+              "%-9s FEC %-3s loss %2d%%: SNR %5.1f dB against the clean path, %5.1f dB "
+              "against the sent signal; concealed %5.2f%% (from the next packet %5.2f%%)\n",
+              name.c_str(), fec ? "on" : "off", loss, mean.snr_clean, mean.snr_sent,
+              mean.concealed * 100, mean.fec * 100);
         }
       }
     }
@@ -215,21 +218,28 @@ int main(int argc, char** argv) {
        << "set title 'Voice quality against packet loss (Opus 32 kb/s, 20 ms, 10 ms mean "
           "jitter)'\nset xlabel 'packet loss (%)'\nset ylabel 'SNR against the clean path (dB)'\n"
        << "set y2label 'concealed frames (%)'\nset y2tics\nset ytics nomirror\nset key top right\n"
-       << "plot '" << q << "' skip 1 using (strcol(1) eq 'synthetic' && strcol(2) eq 'on' ? $3 : 1/0):4 w lp pt 7 lc "
+       << "plot '" << q
+       << "' skip 1 using (strcol(1) eq 'synthetic' && strcol(2) eq 'on' ? $3 : 1/0):4 w lp pt 7 "
+          "lc "
           "rgb '#1f77b4' title 'synthetic voice, FEC on', \\\n"
-       << "  '' skip 1 using (strcol(1) eq 'synthetic' && strcol(2) eq 'off' ? $3 : 1/0):4 w lp pt 6 dt 2 lc rgb "
+       << "  '' skip 1 using (strcol(1) eq 'synthetic' && strcol(2) eq 'off' ? $3 : 1/0):4 w lp pt "
+          "6 dt 2 lc rgb "
           "'#1f77b4' title 'synthetic voice, FEC off', \\\n"
-       << "  '' skip 1 using (strcol(1) eq 'espeak' && strcol(2) eq 'on' ? $3 : 1/0):4 w lp pt 5 lc rgb '#d62728' "
+       << "  '' skip 1 using (strcol(1) eq 'espeak' && strcol(2) eq 'on' ? $3 : 1/0):4 w lp pt 5 "
+          "lc rgb '#d62728' "
           "title 'espeak-ng sentence, FEC on', \\\n"
-       << "  '' skip 1 using (strcol(1) eq 'espeak' && strcol(2) eq 'off' ? $3 : 1/0):4 w lp pt 4 dt 2 lc rgb "
+       << "  '' skip 1 using (strcol(1) eq 'espeak' && strcol(2) eq 'off' ? $3 : 1/0):4 w lp pt 4 "
+          "dt 2 lc rgb "
           "'#d62728' title 'espeak-ng sentence, FEC off', \\\n"
-       << "  '' skip 1 using (strcol(1) eq 'synthetic' && strcol(2) eq 'on' ? $3 : 1/0):6 axes x1y2 w l lw 2 lc rgb "
+       << "  '' skip 1 using (strcol(1) eq 'synthetic' && strcol(2) eq 'on' ? $3 : 1/0):6 axes "
+          "x1y2 w l lw 2 lc rgb "
           "'#2ca02c' title 'concealed (synthetic, FEC on), right axis'\n"
        << "unset y2label\nunset y2tics\nset ytics mirror\n"
        << "set title 'Mouth-to-ear on loopback against network jitter (20 ms fixed network delay "
           "taken out)'\nset xlabel 'mean network jitter (ms, exponential)'\nset ylabel 'ms'\n"
        << "set key top left\n"
-       << "plot '" << l << "' skip 1 using ($1 == 20 ? $2 : 1/0):6 w lp pt 7 lc rgb '#1f77b4' "
+       << "plot '" << l
+       << "' skip 1 using ($1 == 20 ? $2 : 1/0):6 w lp pt 7 lc rgb '#1f77b4' "
           "title 'mouth-to-ear median, 20 ms frames', \\\n"
        << "  '' skip 1 using ($1 == 20 ? $2 : 1/0):7 w lp pt 6 dt 2 lc rgb '#1f77b4' title "
           "'p95, 20 ms frames', \\\n"

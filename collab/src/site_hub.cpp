@@ -202,9 +202,9 @@ struct SiteHub::Impl {
       } else if (m.kind_case() == site::ToMaster::kVoice) {
         counters.voice_in++;
         VoicePacket packet;
-        if (voice && !decodeVoicePacket({reinterpret_cast<const uint8_t*>(m.voice().data()),
-                                         m.voice().size()},
-                                        packet))
+        if (voice &&
+            !decodeVoicePacket(
+                {reinterpret_cast<const uint8_t*>(m.voice().data()), m.voice().size()}, packet))
           voice->receive(p.participant, packet, now - voice_start);
       } else {
         roster.apply(graph, p.participant, m, now);
@@ -228,9 +228,9 @@ SiteHub::SiteHub(SiteHubOptions options) : m(std::make_unique<Impl>()) {
     m->chunks = std::make_unique<ChunkServer>(m->context, m->keys, co);
   }
   if (m->opt.voice) {
-    m->voice = std::make_unique<VoiceBridge>(
-        VoiceSettings{}, m->opt.audio_in.empty() ? std::vector<float>{}
-                                                 : readVoiceWav(m->opt.audio_in));
+    m->voice = std::make_unique<VoiceBridge>(VoiceSettings{}, m->opt.audio_in.empty()
+                                                                  ? std::vector<float>{}
+                                                                  : readVoiceWav(m->opt.audio_in));
     m->voice_start = seconds(Clock::now());
   }
 }

@@ -115,8 +115,8 @@ Problem checkToMaster(const site::ToMaster& m) {
     case site::ToMaster::kVoice: {
       VoicePacket packet;
       const std::string& v = m.voice();
-      if (auto why = decodeVoicePacket(
-              {reinterpret_cast<const uint8_t*>(v.data()), v.size()}, packet))
+      if (auto why =
+              decodeVoicePacket({reinterpret_cast<const uint8_t*>(v.data()), v.size()}, packet))
         return "voice: " + *why;
       return {};
     }

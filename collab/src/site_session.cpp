@@ -641,8 +641,9 @@ struct SiteSession::Impl {
       strokes_csv << "stroke,px,py,x,y,z,depth\n";
     }
     if (!opt.audio_in.empty() || !opt.audio_out.empty()) {
-      station = std::make_unique<VoiceStation>(
-          VoiceSettings{}, opt.audio_in.empty() ? std::vector<float>{} : readVoiceWav(opt.audio_in));
+      station = std::make_unique<VoiceStation>(VoiceSettings{}, opt.audio_in.empty()
+                                                                    ? std::vector<float>{}
+                                                                    : readVoiceWav(opt.audio_in));
       opt.client.voice = [this](std::string_view bytes) {
         station->receive({reinterpret_cast<const uint8_t*>(bytes.data()), bytes.size()},
                          voiceNow());

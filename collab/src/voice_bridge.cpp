@@ -75,11 +75,13 @@ VoiceBridge::VoiceBridge(const VoiceSettings& codec, std::vector<float> wall_mic
 }
 
 void VoiceBridge::join(uint32_t participant) {
-  mParticipants.try_emplace(participant, Participant{JitterBuffer(mBufferSettings),
-                                                     VoiceSender(mCodec, kWallSite), {}});
+  mParticipants.try_emplace(
+      participant, Participant{JitterBuffer(mBufferSettings), VoiceSender(mCodec, kWallSite), {}});
 }
 
-void VoiceBridge::leave(uint32_t participant) { mParticipants.erase(participant); }
+void VoiceBridge::leave(uint32_t participant) {
+  mParticipants.erase(participant);
+}
 
 void VoiceBridge::receive(uint32_t participant, const VoicePacket& packet, double now) {
   auto it = mParticipants.find(participant);

@@ -12,15 +12,14 @@ namespace {
 
 void expectRange(int value, int lo, int hi, const char* what) {
   if (value < lo || value > hi)
-    throw VoiceError("collab::VoiceEncoder: " + std::string(what) + " is " +
-                     std::to_string(value) + ", expected " + std::to_string(lo) + ".." +
-                     std::to_string(hi));
+    throw VoiceError("collab::VoiceEncoder: " + std::string(what) + " is " + std::to_string(value) +
+                     ", expected " + std::to_string(lo) + ".." + std::to_string(hi));
 }
 
 void expectOk(int rc, const char* what) {
   if (rc != OPUS_OK)
-    throw VoiceError("collab::VoiceEncoder: " + std::string(what) + " failed: " +
-                     opus_strerror(rc));
+    throw VoiceError("collab::VoiceEncoder: " + std::string(what) +
+                     " failed: " + opus_strerror(rc));
 }
 
 bool wholeFrame(size_t samples) {
@@ -29,8 +28,12 @@ bool wholeFrame(size_t samples) {
 
 }  // namespace
 
-void VoiceEncoder::Free::operator()(OpusEncoder* e) const noexcept { opus_encoder_destroy(e); }
-void VoiceDecoder::Free::operator()(OpusDecoder* d) const noexcept { opus_decoder_destroy(d); }
+void VoiceEncoder::Free::operator()(OpusEncoder* e) const noexcept {
+  opus_encoder_destroy(e);
+}
+void VoiceDecoder::Free::operator()(OpusDecoder* d) const noexcept {
+  opus_decoder_destroy(d);
+}
 
 VoiceEncoder::VoiceEncoder(const VoiceSettings& s) {
   if (s.frame_ms != 10 && s.frame_ms != 20)
@@ -64,8 +67,8 @@ bool VoiceEncoder::encode(std::span<const float> pcm, std::vector<uint8_t>& payl
                 "collab::VoiceEncoder::encode(): a frame is " + std::to_string(mFrameSamples) +
                     " samples, got " + std::to_string(pcm.size()));
   payload.resize(kMaxOpusPayloadBytes);
-  const opus_int32 n = opus_encode_float(mEncoder.get(), pcm.data(), mFrameSamples,
-                                         payload.data(), opus_int32(payload.size()));
+  const opus_int32 n = opus_encode_float(mEncoder.get(), pcm.data(), mFrameSamples, payload.data(),
+                                         opus_int32(payload.size()));
   // Only API misuse makes opus_encode_float fail (the frame size and buffer are ours).
   TESSERA_CHECK(n > 0, std::string("collab::VoiceEncoder::encode(): ") + opus_strerror(n));
   payload.resize(size_t(n));

@@ -68,9 +68,8 @@ void JitterBuffer::push(const VoicePacket& packet, double arrival) {
   const int64_t ts = extend32(packet.timestamp, mMaxTimestamp);
   const int64_t seq = extend16(packet.sequence, mMaxSequence);
   const int64_t reference = mPlaying ? mNext : mMaxTimestamp;
-  const bool from_the_future =
-      !mTransits.empty() &&
-      arrival - double(ts - mOrigin) / kRate < baseTransit() - kFutureTolerance_s;
+  const bool from_the_future = !mTransits.empty() && arrival - double(ts - mOrigin) / kRate <
+                                                         baseTransit() - kFutureTolerance_s;
   if (ts < reference - kOutOfRange || ts > reference + kOutOfRange || from_the_future ||
       packet.frame_samples <= 0 || packet.frame_samples > kMaxVoiceFrameSamples) {
     mStats.refused += 1;

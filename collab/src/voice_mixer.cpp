@@ -49,8 +49,12 @@ void VoiceMixer::minus(uint32_t source, std::span<float> out) const {
   }
 }
 
-void VoiceMixer::roomMix(std::span<float> out) const { minus(kWallSite, out); }
+void VoiceMixer::roomMix(std::span<float> out) const {
+  minus(kWallSite, out);
+}
 
-void VoiceMixer::mixMinus(uint32_t site, std::span<float> out) const { minus(site, out); }
+void VoiceMixer::mixMinus(uint32_t site, std::span<float> out) const {
+  minus(site, out);
+}
 
 }  // namespace tessera::collab

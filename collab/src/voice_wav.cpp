@@ -16,7 +16,9 @@
 namespace tessera::collab {
 namespace {
 
-uint16_t get16(const uint8_t* p) { return uint16_t(p[0] | (p[1] << 8)); }
+uint16_t get16(const uint8_t* p) {
+  return uint16_t(p[0] | (p[1] << 8));
+}
 uint32_t get32(const uint8_t* p) {
   return uint32_t(p[0]) | (uint32_t(p[1]) << 8) | (uint32_t(p[2]) << 16) | (uint32_t(p[3]) << 24);
 }
@@ -43,8 +45,9 @@ WavAudio parseWav(std::span<const uint8_t> bytes, const std::string& name) {
     const size_t left = bytes.size() - body;
     const std::string id(reinterpret_cast<const char*>(chunk), 4);
     if (id == "fmt ") {
-      if (size < 16 || size > left) throw fail("the fmt chunk is " + std::to_string(size) +
-                                               " bytes, expected at least 16 within the file");
+      if (size < 16 || size > left)
+        throw fail("the fmt chunk is " + std::to_string(size) +
+                   " bytes, expected at least 16 within the file");
       const uint8_t* f = bytes.data() + body;
       uint16_t format = get16(f);
       if (format == 0xFFFE && size >= 40) format = get16(f + 24);  // EXTENSIBLE: sub-format
@@ -53,10 +56,10 @@ WavAudio parseWav(std::span<const uint8_t> bytes, const std::string& name) {
       const int block = get16(f + 12);
       const int bits = get16(f + 14);
       if (format != 1)
-        throw fail("format " + std::to_string(format) + ", expected PCM (1): compressed or "
+        throw fail("format " + std::to_string(format) +
+                   ", expected PCM (1): compressed or "
                    "float WAV is not read (convert it to 16-bit PCM)");
-      if (bits != 16)
-        throw fail(std::to_string(bits) + "-bit samples, expected 16-bit PCM");
+      if (bits != 16) throw fail(std::to_string(bits) + "-bit samples, expected 16-bit PCM");
       if (channels != 1 && channels != 2)
         throw fail(std::to_string(channels) + " channels, expected mono or stereo");
       if (rate < uint32_t(kMinRate) || rate > uint32_t(kMaxRate))
@@ -194,7 +197,8 @@ void writeWav(const std::filesystem::path& path, std::span<const float> samples,
     put(44 + 2 * i, uint32_t(uint16_t(int16_t(std::lround(v * 32767.0f)))), 2);
   }
   std::ofstream out(path, std::ios::binary | std::ios::trunc);
-  if (!out) throw WavError("collab::writeWav(): " + path.string() + ": " + whyNotWritable(path, errno));
+  if (!out)
+    throw WavError("collab::writeWav(): " + path.string() + ": " + whyNotWritable(path, errno));
   out.write(reinterpret_cast<const char*>(bytes.data()), std::streamsize(bytes.size()));
   if (!out.flush())
     throw WavError("collab::writeWav(): " + path.string() + ": write failed (disk full?)");

@@ -67,12 +67,15 @@ TEST(VoiceBridge, TheRoomHearsTheSitesAndEachSiteEveryoneButItself) {
   const auto& room = bridge.room();
   const auto& a = stations.at(1).speaker();
   const auto& b = stations.at(2).speaker();
-  std::printf("room: 300 Hz %.0f dB, 500 Hz %.0f dB, 700 Hz %.0f dB\n", db(power(room, 300, from, to)),
-              db(power(room, 500, from, to)), db(power(room, 700, from, to)));
-  std::printf("site 1: 300 Hz %.0f dB, 500 Hz %.0f dB, 700 Hz %.0f dB\n", db(power(a, 300, from, to)),
-              db(power(a, 500, from, to)), db(power(a, 700, from, to)));
-  std::printf("site 2: 300 Hz %.0f dB, 500 Hz %.0f dB, 700 Hz %.0f dB\n", db(power(b, 300, from, to)),
-              db(power(b, 500, from, to)), db(power(b, 700, from, to)));
+  std::printf("room: 300 Hz %.0f dB, 500 Hz %.0f dB, 700 Hz %.0f dB\n",
+              db(power(room, 300, from, to)), db(power(room, 500, from, to)),
+              db(power(room, 700, from, to)));
+  std::printf("site 1: 300 Hz %.0f dB, 500 Hz %.0f dB, 700 Hz %.0f dB\n",
+              db(power(a, 300, from, to)), db(power(a, 500, from, to)),
+              db(power(a, 700, from, to)));
+  std::printf("site 2: 300 Hz %.0f dB, 500 Hz %.0f dB, 700 Hz %.0f dB\n",
+              db(power(b, 300, from, to)), db(power(b, 500, from, to)),
+              db(power(b, 700, from, to)));
   // Heard: within 10 dB of the others heard; not heard: 30 dB below.
   const auto hears = [&](const std::vector<float>& x, double yes1, double yes2, double no) {
     const double p1 = db(power(x, yes1, from, to)), p2 = db(power(x, yes2, from, to));
@@ -93,7 +96,8 @@ TEST(VoiceBridge, TheRoomHearsTheSitesAndEachSiteEveryoneButItself) {
     hears(b, 300, 500, 700);
   }
   EXPECT_LT(double(bridge.stats(1)->concealed), 0.05 * double(bridge.stats(1)->frames()));
-  EXPECT_LT(double(stations.at(1).stats().concealed), 0.05 * double(stations.at(1).stats().frames()));
+  EXPECT_LT(double(stations.at(1).stats().concealed),
+            0.05 * double(stations.at(1).stats().frames()));
 }
 
 TEST(VoiceBridge, NobodyTalkingSendsNothingAndALeaverGetsNothing) {
@@ -119,7 +123,8 @@ TEST(VoiceBridge, NobodyTalkingSendsNothingAndALeaverGetsNothing) {
   EXPECT_EQ(to[1], 0u);
   bridge.leave(1);
   to.clear();
-  for (double t = 3; t < 4; t += 0.02) bridge.advance(t, [&](uint32_t id, const auto&) { ++to[id]; });
+  for (double t = 3; t < 4; t += 0.02)
+    bridge.advance(t, [&](uint32_t id, const auto&) { ++to[id]; });
   EXPECT_LE(to[2], 3u);  // the tail of its last words
   EXPECT_EQ(bridge.stats(1), nullptr);
 }

@@ -114,8 +114,10 @@ double lostFrameSnr(const std::vector<std::vector<uint8_t>>& packets, size_t k, 
   for (size_t i = 0; i <= k + 1; ++i) {
     clean.decode(packets[i], a);
     if (i == k) {
-      if (fec) lossy.decodeFec(packets[k + 1], b);
-      else lossy.conceal(b);
+      if (fec)
+        lossy.decodeFec(packets[k + 1], b);
+      else
+        lossy.conceal(b);
     } else {
       lossy.decode(packets[i], b);
     }
@@ -171,7 +173,8 @@ TEST(VoiceCodec, GarbageBehindAValidTocDecodesToSomethingBounded) {
     p[0] = uint8_t((p[0] & 0xF8) | 0);  // code 0: one frame; the config byte is random
     // Only 20 ms configurations fit `out`; the others are refused by voice_packet.h first.
     const int config = p[0] >> 3;
-    const bool twenty = (config < 12 && config % 4 == 1) || (config >= 12 && config < 16 && config % 2 == 1) ||
+    const bool twenty = (config < 12 && config % 4 == 1) ||
+                        (config >= 12 && config < 16 && config % 2 == 1) ||
                         (config >= 16 && config % 4 == 3);
     if (!twenty) continue;
     if (!d.decode(p, out)) ++refused;

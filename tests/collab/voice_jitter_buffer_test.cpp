@@ -227,10 +227,11 @@ TEST(JitterBuffer, TheTargetFollowsTheJitterUpAndDown) {
   }
   final_target = b.stats().target_s;
   final_delay = b.stats().delay_s;
-  std::printf("target: calm %.1f ms, jittery %.1f ms, calm again %.1f ms (delay %.1f ms); "
-              "inserted %llu, dropped %llu\n",
-              calm_target * 1e3, jittery_target * 1e3, final_target * 1e3, final_delay * 1e3,
-              (unsigned long long)b.stats().inserted, (unsigned long long)b.stats().dropped);
+  std::printf(
+      "target: calm %.1f ms, jittery %.1f ms, calm again %.1f ms (delay %.1f ms); "
+      "inserted %llu, dropped %llu\n",
+      calm_target * 1e3, jittery_target * 1e3, final_target * 1e3, final_delay * 1e3,
+      (unsigned long long)b.stats().inserted, (unsigned long long)b.stats().dropped);
   EXPECT_LT(calm_target, 0.015);
   // 30 ms mean exponential: its 97th percentile is 105 ms.
   EXPECT_GT(jittery_target, 0.070);

@@ -22,8 +22,8 @@ struct Measured : test::PathQuality {
   test::VoicePath path;
 };
 
-Measured measure(const std::vector<float>& x, const NetworkModel& net,
-                 const test::VoicePath& clean, const test::VoicePathOptions& options = {}) {
+Measured measure(const std::vector<float>& x, const NetworkModel& net, const test::VoicePath& clean,
+                 const test::VoicePathOptions& options = {}) {
   Measured m;
   m.path = runVoicePath(x, net, options);
   static_cast<test::PathQuality&>(m) = test::pathQuality(x, clean, m.path);
@@ -36,13 +36,14 @@ constexpr size_t kSettle = size_t(0.3 * collab::kVoiceRate);
 
 void report(const char* what, double loss, const Measured& m) {
   const auto& s = m.path.stats;
-  std::printf("%-9s loss %4.1f%%: lag %d, SNR %5.1f dB (sent) %5.1f dB (clean path), concealed "
-              "%5.2f%% (fec %llu), lost %zu, late %llu, inserted %llu, dropped %llu, dtx %llu, "
-              "target %.1f ms, jitter %.1f ms, max step %.3f\n",
-              what, loss * 100, m.lag, m.snr_sent, m.snr_clean, m.concealed * 100,
-              (unsigned long long)s.fec, m.path.packets_lost, (unsigned long long)s.late,
-              (unsigned long long)s.inserted, (unsigned long long)s.dropped,
-              (unsigned long long)s.dtx, s.target_s * 1e3, s.jitter_s * 1e3, m.step);
+  std::printf(
+      "%-9s loss %4.1f%%: lag %d, SNR %5.1f dB (sent) %5.1f dB (clean path), concealed "
+      "%5.2f%% (fec %llu), lost %zu, late %llu, inserted %llu, dropped %llu, dtx %llu, "
+      "target %.1f ms, jitter %.1f ms, max step %.3f\n",
+      what, loss * 100, m.lag, m.snr_sent, m.snr_clean, m.concealed * 100,
+      (unsigned long long)s.fec, m.path.packets_lost, (unsigned long long)s.late,
+      (unsigned long long)s.inserted, (unsigned long long)s.dropped, (unsigned long long)s.dtx,
+      s.target_s * 1e3, s.jitter_s * 1e3, m.step);
 }
 
 struct Bounds {

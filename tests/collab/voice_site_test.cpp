@@ -66,18 +66,16 @@ TEST(VoiceSites, TheWallAndTwoSitesHearEachOtherButNotThemselves) {
   collab::writeWav(dir / "a-mic.wav", test::talking(kAHz, 8));
   collab::writeWav(dir / "b-mic.wav", test::talking(kBHz, 8));
 
-  const auto argv = test::masterWithSites(
-      TESSERA_MASTER, dir.path(), dir.path(), 14.0, camera,
-      {"--voice", "--audio-in", (dir / "wall-mic.wav").string(), "--audio-out",
-       (dir / "room.wav").string()});
+  const auto argv = test::masterWithSites(TESSERA_MASTER, dir.path(), dir.path(), 14.0, camera,
+                                          {"--voice", "--audio-in", (dir / "wall-mic.wav").string(),
+                                           "--audio-out", (dir / "room.wav").string()});
   Process master(argv, dir / "master.log");
   ASSERT_TRUE(master.waitFor("remote sites join on (tcp://\\S+)", 30)) << master.output();
   const std::string out = master.output();
   const std::string wall = test::captured(out, "listening on (tcp://\\S+)");
   const std::string sites =
       "tcp://127.0.0.1:" + test::captured(out, "remote sites join on tcp://[^:]+:(\\d+)");
-  Process node({TESSERA_NODE, "--master", wall, "--headless", "--tile", "tile"},
-               dir / "node.log");
+  Process node({TESSERA_NODE, "--master", wall, "--headless", "--tile", "tile"}, dir / "node.log");
   test::writeText(dir / "still.json", R"({"actions": []})");
   std::vector<std::unique_ptr<Process>> site_processes;
   for (const std::string name : {"a", "b"})
@@ -130,8 +128,8 @@ TEST(VoiceSites, VoiceOptionsAreChecked) {
   EXPECT_EQ(r.code, 2) << r.out;
   EXPECT_NE(r.out.find("--voice needs --sites"), std::string::npos) << r.out;
   // A site whose microphone file is missing says which and stops before it joins.
-  const auto k = test::runCommand(std::string(TESSERA_SITE) + " keygen -o " +
-                                  (dir / "s.key").string());
+  const auto k =
+      test::runCommand(std::string(TESSERA_SITE) + " keygen -o " + (dir / "s.key").string());
   ASSERT_EQ(k.code, 0) << k.out;
   // (Z85 keys hold shell characters such as '(' and '&': quoted.)
   r = test::runCommand(std::string(TESSERA_SITE) + " --master tcp://127.0.0.1:9 --master-key '" +

@@ -26,14 +26,14 @@ std::string refusal(const fs::path& path) {
 }
 
 void writeBytes(const fs::path& path, const std::vector<uint8_t>& bytes) {
-  std::ofstream(path, std::ios::binary).write(reinterpret_cast<const char*>(bytes.data()),
-                                              std::streamsize(bytes.size()));
+  std::ofstream(path, std::ios::binary)
+      .write(reinterpret_cast<const char*>(bytes.data()), std::streamsize(bytes.size()));
 }
 
 TEST(VoiceWav, MonoRoundTripIsExactTo16Bits) {
   tessera::test::TempDir dir;
   std::vector<float> x = tessera::test::tone(1000, 0.5);
-  x[10] = 3.0f;   // clamped, never wrapped
+  x[10] = 3.0f;  // clamped, never wrapped
   x[11] = -3.0f;
   writeWav(dir / "a.wav", x);
   const WavAudio a = readWav(dir / "a.wav");
@@ -99,18 +99,35 @@ TEST(VoiceWav, BadFilesAreRefusedByNameAndReason) {
   };
   has(refusal(dir / "missing.wav"), "missing.wav: No such file");
   has(refusal(dir.path()), "not a regular file");
-  has(variant("text.wav", [](auto& b) { b.assign({'h', 'e', 'l', 'l', 'o'}); }),
+  has(variant("text.wav",
+              [](auto& b) {
+                b.assign({'h', 'e', 'l', 'l', 'o'});
+              }),
       "text.wav: not a WAV file");
   has(variant("cut.wav", [](auto& b) { b.resize(100); }), "cut.wav: truncated: the data chunk");
   has(variant("24bit.wav", [](auto& b) { b[34] = 24; }), "24bit.wav: 24-bit samples");
   has(variant("float.wav", [](auto& b) { b[20] = 3; }), "format 3, expected PCM");
   has(variant("six.wav", [](auto& b) { b[22] = 6; }), "6 channels, expected mono or stereo");
-  has(variant("slow.wav", [](auto& b) { b[24] = 100; b[25] = 0; b[26] = 0; }),
+  has(variant("slow.wav",
+              [](auto& b) {
+                b[24] = 100;
+                b[25] = 0;
+                b[26] = 0;
+              }),
       "sample rate 100 Hz");
   has(variant("align.wav", [](auto& b) { b[32] = 4; }), "block align 4");
   has(variant("nodata.wav", [](auto& b) { b[36] = 'x'; }), "nodata.wav: no data chunk");
-  has(variant("long.wav", [](auto& b) { b[36] = 'x'; b[42] = 1; }), "truncated: the 'xata' chunk");
-  has(variant("odd.wav", [](auto& b) { b[40] = uint8_t(b[40] - 1); b.pop_back(); }),
+  has(variant("long.wav",
+              [](auto& b) {
+                b[36] = 'x';
+                b[42] = 1;
+              }),
+      "truncated: the 'xata' chunk");
+  has(variant("odd.wav",
+              [](auto& b) {
+                b[40] = uint8_t(b[40] - 1);
+                b.pop_back();
+              }),
       "not whole sample frames");
   has(variant("order.wav", [](auto& b) { b[12] = 'j'; }), "the data chunk comes before the fmt");
   EXPECT_EQ(refusal(dir / "good.wav"), "");

@@ -10,8 +10,8 @@
 #include <cmath>
 #include <cstdint>
 #include <cstdlib>
-#include <functional>
 #include <filesystem>
+#include <functional>
 #include <numbers>
 #include <optional>
 #include <random>
@@ -108,17 +108,17 @@ inline std::optional<std::vector<float>> espeakSpeech(const std::filesystem::pat
 }
 
 struct NetworkModel {
-  double loss = 0;          ///< share of packets lost (independent)
-  double jitter_ms = 0;     ///< mean extra delay, exponentially distributed (reorders packets)
-  double base_ms = 20;      ///< the path's fixed delay
-  double duplicate = 0;     ///< share of packets delivered twice
+  double loss = 0;       ///< share of packets lost (independent)
+  double jitter_ms = 0;  ///< mean extra delay, exponentially distributed (reorders packets)
+  double base_ms = 20;   ///< the path's fixed delay
+  double duplicate = 0;  ///< share of packets delivered twice
   uint32_t seed = 1;
 };
 
 struct VoicePathOptions {
   collab::VoiceSettings codec;
   collab::JitterBufferSettings buffer;
-  double tick_s = 0.010;   ///< the playout device's period
+  double tick_s = 0.010;  ///< the playout device's period
   /// Called with each packet's bytes as sent; returns what the network carries instead (the
   /// packet, changed, or with garbage around it: tests of corrupt packets).
   std::function<std::vector<std::vector<uint8_t>>(const std::vector<uint8_t>&, std::mt19937&)>
@@ -126,7 +126,7 @@ struct VoicePathOptions {
 };
 
 struct VoicePath {
-  std::vector<float> played;         ///< everything pulled, at the playout clock
+  std::vector<float> played;  ///< everything pulled, at the playout clock
   /// The played frames put back at the sender timestamps they stand for (inserted frames left
   /// out): the sent signal delayed by the codec's lookahead, where the path delivered it.
   std::vector<float> in_sender_time;
@@ -135,7 +135,7 @@ struct VoicePath {
   int lookahead = 0;
   size_t frames_sent = 0, packets_sent = 0, packets_lost = 0, packets_refused = 0;
   size_t payload_bytes = 0;
-  std::vector<double> delays_s;      ///< the buffer's delay at every tick once playing
+  std::vector<double> delays_s;  ///< the buffer's delay at every tick once playing
 };
 
 /// Sends `signal` through encoder -> network -> decodeVoicePacket -> jitter buffer, pulling
@@ -167,8 +167,10 @@ inline VoicePath runVoicePath(std::span<const float> signal, const NetworkModel&
     out.payload_bytes += bytes->size() - collab::kVoiceHeaderBytes;
     const double sent = double(at + frame) / kVoiceRate;  // the frame is whole when captured
     std::vector<std::vector<uint8_t>> carried;
-    if (options.tamper) carried = options.tamper(*bytes, rng);
-    else carried.push_back(std::move(*bytes));
+    if (options.tamper)
+      carried = options.tamper(*bytes, rng);
+    else
+      carried.push_back(std::move(*bytes));
     for (const auto& packet : carried) {
       const int copies = u(rng) < net.duplicate ? 2 : 1;
       for (int c = 0; c < copies; ++c) {
@@ -307,7 +309,9 @@ inline double power(std::span<const float> x, double hz, size_t from, size_t to)
   return (s1 * s1 + s2 * s2 - c * s1 * s2) / (n * n);
 }
 
-inline double db(double p) { return 10 * std::log10(std::max(p, 1e-30)); }
+inline double db(double p) {
+  return 10 * std::log10(std::max(p, 1e-30));
+}
 
 /// A voice of its own pitch: a tone at `hz` (0.25 peak) that pauses for 0.4 s every 1.2 s (so
 /// DTX and talkspurts happen).

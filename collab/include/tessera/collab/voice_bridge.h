@@ -71,8 +71,7 @@ class VoiceBridge {
   void receive(uint32_t participant, const VoicePacket& packet, double now);
   /// Mixes every frame period due by `now`; each participant's mix-minus packets go to
   /// `send(participant, bytes)`.
-  void advance(double now,
-               const std::function<void(uint32_t, const std::vector<uint8_t>&)>& send);
+  void advance(double now, const std::function<void(uint32_t, const std::vector<uint8_t>&)>& send);
 
   /// What the wall room's speakers played (every site mixed), from clock 0.
   const std::vector<float>& room() const { return mRoom; }

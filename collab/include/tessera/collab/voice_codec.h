@@ -32,15 +32,15 @@ struct VoiceError : std::runtime_error {
 };
 
 struct VoiceSettings {
-  int frame_ms = 20;           ///< 20 (default) or 10: 10 ms halves the packetization delay
-                               ///< for twice the packets (and header bytes)
-  int bitrate = 32000;         ///< bits/s, 6000..128000: 32 kb/s leaves SILK room for the FEC
-                               ///< copy at 10% expected loss and keeps full-band hybrid speech
-  bool fec = true;             ///< in-band FEC (OPUS_SET_INBAND_FEC): a low-rate copy of each
-                               ///< frame rides in the next packet (SILK/hybrid modes only)
+  int frame_ms = 20;               ///< 20 (default) or 10: 10 ms halves the packetization delay
+                                   ///< for twice the packets (and header bytes)
+  int bitrate = 32000;             ///< bits/s, 6000..128000: 32 kb/s leaves SILK room for the FEC
+                                   ///< copy at 10% expected loss and keeps full-band hybrid speech
+  bool fec = true;                 ///< in-band FEC (OPUS_SET_INBAND_FEC): a low-rate copy of each
+                                   ///< frame rides in the next packet (SILK/hybrid modes only)
   int expected_loss_percent = 10;  ///< OPUS_SET_PACKET_LOSS_PERC, 0..100: how much FEC to spend
-  bool dtx = true;             ///< discontinuous transmission: silence sends almost nothing
-  int complexity = 9;          ///< 0..10, CPU against quality (bench/voice measures it)
+  bool dtx = true;                 ///< discontinuous transmission: silence sends almost nothing
+  int complexity = 9;              ///< 0..10, CPU against quality (bench/voice measures it)
 
   int frameSamples() const { return kVoiceRate * frame_ms / 1000; }
 };

@@ -43,33 +43,33 @@
 namespace tessera::collab {
 
 struct JitterBufferSettings {
-  double min_delay_s = 0.010;   ///< the target never goes below this (scheduling slack)
-  double max_delay_s = 0.400;   ///< nor above this (packets later than that are lost anyway)
-  double quantile = 0.97;       ///< share of packets the target lets arrive in time
-  size_t window = 250;          ///< packets the jitter is measured over (5 s at 20 ms)
+  double min_delay_s = 0.010;         ///< the target never goes below this (scheduling slack)
+  double max_delay_s = 0.400;         ///< nor above this (packets later than that are lost anyway)
+  double quantile = 0.97;             ///< share of packets the target lets arrive in time
+  size_t window = 250;                ///< packets the jitter is measured over (5 s at 20 ms)
   double shrink_in_speech_s = 0.080;  ///< over target by more than this: drop frames in speech
-  size_t max_packets = 128;     ///< packets held at most (2.5 s at 20 ms); more are refused
-  double silence_rms = 0.002;   ///< a decoded frame quieter than this (-54 dBFS) is silence
-  bool record = false;          ///< keep history() (tests and benchmarks)
+  size_t max_packets = 128;           ///< packets held at most (2.5 s at 20 ms); more are refused
+  double silence_rms = 0.002;         ///< a decoded frame quieter than this (-54 dBFS) is silence
+  bool record = false;                ///< keep history() (tests and benchmarks)
 };
 
 struct JitterStats {
-  uint64_t received = 0;      ///< packets pushed and taken
-  uint64_t decoded = 0;       ///< frames played from their own packet
-  uint64_t concealed = 0;     ///< frames lost (or late) and played from FEC or PLC
-  uint64_t fec = 0;           ///< of those, recovered from the next packet's FEC
-  uint64_t dtx = 0;           ///< frames of DTX silence (comfort noise)
-  uint64_t inserted = 0;      ///< frames played to grow the delay
-  uint64_t dropped = 0;       ///< frames skipped to shrink the delay
-  uint64_t late = 0;          ///< packets that came after their playout
-  uint64_t duplicates = 0;    ///< packets already held or played
-  uint64_t refused = 0;       ///< out of range or the buffer full
-  uint64_t decode_errors = 0; ///< packets libopus refused (concealed instead)
-  uint64_t resets = 0;        ///< the stream started over (a sender restarted)
-  double jitter_s = 0;        ///< RFC 3550 interarrival jitter, seconds
-  double target_s = 0;        ///< the current target delay
-  double delay_s = 0;         ///< the delay at the last frame played (against the fastest packet)
-  double loss_share = 0;      ///< packets missing from the window's sequence numbers
+  uint64_t received = 0;       ///< packets pushed and taken
+  uint64_t decoded = 0;        ///< frames played from their own packet
+  uint64_t concealed = 0;      ///< frames lost (or late) and played from FEC or PLC
+  uint64_t fec = 0;            ///< of those, recovered from the next packet's FEC
+  uint64_t dtx = 0;            ///< frames of DTX silence (comfort noise)
+  uint64_t inserted = 0;       ///< frames played to grow the delay
+  uint64_t dropped = 0;        ///< frames skipped to shrink the delay
+  uint64_t late = 0;           ///< packets that came after their playout
+  uint64_t duplicates = 0;     ///< packets already held or played
+  uint64_t refused = 0;        ///< out of range or the buffer full
+  uint64_t decode_errors = 0;  ///< packets libopus refused (concealed instead)
+  uint64_t resets = 0;         ///< the stream started over (a sender restarted)
+  double jitter_s = 0;         ///< RFC 3550 interarrival jitter, seconds
+  double target_s = 0;         ///< the current target delay
+  double delay_s = 0;          ///< the delay at the last frame played (against the fastest packet)
+  double loss_share = 0;       ///< packets missing from the window's sequence numbers
 
   /// Frames played since playout began (not counting the silence before it).
   uint64_t frames() const { return decoded + concealed + dtx + inserted; }
@@ -130,22 +130,22 @@ class JitterBuffer {
   size_t mFrameAt = 0;               ///< samples of mFrame already given out
   std::vector<PlayedFrame> mHistory;
 
-  bool mHaveStream = false;   ///< a packet has been taken (the extensions below are set)
+  bool mHaveStream = false;  ///< a packet has been taken (the extensions below are set)
   bool mPlaying = false;
   int64_t mMaxTimestamp = 0;  ///< extended (64-bit, unwrapped) timestamps and sequences
   int64_t mMaxSequence = 0;
-  int64_t mOrigin = 0;        ///< the first packet's timestamp: transits are measured from it
+  int64_t mOrigin = 0;  ///< the first packet's timestamp: transits are measured from it
   double mFirstArrival = 0;
-  int64_t mNext = 0;          ///< extended timestamp of the next frame to play
-  int64_t mLastSequence = -1; ///< sequence of the last frame played from a packet
+  int64_t mNext = 0;           ///< extended timestamp of the next frame to play
+  int64_t mLastSequence = -1;  ///< sequence of the last frame played from a packet
   int mFrameSamples = kMaxVoiceFrameSamples;
-  Gap mGap = Gap::kNone;      ///< what the frames since the last packet played are
-  uint64_t mGapFrames = 0;    ///< frames played since then, not yet counted
-  int64_t mLostInGap = 0;     ///< frames since the last packet played counted as lost
-  bool mQuiet = true;         ///< the last frame played was silence
-  double mLastTransit = 0;    ///< for the RFC 3550 estimate
-  int mOutOfRange = 0;        ///< consecutive refused packets
-  uint64_t mOutput = 0;       ///< samples pulled so far
+  Gap mGap = Gap::kNone;    ///< what the frames since the last packet played are
+  uint64_t mGapFrames = 0;  ///< frames played since then, not yet counted
+  int64_t mLostInGap = 0;   ///< frames since the last packet played counted as lost
+  bool mQuiet = true;       ///< the last frame played was silence
+  double mLastTransit = 0;  ///< for the RFC 3550 estimate
+  int mOutOfRange = 0;      ///< consecutive refused packets
+  uint64_t mOutput = 0;     ///< samples pulled so far
 };
 
 }  // namespace tessera::collab

@@ -37,10 +37,10 @@ constexpr uint16_t kWallSite = 0;
 struct VoicePacket {
   uint16_t site = kWallSite;
   uint16_t sequence = 0;
-  uint32_t timestamp = 0;       ///< 48 kHz samples
-  bool talkspurt = false;       ///< first packet after DTX silence
-  int frame_samples = 0;        ///< 480 or 960, read from the Opus packet (filled by decode)
-  std::vector<uint8_t> payload; ///< the Opus packet
+  uint32_t timestamp = 0;        ///< 48 kHz samples
+  bool talkspurt = false;        ///< first packet after DTX silence
+  int frame_samples = 0;         ///< 480 or 960, read from the Opus packet (filled by decode)
+  std::vector<uint8_t> payload;  ///< the Opus packet
 };
 
 /// The packet's bytes. Precondition (TESSERA_CHECK): 1..kMaxOpusPayloadBytes of payload.
