@@ -4,24 +4,9 @@
 
 #include <tessera/core/check.h>
 
+#include "little_endian.h"
+
 namespace tessera::collab {
-namespace {
-
-uint16_t get16(const uint8_t* p) {
-  return uint16_t(p[0] | (p[1] << 8));
-}
-uint32_t get32(const uint8_t* p) {
-  return uint32_t(p[0]) | (uint32_t(p[1]) << 8) | (uint32_t(p[2]) << 16) | (uint32_t(p[3]) << 24);
-}
-void put16(uint8_t* p, uint16_t v) {
-  p[0] = uint8_t(v);
-  p[1] = uint8_t(v >> 8);
-}
-void put32(uint8_t* p, uint32_t v) {
-  for (int i = 0; i < 4; ++i) p[i] = uint8_t(v >> (8 * i));
-}
-
-}  // namespace
 
 std::vector<uint8_t> encodeVoicePacket(const VoicePacket& packet) {
   TESSERA_CHECK(!packet.payload.empty() && packet.payload.size() <= kMaxOpusPayloadBytes,
@@ -30,10 +15,10 @@ std::vector<uint8_t> encodeVoicePacket(const VoicePacket& packet) {
   std::vector<uint8_t> bytes(kVoiceHeaderBytes + packet.payload.size());
   bytes[0] = kVoicePacketVersion;
   bytes[1] = packet.talkspurt ? 1 : 0;
-  put16(&bytes[2], packet.site);
-  put16(&bytes[4], packet.sequence);
-  put16(&bytes[6], uint16_t(packet.payload.size()));
-  put32(&bytes[8], packet.timestamp);
+  putLe16(&bytes[2], packet.site);
+  putLe16(&bytes[4], packet.sequence);
+  putLe16(&bytes[6], uint16_t(packet.payload.size()));
+  putLe32(&bytes[8], packet.timestamp);
   std::copy(packet.payload.begin(), packet.payload.end(), bytes.begin() + kVoiceHeaderBytes);
   return bytes;
 }
@@ -51,7 +36,7 @@ std::optional<std::string> decodeVoicePacket(std::span<const uint8_t> bytes, Voi
                   std::to_string(kVoicePacketVersion));
   if ((bytes[1] & ~1u) != 0)
     return refuse("flags " + std::to_string(bytes[1]) + " set reserved bits (only bit 0 is used)");
-  const size_t payload = get16(&bytes[6]);
+  const size_t payload = getLe16(&bytes[6]);
   if (payload != bytes.size() - kVoiceHeaderBytes)
     return refuse("payload size " + std::to_string(payload) + " but " +
                   std::to_string(bytes.size() - kVoiceHeaderBytes) + " bytes follow the header");
@@ -69,9 +54,9 @@ std::optional<std::string> decodeVoicePacket(std::span<const uint8_t> bytes, Voi
   if (samples != kVoiceRate / 100 && samples != kVoiceRate / 50)
     return refuse("the Opus packet lasts " + std::to_string(samples) +
                   " samples, expected 480 or 960 (10 or 20 ms)");
-  out.site = get16(&bytes[2]);
-  out.sequence = get16(&bytes[4]);
-  out.timestamp = get32(&bytes[8]);
+  out.site = getLe16(&bytes[2]);
+  out.sequence = getLe16(&bytes[4]);
+  out.timestamp = getLe32(&bytes[8]);
   out.talkspurt = (bytes[1] & 1) != 0;
   out.frame_samples = samples;
   out.payload.assign(opus, opus + payload);

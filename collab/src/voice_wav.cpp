@@ -13,15 +13,10 @@
 #include <tessera/collab/voice_codec.h>
 #include <tessera/core/file_checks.h>
 
+#include "little_endian.h"
+
 namespace tessera::collab {
 namespace {
-
-uint16_t get16(const uint8_t* p) {
-  return uint16_t(p[0] | (p[1] << 8));
-}
-uint32_t get32(const uint8_t* p) {
-  return uint32_t(p[0]) | (uint32_t(p[1]) << 8) | (uint32_t(p[2]) << 16) | (uint32_t(p[3]) << 24);
-}
 
 constexpr int kMinRate = 8000;
 constexpr int kMaxRate = 192000;
@@ -40,7 +35,7 @@ WavAudio parseWav(std::span<const uint8_t> bytes, const std::string& name) {
   size_t at = 12;
   while (at + 8 <= bytes.size()) {
     const uint8_t* chunk = bytes.data() + at;
-    const size_t size = get32(chunk + 4);
+    const size_t size = getLe32(chunk + 4);
     const size_t body = at + 8;
     const size_t left = bytes.size() - body;
     const std::string id(reinterpret_cast<const char*>(chunk), 4);
@@ -49,12 +44,12 @@ WavAudio parseWav(std::span<const uint8_t> bytes, const std::string& name) {
         throw fail("the fmt chunk is " + std::to_string(size) +
                    " bytes, expected at least 16 within the file");
       const uint8_t* f = bytes.data() + body;
-      uint16_t format = get16(f);
-      if (format == 0xFFFE && size >= 40) format = get16(f + 24);  // EXTENSIBLE: sub-format
-      const int channels = get16(f + 2);
-      const uint32_t rate = get32(f + 4);
-      const int block = get16(f + 12);
-      const int bits = get16(f + 14);
+      uint16_t format = getLe16(f);
+      if (format == 0xFFFE && size >= 40) format = getLe16(f + 24);  // EXTENSIBLE: sub-format
+      const int channels = getLe16(f + 2);
+      const uint32_t rate = getLe32(f + 4);
+      const int block = getLe16(f + 12);
+      const int bits = getLe16(f + 14);
       if (format != 1)
         throw fail("format " + std::to_string(format) +
                    ", expected PCM (1): compressed or "
@@ -82,7 +77,7 @@ WavAudio parseWav(std::span<const uint8_t> bytes, const std::string& name) {
                    " bytes are not whole sample frames of " + std::to_string(frame) + " bytes");
       audio.samples.resize(size / 2);
       for (size_t i = 0; i < audio.samples.size(); ++i)
-        audio.samples[i] = int16_t(get16(bytes.data() + body + 2 * i));
+        audio.samples[i] = int16_t(getLe16(bytes.data() + body + 2 * i));
       return audio;
     } else if (size > left) {
       throw fail("truncated: the '" + id + "' chunk says " + std::to_string(size) + " bytes, " +
@@ -177,24 +172,21 @@ void writeWav(const std::filesystem::path& path, std::span<const float> samples,
     throw WavError("collab::writeWav(): " + path.string() + ": too long for a WAV file");
   std::vector<uint8_t> bytes(44 + data);
   uint8_t* p = bytes.data();
-  const auto put = [&](size_t at, uint32_t v, int n) {
-    for (int i = 0; i < n; ++i) p[at + size_t(i)] = uint8_t(v >> (8 * i));
-  };
   std::memcpy(p, "RIFF", 4);
-  put(4, uint32_t(36 + data), 4);
+  putLe32(p + 4, uint32_t(36 + data));
   std::memcpy(p + 8, "WAVEfmt ", 8);
-  put(16, 16, 4);
-  put(20, 1, 2);
-  put(22, uint32_t(channels), 2);
-  put(24, uint32_t(rate), 4);
-  put(28, uint32_t(rate * channels * 2), 4);
-  put(32, uint32_t(channels * 2), 2);
-  put(34, 16, 2);
+  putLe32(p + 16, 16);  // the fmt chunk's size
+  putLe16(p + 20, 1);   // PCM
+  putLe16(p + 22, uint16_t(channels));
+  putLe32(p + 24, uint32_t(rate));
+  putLe32(p + 28, uint32_t(rate * channels * 2));  // bytes per second
+  putLe16(p + 32, uint16_t(channels * 2));         // block align
+  putLe16(p + 34, 16);                             // bits per sample
   std::memcpy(p + 36, "data", 4);
-  put(40, uint32_t(data), 4);
+  putLe32(p + 40, uint32_t(data));
   for (size_t i = 0; i < samples.size(); ++i) {
     const float v = std::isfinite(samples[i]) ? std::clamp(samples[i], -1.0f, 1.0f) : 0.0f;
-    put(44 + 2 * i, uint32_t(uint16_t(int16_t(std::lround(v * 32767.0f)))), 2);
+    putLe16(p + 44 + 2 * i, uint16_t(int16_t(std::lround(v * 32767.0f))));
   }
   std::ofstream out(path, std::ios::binary | std::ios::trunc);
   if (!out)
