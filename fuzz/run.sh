@@ -4,20 +4,23 @@
 # for SECONDS (default 300), one at a time. Crashing inputs land in fuzz/regressions/<target>/,
 # which is also replayed first, so a regression that comes back fails at once.
 # Usage: fuzz/run.sh [SECONDS] [TARGET...]
-#   (targets: ply las text obj conf tlod chunk frame link site chunk_request; default all)
+#   (targets: ply las text obj conf tlod chunk frame link site chunk_request voice wav;
+#    default all)
 set -euo pipefail
 
 cd "$(dirname "$0")/.."
 SECONDS_PER_TARGET=${1:-300}
 shift || true
-TARGETS=("${@:-ply las text obj conf tlod chunk frame link site chunk_request}")
+TARGETS=("${@:-ply las text obj conf tlod chunk frame link site chunk_request voice wav}")
 read -r -a TARGETS <<<"${TARGETS[*]}"
 DATA=${TESSERA_DATA_DIR:-$(cd .. && pwd)/shared/data}
 BUILD=build/fuzz
 
 cmake --preset fuzz >/dev/null
 # tessera-lod (same build) writes the seed stores of the tlod and chunk targets.
-cmake --build "$BUILD" -j1 --target "${TARGETS[@]/%/_fuzzer}" tessera-lod
+TOOLS=()
+if [[ " ${TARGETS[*]} " == *" tlod "* || " ${TARGETS[*]} " == *" chunk "* ]]; then TOOLS=(tessera-lod); fi
+cmake --build "$BUILD" -j1 --target "${TARGETS[@]/%/_fuzzer}" "${TOOLS[@]}"
 LOD_TOOL=$(pwd)/$BUILD/lod/tessera-lod
 
 # poke FILE OFFSET WIDTH VALUE: writes VALUE as a WIDTH-byte little-endian integer at OFFSET.
@@ -235,8 +238,36 @@ seed_chunk_request() {
   one long.req <<<'id: 5 store: "b.tlod" offset: 0 length: 8388609'
 }
 
+# Voice packets (voice_fuzzer.cpp records: 2-byte length, 1-byte delay, packet): real Opus
+# packets of a tone, in order, lost and reordered, and in 10 ms frames (fuzz/seeds/voice/, written
+# by collab::VoiceSender).
+seed_voice() {
+  cp "$OLDPWD"/fuzz/seeds/voice/*.rec .
+}
+
+# WAV files: mono 48 kHz, stereo 22.05 kHz with an extra chunk, an EXTENSIBLE header.
+seed_wav() {
+  le16() { printf "$(printf '\\x%02x\\x%02x' $(($1 & 255)) $(($1 >> 8 & 255)))"; }
+  le32() { le16 $(($1 & 65535)); le16 $(($1 >> 16 & 65535)); }
+  wav() {  # wav FILE CHANNELS RATE FRAMES [list]: random samples, a LIST chunk before data
+    local data=$(($4 * $2 * 2)) extra=0
+    if [ -n "${5:-}" ]; then extra=12; fi
+    {
+      printf 'RIFF'; le32 $((36 + data + extra)); printf 'WAVEfmt '; le32 16
+      le16 1; le16 "$2"; le32 "$3"; le32 $(($3 * $2 * 2)); le16 $(($2 * 2)); le16 16
+      if [ -n "${5:-}" ]; then printf 'LIST'; le32 4; printf 'abcd'; fi
+      printf 'data'; le32 "$data"
+      head -c "$data" /dev/urandom
+    } >"$1"
+  }
+  wav mono48.wav 1 48000 480
+  wav stereo22.wav 2 22050 300 list
+  wav odd8k.wav 1 8000 101
+}
+
 declare -A MAX_LEN=([ply]=8192 [las]=8192 [text]=4096 [obj]=4096 [conf]=1024 [tlod]=32768
-  [chunk]=8192 [frame]=4096 [link]=4096 [site]=4096 [chunk_request]=1024)
+  [chunk]=8192 [frame]=4096 [link]=4096 [site]=4096 [chunk_request]=1024 [voice]=8192
+  [wav]=16384)
 export UBSAN_OPTIONS=halt_on_error=1:print_stacktrace=1
 status=0
 summary=()

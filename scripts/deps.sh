@@ -16,6 +16,8 @@ PACKAGES=(
   xvfb xauth xdotool
   # video insets and audio for remote sites
   libavcodec-dev libavformat-dev libswscale-dev libavutil-dev libopus-dev
+  # voice: the spoken test sentence (tests and bench/voice; skipped without it)
+  espeak-ng
   # one schema for configs, wire and snapshots
   libprotobuf-dev protobuf-compiler
   # tests and benchmarks

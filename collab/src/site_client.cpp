@@ -122,6 +122,9 @@ sync::SceneChanges SiteClient::receive(sync::SceneGraph& graph, Clock::time_poin
         case site::ToSite::kQuit:
           throw SiteSessionEnded(Why::kQuit,
                                  "the master ended the session (" + msg->quit().reason() + ")");
+        case site::ToSite::kVoice:
+          if (m->opt.voice) m->opt.voice(msg->voice());
+          break;
         case site::ToSite::kRefused:
           throw SiteSessionEnded(Why::kRefused, "refused: " + msg->refused().reason());
         default:

@@ -10,6 +10,8 @@
 #include <tessera/collab/chunk_server.h>
 #include <tessera/collab/curve.h>
 #include <tessera/collab/site_messages.h>
+#include <tessera/collab/voice_bridge.h>
+#include <tessera/collab/voice_wav.h>
 #include <tessera/sync/cluster_link.h>
 #include <tessera/sync/wire.h>
 
@@ -56,6 +58,8 @@ struct SiteHub::Impl {
   uint64_t allow_generation = 0;
   double last_reload = 0;
   SiteHubCounters counters;
+  std::unique_ptr<VoiceBridge> voice;  // with opt.voice
+  double voice_start = 0;
 
   void say(const std::string& text) {
     std::printf("tessera-master: sites: %s\n", text.c_str());
@@ -94,6 +98,7 @@ struct SiteHub::Impl {
     Peer& p = it->second;
     say(who(p) + (dropped ? " dropped: " : " left: ") + why);
     if (p.participant) roster.leave(graph, p.participant);
+    if (p.participant && voice) voice->leave(p.participant);
     if (dropped) {
       site::ToSite m;
       m.mutable_dropped()->set_reason(why);
@@ -130,6 +135,7 @@ struct SiteHub::Impl {
     w.set_name(roster.info(p.participant).name);
     if (chunks) w.set_chunks(chunks->endpoint());
     send(p, m.SerializeAsString());
+    if (voice) voice->join(p.participant);
     counters.joined++;
     say(who(p) + " joined as participant " + std::to_string(p.participant) +
         " from the snapshot of frame " + std::to_string(graph.frameNumber()));
@@ -193,6 +199,13 @@ struct SiteHub::Impl {
       } else if (m.kind_case() == site::ToMaster::kBye) {
         p.gone = true;
         p.gone_reason = "it said goodbye";
+      } else if (m.kind_case() == site::ToMaster::kVoice) {
+        counters.voice_in++;
+        VoicePacket packet;
+        if (voice &&
+            !decodeVoicePacket(
+                {reinterpret_cast<const uint8_t*>(m.voice().data()), m.voice().size()}, packet))
+          voice->receive(p.participant, packet, now - voice_start);
       } else {
         roster.apply(graph, p.participant, m, now);
       }
@@ -213,6 +226,12 @@ SiteHub::SiteHub(SiteHubOptions options) : m(std::make_unique<Impl>()) {
     co.endpoint = m->opt.chunks_endpoint;
     co.bytes_per_s = m->opt.chunk_bytes_per_s;
     m->chunks = std::make_unique<ChunkServer>(m->context, m->keys, co);
+  }
+  if (m->opt.voice) {
+    m->voice = std::make_unique<VoiceBridge>(VoiceSettings{}, m->opt.audio_in.empty()
+                                                                  ? std::vector<float>{}
+                                                                  : readVoiceWav(m->opt.audio_in));
+    m->voice_start = seconds(Clock::now());
   }
 }
 
@@ -267,6 +286,18 @@ void SiteHub::beforeFrame(sync::SceneGraph& graph, uint64_t, double) {
   }
   for (const auto& [rid, why] : gone) m->remove(graph, rid, why, false);
   m->roster.animate(graph, now);
+  if (m->voice) {
+    std::map<uint32_t, Peer*> by_participant;
+    for (auto& [rid, p] : m->peers)
+      if (p.participant && !p.gone) by_participant[p.participant] = &p;
+    site::ToSite out;
+    m->voice->advance(now - m->voice_start, [&](uint32_t to, const std::vector<uint8_t>& bytes) {
+      auto it = by_participant.find(to);
+      if (it == by_participant.end()) return;
+      out.set_voice(bytes.data(), bytes.size());
+      if (m->send(*it->second, out.SerializeAsString())) m->counters.voice_out++;
+    });
+  }
 }
 
 void SiteHub::afterFrame(const sync::SceneGraph& graph, const std::string& bytes) {
@@ -298,6 +329,18 @@ void SiteHub::end(const std::string& reason) {
   const std::string bytes = q.SerializeAsString();
   for (auto& [rid, p] : m->peers)
     if (p.participant) m->send(p, bytes);
+  if (m->voice) {
+    m->say("voice: " + std::to_string(m->counters.voice_in) + " packets from sites, " +
+           std::to_string(m->counters.voice_out) + " to them");
+    if (!m->opt.audio_out.empty()) {
+      try {
+        writeWav(m->opt.audio_out, m->voice->room());
+        m->say("the wall room's audio: " + m->opt.audio_out);
+      } catch (const WavError& e) {
+        std::fprintf(stderr, "tessera-master: %s\n", e.what());
+      }
+    }
+  }
   const SiteHubCounters& c = m->counters;
   char line[320];
   std::snprintf(line, sizeof line,

@@ -3,7 +3,7 @@
 //   tessera-site keygen -o site.key        # prints the public key for the master's allow list
 //   tessera-site --master tcp://HOST:7401 --master-key MASTER_PUBLIC_KEY|FILE --name "Kyoto lab"
 //                --key site.key --headless -o DIR [--script PATH.json] [--no-render]
-//                [--cache DIR] [--remote-stores]
+//                [--cache DIR] [--remote-stores] [--audio-in WAV] [--audio-out WAV]
 #include <CLI/CLI.hpp>
 
 #include <cstdio>
@@ -64,6 +64,12 @@ int run(int argc, char** argv) {
                  "Seconds a chunk request may go unanswered before it is sent again (once)")
       ->check(cli::finiteRange(0.1, 3600.0))
       ->capture_default_str();
+  app.add_option("--audio-in", o.audio_in,
+                 "Voice (the master runs --voice): this site's microphone, a WAV file (16-bit "
+                 "PCM, any rate, mono or stereo) sent from the join on");
+  app.add_option("--audio-out", o.audio_out,
+                 "Voice: what this site hears (the wall's microphone and the other sites), "
+                 "written as a 48 kHz WAV file when the session ends");
   if (const auto code = cli::parse(app, argc, argv, "tessera-site")) return *code;
 
   if (keygen->parsed()) {

@@ -3,6 +3,8 @@
 #include <cmath>
 #include <cstdint>
 
+#include <tessera/collab/voice_packet.h>
+
 namespace tessera::collab {
 
 namespace {
@@ -110,6 +112,14 @@ Problem checkToMaster(const site::ToMaster& m) {
     case site::ToMaster::kRelease:
     case site::ToMaster::kBye:
       return {};
+    case site::ToMaster::kVoice: {
+      VoicePacket packet;
+      const std::string& v = m.voice();
+      if (auto why =
+              decodeVoicePacket({reinterpret_cast<const uint8_t*>(v.data()), v.size()}, packet))
+        return "voice: " + *why;
+      return {};
+    }
     default:
       return std::string("message: no known kind (empty, or from a newer protocol)");
   }

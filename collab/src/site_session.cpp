@@ -13,6 +13,8 @@
 
 #include <tessera/collab/chunk_client.h>
 #include <tessera/collab/site_messages.h>
+#include <tessera/collab/voice_bridge.h>
+#include <tessera/collab/voice_wav.h>
 #include <tessera/core/file_checks.h>
 #include <tessera/master/one_button_navigation.h>
 #include <tessera/render/gl_context.h>
@@ -156,6 +158,34 @@ struct SiteSession::Impl {
   std::vector<float> drag;  // the right-button drag's pixels so far
   bool right_held = false;
   Clock::time_point last_input = Clock::now();
+  // --audio-in / --audio-out (issue 14): its microphone and speaker, clocked from the welcome.
+  std::unique_ptr<VoiceStation> station;
+  Clock::time_point voice_start = Clock::now();
+
+  double voiceNow() const {
+    return std::chrono::duration<double>(Clock::now() - voice_start).count();
+  }
+
+  /// Sends the microphone's frames that are due and plays the speaker's blocks (every frame).
+  void tickVoice() {
+    if (!station) return;
+    station->advance(voiceNow(), [this](std::vector<uint8_t> bytes) {
+      site::ToMaster m;
+      m.set_voice(bytes.data(), bytes.size());
+      client->send(m);
+    });
+  }
+
+  /// --audio-out: what it heard, written when the session ends however it ends.
+  void writeSpeaker() {
+    if (!station || opt.audio_out.empty()) return;
+    try {
+      writeWav(opt.audio_out, station->speaker());
+      say("wrote what this site heard to " + opt.audio_out);
+    } catch (const WavError& e) {
+      std::fprintf(stderr, "tessera-site: %s\n", e.what());
+    }
+  }
 
   ~Impl() {
     if (chunks) {
@@ -270,6 +300,7 @@ struct SiteSession::Impl {
     p.set_fovy_deg(script.fovy_deg());
     p.set_aspect(float(double(script.width()) / script.height()));
     client->send(m);
+    tickVoice();
   }
 
   render::RenderOptions options() const { return render::SceneDrawList::options(graph, 2.0f); }
@@ -603,9 +634,19 @@ struct SiteSession::Impl {
             whyNotWritable((fs::path(opt.out_dir) / "strokes.csv").string(), errno));
       strokes_csv << "stroke,px,py,x,y,z,depth\n";
     }
+    if (!opt.audio_in.empty() || !opt.audio_out.empty()) {
+      station = std::make_unique<VoiceStation>(VoiceSettings{}, opt.audio_in.empty()
+                                                                    ? std::vector<float>{}
+                                                                    : readVoiceWav(opt.audio_in));
+      opt.client.voice = [this](std::string_view bytes) {
+        station->receive({reinterpret_cast<const uint8_t*>(bytes.data()), bytes.size()},
+                         voiceNow());
+      };
+    }
     client = std::make_unique<SiteClient>(opt.client);
     welcome = client->join(
         graph, Clock::now() + std::chrono::milliseconds(int64_t(opt.join_timeout_s * 1000)));
+    voice_start = Clock::now();
     {
       char line[200];
       std::snprintf(line, sizeof line,
@@ -683,8 +724,17 @@ SiteSession::SiteSession(SiteSessionOptions options) : m(std::make_unique<Impl>(
 SiteSession::~SiteSession() = default;
 
 int SiteSession::run() {
+  const int code = runSession();
+  m->writeSpeaker();
+  return code;
+}
+
+int SiteSession::runSession() {
   try {
     return m->session();
+  } catch (const WavError& e) {
+    std::fprintf(stderr, "tessera-site: --audio-in: %s\n", e.what());
+    return kSiteFailed;
   } catch (const SiteSessionEnded& e) {
     switch (e.why) {
       case Why::kQuit:

@@ -114,6 +114,14 @@ int run(int argc, char** argv) {
   app.add_option("--chunks", sites.chunks_endpoint,
                  "Serve the scene's stores to sites that do not have them (chunks on demand, "
                  "over CURVE with --sites' keys and allow list), e.g. tcp://*:7402; needs --sites");
+  app.add_flag("--voice", sites.voice,
+               "Voice between the sites and the wall (Opus): the master mixes what sites say, "
+               "each site hears the others and the wall's microphone; needs --sites");
+  app.add_option("--audio-in", sites.audio_in,
+                 "With --voice: the wall room's microphone, a WAV file (16-bit PCM)");
+  app.add_option("--audio-out", sites.audio_out,
+                 "With --voice: what the wall room's speakers play (every site), written as WAV "
+                 "at the end");
   app.add_option("--chunk-rate", chunk_rate_mbit,
                  "With --chunks: each site's bandwidth for chunks, Mbit/s (a token bucket)")
       ->check(cli::finiteRange(0.01, 1e5))
@@ -205,6 +213,18 @@ int run(int argc, char** argv) {
     if (mpi) {
       sync::MpiMasterLink l(*mpi);
       refuseEveryone(l, "--chunks needs --sites");
+    }
+    return cli::kExitBadCommandLine;
+  }
+  const char* voice_problem =
+      (!sites.audio_in.empty() || !sites.audio_out.empty()) && !sites.voice
+          ? "--audio-in and --audio-out need --voice"
+          : (sites.endpoint.empty() && sites.voice ? "--voice needs --sites ENDPOINT" : nullptr);
+  if (voice_problem) {
+    std::fprintf(stderr, "tessera-master: %s\n", voice_problem);
+    if (mpi) {
+      sync::MpiMasterLink l(*mpi);
+      refuseEveryone(l, voice_problem);
     }
     return cli::kExitBadCommandLine;
   }

@@ -13,6 +13,7 @@
 
 #include <tessera/collab/site_messages.h>
 #include <tessera/collab/site_roster.h>
+#include <tessera/collab/voice_packet.h>
 #include <tessera/sync/scene_graph.h>
 
 namespace {
@@ -96,6 +97,32 @@ TEST(SiteMessages, RefusesNonFiniteDegenerateAndOversizedInput) {
   site::ToMaster m;
   EXPECT_TRUE(collab::parseToMaster("\xff\xff\xff garbage", m));
   EXPECT_TRUE(collab::parseToMaster(std::string(collab::kMaxSiteMessageBytes + 1, '\0'), m));
+}
+
+TEST(SiteMessages, VoiceIsAVoicePacketChecked) {
+  collab::VoiceSender sender(collab::VoiceSettings{}, 1);
+  std::vector<float> tone(960);
+  for (size_t i = 0; i < tone.size(); ++i) tone[i] = 0.3f * float(std::sin(0.05 * double(i)));
+  const std::vector<uint8_t> packet = *sender.send(tone);
+  site::ToMaster m;
+  m.set_voice(packet.data(), packet.size());
+  site::ToMaster parsed;
+  EXPECT_EQ(collab::parseToMaster(m.SerializeAsString(), parsed), std::nullopt);
+  EXPECT_EQ(parsed.voice(), m.voice());
+  m.set_voice(packet.data(), packet.size() - 1);  // truncated
+  const auto why = collab::parseToMaster(m.SerializeAsString(), parsed);
+  ASSERT_TRUE(why);
+  EXPECT_NE(why->find("voice: voice packet: payload size"), std::string::npos) << *why;
+  m.set_voice("");
+  EXPECT_TRUE(collab::parseToMaster(m.SerializeAsString(), parsed));
+  // The roster has nothing to do with voice (the hub's bridge takes it): the scene is untouched.
+  sync::SceneGraph graph;
+  collab::SiteRoster roster;
+  const uint32_t id = roster.join(graph, "talker", "key");
+  const uint64_t version = graph.version();
+  m.set_voice(packet.data(), packet.size());
+  roster.apply(graph, id, m, 0.0);
+  EXPECT_EQ(graph.version(), version);
 }
 
 TEST(SiteMessages, NamesAreShortPrintableUtf8) {

@@ -4,10 +4,12 @@
 #pragma once
 
 #include <chrono>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <stdexcept>
 #include <string>
+#include <string_view>
 
 #include <tessera/collab/curve.h>
 #include <tessera/site.pb.h>
@@ -30,6 +32,9 @@ struct SiteClientOptions {
   std::string name;                ///< shown on its avatar
   double master_timeout_s = 30.0;  ///< nothing from the master for this long: it is lost (a wall
                                    ///< screenshot may take seconds)
+  /// Called by receive() with each voice packet the master sends (its bytes, unchecked: see
+  /// voice_packet.h); without it they are dropped.
+  std::function<void(std::string_view)> voice;
 };
 
 class SiteClient {

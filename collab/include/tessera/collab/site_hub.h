@@ -47,6 +47,12 @@ struct SiteHubOptions {
   /// then need the stores themselves. It serves the stores the scene's models name now.
   std::string chunks_endpoint;
   double chunk_bytes_per_s = 100e6 / 8;  ///< per site (--chunk-rate, Mbit/s)
+  /// Voice (issue 14; voice_bridge.h): the master mixes what sites say, sends each its
+  /// mix-minus and plays every site in the wall room. The clock is the master's loop: mixing
+  /// happens before each frame, 20 ms periods at a time.
+  bool voice = false;
+  std::string audio_in;   ///< the wall room's microphone: a WAV file ("" : none); needs voice
+  std::string audio_out;  ///< the wall room's speakers: a WAV file written at the end; needs voice
 };
 
 struct SiteHubCounters {
@@ -55,6 +61,7 @@ struct SiteHubCounters {
   uint64_t snapshots_resent = 0;  ///< snapshots sent to sites that fell behind
   uint64_t discarded = 0;         ///< messages of dropped sites, discarded unread
   uint64_t chunk_requests = 0, chunk_refused = 0, chunk_bytes_out = 0;  ///< the chunk server's
+  uint64_t voice_in = 0, voice_out = 0;  ///< voice packets from and to sites
 };
 
 class SiteHub final : public master::Participants {

@@ -38,6 +38,10 @@ struct SiteSessionOptions {
   bool remote_stores = false;
   std::string cache_dir;        ///< the chunks' disk cache ("" : none)
   double chunk_timeout_s = 30;  ///< a chunk request unanswered for this long is sent again
+  /// Voice (issue 14; the master runs --voice): its microphone, a WAV file sent from the
+  /// welcome on, and what it hears (the wall's microphone and the other sites), written as WAV
+  /// when the session ends. "" : none.
+  std::string audio_in, audio_out;
 };
 
 /// A site script from a file, checked: fps in (0, 240], a view of 16..8192 pixels, fovy in
@@ -54,6 +58,7 @@ class SiteSession {
   int run();
 
  private:
+  int runSession();
   struct Impl;
   std::unique_ptr<Impl> m;
 };

@@ -1,0 +1,143 @@
+// Voice over the site link with real processes on loopback (issue 14): tessera-master --voice
+// with a one-tile wall and the wall room's microphone from a WAV file, and two headless
+// tessera-site processes (no rendering), each talking from its own WAV file and writing what it
+// hears. Each voice is a tone of its own pitch, so who hears whom is read from the spectra:
+// the room hears both sites and not its own microphone; each site hears the wall and the other
+// site and not itself.
+#include <gtest/gtest.h>
+
+#include <filesystem>
+
+#include <tessera/collab/voice_wav.h>
+
+#include "../support/command.h"
+#include "../support/process.h"
+#include "../support/site_scripts.h"
+#include "../support/temp_dir.h"
+#include "../support/voice_path.h"
+
+namespace {
+
+namespace fs = std::filesystem;
+using namespace tessera;
+using test::Process;
+
+constexpr double kWallHz = 300, kAHz = 500, kBHz = 700;
+
+/// The power of each voice's pitch in a WAV file, dB.
+struct Heard {
+  double wall, a, b;
+};
+
+Heard heard(const fs::path& wav) {
+  const std::vector<float> x = collab::readVoiceWav(wav);
+  return {test::db(test::power(x, kWallHz, 0, x.size())),
+          test::db(test::power(x, kAHz, 0, x.size())), test::db(test::power(x, kBHz, 0, x.size()))};
+}
+
+/// A wall of one small tile and an empty scene in `dir` (wall.json, scene.json): the master's
+/// loop and one node cost little, and the voices are what the test is about. Returns the camera.
+std::string writeOneTileWall(const fs::path& dir) {
+  test::writeText(dir / "wall.json",
+                  R"({"name": "one tile", "tiles": [{"name": "tile", "x": 0, "y": 0, )"
+                  R"("width": 0.48, "height": 0.27, "pixelWidth": 160, "pixelHeight": 90}], )"
+                  R"("eye": {"x": 0.24, "y": 0.135, "z": 1.5}})");
+  const std::string camera = test::cameraJson({0, 0, 1}, {0, 0, 0});
+  test::writeText(dir / "scene.json", R"({"nodes": [], "camera": )" + camera + "}");
+  return camera;
+}
+
+TEST(VoiceSites, TheWallAndTwoSitesHearEachOtherButNotThemselves) {
+  test::TempDir dir;
+  std::string allow;
+  std::map<std::string, std::string> keys;
+  for (const std::string name : {"master", "a", "b"}) {
+    const auto k = test::runCommand(std::string(TESSERA_SITE) + " keygen -o " +
+                                    (dir / (name + ".key")).string());
+    ASSERT_EQ(k.code, 0) << k.out;
+    keys[name] = test::publicKeyOf(k.out);
+    ASSERT_EQ(keys[name].size(), 40u) << k.out;
+    if (name != "master") allow += keys[name] + "  site " + name + "\n";
+  }
+  test::writeText(dir / "allow.txt", allow);
+  const std::string camera = writeOneTileWall(dir.path());
+  // 8 s of each voice (pausing every 1.2 s); the session lasts 14 s.
+  collab::writeWav(dir / "wall-mic.wav", test::talking(kWallHz, 8));
+  collab::writeWav(dir / "a-mic.wav", test::talking(kAHz, 8));
+  collab::writeWav(dir / "b-mic.wav", test::talking(kBHz, 8));
+
+  const auto argv = test::masterWithSites(TESSERA_MASTER, dir.path(), dir.path(), 14.0, camera,
+                                          {"--voice", "--audio-in", (dir / "wall-mic.wav").string(),
+                                           "--audio-out", (dir / "room.wav").string()});
+  Process master(argv, dir / "master.log");
+  ASSERT_TRUE(master.waitFor("remote sites join on (tcp://\\S+)", 30)) << master.output();
+  const std::string out = master.output();
+  const std::string wall = test::captured(out, "listening on (tcp://\\S+)");
+  const std::string sites =
+      "tcp://127.0.0.1:" + test::captured(out, "remote sites join on tcp://[^:]+:(\\d+)");
+  Process node({TESSERA_NODE, "--master", wall, "--headless", "--tile", "tile"}, dir / "node.log");
+  test::writeText(dir / "still.json", R"({"actions": []})");
+  std::vector<std::unique_ptr<Process>> site_processes;
+  for (const std::string name : {"a", "b"})
+    site_processes.push_back(std::make_unique<Process>(
+        test::headlessSite(TESSERA_SITE, sites, keys["master"], "site " + name,
+                           dir / (name + ".key"), dir.path(), dir / "still.json",
+                           {"--no-render", "--audio-in", (dir / (name + "-mic.wav")).string(),
+                            "--audio-out", (dir / (name + "-heard.wav")).string()}),
+        dir / (name + ".log")));
+
+  ASSERT_EQ(master.wait(120), std::optional<int>(0)) << master.output();
+  EXPECT_EQ(node.wait(15), std::optional<int>(0)) << node.output();
+  for (auto& s : site_processes) {
+    EXPECT_EQ(s->wait(15), std::optional<int>(0)) << s->output();
+    EXPECT_TRUE(s->waitFor("wrote what this site heard", 1)) << s->output();
+  }
+  const std::string log = master.output();
+  EXPECT_EQ(log.find("dropped:"), std::string::npos) << log;
+  const int in = std::stoi(test::captured(log, "voice: (\\d+) packets from sites"));
+  const int sent = std::stoi(test::captured(log, "packets from sites, (\\d+) to them"));
+  // Two sites talking 2/3 of 8 s at 50 packets a second: about 530 packets each.
+  EXPECT_GT(in, 700) << log;
+  EXPECT_GT(sent, 700) << log;
+
+  const Heard room = heard(dir / "room.wav"), a = heard(dir / "a-heard.wav"),
+              b = heard(dir / "b-heard.wav");
+  std::printf("room: wall %.0f dB, A %.0f dB, B %.0f dB\n", room.wall, room.a, room.b);
+  std::printf("A hears: wall %.0f dB, A %.0f dB, B %.0f dB\n", a.wall, a.a, a.b);
+  std::printf("B hears: wall %.0f dB, B %.0f dB, A %.0f dB\n", b.wall, b.b, b.a);
+  // Heard: a tone of 0.25 peak over part of the file is well above -50 dB; not heard: 25 dB
+  // below what is.
+  EXPECT_GT(std::min(room.a, room.b), -50);
+  EXPECT_LT(room.wall, std::min(room.a, room.b) - 25) << "the room hears its own microphone";
+  EXPECT_GT(std::min(a.wall, a.b), -50);
+  EXPECT_LT(a.a, std::min(a.wall, a.b) - 25) << "site A hears itself";
+  EXPECT_GT(std::min(b.wall, b.a), -50);
+  EXPECT_LT(b.b, std::min(b.wall, b.a) - 25) << "site B hears itself";
+}
+
+TEST(VoiceSites, VoiceOptionsAreChecked) {
+  test::TempDir dir;
+  writeOneTileWall(dir.path());
+  const std::string master = std::string(TESSERA_MASTER) + " --transport zmq --listen " +
+                             "tcp://127.0.0.1:* --wall " + (dir / "wall.json").string() +
+                             " --scene " + (dir / "scene.json").string();
+  auto r = test::runCommand(master + " --audio-out x.wav");
+  EXPECT_EQ(r.code, 2) << r.out;
+  EXPECT_NE(r.out.find("--audio-in and --audio-out need --voice"), std::string::npos) << r.out;
+  r = test::runCommand(master + " --voice");
+  EXPECT_EQ(r.code, 2) << r.out;
+  EXPECT_NE(r.out.find("--voice needs --sites"), std::string::npos) << r.out;
+  // A site whose microphone file is missing says which and stops before it joins.
+  const auto k =
+      test::runCommand(std::string(TESSERA_SITE) + " keygen -o " + (dir / "s.key").string());
+  ASSERT_EQ(k.code, 0) << k.out;
+  // (Z85 keys hold shell characters such as '(' and '&': quoted.)
+  r = test::runCommand(std::string(TESSERA_SITE) + " --master tcp://127.0.0.1:9 --master-key '" +
+                       test::publicKeyOf(k.out) + "' --name x --key " + (dir / "s.key").string() +
+                       " --headless --no-render --join-timeout 1 --audio-in " +
+                       (dir / "missing.wav").string());
+  EXPECT_EQ(r.code, 1) << r.out;
+  EXPECT_NE(r.out.find("missing.wav: No such file"), std::string::npos) << r.out;
+}
+
+}  // namespace
