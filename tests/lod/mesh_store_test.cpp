@@ -199,6 +199,10 @@ TEST(MeshBuilder, RefusesMeshesWithoutUsableTrianglesAndBadOptions) {
   o.arity = 1;
   EXPECT_ANY_THROW(buildMeshStore(m, dir.path() / "x.tmesh", o));
   o.arity = 4;
+  o.memory_mb = 0;  // refused before any work: nothing written
+  EXPECT_THROW(buildMeshStore(m, dir.path() / "x.tmesh", o), ReadError);
+  EXPECT_FALSE(std::filesystem::exists(dir.path() / "x.tmesh"));
+  o.memory_mb = 64;
   const MeshBuildReport r = buildMeshStore(m, dir.path() / "x.tmesh", o);  // one triangle: a leaf
   EXPECT_EQ(r.nodes, 1u);
   EXPECT_EQ(MeshStore::open(dir.path() / "x.tmesh")->readPatch(0).triangles(), 1u);
