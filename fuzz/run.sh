@@ -274,7 +274,7 @@ seed_wav() {
 
 declare -A MAX_LEN=([ply]=8192 [las]=8192 [text]=4096 [obj]=4096 [conf]=1024 [tlod]=32768
   [chunk]=8192 [frame]=4096 [link]=4096 [site]=4096 [chunk_request]=1024 [voice]=8192
-  [wav]=16384)
+  [wav]=16384 [tmesh]=16384)
 export UBSAN_OPTIONS=halt_on_error=1:print_stacktrace=1
 status=0
 summary=()

@@ -396,7 +396,7 @@ MeshBuildReport buildMeshStore(const Mesh& mesh, const std::filesystem::path& ou
   const auto t0 = Clock::now();
   MeshBuildReport r;
   r.seconds_read = seconds_read;
-  const uint64_t need = uint64_t(mesh.triangles.size()) * 180 + mesh.positions.size() * 64;
+  const uint64_t need = uint64_t(mesh.triangles.size()) * 110 + mesh.positions.size() * 64;
   r.peak_bytes = need;
   if (need > o.memory_mb * (1ull << 20))
     throw ReadError("lod::buildMeshStore(): " + std::to_string(mesh.triangles.size()) +

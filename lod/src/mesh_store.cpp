@@ -108,6 +108,8 @@ std::unique_ptr<MeshStore> MeshStore::open(std::unique_ptr<RangeSource> source) 
       throw StoreError(at + ": non-finite bounds or error");
     if (n.payload_offset > m.file_bytes || n.payload_bytes > m.file_bytes - n.payload_offset)
       throw StoreError(at + ": payload beyond the end of the file");
+    if (n.payload_bytes < 4)  // a payload starts with its vertex block's size
+      throw StoreError(at + ": payload of " + std::to_string(n.payload_bytes) + " bytes");
     payload += n.payload_bytes;
   }
   // Each node but the root has exactly one parent.
