@@ -22,6 +22,7 @@
 #include "crc32c.h"
 #include "file_io.h"
 #include "mesh_format.h"
+#include "morton.h"
 #include "triangle_grid.h"
 
 #include <fcntl.h>
@@ -225,23 +226,14 @@ uint32_t leafPatches(const Prepared& p, const std::vector<idx_t>& xadj,
   glm::i64vec3 hi(1);
   for (const glm::i32vec3& g : p.grid) hi = glm::max(hi, glm::i64vec3(g));
   const int shift = std::max(0, int(std::ceil(std::log2(double(std::max({hi.x, hi.y, hi.z}) + 1)))) - 21);
-  auto spread = [](uint64_t v) {  // 21 bits to every third bit
-    v &= 0x1FFFFF;
-    v = (v | v << 32) & 0x1F00000000FFFFull;
-    v = (v | v << 16) & 0x1F0000FF0000FFull;
-    v = (v | v << 8) & 0x100F00F00F00F00Full;
-    v = (v | v << 4) & 0x10C30C30C30C30C3ull;
-    v = (v | v << 2) & 0x1249249249249249ull;
-    return v;
-  };
   constexpr size_t kStep = 1 << 16;
   parallelFor((nt + kStep - 1) / kStep, threads, [&](size_t chunk) {
     for (size_t t = chunk * kStep; t < std::min(nt, (chunk + 1) * kStep); ++t) {
       const glm::i64vec3 c = (glm::i64vec3(p.grid[p.tris[t].x]) +
                               glm::i64vec3(p.grid[p.tris[t].y]) +
                               glm::i64vec3(p.grid[p.tris[t].z])) / int64_t(3);
-      order[t] = {spread(uint64_t(c.x >> shift)) | spread(uint64_t(c.y >> shift)) << 1 |
-                      spread(uint64_t(c.z >> shift)) << 2,
+      order[t] = {mortonEncode(uint64_t(c.x >> shift), uint64_t(c.y >> shift),
+                               uint64_t(c.z >> shift)),
                   uint32_t(t)};
     }
   });

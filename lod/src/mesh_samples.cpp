@@ -2,16 +2,13 @@
 
 #include <cmath>
 
+#include "splitmix.h"
+
 namespace tessera::lod {
 namespace {
 
-/// splitmix64: a stable random stream per triangle (index-seeded, not order-dependent).
-uint64_t mix(uint64_t x) {
-  x += 0x9E3779B97F4A7C15ull;
-  x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ull;
-  x = (x ^ (x >> 27)) * 0x94D049BB133111EBull;
-  return x ^ (x >> 31);
-}
+/// Noise depends only on (seed, scanner, cell) / (seed, triangle), never on threads.
+uint64_t mix(uint64_t x) { return splitmix64(x); }
 double unit(uint64_t& state) {
   state = mix(state);
   return double(state >> 11) * (1.0 / 9007199254740992.0);

@@ -19,6 +19,9 @@ bool finite(const glm::vec3& v) { return std::isfinite(v.x) && std::isfinite(v.y
 }  // namespace
 
 bool isMeshStore(const std::filesystem::path& path) {
+  // Only regular files are opened: a FIFO or a device would block or never end.
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(path, ec)) return false;
   std::ifstream in(path, std::ios::binary);
   char magic[8] = {};
   in.read(magic, 8);
