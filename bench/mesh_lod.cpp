@@ -18,6 +18,7 @@
 #include <filesystem>
 #include <fstream>
 #include <string>
+#include <tuple>
 #include <unordered_map>
 #include <vector>
 
@@ -114,7 +115,7 @@ int main(int argc, char** argv) {
     int levels = 4;
     std::string size = "1920x1080";
     int repeats = 3;
-    bool build_only = false;
+    bool build_only = false, pass_only = false;
     app.add_option("--out", out, "Folder for the CSV, the chart and the inputs")
         ->capture_default_str();
     app.add_option("--large-levels", levels, "Subdivisions of the bunny for the large mesh")
@@ -125,16 +126,23 @@ int main(int argc, char** argv) {
         ->check(cli::integerRange(1, 100))
         ->capture_default_str();
     app.add_flag("--build-only", build_only, "Measure the builds only (no drawing, no chart)");
+    app.add_flag("--pass-only", pass_only,
+                 "Only the mesh pass against bare glDrawElements, on the large store an earlier "
+                 "run left in --out");
     if (const auto code = cli::parse(app, argc, argv, "mesh_lod")) return *code;
     const cli::Size view_size = cli::parseSize(size, "--size", 8192);
     fs::create_directories(out);
     const std::string bunny_path =
         std::string(TESSERA_DATA_DIR) + "/stanford-bunny/reconstruction/bun_zipper.ply";
 
+    const fs::path large_store = fs::path(out) / "mesh_lod_large.tmesh";
+    if (pass_only && !fs::exists(large_store))
+      throw cli::UsageError("--pass-only: no " + large_store.string() + " (run once without it)");
     // Build.
     std::vector<BuildRow> rows;
     lod::MeshBuildOptions bo;
     bo.quiet = true;
+    if (!pass_only) {
     const lod::Mesh bunny = lod::readMesh(bunny_path);
     auto build = [&](const std::string& name, const lod::Mesh& m, const fs::path& file,
                      double thesis_rate) {
@@ -159,7 +167,6 @@ int main(int argc, char** argv) {
       std::fprintf(stderr, "mesh_lod: subdivided the bunny %d times: %zu triangles (%.1f s)\n",
                    levels, large.triangles.size(), since(t0));
     }
-    const fs::path large_store = fs::path(out) / "mesh_lod_large.tmesh";
     build("bunny x4^" + std::to_string(levels), large, large_store, kThesisLargeRate);
     large = lod::Mesh{};  // free it before drawing
     std::ofstream bcsv(fs::path(out) / "mesh_lod_build.csv");
@@ -178,6 +185,7 @@ int main(int argc, char** argv) {
     }
     bcsv.close();
     if (build_only) return 0;
+    }
 
     // Drawing.
     auto context = render::GlContext::createHeadless();
@@ -211,7 +219,10 @@ int main(int argc, char** argv) {
       return std::make_pair(img, best);
     };
     render::RenderStats full_st;
-    const auto [full, full_ms] = frame(1e-9, full_st);
+    double full_ms = 0.0;
+    if (!pass_only) {
+    render::Image full;
+    std::tie(full, full_ms) = frame(1e-9, full_st);
     render::writePng((fs::path(out) / "mesh_lod_full.png").string(), full);
     std::ofstream fcsv(fs::path(out) / "mesh_lod_frames.csv");
     const char* fhead = "threshold_px,triangles,patches,frame_ms,mesh_ms,psnr_db\n";
@@ -230,6 +241,7 @@ int main(int argc, char** argv) {
       std::printf("%s", line);
     }
     fcsv.close();
+    }
 
     // The pass against a bare glDrawElements: every leaf patch, one context, interleaved.
     std::vector<render::GlBuffer> buffers;
@@ -272,6 +284,7 @@ int main(int argc, char** argv) {
     pcsv << phead << line;
     std::printf("%s%s", phead, line);
     pcsv.close();
+    if (pass_only) return 0;
 
     const fs::path gp = fs::path(out) / "mesh_lod.gp";
     std::ofstream g(gp);

@@ -1,6 +1,7 @@
 #include <tessera/render/mesh_pass.h>
 
 #include <algorithm>
+#include <string>
 #include <cmath>
 
 #include <tessera/render/gl_context.h>
@@ -20,8 +21,19 @@ uint32_t packNormal1010102(const glm::vec3& n) {
   return q(n.x) | q(n.y) << 10 | q(n.z) << 20;
 }
 
+namespace {
+
+/// The flat-shading variant of a mesh shader's source.
+std::string flat(const char* source) {
+  return std::string("#define MESH_FLAT 1\n") + source;
+}
+
+}  // namespace
+
 struct MeshPass::Impl {
   GlProgram draw = GlProgram::graphics(shaders::kMeshVert, shaders::kMeshFrag, "mesh pass");
+  GlProgram draw_flat = GlProgram::graphics(flat(shaders::kMeshVert).c_str(),
+                                            flat(shaders::kMeshFrag).c_str(), "mesh pass (flat)");
   GlProgram bare = GlProgram::graphics(shaders::kMeshVert, shaders::kMeshBareFrag, "mesh pass (bare)");
   GlProgram merge = GlProgram::compute(shaders::kMeshMerge, "mesh merge");
   uint32_t vao = 0, fbo = 0;
@@ -82,7 +94,7 @@ struct MeshPass::Impl {
   }
 
   /// Clears and binds the framebuffer, draws every batch with `program`.
-  void rasterise(const GlProgram& program, std::span<const MeshBatch> batches, bool flat) {
+  void rasterise(const GlProgram& program, std::span<const MeshBatch> batches) {
     glBindFramebuffer(GL_FRAMEBUFFER, fbo);
     glViewport(0, 0, GLsizei(width), GLsizei(height));
     const float far = 1.0f;
@@ -96,7 +108,6 @@ struct MeshPass::Impl {
     glDisable(GL_CULL_FACE);  // scans are open surfaces, seen from both sides
     glDisable(GL_BLEND);
     program.use();
-    program.set("uFlat", flat ? 1 : 0);
     glBindVertexArray(vao);
     for (const MeshBatch& b : batches) {
       if (b.index_count == 0) continue;
@@ -124,7 +135,7 @@ double MeshPass::draw(FrameTarget& target, std::span<const MeshBatch> batches,
   GpuLap lap;
   Impl& s = *mImpl;
   s.ensure(target.width(), target.height());
-  s.rasterise(s.draw, batches, shading.flat);
+  s.rasterise(shading.flat ? s.draw_flat : s.draw, batches);
   glMemoryBarrier(GL_TEXTURE_FETCH_BARRIER_BIT | GL_FRAMEBUFFER_BARRIER_BIT);
   s.merge.use();
   s.merge.set("uSize", glm::ivec2(int(target.width()), int(target.height())));
@@ -145,7 +156,7 @@ double MeshPass::drawBare(const FrameTarget& target, std::span<const MeshBatch> 
   GpuLap lap;
   Impl& s = *mImpl;
   s.ensure(target.width(), target.height());
-  s.rasterise(s.bare, batches, false);
+  s.rasterise(s.bare, batches);
   return lap();
 }
 

@@ -182,7 +182,7 @@ void ViewRenderer::draw(std::span<const ModelInstance> models, const ViewSetup& 
     mTarget.clearGeometry(pick, shading.blend, shading.fill);
     if (!mesh_batches.empty()) {
       if (!mMeshes) mMeshes = std::make_unique<MeshPass>();
-      st.mesh_ms = mMeshes->draw(mTarget, mesh_batches, MeshShading{.flat = false, .pick = pick});
+      st.mesh_ms = mMeshes->draw(mTarget, mesh_batches, MeshShading{.flat = options.flat_shading, .pick = pick});
     }
     const PassTimings t = mPoints.draw(mTarget, batches, shading);
     st.depth_ms = t.depth_ms;

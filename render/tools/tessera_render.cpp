@@ -228,6 +228,9 @@ int run(int argc, char** argv) {
                  "See-through: most copies of a point over the ensembles (default: as the "
                  "paper, up to L; 1: independent ensembles with larger discs, blurred)")
       ->check(cli::finiteRange(0.01, 1e9));
+  bool flat_shading = false;
+  app.add_flag("--flat", flat_shading,
+               "Meshes: light each triangle with its own facet normal (shows the triangulation)");
   app.add_flag("--blend-colors", blend_colors,
                "Colour points: blend the colours of the points within a splat's depth of the "
                "nearest on each pixel (smooth, alias-free colour; as Potree's high-quality "
@@ -331,6 +334,7 @@ int run(int argc, char** argv) {
     if (spbr_copies == "paper") options.spbr = render::SpbrOptions::papersCopies(options.spbr);
     if (spbr_copies == "gaussian") options.spbr = render::SpbrOptions::gaussianJitter(options.spbr);
     options.blend_colors = blend_colors;
+    options.flat_shading = flat_shading;
     options.fill = fill == "pullpush" ? render::SurfaceFill::kPullPush
                    : fill == "none"   ? render::SurfaceFill::kNone
                                       : render::SurfaceFill::kDiscs;

@@ -258,6 +258,32 @@ TEST_F(MeshPassTest, PointsAndTrianglesHideEachOther) {
   EXPECT_GT(points_win, 1000u);
 }
 
+TEST_F(MeshPassTest, FlatShadingShowsFacetsOverTheSamePixels) {
+  auto store = lod::MeshStore::open(*sDir / "b.tmesh");
+  const ViewSetup v = view(*store, 0.3, 320, 240);
+  const ModelInstance m = meshInstance(*store);
+  ViewRenderer r(v.width, v.height);
+  RenderOptions o;
+  o.lod_pixels = 8.0;  // coarse patches: facets several pixels wide
+  const Image smooth = r.renderSettled({&m, 1}, v, o);
+  const auto smooth_depth = r.target().readDepth();
+  o.flat_shading = true;
+  const Image flat = r.renderSettled({&m, 1}, v, o);
+  EXPECT_EQ(r.target().readDepth(), smooth_depth);  // the same surface
+  EXPECT_EQ(silhouetteIoU(flat, smooth, o.background), 1.0);
+  // Facets: within a triangle every pixel of a flat picture has one colour, so neighbouring
+  // pixels are equal far more often than in the smooth one.
+  auto equalNeighbours = [&](const Image& img) {
+    size_t n = 0;
+    for (size_t i = 4; i < img.rgba.size(); i += 4)
+      n += covered(img, o.background, i / 4) &&
+           std::equal(&img.rgba[i], &img.rgba[i] + 3, &img.rgba[i - 4]);
+    return n;
+  };
+  EXPECT_GT(equalNeighbours(flat), equalNeighbours(smooth) * 3 / 2);
+  EXPECT_GT(psnr(flat, smooth), 20.0);  // the same lighting, faceted
+}
+
 TEST_F(MeshPassTest, PickIdsNameTheTriangleUnderThePixel) {
   auto store = lod::MeshStore::open(*sDir / "b.tmesh");
   const ViewSetup v = view(*store, 0.3, 320, 240);

@@ -86,6 +86,9 @@ struct RenderOptions {
   /// own shape while its parent's error grows on screen from lod_pixels to (1 + this) x
   /// lod_pixels; 0 turns it off (a level change then pops).
   double geomorph_range = 1.0;
+  /// Mesh models: each triangle lit by its own facet normal instead of the vertices' normals
+  /// interpolated (mesh_pass.h): shows the triangulation, e.g. to judge a scan's resolution.
+  bool flat_shading = false;
 };
 
 /// One frame. `nodes`..`points` describe what was drawn.
