@@ -89,11 +89,15 @@ struct SiteHub::Impl {
     v.set_source(p.participant);
     const double aspect = double(packet.height) / double(packet.width);
     if (opt.video_screen) {
-      // The k-th inset to the right of the one before, wrapping to the left edge.
+      // The k-th inset to the right of the one before while there is room, then to the left
+      // of the first (beyond both edges they pile up at the edge).
       const size_t k = insets.size() - 1;
-      const float w = std::clamp(opt.screen_width, 0.01f, 1.0f);
-      float x = opt.screen_x + float(k) * w * 1.05f;
-      if (x + w > 1.0f) x = std::max(0.0f, std::fmod(x, 1.0f - w + 1e-3f));
+      const float w = std::clamp(opt.screen_width, 0.01f, 1.0f), step = w * 1.05f;
+      float x = opt.screen_x + float(k) * step;
+      if (x + w > 1.0f) {
+        const float right = std::floor((1.0f - w - opt.screen_x) / step) + 1.0f;
+        x = opt.screen_x - (float(k) - right + 1.0f) * step;
+      }
       v.set_screen(true);
       v.set_screen_x(std::clamp(x, 0.0f, 1.0f - w));
       v.set_screen_y(std::clamp(opt.screen_y, 0.0f, 1.0f));
