@@ -371,6 +371,7 @@ int Master::run() {
     double present_ms = 0;
     if (mConsole) {  // the console renders while the nodes do
       const auto p = Clock::now();
+      mConsole->video(mGraph, message_out.media());
       mConsole->draw(mGraph, sync::SceneChanges::of(taken));
       if (last && !mOpt.console_screenshot.empty()) mConsole->save(mOpt.console_screenshot);
       present_ms = msSince(p);
