@@ -20,8 +20,6 @@
 // Writes DIR/video_codec.csv, DIR/video_latency.csv, DIR/video_summary.csv and DIR/video.png.
 #include <CLI/CLI.hpp>
 
-#include <time.h>
-
 #include <algorithm>
 #include <cstdio>
 #include <filesystem>
@@ -39,24 +37,16 @@
 #include <tessera/render/image.h>
 
 #include "../tests/support/process.h"
+#include "bench_stats.h"
 
 namespace {
+
+using tessera::bench::percentile;
+using tessera::bench::threadCpuSeconds;
 
 namespace fs = std::filesystem;
 using namespace tessera;
 using test::Process;
-
-double percentile(std::vector<double> v, double q) {
-  if (v.empty()) return 0;
-  std::sort(v.begin(), v.end());
-  return v[std::min(v.size() - 1, size_t(q * double(v.size())))];
-}
-
-double threadCpuSeconds() {
-  timespec ts{};
-  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
-  return double(ts.tv_sec) + 1e-9 * double(ts.tv_nsec);
-}
 
 struct Size {
   int width, height, kbps;
@@ -154,16 +144,38 @@ LatencyRun glassToGlass(const Size& size, const fs::path& work, const std::strin
   for (double t = 2.0; t < seconds - 0.3; t += 0.2, ++n)
     actions += (n ? ", " : "") + std::string(R"({"time": )") + std::to_string(t) +
                R"(, "screenshot": "shot)" + std::to_string(n) + R"(.png"})";
-  std::ofstream(work / "hold.json") << R"({"name": "hold", "keyframes": [{"time": 0, )" << camera
-                                    << R"(}, {"time": )" << seconds << ", " << camera
-                                    << "}], \"actions\": [" << actions << "]}";
-  Process master({bin + "/master/tessera-master", "--transport", "zmq", "--listen",
-                  "tcp://127.0.0.1:*", "--wall", (work / "wall.json").string(), "--scene",
-                  (work / "scene.json").string(), "--script", (work / "hold.json").string(),
-                  "--max-fps", "60", "--stats", (work / "stats.csv").string(), "--sites",
-                  "tcp://127.0.0.1:*", "--site-key", (work / "master.key").string(), "--allow",
-                  (work / "allow.txt").string(), "--node-timeout", "5000", "--out-dir",
-                  work.string(), "--video-screen", "0.1,0.1,0.8", "--video-cap", "20000"},
+  std::ofstream(work / "hold.json")
+      << R"({"name": "hold", "keyframes": [{"time": 0, )" << camera << R"(}, {"time": )" << seconds
+      << ", " << camera << "}], \"actions\": [" << actions << "]}";
+  Process master({bin + "/master/tessera-master",
+                  "--transport",
+                  "zmq",
+                  "--listen",
+                  "tcp://127.0.0.1:*",
+                  "--wall",
+                  (work / "wall.json").string(),
+                  "--scene",
+                  (work / "scene.json").string(),
+                  "--script",
+                  (work / "hold.json").string(),
+                  "--max-fps",
+                  "60",
+                  "--stats",
+                  (work / "stats.csv").string(),
+                  "--sites",
+                  "tcp://127.0.0.1:*",
+                  "--site-key",
+                  (work / "master.key").string(),
+                  "--allow",
+                  (work / "allow.txt").string(),
+                  "--node-timeout",
+                  "5000",
+                  "--out-dir",
+                  work.string(),
+                  "--video-screen",
+                  "0.1,0.1,0.8",
+                  "--video-cap",
+                  "20000"},
                  work / "master.log");
   LatencyRun r;
   if (!master.waitFor("remote sites join on (tcp://\\S+)", 30)) {
@@ -176,14 +188,31 @@ LatencyRun glassToGlass(const Size& size, const fs::path& work, const std::strin
   const std::string wall = m[1];
   std::regex_search(out, m, std::regex("remote sites join on tcp://[^:]+:(\\d+)"));
   const std::string sites = "tcp://127.0.0.1:" + m[1].str();
-  Process node({bin + "/render_node/tessera-node", "--master", wall, "--headless", "--tile", "tile"},
-               work / "node.log");
+  Process node(
+      {bin + "/render_node/tessera-node", "--master", wall, "--headless", "--tile", "tile"},
+      work / "node.log");
   std::ofstream(work / "still.json") << R"({"actions": []})";
-  Process site({bin + "/collab/tessera-site", "--master", sites, "--master-key",
-                master_keys.public_key, "--name", "bench site", "--key",
-                (work / "site.key").string(), "--headless", "-o", work.string(), "--script",
-                (work / "still.json").string(), "--no-render", "--video", "test", "--video-size",
-                size.name(), "--video-kbps", std::to_string(size.kbps)},
+  Process site({bin + "/collab/tessera-site",
+                "--master",
+                sites,
+                "--master-key",
+                master_keys.public_key,
+                "--name",
+                "bench site",
+                "--key",
+                (work / "site.key").string(),
+                "--headless",
+                "-o",
+                work.string(),
+                "--script",
+                (work / "still.json").string(),
+                "--no-render",
+                "--video",
+                "test",
+                "--video-size",
+                size.name(),
+                "--video-kbps",
+                std::to_string(size.kbps)},
                work / "site.log");
   (void)master.wait(seconds + 120);
   (void)node.wait(15);
@@ -197,8 +226,7 @@ LatencyRun glassToGlass(const Size& size, const fs::path& work, const std::strin
     ++r.shots;
     std::smatch s;
     const std::string frame = (*it)[1];
-    if (!std::regex_search(log, s,
-                           std::regex("frame " + frame + ": swapped at unix ms ([0-9.]+)")))
+    if (!std::regex_search(log, s, std::regex("frame " + frame + ": swapped at unix ms ([0-9.]+)")))
       continue;
     const double swapped = std::stod(s[1]);
     const render::Image image = render::readPng((*it)[2].str());
@@ -207,8 +235,8 @@ LatencyRun glassToGlass(const Size& size, const fs::path& work, const std::strin
       ++r.unreadable;
       continue;
     }
-    r.latency_ms.push_back(double(
-        collab::patternDelayMs(code->time_ms, uint32_t(uint64_t(swapped) & 0xFFFFFFFFu))));
+    r.latency_ms.push_back(
+        double(collab::patternDelayMs(code->time_ms, uint32_t(uint64_t(swapped) & 0xFFFFFFFFu))));
   }
   r.wall_frame_ms = statsMedian(work / "stats.csv", "master", "frame_ms");
   r.node_render_ms = statsMedian(work / "stats.csv", "tile", "render_ms");
@@ -247,10 +275,11 @@ int main(int argc, char** argv) {
       codec << s.name() << "," << s.kbps << "," << r.encode_ms << "," << r.decode_ms << ","
             << r.encode_ms * 30 / 1000 << "," << r.decode_ms * 30 / 1000 << "," << r.kbps << ","
             << r.psnr << "\n";
-      std::printf("%s: encode %.2f ms, decode %.2f ms per picture (%.0f%% and %.0f%% of a core "
-                  "at 30 frames/s), %.0f kbit/s, PSNR %.1f dB\n",
-                  s.name().c_str(), r.encode_ms, r.decode_ms, r.encode_ms * 3, r.decode_ms * 3,
-                  r.kbps, r.psnr);
+      std::printf(
+          "%s: encode %.2f ms, decode %.2f ms per picture (%.0f%% and %.0f%% of a core "
+          "at 30 frames/s), %.0f kbit/s, PSNR %.1f dB\n",
+          s.name().c_str(), r.encode_ms, r.decode_ms, r.encode_ms * 3, r.decode_ms * 3, r.kbps,
+          r.psnr);
     }
     codec.close();
 
@@ -261,7 +290,8 @@ int main(int argc, char** argv) {
            "node_render_ms_median,site_kbps,site_encode_ms\n";
     std::vector<LatencyRun> runs;
     for (const Size& s : sizes) {
-      const LatencyRun r = glassToGlass(s, fs::path(out) / ("video-work-" + s.name()), bin, seconds);
+      const LatencyRun r =
+          glassToGlass(s, fs::path(out) / ("video-work-" + s.name()), bin, seconds);
       runs.push_back(r);
       for (size_t i = 0; i < r.latency_ms.size(); ++i)
         lat << s.name() << "," << i << "," << r.latency_ms[i] << "\n";
@@ -269,12 +299,13 @@ int main(int argc, char** argv) {
           << percentile(r.latency_ms, 0.5) << "," << percentile(r.latency_ms, 0.99) << ","
           << r.wall_frame_ms << "," << r.node_render_ms << "," << r.site_kbps << ","
           << r.site_encode_ms << "\n";
-      std::printf("%s glass-to-glass (loopback, light wall): median %.0f ms, p99 %.0f ms over %zu "
-                  "screenshots (%d unreadable); the wall's frame %.1f ms (node render %.1f ms); "
-                  "site %.0f kbit/s, %.1f ms to encode\n",
-                  s.name().c_str(), percentile(r.latency_ms, 0.5), percentile(r.latency_ms, 0.99),
-                  r.latency_ms.size(), r.unreadable, r.wall_frame_ms, r.node_render_ms,
-                  r.site_kbps, r.site_encode_ms);
+      std::printf(
+          "%s glass-to-glass (loopback, light wall): median %.0f ms, p99 %.0f ms over %zu "
+          "screenshots (%d unreadable); the wall's frame %.1f ms (node render %.1f ms); "
+          "site %.0f kbit/s, %.1f ms to encode\n",
+          s.name().c_str(), percentile(r.latency_ms, 0.5), percentile(r.latency_ms, 0.99),
+          r.latency_ms.size(), r.unreadable, r.wall_frame_ms, r.node_render_ms, r.site_kbps,
+          r.site_encode_ms);
     }
     lat.close();
     sum.close();
@@ -289,8 +320,10 @@ int main(int argc, char** argv) {
           "test pattern)'\nset xlabel 'screenshot'\nset ylabel 'ms'\nset yrange [0:*]\n"
        << "set key bottom right\n"
        << "plot '" << (res / "video_latency.csv").string()
-       << "' skip 1 using (strcol(1) eq '640x480' ? $2 : 1/0):3 with linespoints pt 7 title '640x480', "
-          "\\\n  '' skip 1 using (strcol(1) eq '1280x720' ? $2 : 1/0):3 with linespoints pt 6 title "
+       << "' skip 1 using (strcol(1) eq '640x480' ? $2 : 1/0):3 with linespoints pt 7 title "
+          "'640x480', "
+          "\\\n  '' skip 1 using (strcol(1) eq '1280x720' ? $2 : 1/0):3 with linespoints pt 6 "
+          "title "
           "'1280x720', \\\n  "
        << goal << " with lines dt 2 lw 2 lc rgb '#d62728' title 'goal: 100 ms + one wall frame ("
        << int(goal + 0.5) << " ms)'\n"

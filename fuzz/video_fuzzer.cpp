@@ -28,9 +28,9 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     const bool changed = receiver.receive(packet);
     if (changed != (receiver.generation() != generation)) std::abort();
     const VideoPicture& p = receiver.picture();
-    if (!p.empty() && (p.width < 16 || p.height < 16 || p.width > kMaxVideoSide ||
-                       p.height > kMaxVideoSide ||
-                       p.rgba.size() != size_t(p.width) * size_t(p.height) * 4))
+    if (!p.empty() &&
+        (p.width < 16 || p.height < 16 || p.width > kMaxVideoSide || p.height > kMaxVideoSide ||
+         p.rgba.size() != size_t(p.width) * size_t(p.height) * 4))
       std::abort();
   }
   return 0;

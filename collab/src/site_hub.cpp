@@ -70,6 +70,7 @@ struct SiteHub::Impl {
   struct Inset {
     sync::SceneGraph::NodeId node = 0;
     double last = 0;
+    bool owned = true;  // made by the hub (false: the scene's own, pinned by its file)
   };
   std::map<uint32_t, Inset> insets;  // by participant
   std::vector<std::string> media;    // video chunks for the nodes with the next frame
@@ -83,6 +84,16 @@ struct SiteHub::Impl {
     Inset& in = insets[p.participant];
     in.last = now;
     if (in.node && graph.contains(in.node)) return;
+    // A VIDEO_INSET the scene already has for this participant (a scene file pinned it in
+    // the world): that one shows the stream, and stays when the video stops.
+    for (const sync::SceneGraph::NodeId id : graph.ids()) {
+      const scene::SceneNode& n = graph.node(id);
+      if (n.kind() == scene::SceneNode::VIDEO_INSET && n.video_inset().source() == p.participant) {
+        in.node = id;
+        in.owned = false;
+        return;
+      }
+    }
     const SiteInfo& info = roster.info(p.participant);
     scene::VideoInsetPayload v;
     v.set_stream(info.name);
@@ -127,7 +138,8 @@ struct SiteHub::Impl {
   void removeInset(sync::SceneGraph& graph, uint32_t participant) {
     auto it = insets.find(participant);
     if (it == insets.end()) return;
-    if (it->second.node && graph.contains(it->second.node)) graph.remove(it->second.node);
+    if (it->second.owned && it->second.node && graph.contains(it->second.node))
+      graph.remove(it->second.node);
     insets.erase(it);
   }
 

@@ -6,22 +6,17 @@
 
 extern "C" {
 #include <libavcodec/avcodec.h>
-#include <libavutil/error.h>
 #include <libavutil/imgutils.h>
 #include <libavutil/log.h>
 #include <libavutil/opt.h>
 #include <libswscale/swscale.h>
 }
 
+#include "ffmpeg_error.h"
+
 namespace tessera::collab {
 
 namespace {
-
-std::string avError(int code) {
-  char text[AV_ERROR_MAX_STRING_SIZE] = {};
-  av_strerror(code, text, sizeof text);
-  return text;
-}
 
 struct CodecContextFree {
   void operator()(AVCodecContext* c) const { avcodec_free_context(&c); }
@@ -149,9 +144,8 @@ EncodedVideo VideoEncoder::encode(const VideoPicture& picture) {
                      " with " + std::to_string(picture.rgba.size()) + " bytes");
   AVCodecContext* c = m->context.get();
   if (!m->sws || m->sws_w != picture.width || m->sws_h != picture.height) {
-    m->sws.reset(sws_getContext(picture.width, picture.height, AV_PIX_FMT_RGBA, c->width,
-                                c->height, AV_PIX_FMT_YUV420P, SWS_BILINEAR, nullptr, nullptr,
-                                nullptr));
+    m->sws.reset(sws_getContext(picture.width, picture.height, AV_PIX_FMT_RGBA, c->width, c->height,
+                                AV_PIX_FMT_YUV420P, SWS_BILINEAR, nullptr, nullptr, nullptr));
     if (!m->sws) throw VideoError("collab::VideoEncoder::encode(): sws_getContext failed");
     m->sws_w = picture.width;
     m->sws_h = picture.height;
@@ -251,11 +245,9 @@ std::optional<std::string> VideoDecoder::decode(std::span<const uint8_t> au, boo
       av_frame_unref(f);
       continue;
     }
-    if (f->width < 16 || f->height < 16 || f->width > kMaxVideoSide ||
-        f->height > kMaxVideoSide) {
+    if (f->width < 16 || f->height < 16 || f->width > kMaxVideoSide || f->height > kMaxVideoSide) {
       problem = "video decoder: a picture of " + std::to_string(f->width) + "x" +
-                std::to_string(f->height) + " (16.." + std::to_string(kMaxVideoSide) +
-                " each way)";
+                std::to_string(f->height) + " (16.." + std::to_string(kMaxVideoSide) + " each way)";
       av_frame_unref(f);
       continue;
     }

@@ -113,7 +113,7 @@ std::optional<VideoAssembler::Unit> VideoAssembler::add(const VideoPacket& p) {
   // the space ahead.
   const auto later = [](uint32_t a, uint32_t b) { return a != b && uint32_t(a - b) < 0x80000000u; };
   if (mStarted && p.frame != mFrame && !later(p.frame, mFrame)) return {};  // an older unit
-  if (mStarted && p.frame == mFrame && mParts.empty()) return {};  // completed or given up
+  if (mStarted && p.frame == mFrame && mParts.empty()) return {};           // completed or given up
   if (!mStarted || p.frame != mFrame) {
     // A later access unit: the one being joined (if any) lost a chunk and is given up; the
     // gap it leaves is counted when the next whole unit completes.

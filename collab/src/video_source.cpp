@@ -11,19 +11,14 @@ extern "C" {
 #include <libavcodec/avcodec.h>
 #include <libavdevice/avdevice.h>
 #include <libavformat/avformat.h>
-#include <libavutil/error.h>
 #include <libswscale/swscale.h>
 }
+
+#include "ffmpeg_error.h"
 
 namespace tessera::collab {
 
 namespace {
-
-std::string avError(int code) {
-  char text[AV_ERROR_MAX_STRING_SIZE] = {};
-  av_strerror(code, text, sizeof text);
-  return text;
-}
 
 class PatternSource final : public VideoSource {
  public:
@@ -44,8 +39,7 @@ class PatternSource final : public VideoSource {
 /// A demuxer and decoder over libavformat: files, and cameras through libavdevice.
 class Demuxed {
  public:
-  Demuxed(const std::string& url, const AVInputFormat* format, AVDictionary** options, int w,
-          int h)
+  Demuxed(const std::string& url, const AVInputFormat* format, AVDictionary** options, int w, int h)
       : mUrl(url), mWidth(w), mHeight(h) {
     const auto fail = [&](const std::string& what, int r) {
       throw VideoError("collab::openVideoSource(): " + url + ": " + what + avError(r));
@@ -113,9 +107,9 @@ class Demuxed {
 
  private:
   void convert(VideoPicture& out) {
-    mSws = sws_getCachedContext(mSws, mFrame->width, mFrame->height,
-                                AVPixelFormat(mFrame->format), mWidth, mHeight, AV_PIX_FMT_RGBA,
-                                SWS_BILINEAR, nullptr, nullptr, nullptr);
+    mSws = sws_getCachedContext(mSws, mFrame->width, mFrame->height, AVPixelFormat(mFrame->format),
+                                mWidth, mHeight, AV_PIX_FMT_RGBA, SWS_BILINEAR, nullptr, nullptr,
+                                nullptr);
     if (!mSws)
       throw VideoError("collab::VideoSource: " + mUrl + ": cannot convert pixel format " +
                        std::to_string(mFrame->format));
@@ -227,8 +221,8 @@ class CameraSource final : public VideoSource {
 std::unique_ptr<VideoSource> openVideoSource(const std::string& spec, int width, int height,
                                              double fps) {
   if (width < 32 || height < 32 || width > kMaxVideoSide || height > kMaxVideoSide)
-    throw VideoError("collab::openVideoSource(): a picture size of " + std::to_string(width) +
-                     "x" + std::to_string(height) + " (32.." + std::to_string(kMaxVideoSide) +
+    throw VideoError("collab::openVideoSource(): a picture size of " + std::to_string(width) + "x" +
+                     std::to_string(height) + " (32.." + std::to_string(kMaxVideoSide) +
                      " each way)");
   if (spec == "test") return std::make_unique<PatternSource>(width, height);
   if (spec.rfind("/dev/video", 0) == 0)

@@ -74,14 +74,53 @@ std::vector<std::string> masterArgv(const fs::path& dir, const VideoWall& s, dou
   int n = 0;
   for (double t = from; t < seconds - 0.2; t += every, ++n) {
     char a[96];
-    std::snprintf(a, sizeof a, R"(%s{"time": %.3f, "screenshot": "shot%03d.png"})",
-                  n ? ", " : "", t, n);
+    std::snprintf(a, sizeof a, R"(%s{"time": %.3f, "screenshot": "shot%03d.png"})", n ? ", " : "",
+                  t, n);
     actions += a;
   }
   test::writeText(dir / "hold.json", R"({"name": "hold", "keyframes": [{"time": 0, )" + hold +
-                                         R"(}, {"time": )" + std::to_string(seconds) + ", " +
-                                         hold + "}], \"actions\": [" + actions + "]}");
+                                         R"(}, {"time": )" + std::to_string(seconds) + ", " + hold +
+                                         "}], \"actions\": [" + actions + "]}");
   return argv;
+}
+
+/// The master (masterArgv) and a node per tile, started; `sites` is where sites join; with
+/// `site_options`, a headless tessera-site "site a" (no rendering, still) with them.
+struct RunningWall {
+  std::unique_ptr<Process> master, left, right, site;
+  std::string sites;
+};
+
+std::unique_ptr<RunningWall> startWall(const fs::path& dir, const VideoWall& s, double seconds,
+                                       double from, double every,
+                                       const std::vector<std::string>& extra,
+                                       const std::vector<std::string>& site_options = {}) {
+  auto w = std::make_unique<RunningWall>();
+  w->master = std::make_unique<Process>(masterArgv(dir, s, seconds, from, every, extra),
+                                        dir / "master.log");
+  if (!w->master->waitFor("remote sites join on (tcp://\\S+)", 30)) {
+    ADD_FAILURE() << w->master->output();
+    return nullptr;
+  }
+  const std::string out = w->master->output();
+  const std::string wall = test::captured(out, "listening on (tcp://\\S+)");
+  w->sites = "tcp://127.0.0.1:" + test::captured(out, "remote sites join on tcp://[^:]+:(\\d+)");
+  w->left = std::make_unique<Process>(
+      std::vector<std::string>{TESSERA_NODE, "--master", wall, "--headless", "--tile", "left"},
+      dir / "left.log");
+  w->right = std::make_unique<Process>(
+      std::vector<std::string>{TESSERA_NODE, "--master", wall, "--headless", "--tile", "right"},
+      dir / "right.log");
+  if (!site_options.empty()) {
+    test::writeText(dir / "still.json", R"({"actions": []})");
+    std::vector<std::string> options = {"--no-render"};
+    options.insert(options.end(), site_options.begin(), site_options.end());
+    w->site = std::make_unique<Process>(
+        test::headlessSite(TESSERA_SITE, w->sites, s.keys.at("master"), "site a", dir / "a.key",
+                           dir, dir / "still.json", options),
+        dir / "a.log");
+  }
+  return w;
 }
 
 /// One screenshot as the wall showed it: the frame number and clock burned into the inset at
@@ -100,8 +139,8 @@ std::vector<Shot> readShots(const std::string& log, int x, int y, int w, int h) 
        ++it) {
     Shot s;
     s.path = (*it)[2].str();
-    const std::string swapped = test::captured(
-        log, "frame " + (*it)[1].str() + ": swapped at unix ms ([0-9.]+)");
+    const std::string swapped =
+        test::captured(log, "frame " + (*it)[1].str() + ": swapped at unix ms ([0-9.]+)");
     if (!swapped.empty()) s.swapped_ms = std::stod(swapped);
     s.image = render::readPng(s.path.string());
     s.code = collab::readTestPattern(s.image.rgba.data(), int(s.image.width), x, y, w, h);
@@ -129,22 +168,10 @@ constexpr int kX = 80, kY = 60, kW = 640, kH = 480;
 TEST(VideoSites, TheWallShowsASitesVideoLiveAndFaithfully) {
   test::TempDir dir;
   const VideoWall s = writeSetup(dir.path(), {"master", "a"});
-  Process master(masterArgv(dir.path(), s, 7.0, 2.0, 0.25, {"--video-screen", "0.1,0.1,0.8"}),
-                 dir / "master.log");
-  ASSERT_TRUE(master.waitFor("remote sites join on (tcp://\\S+)", 30)) << master.output();
-  const std::string out = master.output();
-  const std::string wall = test::captured(out, "listening on (tcp://\\S+)");
-  const std::string sites =
-      "tcp://127.0.0.1:" + test::captured(out, "remote sites join on tcp://[^:]+:(\\d+)");
-  Process left({TESSERA_NODE, "--master", wall, "--headless", "--tile", "left"},
-               dir / "left.log");
-  Process right({TESSERA_NODE, "--master", wall, "--headless", "--tile", "right"},
-                dir / "right.log");
-  test::writeText(dir / "still.json", R"({"actions": []})");
-  Process site(test::headlessSite(TESSERA_SITE, sites, s.keys.at("master"), "site a",
-                                  dir / "a.key", dir.path(), dir / "still.json",
-                                  {"--no-render", "--video", "test"}),
-               dir / "a.log");
+  const auto w = startWall(dir.path(), s, 7.0, 2.0, 0.25, {"--video-screen", "0.1,0.1,0.8"},
+                           {"--video", "test"});
+  ASSERT_TRUE(w);
+  Process &master = *w->master, &left = *w->left, &right = *w->right, &site = *w->site;
   ASSERT_EQ(master.wait(120), std::optional<int>(0)) << master.output();
   EXPECT_EQ(left.wait(15), std::optional<int>(0)) << left.output();
   EXPECT_EQ(right.wait(15), std::optional<int>(0)) << right.output();
@@ -177,8 +204,8 @@ TEST(VideoSites, TheWallShowsASitesVideoLiveAndFaithfully) {
     EXPECT_LT(insetPsnr(shot.image, earlier, kX, kY, kW, kH), psnr - 6.0) << shot.path;
   }
   std::sort(latency.begin(), latency.end());
-  std::printf("glass-to-glass over %zu screenshots: median %.0f ms, max %.0f ms\n",
-              latency.size(), latency[latency.size() / 2], latency.back());
+  std::printf("glass-to-glass over %zu screenshots: median %.0f ms, max %.0f ms\n", latency.size(),
+              latency[latency.size() / 2], latency.back());
   // Each tile decoded the inset (it spans both); the site said what it sent.
   for (Process* node : {&left, &right}) {
     const std::string decoded =
@@ -193,27 +220,16 @@ TEST(VideoSites, OnlyTheTilesThatShowAnInsetDecodeIt) {
   test::TempDir dir;
   const VideoWall s = writeSetup(dir.path(), {"master", "a"});
   // The inset within the left tile (0.05 .. 0.45 of the wall; the seam is at 0.5).
-  Process master(masterArgv(dir.path(), s, 5.0, 4.0, 1.0, {"--video-screen", "0.05,0.3,0.4"}),
-                 dir / "master.log");
-  ASSERT_TRUE(master.waitFor("remote sites join on (tcp://\\S+)", 30)) << master.output();
-  const std::string out = master.output();
-  const std::string wall = test::captured(out, "listening on (tcp://\\S+)");
-  const std::string sites =
-      "tcp://127.0.0.1:" + test::captured(out, "remote sites join on tcp://[^:]+:(\\d+)");
-  Process left({TESSERA_NODE, "--master", wall, "--headless", "--tile", "left"},
-               dir / "left.log");
-  Process right({TESSERA_NODE, "--master", wall, "--headless", "--tile", "right"},
-                dir / "right.log");
-  test::writeText(dir / "still.json", R"({"actions": []})");
-  Process site(test::headlessSite(TESSERA_SITE, sites, s.keys.at("master"), "site a",
-                                  dir / "a.key", dir.path(), dir / "still.json",
-                                  {"--no-render", "--video", "test", "--video-size", "320x240"}),
-               dir / "a.log");
+  const auto w = startWall(dir.path(), s, 5.0, 4.0, 1.0, {"--video-screen", "0.05,0.3,0.4"},
+                           {"--video", "test", "--video-size", "320x240"});
+  ASSERT_TRUE(w);
+  Process &master = *w->master, &left = *w->left, &right = *w->right;
   ASSERT_EQ(master.wait(120), std::optional<int>(0)) << master.output();
   ASSERT_EQ(left.wait(15), std::optional<int>(0)) << left.output();
   ASSERT_EQ(right.wait(15), std::optional<int>(0)) << right.output();
-  const std::regex stats("video: (\\d+) packets \\(0 refused\\), (\\d+) pictures decoded, (\\d+) "
-                         "access units skipped");
+  const std::regex stats(
+      "video: (\\d+) packets \\(0 refused\\), (\\d+) pictures decoded, (\\d+) "
+      "access units skipped");
   std::smatch l, r;
   const std::string left_log = left.output(), right_log = right.output();
   ASSERT_TRUE(std::regex_search(left_log, l, stats)) << left_log;
@@ -254,18 +270,11 @@ TEST(VideoSites, DamagedTruncatedOversizedAndFloodingVideoNeverShowsOrStopsTheWa
   const VideoWall s = writeSetup(dir.path(), {"master", "good", "bad", "big", "flood"});
   // Insets 0.45 of the wall wide (360x270 pixels at (40, 270)): the flooding site's inset
   // goes beside the good one's.
-  Process master(masterArgv(dir.path(), s, 10.0, 1.5, 0.2,
-                            {"--video-screen", "0.05,0.1,0.45", "--video-cap", "2000"}),
-                 dir / "master.log");
-  ASSERT_TRUE(master.waitFor("remote sites join on (tcp://\\S+)", 30)) << master.output();
-  const std::string out = master.output();
-  const std::string wall = test::captured(out, "listening on (tcp://\\S+)");
-  const std::string sites =
-      "tcp://127.0.0.1:" + test::captured(out, "remote sites join on tcp://[^:]+:(\\d+)");
-  Process left({TESSERA_NODE, "--master", wall, "--headless", "--tile", "left"},
-               dir / "left.log");
-  Process right({TESSERA_NODE, "--master", wall, "--headless", "--tile", "right"},
-                dir / "right.log");
+  const auto w = startWall(dir.path(), s, 10.0, 1.5, 0.2,
+                           {"--video-screen", "0.05,0.1,0.45", "--video-cap", "2000"});
+  ASSERT_TRUE(w);
+  Process &master = *w->master, &left = *w->left, &right = *w->right;
+  const std::string& sites = w->sites;
   TestSite good(sites, s.keys.at("master"), dir / "good.key", "good");
   collab::VideoSettings vs;
   collab::VideoSender sender(vs, uint16_t(good.participant));
@@ -282,7 +291,7 @@ TEST(VideoSites, DamagedTruncatedOversizedAndFloodingVideoNeverShowsOrStopsTheWa
       if (f >= kDamagedFrom && f < kCleanAgain) {
         collab::VideoPacket p;
         ASSERT_EQ(collab::decodeVideoPacket(bytes, p), std::nullopt);
-        if (f % 7 == 0) continue;  // missing
+        if (f % 7 == 0) continue;                                                 // missing
         if (f % 3 == 0) p.payload.resize(std::min<size_t>(p.payload.size(), 9));  // truncated
         for (size_t i = 4; i < p.payload.size(); i += 5) p.payload[i] = uint8_t(rng());
         bytes = collab::encodeVideoPacket(p);
@@ -345,8 +354,9 @@ TEST(VideoSites, DamagedTruncatedOversizedAndFloodingVideoNeverShowsOrStopsTheWa
   EXPECT_NE(left.output().find("the inset keeps its last good picture"), std::string::npos)
       << left.output();
   const std::string errors =
-      test::captured(left.output(), "pictures decoded, \\d+ access units skipped \\([^)]*\\), "
-                                    "(\\d+) decoding errors");
+      test::captured(left.output(),
+                     "pictures decoded, \\d+ access units skipped \\([^)]*\\), "
+                     "(\\d+) decoding errors");
   ASSERT_FALSE(errors.empty()) << left.output();
 
   // Every screenshot: a readable pattern of a clean frame (a damaged one never shows), and

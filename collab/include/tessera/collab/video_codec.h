@@ -63,7 +63,7 @@ struct VideoSettings {
   /// its first whole picture one period later (the sweep), so 0.5 s: a late joiner or a loss
   /// recovers within 0.5 to 1 s.
   double refresh_s = 0.5;
-  double vbv_s = 0.25;            ///< VBV buffer, seconds of the cap, (0, 5]
+  double vbv_s = 0.25;               ///< VBV buffer, seconds of the cap, (0, 5]
   std::string preset = "ultrafast";  ///< x264 preset: ultrafast .. veryslow
   int threads = 1;  ///< encoder threads (1 leaves the other core to the rest of the site)
 
