@@ -97,12 +97,6 @@ class Demuxed {
     throw VideoError("collab::VideoSource: " + mUrl + ": no picture in 100000 packets");
   }
 
-  /// Back to the start (files loop).
-  void rewind() {
-    av_seek_frame(mFormat, mStream, 0, AVSEEK_FLAG_BACKWARD);
-    avcodec_flush_buffers(mCodec);
-  }
-
   const std::string& description() const { return mDescription; }
 
  private:
@@ -132,19 +126,26 @@ class Demuxed {
 
 class FileSource final : public VideoSource {
  public:
-  FileSource(const std::string& path, int w, int h) : mDemuxed(path, nullptr, nullptr, w, h) {
-    mDescription = "file " + path + " (" + mDemuxed.description() + ")";
+  FileSource(const std::string& path, int w, int h)
+      : mPath(path),
+        mWidth(w),
+        mHeight(h),
+        mDemuxed(std::make_unique<Demuxed>(path, nullptr, nullptr, w, h)) {
+    mDescription = "file " + path + " (" + mDemuxed->description() + ")";
   }
   bool grab(VideoPicture& out) override {
-    if (mDemuxed.next(out)) return true;
-    mDemuxed.rewind();
-    if (mDemuxed.next(out)) return true;
-    throw VideoError("collab::VideoSource: " + mDescription + ": no picture after rewinding");
+    if (mDemuxed->next(out)) return true;
+    // At the end: open it again (seeking is not possible in every format, raw H.264 among them).
+    mDemuxed = std::make_unique<Demuxed>(mPath, nullptr, nullptr, mWidth, mHeight);
+    if (mDemuxed->next(out)) return true;
+    throw VideoError("collab::VideoSource: " + mDescription + ": no picture after starting over");
   }
   std::string describe() const override { return mDescription; }
 
  private:
-  Demuxed mDemuxed;
+  std::string mPath;
+  int mWidth, mHeight;
+  std::unique_ptr<Demuxed> mDemuxed;
   std::string mDescription;
 };
 

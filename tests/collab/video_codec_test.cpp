@@ -3,10 +3,16 @@
 // joiners, lost, corrupt, truncated and oversized packets.
 #include <gtest/gtest.h>
 
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
 #include <random>
+
+#include <unistd.h>
 
 #include <tessera/collab/video_packet.h>
 #include <tessera/collab/video_pattern.h>
+#include <tessera/collab/video_source.h>
 
 namespace {
 
@@ -168,6 +174,51 @@ TEST(VideoCodec, CorruptAccessUnitsKeepTheLastGoodPicture) {
   // Clean access units again: back to a good picture within two refresh periods.
   feed(r, packets, 2 * period + 5, 5 * period);
   EXPECT_EQ(shownFrame(r), 5 * period - 1);
+}
+
+TEST(VideoSource, AFileIsReadScaledAndLooped) {
+  // A raw H.264 stream (Annex B, what the encoder makes) is a file libavformat reads.
+  const std::filesystem::path file = std::filesystem::temp_directory_path() /
+                                     ("tessera-video-" + std::to_string(getpid()) + ".h264");
+  {
+    VideoSettings s;
+    s.width = 320;
+    s.height = 240;
+    s.intra_refresh = false;  // starts with an IDR, as a file does
+    VideoEncoder encoder(s);
+    std::ofstream out(file, std::ios::binary);
+    VideoPicture p;
+    for (uint32_t f = 0; f < 20; ++f) {
+      drawTestPattern(p, s.width, s.height, {f, 5000u + f});
+      const EncodedVideo unit = encoder.encode(p);
+      out.write(reinterpret_cast<const char*>(unit.bytes.data()),
+                std::streamsize(unit.bytes.size()));
+    }
+  }
+  auto source = openVideoSource(file.string(), 640, 480, 30);
+  EXPECT_NE(source->describe().find("h264 320x240"), std::string::npos) << source->describe();
+  VideoPicture p;
+  std::vector<uint32_t> frames;
+  for (int i = 0; i < 30; ++i) {
+    ASSERT_TRUE(source->grab(p));
+    ASSERT_EQ(p.width, 640);
+    ASSERT_EQ(p.height, 480);
+    const auto code = readTestPattern(p.rgba.data(), p.width, 0, 0, p.width, p.height);
+    ASSERT_TRUE(code) << "picture " << i;
+    frames.push_back(code->frame);
+  }
+  std::filesystem::remove(file);
+  for (uint32_t f = 0; f < 20; ++f) EXPECT_EQ(frames[f], f);
+  EXPECT_EQ(frames[20], 0u) << "the file starts over at its end";
+  EXPECT_EQ(frames[29], 9u);
+  // What cannot be opened says what and where.
+  try {
+    openVideoSource((file.string() + ".missing"), 640, 480, 30);
+    FAIL() << "a missing file opened";
+  } catch (const VideoError& e) {
+    EXPECT_NE(std::string(e.what()).find(".missing: No such file"), std::string::npos) << e.what();
+  }
+  EXPECT_THROW(openVideoSource("test", 8, 8, 30), VideoError);
 }
 
 TEST(VideoPacket, RefusesWhatDoesNotCheck) {
