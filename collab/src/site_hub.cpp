@@ -79,19 +79,25 @@ struct SiteHub::Impl {
   static constexpr size_t kMaxMediaBytes = 8u << 20;
 
   /// The participant's VIDEO_INSET node, made at its first chunk: a child of its avatar, beside
-  /// the head (a third of the avatar's reach wide), or pinned to the screen.
+  /// the head, a quarter of the avatar's reach (its distance to what it looks at) wide and
+  /// resized when the reach changes by a quarter (so it keeps its size among what the site looks
+  /// at), or pinned to the screen. Beside an avatar that has no pose yet: made at a later chunk.
   void showInset(sync::SceneGraph& graph, const Peer& p, const VideoPacket& packet, double now) {
     Inset& in = insets[p.participant];
     in.last = now;
-    if (in.node && graph.contains(in.node)) return;
-    // A VIDEO_INSET the scene already has for this participant (a scene file pinned it in
-    // the world): that one shows the stream, and stays when the video stops.
-    for (const sync::SceneGraph::NodeId id : graph.ids()) {
-      const scene::SceneNode& n = graph.node(id);
-      if (n.kind() == scene::SceneNode::VIDEO_INSET && n.video_inset().source() == p.participant) {
-        in.node = id;
-        in.owned = false;
-        return;
+    const bool exists = in.node && graph.contains(in.node);
+    if (exists && (!in.owned || opt.video_screen)) return;
+    if (!exists) {
+      // A VIDEO_INSET the scene already has for this participant (a scene file pinned it in
+      // the world): that one shows the stream, and stays when the video stops.
+      for (const sync::SceneGraph::NodeId id : graph.ids()) {
+        const scene::SceneNode& n = graph.node(id);
+        if (n.kind() == scene::SceneNode::VIDEO_INSET &&
+            n.video_inset().source() == p.participant) {
+          in.node = id;
+          in.owned = false;
+          return;
+        }
       }
     }
     const SiteInfo& info = roster.info(p.participant);
@@ -119,10 +125,16 @@ struct SiteHub::Impl {
     } else {
       if (!info.avatar || !graph.contains(info.avatar)) return;
       const float reach = graph.node(info.avatar).avatar().reach();
-      const double width = 0.35 * (reach > 0.0f ? double(reach) : 1.0);
+      if (!(reach > 0.0f)) return;  // no pose yet: its size would be a guess
+      const double width = 0.25 * double(reach);
+      if (exists) {
+        const double shown = graph.node(in.node).video_inset().width();
+        if (std::abs(width - shown) <= 0.25 * shown) return;
+      }
       v.set_width(float(width));
       v.set_height(float(width * aspect));
-      in.node = graph.add(scene::SceneNode::VIDEO_INSET, info.avatar, "video: " + info.name);
+      if (!exists)
+        in.node = graph.add(scene::SceneNode::VIDEO_INSET, info.avatar, "video: " + info.name);
       // Right of the head, its top edge level with the eye (the avatar frame: x right, y up).
       glm::dmat4 m(1.0);
       m[3] = glm::dvec4(0.6 * width, -0.5 * width * aspect, 0.0, 1.0);
@@ -130,6 +142,7 @@ struct SiteHub::Impl {
     }
     graph.setPayload(in.node, v);
     graph.setAuthor(in.node, info.name);
+    if (exists) return;
     say(who(p) + " sends video (" + std::to_string(packet.width) + "x" +
         std::to_string(packet.height) + "): inset " + std::to_string(in.node) +
         (opt.video_screen ? " pinned to the screen" : " beside its avatar"));

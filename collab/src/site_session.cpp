@@ -173,35 +173,38 @@ struct SiteSession::Impl {
   double video_encode_ms = 0;
   std::unique_ptr<render::VideoTextures> videos;  // before the context goes (~Impl)
 
-  /// Sends one picture from the source when one is due, then sleeps until `until`, sending
-  /// the pictures that fall due meanwhile: video keeps its own rate whatever the loop's.
-  void sleepSendingVideo(Clock::time_point until) {
-    if (!video_sender) {
-      std::this_thread::sleep_until(until);
-      return;
-    }
+  /// Sends a picture from the source if one is due (one at most: pictures missed while the
+  /// loop was busy are skipped, not sent in a burst). Called wherever the loop waits or works
+  /// in steps (sleeps, settling a screenshot, poses), so a busy site still sends video.
+  void pumpVideo() {
+    if (!video_sender) return;
+    const auto now = Clock::now();
+    if (now < video_next) return;
     const auto period = std::chrono::duration_cast<Clock::duration>(
         std::chrono::duration<double>(1.0 / video_sender->encoder().settings().fps));
-    while (true) {
-      if (video_next >= until) {
-        std::this_thread::sleep_until(until);
-        return;
-      }
-      std::this_thread::sleep_until(video_next);
-      video_next += period;
-      if (video_next < Clock::now()) video_next = Clock::now() + period;  // late: skip, no burst
-      if (!video_source->grab(video_picture)) continue;  // a camera without a new picture
-      const auto start = Clock::now();
-      const auto packets = video_sender->send(video_picture);
-      video_encode_ms += std::chrono::duration<double, std::milli>(Clock::now() - start).count();
-      ++video_frames;
-      site::ToMaster m;
-      for (const auto& p : packets) {
-        video_bytes += p.size();
-        m.set_video(p.data(), p.size());
-        client->send(m);
-      }
+    video_next += period;
+    if (video_next < now) video_next = now + period;  // late: skip, no burst
+    if (!video_source->grab(video_picture)) return;   // a camera without a new picture
+    const auto start = Clock::now();
+    const auto packets = video_sender->send(video_picture);
+    video_encode_ms += std::chrono::duration<double, std::milli>(Clock::now() - start).count();
+    ++video_frames;
+    site::ToMaster m;
+    for (const auto& p : packets) {
+      video_bytes += p.size();
+      m.set_video(p.data(), p.size());
+      client->send(m);
     }
+  }
+
+  /// Sleeps until `until`, sending the pictures that fall due meanwhile: video keeps its own
+  /// rate whatever the loop's.
+  void sleepSendingVideo(Clock::time_point until) {
+    while (video_sender && video_next < until) {
+      std::this_thread::sleep_until(video_next);
+      pumpVideo();
+    }
+    std::this_thread::sleep_until(until);
   }
 
   void sayVideo() {
@@ -371,6 +374,7 @@ struct SiteSession::Impl {
     p.set_aspect(float(double(script.width()) / script.height()));
     client->send(m);
     tickVoice();
+    pumpVideo();
   }
 
   render::RenderOptions options() const { return render::SceneDrawList::options(graph, 2.0f); }
