@@ -240,6 +240,34 @@ TEST(VideoSites, OnlyTheTilesThatShowAnInsetDecodeIt) {
   EXPECT_EQ(l[1].str(), r[1].str()) << "both tiles received every packet";
 }
 
+TEST(VideoSites, WithoutAPinTheInsetStandsBesideTheAvatarAndTheTilesThatSeeItDecodeIt) {
+  test::TempDir dir;
+  const VideoWall s = writeSetup(dir.path(), {"master", "a"});
+  const auto w = startWall(dir.path(), s, 5.0, 4.0, 1.0, {});
+  ASSERT_TRUE(w);
+  Process &master = *w->master, &left = *w->left, &right = *w->right;
+  // The site stands in front of the wall's camera, a little left, looking into the scene.
+  test::writeText(dir / "moved.json", R"({"actions": [{"frame": 0, "camera": )" +
+                                          test::cameraJson({-0.3, 0.05, 0.4}, {0.2, 0.0, -1.0}) +
+                                          "}]}");
+  Process site(test::headlessSite(TESSERA_SITE, w->sites, s.keys.at("master"), "site a",
+                                  dir / "a.key", dir.path(), dir / "moved.json",
+                                  {"--no-render", "--video", "test", "--video-size", "320x240"}),
+               dir / "a.log");
+  ASSERT_EQ(master.wait(120), std::optional<int>(0)) << master.output();
+  ASSERT_EQ(left.wait(15), std::optional<int>(0)) << left.output();
+  ASSERT_EQ(right.wait(15), std::optional<int>(0)) << right.output();
+  EXPECT_TRUE(master.waitFor("sends video \\(320x240\\): inset \\d+ beside its avatar", 1))
+      << master.output();
+  int decoded = 0;
+  for (Process* node : {&left, &right}) {
+    const std::string d = test::captured(node->output(), "(\\d+) pictures decoded");
+    ASSERT_FALSE(d.empty()) << node->output();
+    decoded += std::stoi(d);
+  }
+  EXPECT_GT(decoded, 30) << "no tile decoded the inset beside the avatar";
+}
+
 /// A site of this test process (collab::SiteClient): it sends what the test wants, good or bad.
 struct TestSite {
   TestSite(const std::string& sites, const std::string& master_key, const fs::path& key_file,
