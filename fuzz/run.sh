@@ -4,14 +4,14 @@
 # for SECONDS (default 300), one at a time. Crashing inputs land in fuzz/regressions/<target>/,
 # which is also replayed first, so a regression that comes back fails at once.
 # Usage: fuzz/run.sh [SECONDS] [TARGET...]
-#   (targets: ply las text obj conf tlod chunk frame link site chunk_request voice wav video;
-#    default all)
+#   (targets: ply las text obj conf tlod chunk tmesh frame link site chunk_request voice wav
+#    video; default all)
 set -euo pipefail
 
 cd "$(dirname "$0")/.."
 SECONDS_PER_TARGET=${1:-300}
 shift || true
-TARGETS=("${@:-ply las text obj conf tlod chunk frame link site chunk_request voice wav video}")
+TARGETS=("${@:-ply las text obj conf tlod chunk tmesh frame link site chunk_request voice wav video}")
 read -r -a TARGETS <<<"${TARGETS[*]}"
 DATA=${TESSERA_DATA_DIR:-$(cd .. && pwd)/shared/data}
 BUILD=build/fuzz
@@ -19,7 +19,7 @@ BUILD=build/fuzz
 cmake --preset fuzz >/dev/null
 # tessera-lod (same build) writes the seed stores of the tlod and chunk targets.
 TOOLS=()
-if [[ " ${TARGETS[*]} " == *" tlod "* || " ${TARGETS[*]} " == *" chunk "* ]]; then TOOLS=(tessera-lod); fi
+if [[ " ${TARGETS[*]} " == *" tlod "* || " ${TARGETS[*]} " == *" chunk "* || " ${TARGETS[*]} " == *" tmesh "* ]]; then TOOLS=(tessera-lod); fi
 if [[ " ${TARGETS[*]} " == *" video "* ]]; then TOOLS+=(video_seeds); fi
 cmake --build "$BUILD" -j1 --target "${TARGETS[@]/%/_fuzzer}" "${TOOLS[@]}"
 LOD_TOOL=$(pwd)/$BUILD/lod/tessera-lod
@@ -119,6 +119,13 @@ seed_tlod() {
     print i, j, k }' >grid.xyz
   "$LOD_TOOL" build grid.xyz -o grid.tlod --quiet >/dev/null
   rm grid.xyz
+}
+
+# Mesh stores: the bunny's coarsest reconstruction (948 triangles) as one patch and as a tree.
+seed_tmesh() {
+  local res4="$DATA/stanford-bunny/reconstruction/bun_zipper_res4.ply"
+  "$LOD_TOOL" build "$res4" -o one-patch.tmesh --quiet >/dev/null
+  "$LOD_TOOL" build "$res4" -o tree.tmesh --patch-triangles 64 --quiet >/dev/null
 }
 
 # Chunk payloads: a one-node store's payload is exactly its chunk (header fields at byte 144:
@@ -274,7 +281,7 @@ seed_wav() {
 
 declare -A MAX_LEN=([ply]=8192 [las]=8192 [text]=4096 [obj]=4096 [conf]=1024 [tlod]=32768
   [chunk]=8192 [frame]=4096 [link]=4096 [site]=4096 [chunk_request]=1024 [voice]=8192
-  [wav]=16384 [video]=32768)
+  [wav]=16384 [tmesh]=16384 [video]=32768)
 export UBSAN_OPTIONS=halt_on_error=1:print_stacktrace=1
 status=0
 summary=()

@@ -58,6 +58,9 @@ echo "   scans in one picture (points and triangles hide each other), one view a
   -o "$out/mesh-and-points.png" || exit 1
 "$render" --scene configs/scenes/bunny-mesh.json --wall configs/walls/2x2.json --mosaic \
   --stats "$out/render-stats.csv" -o "$out/mesh-and-points-wall-2x2.png" || exit 1
+# The same mesh see-through (opacity 0.45): points sampled on its triangles, through SPBR.
+"$render" --scene configs/scenes/bunny-mesh-see-through.json --size 1280x720 --spbr-L 64 \
+  --stats "$out/render-stats.csv" -o "$out/mesh-see-through.png" || exit 1
 
 echo "== see-through (stochastic point-based rendering): the bunny's ten scans in two groups,"
 echo "   fused at two opacities, and a photo fused with the scans"

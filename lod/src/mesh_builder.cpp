@@ -22,6 +22,7 @@
 #include "crc32c.h"
 #include "file_io.h"
 #include "mesh_format.h"
+#include "morton.h"
 #include "triangle_grid.h"
 
 #include <fcntl.h>
@@ -70,7 +71,7 @@ struct Prepared {
   uint64_t dropped = 0;
 };
 
-Prepared prepare(const Mesh& mesh) {
+Prepared prepare(const Mesh& mesh, uint32_t threads) {
   Prepared p;
   p.origin = mesh.origin;
   const size_t nv = mesh.positions.size();
@@ -112,15 +113,20 @@ Prepared prepare(const Mesh& mesh) {
   p.step = std::max(median / 256.0, extent / double(1 << 30));
   p.grid.resize(nv);
   p.pos.resize(nv);
-  for (size_t i = 0; i < nv; ++i) {
-    const glm::dvec3 v = mesh.positions[i];
-    if (!std::isfinite(v.x) || !std::isfinite(v.y) || !std::isfinite(v.z)) continue;  // unused
-    const glm::dvec3 q = glm::clamp(glm::round((v - p.lo) / p.step), glm::dvec3(0.0),
-                                    glm::dvec3(double(1 << 30)));
-    p.grid[i] = glm::i32vec3(q);
-    p.pos[i] = q * p.step;  // store-local: relative to the box minimum
-    p.quant_error = std::max(p.quant_error, glm::length(p.pos[i] - (v - p.lo)));
-  }
+  constexpr size_t kStep = 1 << 16;
+  std::vector<double> chunk_error((nv + kStep - 1) / kStep, 0.0);
+  parallelFor(chunk_error.size(), threads, [&](size_t chunk) {
+    for (size_t i = chunk * kStep; i < std::min(nv, (chunk + 1) * kStep); ++i) {
+      const glm::dvec3 v = mesh.positions[i];
+      if (!std::isfinite(v.x) || !std::isfinite(v.y) || !std::isfinite(v.z)) continue;  // unused
+      const glm::dvec3 q = glm::clamp(glm::round((v - p.lo) / p.step), glm::dvec3(0.0),
+                                      glm::dvec3(double(1 << 30)));
+      p.grid[i] = glm::i32vec3(q);
+      p.pos[i] = q * p.step;  // store-local: relative to the box minimum
+      chunk_error[chunk] = std::max(chunk_error[chunk], glm::length(p.pos[i] - (v - p.lo)));
+    }
+  });
+  for (double e : chunk_error) p.quant_error = std::max(p.quant_error, e);
   // Normals: the file's, else area-weighted face normals of the whole mesh (so neighbouring
   // patches shade their shared vertices alike).
   std::vector<glm::vec3> n(nv, glm::vec3(0.0f));
@@ -134,7 +140,10 @@ Prepared prepare(const Mesh& mesh) {
     }
   }
   p.normals.resize(nv);
-  for (size_t i = 0; i < nv; ++i) p.normals[i] = meshfmt::octEncode(n[i]);
+  parallelFor((nv + kStep - 1) / kStep, threads, [&](size_t chunk) {
+    for (size_t i = chunk * kStep; i < std::min(nv, (chunk + 1) * kStep); ++i)
+      p.normals[i] = meshfmt::octEncode(n[i]);
+  });
   if (mesh.colors.size() == nv) p.colors = mesh.colors;
   return p;
 }
@@ -217,22 +226,17 @@ uint32_t leafPatches(const Prepared& p, const std::vector<idx_t>& xadj,
   glm::i64vec3 hi(1);
   for (const glm::i32vec3& g : p.grid) hi = glm::max(hi, glm::i64vec3(g));
   const int shift = std::max(0, int(std::ceil(std::log2(double(std::max({hi.x, hi.y, hi.z}) + 1)))) - 21);
-  auto spread = [](uint64_t v) {  // 21 bits to every third bit
-    v &= 0x1FFFFF;
-    v = (v | v << 32) & 0x1F00000000FFFFull;
-    v = (v | v << 16) & 0x1F0000FF0000FFull;
-    v = (v | v << 8) & 0x100F00F00F00F00Full;
-    v = (v | v << 4) & 0x10C30C30C30C30C3ull;
-    v = (v | v << 2) & 0x1249249249249249ull;
-    return v;
-  };
-  for (size_t t = 0; t < nt; ++t) {
-    const glm::i64vec3 c = (glm::i64vec3(p.grid[p.tris[t].x]) + glm::i64vec3(p.grid[p.tris[t].y]) +
-                            glm::i64vec3(p.grid[p.tris[t].z])) / int64_t(3);
-    order[t] = {spread(uint64_t(c.x >> shift)) | spread(uint64_t(c.y >> shift)) << 1 |
-                    spread(uint64_t(c.z >> shift)) << 2,
-                uint32_t(t)};
-  }
+  constexpr size_t kStep = 1 << 16;
+  parallelFor((nt + kStep - 1) / kStep, threads, [&](size_t chunk) {
+    for (size_t t = chunk * kStep; t < std::min(nt, (chunk + 1) * kStep); ++t) {
+      const glm::i64vec3 c = (glm::i64vec3(p.grid[p.tris[t].x]) +
+                              glm::i64vec3(p.grid[p.tris[t].y]) +
+                              glm::i64vec3(p.grid[p.tris[t].z])) / int64_t(3);
+      order[t] = {mortonEncode(uint64_t(c.x >> shift), uint64_t(c.y >> shift),
+                               uint64_t(c.z >> shift)),
+                  uint32_t(t)};
+    }
+  });
   if (nt > block) std::sort(order.begin(), order.end());
   const size_t blocks = (nt + block - 1) / block;
   std::vector<uint32_t> first_part(blocks + 1, 0), block_parts(blocks, 0);
@@ -318,7 +322,8 @@ void bounds(const Prepared& p, BuildNode& n) {
 }
 
 /// The triangles' dual graph (triangles sharing an edge), CSR for METIS.
-void dualGraph(const Prepared& p, std::vector<idx_t>& xadj, std::vector<idx_t>& adjncy) {
+void dualGraph(const Prepared& p, uint32_t threads, std::vector<idx_t>& xadj,
+               std::vector<idx_t>& adjncy) {
   const size_t nv = p.grid.size(), nt = p.tris.size();
   std::vector<uint32_t> start(nv + 1, 0), items(nt * 3);
   for (const Triangle& t : p.tris)
@@ -327,26 +332,36 @@ void dualGraph(const Prepared& p, std::vector<idx_t>& xadj, std::vector<idx_t>& 
   std::vector<uint32_t> fill(start.begin(), start.end() - 1);
   for (size_t i = 0; i < nt; ++i)
     for (int k = 0; k < 3; ++k) items[fill[p.tris[i][k]]++] = uint32_t(i);
-  xadj.assign(nt + 1, 0);
-  adjncy.clear();
-  adjncy.reserve(nt * 3);
-  for (size_t i = 0; i < nt; ++i) {
-    const Triangle& t = p.tris[i];
-    const size_t first = adjncy.size();
-    for (int k = 0; k < 3; ++k) {
-      const uint32_t a = t[k], b = t[(k + 1) % 3];
-      for (uint32_t s = start[a]; s < start[a + 1]; ++s) {
-        const uint32_t u = items[s];
-        if (u == i) continue;
-        const Triangle& o = p.tris[u];
-        if (o.x != b && o.y != b && o.z != b) continue;
-        if (std::find(adjncy.begin() + std::ptrdiff_t(first), adjncy.end(), idx_t(u)) ==
-            adjncy.end())
-          adjncy.push_back(idx_t(u));
+  // Neighbours per triangle in parallel, at most kSlots each (an edge of a manifold has one
+  // other triangle; a non-manifold edge's further ones beyond the slots are left out of the
+  // graph: it only steers the partition), then packed.
+  constexpr int kSlots = 6;
+  std::vector<uint32_t> slots(nt * kSlots);
+  std::vector<uint8_t> counts(nt, 0);
+  constexpr size_t kStep = 1 << 16;
+  parallelFor((nt + kStep - 1) / kStep, threads, [&](size_t chunk) {
+    for (size_t i = chunk * kStep; i < std::min(nt, (chunk + 1) * kStep); ++i) {
+      const Triangle& t = p.tris[i];
+      uint32_t* mine = &slots[i * kSlots];
+      int n = 0;
+      for (int k = 0; k < 3; ++k) {
+        const uint32_t a = t[k], b = t[(k + 1) % 3];
+        for (uint32_t s = start[a]; s < start[a + 1] && n < kSlots; ++s) {
+          const uint32_t u = items[s];
+          if (u == i) continue;
+          const Triangle& o = p.tris[u];
+          if (o.x != b && o.y != b && o.z != b) continue;
+          if (std::find(mine, mine + n, u) == mine + n) mine[n++] = u;
+        }
       }
+      counts[i] = uint8_t(n);
     }
-    xadj[i + 1] = idx_t(adjncy.size());
-  }
+  });
+  xadj.assign(nt + 1, 0);
+  for (size_t i = 0; i < nt; ++i) xadj[i + 1] = xadj[i] + counts[i];
+  adjncy.resize(size_t(xadj[nt]));
+  for (size_t i = 0; i < nt; ++i)
+    for (int k = 0; k < counts[i]; ++k) adjncy[size_t(xadj[i]) + k] = idx_t(slots[i * kSlots + k]);
 }
 
 /// The inputs fused into one mesh in the first one's frame.
@@ -396,7 +411,7 @@ MeshBuildReport buildMeshStore(const Mesh& mesh, const std::filesystem::path& ou
   const auto t0 = Clock::now();
   MeshBuildReport r;
   r.seconds_read = seconds_read;
-  const uint64_t need = uint64_t(mesh.triangles.size()) * 180 + mesh.positions.size() * 64;
+  const uint64_t need = uint64_t(mesh.triangles.size()) * 110 + mesh.positions.size() * 64;
   r.peak_bytes = need;
   if (need > o.memory_mb * (1ull << 20))
     throw ReadError("lod::buildMeshStore(): " + std::to_string(mesh.triangles.size()) +
@@ -405,7 +420,7 @@ MeshBuildReport buildMeshStore(const Mesh& mesh, const std::filesystem::path& ou
                     " (this builder holds the whole mesh)");
   const uint32_t threads =
       o.threads ? o.threads : std::max(1u, std::thread::hardware_concurrency());
-  const Prepared p = prepare(mesh);
+  const Prepared p = prepare(mesh, threads);
   r.triangles = p.tris.size();
   r.dropped_triangles = p.dropped;
   r.step = p.step;
@@ -425,7 +440,7 @@ MeshBuildReport buildMeshStore(const Mesh& mesh, const std::filesystem::path& ou
   std::vector<std::unordered_map<uint32_t, uint32_t>> adjacency;  // per current node: shared edges
   {
     std::vector<idx_t> xadj, adjncy;
-    dualGraph(p, xadj, adjncy);
+    dualGraph(p, threads, xadj, adjncy);
     std::vector<uint32_t> part;
     const uint32_t parts = leafPatches(p, xadj, adjncy, o.patch_triangles, threads, part);
     nodes.resize(parts);
@@ -436,11 +451,11 @@ MeshBuildReport buildMeshStore(const Mesh& mesh, const std::filesystem::path& ou
         const uint32_t a = part[t], b = part[size_t(adjncy[size_t(e)])];
         if (a != b) ++adjacency[a][b];
       }
-    for (uint32_t i = 0; i < parts; ++i) {
-      level_nodes.push_back(i);
+    parallelFor(parts, threads, [&](size_t i) {
       bounds(p, nodes[i]);
       nodes[i].error = float(p.quant_error);
-    }
+    });
+    for (uint32_t i = 0; i < parts; ++i) level_nodes.push_back(i);
   }
   r.leaves = nodes.size();
   r.seconds_partition = since(tp);

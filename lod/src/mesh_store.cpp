@@ -19,6 +19,9 @@ bool finite(const glm::vec3& v) { return std::isfinite(v.x) && std::isfinite(v.y
 }  // namespace
 
 bool isMeshStore(const std::filesystem::path& path) {
+  // Only regular files are opened: a FIFO or a device would block or never end.
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(path, ec)) return false;
   std::ifstream in(path, std::ios::binary);
   char magic[8] = {};
   in.read(magic, 8);
@@ -108,6 +111,8 @@ std::unique_ptr<MeshStore> MeshStore::open(std::unique_ptr<RangeSource> source) 
       throw StoreError(at + ": non-finite bounds or error");
     if (n.payload_offset > m.file_bytes || n.payload_bytes > m.file_bytes - n.payload_offset)
       throw StoreError(at + ": payload beyond the end of the file");
+    if (n.payload_bytes < 4)  // a payload starts with its vertex block's size
+      throw StoreError(at + ": payload of " + std::to_string(n.payload_bytes) + " bytes");
     payload += n.payload_bytes;
   }
   // Each node but the root has exactly one parent.

@@ -5,6 +5,9 @@
 #include <functional>
 #include <stdexcept>
 
+#include <tessera/lod/mesh_samples.h>
+#include <tessera/lod/point_writer.h>
+
 namespace tessera::lod {
 
 namespace fs = std::filesystem;
@@ -31,7 +34,21 @@ fs::path cachedStoreFor(const fs::path& input, const std::string& who, bool quie
     std::fprintf(stderr, "%s: converting %s into %s\n", who.c_str(), input.c_str(), out.c_str());
     BuildOptions o;
     o.quiet = quiet;
-    buildStore({input}, out, o);
+    if (input.extension() == ".tmesh") {
+      // A mesh store as points on its triangles (mesh_samples.h), for see-through drawing.
+      const auto mesh = MeshStore::open(input);
+      const fs::path ply = out.string() + ".points.ply";
+      writePly(ply, sampleMeshStore(*mesh), mesh->summary().origin);
+      try {
+        buildStore({ply}, out, o);
+      } catch (...) {
+        fs::remove(ply, ec);
+        throw;
+      }
+      fs::remove(ply, ec);
+    } else {
+      buildStore({input}, out, o);
+    }
   }
   return out;
 }

@@ -18,16 +18,13 @@
 #include <tessera/core/progress.h>
 #include <glm/gtc/quaternion.hpp>
 
+#include "splitmix.h"
+
 namespace tessera::lod {
 namespace {
 
-/// splitmix64: a stable hash so noise depends only on (seed, scanner, cell), never on threads.
-uint64_t mix(uint64_t x) {
-  x += 0x9E3779B97F4A7C15ull;
-  x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ull;
-  x = (x ^ (x >> 27)) * 0x94D049BB133111EBull;
-  return x ^ (x >> 31);
-}
+/// Noise depends only on (seed, scanner, cell) / (seed, triangle), never on threads.
+uint64_t mix(uint64_t x) { return splitmix64(x); }
 
 double gaussian(uint64_t key) {
   // Box-Muller from two hashed uniforms in (0, 1].

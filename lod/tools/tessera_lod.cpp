@@ -37,6 +37,24 @@ std::vector<std::filesystem::path> filesReadBy(const std::vector<std::filesystem
   return files;
 }
 
+/// Runs a subcommand's body and maps its errors to the exit codes (README, "Exit codes"): a bad
+/// command line 2, bad input 1, a store error `store_error_code` (3 writing, 1 reading).
+template <class Body>
+int guarded(const char* command, int store_error_code, Body body) {
+  try {
+    return body();
+  } catch (const cli::UsageError& e) {
+    std::fprintf(stderr, "tessera-lod %s: %s\n", command, e.what());
+    return kExitBadCommandLine;
+  } catch (const ReadError& e) {
+    std::fprintf(stderr, "tessera-lod %s: %s\n", command, e.what());
+    return kExitBadInput;
+  } catch (const StoreError& e) {
+    std::fprintf(stderr, "tessera-lod %s: %s\n", command, e.what());
+    return store_error_code;
+  }
+}
+
 /// A mesh store's summary and its levels.
 void printMeshInfo(const std::string& file) {
   const auto store = MeshStore::open(file);
@@ -146,7 +164,7 @@ constexpr int kExitVerifyFailed = 4;
 
 int runMeshBuild(const std::vector<std::filesystem::path>& paths, const std::string& out,
                  const MeshBuildOptions& o) {
-  try {
+  return guarded("build", kExitWriteFailed, [&] {
     cli::refuseOverwrite(out, filesReadBy(paths), "-o");
     const MeshBuildReport r = buildMeshStore(paths, out, o);
     std::printf("built %s: %llu triangles (%llu dropped), %llu vertices, %llu patches (%llu "
@@ -162,21 +180,12 @@ int runMeshBuild(const std::vector<std::filesystem::path>& paths, const std::str
                 r.seconds, r.seconds_read, r.seconds_partition, r.seconds_simplify,
                 r.seconds_write, double(r.triangles) / r.seconds / 1e6);
     return 0;
-  } catch (const cli::UsageError& e) {
-    std::fprintf(stderr, "tessera-lod build: %s\n", e.what());
-    return kExitBadCommandLine;
-  } catch (const ReadError& e) {
-    std::fprintf(stderr, "tessera-lod build: %s\n", e.what());
-    return kExitBadInput;
-  } catch (const StoreError& e) {
-    std::fprintf(stderr, "tessera-lod build: %s\n", e.what());
-    return kExitWriteFailed;
-  }
+  });
 }
 
 int runMeshVerify(const std::string& store, const std::vector<std::filesystem::path>& paths,
                   bool quiet) {
-  try {
+  return guarded("verify", kExitBadInput, [&] {
     const MeshVerifyReport r = verifyMeshStore(store, paths, quiet);
     std::printf("%s: %llu input triangles, %llu at the leaves, %llu matched, %llu missing, %llu "
                 "extra, %llu corrupt patches, %llu errors below a child's\n",
@@ -193,20 +202,14 @@ int runMeshVerify(const std::string& store, const std::vector<std::filesystem::p
     std::printf("%s\n", r.ok() ? "OK: every input triangle is stored once at the leaves"
                                : "FAILED");
     return r.ok() ? 0 : kExitVerifyFailed;
-  } catch (const ReadError& e) {
-    std::fprintf(stderr, "tessera-lod verify: %s\n", e.what());
-    return kExitBadInput;
-  } catch (const StoreError& e) {
-    std::fprintf(stderr, "tessera-lod verify: %s\n", e.what());
-    return kExitBadInput;
-  }
+  });
 }
 
 int runBuild(const std::vector<std::string>& inputs, const std::string& out,
              const BuildOptions& o, const MeshBuildOptions& mo) {
   std::vector<std::filesystem::path> paths(inputs.begin(), inputs.end());
   if (std::filesystem::path(out).extension() == ".tmesh") return runMeshBuild(paths, out, mo);
-  try {
+  return guarded("build", kExitWriteFailed, [&] {
     cli::refuseOverwrite(out, filesReadBy(paths), "-o");
     BuildReport r = buildStore(paths, out, o);
     std::printf(
@@ -223,23 +226,14 @@ int runBuild(const std::vector<std::string>& inputs, const std::string& out,
                 r.seconds_read, r.seconds_process, r.seconds_write,
                 double(r.points) / r.seconds / 1e6);
     return 0;
-  } catch (const cli::UsageError& e) {
-    std::fprintf(stderr, "tessera-lod build: %s\n", e.what());
-    return kExitBadCommandLine;
-  } catch (const ReadError& e) {
-    std::fprintf(stderr, "tessera-lod build: %s\n", e.what());
-    return kExitBadInput;
-  } catch (const StoreError& e) {
-    std::fprintf(stderr, "tessera-lod build: %s\n", e.what());
-    return kExitWriteFailed;
-  }
+  });
 }
 
 int runVerify(const std::string& store, const std::vector<std::string>& inputs,
               const BuildOptions& o) {
   std::vector<std::filesystem::path> paths(inputs.begin(), inputs.end());
   if (isMeshStore(store)) return runMeshVerify(store, paths, o.quiet);
-  try {
+  return guarded("verify", kExitBadInput, [&] {
     VerifyReport r = verifyStore(store, paths, o);
     std::printf(
         "%s: %llu input points, %llu stored, %llu matched, %llu unmatched, %llu corrupt chunks\n",
@@ -249,13 +243,7 @@ int runVerify(const std::string& store, const std::vector<std::string>& inputs,
     std::printf("max error %.6g (%.3f of the stated bound)\n%s\n", r.max_error, r.max_error_ratio,
                 r.ok() ? "OK: every input point is stored once within its error bound" : "FAILED");
     return r.ok() ? 0 : kExitVerifyFailed;
-  } catch (const ReadError& e) {
-    std::fprintf(stderr, "tessera-lod verify: %s\n", e.what());
-    return kExitBadInput;
-  } catch (const StoreError& e) {
-    std::fprintf(stderr, "tessera-lod verify: %s\n", e.what());
-    return kExitBadInput;
-  }
+  });
 }
 
 int runPhoto(const PhotoOptions& o, const std::string& out, const BuildOptions& bo) {

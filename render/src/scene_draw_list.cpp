@@ -43,9 +43,22 @@ sync::SceneGraph loadSceneWithStores(const std::string& path, const std::string&
     scene::SceneNode& n = *scene.mutable_nodes(i);
     if (n.kind() != scene::SceneNode::MODEL) continue;
     scene::ModelPayload& m = *n.mutable_model();
-    if (std::filesystem::path(m.store()).extension() == ".tlod" ||
-        SceneDrawList::isMeshPath(m.store()))
+    if (SceneDrawList::isMeshPath(m.store())) {
+      // A see-through mesh is drawn from points on its triangles: build them now, before any
+      // node needs them (they are built on first use when a mesh turns see-through later).
+      if (n.has_opacity() && n.opacity() < 1.0f) {
+        try {
+          lod::cachedStoreFor(m.store(), who);
+        } catch (const std::exception& e) {
+          throw std::runtime_error(who + ": " + path + ": nodes[" + std::to_string(i) +
+                                   "].model.store: " + m.store() +
+                                   ": cannot sample the mesh for see-through drawing: " +
+                                   e.what());
+        }
+      }
       continue;
+    }
+    if (std::filesystem::path(m.store()).extension() == ".tlod") continue;
     try {
       m.set_store(lod::cachedStoreFor(m.store(), who).string());
     } catch (const std::exception& e) {
@@ -61,6 +74,12 @@ sync::SceneGraph loadSceneWithStores(const std::string& path, const std::string&
 
 bool SceneDrawList::isMeshPath(const std::string& path) {
   return std::filesystem::path(path).extension() == ".tmesh";
+}
+
+std::string SceneDrawList::storeKey(const sync::SceneGraph& graph, uint32_t id) {
+  const std::string& path = graph.node(id).model().store();
+  if (isMeshPath(path) && placeNode(graph, id).opacity < 1.0f) return path + "#points";
+  return path;
 }
 
 const std::vector<ModelInstance>& SceneDrawList::update(const sync::SceneGraph& graph,
@@ -101,17 +120,20 @@ const std::vector<ModelInstance>& SceneDrawList::update(const sync::SceneGraph& 
   for (const uint32_t id : dirty) {
     const scene::SceneNode& node = graph.node(id);
     if (node.kind() != scene::SceneNode::MODEL) continue;
-    const std::string& path = node.model().store();
+    const std::string path = storeKey(graph, id);
     if (mStores.count(path) || opened.count(path) || mMeshStores.count(path) ||
         opened_meshes.count(path))
       continue;
     try {
       if (isMeshPath(path)) {
         opened_meshes.emplace(path, lod::MeshStore::open(path));
+      } else if (path != node.model().store()) {  // a see-through mesh: its sampled points
+        opened.emplace(path, lod::PointStore::open(lod::cachedStoreFor(
+                                 node.model().store(), "render::SceneDrawList", true)));
       } else {
         opened.emplace(path, mOpener ? mOpener(path) : lod::PointStore::open(path));
       }
-    } catch (const lod::StoreError& e) {
+    } catch (const std::runtime_error& e) {
       throw lod::StoreError("render::SceneDrawList::update(): model " + std::to_string(id) + " '" +
                             node.name() + "': " + e.what());
     }
@@ -129,7 +151,7 @@ const std::vector<ModelInstance>& SceneDrawList::update(const sync::SceneGraph& 
     }
     const NodePlacement placed = placeNode(graph, id);
     Entry& e = mEntries[id];
-    e.path = node.model().store();
+    e.path = storeKey(graph, id);
     glm::u8vec3 color(0);
     if (node.model().has_color()) {
       const scene::Color& c = node.model().color();

@@ -294,6 +294,12 @@ int run(int argc, char** argv) {
         file = m.substr(0, colon);
         opacity = float(v);
       }
+      if (render::SceneDrawList::isMeshPath(file) && opacity < 1.0f) {
+        // A see-through mesh: points on its triangles (lod/mesh_samples.h), cached.
+        stores.push_back(lod::PointStore::open(lod::cachedStoreFor(file, "tessera-render")));
+        instances.push_back({stores.back().get(), render::storeModel(*stores.back()), opacity});
+        continue;
+      }
       if (render::SceneDrawList::isMeshPath(file)) {
         mesh_stores.push_back(lod::MeshStore::open(file));
         instances.push_back({nullptr, render::storeModel(*mesh_stores.back()), opacity,

@@ -128,6 +128,34 @@ TEST_F(Cluster, TwoNodesWallScreenshotIsTheMosaic) {
   EXPECT_EQ(node_rows_with_points, 6);
 }
 
+TEST_F(Cluster, AMeshBesideTheScansOnTheWallIsTheMosaic) {
+  // The bunny's reconstruction as a .tmesh beside its scans: every node cuts and streams the
+  // patches its own tile needs; the wall screenshot is tessera-render --mosaic's, pixel for pixel.
+  const CommandResult b =
+      run(std::string(TESSERA_LOD_TOOL) + " build " + kData +
+          "/stanford-bunny/reconstruction/bun_zipper.ply -o " + (*sDir / "bunny.tmesh").string() +
+          " --patch-triangles 1024 --quiet");
+  ASSERT_EQ(b.code, 0) << b.out;
+  write(*sDir / "mesh.json",
+        R"({"nodes": [{"kind": "MODEL", "model": {"store": "bunny.tlod"}},
+            {"kind": "MODEL", "transform": {"m": [1,0,0,0, 0,1,0,0, 0,0,1,0, 0.17,0,0,1]},
+             "model": {"store": "bunny.tmesh", "color": {"r": 0.85, "g": 0.75, "b": 0.6}}}],
+            "camera": {"eye": {"x": 0.068, "y": 0.14, "z": 0.52}, "target": {"x": 0.068,
+            "y": 0.1, "z": 0.0}, "up": {"x": 0, "y": 1, "z": 0}}, "settings": {"background":
+            {"r": 0.05, "g": 0.05, "b": 0.08}, "lodPixels": 1.0, "shading": "SHADING_EDL"}})");
+  const std::string wall = kConfigs + "/walls/2x2.json";
+  const CommandResult r = cluster(
+      "--wall " + wall + " --scene mesh.json --frames 2 --screenshot mesh.png --stats mesh.csv", 4);
+  ASSERT_EQ(r.code, 0) << r.out;
+  expectSameAsMosaic(r, "mesh.png", wall, "mesh.json");
+  const tessera::render::Image img = tessera::render::readPng((sDir->path() / "mesh.png").string());
+  // The mesh (warm beige) covers its half of the wall: many pixels with red well above blue.
+  size_t warm = 0;
+  for (size_t i = 0; i + 3 < img.rgba.size(); i += 4)
+    warm += img.rgba[i] > 60 && img.rgba[i] > img.rgba[i + 2] + 25;
+  EXPECT_GT(warm, 50000u);
+}
+
 TEST_F(Cluster, SketchesAvatarsAndAnnotationsAreDrawnOnEveryTile) {
   // The scene overlay (render/scene_overlay.h) on the nodes' settled frames: a magenta stroke in
   // front of the bunny across the bezel, a remote site's avatar and a note. The wall screenshot

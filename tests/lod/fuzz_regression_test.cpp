@@ -7,6 +7,7 @@
 #include "../../fuzz/conf_fuzz.h"
 #include "../../fuzz/fuzz_reader.h"
 #include "../../fuzz/store_fuzz.h"
+#include "../../fuzz/tmesh_fuzz.h"
 #include "../support/temp_dir.h"
 
 namespace tessera::lod {
@@ -43,6 +44,9 @@ TEST(FuzzRegressions, EveryRecordedConfStoreAndChunkInputIsHandled) {
                       const std::filesystem::path&) { return fuzz::readStore(d, n); }},
           {"chunk", [](const uint8_t* d, size_t n, const std::filesystem::path&) {
              return fuzz::decodeChunkBytes(d, n);
+           }},
+          {"tmesh", [](const uint8_t* d, size_t n, const std::filesystem::path&) {
+             return fuzz::readMeshStore(d, n);
            }}};
   size_t replayed = 0;
   for (auto [dir, replay] : targets) {

@@ -11,6 +11,7 @@
 #include <tuple>
 
 #include <tessera/lod/mesh_builder.h>
+#include <tessera/lod/mesh_samples.h>
 #include <tessera/lod/mesh_store.h>
 #include <tessera/lod/point_reader.h>
 
@@ -183,6 +184,39 @@ TEST_F(MeshStoreTest, TruncatedAndForeignFilesAreRefusedByName) {
   EXPECT_TRUE(isMeshStore(store_));
 }
 
+TEST_F(MeshStoreTest, SamplesForSeeThroughLieOnTheTrianglesByArea) {
+  auto store = MeshStore::open(store_);
+  const PointBatch a = sampleMeshStore(*store, 4.0, 1), b = sampleMeshStore(*store, 4.0, 1);
+  EXPECT_NEAR(double(a.positions.size()), 4.0 * 69451, 0.01 * 4.0 * 69451);
+  EXPECT_EQ(a.positions, b.positions);  // deterministic for a seed
+  EXPECT_NE(sampleMeshStore(*store, 4.0, 2).positions, a.positions);
+  ASSERT_EQ(a.normals.size(), a.positions.size());
+  // A sample of them lies on a leaf triangle (exactly, up to float rounding).
+  std::vector<glm::dvec3> tri;
+  for (NodeId id = 0; id < store->nodeCount(); ++id) {
+    if (store->record(id).child_count) continue;
+    const MeshPatch p = store->readPatch(id);
+    for (uint32_t i : p.indices) tri.push_back(p.offset + glm::dvec3(p.positions[i]));
+  }
+  for (size_t k = 0; k < a.positions.size(); k += 997) {
+    double best = 1e30;
+    for (size_t t = 0; t + 2 < tri.size(); t += 3) {
+      const glm::dvec3 n = glm::cross(tri[t + 1] - tri[t], tri[t + 2] - tri[t]);
+      const double len = glm::length(n);
+      if (!(len > 0)) continue;
+      const glm::dvec3 q = a.positions[k];
+      // On the plane and inside the triangle (barycentric signs).
+      const double d = std::abs(glm::dot(q - tri[t], n / len));
+      if (d > 1e-6) continue;
+      const bool inside = glm::dot(glm::cross(tri[t + 1] - tri[t], q - tri[t]), n) >= -1e-12 &&
+                          glm::dot(glm::cross(tri[t + 2] - tri[t + 1], q - tri[t + 1]), n) >= -1e-12 &&
+                          glm::dot(glm::cross(tri[t] - tri[t + 2], q - tri[t + 2]), n) >= -1e-12;
+      if (inside) best = std::min(best, d);
+    }
+    EXPECT_LT(best, 1e-6) << "sample " << k;
+  }
+}
+
 TEST(MeshBuilder, RefusesMeshesWithoutUsableTrianglesAndBadOptions) {
   test::TempDir dir;
   Mesh m;
@@ -199,6 +233,10 @@ TEST(MeshBuilder, RefusesMeshesWithoutUsableTrianglesAndBadOptions) {
   o.arity = 1;
   EXPECT_ANY_THROW(buildMeshStore(m, dir.path() / "x.tmesh", o));
   o.arity = 4;
+  o.memory_mb = 0;  // refused before any work: nothing written
+  EXPECT_THROW(buildMeshStore(m, dir.path() / "x.tmesh", o), ReadError);
+  EXPECT_FALSE(std::filesystem::exists(dir.path() / "x.tmesh"));
+  o.memory_mb = 64;
   const MeshBuildReport r = buildMeshStore(m, dir.path() / "x.tmesh", o);  // one triangle: a leaf
   EXPECT_EQ(r.nodes, 1u);
   EXPECT_EQ(MeshStore::open(dir.path() / "x.tmesh")->readPatch(0).triangles(), 1u);

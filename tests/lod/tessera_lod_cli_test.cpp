@@ -294,3 +294,55 @@ TEST(TesseraLodHardening, TooManyThreadsIsABadCommandLineAndLeavesNothing) {
 }
 
 }  // namespace
+
+TEST(TesseraLodMesh, BuildInfoVerifyRoundTripAndBadInput) {
+  tessera::test::TempDir dir;
+  const std::string mesh = kData + "/stanford-bunny/reconstruction/bun_zipper_res2.ply";
+  const std::string out = (dir.path() / "b.tmesh").string();
+  CommandResult b = run("build " + mesh + " -o " + out + " --patch-triangles 512 --quiet");
+  ASSERT_EQ(b.code, 0) << b.out;
+  EXPECT_NE(b.out.find("16301 triangles (0 dropped)"), std::string::npos) << b.out;
+  EXPECT_NE(b.out.find("bytes/triangle"), std::string::npos) << b.out;
+  EXPECT_FALSE(std::filesystem::exists(out + ".partial"));
+  CommandResult i = run("info " + out);
+  ASSERT_EQ(i.code, 0) << i.out;
+  EXPECT_NE(i.out.find("Tessera mesh store (.tmesh) version 1"), std::string::npos) << i.out;
+  EXPECT_NE(i.out.find("16301 input triangles"), std::string::npos) << i.out;
+  EXPECT_NE(i.out.find("depth 0: 1 patches"), std::string::npos) << i.out;
+  CommandResult v = run("verify " + out + " " + mesh + " --quiet");
+  ASSERT_EQ(v.code, 0) << v.out;
+  EXPECT_NE(v.out.find("16301 matched, 0 missing, 0 extra"), std::string::npos) << v.out;
+  // Against another mesh: triangles missing and extra, exit 4 (verification failed).
+  CommandResult wrong =
+      run("verify " + out + " " + kData + "/stanford-bunny/reconstruction/bun_zipper_res3.ply --quiet");
+  EXPECT_EQ(wrong.code, 4) << wrong.out;
+  EXPECT_NE(wrong.out.find("FAILED"), std::string::npos) << wrong.out;
+  // A point cloud is not a mesh: exit 1, named.
+  CommandResult points = run("build " + kData + "/lidar/1.2-with-color.las -o " +
+                             (dir.path() / "p.tmesh").string() + " --quiet");
+  EXPECT_EQ(points.code, 1) << points.out;
+  EXPECT_NE(points.out.find("no triangles"), std::string::npos) << points.out;
+  EXPECT_FALSE(std::filesystem::exists(dir.path() / "p.tmesh"));
+  // Out of range options: exit 2, named.
+  CommandResult patch = run("build " + mesh + " -o " + out + " --patch-triangles 10");
+  EXPECT_EQ(patch.code, 2) << patch.out;
+  EXPECT_NE(patch.out.find("--patch-triangles"), std::string::npos) << patch.out;
+  CommandResult arity = run("build " + mesh + " -o " + out + " --arity nan");
+  EXPECT_EQ(arity.code, 2) << arity.out;
+  // The output must not be the input, by any path (here a hard link): exit 2, nothing written.
+  const std::string copy = (dir.path() / "copy.ply").string();
+  std::filesystem::copy_file(mesh, copy);
+  std::filesystem::create_hard_link(copy, dir.path() / "copy.tmesh");
+  CommandResult self = run("build " + copy + " -o " + (dir.path() / "copy.tmesh").string());
+  EXPECT_EQ(self.code, 2) << self.out;
+  EXPECT_EQ(std::filesystem::file_size(copy), std::filesystem::file_size(mesh));
+  // A corrupt store: info and verify name the file and exit 1.
+  {
+    std::fstream f(out, std::ios::in | std::ios::out | std::ios::binary);
+    f.seekp(20);
+    f.put('\x7f');
+  }
+  CommandResult bad = run("info " + out);
+  EXPECT_EQ(bad.code, 1) << bad.out;
+  EXPECT_NE(bad.out.find("header checksum"), std::string::npos) << bad.out;
+}

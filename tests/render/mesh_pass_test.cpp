@@ -47,6 +47,14 @@ class MeshPassTest : public test::BunnyStoreTest {
     return v;
   }
 
+  /// The store drawn as a mesh model, at its own place.
+  static ModelInstance meshInstance(lod::MeshStore& s) {
+    ModelInstance m;
+    m.mesh = &s;
+    m.model = storeModel(s);
+    return m;
+  }
+
   static bool covered(const Image& img, const glm::vec3& background, size_t i) {
     const glm::u8vec3 bg(background * 255.0f);
     return img.rgba[4 * i] != bg.r || img.rgba[4 * i + 1] != bg.g || img.rgba[4 * i + 2] != bg.b;
@@ -95,9 +103,7 @@ TEST_F(MeshPassTest, FullResolutionCutEqualsTheInputMeshDrawnDirectly) {
   RenderOptions o;
   o.lod_pixels = 1e-6;  // every leaf
   ViewRenderer r(v.width, v.height);
-  ModelInstance m;
-  m.mesh = store.get();
-  m.model = storeModel(*store);
+  const ModelInstance m = meshInstance(*store);
   RenderStats st;
   const Image lod_image = r.renderSettled({&m, 1}, v, o, &st);
   EXPECT_EQ(st.triangles, 69451u);
@@ -164,9 +170,7 @@ TEST_F(MeshPassTest, FullResolutionCutEqualsTheInputMeshDrawnDirectly) {
 TEST_F(MeshPassTest, CoarserCutsStayWithinTheirErrorAndNeverCrack) {
   auto store = lod::MeshStore::open(*sDir / "b.tmesh");
   const ViewSetup v = view(*store, 0.3, 320, 240);
-  ModelInstance m;
-  m.mesh = store.get();
-  m.model = storeModel(*store);
+  const ModelInstance m = meshInstance(*store);
   ViewRenderer r(v.width, v.height);
   RenderOptions o;
   o.lod_pixels = 1e-6;
@@ -199,9 +203,7 @@ TEST_F(MeshPassTest, AncestorsStandInWithoutCracksWhilePatchesLoad) {
   lod::buildMeshStore(std::vector<std::filesystem::path>{kBunnyMesh}, *sDir / "small.tmesh", bo);
   auto store = lod::MeshStore::open(*sDir / "small.tmesh");
   const ViewSetup whole = view(*store, 0.3, 320, 240);
-  ModelInstance m;
-  m.mesh = store.get();
-  m.model = storeModel(*store);
+  const ModelInstance m = meshInstance(*store);
   ViewRenderer r(whole.width, whole.height);
   RenderOptions o;
   // The inner levels resident (coarser cuts of the whole view)...
@@ -233,9 +235,7 @@ TEST_F(MeshPassTest, PointsAndTrianglesHideEachOther) {
   auto mesh = lod::MeshStore::open(*sDir / "b.tmesh");
   auto points = lod::PointStore::open(*sDir / "b.tlod");
   const ViewSetup v = view(*mesh, 0.3, 320, 240);
-  ModelInstance mm;
-  mm.mesh = mesh.get();
-  mm.model = storeModel(*mesh);
+  const ModelInstance mm = meshInstance(*mesh);
   // The registered scans lie within a millimetre of the reconstruction, on both sides of it.
   ModelInstance pm{points.get(), storeModel(*points)};
   ViewRenderer r(v.width, v.height);
@@ -261,9 +261,7 @@ TEST_F(MeshPassTest, PointsAndTrianglesHideEachOther) {
 TEST_F(MeshPassTest, PickIdsNameTheTriangleUnderThePixel) {
   auto store = lod::MeshStore::open(*sDir / "b.tmesh");
   const ViewSetup v = view(*store, 0.3, 320, 240);
-  ModelInstance m;
-  m.mesh = store.get();
-  m.model = storeModel(*store);
+  const ModelInstance m = meshInstance(*store);
   ViewRenderer r(v.width, v.height);
   RenderOptions o;
   o.lod_pixels = 1e-6;
@@ -301,9 +299,7 @@ TEST_F(MeshPassTest, TheTwoByTwoWallShowsTheWholeViewWithoutCracksOrSeams) {
   cam.mutable_target()->set_y(c.y);
   cam.mutable_target()->set_z(c.z);
   cam.mutable_up()->set_y(1);
-  ModelInstance m;
-  m.mesh = store.get();
-  m.model = storeModel(*store);
+  const ModelInstance m = meshInstance(*store);
   RenderOptions o;  // 1 px: each tile cuts the hierarchy for itself
   const ViewSetup whole_view = wholeWallView(wall, cam);
   ViewRenderer whole_r(whole_view.width, whole_view.height);
@@ -343,9 +339,7 @@ TEST_F(MeshPassTest, GeomorphingKeepsASlowZoomFromPopping) {
   // that distance drifts with the camera, and drops at once where a patch replaces its parent
   // without morphing. The measure: the largest change of that distance between two frames.
   auto store = lod::MeshStore::open(*sDir / "b.tmesh");
-  ModelInstance m;
-  m.mesh = store.get();
-  m.model = storeModel(*store);
+  const ModelInstance m = meshInstance(*store);
   ViewRenderer r(320, 240), full_r(320, 240);
   RenderOptions o, full_o;
   o.lod_pixels = 3.0;  // coarse enough that the zoom crosses several levels

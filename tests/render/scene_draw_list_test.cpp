@@ -9,6 +9,7 @@
 
 #include <glm/gtc/matrix_transform.hpp>
 
+#include <tessera/lod/mesh_builder.h>
 #include <tessera/lod/store_builder.h>
 #include <tessera/render/gl_context.h>
 #include <tessera/render/scene_draw_list.h>
@@ -188,6 +189,55 @@ TEST(SceneDrawList, IncrementalUpdatesEqualAFullRebuildAndEmptyFramesCostNothing
   EXPECT_GT(camera_frames, 50u);
   EXPECT_EQ(visited_on_camera_frames, 0u);
   EXPECT_GT(models_seen, 300u) << "the scenes had models to compare";
+}
+
+TEST(SceneDrawList, AMeshIsDrawnAsTrianglesOpaqueAndAsPointsOnItsTrianglesSeeThrough) {
+  test::TempDir dir;
+  ::setenv("XDG_CACHE_HOME", (dir / "cache").c_str(), 1);  // the sampled store's cache
+  lod::MeshBuildOptions o;
+  o.quiet = true;
+  o.patch_triangles = 4096;
+  const std::string mesh_path = (dir / "bunny.tmesh").string();
+  lod::buildMeshStore(
+      std::vector<std::filesystem::path>{kData + "/stanford-bunny/reconstruction/bun_zipper.ply"},
+      mesh_path, o);
+  sync::SceneGraph graph;
+  const auto group = graph.add(scene::SceneNode::GROUP, sync::SceneGraph::kRoot, "g");
+  const auto id = graph.add(scene::SceneNode::MODEL, group, "mesh");
+  scene::ModelPayload p;
+  p.set_store(mesh_path);
+  graph.setPayload(id, p);
+  SceneDrawList list;
+  auto models = list.update(graph, sync::SceneChanges::all());
+  ASSERT_EQ(models.size(), 1u);
+  EXPECT_NE(models[0].mesh, nullptr);
+  EXPECT_EQ(models[0].store, nullptr);
+  const uint64_t mesh_bytes = list.storeBytes();
+  // The group turns see-through: the mesh is drawn from points sampled on its triangles.
+  graph.setOpacity(group, 0.5f);
+  models = list.update(graph, sync::SceneChanges::all());
+  ASSERT_EQ(models.size(), 1u);
+  ASSERT_NE(models[0].store, nullptr);
+  EXPECT_EQ(models[0].mesh, nullptr);
+  EXPECT_FLOAT_EQ(models[0].opacity, 0.5f);
+  const double samples = double(models[0].store->summary().points);
+  EXPECT_NEAR(samples, 4.0 * 69451, 0.02 * 4.0 * 69451);  // 4 a triangle on average
+  // The samples lie where the mesh is: the two boxes agree to a fraction of a millimetre.
+  const auto [plo, phi] = worldBounds(models[0]);
+  ModelInstance mesh_instance;
+  auto mesh = lod::MeshStore::open(mesh_path);
+  mesh_instance.mesh = mesh.get();
+  mesh_instance.model = storeModel(*mesh);
+  const auto [mlo, mhi] = worldBounds(mesh_instance);
+  EXPECT_LT(glm::length(plo - mlo), 5e-4);
+  EXPECT_LT(glm::length(phi - mhi), 5e-4);
+  // Opaque again: triangles, and the point store is closed.
+  graph.setOpacity(group, 1.0f);
+  models = list.update(graph, sync::SceneChanges::all());
+  ASSERT_EQ(models.size(), 1u);
+  EXPECT_NE(models[0].mesh, nullptr);
+  EXPECT_EQ(list.storeBytes(), mesh_bytes);
+  ::unsetenv("XDG_CACHE_HOME");
 }
 
 }  // namespace

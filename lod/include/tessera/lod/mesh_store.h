@@ -117,7 +117,8 @@ class MeshStore : public LodHierarchy {
   std::vector<NodeId> mParents;
 };
 
-/// Whether a file starts like a mesh store (its magic), without opening it further.
+/// Whether a regular file starts like a mesh store (its magic), without opening it further;
+/// false for anything else (FIFOs and devices are not opened).
 bool isMeshStore(const std::filesystem::path& path);
 
 }  // namespace tessera::lod

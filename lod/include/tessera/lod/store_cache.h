@@ -14,7 +14,8 @@
 
 namespace tessera::lod {
 
-/// `input` itself when it is a .tlod; else the cached store built from it (building it first
+/// `input` itself when it is a .tlod; else the cached store built from it (a .tmesh mesh store:
+/// from points sampled on its triangles, mesh_samples.h, for see-through drawing) (building it first
 /// when missing: progress on stderr unless `quiet`, a line "WHO: converting INPUT into STORE").
 /// Throws std::runtime_error (lod::StoreError, ReadError ...) naming the file when the input
 /// cannot be read or the store not written.

@@ -51,6 +51,10 @@ class SceneDrawList {
   /// Whether a scene's store path names a mesh store (.tmesh, lod/mesh_store.h): opened as a
   /// MeshStore and drawn by the mesh pass. Remote sites open meshes from a local copy only.
   static bool isMeshPath(const std::string& path);
+  /// What a MODEL node is drawn from: its store path, or for a mesh whose opacity (with its
+  /// ancestors') is below 1, PATH#points: a point store of samples on its triangles
+  /// (lod/mesh_samples.h, cached by lod::cachedStoreFor), drawn see-through like any scan.
+  static std::string storeKey(const sync::SceneGraph& graph, uint32_t id);
 
   /// Opens the (point) store a MODEL node names (its path exactly as in the scene). Throws
   /// lod::StoreError naming the store and why. The default is lod::PointStore::open(path); a
