@@ -38,6 +38,7 @@
 #include <tessera/render/image.h>
 
 #include "../tests/support/process.h"
+#include "../tests/support/site_scripts.h"
 #include "bench_stats.h"
 
 namespace {
@@ -146,47 +147,14 @@ LatencyRun glassToGlass(const Size& size, const fs::path& work, const std::strin
       << R"({"name": "light wall", "tiles": [{"name": "tile", "x": 0, "y": 0, "width": 0.8, )"
       << R"("height": 0.6, "pixelWidth": 800, "pixelHeight": 600}], )"
       << R"("eye": {"x": 0.4, "y": 0.3, "z": 1.5}})";
-  const std::string camera =
-      R"("eye": {"x": 0, "y": 0, "z": 1}, "target": {"x": 0, "y": 0, "z": 0}, "up": {"y": 1})";
-  std::ofstream(work / "scene.json") << R"({"nodes": [], "camera": {)" << camera << "}}";
-  std::string actions;
-  int n = 0;
-  for (double t = 2.0; t < seconds - 0.3; t += 0.2, ++n)
-    actions += (n ? ", " : "") + std::string(R"({"time": )") + std::to_string(t) +
-               R"(, "screenshot": "shot)" + std::to_string(n) + R"(.png"})";
-  std::ofstream(work / "hold.json")
-      << R"({"name": "hold", "keyframes": [{"time": 0, )" << camera << R"(}, {"time": )" << seconds
-      << ", " << camera << "}], \"actions\": [" << actions << "]}";
-  Process master({bin + "/master/tessera-master",
-                  "--transport",
-                  "zmq",
-                  "--listen",
-                  "tcp://127.0.0.1:*",
-                  "--wall",
-                  (work / "wall.json").string(),
-                  "--scene",
-                  (work / "scene.json").string(),
-                  "--script",
-                  (work / "hold.json").string(),
-                  "--max-fps",
-                  "60",
-                  "--stats",
-                  (work / "stats.csv").string(),
-                  "--sites",
-                  "tcp://127.0.0.1:*",
-                  "--site-key",
-                  (work / "master.key").string(),
-                  "--allow",
-                  (work / "allow.txt").string(),
-                  "--node-timeout",
-                  "5000",
-                  "--out-dir",
-                  work.string(),
-                  "--video-screen",
-                  "0.1,0.1,0.8",
-                  "--video-cap",
-                  "20000"},
-                 work / "master.log");
+  const std::string camera = test::cameraJson({0, 0, 1}, {0, 0, 0});
+  std::ofstream(work / "scene.json") << R"({"nodes": [], "camera": )" << camera << "}";
+  std::vector<std::string> argv = test::masterWithSites(
+      bin + "/master/tessera-master", work, work, seconds, camera,
+      {"--out-dir", work.string(), "--video-screen", "0.1,0.1,0.8", "--video-cap", "20000"});
+  test::setOption(argv, "--max-fps", "60");
+  test::writeHoldWithScreenshots(work / "hold.json", camera, seconds, 2.0, 0.2);
+  Process master(argv, work / "master.log");
   LatencyRun r;
   if (!master.waitFor("remote sites join on (tcp://\\S+)", 30)) {
     std::cerr << "video: the master did not start:\n" << master.output();
@@ -202,27 +170,10 @@ LatencyRun glassToGlass(const Size& size, const fs::path& work, const std::strin
       {bin + "/render_node/tessera-node", "--master", wall, "--headless", "--tile", "tile"},
       work / "node.log");
   std::ofstream(work / "still.json") << R"({"actions": []})";
-  Process site({bin + "/collab/tessera-site",
-                "--master",
-                sites,
-                "--master-key",
-                master_keys.public_key,
-                "--name",
-                "bench site",
-                "--key",
-                (work / "site.key").string(),
-                "--headless",
-                "-o",
-                work.string(),
-                "--script",
-                (work / "still.json").string(),
-                "--no-render",
-                "--video",
-                "test",
-                "--video-size",
-                size.name(),
-                "--video-kbps",
-                std::to_string(size.kbps)},
+  Process site(test::headlessSite(bin + "/collab/tessera-site", sites, master_keys.public_key,
+                                  "bench site", work / "site.key", work, work / "still.json",
+                                  {"--no-render", "--video", "test", "--video-size", size.name(),
+                                   "--video-kbps", std::to_string(size.kbps)}),
                work / "site.log");
   (void)master.wait(seconds + 120);
   (void)node.wait(15);

@@ -2,8 +2,8 @@
 
 #include <algorithm>
 #include <chrono>
-#include <cstdio>
 #include <cmath>
+#include <cstdio>
 #include <map>
 #include <span>
 
@@ -120,8 +120,8 @@ struct SiteHub::Impl {
       v.set_screen_y(std::clamp(opt.screen_y, 0.0f, 1.0f));
       v.set_screen_width(w);
       v.set_screen_height(0.0f);  // the renderer keeps the picture's aspect
-      in.node = graph.add(scene::SceneNode::VIDEO_INSET, sync::SceneGraph::kRoot,
-                          "video: " + info.name);
+      in.node =
+          graph.add(scene::SceneNode::VIDEO_INSET, sync::SceneGraph::kRoot, "video: " + info.name);
     } else {
       if (!info.avatar || !graph.contains(info.avatar)) return;
       const float reach = graph.node(info.avatar).avatar().reach();

@@ -724,16 +724,16 @@ struct SiteSession::Impl {
       };
     }
     if (!opt.video.empty()) {
-      video_source = openVideoSource(opt.video, opt.video_settings.width,
-                                     opt.video_settings.height, opt.video_settings.fps);
+      video_source = openVideoSource(opt.video, opt.video_settings.width, opt.video_settings.height,
+                                     opt.video_settings.fps);
     }
     client = std::make_unique<SiteClient>(opt.client);
     welcome = client->join(
         graph, Clock::now() + std::chrono::milliseconds(int64_t(opt.join_timeout_s * 1000)));
     voice_start = Clock::now();
     if (video_source) {
-      video_sender = std::make_unique<VideoSender>(opt.video_settings,
-                                                   uint16_t(welcome.participant()));
+      video_sender =
+          std::make_unique<VideoSender>(opt.video_settings, uint16_t(welcome.participant()));
       video_next = Clock::now();
       say("sends video: " + video_source->describe() + ", H.264 " +
           std::to_string(opt.video_settings.kbps) + " kbit/s");

@@ -118,12 +118,13 @@ struct RenderNode::Impl {
     if (!videos) return;
     const render::VideoTextureStats st = videos->stats();
     if (st.packets == 0) return;
-    std::printf("%s: video: %llu packets (%llu refused), %llu pictures decoded, %llu access "
-                "units skipped (not shown or waiting for a key), %llu decoding errors, %llu "
-                "lost\n",
-                who.c_str(), (unsigned long long)st.packets, (unsigned long long)st.refused,
-                (unsigned long long)st.decoded, (unsigned long long)st.skipped,
-                (unsigned long long)st.errors, (unsigned long long)st.lost);
+    std::printf(
+        "%s: video: %llu packets (%llu refused), %llu pictures decoded, %llu access "
+        "units skipped (not shown or waiting for a key), %llu decoding errors, %llu "
+        "lost\n",
+        who.c_str(), (unsigned long long)st.packets, (unsigned long long)st.refused,
+        (unsigned long long)st.decoded, (unsigned long long)st.skipped,
+        (unsigned long long)st.errors, (unsigned long long)st.lost);
     std::fflush(stdout);
   }
 
@@ -187,8 +188,8 @@ struct RenderNode::Impl {
       // Screen-pinned insets are placed on the wall's extent; this tile shows its own part.
       render::SceneOverlayOptions so = overlay.options();
       so.screen_wall = render::wallExtent(setup.wall());
-      so.screen_view = glm::dvec4(tile->x(), tile->y(), tile->x() + tile->width(),
-                                  tile->y() + tile->height());
+      so.screen_view =
+          glm::dvec4(tile->x(), tile->y(), tile->x() + tile->width(), tile->y() + tile->height());
       so.view_px = glm::dvec2(tile->pixel_width(), tile->pixel_height());
       so.video_texture = [this](uint32_t source) { return videos->texture(source); };
       overlay.setOptions(so);

@@ -65,22 +65,9 @@ std::vector<std::string> masterArgv(const fs::path& dir, const VideoWall& s, dou
                                     const std::vector<std::string>& extra) {
   std::vector<std::string> argv =
       test::masterWithSites(TESSERA_MASTER, dir, dir, seconds, s.camera, extra);
-  for (size_t i = 0; i + 1 < argv.size(); ++i)
-    if (argv[i] == "--max-fps") argv[i + 1] = "60";
+  test::setOption(argv, "--max-fps", "60");
   argv.insert(argv.end(), {"--out-dir", dir.string()});
-  // hold.json again, with the screenshots.
-  const std::string hold = s.camera.substr(1, s.camera.size() - 2);
-  std::string actions;
-  int n = 0;
-  for (double t = from; t < seconds - 0.2; t += every, ++n) {
-    char a[96];
-    std::snprintf(a, sizeof a, R"(%s{"time": %.3f, "screenshot": "shot%03d.png"})", n ? ", " : "",
-                  t, n);
-    actions += a;
-  }
-  test::writeText(dir / "hold.json", R"({"name": "hold", "keyframes": [{"time": 0, )" + hold +
-                                         R"(}, {"time": )" + std::to_string(seconds) + ", " + hold +
-                                         "}], \"actions\": [" + actions + "]}");
+  test::writeHoldWithScreenshots(dir / "hold.json", s.camera, seconds, from, every);
   return argv;
 }
 

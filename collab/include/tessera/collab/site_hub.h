@@ -75,7 +75,7 @@ struct SiteHubCounters {
   uint64_t snapshots_resent = 0;  ///< snapshots sent to sites that fell behind
   uint64_t discarded = 0;         ///< messages of dropped sites, discarded unread
   uint64_t chunk_requests = 0, chunk_refused = 0, chunk_bytes_out = 0;  ///< the chunk server's
-  uint64_t voice_in = 0, voice_out = 0;  ///< voice packets from and to sites
+  uint64_t voice_in = 0, voice_out = 0;      ///< voice packets from and to sites
   uint64_t video_in = 0, video_dropped = 0;  ///< video chunks from sites; dropped over the cap
   uint64_t video_to_nodes = 0, video_to_sites = 0;  ///< video chunks forwarded
 };
