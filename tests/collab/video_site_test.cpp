@@ -255,6 +255,32 @@ TEST(VideoSites, WithoutAPinTheInsetStandsBesideTheAvatarAndTheTilesThatSeeItDec
   EXPECT_GT(decoded, 30) << "no tile decoded the inset beside the avatar";
 }
 
+TEST(VideoSites, AnotherSiteSeesTheInsetInItsOwnView) {
+  test::TempDir dir;
+  const VideoWall s = writeSetup(dir.path(), {"master", "a", "b"});
+  // Pinned to the screen: on a site's own 640x480 view at 0.1, 0.1, 0.8 wide, 512x384 pixels
+  // from (64, 48).
+  const auto w = startWall(dir.path(), s, 7.0, 6.0, 1.0, {"--video-screen", "0.1,0.1,0.8"},
+                           {"--video", "test"});
+  ASSERT_TRUE(w);
+  test::writeText(dir / "viewer.json",
+                  R"({"width": 640, "height": 480, "actions": [{"frame": 90, "screenshot": )"
+                  R"("b-view.png"}, {"frame": 100, "bye": true}]})");
+  fs::create_directories(dir / "b");
+  Process viewer(test::headlessSite(TESSERA_SITE, w->sites, s.keys.at("master"), "site b",
+                                    dir / "b.key", dir / "b", dir / "viewer.json", {}),
+                 dir / "b.log");
+  EXPECT_EQ(viewer.wait(120), std::optional<int>(0)) << viewer.output();
+  ASSERT_EQ(w->master->wait(120), std::optional<int>(0)) << w->master->output();
+  EXPECT_TRUE(viewer.waitFor("video from other sites: \\d+ packets, [1-9]\\d* pictures decoded", 1))
+      << viewer.output();
+  const render::Image view = render::readPng((dir / "b" / "b-view.png").string());
+  ASSERT_EQ(view.width, 640u);
+  const auto code = collab::readTestPattern(view.rgba.data(), int(view.width), 64, 48, 512, 384);
+  ASSERT_TRUE(code) << "no readable inset in site b's own view";
+  EXPECT_GT(code->frame, 30u);
+}
+
 /// A site of this test process (collab::SiteClient): it sends what the test wants, good or bad.
 struct TestSite {
   TestSite(const std::string& sites, const std::string& master_key, const fs::path& key_file,
