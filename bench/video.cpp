@@ -8,7 +8,9 @@
 //  2. Glass-to-glass latency on loopback, a light wall: tessera-master (60 frames/s at most) with
 //     one 800x600 tile and one tessera-node, a tessera-site sending the test pattern (without
 //     rendering), the inset pinned to the screen (640 pixels wide). A wall screenshot every
-//     0.2 s; each one's burned-in clock is read back and compared with the moment the master
+//     0.5 s (each one stalls the master's loop while it writes the PNG, and the frames after it
+//     carry the backlog: the next screenshot comes once that has passed); each one's burned-in
+//     clock is read back and compared with the moment the master
 //     swapped that frame (the master's "swapped at unix ms"): the site's capture, encoding,
 //     the site link, the master's wait for its next frame, the frame message, decoding, the
 //     upload and the wall frame that draws it (with its read-back) are all in it; the display's
@@ -153,7 +155,7 @@ LatencyRun glassToGlass(const Size& size, const fs::path& work, const std::strin
       bin + "/master/tessera-master", work, work, seconds, camera,
       {"--out-dir", work.string(), "--video-screen", "0.1,0.1,0.8", "--video-cap", "20000"});
   test::setOption(argv, "--max-fps", "60");
-  test::writeHoldWithScreenshots(work / "hold.json", camera, seconds, 2.0, 0.2);
+  test::writeHoldWithScreenshots(work / "hold.json", camera, seconds, 2.0, 0.5);
   Process master(argv, work / "master.log");
   LatencyRun r;
   if (!master.waitFor("remote sites join on (tcp://\\S+)", 30)) {
@@ -216,7 +218,7 @@ LatencyRun glassToGlass(const Size& size, const fs::path& work, const std::strin
 int main(int argc, char** argv) {
   return cli::runMain("video", [&] {
     CLI::App app{"video: H.264 inset cost per stream and glass-to-glass latency on loopback"};
-    double seconds = 14;
+    double seconds = 30;
     std::string out = TESSERA_BENCH_RESULTS_DIR;
     app.add_option("--seconds", seconds, "Seconds of each glass-to-glass run")
         ->check(cli::finiteRange(4, 600))
