@@ -34,26 +34,18 @@
 #include <tessera/core/cli.h>
 
 #include "../tests/support/voice_path.h"
+#include "bench_stats.h"
 
 namespace {
+
+using tessera::bench::percentile;
+using tessera::bench::threadCpuSeconds;
 
 namespace fs = std::filesystem;
 using namespace tessera;
 using test::NetworkModel;
 using test::VoicePath;
 using test::VoicePathOptions;
-
-double percentile(std::vector<double> v, double q) {
-  if (v.empty()) return 0;
-  std::sort(v.begin(), v.end());
-  return v[std::min(v.size() - 1, size_t(q * double(v.size())))];
-}
-
-double threadCpuSeconds() {
-  timespec ts{};
-  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
-  return double(ts.tv_sec) + 1e-9 * double(ts.tv_nsec);
-}
 
 /// Per played sample that carries a sent one (decoded, FEC or concealed frames), after the
 /// first second: play time - capture time, seconds. The playout clock starts at 0.0037 s and

@@ -4,14 +4,14 @@
 # for SECONDS (default 300), one at a time. Crashing inputs land in fuzz/regressions/<target>/,
 # which is also replayed first, so a regression that comes back fails at once.
 # Usage: fuzz/run.sh [SECONDS] [TARGET...]
-#   (targets: ply las text obj conf tlod chunk tmesh frame link site chunk_request voice wav;
-#    default all)
+#   (targets: ply las text obj conf tlod chunk tmesh frame link site chunk_request voice wav
+#    video; default all)
 set -euo pipefail
 
 cd "$(dirname "$0")/.."
 SECONDS_PER_TARGET=${1:-300}
 shift || true
-TARGETS=("${@:-ply las text obj conf tlod chunk tmesh frame link site chunk_request voice wav}")
+TARGETS=("${@:-ply las text obj conf tlod chunk tmesh frame link site chunk_request voice wav video}")
 read -r -a TARGETS <<<"${TARGETS[*]}"
 DATA=${TESSERA_DATA_DIR:-$(cd .. && pwd)/shared/data}
 BUILD=build/fuzz
@@ -20,6 +20,7 @@ cmake --preset fuzz >/dev/null
 # tessera-lod (same build) writes the seed stores of the tlod and chunk targets.
 TOOLS=()
 if [[ " ${TARGETS[*]} " == *" tlod "* || " ${TARGETS[*]} " == *" chunk "* || " ${TARGETS[*]} " == *" tmesh "* ]]; then TOOLS=(tessera-lod); fi
+if [[ " ${TARGETS[*]} " == *" video "* ]]; then TOOLS+=(video_seeds); fi
 cmake --build "$BUILD" -j1 --target "${TARGETS[@]/%/_fuzzer}" "${TOOLS[@]}"
 LOD_TOOL=$(pwd)/$BUILD/lod/tessera-lod
 
@@ -252,6 +253,12 @@ seed_voice() {
   cp "$OLDPWD"/fuzz/seeds/voice/*.rec .
 }
 
+# Video: records of real H.264 packets (fuzz/video_seeds.cpp: a 96x64 test pattern at 64 kbit/s
+# with intra refresh, with IDRs, a key in chunks out of order).
+seed_video() {
+  "$OLDPWD/$BUILD/fuzz/video_seeds" >/dev/null
+}
+
 # WAV files: mono 48 kHz, stereo 22.05 kHz with an extra chunk, an EXTENSIBLE header.
 seed_wav() {
   le16() { printf "$(printf '\\x%02x\\x%02x' $(($1 & 255)) $(($1 >> 8 & 255)))"; }
@@ -274,7 +281,7 @@ seed_wav() {
 
 declare -A MAX_LEN=([ply]=8192 [las]=8192 [text]=4096 [obj]=4096 [conf]=1024 [tlod]=32768
   [chunk]=8192 [frame]=4096 [link]=4096 [site]=4096 [chunk_request]=1024 [voice]=8192
-  [wav]=16384 [tmesh]=16384)
+  [wav]=16384 [tmesh]=16384 [video]=32768)
 export UBSAN_OPTIONS=halt_on_error=1:print_stacktrace=1
 status=0
 summary=()

@@ -151,7 +151,8 @@ awk -F, '$4 == "master" && NR > 1 { n++; s += $10; if ($10 > m) m = $10 }
 echo
 echo "== two remote sites join the wall over encrypted ZeroMQ (CURVE keys, an allow list): Kyoto"
 echo "   draws a stroke on the bunny and leads the view, Leiden follows it, then both go their own"
-echo "   way; their avatars and the sketch are on every tile"
+echo "   way; their avatars and the sketch are on every tile, and each sends a test-pattern video"
+echo "   (H.264, 320x240, 300 kbit/s) that the wall shows as an inset beside its avatar"
 sd="$out/sites"
 rm -rf "$sd" && mkdir -p "$sd/kyoto" "$sd/leiden" && chmod 700 "$sd"
 "$site" keygen -o "$sd/master.key" >"$sd/master.pub" 2>/dev/null
@@ -171,11 +172,13 @@ for tile in tile-0-0 tile-1-0 tile-0-1 tile-1-1; do
 done
 wait_in "$sd/master.log" "4 of 4 tiles have a node" 120
 "$site" --master tcp://127.0.0.1:7411 --master-key "$(cat "$sd/master.pub")" --name "Kyoto lab" \
-  --key "$sd/kyoto.key" --headless -o "$sd/kyoto" --script configs/sites/kyoto.json >"$sd/kyoto.log" 2>&1 &
+  --key "$sd/kyoto.key" --headless -o "$sd/kyoto" --script configs/sites/kyoto.json \
+  --video test --video-size 320x240 --video-kbps 300 >"$sd/kyoto.log" 2>&1 &
 kyoto_pid=$!
 wait_in "$sd/kyoto.log" "leads the view" 120
 "$site" --master tcp://127.0.0.1:7411 --master-key "$(cat "$sd/master.pub")" --name "Leiden museum" \
-  --key "$sd/leiden.key" --headless -o "$sd/leiden" --script configs/sites/leiden.json >"$sd/leiden.log" 2>&1 &
+  --key "$sd/leiden.key" --headless -o "$sd/leiden" --script configs/sites/leiden.json \
+  --video test --video-size 320x240 --video-kbps 300 >"$sd/leiden.log" 2>&1 &
 leiden_pid=$!
 wait "$master_pid" || { echo "the wall with sites failed: $sd/master.log"; exit 1; }
 for p in "${node_pids[@]}" "$kyoto_pid" "$leiden_pid"; do wait "$p" 2>/dev/null || true; done
@@ -202,5 +205,6 @@ echo "  $out/cluster/master.txt             the master's log (each screenshot's 
 echo "  $out/zmq/                           the ZeroMQ wall: master.log (joins, the drop, the rejoin), stats.csv,"
 echo "                                      the path's screenshots (the lost tile striped red), node logs"
 echo "  $out/sites/wall-with-sites.png      the wall with two remote sites: their avatars (head, view frustum,"
-echo "                                      name) and Kyoto's sketch on the bunny; master.log (joins, lead)"
+echo "                                      name), their video insets beside them and Kyoto's sketch on the"
+echo "                                      bunny; master.log (joins, lead, video)"
 echo "  $out/sites/kyoto/, leiden/          the sites' own views, Leiden's while following Kyoto, strokes.csv"

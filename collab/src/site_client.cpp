@@ -125,6 +125,9 @@ sync::SceneChanges SiteClient::receive(sync::SceneGraph& graph, Clock::time_poin
         case site::ToSite::kVoice:
           if (m->opt.voice) m->opt.voice(msg->voice());
           break;
+        case site::ToSite::kVideo:
+          if (m->opt.video) m->opt.video(msg->video());
+          break;
         case site::ToSite::kRefused:
           throw SiteSessionEnded(Why::kRefused, "refused: " + msg->refused().reason());
         default:

@@ -2,14 +2,18 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <map>
+#include <span>
 
+#include <glm/glm.hpp>
 #include <zmq.hpp>
 
 #include <tessera/collab/chunk_server.h>
 #include <tessera/collab/curve.h>
 #include <tessera/collab/site_messages.h>
+#include <tessera/collab/video_packet.h>
 #include <tessera/collab/voice_bridge.h>
 #include <tessera/collab/voice_wav.h>
 #include <tessera/sync/cluster_link.h>
@@ -33,7 +37,9 @@ struct Peer {
   std::string id, key;       // routing id; the Z85 key CURVE authenticated
   uint32_t participant = 0;  // 0 until welcomed
   double last_seen = 0;
-  TokenBucket messages, bytes;
+  TokenBucket messages, bytes, video;
+  double video_warned = -1e9;  // when the master last said this site's video is over its cap
+  uint64_t video_dropped = 0;
   bool behind = false, gone = false;
   std::string gone_reason;
 };
@@ -60,6 +66,129 @@ struct SiteHub::Impl {
   SiteHubCounters counters;
   std::unique_ptr<VoiceBridge> voice;  // with opt.voice
   double voice_start = 0;
+  /// A site's video inset: its VIDEO_INSET node and when its last chunk came.
+  struct Inset {
+    sync::SceneGraph::NodeId node = 0;
+    double last = 0;
+    bool owned = true;  // made by the hub (false: the scene's own, pinned by its file)
+  };
+  std::map<uint32_t, Inset> insets;  // by participant
+  std::vector<std::string> media;    // video chunks for the nodes with the next frame
+  size_t media_bytes = 0;
+  /// Media held for one frame at most: a frame that is slow to come does not pile up chunks.
+  static constexpr size_t kMaxMediaBytes = 8u << 20;
+
+  /// The participant's VIDEO_INSET node, made at its first chunk: a child of its avatar, beside
+  /// the head, a quarter of the avatar's reach (its distance to what it looks at) wide and
+  /// resized when the reach changes by a quarter (so it keeps its size among what the site looks
+  /// at), or pinned to the screen. Beside an avatar that has no pose yet: made at a later chunk.
+  void showInset(sync::SceneGraph& graph, const Peer& p, const VideoPacket& packet, double now) {
+    Inset& in = insets[p.participant];
+    in.last = now;
+    const bool exists = in.node && graph.contains(in.node);
+    if (exists && (!in.owned || opt.video_screen)) return;
+    if (!exists) {
+      // A VIDEO_INSET the scene already has for this participant (a scene file pinned it in
+      // the world): that one shows the stream, and stays when the video stops.
+      for (const sync::SceneGraph::NodeId id : graph.ids()) {
+        const scene::SceneNode& n = graph.node(id);
+        if (n.kind() == scene::SceneNode::VIDEO_INSET &&
+            n.video_inset().source() == p.participant) {
+          in.node = id;
+          in.owned = false;
+          return;
+        }
+      }
+    }
+    const SiteInfo& info = roster.info(p.participant);
+    scene::VideoInsetPayload v;
+    v.set_stream(info.name);
+    v.set_source(p.participant);
+    const double aspect = double(packet.height) / double(packet.width);
+    if (opt.video_screen) {
+      // The k-th inset to the right of the one before while there is room, then to the left
+      // of the first (beyond both edges they pile up at the edge).
+      const size_t k = insets.size() - 1;
+      const float w = std::clamp(opt.screen_width, 0.01f, 1.0f), step = w * 1.05f;
+      float x = opt.screen_x + float(k) * step;
+      if (x + w > 1.0f) {
+        const float right = std::floor((1.0f - w - opt.screen_x) / step) + 1.0f;
+        x = opt.screen_x - (float(k) - right + 1.0f) * step;
+      }
+      v.set_screen(true);
+      v.set_screen_x(std::clamp(x, 0.0f, 1.0f - w));
+      v.set_screen_y(std::clamp(opt.screen_y, 0.0f, 1.0f));
+      v.set_screen_width(w);
+      v.set_screen_height(0.0f);  // the renderer keeps the picture's aspect
+      in.node =
+          graph.add(scene::SceneNode::VIDEO_INSET, sync::SceneGraph::kRoot, "video: " + info.name);
+    } else {
+      if (!info.avatar || !graph.contains(info.avatar)) return;
+      const float reach = graph.node(info.avatar).avatar().reach();
+      if (!(reach > 0.0f)) return;  // no pose yet: its size would be a guess
+      const double width = 0.25 * double(reach);
+      if (exists) {
+        const double shown = graph.node(in.node).video_inset().width();
+        if (std::abs(width - shown) <= 0.25 * shown) return;
+      }
+      v.set_width(float(width));
+      v.set_height(float(width * aspect));
+      if (!exists)
+        in.node = graph.add(scene::SceneNode::VIDEO_INSET, info.avatar, "video: " + info.name);
+      // Right of the head, its top edge level with the eye (the avatar frame: x right, y up).
+      glm::dmat4 m(1.0);
+      m[3] = glm::dvec4(0.6 * width, -0.5 * width * aspect, 0.0, 1.0);
+      graph.setTransform(in.node, std::span<const double>(&m[0][0], 16));
+    }
+    graph.setPayload(in.node, v);
+    graph.setAuthor(in.node, info.name);
+    if (exists) return;
+    say(who(p) + " sends video (" + std::to_string(packet.width) + "x" +
+        std::to_string(packet.height) + "): inset " + std::to_string(in.node) +
+        (opt.video_screen ? " pinned to the screen" : " beside its avatar"));
+  }
+
+  void removeInset(sync::SceneGraph& graph, uint32_t participant) {
+    auto it = insets.find(participant);
+    if (it == insets.end()) return;
+    if (it->second.owned && it->second.node && graph.contains(it->second.node))
+      graph.remove(it->second.node);
+    insets.erase(it);
+  }
+
+  /// A checked video chunk from a welcomed site.
+  void video(sync::SceneGraph& graph, Peer& p, const std::string& bytes, double now) {
+    counters.video_in++;
+    if (!p.video.take(double(bytes.size()), now)) {
+      counters.video_dropped++;
+      p.video_dropped++;
+      if (now - p.video_warned >= 1.0) {
+        p.video_warned = now;
+        say(who(p) + ": video over its cap of " + std::to_string(int(opt.video_cap_kbps)) +
+            " kbit/s: chunks dropped (" + std::to_string(p.video_dropped) + " so far)");
+      }
+      return;
+    }
+    std::vector<uint8_t> chunk(bytes.begin(), bytes.end());
+    VideoPacket packet;
+    if (decodeVideoPacket(chunk, packet)) return;  // cannot happen: checked by parseToMaster
+    showInset(graph, p, packet, now);
+    // Its site field says who sent it, as the link authenticated, whatever the site wrote.
+    setVideoPacketSite(chunk, uint16_t(p.participant));
+    std::string forwarded(chunk.begin(), chunk.end());
+    if (media_bytes + forwarded.size() <= kMaxMediaBytes) {
+      media_bytes += forwarded.size();
+      media.push_back(forwarded);
+      counters.video_to_nodes++;
+    }
+    site::ToSite out;
+    out.set_video(std::move(forwarded));
+    const std::string out_bytes = out.SerializeAsString();
+    for (auto& [rid, other] : peers)
+      if (other.participant && other.participant != p.participant && !other.gone &&
+          send(other, out_bytes))
+        counters.video_to_sites++;
+  }
 
   void say(const std::string& text) {
     std::printf("tessera-master: sites: %s\n", text.c_str());
@@ -97,6 +226,7 @@ struct SiteHub::Impl {
     if (it == peers.end()) return;
     Peer& p = it->second;
     say(who(p) + (dropped ? " dropped: " : " left: ") + why);
+    if (p.participant) removeInset(graph, p.participant);
     if (p.participant) roster.leave(graph, p.participant);
     if (p.participant && voice) voice->leave(p.participant);
     if (dropped) {
@@ -169,6 +299,7 @@ struct SiteHub::Impl {
         p.key = key ? key : "";
         p.messages.start(opt.messages_per_s, opt.burst_s, now);
         p.bytes.start(opt.bytes_per_s, opt.burst_s, now);
+        p.video.start(opt.video_cap_kbps * 1000.0 / 8.0, 1.0, now);
         p.last_seen = now;
       }
       if (p.gone) continue;
@@ -199,6 +330,8 @@ struct SiteHub::Impl {
       } else if (m.kind_case() == site::ToMaster::kBye) {
         p.gone = true;
         p.gone_reason = "it said goodbye";
+      } else if (m.kind_case() == site::ToMaster::kVideo) {
+        video(graph, p, m.video(), now);
       } else if (m.kind_case() == site::ToMaster::kVoice) {
         counters.voice_in++;
         VoicePacket packet;
@@ -285,6 +418,13 @@ void SiteHub::beforeFrame(sync::SceneGraph& graph, uint64_t, double) {
     }
   }
   for (const auto& [rid, why] : gone) m->remove(graph, rid, why, false);
+  std::vector<uint32_t> stopped;  // sites whose video stopped: their insets go
+  for (const auto& [participant, inset] : m->insets)
+    if (now - inset.last > m->opt.video_timeout_s) stopped.push_back(participant);
+  for (const uint32_t participant : stopped) {
+    m->say("participant " + std::to_string(participant) + " stopped its video: its inset goes");
+    m->removeInset(graph, participant);
+  }
   m->roster.animate(graph, now);
   if (m->voice) {
     std::map<uint32_t, Peer*> by_participant;
@@ -323,6 +463,12 @@ void SiteHub::afterFrame(const sync::SceneGraph& graph, const std::string& bytes
   }
 }
 
+void SiteHub::takeMedia(std::vector<std::string>& out) {
+  for (std::string& chunk : m->media) out.push_back(std::move(chunk));
+  m->media.clear();
+  m->media_bytes = 0;
+}
+
 void SiteHub::end(const std::string& reason) {
   site::ToSite q;
   q.mutable_quit()->set_reason(reason);
@@ -340,6 +486,17 @@ void SiteHub::end(const std::string& reason) {
         std::fprintf(stderr, "tessera-master: %s\n", e.what());
       }
     }
+  }
+  if (m->counters.video_in > 0) {
+    char line[200];
+    std::snprintf(line, sizeof line,
+                  "video: %llu chunks from sites (%llu dropped over the cap), %llu to the nodes, "
+                  "%llu to other sites",
+                  (unsigned long long)m->counters.video_in,
+                  (unsigned long long)m->counters.video_dropped,
+                  (unsigned long long)m->counters.video_to_nodes,
+                  (unsigned long long)m->counters.video_to_sites);
+    m->say(line);
   }
   const SiteHubCounters& c = m->counters;
   char line[320];

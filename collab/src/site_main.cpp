@@ -4,6 +4,7 @@
 //   tessera-site --master tcp://HOST:7401 --master-key MASTER_PUBLIC_KEY|FILE --name "Kyoto lab"
 //                --key site.key --headless -o DIR [--script PATH.json] [--no-render]
 //                [--cache DIR] [--remote-stores] [--audio-in WAV] [--audio-out WAV]
+//                [--video test|FILE|/dev/videoN [--video-size 640x480] [--video-kbps N]]
 #include <CLI/CLI.hpp>
 
 #include <cstdio>
@@ -70,7 +71,27 @@ int run(int argc, char** argv) {
   app.add_option("--audio-out", o.audio_out,
                  "Voice: what this site hears (the wall's microphone and the other sites), "
                  "written as a 48 kHz WAV file when the session ends");
+  std::string video_size = "640x480";
+  app.add_option("--video", o.video,
+                 "Send video to the wall and the other sites (an inset beside this site's "
+                 "avatar): test (a test pattern with its frame number and clock burned in), a "
+                 "video file FFmpeg reads (looped), or a V4L2 camera /dev/videoN");
+  app.add_option("--video-size", video_size, "--video: the picture's size, WxH (even)")
+      ->capture_default_str();
+  app.add_option("--video-kbps", o.video_settings.kbps,
+                 "--video: H.264 bitrate cap, kbit/s (the master's --video-cap must allow it)")
+      ->check(CLI::Range(50, 50000))
+      ->capture_default_str();
+  app.add_option("--video-fps", o.video_settings.fps, "--video: pictures per second")
+      ->check(cli::finiteRange(1, 120))
+      ->capture_default_str();
   if (const auto code = cli::parse(app, argc, argv, "tessera-site")) return *code;
+  {
+    const cli::Size vs = cli::parseSize(video_size, "--video-size", collab::kMaxVideoSide);
+    o.video_settings.width = int(vs.width);
+    o.video_settings.height = int(vs.height);
+    if (auto why = o.video_settings.problem()) throw cli::UsageError("--video-size: " + *why);
+  }
 
   if (keygen->parsed()) {
     const collab::KeyPair keys = collab::generateKeyPair();

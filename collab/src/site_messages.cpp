@@ -3,6 +3,7 @@
 #include <cmath>
 #include <cstdint>
 
+#include <tessera/collab/video_packet.h>
 #include <tessera/collab/voice_packet.h>
 
 namespace tessera::collab {
@@ -118,6 +119,14 @@ Problem checkToMaster(const site::ToMaster& m) {
       if (auto why =
               decodeVoicePacket({reinterpret_cast<const uint8_t*>(v.data()), v.size()}, packet))
         return "voice: " + *why;
+      return {};
+    }
+    case site::ToMaster::kVideo: {
+      VideoPacket packet;
+      const std::string& v = m.video();
+      if (auto why =
+              decodeVideoPacket({reinterpret_cast<const uint8_t*>(v.data()), v.size()}, packet))
+        return "video: " + *why;
       return {};
     }
     default:

@@ -13,6 +13,8 @@
 
 #include <tessera/collab/chunk_client.h>
 #include <tessera/collab/site_messages.h>
+#include <tessera/collab/video_packet.h>
+#include <tessera/collab/video_source.h>
 #include <tessera/collab/voice_bridge.h>
 #include <tessera/collab/voice_wav.h>
 #include <tessera/core/file_checks.h>
@@ -20,6 +22,7 @@
 #include <tessera/render/gl_context.h>
 #include <tessera/render/scene_draw_list.h>
 #include <tessera/render/scene_overlay.h>
+#include <tessera/render/video_textures.h>
 #include <tessera/render/view_renderer.h>
 #include <tessera/render/window.h>
 #include <tessera/sync/camera_state.h>
@@ -161,6 +164,59 @@ struct SiteSession::Impl {
   // --audio-in / --audio-out (issue 14): its microphone and speaker, clocked from the welcome.
   std::unique_ptr<VoiceStation> station;
   Clock::time_point voice_start = Clock::now();
+  // --video (issue 14): its source and sender, paced by the loop; other sites' insets.
+  std::unique_ptr<VideoSource> video_source;
+  std::unique_ptr<VideoSender> video_sender;
+  VideoPicture video_picture;
+  Clock::time_point video_next;
+  uint64_t video_frames = 0, video_bytes = 0;
+  double video_encode_ms = 0;
+  std::unique_ptr<render::VideoTextures> videos;  // before the context goes (~Impl)
+
+  /// Sends a picture from the source if one is due (one at most: pictures missed while the
+  /// loop was busy are skipped, not sent in a burst). Called wherever the loop waits or works
+  /// in steps (sleeps, settling a screenshot, poses), so a busy site still sends video.
+  void pumpVideo() {
+    if (!video_sender) return;
+    const auto now = Clock::now();
+    if (now < video_next) return;
+    const auto period = std::chrono::duration_cast<Clock::duration>(
+        std::chrono::duration<double>(1.0 / video_sender->encoder().settings().fps));
+    video_next += period;
+    if (video_next < now) video_next = now + period;  // late: skip, no burst
+    if (!video_source->grab(video_picture)) return;   // a camera without a new picture
+    const auto start = Clock::now();
+    const auto packets = video_sender->send(video_picture);
+    video_encode_ms += std::chrono::duration<double, std::milli>(Clock::now() - start).count();
+    ++video_frames;
+    site::ToMaster m;
+    for (const auto& p : packets) {
+      video_bytes += p.size();
+      m.set_video(p.data(), p.size());
+      client->send(m);
+    }
+  }
+
+  /// Sleeps until `until`, sending the pictures that fall due meanwhile: video keeps its own
+  /// rate whatever the loop's.
+  void sleepSendingVideo(Clock::time_point until) {
+    while (video_sender && video_next < until) {
+      std::this_thread::sleep_until(video_next);
+      pumpVideo();
+    }
+    std::this_thread::sleep_until(until);
+  }
+
+  void sayVideo() {
+    if (!video_sender || video_frames == 0) return;
+    const double s = std::max(1e-3, elapsed());
+    char line[200];
+    std::snprintf(line, sizeof line,
+                  "video: sent %llu pictures, %llu bytes (%.0f kbit/s), %.2f ms to encode each",
+                  (unsigned long long)video_frames, (unsigned long long)video_bytes,
+                  double(video_bytes) * 8.0 / 1000.0 / s, video_encode_ms / double(video_frames));
+    say(line);
+  }
 
   double voiceNow() const {
     return std::chrono::duration<double>(Clock::now() - voice_start).count();
@@ -207,6 +263,18 @@ struct SiteSession::Impl {
       render::ChunkStreamer* s[] = {&renderer->streamer()};
       models.clear(s);
     }
+    if (videos) {
+      const render::VideoTextureStats v = videos->stats();
+      if (v.packets > 0) {
+        char line[200];
+        std::snprintf(line, sizeof line,
+                      "video from other sites: %llu packets, %llu pictures decoded, %llu errors",
+                      (unsigned long long)v.packets, (unsigned long long)v.decoded,
+                      (unsigned long long)v.errors);
+        say(line);
+      }
+    }
+    videos.reset();
     renderer.reset();
   }
 
@@ -255,6 +323,11 @@ struct SiteSession::Impl {
     so.hide_site = welcome.name();
     so.viewer_eye = vec(c.eye());
     so.hide_near_m = 1e-3 * std::max(1e-3, glm::length(vec(c.target()) - vec(c.eye())));
+    if (videos) {
+      so.video_texture = [this](uint32_t source) { return videos->texture(source); };
+      so.screen_wall = so.screen_view = glm::dvec4(0.0, 0.0, script.width(), script.height());
+      so.view_px = glm::dvec2(script.width(), script.height());
+    }
     render::appendSceneOverlay(graph, o, so);
     if (window) {  // the navigation's bar and target, as the master's console shows them
       const float w = float(script.width()), h = float(script.height());
@@ -301,6 +374,7 @@ struct SiteSession::Impl {
     p.set_aspect(float(double(script.width()) / script.height()));
     client->send(m);
     tickVoice();
+    pumpVideo();
   }
 
   render::RenderOptions options() const { return render::SceneDrawList::options(graph, 2.0f); }
@@ -643,10 +717,27 @@ struct SiteSession::Impl {
                          voiceNow());
       };
     }
+    if (renderer) {
+      videos = std::make_unique<render::VideoTextures>();
+      opt.client.video = [this](std::string_view bytes) {
+        videos->receive({reinterpret_cast<const uint8_t*>(bytes.data()), bytes.size()});
+      };
+    }
+    if (!opt.video.empty()) {
+      video_source = openVideoSource(opt.video, opt.video_settings.width, opt.video_settings.height,
+                                     opt.video_settings.fps);
+    }
     client = std::make_unique<SiteClient>(opt.client);
     welcome = client->join(
         graph, Clock::now() + std::chrono::milliseconds(int64_t(opt.join_timeout_s * 1000)));
     voice_start = Clock::now();
+    if (video_source) {
+      video_sender =
+          std::make_unique<VideoSender>(opt.video_settings, uint16_t(welcome.participant()));
+      video_next = Clock::now();
+      say("sends video: " + video_source->describe() + ", H.264 " +
+          std::to_string(opt.video_settings.kbps) + " kbit/s");
+    }
     {
       char line[200];
       std::snprintf(line, sizeof line,
@@ -677,7 +768,7 @@ struct SiteSession::Impl {
     int next_action = 0;
     for (uint64_t frame = 0;; ++frame) {
       const auto tick = start + std::chrono::duration_cast<Clock::duration>(period * double(frame));
-      std::this_thread::sleep_until(tick);
+      sleepSendingVideo(tick);
       const double now = std::chrono::duration<double>(Clock::now() - start).count();
       update(client->receive(graph, Clock::now()));
       while (next_action < script.actions_size() && script.actions(next_action).frame() <= frame) {
@@ -699,8 +790,16 @@ struct SiteSession::Impl {
       const config::Camera c = asSent(camera(now));
       sendPose(c);
       if (renderer) {
-        const render::Overlay o = overlay(c);
         last_view = view(c);
+        if (videos) {  // other sites' insets: decode those in view, upload what is new
+          render::SceneOverlayOptions so;
+          so.screen_wall = so.screen_view = glm::dvec4(0.0, 0.0, script.width(), script.height());
+          so.view_px = glm::dvec2(script.width(), script.height());
+          so.video_texture = [this](uint32_t source) { return videos->texture(source); };
+          videos->setShown(render::shownVideoSources(graph, last_view, so));
+          videos->upload();
+        }
+        const render::Overlay o = overlay(c);
         render::RenderStats st;
         renderer->draw(instances, last_view, options(), &st, o.empty() ? nullptr : &o);
         noteProgress(st);
@@ -726,6 +825,7 @@ SiteSession::~SiteSession() = default;
 int SiteSession::run() {
   const int code = runSession();
   m->writeSpeaker();
+  m->sayVideo();
   return code;
 }
 
@@ -734,6 +834,9 @@ int SiteSession::runSession() {
     return m->session();
   } catch (const WavError& e) {
     std::fprintf(stderr, "tessera-site: --audio-in: %s\n", e.what());
+    return kSiteFailed;
+  } catch (const VideoError& e) {
+    std::fprintf(stderr, "tessera-site: --video: %s\n", e.what());
     return kSiteFailed;
   } catch (const SiteSessionEnded& e) {
     switch (e.why) {

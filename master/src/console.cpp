@@ -39,10 +39,29 @@ Console::Console(const config::WallConfig& wall, uint32_t max_width, float splat
   mHeight = std::max(1u, uint32_t(std::lround(whole.height * s)));
   mWindow = render::Window::open(mWidth, mHeight, "tessera-master: " + mWall.name());
   mRenderer = std::make_unique<render::ViewRenderer>(mWidth, mHeight);
+  mVideos = std::make_unique<render::VideoTextures>();
+  // Screen-pinned insets: the console shows the whole wall.
+  render::SceneOverlayOptions so;
+  so.screen_wall = so.screen_view = render::wallExtent(mWall);
+  so.view_px = glm::dvec2(mWidth, mHeight);
+  so.video_texture = [this](uint32_t source) { return mVideos->texture(source); };
+  mSceneOverlay.setOptions(so);
 }
 
 Console::~Console() {
-  mRenderer.reset();  // while the window's context is still current
+  mVideos.reset();  // while the window's context is still current
+  mRenderer.reset();
+}
+
+void Console::video(const sync::SceneGraph& graph,
+                    const google::protobuf::RepeatedPtrField<std::string>& packets) {
+  if (packets.empty()) return;
+  // The insets the console shows, from the camera of the frame just taken.
+  mVideos->setShown(
+      render::shownVideoSources(graph, view(graph.camera()), mSceneOverlay.options()));
+  for (const std::string& p : packets)
+    (void)mVideos->receive({reinterpret_cast<const uint8_t*>(p.data()), p.size()});
+  if (mVideos->upload()) mSceneOverlay.invalidate();
 }
 
 render::ViewSetup Console::view(const config::Camera& camera) const {

@@ -12,6 +12,7 @@
 #include <tessera/master/one_button_navigation.h>
 #include <tessera/render/scene_draw_list.h>
 #include <tessera/render/scene_overlay.h>
+#include <tessera/render/video_textures.h>
 #include <tessera/render/view_renderer.h>
 #include <tessera/render/window.h>
 #include <tessera/sync/scene_graph.h>
@@ -28,6 +29,11 @@ class Console {
   /// Renders the scene as it is now (draw(): never waits for data) and shows it.
   /// One frame of `graph`, after `changes` (what the frame just taken changed).
   void draw(const sync::SceneGraph& graph, const sync::SceneChanges& changes);
+  /// The sites' video packets of the frame just taken (cluster.proto FrameMessage.media): the
+  /// insets the console shows are decoded as on the nodes (render/video_textures.h).
+  /// Call before draw() with the same graph.
+  void video(const sync::SceneGraph& graph,
+             const google::protobuf::RepeatedPtrField<std::string>& packets);
   /// Writes what the window shows (its framebuffer) as a PNG. Throws render::RenderError.
   void save(const std::string& path) const;
   /// Applies the input since the last call to `graph`: navigation to the camera, keys 1-9 select
@@ -51,6 +57,7 @@ class Console {
   render::SceneDrawList mModels;  // after mRenderer: its stores close once the renderer is gone
   std::span<const render::ModelInstance> mInstances;  // mModels', until its next update
   render::SceneOverlay mSceneOverlay;
+  std::unique_ptr<render::VideoTextures> mVideos;  // destroyed with the context current
   render::ViewSetup mLastView;
   OneButtonNavigation mNavigation;
   size_t mSelected = 0;           // index among the MODEL nodes

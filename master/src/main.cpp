@@ -122,6 +122,16 @@ int run(int argc, char** argv) {
   app.add_option("--audio-out", sites.audio_out,
                  "With --voice: what the wall room's speakers play (every site), written as WAV "
                  "at the end");
+  app.add_option("--video-cap", sites.video_cap_kbps,
+                 "Video insets: each site's video is held to this many kbit/s; chunks over it "
+                 "are dropped (said once a second) and the stream recovers at its next refresh")
+      ->check(cli::finiteRange(10, 1e6))
+      ->capture_default_str();
+  std::string video_screen;
+  app.add_option("--video-screen", video_screen,
+                 "Video insets pinned to the screen instead of beside the avatars: X,Y,W, the "
+                 "first inset's lower-left corner and width in fractions of the wall (the next "
+                 "to its right; heights follow the pictures), e.g. 0.72,0.04,0.24");
   app.add_option("--chunk-rate", chunk_rate_mbit,
                  "With --chunks: each site's bandwidth for chunks, Mbit/s (a token bucket)")
       ->check(cli::finiteRange(0.01, 1e5))
@@ -229,6 +239,22 @@ int run(int argc, char** argv) {
     return cli::kExitBadCommandLine;
   }
   sites.chunk_bytes_per_s = chunk_rate_mbit * 1e6 / 8.0;
+  if (!video_screen.empty()) {
+    float x = -1, y = -1, w = -1;
+    char tail = 0;
+    if (std::sscanf(video_screen.c_str(), "%f,%f,%f%c", &x, &y, &w, &tail) != 3 ||
+        !(x >= 0 && x < 1) || !(y >= 0 && y < 1) || !(w > 0 && w <= 1) || x + w > 1.0001f) {
+      std::fprintf(stderr,
+                   "tessera-master: --video-screen %s: expected X,Y,W, fractions of the wall "
+                   "with X and Y in [0, 1), W in (0, 1] and X + W <= 1\n",
+                   video_screen.c_str());
+      return cli::kExitBadCommandLine;
+    }
+    sites.video_screen = true;
+    sites.screen_x = x;
+    sites.screen_y = y;
+    sites.screen_width = w;
+  }
   if (mpi) {
     mpi->setTimeout(timeout_s);
     auto l = std::make_unique<sync::MpiMasterLink>(*mpi);

@@ -359,6 +359,11 @@ int Master::run() {
     const scene::Frame taken = mGraph.takeFrame(mFrame, uint64_t(t * 1e6));
     message_out.set_frame(sync::serializeFrame(taken));
     message_out.set_read_back(!shots.empty());
+    if (mParticipants) {
+      std::vector<std::string> media;
+      mParticipants->takeMedia(media);
+      for (std::string& m : media) message_out.add_media(std::move(m));
+    }
     const size_t frame_bytes = message_out.frame().size();
     mLink.publish(message_out);
     if (mParticipants) mParticipants->afterFrame(mGraph, message_out.frame());
@@ -366,6 +371,7 @@ int Master::run() {
     double present_ms = 0;
     if (mConsole) {  // the console renders while the nodes do
       const auto p = Clock::now();
+      mConsole->video(mGraph, message_out.media());
       mConsole->draw(mGraph, sync::SceneChanges::of(taken));
       if (last && !mOpt.console_screenshot.empty()) mConsole->save(mOpt.console_screenshot);
       present_ms = msSince(p);
@@ -453,6 +459,9 @@ int Master::run() {
     }
     const auto swap_start = Clock::now();
     mLink.swap(mFrame);
+    mSwapUnixMs = std::chrono::duration<double, std::milli>(
+                      std::chrono::system_clock::now().time_since_epoch())
+                      .count();
     const double barrier_ms = collect_ms + msSince(swap_start);
 
     if (!shots.empty()) {
@@ -507,6 +516,10 @@ void Master::writeScreenshots(const std::vector<std::string>& paths, uint64_t fr
       std::printf("tessera-master: frame %llu: wrote %s (%ux%u); camera %s\n",
                   (unsigned long long)frame, p.c_str(), wall.width, wall.height,
                   cameraArgument(mGraph.camera()).c_str());
+      // When the nodes were told to show it (system clock): what glass-to-glass measurements
+      // (tests/collab/video_site_test.cpp, bench/video.cpp) compare burned-in clocks with.
+      std::printf("tessera-master: frame %llu: swapped at unix ms %.1f\n",
+                  (unsigned long long)frame, mSwapUnixMs);
     } catch (const std::exception& e) {
       std::fprintf(stderr, "tessera-master: frame %llu: screenshot %s: %s\n",
                    (unsigned long long)frame, p.c_str(), e.what());

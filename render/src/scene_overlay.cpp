@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <numbers>
+#include <optional>
 
 #include <tessera/render/scene_draw_list.h>
 
@@ -115,11 +116,91 @@ void addAnnotation(const scene::AnnotationPayload& a, const glm::dmat4& world, f
   out.labels.push_back(std::move(label));
 }
 
+/// Where a VIDEO_INSET node is drawn: a world quad or a rectangle of the view's pixels.
+struct InsetPlace {
+  bool screen = false;
+  std::array<glm::dvec3, 4> corners{};  // world: top-left, top-right, bottom-right, bottom-left
+  glm::vec2 min{0.0f}, max{0.0f};       // screen: pixels, y down
+  const GlTexture* texture = nullptr;
+};
+
+std::optional<InsetPlace> placeInset(const scene::VideoInsetPayload& v, const glm::dmat4& world,
+                                     const SceneOverlayOptions& o) {
+  InsetPlace place;
+  place.texture = o.video_texture ? o.video_texture(v.source()) : nullptr;
+  const double aspect = place.texture && place.texture->width() > 0
+                            ? double(place.texture->height()) / place.texture->width()
+                            : 0.75;
+  if (!v.screen()) {
+    const double hw = 0.5 * double(v.width()), hh = 0.5 * double(v.height());
+    if (!(hw > 0.0 && hh > 0.0)) return {};
+    place.corners = {toWorld(world, -hw, hh, 0.0), toWorld(world, hw, hh, 0.0),
+                     toWorld(world, hw, -hh, 0.0), toWorld(world, -hw, -hh, 0.0)};
+    return place;
+  }
+  if (!(o.view_px.x > 0.0 && o.view_px.y > 0.0)) return {};
+  const glm::dvec4& w = o.screen_wall;
+  const glm::dvec4& s = o.screen_view;
+  const double ww = w.z - w.x, wh = w.w - w.y, sw = s.z - s.x, sh = s.w - s.y;
+  if (!(ww > 0.0 && wh > 0.0 && sw > 0.0 && sh > 0.0)) return {};
+  // The rectangle on the screen (its units, y up), then in this view's pixels (y down).
+  const double x0 = w.x + double(v.screen_x()) * ww, y0 = w.y + double(v.screen_y()) * wh;
+  const double width = double(v.screen_width()) * ww;
+  const double height = v.screen_height() > 0.0f ? double(v.screen_height()) * wh : width * aspect;
+  if (!(width > 0.0 && height > 0.0)) return {};
+  const double px = o.view_px.x / sw, py = o.view_px.y / sh;
+  place.screen = true;
+  place.min = glm::vec2(float((x0 - s.x) * px), float((s.w - (y0 + height)) * py));
+  place.max = glm::vec2(float((x0 + width - s.x) * px), float((s.w - y0) * py));
+  return place;
+}
+
+void addVideoInset(const scene::VideoInsetPayload& v, const glm::dmat4& world, float opacity,
+                   const SceneOverlayOptions& o, Overlay& out) {
+  const std::optional<InsetPlace> place = placeInset(v, world, o);
+  if (!place) return;
+  // A picture in its own colours; a dark quad while none is decoded.
+  const glm::u8vec4 tint = place->texture ? glm::u8vec4(255, 255, 255, fade(255, opacity))
+                                          : glm::u8vec4(40, 40, 48, fade(220, opacity));
+  if (place->screen)
+    out.rects.push_back({place->min, place->max, tint, place->texture});
+  else
+    out.quads.push_back({place->corners, place->texture, tint});
+}
+
 }  // namespace
 
 bool isOverlayKind(sync::SceneGraph::Kind kind) {
   return kind == scene::SceneNode::SKETCH || kind == scene::SceneNode::AVATAR ||
-         kind == scene::SceneNode::ANNOTATION;
+         kind == scene::SceneNode::ANNOTATION || kind == scene::SceneNode::VIDEO_INSET;
+}
+
+std::set<uint32_t> shownVideoSources(const sync::SceneGraph& graph, const ViewSetup& view,
+                                     const SceneOverlayOptions& options) {
+  std::set<uint32_t> shown;
+  const Frustum frustum = Frustum::fromMatrix(view.projection * view.view);
+  for (const sync::SceneGraph::NodeId id : graph.ids()) {
+    const scene::SceneNode& node = graph.node(id);
+    if (node.kind() != scene::SceneNode::VIDEO_INSET) continue;
+    const NodePlacement placed = placeNode(graph, id);
+    if (!placed.visible || !(placed.opacity > 0.0f)) continue;
+    const std::optional<InsetPlace> place = placeInset(node.video_inset(), placed.world, options);
+    if (!place) continue;
+    bool in_view = false;
+    if (place->screen) {
+      in_view = place->max.x > 0.0f && place->min.x < float(options.view_px.x) &&
+                place->max.y > 0.0f && place->min.y < float(options.view_px.y);
+    } else {
+      glm::dvec3 lo(place->corners[0]), hi(place->corners[0]);
+      for (const glm::dvec3& c : place->corners) {
+        lo = glm::min(lo, c);
+        hi = glm::max(hi, c);
+      }
+      in_view = frustum.intersects(lo, hi);
+    }
+    if (in_view) shown.insert(node.video_inset().source());
+  }
+  return shown;
 }
 
 size_t appendSceneOverlay(const sync::SceneGraph& graph, Overlay& out,
@@ -146,6 +227,12 @@ size_t appendSceneOverlay(const sync::SceneGraph& graph, Overlay& out,
       }
       case scene::SceneNode::ANNOTATION:
         addAnnotation(node.annotation(), placed.world, placed.opacity, options, out);
+        break;
+      case scene::SceneNode::VIDEO_INSET:
+        // A site's own inset: it has the picture in front of it already.
+        if (!options.hide_site.empty() && node.video_inset().stream() == options.hide_site)
+          continue;
+        addVideoInset(node.video_inset(), placed.world, placed.opacity, options, out);
         break;
       default:
         break;

@@ -3,6 +3,7 @@
 #include <signal.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <optional>
 
@@ -10,6 +11,7 @@
 #include <tessera/render/gl_context.h>
 #include <tessera/render/scene_draw_list.h>
 #include <tessera/render/scene_overlay.h>
+#include <tessera/render/video_textures.h>
 #include <tessera/render/view_renderer.h>
 #include <tessera/render/window.h>
 #include <tessera/sync/scene_graph.h>
@@ -61,16 +63,70 @@ struct RenderNode::Impl {
   sync::SceneGraph graph;
   render::SceneDrawList models;
   std::span<const render::ModelInstance> instances;  // the draw list's, until its next update
-  render::SceneOverlay overlay;                      // sketches, avatars, annotations
+  render::SceneOverlay overlay;                      // sketches, avatars, annotations, videos
+  std::unique_ptr<render::VideoTextures> videos;     // the sites' video (needs the context)
   std::unique_ptr<render::ViewRenderer> renderer;    // destroyed first: needs the context
   cluster::NodeStatus status;                        // NODE_OK until something fails
   uint64_t reported = 0;                             // the last frame reported
   Clock::time_point reported_at;
   double barrier_ms = 0, present_ms = 0;  // of the previous frame, sent with the next report
+  uint64_t video_errors = 0;              // decoding errors already said
+  Clock::time_point video_said;           // when a video problem was last said
 
   Impl(sync::NodeLink& l, NodeOptions o) : link(l), opt(std::move(o)) {}
 
-  ~Impl() { renderer.reset(); }
+  ~Impl() {
+    renderer.reset();
+    videos.reset();
+  }
+
+  /// Video insets (issue 14): the frame's video packets to the streams this tile shows, the
+  /// new pictures to their textures; a texture made or resized rebuilds the overlay.
+  void applyMedia(const cluster::FrameMessage& frame) {
+    if (!videos || (frame.media_size() == 0)) return;
+    const render::ViewSetup view = render::tileView(setup.wall(), *tile, graph.camera());
+    videos->setShown(render::shownVideoSources(graph, view, overlay.options()));
+    // A master sends what its sites sent in one frame period: thousands would be an error.
+    const int count = std::min(frame.media_size(), 4096);
+    for (int i = 0; i < count; ++i) {
+      const std::string& m = frame.media(i);
+      if (auto why = videos->receive({reinterpret_cast<const uint8_t*>(m.data()), m.size()}))
+        noteVideoProblem(*why);
+    }
+    const render::VideoTextureStats st = videos->stats();
+    if (st.errors != video_errors) {
+      video_errors = st.errors;
+      noteVideoProblem(st.last_problem);
+    }
+    if (videos->upload()) {
+      overlay.invalidate();
+      overlay.update(graph, sync::SceneChanges());
+    }
+  }
+
+  /// Bad video is the sites' problem, not this node's: said at most once a second, and the
+  /// inset keeps its last good picture.
+  void noteVideoProblem(const std::string& why) {
+    const auto now = Clock::now();
+    if (now - video_said < std::chrono::seconds(1)) return;
+    video_said = now;
+    std::fprintf(stderr, "%s: %s (the inset keeps its last good picture)\n", who.c_str(),
+                 why.c_str());
+  }
+
+  void sayVideoStats() const {
+    if (!videos) return;
+    const render::VideoTextureStats st = videos->stats();
+    if (st.packets == 0) return;
+    std::printf(
+        "%s: video: %llu packets (%llu refused), %llu pictures decoded, %llu access "
+        "units skipped (not shown or waiting for a key), %llu decoding errors, %llu "
+        "lost\n",
+        who.c_str(), (unsigned long long)st.packets, (unsigned long long)st.refused,
+        (unsigned long long)st.decoded, (unsigned long long)st.skipped,
+        (unsigned long long)st.errors, (unsigned long long)st.lost);
+    std::fflush(stdout);
+  }
 
   void fail(cluster::NodeFailure code, const std::string& why) {
     if (status.code() != cluster::NODE_OK) return;
@@ -127,6 +183,17 @@ struct RenderNode::Impl {
     } catch (const render::RenderError& e) {
       throw NodeError(cluster::NODE_NO_GL, e.what());
     }
+    if (!videos) videos = std::make_unique<render::VideoTextures>();
+    {
+      // Screen-pinned insets are placed on the wall's extent; this tile shows its own part.
+      render::SceneOverlayOptions so = overlay.options();
+      so.screen_wall = render::wallExtent(setup.wall());
+      so.screen_view =
+          glm::dvec4(tile->x(), tile->y(), tile->x() + tile->width(), tile->y() + tile->height());
+      so.view_px = glm::dvec2(tile->pixel_width(), tile->pixel_height());
+      so.video_texture = [this](uint32_t source) { return videos->texture(source); };
+      overlay.setOptions(so);
+    }
     try {
       graph = sync::SceneGraph();
       graph.apply(setup.snapshot());
@@ -154,6 +221,9 @@ struct RenderNode::Impl {
     if (status.code() != cluster::NODE_OK) return;
     try {
       updateModels(graph.apply(sync::parseFrame(frame.frame())));
+      applyMedia(frame);
+    } catch (const render::RenderError& e) {
+      fail(cluster::NODE_RENDER, std::string("video textures: ") + e.what());
     } catch (const sync::SyncError& e) {
       fail(cluster::NODE_BAD_FRAME, e.what());
     } catch (const NodeError& e) {
@@ -254,6 +324,7 @@ struct RenderNode::Impl {
           return SessionEnd::kDropped;
         case cluster::ToNode::kQuit:
           exit_code = status.code();
+          sayVideoStats();
           return SessionEnd::kQuit;
         default:  // a welcome or refusal out of turn: not for this session
           break;

@@ -149,8 +149,18 @@ Problem checkPayload(const SceneNode& n) {
       return checkNonNegative(a.reach(), "avatar.reach");
     }
     case SceneNode::kVideoInset: {
-      if (auto p = checkNonNegative(n.video_inset().width(), "video_inset.width")) return p;
-      return checkNonNegative(n.video_inset().height(), "video_inset.height");
+      const auto& v = n.video_inset();
+      if (auto p = checkNonNegative(v.width(), "video_inset.width")) return p;
+      if (auto p = checkNonNegative(v.height(), "video_inset.height")) return p;
+      if (!v.screen()) return {};
+      for (const auto& [value, field] : {std::pair{v.screen_x(), "video_inset.screen_x"},
+                                         {v.screen_y(), "video_inset.screen_y"},
+                                         {v.screen_width(), "video_inset.screen_width"},
+                                         {v.screen_height(), "video_inset.screen_height"}})
+        if (!(value >= 0.0f && value <= 1.0f))
+          return std::string(field) + ": must be in [0, 1] (fractions of the wall), got " +
+                 num(value);
+      return {};
     }
     default:
       return {};

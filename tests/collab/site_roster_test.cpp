@@ -13,6 +13,7 @@
 
 #include <tessera/collab/site_messages.h>
 #include <tessera/collab/site_roster.h>
+#include <tessera/collab/video_packet.h>
 #include <tessera/collab/voice_packet.h>
 #include <tessera/sync/scene_graph.h>
 
@@ -97,6 +98,31 @@ TEST(SiteMessages, RefusesNonFiniteDegenerateAndOversizedInput) {
   site::ToMaster m;
   EXPECT_TRUE(collab::parseToMaster("\xff\xff\xff garbage", m));
   EXPECT_TRUE(collab::parseToMaster(std::string(collab::kMaxSiteMessageBytes + 1, '\0'), m));
+}
+
+TEST(SiteMessages, VideoIsAVideoPacketChecked) {
+  collab::VideoPacket p;
+  p.width = 640;
+  p.height = 480;
+  p.payload.assign(collab::kMaxVideoChunkBytes, 7);
+  const std::vector<uint8_t> packet = collab::encodeVideoPacket(p);
+  site::ToMaster m;
+  m.set_video(packet.data(), packet.size());
+  site::ToMaster parsed;
+  EXPECT_EQ(collab::parseToMaster(m.SerializeAsString(), parsed), std::nullopt);
+  EXPECT_EQ(parsed.video(), m.video());
+  m.set_video(packet.data(), packet.size() - 1);  // truncated
+  auto why = collab::parseToMaster(m.SerializeAsString(), parsed);
+  ASSERT_TRUE(why);
+  EXPECT_NE(why->find("video: video packet: payload size"), std::string::npos) << *why;
+  std::string oversized(packet.begin(), packet.end());
+  oversized.append(100, '\0');  // more than a packet may be, whatever its size field says
+  m.set_video(oversized);
+  why = collab::parseToMaster(m.SerializeAsString(), parsed);
+  ASSERT_TRUE(why);
+  EXPECT_NE(why->find("more than the largest packet"), std::string::npos) << *why;
+  m.set_video("");
+  EXPECT_TRUE(collab::parseToMaster(m.SerializeAsString(), parsed));
 }
 
 TEST(SiteMessages, VoiceIsAVoicePacketChecked) {

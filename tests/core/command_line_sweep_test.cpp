@@ -188,11 +188,19 @@ TEST(CommandLineSweep, TesseraMaster) {
                    {"--join-wait", true, false},
                    {"--first-frame-timeout", false, false},
                    {"--site-timeout", false, false},
-                   {"--timeout", false, false}});
+                   {"--timeout", false, false},
+                   {"--video-cap", false, false}});
+  for (const char* v : {"nan,0.1,0.2", "0.1,inf,0.2", "0.9,0.1,0.2", "0.1,0.1,0", "0.1,0.1",
+                        "0.1,0.1,0.2,0.3", "-0.1,0,0.5", "abc"})
+    expectRefused(master(), "--video-screen", v);
 }
 
 TEST(CommandLineSweep, TesseraSite) {
-  sweep(site(), {{"--join-timeout", false, false}});
+  sweep(site(), {{"--join-timeout", false, false},
+                 {"--video-kbps", false, true, false},
+                 {"--video-fps", false, false}});
+  for (const char* size : {"0x480", "641x480", "640x481", "nanx480", "15x15", "4096x480", "640"})
+    expectRefused(site(), "--video-size", size);
   for (const std::string size : {"0x480", "4294967297x480", "640x0", "nanx480", "640", "15x15"}) {
     const CommandResult r =
         tessera::test::runCommand(site().base + " --size " + size + " --window --headless");

@@ -220,6 +220,85 @@ TEST(SceneOverlay, AvatarFrustumCornersAreAnalytic) {
   EXPECT_EQ(o.labels[0].align, glm::vec2(0.5f, 1.0f));
 }
 
+/// A VIDEO_INSET node of `source` under `parent`: a world quad (w x h metres) or, with `screen`,
+/// pinned at (x, y) of the screen, `screen_width` of it wide (height from the picture).
+SceneGraph::NodeId addInset(SceneGraph& g, uint32_t source, SceneGraph::NodeId parent, float w,
+                            float h, bool screen = false, float x = 0, float y = 0,
+                            float screen_width = 0) {
+  const SceneGraph::NodeId id = g.add(scene::SceneNode::VIDEO_INSET, parent, "video");
+  scene::VideoInsetPayload v;
+  v.set_source(source);
+  v.set_width(w);
+  v.set_height(h);
+  v.set_screen(screen);
+  v.set_screen_x(x);
+  v.set_screen_y(y);
+  v.set_screen_width(screen_width);
+  g.setPayload(id, v);
+  return id;
+}
+
+TEST(SceneOverlay, VideoInsetsAreQuadsBesideAvatarsOrScreenRectsOfTheWall) {
+  SceneGraph g;
+  const glm::dvec3 eye(0.0, 0.0, 2.0);
+  const SceneGraph::NodeId avatar = addAvatar(g, eye, glm::dvec3(0.0), 45.0f, 1.5f, 0.0f);
+  const SceneGraph::NodeId beside = addInset(g, 1, avatar, 0.4f, 0.3f);
+  setTransform(g, beside, glm::translate(glm::dmat4(1.0), glm::dvec3(0.5, 0.0, 0.0)));
+  addInset(g, 2, SceneGraph::kRoot, 0.0f, 0.0f, true, 0.25f, 0.5f, 0.5f);
+  SceneOverlayOptions o;
+  // The wall: 2 x 1 m; this view is its right half, 400 x 200 pixels.
+  o.screen_wall = glm::dvec4(0.0, 0.0, 2.0, 1.0);
+  o.screen_view = glm::dvec4(1.0, 0.0, 2.0, 1.0);
+  o.view_px = glm::dvec2(400.0, 200.0);
+  const GlTexture* none = nullptr;
+  o.video_texture = [&](uint32_t) { return none; };
+  Overlay out;
+  EXPECT_EQ(appendSceneOverlay(g, out, o), 3u);
+  // Beside the avatar: its frame is the camera's (looking down -z from z = 2, x right).
+  ASSERT_EQ(out.quads.size(), 1u);
+  const auto& c = out.quads[0].corners;
+  EXPECT_LT(glm::length(c[0] - glm::dvec3(0.3, 0.15, 2.0)), 1e-6);   // top-left (sizes are floats)
+  EXPECT_LT(glm::length(c[2] - glm::dvec3(0.7, -0.15, 2.0)), 1e-6);  // bottom-right
+  EXPECT_EQ(out.quads[0].texture, nullptr);
+  EXPECT_EQ(out.quads[0].tint, glm::u8vec4(40, 40, 48, 220)) << "a dark quad until decoded";
+  // Pinned: x 0.5 .. 1.5 m of the wall, y 0.5 .. 1.25 m (4:3 until a picture says otherwise),
+  // in this view's pixels (y down): half of it left of the view, continuing on the other tile.
+  ASSERT_EQ(out.rects.size(), 1u);
+  EXPECT_NEAR(out.rects[0].min.x, -200.0f, 1e-3f);
+  EXPECT_NEAR(out.rects[0].max.x, 200.0f, 1e-3f);
+  EXPECT_NEAR(out.rects[0].min.y, -50.0f, 1e-3f);
+  EXPECT_NEAR(out.rects[0].max.y, 100.0f, 1e-3f);
+  // A site's own inset is left out of its own view.
+  o.hide_site = "Pisa";
+  Overlay own;
+  g.setPayload(beside, [&] {
+    scene::VideoInsetPayload v = g.node(beside).video_inset();
+    v.set_stream("Pisa");
+    return v;
+  }());
+  appendSceneOverlay(g, own, o);
+  EXPECT_TRUE(own.quads.empty());
+}
+
+TEST(SceneOverlay, OnlyTheInsetsAViewShowsAreItsToDecode) {
+  SceneGraph g;
+  addInset(g, 1, SceneGraph::kRoot, 0.5f, 0.5f);  // at the origin, in view
+  const SceneGraph::NodeId far = addInset(g, 2, SceneGraph::kRoot, 0.5f, 0.5f);
+  setTransform(g, far, glm::translate(glm::dmat4(1.0), glm::dvec3(100.0, 0.0, 0.0)));
+  addInset(g, 3, SceneGraph::kRoot, 0, 0, true, 0.6f, 0.1f, 0.3f);   // right half of the wall
+  addInset(g, 4, SceneGraph::kRoot, 0, 0, true, 0.05f, 0.1f, 0.3f);  // left half
+  ViewSetup view;
+  view.view = glm::lookAt(glm::dvec3(0, 0, 5), glm::dvec3(0.0), glm::dvec3(0, 1, 0));
+  view.projection = glm::perspective(glm::radians(60.0), 1.0, 0.1, 50.0);
+  SceneOverlayOptions o;
+  o.screen_wall = glm::dvec4(0.0, 0.0, 2.0, 1.0);
+  o.screen_view = glm::dvec4(1.0, 0.0, 2.0, 1.0);  // this view: the right half
+  o.view_px = glm::dvec2(400.0, 200.0);
+  EXPECT_EQ(shownVideoSources(g, view, o), (std::set<uint32_t>{1, 3}));
+  setTransform(g, far, glm::translate(glm::dmat4(1.0), glm::dvec3(1.0, 0.0, 0.0)));
+  EXPECT_EQ(shownVideoSources(g, view, o), (std::set<uint32_t>{1, 2, 3}));
+}
+
 TEST(SceneOverlay, DegenerateAvatarsAndSketchesDrawNoFrustumOrZeroLengthLines) {
   const std::tuple<float, float, float> cases[] = {
       {0.0f, 1.5f, 2.0f}, {60.0f, 0.0f, 2.0f}, {60.0f, 1.5f, 0.0f}};

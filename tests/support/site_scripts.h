@@ -73,6 +73,33 @@ inline std::vector<std::string> masterWithSites(const std::string& master,
   return argv;
 }
 
+/// Sets `option`'s value in an argv that has it (e.g. masterWithSites' "--max-fps").
+inline void setOption(std::vector<std::string>& argv, const std::string& option,
+                      const std::string& value) {
+  for (size_t i = 0; i + 1 < argv.size(); ++i)
+    if (argv[i] == option) argv[i + 1] = value;
+}
+
+/// A camera path holding `camera_json` for `seconds` with a wall screenshot (shot000.png,
+/// shot001.png ...) every `every` seconds from `from` on, written to `path` (masterWithSites'
+/// hold.json, replaced).
+inline void writeHoldWithScreenshots(const std::filesystem::path& path,
+                                     const std::string& camera_json, double seconds, double from,
+                                     double every) {
+  const std::string hold = camera_json.substr(1, camera_json.size() - 2);
+  std::string actions;
+  int n = 0;
+  for (double t = from; t < seconds - 0.2; t += every, ++n) {
+    char a[96];
+    std::snprintf(a, sizeof a, R"(%s{"time": %.3f, "screenshot": "shot%03d.png"})", n ? ", " : "",
+                  t, n);
+    actions += a;
+  }
+  writeText(path, R"({"name": "hold", "keyframes": [{"time": 0, )" + hold + R"(}, {"time": )" +
+                      std::to_string(seconds) + ", " + hold + "}], \"actions\": [" + actions +
+                      "]}");
+}
+
 /// A headless tessera-site joining `sites` as `name` with `key_file`, playing `script`, writing
 /// to `out`; `extra` is appended.
 inline std::vector<std::string> headlessSite(const std::string& site, const std::string& sites,

@@ -35,6 +35,9 @@ struct SiteClientOptions {
   /// Called by receive() with each voice packet the master sends (its bytes, unchecked: see
   /// voice_packet.h); without it they are dropped.
   std::function<void(std::string_view)> voice;
+  /// Called by receive() with each chunk of another site's video (unchecked: video_packet.h);
+  /// without it they are dropped.
+  std::function<void(std::string_view)> video;
 };
 
 class SiteClient {

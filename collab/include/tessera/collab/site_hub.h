@@ -14,6 +14,10 @@
 //           GROUP node "sketches/NAME"; undo removes its newest, clear all of its sketches
 //   lead    the scene's leader becomes the site (Settings::leader); release gives the view back
 //   bye     the avatar goes (its sketches stay); a site silent for the timeout goes too
+//   video   a chunk of the site's H.264 stream (video_packet.h), held to the video cap: the
+//           first makes a VIDEO_INSET node (beside the avatar, or pinned to the screen), and
+//           every chunk goes to the render nodes with the next frame (takeMedia) and to the
+//           other sites at once; no video for video_timeout_s and the inset goes
 // Concurrent edits of one field: the last applied wins, and the node's author says who.
 //
 // After each frame every welcomed site gets the frame; a site whose queue is full (it does not
@@ -53,6 +57,16 @@ struct SiteHubOptions {
   bool voice = false;
   std::string audio_in;   ///< the wall room's microphone: a WAV file ("" : none); needs voice
   std::string audio_out;  ///< the wall room's speakers: a WAV file written at the end; needs voice
+  /// Video insets (issue 14): each site's video is held to this many kbit/s (sustained, with a
+  /// one-second burst); chunks over it are dropped and the master says so once a second. The
+  /// stream recovers at its next intra refresh; the wall never waits for it.
+  double video_cap_kbps = 4000;
+  /// Where a site's inset goes: beside its avatar (false), or pinned to the screen (true) at
+  /// (screen_x, screen_y), lower-left corner, screen_width wide, fractions of the wall (more
+  /// insets to its right); its height follows the picture's aspect.
+  bool video_screen = false;
+  float screen_x = 0.72f, screen_y = 0.04f, screen_width = 0.24f;
+  double video_timeout_s = 3.0;  ///< no video from a site for this long: its inset goes
 };
 
 struct SiteHubCounters {
@@ -61,7 +75,9 @@ struct SiteHubCounters {
   uint64_t snapshots_resent = 0;  ///< snapshots sent to sites that fell behind
   uint64_t discarded = 0;         ///< messages of dropped sites, discarded unread
   uint64_t chunk_requests = 0, chunk_refused = 0, chunk_bytes_out = 0;  ///< the chunk server's
-  uint64_t voice_in = 0, voice_out = 0;  ///< voice packets from and to sites
+  uint64_t voice_in = 0, voice_out = 0;      ///< voice packets from and to sites
+  uint64_t video_in = 0, video_dropped = 0;  ///< video chunks from sites; dropped over the cap
+  uint64_t video_to_nodes = 0, video_to_sites = 0;  ///< video chunks forwarded
 };
 
 class SiteHub final : public master::Participants {
@@ -79,6 +95,7 @@ class SiteHub final : public master::Participants {
   void beforeFrame(sync::SceneGraph& graph, uint64_t frame, double session_s) override;
   void afterFrame(const sync::SceneGraph& graph, const std::string& bytes) override;
   void end(const std::string& reason) override;
+  void takeMedia(std::vector<std::string>& out) override;
 
   std::vector<SiteInfo> sites() const;
   SiteHubCounters counters() const;

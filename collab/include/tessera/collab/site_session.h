@@ -12,6 +12,7 @@
 #include <string>
 
 #include <tessera/collab/site_client.h>
+#include <tessera/collab/video_codec.h>
 #include <tessera/site.pb.h>
 
 namespace tessera::collab {
@@ -42,6 +43,11 @@ struct SiteSessionOptions {
   /// welcome on, and what it hears (the wall's microphone and the other sites), written as WAV
   /// when the session ends. "" : none.
   std::string audio_in, audio_out;
+  /// Video (issue 14): "test" (the test pattern), a video file, or a V4L2 camera (/dev/videoN)
+  /// sent from the welcome on as H.264 (video_codec.h); "" : none. Other sites' insets are
+  /// decoded and drawn when they are in view.
+  std::string video;
+  VideoSettings video_settings;
 };
 
 /// A site script from a file, checked: fps in (0, 240], a view of 16..8192 pixels, fovy in

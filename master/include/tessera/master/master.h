@@ -22,6 +22,7 @@
 #include <optional>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 #include <tessera/master/script_player.h>
 #include <tessera/master/tile_table.h>
@@ -46,6 +47,9 @@ class Participants {
   virtual void afterFrame(const sync::SceneGraph& graph, const std::string& bytes) = 0;
   /// The session ends (every participant is told why).
   virtual void end(const std::string& reason) = 0;
+  /// Media for the render nodes with the frame being taken (video packets, issue 14; checked
+  /// by the participants): appended to `out`, which the master sends in the frame message.
+  virtual void takeMedia(std::vector<std::string>& out) { (void)out; }
 };
 
 /// A reason to stop before rendering (bad config, nodes that cannot start): exit code 1.
@@ -129,6 +133,7 @@ class Master {
   std::unique_ptr<std::ofstream> mCsv;
   std::vector<double> mRenderMs;  // the slowest node's render time, last frames
   uint64_t mFrame = 0;            // the last frame published
+  double mSwapUnixMs = 0;         // the system clock at the last swap, milliseconds
   int mStopCode = 0;
   std::string mStopReason;
 };

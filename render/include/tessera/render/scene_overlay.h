@@ -20,6 +20,12 @@
 //    edges from the eye and the far rectangle; left out when fovy_deg, aspect or reach is 0),
 //    and its name (the payload's site, else the node's name) centred above the head.
 //  - ANNOTATION: its text at its anchor over a dark box, and a small dot at the anchor.
+//  - VIDEO_INSET (issue 14): the picture of its source's stream (options.video_texture; a dark
+//    quad until one is decoded). In the world: an OverlayQuad width x height metres centred on
+//    the node frame's origin in its xy plane, depth-tested. On the screen: a ScreenRect placed
+//    in fractions of options.screen_wall, drawn where this view (options.screen_view, in the
+//    same units, options.view_px pixels) shows that part of it, so tiles continue each other;
+//    its height, when the payload gives none, keeps the picture's aspect (4:3 until decoded).
 //
 // Cost: one pass over the scene's node ids, plus for each overlay node its ancestors (the tree's
 // depth) and its payload (a sketch's points); no GL. Cheap enough to rebuild per frame;
@@ -27,6 +33,9 @@
 #pragma once
 
 #include <cstddef>
+#include <cstdint>
+#include <functional>
+#include <set>
 #include <string>
 
 #include <glm/glm.hpp>
@@ -50,10 +59,26 @@ struct SceneOverlayOptions {
   std::string hide_site;
   glm::dvec3 viewer_eye{0.0};
   double hide_near_m = 0.0;
+  /// Video insets: the texture showing participant `source`'s stream, or null (none decoded
+  /// yet). Unset: every inset is a dark quad. Textures must outlive the overlay's frames.
+  std::function<const GlTexture*(uint32_t source)> video_texture;
+  /// Screen-pinned insets: the whole screen's rectangle (a wall's extent on its plane, metres:
+  /// min x, min y, max x, max y; y up), this view's part of it in the same units, and the view's
+  /// size in pixels. A view_px of 0 draws no screen-pinned insets.
+  glm::dvec4 screen_wall{0.0, 0.0, 1.0, 1.0};
+  glm::dvec4 screen_view{0.0, 0.0, 1.0, 1.0};
+  glm::dvec2 view_px{0.0};
 };
 
-/// Whether the node kind is one the scene overlay draws (SKETCH, AVATAR, ANNOTATION).
+/// Whether the node kind is one the scene overlay draws (SKETCH, AVATAR, ANNOTATION,
+/// VIDEO_INSET).
 bool isOverlayKind(sync::SceneGraph::Kind kind);
+
+/// The sources of the visible VIDEO_INSET nodes that `view` shows at least in part (world quads
+/// by a conservative frustum test, screen rectangles against the view's pixels): the streams
+/// this view must decode.
+std::set<uint32_t> shownVideoSources(const sync::SceneGraph& graph, const ViewSetup& view,
+                                     const SceneOverlayOptions& options);
 
 /// Appends the primitives of the graph's visible SKETCH, AVATAR and ANNOTATION nodes (in
 /// ascending id) to `out`, whose other content and depth_bias are left as they are. Returns how
@@ -67,6 +92,14 @@ size_t appendSceneOverlay(const sync::SceneGraph& graph, Overlay& out,
 class SceneOverlay {
  public:
   explicit SceneOverlay(const SceneOverlayOptions& options = {}) : mOptions(options) {}
+  /// New options: the next update() rebuilds.
+  void setOptions(const SceneOverlayOptions& options) {
+    mOptions = options;
+    mStarted = false;
+  }
+  const SceneOverlayOptions& options() const { return mOptions; }
+  /// The next update() rebuilds (a video texture appeared or changed size).
+  void invalidate() { mStarted = false; }
   /// `changes` as for SceneDrawList::update(). The reference stays valid until the next call.
   const Overlay& update(const sync::SceneGraph& graph, const sync::SceneChanges& changes);
   const Overlay& overlay() const { return mOverlay; }
