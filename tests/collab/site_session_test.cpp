@@ -293,9 +293,15 @@ TEST_F(SiteSession, AvatarsSketchFollowMeAndAKilledSiteOnTheWall) {
   const tessera::render::Image follow =
       tessera::render::readPng((mRun / "B" / "follow.png").string());
   ASSERT_EQ(lead.rgba.size(), follow.rgba.size());
-  size_t same = 0;
+  size_t same = 0, compared = 0;
   double se = 0;
   for (size_t i = 0; i < lead.rgba.size(); i += 4) {
+    // B's own avatar shows in A's picture (where B stands: A's eye, as B follows) but never in
+    // B's; under load B's pose reaches the master a frame late and its frustum's edges move
+    // inside A's view. Its lines (B's colour: far more green than red) are left out.
+    auto bAvatar = [](const uint8_t* p) { return p[1] > 100 && p[1] > p[0] + 40; };
+    if (bAvatar(&lead.rgba[i]) || bAvatar(&follow.rgba[i])) continue;
+    ++compared;
     bool eq = true;
     for (int k = 0; k < 3; ++k) {
       const double d = double(lead.rgba[i + k]) - follow.rgba[i + k];
@@ -304,7 +310,8 @@ TEST_F(SiteSession, AvatarsSketchFollowMeAndAKilledSiteOnTheWall) {
     }
     same += eq;
   }
-  const double pixels = double(lead.rgba.size() / 4);
+  const double pixels = double(compared);
+  EXPECT_GT(compared, lead.rgba.size() / 4 * 9 / 10);
   const double psnr = 10 * std::log10(255.0 * 255.0 / std::max(1e-9, se / (3 * pixels)));
   EXPECT_GE(same / pixels, 0.99) << "follower and leader pixels alike; PSNR " << psnr;
   EXPECT_GE(psnr, 40.0);
