@@ -1,9 +1,14 @@
 #include <tessera/core/cli.h>
 
+#include <atomic>
 #include <cmath>
+#include <csignal>
 #include <cstdio>
 #include <cstdlib>
 #include <new>
+#include <thread>
+
+#include <pthread.h>
 
 #include <glm/geometric.hpp>
 
@@ -44,6 +49,34 @@ std::optional<int> parse(CLI::App& app, int argc, char** argv, const std::string
   }
   return std::nullopt;
 }
+
+namespace {
+
+std::atomic<int> gStopSignal{0};
+
+}  // namespace
+
+void catchStopSignals() {
+  // Blocked in every thread (they inherit the mask) and taken by sigwait() in one of their own:
+  // no handler interrupts a blocking call (ZeroMQ would throw EINTR out of a poll).
+  sigset_t set;
+  sigemptyset(&set);
+  sigaddset(&set, SIGINT);
+  sigaddset(&set, SIGTERM);
+  if (pthread_sigmask(SIG_BLOCK, &set, nullptr) != 0) return;  // signals keep their default
+  std::thread([set] {
+    int sig = 0;
+    if (sigwait(&set, &sig) != 0) return;
+    gStopSignal.store(sig);
+    if (sigwait(&set, &sig) != 0) return;
+    // The second one is not ignored: its default action, now.
+    std::signal(sig, SIG_DFL);
+    pthread_sigmask(SIG_UNBLOCK, &set, nullptr);
+    raise(sig);
+  }).detach();
+}
+
+int stopSignal() { return gStopSignal.load(std::memory_order_relaxed); }
 
 int runMain(const std::string& tool, const std::function<int()>& body, int failure_code) {
   try {

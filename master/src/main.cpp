@@ -317,5 +317,6 @@ int run(int argc, char** argv) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  tessera::cli::catchStopSignals();  // Ctrl-C, SIGTERM: the session ends with the frame at work
   return tessera::cli::runMain("tessera-master", [&] { return run(argc, argv); });
 }

@@ -2,11 +2,13 @@
 
 #include <algorithm>
 #include <cerrno>
+#include <csignal>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <thread>
 
+#include <tessera/core/cli.h>
 #include <tessera/core/file_checks.h>
 #include <tessera/core/stopwatch.h>
 #include <tessera/master/tile_assignment.h>
@@ -343,6 +345,12 @@ int Master::run() {
     bool last = deterministic ? f + 1 >= uint64_t(mOpt.frames)
                               : (mPlayer ? t >= mPlayer->duration() : !mConsole);
     if (mConsole && !mConsole->handleInput(mGraph)) last = true;
+    if (const int sig = cli::stopSignal(); sig && !last) {
+      std::printf("tessera-master: %s: ending the session with frame %llu\n",
+                  sig == SIGINT ? "SIGINT" : "SIGTERM", (unsigned long long)(f + 1));
+      std::fflush(stdout);
+      last = true;
+    }
     // After the script and the console: a remote leader's camera wins.
     if (mParticipants)
       mParticipants->beforeFrame(

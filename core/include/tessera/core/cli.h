@@ -56,6 +56,16 @@ int exitCode(CLI::App& app, const CLI::ParseError& e, const std::string& tool);
 int runMain(const std::string& tool, const std::function<int()>& body,
             int failure_code = kExitBadInput);
 
+/// Makes SIGINT and SIGTERM requests to stop: the first sets stopSignal() and the long-running
+/// loops (the master's frames) end at their next frame as if their script had ended, with their
+/// normal exit code; a second one terminates at once (the default action is restored). Call it
+/// first in main(), before any thread starts: the signals are blocked in every thread and taken
+/// by one of their own, so no blocking call is interrupted (EINTR).
+void catchStopSignals();
+
+/// The signal that asked to stop (SIGINT, SIGTERM), or 0. Async-signal-safe to set, cheap to read.
+int stopSignal();
+
 /// A finite number in [lo, hi]; the message names the range ("--node-timeout: 'nan' is not a
 /// finite number in [0, 3600000]").
 CLI::Validator finiteRange(double lo, double hi);
