@@ -78,6 +78,8 @@ class Builder {
     // Quantisation error at most a quarter of the spacing (Euclidean: step * sqrt(3) / 2), but
     // no finer than the input's own resolution.
     double step = std::max(spacing / (2.0 * std::sqrt(3.0)), mPrecision);
+    if (child_mask == 0 && mOpt.exact_leaves)
+      step = mPrecision > 0.0 ? mPrecision : spacing / 1024.0;
     NodeOut out;
     out.key = key;
     out.child_mask = child_mask;

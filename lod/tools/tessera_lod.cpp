@@ -359,6 +359,9 @@ int run(int argc, char** argv) {
       ->capture_default_str();
   build->add_option("--temp-dir", bo.temp_dir,
                     "Folder for temporary files (default: beside the output)");
+  build->add_flag("--exact-leaves", bo.exact_leaves,
+                  "Leaves keep the input's own resolution (measurement-grade picks; a larger "
+                  "store) instead of a quarter of their spacing");
   build->add_flag("--quiet", bo.quiet, "No progress output");
   MeshBuildOptions mbo;
   build
