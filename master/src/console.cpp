@@ -5,6 +5,7 @@
 #include <cstdio>
 
 #include <tessera/master/point_pick.h>
+#include <tessera/master/surface_pick.h>
 #include <tessera/render/gl_context.h>
 #include <tessera/sync/scene_edits.h>
 
@@ -14,7 +15,8 @@ namespace {
 
 // GLFW key codes (glfw3.h), kept here so this file needs no GLFW header.
 constexpr int kKey1 = 49, kKey9 = 57, kKeyEqual = 61, kKeyMinus = 45, kKeyH = 72, kKeyE = 69,
-              kKeyPadAdd = 334, kKeyPadSubtract = 333, kKeyL = 76, kKeyU = 85, kKeyC = 67;
+              kKeyPadAdd = 334, kKeyPadSubtract = 333, kKeyL = 76, kKeyU = 85, kKeyC = 67,
+              kKeyM = 77, kKeyEnter = 257, kKeyPadEnter = 335, kKeyBackspace = 259;
 
 /// The console's own name as a participant (sketch layer, author, leader).
 constexpr const char* kConsole = "console";
@@ -97,6 +99,12 @@ render::Overlay Console::overlay(const render::Overlay& scene) const {
   render::Overlay o = scene;
   const float bar_x = float(mWidth * (1.0 - OneButtonNavigation::kBarFraction));
   o.rects.push_back({{bar_x, 0.0f}, {float(mWidth), float(mHeight)}, {255, 255, 255, 64}});
+  // The unfinished measurement's points and lines, on top.
+  const auto& pts = mTool.points();
+  for (size_t i = 0; i < pts.size(); ++i) {
+    o.points.push_back({pts[i].point.world, {90, 230, 255, 255}, 7.0f, 1.5f});
+    if (i > 0) o.lines.push_back({pts[i - 1].point.world, pts[i].point.world, {90, 230, 255, 200}, 1.5f});
+  }
   if (const auto& target = mNavigation.target()) {
     render::OverlayPoint ring;
     ring.at = *target;
@@ -128,20 +136,56 @@ bool Console::handleInput(sync::SceneGraph& graph) {
   const glm::dmat4 clip_from_world = mLastView.projection * mLastView.view;
   const glm::dmat4 world_from_clip = glm::inverse(clip_from_world);
   const double fovy = 2.0 * std::atan(1.0 / mLastView.projection[1][1]);
+  auto ray = [&](glm::dvec2 px) {
+    const double nx = px.x / mWidth * 2.0 - 1.0, ny = 1.0 - px.y / mHeight * 2.0;
+    glm::dvec4 a = world_from_clip * glm::dvec4(nx, ny, -1.0, 1.0);
+    glm::dvec4 b = world_from_clip * glm::dvec4(nx, ny, 1.0, 1.0);
+    const glm::dvec3 from = glm::dvec3(a) / a.w, to = glm::dvec3(b) / b.w;
+    return std::pair{from, glm::normalize(to - from)};
+  };
+  PickOptions pick_options;
+  pick_options.pixel_angle = fovy / mHeight;
   auto pick = [&](glm::dvec2 px) -> std::optional<glm::dvec3> {
     // The frame's pick ids name the point under the pixel; a see-through frame has none: then
     // a ray through the points (point_pick.h).
     if (px.x >= 0 && px.y >= 0 && px.x < mWidth && px.y < mHeight) {
       if (auto hit = mRenderer->pick(uint32_t(px.x), uint32_t(px.y))) return hit->world;
     }
-    const double nx = px.x / mWidth * 2.0 - 1.0, ny = 1.0 - px.y / mHeight * 2.0;
-    glm::dvec4 a = world_from_clip * glm::dvec4(nx, ny, -1.0, 1.0);
-    glm::dvec4 b = world_from_clip * glm::dvec4(nx, ny, 1.0, 1.0);
-    const glm::dvec3 from = glm::dvec3(a) / a.w, to = glm::dvec3(b) / b.w;
-    PickOptions o;
-    o.pixel_angle = fovy / mHeight;
-    return pickPoint(mInstances, from, glm::normalize(to - from), o);
+    const auto [from, dir] = ray(px);
+    return pickPoint(mInstances, from, dir, pick_options);
   };
+  // Measuring: a click picks the surface under the pixel in the full-resolution data of the
+  // model the frame's pick ids name (surface_pick.h), not the coarse cut on screen.
+  auto measureAt = [&](glm::dvec2 px) {
+    if (!(px.x >= 0 && px.y >= 0 && px.x < mWidth && px.y < mHeight)) return;
+    const auto hit = mRenderer->pick(uint32_t(px.x), uint32_t(px.y));
+    if (!hit) return;
+    const auto [from, dir] = ray(px + 0.5);
+    std::optional<SurfacePick> at = pickSurface(mInstances, from, dir, pick_options, hit->model);
+    if (!at) {  // the refinement found nothing (a corrupt chunk): the pixel's own depth
+      at = SurfacePick{};
+      at->point.world = hit->world;
+      at->point.uncertainty = glm::length(hit->world - from) * pick_options.pixel_angle;
+      at->model = hit->model;
+    }
+    try {
+      if (auto id = mTool.add(*at, graph, mInstances, kConsole)) {
+        mMeasurements.push_back(*id);
+        std::printf("tessera-master: console: %s %s\n", MeasureTool::name(mTool.mode()),
+                    mTool.lastLabel().c_str());
+        std::fflush(stdout);
+      }
+    } catch (const MeasureError& e) {
+      std::printf("tessera-master: console: %s\n", e.what());
+      std::fflush(stdout);
+    }
+  };
+  if (mTool.mode() != MeasureTool::Mode::kOff) {
+    // Clicks measure; the wheel still moves the view.
+    if (in.left_pressed) mPressAt = p.cursor;
+    if (in.left_released && glm::length(p.cursor - mPressAt) <= 4.0) measureAt(p.cursor);
+    p.down = p.pressed = p.released = false;
+  }
   auto project = [&](const glm::dvec3& w) -> std::optional<glm::dvec2> {
     const glm::dvec4 c = clip_from_world * glm::dvec4(w, 1.0);
     if (c.w <= 0) return std::nullopt;
@@ -196,6 +240,34 @@ bool Console::handleInput(sync::SceneGraph& graph) {
     if (key == kKeyC) {
       for (auto id : mSketches) graph.remove(id);
       mSketches.clear();
+    }
+    if (key == kKeyM) {
+      std::printf("tessera-master: console: measuring: %s%s\n",
+                  MeasureTool::name(mTool.cycle()),
+                  mTool.mode() == MeasureTool::Mode::kPath || mTool.mode() == MeasureTool::Mode::kArea
+                      ? " (click points, Enter ends, Backspace drops the last)"
+                      : "");
+      std::fflush(stdout);
+    }
+    if (key == kKeyEnter || key == kKeyPadEnter) {
+      try {
+        if (auto id = mTool.finish(graph, mInstances, kConsole)) {
+          mMeasurements.push_back(*id);
+          std::printf("tessera-master: console: %s %s\n", MeasureTool::name(mTool.mode()),
+                      mTool.lastLabel().c_str());
+          std::fflush(stdout);
+        }
+      } catch (const MeasureError& e) {
+        std::printf("tessera-master: console: %s\n", e.what());
+        std::fflush(stdout);
+      }
+    }
+    if (key == kKeyBackspace && !mTool.undoPoint()) {  // no point to drop: the newest measurement
+      std::erase_if(mMeasurements, [&](auto id) { return !graph.contains(id); });
+      if (!mMeasurements.empty()) {
+        graph.remove(mMeasurements.back());
+        mMeasurements.pop_back();
+      }
     }
     if (key >= kKey1 && key <= kKey9 && size_t(key - kKey1) < models.size())
       mSelected = size_t(key - kKey1);

@@ -9,6 +9,7 @@
 #include <memory>
 #include <vector>
 
+#include <tessera/master/measure_tool.h>
 #include <tessera/master/one_button_navigation.h>
 #include <tessera/render/scene_draw_list.h>
 #include <tessera/render/scene_overlay.h>
@@ -40,7 +41,10 @@ class Console {
   /// a model, + / - change its opacity by 0.1, H toggles its visibility, E toggles eye-dome
   /// lighting; a right-button drag draws a sketch on the model (layer "sketches/console"), U
   /// undoes the newest, C clears them; L makes the console lead the view (a site that led stops
-  /// moving it), again gives it back. Returns false once the window is closed (or Escape).
+  /// moving it), again gives it back; M cycles the measuring tool (distance, path, angle, area,
+  /// off): clicks then pick points on the model instead of navigating, Enter ends a path or an
+  /// area, Backspace drops the last point or else the newest measurement (layer
+  /// "measurements"). Returns false once the window is closed (or Escape).
   bool handleInput(sync::SceneGraph& graph);
 
  private:
@@ -64,6 +68,9 @@ class Console {
   std::vector<glm::dvec2> mDrag;  // the right-button drag's pixels so far
   bool mRightHeld = false;
   std::vector<sync::SceneGraph::NodeId> mSketches;  // the console's, oldest first
+  MeasureTool mTool;
+  glm::dvec2 mPressAt{0.0};  // where the left button went down (a click measures)
+  std::vector<sync::SceneGraph::NodeId> mMeasurements;  // the console's, oldest first
   std::chrono::steady_clock::time_point mLastInput = std::chrono::steady_clock::now();
 };
 

@@ -15,6 +15,7 @@ namespace {
 constexpr glm::u8vec3 kSketchDefault{255, 255, 255};
 constexpr glm::u8vec3 kAvatarDefault{255, 160, 40};
 constexpr glm::u8vec3 kAnnotationDot{255, 210, 60};
+constexpr glm::u8vec3 kMeasurementDefault{90, 230, 255};
 
 glm::u8vec4 colorOf(bool has, const scene::Color& c, glm::u8vec3 fallback, float opacity) {
   const glm::u8vec3 rgb =
@@ -116,6 +117,50 @@ void addAnnotation(const scene::AnnotationPayload& a, const glm::dmat4& world, f
   out.labels.push_back(std::move(label));
 }
 
+void addMeasurement(const scene::MeasurementPayload& m, const glm::dmat4& world, float opacity,
+                    const SceneOverlayOptions& o, Overlay& out) {
+  const size_t n = size_t(m.points_size()) / 3;
+  if (n == 0) return;
+  const glm::u8vec4 color = colorOf(m.has_color(), m.color(), kMeasurementDefault, opacity);
+  const auto& p = m.points();
+  auto at = [&](size_t i) { return toWorld(world, p[3 * i], p[3 * i + 1], p[3 * i + 2]); };
+  const bool closed = m.type() == scene::MeasurementPayload::AREA && n >= 3;
+  glm::dvec3 centroid(0.0);
+  for (size_t i = 0; i < n; ++i) {
+    centroid += at(i) / double(n);
+    if (i + 1 < n || closed) out.lines.push_back({at(i), at((i + 1) % n), color, o.measure_width_px});
+    // A dot on each picked point.
+    out.points.push_back({at(i), color, o.measure_dot_px, 0.0f});
+  }
+  OverlayLabel label;
+  label.at = m.type() == scene::MeasurementPayload::DISTANCE ? 0.5 * (at(0) + at(n - 1))
+             : m.type() == scene::MeasurementPayload::ANGLE  ? at(1)
+             : m.type() == scene::MeasurementPayload::AREA   ? centroid
+                                                             : at(n - 1);
+  label.text = measurementLabel(m);
+  label.color = color;
+  label.background = {0, 0, 0, fade(200, opacity)};
+  label.height_px = o.label_px;
+  label.offset_px = {o.measure_dot_px, -o.measure_dot_px};
+  label.align = {0.0f, 1.0f};
+  out.labels.push_back(std::move(label));
+}
+
+/// `v` in the unit of `units` (factor, name; largest first) that keeps it at 1 or more.
+std::string inUnit(double v, std::initializer_list<std::pair<double, const char*>> units,
+                   const char* format) {
+  std::pair<double, const char*> u = *(units.end() - 1);
+  for (const auto& c : units) {
+    if (std::abs(v) >= c.first) {
+      u = c;
+      break;
+    }
+  }
+  char buf[64];
+  std::snprintf(buf, sizeof buf, format, v / u.first, u.second);
+  return buf;
+}
+
 /// Where a VIDEO_INSET node is drawn: a world quad or a rectangle of the view's pixels.
 struct InsetPlace {
   bool screen = false;
@@ -170,9 +215,34 @@ void addVideoInset(const scene::VideoInsetPayload& v, const glm::dmat4& world, f
 
 }  // namespace
 
+std::string measurementLabel(const scene::MeasurementPayload& m) {
+  const double v = m.value(), u = m.uncertainty();
+  std::string value, error;
+  switch (m.type()) {
+    case scene::MeasurementPayload::ANGLE:
+      value = inUnit(v * 180.0 / std::numbers::pi, {{1.0, "\u00b0"}}, "%.2f%s");
+      error = inUnit(u * 180.0 / std::numbers::pi, {{1.0, "\u00b0"}}, "%.2g%s");
+      break;
+    case scene::MeasurementPayload::AREA:
+      value = inUnit(v, {{1e6, " km\u00b2"}, {1.0, " m\u00b2"}, {1e-4, " cm\u00b2"}, {1e-6, " mm\u00b2"}},
+                     "%.4g%s");
+      error = inUnit(u, {{1e6, " km\u00b2"}, {1.0, " m\u00b2"}, {1e-4, " cm\u00b2"}, {1e-6, " mm\u00b2"}},
+                     "%.2g%s");
+      break;
+    default:
+      value = inUnit(v, {{1e3, " km"}, {1.0, " m"}, {1e-2, " cm"}, {1e-3, " mm"}}, "%.4g%s");
+      error = inUnit(u, {{1e3, " km"}, {1.0, " m"}, {1e-2, " cm"}, {1e-3, " mm"}}, "%.2g%s");
+  }
+  const char* what = m.type() == scene::MeasurementPayload::POLYLINE ? "path "
+                     : m.type() == scene::MeasurementPayload::AREA   ? "area "
+                                                                     : "";
+  return what + value + " \u00b1 " + error;
+}
+
 bool isOverlayKind(sync::SceneGraph::Kind kind) {
   return kind == scene::SceneNode::SKETCH || kind == scene::SceneNode::AVATAR ||
-         kind == scene::SceneNode::ANNOTATION || kind == scene::SceneNode::VIDEO_INSET;
+         kind == scene::SceneNode::ANNOTATION || kind == scene::SceneNode::VIDEO_INSET ||
+         kind == scene::SceneNode::MEASUREMENT;
 }
 
 std::set<uint32_t> shownVideoSources(const sync::SceneGraph& graph, const ViewSetup& view,
@@ -227,6 +297,9 @@ size_t appendSceneOverlay(const sync::SceneGraph& graph, Overlay& out,
       }
       case scene::SceneNode::ANNOTATION:
         addAnnotation(node.annotation(), placed.world, placed.opacity, options, out);
+        break;
+      case scene::SceneNode::MEASUREMENT:
+        addMeasurement(node.measurement(), placed.world, placed.opacity, options, out);
         break;
       case scene::SceneNode::VIDEO_INSET:
         // A site's own inset: it has the picture in front of it already.

@@ -1,5 +1,6 @@
 #include <tessera/sync/scene_edits.h>
 
+#include <cctype>
 #include <cmath>
 #include <string>
 
@@ -42,6 +43,33 @@ SceneGraph::NodeId addSketch(SceneGraph& graph, SceneGraph::NodeId layer, std::s
   graph.setPayload(id, p);  // checks the colour
   const glm::dmat4 t = glm::translate(glm::dmat4(1.0), origin);
   graph.setTransform(id, std::span<const double>(glm::value_ptr(t), 16));
+  graph.setAuthor(id, author);
+  return id;
+}
+
+SceneGraph::NodeId addMeasurement(SceneGraph& graph, SceneGraph::NodeId layer,
+                                  std::string_view author,
+                                  scene::MeasurementPayload::Type type,
+                                  std::span<const glm::dvec3> points, double value,
+                                  double uncertainty, const scene::Color* color) {
+  scene::MeasurementPayload p;
+  p.set_type(type);
+  for (const glm::dvec3& q : points)
+    for (int k = 0; k < 3; ++k) p.add_points(q[k]);
+  p.set_value(value);
+  p.set_uncertainty(uncertainty);
+  if (color) *p.mutable_color() = *color;
+  std::string name = scene::MeasurementPayload::Type_Name(type);
+  for (char& c : name) c = char(std::tolower(static_cast<unsigned char>(c)));
+  const SceneGraph::NodeId id =
+      graph.add(scene::SceneNode::MEASUREMENT, layer,
+                name + " " + std::to_string(graph.children(layer).size() + 1));
+  try {
+    graph.setPayload(id, p);
+  } catch (...) {
+    graph.remove(id);  // no half-made node stays behind
+    throw;
+  }
   graph.setAuthor(id, author);
   return id;
 }

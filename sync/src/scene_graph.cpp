@@ -103,6 +103,8 @@ SceneNode::PayloadCase payloadCaseOf(SceneGraph::Kind kind) {
       return SceneNode::kAvatar;
     case SceneNode::VIDEO_INSET:
       return SceneNode::kVideoInset;
+    case SceneNode::MEASUREMENT:
+      return SceneNode::kMeasurement;
     default:
       return SceneNode::PAYLOAD_NOT_SET;
   }
@@ -147,6 +149,31 @@ Problem checkPayload(const SceneNode& n) {
       if (auto p = checkNonNegative(a.aspect(), "avatar.aspect")) return p;
       if (a.aspect() > 100.0f) return "avatar.aspect: at most 100, got " + num(a.aspect());
       return checkNonNegative(a.reach(), "avatar.reach");
+    }
+    case SceneNode::kMeasurement: {
+      const auto& m = n.measurement();
+      if (!scene::MeasurementPayload::Type_IsValid(m.type()))
+        return "measurement.type: unknown type " + std::to_string(int(m.type()));
+      const int points = m.points_size() / 3;
+      if (m.points_size() % 3 != 0)
+        return "measurement.points: needs x y z triples, got " +
+               std::to_string(m.points_size()) + " numbers";
+      if (points > 1024) return "measurement.points: at most 1024, got " + std::to_string(points);
+      const int need = m.type() == scene::MeasurementPayload::DISTANCE ? 2
+                       : m.type() == scene::MeasurementPayload::ANGLE  ? 3
+                                                                        : 0;
+      const int least = m.type() == scene::MeasurementPayload::AREA ? 3 : 2;
+      if ((need && points != need) || points < least)
+        return "measurement.points: a " + scene::MeasurementPayload::Type_Name(m.type()) +
+               " needs " + (need ? std::to_string(need) : "at least " + std::to_string(least)) +
+               " points, got " + std::to_string(points);
+      for (double v : m.points())
+        if (!std::isfinite(v)) return std::string("measurement.points: numbers must be finite");
+      for (const auto& [v, field] : {std::pair{m.value(), "measurement.value"},
+                                     {m.uncertainty(), "measurement.uncertainty"}})
+        if (!std::isfinite(v) || v < 0.0)
+          return std::string(field) + ": must be finite and >= 0, got " + num(v);
+      return checkColor(m.color(), "measurement.color");
     }
     case SceneNode::kVideoInset: {
       const auto& v = n.video_inset();
@@ -369,6 +396,9 @@ SceneNode SceneGraph::defaultNode(NodeId id, Kind kind) {
     case SceneNode::kVideoInset:
       n.mutable_video_inset();
       break;
+    case SceneNode::kMeasurement:
+      n.mutable_measurement();
+      break;
     default:
       break;
   }
@@ -540,6 +570,11 @@ void SceneGraph::setPayload(NodeId id, const scene::SketchPayload& payload) {
 
 void SceneGraph::setPayload(NodeId id, const scene::AvatarPayload& payload) {
   replacePayload(id, SceneNode::AVATAR, [&](SceneNode& n) { *n.mutable_avatar() = payload; });
+}
+
+void SceneGraph::setPayload(NodeId id, const scene::MeasurementPayload& payload) {
+  replacePayload(id, SceneNode::MEASUREMENT,
+                 [&](SceneNode& n) { *n.mutable_measurement() = payload; });
 }
 
 void SceneGraph::setPayload(NodeId id, const scene::VideoInsetPayload& payload) {

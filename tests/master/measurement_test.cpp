@@ -3,6 +3,7 @@
 // cylinder patch, the same sphere as a point store, the full-resolution pick against a brute
 // force over every leaf sample of the Autzen LiDAR (georeferenced: millimetres hundreds of km
 // from the origin) and the bunny mesh against its input triangles.
+#include <tessera/master/measure_tool.h>
 #include <tessera/master/measurement.h>
 #include <tessera/master/surface_pick.h>
 
@@ -20,6 +21,8 @@
 #include <tessera/lod/point_store.h>
 #include <tessera/lod/point_writer.h>
 #include <tessera/lod/store_builder.h>
+#include <tessera/render/scene_overlay.h>
+#include <tessera/sync/scene_edits.h>
 
 #include "../support/temp_dir.h"
 
@@ -393,6 +396,160 @@ TEST(MeasureOnStores, MeshPickHitsTheInputTriangleAndItsProjectorTheSurface) {
     ASSERT_TRUE(on);
     EXPECT_LT(glm::length(*on - pick->point.world), 2 * step);
   }
+}
+
+}  // namespace
+}  // namespace tessera::master
+
+namespace tessera::master {
+namespace {
+
+// ---- the tool and its scene nodes --------------------------------------------------------
+
+class MeasureToolTest : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    sDir = new test::TempDir();
+    lod::MeshBuildOptions bo;
+    bo.quiet = true;
+    bo.patch_triangles = 1024;
+    lod::buildMeshStore(
+        std::vector<fs::path>{kData / "stanford-bunny/reconstruction/bun_zipper.ply"},
+        sDir->path() / "b.tmesh", bo);
+  }
+  static void TearDownTestSuite() {
+    delete sDir;
+    sDir = nullptr;
+  }
+  void SetUp() override {
+    mStore = lod::MeshStore::open(sDir->path() / "b.tmesh");
+    mModel.mesh = mStore.get();
+    mModel.model = render::storeModel(*mStore);
+    const lod::MeshSummary& s = mStore->summary();
+    mCentre = s.origin + 0.5 * (s.bbox_min + s.bbox_max);
+  }
+  /// The pick along the ray from 0.5 m in front of the bunny (+z) through `offset` from its
+  /// centre.
+  SurfacePick pickAt(glm::dvec2 offset) {
+    const glm::dvec3 eye = mCentre + glm::dvec3(0, 0, 0.5);
+    const glm::dvec3 target = mCentre + glm::dvec3(offset, 0.0);
+    auto p = pickSurface(std::span(&mModel, 1), eye, glm::normalize(target - eye));
+    EXPECT_TRUE(p) << offset.x << "," << offset.y;
+    return p.value_or(SurfacePick{});
+  }
+  static inline test::TempDir* sDir = nullptr;
+  std::unique_ptr<lod::MeshStore> mStore;
+  render::ModelInstance mModel;
+  glm::dvec3 mCentre{0.0};
+};
+
+TEST_F(MeasureToolTest, ADistanceEndsAtItsSecondPointAsANodeEveryTileDraws) {
+  sync::SceneGraph g;
+  MeasureTool tool;
+  EXPECT_FALSE(tool.add(pickAt({0, 0}), g, std::span(&mModel, 1), "console")) << "off";
+  EXPECT_EQ(tool.cycle(), MeasureTool::Mode::kDistance);
+  const SurfacePick a = pickAt({-0.02, 0.0}), b = pickAt({0.03, 0.01});
+  EXPECT_FALSE(tool.add(a, g, std::span(&mModel, 1), "console"));
+  EXPECT_EQ(tool.points().size(), 1u);
+  const auto id = tool.add(b, g, std::span(&mModel, 1), "console");
+  ASSERT_TRUE(id);
+  EXPECT_TRUE(tool.points().empty());
+  const scene::SceneNode& n = g.node(*id);
+  EXPECT_EQ(n.kind(), scene::SceneNode::MEASUREMENT);
+  EXPECT_EQ(n.author(), "console");
+  EXPECT_EQ(n.name(), "distance 1");
+  EXPECT_EQ(g.node(n.parent()).name(), "measurements");
+  const scene::MeasurementPayload& m = n.measurement();
+  EXPECT_EQ(m.type(), scene::MeasurementPayload::DISTANCE);
+  ASSERT_EQ(m.points_size(), 6);
+  EXPECT_EQ(glm::dvec3(m.points(0), m.points(1), m.points(2)), a.point.world);
+  EXPECT_EQ(glm::dvec3(m.points(3), m.points(4), m.points(5)), b.point.world);
+  EXPECT_DOUBLE_EQ(m.value(), glm::length(a.point.world - b.point.world));
+  EXPECT_DOUBLE_EQ(m.uncertainty(), a.point.uncertainty + b.point.uncertainty);
+  EXPECT_EQ(tool.lastLabel(), render::measurementLabel(m));
+  // The node travels: a snapshot applied to another graph holds it unchanged.
+  g.takeFrame(1, 0);
+  sync::SceneGraph other;
+  other.apply(g.snapshot());
+  EXPECT_EQ(other.node(*id).measurement().SerializeAsString(), m.SerializeAsString());
+}
+
+TEST_F(MeasureToolTest, AnglePathAndAreaOnTheBunnyWithBackspace) {
+  sync::SceneGraph g;
+  MeasureTool tool;
+  const std::span<const render::ModelInstance> models(&mModel, 1);
+  tool.setMode(MeasureTool::Mode::kAngle);
+  tool.add(pickAt({-0.03, 0.0}), g, models, "site A");
+  tool.add(pickAt({0.0, 0.0}), g, models, "site A");
+  EXPECT_TRUE(tool.undoPoint());
+  tool.add(pickAt({0.0, 0.008}), g, models, "site A");
+  const auto angle_id = tool.add(pickAt({0.02, 0.0}), g, models, "site A");
+  ASSERT_TRUE(angle_id);
+  const auto& am = g.node(*angle_id).measurement();
+  EXPECT_EQ(am.type(), scene::MeasurementPayload::ANGLE);
+  EXPECT_GT(am.value(), 0.0);
+  EXPECT_LT(am.value(), M_PI);
+
+  tool.setMode(MeasureTool::Mode::kPath);
+  tool.add(pickAt({-0.02, -0.02}), g, models, "site A");
+  EXPECT_FALSE(tool.finish(g, models, "site A")) << "a path needs 2 points";
+  tool.add(pickAt({0.0, -0.01}), g, models, "site A");
+  tool.add(pickAt({0.02, -0.02}), g, models, "site A");
+  const auto path_id = tool.finish(g, models, "site A");
+  ASSERT_TRUE(path_id);
+  EXPECT_EQ(g.node(*path_id).measurement().points_size(), 9);
+
+  // An area on the bunny's flank: a loop of 12 picks around its middle. Flat across its
+  // chords it would be smaller: the surface bulges towards the viewer.
+  tool.setMode(MeasureTool::Mode::kArea);
+  std::vector<SurfacePoint> loop;
+  for (int i = 0; i < 12; ++i) {
+    const double phi = 2 * M_PI * i / 12;
+    const SurfacePick p = pickAt({0.015 * std::cos(phi), 0.015 * std::sin(phi) - 0.01});
+    loop.push_back(p.point);
+    tool.add(p, g, models, "site A");
+  }
+  const auto area_id = tool.finish(g, models, "site A");
+  ASSERT_TRUE(area_id);
+  const auto& ar = g.node(*area_id).measurement();
+  EXPECT_EQ(ar.type(), scene::MeasurementPayload::AREA);
+  std::vector<glm::dvec3> world;
+  for (const SurfacePoint& p : loop) world.push_back(p.world);
+  const auto flat = minimumAreaTriangulation(world);
+  const double spanning = triangulatedArea(world, flat);
+  EXPECT_GE(ar.value(), spanning * 0.999);
+  EXPECT_LT(ar.value(), spanning * 1.5) << "a patch of the bunny, not a crumpled one";
+  EXPECT_GT(ar.uncertainty(), 0.0);
+  EXPECT_LT(ar.uncertainty(), 0.2 * ar.value());
+  EXPECT_EQ(g.children(g.node(*area_id).parent()).size(), 3u);
+}
+
+TEST(MeasurementNode, BadPayloadsAreRefusedNamingTheField) {
+  sync::SceneGraph g;
+  const auto layer = g.add(scene::SceneNode::GROUP);
+  const std::vector<glm::dvec3> one = {{0, 0, 0}}, two = {{0, 0, 0}, {1, 0, 0}},
+                                three = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}};
+  auto refused = [&](scene::MeasurementPayload::Type type, const std::vector<glm::dvec3>& pts,
+                     double value, double unc, const std::string& field) {
+    const size_t before = g.size();
+    try {
+      sync::addMeasurement(g, layer, "x", type, pts, value, unc);
+      ADD_FAILURE() << field;
+    } catch (const std::exception& e) {
+      EXPECT_NE(std::string(e.what()).find(field), std::string::npos) << e.what();
+    }
+    EXPECT_EQ(g.size(), before) << "nothing left behind";
+  };
+  refused(scene::MeasurementPayload::DISTANCE, one, 1.0, 0.0, "measurement.points");
+  refused(scene::MeasurementPayload::DISTANCE, three, 1.0, 0.0, "measurement.points");
+  refused(scene::MeasurementPayload::ANGLE, two, 1.0, 0.0, "measurement.points");
+  refused(scene::MeasurementPayload::AREA, two, 1.0, 0.0, "measurement.points");
+  refused(scene::MeasurementPayload::DISTANCE, two, std::nan(""), 0.0, "measurement.value");
+  refused(scene::MeasurementPayload::DISTANCE, two, 1.0, -1.0, "measurement.uncertainty");
+  refused(scene::MeasurementPayload::DISTANCE, {{0, 0, 0}, {std::nan(""), 0, 0}}, 1.0, 0.0,
+          "measurement.points");
+  EXPECT_NO_THROW(sync::addMeasurement(g, layer, "x", scene::MeasurementPayload::AREA, three, 0.5,
+                                       0.01));
 }
 
 }  // namespace

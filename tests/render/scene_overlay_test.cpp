@@ -360,6 +360,55 @@ TEST(SceneOverlay, AnnotationIsItsTextAndADotAtItsAnchor) {
   EXPECT_EQ(o.points[0].at, glm::dvec3(1, 102, 3));
 }
 
+TEST(SceneOverlay, MeasurementsAreLinesDotsAndALabelInAReadableUnit) {
+  scene::MeasurementPayload m;
+  m.set_type(scene::MeasurementPayload::DISTANCE);
+  m.set_value(0.142);
+  m.set_uncertainty(0.0003);
+  EXPECT_EQ(measurementLabel(m), "14.2 cm \u00b1 0.3 mm");
+  m.set_value(2315.0);
+  m.set_uncertainty(0.5);
+  EXPECT_EQ(measurementLabel(m), "2.315 km \u00b1 50 cm");
+  m.set_value(0.0);
+  m.set_uncertainty(0.0);
+  EXPECT_EQ(measurementLabel(m), "0 mm \u00b1 0 mm");
+  m.set_type(scene::MeasurementPayload::POLYLINE);
+  m.set_value(2.3151);
+  m.set_uncertainty(0.004);
+  EXPECT_EQ(measurementLabel(m), "path 2.315 m \u00b1 4 mm");
+  m.set_type(scene::MeasurementPayload::ANGLE);
+  m.set_value(std::numbers::pi / 4);
+  m.set_uncertainty(std::numbers::pi / 180 * 0.41);
+  EXPECT_EQ(measurementLabel(m), "45.00\u00b0 \u00b1 0.41\u00b0");
+  m.set_type(scene::MeasurementPayload::AREA);
+  m.set_value(0.3);
+  m.set_uncertainty(0.002);
+  EXPECT_EQ(measurementLabel(m), "area 3000 cm\u00b2 \u00b1 20 cm\u00b2");
+  m.set_value(12.5);
+  EXPECT_EQ(measurementLabel(m), "area 12.5 m\u00b2 \u00b1 20 cm\u00b2");
+
+  // An area of 4 points under a translated group: a closed loop of 4 lines, 4 dots, the label at
+  // the centroid, all in double far from the origin.
+  SceneGraph g;
+  const auto grp = g.add(scene::SceneNode::GROUP);
+  setTransform(g, grp, glm::translate(glm::dmat4(1.0), {500000.0, 5000000.0, 0.0}));
+  const auto n = g.add(scene::SceneNode::MEASUREMENT, grp);
+  scene::MeasurementPayload a;
+  a.set_type(scene::MeasurementPayload::AREA);
+  for (double v : {0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 1.0, 1.0, 0.0, 0.0, 1.0, 0.001}) a.add_points(v);
+  a.set_value(1.0);
+  g.setPayload(n, a);
+  Overlay o;
+  EXPECT_EQ(appendSceneOverlay(g, o), 1u);
+  ASSERT_EQ(o.lines.size(), 4u);
+  ASSERT_EQ(o.points.size(), 4u);
+  ASSERT_EQ(o.labels.size(), 1u);
+  EXPECT_EQ(o.lines[3].b, glm::dvec3(500000.0, 5000000.0, 0.0)) << "closed";
+  EXPECT_EQ(o.points[3].at, glm::dvec3(500000.0, 5000001.0, 0.001)) << "millimetres kept";
+  EXPECT_EQ(o.labels[0].at, glm::dvec3(500000.5, 5000000.5, 0.00025));
+  EXPECT_EQ(o.labels[0].text, "area 1 m\u00b2 \u00b1 0 mm\u00b2");
+}
+
 TEST(SceneOverlay, RebuildsOnlyWhenNodesChange) {
   SceneGraph g;
   const auto s = addSketch(g, {{0, 0, 0}, {1, 0, 0}});

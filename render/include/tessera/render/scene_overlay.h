@@ -20,6 +20,9 @@
 //    edges from the eye and the far rectangle; left out when fovy_deg, aspect or reach is 0),
 //    and its name (the payload's site, else the node's name) centred above the head.
 //  - ANNOTATION: its text at its anchor over a dark box, and a small dot at the anchor.
+//  - MEASUREMENT (issue 16): lines through its points (closed for an area), a dot on each, and
+//    its label (measurementLabel()) at the distance's middle, the angle's vertex, the area's
+//    centroid or the path's end.
 //  - VIDEO_INSET (issue 14): the picture of its source's stream (options.video_texture; a dark
 //    quad until one is decoded). In the world: an OverlayQuad width x height metres centred on
 //    the node frame's origin in its xy plane, depth-tested. On the screen: a ScreenRect placed
@@ -53,6 +56,8 @@ struct SceneOverlayOptions {
   float avatar_frustum_px = 1.5f;
   float label_px = 16.0f;  ///< avatar names and annotation texts, the text's height
   float annotation_dot_px = 7.0f;
+  float measure_width_px = 2.0f;  ///< a measurement's lines
+  float measure_dot_px = 6.0f;    ///< its picked points
   /// A site's own view: its own avatar (payload site == hide_site) is not drawn ("": all are),
   /// nor any avatar whose eye is within hide_near_m metres of viewer_eye (0: none), such as a
   /// leader's seen by its follower.
@@ -70,8 +75,13 @@ struct SceneOverlayOptions {
   glm::dvec2 view_px{0.0};
 };
 
+/// A measurement's label: the value in a unit that keeps it readable and the bound of its
+/// error, "14.2 cm ± 0.3 mm", "path 2.315 m ± 4 mm", "37.52° ± 0.41°",
+/// "area 0.3 m² ± 20 cm²" (UTF-8).
+std::string measurementLabel(const scene::MeasurementPayload& m);
+
 /// Whether the node kind is one the scene overlay draws (SKETCH, AVATAR, ANNOTATION,
-/// VIDEO_INSET).
+/// VIDEO_INSET, MEASUREMENT).
 bool isOverlayKind(sync::SceneGraph::Kind kind);
 
 /// The sources of the visible VIDEO_INSET nodes that `view` shows at least in part (world quads

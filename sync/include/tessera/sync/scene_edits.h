@@ -23,4 +23,14 @@ SceneGraph::NodeId addSketch(SceneGraph& graph, SceneGraph::NodeId layer, std::s
                              std::span<const glm::dvec3> points, const scene::Color& color,
                              float width);
 
+/// A MEASUREMENT node under `layer`, recorded as `author`'s: the picked points (metres, scene
+/// frame, double), the value and its uncertainty as measured (master/measurement.h). Named
+/// after its type and number in the layer ("distance 3"); no colour: the overlay's. Throws SceneError when the payload
+/// is not valid (point count for the type, non-finite numbers).
+SceneGraph::NodeId addMeasurement(SceneGraph& graph, SceneGraph::NodeId layer,
+                                  std::string_view author,
+                                  scene::MeasurementPayload::Type type,
+                                  std::span<const glm::dvec3> points, double value,
+                                  double uncertainty, const scene::Color* color = nullptr);
+
 }  // namespace tessera::sync

@@ -1,0 +1,60 @@
+// The measuring tool (issue 16): points picked one by one on the model (surface_pick.h) become a
+// MEASUREMENT node of the scene (layer "measurements"), measured with measurement.h, so every
+// tile and site shows it with its label. A distance ends at its second point and an angle at its
+// third (the vertex is the second); a path and an area end when the user says so. Window-free:
+// the console feeds it clicks, a test feeds it picks.
+#pragma once
+
+#include <optional>
+#include <span>
+#include <string>
+#include <vector>
+
+#include <tessera/master/measurement.h>
+#include <tessera/master/surface_pick.h>
+#include <tessera/render/view_renderer.h>
+#include <tessera/sync/scene_graph.h>
+
+namespace tessera::master {
+
+class MeasureTool {
+ public:
+  enum class Mode { kOff, kDistance, kPath, kAngle, kArea };
+
+  Mode mode() const { return mMode; }
+  /// Switches the tool (dropping the points of an unfinished measurement).
+  void setMode(Mode mode);
+  /// Off -> distance -> path -> angle -> area -> off.
+  Mode cycle();
+  /// "distance", "path", "angle", "area" or "off".
+  static const char* name(Mode mode);
+
+  /// Adds a picked point. A distance's second or an angle's third point completes it: the node
+  /// is made in `graph` (author `author`) and returned. `models` are the instances the picks'
+  /// model indices refer to (an area's surface is the first point's model).
+  std::optional<sync::SceneGraph::NodeId> add(const SurfacePick& pick, sync::SceneGraph& graph,
+                                              std::span<const render::ModelInstance> models,
+                                              const std::string& author);
+  /// Ends a path (>= 2 points) or an area (>= 3): the node, or nullopt with nothing changed.
+  /// Throws MeasureError when the area cannot be measured.
+  std::optional<sync::SceneGraph::NodeId> finish(sync::SceneGraph& graph,
+                                                 std::span<const render::ModelInstance> models,
+                                                 const std::string& author);
+  /// Drops the newest point of the unfinished measurement; false when there is none.
+  bool undoPoint();
+
+  /// The unfinished measurement's points (world, metres).
+  const std::vector<SurfacePick>& points() const { return mPoints; }
+  /// The label of the last measurement made ("14.2 cm ± 0.3 mm"), "" before the first.
+  const std::string& lastLabel() const { return mLastLabel; }
+
+ private:
+  sync::SceneGraph::NodeId make(sync::SceneGraph& graph,
+                                std::span<const render::ModelInstance> models,
+                                const std::string& author);
+  Mode mMode = Mode::kOff;
+  std::vector<SurfacePick> mPoints;
+  std::string mLastLabel;
+};
+
+}  // namespace tessera::master

@@ -1,0 +1,102 @@
+#include <tessera/master/measure_tool.h>
+
+#include <tessera/render/scene_overlay.h>
+#include <tessera/sync/scene_edits.h>
+
+namespace tessera::master {
+
+void MeasureTool::setMode(Mode mode) {
+  mMode = mode;
+  mPoints.clear();
+}
+
+MeasureTool::Mode MeasureTool::cycle() {
+  setMode(mMode == Mode::kArea ? Mode::kOff : Mode(int(mMode) + 1));
+  return mMode;
+}
+
+const char* MeasureTool::name(Mode mode) {
+  switch (mode) {
+    case Mode::kDistance:
+      return "distance";
+    case Mode::kPath:
+      return "path";
+    case Mode::kAngle:
+      return "angle";
+    case Mode::kArea:
+      return "area";
+    default:
+      return "off";
+  }
+}
+
+std::optional<sync::SceneGraph::NodeId> MeasureTool::add(
+    const SurfacePick& pick, sync::SceneGraph& graph,
+    std::span<const render::ModelInstance> models, const std::string& author) {
+  if (mMode == Mode::kOff) return std::nullopt;
+  if (mPoints.size() >= kMaxAreaLoop) return std::nullopt;  // the area's limit; paths alike
+  mPoints.push_back(pick);
+  const size_t complete = mMode == Mode::kDistance ? 2 : mMode == Mode::kAngle ? 3 : 0;
+  if (complete && mPoints.size() == complete) return make(graph, models, author);
+  return std::nullopt;
+}
+
+std::optional<sync::SceneGraph::NodeId> MeasureTool::finish(
+    sync::SceneGraph& graph, std::span<const render::ModelInstance> models,
+    const std::string& author) {
+  if ((mMode == Mode::kPath && mPoints.size() >= 2) ||
+      (mMode == Mode::kArea && mPoints.size() >= 3))
+    return make(graph, models, author);
+  return std::nullopt;
+}
+
+bool MeasureTool::undoPoint() {
+  if (mPoints.empty()) return false;
+  mPoints.pop_back();
+  return true;
+}
+
+sync::SceneGraph::NodeId MeasureTool::make(sync::SceneGraph& graph,
+                                           std::span<const render::ModelInstance> models,
+                                           const std::string& author) {
+  std::vector<SurfacePoint> pts;
+  std::vector<glm::dvec3> world;
+  for (const SurfacePick& p : mPoints) {
+    pts.push_back(p.point);
+    world.push_back(p.point.world);
+  }
+  Measurement m;
+  scene::MeasurementPayload::Type type = scene::MeasurementPayload::DISTANCE;
+  switch (mMode) {
+    case Mode::kDistance:
+      m = distance(pts[0], pts[1]);
+      break;
+    case Mode::kAngle:
+      m = angle(pts[0], pts[1], pts[2]);
+      type = scene::MeasurementPayload::ANGLE;
+      break;
+    case Mode::kPath:
+      m = polylineLength(pts);
+      type = scene::MeasurementPayload::POLYLINE;
+      break;
+    default: {
+      type = scene::MeasurementPayload::AREA;
+      const size_t model = mPoints.front().model;
+      if (model >= models.size())
+        throw MeasureError("master::MeasureTool: the area's model is no longer in the scene");
+      const render::ModelInstance& instance = models[model];
+      const SurfaceProjector project = instance.mesh ? meshSurfaceProjector(instance)
+                                                     : pointSurfaceProjector(instance);
+      AreaOptions o;
+      o.min_edge = 2.0 * dataResolution(instance);
+      m = surfaceArea(pts, project, o);
+    }
+  }
+  const auto layer = sync::layerGroup(graph, "measurements", author);
+  const auto id = sync::addMeasurement(graph, layer, author, type, world, m.value, m.uncertainty);
+  mLastLabel = render::measurementLabel(graph.node(id).measurement());
+  mPoints.clear();
+  return id;
+}
+
+}  // namespace tessera::master
