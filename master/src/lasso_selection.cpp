@@ -42,6 +42,7 @@ LassoPolygon::LassoPolygon(std::vector<glm::dvec2> vertices) : mVertices(std::mo
   const size_t bands = std::clamp<size_t>(mEdges.size(), 1, 4096);
   mY0 = mLo.y;
   mBandHeight = std::max((mHi.y - mLo.y) / double(bands), 1e-9);
+  mBandStart.assign(bands + 1, 0);  // band() reads its size
   std::vector<uint32_t> counts(bands + 1, 0);
   auto span = [&](const Edge& e) {
     return std::pair(band(std::min(e.a.y, e.b.y)), band(std::max(e.a.y, e.b.y)));
@@ -63,7 +64,7 @@ size_t LassoPolygon::band(double y) const {
   // Monotone in y (IEEE subtraction and division by a positive constant are), so an edge whose
   // y range holds a row is listed in that row's band.
   const double f = std::floor((y - mY0) / mBandHeight);
-  const size_t last = mBandStart.empty() ? 0 : mBandStart.size() - 2;
+  const size_t last = mBandStart.size() - 2;
   if (!(f > 0.0)) return 0;
   return f >= double(last) ? last : size_t(f);
 }
@@ -289,19 +290,16 @@ class Lasso {
       TESSERA_CHECK(options.depth.has_value(), "lasso: kVisible needs a depth image");
       mVisibility.emplace(*options.depth, view, options.visibility);
     }
-    // The polygon's bounds (with the viewport's in kVisible) as NDC half-spaces, for the
+    // The polygon's bounds within the viewport as NDC half-spaces, for the
     // outside test in homogeneous coordinates.
     glm::dvec2 lo(kInf), hi(-kInf);
     for (const glm::dvec2& v : polygon.vertices()) {
       lo = glm::min(lo, v);
       hi = glm::max(hi, v);
     }
-    lo -= 1.0;  // a pixel of slack: the test only prunes
-    hi += 1.0;
-    if (mMode == LassoMode::kVisible) {
-      lo = glm::max(lo, glm::dvec2(-1.0));
-      hi = glm::min(hi, glm::dvec2(mViewport) + 1.0);
-    }
+    // Clipped to the viewport, with a pixel of slack: the test only prunes.
+    lo = glm::max(lo, glm::dvec2(0.0)) - 1.0;
+    hi = glm::min(hi, glm::dvec2(mViewport)) + 1.0;
     mNdcLo = glm::dvec2(2.0 * lo.x / mViewport.x - 1.0, 1.0 - 2.0 * hi.y / mViewport.y);
     mNdcHi = glm::dvec2(2.0 * hi.x / mViewport.x - 1.0, 1.0 - 2.0 * lo.y / mViewport.y);
   }
@@ -348,33 +346,32 @@ class Lasso {
     const double margin =
         kMarginPx + 1e-9 * std::max({std::abs(plo.x), std::abs(plo.y), std::abs(phi.x),
                                      std::abs(phi.y)});
+    // Only the viewport's pixels count: off screen is never inside.
+    const glm::dvec2 vlo = plo - margin, vhi = phi + margin;
+    if (vhi.x < 0.0 || vhi.y < 0.0 || vlo.x >= mViewport.x || vlo.y >= mViewport.y)
+      return Verdict::kOutside;
+    const bool on_screen =
+        vlo.x >= 0.0 && vlo.y >= 0.0 && vhi.x < mViewport.x && vhi.y < mViewport.y;
     Verdict v = Verdict::kStraddles;
     switch (mPolygon.classify(plo, phi, margin)) {
       case LassoPolygon::Overlap::kOutside:
         return Verdict::kOutside;
       case LassoPolygon::Overlap::kInside:
-        v = Verdict::kWhole;
+        v = on_screen ? Verdict::kWhole : Verdict::kStraddles;
         break;
       case LassoPolygon::Overlap::kStraddles:
         break;
     }
     if (!mVisibility) return v;
-    // Visible: the viewport's pixels under the box decide; all hidden prunes, all in front
-    // (and wholly on screen) keeps a whole node whole.
-    const glm::dvec2 vlo = plo - margin, vhi = phi + margin;
-    if (vhi.x < 0.0 || vhi.y < 0.0 || vlo.x >= mViewport.x || vlo.y >= mViewport.y)
-      return Verdict::kOutside;
+    // Visible: the pixels under the box decide. All hidden prunes; all in front keeps a whole
+    // node whole.
     const auto [l_lo, l_hi] = mVisibility->limits(int(std::floor(std::max(vlo.x, -1.0))),
                                                   int(std::floor(std::max(vlo.y, -1.0))),
                                                   int(std::min(vhi.x, double(mViewport.x))),
                                                   int(std::min(vhi.y, double(mViewport.y))));
     const double slack = 1e-9 * std::max(std::abs(e_lo), std::abs(e_hi));
     if (e_lo - slack > l_hi) return Verdict::kOutside;
-    if (v == Verdict::kWhole) {
-      const bool on_screen = vlo.x >= 0.0 && vlo.y >= 0.0 && vhi.x < mViewport.x &&
-                             vhi.y < mViewport.y;
-      if (!on_screen || e_hi + slack > l_lo) v = Verdict::kStraddles;
-    }
+    if (v == Verdict::kWhole && e_hi + slack > l_lo) v = Verdict::kStraddles;
     return v;
   }
 
@@ -425,7 +422,7 @@ class Lasso {
       size = mSource.forEach(id, [&](uint32_t i, const glm::dvec3& p) {
         if (size_t(i) / 64 >= bits.size()) bits.resize(size_t(i) / 64 + 1, 0);
         const LassoProjector::Projected q = mProjector.project(p);
-        if (!q.in_front || !mPolygon.contains(q.pixel)) return;
+        if (!q.in_front || !onScreen(q.pixel) || !mPolygon.contains(q.pixel)) return;
         if (mVisibility && !mVisibility->visible(q.pixel, q.eye_depth)) return;
         bits[i / 64] |= 1ull << (i % 64);
       });
@@ -439,6 +436,10 @@ class Lasso {
     if (size == 0) return;
     bits.resize((size_t(size) + 63) / 64);
     mResult.selection.set(id, NodeSelection::fromBits(size, std::move(bits)));
+  }
+
+  bool onScreen(const glm::dvec2& p) const {
+    return p.x >= 0.0 && p.y >= 0.0 && p.x < mViewport.x && p.y < mViewport.y;
   }
 
   lod::LodHierarchy& mTree;

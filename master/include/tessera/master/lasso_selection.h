@@ -24,8 +24,10 @@
 //   inside the lasso by the even-odd rule (a self-intersecting lasso's doubly wound parts are
 //   outside), with the half-open crossing rule, so a point exactly on an edge is decided the same
 //   way every time.
-//   THROUGH: selected when in front and inside. VISIBLE: also in the viewport and not hidden in
-//   the depth image (DepthImage, VisibilityOptions).
+//   on screen: 0 <= pixel.x < width and 0 <= pixel.y < height (a lasso reaching past the
+//   viewport's edge selects nothing off screen).
+//   THROUGH: selected when in front, on screen and inside. VISIBLE: also not hidden in the
+//   depth image (DepthImage, VisibilityOptions).
 #pragma once
 
 #include <cstdint>
