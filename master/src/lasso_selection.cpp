@@ -3,7 +3,9 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <atomic>
 #include <limits>
+#include <thread>
 
 #include <glm/gtc/matrix_transform.hpp>
 
@@ -123,15 +125,22 @@ LassoProjector::LassoProjector(const LassoView& view, const glm::dmat4& model)
 }
 
 LassoProjector::Projected LassoProjector::project(const glm::dvec3& local) const {
-  const glm::dvec4 c = mLocalToClip * glm::dvec4(local, 1.0);
+  // Rows x, y and w of the local -> clip matrix only (z is not needed), in doubles.
+  const glm::dmat4& m = mLocalToClip;
+  const double x = m[0][0] * local.x + m[1][0] * local.y + m[2][0] * local.z + m[3][0];
+  const double y = m[0][1] * local.x + m[1][1] * local.y + m[2][1] * local.z + m[3][1];
+  const double w = m[0][3] * local.x + m[1][3] * local.y + m[2][3] * local.z + m[3][3];
   Projected p;
-  p.in_front = c.w > 0.0;
+  p.in_front = w > 0.0;
   if (p.in_front)
-    p.pixel = glm::dvec2((c.x / c.w + 1.0) * 0.5 * mView.viewport.x,
-                         (1.0 - c.y / c.w) * 0.5 * mView.viewport.y);
-  const glm::dvec4 e = mLocalToEye * glm::dvec4(local, 1.0);
-  p.eye_depth = -e.z;
+    p.pixel = glm::dvec2((x / w + 1.0) * 0.5 * mView.viewport.x,
+                         (1.0 - y / w) * 0.5 * mView.viewport.y);
   return p;
+}
+
+double LassoProjector::eyeDepth(const glm::dvec3& local) const {
+  const glm::dmat4& m = mLocalToEye;
+  return -(m[0][2] * local.x + m[1][2] * local.y + m[2][2] * local.z + m[3][2]);
 }
 
 // --- VisibilityMap ----------------------------------------------------------------------------
@@ -304,8 +313,9 @@ class Lasso {
     mNdcHi = glm::dvec2(2.0 * hi.x / mViewport.x - 1.0, 1.0 - 2.0 * lo.y / mViewport.y);
   }
 
-  LassoResult run() {
-    visit(mTree.root());
+  LassoResult run(unsigned threads) {
+    visit(mTree.root());  // metadata only: the hierarchy's pages
+    testLeaves(threads);
     return std::move(mResult);
   }
 
@@ -317,7 +327,7 @@ class Lasso {
     for (int i = 0; i < 8; ++i) {
       const glm::dvec3 c(i & 1 ? hi.x : lo.x, i & 2 ? hi.y : lo.y, i & 4 ? hi.z : lo.z);
       clip[i] = mProjector.localToClip() * glm::dvec4(c, 1.0);
-      const double e = -(mProjector.localToEye() * glm::dvec4(c, 1.0)).z;
+      const double e = mProjector.eyeDepth(c);
       e_lo = std::min(e_lo, e);
       e_hi = std::max(e_hi, e);
     }
@@ -390,7 +400,7 @@ class Lasso {
         break;
     }
     if (n.leaf()) {
-      testLeaf(id, n);
+      if (n.points > 0) mLeaves.emplace_back(id, n.points);
       return;
     }
     for (lod::NodeId c : children(id)) visit(c);
@@ -414,28 +424,57 @@ class Lasso {
     for (lod::NodeId c : children(id)) takeWhole(c, mTree.node(c));
   }
 
-  void testLeaf(lod::NodeId id, const lod::NodeInfo& n) {
-    if (n.points == 0) return;
-    std::vector<uint64_t> bits((size_t(n.points) + 63) / 64, 0);
-    uint32_t size = 0;
+  struct LeafResult {
+    NodeSelection selection;
+    uint32_t tested = 0;
+    bool corrupt = false;
+  };
+
+  /// Reads one leaf and tests its elements. Thread-safe (the stores' reads are).
+  LeafResult testLeaf(lod::NodeId id, uint32_t points) const {
+    LeafResult out;
+    std::vector<uint64_t> bits((size_t(points) + 63) / 64, 0);
     try {
-      size = mSource.forEach(id, [&](uint32_t i, const glm::dvec3& p) {
+      out.tested = mSource.forEach(id, [&](uint32_t i, const glm::dvec3& p) {
         if (size_t(i) / 64 >= bits.size()) bits.resize(size_t(i) / 64 + 1, 0);
         const LassoProjector::Projected q = mProjector.project(p);
         if (!q.in_front || !onScreen(q.pixel) || !mPolygon.contains(q.pixel)) return;
-        if (mVisibility && !mVisibility->visible(q.pixel, q.eye_depth)) return;
+        if (mVisibility && !mVisibility->visible(q.pixel, mProjector.eyeDepth(p))) return;
         bits[i / 64] |= 1ull << (i % 64);
       });
     } catch (const lod::StoreError&) {
-      ++mResult.stats.corrupt_chunks;
-      mResult.stats.corrupt_nodes.push_back(id);
-      return;
+      out.corrupt = true;
+      return out;
     }
-    ++mResult.stats.leaves_read;
-    mResult.stats.elements_tested += size;
-    if (size == 0) return;
-    bits.resize((size_t(size) + 63) / 64);
-    mResult.selection.set(id, NodeSelection::fromBits(size, std::move(bits)));
+    if (out.tested == 0) return out;
+    bits.resize((size_t(out.tested) + 63) / 64);
+    out.selection = NodeSelection::fromBits(out.tested, std::move(bits));
+    return out;
+  }
+
+  /// Tests the leaves the traversal left, on `threads` threads, and merges in leaf order.
+  void testLeaves(unsigned threads) {
+    std::vector<LeafResult> results(mLeaves.size());
+    std::atomic<size_t> next{0};
+    auto work = [&] {
+      for (size_t k; (k = next.fetch_add(1)) < mLeaves.size();)
+        results[k] = testLeaf(mLeaves[k].first, mLeaves[k].second);
+    };
+    threads = std::max(1u, std::min<unsigned>(threads, unsigned(mLeaves.size())));
+    std::vector<std::jthread> pool;
+    for (unsigned t = 1; t < threads; ++t) pool.emplace_back(work);
+    work();
+    pool.clear();  // joins
+    for (size_t k = 0; k < mLeaves.size(); ++k) {
+      if (results[k].corrupt) {
+        ++mResult.stats.corrupt_chunks;
+        mResult.stats.corrupt_nodes.push_back(mLeaves[k].first);
+        continue;
+      }
+      ++mResult.stats.leaves_read;
+      mResult.stats.elements_tested += results[k].tested;
+      mResult.selection.set(mLeaves[k].first, std::move(results[k].selection));
+    }
   }
 
   bool onScreen(const glm::dvec2& p) const {
@@ -450,8 +489,14 @@ class Lasso {
   glm::uvec2 mViewport;
   std::optional<VisibilityMap> mVisibility;
   glm::dvec2 mNdcLo, mNdcHi;
+  std::vector<std::pair<lod::NodeId, uint32_t>> mLeaves;  ///< straddling leaves, to read
   LassoResult mResult;
 };
+
+unsigned threadCount(const LassoOptions& o) {
+  TESSERA_CHECK(o.threads <= 256, "lasso: at most 256 threads");
+  return o.threads > 0 ? o.threads : std::max(1u, std::thread::hardware_concurrency());
+}
 
 }  // namespace
 
@@ -461,7 +506,7 @@ LassoResult lassoPoints(lod::PointStore& store, const LassoView& view, const Las
       options.model.value_or(glm::translate(glm::dmat4(1.0), store.summary().origin));
   const PointSource source{store};
   return Lasso<PointSource>(store, source, view, lasso, options, model, SelectionElements::kPoints)
-      .run();
+      .run(threadCount(options));
 }
 
 LassoResult lassoTriangles(lod::MeshStore& store, const LassoView& view,
@@ -471,7 +516,7 @@ LassoResult lassoTriangles(lod::MeshStore& store, const LassoView& view,
   const MeshSource source(store);
   return Lasso<MeshSource>(store, source, view, lasso, options, model,
                            SelectionElements::kTriangles)
-      .run();
+      .run(threadCount(options));
 }
 
 }  // namespace tessera::master

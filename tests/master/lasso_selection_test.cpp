@@ -87,7 +87,7 @@ Brute bruteForce(lod::LodHierarchy& tree, SelectionElements kind, const LassoVie
         const bool on_screen = q.pixel.x >= 0 && q.pixel.y >= 0 && q.pixel.x < view.viewport.x &&
                                q.pixel.y < view.viewport.y;
         if (q.in_front && on_screen && insideAllEdges(poly, q.pixel) &&
-            (!visibility || visibility->visible(q.pixel, q.eye_depth)))
+            (!visibility || visibility->visible(q.pixel, proj.eyeDepth(p))))
           bits[i / 64] |= 1ull << (i % 64);
       });
     } catch (const lod::StoreError&) {
