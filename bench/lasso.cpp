@@ -106,6 +106,8 @@ int main(int argc, char** argv) {
     app.add_option("--out", out, "Folder for the CSV and the chart")->capture_default_str();
     app.add_option("--cache", cache, "Folder for the generated stores (default: OUT/lasso-cache)");
     app.add_option("--sizes", sizes, "Store sizes in points")->delimiter(',')->capture_default_str();
+    bool skip_baseline = false;
+    app.add_flag("--skip-baseline", skip_baseline, "Only the lasso (profiling)");
     int build_threads = 1;
     app.add_option("--build-threads", build_threads,
                    "Threads building the stores (0: every core; 1 leaves the machine to others)")
@@ -152,7 +154,9 @@ int main(int argc, char** argv) {
       auto fresh = lod::PointStore::open(path, 64ull << 20);
       const glm::dmat4 model = glm::translate(glm::dmat4(1.0), fresh->summary().origin);
       t0 = Clock::now();
-      const uint64_t brute = bruteForce(*fresh, master::LassoProjector(view, model), poly, viewport);
+      const uint64_t brute =
+          skip_baseline ? r.selection.count()
+                        : bruteForce(*fresh, master::LassoProjector(view, model), poly, viewport);
       const double brute_s = since(t0);
       char line[512];
       std::snprintf(line, sizeof line, "%llu,%.1f,%llu,%llu,%llu,%llu,%llu,%.1f,%.1f,%.1f,%.1f,%d\n",

@@ -37,14 +37,16 @@ LassoPolygon::LassoPolygon(std::vector<glm::dvec2> vertices) : mVertices(std::mo
     const glm::dvec2 a = mVertices[i], b = mVertices[(i + 1) % mVertices.size()];
     mLo = glm::min(mLo, a);
     mHi = glm::max(mHi, a);
-    mEdges.push_back({a, b});  // horizontal ones too: contains() never counts them
+    // Horizontal ones too: contains() never counts them (nor reads their infinite slope).
+    mEdges.push_back({a, b, (b.x - a.x) / (b.y - a.y)});
   }
   // Bands of about one edge each (at most 4096): a freehand lasso crosses a row a few times,
   // so a point meets a handful of edges.
   const size_t bands = std::clamp<size_t>(mEdges.size(), 1, 4096);
   mY0 = mLo.y;
-  mBandHeight = std::max((mHi.y - mLo.y) / double(bands), 1e-9);
-  mBandStart.assign(bands + 1, 0);  // band() reads its size
+  mBandScale = double(bands) / std::max(mHi.y - mLo.y, 1e-9);
+  mBandStart.assign(bands + 1, 0);
+  mLastBand = bands - 1;
   std::vector<uint32_t> counts(bands + 1, 0);
   auto span = [&](const Edge& e) {
     return std::pair(band(std::min(e.a.y, e.b.y)), band(std::max(e.a.y, e.b.y)));
@@ -62,15 +64,6 @@ LassoPolygon::LassoPolygon(std::vector<glm::dvec2> vertices) : mVertices(std::mo
   }
 }
 
-size_t LassoPolygon::band(double y) const {
-  // Monotone in y (IEEE subtraction and division by a positive constant are), so an edge whose
-  // y range holds a row is listed in that row's band.
-  const double f = std::floor((y - mY0) / mBandHeight);
-  const size_t last = mBandStart.size() - 2;
-  if (!(f > 0.0)) return 0;
-  return f >= double(last) ? last : size_t(f);
-}
-
 bool LassoPolygon::contains(const glm::dvec2& p) const {
   // Edges not listed in p's band have no crossing with p's row, so skipping them changes
   // nothing: the same answer as the test over every edge.
@@ -80,7 +73,7 @@ bool LassoPolygon::contains(const glm::dvec2& p) const {
   for (uint32_t k = mBandStart[b]; k < mBandStart[b + 1]; ++k) {
     const Edge& e = mEdges[mBandEdges[k]];
     if ((e.a.y > p.y) != (e.b.y > p.y) &&
-        p.x < e.a.x + (p.y - e.a.y) * (e.b.x - e.a.x) / (e.b.y - e.a.y))
+        p.x < e.a.x + (p.y - e.a.y) * e.slope)
       inside = !inside;
   }
   return inside;

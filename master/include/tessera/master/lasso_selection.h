@@ -68,7 +68,8 @@ class LassoPolygon {
 
   const std::vector<glm::dvec2>& vertices() const { return mVertices; }
   /// Even-odd with the half-open crossing rule: an edge (a, b) counts when (a.y > p.y) !=
-  /// (b.y > p.y) and p.x < a.x + (p.y - a.y) * (b.x - a.x) / (b.y - a.y).
+  /// (b.y > p.y) and p.x < a.x + (p.y - a.y) * s, with s = (b.x - a.x) / (b.y - a.y) computed
+  /// once per edge (the doubles of that expression decide points on an edge).
   bool contains(const glm::dvec2& p) const;
 
   enum class Overlap { kOutside, kInside, kStraddles };
@@ -80,14 +81,22 @@ class LassoPolygon {
  private:
   struct Edge {
     glm::dvec2 a, b;
+    double slope;  ///< dx / dy
   };
   std::vector<glm::dvec2> mVertices;
   std::vector<Edge> mEdges;
-  double mY0 = 0.0, mBandHeight = 1.0;
+  double mY0 = 0.0, mBandScale = 1.0;  ///< band of y: floor((y - mY0) * mBandScale)
   glm::dvec2 mLo{0.0}, mHi{0.0};        ///< the polygon's bounds
   std::vector<uint32_t> mBandStart;     ///< per band, its first entry in mBandEdges (+1 at end)
   std::vector<uint32_t> mBandEdges;     ///< edge indices per band
-  size_t band(double y) const;
+  size_t mLastBand = 0;
+  /// The band of a row. Monotone in y (IEEE subtraction and multiplication by a positive
+  /// constant are), so an edge whose y range holds a row is listed in that row's band.
+  size_t band(double y) const {
+    const double f = (y - mY0) * mBandScale;
+    if (!(f > 0.0)) return 0;
+    return f >= double(mLastBand) ? mLastBand : size_t(f);  // truncation: floor for f > 0
+  }
 };
 
 /// A depth image of the view, as the renderer's frame target gives it
