@@ -5,10 +5,11 @@
 // Input: a scan-like surface, points on a wavy height field over a square (what terrain LiDAR
 // and facade scans look like to the hierarchy), built into stores of each --sizes count under
 // --cache (reused when there; never in the repo). One oblique view (1920x1080) and a freehand-
-// like lasso (240 vertices, concave) covering about a fifth of the screen; THROUGH mode.
-// Times: the lasso on a freshly opened store (chunks decoded from the file, the OS page cache
-// warm) and again with the store's chunk cache warm; the baseline on a fresh store. Both must
-// select the same number of points (column `equal`).
+// like lasso (240 vertices, concave) selecting about a quarter of the surface; THROUGH mode.
+// Times (ms, best of --repeats): the lasso on a freshly opened store (chunks decoded from the
+// file, the OS page cache warm) on one thread and on a thread per core, and again with the
+// store's chunk cache warm; the baseline (one thread) once, on a fresh store. speedup = baseline
+// / lasso on one thread (like for like). Both must select the same points (column `equal`).
 // Prints CSV; writes OUT/lasso.csv and OUT/lasso.png.
 #include <algorithm>
 #include <chrono>
@@ -25,6 +26,7 @@
 #include <glm/gtc/matrix_transform.hpp>
 
 #include <tessera/core/cli.h>
+#include <tessera/core/stopwatch.h>
 #include <tessera/lod/point_writer.h>
 #include <tessera/lod/store_builder.h>
 #include <tessera/master/lasso_selection.h>
@@ -34,10 +36,6 @@ namespace {
 using namespace tessera;
 namespace fs = std::filesystem;
 using Clock = std::chrono::steady_clock;
-
-double since(Clock::time_point t0) {
-  return std::chrono::duration<double>(Clock::now() - t0).count();
-}
 
 constexpr uint64_t kBatch = 10'000'000;  ///< points per generated input file
 
@@ -60,8 +58,8 @@ std::pair<fs::path, double> surfaceStore(const fs::path& cache, uint64_t n, int 
       const double z = 4.0 * std::sin(x * 0.13) * std::cos(y * 0.09) + 0.5 * std::sin(x * 1.7 + y);
       b.positions.push_back({x, y, z});
     }
-    inputs.push_back(cache / ("surface-" + std::to_string(n) + "-" +
-                              std::to_string(inputs.size()) + ".ply"));
+    inputs.push_back(
+        cache / ("surface-" + std::to_string(n) + "-" + std::to_string(inputs.size()) + ".ply"));
     lod::writePly(inputs.back(), b, glm::dvec3(0.0));
   }
   lod::BuildOptions o;
@@ -70,7 +68,7 @@ std::pair<fs::path, double> surfaceStore(const fs::path& cache, uint64_t n, int 
   o.threads = threads;
   lod::buildStore(inputs, store, o);
   for (const fs::path& p : inputs) fs::remove(p);
-  return {store, since(t0)};
+  return {store, msSince(t0) / 1e3};
 }
 
 /// The baseline: every leaf read, every point tested (the same test as the lasso's leaves).
@@ -105,8 +103,14 @@ int main(int argc, char** argv) {
     std::vector<uint64_t> sizes = {1'000'000, 10'000'000};
     app.add_option("--out", out, "Folder for the CSV and the chart")->capture_default_str();
     app.add_option("--cache", cache, "Folder for the generated stores (default: OUT/lasso-cache)");
-    app.add_option("--sizes", sizes, "Store sizes in points")->delimiter(',')->capture_default_str();
+    app.add_option("--sizes", sizes, "Store sizes in points")
+        ->delimiter(',')
+        ->capture_default_str();
     bool skip_baseline = false;
+    int repeats = 3;
+    app.add_option("--repeats", repeats, "Lasso runs per size (the best counts)")
+        ->check(cli::integerRange(1, 100))
+        ->capture_default_str();
     app.add_flag("--skip-baseline", skip_baseline, "Only the lasso (profiling)");
     int build_threads = 1;
     app.add_option("--build-threads", build_threads,
@@ -136,37 +140,49 @@ int main(int argc, char** argv) {
     const fs::path csv_path = fs::path(out) / "lasso.csv";
     std::ofstream csv(csv_path);
     const char* head =
-        "points,build_s,nodes_visited,nodes_whole,leaves_read,points_tested,selected,lasso_ms,"
-        "lasso_warm_ms,brute_ms,speedup,equal\n";
+        "points,build_s,nodes_visited,nodes_whole,leaves_read,points_tested,selected,lasso_1t_ms,"
+        "lasso_ms,lasso_warm_ms,brute_ms,speedup,equal\n";
     csv << head;
     std::printf("%s", head);
     for (uint64_t n : sizes) {
       const auto [path, build_s] = surfaceStore(cache_dir, n, build_threads);
-      // Fresh stores for each measurement: the chunk cache starts empty.
-      auto store = lod::PointStore::open(path);
-      auto t0 = Clock::now();
-      const master::LassoResult r = master::lassoPoints(*store, view, poly);
-      const double cold = since(t0);
-      t0 = Clock::now();
-      const master::LassoResult warm = master::lassoPoints(*store, view, poly);
-      const double warm_s = since(t0);
-      store.reset();
-      auto fresh = lod::PointStore::open(path, 64ull << 20);
-      const glm::dmat4 model = glm::translate(glm::dmat4(1.0), fresh->summary().origin);
-      t0 = Clock::now();
-      const uint64_t brute =
-          skip_baseline ? r.selection.count()
-                        : bruteForce(*fresh, master::LassoProjector(view, model), poly, viewport);
-      const double brute_s = since(t0);
+      // The baseline first, then the lasso on fresh stores (the chunk cache empty; the OS page
+      // cache warm for both), best of --repeats against the other builds on this machine.
+      uint64_t brute = 0;
+      double brute_ms = 0.0;
+      if (!skip_baseline) {
+        auto fresh = lod::PointStore::open(path, 64ull << 20);
+        const glm::dmat4 model = glm::translate(glm::dmat4(1.0), fresh->summary().origin);
+        const auto t0 = Clock::now();
+        brute = bruteForce(*fresh, master::LassoProjector(view, model), poly, viewport);
+        brute_ms = msSince(t0);
+      }
+      master::LassoResult r, warm, single;
+      double cold = 1e300, warm_ms = 1e300, single_ms = 1e300;
+      for (int k = 0; k < repeats; ++k) {
+        master::LassoOptions one;
+        one.threads = 1;
+        auto t0 = Clock::now();
+        single = master::lassoPoints(*lod::PointStore::open(path), view, poly, one);
+        single_ms = std::min(single_ms, msSince(t0));
+        auto store = lod::PointStore::open(path);
+        t0 = Clock::now();
+        r = master::lassoPoints(*store, view, poly);
+        cold = std::min(cold, msSince(t0));
+        t0 = Clock::now();
+        warm = master::lassoPoints(*store, view, poly);
+        warm_ms = std::min(warm_ms, msSince(t0));
+      }
+      if (skip_baseline) brute = r.selection.count();
       char line[512];
-      std::snprintf(line, sizeof line, "%llu,%.1f,%llu,%llu,%llu,%llu,%llu,%.1f,%.1f,%.1f,%.1f,%d\n",
-                    (unsigned long long)n, build_s, (unsigned long long)r.stats.nodes_visited,
-                    (unsigned long long)r.stats.nodes_whole,
-                    (unsigned long long)r.stats.leaves_read,
-                    (unsigned long long)r.stats.elements_tested,
-                    (unsigned long long)r.selection.count(), cold * 1e3, warm_s * 1e3,
-                    brute_s * 1e3, brute_s / cold,
-                    int(brute == r.selection.count() && warm.selection == r.selection));
+      std::snprintf(
+          line, sizeof line, "%llu,%.1f,%llu,%llu,%llu,%llu,%llu,%.1f,%.1f,%.1f,%.1f,%.1f,%d\n",
+          (unsigned long long)n, build_s, (unsigned long long)r.stats.nodes_visited,
+          (unsigned long long)r.stats.nodes_whole, (unsigned long long)r.stats.leaves_read,
+          (unsigned long long)r.stats.elements_tested, (unsigned long long)r.selection.count(),
+          single_ms, cold, warm_ms, brute_ms, brute_ms / single_ms,
+          int(brute == r.selection.count() && warm.selection == r.selection &&
+                        single.selection == r.selection));
       csv << line;
       csv.flush();
       std::printf("%s", line);
@@ -179,16 +195,17 @@ int main(int argc, char** argv) {
     g << "set terminal pngcairo size 900,520 font 'DejaVu Sans,10'\n"
       << "set output '" << (fs::path(out) / "lasso.png").string() << "'\n"
       << "set datafile separator ','\nset key top left\nset grid\n"
-      << "set title 'Lasso selection (THROUGH, 1920x1080, a fifth of the screen; 2 cores)'\n"
+      << "set title 'Lasso selection (THROUGH, 1920x1080, a quarter of a surface scan inside; 2 shared cores)'\n"
       << "set xlabel 'store size (points)'\nset ylabel 'time (ms)'\n"
       << "set logscale xy\nset format x '10^{%L}'\nset xrange [5e5:2e8]\n"
       << "set arrow from 1e8, graph 0 to 1e8, first 2000 nohead dt 2 lc rgb 'red'\n"
       << "set arrow from 5e5, first 2000 to 1e8, first 2000 nohead dt 2 lc rgb 'red'\n"
       << "set label 'goal: 2 s at 10^8' at 1.2e6, first 2600 tc rgb 'red'\n"
       << "plot '" << csv_path.string()
-      << "' using 1:10 with linespoints pt 7 title 'baseline: every leaf point tested', "
-      << "'' using 1:8 with linespoints pt 7 title 'lasso, store opened cold', "
-      << "'' using 1:9 with linespoints pt 5 title 'lasso, chunk cache warm'\n";
+      << "' using 1:11 with linespoints pt 7 title 'baseline: every leaf point tested (1 thread)', "
+      << "'' using 1:8 with linespoints pt 7 title 'lasso, store opened cold, 1 thread', "
+      << "'' using 1:9 with linespoints pt 7 title 'lasso, store opened cold, 2 threads', "
+      << "'' using 1:10 with linespoints pt 5 title 'lasso, chunk cache warm, 2 threads'\n";
     g.close();
     const std::string cmd = std::string(TESSERA_GNUPLOT) + " '" + gp.string() + "'";
     if (std::system(cmd.c_str()) != 0)

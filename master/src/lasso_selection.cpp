@@ -2,8 +2,8 @@
 
 #include <algorithm>
 #include <array>
-#include <cmath>
 #include <atomic>
+#include <cmath>
 #include <limits>
 #include <thread>
 
@@ -30,8 +30,7 @@ constexpr double kMarginPx = 1e-4;
 LassoPolygon::LassoPolygon(std::vector<glm::dvec2> vertices) : mVertices(std::move(vertices)) {
   TESSERA_CHECK(mVertices.size() >= 3, "LassoPolygon: a lasso needs at least three vertices");
   for (const glm::dvec2& v : mVertices)
-    TESSERA_CHECK(std::isfinite(v.x) && std::isfinite(v.y),
-                  "LassoPolygon: a vertex is not finite");
+    TESSERA_CHECK(std::isfinite(v.x) && std::isfinite(v.y), "LassoPolygon: a vertex is not finite");
   mLo = mHi = mVertices[0];
   for (size_t i = 0; i < mVertices.size(); ++i) {
     const glm::dvec2 a = mVertices[i], b = mVertices[(i + 1) % mVertices.size()];
@@ -72,9 +71,7 @@ bool LassoPolygon::contains(const glm::dvec2& p) const {
   bool inside = false;
   for (uint32_t k = mBandStart[b]; k < mBandStart[b + 1]; ++k) {
     const Edge& e = mEdges[mBandEdges[k]];
-    if ((e.a.y > p.y) != (e.b.y > p.y) &&
-        p.x < e.a.x + (p.y - e.a.y) * e.slope)
-      inside = !inside;
+    if ((e.a.y > p.y) != (e.b.y > p.y) && p.x < e.a.x + (p.y - e.a.y) * e.slope) inside = !inside;
   }
   return inside;
 }
@@ -126,8 +123,8 @@ LassoProjector::Projected LassoProjector::project(const glm::dvec3& local) const
   Projected p;
   p.in_front = w > 0.0;
   if (p.in_front)
-    p.pixel = glm::dvec2((x / w + 1.0) * 0.5 * mView.viewport.x,
-                         (1.0 - y / w) * 0.5 * mView.viewport.y);
+    p.pixel =
+        glm::dvec2((x / w + 1.0) * 0.5 * mView.viewport.x, (1.0 - y / w) * 0.5 * mView.viewport.y);
   return p;
 }
 
@@ -346,9 +343,8 @@ class Lasso {
       plo = glm::min(plo, p);
       phi = glm::max(phi, p);
     }
-    const double margin =
-        kMarginPx + 1e-9 * std::max({std::abs(plo.x), std::abs(plo.y), std::abs(phi.x),
-                                     std::abs(phi.y)});
+    const double margin = kMarginPx + 1e-9 * std::max({std::abs(plo.x), std::abs(plo.y),
+                                                       std::abs(phi.x), std::abs(phi.y)});
     // Only the viewport's pixels count: off screen is never inside.
     const glm::dvec2 vlo = plo - margin, vhi = phi + margin;
     if (vhi.x < 0.0 || vhi.y < 0.0 || vlo.x >= mViewport.x || vlo.y >= mViewport.y)
@@ -368,10 +364,9 @@ class Lasso {
     if (!mVisibility) return v;
     // Visible: the pixels under the box decide. All hidden prunes; all in front keeps a whole
     // node whole.
-    const auto [l_lo, l_hi] = mVisibility->limits(int(std::floor(std::max(vlo.x, -1.0))),
-                                                  int(std::floor(std::max(vlo.y, -1.0))),
-                                                  int(std::min(vhi.x, double(mViewport.x))),
-                                                  int(std::min(vhi.y, double(mViewport.y))));
+    const auto [l_lo, l_hi] = mVisibility->limits(
+        int(std::floor(std::max(vlo.x, -1.0))), int(std::floor(std::max(vlo.y, -1.0))),
+        int(std::min(vhi.x, double(mViewport.x))), int(std::min(vhi.y, double(mViewport.y))));
     const double slack = 1e-9 * std::max(std::abs(e_lo), std::abs(e_hi));
     if (e_lo - slack > l_hi) return Verdict::kOutside;
     if (v == Verdict::kWhole && e_hi + slack > l_lo) v = Verdict::kStraddles;
@@ -502,8 +497,8 @@ LassoResult lassoPoints(lod::PointStore& store, const LassoView& view, const Las
       .run(threadCount(options));
 }
 
-LassoResult lassoTriangles(lod::MeshStore& store, const LassoView& view,
-                           const LassoPolygon& lasso, const LassoOptions& options) {
+LassoResult lassoTriangles(lod::MeshStore& store, const LassoView& view, const LassoPolygon& lasso,
+                           const LassoOptions& options) {
   const glm::dmat4 model =
       options.model.value_or(glm::translate(glm::dmat4(1.0), store.summary().origin));
   const MeshSource source(store);

@@ -16,7 +16,9 @@ constexpr uint8_t kVersion = 1;
 constexpr size_t kHeaderBytes = 12;
 constexpr size_t kChecksumBytes = 8;
 
-size_t wordsFor(uint32_t size) { return (size_t(size) + 63) / 64; }
+size_t wordsFor(uint32_t size) {
+  return (size_t(size) + 63) / 64;
+}
 
 /// FNV-1a, 64 bits: catches the torn and flipped bytes a file or a message may carry (not an
 /// authenticator).
@@ -288,11 +290,15 @@ Selection apply(const Selection& a, const Selection& b, Op op) {
 
 }  // namespace
 
-Selection Selection::unite(const Selection& o) const { return apply(*this, o, Op::kUnite); }
+Selection Selection::unite(const Selection& o) const {
+  return apply(*this, o, Op::kUnite);
+}
 Selection Selection::intersect(const Selection& o) const {
   return apply(*this, o, Op::kIntersect);
 }
-Selection Selection::subtract(const Selection& o) const { return apply(*this, o, Op::kSubtract); }
+Selection Selection::subtract(const Selection& o) const {
+  return apply(*this, o, Op::kSubtract);
+}
 
 std::vector<uint8_t> Selection::serialize() const {
   Writer w;
@@ -329,8 +335,7 @@ Selection Selection::deserialize(std::span<const uint8_t> bytes) {
     bad("version " + std::to_string(bytes[4]) + ", expected " + std::to_string(kVersion));
   const std::span<const uint8_t> body = bytes.first(bytes.size() - kChecksumBytes);
   uint64_t stored = 0;
-  for (size_t i = 0; i < kChecksumBytes; ++i)
-    stored |= uint64_t(bytes[body.size() + i]) << (8 * i);
+  for (size_t i = 0; i < kChecksumBytes; ++i) stored |= uint64_t(bytes[body.size() + i]) << (8 * i);
   if (fnv1a(body) != stored) bad("checksum mismatch (corrupt or truncated)");
 
   Reader r(body);

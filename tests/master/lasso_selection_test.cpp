@@ -127,8 +127,7 @@ Brute brutePoints(lod::PointStore& store, const LassoView& view, const std::vect
   return b;
 }
 
-Brute bruteTriangles(lod::MeshStore& store, const LassoView& view,
-                     const std::vector<dvec2>& poly) {
+Brute bruteTriangles(lod::MeshStore& store, const LassoView& view, const std::vector<dvec2>& poly) {
   const glm::dmat4 model = glm::translate(glm::dmat4(1.0), store.summary().origin);
   return bruteForce(store, SelectionElements::kTriangles, view, model, poly, nullptr,
                     [&](lod::NodeId id, auto&& f) {
@@ -148,11 +147,12 @@ Brute bruteTriangles(lod::MeshStore& store, const LassoView& view,
 /// A perspective view from `eye` towards `target` (world frame).
 LassoView lookAt(const dvec3& eye, const dvec3& target, double fov_deg = 50.0) {
   LassoView v;
-  v.view = glm::lookAt(eye, target, std::abs(glm::normalize(target - eye).z) > 0.9
-                                        ? dvec3(0, 1, 0)
-                                        : dvec3(0, 0, 1));
-  v.projection = glm::perspective(glm::radians(fov_deg), double(kViewport.x) / kViewport.y,
-                                  1e-3 * glm::length(target - eye), 10.0 * glm::length(target - eye));
+  v.view =
+      glm::lookAt(eye, target,
+                  std::abs(glm::normalize(target - eye).z) > 0.9 ? dvec3(0, 1, 0) : dvec3(0, 0, 1));
+  v.projection =
+      glm::perspective(glm::radians(fov_deg), double(kViewport.x) / kViewport.y,
+                       1e-3 * glm::length(target - eye), 10.0 * glm::length(target - eye));
   v.viewport = kViewport;
   return v;
 }
@@ -186,6 +186,17 @@ std::vector<dvec2> pastTheEdge() {
 
 dvec3 centreOf(const lod::StoreSummary& s) {
   return s.origin + 0.5 * (s.bbox_min + s.bbox_max);
+}
+
+/// A point store built from `inputs` into `dir`, opened.
+std::unique_ptr<lod::PointStore> buildPoints(const test::TempDir& dir, const fs::path& input,
+                                             uint32_t leaf_max) {
+  lod::BuildOptions o;
+  o.quiet = true;
+  o.leaf_max = leaf_max;
+  const fs::path out = dir / (input.stem().string() + ".tlod");
+  lod::buildStore({input}, out, o);
+  return lod::PointStore::open(out);
 }
 
 void expectSame(const LassoResult& lasso, const Brute& brute) {
@@ -343,10 +354,7 @@ class LassoPlanesTest : public ::testing::Test {
     for (int i = 0; i < 60000; ++i)
       b.positions.push_back({0.8 * u(rng) - 0.5, 0.8 * u(rng) - 0.3, 0.5});
     lod::writePly(dir_->path() / "planes.ply", b, dvec3(0.0));
-    lod::BuildOptions o;
-    o.quiet = true;
-    o.leaf_max = 2048;
-    lod::buildStore({dir_->path() / "planes.ply"}, dir_->path() / "planes.tlod", o);
+    buildPoints(*dir_, dir_->path() / "planes.ply", 2048);
   }
   static void TearDownTestSuite() { delete dir_; }
   static test::TempDir* dir_;
@@ -431,11 +439,7 @@ TEST(LassoVisibility, DepthImageOfTheWrongSizeIsRefused) {
 
 TEST(LassoRealData, GeoreferencedLidarEqualsBruteForce) {
   test::TempDir dir;
-  lod::BuildOptions o;
-  o.quiet = true;
-  o.leaf_max = 4096;
-  lod::buildStore({kData / "lidar/autzen_trim.las"}, dir / "autzen.tlod", o);
-  auto store = lod::PointStore::open(dir / "autzen.tlod");
+  auto store = buildPoints(dir, kData / "lidar/autzen_trim.las", 4096);
   const lod::StoreSummary& s = store->summary();
   ASSERT_GT(std::abs(s.origin.x) + std::abs(s.origin.y), 1e5);  // georeferenced: far from 0
   const dvec3 c = centreOf(s);
@@ -453,11 +457,7 @@ TEST(LassoRealData, GeoreferencedLidarEqualsBruteForce) {
 
 TEST(LassoRealData, BunnyScansEqualBruteForce) {
   test::TempDir dir;
-  lod::BuildOptions o;
-  o.quiet = true;
-  o.leaf_max = 2048;
-  lod::buildStore({kData / "stanford-bunny/scans/bun.conf"}, dir / "bunny.tlod", o);
-  auto store = lod::PointStore::open(dir / "bunny.tlod");
+  auto store = buildPoints(dir, kData / "stanford-bunny/scans/bun.conf", 2048);
   const dvec3 c = centreOf(store->summary());
   const LassoView view = lookAt(c + dvec3(0.05, 0.08, 0.25), c);
   const auto poly = wavy({420, 260}, 160);
@@ -486,8 +486,8 @@ TEST(LassoMesh, BunnyTrianglesEqualBruteForce) {
       expectSame(r, b);
     }
   }
-  const LassoResult r =
-      lassoTriangles(*store, lookAt(c + dvec3(0.05, 0.08, 0.25), c), LassoPolygon(wavy({420, 260}, 160)));
+  const LassoResult r = lassoTriangles(*store, lookAt(c + dvec3(0.05, 0.08, 0.25), c),
+                                       LassoPolygon(wavy({420, 260}, 160)));
   EXPECT_GT(r.selection.count(), 1000u);
   EXPECT_GT(r.stats.nodes_pruned, 0u);
 }

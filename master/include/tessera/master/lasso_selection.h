@@ -86,9 +86,9 @@ class LassoPolygon {
   std::vector<glm::dvec2> mVertices;
   std::vector<Edge> mEdges;
   double mY0 = 0.0, mBandScale = 1.0;  ///< band of y: floor((y - mY0) * mBandScale)
-  glm::dvec2 mLo{0.0}, mHi{0.0};        ///< the polygon's bounds
-  std::vector<uint32_t> mBandStart;     ///< per band, its first entry in mBandEdges (+1 at end)
-  std::vector<uint32_t> mBandEdges;     ///< edge indices per band
+  glm::dvec2 mLo{0.0}, mHi{0.0};       ///< the polygon's bounds
+  std::vector<uint32_t> mBandStart;    ///< per band, its first entry in mBandEdges (+1 at end)
+  std::vector<uint32_t> mBandEdges;    ///< edge indices per band
   size_t mLastBand = 0;
   /// The band of a row. Monotone in y (IEEE subtraction and multiplication by a positive
   /// constant are), so an edge whose y range holds a row is listed in that row's band.
@@ -205,7 +205,7 @@ LassoResult lassoPoints(lod::PointStore& store, const LassoView& view, const Las
 
 /// Selects the store's leaf triangles whose centroid is inside the lasso (the same test and
 /// pruning by patch bounds). Reads the leaf patches the border crosses.
-LassoResult lassoTriangles(lod::MeshStore& store, const LassoView& view,
-                           const LassoPolygon& lasso, const LassoOptions& options = {});
+LassoResult lassoTriangles(lod::MeshStore& store, const LassoView& view, const LassoPolygon& lasso,
+                           const LassoOptions& options = {});
 
 }  // namespace tessera::master
