@@ -182,7 +182,7 @@ int main(int argc, char** argv) {
           (unsigned long long)r.stats.elements_tested, (unsigned long long)r.selection.count(),
           single_ms, cold, warm_ms, brute_ms, brute_ms / single_ms,
           int(brute == r.selection.count() && warm.selection == r.selection &&
-                        single.selection == r.selection));
+              single.selection == r.selection));
       csv << line;
       csv.flush();
       std::printf("%s", line);
@@ -195,7 +195,8 @@ int main(int argc, char** argv) {
     g << "set terminal pngcairo size 900,520 font 'DejaVu Sans,10'\n"
       << "set output '" << (fs::path(out) / "lasso.png").string() << "'\n"
       << "set datafile separator ','\nset key top left\nset grid\n"
-      << "set title 'Lasso selection (THROUGH, 1920x1080, a quarter of a surface scan inside; 2 shared cores)'\n"
+      << "set title 'Lasso selection (THROUGH, 1920x1080, a quarter of a surface scan inside; 2 "
+         "shared cores)'\n"
       << "set xlabel 'store size (points)'\nset ylabel 'time (ms)'\n"
       << "set logscale xy\nset format x '10^{%L}'\nset xrange [5e5:2e8]\n"
       << "set arrow from 1e8, graph 0 to 1e8, first 2000 nohead dt 2 lc rgb 'red'\n"

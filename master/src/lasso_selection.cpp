@@ -4,7 +4,9 @@
 #include <array>
 #include <atomic>
 #include <cmath>
+#include <exception>
 #include <limits>
+#include <mutex>
 #include <thread>
 
 #include <glm/gtc/matrix_transform.hpp>
@@ -142,6 +144,7 @@ VisibilityMap::VisibilityMap(const DepthImage& depth, const LassoView& view,
                 "VisibilityMap: the depth image's size is not the view's viewport");
   TESSERA_CHECK(depth.depth.size() >= size_t(depth.width) * depth.height,
                 "VisibilityMap: the depth image holds fewer than width * height floats");
+  TESSERA_CHECK(options.gap_radius_px <= 64, "VisibilityMap: gap_radius_px is at most 64");
   const glm::dmat4 inv = glm::inverse(view.projection);
   const size_t n = size_t(mWidth) * mHeight;
   // Eye depth of what was drawn, lasso row order; NaN where nothing was.
@@ -444,15 +447,24 @@ class Lasso {
   void testLeaves(unsigned threads) {
     std::vector<LeafResult> results(mLeaves.size());
     std::atomic<size_t> next{0};
+    std::mutex failure_mutex;
+    std::exception_ptr failure;  // anything but a corrupt leaf (out of memory...): rethrown here
     auto work = [&] {
-      for (size_t k; (k = next.fetch_add(1)) < mLeaves.size();)
-        results[k] = testLeaf(mLeaves[k].first, mLeaves[k].second);
+      try {
+        for (size_t k; (k = next.fetch_add(1)) < mLeaves.size();)
+          results[k] = testLeaf(mLeaves[k].first, mLeaves[k].second);
+      } catch (...) {
+        next = mLeaves.size();  // the others stop too
+        std::lock_guard lock(failure_mutex);
+        if (!failure) failure = std::current_exception();
+      }
     };
     threads = std::max(1u, std::min<unsigned>(threads, unsigned(mLeaves.size())));
     std::vector<std::jthread> pool;
     for (unsigned t = 1; t < threads; ++t) pool.emplace_back(work);
     work();
     pool.clear();  // joins
+    if (failure) std::rethrow_exception(failure);
     for (size_t k = 0; k < mLeaves.size(); ++k) {
       if (results[k].corrupt) {
         ++mResult.stats.corrupt_chunks;

@@ -127,9 +127,10 @@ Brute brutePoints(lod::PointStore& store, const LassoView& view, const std::vect
   return b;
 }
 
-Brute bruteTriangles(lod::MeshStore& store, const LassoView& view, const std::vector<dvec2>& poly) {
+Brute bruteTriangles(lod::MeshStore& store, const LassoView& view, const std::vector<dvec2>& poly,
+                     const VisibilityMap* visibility = nullptr) {
   const glm::dmat4 model = glm::translate(glm::dmat4(1.0), store.summary().origin);
-  return bruteForce(store, SelectionElements::kTriangles, view, model, poly, nullptr,
+  return bruteForce(store, SelectionElements::kTriangles, view, model, poly, visibility,
                     [&](lod::NodeId id, auto&& f) {
                       const lod::MeshPatch p = store.readPatch(id);
                       for (size_t t = 0; t < p.triangles(); ++t) {
@@ -490,6 +491,29 @@ TEST(LassoMesh, BunnyTrianglesEqualBruteForce) {
                                        LassoPolygon(wavy({420, 260}, 160)));
   EXPECT_GT(r.selection.count(), 1000u);
   EXPECT_GT(r.stats.nodes_pruned, 0u);
+
+  // Visible only, behind a wall: the left half of the image holds a surface at the depth of the
+  // bunny's centre (what is behind it is hidden), the right half nothing (all visible), with a
+  // ragged edge of empty pixels that the gap radius fills.
+  const LassoView view = lookAt(c + dvec3(0.05, 0.08, 0.25), c);
+  const glm::dvec4 mid = view.projection * view.view * glm::dvec4(c, 1.0);
+  const float wall = float((mid.z / mid.w + 1.0) * 0.5);
+  std::vector<float> depth(size_t(kViewport.x) * kViewport.y, std::nanf(""));
+  for (uint32_t row = 0; row < kViewport.y; ++row)
+    for (uint32_t x = 0; x < 400 + row % 3; ++x)
+      if ((x + row) % 7 != 0) depth[size_t(row) * kViewport.x + x] = wall;
+  LassoOptions visible;
+  visible.mode = LassoMode::kVisible;
+  visible.depth = DepthImage{kViewport.x, kViewport.y, depth};
+  visible.visibility.gap_radius_px = 2;
+  const VisibilityMap vis(*visible.depth, view, visible.visibility);
+  for (const auto& poly : {wavy({420, 260}, 160), pentagram({400, 300}, 280)}) {
+    const LassoResult v = lassoTriangles(*store, view, LassoPolygon(poly), visible);
+    expectSame(v, bruteTriangles(*store, view, poly, &vis));
+    const LassoResult through = lassoTriangles(*store, view, LassoPolygon(poly));
+    EXPECT_GT(v.selection.count(), 0u);
+    EXPECT_LT(v.selection.count(), through.selection.count());
+  }
 }
 
 // --- Large -------------------------------------------------------------------------------------

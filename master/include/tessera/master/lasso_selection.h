@@ -119,7 +119,7 @@ struct VisibilityOptions {
   double relative_tolerance = 0.01;
   double absolute_tolerance = 0.0;
   /// A pixel where nothing was drawn (a gap between splats) takes the nearest depth drawn within
-  /// this many pixels (Chebyshev distance); with none there, the element is visible.
+  /// this many pixels (Chebyshev distance, at most 64); with none there, the element is visible.
   uint32_t gap_radius_px = 1;
 };
 
@@ -160,7 +160,8 @@ class LassoProjector {
 /// eye depth a visible element may have (VisibilityOptions), +infinity where nothing hides.
 class VisibilityMap {
  public:
-  /// PreconditionError when the image's size is not the view's viewport or its span is short.
+  /// PreconditionError when the image's size is not the view's viewport, its span is short or
+  /// the gap radius is above 64. Cost: one pass over the image, (2r + 1)^2 reads per empty pixel.
   VisibilityMap(const DepthImage& depth, const LassoView& view, const VisibilityOptions& options);
   /// Whether an element at lasso pixel coordinates with this eye depth is visible (false outside
   /// the viewport).
