@@ -11,6 +11,11 @@
 // store's chunk cache warm; the baseline (one thread) once, on a fresh store. speedup = baseline
 // / lasso on one thread (like for like). Both must select the same points (column `equal`).
 // Prints CSV; writes OUT/lasso.csv and OUT/lasso.png.
+//
+// Measured here (dev preset, 2 cores shared with other builds, load about 5; docs/figures/
+// lasso.png): at 10^8 points the lasso reads 1,812 of the leaves (8.7 M points tested, 26 M
+// selected) and takes 0.57 s cold on one thread (0.36 s with the chunk cache warm) against 5.3 s
+// for the baseline; 0.16 s against 0.45 s at 10^7. Store builds on one thread: 3 s, 17 s, 252 s.
 #include <algorithm>
 #include <chrono>
 #include <cmath>

@@ -8,6 +8,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <optional>
 #include <random>
 
 #include <glm/gtc/matrix_transform.hpp>
@@ -106,8 +107,10 @@ Brute bruteForce(lod::LodHierarchy& tree, SelectionElements kind, const LassoVie
 }
 
 Brute brutePoints(lod::PointStore& store, const LassoView& view, const std::vector<dvec2>& poly,
-                  const VisibilityMap* visibility = nullptr) {
-  const glm::dmat4 model = glm::translate(glm::dmat4(1.0), store.summary().origin);
+                  const VisibilityMap* visibility = nullptr,
+                  std::optional<glm::dmat4> model_matrix = std::nullopt) {
+  const glm::dmat4 model =
+      model_matrix.value_or(glm::translate(glm::dmat4(1.0), store.summary().origin));
   uint64_t outside = 0;
   Brute b = bruteForce(store, SelectionElements::kPoints, view, model, poly, visibility,
                        [&](lod::NodeId id, auto&& f) {
@@ -298,6 +301,35 @@ TEST_F(LassoCubeTest, EyeInsideTheModelSelectsNothingBehindIt) {
   const LassoView corner = lookAt(c + dvec3(-0.45, -0.45, -0.45), c, 70.0);
   const auto w = wavy({400, 300}, 250);
   expectSame(lassoPoints(*store, corner, LassoPolygon(w)), brutePoints(*store, corner, w));
+}
+
+TEST_F(LassoCubeTest, OrthographicOffAxisAndModelMatricesEqualBruteForce) {
+  auto store = lod::PointStore::open(path_);
+  const dvec3 c = centreOf(store->summary());
+  const auto poly = wavy({380, 320}, 200);
+  LassoView view = lookAt(c + dvec3(1.0, -1.5, 0.8), c);
+  // Orthographic (clip.w = 1 everywhere: nothing is behind the eye).
+  view.projection = glm::ortho(-0.8, 0.8, -0.6, 0.6, 0.01, 10.0);
+  LassoResult r = lassoPoints(*store, view, LassoPolygon(poly));
+  expectSame(r, brutePoints(*store, view, poly));
+  EXPECT_GT(r.stats.nodes_whole, 0u);
+  // Off-axis, as a wall tile's frustum: the view's right third.
+  view.projection = glm::frustum(0.02, 0.09, -0.03, 0.03, 0.1, 10.0);
+  r = lassoPoints(*store, view, LassoPolygon(poly));
+  expectSame(r, brutePoints(*store, view, poly));
+  EXPECT_GT(r.selection.count(), 0u);
+  // A model instance turned and scaled (LassoOptions::model, local -> world): the same as
+  // brute force through the same matrix.
+  LassoOptions o;
+  o.model = glm::rotate(glm::scale(glm::translate(glm::dmat4(1.0), c), dvec3(1.5)), 0.7,
+                        glm::normalize(dvec3(1, 2, 3))) *
+            glm::translate(glm::dmat4(1.0),
+                           -0.5 * (store->summary().bbox_min + store->summary().bbox_max));
+  view = lookAt(c + dvec3(1.6, -2.2, 1.3), c);
+  r = lassoPoints(*store, view, LassoPolygon(poly), o);
+  const Brute b = brutePoints(*store, view, poly, nullptr, *o.model);
+  expectSame(r, b);
+  EXPECT_GT(r.selection.count(), 0u);
 }
 
 TEST_F(LassoCubeTest, CorruptChunksAreCountedAndSkipped) {
