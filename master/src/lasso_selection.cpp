@@ -220,6 +220,9 @@ struct PointSource {
     const double pad = double(n.error_bound) + 1e-6 * glm::length(n.box_max - n.box_min);
     return {n.box_min - pad, n.box_max + pad};
   }
+  /// Pages the store has refused, in this call or before (a refused page is not read again, so
+  /// children() throws only once for it).
+  uint64_t corruptPages() const { return store.cacheStats().corrupt_pages; }
   /// Calls f(index, local position) for every element of a leaf; returns their number. Throws
   /// StoreError.
   template <class F>
@@ -257,6 +260,7 @@ struct MeshSource {
   lod::MeshStore& store;
   std::vector<glm::dvec3> lo, hi;
 
+  uint64_t corruptPages() const { return 0; }  // the node table is checked on open
   std::pair<glm::dvec3, glm::dvec3> bounds(lod::NodeId id, const lod::NodeInfo&) const {
     // The table's boxes are floats; vertices sit on the store's grid.
     const double far = glm::length(glm::max(glm::abs(lo[id]), glm::abs(hi[id])));
@@ -309,6 +313,7 @@ class Lasso {
   LassoResult run(unsigned threads) {
     visit(mTree.root());  // metadata only: the hierarchy's pages
     testLeaves(threads);
+    mResult.stats.corrupt_pages = std::max(mResult.stats.corrupt_pages, mSource.corruptPages());
     return std::move(mResult);
   }
 

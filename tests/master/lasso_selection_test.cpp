@@ -6,6 +6,7 @@
 
 #include <cmath>
 #include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <optional>
@@ -56,10 +57,14 @@ std::vector<lod::NodeId> allLeaves(lod::LodHierarchy& tree) {
   while (!open.empty()) {
     const lod::NodeId id = open.back();
     open.pop_back();
-    if (tree.node(id).leaf())
+    if (tree.node(id).leaf()) {
       leaves.push_back(id);
-    else
+      continue;
+    }
+    try {
       for (lod::NodeId c : tree.children(id)) open.push_back(c);
+    } catch (const lod::StoreError&) {  // a corrupt page: its subtree is unreachable
+    }
   }
   return leaves;
 }
@@ -368,6 +373,42 @@ TEST_F(LassoCubeTest, CorruptChunksAreCountedAndSkipped) {
     const NodeSelection* mine = r.selection.node(id);
     ASSERT_NE(mine, nullptr) << "node " << id;
     EXPECT_TRUE(*mine == sel) << "node " << id;
+  }
+}
+
+TEST(LassoCorrupt, CorruptHierarchyPageIsCountedEveryTime) {
+  test::TempDir dir;  // a surface in small leaves: a hierarchy deeper than one page
+  lod::BuildOptions o;
+  o.quiet = true;
+  o.leaf_max = 400;
+  o.chunk_points = 20000;
+  lod::buildStore({kData / "stanford-bunny/scans/bun.conf"}, dir / "bunny.tlod", o);
+  auto bytes = test::readBytes(dir / "bunny.tlod");
+  lod::store::FileHeader h;
+  std::memcpy(&h, bytes.data(), sizeof h);
+  lod::store::PageHeader root;
+  std::memcpy(&root, bytes.data() + h.root_page_offset, sizeof root);
+  uint64_t page = 0;  // the first child page the root page points to
+  for (uint32_t i = 0; i < root.nodes && page == 0; ++i) {
+    lod::store::NodeRecord r;
+    std::memcpy(&r, bytes.data() + h.root_page_offset + sizeof root + i * sizeof r, sizeof r);
+    if (r.flags & lod::store::kHasPage) page = r.page_offset;
+  }
+  ASSERT_NE(page, 0u) << "the store has no child pages";
+  bytes[page + sizeof(lod::store::PageHeader) + 5] ^= 0x5A;
+  const fs::path copy = dir / "bad-page.tlod";
+  test::writeBytes(copy, bytes);
+  auto store = lod::PointStore::open(copy);
+  const dvec3 c = centreOf(store->summary());
+  const LassoView view = lookAt(c + dvec3(0.05, 0.08, 0.25), c);
+  const std::vector<dvec2> all = {{0, 0}, {800, 0}, {800, 600}, {0, 600}};
+  for (int call = 0; call < 2; ++call) {  // the store refuses the page once; both calls say so
+    const LassoResult r = lassoPoints(*store, view, LassoPolygon(all));
+    EXPECT_EQ(r.stats.corrupt_pages, 1u) << "call " << call;
+    EXPECT_GT(r.selection.count(), 0u);
+    const Brute b = brutePoints(*store, view, all);
+    EXPECT_LT(b.elements, store->summary().points);  // the subtree below the page is gone
+    expectSame(r, b);
   }
 }
 

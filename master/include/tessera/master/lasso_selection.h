@@ -185,7 +185,9 @@ struct LassoStats {
   uint64_t elements_tested = 0;
   /// Leaves whose payload failed its checksum or decoding: their elements are not selected.
   uint64_t corrupt_chunks = 0;
-  /// Hierarchy pages that failed: the subtrees below them are missing from the selection.
+  /// Hierarchy pages the store has refused, in this call or an earlier one (a point store reads a
+  /// bad page once: PointStore::cacheStats().corrupt_pages): the subtrees below them are missing
+  /// from the selection. Mesh stores check their whole table on open: always 0.
   uint64_t corrupt_pages = 0;
   std::vector<lod::NodeId> corrupt_nodes;  ///< the leaves counted in corrupt_chunks
 };
