@@ -8,7 +8,6 @@
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
-#include <fstream>
 #include <optional>
 #include <random>
 
@@ -339,24 +338,13 @@ TEST_F(LassoCubeTest, OrthographicOffAxisAndModelMatricesEqualBruteForce) {
 
 TEST_F(LassoCubeTest, CorruptChunksAreCountedAndSkipped) {
   const fs::path copy = dir_->path() / "corrupt.tlod";
-  fs::copy_file(path_, copy, fs::copy_options::overwrite_existing);
-  {
-    std::ifstream in(copy, std::ios::binary);
-    lod::store::FileHeader h;
-    in.read(reinterpret_cast<char*>(&h), sizeof h);
-    in.close();
-    std::fstream io(copy, std::ios::binary | std::ios::in | std::ios::out);
-    // A flipped byte every 20 KB of payload: most chunks fail their CRC.
-    for (uint64_t at = h.payload_offset + 100; at < h.payload_offset + h.payload_size;
-         at += 20000) {
-      io.seekg(std::streamoff(at));
-      char byte = 0;
-      io.read(&byte, 1);
-      byte = char(byte ^ 0x5A);
-      io.seekp(std::streamoff(at));
-      io.write(&byte, 1);
-    }
-  }
+  auto bytes = test::readBytes(path_);
+  lod::store::FileHeader h;
+  std::memcpy(&h, bytes.data(), sizeof h);
+  // A flipped byte every 20 KB of payload: most chunks fail their CRC.
+  for (uint64_t at = h.payload_offset + 100; at < h.payload_offset + h.payload_size; at += 20000)
+    bytes[at] ^= 0x5A;
+  test::writeBytes(copy, bytes);
   auto store = lod::PointStore::open(copy);
   const dvec3 c = centreOf(store->summary());
   const LassoView view = lookAt(c + dvec3(1.4, -2.0, 1.1), c);
