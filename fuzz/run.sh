@@ -5,13 +5,13 @@
 # which is also replayed first, so a regression that comes back fails at once.
 # Usage: fuzz/run.sh [SECONDS] [TARGET...]
 #   (targets: ply las text obj conf tlod chunk tmesh frame link site chunk_request voice wav
-#    video; default all)
+#    video selection; default all)
 set -euo pipefail
 
 cd "$(dirname "$0")/.."
 SECONDS_PER_TARGET=${1:-300}
 shift || true
-TARGETS=("${@:-ply las text obj conf tlod chunk tmesh frame link site chunk_request voice wav video}")
+TARGETS=("${@:-ply las text obj conf tlod chunk tmesh frame link site chunk_request voice wav video selection}")
 read -r -a TARGETS <<<"${TARGETS[*]}"
 DATA=${TESSERA_DATA_DIR:-$(cd .. && pwd)/shared/data}
 BUILD=build/fuzz
@@ -279,9 +279,23 @@ seed_wav() {
   wav odd8k.wav 1 8000 101
 }
 
+# Serialised selections (master/selection.h), checksums left zero (the target fixes them): all of
+# a node, two ranges, a bitset, and three nodes at once.
+seed_selection() {
+  local head='TSEL\x01\x00\x00\x00' sum='\x00\x00\x00\x00\x00\x00\x00\x00'
+  local all='\x00\x00\x00\x00\x64\x00\x00\x00\x00'
+  local ranges='\x03\x00\x00\x00\x2c\x01\x00\x00\x01\x02\x00\x00\x00'
+  ranges+='\x01\x00\x00\x00\x04\x00\x00\x00\xfa\x00\x00\x00\xfb\x00\x00\x00'
+  local bits='\x0c\x00\x00\x00\x80\x00\x00\x00\x02' word='\x33\x33\x33\x33\x33\x33\x33\x33'
+  printf "$head"'\x01\x00\x00\x00'"$all$sum" >all.sel
+  printf "$head"'\x01\x00\x00\x00'"$ranges$sum" >ranges.sel
+  printf "$head"'\x01\x00\x00\x00'"$bits$word$word$sum" >bits.sel
+  printf "$head"'\x03\x00\x00\x00'"$all$ranges$bits$word$word$sum" >three.sel
+}
+
 declare -A MAX_LEN=([ply]=8192 [las]=8192 [text]=4096 [obj]=4096 [conf]=1024 [tlod]=32768
   [chunk]=8192 [frame]=4096 [link]=4096 [site]=4096 [chunk_request]=1024 [voice]=8192
-  [wav]=16384 [tmesh]=16384 [video]=32768)
+  [wav]=16384 [tmesh]=16384 [video]=32768 [selection]=4096)
 export UBSAN_OPTIONS=halt_on_error=1:print_stacktrace=1
 status=0
 summary=()
