@@ -32,8 +32,11 @@ void printItem(AnnotationDb& db, const Item& it) {
   std::cout << it.id << "\t" << it.layer << (db.layerShown(it.layer) ? "" : " (hidden)") << "\t"
             << toString(it.kind) << "\t" << it.title;
   switch (it.kind) {
-    case ItemKind::kText: break;
-    case ItemKind::kNumber: std::cout << " = " << it.number << (it.unit.empty() ? "" : " ") << it.unit; break;
+    case ItemKind::kText:
+      break;
+    case ItemKind::kNumber:
+      std::cout << " = " << it.number << (it.unit.empty() ? "" : " ") << it.unit;
+      break;
     case ItemKind::kImage:
       std::cout << " [" << it.mime << ", "
                 << (it.path.empty() ? std::to_string(it.data.size()) + " bytes" : it.path) << "]";

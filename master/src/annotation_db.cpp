@@ -238,19 +238,26 @@ void throwSqlite(sqlite3* db, int rc, const std::filesystem::path& file, const s
 
 const char* toString(ItemKind kind) {
   switch (kind) {
-    case ItemKind::kText: return "text";
-    case ItemKind::kNumber: return "number";
-    case ItemKind::kImage: return "image";
-    case ItemKind::kLink: return "link";
+    case ItemKind::kText:
+      return "text";
+    case ItemKind::kNumber:
+      return "number";
+    case ItemKind::kImage:
+      return "image";
+    case ItemKind::kLink:
+      return "link";
   }
   return "text";
 }
 
 const char* toString(PlaceKind kind) {
   switch (kind) {
-    case PlaceKind::kSelection: return "selection";
-    case PlaceKind::kPoint: return "point";
-    case PlaceKind::kHotSpot: return "hotspot";
+    case PlaceKind::kSelection:
+      return "selection";
+    case PlaceKind::kPoint:
+      return "point";
+    case PlaceKind::kHotSpot:
+      return "hotspot";
   }
   return "point";
 }
@@ -271,14 +278,15 @@ AnnotationDb::AnnotationDb(const std::filesystem::path& file, AnnotationDbOption
     : mFile(file) {
   using Kind = AnnotationError::Kind;
   std::error_code ec;
-  const bool exists = std::filesystem::exists(file, ec);
+  const bool memory = file == ":memory:";
+  const bool exists = memory || std::filesystem::exists(file, ec);
   if (options.read_only && !exists)
     throw AnnotationError(Kind::kCannotOpen, prefix(file) + "does not exist");
   if (exists && std::filesystem::is_directory(file, ec))
     throw AnnotationError(Kind::kCannotOpen, prefix(file) + "is a folder, not a database file");
-  const int flags = (options.read_only ? SQLITE_OPEN_READONLY
-                                       : SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE) |
-                    SQLITE_OPEN_NOMUTEX;
+  const int flags =
+      (options.read_only ? SQLITE_OPEN_READONLY : SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE) |
+      SQLITE_OPEN_NOMUTEX;
   const int rc = sqlite3_open_v2(file.c_str(), &mDb, flags, nullptr);
   if (rc != SQLITE_OK) {
     // The handle exists even on failure (for its message) and must be closed.
@@ -307,12 +315,13 @@ AnnotationDb::AnnotationDb(const std::filesystem::path& file, AnnotationDbOption
                                 "; this build reads versions up to " +
                                 std::to_string(kSchemaVersion) + " (use a newer Tessera)");
     if (version == 0 && objects > 0)
-      throw AnnotationError(Kind::kNotADatabase,
-                            prefix(file) + "is an SQLite database but not an annotation "
-                                           "database (no schema version, " +
-                                std::to_string(objects) + " tables or indexes)");
+      throw AnnotationError(Kind::kNotADatabase, prefix(file) +
+                                                     "is an SQLite database but not an annotation "
+                                                     "database (no schema version, " +
+                                                     std::to_string(objects) +
+                                                     " tables or indexes)");
 
-    if (!options.read_only) {
+    if (!options.read_only && !memory) {
       // WAL: readers (the exporter, a second tool) never block the master's writes, and a
       // commit is one append to the log. It must be set outside a transaction.
       Statement wal(mDb, mFile, "PRAGMA journal_mode = WAL");
@@ -331,8 +340,10 @@ AnnotationDb::AnnotationDb(const std::filesystem::path& file, AnnotationDbOption
       transaction([&] {
         // Another process may have created or migrated it while this one waited for the lock.
         const int now = schemaVersion();
-        if (now == 0) exec(kSchemaV2Sql);
-        else if (now == 1) migrate(1);
+        if (now == 0)
+          exec(kSchemaV2Sql);
+        else if (now == 1)
+          migrate(1);
       });
     }
   } catch (...) {
@@ -457,7 +468,8 @@ void AnnotationDb::ensureLayer(const std::string& path) {
     throw AnnotationError(AnnotationError::Kind::kBadInput,
                           prefix(mFile) + "layer \"" + path + "\" " + problem);
   Statement s(mDb, mFile, "INSERT OR IGNORE INTO layers(path) VALUES (?1)");
-  for (size_t slash = path.find('/'); slash != std::string::npos; slash = path.find('/', slash + 1)) {
+  for (size_t slash = path.find('/'); slash != std::string::npos;
+       slash = path.find('/', slash + 1)) {
     s.bind(1, path.substr(0, slash)).run();
     s.reset();
   }
@@ -548,9 +560,9 @@ void AnnotationDb::checkItem(const Item& it, bool check_link_target) {
         bad("link_uri \"" + it.link_uri.substr(0, 60) + "\" has no scheme (https:, file:...)");
     }
     if (check_link_target && it.link_item != 0 && !item(it.link_item))
-      throw AnnotationError(AnnotationError::Kind::kNotFound,
-                            prefix(mFile) + "link to item " + std::to_string(it.link_item) +
-                                ", which does not exist");
+      throw AnnotationError(AnnotationError::Kind::kNotFound, prefix(mFile) + "link to item " +
+                                                                  std::to_string(it.link_item) +
+                                                                  ", which does not exist");
   }
 }
 
@@ -572,12 +584,16 @@ int64_t AnnotationDb::importItem(const Item& it, bool keep_id, bool link_later) 
                 "INSERT INTO items(id, layer, kind, title, body, number, unit, mime, path, data, "
                 "link_item, link_uri, author, created_us, modified_us, revision) VALUES "
                 "(?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16)");
-    if (keep_id) s.bind(1, it.id);
-    else s.bindNull(1);
+    if (keep_id)
+      s.bind(1, it.id);
+    else
+      s.bindNull(1);
     s.bind(2, it.layer).bind(3, toString(it.kind)).bind(4, it.title).bind(5, it.text);
     s.bind(6, it.number).bind(7, it.unit).bind(8, it.mime).bind(9, it.path).bind(10, it.data);
-    if (it.link_item) s.bind(11, it.link_item);
-    else s.bindNull(11);
+    if (it.link_item)
+      s.bind(11, it.link_item);
+    else
+      s.bindNull(11);
     s.bind(12, it.link_uri).bind(13, it.author).bind(14, it.created_us);
     s.bind(15, it.modified_us).bind(16, it.revision);
     s.run();
@@ -602,9 +618,9 @@ int64_t AnnotationDb::updateItem(const Item& item_in, int64_t base_revision,
                               std::to_string(kMaxNameBytes) + " bytes of UTF-8");
   checkItem(item_in);
   if (item_in.link_item == item_in.id && item_in.id != 0)
-    throw AnnotationError(AnnotationError::Kind::kBadInput,
-                          prefix(mFile) + "item " + std::to_string(item_in.id) +
-                              " cannot link to itself");
+    throw AnnotationError(
+        AnnotationError::Kind::kBadInput,
+        prefix(mFile) + "item " + std::to_string(item_in.id) + " cannot link to itself");
   int64_t revision = 0;
   transaction([&] {
     const std::optional<Item> current = item(item_in.id);
@@ -628,8 +644,10 @@ int64_t AnnotationDb::updateItem(const Item& item_in, int64_t base_revision,
     s.bind(1, item_in.id).bind(2, item_in.layer).bind(3, toString(item_in.kind));
     s.bind(4, item_in.title).bind(5, item_in.text).bind(6, item_in.number).bind(7, item_in.unit);
     s.bind(8, item_in.mime).bind(9, item_in.path).bind(10, item_in.data);
-    if (item_in.link_item) s.bind(11, item_in.link_item);
-    else s.bindNull(11);
+    if (item_in.link_item)
+      s.bind(11, item_in.link_item);
+    else
+      s.bindNull(11);
     s.bind(12, item_in.link_uri).bind(13, author).bind(14, nowMicroseconds()).bind(15, revision);
     s.run();
   });
@@ -643,18 +661,18 @@ void AnnotationDb::removeItem(int64_t id, int64_t base_revision) {
       throw AnnotationError(AnnotationError::Kind::kNotFound,
                             prefix(mFile) + "no item " + std::to_string(id));
     if (current->revision != base_revision)
-      throw AnnotationError(AnnotationError::Kind::kConflict,
-                            prefix(mFile) + "item " + std::to_string(id) +
-                                ": removal based on revision " + std::to_string(base_revision) +
-                                " but the item is at revision " +
-                                std::to_string(current->revision) + " (by " + current->author +
-                                ")");
+      throw AnnotationError(
+          AnnotationError::Kind::kConflict,
+          prefix(mFile) + "item " + std::to_string(id) + ": removal based on revision " +
+              std::to_string(base_revision) + " but the item is at revision " +
+              std::to_string(current->revision) + " (by " + current->author + ")");
     Statement(mDb, mFile, "DELETE FROM items WHERE id = ?1").bind(1, id).run();
   });
 }
 
 std::optional<Item> AnnotationDb::item(int64_t id) {
-  Statement s(mDb, mFile, (std::string("SELECT ") + kItemColumns + " FROM items WHERE id = ?1").c_str());
+  Statement s(mDb, mFile,
+              (std::string("SELECT ") + kItemColumns + " FROM items WHERE id = ?1").c_str());
   s.bind(1, id);
   if (!s.step()) return std::nullopt;
   return readItem(s);
@@ -682,9 +700,9 @@ std::vector<int64_t> AnnotationDb::linksTo(int64_t id) {
 
 void AnnotationDb::checkPlace(const Place& p) {
   auto bad = [&](const std::string& what) {
-    throw AnnotationError(AnnotationError::Kind::kBadInput,
-                          prefix(mFile) + toString(p.kind) + " on \"" + p.model.substr(0, 40) +
-                              "\": " + what);
+    throw AnnotationError(
+        AnnotationError::Kind::kBadInput,
+        prefix(mFile) + toString(p.kind) + " on \"" + p.model.substr(0, 40) + "\": " + what);
   };
   if (p.model.empty() || p.model.size() > kMaxNameBytes || !detail::validUtf8(p.model))
     bad("model must be 1 to " + std::to_string(kMaxNameBytes) + " bytes of UTF-8");
@@ -726,12 +744,14 @@ int64_t AnnotationDb::importPlace(const Place& p, bool keep_id) {
                 "eye_z, target_x, target_y, target_z, up_x, up_y, up_z, fovy_deg, selection_id, "
                 "selection) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, "
                 "?15, ?16, ?17, ?18, ?19, ?20)");
-    if (keep_id) s.bind(1, p.id);
-    else s.bindNull(1);
+    if (keep_id)
+      s.bind(1, p.id);
+    else
+      s.bindNull(1);
     s.bind(2, toString(p.kind)).bind(3, p.model);
     s.bind(4, p.position.x).bind(5, p.position.y).bind(6, p.position.z).bind(7, p.radius);
-    const StoredView v = p.view.value_or(StoredView{glm::dvec3(0.0), glm::dvec3(0.0),
-                                                    glm::dvec3(0.0), 0.0});
+    const StoredView v =
+        p.view.value_or(StoredView{glm::dvec3(0.0), glm::dvec3(0.0), glm::dvec3(0.0), 0.0});
     s.bind(8, p.view ? 1 : 0);
     for (int a = 0; a < 3; ++a) {
       s.bind(9 + a, v.eye[a]).bind(12 + a, v.target[a]).bind(15 + a, v.up[a]);
@@ -743,7 +763,9 @@ int64_t AnnotationDb::importPlace(const Place& p, bool keep_id) {
   return id;
 }
 
-int64_t AnnotationDb::addPlace(const Place& place) { return importPlace(place, false); }
+int64_t AnnotationDb::addPlace(const Place& place) {
+  return importPlace(place, false);
+}
 
 std::optional<Place> AnnotationDb::place(int64_t id) {
   Statement s(mDb, mFile,
@@ -840,8 +862,7 @@ std::vector<SearchHit> AnnotationDb::search(const std::string& query, int limit)
     // A malformed query is SQLITE_ERROR from the step ("fts5: syntax error near ...").
     if (e.kind() != Kind::kIo) throw;
     throw AnnotationError(Kind::kBadQuery, prefix(mFile) + "search \"" + query.substr(0, 80) +
-                                               "\": malformed query (" + sqlite3_errmsg(mDb) +
-                                               ")");
+                                               "\": malformed query (" + sqlite3_errmsg(mDb) + ")");
   }
   return out;
 }

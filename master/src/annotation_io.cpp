@@ -37,10 +37,11 @@ std::string viewJson(const StoredView& v, const glm::dvec3& offset = glm::dvec3(
 
 std::string itemJson(const Item& it) {
   std::string s = "{\"id\": " + std::to_string(it.id) + ", \"layer\": " + jsonString(it.layer) +
-                  ", \"kind\": " + jsonString(toString(it.kind)) + ", \"title\": " + jsonString(it.title) +
-                  ", \"text\": " + jsonString(it.text);
+                  ", \"kind\": " + jsonString(toString(it.kind)) +
+                  ", \"title\": " + jsonString(it.title) + ", \"text\": " + jsonString(it.text);
   switch (it.kind) {
-    case ItemKind::kText: break;
+    case ItemKind::kText:
+      break;
     case ItemKind::kNumber:
       s += ", \"number\": " + json::number(it.number) + ", \"unit\": " + jsonString(it.unit);
       break;
@@ -54,14 +55,16 @@ std::string itemJson(const Item& it) {
                         : ", \"link_uri\": " + jsonString(it.link_uri);
       break;
   }
-  s += ", \"author\": " + jsonString(it.author) + ", \"created_us\": " + std::to_string(it.created_us) +
+  s += ", \"author\": " + jsonString(it.author) +
+       ", \"created_us\": " + std::to_string(it.created_us) +
        ", \"modified_us\": " + std::to_string(it.modified_us) +
        ", \"revision\": " + std::to_string(it.revision) + "}";
   return s;
 }
 
 std::string placeJson(const Place& p) {
-  std::string s = "{\"id\": " + std::to_string(p.id) + ", \"kind\": " + jsonString(toString(p.kind)) +
+  std::string s = "{\"id\": " + std::to_string(p.id) +
+                  ", \"kind\": " + jsonString(toString(p.kind)) +
                   ", \"model\": " + jsonString(p.model) + ", \"position\": " + vec(p.position);
   if (p.kind == PlaceKind::kHotSpot) s += ", \"radius\": " + json::number(p.radius);
   if (p.view) s += ", \"view\": " + viewJson(*p.view);
@@ -124,8 +127,8 @@ class Fields {
     const Value* v = optional(key);
     if (!v) fail(at(key), "missing");
     if (v->type != type)
-      fail(at(key), std::string("expected ") + json::typeName(type) + ", found " +
-                        json::typeName(v->type));
+      fail(at(key),
+           std::string("expected ") + json::typeName(type) + ", found " + json::typeName(v->type));
     return *v;
   }
   std::string string(const char* key) { return required(key, Value::Type::kString).text; }
@@ -133,7 +136,9 @@ class Fields {
     return optional(key) ? string(key) : fallback;
   }
   bool boolean(const char* key) { return required(key, Value::Type::kBool).boolean; }
-  int64_t integer(const char* key) { return toInteger(required(key, Value::Type::kNumber), at(key)); }
+  int64_t integer(const char* key) {
+    return toInteger(required(key, Value::Type::kNumber), at(key));
+  }
   int64_t toInteger(const Value& v, const std::string& path) const {
     int64_t out = 0;
     const auto [end, ec] = std::from_chars(v.text.data(), v.text.data() + v.text.size(), out);
@@ -211,7 +216,8 @@ void exportJson(AnnotationDb& db, std::ostream& out) {
                   ",\n\"version\": " + std::to_string(kFormatVersion) + ",\n\"georeference\": ";
   if (const auto geo = db.georeference())
     s += "{\"crs\": " + jsonString(geo->first) + ", \"origin\": " + vec(geo->second) + "}";
-  else s += "null";
+  else
+    s += "null";
   s += ",\n\"layers\": [";
   const std::vector<Layer> layers = db.layers();
   for (size_t i = 0; i < layers.size(); ++i)
@@ -256,11 +262,10 @@ void exportCsv(AnnotationDb& db, std::ostream& out, const std::string& layer) {
         << (number ? json::number(it.number) : "") << ',' << csvField(it.unit) << ','
         << csvField(it.mime) << ',' << csvField(it.path) << ','
         << (it.data.empty() ? "" : std::to_string(it.data.size())) << ','
-        << (it.link_item ? std::to_string(it.link_item) : "") << ',' << csvField(it.link_uri)
-        << ',' << csvField(it.author) << ',' << isoTime(it.created_us) << ','
-        << isoTime(it.modified_us) << ',' << it.revision << ',' << places << ','
-        << (at ? json::number(at->x) : "") << ',' << (at ? json::number(at->y) : "") << ','
-        << (at ? json::number(at->z) : "") << "\r\n";
+        << (it.link_item ? std::to_string(it.link_item) : "") << ',' << csvField(it.link_uri) << ','
+        << csvField(it.author) << ',' << isoTime(it.created_us) << ',' << isoTime(it.modified_us)
+        << ',' << it.revision << ',' << places << ',' << (at ? json::number(at->x) : "") << ','
+        << (at ? json::number(at->y) : "") << ',' << (at ? json::number(at->z) : "") << "\r\n";
   }
 }
 
@@ -285,17 +290,18 @@ void exportGeoJson(AnnotationDb& db, std::ostream& out, const std::optional<Geor
   std::string urn = geo->crs;
   if (const size_t colon = urn.find(':'); colon != std::string::npos && urn.find("urn:") != 0)
     urn = "urn:ogc:def:crs:" + urn.substr(0, colon) + "::" + urn.substr(colon + 1);
-  std::string s = "{\"type\": \"FeatureCollection\",\n\"crs\": {\"type\": \"name\", "
-                  "\"properties\": {\"name\": " +
-                  jsonString(urn) + "}},\n\"features\": [";
+  std::string s =
+      "{\"type\": \"FeatureCollection\",\n\"crs\": {\"type\": \"name\", "
+      "\"properties\": {\"name\": " +
+      jsonString(urn) + "}},\n\"features\": [";
   bool first = true;
   for (const Place& p : db.places()) {
     if (p.kind == PlaceKind::kSelection) continue;
     std::string items;
     for (int64_t id : db.itemsAt(p.id))
       if (const auto it = db.item(id)) items += (items.empty() ? "" : ", ") + itemJson(*it);
-    s += (first ? "\n" : ",\n") +
-         std::string("{\"type\": \"Feature\", \"id\": ") + std::to_string(p.id) +
+    s += (first ? "\n" : ",\n") + std::string("{\"type\": \"Feature\", \"id\": ") +
+         std::to_string(p.id) +
          ", \"geometry\": {\"type\": \"Point\", \"coordinates\": " + vec(geo->origin + p.position) +
          "}, \"properties\": {\"kind\": " + jsonString(toString(p.kind)) +
          ", \"model\": " + jsonString(p.model) + ", \"local_position\": " + vec(p.position);
@@ -360,11 +366,15 @@ ImportCounts importJson(AnnotationDb& db, std::string_view bytes, const std::str
       it.unit = f.string("unit");
     } else if (it.kind == ItemKind::kImage) {
       it.mime = f.string("mime");
-      if (f.optional("data")) it.data = f.base64("data");
-      else it.path = f.string("path");
+      if (f.optional("data"))
+        it.data = f.base64("data");
+      else
+        it.path = f.string("path");
     } else if (it.kind == ItemKind::kLink) {
-      if (f.optional("link_item")) it.link_item = f.integer("link_item");
-      else it.link_uri = f.string("link_uri");
+      if (f.optional("link_item"))
+        it.link_item = f.integer("link_item");
+      else
+        it.link_uri = f.string("link_uri");
     }
     it.author = f.string("author");
     it.created_us = f.integer("created_us");

@@ -46,8 +46,12 @@ class Parser {
     if (depth > mMaxDepth) fail("nested deeper than " + std::to_string(mMaxDepth) + " levels");
     Value v;
     switch (peek()) {
-      case '{': object(v, depth); break;
-      case '[': array(v, depth); break;
+      case '{':
+        object(v, depth);
+        break;
+      case '[':
+        array(v, depth);
+        break;
       case '"':
         v.type = Value::Type::kString;
         v.text = string();
@@ -61,8 +65,11 @@ class Parser {
         literal("false");
         v.type = Value::Type::kBool;
         break;
-      case 'n': literal("null"); break;
-      default: number(v);
+      case 'n':
+        literal("null");
+        break;
+      default:
+        number(v);
     }
     return v;
   }
@@ -121,10 +128,14 @@ class Parser {
     for (int i = 0; i < 4; ++i) {
       const char c = mText[mPos++];
       cp <<= 4;
-      if (c >= '0' && c <= '9') cp |= unsigned(c - '0');
-      else if (c >= 'a' && c <= 'f') cp |= unsigned(c - 'a' + 10);
-      else if (c >= 'A' && c <= 'F') cp |= unsigned(c - 'A' + 10);
-      else fail("bad hex digit in a \\u escape");
+      if (c >= '0' && c <= '9')
+        cp |= unsigned(c - '0');
+      else if (c >= 'a' && c <= 'f')
+        cp |= unsigned(c - 'a' + 10);
+      else if (c >= 'A' && c <= 'F')
+        cp |= unsigned(c - 'A' + 10);
+      else
+        fail("bad hex digit in a \\u escape");
     }
     return cp;
   }
@@ -163,14 +174,30 @@ class Parser {
       if (atEnd()) fail("unterminated escape");
       const char e = mText[mPos++];
       switch (e) {
-        case '"': out += '"'; break;
-        case '\\': out += '\\'; break;
-        case '/': out += '/'; break;
-        case 'b': out += '\b'; break;
-        case 'f': out += '\f'; break;
-        case 'n': out += '\n'; break;
-        case 'r': out += '\r'; break;
-        case 't': out += '\t'; break;
+        case '"':
+          out += '"';
+          break;
+        case '\\':
+          out += '\\';
+          break;
+        case '/':
+          out += '/';
+          break;
+        case 'b':
+          out += '\b';
+          break;
+        case 'f':
+          out += '\f';
+          break;
+        case 'n':
+          out += '\n';
+          break;
+        case 'r':
+          out += '\r';
+          break;
+        case 't':
+          out += '\t';
+          break;
         case 'u': {
           unsigned cp = hex4();
           if (cp >= 0xdc00 && cp <= 0xdfff) fail("lone low surrogate in a \\u escape");
@@ -185,7 +212,8 @@ class Parser {
           appendUtf8(out, cp);
           break;
         }
-        default: fail(std::string("bad escape '\\") + e + "'");
+        default:
+          fail(std::string("bad escape '\\") + e + "'");
       }
     }
     if (!detail::validUtf8(out)) {
@@ -204,8 +232,10 @@ class Parser {
       return mPos - from;
     };
     if (peek() == '-') ++mPos;
-    if (peek() == '0' && !atEnd()) ++mPos;
-    else if (digits() == 0) fail("expected a value");
+    if (peek() == '0' && !atEnd())
+      ++mPos;
+    else if (digits() == 0)
+      fail("expected a value");
     if (peek() == '.' && !atEnd()) {
       ++mPos;
       if (digits() == 0) fail("expected digits after '.'");
@@ -230,27 +260,45 @@ constexpr char kBase64[] = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz
 
 const char* typeName(Value::Type type) {
   switch (type) {
-    case Value::Type::kNull: return "null";
-    case Value::Type::kBool: return "a boolean";
-    case Value::Type::kNumber: return "a number";
-    case Value::Type::kString: return "a string";
-    case Value::Type::kArray: return "an array";
-    case Value::Type::kObject: return "an object";
+    case Value::Type::kNull:
+      return "null";
+    case Value::Type::kBool:
+      return "a boolean";
+    case Value::Type::kNumber:
+      return "a number";
+    case Value::Type::kString:
+      return "a string";
+    case Value::Type::kArray:
+      return "an array";
+    case Value::Type::kObject:
+      return "an object";
   }
   return "?";
 }
 
-Value parse(std::string_view text, int max_depth) { return Parser(text, max_depth).document(); }
+Value parse(std::string_view text, int max_depth) {
+  return Parser(text, max_depth).document();
+}
 
 void appendString(std::string& out, std::string_view s) {
   out += '"';
   for (const char c : s) {
     switch (c) {
-      case '"': out += "\\\""; break;
-      case '\\': out += "\\\\"; break;
-      case '\n': out += "\\n"; break;
-      case '\r': out += "\\r"; break;
-      case '\t': out += "\\t"; break;
+      case '"':
+        out += "\\\"";
+        break;
+      case '\\':
+        out += "\\\\";
+        break;
+      case '\n':
+        out += "\\n";
+        break;
+      case '\r':
+        out += "\\r";
+        break;
+      case '\t':
+        out += "\\t";
+        break;
       default:
         if (static_cast<unsigned char>(c) < 0x20 || c == 0x7f) {
           char buf[8];

@@ -75,8 +75,7 @@ class Statement {
   }
   std::vector<uint8_t> blob(int c) const {
     const auto* p = static_cast<const uint8_t*>(sqlite3_column_blob(mStmt, c));
-    return p ? std::vector<uint8_t>(p, p + sqlite3_column_bytes(mStmt, c))
-             : std::vector<uint8_t>();
+    return p ? std::vector<uint8_t>(p, p + sqlite3_column_bytes(mStmt, c)) : std::vector<uint8_t>();
   }
 
  private:

@@ -18,6 +18,7 @@
 
 #include <gtest/gtest.h>
 
+#include "../../fuzz/annotation_fuzz.h"
 #include "../../master/src/json.h"
 #include "../support/process.h"
 #include "../support/temp_dir.h"
@@ -287,7 +288,8 @@ TEST(AnnotationDb, FullTextSearch) {
                "There is a long sentence here about many things and then a crack appears "
                "somewhere among the other words of the note"),
       "s");
-  const int64_t phrase = db.addItem(textItem("history", "Edo restoration", "paint loss 0.3 m2"), "s");
+  const int64_t phrase =
+      db.addItem(textItem("history", "Edo restoration", "paint loss 0.3 m2"), "s");
   const int64_t accent = db.addItem(textItem("history", "Fresque abîmée", "église"), "s");
   const int64_t by_layer = db.addItem(textItem("conservation/cracks", "Untitled"), "s");
   for (int i = 0; i < 20; ++i) db.addItem(textItem("filler", "Other " + std::to_string(i)), "s");
@@ -326,8 +328,8 @@ TEST(AnnotationDb, FullTextSearch) {
   EXPECT_TRUE(db.search("crack").empty());
 
   // Malformed queries are refused with a reason, never a crash.
-  for (const char* bad : {"\"unterminated", "crack AND", "(crack", "nosuchcolumn: x", "*", "AND",
-                          "crack NEAR(", ")"})
+  for (const char* bad :
+       {"\"unterminated", "crack AND", "(crack", "nosuchcolumn: x", "*", "AND", "crack NEAR(", ")"})
     expectError(Kind::kBadQuery, "search", [&] { db.search(bad); });
   expectError(Kind::kBadQuery, "1 to 4096", [&] { db.search(""); });
   expectError(Kind::kBadQuery, "1 to 4096", [&] { db.search(std::string(5000, 'a')); });
@@ -382,7 +384,8 @@ TEST(AnnotationDb, RefusesBadFiles) {
   const auto newer = dir / "newer.tadb";
   { AnnotationDb db(newer); }
   rawSql(newer, "PRAGMA user_version = 3");
-  expectError(Kind::kNewerSchema, "newer.tadb: has schema version 3", [&] { AnnotationDb db(newer); });
+  expectError(Kind::kNewerSchema, "newer.tadb: has schema version 3",
+              [&] { AnnotationDb db(newer); });
 
   // Not a database at all.
   const auto text = dir / "notes.txt";
@@ -424,7 +427,10 @@ TEST(AnnotationDb, RefusesBadFiles) {
 
   // Read-only: a database opened read-only refuses writes.
   const auto good = dir / "good.tadb";
-  { AnnotationDb db(good); db.addItem(textItem("l", "t"), "s"); }
+  {
+    AnnotationDb db(good);
+    db.addItem(textItem("l", "t"), "s");
+  }
   {
     AnnotationDb ro(good, {.read_only = true});
     EXPECT_EQ(ro.items().size(), 1u);
@@ -435,7 +441,8 @@ TEST(AnnotationDb, RefusesBadFiles) {
     const auto locked = dir / "locked";
     std::filesystem::create_directory(locked);
     chmod(locked.c_str(), 0555);
-    expectError(Kind::kCannotOpen, "locked/new.tadb", [&] { AnnotationDb db(locked / "new.tadb"); });
+    expectError(Kind::kCannotOpen, "locked/new.tadb",
+                [&] { AnnotationDb db(locked / "new.tadb"); });
     chmod(locked.c_str(), 0755);
   }
 }
@@ -641,8 +648,7 @@ TEST(AnnotationExport, ImportRefusesMalformedFilesWhole) {
   expectRefused(replaced("\"id\": 2, \"layer\"", "\"id\": 1, \"layer\""), "appears twice");
   expectRefused(replaced("\"title\": \"crack length\"", "\"title\": \"bad \\ud800 surrogate\""),
                 "surrogate");
-  expectRefused(replaced("\"mime\": \"image/png\"", "\"mime\": \"text/plain\""),
-                "$.items[3]: ");
+  expectRefused(replaced("\"mime\": \"image/png\"", "\"mime\": \"text/plain\""), "$.items[3]: ");
   EXPECT_TRUE(db.layers().empty());
   EXPECT_TRUE(db.places().empty());
   importJson(db, good, "in.json");  // and the good file still imports
@@ -678,14 +684,14 @@ TEST(AnnotationExport, CsvAndGeoJson) {
   // GeoJSON needs a georeference, and a projected one.
   std::ostringstream geo;
   expectError(Kind::kBadInput, "not georeferenced", [&] { exportGeoJson(db, geo); });
-  expectError(Kind::kBadInput, "geographic",
-              [&] { exportGeoJson(db, geo, Georeference{"EPSG:4326", {0, 0, 0}}); });
+  expectError(Kind::kBadInput, "geographic", [&] {
+    exportGeoJson(db, geo, Georeference{"EPSG:4326", {0, 0, 0}});
+  });
   db.setGeoreference("EPSG:32654", {500000.0, 3950000.0, 10.0});
   exportGeoJson(db, geo);
   const auto doc = json::parse(geo.str());
   EXPECT_EQ(doc.find("type")->text, "FeatureCollection");
-  EXPECT_EQ(doc.find("crs")->find("properties")->find("name")->text,
-            "urn:ogc:def:crs:EPSG::32654");
+  EXPECT_EQ(doc.find("crs")->find("properties")->find("name")->text, "urn:ogc:def:crs:EPSG::32654");
   const auto& features = doc.find("features")->array;
   ASSERT_EQ(features.size(), 2u);  // the hot spot and the point; the selection has no position
   const auto& spot = features[0];
@@ -700,6 +706,27 @@ TEST(AnnotationExport, CsvAndGeoJson) {
   EXPECT_EQ(props->find("items")->array.size(), 2u);
   EXPECT_EQ(props->find("items")->array[0].find("title")->text, "Crack, diagonal");
   EXPECT_NE(props->find("view"), nullptr);
+}
+
+// The fuzz target's seeds and every input it ever crashed on (fuzz/annotation_fuzz.h), through
+// the same checks: refused whole, or imported with an exact export round trip.
+TEST(AnnotationFuzz, SeedsAndRegressionsReplay) {
+  const std::filesystem::path fuzz_dir = TESSERA_FUZZ_DIR;
+  size_t replayed = 0;
+  for (const char* dir : {"seeds/annotation", "regressions/annotation"}) {
+    if (!std::filesystem::exists(fuzz_dir / dir)) continue;
+    for (const auto& entry : std::filesystem::directory_iterator(fuzz_dir / dir)) {
+      const auto bytes = tessera::test::readBytes(entry.path());
+      SCOPED_TRACE(entry.path().string());
+      tessera::fuzz::importAnnotations(bytes.data(), bytes.size());  // aborts on a broken rule
+      ++replayed;
+    }
+  }
+  EXPECT_GE(replayed, 2u);
+  // The seed with every kind imports (the replay above would pass on a refusal too).
+  AnnotationDb db(":memory:");
+  const std::string seed = slurp(fuzz_dir / "seeds/annotation/every-kind.json");
+  EXPECT_EQ(importJson(db, seed, "every-kind.json").items, 7u);
 }
 
 // --- The tool ---------------------------------------------------------------------------------
@@ -733,33 +760,30 @@ TEST(AnnotateTool, SubcommandsAndExitCodes) {
                     log),
             2);
   EXPECT_EQ(runTool({"-d", db, "search", "\"broken"}, log), 1);
-  EXPECT_EQ(runTool({"-d", db, "export", "--format", "geojson", "-o", (dir / "g.json").string()},
-                    log),
-            1);
+  EXPECT_EQ(
+      runTool({"-d", db, "export", "--format", "geojson", "-o", (dir / "g.json").string()}, log),
+      1);
   EXPECT_EQ(runTool({"-d", db, "export", "--format", "json", "-o", db}, log), 2);
-  EXPECT_EQ(runTool({"-d", db, "export", "--format", "json", "-o", (dir / "e.json").string()},
-                    log),
+  EXPECT_EQ(runTool({"-d", db, "export", "--format", "json", "-o", (dir / "e.json").string()}, log),
             0);
-  EXPECT_EQ(runTool({"-d", db, "export", "--format", "json", "-o",
-                     (dir / "no/such/dir/e.json").string()},
-                    log),
-            3);
-  EXPECT_EQ(runTool({"-d", (dir / "copy.tadb").string(), "import", (dir / "e.json").string()},
-                    log),
+  EXPECT_EQ(
+      runTool({"-d", db, "export", "--format", "json", "-o", (dir / "no/such/dir/e.json").string()},
+              log),
+      3);
+  EXPECT_EQ(runTool({"-d", (dir / "copy.tadb").string(), "import", (dir / "e.json").string()}, log),
             0);
-  EXPECT_EQ(runTool({"-d", (dir / "copy.tadb").string(), "import", (dir / "e.json").string()},
-                    log),
+  EXPECT_EQ(runTool({"-d", (dir / "copy.tadb").string(), "import", (dir / "e.json").string()}, log),
             0);  // into a non-empty database: new ids
   EXPECT_EQ(AnnotationDb(dir / "copy.tadb").items().size(), 4u);
   EXPECT_EQ(runTool({"-d", db, "import", db}, log), 1);  // not JSON
   EXPECT_EQ(runTool({"-d", db, "layers", "--hide", "a/b"}, log), 0);
   EXPECT_EQ(runTool({"-d", db, "layers", "--hide", "nope"}, log), 1);
-  EXPECT_EQ(runTool({"-d", db, "georef", "--crs", "EPSG:2056", "--origin", "2600000,1200000,400"},
-                    log),
-            0);
-  EXPECT_EQ(runTool({"-d", db, "export", "--format", "geojson", "-o", (dir / "g.json").string()},
-                    log),
-            0);
+  EXPECT_EQ(
+      runTool({"-d", db, "georef", "--crs", "EPSG:2056", "--origin", "2600000,1200000,400"}, log),
+      0);
+  EXPECT_EQ(
+      runTool({"-d", db, "export", "--format", "geojson", "-o", (dir / "g.json").string()}, log),
+      0);
   EXPECT_EQ(runTool({"-d", (dir / "notes.txt").string(), "list"}, log), 0);  // created empty
   tessera::test::writeText(dir / "junk.tadb", std::string(2000, 'j'));
   EXPECT_EQ(runTool({"-d", (dir / "junk.tadb").string(), "list"}, log), 1);
@@ -831,9 +855,10 @@ TEST(AnnotateTool, AcknowledgedItemsSurviveKill9) {
   // The full-text index agrees with the table after the crashes.
   sqlite3* raw = db.handle();
   char* error = nullptr;
-  EXPECT_EQ(sqlite3_exec(raw, "INSERT INTO items_fts(items_fts, rank) VALUES ('integrity-check', 1)",
-                         nullptr, nullptr, &error),
-            SQLITE_OK)
+  EXPECT_EQ(
+      sqlite3_exec(raw, "INSERT INTO items_fts(items_fts, rank) VALUES ('integrity-check', 1)",
+                   nullptr, nullptr, &error),
+      SQLITE_OK)
       << (error ? error : "");
   sqlite3_free(error);
 }

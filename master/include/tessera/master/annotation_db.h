@@ -80,12 +80,12 @@ constexpr int kSchemaVersion = 2;
 
 /// Bounds on what an item may hold, so a bad site or import cannot fill the disk or the wall.
 constexpr size_t kMaxTitleBytes = 1024;
-constexpr size_t kMaxTextBytes = 1 << 20;             ///< text body, URIs, paths
-constexpr size_t kMaxBlobBytes = 16 << 20;            ///< an embedded image
-constexpr size_t kMaxSelectionBytes = 64 << 20;       ///< a selection's per-chunk ranges
-constexpr size_t kMaxLayerPathBytes = 256;            ///< "a/b/c", at most 16 levels
-constexpr size_t kMaxNameBytes = 256;                 ///< authors, models, units, MIME types
-constexpr double kMaxCoordinate = 1e12;               ///< metres, |x|, |y|, |z|
+constexpr size_t kMaxTextBytes = 1 << 20;        ///< text body, URIs, paths
+constexpr size_t kMaxBlobBytes = 16 << 20;       ///< an embedded image
+constexpr size_t kMaxSelectionBytes = 64 << 20;  ///< a selection's per-chunk ranges
+constexpr size_t kMaxLayerPathBytes = 256;       ///< "a/b/c", at most 16 levels
+constexpr size_t kMaxNameBytes = 256;            ///< authors, models, units, MIME types
+constexpr double kMaxCoordinate = 1e12;          ///< metres, |x|, |y|, |z|
 
 enum class ItemKind { kText, kNumber, kImage, kLink };
 enum class PlaceKind { kSelection, kPoint, kHotSpot };
@@ -105,8 +105,8 @@ struct StoredView {
 };
 
 struct Layer {
-  std::string path;      ///< "a/b/c": segments of printable text without '/', none empty
-  bool visible = true;   ///< its own flag; shownLayers() also looks at the ancestors
+  std::string path;     ///< "a/b/c": segments of printable text without '/', none empty
+  bool visible = true;  ///< its own flag; shownLayers() also looks at the ancestors
   bool operator==(const Layer&) const = default;
 };
 
@@ -114,8 +114,8 @@ struct Item {
   int64_t id = 0;  ///< assigned by addItem()
   std::string layer;
   ItemKind kind = ItemKind::kText;
-  std::string title;  ///< a label, at most kMaxTitleBytes
-  std::string text;   ///< the text (kText) or a caption (other kinds)
+  std::string title;          ///< a label, at most kMaxTitleBytes
+  std::string text;           ///< the text (kText) or a caption (other kinds)
   double number = 0.0;        ///< kNumber: finite
   std::string unit;           ///< kNumber: "m", "m^2", "deg", may be empty
   std::string mime;           ///< kImage: "image/png"...
@@ -125,20 +125,20 @@ struct Item {
   std::string link_uri;       ///< kLink: a document ("https://...", "file:///...")
   // Set by the database; the values passed to addItem()/updateItem() are ignored.
   std::string author;
-  int64_t created_us = 0;   ///< microseconds since the Unix epoch, UTC
+  int64_t created_us = 0;  ///< microseconds since the Unix epoch, UTC
   int64_t modified_us = 0;
-  int64_t revision = 0;     ///< 1 when added, +1 per applied update
+  int64_t revision = 0;  ///< 1 when added, +1 per applied update
   bool operator==(const Item&) const = default;
 };
 
 struct Place {
   int64_t id = 0;
   PlaceKind kind = PlaceKind::kPoint;
-  std::string model;             ///< the scene's model id
-  glm::dvec3 position{0.0};      ///< kPoint, kHotSpot: world metres
-  double radius = 0.0;           ///< kHotSpot: metres, > 0
+  std::string model;               ///< the scene's model id
+  glm::dvec3 position{0.0};        ///< kPoint, kHotSpot: world metres
+  double radius = 0.0;             ///< kHotSpot: metres, > 0
   std::optional<StoredView> view;  ///< required for kHotSpot, optional otherwise
-  std::string selection_id;      ///< kSelection: the selection code's id
+  std::string selection_id;        ///< kSelection: the selection code's id
   std::vector<uint8_t> selection;  ///< kSelection: opaque (per-chunk ranges)
   bool operator==(const Place&) const = default;
 };
@@ -162,7 +162,7 @@ class AnnotationDb {
   /// Opens or creates `file` (created only when it does not exist and !read_only), checks its
   /// schema version, migrates a v1 file, and turns on WAL, foreign keys and the chosen sync.
   /// Throws AnnotationError naming the file: kCannotOpen, kNotADatabase, kCorrupt,
-  /// kNewerSchema.
+  /// kNewerSchema. ":memory:" opens a private database in memory (no WAL; fuzzing, tests).
   explicit AnnotationDb(const std::filesystem::path& file, AnnotationDbOptions options = {});
   ~AnnotationDb();
   AnnotationDb(AnnotationDb&& other) noexcept;
@@ -177,7 +177,7 @@ class AnnotationDb {
   /// Creates the layer and its ancestors (visible); no-op if it exists. kBadInput on a bad path.
   void addLayer(const std::string& path);
   void setLayerVisible(const std::string& path, bool visible);  ///< kNotFound if absent
-  std::vector<Layer> layers();  ///< all, sorted by path
+  std::vector<Layer> layers();                                  ///< all, sorted by path
   /// Whether items of `path` are shown: it and every ancestor visible.
   bool layerShown(const std::string& path);
 
@@ -212,8 +212,8 @@ class AnnotationDb {
   std::vector<Place> places();
   void attach(int64_t item, int64_t place);  ///< kNotFound if either is absent; idempotent
   void detach(int64_t item, int64_t place);
-  std::vector<int64_t> itemsAt(int64_t place);   ///< model -> information
-  std::vector<int64_t> placesOf(int64_t item);   ///< information -> model (and its view)
+  std::vector<int64_t> itemsAt(int64_t place);  ///< model -> information
+  std::vector<int64_t> placesOf(int64_t item);  ///< information -> model (and its view)
   /// Points and hot spots of `model` within `radius` metres of `centre` (Bettio et al.'s focus
   /// circle: only the hot spots near the cursor), nearest first.
   std::vector<int64_t> placesNear(const std::string& model, const glm::dvec3& centre,
