@@ -433,11 +433,10 @@ void AnnotationDb::migrate(int from) {
                   "INSERT INTO places(kind, model, x, y, z) VALUES ('point', ?1, ?2, ?3, ?4)");
   Statement attachment(mDb, mFile, "INSERT INTO attachments(item, place) VALUES (?1, ?2)");
   while (notes.step()) {
+    const std::string raw = notes.text(1);
     std::string layer;
-    for (size_t i = 0, n = 0; i <= notes.text(1).size(); i = n + 1) {
-      const std::string raw = notes.text(1);
-      n = raw.find('/', i);
-      if (n == std::string::npos) n = raw.size();
+    for (size_t i = 0, n = 0; i <= raw.size(); i = n + 1) {
+      n = std::min(raw.find('/', i), raw.size());
       if (n > i) layer += (layer.empty() ? "" : "/") + raw.substr(i, n - i);
     }
     if (!layerPathProblem(layer).empty()) layer = "unfiled";

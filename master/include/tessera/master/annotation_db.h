@@ -135,7 +135,7 @@ struct Place {
   int64_t id = 0;
   PlaceKind kind = PlaceKind::kPoint;
   std::string model;               ///< the scene's model id
-  glm::dvec3 position{0.0};        ///< kPoint, kHotSpot: world metres
+  glm::dvec3 position{0.0};        ///< kPoint, kHotSpot: world metres (-0 reads back as 0)
   double radius = 0.0;             ///< kHotSpot: metres, > 0
   std::optional<StoredView> view;  ///< required for kHotSpot, optional otherwise
   std::string selection_id;        ///< kSelection: the selection code's id

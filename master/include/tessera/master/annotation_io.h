@@ -51,7 +51,8 @@ struct ImportCounts {
 
 /// Imports a JSON export. Into an empty database (no items, no places) ids are kept, so the
 /// round trip is exact; otherwise items and places get new ids after the existing ones and
-/// links and attachments follow them. Authors, times and revisions are kept. `name` is the
+/// links and attachments follow them. Authors, times and revisions are kept; the file's layer
+/// visibility and georeference (when not null) replace the database's. `name` is the
 /// file name used in messages. Throws AnnotationError (kBadInput for a malformed file).
 ImportCounts importJson(AnnotationDb& db, std::string_view bytes, const std::string& name);
 
