@@ -90,7 +90,7 @@ class Parser {
       skipSpace();
       expect(':');
       skipSpace();
-      v.object.emplace_back(std::move(key), value(depth + 1));
+      v.object.push_back(Member{std::move(key), value(depth + 1)});
       skipSpace();
       if (peek() == ',' && !atEnd()) {
         ++mPos;

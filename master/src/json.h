@@ -19,20 +19,30 @@ class ParseError : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
+struct Member;
+
 struct Value {
   enum class Type { kNull, kBool, kNumber, kString, kArray, kObject };
   Type type = Type::kNull;
   bool boolean = false;
   std::string text;  ///< a string's contents (UTF-8), or a number's literal as written
   std::vector<Value> array;
-  std::vector<std::pair<std::string, Value>> object;  ///< in file order
+  std::vector<Member> object;  ///< in file order
 
-  const Value* find(std::string_view key) const {
-    for (const auto& [k, v] : object)
-      if (k == key) return &v;
-    return nullptr;
-  }
+  /// The member named `key`, or nullptr.
+  const Value* find(std::string_view key) const;
 };
+
+struct Member {
+  std::string key;
+  Value value;
+};
+
+inline const Value* Value::find(std::string_view key) const {
+  for (const Member& m : object)
+    if (m.key == key) return &m.value;
+  return nullptr;
+}
 
 const char* typeName(Value::Type type);
 
