@@ -56,6 +56,24 @@ void printItem(AnnotationDb& db, const Item& it) {
   std::cout << "\n";
 }
 
+void printPlace(const Place& p) {
+  auto v3 = [](const glm::dvec3& v) {
+    std::ostringstream s;
+    s.precision(17);
+    s << v.x << "," << v.y << "," << v.z;
+    return s.str();
+  };
+  std::cout << "place " << p.id << "\t" << toString(p.kind) << " on " << p.model;
+  if (p.kind != PlaceKind::kSelection) std::cout << " at " << v3(p.position);
+  if (p.kind == PlaceKind::kHotSpot) std::cout << " radius " << p.radius;
+  if (p.kind == PlaceKind::kSelection)
+    std::cout << " " << p.selection_id << " (" << p.selection.size() << " bytes)";
+  if (p.view)
+    std::cout << "\tview eye " << v3(p.view->eye) << " target " << v3(p.view->target) << " up "
+              << v3(p.view->up) << " fovy " << p.view->fovy_deg;
+  std::cout << "\n";
+}
+
 /// Writes `text` to `path` through a temporary file renamed into place, so a failed export
 /// never leaves half a file. Returns an error message, or "".
 std::string writeFile(const fs::path& path, const std::string& text) {
@@ -84,7 +102,8 @@ int run(int argc, char** argv) {
   CLI::App app{"tessera-annotate: the annotation database beside a scene (items, layers, places)"};
   app.require_subcommand(1);
   std::string db_file, author = defaultAuthor();
-  app.add_option("-d,--db", db_file, "The annotation database (created if absent)")->required();
+  app.add_option("-d,--db", db_file, "The annotation database (add, import, georef create it)")
+      ->required();
   app.add_option("--author", author, "Who makes the edits (site or user name)")
       ->capture_default_str();
 
@@ -123,10 +142,33 @@ int run(int argc, char** argv) {
   add->add_option("--link-uri", item.link_uri, "kind link: a document URI (https:..., file:...)");
   add->add_option("--at", at, "Attach at this point X,Y,Z (world metres)");
   add->add_option("--model", model, "With --at: the model the point is on")->capture_default_str();
+  double radius = 0.0, fovy = 45.0;
+  std::string eye, target, up = "0,0,1";
+  int64_t place_id = 0;
+  add->add_option("--radius", radius, "With --at: make it a hot spot of this radius (metres)")
+      ->check(cli::positiveFinite(kMaxCoordinate));
+  add->add_option("--eye", eye, "With --at: the stored view's eye X,Y,Z (needed by hot spots)");
+  add->add_option("--target", target, "The stored view's target X,Y,Z (default: --at)");
+  add->add_option("--up", up, "The stored view's up X,Y,Z")->capture_default_str();
+  add->add_option("--fovy", fovy, "The stored view's vertical field of view (degrees)")
+      ->check(cli::finiteRange(1.0, 179.0))
+      ->capture_default_str();
+  add->add_option("--place", place_id, "Attach to this existing place instead of --at")
+      ->check(cli::integerRange<int64_t>(1, INT64_MAX))
+      ->excludes("--at");
   add->add_option("--count", count,
                   "Add this many copies (titles get \" #k\"), each printed once committed")
       ->check(cli::integerRange<int64_t>(1, 10000000))
       ->capture_default_str();
+
+  int64_t show_id = 0;
+  auto* show_item = app.add_subcommand(
+      "show", "An item, the places it hangs at with their stored views, the items linking to it");
+  show_item->add_option("ITEM", show_id, "The item's id")->required();
+  int64_t at_id = 0;
+  auto* show_place =
+      app.add_subcommand("place", "A place (point, hot spot, selection) and the items it opens");
+  show_place->add_option("PLACE", at_id, "The place's id")->required();
 
   std::string format, output, crs, origin;
   auto* exp = app.add_subcommand("export", "Write the database as CSV, JSON or GeoJSON");
@@ -153,10 +195,34 @@ int run(int argc, char** argv) {
 
   if (const auto code = cli::parse(app, argc, argv, "tessera-annotate")) return *code;
 
+  // Only edits create a database: a mistyped path to list or export is an error, not an empty
+  // new file.
+  if ((list->parsed() || search->parsed() || exp->parsed() || lay->parsed() ||
+       show_item->parsed() || show_place->parsed()) &&
+      !fs::exists(db_file))
+    throw AnnotationError(
+        AnnotationError::Kind::kCannotOpen,
+        "AnnotationDb: " + db_file + ": does not exist (add, import and georef create a database)");
   AnnotationDb db(db_file);
 
   if (list->parsed()) {
     for (const Item& it : db.items(layer)) printItem(db, it);
+  } else if (show_item->parsed()) {
+    const auto it = db.item(show_id);
+    if (!it)
+      throw AnnotationError(AnnotationError::Kind::kNotFound,
+                            "AnnotationDb: " + db_file + ": no item " + std::to_string(show_id));
+    printItem(db, *it);
+    if (!it->text.empty()) std::cout << "text: " << it->text << "\n";
+    for (int64_t id : db.placesOf(show_id)) printPlace(*db.place(id));
+    for (int64_t id : db.linksTo(show_id)) std::cout << "linked from item " << id << "\n";
+  } else if (show_place->parsed()) {
+    const auto p = db.place(at_id);
+    if (!p)
+      throw AnnotationError(AnnotationError::Kind::kNotFound,
+                            "AnnotationDb: " + db_file + ": no place " + std::to_string(at_id));
+    printPlace(*p);
+    for (int64_t id : db.itemsAt(at_id)) printItem(db, *db.item(id));
   } else if (search->parsed()) {
     for (const SearchHit& hit : db.search(query, limit))
       std::cout << hit.item << "\t" << hit.score << "\t" << hit.snippet << "\n";
@@ -172,8 +238,27 @@ int run(int argc, char** argv) {
         throw cli::UsageError("--embed " + image_file + ": larger than " +
                               std::to_string(kMaxBlobBytes) + " bytes");
     }
-    std::optional<glm::dvec3> point;
-    if (!at.empty()) point = cli::parseVec3(at, "--at");
+    std::optional<Place> place;
+    if (!at.empty()) {
+      place = Place{};
+      place->kind = radius > 0.0 ? PlaceKind::kHotSpot : PlaceKind::kPoint;
+      place->model = model;
+      place->position = cli::parseVec3(at, "--at");
+      place->radius = radius;
+      if (!eye.empty()) {
+        StoredView v{cli::parseVec3(eye, "--eye"),
+                     target.empty() ? place->position : cli::parseVec3(target, "--target"),
+                     cli::parseVec3(up, "--up"), fovy};
+        cli::checkView(v.eye, v.target, v.up, "--eye/--target/--up");
+        place->view = v;
+      } else if (radius > 0.0) {
+        throw cli::UsageError("--radius: a hot spot needs a stored view (--eye)");
+      }
+    } else if (radius > 0.0 || !eye.empty() || !target.empty()) {
+      throw cli::UsageError("--radius, --eye, --target: only with --at");
+    }
+    if (place_id && !db.place(place_id))
+      throw cli::UsageError("--place " + std::to_string(place_id) + ": no such place");
     const std::string title = item.title;
     for (int64_t k = 1; k <= count; ++k) {
       if (count > 1) item.title = title + " #" + std::to_string(k);
@@ -181,13 +266,8 @@ int run(int argc, char** argv) {
       // Item and place commit together: an acknowledged item is whole.
       db.transaction([&] {
         id = db.addItem(item, author);
-        if (point) {
-          Place p;
-          p.kind = PlaceKind::kPoint;
-          p.model = model;
-          p.position = *point;
-          db.attach(id, db.addPlace(p));
-        }
+        if (place) db.attach(id, db.addPlace(*place));
+        if (place_id) db.attach(id, place_id);
       });
       // Printed only after the commit returned: every id on stdout is durable.
       std::printf("added %lld\n", static_cast<long long>(id));

@@ -744,7 +744,8 @@ TEST(AnnotateTool, SubcommandsAndExitCodes) {
   const std::string db = (dir / "t.tadb").string();
   const auto log = dir / "log.txt";
   EXPECT_EQ(runTool({"--help"}, log), 0);
-  for (const char* sub : {"list", "search", "add", "export", "import", "layers", "georef"})
+  for (const char* sub :
+       {"list", "search", "add", "show", "place", "export", "import", "layers", "georef"})
     EXPECT_EQ(runTool({sub, "--help"}, log), 0) << sub;
   EXPECT_EQ(runTool({"-d", db, "add", "--layer", "a/b", "--title", "first", "--text", "hello",
                      "--at", "1,2,3"},
@@ -759,6 +760,30 @@ TEST(AnnotateTool, SubcommandsAndExitCodes) {
                      "--number", "inf"},
                     log),
             2);
+  // A hot spot with its view, a second item on it, then both directions read back.
+  EXPECT_EQ(runTool({"-d", db, "add", "--layer", "spots", "--title", "relief", "--at", "4,5,6",
+                     "--radius", "0.5", "--eye", "4,0,6", "--model", "temple"},
+                    log),
+            0);
+  EXPECT_EQ(
+      runTool({"-d", db, "add", "--layer", "spots", "--title", "also here", "--place", "2"}, log),
+      0);
+  EXPECT_EQ(
+      runTool({"-d", db, "add", "--layer", "s", "--title", "x", "--at", "0,0,0", "--radius", "1"},
+              log),
+      2);  // a hot spot without a view
+  EXPECT_EQ(runTool({"-d", db, "add", "--layer", "s", "--title", "x", "--place", "99"}, log), 2);
+  const auto shown = dir / "show.txt";
+  EXPECT_EQ(runTool({"-d", db, "show", "3"}, shown), 0);
+  EXPECT_NE(slurp(shown).find("place 2\thotspot on temple at 4,5,6 radius 0.5\tview eye 4,0,6 "
+                              "target 4,5,6 up 0,0,1 fovy 45"),
+            std::string::npos)
+      << slurp(shown);
+  const auto opened = dir / "place.txt";
+  EXPECT_EQ(runTool({"-d", db, "place", "2"}, opened), 0);
+  EXPECT_NE(slurp(opened).find("\trelief\t"), std::string::npos) << slurp(opened);
+  EXPECT_NE(slurp(opened).find("\talso here\t"), std::string::npos) << slurp(opened);
+  EXPECT_EQ(runTool({"-d", db, "show", "99"}, log), 1);
   EXPECT_EQ(runTool({"-d", db, "search", "\"broken"}, log), 1);
   EXPECT_EQ(
       runTool({"-d", db, "export", "--format", "geojson", "-o", (dir / "g.json").string()}, log),
@@ -774,7 +799,7 @@ TEST(AnnotateTool, SubcommandsAndExitCodes) {
             0);
   EXPECT_EQ(runTool({"-d", (dir / "copy.tadb").string(), "import", (dir / "e.json").string()}, log),
             0);  // into a non-empty database: new ids
-  EXPECT_EQ(AnnotationDb(dir / "copy.tadb").items().size(), 4u);
+  EXPECT_EQ(AnnotationDb(dir / "copy.tadb").items().size(), 8u);
   EXPECT_EQ(runTool({"-d", db, "import", db}, log), 1);  // not JSON
   EXPECT_EQ(runTool({"-d", db, "layers", "--hide", "a/b"}, log), 0);
   EXPECT_EQ(runTool({"-d", db, "layers", "--hide", "nope"}, log), 1);
@@ -784,7 +809,8 @@ TEST(AnnotateTool, SubcommandsAndExitCodes) {
   EXPECT_EQ(
       runTool({"-d", db, "export", "--format", "geojson", "-o", (dir / "g.json").string()}, log),
       0);
-  EXPECT_EQ(runTool({"-d", (dir / "notes.txt").string(), "list"}, log), 0);  // created empty
+  EXPECT_EQ(runTool({"-d", (dir / "typo.tadb").string(), "list"}, log), 1);  // not created
+  EXPECT_FALSE(std::filesystem::exists(dir / "typo.tadb"));
   tessera::test::writeText(dir / "junk.tadb", std::string(2000, 'j'));
   EXPECT_EQ(runTool({"-d", (dir / "junk.tadb").string(), "list"}, log), 1);
   const std::string out = slurp(log);
@@ -792,7 +818,7 @@ TEST(AnnotateTool, SubcommandsAndExitCodes) {
   EXPECT_NE(out.find("a/b\thidden"), std::string::npos) << out;
 
   AnnotationDb check(db);
-  ASSERT_EQ(check.items().size(), 2u);
+  ASSERT_EQ(check.items().size(), 4u);
   EXPECT_EQ(check.items()[1].number, 2.5);
   EXPECT_EQ(check.place(check.placesOf(1)[0])->position, glm::dvec3(1, 2, 3));
 }
