@@ -56,7 +56,7 @@ CREATE TABLE items(
   mime TEXT NOT NULL DEFAULT '',
   path TEXT NOT NULL DEFAULT '',
   data BLOB,
-  link_item INTEGER REFERENCES items(id) ON DELETE SET NULL,
+  link_item INTEGER REFERENCES items(id),
   link_uri TEXT NOT NULL DEFAULT '',
   author TEXT NOT NULL,
   created_us INTEGER NOT NULL,
@@ -665,6 +665,16 @@ void AnnotationDb::removeItem(int64_t id, int64_t base_revision) {
           prefix(mFile) + "item " + std::to_string(id) + ": removal based on revision " +
               std::to_string(base_revision) + " but the item is at revision " +
               std::to_string(current->revision) + " (by " + current->author + ")");
+    // A link with nothing at its end would be a dangling reference in every export; the
+    // linking items are someone's work, so they are not removed behind their author's back.
+    if (const std::vector<int64_t> from = linksTo(id); !from.empty()) {
+      std::string list;
+      for (int64_t f : from) list += (list.empty() ? "" : ", ") + std::to_string(f);
+      throw AnnotationError(AnnotationError::Kind::kBadInput,
+                            prefix(mFile) + "item " + std::to_string(id) +
+                                " is linked from items " + list +
+                                "; remove or re-point those links first");
+    }
     Statement(mDb, mFile, "DELETE FROM items WHERE id = ?1").bind(1, id).run();
   });
 }

@@ -383,10 +383,13 @@ ImportCounts importJson(AnnotationDb& db, std::string_view bytes, const std::str
     f.done();
     items.push_back(std::move(it));
   }
-  for (size_t i = 0; i < items.size(); ++i)
+  for (size_t i = 0; i < items.size(); ++i) {
+    if (items[i].link_item == items[i].id)
+      top.fail("$.items[" + std::to_string(i) + "].link_item", "an item cannot link to itself");
     if (items[i].link_item && !item_index.count(items[i].link_item))
       top.fail("$.items[" + std::to_string(i) + "].link_item",
                "links to item " + std::to_string(items[i].link_item) + ", not in the file");
+  }
   std::vector<Place> places;
   std::set<int64_t> place_ids;
   const Value& place_array = arrayField(top, "places");

@@ -147,6 +147,18 @@ TEST(AnnotationDb, RoundTripsEveryItemKind) {
   TempDir dir;
   AnnotationDb db(dir / "a.tadb");
   EXPECT_EQ(db.schemaVersion(), kSchemaVersion);
+  // Durability settings: WAL, every commit synced (2 = FULL), foreign keys enforced.
+  for (const auto& [pragma, value] : {std::pair<const char*, const char*>{"journal_mode", "wal"},
+                                      {"synchronous", "2"},
+                                      {"foreign_keys", "1"}}) {
+    sqlite3_stmt* s = nullptr;
+    ASSERT_EQ(
+        sqlite3_prepare_v2(db.handle(), (std::string("PRAGMA ") + pragma).c_str(), -1, &s, nullptr),
+        SQLITE_OK);
+    ASSERT_EQ(sqlite3_step(s), SQLITE_ROW);
+    EXPECT_STREQ(reinterpret_cast<const char*>(sqlite3_column_text(s, 0)), value) << pragma;
+    sqlite3_finalize(s);
+  }
 
   std::vector<Item> in;
   in.push_back(textItem("notes", "Text", "multi\nline, \"quoted\" ünïcode"));
@@ -271,10 +283,13 @@ TEST(AnnotationDb, LinksAreQueryableBothWays) {
 
   db.detach(b, far);
   EXPECT_EQ(db.placesOf(b), (std::vector<int64_t>{spot}));
+  // An item others link to stays until the links go (no dangling link in any export).
+  expectError(Kind::kBadInput, "linked from items " + std::to_string(l),
+              [&] { db.removeItem(a, 1); });
+  db.removeItem(l, 1);
   // Removing an item takes its attachments with it.
   db.removeItem(a, 1);
   EXPECT_EQ(db.itemsAt(spot), (std::vector<int64_t>{b}));
-  EXPECT_EQ(db.item(l)->link_item, 0);  // links to it are cleared
   expectError(Kind::kNotFound, "no item", [&] { db.attach(a, spot); });
   expectError(Kind::kNotFound, "no place", [&] { db.attach(b, 999); });
 }
@@ -641,6 +656,8 @@ TEST(AnnotationExport, ImportRefusesMalformedFilesWhole) {
   expectRefused(replaced("\"link_item\": 6", "\"link_item\": 77"),
                 "$.items[0].link_item: links to item 77, not in the file");
   expectRefused(replaced("[1, 1]", "[1, 99]"), "$.attachments[0][1]: no place 99");
+  expectRefused(replaced("\"link_item\": 6", "\"link_item\": 1"),
+                "$.items[0].link_item: an item cannot link to itself");
   expectRefused(replaced("\"selection\": \"AQAAAMgBAAA=\"", "\"selection\": \"AQ$\""),
                 "canonical base64");
   expectRefused(replaced("\"radius\": 0.5", "\"radius\": -0.5"), "$.places[0]: ");

@@ -188,7 +188,8 @@ class AnnotationDb {
   /// Replaces the item's content (everything but id, author, created time) if `base_revision`
   /// is its current revision; returns the new revision. kNotFound, kConflict.
   int64_t updateItem(const Item& item, int64_t base_revision, const std::string& author);
-  /// kNotFound, kConflict as updateItem(). Its attachments go with it; links to it are cleared.
+  /// kNotFound, kConflict as updateItem(). Its attachments go with it. Refused (kBadInput)
+  /// while link items point at it: remove or re-point them first.
   void removeItem(int64_t id, int64_t base_revision);
   std::optional<Item> item(int64_t id);
   /// Items of `layer` and its sublayers ("" for all), by id.
