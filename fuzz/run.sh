@@ -5,13 +5,13 @@
 # which is also replayed first, so a regression that comes back fails at once.
 # Usage: fuzz/run.sh [SECONDS] [TARGET...]
 #   (targets: ply las text obj conf tlod chunk tmesh frame link site chunk_request voice wav
-#    video selection; default all)
+#    video selection annotation; default all)
 set -euo pipefail
 
 cd "$(dirname "$0")/.."
 SECONDS_PER_TARGET=${1:-300}
 shift || true
-TARGETS=("${@:-ply las text obj conf tlod chunk tmesh frame link site chunk_request voice wav video selection}")
+TARGETS=("${@:-ply las text obj conf tlod chunk tmesh frame link site chunk_request voice wav video selection annotation}")
 read -r -a TARGETS <<<"${TARGETS[*]}"
 DATA=${TESSERA_DATA_DIR:-$(cd .. && pwd)/shared/data}
 BUILD=build/fuzz
@@ -293,9 +293,15 @@ seed_selection() {
   printf "$head"'\x03\x00\x00\x00'"$all$ranges$bits$word$word$sum" >three.sel
 }
 
+# Annotation imports: JSON exports with every item and place kind (fuzz/seeds/annotation/,
+# written by tessera-annotate export), and an empty one.
+seed_annotation() {
+  cp "$OLDPWD"/fuzz/seeds/annotation/*.json .
+}
+
 declare -A MAX_LEN=([ply]=8192 [las]=8192 [text]=4096 [obj]=4096 [conf]=1024 [tlod]=32768
   [chunk]=8192 [frame]=4096 [link]=4096 [site]=4096 [chunk_request]=1024 [voice]=8192
-  [wav]=16384 [tmesh]=16384 [video]=32768 [selection]=4096)
+  [wav]=16384 [tmesh]=16384 [video]=32768 [selection]=4096 [annotation]=16384)
 export UBSAN_OPTIONS=halt_on_error=1:print_stacktrace=1
 status=0
 summary=()

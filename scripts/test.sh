@@ -20,9 +20,10 @@ if [ "${TESSERA_SKIP_ASAN:-0}" != 1 ]; then
   # Decoders of outside bytes also run under AddressSanitizer and UBSan (STYLE.md).
   # The scene draw list too: a loader decoding into a closed store would be a use-after-free.
   # Voice: packets and WAV files from outside, the jitter buffer and libopus behind them.
-  echo "== sanitizer pass (asan: readers, decoders, the sync schema, the scene draw list, voice, video)"
+  # Annotation: JSON imports and database files from outside.
+  echo "== sanitizer pass (asan: readers, decoders, the sync schema, the scene draw list, voice, video, annotation)"
   cmake --preset asan >/dev/null
   cmake --build --preset asan -j"$jobs" --target tessera_lod_tests tessera_sync_tests tessera_scene_tests \
-    tessera_site_unit_tests tessera_voice_tests tessera_video_tests
-  ctest --preset asan -j"$jobs" --timeout 900 -L "lod|sync|scene|voice|video"
+    tessera_site_unit_tests tessera_voice_tests tessera_video_tests tessera_annotation_tests
+  ctest --preset asan -j"$jobs" --timeout 900 -L "lod|sync|scene|voice|video|annotation"
 fi
