@@ -377,7 +377,11 @@ struct SiteSession::Impl {
     pumpVideo();
   }
 
-  render::RenderOptions options() const { return render::SceneDrawList::options(graph, 2.0f); }
+  render::RenderOptions options() const {
+    render::RenderOptions o = render::SceneDrawList::options(graph, 2.0f);
+    o.highlights = render::sceneHighlights(graph);  // selections, as the wall tints them
+    return o;
+  }
 
   double elapsed() const { return std::chrono::duration<double>(Clock::now() - started).count(); }
 

@@ -81,6 +81,7 @@ void Console::draw(const sync::SceneGraph& graph, const sync::SceneChanges& chan
   render::RenderOptions options = render::SceneDrawList::options(graph, mSplatScale);
   options.pick_ids = true;  // the navigation's picks read the frame's ids
   const render::Overlay marks = overlay(mSceneOverlay.update(graph, changes));
+  options.highlights = mSceneOverlay.highlights();
   mRenderer->draw(mInstances, mLastView, options, nullptr, &marks);
   mWindow->present(mRenderer->imageBuffer(), mWidth, mHeight);
 }

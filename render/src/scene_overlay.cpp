@@ -239,6 +239,27 @@ std::string measurementLabel(const scene::MeasurementPayload& m) {
   return what + value + " \u00b1 " + error;
 }
 
+std::vector<Highlight> sceneHighlights(const sync::SceneGraph& graph) {
+  std::vector<Highlight> out;
+  for (const sync::SceneGraph::NodeId id : graph.ids()) {
+    const scene::SceneNode& node = graph.node(id);
+    if (node.kind() != scene::SceneNode::SELECTION) continue;
+    const NodePlacement placed = placeNode(graph, id);
+    if (!placed.visible || !(placed.opacity > 0.0f)) continue;
+    const scene::SelectionPayload& s = node.selection();
+    if (s.lasso_clip_from_world_size() != 16 || s.lasso_size() < 6) continue;
+    Highlight h;
+    for (int k = 0; k < 16; ++k) h.clip_from_world[k / 4][k % 4] = s.lasso_clip_from_world(k);
+    std::vector<glm::dvec2> lasso;
+    for (int k = 0; k + 1 < s.lasso_size(); k += 2) lasso.push_back({s.lasso(k), s.lasso(k + 1)});
+    h.mask = std::make_shared<const std::vector<uint32_t>>(rasterizeLasso(lasso));
+    if (s.has_color()) h.tint = colorOf(true, s.color(), {}, 1.0f);
+    h.tint.a = uint8_t(std::lround(120.0f * std::clamp(placed.opacity, 0.0f, 1.0f)));
+    out.push_back(std::move(h));
+  }
+  return out;
+}
+
 bool isOverlayKind(sync::SceneGraph::Kind kind) {
   return kind == scene::SceneNode::SKETCH || kind == scene::SceneNode::AVATAR ||
          kind == scene::SceneNode::ANNOTATION || kind == scene::SceneNode::VIDEO_INSET ||
@@ -321,6 +342,7 @@ const Overlay& SceneOverlay::update(const sync::SceneGraph& graph,
   mStarted = true;
   mOverlay = Overlay();
   appendSceneOverlay(graph, mOverlay, mOptions);
+  mHighlights = sceneHighlights(graph);
   return mOverlay;
 }
 

@@ -156,4 +156,63 @@ double FillPass::run(FrameTarget& target, const glm::dmat4& projection, float ma
   return lap();
 }
 
+std::vector<uint32_t> rasterizeLasso(std::span<const glm::dvec2> ndc) {
+  constexpr uint32_t n = kHighlightMaskSize;
+  std::vector<uint32_t> bits(size_t(n) * n / 32, 0u);
+  if (ndc.size() < 3) return bits;
+  for (const glm::dvec2& v : ndc)
+    if (!std::isfinite(v.x) || !std::isfinite(v.y)) return bits;
+  std::vector<double> xs;
+  for (uint32_t row = 0; row < n; ++row) {
+    const double y = -1.0 + (row + 0.5) * 2.0 / n;
+    xs.clear();
+    for (size_t i = 0; i < ndc.size(); ++i) {
+      const glm::dvec2 a = ndc[i], b = ndc[(i + 1) % ndc.size()];
+      if ((a.y > y) != (b.y > y)) xs.push_back(a.x + (y - a.y) * (b.x - a.x) / (b.y - a.y));
+    }
+    std::sort(xs.begin(), xs.end());
+    // Even-odd: the cells whose centre lies between crossings 0-1, 2-3, ...
+    for (size_t k = 0; k + 1 < xs.size(); k += 2) {
+      const double c0 = (xs[k] + 1.0) * 0.5 * n - 0.5, c1 = (xs[k + 1] + 1.0) * 0.5 * n - 0.5;
+      const int64_t first = std::max<int64_t>(0, int64_t(std::ceil(c0)));
+      const int64_t last = std::min<int64_t>(int64_t(n) - 1, int64_t(std::ceil(c1)) - 1);
+      for (int64_t col = first; col <= last; ++col) {
+        const size_t bit = size_t(row) * n + size_t(col);
+        bits[bit >> 5] |= 1u << (bit & 31u);
+      }
+    }
+  }
+  return bits;
+}
+
+HighlightPass::HighlightPass()
+    : mProgram(GlProgram::compute(shaders::kHighlight, "highlight.comp")),
+      mMask(size_t(kHighlightMaskSize) * kHighlightMaskSize / 8, nullptr, GL_DYNAMIC_STORAGE_BIT) {}
+
+double HighlightPass::run(FrameTarget& target, std::span<const Highlight> highlights,
+                          const glm::dmat4& clip_from_world) {
+  if (highlights.empty()) return 0.0;
+  GpuLap lap;
+  mProgram.use();
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_DEPTH, target.depth().name());
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_IMAGE, target.image().name());
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_SCREEN_SCRATCH, mMask.name());
+  mProgram.set("uSize", glm::ivec2(target.width(), target.height()));
+  mProgram.set("uMaskSize", kHighlightMaskSize);
+  const glm::dmat4 world_from_clip = glm::inverse(clip_from_world);
+  for (const Highlight& h : highlights) {
+    if (!h.mask || h.mask->size() * 32 != size_t(kHighlightMaskSize) * kHighlightMaskSize)
+      continue;
+    if (mUploaded != h.mask.get()) {
+      glNamedBufferSubData(mMask.name(), 0, GLsizeiptr(h.mask->size() * 4), h.mask->data());
+      mUploaded = h.mask.get();
+      mKeep = h.mask;
+    }
+    mProgram.set("uLassoFromNdc", glm::mat4(h.clip_from_world * world_from_clip));
+    mProgram.set("uTint", glm::vec4(h.tint) / 255.0f);
+    dispatchPixels(target);
+  }
+  return lap();
+}
+
 }  // namespace tessera::render

@@ -195,6 +195,10 @@ void ViewRenderer::draw(std::span<const ModelInstance> models, const ViewSetup& 
     st.resolve_ms = mResolve.run(mTarget, options.background, shading.uniform_color, shading.blend);
     st.screen_ms = mEdl.run(mTarget, options.edl, view.projection);
   }
+  if (!options.highlights.empty()) {
+    if (!mHighlight) mHighlight = std::make_unique<HighlightPass>();
+    st.screen_ms += mHighlight->run(mTarget, options.highlights, view.projection * view.view);
+  }
   if (overlay && !overlay->empty()) {
     if (!mOverlay) mOverlay = std::make_unique<OverlayPass>();
     st.overlay_ms = mOverlay->run(mTarget, view, *overlay);

@@ -281,6 +281,7 @@ int run(int argc, char** argv) {
       cam = graph.camera();
       have_camera = true;
       options = render::SceneDrawList::options(graph, float(splat_scale));
+      options.highlights = render::sceneHighlights(graph);
       render::appendSceneOverlay(graph, scene_overlay);
     }
     for (const std::string& m : models) {

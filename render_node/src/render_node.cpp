@@ -239,8 +239,9 @@ struct RenderNode::Impl {
       const auto start_time = Clock::now();
       try {
         const render::ViewSetup view = render::tileView(setup.wall(), *tile, graph.camera());
-        const render::RenderOptions options = render::SceneDrawList::options(
+        render::RenderOptions options = render::SceneDrawList::options(
             graph, setup.splat_scale() > 0 ? setup.splat_scale() : 2.0f);
+        options.highlights = overlay.highlights();  // selections, tinted on every tile
         render::RenderStats rs;
         // Settled frames (screenshots, deterministic scripted runs) wait for every chunk of the
         // cut, so their pixels are exactly what tessera-render --mosaic makes.

@@ -105,6 +105,8 @@ SceneNode::PayloadCase payloadCaseOf(SceneGraph::Kind kind) {
       return SceneNode::kVideoInset;
     case SceneNode::MEASUREMENT:
       return SceneNode::kMeasurement;
+    case SceneNode::SELECTION:
+      return SceneNode::kSelection;
     default:
       return SceneNode::PAYLOAD_NOT_SET;
   }
@@ -174,6 +176,25 @@ Problem checkPayload(const SceneNode& n) {
         if (!std::isfinite(v) || v < 0.0)
           return std::string(field) + ": must be finite and >= 0, got " + num(v);
       return checkColor(m.color(), "measurement.color");
+    }
+    case SceneNode::kSelection: {
+      const auto& s = n.selection();
+      if (s.model() == 0) return std::string("selection.model: must name a MODEL node (> 0)");
+      if (s.lasso_clip_from_world_size() != 16)
+        return "selection.lasso_clip_from_world: needs 16 numbers, got " +
+               std::to_string(s.lasso_clip_from_world_size());
+      for (double v : s.lasso_clip_from_world())
+        if (!std::isfinite(v))
+          return std::string("selection.lasso_clip_from_world: numbers must be finite");
+      if (s.lasso_size() % 2 != 0 || s.lasso_size() < 6 || s.lasso_size() > 8192)
+        return "selection.lasso: needs 3..4096 x y pairs, got " + std::to_string(s.lasso_size()) +
+               " numbers";
+      for (double v : s.lasso())
+        if (!(std::abs(v) <= 1e6)) return std::string("selection.lasso: numbers must be finite, within 1e6");
+      if (s.elements().size() > (size_t(16) << 20))
+        return "selection.elements: " + std::to_string(s.elements().size()) +
+               " bytes; at most 16 MiB";
+      return checkColor(s.color(), "selection.color");
     }
     case SceneNode::kVideoInset: {
       const auto& v = n.video_inset();
@@ -399,6 +420,9 @@ SceneNode SceneGraph::defaultNode(NodeId id, Kind kind) {
     case SceneNode::kMeasurement:
       n.mutable_measurement();
       break;
+    case SceneNode::kSelection:
+      n.mutable_selection();
+      break;
     default:
       break;
   }
@@ -570,6 +594,10 @@ void SceneGraph::setPayload(NodeId id, const scene::SketchPayload& payload) {
 
 void SceneGraph::setPayload(NodeId id, const scene::AvatarPayload& payload) {
   replacePayload(id, SceneNode::AVATAR, [&](SceneNode& n) { *n.mutable_avatar() = payload; });
+}
+
+void SceneGraph::setPayload(NodeId id, const scene::SelectionPayload& payload) {
+  replacePayload(id, SceneNode::SELECTION, [&](SceneNode& n) { *n.mutable_selection() = payload; });
 }
 
 void SceneGraph::setPayload(NodeId id, const scene::MeasurementPayload& payload) {

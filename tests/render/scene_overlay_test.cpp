@@ -702,3 +702,104 @@ TEST_F(SceneOverlayRenderTest, TilesOfTheWallShowTheWholeWallsOverlay) {
 
 }  // namespace
 }  // namespace tessera::render
+
+namespace tessera::render {
+namespace {
+
+/// Even-odd point in polygon (the selection's rule), for the test's own reference.
+bool inside(const std::vector<glm::dvec2>& poly, const glm::dvec2& p) {
+  bool in = false;
+  for (size_t i = 0, j = poly.size() - 1; i < poly.size(); j = i++) {
+    const glm::dvec2 a = poly[i], b = poly[j];
+    if ((a.y > p.y) != (b.y > p.y) && p.x < a.x + (p.y - a.y) * (b.x - a.x) / (b.y - a.y))
+      in = !in;
+  }
+  return in;
+}
+
+double edgeDistance(const std::vector<glm::dvec2>& poly, const glm::dvec2& p) {
+  double d = 1e300;
+  for (size_t i = 0, j = poly.size() - 1; i < poly.size(); j = i++) {
+    const glm::dvec2 a = poly[j], b = poly[i];
+    const double t = glm::clamp(glm::dot(p - a, b - a) / glm::dot(b - a, b - a), 0.0, 1.0);
+    d = std::min(d, glm::length(p - (a + t * (b - a))));
+  }
+  return d;
+}
+
+// A selection lassoed in one view is tinted where its surface lies in another view too (the
+// same points, seen from 25 degrees aside): every pixel whose surface point projects into the
+// lasso (by the test's own point-in-polygon, away from the lasso's edge by the mask's
+// resolution) is tinted, every other pixel is the plain picture's, background included.
+TEST_F(SceneOverlayRenderTest, ASelectionIsTintedWhereItsSurfaceIsSeenFromAnyView) {
+  auto store = lod::PointStore::open(*sDir / "b.tlod");
+  const glm::dvec3 c = bunnyCentre(*store);
+  const uint32_t w = 400, h = 300;
+  auto viewFrom = [&](const glm::dvec3& eye) {
+    ViewSetup v;
+    v.eye_world = eye;
+    v.view = glm::lookAt(eye, c, glm::dvec3(0, 1, 0));
+    v.projection = glm::perspective(glm::radians(35.0), double(w) / h, 0.05, 5.0);
+    v.width = w;
+    v.height = h;
+    return v;
+  };
+  const ViewSetup lasso_view = viewFrom(c + glm::dvec3(0.0, 0.0, 0.45));
+  const ViewSetup other = viewFrom(c + 0.45 * glm::dvec3(std::sin(0.44), 0.0, std::cos(0.44)));
+  // A concave lasso (an L) over the bunny's body, in the lasso view's pixels (y down).
+  const std::vector<glm::dvec2> px = {{150, 120}, {260, 120}, {260, 170},
+                                      {200, 170}, {200, 230}, {150, 230}};
+  std::vector<glm::dvec2> ndc;
+  for (const glm::dvec2& p : px) ndc.push_back({p.x / w * 2.0 - 1.0, 1.0 - p.y / h * 2.0});
+  SceneGraph g;
+  const auto model = g.add(scene::SceneNode::MODEL);
+  const auto sel = g.add(scene::SceneNode::SELECTION);
+  scene::SelectionPayload s;
+  s.set_model(model);
+  const glm::dmat4 lasso_vp = lasso_view.projection * lasso_view.view;
+  for (int k = 0; k < 16; ++k) s.add_lasso_clip_from_world(lasso_vp[k / 4][k % 4]);
+  for (const glm::dvec2& p : ndc) {
+    s.add_lasso(p.x);
+    s.add_lasso(p.y);
+  }
+  g.setPayload(sel, s);
+  const std::vector<Highlight> highlights = sceneHighlights(g);
+  ASSERT_EQ(highlights.size(), 1u);
+
+  const ModelInstance m[] = {{store.get(), storeModel(*store)}};
+  ViewRenderer r(w, h);
+  for (const ViewSetup* v : {&lasso_view, &other}) {
+    RenderOptions opt;
+    opt.pick_ids = true;
+    const Image plain = r.renderSettled(m, *v, opt);
+    std::vector<std::optional<PickHit>> hits(size_t(w) * h);
+    for (uint32_t y = 0; y < h; ++y)
+      for (uint32_t x = 0; x < w; ++x) hits[size_t(y) * w + x] = r.pick(x, y);
+    opt.highlights = highlights;
+    const Image tinted = r.renderSettled(m, *v, opt);
+    maybeWrite(v == &lasso_view ? "selection_lasso_view" : "selection_other_view", tinted);
+    size_t in = 0, out = 0, wrong = 0;
+    for (uint32_t y = 0; y < h; ++y) {
+      for (uint32_t x = 0; x < w; ++x) {
+        const uint8_t *a = pixel(plain, int(x), int(y)), *b = pixel(tinted, int(x), int(y));
+        const bool changed = a[0] != b[0] || a[1] != b[1] || a[2] != b[2];
+        const auto& hit = hits[size_t(y) * w + x];
+        if (!hit) {  // background: never tinted
+          wrong += changed;
+          continue;
+        }
+        const glm::dvec2 at = project(lasso_view, hit->world);
+        if (edgeDistance(px, at) < 1.5) continue;  // the mask's cells: 0.4 px here
+        const bool expect = inside(px, at);
+        (expect ? in : out)++;
+        if (changed != expect) ++wrong;
+      }
+    }
+    EXPECT_GT(in, 4000u);
+    EXPECT_GT(out, 4000u);
+    EXPECT_EQ(wrong, 0u) << (v == &lasso_view ? "lasso view" : "other view");
+  }
+}
+
+}  // namespace
+}  // namespace tessera::render

@@ -40,10 +40,12 @@
 #include <functional>
 #include <set>
 #include <string>
+#include <vector>
 
 #include <glm/glm.hpp>
 
 #include <tessera/render/overlay_pass.h>
+#include <tessera/render/screen_passes.h>
 #include <tessera/sync/scene_graph.h>
 
 namespace tessera::render {
@@ -80,6 +82,11 @@ struct SceneOverlayOptions {
 /// "area 0.3 m² ± 20 cm²" (UTF-8).
 std::string measurementLabel(const scene::MeasurementPayload& m);
 
+/// The graph's visible SELECTION nodes as highlights (RenderOptions::highlights): each lasso
+/// rasterised into its mask (rasterizeLasso()), tinted with its colour (amber when unset).
+/// Cost: about a millisecond per selection (the mask's 1024 rows).
+std::vector<Highlight> sceneHighlights(const sync::SceneGraph& graph);
+
 /// Whether the node kind is one the scene overlay draws (SKETCH, AVATAR, ANNOTATION,
 /// VIDEO_INSET, MEASUREMENT).
 bool isOverlayKind(sync::SceneGraph::Kind kind);
@@ -115,10 +122,13 @@ class SceneOverlay {
   const Overlay& overlay() const { return mOverlay; }
   /// The overlay to pass to ViewRenderer::draw(): null while it is empty.
   const Overlay* drawn() const { return mOverlay.empty() ? nullptr : &mOverlay; }
+  /// The selections to tint (sceneHighlights()), rebuilt with the overlay.
+  const std::vector<Highlight>& highlights() const { return mHighlights; }
 
  private:
   SceneOverlayOptions mOptions;
   Overlay mOverlay;
+  std::vector<Highlight> mHighlights;
   bool mStarted = false;
 };
 

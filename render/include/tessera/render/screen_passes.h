@@ -5,6 +5,9 @@
 #pragma once
 
 #include <cstdint>
+#include <memory>
+#include <span>
+#include <vector>
 
 #include <glm/glm.hpp>
 
@@ -123,6 +126,42 @@ class EdlPass {
  private:
   GlProgram mProgram;
   GlBuffer mFiltered;  ///< kRobust: denoised log2 depth per pixel
+};
+
+/// The side of a highlight mask, bits: 1024 x 1024 over the lasso view's NDC square (128 KiB),
+/// so a lasso drawn on a 1920-pixel view is followed to about 2 of its pixels.
+constexpr uint32_t kHighlightMaskSize = 1024;
+
+/// A region to tint (a selection, issue 16): what the lasso drawn in view `clip_from_world`
+/// enclosed (`mask`: rasterizeLasso()), the whole depth through.
+struct Highlight {
+  glm::dmat4 clip_from_world{1.0};
+  std::shared_ptr<const std::vector<uint32_t>> mask;
+  glm::u8vec4 tint{255, 190, 0, 120};  ///< rgb and how much of it (alpha / 255) over the pixel
+};
+
+/// The lasso `ndc` (the lasso view's normalised device coordinates, x right, y up; at least 3
+/// finite vertices, else an empty mask) as kHighlightMaskSize^2 bits, row-major from NDC y = -1,
+/// by the even-odd rule at each cell's centre (master/lasso_selection.h's rule). Cost: one
+/// pass over the rows, O(rows x edges + cells / 32).
+std::vector<uint32_t> rasterizeLasso(std::span<const glm::dvec2> ndc);
+
+/// Tints the pixels whose surface point (this view's pixel centre at its depth) projects inside
+/// a highlight's lasso. Run after the resolve and eye-dome lighting, before the overlay.
+/// `clip_from_world`: the view the depth was written with. Milliseconds.
+/// Cost per highlight: one pass over the pixels reading the depth and the mask (a 128 KiB
+/// upload when the mask changed), like one eye-dome lighting stage.
+class HighlightPass {
+ public:
+  HighlightPass();
+  double run(FrameTarget& target, std::span<const Highlight> highlights,
+             const glm::dmat4& clip_from_world);
+
+ private:
+  GlProgram mProgram;
+  GlBuffer mMask;
+  const std::vector<uint32_t>* mUploaded = nullptr;  ///< the mask in mMask (by identity)
+  std::shared_ptr<const std::vector<uint32_t>> mKeep;  ///< keeps that identity valid
 };
 
 }  // namespace tessera::render

@@ -89,6 +89,9 @@ struct RenderOptions {
   /// Mesh models: each triangle lit by its own facet normal instead of the vertices' normals
   /// interpolated (mesh_pass.h): shows the triangulation, e.g. to judge a scan's resolution.
   bool flat_shading = false;
+  /// Selections to tint (screen_passes.h HighlightPass; the scene's SELECTION nodes through
+  /// sceneHighlights() in scene_overlay.h), drawn after eye-dome lighting, under the overlay.
+  std::vector<Highlight> highlights;
 };
 
 /// One frame. `nodes`..`points` describe what was drawn.
@@ -218,6 +221,7 @@ class ViewRenderer {
   EdlPass mEdl;
   std::unique_ptr<FillPass> mFill;        ///< made on first use
   std::unique_ptr<OverlayPass> mOverlay;  ///< made on first use (builds a font atlas)
+  std::unique_ptr<HighlightPass> mHighlight;  ///< made on first use
   std::vector<PickRange> mPickRanges;     ///< the last frame's, by base
   std::vector<lod::NodeId> mBatchNodes;   ///< this frame's batches' nodes
   glm::dmat4 mPickUnproject{1.0};         ///< world from NDC, the last frame's

@@ -126,6 +126,7 @@ class SceneGraph {
   void setPayload(NodeId id, const scene::AvatarPayload& payload);
   void setPayload(NodeId id, const scene::VideoInsetPayload& payload);
   void setPayload(NodeId id, const scene::MeasurementPayload& payload);
+  void setPayload(NodeId id, const scene::SelectionPayload& payload);
 
   /// Sets the camera (metres, scene frame), stored in its wire form (camera_state.h): camera()
   /// then returns it rounded as every node will see it. Preconditions as encodeCamera().
