@@ -1,0 +1,473 @@
+// 3D lazy snapping and the robust lasso (master/src/lazy_snapping.cpp, max_flow.cpp,
+// watershed.cpp, robust_lasso.cpp, surface_samples.cpp).
+#include <tessera/master/lazy_snapping.h>
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <functional>
+#include <limits>
+#include <queue>
+#include <random>
+#include <set>
+#include <vector>
+
+#include <glm/gtc/matrix_transform.hpp>
+#include <gtest/gtest.h>
+
+#include <tessera/core/check.h>
+
+#include "max_flow.h"
+
+namespace tessera::master {
+namespace {
+
+// ---------------------------------------------------------------------------------------------
+// Max-flow against Dinic's algorithm on random graphs.
+
+/// Dinic's max-flow on an explicit graph with source n and sink n + 1: the reference.
+double dinic(uint32_t n, const std::vector<std::tuple<uint32_t, uint32_t, double>>& edges) {
+  const uint32_t s = n, t = n + 1, v = n + 2;
+  struct E {
+    uint32_t to;
+    double cap;
+  };
+  std::vector<E> es;
+  std::vector<std::vector<uint32_t>> adj(v);
+  for (const auto& [a, b, c] : edges) {
+    adj[a].push_back(uint32_t(es.size()));
+    es.push_back({b, c});
+    adj[b].push_back(uint32_t(es.size()));
+    es.push_back({a, 0.0});
+  }
+  double flow = 0;
+  std::vector<int> level(v);
+  std::vector<size_t> it(v);
+  auto bfs = [&] {
+    std::fill(level.begin(), level.end(), -1);
+    std::queue<uint32_t> q;
+    level[s] = 0;
+    q.push(s);
+    while (!q.empty()) {
+      const uint32_t x = q.front();
+      q.pop();
+      for (uint32_t e : adj[x])
+        if (es[e].cap > 0 && level[es[e].to] < 0) {
+          level[es[e].to] = level[x] + 1;
+          q.push(es[e].to);
+        }
+    }
+    return level[t] >= 0;
+  };
+  std::function<double(uint32_t, double)> dfs = [&](uint32_t x, double f) -> double {
+    if (x == t) return f;
+    for (size_t& k = it[x]; k < adj[x].size(); ++k) {
+      const uint32_t e = adj[x][k];
+      if (es[e].cap > 0 && level[es[e].to] == level[x] + 1) {
+        const double d = dfs(es[e].to, std::min(f, es[e].cap));
+        if (d > 0) {
+          es[e].cap -= d;
+          es[e ^ 1].cap += d;
+          return d;
+        }
+      }
+    }
+    return 0;
+  };
+  while (bfs()) {
+    std::fill(it.begin(), it.end(), 0);
+    while (double f = dfs(s, std::numeric_limits<double>::infinity())) flow += f;
+  }
+  return flow;
+}
+
+TEST(MaxFlow, MatchesDinicOnRandomGraphsWithAValidCut) {
+  std::mt19937 rng(16);
+  for (int trial = 0; trial < 300; ++trial) {
+    const uint32_t n = 2 + rng() % 80;
+    const uint32_t m = n + rng() % (4 * n);
+    MaxFlowGraph graph(n);
+    std::vector<std::tuple<uint32_t, uint32_t, double>> ref;  // source n, sink n + 1
+    std::vector<double> cs(n, 0), ct(n, 0);
+    std::vector<std::tuple<uint32_t, uint32_t, double>> arcs;
+    for (uint32_t i = 0; i < n; ++i) {
+      // Sparse terminal links as in segmentation: many nodes have none, some both.
+      if (rng() % 3 == 0) cs[i] = double(rng() % 30);
+      if (rng() % 3 == 0) ct[i] = double(rng() % 30);
+      graph.addTerminalWeights(i, cs[i], ct[i]);
+      if (cs[i] > 0) ref.emplace_back(n, i, cs[i]);
+      if (ct[i] > 0) ref.emplace_back(i, n + 1, ct[i]);
+    }
+    for (uint32_t e = 0; e < m; ++e) {
+      const uint32_t a = rng() % n, b = rng() % n;
+      if (a == b) continue;
+      const double c = double(rng() % 20), r = double(rng() % 20);
+      graph.addEdge(a, b, c, r);
+      ref.emplace_back(a, b, c);
+      ref.emplace_back(b, a, r);
+      arcs.emplace_back(a, b, c);
+      arcs.emplace_back(b, a, r);
+    }
+    const double flow = graph.maxflow();
+    ASSERT_DOUBLE_EQ(flow, dinic(n, ref)) << "trial " << trial << ", " << n << " nodes";
+    // The cut the graph reports has the capacity of the flow (max-flow min-cut theorem).
+    double cut = 0;
+    for (uint32_t i = 0; i < n; ++i) cut += graph.isSourceSide(i) ? ct[i] : cs[i];
+    for (const auto& [a, b, c] : arcs)
+      if (graph.isSourceSide(a) && !graph.isSourceSide(b)) cut += c;
+    ASSERT_DOUBLE_EQ(cut, flow) << "trial " << trial;
+  }
+}
+
+TEST(MaxFlow, SmallKnownGraphAndMisuse) {
+  // s -> 0 (3), s -> 1 (2), 0 -> 1 (1), 0 -> t (2), 1 -> t (3): max flow 5.
+  MaxFlowGraph graph(2);
+  graph.addTerminalWeights(0, 3, 2);
+  graph.addTerminalWeights(1, 2, 3);
+  graph.addEdge(0, 1, 1, 0);
+  EXPECT_DOUBLE_EQ(graph.maxflow(), 5.0);
+  EXPECT_THROW(graph.maxflow(), PreconditionError);
+  EXPECT_THROW(graph.addEdge(0, 0, 1, 1), PreconditionError);
+  EXPECT_THROW(graph.addTerminalWeights(0, -1, 0), PreconditionError);
+  MaxFlowGraph empty;
+  EXPECT_DOUBLE_EQ(empty.maxflow(), 0.0);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Synthetic surfaces.
+
+/// Two planes folded along the y axis (x = 0): z = slope * |x|, points on a jittered grid of
+/// spacing `h` over [-1, 1]^2, none on the crease itself. Normals by PCA (k = 8).
+SurfaceSamples foldedPlanes(double h, double slope, std::vector<uint8_t>* left) {
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> jitter(-0.1 * h, 0.1 * h);
+  std::vector<glm::dvec3> p;
+  for (double y = -1; y <= 1; y += h)
+    for (double x = -1 + 0.5 * h; x < 1; x += h) {
+      const double xx = x + jitter(rng), yy = y + jitter(rng);
+      p.emplace_back(xx, yy, slope * std::abs(xx));
+      if (left) left->push_back(xx < 0 ? 1 : 0);
+    }
+  return surfaceFromPoints(p, {}, {}, 8, glm::dvec3(0, 0, 10));
+}
+
+/// A UV sphere of radius 1 with `rings` latitude rings; vertices with z > 0.5 (the cap) are
+/// red, the rest blue, each channel with uniform noise of +-20.
+lod::Mesh cappedSphere(uint32_t rings, std::vector<uint8_t>* cap) {
+  lod::Mesh mesh;
+  const uint32_t segments = 2 * rings;
+  std::mt19937 rng(3);
+  std::uniform_int_distribution<int> noise(-20, 20);
+  auto add = [&](const glm::dvec3& p) {
+    mesh.positions.push_back(p);
+    const bool in_cap = p.z > 0.5;
+    const glm::ivec3 base = in_cap ? glm::ivec3(200, 60, 50) : glm::ivec3(60, 90, 180);
+    mesh.colors.emplace_back(base.r + noise(rng), base.g + noise(rng), base.b + noise(rng), 255);
+    if (cap) cap->push_back(in_cap ? 1 : 0);
+  };
+  add({0, 0, 1});
+  for (uint32_t r = 1; r < rings; ++r) {
+    const double theta = M_PI * double(r) / double(rings);
+    for (uint32_t s = 0; s < segments; ++s) {
+      const double phi = 2 * M_PI * double(s) / double(segments);
+      add({std::sin(theta) * std::cos(phi), std::sin(theta) * std::sin(phi), std::cos(theta)});
+    }
+  }
+  add({0, 0, -1});
+  const uint32_t south = uint32_t(mesh.positions.size() - 1);
+  auto ring = [&](uint32_t r, uint32_t s) { return 1 + (r - 1) * segments + s % segments; };
+  for (uint32_t s = 0; s < segments; ++s) {
+    mesh.triangles.emplace_back(0, ring(1, s), ring(1, s + 1));
+    mesh.triangles.emplace_back(south, ring(rings - 1, s + 1), ring(rings - 1, s));
+    for (uint32_t r = 1; r + 1 < rings; ++r) {
+      mesh.triangles.emplace_back(ring(r, s), ring(r + 1, s), ring(r + 1, s + 1));
+      mesh.triangles.emplace_back(ring(r, s), ring(r + 1, s + 1), ring(r, s + 1));
+    }
+  }
+  return mesh;
+}
+
+/// Samples within `r` of the 3D polyline: a stroke as the pick under it would give it.
+std::vector<uint32_t> near(const SurfaceSamples& s, const std::vector<glm::dvec3>& line, double r) {
+  std::vector<uint32_t> out;
+  for (uint32_t i = 0; i < s.size(); ++i)
+    for (size_t k = 0; k + 1 < line.size(); ++k) {
+      const glm::dvec3 ab = line[k + 1] - line[k];
+      const double t = std::clamp(glm::dot(s.positions[i] - line[k], ab) / glm::dot(ab, ab), 0., 1.);
+      if (glm::length(s.positions[i] - (line[k] + t * ab)) <= r) {
+        out.push_back(i);
+        break;
+      }
+    }
+  return out;
+}
+
+/// Segments are non-empty, bounded, connected, and number every sample once.
+void expectValidSegmentation(const SurfaceSamples& s, const OverSegmentation& seg,
+                             uint32_t max_size) {
+  ASSERT_EQ(seg.segment_of.size(), s.size());
+  std::vector<std::vector<uint32_t>> members(seg.count);
+  for (uint32_t i = 0; i < s.size(); ++i) {
+    ASSERT_LT(seg.segment_of[i], seg.count);
+    members[seg.segment_of[i]].push_back(i);
+  }
+  std::vector<uint8_t> seen(s.size(), 0);
+  for (uint32_t k = 0; k < seg.count; ++k) {
+    ASSERT_FALSE(members[k].empty()) << "segment " << k;
+    ASSERT_LE(members[k].size(), max_size) << "segment " << k;
+    std::vector<uint32_t> frontier{members[k][0]};
+    seen[members[k][0]] = 1;
+    for (size_t f = 0; f < frontier.size(); ++f)
+      for (uint32_t j : s.neighboursOf(frontier[f]))
+        if (!seen[j] && seg.segment_of[j] == k) {
+          seen[j] = 1;
+          frontier.push_back(j);
+        }
+    ASSERT_EQ(frontier.size(), members[k].size()) << "segment " << k << " is not connected";
+  }
+}
+
+TEST(Watershed, CoversEverySampleOnceAndRespectsACrease) {
+  const double h = 0.02;
+  const SurfaceSamples s = foldedPlanes(h, 1.0, nullptr);  // a 90 degree fold
+  OverSegmentOptions options;
+  const OverSegmentation seg = overSegment(s, options);
+  expectValidSegmentation(s, seg, options.max_segment_size);
+  EXPECT_GT(seg.count, s.size() / options.max_segment_size);
+  EXPECT_LT(seg.count, s.size() / 4);  // a real over-segmentation, not one segment per sample
+  // No segment reaches further than the first two sample columns into the other side: the
+  // basins' borders follow the crease (PCA normals blend across it within one k-NN radius).
+  std::vector<double> min_x(seg.count, 1e9), max_x(seg.count, -1e9);
+  for (uint32_t i = 0; i < s.size(); ++i) {
+    min_x[seg.segment_of[i]] = std::min(min_x[seg.segment_of[i]], s.positions[i].x);
+    max_x[seg.segment_of[i]] = std::max(max_x[seg.segment_of[i]], s.positions[i].x);
+  }
+  uint32_t crossing = 0;
+  for (uint32_t k = 0; k < seg.count; ++k)
+    if (min_x[k] < -2 * h && max_x[k] > 2 * h) ++crossing;
+  EXPECT_EQ(crossing, 0u);
+}
+
+TEST(Watershed, ColourEdgeOnASphereAndSegmentBounds) {
+  std::vector<uint8_t> cap;
+  const lod::Mesh mesh = cappedSphere(60, &cap);
+  const SurfaceSamples s = surfaceFromMesh(mesh);
+  for (uint32_t max_size : {16u, 64u, 256u}) {
+    OverSegmentOptions options;
+    options.max_segment_size = max_size;
+    const OverSegmentation seg = overSegment(s, options);
+    expectValidSegmentation(s, seg, max_size);
+    // Every segment is all cap or all not cap: the colour edge is a watershed line.
+    std::vector<std::set<uint8_t>> kinds(seg.count);
+    for (uint32_t i = 0; i < s.size(); ++i) kinds[seg.segment_of[i]].insert(cap[i]);
+    size_t mixed = 0;
+    for (const auto& k : kinds) mixed += k.size() > 1 ? 1 : 0;
+    EXPECT_EQ(mixed, 0u) << "max_segment_size " << max_size;
+  }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Graph cuts with known labels. The bound: the cut may misplace the border by about one
+// sample row (segments straddle it by at most that, and a sample on the border belongs to
+// either side); the known regions hold ~10^3..10^4 samples with ~10^2 on their border, so one
+// row off costs a few percent at most: IoU >= 0.95.
+constexpr double kSyntheticIoU = 0.95;
+
+TEST(LazySnapping, SphereCapByColourOneStrokePerSide) {
+  std::vector<uint8_t> cap;
+  const lod::Mesh mesh = cappedSphere(100, &cap);
+  const SurfaceSamples s = surfaceFromMesh(mesh);
+  Strokes strokes;
+  strokes.foreground = near(s, {{-0.5, 0, 0.87}, {0.5, 0, 0.87}}, 0.03);   // across the cap
+  strokes.background = near(s, {{1, 0, 0}, {0, 1, 0}, {-1, 0, 0}}, 0.03);  // half the equator
+  ASSERT_FALSE(strokes.foreground.empty());
+  ASSERT_FALSE(strokes.background.empty());
+  for (bool over_segment : {true, false}) {
+    SnapOptions options;
+    options.over_segment = over_segment;
+    const LazySnapping snapping(s, options);
+    const SnapResult r = snapping.cut(strokes);
+    const double iou = intersectionOverUnion(r.selected, cap);
+    EXPECT_GE(iou, kSyntheticIoU) << (over_segment ? "segments" : "per sample");
+    EXPECT_EQ(r.indices.size(), size_t(std::count(r.selected.begin(), r.selected.end(), 1)));
+    if (over_segment) {
+      EXPECT_LT(r.graph_nodes, s.size() / 8);
+    }
+    // Triangles: every selected one is in the cap's closure.
+    for (uint32_t t : selectedTriangles(mesh, r.selected))
+      EXPECT_TRUE(r.selected[mesh.triangles[t].x]);
+  }
+}
+
+TEST(LazySnapping, FoldedPlanesByNormalsOneStrokePerSide) {
+  std::vector<uint8_t> left;
+  const SurfaceSamples s = foldedPlanes(0.02, 0.7, &left);  // a 70 degree fold, one colour
+  Strokes strokes;
+  strokes.foreground = near(s, {{-0.5, -0.6, 0.35}, {-0.5, 0.6, 0.35}}, 0.02);
+  strokes.background = near(s, {{0.6, 0.2, 0.42}, {0.6, 0.5, 0.42}}, 0.02);
+  const LazySnapping snapping(s);
+  const SnapResult r = snapping.cut(strokes);
+  EXPECT_GE(intersectionOverUnion(r.selected, left), kSyntheticIoU);
+}
+
+/// An orthographic view of [-1.2, 1.2]^2 from +z, 480 x 480 pixels (200 pixels per unit).
+ScreenView topView() {
+  ScreenView v;
+  v.view = glm::lookAt(glm::dvec3(0, 0, 5), glm::dvec3(0), glm::dvec3(0, 1, 0));
+  v.projection = glm::ortho(-1.2, 1.2, -1.2, 1.2, 0.1, 10.0);
+  v.viewport = {480, 480};
+  return v;
+}
+
+TEST(RobustLasso, SphereCapFromOneHeavyStroke) {
+  std::vector<uint8_t> cap;
+  const lod::Mesh mesh = cappedSphere(100, &cap);
+  const SurfaceSamples s = surfaceFromMesh(mesh);
+  const ScreenView view = topView();
+  // A hand-drawn heavy stroke along the cap's border (radius sin(60 deg) = 0.866 units, 173
+  // pixels about the centre): a wobbly closed curve, 30 pixels wide, off by up to 8 pixels.
+  HeavyStroke stroke;
+  stroke.width_px = 30;
+  stroke.seed_band_px = 20;
+  for (int k = 0; k < 64; ++k) {
+    const double a = 2 * M_PI * k / 64.0;
+    const double r = 173.0 + 8.0 * std::sin(3 * a);
+    stroke.polyline.emplace_back(240 + r * std::cos(a), 240 + r * std::sin(a));
+  }
+  const std::vector<uint8_t> visible = visibleSamples(s, view, 4.0, 0.05);
+  // The view sees the upper hemisphere only.
+  for (uint32_t i = 0; i < s.size(); ++i)
+    if (visible[i]) {
+      ASSERT_GT(s.positions[i].z, -0.05);
+    }
+  const Strokes seeds = robustLassoSeeds(s, view, stroke, visible);
+  ASSERT_FALSE(seeds.foreground.empty());
+  ASSERT_FALSE(seeds.background.empty());
+  for (uint32_t i : seeds.foreground) EXPECT_TRUE(cap[i]) << i;
+  for (uint32_t i : seeds.background) EXPECT_FALSE(cap[i]) << i;
+  const LazySnapping snapping(s);
+  const SnapResult r = snapping.cut(seeds, &view);
+  EXPECT_GE(intersectionOverUnion(r.selected, cap), kSyntheticIoU);
+  // The plain lasso along the stroke's centre line would be off by up to 8 pixels (~0.04
+  // units, ~2 sample rows at the border): the cut snaps to the colour edge instead.
+}
+
+// ---------------------------------------------------------------------------------------------
+// The Stanford bunny's ear.
+
+/// The bunny's right (taller, free-standing) ear, fixed by looking at bun_zipper.ply in the XY
+/// plane (y up; the ear leans towards +x, its tip at (-0.016, 0.187)): the vertices beyond the
+/// plane through (-0.05, 0.152, 0) with normal (0.86, 0.5, 0) (across the ear's base, where
+/// it leaves the head) and above y = 0.14 (the back, at y <= 0.132 there, stays out). The
+/// other ear stands at x < -0.06 and lies behind the plane.
+std::vector<uint8_t> bunnyEar(const SurfaceSamples& s) {
+  std::vector<uint8_t> ear(s.size());
+  for (uint32_t i = 0; i < s.size(); ++i) {
+    const glm::dvec3 p = s.positions[i];
+    ear[i] = glm::dot(p - glm::dvec3(-0.05, 0.152, 0), glm::dvec3(0.86, 0.5, 0)) > 0 && p.y > 0.14;
+  }
+  return ear;
+}
+
+/// The bunny seen from +z, orthographic, [-0.11, 0.07] x [0.02, 0.2] on 540 x 540 pixels
+/// (3000 pixels per metre, a vertex every 2 to 3 pixels).
+ScreenView bunnyView() {
+  ScreenView v;
+  v.view = glm::lookAt(glm::dvec3(0, 0, 1), glm::dvec3(0), glm::dvec3(0, 1, 0));
+  v.projection = glm::ortho(-0.11, 0.07, 0.02, 0.2, 0.1, 2.0);
+  v.viewport = {540, 540};
+  return v;
+}
+
+glm::dvec2 bunnyPixel(double x, double y) { return {(x + 0.11) * 3000.0, (y - 0.02) * 3000.0}; }
+
+const std::filesystem::path kBunny =
+    std::filesystem::path(TESSERA_DATA_DIR) / "stanford-bunny/reconstruction/bun_zipper.ply";
+
+TEST(LazySnapping, BunnyEarFromOneStrokeOnTheEarAndOneOnTheHead) {
+  if (!std::filesystem::exists(kBunny)) GTEST_SKIP() << kBunny << " missing";
+  const lod::Mesh mesh = lod::readMesh(kBunny);
+  const SurfaceSamples s = surfaceFromMesh(mesh);
+  const std::vector<uint8_t> ear = bunnyEar(s);
+  const size_t ear_count = size_t(std::count(ear.begin(), ear.end(), 1));
+  ASSERT_GT(ear_count, 1000u);
+  ASSERT_LT(ear_count, 4000u);
+  const ScreenView view = bunnyView();
+  const std::vector<uint8_t> visible = visibleSamples(s, view, 3.0, 0.003);
+  // Strokes as a user draws them on the front view: along the ear from near its tip to near
+  // its base; across the head and down the back.
+  const std::vector<glm::dvec2> ear_stroke{bunnyPixel(-0.02, 0.178), bunnyPixel(-0.045, 0.162)};
+  const std::vector<glm::dvec2> head_stroke{bunnyPixel(-0.085, 0.13), bunnyPixel(-0.06, 0.14),
+                                            bunnyPixel(-0.03, 0.125), bunnyPixel(0.0, 0.12)};
+  Strokes strokes;
+  strokes.foreground = pickStroke(s, view, ear_stroke, 4.0, visible);
+  strokes.background = pickStroke(s, view, head_stroke, 4.0, visible);
+  ASSERT_GT(strokes.foreground.size(), 20u);
+  ASSERT_GT(strokes.background.size(), 20u);
+  for (uint32_t i : strokes.foreground) ASSERT_TRUE(ear[i]);
+  for (uint32_t i : strokes.background) ASSERT_FALSE(ear[i]);
+  const LazySnapping snapping(s);
+  const SnapResult r = snapping.cut(strokes, &view);
+  const double iou = intersectionOverUnion(r.selected, ear);
+  RecordProperty("iou", std::to_string(iou));
+  EXPECT_GE(iou, 0.85);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Degenerate input: clear errors, never a crash.
+
+TEST(LazySnapping, DegenerateInputThrowsClearErrors) {
+  std::vector<uint8_t> cap;
+  const SurfaceSamples s = surfaceFromMesh(cappedSphere(20, &cap));
+  const LazySnapping snapping(s);
+  EXPECT_THROW(snapping.cut({}), SnappingError);
+  EXPECT_THROW(snapping.cut({{1, 2, 3}, {}}), SnappingError);
+  EXPECT_THROW(snapping.cut({{}, {1, 2, 3}}), SnappingError);
+  EXPECT_THROW(snapping.cut({{1}, {uint32_t(s.size())}}), SnappingError);
+  try {
+    snapping.cut({{1, 2}, {}});
+  } catch (const SnappingError& e) {
+    EXPECT_NE(std::string(e.what()).find("LazySnapping::cut()"), std::string::npos) << e.what();
+  }
+  // The same sample in both strokes: its segment is left to the cut, no crash.
+  const SnapResult r = snapping.cut({{0, 5}, {5, uint32_t(s.size() - 1)}});
+  EXPECT_EQ(r.selected.size(), s.size());
+  EXPECT_GE(r.conflicting_segments, 1u);
+
+  SurfaceSamples empty;
+  EXPECT_THROW(LazySnapping{empty}, SnappingError);
+  EXPECT_THROW(overSegment(empty), SnappingError);
+  SurfaceSamples nan = s;
+  nan.positions[3].y = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_THROW(LazySnapping{nan}, SnappingError);
+  SurfaceSamples short_colours = s;
+  short_colours.colors.pop_back();
+  EXPECT_THROW(LazySnapping{short_colours}, SnappingError);
+
+  std::vector<glm::dvec3> points{{0, 0, 0}, {1, 0, 0}, {0, std::nan(""), 0}};
+  EXPECT_THROW(surfaceFromPoints(points, {}, {}, 8, glm::dvec3(0)), SnappingError);
+  EXPECT_THROW(surfaceFromPoints({}, {}, {}, 8, glm::dvec3(0)), SnappingError);
+  // Fewer points than k: a complete graph, no crash.
+  points[2].y = 1;
+  const SurfaceSamples tiny = surfaceFromPoints(points, {}, {}, 8, glm::dvec3(0, 0, 5));
+  EXPECT_EQ(tiny.neighbours.size(), 6u);
+  const SnapResult t = LazySnapping(tiny).cut({{0}, {2}});
+  EXPECT_TRUE(t.selected[0]);
+  EXPECT_FALSE(t.selected[2]);
+
+  const ScreenView view = topView();
+  HeavyStroke two;
+  two.polyline = {{0, 0}, {10, 10}};
+  EXPECT_THROW(robustLassoSeeds(s, view, two, {}), SnappingError);
+  two.polyline.emplace_back(std::nan(""), 1.0);
+  EXPECT_THROW(robustLassoSeeds(s, view, two, {}), SnappingError);
+  ScreenView no_pixels = view;
+  no_pixels.viewport = {0, 0};
+  EXPECT_THROW(visibleSamples(s, no_pixels, 2, 0.1), SnappingError);
+  EXPECT_THROW(pickStroke(s, view, {}, 3.0, {}), SnappingError);
+  EXPECT_THROW(intersectionOverUnion(std::vector<uint8_t>(2), std::vector<uint8_t>(3)),
+               SnappingError);
+}
+
+}  // namespace
+}  // namespace tessera::master
