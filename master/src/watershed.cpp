@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cassert>
 #include <cmath>
+#include <limits>
 #include <numeric>
 #include <queue>
 #include <tuple>
@@ -66,23 +67,45 @@ OverSegmentation overSegment(const SurfaceSamples& s, const OverSegmentOptions& 
   auto lower = [&](uint32_t a, uint32_t b) { return std::tie(h[a], a) < std::tie(h[b], b); };
 
   // Flooding by priority (Meyer 1991): every regional minimum starts a basin; the lowest
-  // unlabelled sample next to a basin joins it. Heaps pop the largest, hence the negated keys.
+  // unlabelled sample next to a basin is labelled next. Where basins meet, samples on a
+  // crease or colour edge have equal heights on both sides, so a sample takes the label of
+  // its most similar labelled neighbour rather than of whichever basin came first.
+  auto dissimilarity = [&](uint32_t i, uint32_t j) {
+    return 1.0 - double(glm::dot(s.normals[i], s.normals[j])) +
+           o.colour_weight * glm::length(glm::dvec3(s.colors[i]) - glm::dvec3(s.colors[j])) / 255.0;
+  };
   std::vector<uint32_t> label(n, kUnlabelled);
-  using Entry = std::tuple<double, int64_t, uint32_t, uint32_t>;  // -height, -index, sample, label
+  std::vector<uint8_t> queued(n, 0);
+  using Entry = std::pair<double, int64_t>;  // (-height, -index): heaps pop the largest
   std::priority_queue<Entry> queue;
   uint32_t basins = 0;
   for (uint32_t i = 0; i < n; ++i) {
     bool minimum = true;
     for (uint32_t j : s.neighboursOf(i)) minimum = minimum && lower(i, j);
-    if (minimum) queue.emplace(-h[i], -int64_t(i), i, basins++);
+    if (!minimum) continue;
+    label[i] = basins++;
+    queued[i] = 1;
+    for (uint32_t j : s.neighboursOf(i))
+      if (!queued[j]) {
+        queued[j] = 1;
+        queue.emplace(-h[j], -int64_t(j));
+      }
   }
   while (!queue.empty()) {
-    const auto [neg_h, neg_i, i, l] = queue.top();
+    const uint32_t i = uint32_t(-queue.top().second);
     queue.pop();
-    if (label[i] != kUnlabelled) continue;
-    label[i] = l;
+    double best = std::numeric_limits<double>::infinity();
     for (uint32_t j : s.neighboursOf(i))
-      if (label[j] == kUnlabelled) queue.emplace(-h[j], -int64_t(j), j, l);
+      if (label[j] != kUnlabelled && dissimilarity(i, j) < best) {
+        best = dissimilarity(i, j);
+        label[i] = label[j];
+      }
+    assert(label[i] != kUnlabelled);
+    for (uint32_t j : s.neighboursOf(i))
+      if (!queued[j]) {
+        queued[j] = 1;
+        queue.emplace(-h[j], -int64_t(j));
+      }
   }
   assert(std::find(label.begin(), label.end(), kUnlabelled) == label.end());
 

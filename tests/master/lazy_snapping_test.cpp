@@ -355,17 +355,29 @@ TEST(RobustLasso, SphereCapFromOneHeavyStroke) {
 // ---------------------------------------------------------------------------------------------
 // The Stanford bunny's ear.
 
-/// The bunny's right (taller, free-standing) ear, fixed by looking at bun_zipper.ply in the XY
-/// plane (y up; the ear leans towards +x, its tip at (-0.016, 0.187)): the vertices beyond the
-/// plane through (-0.05, 0.152, 0) with normal (0.86, 0.5, 0) (across the ear's base, where
-/// it leaves the head) and above y = 0.14 (the back, at y <= 0.132 there, stays out). The
-/// other ear stands at x < -0.06 and lies behind the plane.
+/// The bunny's right (taller, free-standing) ear, fixed by looking at bun_zipper.ply (y up):
+/// its axis runs from its root near (-0.055, 0.152, 0) to its tip, the highest vertex, at
+/// about (-0.016, 0.187, -0.02). The ear is the set of vertices connected to the tip through
+/// vertices beyond a plane across that axis. Moving the plane towards the head in 1 mm steps,
+/// the set grows by ~30 vertices a step until, 5 mm before the root point, it leaks into the
+/// head (2113 -> 4143 vertices): that last plane before the leak is the ear's base. Loose
+/// vertices of no triangle (the scan has 1113) are not surface and never in the set.
 std::vector<uint8_t> bunnyEar(const SurfaceSamples& s) {
-  std::vector<uint8_t> ear(s.size());
-  for (uint32_t i = 0; i < s.size(); ++i) {
-    const glm::dvec3 p = s.positions[i];
-    ear[i] = glm::dot(p - glm::dvec3(-0.05, 0.152, 0), glm::dvec3(0.86, 0.5, 0)) > 0 && p.y > 0.14;
-  }
+  constexpr double kBase = -0.005;  // metres along the axis from the root point
+  const glm::dvec3 axis = glm::normalize(glm::dvec3(0.039, 0.035, -0.02));
+  const glm::dvec3 root(-0.055, 0.152, 0.0);
+  uint32_t tip = 0;
+  for (uint32_t i = 0; i < s.size(); ++i)
+    if (s.positions[i].y > s.positions[tip].y) tip = i;
+  std::vector<uint8_t> ear(s.size(), 0);
+  std::vector<uint32_t> frontier{tip};
+  ear[tip] = 1;
+  for (size_t k = 0; k < frontier.size(); ++k)
+    for (uint32_t j : s.neighboursOf(frontier[k]))
+      if (!ear[j] && glm::dot(s.positions[j] - root, axis) > kBase) {
+        ear[j] = 1;
+        frontier.push_back(j);
+      }
   return ear;
 }
 
@@ -381,6 +393,12 @@ ScreenView bunnyView() {
 
 glm::dvec2 bunnyPixel(double x, double y) { return {(x + 0.11) * 3000.0, (y - 0.02) * 3000.0}; }
 
+/// The ear's base is a smooth saddle, not an edge: where it lies is a matter of +-2 mm along
+/// the axis, ~60 vertices either way (3% of the ear each). 0.95 is measured; 0.90 allows
+/// for a cut a few millimetres off that base but no more (a cut across the middle of the ear
+/// scores about 0.5).
+constexpr double kEarIoU = 0.90;
+
 const std::filesystem::path kBunny =
     std::filesystem::path(TESSERA_DATA_DIR) / "stanford-bunny/reconstruction/bun_zipper.ply";
 
@@ -390,8 +408,8 @@ TEST(LazySnapping, BunnyEarFromOneStrokeOnTheEarAndOneOnTheHead) {
   const SurfaceSamples s = surfaceFromMesh(mesh);
   const std::vector<uint8_t> ear = bunnyEar(s);
   const size_t ear_count = size_t(std::count(ear.begin(), ear.end(), 1));
-  ASSERT_GT(ear_count, 1000u);
-  ASSERT_LT(ear_count, 4000u);
+  ASSERT_GT(ear_count, 2000u);
+  ASSERT_LT(ear_count, 2300u);
   const ScreenView view = bunnyView();
   const std::vector<uint8_t> visible = visibleSamples(s, view, 3.0, 0.003);
   // Strokes as a user draws them on the front view: along the ear from near its tip to near
@@ -404,13 +422,20 @@ TEST(LazySnapping, BunnyEarFromOneStrokeOnTheEarAndOneOnTheHead) {
   strokes.background = pickStroke(s, view, head_stroke, 4.0, visible);
   ASSERT_GT(strokes.foreground.size(), 20u);
   ASSERT_GT(strokes.background.size(), 20u);
-  for (uint32_t i : strokes.foreground) ASSERT_TRUE(ear[i]);
+  // (The scan's loose vertices are picked too, as points would be; they are not in `ear`.)
+  for (uint32_t i : strokes.foreground) ASSERT_TRUE(ear[i] || s.neighboursOf(i).empty());
   for (uint32_t i : strokes.background) ASSERT_FALSE(ear[i]);
   const LazySnapping snapping(s);
   const SnapResult r = snapping.cut(strokes, &view);
   const double iou = intersectionOverUnion(r.selected, ear);
   RecordProperty("iou", std::to_string(iou));
-  EXPECT_GE(iou, 0.85);
+  EXPECT_GE(iou, kEarIoU);
+  // The baseline without over-segmentation (one node per vertex) finds the ear too, with its
+  // border less on the crease at the ear's root (0.87 measured).
+  SnapOptions per_vertex;
+  per_vertex.over_segment = false;
+  EXPECT_GE(intersectionOverUnion(LazySnapping(s, per_vertex).cut(strokes, &view).selected, ear),
+            0.8);
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -451,7 +476,9 @@ TEST(LazySnapping, DegenerateInputThrowsClearErrors) {
   points[2].y = 1;
   const SurfaceSamples tiny = surfaceFromPoints(points, {}, {}, 8, glm::dvec3(0, 0, 5));
   EXPECT_EQ(tiny.neighbours.size(), 6u);
-  const SnapResult t = LazySnapping(tiny).cut({{0}, {2}});
+  SnapOptions per_sample;
+  per_sample.over_segment = false;
+  const SnapResult t = LazySnapping(tiny, per_sample).cut({{0}, {2}});
   EXPECT_TRUE(t.selected[0]);
   EXPECT_FALSE(t.selected[2]);
 
