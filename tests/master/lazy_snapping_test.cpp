@@ -17,10 +17,19 @@
 
 #include <tessera/core/check.h>
 
+#include "../support/snapping_models.h"
 #include "max_flow.h"
 
 namespace tessera::master {
 namespace {
+
+using test::bunnyEar;
+using test::bunnyPixel;
+using test::bunnyView;
+using test::cappedSphere;
+using test::topView;
+
+const std::filesystem::path kBunny = test::bunnyMeshPath(TESSERA_DATA_DIR);
 
 // ---------------------------------------------------------------------------------------------
 // Max-flow against Dinic's algorithm on random graphs.
@@ -151,42 +160,6 @@ SurfaceSamples foldedPlanes(double h, double slope, std::vector<uint8_t>* left) 
   return surfaceFromPoints(p, {}, {}, 8, glm::dvec3(0, 0, 10));
 }
 
-/// A UV sphere of radius 1 with `rings` latitude rings; vertices with z > 0.5 (the cap) are
-/// red, the rest blue, each channel with uniform noise of +-20.
-lod::Mesh cappedSphere(uint32_t rings, std::vector<uint8_t>* cap) {
-  lod::Mesh mesh;
-  const uint32_t segments = 2 * rings;
-  std::mt19937 rng(3);
-  std::uniform_int_distribution<int> noise(-20, 20);
-  auto add = [&](const glm::dvec3& p) {
-    mesh.positions.push_back(p);
-    const bool in_cap = p.z > 0.5;
-    const glm::ivec3 base = in_cap ? glm::ivec3(200, 60, 50) : glm::ivec3(60, 90, 180);
-    mesh.colors.emplace_back(base.r + noise(rng), base.g + noise(rng), base.b + noise(rng), 255);
-    if (cap) cap->push_back(in_cap ? 1 : 0);
-  };
-  add({0, 0, 1});
-  for (uint32_t r = 1; r < rings; ++r) {
-    const double theta = M_PI * double(r) / double(rings);
-    for (uint32_t s = 0; s < segments; ++s) {
-      const double phi = 2 * M_PI * double(s) / double(segments);
-      add({std::sin(theta) * std::cos(phi), std::sin(theta) * std::sin(phi), std::cos(theta)});
-    }
-  }
-  add({0, 0, -1});
-  const uint32_t south = uint32_t(mesh.positions.size() - 1);
-  auto ring = [&](uint32_t r, uint32_t s) { return 1 + (r - 1) * segments + s % segments; };
-  for (uint32_t s = 0; s < segments; ++s) {
-    mesh.triangles.emplace_back(0, ring(1, s), ring(1, s + 1));
-    mesh.triangles.emplace_back(south, ring(rings - 1, s + 1), ring(rings - 1, s));
-    for (uint32_t r = 1; r + 1 < rings; ++r) {
-      mesh.triangles.emplace_back(ring(r, s), ring(r + 1, s), ring(r + 1, s + 1));
-      mesh.triangles.emplace_back(ring(r, s), ring(r + 1, s + 1), ring(r, s + 1));
-    }
-  }
-  return mesh;
-}
-
 /// Samples within `r` of the 3D polyline: a stroke as the pick under it would give it.
 std::vector<uint32_t> near(const SurfaceSamples& s, const std::vector<glm::dvec3>& line, double r) {
   std::vector<uint32_t> out;
@@ -310,15 +283,6 @@ TEST(LazySnapping, FoldedPlanesByNormalsOneStrokePerSide) {
   EXPECT_GE(intersectionOverUnion(r.selected, left), kSyntheticIoU);
 }
 
-/// An orthographic view of [-1.2, 1.2]^2 from +z, 480 x 480 pixels (200 pixels per unit).
-ScreenView topView() {
-  ScreenView v;
-  v.view = glm::lookAt(glm::dvec3(0, 0, 5), glm::dvec3(0), glm::dvec3(0, 1, 0));
-  v.projection = glm::ortho(-1.2, 1.2, -1.2, 1.2, 0.1, 10.0);
-  v.viewport = {480, 480};
-  return v;
-}
-
 TEST(RobustLasso, SphereCapFromOneHeavyStroke) {
   std::vector<uint8_t> cap;
   const lod::Mesh mesh = cappedSphere(100, &cap);
@@ -355,52 +319,11 @@ TEST(RobustLasso, SphereCapFromOneHeavyStroke) {
 // ---------------------------------------------------------------------------------------------
 // The Stanford bunny's ear.
 
-/// The bunny's right (taller, free-standing) ear, fixed by looking at bun_zipper.ply (y up):
-/// its axis runs from its root near (-0.055, 0.152, 0) to its tip, the highest vertex, at
-/// about (-0.016, 0.187, -0.02). The ear is the set of vertices connected to the tip through
-/// vertices beyond a plane across that axis. Moving the plane towards the head in 1 mm steps,
-/// the set grows by ~30 vertices a step until, 5 mm before the root point, it leaks into the
-/// head (2113 -> 4143 vertices): that last plane before the leak is the ear's base. Loose
-/// vertices of no triangle (the scan has 1113) are not surface and never in the set.
-std::vector<uint8_t> bunnyEar(const SurfaceSamples& s) {
-  constexpr double kBase = -0.005;  // metres along the axis from the root point
-  const glm::dvec3 axis = glm::normalize(glm::dvec3(0.039, 0.035, -0.02));
-  const glm::dvec3 root(-0.055, 0.152, 0.0);
-  uint32_t tip = 0;
-  for (uint32_t i = 0; i < s.size(); ++i)
-    if (s.positions[i].y > s.positions[tip].y) tip = i;
-  std::vector<uint8_t> ear(s.size(), 0);
-  std::vector<uint32_t> frontier{tip};
-  ear[tip] = 1;
-  for (size_t k = 0; k < frontier.size(); ++k)
-    for (uint32_t j : s.neighboursOf(frontier[k]))
-      if (!ear[j] && glm::dot(s.positions[j] - root, axis) > kBase) {
-        ear[j] = 1;
-        frontier.push_back(j);
-      }
-  return ear;
-}
-
-/// The bunny seen from +z, orthographic, [-0.11, 0.07] x [0.02, 0.2] on 540 x 540 pixels
-/// (3000 pixels per metre, a vertex every 2 to 3 pixels).
-ScreenView bunnyView() {
-  ScreenView v;
-  v.view = glm::lookAt(glm::dvec3(0, 0, 1), glm::dvec3(0), glm::dvec3(0, 1, 0));
-  v.projection = glm::ortho(-0.11, 0.07, 0.02, 0.2, 0.1, 2.0);
-  v.viewport = {540, 540};
-  return v;
-}
-
-glm::dvec2 bunnyPixel(double x, double y) { return {(x + 0.11) * 3000.0, (y - 0.02) * 3000.0}; }
-
 /// The ear's base is a smooth saddle, not an edge: where it lies is a matter of +-2 mm along
 /// the axis, ~60 vertices either way (3% of the ear each). 0.95 is measured; 0.90 allows
 /// for a cut a few millimetres off that base but no more (a cut across the middle of the ear
 /// scores about 0.5).
 constexpr double kEarIoU = 0.90;
-
-const std::filesystem::path kBunny =
-    std::filesystem::path(TESSERA_DATA_DIR) / "stanford-bunny/reconstruction/bun_zipper.ply";
 
 TEST(LazySnapping, BunnyEarFromOneStrokeOnTheEarAndOneOnTheHead) {
   if (!std::filesystem::exists(kBunny)) GTEST_SKIP() << kBunny << " missing";
