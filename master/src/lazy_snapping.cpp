@@ -67,7 +67,7 @@ std::pair<double, double> dataCost(double d_f, double d_b) {
 }
 
 /// g(c) = 1 / (c + 1) of eq. 4.3.
-double g(double c) { return 1.0 / (c + 1.0); }
+double gOf(double c) { return 1.0 / (c + 1.0); }
 
 }  // namespace
 
@@ -85,43 +85,53 @@ LazySnapping::LazySnapping(const SurfaceSamples& samples, const SnapOptions& opt
     std::iota(mSegmentation.segment_of.begin(), mSegmentation.segment_of.end(), 0u);
     mSegmentation.count = n;
   }
-  const uint32_t m = mSegmentation.count;
-  mSegmentSize.assign(m, 0);
-  mMeanColour.assign(m, glm::dvec3(0.0));
-  mMeanNormal.assign(m, glm::dvec3(0.0));
-  mCentroid.assign(m, glm::dvec3(0.0));
+  mGraph = buildGraph(samples, mSegmentation.segment_of, mSegmentation.count);
+}
+
+LazySnapping::NodeGraph LazySnapping::buildGraph(const SurfaceSamples& samples,
+                                                 std::vector<uint32_t> node_of, uint32_t count) {
+  NodeGraph g;
+  g.node_of = std::move(node_of);
+  g.count = count;
+  g.size.assign(count, 0);
+  g.colour.assign(count, glm::dvec3(0.0));
+  g.normal.assign(count, glm::dvec3(0.0));
+  g.centroid.assign(count, glm::dvec3(0.0));
+  const uint32_t n = uint32_t(samples.size());
   for (uint32_t i = 0; i < n; ++i) {
-    const uint32_t s = mSegmentation.segment_of[i];
-    ++mSegmentSize[s];
-    mMeanColour[s] += glm::dvec3(samples.colors[i]);
-    mMeanNormal[s] += glm::dvec3(samples.normals[i]);
-    mCentroid[s] += samples.positions[i];
+    const uint32_t s = g.node_of[i];
+    ++g.size[s];
+    g.colour[s] += glm::dvec3(samples.colors[i]);
+    g.normal[s] += glm::dvec3(samples.normals[i]);
+    g.centroid[s] += samples.positions[i];
   }
-  for (uint32_t s = 0; s < m; ++s) {
-    mMeanColour[s] /= double(mSegmentSize[s]);
-    mCentroid[s] /= double(mSegmentSize[s]);
-    const double len = glm::length(mMeanNormal[s]);
-    mMeanNormal[s] = len > 0 ? mMeanNormal[s] / len : glm::dvec3(0.0);
+  for (uint32_t s = 0; s < count; ++s) {
+    if (g.size[s] == 0) continue;  // a segment refined into samples
+    g.colour[s] /= double(g.size[s]);
+    g.centroid[s] /= double(g.size[s]);
+    const double len = glm::length(g.normal[s]);
+    g.normal[s] = len > 0 ? g.normal[s] / len : glm::dvec3(0.0);
   }
-  // Segment adjacency: one graph edge per pair of touching segments, weighted by how many
-  // sample edges cross their border.
+  // Node adjacency: one graph edge per pair of touching nodes, weighted by how many sample
+  // edges cross their border.
   std::vector<uint64_t> pairs;
   for (uint32_t i = 0; i < n; ++i)
     for (uint32_t j : samples.neighboursOf(i)) {
-      const uint32_t a = mSegmentation.segment_of[i], b = mSegmentation.segment_of[j];
+      const uint32_t a = g.node_of[i], b = g.node_of[j];
       if (i < j && a != b) pairs.push_back(uint64_t(std::min(a, b)) << 32 | std::max(a, b));
     }
   std::sort(pairs.begin(), pairs.end());
   for (size_t k = 0; k < pairs.size();) {
     size_t e = k;
     while (e < pairs.size() && pairs[e] == pairs[k]) ++e;
-    mEdges.push_back({uint32_t(pairs[k] >> 32), uint32_t(pairs[k]), uint32_t(e - k)});
+    g.edges.push_back({uint32_t(pairs[k] >> 32), uint32_t(pairs[k]), uint32_t(e - k)});
     k = e;
   }
+  return g;
 }
 
 SnapResult LazySnapping::cut(const Strokes& strokes, const ScreenView* view) const {
-  const uint32_t n = uint32_t(mSamples.size()), m = mSegmentation.count;
+  const uint32_t n = uint32_t(mSamples.size());
   if (strokes.foreground.empty() || strokes.background.empty())
     throw SnappingError(std::string("LazySnapping::cut(): needs both a foreground and a "
                                     "background stroke (got ") +
@@ -134,18 +144,34 @@ SnapResult LazySnapping::cut(const Strokes& strokes, const ScreenView* view) con
                             " out of range (" + std::to_string(n) + " samples)");
 
   // Seeds: F_seed and B_seed of 4.2.1, assigned to segments as 4.2.2 does. A segment under
-  // both kinds of stroke straddles the wanted border; it is left to the cut instead.
+  // both kinds of stroke straddles the wanted border, so the cut refines it into its samples.
   enum : uint8_t { kFree = 0, kFg = 1, kBg = 2, kBoth = 3 };
-  std::vector<uint8_t> seed(m, kFree);
-  for (uint32_t i : strokes.foreground) seed[mSegmentation.segment_of[i]] |= kFg;
-  for (uint32_t i : strokes.background) seed[mSegmentation.segment_of[i]] |= kBg;
+  auto seedsOf = [&](const NodeGraph& graph) {
+    std::vector<uint8_t> seed(graph.count, kFree);
+    for (uint32_t i : strokes.foreground) seed[graph.node_of[i]] |= kFg;
+    for (uint32_t i : strokes.background) seed[graph.node_of[i]] |= kBg;
+    return seed;
+  };
   SnapResult result;
-  result.graph_nodes = m;
+  std::vector<uint8_t> seed = seedsOf(mGraph);
+  NodeGraph refined;
+  const NodeGraph* graph = &mGraph;
+  const uint32_t conflicts = uint32_t(std::count(seed.begin(), seed.end(), kBoth));
+  if (conflicts > 0) {
+    std::vector<uint32_t> node_of = mGraph.node_of;
+    uint32_t count = mGraph.count;
+    for (uint32_t i = 0; i < n; ++i)
+      if (seed[mGraph.node_of[i]] == kBoth) node_of[i] = count++;
+    refined = buildGraph(mSamples, std::move(node_of), count);
+    graph = &refined;
+    seed = seedsOf(refined);
+  }
+  result.conflicting_segments = conflicts;
   for (uint8_t& s : seed)
-    if (s == kBoth) {
-      s = kFree;
-      ++result.conflicting_segments;
-    }
+    if (s == kBoth) s = kFree;  // one sample under both strokes: the cut decides
+  const NodeGraph& g = *graph;
+  const uint32_t m = g.count;
+  result.graph_nodes = m - conflicts;  // refined segments are empty nodes now
 
   // Stroke clusters: colours as in 4.2.1, normals for E1^n of eq. 4.4.
   auto gather = [&](const std::vector<uint32_t>& idx, bool normals) {
@@ -180,11 +206,11 @@ SnapResult LazySnapping::cut(const Strokes& strokes, const ScreenView* view) con
   double finite_sum = 0;
   for (uint32_t s = 0; s < m; ++s) {
     if (seed[s] != kFree) continue;
-    const auto [cf, cb] = dataCost(nearestColour(mMeanColour[s], colour_f),
-                                   nearestColour(mMeanColour[s], colour_b));
-    const auto [nf, nb] = dataCost(nearestNormal(mMeanNormal[s], normal_f),
-                                   nearestNormal(mMeanNormal[s], normal_b));
-    const double w = double(mSegmentSize[s]);
+    const auto [cf, cb] = dataCost(nearestColour(g.colour[s], colour_f),
+                                   nearestColour(g.colour[s], colour_b));
+    const auto [nf, nb] = dataCost(nearestNormal(g.normal[s], normal_f),
+                                   nearestNormal(g.normal[s], normal_b));
+    const double w = double(g.size[s]);
     e1_fg[s] = w * (mOptions.w_colour * cf + mOptions.w_normal * nf);
     e1_bg[s] = w * (mOptions.w_colour * cb + mOptions.w_normal * nb);
     finite_sum += std::max(e1_fg[s], e1_bg[s]);
@@ -198,46 +224,46 @@ SnapResult LazySnapping::cut(const Strokes& strokes, const ScreenView* view) con
   std::vector<double> depth(m, 0.0);
   const bool use_depth = view != nullptr && mOptions.w_depth > 0;
   if (use_depth)
-    for (uint32_t s = 0; s < m; ++s) depth[s] = -(view->view * glm::dvec4(mCentroid[s], 1.0)).z;
-  std::vector<glm::dvec3> diff(mEdges.size());  // (C_ij, N_ij, D_ij)
+    for (uint32_t s = 0; s < m; ++s) depth[s] = -(view->view * glm::dvec4(g.centroid[s], 1.0)).z;
+  std::vector<glm::dvec3> diff(g.edges.size());  // (C_ij, N_ij, D_ij)
   glm::dvec3 mean(0.0);
-  for (size_t e = 0; e < mEdges.size(); ++e) {
-    const Edge& ed = mEdges[e];
-    const glm::dvec3 dc = mMeanColour[ed.a] - mMeanColour[ed.b];
+  for (size_t e = 0; e < g.edges.size(); ++e) {
+    const NodeGraph::Edge& ed = g.edges[e];
+    const glm::dvec3 dc = g.colour[ed.a] - g.colour[ed.b];
     const double dd = depth[ed.a] - depth[ed.b];
-    diff[e] = {glm::dot(dc, dc), 1.0 - glm::dot(mMeanNormal[ed.a], mMeanNormal[ed.b]), dd * dd};
+    diff[e] = {glm::dot(dc, dc), 1.0 - glm::dot(g.normal[ed.a], g.normal[ed.b]), dd * dd};
     mean += diff[e];
   }
-  if (!mEdges.empty()) mean /= double(mEdges.size());
+  if (!g.edges.empty()) mean /= double(g.edges.size());
   for (int c = 0; c < 3; ++c)
     if (!(mean[c] > 1e-300)) mean[c] = 1.0;
-  std::vector<double> weight(mEdges.size());
-  for (size_t e = 0; e < mEdges.size(); ++e) {
-    double w = mOptions.w_colour * g(diff[e].x / mean.x) + mOptions.w_normal * g(diff[e].y / mean.y);
-    if (use_depth) w += mOptions.w_depth * g(diff[e].z / mean.z);
-    weight[e] = mOptions.lambda * double(mEdges[e].count) * w;
+  std::vector<double> weight(g.edges.size());
+  for (size_t e = 0; e < g.edges.size(); ++e) {
+    double w = mOptions.w_colour * gOf(diff[e].x / mean.x) + mOptions.w_normal * gOf(diff[e].y / mean.y);
+    if (use_depth) w += mOptions.w_depth * gOf(diff[e].z / mean.z);
+    weight[e] = mOptions.lambda * double(g.edges[e].count) * w;
     finite_sum += weight[e];
   }
 
   // Source = foreground. A seed's infinite t-link of eq. 4.2 is a capacity above any finite
   // cut, so the minimum never severs it.
   const double hard = 1.0 + 2.0 * finite_sum;
-  MaxFlowGraph graph(m, mEdges.size());
+  MaxFlowGraph graph_cut(m, g.edges.size());
   for (uint32_t s = 0; s < m; ++s) {
     if (seed[s] == kFg)
-      graph.addTerminalWeights(s, hard, 0.0);
+      graph_cut.addTerminalWeights(s, hard, 0.0);
     else if (seed[s] == kBg)
-      graph.addTerminalWeights(s, 0.0, hard);
+      graph_cut.addTerminalWeights(s, 0.0, hard);
     else  // cut from the source (label 0) costs E1(x = 0); from the sink, E1(x = 1)
-      graph.addTerminalWeights(s, e1_bg[s], e1_fg[s]);
+      graph_cut.addTerminalWeights(s, e1_bg[s], e1_fg[s]);
   }
-  for (size_t e = 0; e < mEdges.size(); ++e)
-    graph.addEdge(mEdges[e].a, mEdges[e].b, weight[e], weight[e]);
-  result.energy = graph.maxflow();
+  for (size_t e = 0; e < g.edges.size(); ++e)
+    graph_cut.addEdge(g.edges[e].a, g.edges[e].b, weight[e], weight[e]);
+  result.energy = graph_cut.maxflow();
 
   result.selected.resize(n);
   for (uint32_t i = 0; i < n; ++i) {
-    result.selected[i] = graph.isSourceSide(mSegmentation.segment_of[i]) ? 1 : 0;
+    result.selected[i] = graph_cut.isSourceSide(g.node_of[i]) ? 1 : 0;
     if (result.selected[i]) result.indices.push_back(i);
   }
   return result;

@@ -24,9 +24,9 @@ namespace tessera::master {
 namespace {
 
 using test::bunnyEar;
-using test::bunnyPixel;
 using test::bunnyView;
 using test::cappedSphere;
+using test::samplesNear;
 using test::topView;
 
 const std::filesystem::path kBunny = test::bunnyMeshPath(TESSERA_DATA_DIR);
@@ -160,21 +160,6 @@ SurfaceSamples foldedPlanes(double h, double slope, std::vector<uint8_t>* left) 
   return surfaceFromPoints(p, {}, {}, 8, glm::dvec3(0, 0, 10));
 }
 
-/// Samples within `r` of the 3D polyline: a stroke as the pick under it would give it.
-std::vector<uint32_t> near(const SurfaceSamples& s, const std::vector<glm::dvec3>& line, double r) {
-  std::vector<uint32_t> out;
-  for (uint32_t i = 0; i < s.size(); ++i)
-    for (size_t k = 0; k + 1 < line.size(); ++k) {
-      const glm::dvec3 ab = line[k + 1] - line[k];
-      const double t = std::clamp(glm::dot(s.positions[i] - line[k], ab) / glm::dot(ab, ab), 0., 1.);
-      if (glm::length(s.positions[i] - (line[k] + t * ab)) <= r) {
-        out.push_back(i);
-        break;
-      }
-    }
-  return out;
-}
-
 /// Segments are non-empty, bounded, connected, and number every sample once.
 void expectValidSegmentation(const SurfaceSamples& s, const OverSegmentation& seg,
                              uint32_t max_size) {
@@ -251,8 +236,8 @@ TEST(LazySnapping, SphereCapByColourOneStrokePerSide) {
   const lod::Mesh mesh = cappedSphere(100, &cap);
   const SurfaceSamples s = surfaceFromMesh(mesh);
   Strokes strokes;
-  strokes.foreground = near(s, {{-0.5, 0, 0.87}, {0.5, 0, 0.87}}, 0.03);   // across the cap
-  strokes.background = near(s, {{1, 0, 0}, {0, 1, 0}, {-1, 0, 0}}, 0.03);  // half the equator
+  strokes.foreground = samplesNear(s, {{-0.5, 0, 0.87}, {0.5, 0, 0.87}}, 0.03);   // across the cap
+  strokes.background = samplesNear(s, {{1, 0, 0}, {0, 1, 0}, {-1, 0, 0}}, 0.03);  // half the equator
   ASSERT_FALSE(strokes.foreground.empty());
   ASSERT_FALSE(strokes.background.empty());
   for (bool over_segment : {true, false}) {
@@ -276,8 +261,8 @@ TEST(LazySnapping, FoldedPlanesByNormalsOneStrokePerSide) {
   std::vector<uint8_t> left;
   const SurfaceSamples s = foldedPlanes(0.02, 0.7, &left);  // a 70 degree fold, one colour
   Strokes strokes;
-  strokes.foreground = near(s, {{-0.5, -0.6, 0.35}, {-0.5, 0.6, 0.35}}, 0.02);
-  strokes.background = near(s, {{0.6, 0.2, 0.42}, {0.6, 0.5, 0.42}}, 0.02);
+  strokes.foreground = samplesNear(s, {{-0.5, -0.6, 0.35}, {-0.5, 0.6, 0.35}}, 0.02);
+  strokes.background = samplesNear(s, {{0.6, 0.2, 0.42}, {0.6, 0.5, 0.42}}, 0.02);
   const LazySnapping snapping(s);
   const SnapResult r = snapping.cut(strokes);
   EXPECT_GE(intersectionOverUnion(r.selected, left), kSyntheticIoU);
@@ -337,12 +322,9 @@ TEST(LazySnapping, BunnyEarFromOneStrokeOnTheEarAndOneOnTheHead) {
   const std::vector<uint8_t> visible = visibleSamples(s, view, 3.0, 0.003);
   // Strokes as a user draws them on the front view: along the ear from near its tip to near
   // its base; across the head and down the back.
-  const std::vector<glm::dvec2> ear_stroke{bunnyPixel(-0.02, 0.178), bunnyPixel(-0.045, 0.162)};
-  const std::vector<glm::dvec2> head_stroke{bunnyPixel(-0.085, 0.13), bunnyPixel(-0.06, 0.14),
-                                            bunnyPixel(-0.03, 0.125), bunnyPixel(0.0, 0.12)};
   Strokes strokes;
-  strokes.foreground = pickStroke(s, view, ear_stroke, 4.0, visible);
-  strokes.background = pickStroke(s, view, head_stroke, 4.0, visible);
+  strokes.foreground = pickStroke(s, view, test::bunnyEarStroke(), 4.0, visible);
+  strokes.background = pickStroke(s, view, test::bunnyHeadStroke(), 4.0, visible);
   ASSERT_GT(strokes.foreground.size(), 20u);
   ASSERT_GT(strokes.background.size(), 20u);
   // (The scan's loose vertices are picked too, as points would be; they are not in `ear`.)

@@ -2,6 +2,7 @@
 // and bench/lazy_snapping.cpp: a sphere with a coloured cap, the Stanford bunny's ear.
 #pragma once
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <filesystem>
@@ -55,6 +56,21 @@ inline lod::Mesh cappedSphere(uint32_t rings, std::vector<uint8_t>* cap) {
   return mesh;
 }
 
+/// Samples within `r` of the 3D polyline: a stroke as the pick under it would give it.
+inline std::vector<uint32_t> samplesNear(const SurfaceSamples& s, const std::vector<glm::dvec3>& line, double r) {
+  std::vector<uint32_t> out;
+  for (uint32_t i = 0; i < s.size(); ++i)
+    for (size_t k = 0; k + 1 < line.size(); ++k) {
+      const glm::dvec3 ab = line[k + 1] - line[k];
+      const double t = std::clamp(glm::dot(s.positions[i] - line[k], ab) / glm::dot(ab, ab), 0., 1.);
+      if (glm::length(s.positions[i] - (line[k] + t * ab)) <= r) {
+        out.push_back(i);
+        break;
+      }
+    }
+  return out;
+}
+
 /// An orthographic view of [-1.2, 1.2]^2 from +z, 480 x 480 pixels (200 pixels per unit).
 inline ScreenView topView() {
   ScreenView v;
@@ -101,6 +117,16 @@ inline ScreenView bunnyView() {
 }
 
 inline glm::dvec2 bunnyPixel(double x, double y) { return {(x + 0.11) * 3000.0, (y - 0.02) * 3000.0}; }
+
+/// Strokes as a user draws them on bunnyView() (4 pixels wide): along the ear from near its
+/// tip to near its base; across the head and down the back.
+inline std::vector<glm::dvec2> bunnyEarStroke() {
+  return {bunnyPixel(-0.02, 0.178), bunnyPixel(-0.045, 0.162)};
+}
+inline std::vector<glm::dvec2> bunnyHeadStroke() {
+  return {bunnyPixel(-0.085, 0.13), bunnyPixel(-0.06, 0.14), bunnyPixel(-0.03, 0.125),
+          bunnyPixel(0.0, 0.12)};
+}
 
 /// The Stanford bunny's reconstruction (35947 vertices, 69451 triangles).
 inline std::filesystem::path bunnyMeshPath(const std::filesystem::path& data_dir) {

@@ -158,8 +158,8 @@ struct SnapOptions {
 struct SnapResult {
   std::vector<uint8_t> selected;       ///< per sample, 1 = foreground
   std::vector<uint32_t> indices;       ///< the foreground samples, ascending
-  uint32_t graph_nodes = 0;            ///< segments (or samples) in the cut graph
-  uint32_t conflicting_segments = 0;   ///< segments under both stroke kinds (left unseeded)
+  uint32_t graph_nodes = 0;            ///< nodes of the cut graph (segments, refined samples)
+  uint32_t conflicting_segments = 0;   ///< segments under both stroke kinds (refined)
   double energy = 0;                   ///< E(X) of eq. 4.1 at the minimum (= the max flow)
 };
 
@@ -171,7 +171,10 @@ class LazySnapping {
   /// Validates and over-segments `samples` (kept by reference: it must outlive this).
   explicit LazySnapping(const SurfaceSamples& samples, const SnapOptions& options = {});
 
-  /// Graph cut from strokes. `view` (may be null) gives the depth term of eq. 4.5. Throws
+  /// Graph cut from strokes. `view` (may be null) gives the depth term of eq. 4.5. A segment
+  /// under both kinds of stroke straddles the wanted border: for this cut its samples become
+  /// nodes of their own (a corrective stroke inside a segment then takes effect, which the
+  /// thesis leaves to the lasso). A sample under both kinds stays unseeded. Throws
   /// SnappingError when a stroke kind is empty or an index is out of range.
   SnapResult cut(const Strokes& strokes, const ScreenView* view = nullptr) const;
 
@@ -179,18 +182,27 @@ class LazySnapping {
   const SnapOptions& options() const { return mOptions; }
 
  private:
-  struct Edge {
-    uint32_t a, b;   ///< segments, a < b
-    uint32_t count;  ///< sample edges across the border
+  /// The graph a cut runs on: nodes are segments (or samples), with their mean attributes.
+  struct NodeGraph {
+    std::vector<uint32_t> node_of;  ///< per sample
+    uint32_t count = 0;
+    std::vector<uint32_t> size;
+    std::vector<glm::dvec3> colour;    ///< mean, 0..255
+    std::vector<glm::dvec3> normal;    ///< mean, unit (zero when the normals cancel)
+    std::vector<glm::dvec3> centroid;
+    struct Edge {
+      uint32_t a, b;   ///< nodes, a < b
+      uint32_t count;  ///< sample edges across the border
+    };
+    std::vector<Edge> edges;
   };
+  static NodeGraph buildGraph(const SurfaceSamples& samples, std::vector<uint32_t> node_of,
+                              uint32_t count);
+
   const SurfaceSamples& mSamples;
   SnapOptions mOptions;
   OverSegmentation mSegmentation;
-  std::vector<uint32_t> mSegmentSize;
-  std::vector<glm::dvec3> mMeanColour;  ///< 0..255
-  std::vector<glm::dvec3> mMeanNormal;  ///< unit (zero when the normals cancel)
-  std::vector<glm::dvec3> mCentroid;
-  std::vector<Edge> mEdges;
+  NodeGraph mGraph;
 };
 
 /// The heavy stroke of the robust lasso (thesis 4.3.1): a closed polyline in window pixels
