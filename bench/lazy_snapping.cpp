@@ -7,7 +7,7 @@
 //            two rings), labelled by the truth; each method gets its own corrective strokes.
 //   size     a UV sphere with a red cap in blue (10^3.7 .. 10^6 vertices), one stroke per side.
 //   lasso    the robust lasso (4.3.1) on the bunny's ear: a heavy stroke along the ear's outline
-//            on the screen (the convex hull of its projected vertices).
+//            on the screen (the convex hull of its projected vertices), 16 pixels wide.
 // Prints CSV; writes OUT/lazy_snapping.csv, OUT/lazy_snapping.png (chart) and
 // OUT/lazy_snapping_bunny.png (the selections on the bunny, front view) with gnuplot.
 #include <algorithm>
@@ -15,9 +15,9 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
-#include <memory>
 #include <functional>
 #include <iostream>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -62,13 +62,26 @@ double medianMs(int repeat, const std::function<void()>& f) {
   for (int k = 0; k < repeat; ++k) {
     const auto t0 = std::chrono::steady_clock::now();
     f();
-    ms.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0)
-                     .count());
+    ms.push_back(
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
   }
   return bench::percentile(ms, 0.5);
 }
 
-const char* methodName(bool over_segment) { return over_segment ? "segments" : "per_sample"; }
+/// LazySnapping on `s` with or without over-segmentation; `ms`: the median time to build it
+/// (over-segmentation and node graph, done once per view).
+std::unique_ptr<LazySnapping> prepareSnapping(const SurfaceSamples& s, bool over_segment,
+                                              int repeat, double& ms) {
+  SnapOptions options;
+  options.over_segment = over_segment;
+  std::unique_ptr<LazySnapping> snapping;
+  ms = medianMs(repeat, [&] { snapping = std::make_unique<LazySnapping>(s, options); });
+  return snapping;
+}
+
+const char* methodName(bool over_segment) {
+  return over_segment ? "segments" : "per_sample";
+}
 
 /// The visible surface sample with the most wrongly labelled samples within two rings, or -1.
 int64_t largestError(const SurfaceSamples& s, const std::vector<uint8_t>& selected,
@@ -98,27 +111,6 @@ int64_t largestError(const SurfaceSamples& s, const std::vector<uint8_t>& select
   return best;
 }
 
-/// The convex hull (counter-clockwise, Andrew's monotone chain) of points.
-std::vector<glm::dvec2> convexHull(std::vector<glm::dvec2> p) {
-  std::sort(p.begin(), p.end(), [](auto a, auto b) { return a.x < b.x || (a.x == b.x && a.y < b.y); });
-  if (p.size() < 3) return p;
-  auto cross = [](glm::dvec2 o, glm::dvec2 a, glm::dvec2 b) {
-    return (a.x - o.x) * (b.y - o.y) - (a.y - o.y) * (b.x - o.x);
-  };
-  std::vector<glm::dvec2> h(2 * p.size());
-  size_t k = 0;
-  for (size_t i = 0; i < p.size(); ++i) {
-    while (k >= 2 && cross(h[k - 2], h[k - 1], p[i]) <= 0) --k;
-    h[k++] = p[i];
-  }
-  for (size_t i = p.size() - 1, t = k + 1; i > 0; --i) {
-    while (k >= t && cross(h[k - 2], h[k - 1], p[i - 1]) <= 0) --k;
-    h[k++] = p[i - 1];
-  }
-  h.resize(k - 1);
-  return h;
-}
-
 struct BunnyPicture {
   std::vector<uint8_t> strokes_selected, lasso_selected;
   Strokes strokes, lasso_seeds;
@@ -137,12 +129,8 @@ void bunnySeries(const fs::path& data_dir, int repeat, size_t max_strokes, std::
   const Strokes first{master::pickStroke(s, view, test::bunnyEarStroke(), 4.0, visible),
                       master::pickStroke(s, view, test::bunnyHeadStroke(), 4.0, visible)};
   for (bool over : {true, false}) {
-    SnapOptions options;
-    options.over_segment = over;
-    std::unique_ptr<LazySnapping> snapping;
-    const double prepare = medianMs(repeat, [&] {
-      snapping = std::make_unique<LazySnapping>(s, options);
-    });
+    double prepare = 0;
+    const auto snapping = prepareSnapping(s, over, repeat, prepare);
     Strokes strokes = first;
     for (size_t count = 2; count <= max_strokes; ++count) {
       SnapResult r;
@@ -164,11 +152,8 @@ void bunnySeries(const fs::path& data_dir, int repeat, size_t max_strokes, std::
     }
   }
   // The robust lasso: a heavy stroke along the ear's outline as seen from the view.
-  std::vector<glm::dvec2> ear_pixels;
-  for (uint32_t i = 0; i < s.size(); ++i)
-    if (ear[i] && visible[i]) ear_pixels.push_back(master::project(view, s.positions[i]).pixel);
   master::HeavyStroke heavy;
-  heavy.polyline = convexHull(ear_pixels);
+  heavy.polyline = test::earOutline(s, ear, visible, view);
   heavy.width_px = 16;
   heavy.seed_band_px = 16;
   pic.lasso = heavy.polyline;
@@ -191,12 +176,8 @@ void sizeSeries(const std::vector<uint32_t>& rings, int repeat, std::vector<Row>
     const Strokes strokes{test::samplesNear(s, {{-0.5, 0, 0.87}, {0.5, 0, 0.87}}, 0.03),
                           test::samplesNear(s, {{1, 0, 0}, {0, 1, 0}, {-1, 0, 0}}, 0.03)};
     for (bool over : {true, false}) {
-      SnapOptions options;
-      options.over_segment = over;
-      std::unique_ptr<LazySnapping> snapping;
-      const double prepare = medianMs(repeat, [&] {
-        snapping = std::make_unique<LazySnapping>(s, options);
-      });
+      double prepare = 0;
+      const auto snapping = prepareSnapping(s, over, repeat, prepare);
       SnapResult r;
       const double cut = medianMs(repeat, [&] { r = snapping->cut(strokes); });
       rows.push_back({"size", "capped_sphere", s.size(), 2, methodName(over), r.graph_nodes,
@@ -222,9 +203,8 @@ void drawChart(const fs::path& out) {
   const std::string csv = (out / "lazy_snapping.csv").string();
   std::ofstream gp(script);
   auto sel = [&](const char* series, const char* method, int col) {
-    return "'" + csv + "' skip 1 using (strcol(1) eq '" + series + "' && strcol(5) eq '" +
-           method + "' ? $4 : 1/0):" +
-           std::to_string(col);
+    return "'" + csv + "' skip 1 using (strcol(1) eq '" + series + "' && strcol(5) eq '" + method +
+           "' ? $4 : 1/0):" + std::to_string(col);
   };
   gp << "set terminal pngcairo noenhanced size 1300,900 font ',10'\n"
      << "set output '" << (out / "lazy_snapping.png").string() << "'\n"
@@ -240,8 +220,7 @@ void drawChart(const fs::path& out) {
      << "set title \"Bunny's ear (35947 vertices): time of a cut against strokes\"\n"
      << "set ylabel 'ms per cut (median)'\nset yrange [0:*]\nset key top left\n"
      << "plot " << sel("strokes", "segments", 8) << " with linespoints lw 2 title 'segments', \\\n"
-     << "     " << sel("strokes", "per_sample", 8)
-     << " with linespoints lw 2 title 'per sample'\n";
+     << "     " << sel("strokes", "per_sample", 8) << " with linespoints lw 2 title 'per sample'\n";
   // Size panels: x is the sample count (column 3).
   auto size = [&](const char* method, const std::string& expr) {
     return "'" + csv + "' skip 1 using (strcol(1) eq 'size' && strcol(5) eq '" + method +
@@ -282,7 +261,10 @@ void drawBunny(const fs::path& out, const SurfaceSamples& s, const std::vector<u
       const glm::dvec2 p = master::project(view, s.positions[i]).pixel;
       // 0 neither, 1 selected and ear, 2 selected only, 3 missed; 4/5 stroke fg/bg
       const int kind = mark[i] ? 3 + mark[i]
-                               : (selected[i] && ear[i] ? 1 : selected[i] ? 2 : ear[i] ? 3 : 0);
+                               : (selected[i] && ear[i] ? 1
+                                  : selected[i]         ? 2
+                                  : ear[i]              ? 3
+                                                        : 0);
       f << p.x << ' ' << p.y << ' ' << kind << '\n';
     }
   };

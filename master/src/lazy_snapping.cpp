@@ -67,7 +67,9 @@ std::pair<double, double> dataCost(double d_f, double d_b) {
 }
 
 /// g(c) = 1 / (c + 1) of eq. 4.3.
-double gOf(double c) { return 1.0 / (c + 1.0); }
+double gOf(double c) {
+  return 1.0 / (c + 1.0);
+}
 
 }  // namespace
 
@@ -199,17 +201,17 @@ SnapResult LazySnapping::cut(const Strokes& strokes, const ScreenView* view) con
 
   // Data term E'1 = w_c E1^c + w_n E1^n (eq. 4.4), per segment. Each segment counts as many
   // times as it has samples, and each border as many times as sample edges cross it, so the
-  // segment graph minimises the per-sample energy restricted to labels constant on segments
-  // (the thesis weighs clusters equally; with segments of very different sizes that lets a
-  // crumb outvote a large patch).
+  // segment graph's energy is the per-sample energy of labels constant on segments, with the
+  // segments' means in place of the samples' own values (the thesis weighs clusters equally;
+  // with segments of very different sizes that lets a crumb outvote a large patch).
   std::vector<double> e1_fg(m, 0.0), e1_bg(m, 0.0);  // E'1(x = 1), E'1(x = 0)
   double finite_sum = 0;
   for (uint32_t s = 0; s < m; ++s) {
     if (seed[s] != kFree) continue;
-    const auto [cf, cb] = dataCost(nearestColour(g.colour[s], colour_f),
-                                   nearestColour(g.colour[s], colour_b));
-    const auto [nf, nb] = dataCost(nearestNormal(g.normal[s], normal_f),
-                                   nearestNormal(g.normal[s], normal_b));
+    const auto [cf, cb] =
+        dataCost(nearestColour(g.colour[s], colour_f), nearestColour(g.colour[s], colour_b));
+    const auto [nf, nb] =
+        dataCost(nearestNormal(g.normal[s], normal_f), nearestNormal(g.normal[s], normal_b));
     const double w = double(g.size[s]);
     e1_fg[s] = w * (mOptions.w_colour * cf + mOptions.w_normal * nf);
     e1_bg[s] = w * (mOptions.w_colour * cb + mOptions.w_normal * nb);
@@ -239,7 +241,8 @@ SnapResult LazySnapping::cut(const Strokes& strokes, const ScreenView* view) con
     if (!(mean[c] > 1e-300)) mean[c] = 1.0;
   std::vector<double> weight(g.edges.size());
   for (size_t e = 0; e < g.edges.size(); ++e) {
-    double w = mOptions.w_colour * gOf(diff[e].x / mean.x) + mOptions.w_normal * gOf(diff[e].y / mean.y);
+    double w =
+        mOptions.w_colour * gOf(diff[e].x / mean.x) + mOptions.w_normal * gOf(diff[e].y / mean.y);
     if (use_depth) w += mOptions.w_depth * gOf(diff[e].z / mean.z);
     weight[e] = mOptions.lambda * double(g.edges[e].count) * w;
     finite_sum += weight[e];
@@ -271,8 +274,8 @@ SnapResult LazySnapping::cut(const Strokes& strokes, const ScreenView* view) con
 
 std::vector<uint32_t> selectedTriangles(const lod::Mesh& mesh, std::span<const uint8_t> selected) {
   if (selected.size() != mesh.positions.size())
-    throw SnappingError("selectedTriangles(): " + std::to_string(selected.size()) +
-                        " labels for " + std::to_string(mesh.positions.size()) + " vertices");
+    throw SnappingError("selectedTriangles(): " + std::to_string(selected.size()) + " labels for " +
+                        std::to_string(mesh.positions.size()) + " vertices");
   std::vector<uint32_t> out;
   for (size_t t = 0; t < mesh.triangles.size(); ++t) {
     const lod::Triangle& tri = mesh.triangles[t];
@@ -285,8 +288,8 @@ std::vector<uint32_t> selectedTriangles(const lod::Mesh& mesh, std::span<const u
 
 double intersectionOverUnion(std::span<const uint8_t> a, std::span<const uint8_t> b) {
   if (a.size() != b.size())
-    throw SnappingError("intersectionOverUnion(): masks of " + std::to_string(a.size()) +
-                        " and " + std::to_string(b.size()) + " samples");
+    throw SnappingError("intersectionOverUnion(): masks of " + std::to_string(a.size()) + " and " +
+                        std::to_string(b.size()) + " samples");
   size_t inter = 0, uni = 0;
   for (size_t i = 0; i < a.size(); ++i) {
     inter += (a[i] && b[i]) ? 1 : 0;

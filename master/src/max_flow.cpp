@@ -115,11 +115,7 @@ double MaxFlowGraph::maxflow() {
     augment(middle);
     // Adoption (section 3.3): orphans look for a new parent in their tree or become free.
     for (size_t k = 0; k < mOrphans.size(); ++k) {
-      const uint32_t o = mOrphans[k];
-      if (mNodes[o].is_sink)
-        adoptSinkOrphan(o);
-      else
-        adoptSourceOrphan(o);
+      adoptOrphan(mOrphans[k]);
     }
     mOrphans.clear();
   }
@@ -183,14 +179,20 @@ void MaxFlowGraph::augment(int32_t middle) {
   mFlow += b;
 }
 
-void MaxFlowGraph::adoptSourceOrphan(uint32_t i) {
+void MaxFlowGraph::adoptOrphan(uint32_t i) {
+  // A new parent is a node of the same tree with residual capacity towards i (source tree:
+  // j -> i; sink tree: i -> j) whose path leads to the terminal, not to another orphan; the
+  // one nearest to the terminal wins (BK 2004, section 3.3).
+  const bool sink = mNodes[i].is_sink;
+  auto residual = [&](int32_t a0) {
+    return sink ? mArcs[size_t(a0)].r_cap : mArcs[size_t(sister(a0))].r_cap;
+  };
   int32_t best = kNone;
   uint32_t best_d = kInfiniteDist;
   for (int32_t a0 = mNodes[i].first; a0 != kNone; a0 = mArcs[size_t(a0)].next) {
-    if (mArcs[size_t(sister(a0))].r_cap <= 0) continue;  // j -> i must have residual capacity
+    if (residual(a0) <= 0) continue;
     uint32_t j = mArcs[size_t(a0)].head;
-    if (mNodes[j].is_sink || mNodes[j].parent == kNone) continue;
-    // Is j's origin the source (not an orphan)? Count the distance on the way.
+    if (mNodes[j].is_sink != sink || mNodes[j].parent == kNone) continue;
     uint32_t d = 0;
     while (true) {
       if (mNodes[j].ts == mTime) {
@@ -215,7 +217,9 @@ void MaxFlowGraph::adoptSourceOrphan(uint32_t i) {
       best = a0;
       best_d = d;
     }
-    for (j = mArcs[size_t(a0)].head; mNodes[j].ts != mTime; j = mArcs[size_t(mNodes[j].parent)].head) {
+    // Stamp the path so later searches in this round stop early.
+    for (j = mArcs[size_t(a0)].head; mNodes[j].ts != mTime;
+         j = mArcs[size_t(mNodes[j].parent)].head) {
       mNodes[j].ts = mTime;
       mNodes[j].dist = d--;
     }
@@ -230,62 +234,8 @@ void MaxFlowGraph::adoptSourceOrphan(uint32_t i) {
   for (int32_t a0 = mNodes[i].first; a0 != kNone; a0 = mArcs[size_t(a0)].next) {
     const uint32_t j = mArcs[size_t(a0)].head;
     const int32_t a = mNodes[j].parent;
-    if (mNodes[j].is_sink || a == kNone) continue;
-    if (mArcs[size_t(sister(a0))].r_cap > 0) setActive(j);
-    if (a != kTerminal && a != kOrphan && mArcs[size_t(a)].head == i) {
-      mNodes[j].parent = kOrphan;
-      mOrphans.push_back(j);
-    }
-  }
-}
-
-void MaxFlowGraph::adoptSinkOrphan(uint32_t i) {
-  int32_t best = kNone;
-  uint32_t best_d = kInfiniteDist;
-  for (int32_t a0 = mNodes[i].first; a0 != kNone; a0 = mArcs[size_t(a0)].next) {
-    if (mArcs[size_t(a0)].r_cap <= 0) continue;  // i -> j must have residual capacity
-    uint32_t j = mArcs[size_t(a0)].head;
-    if (!mNodes[j].is_sink || mNodes[j].parent == kNone) continue;
-    uint32_t d = 0;
-    while (true) {
-      if (mNodes[j].ts == mTime) {
-        d += mNodes[j].dist;
-        break;
-      }
-      const int32_t a = mNodes[j].parent;
-      ++d;
-      if (a == kTerminal) {
-        mNodes[j].ts = mTime;
-        mNodes[j].dist = 1;
-        break;
-      }
-      if (a == kOrphan) {
-        d = kInfiniteDist;
-        break;
-      }
-      j = mArcs[size_t(a)].head;
-    }
-    if (d == kInfiniteDist) continue;
-    if (d < best_d) {
-      best = a0;
-      best_d = d;
-    }
-    for (j = mArcs[size_t(a0)].head; mNodes[j].ts != mTime; j = mArcs[size_t(mNodes[j].parent)].head) {
-      mNodes[j].ts = mTime;
-      mNodes[j].dist = d--;
-    }
-  }
-  mNodes[i].parent = best;
-  if (best != kNone) {
-    mNodes[i].ts = mTime;
-    mNodes[i].dist = best_d + 1;
-    return;
-  }
-  for (int32_t a0 = mNodes[i].first; a0 != kNone; a0 = mArcs[size_t(a0)].next) {
-    const uint32_t j = mArcs[size_t(a0)].head;
-    const int32_t a = mNodes[j].parent;
-    if (!mNodes[j].is_sink || a == kNone) continue;
-    if (mArcs[size_t(a0)].r_cap > 0) setActive(j);
+    if (mNodes[j].is_sink != sink || a == kNone) continue;
+    if (residual(a0) > 0) setActive(j);
     if (a != kTerminal && a != kOrphan && mArcs[size_t(a)].head == i) {
       mNodes[j].parent = kOrphan;
       mOrphans.push_back(j);

@@ -53,8 +53,7 @@ class MaxFlowGraph {
   static int32_t sister(int32_t a) { return a ^ 1; }
   void setActive(uint32_t i);
   void augment(int32_t middle);
-  void adoptSourceOrphan(uint32_t i);
-  void adoptSinkOrphan(uint32_t i);
+  void adoptOrphan(uint32_t i);
 
   std::vector<Node> mNodes;
   std::vector<Arc> mArcs;

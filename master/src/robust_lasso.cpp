@@ -30,7 +30,8 @@ double segmentDistance(const glm::dvec2& p, const glm::dvec2& a, const glm::dvec
 double polylineDistance(const glm::dvec2& p, std::span<const glm::dvec2> line, bool closed) {
   if (line.size() == 1) return glm::length(p - line[0]);
   double d = std::numeric_limits<double>::infinity();
-  for (size_t k = 0; k + 1 < line.size(); ++k) d = std::min(d, segmentDistance(p, line[k], line[k + 1]));
+  for (size_t k = 0; k + 1 < line.size(); ++k)
+    d = std::min(d, segmentDistance(p, line[k], line[k + 1]));
   if (closed) d = std::min(d, segmentDistance(p, line.back(), line.front()));
   return d;
 }
@@ -40,13 +41,14 @@ bool inside(const glm::dvec2& p, std::span<const glm::dvec2> poly) {
   bool in = false;
   for (size_t i = 0, j = poly.size() - 1; i < poly.size(); j = i++) {
     const glm::dvec2 &a = poly[i], &b = poly[j];
-    if ((a.y > p.y) != (b.y > p.y) && p.x < (b.x - a.x) * (p.y - a.y) / (b.y - a.y) + a.x)
-      in = !in;
+    if ((a.y > p.y) != (b.y > p.y) && p.x < (b.x - a.x) * (p.y - a.y) / (b.y - a.y) + a.x) in = !in;
   }
   return in;
 }
 
-bool finite2(const glm::dvec2& p) { return std::isfinite(p.x) && std::isfinite(p.y); }
+bool finite2(const glm::dvec2& p) {
+  return std::isfinite(p.x) && std::isfinite(p.y);
+}
 
 }  // namespace
 
@@ -113,8 +115,9 @@ Strokes robustLassoSeeds(const SurfaceSamples& samples, const ScreenView& view,
   checkView(view, "robustLassoSeeds()");
   if (stroke.polyline.size() < 3 ||
       !std::all_of(stroke.polyline.begin(), stroke.polyline.end(), finite2))
-    throw SnappingError("robustLassoSeeds(): the heavy stroke needs at least 3 finite points (got " +
-                        std::to_string(stroke.polyline.size()) + ")");
+    throw SnappingError(
+        "robustLassoSeeds(): the heavy stroke needs at least 3 finite points (got " +
+        std::to_string(stroke.polyline.size()) + ")");
   if (!(stroke.width_px >= 0) || !(stroke.seed_band_px >= 0))
     throw SnappingError("robustLassoSeeds(): width_px and seed_band_px must be >= 0");
   if (!visible.empty() && visible.size() != samples.size())

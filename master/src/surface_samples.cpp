@@ -57,9 +57,8 @@ class KdTree {
     const uint8_t axis = ext.x >= ext.y && ext.x >= ext.z ? 0 : (ext.y >= ext.z ? 1 : 2);
     const size_t mid = (lo + hi) / 2;
     std::nth_element(mOrder.begin() + std::ptrdiff_t(lo), mOrder.begin() + std::ptrdiff_t(mid),
-                     mOrder.begin() + std::ptrdiff_t(hi), [&](uint32_t a, uint32_t b) {
-                       return mPoints[a][axis] < mPoints[b][axis];
-                     });
+                     mOrder.begin() + std::ptrdiff_t(hi),
+                     [&](uint32_t a, uint32_t b) { return mPoints[a][axis] < mPoints[b][axis]; });
     mAxis[mid] = axis;
     build(lo, mid);
     build(mid + 1, hi);
@@ -112,7 +111,8 @@ glm::dvec3 smallestEigenvector(glm::dmat3 a) {
       for (int q = p + 1; q < 3; ++q) {
         if (std::abs(a[p][q]) < 1e-300) continue;
         const double theta = (a[q][q] - a[p][p]) / (2 * a[p][q]);
-        const double t = (theta >= 0 ? 1.0 : -1.0) / (std::abs(theta) + std::sqrt(theta * theta + 1));
+        const double t =
+            (theta >= 0 ? 1.0 : -1.0) / (std::abs(theta) + std::sqrt(theta * theta + 1));
         const double c = 1 / std::sqrt(t * t + 1), s = t * c;
         glm::dmat3 r(1.0);  // rotation in the (p, q) plane; a <- r^T a r, v <- v r
         r[p][p] = c;
@@ -199,11 +199,11 @@ SurfaceSamples surfaceFromPoints(std::span<const glm::dvec3> positions,
   if (n > size_t(UINT32_MAX) - 1) throw SnappingError("surfaceFromPoints(): too many points");
   if (k == 0) throw SnappingError("surfaceFromPoints(): k must be at least 1");
   if (!colors.empty() && colors.size() != n)
-    throw SnappingError("surfaceFromPoints(): " + std::to_string(colors.size()) +
-                        " colours for " + std::to_string(n) + " points");
+    throw SnappingError("surfaceFromPoints(): " + std::to_string(colors.size()) + " colours for " +
+                        std::to_string(n) + " points");
   if (!normals.empty() && normals.size() != n)
-    throw SnappingError("surfaceFromPoints(): " + std::to_string(normals.size()) +
-                        " normals for " + std::to_string(n) + " points");
+    throw SnappingError("surfaceFromPoints(): " + std::to_string(normals.size()) + " normals for " +
+                        std::to_string(n) + " points");
   for (size_t i = 0; i < n; ++i)
     if (!finite(positions[i]))
       throw SnappingError("surfaceFromPoints(): point " + std::to_string(i) +

@@ -179,11 +179,10 @@ OverSegmentation overSegment(const SurfaceSamples& s, const OverSegmentOptions& 
     const glm::dvec3 np = glm::length(nsum[rp]) > 0 ? glm::normalize(nsum[rp]) : glm::dvec3(0);
     for (uint32_t rq : touched) {
       const glm::dvec3 nq = glm::length(nsum[rq]) > 0 ? glm::normalize(nsum[rq]) : glm::dvec3(0);
-      const bool alike =
-          glm::dot(np, nq) >= cos_max &&
-          glm::length(csum[rp] / double(size[rp]) - csum[rq] / double(size[rq])) <=
-              o.merge_max_color &&
-          size[rp] + size[rq] <= o.max_segment_size;
+      const bool alike = glm::dot(np, nq) >= cos_max &&
+                         glm::length(csum[rp] / double(size[rp]) - csum[rq] / double(size[rq])) <=
+                             o.merge_max_color &&
+                         size[rp] + size[rq] <= o.max_segment_size;
       if (alike && shared[rq] > best_shared) {
         best = rq;
         best_shared = shared[rq];

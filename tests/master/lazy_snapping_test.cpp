@@ -10,10 +10,11 @@
 #include <queue>
 #include <random>
 #include <set>
+#include <string>
 #include <vector>
 
-#include <glm/gtc/matrix_transform.hpp>
 #include <gtest/gtest.h>
+#include <glm/gtc/matrix_transform.hpp>
 
 #include <tessera/core/check.h>
 
@@ -236,8 +237,9 @@ TEST(LazySnapping, SphereCapByColourOneStrokePerSide) {
   const lod::Mesh mesh = cappedSphere(100, &cap);
   const SurfaceSamples s = surfaceFromMesh(mesh);
   Strokes strokes;
-  strokes.foreground = samplesNear(s, {{-0.5, 0, 0.87}, {0.5, 0, 0.87}}, 0.03);   // across the cap
-  strokes.background = samplesNear(s, {{1, 0, 0}, {0, 1, 0}, {-1, 0, 0}}, 0.03);  // half the equator
+  strokes.foreground = samplesNear(s, {{-0.5, 0, 0.87}, {0.5, 0, 0.87}}, 0.03);  // across the cap
+  strokes.background =
+      samplesNear(s, {{1, 0, 0}, {0, 1, 0}, {-1, 0, 0}}, 0.03);  // half the equator
   ASSERT_FALSE(strokes.foreground.empty());
   ASSERT_FALSE(strokes.background.empty());
   for (bool over_segment : {true, false}) {
@@ -341,6 +343,79 @@ TEST(LazySnapping, BunnyEarFromOneStrokeOnTheEarAndOneOnTheHead) {
   per_vertex.over_segment = false;
   EXPECT_GE(intersectionOverUnion(LazySnapping(s, per_vertex).cut(strokes, &view).selected, ear),
             0.8);
+}
+
+TEST(RobustLasso, BunnyEarFromOneHeavyStrokeAroundIt) {
+  if (!std::filesystem::exists(kBunny)) GTEST_SKIP() << kBunny << " missing";
+  const SurfaceSamples s = surfaceFromMesh(lod::readMesh(kBunny));
+  const std::vector<uint8_t> ear = bunnyEar(s);
+  const ScreenView view = bunnyView();
+  const std::vector<uint8_t> visible = visibleSamples(s, view, 3.0, 0.003);
+  HeavyStroke heavy;
+  heavy.polyline = test::earOutline(s, ear, visible, view);
+  heavy.width_px = 16;  // ~5 mm: the ear is 12 mm wide on the screen
+  heavy.seed_band_px = 16;
+  const Strokes seeds = robustLassoSeeds(s, view, heavy, visible);
+  ASSERT_GT(seeds.foreground.size(), 100u);
+  ASSERT_GT(seeds.background.size(), 100u);
+  const SnapResult r = LazySnapping(s).cut(seeds, &view);
+  const double iou = intersectionOverUnion(r.selected, ear);
+  RecordProperty("iou", std::to_string(iou));
+  EXPECT_GE(iou, kEarIoU);
+}
+
+TEST(LazySnapping, BunnyEarAsAPointCloudWithPcaNormals) {
+  if (!std::filesystem::exists(kBunny)) GTEST_SKIP() << kBunny << " missing";
+  // The same vertices as points, without the triangles: k-NN graph, normals by PCA. The
+  // loose vertices of no triangle are left out, so the truth is the mesh's.
+  const SurfaceSamples mesh_samples = surfaceFromMesh(lod::readMesh(kBunny));
+  const std::vector<uint8_t> mesh_ear = bunnyEar(mesh_samples);
+  std::vector<glm::dvec3> points;
+  std::vector<uint8_t> ear;
+  for (uint32_t i = 0; i < mesh_samples.size(); ++i)
+    if (!mesh_samples.neighboursOf(i).empty()) {
+      points.push_back(mesh_samples.positions[i]);
+      ear.push_back(mesh_ear[i]);
+    }
+  const ScreenView view = bunnyView();
+  const SurfaceSamples s = surfaceFromPoints(points, {}, {}, 8, glm::dvec3(0, 0, 1));
+  const std::vector<uint8_t> visible = visibleSamples(s, view, 3.0, 0.003);
+  Strokes strokes;
+  strokes.foreground = pickStroke(s, view, test::bunnyEarStroke(), 4.0, visible);
+  strokes.background = pickStroke(s, view, test::bunnyHeadStroke(), 4.0, visible);
+  const SnapResult r = LazySnapping(s).cut(strokes, &view);
+  const double iou = intersectionOverUnion(r.selected, ear);
+  RecordProperty("iou", std::to_string(iou));
+  EXPECT_GE(iou, kEarIoU);
+}
+
+TEST(LazySnapping, CorrectiveStrokesInsideOneSegmentTakeEffect) {
+  std::vector<uint8_t> left;
+  const SurfaceSamples s = foldedPlanes(0.02, 0.7, &left);
+  SnapOptions options;
+  options.segmentation.max_segment_size = 256;
+  const LazySnapping snapping(s, options);
+  // Two neighbouring samples of one segment, one marked foreground, the other background.
+  uint32_t a = UINT32_MAX, b = UINT32_MAX;
+  for (uint32_t i = 0; i < s.size() && a == UINT32_MAX; ++i)
+    if (s.positions[i].x > 0.3)
+      for (uint32_t j : s.neighboursOf(i))
+        if (snapping.segmentation().segment_of[j] == snapping.segmentation().segment_of[i]) {
+          a = i;
+          b = j;
+          break;
+        }
+  ASSERT_NE(a, UINT32_MAX);
+  Strokes strokes;
+  strokes.foreground = samplesNear(s, {{-0.5, -0.6, 0.35}, {-0.5, 0.6, 0.35}}, 0.02);
+  strokes.background = samplesNear(s, {{0.6, 0.2, 0.42}, {0.6, 0.5, 0.42}}, 0.02);
+  strokes.foreground.push_back(a);
+  strokes.background.push_back(b);
+  const SnapResult r = snapping.cut(strokes);
+  EXPECT_EQ(r.conflicting_segments, 1u);
+  EXPECT_TRUE(r.selected[a]);
+  EXPECT_FALSE(r.selected[b]);
+  EXPECT_GT(r.graph_nodes, snapping.segmentation().count);
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -57,12 +57,14 @@ inline lod::Mesh cappedSphere(uint32_t rings, std::vector<uint8_t>* cap) {
 }
 
 /// Samples within `r` of the 3D polyline: a stroke as the pick under it would give it.
-inline std::vector<uint32_t> samplesNear(const SurfaceSamples& s, const std::vector<glm::dvec3>& line, double r) {
+inline std::vector<uint32_t> samplesNear(const SurfaceSamples& s,
+                                         const std::vector<glm::dvec3>& line, double r) {
   std::vector<uint32_t> out;
   for (uint32_t i = 0; i < s.size(); ++i)
     for (size_t k = 0; k + 1 < line.size(); ++k) {
       const glm::dvec3 ab = line[k + 1] - line[k];
-      const double t = std::clamp(glm::dot(s.positions[i] - line[k], ab) / glm::dot(ab, ab), 0., 1.);
+      const double t =
+          std::clamp(glm::dot(s.positions[i] - line[k], ab) / glm::dot(ab, ab), 0., 1.);
       if (glm::length(s.positions[i] - (line[k] + t * ab)) <= r) {
         out.push_back(i);
         break;
@@ -116,7 +118,9 @@ inline ScreenView bunnyView() {
   return v;
 }
 
-inline glm::dvec2 bunnyPixel(double x, double y) { return {(x + 0.11) * 3000.0, (y - 0.02) * 3000.0}; }
+inline glm::dvec2 bunnyPixel(double x, double y) {
+  return {(x + 0.11) * 3000.0, (y - 0.02) * 3000.0};
+}
 
 /// Strokes as a user draws them on bunnyView() (4 pixels wide): along the ear from near its
 /// tip to near its base; across the head and down the back.
@@ -126,6 +130,34 @@ inline std::vector<glm::dvec2> bunnyEarStroke() {
 inline std::vector<glm::dvec2> bunnyHeadStroke() {
   return {bunnyPixel(-0.085, 0.13), bunnyPixel(-0.06, 0.14), bunnyPixel(-0.03, 0.125),
           bunnyPixel(0.0, 0.12)};
+}
+
+/// The robust lasso's heavy stroke as a user would draw it around the ear: the convex hull
+/// (counter-clockwise, Andrew's monotone chain) of the ear's visible vertices on the screen.
+inline std::vector<glm::dvec2> earOutline(const SurfaceSamples& s, const std::vector<uint8_t>& ear,
+                                          const std::vector<uint8_t>& visible,
+                                          const ScreenView& view) {
+  std::vector<glm::dvec2> p;
+  for (uint32_t i = 0; i < s.size(); ++i)
+    if (ear[i] && visible[i]) p.push_back(master::project(view, s.positions[i]).pixel);
+  std::sort(p.begin(), p.end(),
+            [](auto a, auto b) { return a.x < b.x || (a.x == b.x && a.y < b.y); });
+  if (p.size() < 3) return p;
+  auto cross = [](glm::dvec2 o, glm::dvec2 a, glm::dvec2 b) {
+    return (a.x - o.x) * (b.y - o.y) - (a.y - o.y) * (b.x - o.x);
+  };
+  std::vector<glm::dvec2> h(2 * p.size());
+  size_t k = 0;
+  for (size_t i = 0; i < p.size(); ++i) {
+    while (k >= 2 && cross(h[k - 2], h[k - 1], p[i]) <= 0) --k;
+    h[k++] = p[i];
+  }
+  for (size_t i = p.size() - 1, t = k + 1; i > 0; --i) {
+    while (k >= t && cross(h[k - 2], h[k - 1], p[i - 1]) <= 0) --k;
+    h[k++] = p[i - 1];
+  }
+  h.resize(k - 1);
+  return h;
 }
 
 /// The Stanford bunny's reconstruction (35947 vertices, 69451 triangles).

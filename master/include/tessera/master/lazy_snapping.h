@@ -147,7 +147,7 @@ struct SnapOptions {
   OverSegmentOptions segmentation;
   /// false: one graph node per sample (the baseline without over-segmentation).
   bool over_segment = true;
-  double lambda = 4.0;   ///< weight of the smoothness term, eq. 4.1 
+  double lambda = 4.0;    ///< weight of the smoothness term, eq. 4.1
   double w_colour = 1.0;  ///< w_c of eq. 4.4 and 4.5
   double w_normal = 1.0;  ///< w_n of eq. 4.4 and 4.5
   double w_depth = 1.0;   ///< w_d of eq. 4.5 (needs a view; ignored without one)
@@ -156,11 +156,11 @@ struct SnapOptions {
 
 /// The outcome of a cut.
 struct SnapResult {
-  std::vector<uint8_t> selected;       ///< per sample, 1 = foreground
-  std::vector<uint32_t> indices;       ///< the foreground samples, ascending
-  uint32_t graph_nodes = 0;            ///< nodes of the cut graph (segments, refined samples)
-  uint32_t conflicting_segments = 0;   ///< segments under both stroke kinds (refined)
-  double energy = 0;                   ///< E(X) of eq. 4.1 at the minimum (= the max flow)
+  std::vector<uint8_t> selected;      ///< per sample, 1 = foreground
+  std::vector<uint32_t> indices;      ///< the foreground samples, ascending
+  uint32_t graph_nodes = 0;           ///< nodes of the cut graph (segments, refined samples)
+  uint32_t conflicting_segments = 0;  ///< segments under both stroke kinds (refined)
+  double energy = 0;                  ///< E(X) of eq. 4.1 at the minimum (= the max flow)
 };
 
 /// 3D lazy snapping on one surface: the over-segmentation and the segment graph are built once
@@ -187,8 +187,8 @@ class LazySnapping {
     std::vector<uint32_t> node_of;  ///< per sample
     uint32_t count = 0;
     std::vector<uint32_t> size;
-    std::vector<glm::dvec3> colour;    ///< mean, 0..255
-    std::vector<glm::dvec3> normal;    ///< mean, unit (zero when the normals cancel)
+    std::vector<glm::dvec3> colour;  ///< mean, 0..255
+    std::vector<glm::dvec3> normal;  ///< mean, unit (zero when the normals cancel)
     std::vector<glm::dvec3> centroid;
     struct Edge {
       uint32_t a, b;   ///< nodes, a < b
