@@ -12,7 +12,7 @@ namespace tessera::master {
 /// A directed graph with a source and a sink, built once and cut once.
 ///
 /// Capacities are non-negative doubles (finite; use a large finite value for "infinite" seeds).
-/// Memory: 2 arcs of 24 bytes per addEdge() plus 40 bytes per node. maxflow() costs
+/// Memory: 2 arcs of 16 bytes per addEdge() plus 32 bytes per node. maxflow() costs
 /// O(n^2 m |C|) in the worst case, close to linear on the grid-like graphs of segmentation.
 /// Not thread-safe; one graph per cut.
 class MaxFlowGraph {

@@ -129,6 +129,33 @@ TEST(MaxFlow, MatchesDinicOnRandomGraphsWithAValidCut) {
   }
 }
 
+TEST(MaxFlow, MatchesDinicWithRealCapacities) {
+  // Capacities of the energies' kind (fractions, wide range): equal up to rounding.
+  std::mt19937 rng(4);
+  std::uniform_real_distribution<double> cap(0.0, 1.0);
+  for (int trial = 0; trial < 100; ++trial) {
+    const uint32_t n = 2 + rng() % 60;
+    MaxFlowGraph graph(n);
+    std::vector<std::tuple<uint32_t, uint32_t, double>> ref;
+    for (uint32_t i = 0; i < n; ++i) {
+      const double cs = rng() % 2 ? 1e6 * cap(rng) : cap(rng), ct = cap(rng);
+      graph.addTerminalWeights(i, cs, ct);
+      ref.emplace_back(n, i, cs);
+      ref.emplace_back(i, n + 1, ct);
+    }
+    for (uint32_t e = 0; e < 3 * n; ++e) {
+      const uint32_t a = rng() % n, b = rng() % n;
+      if (a == b) continue;
+      const double c = cap(rng);
+      graph.addEdge(a, b, c, c);
+      ref.emplace_back(a, b, c);
+      ref.emplace_back(b, a, c);
+    }
+    const double expected = dinic(n, ref);
+    EXPECT_NEAR(graph.maxflow(), expected, 1e-9 * std::max(1.0, expected)) << "trial " << trial;
+  }
+}
+
 TEST(MaxFlow, SmallKnownGraphAndMisuse) {
   // s -> 0 (3), s -> 1 (2), 0 -> 1 (1), 0 -> t (2), 1 -> t (3): max flow 5.
   MaxFlowGraph graph(2);
