@@ -4,9 +4,11 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <numeric>
 #include <queue>
 #include <string>
+#include <unordered_map>
 #include <utility>
 
 namespace tessera::master {
@@ -242,6 +244,85 @@ SurfaceSamples surfaceFromPoints(std::span<const glm::dvec3> positions,
     s.normals[i] = glm::vec3(nrm);
   }
   buildRows(n, pairs, s);
+  return s;
+}
+
+SurfaceSamples surfaceFromChunks(std::span<const std::shared_ptr<const lod::ChunkPoints>> chunks,
+                                 uint32_t k, const glm::dvec3& viewpoint) {
+  std::vector<glm::dvec3> positions;
+  std::vector<glm::u8vec4> colors;
+  bool any_colour = false;
+  for (const auto& c : chunks) any_colour = any_colour || (c && (c->attributes & lod::kColor));
+  for (const auto& c : chunks) {
+    if (!c) throw SnappingError("surfaceFromChunks(): a chunk is null");
+    const bool coloured = (c->attributes & lod::kColor) && c->colors.size() == c->size();
+    for (size_t i = 0; i < c->size(); ++i) {
+      positions.push_back(c->offset + glm::dvec3(c->positions[i]));
+      if (any_colour) colors.push_back(coloured ? c->colors[i] : glm::u8vec4(128, 128, 128, 255));
+    }
+  }
+  return surfaceFromPoints(positions, colors, {}, k, viewpoint);
+}
+
+SurfaceSamples surfaceFromPatches(std::span<const lod::MeshPatch> patches,
+                                  std::vector<std::vector<uint32_t>>* sample_of) {
+  // Patches of one store quantise their vertices on one grid, so a vertex two patches share
+  // has the same grid coordinates in both: the key to weld them by.
+  struct KeyHash {
+    size_t operator()(const glm::i64vec3& k) const {
+      return size_t(k.x * 73856093) ^ size_t(k.y * 19349663) ^ size_t(k.z * 83492791);
+    }
+  };
+  std::unordered_map<glm::i64vec3, uint32_t, KeyHash> by_grid;
+  std::unordered_map<glm::i64vec3, uint32_t, KeyHash> by_position;  // bit patterns of doubles
+  SurfaceSamples s;
+  std::vector<std::pair<uint32_t, uint32_t>> pairs;
+  if (sample_of) sample_of->assign(patches.size(), {});
+  std::vector<uint32_t> local;
+  for (size_t p = 0; p < patches.size(); ++p) {
+    const lod::MeshPatch& patch = patches[p];
+    const size_t nv = patch.positions.size();
+    if (patch.normals.size() != nv || (!patch.colors.empty() && patch.colors.size() != nv) ||
+        (!patch.grid.empty() && patch.grid.size() != nv) || patch.indices.size() % 3 != 0)
+      throw SnappingError("surfaceFromPatches(): patch " + std::to_string(p) +
+                          " has arrays of different sizes");
+    local.resize(nv);
+    for (size_t v = 0; v < nv; ++v) {
+      const glm::dvec3 pos = patch.offset + glm::dvec3(patch.positions[v]);
+      if (!finite(pos))
+        throw SnappingError("surfaceFromPatches(): patch " + std::to_string(p) + " vertex " +
+                            std::to_string(v) + " is not finite");
+      glm::i64vec3 key;
+      auto* map = &by_grid;
+      if (!patch.grid.empty()) {
+        key = glm::i64vec3(patch.grid[v]);
+      } else {
+        std::memcpy(&key, &pos, sizeof key);
+        map = &by_position;
+      }
+      const auto [it, added] = map->try_emplace(key, uint32_t(s.positions.size()));
+      if (added) {
+        s.positions.push_back(pos);
+        s.normals.push_back(patch.normals[v]);
+        s.colors.push_back(patch.colors.empty() ? glm::u8vec4(128, 128, 128, 255)
+                                                : patch.colors[v]);
+      }
+      local[v] = it->second;
+    }
+    for (size_t t = 0; t < patch.indices.size(); t += 3)
+      for (int e = 0; e < 3; ++e) {
+        const uint32_t a = patch.indices[t + size_t(e)];
+        const uint32_t b = patch.indices[t + size_t((e + 1) % 3)];
+        if (a >= nv || b >= nv)
+          throw SnappingError("surfaceFromPatches(): patch " + std::to_string(p) +
+                              " has a vertex index out of range");
+        if (local[a] == local[b]) continue;
+        pairs.emplace_back(local[a], local[b]);
+        pairs.emplace_back(local[b], local[a]);
+      }
+    if (sample_of) (*sample_of)[p] = local;
+  }
+  buildRows(s.positions.size(), pairs, s);
   return s;
 }
 

@@ -446,6 +446,92 @@ TEST(LazySnapping, CorrectiveStrokesInsideOneSegmentTakeEffect) {
 }
 
 // ---------------------------------------------------------------------------------------------
+// Store data: mesh patches welded across their borders, point chunks.
+
+/// The capped sphere cut into two patches (halves of its triangles), each with its own vertex
+/// list relative to its own offset, border vertices in both; grid = the vertex's index.
+std::vector<lod::MeshPatch> twoPatches(const lod::Mesh& mesh, bool with_grid) {
+  const SurfaceSamples whole = surfaceFromMesh(mesh);
+  std::vector<lod::MeshPatch> patches(2);
+  const size_t half = mesh.triangles.size() / 2;
+  for (size_t p = 0; p < 2; ++p) {
+    lod::MeshPatch& patch = patches[p];
+    patch.offset = glm::dvec3(-1.0, -1.0, -1.0);
+    std::vector<uint32_t> local(mesh.positions.size(), UINT32_MAX);
+    for (size_t t = p * half; t < (p == 0 ? half : mesh.triangles.size()); ++t)
+      for (int e = 0; e < 3; ++e) {
+        const uint32_t v = mesh.triangles[t][e];
+        if (local[v] == UINT32_MAX) {
+          local[v] = uint32_t(patch.positions.size());
+          patch.positions.emplace_back(mesh.positions[v] - patch.offset);
+          patch.normals.push_back(whole.normals[v]);
+          patch.colors.push_back(mesh.colors[v]);
+          if (with_grid) patch.grid.emplace_back(int32_t(v), 0, 0);
+        }
+        patch.indices.push_back(local[v]);
+      }
+  }
+  return patches;
+}
+
+TEST(SurfaceSamples, MeshPatchesWeldAcrossTheirBorders) {
+  std::vector<uint8_t> cap;
+  const lod::Mesh mesh = cappedSphere(60, &cap);
+  const SurfaceSamples whole = surfaceFromMesh(mesh);
+  for (bool with_grid : {true, false}) {
+    const std::vector<lod::MeshPatch> patches = twoPatches(mesh, with_grid);
+    ASSERT_GT(patches[0].positions.size() + patches[1].positions.size(), whole.size());
+    std::vector<std::vector<uint32_t>> sample_of;
+    const SurfaceSamples s = surfaceFromPatches(patches, &sample_of);
+    ASSERT_EQ(s.size(), whole.size()) << "grid " << with_grid;
+    EXPECT_EQ(s.neighbours.size(), whole.neighbours.size());
+    // The same selection as on the whole mesh, through the patches' vertices.
+    std::vector<uint8_t> cap_s(s.size(), 0);
+    for (size_t p = 0; p < 2; ++p)
+      for (size_t v = 0; v < patches[p].positions.size(); ++v)
+        cap_s[sample_of[p][v]] = patches[p].positions[v].z + patches[p].offset.z > 0.5;
+    Strokes strokes;
+    strokes.foreground = samplesNear(s, {{-0.5, 0, 0.87}, {0.5, 0, 0.87}}, 0.04);
+    strokes.background = samplesNear(s, {{1, 0, 0}, {0, 1, 0}, {-1, 0, 0}}, 0.04);
+    EXPECT_GE(intersectionOverUnion(LazySnapping(s).cut(strokes).selected, cap_s), kSyntheticIoU);
+  }
+  std::vector<lod::MeshPatch> bad = twoPatches(mesh, true);
+  bad[1].indices.back() = uint32_t(bad[1].positions.size());
+  EXPECT_THROW(surfaceFromPatches(bad), SnappingError);
+  bad[1].normals.pop_back();
+  EXPECT_THROW(surfaceFromPatches(bad), SnappingError);
+}
+
+TEST(SurfaceSamples, PointChunksInTheStoreFrame) {
+  std::vector<uint8_t> cap;
+  const lod::Mesh mesh = cappedSphere(40, &cap);
+  std::vector<std::shared_ptr<const lod::ChunkPoints>> chunks;
+  for (int c = 0; c < 2; ++c) {
+    auto chunk = std::make_shared<lod::ChunkPoints>();
+    chunk->attributes = lod::kColor;
+    chunk->offset = glm::dvec3(c == 0 ? -1.0 : 0.0, -1.0, -1.0);
+    for (size_t i = 0; i < mesh.positions.size(); ++i)
+      if ((mesh.positions[i].x < 0) == (c == 0)) {
+        chunk->positions.emplace_back(mesh.positions[i] - chunk->offset);
+        chunk->colors.push_back(mesh.colors[i]);
+      }
+    chunks.push_back(chunk);
+  }
+  const SurfaceSamples s = surfaceFromChunks(chunks, 8, glm::dvec3(0, 0, 10));
+  ASSERT_EQ(s.size(), mesh.positions.size());
+  for (size_t i = 0, k = 0; k < 2; ++k)
+    for (size_t j = 0; j < chunks[k]->size(); ++j, ++i) {
+      EXPECT_NEAR(
+          glm::length(s.positions[i] - (chunks[k]->offset + glm::dvec3(chunks[k]->positions[j]))),
+          0.0, 1e-12);
+      EXPECT_EQ(s.colors[i], chunks[k]->colors[j]);
+      EXPECT_NEAR(glm::length(s.normals[i]), 1.0f, 1e-4f);
+    }
+  chunks.push_back(nullptr);
+  EXPECT_THROW(surfaceFromChunks(chunks, 8, glm::dvec3(0)), SnappingError);
+}
+
+// ---------------------------------------------------------------------------------------------
 // Degenerate input: clear errors, never a crash.
 
 TEST(LazySnapping, DegenerateInputThrowsClearErrors) {

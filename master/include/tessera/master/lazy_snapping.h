@@ -17,6 +17,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <memory>
 #include <span>
 #include <stdexcept>
 #include <vector>
@@ -24,6 +25,8 @@
 #include <glm/glm.hpp>
 
 #include <tessera/lod/mesh.h>
+#include <tessera/lod/mesh_store.h>
+#include <tessera/lod/point_store.h>
 
 namespace tessera::master {
 
@@ -72,6 +75,22 @@ SurfaceSamples surfaceFromPoints(std::span<const glm::dvec3> positions,
                                  std::span<const glm::u8vec4> colors,
                                  std::span<const glm::vec3> normals, uint32_t k,
                                  const glm::dvec3& viewpoint);
+
+/// Samples from decoded point chunks (PointStore::loadChunk(), e.g. the nodes of the region
+/// being selected), in the store's local frame (local = chunk offset + position; add the
+/// store origin for world coordinates): concatenated in the order given, then as
+/// surfaceFromPoints(). A sample's index is its rank in that concatenation.
+SurfaceSamples surfaceFromChunks(std::span<const std::shared_ptr<const lod::ChunkPoints>> chunks,
+                                 uint32_t k, const glm::dvec3& viewpoint);
+
+/// Samples from decoded mesh patches (MeshStore::readPatch(), e.g. the leaves of a region),
+/// in the store's local frame. Vertices that patches share on their borders are welded by
+/// their grid coordinates (exact), or by position when a patch has no grid, so the adjacency
+/// runs across patch borders. `sample_of[p][v]` (filled when not null) is the sample of patch
+/// p's vertex v. Normals and colours are the patches' (grey when a patch has none). Throws
+/// SnappingError on indices out of range or arrays that disagree in size.
+SurfaceSamples surfaceFromPatches(std::span<const lod::MeshPatch> patches,
+                                  std::vector<std::vector<uint32_t>>* sample_of = nullptr);
 
 struct OverSegmentOptions {
   /// Segments are split into connected pieces of at most this many samples.
