@@ -270,7 +270,8 @@ SurfaceSamples surfaceFromPatches(std::span<const lod::MeshPatch> patches,
   // has the same grid coordinates in both: the key to weld them by.
   struct KeyHash {
     size_t operator()(const glm::i64vec3& k) const {
-      return size_t(k.x * 73856093) ^ size_t(k.y * 19349663) ^ size_t(k.z * 83492791);
+      return size_t(uint64_t(k.x) * 73856093u) ^ size_t(uint64_t(k.y) * 19349663u) ^
+             size_t(uint64_t(k.z) * 83492791u);
     }
   };
   std::unordered_map<glm::i64vec3, uint32_t, KeyHash> by_grid;
