@@ -13,6 +13,13 @@
 //      seeds for the same cut.
 // Strokes are lists of sample indices (what picking under a stroke gives); pickStroke()
 // computes them from a screen polyline without GL.
+//
+// Where this departs from the thesis: it over-segments the rendered image and carries each
+// 2D cluster's normal over from the 3D patches under it; here the watershed runs on the
+// surface samples themselves, so the cut labels hidden samples too (through adjacency, not
+// the screen), and a cluster's depth is its centroid's eye depth. Segments weigh as many as
+// their samples (see cut()); the weights' scales and lambda, which the thesis leaves open,
+// are fixed below. A segment under both kinds of stroke is refined into samples.
 #pragma once
 
 #include <cstddef>
