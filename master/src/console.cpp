@@ -5,6 +5,7 @@
 #include <cstdio>
 
 #include <tessera/master/point_pick.h>
+#include <tessera/master/select_tool.h>
 #include <tessera/master/surface_pick.h>
 #include <tessera/render/gl_context.h>
 #include <tessera/sync/scene_edits.h>
@@ -16,7 +17,8 @@ namespace {
 // GLFW key codes (glfw3.h), kept here so this file needs no GLFW header.
 constexpr int kKey1 = 49, kKey9 = 57, kKeyEqual = 61, kKeyMinus = 45, kKeyH = 72, kKeyE = 69,
               kKeyPadAdd = 334, kKeyPadSubtract = 333, kKeyL = 76, kKeyU = 85, kKeyC = 67,
-              kKeyM = 77, kKeyEnter = 257, kKeyPadEnter = 335, kKeyBackspace = 259;
+              kKeyM = 77, kKeyEnter = 257, kKeyPadEnter = 335, kKeyBackspace = 259,
+              kKeyS = 83;
 
 /// The console's own name as a participant (sketch layer, author, leader).
 constexpr const char* kConsole = "console";
@@ -100,7 +102,9 @@ render::Overlay Console::overlay(const render::Overlay& scene) const {
   render::Overlay o = scene;
   const float bar_x = float(mWidth * (1.0 - OneButtonNavigation::kBarFraction));
   o.rects.push_back({{bar_x, 0.0f}, {float(mWidth), float(mHeight)}, {255, 255, 255, 64}});
-  // The unfinished measurement's points and lines, on top.
+  // The lasso being drawn, and the unfinished measurement's points and lines, on top.
+  for (size_t i = 1; i < mLasso.size(); ++i)
+    o.rects.push_back({glm::vec2(mLasso[i]) - 1.5f, glm::vec2(mLasso[i]) + 1.5f, {255, 190, 0, 230}});
   const auto& pts = mTool.points();
   for (size_t i = 0; i < pts.size(); ++i) {
     o.points.push_back({pts[i].point.world, {90, 230, 255, 255}, 7.0f, 1.5f});
@@ -181,7 +185,29 @@ bool Console::handleInput(sync::SceneGraph& graph) {
       std::fflush(stdout);
     }
   };
-  if (mTool.mode() != MeasureTool::Mode::kOff) {
+  if (mLassoing) {
+    // A left drag draws the lasso; letting go selects what of the current model it encloses.
+    if (in.left) {
+      if (mLasso.empty() || glm::length(p.cursor - mLasso.back()) >= 2.0) mLasso.push_back(p.cursor);
+    } else if (!mLasso.empty()) {
+      const auto models = modelIds(graph);
+      const auto& nodes = mModels.instanceNodes();
+      const uint32_t node = models.empty() ? 0 : models[std::min(mSelected, models.size() - 1)];
+      const auto at = std::find(nodes.begin(), nodes.end(), node);
+      if (mLasso.size() >= 3 && at != nodes.end() && size_t(at - nodes.begin()) < mInstances.size()) {
+        const LassoSelectResult r = selectWithLasso(
+            graph, mInstances[size_t(at - nodes.begin())], node, mLastView, mLasso, kConsole);
+        if (r.node) mSelections.push_back(r.node);
+        std::printf("tessera-master: console: lasso on model %u: %llu %s selected%s\n", node,
+                    (unsigned long long)r.count,
+                    mInstances[size_t(at - nodes.begin())].mesh ? "triangles" : "points",
+                    r.corrupt ? " (some chunks could not be read)" : "");
+        std::fflush(stdout);
+      }
+      mLasso.clear();
+    }
+    p.down = p.pressed = p.released = false;
+  } else if (mTool.mode() != MeasureTool::Mode::kOff) {
     // Clicks measure; the wheel still moves the view.
     if (in.left_pressed) mPressAt = p.cursor;
     if (in.left_released && glm::length(p.cursor - mPressAt) <= 4.0) measureAt(p.cursor);
@@ -242,7 +268,18 @@ bool Console::handleInput(sync::SceneGraph& graph) {
       for (auto id : mSketches) graph.remove(id);
       mSketches.clear();
     }
+    if (key == kKeyS) {
+      mLassoing = !mLassoing;
+      mLasso.clear();
+      if (mLassoing) mTool.setMode(MeasureTool::Mode::kOff);
+      std::printf("tessera-master: console: lasso %s\n",
+                  mLassoing ? "on (drag around a region of the current model; Backspace removes "
+                              "the newest selection)"
+                            : "off");
+      std::fflush(stdout);
+    }
     if (key == kKeyM) {
+      mLassoing = false;
       std::printf("tessera-master: console: measuring: %s%s\n",
                   MeasureTool::name(mTool.cycle()),
                   mTool.mode() == MeasureTool::Mode::kPath || mTool.mode() == MeasureTool::Mode::kArea
@@ -263,7 +300,13 @@ bool Console::handleInput(sync::SceneGraph& graph) {
         std::fflush(stdout);
       }
     }
-    if (key == kKeyBackspace && !mTool.undoPoint()) {  // no point to drop: the newest measurement
+    if (key == kKeyBackspace && mLassoing) {
+      std::erase_if(mSelections, [&](auto id) { return !graph.contains(id); });
+      if (!mSelections.empty()) {
+        graph.remove(mSelections.back());
+        mSelections.pop_back();
+      }
+    } else if (key == kKeyBackspace && !mTool.undoPoint()) {  // no point: the newest measurement
       std::erase_if(mMeasurements, [&](auto id) { return !graph.contains(id); });
       if (!mMeasurements.empty()) {
         graph.remove(mMeasurements.back());

@@ -44,7 +44,9 @@ class Console {
   /// moving it), again gives it back; M cycles the measuring tool (distance, path, angle, area,
   /// off): clicks then pick points on the model instead of navigating, Enter ends a path or an
   /// area, Backspace drops the last point or else the newest measurement (layer
-  /// "measurements"). Returns false once the window is closed (or Escape).
+  /// "measurements"); S toggles the lasso: a left drag selects what of the current model it
+  /// encloses (layer "selections", tinted on every tile), Backspace removes the newest.
+  /// Returns false once the window is closed (or Escape).
   bool handleInput(sync::SceneGraph& graph);
 
  private:
@@ -71,6 +73,9 @@ class Console {
   MeasureTool mTool;
   glm::dvec2 mPressAt{0.0};  // where the left button went down (a click measures)
   std::vector<sync::SceneGraph::NodeId> mMeasurements;  // the console's, oldest first
+  bool mLassoing = false;              // S: left drags draw a lasso
+  std::vector<glm::dvec2> mLasso;      // its pixels so far
+  std::vector<sync::SceneGraph::NodeId> mSelections;  // the console's, oldest first
   std::chrono::steady_clock::time_point mLastInput = std::chrono::steady_clock::now();
 };
 

@@ -101,7 +101,8 @@ void Master::openConsole() {
         "it, click it to fly there; right-hand bar: forward/back; wheel zooms; 1-9 "
         "select a model, +/- opacity, H hide, E eye-dome lighting; right-button drag draws "
         "on the model, U undo, C clear; M measures (distance, path, angle, area: click "
-        "points, Enter ends, Backspace undoes); L leads the view; Esc quits)\n");
+        "points, Enter ends, Backspace undoes); S lasso (drag around a region); L leads the "
+        "view; Esc quits)\n");
   } catch (const render::RenderError& e) {
     std::printf("tessera-master: --console: %s; running headless\n", e.what());
   }

@@ -170,9 +170,12 @@ const std::vector<ModelInstance>& SceneDrawList::update(const sync::SceneGraph& 
   // Stores no model uses any more: the loaders let go of them first, then they close.
   std::set<std::string> used;
   mInstances.clear();
+  mInstanceNodes.clear();
   for (const auto& [id, e] : mEntries) {
     used.insert(e.path);
-    if (e.visible) mInstances.push_back(e.instance);
+    if (!e.visible) continue;
+    mInstances.push_back(e.instance);
+    mInstanceNodes.push_back(id);
   }
   auto close_unused = [&](auto& stores) {
     for (auto it = stores.begin(); it != stores.end();) {
@@ -201,6 +204,7 @@ void SceneDrawList::clear(std::span<ChunkStreamer* const> streamers) {
   mMeshStores.clear();
   mEntries.clear();
   mInstances.clear();
+  mInstanceNodes.clear();
   mStarted = false;
 }
 

@@ -3,7 +3,9 @@
 // cylinder patch, the same sphere as a point store, the full-resolution pick against a brute
 // force over every leaf sample of the Autzen LiDAR (georeferenced: millimetres hundreds of km
 // from the origin) and the bunny mesh against its input triangles.
+#include <tessera/master/lasso_selection.h>
 #include <tessera/master/measure_tool.h>
+#include <tessera/master/select_tool.h>
 #include <tessera/master/measurement.h>
 #include <tessera/master/surface_pick.h>
 
@@ -13,6 +15,8 @@
 #include <random>
 
 #include <gtest/gtest.h>
+
+#include <glm/gtc/matrix_transform.hpp>
 
 #include <tessera/lod/mesh.h>
 #include <tessera/lod/mesh_builder.h>
@@ -550,6 +554,78 @@ TEST(MeasurementNode, BadPayloadsAreRefusedNamingTheField) {
           "measurement.points");
   EXPECT_NO_THROW(sync::addMeasurement(g, layer, "x", scene::MeasurementPayload::AREA, three, 0.5,
                                        0.01));
+}
+
+}  // namespace
+}  // namespace tessera::master
+
+namespace tessera::master {
+namespace {
+
+TEST_F(MeasureToolTest, ALassoBecomesASelectionNodeWithItsExactElementsAndItsLasso) {
+  sync::SceneGraph g;
+  const auto model = g.add(scene::SceneNode::MODEL);
+  render::ViewSetup v;
+  v.eye_world = mCentre + glm::dvec3(0, 0, 0.5);
+  v.view = glm::lookAt(v.eye_world, mCentre, glm::dvec3(0, 1, 0));
+  v.projection = glm::perspective(glm::radians(30.0), 4.0 / 3.0, 0.05, 5.0);
+  v.width = 400;
+  v.height = 300;
+  const std::vector<glm::dvec2> box = {{170, 120}, {230, 120}, {230, 180}, {170, 180}};
+  const LassoSelectResult r = selectWithLasso(g, mModel, model, v, box, "site B");
+  ASSERT_NE(r.node, 0u);
+  EXPECT_GT(r.count, 100u);
+  EXPECT_EQ(r.corrupt, 0u);
+  const scene::SceneNode& n = g.node(r.node);
+  EXPECT_EQ(n.kind(), scene::SceneNode::SELECTION);
+  EXPECT_EQ(n.author(), "site B");
+  EXPECT_EQ(g.node(n.parent()).name(), "selections");
+  const scene::SelectionPayload& s = n.selection();
+  EXPECT_EQ(s.model(), model);
+  EXPECT_EQ(s.count(), r.count);
+  const std::string& bytes = s.elements();
+  const Selection back = Selection::deserialize(
+      std::span(reinterpret_cast<const uint8_t*>(bytes.data()), bytes.size()));
+  EXPECT_EQ(back.count(), r.count);
+  // Every selected triangle's centroid is inside the box as the view shows it (the selection's
+  // own rule), counted against a walk over the leaf triangles.
+  const glm::dmat4 vp = v.projection * v.view * mModel.model;
+  uint64_t inside = 0;
+  std::vector<lod::NodeId> stack = {mStore->root()};
+  while (!stack.empty()) {
+    const lod::NodeId id = stack.back();
+    stack.pop_back();
+    if (!mStore->node(id).leaf()) {
+      for (lod::NodeId c : mStore->children(id)) stack.push_back(c);
+      continue;
+    }
+    const lod::MeshPatch p = mStore->readPatch(id);
+    for (uint32_t t = 0; t < p.triangles(); ++t) {
+      glm::dvec3 c(0.0);
+      for (int k = 0; k < 3; ++k) c += (p.offset + glm::dvec3(p.positions[p.indices[3 * t + k]])) / 3.0;
+      const glm::dvec4 q = vp * glm::dvec4(c, 1.0);
+      const double x = (q.x / q.w * 0.5 + 0.5) * v.width, y = (0.5 - q.y / q.w * 0.5) * v.height;
+      const bool in = q.w > 0 && x > 170 && x < 230 && y > 120 && y < 180;
+      inside += in;
+      EXPECT_EQ(back.contains(id, t), in) << "patch " << id << " triangle " << t;
+    }
+  }
+  EXPECT_EQ(inside, r.count);
+  // The lasso travels in the view's NDC with the view: the highlight's mask has it.
+  ASSERT_EQ(s.lasso_size(), 8);
+  EXPECT_DOUBLE_EQ(s.lasso(0), 170.0 / 400 * 2 - 1);
+  EXPECT_DOUBLE_EQ(s.lasso(1), 1 - 120.0 / 300 * 2);
+  const auto highlights = render::sceneHighlights(g);
+  ASSERT_EQ(highlights.size(), 1u);
+  size_t set = 0;
+  for (uint32_t word : *highlights[0].mask) set += size_t(__builtin_popcount(word));
+  const double share = double(set) / (double(render::kHighlightMaskSize) * render::kHighlightMaskSize);
+  EXPECT_NEAR(share, (60.0 / 400) * (60.0 / 300), 0.002);
+  // A lasso off the model selects nothing and makes nothing.
+  const std::vector<glm::dvec2> empty_box = {{0, 0}, {10, 0}, {10, 10}};
+  const size_t before = g.size();
+  EXPECT_EQ(selectWithLasso(g, mModel, model, v, empty_box, "site B").node, 0u);
+  EXPECT_EQ(g.size(), before);
 }
 
 }  // namespace

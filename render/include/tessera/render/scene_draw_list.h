@@ -83,6 +83,9 @@ class SceneDrawList {
   /// Forgets and closes every store (before the streamers go).
   void clear(std::span<ChunkStreamer* const> streamers);
 
+  /// The MODEL node of each instance of the last update(), in the same order.
+  const std::vector<uint32_t>& instanceNodes() const { return mInstanceNodes; }
+
   /// The open stores' file sizes together, bytes.
   uint64_t storeBytes() const;
   /// Scene nodes the last update() looked at (0 for a frame that changed no node).
@@ -104,6 +107,7 @@ class SceneDrawList {
   std::map<std::string, std::unique_ptr<lod::MeshStore>> mMeshStores;  // .tmesh, by path
   std::map<uint32_t, Entry> mEntries;                               // by node id
   std::vector<ModelInstance> mInstances;
+  std::vector<uint32_t> mInstanceNodes;  // parallel to mInstances
   bool mStarted = false;
   size_t mVisited = 0;
   StoreOpener mOpener;

@@ -1,0 +1,55 @@
+#include <tessera/master/select_tool.h>
+
+#include <tessera/master/lasso_selection.h>
+#include <tessera/sync/scene_edits.h>
+
+namespace tessera::master {
+
+LassoSelectResult selectWithLasso(sync::SceneGraph& graph, const render::ModelInstance& instance,
+                                  uint32_t model_node, const render::ViewSetup& view,
+                                  std::span<const glm::dvec2> pixels, const std::string& author) {
+  LassoSelectResult out;
+  if (pixels.size() < 3 || view.width == 0 || view.height == 0) return out;
+  for (const glm::dvec2& p : pixels)
+    if (!std::isfinite(p.x) || !std::isfinite(p.y)) return out;
+  // At most 4096 vertices (the scene's limit): a long drag is thinned evenly.
+  std::vector<glm::dvec2> kept;
+  const size_t step = (pixels.size() + 4095) / 4096;
+  for (size_t i = 0; i < pixels.size(); i += step) kept.push_back(pixels[i]);
+  if (kept.size() < 3) return out;
+  pixels = kept;
+  const LassoView lv{view.view, view.projection, {view.width, view.height}};
+  const LassoPolygon lasso(kept);
+  LassoOptions o;
+  o.model = instance.model;
+  if (!instance.mesh && !instance.store) return out;
+  const LassoResult r = instance.mesh ? lassoTriangles(*instance.mesh, lv, lasso, o)
+                                      : lassoPoints(*instance.store, lv, lasso, o);
+  out.corrupt = r.stats.corrupt_chunks;
+  out.count = r.selection.count();
+  if (out.count == 0) return out;
+  scene::SelectionPayload s;
+  s.set_model(model_node);
+  const glm::dmat4 vp = view.projection * view.view;
+  for (int k = 0; k < 16; ++k) s.add_lasso_clip_from_world(vp[k / 4][k % 4]);
+  for (const glm::dvec2& p : pixels) {
+    s.add_lasso(p.x / view.width * 2.0 - 1.0);
+    s.add_lasso(1.0 - p.y / view.height * 2.0);
+  }
+  const std::vector<uint8_t> bytes = r.selection.serialize();
+  s.set_elements(std::string(bytes.begin(), bytes.end()));
+  s.set_count(out.count);
+  const auto layer = sync::layerGroup(graph, "selections", author);
+  out.node = graph.add(scene::SceneNode::SELECTION, layer,
+                       "selection " + std::to_string(graph.children(layer).size() + 1));
+  try {
+    graph.setPayload(out.node, s);
+  } catch (...) {
+    graph.remove(out.node);
+    throw;
+  }
+  graph.setAuthor(out.node, author);
+  return out;
+}
+
+}  // namespace tessera::master
