@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <filesystem>
 #include <limits>
 
@@ -118,7 +119,7 @@ struct OverlayPass::Impl {
   }
 
   void addLine(const OverlayLine& l);
-  void addLabel(const OverlayLabel& l);
+  void addLabel(const OverlayLabel& l, const FrameTarget& target, const glm::dmat4& projection);
   glm::vec2 layout(const OverlayLabel& l, const glm::dvec4* anchor);
 };
 
@@ -152,12 +153,14 @@ glm::vec2 OverlayPass::Impl::layout(const OverlayLabel& l, const glm::dvec4* anc
   const glm::vec2 box(width + 2.0f * pad, l.height_px + 2.0f * pad);
   if (!anchor) return box;
   const glm::vec2 o = l.offset_px - glm::clamp(l.align, glm::vec2(0.0f), glm::vec2(1.0f)) * box;
+  // A label is hidden or shown whole by its anchor (addLabel()), then drawn over the scene: a
+  // surface in front of the box (the model curving towards the eye) must not eat its text.
   if (l.background.a > 0) {
-    begin(white.name(), true);
+    begin(white.name(), false);
     sprite(*anchor, o, o + box, glm::vec2(0), glm::vec2(1), pack(l.background),
            TESSERA_OVERLAY_FLAT);
   }
-  begin(font_texture.name(), true);
+  begin(font_texture.name(), false);
   float pen = o.x + pad;
   const uint32_t rgba = pack(l.color);
   for (size_t i = 0; i < l.text.size();) {
@@ -174,13 +177,30 @@ glm::vec2 OverlayPass::Impl::layout(const OverlayLabel& l, const glm::dvec4* anc
   return box;
 }
 
-void OverlayPass::Impl::addLabel(const OverlayLabel& l) {
+void OverlayPass::Impl::addLabel(const OverlayLabel& l, const FrameTarget& target,
+                                 const glm::dmat4& projection) {
   const glm::dvec4 a = clip(l.at);
   // Behind the eye, outside the depth range, not finite, or of no size.
   if (!(a.w > 0.0) || a.z < -a.w || a.z > a.w || !(l.height_px > 0.0f) ||
       !std::isfinite(l.height_px) || !std::isfinite(l.offset_px.x) ||
       !std::isfinite(l.offset_px.y) || !std::isfinite(l.align.x) || !std::isfinite(l.align.y))
     return;
+  // Hidden when the scene is in front of its anchor (one depth value read back): by more than
+  // 2% of the distance, since anchors sit on the surface the splats cover (or, a measurement's
+  // middle, on a chord just under it).
+  const double x = (a.x / a.w * 0.5 + 0.5) * size.x, y = (0.5 - a.y / a.w * 0.5) * size.y;
+  if (x >= 0.0 && y >= 0.0 && x < size.x && y < size.y) {
+    const uint32_t d = target.readAt(target.depth(), uint32_t(x), uint32_t(y));
+    if (d != kEmptyDepth) {
+      float f = 0.0f;
+      std::memcpy(&f, &d, 4);
+      const double ndc = 2.0 * double(f) - 1.0;
+      const bool perspective = projection[2][3] != 0.0;
+      const double stored = perspective ? projection[3][2] / (ndc + projection[2][2]) : ndc;
+      const double anchor = perspective ? a.w : a.z / a.w;
+      if (perspective ? anchor > 1.02 * std::abs(stored) : anchor > stored + 0.02) return;
+    }
+  }
   layout(l, &a);
 }
 
@@ -239,7 +259,7 @@ double OverlayPass::run(FrameTarget& target, const ViewSetup& view, const Overla
     s.sprite(a, glm::vec2(-r), glm::vec2(r), glm::vec2(0), glm::vec2(1), pack(p.color),
              TESSERA_OVERLAY_DOT | uint32_t(std::lround(hole * 255.0f)) << 8);
   }
-  for (const OverlayLabel& l : overlay.labels) s.addLabel(l);
+  for (const OverlayLabel& l : overlay.labels) s.addLabel(l, target, view.projection);
   for (const ScreenRect& r : overlay.rects) {
     if (!std::isfinite(r.min.x) || !std::isfinite(r.min.y) || !std::isfinite(r.max.x) ||
         !std::isfinite(r.max.y))

@@ -60,6 +60,13 @@ std::unique_ptr<Window> Window::open(uint32_t width, uint32_t height, const std:
   glfwSwapInterval(0);
   glfwSetScrollCallback(
       w, [](GLFWwindow* gw, double, double dy) { implOf(gw)->pending.scroll += dy; });
+  // Button transitions are latched as they happen: a click shorter than a frame (a slow frame
+  // on llvmpipe lasts a second) is a press and a release, not nothing.
+  glfwSetMouseButtonCallback(w, [](GLFWwindow* gw, int button, int action, int) {
+    if (button != GLFW_MOUSE_BUTTON_LEFT) return;
+    if (action == GLFW_PRESS) implOf(gw)->pending.left_pressed = true;
+    if (action == GLFW_RELEASE) implOf(gw)->pending.left_released = true;
+  });
   glfwSetKeyCallback(w, [](GLFWwindow* gw, int key, int, int action, int) {
     if (action == GLFW_PRESS) implOf(gw)->pending.keys.push_back(key);
     if (key == GLFW_KEY_ESCAPE && action == GLFW_PRESS) glfwSetWindowShouldClose(gw, GLFW_TRUE);
@@ -139,8 +146,8 @@ WindowInput Window::poll() {
   in.left = glfwGetMouseButton(s.window, GLFW_MOUSE_BUTTON_LEFT) == GLFW_PRESS;
   in.right = glfwGetMouseButton(s.window, GLFW_MOUSE_BUTTON_RIGHT) == GLFW_PRESS;
   in.middle = glfwGetMouseButton(s.window, GLFW_MOUSE_BUTTON_MIDDLE) == GLFW_PRESS;
-  in.left_pressed = in.left && !s.was_left;
-  in.left_released = !in.left && s.was_left;
+  in.left_pressed = in.left_pressed || (in.left && !s.was_left);
+  in.left_released = in.left_released || (!in.left && s.was_left);
   s.was_left = in.left;
   int w = 0, h = 0;
   glfwGetWindowSize(s.window, &w, &h);

@@ -619,6 +619,69 @@ TEST_F(SiteSession, AWindowDrivenByMouseAndKeys) {
   master->signal(SIGTERM);
 }
 
+// Measuring and selecting at the console, as a conservator would: M, two clicks on the bunny
+// make a distance (its label printed, the line on every tile); S, a left drag around the body
+// selects its points, tinted on the wall's tiles.
+TEST_F(SiteSession, TheConsoleMeasuresAndLassos) {
+  if (!VirtualDisplay::available())
+    GTEST_SKIP() << "needs Xvfb and xdotool (scripts/deps.sh installs them)";
+  const VirtualDisplay xdo(mRun / "xvfb.log");
+  auto master = startMaster(300.0, {"--console", "--console-width", "640", "--console-screenshot",
+                                    (mRun / "console.png").string()});
+  auto nodes = startNodes();
+  ASSERT_TRUE(master->waitFor("4 of 4 tiles have a node", 60)) << master->output();
+  const std::string wid = xdo.window("tessera-master");
+  ASSERT_FALSE(wid.empty()) << "no console window on " << xdo.name;
+  xdo("key --window " + wid + " m");
+  ASSERT_TRUE(master->waitFor("console: measuring: distance", 30)) << master->output();
+  for (const char* at : {"290 225", "350 225"}) {
+    xdo(std::string("mousemove --window ") + wid + " " + at + " click 1");
+    std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  }
+  if (!master->waitFor("console: distance [0-9.]+ (mm|cm|m) \u00b1 [0-9.e+-]+ (mm|cm|m)", 30)) {
+    master->signal(SIGTERM);  // the console's picture, to see where the clicks went
+    master->wait(60);
+    FAIL() << master->output() << "\nconsole: " << mRun / "console.png";
+  }
+  xdo("key --window " + wid + " s");
+  ASSERT_TRUE(master->waitFor("console: lasso on", 30)) << master->output();
+  // A box around the body, drawn as a drag.
+  xdo("mousemove --window " + wid + " 300 200 mousedown 1");
+  for (const char* at : {"340 200", "340 250", "300 250", "300 205"}) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(80));
+    xdo(std::string("mousemove --window ") + wid + " " + at);
+  }
+  std::this_thread::sleep_for(std::chrono::milliseconds(80));
+  xdo("mouseup 1");
+  ASSERT_TRUE(master->waitFor("console: lasso on model \\d+: [1-9]\\d* points selected", 30))
+      << master->output();
+  std::this_thread::sleep_for(std::chrono::milliseconds(500));  // a frame with the selection
+  master->signal(SIGTERM);
+  ASSERT_EQ(master->wait(60), std::optional<int>(0)) << master->output();
+  for (auto& n : nodes) EXPECT_EQ(n->wait(15), std::optional<int>(0)) << n->output();
+  // The wall's last frame: the selection's amber tint inside the box, not outside it; the
+  // measurement's cyan line along the clicked row.
+  const tessera::render::Image wall = tessera::render::readPng((mRun / "wall.png").string());
+  const double scale = double(wall.width) / 640.0;
+  auto amber = [&](int x, int y) {
+    const uint8_t* p = &wall.rgba[(size_t(y * scale) * wall.width + size_t(x * scale)) * 4];
+    return p[0] > p[2] + 40 && p[1] > p[2] + 20;
+  };
+  int in = 0, out = 0;
+  for (int y = 210; y <= 240; y += 5)
+    for (int x = 308; x <= 332; x += 4) in += amber(x, y);
+  for (int y = 150; y <= 190; y += 5)
+    for (int x = 270; x <= 370; x += 5) out += amber(x, y);
+  EXPECT_GE(in, 15) << "the selection tinted on the wall (a mullion crosses it), "
+                    << mRun / "wall.png";
+  EXPECT_EQ(out, 0) << mRun / "wall.png";
+  int line = 0;
+  for (int x = 296; x <= 344; x += 4)
+    line += pixelsNear(wall, glm::dvec2(x * scale, 225 * scale), 3,
+                       {90 / 255.0f, 230 / 255.0f, 1.0f}, 0.15f) > 0;
+  EXPECT_GE(line, 8) << "the measurement on the wall, " << mRun / "wall.png";
+}
+
 // The wall's own console takes part as a participant: it takes the lead from a site that led,
 // and a right-button drag on it draws a sketch on the model that every tile shows.
 TEST_F(SiteSession, TheConsoleLeadsAndDraws) {

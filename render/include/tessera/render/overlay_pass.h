@@ -46,7 +46,8 @@ struct OverlayPoint {
 /// projects (y down), then moved by -align times the box's size (so align (0.5, 1) puts the
 /// box's bottom centre at the offset: text centred above its anchor), `height_px` tall, over a
 /// `background` box (alpha 0: none). UTF-8; glyphs the font lacks show as '?'. Hidden when its
-/// anchor is.
+/// anchor is (the scene nearer than it by over 2% at the anchor's pixel: one depth value read
+/// back per label), else drawn whole over the scene.
 struct OverlayLabel {
   glm::dvec3 at{0.0};
   std::string text;

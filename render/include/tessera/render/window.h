@@ -17,7 +17,8 @@ struct WindowInput {
   glm::dvec2 cursor{0.0};        ///< pixels from the top-left corner of the window
   glm::dvec2 cursor_delta{0.0};  ///< movement since the previous poll
   bool left = false, right = false, middle = false;  ///< buttons held now
-  bool left_pressed = false, left_released = false;  ///< transitions since the previous poll
+  /// Transitions since the previous poll; a click within one poll sets both (left then false).
+  bool left_pressed = false, left_released = false;
   double scroll = 0.0;                               ///< wheel steps, up positive
   std::vector<int> keys;                             ///< GLFW key codes pressed (not repeats)
   glm::uvec2 size{0};                                ///< window size in screen coordinates
