@@ -186,10 +186,17 @@ bool Console::handleInput(sync::SceneGraph& graph) {
     }
   };
   if (mLassoing) {
-    // A left drag draws the lasso; letting go selects what of the current model it encloses.
-    if (in.left) {
-      if (mLasso.empty() || glm::length(p.cursor - mLasso.back()) >= 2.0) mLasso.push_back(p.cursor);
-    } else if (!mLasso.empty()) {
+    // A left drag draws the lasso (every cursor position the window reported, so a fast drag
+    // over slow frames keeps its shape); letting go selects what of the current model it
+    // encloses.
+    if (in.left || in.left_pressed || in.left_released) {
+      auto add = [&](glm::dvec2 q) {
+        if (mLasso.empty() || glm::length(q - mLasso.back()) >= 2.0) mLasso.push_back(q);
+      };
+      for (const glm::dvec2& q : in.path) add(q * scale);
+      add(p.cursor);
+    }
+    if (!in.left && !mLasso.empty()) {
       const auto models = modelIds(graph);
       const auto& nodes = mModels.instanceNodes();
       const uint32_t node = models.empty() ? 0 : models[std::min(mSelected, models.size() - 1)];

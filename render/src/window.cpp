@@ -67,6 +67,10 @@ std::unique_ptr<Window> Window::open(uint32_t width, uint32_t height, const std:
     if (action == GLFW_PRESS) implOf(gw)->pending.left_pressed = true;
     if (action == GLFW_RELEASE) implOf(gw)->pending.left_released = true;
   });
+  glfwSetCursorPosCallback(w, [](GLFWwindow* gw, double x, double y) {
+    std::vector<glm::dvec2>& path = implOf(gw)->pending.path;
+    if (path.size() < 4096) path.push_back({x, y});
+  });
   glfwSetKeyCallback(w, [](GLFWwindow* gw, int key, int, int action, int) {
     if (action == GLFW_PRESS) implOf(gw)->pending.keys.push_back(key);
     if (key == GLFW_KEY_ESCAPE && action == GLFW_PRESS) glfwSetWindowShouldClose(gw, GLFW_TRUE);

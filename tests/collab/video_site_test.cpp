@@ -171,9 +171,14 @@ TEST(VideoSites, TheWallShowsASitesVideoLiveAndFaithfully) {
   ASSERT_GE(shots.size(), 15u) << log;
   std::vector<double> latency;
   uint32_t previous = 0;
+  size_t advanced = 0;
   for (const Shot& shot : shots) {
     ASSERT_TRUE(shot.code) << shot.path << ": no readable test pattern in the inset";
-    EXPECT_GT(shot.code->frame, previous) << shot.path << ": the inset is not live";
+    // Never backwards, and forward on many shots: a loaded machine (the suite's other tests
+    // beside this one) may show one picture on several screenshots 0.25 s apart; a frozen inset
+    // shows it on all.
+    EXPECT_GE(shot.code->frame, previous) << shot.path << ": the inset went back in time";
+    advanced += shot.code->frame > previous;
     previous = shot.code->frame;
     // The clocks are one machine's: the picture was made before the wall showed it, and a
     // stale picture (seconds old) would be a bug, whatever the machine's speed.
@@ -190,6 +195,9 @@ TEST(VideoSites, TheWallShowsASitesVideoLiveAndFaithfully) {
     earlier.frame -= 3;
     EXPECT_LT(insetPsnr(shot.image, earlier, kX, kY, kW, kH), psnr - 6.0) << shot.path;
   }
+  EXPECT_GE(advanced * 4, shots.size()) << "the inset is not live: it moved on " << advanced
+                                        << " of " << shots.size() << " screenshots";
+  EXPECT_GE(previous, shots.front().code->frame + 15) << "half a second of video at least";
   std::sort(latency.begin(), latency.end());
   std::printf("glass-to-glass over %zu screenshots: median %.0f ms, max %.0f ms\n", latency.size(),
               latency[latency.size() / 2], latency.back());

@@ -19,6 +19,9 @@ struct WindowInput {
   bool left = false, right = false, middle = false;  ///< buttons held now
   /// Transitions since the previous poll; a click within one poll sets both (left then false).
   bool left_pressed = false, left_released = false;
+  /// Every cursor position reported since the previous poll, oldest first (at most 4096): a
+  /// drag keeps its shape however slow the frames are.
+  std::vector<glm::dvec2> path;
   double scroll = 0.0;                               ///< wheel steps, up positive
   std::vector<int> keys;                             ///< GLFW key codes pressed (not repeats)
   glm::uvec2 size{0};                                ///< window size in screen coordinates
