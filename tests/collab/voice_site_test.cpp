@@ -8,6 +8,7 @@
 
 #include <filesystem>
 
+#include <tessera/collab/voice_alsa.h>
 #include <tessera/collab/voice_wav.h>
 
 #include "../support/command.h"
@@ -138,6 +139,66 @@ TEST(VoiceSites, VoiceOptionsAreChecked) {
                        (dir / "missing.wav").string());
   EXPECT_EQ(r.code, 1) << r.out;
   EXPECT_NE(r.out.find("missing.wav: No such file"), std::string::npos) << r.out;
+}
+
+TEST(VoiceSites, SoundDevicesThroughAlsa) {
+  try {
+    collab::AlsaPcm probe("null", collab::AlsaPcm::Direction::kPlayback, 960);
+  } catch (const collab::AlsaError& e) {
+    GTEST_SKIP() << "alsa-lib's null PCM cannot be opened here: " << e.what();
+  }
+  test::TempDir dir;
+  std::string allow;
+  std::map<std::string, std::string> keys;
+  for (const std::string name : {"master", "a"}) {
+    const auto k = test::runCommand(std::string(TESSERA_SITE) + " keygen -o " +
+                                    (dir / (name + ".key")).string());
+    ASSERT_EQ(k.code, 0) << k.out;
+    keys[name] = test::publicKeyOf(k.out);
+    if (name != "master") allow += keys[name] + "  site " + name + "\n";
+  }
+  test::writeText(dir / "allow.txt", allow);
+  const std::string camera = writeOneTileWall(dir.path());
+  // A site with an unknown device says which and stops before it joins.
+  auto r = test::runCommand(std::string(TESSERA_SITE) + " --master tcp://127.0.0.1:9 --master-key '" +
+                            keys["master"] + "' --name x --key " + (dir / "a.key").string() +
+                            " --headless --no-render --join-timeout 1 --audio-out alsa:nosuchdevice");
+  EXPECT_EQ(r.code, 1) << r.out;
+  EXPECT_NE(r.out.find("playback device 'nosuchdevice'"), std::string::npos) << r.out;
+
+  // The wall room's microphone and speakers and a site's on alsa-lib's null device (silence in,
+  // sound discarded): the session runs and ends as with files.
+  const auto argv =
+      test::masterWithSites(TESSERA_MASTER, dir.path(), dir.path(), 4.0, camera,
+                            {"--voice", "--audio-in", "alsa:null", "--audio-out", "alsa:null"});
+  Process master(argv, dir / "master.log");
+  ASSERT_TRUE(master.waitFor("remote sites join on (tcp://\\S+)", 30)) << master.output();
+  const std::string out = master.output();
+  const std::string wall = test::captured(out, "listening on (tcp://\\S+)");
+  const std::string sites =
+      "tcp://127.0.0.1:" + test::captured(out, "remote sites join on tcp://[^:]+:(\\d+)");
+  Process node({TESSERA_NODE, "--master", wall, "--headless", "--tile", "tile"}, dir / "node.log");
+  test::writeText(dir / "still.json", R"({"actions": []})");
+  Process site(test::headlessSite(TESSERA_SITE, sites, keys["master"], "site a", dir / "a.key",
+                                  dir.path(), dir / "still.json",
+                                  {"--no-render", "--audio-in", "alsa:null", "--audio-out",
+                                   "alsa:null"}),
+               dir / "a.log");
+  ASSERT_EQ(master.wait(120), std::optional<int>(0)) << master.output();
+  EXPECT_EQ(node.wait(15), std::optional<int>(0)) << node.output();
+  EXPECT_EQ(site.wait(15), std::optional<int>(0)) << site.output();
+  const std::string log = master.output();
+  EXPECT_NE(log.find("the wall room's microphone: capture device 'null'"), std::string::npos)
+      << log;
+  EXPECT_NE(log.find("the wall room's speakers: playback device 'null'"), std::string::npos)
+      << log;
+  EXPECT_NE(log.find("voice: "), std::string::npos) << log;
+  EXPECT_EQ(log.find("the wall room's audio:"), std::string::npos) << "no WAV file: " << log;
+  EXPECT_NE(site.output().find("microphone capture device 'null'"), std::string::npos)
+      << site.output();
+  EXPECT_NE(site.output().find("speaker playback device 'null'"), std::string::npos)
+      << site.output();
+  EXPECT_EQ(site.output().find("wrote what this site heard"), std::string::npos) << site.output();
 }
 
 }  // namespace
