@@ -66,10 +66,10 @@ struct SiteHub::Impl {
   uint64_t allow_generation = 0;
   double last_reload = 0;
   SiteHubCounters counters;
-  std::unique_ptr<VoiceBridge> voice;  // with opt.voice
+  std::unique_ptr<VoiceBridge> voice;               // with opt.voice
   std::unique_ptr<AlsaMicrophone> wall_microphone;  // --audio-in alsa:DEVICE
   std::unique_ptr<AlsaSpeaker> wall_speaker;        // --audio-out alsa:DEVICE
-  std::deque<float> room_queue;  // the room's mix not yet on wall_speaker
+  std::deque<float> room_queue;                     // the room's mix not yet on wall_speaker
   double voice_start = 0;
   /// A site's video inset: its VIDEO_INSET node and when its last chunk came.
   struct Inset {

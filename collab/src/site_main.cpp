@@ -3,7 +3,8 @@
 //   tessera-site keygen -o site.key        # prints the public key for the master's allow list
 //   tessera-site --master tcp://HOST:7401 --master-key MASTER_PUBLIC_KEY|FILE --name "Kyoto lab"
 //                --key site.key --headless -o DIR [--script PATH.json] [--no-render]
-//                [--cache DIR] [--remote-stores] [--audio-in WAV|alsa:DEV] [--audio-out WAV|alsa:DEV]
+//                [--cache DIR] [--remote-stores]
+//                [--audio-in WAV|alsa:DEVICE] [--audio-out WAV|alsa:DEVICE]
 //                [--video test|FILE|/dev/videoN [--video-size 640x480] [--video-kbps N]]
 #include <CLI/CLI.hpp>
 

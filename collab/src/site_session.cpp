@@ -731,7 +731,8 @@ struct SiteSession::Impl {
         say("voice: microphone " + microphone->pcm().describe());
       }
       if (out_device) {
-        speaker = std::make_unique<AlsaSpeaker>(*out_device, voice.frameSamples(), 0.08, say_device);
+        speaker =
+            std::make_unique<AlsaSpeaker>(*out_device, voice.frameSamples(), 0.08, say_device);
         say("voice: speaker " + speaker->pcm().describe());
       }
       station = std::make_unique<VoiceStation>(voice, opt.audio_in.empty() || in_device

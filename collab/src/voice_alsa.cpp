@@ -53,27 +53,24 @@ AlsaPcm::AlsaPcm(const std::string& device, Direction direction, int frame_sampl
                  int buffer_frames, std::function<void(const std::string&)> say)
     : mDevice(device), mDirection(direction), mFrameSamples(frame_samples), mSay(std::move(say)) {
   if (frame_samples <= 0 || frame_samples > kMaxVoiceFrameSamples || buffer_frames < 2)
-    throw AlsaError("collab::AlsaPcm: " + device + ": a frame of " +
-                    std::to_string(frame_samples) + " samples and a buffer of " +
-                    std::to_string(buffer_frames) +
+    throw AlsaError("collab::AlsaPcm: " + device + ": a frame of " + std::to_string(frame_samples) +
+                    " samples and a buffer of " + std::to_string(buffer_frames) +
                     " frames; expected at most 960 samples and at least 2 frames");
   if (!mSay) mSay = [](const std::string& line) { std::fprintf(stderr, "%s\n", line.c_str()); };
   // The plug layer converts what the card cannot do itself (Section "PCM plugins", alsa-lib).
   std::string name = device;
   if (name.compare(0, 3, "hw:") == 0) name = "plug" + name;
   snd_pcm_t* pcm = nullptr;
-  int err = snd_pcm_open(&pcm, name.c_str(),
-                         direction == Direction::kCapture ? SND_PCM_STREAM_CAPTURE
-                                                          : SND_PCM_STREAM_PLAYBACK,
-                         0);
+  int err = snd_pcm_open(
+      &pcm, name.c_str(),
+      direction == Direction::kCapture ? SND_PCM_STREAM_CAPTURE : SND_PCM_STREAM_PLAYBACK, 0);
   if (err < 0) fail("cannot open it: ", err);
   mPcm.reset(pcm);
 
   snd_pcm_hw_params_t* hw = nullptr;
   snd_pcm_hw_params_alloca(&hw);
   if ((err = snd_pcm_hw_params_any(pcm, hw)) < 0) fail("no configuration: ", err);
-  if ((err = snd_pcm_hw_params_set_rate_resample(pcm, hw, 1)) < 0)
-    fail("cannot resample: ", err);
+  if ((err = snd_pcm_hw_params_set_rate_resample(pcm, hw, 1)) < 0) fail("cannot resample: ", err);
   if ((err = snd_pcm_hw_params_set_access(pcm, hw, SND_PCM_ACCESS_RW_INTERLEAVED)) < 0)
     fail("no interleaved read/write access: ", err);
   if ((err = snd_pcm_hw_params_set_format(pcm, hw, SND_PCM_FORMAT_S16)) < 0)
@@ -122,8 +119,9 @@ void AlsaPcm::recover(long err, const char* what) {
   ++mXruns;
   if (worthSaying(mXruns))
     mSay("collab::AlsaPcm: " + std::string(directionName(mDirection)) + " device '" + mDevice +
-         "': " + (err == -EPIPE ? (mDirection == Direction::kCapture ? "overrun" : "underrun")
-                                : std::string(snd_strerror(int(err)))) +
+         "': " +
+         (err == -EPIPE ? (mDirection == Direction::kCapture ? "overrun" : "underrun")
+                        : std::string(snd_strerror(int(err)))) +
          ", recovered (" + std::to_string(mXruns) + " so far)");
   if (mDirection == Direction::kCapture) snd_pcm_start(mPcm.get());
 }

@@ -104,7 +104,8 @@ void VoiceBridge::hearWall(std::span<const float> samples) {
   mLive = true;
   mLiveWall.insert(mLiveWall.end(), samples.begin(), samples.end());
   const size_t most = size_t(kVoiceMaxCatchUp_s * kVoiceRate);
-  if (mLiveWall.size() > most) mLiveWall.erase(mLiveWall.begin(), mLiveWall.end() - ptrdiff_t(most));
+  if (mLiveWall.size() > most)
+    mLiveWall.erase(mLiveWall.begin(), mLiveWall.end() - ptrdiff_t(most));
 }
 
 const JitterStats* VoiceBridge::stats(uint32_t participant) const {

@@ -17,13 +17,13 @@ using namespace tessera::collab;
 constexpr int kFrame = 960;  // 20 ms
 
 /// Skips the test when alsa-lib has no "null" PCM (an unusual alsa.conf).
-#define SKIP_WITHOUT_NULL_PCM()                                                        \
-  do {                                                                                 \
-    try {                                                                              \
-      AlsaPcm probe("null", AlsaPcm::Direction::kPlayback, kFrame);                    \
-    } catch (const AlsaError& e) {                                                     \
-      GTEST_SKIP() << "alsa-lib's null PCM cannot be opened here: " << e.what();       \
-    }                                                                                  \
+#define SKIP_WITHOUT_NULL_PCM()                                                  \
+  do {                                                                           \
+    try {                                                                        \
+      AlsaPcm probe("null", AlsaPcm::Direction::kPlayback, kFrame);              \
+    } catch (const AlsaError& e) {                                               \
+      GTEST_SKIP() << "alsa-lib's null PCM cannot be opened here: " << e.what(); \
+    }                                                                            \
   } while (false)
 
 TEST(VoiceAlsa, DeviceNamesAreTakenFromTheAudioArgument) {

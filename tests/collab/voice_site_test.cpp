@@ -160,9 +160,10 @@ TEST(VoiceSites, SoundDevicesThroughAlsa) {
   test::writeText(dir / "allow.txt", allow);
   const std::string camera = writeOneTileWall(dir.path());
   // A site with an unknown device says which and stops before it joins.
-  auto r = test::runCommand(std::string(TESSERA_SITE) + " --master tcp://127.0.0.1:9 --master-key '" +
-                            keys["master"] + "' --name x --key " + (dir / "a.key").string() +
-                            " --headless --no-render --join-timeout 1 --audio-out alsa:nosuchdevice");
+  auto r =
+      test::runCommand(std::string(TESSERA_SITE) + " --master tcp://127.0.0.1:9 --master-key '" +
+                       keys["master"] + "' --name x --key " + (dir / "a.key").string() +
+                       " --headless --no-render --join-timeout 1 --audio-out alsa:nosuchdevice");
   EXPECT_EQ(r.code, 1) << r.out;
   EXPECT_NE(r.out.find("playback device 'nosuchdevice'"), std::string::npos) << r.out;
 
@@ -179,19 +180,18 @@ TEST(VoiceSites, SoundDevicesThroughAlsa) {
       "tcp://127.0.0.1:" + test::captured(out, "remote sites join on tcp://[^:]+:(\\d+)");
   Process node({TESSERA_NODE, "--master", wall, "--headless", "--tile", "tile"}, dir / "node.log");
   test::writeText(dir / "still.json", R"({"actions": []})");
-  Process site(test::headlessSite(TESSERA_SITE, sites, keys["master"], "site a", dir / "a.key",
-                                  dir.path(), dir / "still.json",
-                                  {"--no-render", "--audio-in", "alsa:null", "--audio-out",
-                                   "alsa:null"}),
-               dir / "a.log");
+  Process site(
+      test::headlessSite(TESSERA_SITE, sites, keys["master"], "site a", dir / "a.key", dir.path(),
+                         dir / "still.json",
+                         {"--no-render", "--audio-in", "alsa:null", "--audio-out", "alsa:null"}),
+      dir / "a.log");
   ASSERT_EQ(master.wait(120), std::optional<int>(0)) << master.output();
   EXPECT_EQ(node.wait(15), std::optional<int>(0)) << node.output();
   EXPECT_EQ(site.wait(15), std::optional<int>(0)) << site.output();
   const std::string log = master.output();
   EXPECT_NE(log.find("the wall room's microphone: capture device 'null'"), std::string::npos)
       << log;
-  EXPECT_NE(log.find("the wall room's speakers: playback device 'null'"), std::string::npos)
-      << log;
+  EXPECT_NE(log.find("the wall room's speakers: playback device 'null'"), std::string::npos) << log;
   EXPECT_NE(log.find("voice: "), std::string::npos) << log;
   EXPECT_EQ(log.find("the wall room's audio:"), std::string::npos) << "no WAV file: " << log;
   EXPECT_NE(site.output().find("microphone capture device 'null'"), std::string::npos)

@@ -45,8 +45,8 @@ class AlsaPcm {
   /// (480 or 960: 10 or 20 ms) and a buffer of `buffer_frames` such frames (the most a late
   /// caller can catch up on before an xrun). Capture starts at once. `say` hears about xruns
   /// (by default a line on stderr). Throws AlsaError naming the device and alsa-lib's reason.
-  AlsaPcm(const std::string& device, Direction direction, int frame_samples,
-          int buffer_frames = 25, std::function<void(const std::string&)> say = {});
+  AlsaPcm(const std::string& device, Direction direction, int frame_samples, int buffer_frames = 25,
+          std::function<void(const std::string&)> say = {});
   ~AlsaPcm();
   AlsaPcm(AlsaPcm&&) noexcept;
   AlsaPcm& operator=(AlsaPcm&&) noexcept;

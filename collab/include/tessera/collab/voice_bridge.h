@@ -50,7 +50,8 @@ class VoiceStation {
   /// that side to sendLive() and playLive(), which the device paces.
   void setLive(bool microphone, bool speaker);
   /// Sends one microphone frame (frameSamples() samples) as the device captured it.
-  void sendLive(std::span<const float> frame, const std::function<void(std::vector<uint8_t>)>& send);
+  void sendLive(std::span<const float> frame,
+                const std::function<void(std::vector<uint8_t>)>& send);
   /// Fills `out` with what plays at clock time `at` (when its first sample is heard).
   void playLive(double at, std::span<float> out) { mBuffer.pull(at, out); }
   int frameSamples() const { return mSender.frameSamples(); }
