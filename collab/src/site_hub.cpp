@@ -376,8 +376,10 @@ SiteHub::SiteHub(SiteHubOptions options) : m(std::make_unique<Impl>()) {
       m->say("voice: the wall room's microphone: " + m->wall_microphone->pcm().describe());
     }
     if (out_device) {
+      // 150 ms queued on the device: the master's frame loop (15-30 frames a second, slower
+      // when a node is late) must not let it run dry between two frames.
       m->wall_speaker =
-          std::make_unique<AlsaSpeaker>(*out_device, settings.frameSamples(), 0.08, say_device);
+          std::make_unique<AlsaSpeaker>(*out_device, settings.frameSamples(), 0.15, say_device);
       m->say("voice: the wall room's speakers: " + m->wall_speaker->pcm().describe());
     }
     m->voice = std::make_unique<VoiceBridge>(settings, m->opt.audio_in.empty() || in_device
