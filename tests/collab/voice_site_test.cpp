@@ -48,19 +48,56 @@ std::string writeOneTileWall(const fs::path& dir) {
   return camera;
 }
 
-TEST(VoiceSites, TheWallAndTwoSitesHearEachOtherButNotThemselves) {
-  test::TempDir dir;
+/// Key pairs for the master and `sites` in `dir` (NAME.key) and allow.txt admitting each site as
+/// "site NAME": the public keys by name (empty after a failure, which is reported).
+std::map<std::string, std::string> writeKeys(const fs::path& dir,
+                                             const std::vector<std::string>& sites) {
   std::string allow;
   std::map<std::string, std::string> keys;
-  for (const std::string name : {"master", "a", "b"}) {
+  std::vector<std::string> names = sites;
+  names.insert(names.begin(), "master");
+  for (const std::string& name : names) {
     const auto k = test::runCommand(std::string(TESSERA_SITE) + " keygen -o " +
                                     (dir / (name + ".key")).string());
-    ASSERT_EQ(k.code, 0) << k.out;
     keys[name] = test::publicKeyOf(k.out);
-    ASSERT_EQ(keys[name].size(), 40u) << k.out;
+    if (k.code != 0 || keys[name].size() != 40u) {
+      ADD_FAILURE() << "keygen " << name << ": " << k.out;
+      return {};
+    }
     if (name != "master") allow += keys[name] + "  site " + name + "\n";
   }
   test::writeText(dir / "allow.txt", allow);
+  return keys;
+}
+
+/// A master started with `argv` (masterWithSites) and its one-tile node, logging to `dir`, and
+/// the endpoint sites join on ("" when the master did not say, which is reported).
+struct VoiceWall {
+  std::unique_ptr<Process> master, node;
+  std::string sites;
+};
+
+VoiceWall startWall(const std::vector<std::string>& argv, const fs::path& dir) {
+  VoiceWall w;
+  w.master = std::make_unique<Process>(argv, dir / "master.log");
+  if (!w.master->waitFor("remote sites join on (tcp://\\S+)", 30)) {
+    ADD_FAILURE() << w.master->output();
+    return w;
+  }
+  const std::string out = w.master->output();
+  const std::string wall = test::captured(out, "listening on (tcp://\\S+)");
+  w.sites = "tcp://127.0.0.1:" + test::captured(out, "remote sites join on tcp://[^:]+:(\\d+)");
+  w.node = std::make_unique<Process>(
+      std::vector<std::string>{TESSERA_NODE, "--master", wall, "--headless", "--tile", "tile"},
+      dir / "node.log");
+  test::writeText(dir / "still.json", R"({"actions": []})");
+  return w;
+}
+
+TEST(VoiceSites, TheWallAndTwoSitesHearEachOtherButNotThemselves) {
+  test::TempDir dir;
+  auto keys = writeKeys(dir.path(), {"a", "b"});
+  ASSERT_FALSE(keys.empty());
   const std::string camera = writeOneTileWall(dir.path());
   // 8 s of each voice (pausing every 1.2 s); the session lasts 14 s.
   collab::writeWav(dir / "wall-mic.wav", test::talking(kWallHz, 8));
@@ -70,14 +107,11 @@ TEST(VoiceSites, TheWallAndTwoSitesHearEachOtherButNotThemselves) {
   const auto argv = test::masterWithSites(TESSERA_MASTER, dir.path(), dir.path(), 14.0, camera,
                                           {"--voice", "--audio-in", (dir / "wall-mic.wav").string(),
                                            "--audio-out", (dir / "room.wav").string()});
-  Process master(argv, dir / "master.log");
-  ASSERT_TRUE(master.waitFor("remote sites join on (tcp://\\S+)", 30)) << master.output();
-  const std::string out = master.output();
-  const std::string wall = test::captured(out, "listening on (tcp://\\S+)");
-  const std::string sites =
-      "tcp://127.0.0.1:" + test::captured(out, "remote sites join on tcp://[^:]+:(\\d+)");
-  Process node({TESSERA_NODE, "--master", wall, "--headless", "--tile", "tile"}, dir / "node.log");
-  test::writeText(dir / "still.json", R"({"actions": []})");
+  VoiceWall w = startWall(argv, dir.path());
+  ASSERT_FALSE(w.sites.empty());
+  Process& master = *w.master;
+  Process& node = *w.node;
+  const std::string& sites = w.sites;
   std::vector<std::unique_ptr<Process>> site_processes;
   for (const std::string name : {"a", "b"})
     site_processes.push_back(std::make_unique<Process>(
@@ -148,16 +182,8 @@ TEST(VoiceSites, SoundDevicesThroughAlsa) {
     GTEST_SKIP() << "alsa-lib's null PCM cannot be opened here: " << e.what();
   }
   test::TempDir dir;
-  std::string allow;
-  std::map<std::string, std::string> keys;
-  for (const std::string name : {"master", "a"}) {
-    const auto k = test::runCommand(std::string(TESSERA_SITE) + " keygen -o " +
-                                    (dir / (name + ".key")).string());
-    ASSERT_EQ(k.code, 0) << k.out;
-    keys[name] = test::publicKeyOf(k.out);
-    if (name != "master") allow += keys[name] + "  site " + name + "\n";
-  }
-  test::writeText(dir / "allow.txt", allow);
+  auto keys = writeKeys(dir.path(), {"a"});
+  ASSERT_FALSE(keys.empty());
   const std::string camera = writeOneTileWall(dir.path());
   // A site with an unknown device says which and stops before it joins.
   auto r =
@@ -172,14 +198,11 @@ TEST(VoiceSites, SoundDevicesThroughAlsa) {
   const auto argv =
       test::masterWithSites(TESSERA_MASTER, dir.path(), dir.path(), 4.0, camera,
                             {"--voice", "--audio-in", "alsa:null", "--audio-out", "alsa:null"});
-  Process master(argv, dir / "master.log");
-  ASSERT_TRUE(master.waitFor("remote sites join on (tcp://\\S+)", 30)) << master.output();
-  const std::string out = master.output();
-  const std::string wall = test::captured(out, "listening on (tcp://\\S+)");
-  const std::string sites =
-      "tcp://127.0.0.1:" + test::captured(out, "remote sites join on tcp://[^:]+:(\\d+)");
-  Process node({TESSERA_NODE, "--master", wall, "--headless", "--tile", "tile"}, dir / "node.log");
-  test::writeText(dir / "still.json", R"({"actions": []})");
+  VoiceWall w = startWall(argv, dir.path());
+  ASSERT_FALSE(w.sites.empty());
+  Process& master = *w.master;
+  Process& node = *w.node;
+  const std::string& sites = w.sites;
   Process site(
       test::headlessSite(TESSERA_SITE, sites, keys["master"], "site a", dir / "a.key", dir.path(),
                          dir / "still.json",
