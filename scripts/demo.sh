@@ -152,9 +152,19 @@ echo
 echo "== two remote sites join the wall over encrypted ZeroMQ (CURVE keys, an allow list): Kyoto"
 echo "   draws a stroke on the bunny and leads the view, Leiden follows it, then both go their own"
 echo "   way; their avatars and the sketch are on every tile, and each sends a test-pattern video"
-echo "   (H.264, 320x240, 300 kbit/s) that the wall shows as an inset beside its avatar"
+echo "   (H.264, 320x240, 300 kbit/s) that the wall shows as an inset beside its avatar; each says a"
+echo "   sentence (espeak-ng, Opus over the link) and the master mixes what the wall room hears"
 sd="$out/sites"
 rm -rf "$sd" && mkdir -p "$sd/kyoto" "$sd/leiden" && chmod 700 "$sd"
+kyoto_voice=() leiden_voice=()
+if command -v espeak-ng >/dev/null 2>&1 &&
+  espeak-ng -w "$sd/kyoto-says.wav" "Hello from Kyoto. Look at the ear of the bunny, I am drawing on it." &&
+  espeak-ng -s 150 -v en-us -w "$sd/leiden-says.wav" "Leiden here. We follow your view, Kyoto."; then
+  kyoto_voice=(--audio-in "$sd/kyoto-says.wav")
+  leiden_voice=(--audio-in "$sd/leiden-says.wav")
+else
+  echo "   (espeak-ng not installed: the sites say nothing)"
+fi
 "$site" keygen -o "$sd/master.key" >"$sd/master.pub" 2>/dev/null
 "$site" keygen -o "$sd/kyoto.key" >"$sd/kyoto.pub" 2>/dev/null
 "$site" keygen -o "$sd/leiden.key" >"$sd/leiden.pub" 2>/dev/null
@@ -163,6 +173,7 @@ chmod 600 "$sd/allow.txt"
 "$master" --transport zmq --listen tcp://127.0.0.1:7410 --wall configs/walls/2x2.json \
   --scene configs/scenes/bunny.json --script configs/paths/bunny-sites.json --max-fps 15 \
   --sites tcp://127.0.0.1:7411 --site-key "$sd/master.key" --allow "$sd/allow.txt" \
+  --voice --audio-out "$sd/wall-room.wav" \
   --screenshot "$sd/wall-with-sites.png" --stats "$sd/stats.csv" >"$sd/master.log" 2>&1 &
 master_pid=$!
 node_pids=()
@@ -173,12 +184,12 @@ done
 wait_in "$sd/master.log" "4 of 4 tiles have a node" 120
 "$site" --master tcp://127.0.0.1:7411 --master-key "$(cat "$sd/master.pub")" --name "Kyoto lab" \
   --key "$sd/kyoto.key" --headless -o "$sd/kyoto" --script configs/sites/kyoto.json \
-  --video test --video-size 320x240 --video-kbps 300 >"$sd/kyoto.log" 2>&1 &
+  --video test --video-size 320x240 --video-kbps 300 "${kyoto_voice[@]}" >"$sd/kyoto.log" 2>&1 &
 kyoto_pid=$!
 wait_in "$sd/kyoto.log" "leads the view" 120
 "$site" --master tcp://127.0.0.1:7411 --master-key "$(cat "$sd/master.pub")" --name "Leiden museum" \
   --key "$sd/leiden.key" --headless -o "$sd/leiden" --script configs/sites/leiden.json \
-  --video test --video-size 320x240 --video-kbps 300 >"$sd/leiden.log" 2>&1 &
+  --video test --video-size 320x240 --video-kbps 300 "${leiden_voice[@]}" >"$sd/leiden.log" 2>&1 &
 leiden_pid=$!
 wait "$master_pid" || { echo "the wall with sites failed: $sd/master.log"; exit 1; }
 for p in "${node_pids[@]}" "$kyoto_pid" "$leiden_pid"; do wait "$p" 2>/dev/null || true; done
@@ -206,5 +217,7 @@ echo "  $out/zmq/                           the ZeroMQ wall: master.log (joins, 
 echo "                                      the path's screenshots (the lost tile striped red), node logs"
 echo "  $out/sites/wall-with-sites.png      the wall with two remote sites: their avatars (head, view frustum,"
 echo "                                      name), their video insets beside them and Kyoto's sketch on the"
-echo "                                      bunny; master.log (joins, lead, video)"
+echo "                                      bunny; master.log (joins, lead, video, voice)"
+echo "  $out/sites/wall-room.wav            what the wall room's speakers played: both sites' sentences,"
+echo "                                      mixed by the master (kyoto-says.wav, leiden-says.wav: what they said)"
 echo "  $out/sites/kyoto/, leiden/          the sites' own views, Leiden's while following Kyoto, strokes.csv"

@@ -16,6 +16,8 @@ PACKAGES=(
   xvfb xauth xdotool
   # video insets and audio for remote sites
   libavcodec-dev libavformat-dev libswscale-dev libavutil-dev libopus-dev
+  # voice: microphones and speakers through ALSA
+  libasound2-dev
   # video insets: V4L2 cameras through FFmpeg's video4linux2 input
   libavdevice-dev
   # voice: the spoken test sentence (tests and bench/voice; skipped without it)

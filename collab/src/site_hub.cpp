@@ -4,6 +4,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <deque>
 #include <map>
 #include <span>
 
@@ -14,6 +15,7 @@
 #include <tessera/collab/curve.h>
 #include <tessera/collab/site_messages.h>
 #include <tessera/collab/video_packet.h>
+#include <tessera/collab/voice_alsa.h>
 #include <tessera/collab/voice_bridge.h>
 #include <tessera/collab/voice_wav.h>
 #include <tessera/sync/cluster_link.h>
@@ -64,7 +66,10 @@ struct SiteHub::Impl {
   uint64_t allow_generation = 0;
   double last_reload = 0;
   SiteHubCounters counters;
-  std::unique_ptr<VoiceBridge> voice;  // with opt.voice
+  std::unique_ptr<VoiceBridge> voice;               // with opt.voice
+  std::unique_ptr<AlsaMicrophone> wall_microphone;  // --audio-in alsa:DEVICE
+  std::unique_ptr<AlsaSpeaker> wall_speaker;        // --audio-out alsa:DEVICE
+  std::deque<float> room_queue;                     // the room's mix not yet on wall_speaker
   double voice_start = 0;
   /// A site's video inset: its VIDEO_INSET node and when its last chunk came.
   struct Inset {
@@ -361,9 +366,25 @@ SiteHub::SiteHub(SiteHubOptions options) : m(std::make_unique<Impl>()) {
     m->chunks = std::make_unique<ChunkServer>(m->context, m->keys, co);
   }
   if (m->opt.voice) {
-    m->voice = std::make_unique<VoiceBridge>(VoiceSettings{}, m->opt.audio_in.empty()
-                                                                  ? std::vector<float>{}
-                                                                  : readVoiceWav(m->opt.audio_in));
+    const VoiceSettings settings;
+    const auto say_device = [impl = m.get()](const std::string& line) { impl->say(line); };
+    const std::optional<std::string> in_device = alsaDeviceOf(m->opt.audio_in);
+    const std::optional<std::string> out_device = alsaDeviceOf(m->opt.audio_out);
+    if (in_device) {
+      m->wall_microphone =
+          std::make_unique<AlsaMicrophone>(*in_device, settings.frameSamples(), say_device);
+      m->say("voice: the wall room's microphone: " + m->wall_microphone->pcm().describe());
+    }
+    if (out_device) {
+      // 150 ms queued on the device: the master's frame loop (15-30 frames a second, slower
+      // when a node is late) must not let it run dry between two frames.
+      m->wall_speaker =
+          std::make_unique<AlsaSpeaker>(*out_device, settings.frameSamples(), 0.15, say_device);
+      m->say("voice: the wall room's speakers: " + m->wall_speaker->pcm().describe());
+    }
+    m->voice = std::make_unique<VoiceBridge>(settings, m->opt.audio_in.empty() || in_device
+                                                           ? std::vector<float>{}
+                                                           : readVoiceWav(m->opt.audio_in));
     m->voice_start = seconds(Clock::now());
   }
 }
@@ -431,12 +452,32 @@ void SiteHub::beforeFrame(sync::SceneGraph& graph, uint64_t, double) {
     for (auto& [rid, p] : m->peers)
       if (p.participant && !p.gone) by_participant[p.participant] = &p;
     site::ToSite out;
-    m->voice->advance(now - m->voice_start, [&](uint32_t to, const std::vector<uint8_t>& bytes) {
+    const double voice_now = now - m->voice_start;
+    if (m->wall_microphone)
+      m->wall_microphone->pump(voice_now,
+                               [&](std::span<const float> frame) { m->voice->hearWall(frame); });
+    m->voice->advance(voice_now, [&](uint32_t to, const std::vector<uint8_t>& bytes) {
       auto it = by_participant.find(to);
       if (it == by_participant.end()) return;
       out.set_voice(bytes.data(), bytes.size());
       if (m->send(*it->second, out.SerializeAsString())) m->counters.voice_out++;
     });
+    if (m->wall_speaker) {
+      // The mix is made on the session's clock and played on the device's: a queue between
+      // them, cut to kVoiceMaxCatchUp_s (a slower device loses the oldest; a faster one plays
+      // silence while the queue is empty).
+      const std::vector<float> room = m->voice->takeRoom();
+      auto& q = m->room_queue;
+      q.insert(q.end(), room.begin(), room.end());
+      const size_t most = size_t(kVoiceMaxCatchUp_s * kVoiceRate);
+      if (q.size() > most) q.erase(q.begin(), q.end() - ptrdiff_t(most));
+      m->wall_speaker->pump(voice_now, [&](double, std::span<float> frame) {
+        const size_t have = std::min(frame.size(), q.size());
+        std::copy_n(q.begin(), have, frame.begin());
+        std::fill(frame.begin() + ptrdiff_t(have), frame.end(), 0.0f);
+        q.erase(q.begin(), q.begin() + ptrdiff_t(have));
+      });
+    }
   }
 }
 
@@ -478,7 +519,7 @@ void SiteHub::end(const std::string& reason) {
   if (m->voice) {
     m->say("voice: " + std::to_string(m->counters.voice_in) + " packets from sites, " +
            std::to_string(m->counters.voice_out) + " to them");
-    if (!m->opt.audio_out.empty()) {
+    if (!m->opt.audio_out.empty() && !m->wall_speaker) {
       try {
         writeWav(m->opt.audio_out, m->voice->room());
         m->say("the wall room's audio: " + m->opt.audio_out);

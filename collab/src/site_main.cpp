@@ -3,7 +3,8 @@
 //   tessera-site keygen -o site.key        # prints the public key for the master's allow list
 //   tessera-site --master tcp://HOST:7401 --master-key MASTER_PUBLIC_KEY|FILE --name "Kyoto lab"
 //                --key site.key --headless -o DIR [--script PATH.json] [--no-render]
-//                [--cache DIR] [--remote-stores] [--audio-in WAV] [--audio-out WAV]
+//                [--cache DIR] [--remote-stores]
+//                [--audio-in WAV|alsa:DEVICE] [--audio-out WAV|alsa:DEVICE]
 //                [--video test|FILE|/dev/videoN [--video-size 640x480] [--video-kbps N]]
 #include <CLI/CLI.hpp>
 
@@ -67,10 +68,12 @@ int run(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--audio-in", o.audio_in,
                  "Voice (the master runs --voice): this site's microphone, a WAV file (16-bit "
-                 "PCM, any rate, mono or stereo) sent from the join on");
+                 "PCM, any rate, mono or stereo) sent from the join on, or a sound device "
+                 "through ALSA: alsa:default, alsa:hw:0,0, ...");
   app.add_option("--audio-out", o.audio_out,
                  "Voice: what this site hears (the wall's microphone and the other sites), "
-                 "written as a 48 kHz WAV file when the session ends");
+                 "written as a 48 kHz WAV file when the session ends, or played on a sound "
+                 "device through ALSA: alsa:default, alsa:hw:0,0, ...");
   std::string video_size = "640x480";
   app.add_option("--video", o.video,
                  "Send video to the wall and the other sites (an inset beside this site's "

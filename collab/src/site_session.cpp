@@ -15,6 +15,7 @@
 #include <tessera/collab/site_messages.h>
 #include <tessera/collab/video_packet.h>
 #include <tessera/collab/video_source.h>
+#include <tessera/collab/voice_alsa.h>
 #include <tessera/collab/voice_bridge.h>
 #include <tessera/collab/voice_wav.h>
 #include <tessera/core/file_checks.h>
@@ -163,6 +164,8 @@ struct SiteSession::Impl {
   Clock::time_point last_input = Clock::now();
   // --audio-in / --audio-out (issue 14): its microphone and speaker, clocked from the welcome.
   std::unique_ptr<VoiceStation> station;
+  std::unique_ptr<AlsaMicrophone> microphone;  // --audio-in alsa:DEVICE
+  std::unique_ptr<AlsaSpeaker> speaker;        // --audio-out alsa:DEVICE
   Clock::time_point voice_start = Clock::now();
   // --video (issue 14): its source and sender, paced by the loop; other sites' insets.
   std::unique_ptr<VideoSource> video_source;
@@ -225,16 +228,22 @@ struct SiteSession::Impl {
   /// Sends the microphone's frames that are due and plays the speaker's blocks (every frame).
   void tickVoice() {
     if (!station) return;
-    station->advance(voiceNow(), [this](std::vector<uint8_t> bytes) {
+    const double now = voiceNow();
+    const auto send = [this](std::vector<uint8_t> bytes) {
       site::ToMaster m;
       m.set_voice(bytes.data(), bytes.size());
       client->send(m);
-    });
+    };
+    if (microphone)
+      microphone->pump(now, [&](std::span<const float> frame) { station->sendLive(frame, send); });
+    station->advance(now, send);
+    if (speaker)
+      speaker->pump(now, [this](double at, std::span<float> out) { station->playLive(at, out); });
   }
 
   /// --audio-out: what it heard, written when the session ends however it ends.
   void writeSpeaker() {
-    if (!station || opt.audio_out.empty()) return;
+    if (!station || opt.audio_out.empty() || speaker) return;
     try {
       writeWav(opt.audio_out, station->speaker());
       say("wrote what this site heard to " + opt.audio_out);
@@ -713,9 +722,23 @@ struct SiteSession::Impl {
       strokes_csv << "stroke,px,py,x,y,z,depth\n";
     }
     if (!opt.audio_in.empty() || !opt.audio_out.empty()) {
-      station = std::make_unique<VoiceStation>(VoiceSettings{}, opt.audio_in.empty()
-                                                                    ? std::vector<float>{}
-                                                                    : readVoiceWav(opt.audio_in));
+      const VoiceSettings voice;
+      const auto say_device = [this](const std::string& line) { say(line); };
+      const std::optional<std::string> in_device = alsaDeviceOf(opt.audio_in);
+      const std::optional<std::string> out_device = alsaDeviceOf(opt.audio_out);
+      if (in_device) {
+        microphone = std::make_unique<AlsaMicrophone>(*in_device, voice.frameSamples(), say_device);
+        say("voice: microphone " + microphone->pcm().describe());
+      }
+      if (out_device) {
+        speaker =
+            std::make_unique<AlsaSpeaker>(*out_device, voice.frameSamples(), 0.08, say_device);
+        say("voice: speaker " + speaker->pcm().describe());
+      }
+      station = std::make_unique<VoiceStation>(voice, opt.audio_in.empty() || in_device
+                                                          ? std::vector<float>{}
+                                                          : readVoiceWav(opt.audio_in));
+      station->setLive(microphone != nullptr, speaker != nullptr);
       opt.client.voice = [this](std::string_view bytes) {
         station->receive({reinterpret_cast<const uint8_t*>(bytes.data()), bytes.size()},
                          voiceNow());
@@ -838,6 +861,9 @@ int SiteSession::runSession() {
     return m->session();
   } catch (const WavError& e) {
     std::fprintf(stderr, "tessera-site: --audio-in: %s\n", e.what());
+    return kSiteFailed;
+  } catch (const AlsaError& e) {
+    std::fprintf(stderr, "tessera-site: --audio-in/--audio-out: %s\n", e.what());
     return kSiteFailed;
   } catch (const VideoError& e) {
     std::fprintf(stderr, "tessera-site: --video: %s\n", e.what());

@@ -41,13 +41,25 @@ VoiceStation::VoiceStation(const VoiceSettings& codec, std::vector<float> microp
                            const JitterBufferSettings& buffer)
     : mSender(codec, kWallSite), mBuffer(buffer), mMicrophone(std::move(microphone)) {}
 
+void VoiceStation::setLive(bool microphone, bool speaker) {
+  mLiveMicrophone = microphone;
+  mLiveSpeaker = speaker;
+}
+
+void VoiceStation::sendLive(std::span<const float> frame,
+                            const std::function<void(std::vector<uint8_t>)>& send) {
+  if (auto bytes = mSender.send(frame)) send(std::move(*bytes));
+}
+
 void VoiceStation::advance(double now, const std::function<void(std::vector<uint8_t>)>& send) {
   const size_t n = size_t(mSender.frameSamples());
   uint64_t skipped = 0;
-  for (uint64_t k = due(now, double(n) / kVoiceRate, mSent, skipped); k > 0; --k) {
+  for (uint64_t k = mLiveMicrophone ? 0 : due(now, double(n) / kVoiceRate, mSent, skipped); k > 0;
+       --k) {
     frameOf(mMicrophone, mSent++, n, mFrame);
     if (auto bytes = mSender.send(mFrame)) send(std::move(*bytes));
   }
+  if (mLiveSpeaker) return;
   uint64_t left = due(now, double(kSpeakerBlock) / kVoiceRate, mPlayed, skipped);
   mSpeaker.resize(mSpeaker.size() + skipped * kSpeakerBlock, 0.0f);
   for (; left > 0; --left, ++mPlayed) {
@@ -88,6 +100,14 @@ void VoiceBridge::receive(uint32_t participant, const VoicePacket& packet, doubl
   if (it != mParticipants.end()) it->second.in.push(packet, now);
 }
 
+void VoiceBridge::hearWall(std::span<const float> samples) {
+  mLive = true;
+  mLiveWall.insert(mLiveWall.end(), samples.begin(), samples.end());
+  const size_t most = size_t(kVoiceMaxCatchUp_s * kVoiceRate);
+  if (mLiveWall.size() > most)
+    mLiveWall.erase(mLiveWall.begin(), mLiveWall.end() - ptrdiff_t(most));
+}
+
 const JitterStats* VoiceBridge::stats(uint32_t participant) const {
   auto it = mParticipants.find(participant);
   return it == mParticipants.end() ? nullptr : &it->second.in.stats();
@@ -102,7 +122,14 @@ void VoiceBridge::advance(double now,
   mRoom.resize(mRoom.size() + skipped * n, 0.0f);
   for (; left > 0; --left, ++mPeriods) {
     mMixer.clear();
-    frameOf(mWallMicrophone, mPeriods, n, mMix);
+    if (mLive) {  // what the device captured so far; silence when it is behind
+      mMix.assign(n, 0.0f);
+      const size_t have = std::min(n, mLiveWall.size());
+      std::copy_n(mLiveWall.begin(), have, mMix.begin());
+      mLiveWall.erase(mLiveWall.begin(), mLiveWall.begin() + ptrdiff_t(have));
+    } else {
+      frameOf(mWallMicrophone, mPeriods, n, mMix);
+    }
     mMixer.add(kWallSite, mMix);
     const double t = double(mPeriods) * period_s;
     for (auto& [id, p] : mParticipants) {

@@ -118,10 +118,11 @@ int run(int argc, char** argv) {
                "Voice between the sites and the wall (Opus): the master mixes what sites say, "
                "each site hears the others and the wall's microphone; needs --sites");
   app.add_option("--audio-in", sites.audio_in,
-                 "With --voice: the wall room's microphone, a WAV file (16-bit PCM)");
+                 "With --voice: the wall room's microphone, a WAV file (16-bit PCM) or a sound "
+                 "device through ALSA (alsa:default, alsa:hw:0,0, ...)");
   app.add_option("--audio-out", sites.audio_out,
                  "With --voice: what the wall room's speakers play (every site), written as WAV "
-                 "at the end");
+                 "at the end, or played on a sound device through ALSA (alsa:default, ...)");
   app.add_option("--video-cap", sites.video_cap_kbps,
                  "Video insets: each site's video is held to this many kbit/s; chunks over it "
                  "are dropped (said once a second) and the stream recovers at its next refresh")

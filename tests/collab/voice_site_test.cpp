@@ -8,6 +8,7 @@
 
 #include <filesystem>
 
+#include <tessera/collab/voice_alsa.h>
 #include <tessera/collab/voice_wav.h>
 
 #include "../support/command.h"
@@ -47,19 +48,56 @@ std::string writeOneTileWall(const fs::path& dir) {
   return camera;
 }
 
-TEST(VoiceSites, TheWallAndTwoSitesHearEachOtherButNotThemselves) {
-  test::TempDir dir;
+/// Key pairs for the master and `sites` in `dir` (NAME.key) and allow.txt admitting each site as
+/// "site NAME": the public keys by name (empty after a failure, which is reported).
+std::map<std::string, std::string> writeKeys(const fs::path& dir,
+                                             const std::vector<std::string>& sites) {
   std::string allow;
   std::map<std::string, std::string> keys;
-  for (const std::string name : {"master", "a", "b"}) {
+  std::vector<std::string> names = sites;
+  names.insert(names.begin(), "master");
+  for (const std::string& name : names) {
     const auto k = test::runCommand(std::string(TESSERA_SITE) + " keygen -o " +
                                     (dir / (name + ".key")).string());
-    ASSERT_EQ(k.code, 0) << k.out;
     keys[name] = test::publicKeyOf(k.out);
-    ASSERT_EQ(keys[name].size(), 40u) << k.out;
+    if (k.code != 0 || keys[name].size() != 40u) {
+      ADD_FAILURE() << "keygen " << name << ": " << k.out;
+      return {};
+    }
     if (name != "master") allow += keys[name] + "  site " + name + "\n";
   }
   test::writeText(dir / "allow.txt", allow);
+  return keys;
+}
+
+/// A master started with `argv` (masterWithSites) and its one-tile node, logging to `dir`, and
+/// the endpoint sites join on ("" when the master did not say, which is reported).
+struct VoiceWall {
+  std::unique_ptr<Process> master, node;
+  std::string sites;
+};
+
+VoiceWall startWall(const std::vector<std::string>& argv, const fs::path& dir) {
+  VoiceWall w;
+  w.master = std::make_unique<Process>(argv, dir / "master.log");
+  if (!w.master->waitFor("remote sites join on (tcp://\\S+)", 30)) {
+    ADD_FAILURE() << w.master->output();
+    return w;
+  }
+  const std::string out = w.master->output();
+  const std::string wall = test::captured(out, "listening on (tcp://\\S+)");
+  w.sites = "tcp://127.0.0.1:" + test::captured(out, "remote sites join on tcp://[^:]+:(\\d+)");
+  w.node = std::make_unique<Process>(
+      std::vector<std::string>{TESSERA_NODE, "--master", wall, "--headless", "--tile", "tile"},
+      dir / "node.log");
+  test::writeText(dir / "still.json", R"({"actions": []})");
+  return w;
+}
+
+TEST(VoiceSites, TheWallAndTwoSitesHearEachOtherButNotThemselves) {
+  test::TempDir dir;
+  auto keys = writeKeys(dir.path(), {"a", "b"});
+  ASSERT_FALSE(keys.empty());
   const std::string camera = writeOneTileWall(dir.path());
   // 8 s of each voice (pausing every 1.2 s); the session lasts 14 s.
   collab::writeWav(dir / "wall-mic.wav", test::talking(kWallHz, 8));
@@ -69,14 +107,11 @@ TEST(VoiceSites, TheWallAndTwoSitesHearEachOtherButNotThemselves) {
   const auto argv = test::masterWithSites(TESSERA_MASTER, dir.path(), dir.path(), 14.0, camera,
                                           {"--voice", "--audio-in", (dir / "wall-mic.wav").string(),
                                            "--audio-out", (dir / "room.wav").string()});
-  Process master(argv, dir / "master.log");
-  ASSERT_TRUE(master.waitFor("remote sites join on (tcp://\\S+)", 30)) << master.output();
-  const std::string out = master.output();
-  const std::string wall = test::captured(out, "listening on (tcp://\\S+)");
-  const std::string sites =
-      "tcp://127.0.0.1:" + test::captured(out, "remote sites join on tcp://[^:]+:(\\d+)");
-  Process node({TESSERA_NODE, "--master", wall, "--headless", "--tile", "tile"}, dir / "node.log");
-  test::writeText(dir / "still.json", R"({"actions": []})");
+  VoiceWall w = startWall(argv, dir.path());
+  ASSERT_FALSE(w.sites.empty());
+  Process& master = *w.master;
+  Process& node = *w.node;
+  const std::string& sites = w.sites;
   std::vector<std::unique_ptr<Process>> site_processes;
   for (const std::string name : {"a", "b"})
     site_processes.push_back(std::make_unique<Process>(
@@ -138,6 +173,55 @@ TEST(VoiceSites, VoiceOptionsAreChecked) {
                        (dir / "missing.wav").string());
   EXPECT_EQ(r.code, 1) << r.out;
   EXPECT_NE(r.out.find("missing.wav: No such file"), std::string::npos) << r.out;
+}
+
+TEST(VoiceSites, SoundDevicesThroughAlsa) {
+  try {
+    collab::AlsaPcm probe("null", collab::AlsaPcm::Direction::kPlayback, 960);
+  } catch (const collab::AlsaError& e) {
+    GTEST_SKIP() << "alsa-lib's null PCM cannot be opened here: " << e.what();
+  }
+  test::TempDir dir;
+  auto keys = writeKeys(dir.path(), {"a"});
+  ASSERT_FALSE(keys.empty());
+  const std::string camera = writeOneTileWall(dir.path());
+  // A site with an unknown device says which and stops before it joins.
+  auto r =
+      test::runCommand(std::string(TESSERA_SITE) + " --master tcp://127.0.0.1:9 --master-key '" +
+                       keys["master"] + "' --name x --key " + (dir / "a.key").string() +
+                       " --headless --no-render --join-timeout 1 --audio-out alsa:nosuchdevice");
+  EXPECT_EQ(r.code, 1) << r.out;
+  EXPECT_NE(r.out.find("playback device 'nosuchdevice'"), std::string::npos) << r.out;
+
+  // The wall room's microphone and speakers and a site's on alsa-lib's null device (silence in,
+  // sound discarded): the session runs and ends as with files.
+  const auto argv =
+      test::masterWithSites(TESSERA_MASTER, dir.path(), dir.path(), 4.0, camera,
+                            {"--voice", "--audio-in", "alsa:null", "--audio-out", "alsa:null"});
+  VoiceWall w = startWall(argv, dir.path());
+  ASSERT_FALSE(w.sites.empty());
+  Process& master = *w.master;
+  Process& node = *w.node;
+  const std::string& sites = w.sites;
+  Process site(
+      test::headlessSite(TESSERA_SITE, sites, keys["master"], "site a", dir / "a.key", dir.path(),
+                         dir / "still.json",
+                         {"--no-render", "--audio-in", "alsa:null", "--audio-out", "alsa:null"}),
+      dir / "a.log");
+  ASSERT_EQ(master.wait(120), std::optional<int>(0)) << master.output();
+  EXPECT_EQ(node.wait(15), std::optional<int>(0)) << node.output();
+  EXPECT_EQ(site.wait(15), std::optional<int>(0)) << site.output();
+  const std::string log = master.output();
+  EXPECT_NE(log.find("the wall room's microphone: capture device 'null'"), std::string::npos)
+      << log;
+  EXPECT_NE(log.find("the wall room's speakers: playback device 'null'"), std::string::npos) << log;
+  EXPECT_NE(log.find("voice: "), std::string::npos) << log;
+  EXPECT_EQ(log.find("the wall room's audio:"), std::string::npos) << "no WAV file: " << log;
+  EXPECT_NE(site.output().find("microphone capture device 'null'"), std::string::npos)
+      << site.output();
+  EXPECT_NE(site.output().find("speaker playback device 'null'"), std::string::npos)
+      << site.output();
+  EXPECT_EQ(site.output().find("wrote what this site heard"), std::string::npos) << site.output();
 }
 
 }  // namespace

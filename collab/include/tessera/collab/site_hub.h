@@ -55,8 +55,11 @@ struct SiteHubOptions {
   /// mix-minus and plays every site in the wall room. The clock is the master's loop: mixing
   /// happens before each frame, 20 ms periods at a time.
   bool voice = false;
-  std::string audio_in;   ///< the wall room's microphone: a WAV file ("" : none); needs voice
-  std::string audio_out;  ///< the wall room's speakers: a WAV file written at the end; needs voice
+  /// The wall room's microphone: a WAV file or "alsa:DEVICE" (voice_alsa.h); "" : none.
+  /// Needs voice.
+  std::string audio_in;
+  /// The wall room's speakers: a WAV file written at the end or "alsa:DEVICE"; needs voice.
+  std::string audio_out;
   /// Video insets (issue 14): each site's video is held to this many kbit/s (sustained, with a
   /// one-second burst); chunks over it are dropped and the master says so once a second. The
   /// stream recovers at its next intra refresh; the wall never waits for it.

@@ -41,7 +41,7 @@ struct SiteSessionOptions {
   double chunk_timeout_s = 30;  ///< a chunk request unanswered for this long is sent again
   /// Voice (issue 14; the master runs --voice): its microphone, a WAV file sent from the
   /// welcome on, and what it hears (the wall's microphone and the other sites), written as WAV
-  /// when the session ends. "" : none.
+  /// when the session ends; or "alsa:DEVICE", a sound device (voice_alsa.h). "" : none.
   std::string audio_in, audio_out;
   /// Video (issue 14): "test" (the test pattern), a video file, or a V4L2 camera (/dev/videoN)
   /// sent from the welcome on as H.264 (video_codec.h); "" : none. Other sites' insets are

@@ -14,11 +14,13 @@
 #pragma once
 
 #include <cstdint>
+#include <deque>
 #include <functional>
 #include <map>
 #include <optional>
 #include <span>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <tessera/collab/voice_codec.h>
@@ -44,6 +46,16 @@ class VoiceStation {
   /// A packet from the master as received at `now`; returns why it is refused, if it is.
   std::optional<std::string> receive(std::span<const uint8_t> bytes, double now);
 
+  /// A live microphone and speaker (voice_alsa.h) instead of samples: advance() then leaves
+  /// that side to sendLive() and playLive(), which the device paces.
+  void setLive(bool microphone, bool speaker);
+  /// Sends one microphone frame (frameSamples() samples) as the device captured it.
+  void sendLive(std::span<const float> frame,
+                const std::function<void(std::vector<uint8_t>)>& send);
+  /// Fills `out` with what plays at clock time `at` (when its first sample is heard).
+  void playLive(double at, std::span<float> out) { mBuffer.pull(at, out); }
+  int frameSamples() const { return mSender.frameSamples(); }
+
   const std::vector<float>& speaker() const { return mSpeaker; }
   const JitterStats& stats() const { return mBuffer.stats(); }
   /// True once the microphone's samples have all been sent.
@@ -55,6 +67,7 @@ class VoiceStation {
   std::vector<float> mMicrophone, mSpeaker, mFrame;
   uint64_t mSent = 0;    ///< microphone frames handled
   uint64_t mPlayed = 0;  ///< speaker blocks played
+  bool mLiveMicrophone = false, mLiveSpeaker = false;
 };
 
 class VoiceBridge {
@@ -73,8 +86,15 @@ class VoiceBridge {
   /// `send(participant, bytes)`.
   void advance(double now, const std::function<void(uint32_t, const std::vector<uint8_t>&)>& send);
 
-  /// What the wall room's speakers played (every site mixed), from clock 0.
+  /// A live wall microphone (voice_alsa.h): its samples as captured, mixed from the next
+  /// period on in place of the constructor's (at most kVoiceMaxCatchUp_s waits; older go).
+  void hearWall(std::span<const float> samples);
+
+  /// What the wall room's speakers played (every site mixed), from clock 0 (or since the last
+  /// takeRoom()).
   const std::vector<float>& room() const { return mRoom; }
+  /// What room() holds, handed over and cleared (a live speaker plays it).
+  std::vector<float> takeRoom() { return std::exchange(mRoom, {}); }
   const JitterStats* stats(uint32_t participant) const;
 
  private:
@@ -88,7 +108,9 @@ class VoiceBridge {
   VoiceMixer mMixer;
   std::map<uint32_t, Participant> mParticipants;
   std::vector<float> mWallMicrophone, mRoom, mMix;
-  uint64_t mPeriods = 0;  ///< frame periods mixed
+  std::deque<float> mLiveWall;  ///< hearWall()'s samples not yet mixed
+  bool mLive = false;           ///< hearWall() has been called
+  uint64_t mPeriods = 0;        ///< frame periods mixed
 };
 
 }  // namespace tessera::collab
