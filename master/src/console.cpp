@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <functional>
 
 #include <tessera/master/point_pick.h>
 #include <tessera/master/select_tool.h>
@@ -159,6 +160,19 @@ bool Console::handleInput(sync::SceneGraph& graph) {
     const auto [from, dir] = ray(px);
     return pickPoint(mInstances, from, dir, pick_options);
   };
+  // A measurement made (or refused: the console goes on whatever a click or a store does).
+  auto measured = [&](const std::function<std::optional<sync::SceneGraph::NodeId>()>& make) {
+    try {
+      if (auto id = make()) {
+        mMeasurements.push_back(*id);
+        std::printf("tessera-master: console: %s %s\n", MeasureTool::name(mTool.mode()),
+                    mTool.lastLabel().c_str());
+      }
+    } catch (const std::exception& e) {
+      std::printf("tessera-master: console: no measurement: %s\n", e.what());
+    }
+    std::fflush(stdout);
+  };
   // Measuring: a click picks the surface under the pixel in the full-resolution data of the
   // model the frame's pick ids name (surface_pick.h), not the coarse cut on screen.
   auto measureAt = [&](glm::dvec2 px) {
@@ -173,17 +187,7 @@ bool Console::handleInput(sync::SceneGraph& graph) {
       at->point.uncertainty = glm::length(hit->world - from) * pick_options.pixel_angle;
       at->model = hit->model;
     }
-    try {
-      if (auto id = mTool.add(*at, graph, mInstances, kConsole)) {
-        mMeasurements.push_back(*id);
-        std::printf("tessera-master: console: %s %s\n", MeasureTool::name(mTool.mode()),
-                    mTool.lastLabel().c_str());
-        std::fflush(stdout);
-      }
-    } catch (const MeasureError& e) {
-      std::printf("tessera-master: console: %s\n", e.what());
-      std::fflush(stdout);
-    }
+    measured([&] { return mTool.add(*at, graph, mInstances, kConsole); });
   };
   if (mLassoing) {
     // A left drag draws the lasso (every cursor position the window reported, so a fast drag
@@ -202,13 +206,17 @@ bool Console::handleInput(sync::SceneGraph& graph) {
       const uint32_t node = models.empty() ? 0 : models[std::min(mSelected, models.size() - 1)];
       const auto at = std::find(nodes.begin(), nodes.end(), node);
       if (mLasso.size() >= 3 && at != nodes.end() && size_t(at - nodes.begin()) < mInstances.size()) {
-        const LassoSelectResult r = selectWithLasso(
-            graph, mInstances[size_t(at - nodes.begin())], node, mLastView, mLasso, kConsole);
-        if (r.node) mSelections.push_back(r.node);
-        std::printf("tessera-master: console: lasso on model %u: %llu %s selected%s\n", node,
-                    (unsigned long long)r.count,
-                    mInstances[size_t(at - nodes.begin())].mesh ? "triangles" : "points",
-                    r.corrupt ? " (some chunks could not be read)" : "");
+        try {
+          const LassoSelectResult r = selectWithLasso(
+              graph, mInstances[size_t(at - nodes.begin())], node, mLastView, mLasso, kConsole);
+          if (r.node) mSelections.push_back(r.node);
+          std::printf("tessera-master: console: lasso on model %u: %llu %s selected%s\n", node,
+                      (unsigned long long)r.count,
+                      mInstances[size_t(at - nodes.begin())].mesh ? "triangles" : "points",
+                      r.corrupt ? " (some chunks could not be read)" : "");
+        } catch (const std::exception& e) {  // a selection over 16 MiB, ...
+          std::printf("tessera-master: console: no selection: %s\n", e.what());
+        }
         std::fflush(stdout);
       }
       mLasso.clear();
@@ -294,19 +302,8 @@ bool Console::handleInput(sync::SceneGraph& graph) {
                       : "");
       std::fflush(stdout);
     }
-    if (key == kKeyEnter || key == kKeyPadEnter) {
-      try {
-        if (auto id = mTool.finish(graph, mInstances, kConsole)) {
-          mMeasurements.push_back(*id);
-          std::printf("tessera-master: console: %s %s\n", MeasureTool::name(mTool.mode()),
-                      mTool.lastLabel().c_str());
-          std::fflush(stdout);
-        }
-      } catch (const MeasureError& e) {
-        std::printf("tessera-master: console: %s\n", e.what());
-        std::fflush(stdout);
-      }
-    }
+    if (key == kKeyEnter || key == kKeyPadEnter)
+      measured([&] { return mTool.finish(graph, mInstances, kConsole); });
     if (key == kKeyBackspace && mLassoing) {
       std::erase_if(mSelections, [&](auto id) { return !graph.contains(id); });
       if (!mSelections.empty()) {

@@ -4,29 +4,10 @@
 #include <limits>
 #include <vector>
 
+#include "ray_box.h"
+
 namespace tessera::master {
 
-namespace {
-
-/// Ray-box slab test: the entry distance, or nullopt when the ray misses or the box is behind.
-std::optional<double> enter(const glm::dvec3& o, const glm::dvec3& d, const glm::dvec3& lo,
-                            const glm::dvec3& hi) {
-  double t0 = 0.0, t1 = std::numeric_limits<double>::infinity();
-  for (int a = 0; a < 3; ++a) {
-    if (std::abs(d[a]) < 1e-300) {
-      if (o[a] < lo[a] || o[a] > hi[a]) return std::nullopt;
-      continue;
-    }
-    double ta = (lo[a] - o[a]) / d[a], tb = (hi[a] - o[a]) / d[a];
-    if (ta > tb) std::swap(ta, tb);
-    t0 = std::max(t0, ta);
-    t1 = std::min(t1, tb);
-    if (t0 > t1) return std::nullopt;
-  }
-  return t0;
-}
-
-}  // namespace
 
 std::optional<glm::dvec3> pickPoint(std::span<const render::ModelInstance> models,
                                     const glm::dvec3& origin, const glm::dvec3& dir,

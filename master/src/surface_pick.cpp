@@ -9,6 +9,9 @@
 #include <vector>
 
 #include <tessera/lod/mesh_store.h>
+#include <tessera/lod/triangle_geometry.h>
+
+#include "ray_box.h"
 
 namespace tessera::master {
 
@@ -29,23 +32,6 @@ struct Frame {
   glm::dvec3 world(const glm::dvec3& l) const { return glm::dvec3(model * glm::dvec4(l, 1.0)); }
 };
 
-/// Ray-box slab test: the entry distance (0 when inside), or nullopt when the ray misses.
-std::optional<double> enter(const glm::dvec3& o, const glm::dvec3& d, const glm::dvec3& lo,
-                            const glm::dvec3& hi) {
-  double t0 = 0.0, t1 = kInf;
-  for (int a = 0; a < 3; ++a) {
-    if (std::abs(d[a]) < 1e-300) {
-      if (o[a] < lo[a] || o[a] > hi[a]) return std::nullopt;
-      continue;
-    }
-    double ta = (lo[a] - o[a]) / d[a], tb = (hi[a] - o[a]) / d[a];
-    if (ta > tb) std::swap(ta, tb);
-    t0 = std::max(t0, ta);
-    t1 = std::min(t1, tb);
-    if (t0 > t1) return std::nullopt;
-  }
-  return t0;
-}
 
 double boxDistance(const glm::dvec3& p, const glm::dvec3& lo, const glm::dvec3& hi) {
   return glm::length(glm::max(glm::max(lo - p, glm::dvec3(0.0)), p - hi));
@@ -246,28 +232,6 @@ glm::dvec3 smallestEigenvector(glm::dmat3 a) {
   return glm::normalize(v[k]);
 }
 
-/// Ericson, Real-Time Collision Detection, 5.1.5: the point of triangle abc nearest to p.
-glm::dvec3 closestOnTriangle(const glm::dvec3& p, const glm::dvec3& a, const glm::dvec3& b,
-                             const glm::dvec3& c) {
-  const glm::dvec3 ab = b - a, ac = c - a, ap = p - a;
-  const double d1 = glm::dot(ab, ap), d2 = glm::dot(ac, ap);
-  if (d1 <= 0 && d2 <= 0) return a;
-  const glm::dvec3 bp = p - b;
-  const double d3 = glm::dot(ab, bp), d4 = glm::dot(ac, bp);
-  if (d3 >= 0 && d4 <= d3) return b;
-  const double vc = d1 * d4 - d3 * d2;
-  if (vc <= 0 && d1 >= 0 && d3 <= 0) return a + ab * (d1 / (d1 - d3));
-  const glm::dvec3 cp = p - c;
-  const double d5 = glm::dot(ab, cp), d6 = glm::dot(ac, cp);
-  if (d6 >= 0 && d5 <= d6) return c;
-  const double vb = d5 * d2 - d1 * d6;
-  if (vb <= 0 && d2 >= 0 && d6 <= 0) return a + ac * (d2 / (d2 - d6));
-  const double va = d3 * d6 - d5 * d4;
-  if (va <= 0 && (d4 - d3) >= 0 && (d5 - d6) >= 0)
-    return b + (c - b) * ((d4 - d3) / ((d4 - d3) + (d5 - d6)));
-  const double denom = 1.0 / (va + vb + vc);
-  return a + ab * (vb * denom) + ac * (vc * denom);
-}
 
 /// Every leaf whose box lies within `r` of `q`.
 void leavesNear(lod::LodHierarchy& h, const glm::dvec3& q, double r,
@@ -444,7 +408,7 @@ SurfaceProjector meshSurfaceProjector(const render::ModelInstance& model, double
       const lod::MeshPatch& patch = *it->second;
       for (size_t t = 0; t < patch.triangles(); ++t) {
         const glm::dvec3 c =
-            closestOnTriangle(q, vertex(patch, patch.indices[3 * t]),
+            lod::closestOnTriangle(q, vertex(patch, patch.indices[3 * t]),
                               vertex(patch, patch.indices[3 * t + 1]),
                               vertex(patch, patch.indices[3 * t + 2]));
         const double d = glm::length(c - q);
