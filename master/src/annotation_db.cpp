@@ -816,6 +816,15 @@ void AnnotationDb::detach(int64_t item_id, int64_t place_id) {
   });
 }
 
+void AnnotationDb::removePlace(int64_t place_id) {
+  transaction([&] {
+    Statement(mDb, mFile, "DELETE FROM places WHERE id = ?1").bind(1, place_id).run();
+    if (sqlite3_changes(mDb) == 0)
+      throw AnnotationError(AnnotationError::Kind::kNotFound,
+                            prefix(mFile) + "no place " + std::to_string(place_id));
+  });
+}
+
 std::vector<int64_t> AnnotationDb::itemsAt(int64_t place_id) {
   Statement s(mDb, mFile, "SELECT item FROM attachments WHERE place = ?1 ORDER BY item");
   s.bind(1, place_id);

@@ -11,14 +11,36 @@
 
 namespace tessera::sync {
 
-SceneGraph::NodeId layerGroup(SceneGraph& graph, std::string_view name, std::string_view author) {
-  for (SceneGraph::NodeId id : graph.children(SceneGraph::kRoot)) {
+namespace {
+
+/// The first GROUP child of `parent` named `name`, made when there is none.
+SceneGraph::NodeId groupChild(SceneGraph& graph, SceneGraph::NodeId parent, std::string_view name,
+                              std::string_view author) {
+  for (SceneGraph::NodeId id : graph.children(parent)) {
     const scene::SceneNode& n = graph.node(id);
     if (n.kind() == scene::SceneNode::GROUP && n.name() == name) return id;
   }
-  const SceneGraph::NodeId id = graph.add(scene::SceneNode::GROUP, SceneGraph::kRoot, name);
+  const SceneGraph::NodeId id = graph.add(scene::SceneNode::GROUP, parent, name);
   graph.setAuthor(id, author);
   return id;
+}
+
+}  // namespace
+
+SceneGraph::NodeId layerGroup(SceneGraph& graph, std::string_view name, std::string_view author) {
+  return groupChild(graph, SceneGraph::kRoot, name, author);
+}
+
+SceneGraph::NodeId layerPath(SceneGraph& graph, std::string_view path, std::string_view author) {
+  SceneGraph::NodeId parent = SceneGraph::kRoot;
+  while (true) {
+    const size_t slash = path.find('/');
+    const std::string_view name = path.substr(0, slash);
+    TESSERA_CHECK(!name.empty(), "sync::layerPath(): empty layer segment");
+    parent = groupChild(graph, parent, name, author);
+    if (slash == std::string_view::npos) return parent;
+    path.remove_prefix(slash + 1);
+  }
 }
 
 SceneGraph::NodeId addSketch(SceneGraph& graph, SceneGraph::NodeId layer, std::string_view author,

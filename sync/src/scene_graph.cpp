@@ -9,6 +9,8 @@
 #include <functional>
 #include <unordered_set>
 
+#include <glm/glm.hpp>
+
 #include <tessera/core/check.h>
 #include <tessera/sync/camera_state.h>
 
@@ -124,13 +126,57 @@ Problem checkNonNegative(float v, const std::string& field) {
   return {};
 }
 
+/// A database place's fields (scene.proto AnnotationPayload 4..8).
+Problem checkAnnotation(const scene::AnnotationPayload& a) {
+  if (!std::isfinite(a.radius()) || a.radius() < 0.0)
+    return "annotation.radius: must be finite and >= 0, got " + num(a.radius());
+  if (a.view_size() != 0 && a.view_size() != 10)
+    return "annotation.view: needs eye, target, up and fovy (10 numbers) or none, got " +
+           std::to_string(a.view_size());
+  for (double v : a.view())
+    if (!(std::abs(v) <= 1e12)) return std::string("annotation.view: numbers must be finite");
+  if (a.view_size() == 10) {
+    const auto& v = a.view();
+    const glm::dvec3 eye(v[0], v[1], v[2]), target(v[3], v[4], v[5]), up(v[6], v[7], v[8]);
+    const glm::dvec3 dir = target - eye;
+    if (!(glm::length(dir) > 0.0) || !(glm::length(glm::cross(dir, up)) > 0.0))
+      return std::string(
+          "annotation.view: the target must differ from the eye, and up must not lie along the "
+          "view");
+    if (!(v[9] > 0.0 && v[9] < 180.0))
+      return "annotation.view: fovy must be in (0, 180) degrees, got " + num(v[9]);
+  }
+  if (a.items_size() > SceneGraph::kMaxAnnotationItems)
+    return "annotation.items: at most " + std::to_string(SceneGraph::kMaxAnnotationItems) +
+           ", got " + std::to_string(a.items_size());
+  for (int i = 0; i < a.items_size(); ++i) {
+    const scene::AnnotationItem& it = a.items(i);
+    const std::string field = "annotation.items[" + std::to_string(i) + "]";
+    if (it.id() == 0) return field + ".id: must be > 0";
+    if (it.kind() != "text" && it.kind() != "number" && it.kind() != "image" &&
+        it.kind() != "link")
+      return field + ".kind: must be text, number, image or link";
+    if (it.title().size() > 1024)
+      return field + ".title: at most 1024 bytes, got " + std::to_string(it.title().size());
+    if (it.text().size() > SceneGraph::kMaxAnnotationText)
+      return field + ".text: at most " + std::to_string(SceneGraph::kMaxAnnotationText) +
+             " bytes, got " + std::to_string(it.text().size());
+    for (const auto& [value, name] : {std::pair{&it.unit(), ".unit"}, {&it.author(), ".author"}})
+      if (value->size() > 256) return field + name + ": at most 256 bytes";
+    if (it.uri().size() > 4096) return field + ".uri: at most 4096 bytes";
+    if (!std::isfinite(it.number())) return field + ".number: must be finite";
+    if (it.revision() == 0) return field + ".revision: must be >= 1";
+  }
+  return {};
+}
+
 Problem checkPayload(const SceneNode& n) {
   switch (n.payload_case()) {
     case SceneNode::kAnnotation: {
       const auto& a = n.annotation().anchor();
       if (!std::isfinite(a.x()) || !std::isfinite(a.y()) || !std::isfinite(a.z()))
         return std::string("annotation.anchor: numbers must be finite");
-      return {};
+      return checkAnnotation(n.annotation());
     }
     case SceneNode::kSketch: {
       const auto& s = n.sketch();

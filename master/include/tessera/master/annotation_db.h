@@ -217,6 +217,8 @@ class AnnotationDb {
   std::vector<Place> places();
   void attach(int64_t item, int64_t place);  ///< kNotFound if either is absent; idempotent
   void detach(int64_t item, int64_t place);
+  /// Removes the place and its attachments (its items stay). kNotFound if absent.
+  void removePlace(int64_t place);
   std::vector<int64_t> itemsAt(int64_t place);  ///< model -> information
   std::vector<int64_t> placesOf(int64_t item);  ///< information -> model (and its view)
   /// Points and hot spots of `model` within `radius` metres of `centre` (Bettio et al.'s focus

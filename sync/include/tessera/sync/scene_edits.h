@@ -15,6 +15,11 @@ namespace tessera::sync {
 /// The GROUP node named `name` under the root (the first such), made when there is none.
 SceneGraph::NodeId layerGroup(SceneGraph& graph, std::string_view name, std::string_view author);
 
+/// The GROUP node of a hierarchical layer "a/b/c": nested GROUP nodes named "a", "b", "c" from
+/// the root down (each the first such child), made where missing; hiding one hides its
+/// sublayers. "a" alone is layerGroup(graph, "a", author). Precondition: segments not empty.
+SceneGraph::NodeId layerPath(SceneGraph& graph, std::string_view path, std::string_view author);
+
 /// A SKETCH node (a 3D polyline, metres, scene frame) under `layer`, recorded as `author`'s:
 /// points relative to the first in float, the first in the node's transform in double, so a
 /// georeferenced sketch keeps its millimetres. Returns its id. Preconditions (TESSERA_CHECK):

@@ -78,6 +78,9 @@ class SceneGraph {
   static constexpr NodeId kRoot = 0;
   /// A participant's name (a node's author, the leader) is at most this many bytes.
   static constexpr size_t kMaxParticipantName = 64;
+  /// A database place's items in one ANNOTATION node, and the text each carries (scene.proto).
+  static constexpr int kMaxAnnotationItems = 64;
+  static constexpr size_t kMaxAnnotationText = 4096;
 
   /// An empty scene at version 0, frame 0: no nodes, camera at (0, 0, 1) looking at the origin
   /// with y up, settings defaultSettings().
