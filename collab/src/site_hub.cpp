@@ -14,6 +14,7 @@
 #include <tessera/collab/chunk_server.h>
 #include <tessera/collab/curve.h>
 #include <tessera/collab/site_messages.h>
+#include <tessera/collab/site_notes.h>
 #include <tessera/collab/video_packet.h>
 #include <tessera/collab/voice_alsa.h>
 #include <tessera/collab/voice_bridge.h>
@@ -66,6 +67,7 @@ struct SiteHub::Impl {
   uint64_t allow_generation = 0;
   double last_reload = 0;
   SiteHubCounters counters;
+  master::AnnotationScene* notes = nullptr;
   std::unique_ptr<VoiceBridge> voice;               // with opt.voice
   std::unique_ptr<AlsaMicrophone> wall_microphone;  // --audio-in alsa:DEVICE
   std::unique_ptr<AlsaSpeaker> wall_speaker;        // --audio-out alsa:DEVICE
@@ -335,6 +337,15 @@ struct SiteHub::Impl {
       } else if (m.kind_case() == site::ToMaster::kBye) {
         p.gone = true;
         p.gone_reason = "it said goodbye";
+      } else if (m.kind_case() == site::ToMaster::kNote) {
+        site::ToSite answer;
+        *answer.mutable_note() =
+            applySiteNote(notes, graph, roster.info(p.participant).name, m.note());
+        if (answer.note().ok())
+          counters.notes++;
+        else
+          say(roster.info(p.participant).name + ": note refused: " + answer.note().error());
+        send(p, answer.SerializeAsString());
       } else if (m.kind_case() == site::ToMaster::kVideo) {
         video(graph, p, m.video(), now);
       } else if (m.kind_case() == site::ToMaster::kVoice) {
@@ -395,6 +406,8 @@ SiteHub::~SiteHub() {
   m->socket.close();
   m->zap.reset();
 }
+
+void SiteHub::setAnnotations(master::AnnotationScene* notes) { m->notes = notes; }
 
 std::string SiteHub::endpoint() const {
   return m->socket.get(zmq::sockopt::last_endpoint);
@@ -539,6 +552,8 @@ void SiteHub::end(const std::string& reason) {
                   (unsigned long long)m->counters.video_to_sites);
     m->say(line);
   }
+  if (m->counters.notes > 0)
+    m->say("annotations: " + std::to_string(m->counters.notes) + " edits from sites committed");
   const SiteHubCounters& c = m->counters;
   char line[320];
   std::snprintf(line, sizeof line,

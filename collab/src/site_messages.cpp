@@ -69,15 +69,13 @@ Problem checkStroke(const site::SiteStroke& s) {
   return {};
 }
 
-}  // namespace
-
-Problem checkName(std::string_view name, const std::string& field) {
-  if (name.empty() || name.size() > 64)
-    return field + ": needs 1..64 bytes, got " + std::to_string(name.size());
-  // UTF-8: well-formed sequences, no overlongs or surrogates, no control characters.
+/// UTF-8: well-formed sequences, no overlongs or surrogates, no control characters (but line
+/// breaks and tabs where `lines`).
+Problem checkUtf8(std::string_view name, const std::string& field, bool lines) {
   for (size_t i = 0; i < name.size();) {
     const unsigned char c = static_cast<unsigned char>(name[i]);
-    if (c < 0x20 || c == 0x7F) return field + ": holds a control character";
+    if ((c < 0x20 && !(lines && (c == '\n' || c == '\t'))) || c == 0x7F)
+      return field + ": holds a control character";
     int extra = c < 0x80           ? 0
                 : (c >> 5) == 0x6  ? 1
                 : (c >> 4) == 0xE  ? 2
@@ -97,6 +95,81 @@ Problem checkName(std::string_view name, const std::string& field) {
     i += size_t(extra) + 1;
   }
   return {};
+}
+
+Problem checkText(std::string_view text, size_t max, const std::string& field, bool lines) {
+  if (text.size() > max)
+    return field + ": at most " + std::to_string(max) + " bytes, got " +
+           std::to_string(text.size());
+  return checkUtf8(text, field, lines);
+}
+
+Problem checkNoteContent(const site::NoteContent& c, const std::string& field) {
+  if (c.layer().empty()) return field + ".layer: empty";
+  if (auto e = checkText(c.layer(), 256, field + ".layer", false)) return e;
+  if (c.kind() != "text" && c.kind() != "number" && c.kind() != "link")
+    return field + ".kind: must be text, number or link";
+  if (c.title().empty()) return field + ".title: empty";
+  if (auto e = checkText(c.title(), 1024, field + ".title", false)) return e;
+  if (auto e = checkText(c.text(), kMaxNoteTextBytes, field + ".text", true)) return e;
+  if (auto e = checkText(c.unit(), 256, field + ".unit", false)) return e;
+  if (auto e = checkText(c.uri(), 4096, field + ".uri", false)) return e;
+  if (!std::isfinite(c.number())) return field + ".number: must be finite";
+  return {};
+}
+
+Problem checkNote(const site::SiteNote& n) {
+  switch (n.edit_case()) {
+    case site::SiteNote::kAdd: {
+      const site::NoteAdd& a = n.add();
+      if (a.place() == 0) {
+        if (a.position_size() != 3)
+          return "note.add.position: needs x y z, got " + std::to_string(a.position_size()) +
+                 " numbers";
+        for (double x : a.position())
+          if (!(std::abs(x) <= kMaxCoordinate))
+            return std::string("note.add.position: numbers must be finite, within 1e8 m");
+        if (auto e = checkText(a.model(), 256, "note.add.model", false)) return e;
+        if (!(a.radius() >= 0.0 && a.radius() <= kMaxCoordinate))
+          return std::string("note.add.radius: must be finite, in [0, 1e8] m");
+        if (a.view_size() != 0 && a.view_size() != 10)
+          return "note.add.view: needs eye, target, up and fovy (10 numbers) or none, got " +
+                 std::to_string(a.view_size());
+        for (double x : a.view())
+          if (!(std::abs(x) <= kMaxCoordinate))
+            return std::string("note.add.view: numbers must be finite, within 1e8");
+        if (a.radius() > 0.0 && a.view_size() != 10)
+          return std::string("note.add.view: a hot spot (radius > 0) needs its view");
+      }
+      return checkNoteContent(a.item(), "note.add.item");
+    }
+    case site::SiteNote::kUpdate:
+      if (n.update().item() == 0) return std::string("note.update.item: must be > 0");
+      if (n.update().base_revision() == 0)
+        return std::string("note.update.base_revision: must be > 0");
+      return checkNoteContent(n.update().content(), "note.update.content");
+    case site::SiteNote::kRemove:
+      if (n.remove().item() == 0) return std::string("note.remove.item: must be > 0");
+      if (n.remove().base_revision() == 0)
+        return std::string("note.remove.base_revision: must be > 0");
+      return {};
+    case site::SiteNote::kLayer:
+      if (n.layer().layer().empty()) return std::string("note.layer.layer: empty");
+      return checkText(n.layer().layer(), 256, "note.layer.layer", false);
+    case site::SiteNote::kOpen:
+      if (n.open().place() == 0) return std::string("note.open.place: must be > 0");
+      return {};
+    default:
+      return std::string("note: no edit (empty, or from a newer protocol)");
+  }
+}
+
+}  // namespace
+
+Problem checkName(std::string_view name, const std::string& field) {
+  if (name.empty() || name.size() > 64)
+    return field + ": needs 1..64 bytes, got " + std::to_string(name.size());
+  return checkUtf8(name, field, false);
 }
 
 Problem checkToMaster(const site::ToMaster& m) {
@@ -121,6 +194,8 @@ Problem checkToMaster(const site::ToMaster& m) {
         return "voice: " + *why;
       return {};
     }
+    case site::ToMaster::kNote:
+      return checkNote(m.note());
     case site::ToMaster::kVideo: {
       VideoPacket packet;
       const std::string& v = m.video();

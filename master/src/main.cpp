@@ -68,6 +68,10 @@ int run(int argc, char** argv) {
   app.add_option("--console-width", o.console_width, "Console width, pixels")
       ->check(cli::integerRange<uint32_t>(64, 4096))
       ->capture_default_str();
+  app.add_option("--annotations", o.annotations,
+                 "The annotation database (SQLite, made if missing): its notes, layers, "
+                 "measurements and selections are in the scene, and what is measured, selected "
+                 "and noted in the session is stored in it (tessera-annotate reads it)");
   app.add_option("--splat-scale", o.splat_scale, "As tessera-render --splat-scale")
       ->check(cli::finiteRange(0.25, 8.0))
       ->capture_default_str();
@@ -187,7 +191,8 @@ int run(int argc, char** argv) {
     }
     for (const auto& [path, option] :
          {std::pair{&o.screenshot, "--screenshot"}, std::pair{&o.stats, "--stats"},
-          std::pair{&o.console_screenshot, "--console-screenshot"}}) {
+          std::pair{&o.console_screenshot, "--console-screenshot"},
+          std::pair{&o.annotations, "--annotations"}}) {
       if (!path->empty()) cli::refuseOverwrite(*path, read, option);
     }
   } catch (const cli::UsageError& e) {
@@ -298,6 +303,7 @@ int run(int argc, char** argv) {
                     hub->chunksEndpoint().c_str(), chunk_rate_mbit);
       std::fflush(stdout);
       m.setParticipants(hub.get());
+      hub->setAnnotations(m.annotations());
     } catch (const std::exception& e) {  // KeyError, a busy port
       std::fprintf(stderr, "tessera-master: --sites: %s\n", e.what());
       refuseEveryone(*link, e.what());

@@ -82,6 +82,20 @@ void Master::prepare() {
     mPlayer.emplace(std::move(path));
   }
   mTiles = std::make_unique<TileTable>(mWall, mOpt.wall);
+  if (!mOpt.annotations.empty()) {
+    try {
+      mAnnotations = std::make_unique<AnnotationScene>(mOpt.annotations);
+      for (const std::string& p : mAnnotations->load(mGraph))
+        std::printf("tessera-master: --annotations %s: %s\n", mOpt.annotations.c_str(), p.c_str());
+      AnnotationDb& db = mAnnotations->db();
+      std::printf("tessera-master: annotations: %s: %zu layers, %zu places, %zu items\n",
+                  mOpt.annotations.c_str(), db.layers().size(), db.places().size(),
+                  db.items().size());
+      std::fflush(stdout);
+    } catch (const AnnotationError& e) {
+      throw StartError("tessera-master: --annotations: " + std::string(e.what()));
+    }
+  }
   (void)mGraph.takeFrame(0, 0);  // the loaded scene is the snapshot; frames count from 1
   if (!mOpt.stats.empty()) {
     mCsv = std::make_unique<std::ofstream>(mOpt.stats);
@@ -357,6 +371,8 @@ int Master::run() {
     if (mParticipants)
       mParticipants->beforeFrame(
           mGraph, f + 1, std::chrono::duration<double>(Clock::now() - session_start).count());
+    // What the console and the sites measured and selected goes into the database.
+    if (mAnnotations) mAnnotations->sync(mGraph);
     if (last && !mOpt.screenshot.empty()) shots.push_back(mOpt.screenshot);
     for (const std::string& s : shots) {
       scene::Command c;

@@ -13,6 +13,9 @@
 //   stroke  a SKETCH node (a 3D polyline the site placed on the model) in the site's layer, a
 //           GROUP node "sketches/NAME"; undo removes its newest, clear all of its sketches
 //   lead    the scene's leader becomes the site (Settings::leader); release gives the view back
+//   note    an edit of the annotation database (site_notes.h): committed, applied to the
+//           scene, and answered (ok, or refused with the reason: a stale revision, an unknown
+//           item), so a site's note is acknowledged only once it is on disk
 //   bye     the avatar goes (its sketches stay); a site silent for the timeout goes too
 //   video   a chunk of the site's H.264 stream (video_packet.h), held to the video cap: the
 //           first makes a VIDEO_INSET node (beside the avatar, or pinned to the screen), and
@@ -81,6 +84,7 @@ struct SiteHubCounters {
   uint64_t voice_in = 0, voice_out = 0;      ///< voice packets from and to sites
   uint64_t video_in = 0, video_dropped = 0;  ///< video chunks from sites; dropped over the cap
   uint64_t video_to_nodes = 0, video_to_sites = 0;  ///< video chunks forwarded
+  uint64_t notes = 0;  ///< sites' annotation edits committed (refused ones are said)
 };
 
 class SiteHub final : public master::Participants {
@@ -102,6 +106,10 @@ class SiteHub final : public master::Participants {
 
   std::vector<SiteInfo> sites() const;
   SiteHubCounters counters() const;
+
+  /// The annotation database the sites' SiteNote edits go to (not owned; null: refused with
+  /// a reason). Master::annotations().
+  void setAnnotations(master::AnnotationScene* notes);
 
  private:
   struct Impl;

@@ -24,6 +24,7 @@
 #include <string>
 #include <vector>
 
+#include <tessera/master/annotation_scene.h>
 #include <tessera/master/script_player.h>
 #include <tessera/master/tile_table.h>
 #include <tessera/sync/cluster_link.h>
@@ -70,6 +71,8 @@ struct MasterOptions {
   bool console = false;
   uint32_t console_width = 960;
   std::string console_screenshot;  ///< with the console: what it shows at the last frame (PNG)
+  /// The annotation database beside the scene (annotation_scene.h), opened or created; "" none.
+  std::string annotations;
   double splat_scale = 2.0, gpu_budget_mb = 1024.0;
   /// A live node's report may be this late (ms) before its tile is dropped; 0: automatic, five
   /// times the slowest node's median render time over the last 15 frames, at least 1000 ms.
@@ -98,6 +101,10 @@ class Master {
   const config::WallConfig& wall() const { return mWall; }
   /// The scene, after prepare().
   const sync::SceneGraph& scene() const { return mGraph; }
+
+  /// The annotation database as part of the scene (after prepare(); null without
+  /// --annotations). Sites' note requests go through it.
+  AnnotationScene* annotations() { return mAnnotations.get(); }
 
   /// Remote participants that join the session (not owned; must outlive run()).
   void setParticipants(Participants* participants) { mParticipants = participants; }
@@ -128,6 +135,7 @@ class Master {
   std::unique_ptr<TileTable> mTiles;
   sync::SceneGraph mGraph;
   std::optional<ScriptPlayer> mPlayer;
+  std::unique_ptr<AnnotationScene> mAnnotations;
   std::unique_ptr<Console> mConsole;
   Participants* mParticipants = nullptr;
   std::unique_ptr<std::ofstream> mCsv;
