@@ -128,6 +128,9 @@ sync::SceneChanges SiteClient::receive(sync::SceneGraph& graph, Clock::time_poin
         case site::ToSite::kVideo:
           if (m->opt.video) m->opt.video(msg->video());
           break;
+        case site::ToSite::kNote:
+          if (m->opt.note) m->opt.note(msg->note());
+          break;
         case site::ToSite::kRefused:
           throw SiteSessionEnded(Why::kRefused, "refused: " + msg->refused().reason());
         default:

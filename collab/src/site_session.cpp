@@ -123,6 +123,19 @@ site::SiteScript loadSiteScript(const std::string& path) {
           fail(path, field + ".stroke.width", "must be in [0, 64] pixels");
         break;
       }
+      case site::SiteAction::kNote: {
+        const site::NoteAction& n = a.note();
+        if (n.pixel_size() != 0 && n.pixel_size() != 2)
+          fail(path, field + ".note.pixel", "x y, or none");
+        for (float v : n.pixel())
+          if (!std::isfinite(v)) fail(path, field + ".note.pixel", "numbers must be finite");
+        if (n.note().edit_case() == site::SiteNote::EDIT_NOT_SET)
+          fail(path, field + ".note.note", "names no edit (add, update, remove, layer, open)");
+        if (n.note().has_add() && n.note().add().place() == 0 && n.pixel_size() == 0 &&
+            n.note().add().position_size() != 3)
+          fail(path, field + ".note", "a new place needs a pixel or a position");
+        break;
+      }
       case site::SiteAction::kScreenshot:
         if (a.screenshot().empty() || a.screenshot().find('/') != std::string::npos)
           fail(path, field + ".screenshot", "a file name in the output folder");
@@ -156,6 +169,8 @@ struct SiteSession::Impl {
   uint64_t sequence = 0;
   std::ofstream strokes_csv;
   uint64_t strokes = 0;
+  uint64_t notes_sent = 0;
+  bool want_pick = false;  // render pick ids (a note's pixel)
   // --window: one-button navigation (left button, wheel), strokes (right-button drag).
   master::OneButtonNavigation navigation;
   render::ViewSetup last_view;
@@ -388,6 +403,7 @@ struct SiteSession::Impl {
 
   render::RenderOptions options() const {
     render::RenderOptions o = render::SceneDrawList::options(graph, 2.0f);
+    o.pick_ids = want_pick;  // a note placed under a pixel names its model
     o.highlights = render::sceneHighlights(graph);  // selections, as the wall tints them
     return o;
   }
@@ -460,6 +476,85 @@ struct SiteSession::Impl {
     }
   }
 
+  struct Surface {
+    glm::dvec3 world;
+    uint32_t x = 0, y = 0;  // the pixel
+    float z = 1.0f;         // its window depth
+  };
+  /// The surface under a pixel of the last frame: the median depth of its 3x3 pixels that show
+  /// the model, so a sample never falls through a gap between splats onto what lies behind,
+  /// nor takes a neighbouring splat that stands in front on a slanted surface. None when most
+  /// of them show the background, or the pixel is outside the view.
+  static std::optional<Surface> surfaceAt(const std::vector<uint32_t>& depth,
+                                          const render::ViewSetup& v,
+                                          const glm::dmat4& unproject, glm::dvec2 pixel) {
+    if (!(pixel.x >= 0 && pixel.y >= 0 && pixel.x < v.width && pixel.y < v.height))
+      return std::nullopt;
+    const uint32_t x = uint32_t(pixel.x), y = uint32_t(pixel.y);
+    std::vector<uint32_t> around;
+    for (uint32_t yy = y > 0 ? y - 1 : 0; yy <= std::min(y + 1, v.height - 1); ++yy)
+      for (uint32_t xx = x > 0 ? x - 1 : 0; xx <= std::min(x + 1, v.width - 1); ++xx) {
+        const uint32_t dd = depth[size_t(v.height - 1 - yy) * v.width + xx];
+        if (dd != render::kEmptyDepth) around.push_back(dd);
+      }
+    if (around.size() < 5) return std::nullopt;
+    std::nth_element(around.begin(), around.begin() + around.size() / 2, around.end());
+    const uint32_t d = around[around.size() / 2];  // float bits order like the depths
+    float z = 1.0f;
+    std::memcpy(&z, &d, 4);
+    const glm::dvec4 ndc((x + 0.5) / v.width * 2.0 - 1.0, 1.0 - (y + 0.5) / v.height * 2.0,
+                         2.0 * z - 1.0, 1.0);
+    const glm::dvec4 w = unproject * ndc;
+    return Surface{glm::dvec3(w) / w.w, x, y, z};
+  }
+
+  /// A script's note: a new place under a pixel is placed on the surface there (its model
+  /// named by the pick ids), a hot spot without a view gets this camera; then it is checked as
+  /// the master will check it, and sent.
+  void note(const site::NoteAction& a, const config::Camera& c) {
+    site::ToMaster m;
+    site::SiteNote& n = *m.mutable_note() = a.note();
+    const uint64_t index = ++notes_sent;
+    if (n.request() == 0) n.set_request(index);
+    if (n.has_add() && n.add().place() == 0 && a.pixel_size() == 2) {
+      if (!renderer) {
+        say("note " + std::to_string(n.request()) + " skipped: pixels need rendering");
+        return;
+      }
+      want_pick = true;
+      (void)settled(c);
+      want_pick = false;
+      const render::ViewSetup v = view(c);
+      const glm::dvec2 pixel(a.pixel(0), a.pixel(1));
+      const std::optional<Surface> at =
+          surfaceAt(renderer->target().readDepth(), v, glm::inverse(v.projection * v.view), pixel);
+      if (!at) {
+        say("note " + std::to_string(n.request()) + " skipped: no surface under its pixel");
+        return;
+      }
+      site::NoteAdd& add = *n.mutable_add();
+      add.clear_position();
+      for (int k = 0; k < 3; ++k) add.add_position(at->world[k]);
+      if (add.model().empty()) {
+        const auto hit = renderer->pick(at->x, at->y);
+        const std::vector<uint32_t>& nodes = models.instanceNodes();
+        if (hit && hit->model < nodes.size() && graph.contains(nodes[hit->model]))
+          add.set_model(graph.node(nodes[hit->model]).name());
+      }
+    }
+    if (n.has_add() && n.add().radius() > 0.0 && n.add().view_size() == 0) {
+      for (const config::Vec3& p : {c.eye(), c.target(), c.up()})
+        for (double k : {p.x(), p.y(), p.z()}) n.mutable_add()->add_view(k);
+      n.mutable_add()->add_view(script.fovy_deg());
+    }
+    if (const auto why = checkToMaster(m)) {
+      say("note " + std::to_string(n.request()) + " not sent: " + *why);
+      return;
+    }
+    say("note " + std::to_string(n.request()) + " sent");
+    client->send(m);
+  }
+
   void stroke(const site::StrokeAction& a, const config::Camera& c) {
     site::ToMaster m;
     site::SiteStroke& s = *m.mutable_stroke();
@@ -492,38 +587,16 @@ struct SiteSession::Impl {
       }
       if (path.size() > size_t(kMaxStrokePoints)) path.resize(size_t(kMaxStrokePoints));
       for (const glm::dvec2& pixel : path) {
-        const double px = pixel.x, py = pixel.y;
-        if (!(px >= 0 && py >= 0 && px < v.width && py < v.height)) continue;
-        const uint32_t x = uint32_t(px), y = uint32_t(py);
-        // The surface under the cursor: the median depth of its 3x3 pixels that show the
-        // model, so a sample never falls through a gap between splats onto what lies behind,
-        // nor takes a neighbouring splat that stands in front on a slanted surface. Empty when
-        // most of them show the background.
-        std::vector<uint32_t> around;
-        for (uint32_t yy = y > 0 ? y - 1 : 0; yy <= std::min(y + 1, v.height - 1); ++yy)
-          for (uint32_t xx = x > 0 ? x - 1 : 0; xx <= std::min(x + 1, v.width - 1); ++xx) {
-            const uint32_t dd = depth[size_t(v.height - 1 - yy) * v.width + xx];
-            if (dd != render::kEmptyDepth) around.push_back(dd);
-          }
-        uint32_t d = render::kEmptyDepth;
-        if (around.size() >= 5) {
-          std::nth_element(around.begin(), around.begin() + around.size() / 2, around.end());
-          d = around[around.size() / 2];  // float bits order like the depths
-        }
-        if (d == render::kEmptyDepth) continue;  // no surface under it: skipped
-        float z = 1.0f;
-        std::memcpy(&z, &d, 4);
-        const glm::dvec4 ndc((x + 0.5) / v.width * 2.0 - 1.0, 1.0 - (y + 0.5) / v.height * 2.0,
-                             2.0 * z - 1.0, 1.0);
-        const glm::dvec4 w = unproject * ndc;
-        const glm::dvec3 p = glm::dvec3(w) / w.w;
+        const std::optional<Surface> at = surfaceAt(depth, v, unproject, pixel);
+        if (!at) continue;  // no surface under it: skipped
+        const glm::dvec3 p = at->world;
         s.add_points(p.x);
         s.add_points(p.y);
         s.add_points(p.z);
         if (strokes_csv) {
           char line[256];
           std::snprintf(line, sizeof line, "%llu,%u,%u,%.17g,%.17g,%.17g,%.9g\n",
-                        (unsigned long long)index, x, y, p.x, p.y, p.z, double(z));
+                        (unsigned long long)index, at->x, at->y, p.x, p.y, p.z, double(at->z));
           strokes_csv << line;
         }
       }
@@ -551,6 +624,9 @@ struct SiteSession::Impl {
         break;
       case site::SiteAction::kStroke:
         stroke(a.stroke(), asSent(camera(now)));
+        break;
+      case site::SiteAction::kNote:
+        note(a.note(), asSent(camera(now)));
         break;
       case site::SiteAction::kUndo:
         m.mutable_undo();
@@ -754,6 +830,17 @@ struct SiteSession::Impl {
       video_source = openVideoSource(opt.video, opt.video_settings.width, opt.video_settings.height,
                                      opt.video_settings.fps);
     }
+    opt.client.note = [this](const site::SiteNoteAnswer& a) {
+      if (a.ok())
+        say("note " + std::to_string(a.request()) + " committed" +
+            (a.item() ? ": item " + std::to_string(a.item()) + " revision " +
+                            std::to_string(a.revision())
+                      : std::string()) +
+            (a.place() ? " at place " + std::to_string(a.place()) : std::string()));
+      else
+        say("note " + std::to_string(a.request()) + (a.conflict() ? " conflict: " : " refused: ") +
+            a.error());
+    };
     client = std::make_unique<SiteClient>(opt.client);
     welcome = client->join(
         graph, Clock::now() + std::chrono::milliseconds(int64_t(opt.join_timeout_s * 1000)));

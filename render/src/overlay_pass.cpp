@@ -147,10 +147,22 @@ void OverlayPass::Impl::addLine(const OverlayLine& l) {
 glm::vec2 OverlayPass::Impl::layout(const OverlayLabel& l, const glm::dvec4* anchor) {
   const float scale = l.height_px / font->FontSize;
   const float pad = 0.2f * l.height_px;
-  float width = 0.0f;
-  for (size_t i = 0; i < l.text.size();)
-    width += font->GetCharAdvance(glyphOf(nextCodePoint(l.text, i))) * scale;
-  const glm::vec2 box(width + 2.0f * pad, l.height_px + 2.0f * pad);
+  // Lines break at '\n', each kLineSpacing label heights below the one before.
+  constexpr float kLineSpacing = 1.2f;
+  float width = 0.0f, line = 0.0f;
+  int lines = 1;
+  for (size_t i = 0; i < l.text.size();) {
+    const uint32_t cp = nextCodePoint(l.text, i);
+    if (cp == '\n') {
+      ++lines;
+      line = 0.0f;
+      continue;
+    }
+    line += font->GetCharAdvance(glyphOf(cp)) * scale;
+    width = std::max(width, line);
+  }
+  const float text_height = l.height_px * (1.0f + kLineSpacing * float(lines - 1));
+  const glm::vec2 box(width + 2.0f * pad, text_height + 2.0f * pad);
   if (!anchor) return box;
   const glm::vec2 o = l.offset_px - glm::clamp(l.align, glm::vec2(0.0f), glm::vec2(1.0f)) * box;
   // A label is hidden or shown whole by its anchor (addLabel()), then drawn over the scene: a
@@ -161,15 +173,20 @@ glm::vec2 OverlayPass::Impl::layout(const OverlayLabel& l, const glm::dvec4* anc
            TESSERA_OVERLAY_FLAT);
   }
   begin(font_texture.name(), false);
-  float pen = o.x + pad;
+  float pen = o.x + pad, top = o.y + pad;
   const uint32_t rgba = pack(l.color);
   for (size_t i = 0; i < l.text.size();) {
     const uint32_t cp = nextCodePoint(l.text, i);
+    if (cp == '\n') {
+      pen = o.x + pad;
+      top += kLineSpacing * l.height_px;
+      continue;
+    }
     const ImFontGlyph* g = font->FindGlyph(glyphOf(cp));
     if (!g) continue;
     if (g->Visible) {
-      const glm::vec2 lo(pen + g->X0 * scale, o.y + pad + g->Y0 * scale);
-      const glm::vec2 hi(pen + g->X1 * scale, o.y + pad + g->Y1 * scale);
+      const glm::vec2 lo(pen + g->X0 * scale, top + g->Y0 * scale);
+      const glm::vec2 hi(pen + g->X1 * scale, top + g->Y1 * scale);
       sprite(*anchor, lo, hi, {g->U0, g->V0}, {g->U1, g->V1}, rgba, TESSERA_OVERLAY_GLYPH);
     }
     pen += g->AdvanceX * scale;

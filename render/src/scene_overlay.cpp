@@ -100,14 +100,73 @@ void addAvatar(const scene::SceneNode& node, const glm::dmat4& world, float opac
   out.labels.push_back(std::move(label));
 }
 
+}  // namespace
+
+std::string noteText(const scene::AnnotationPayload& a) {
+  if (!a.open() || a.items_size() == 0) return a.text();
+  // One line per item (a text's first line, cut), at most kMaxLines in all.
+  constexpr int kMaxLines = 12;
+  constexpr size_t kMaxLine = 72;
+  auto clipped = [&](std::string line) {
+    if (const size_t nl = line.find('\n'); nl != std::string::npos) line = line.substr(0, nl) + " ...";
+    if (line.size() <= kMaxLine) return line;
+    size_t n = kMaxLine - 4;
+    while (n > 0 && (static_cast<unsigned char>(line[n]) & 0xc0) == 0x80) --n;
+    return line.substr(0, n) + " ...";
+  };
+  std::string out;
+  int lines = 0;
+  for (const scene::AnnotationItem& it : a.items()) {
+    if (lines == kMaxLines - 1 && a.items_size() > kMaxLines) {
+      out += "\n(" + std::to_string(a.items_size() - lines) + " more)";
+      break;
+    }
+    std::string line = it.title();
+    if (it.kind() == "number") {
+      char number[64];
+      std::snprintf(number, sizeof number, ": %.6g", it.number());
+      line += number;
+      if (!it.unit().empty()) line += " " + it.unit();
+    } else if (it.kind() == "link") {
+      line += it.uri().empty() ? " -> item " + std::to_string(it.link_item()) : " -> " + it.uri();
+    } else if (!it.text().empty()) {
+      line += ": " + it.text();
+    }
+    out += (lines++ ? "\n" : "") + clipped(line);
+  }
+  return out;
+}
+
+namespace {
+
 void addAnnotation(const scene::AnnotationPayload& a, const glm::dmat4& world, float opacity,
                    const SceneOverlayOptions& o, Overlay& out) {
   const glm::dvec3 at = toWorld(world, a.anchor().x(), a.anchor().y(), a.anchor().z());
   out.points.push_back({at, {kAnnotationDot, fade(255, opacity)}, o.annotation_dot_px});
-  if (a.text().empty()) return;
+  if (a.radius() > 0.0) {
+    // A hot spot's focus circle (Bettio et al. 2009, sec. 3.4), facing its stored view (else
+    // the node frame's z axis), radius in the node frame's units.
+    glm::dvec3 normal(0.0, 0.0, 1.0);
+    if (a.view_size() == 10) {
+      const glm::dvec3 d(a.view(3) - a.view(0), a.view(4) - a.view(1), a.view(5) - a.view(2));
+      if (glm::length(d) > 0.0) normal = glm::normalize(d);
+    }
+    const glm::dvec3 ref = std::abs(normal.x) < 0.9 ? glm::dvec3(1, 0, 0) : glm::dvec3(0, 1, 0);
+    const glm::dvec3 u = glm::normalize(glm::cross(normal, ref)), v = glm::cross(normal, u);
+    constexpr int kSegments = 32;
+    const glm::u8vec4 ring{kAnnotationDot, fade(220, opacity)};
+    const glm::dvec3 c = {a.anchor().x(), a.anchor().y(), a.anchor().z()};
+    auto on = [&](int i) {
+      const double t = 2.0 * std::numbers::pi * i / kSegments;
+      const glm::dvec3 p = c + a.radius() * (std::cos(t) * u + std::sin(t) * v);
+      return toWorld(world, p.x, p.y, p.z);
+    };
+    for (int i = 0; i < kSegments; ++i) out.lines.push_back({on(i), on(i + 1), ring, 1.5f});
+  }
+  if (a.text().empty() && a.items_size() == 0) return;
   OverlayLabel label;
   label.at = at;
-  label.text = a.text();
+  label.text = noteText(a);
   label.color = {255, 255, 255, fade(255, opacity)};
   label.background = {0, 0, 0, fade(200, opacity)};
   label.height_px = o.label_px;

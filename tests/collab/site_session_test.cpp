@@ -20,6 +20,7 @@
 #include <tessera/collab/curve.h>
 #include <tessera/collab/site_messages.h>
 #include <tessera/lod/mesh.h>
+#include <tessera/master/annotation_db.h>
 #include <tessera/render/image.h>
 #include <tessera/render/tile_frustum.h>
 #include <tessera/render/wall_mosaic.h>
@@ -715,4 +716,137 @@ TEST_F(SiteSession, TheConsoleLeadsAndDraws) {
     white += pixelsNear(wall, glm::dvec2(x * scale, 225 * scale), 3, {0.95f, 0.30f, 0.75f}) > 0;
   // At least half the drag's row (a loaded machine may coalesce the first motion events).
   EXPECT_GE(white, 10) << "the console's sketch on the wall, " << mRun / "wall.png";
+}
+
+namespace {
+
+/// The pixels of `img` in the rectangle [x0, x1] x [y0, y1] (clamped) that are near white.
+int whitePixels(const tessera::render::Image& img, int x0, int y0, int x1, int y1) {
+  int n = 0;
+  for (int y = std::max(0, y0); y <= std::min(int(img.height) - 1, y1); ++y)
+    for (int x = std::max(0, x0); x <= std::min(int(img.width) - 1, x1); ++x) {
+      const uint8_t* p = &img.rgba[(size_t(y) * img.width + x) * 4];
+      n += p[0] > 215 && p[1] > 215 && p[2] > 215;
+    }
+  return n;
+}
+
+}  // namespace
+
+// Notes from remote sites go into the master's annotation database (--annotations): each is
+// acknowledged only once committed, shown on every tile where it was placed (opened, with its
+// text), and two sites editing one item resolve by revision; the database outlives a master
+// killed with SIGKILL right after an acknowledgement, and the next session starts from it.
+TEST_F(SiteSession, NotesAreCommittedShownOnTheWallAndSurviveAKilledMaster) {
+  const fs::path db = mRun / "notes.tadb";
+  auto master = startMaster(300.0, {"--annotations", db.string()});
+  auto nodes = startNodes();
+  ASSERT_TRUE(master->waitFor("4 of 4 tiles have a node", 60)) << master->output();
+  // A places a note on the bunny under the middle of its view, opens it on the wall, then
+  // edits it (revision 1 -> 2). The database is new: the place and item are 1.
+  auto a = startSite("a", "A", R"({"width": 320, "height": 240, "actions": [
+      {"frame": 0, "camera": )" + cameraJson(kEyeA, kTarget) + R"(},
+      {"frame": 3, "screenshot": "view.png"},
+      {"frame": 5, "note": {"pixel": [190, 150], "note": {"add": {"item": {
+          "layer": "damage/cracks", "kind": "text", "title": "crack A",
+          "text": "seen in the 2026 survey"}}}}},
+      {"frame": 15, "note": {"note": {"open": {"place": 1, "open": true}}}},
+      {"frame": 20, "note": {"note": {"update": {"item": 1, "baseRevision": 1, "content": {
+          "layer": "damage/cracks", "kind": "text", "title": "crack A 14 cm",
+          "text": "seen in the 2026 survey"}}}}}]})");
+  ASSERT_TRUE(a->waitFor("note 3 committed: item 1 revision 2", 90)) << a->output();
+  EXPECT_TRUE(a->waitFor("note 1 committed: item 1 revision 1 at place 1", 1)) << a->output();
+  // B edits what it saw at revision 1: refused as a conflict, nothing changed. Then a hot spot
+  // with a number in another layer, a removal of an item that does not exist (refused), and a
+  // note that a malformed message would carry is never sent (checked at the site first).
+  auto b = startSite("b", "B", R"({"actions": [
+      {"frame": 2, "note": {"note": {"update": {"item": 1, "baseRevision": 1, "content": {
+          "layer": "damage/cracks", "kind": "text", "title": "B's title"}}}}},
+      {"frame": 4, "note": {"note": {"add": {"position": [-0.02, 0.16, 0.03], "radius": 0.02,
+          "view": [0, 0.2, 0.5, -0.02, 0.16, 0.03, 0, 1, 0, 40], "item": {
+          "layer": "history", "kind": "number", "title": "height", "number": 0.155,
+          "unit": "m"}}}}},
+      {"frame": 6, "note": {"note": {"remove": {"item": 99, "baseRevision": 1}}}}]})",
+                     {"--no-render"});
+  ASSERT_TRUE(b->waitFor("note 3 refused: ", 90)) << b->output();
+  EXPECT_TRUE(b->waitFor("note 1 conflict: .*revision 2", 1)) << b->output();
+  EXPECT_TRUE(b->waitFor("note 2 committed: item 2 revision 1 at place 2", 1)) << b->output();
+  std::this_thread::sleep_for(std::chrono::milliseconds(500));  // a frame with all of it
+  master->signal(SIGTERM);
+  ASSERT_EQ(master->wait(60), std::optional<int>(0)) << master->output();
+  for (auto& n : nodes) EXPECT_EQ(n->wait(15), std::optional<int>(0)) << n->output();
+  EXPECT_TRUE(a->wait(15)) << a->output();
+  EXPECT_TRUE(b->wait(15)) << b->output();
+  EXPECT_NE(master->output().find("annotations: 4 edits from sites committed"), std::string::npos)
+      << master->output();
+
+  tessera::master::Place place;
+  {
+    tessera::master::AnnotationDb notes(db, {.read_only = true});
+    const auto item = notes.item(1);
+    ASSERT_TRUE(item);
+    EXPECT_EQ(item->title, "crack A 14 cm");
+    EXPECT_EQ(item->revision, 2);
+    EXPECT_EQ(item->author, "A");
+    ASSERT_TRUE(notes.item(2));
+    EXPECT_EQ(notes.item(2)->number, 0.155);
+    EXPECT_EQ(notes.item(2)->author, "B");
+    place = *notes.place(1);
+    EXPECT_EQ(place.model, "bunny");  // named by A's pick
+    ASSERT_TRUE(notes.place(2));
+    EXPECT_EQ(notes.place(2)->kind, tessera::master::PlaceKind::kHotSpot);
+  }
+  // The wall: the note's dot where its place projects, and its open label (the item's title
+  // and text on one line, wider than the closed label "crack A 14 cm" would be) up and right.
+  const auto wall = tessera::sync::loadWallConfig(*sDir / "wall.json");
+  tessera::config::Camera camera;
+  auto set = [](tessera::config::Vec3* v, glm::dvec3 x) {
+    v->set_x(x.x);
+    v->set_y(x.y);
+    v->set_z(x.z);
+  };
+  set(camera.mutable_eye(), kWallEye);
+  set(camera.mutable_target(), kTarget);
+  set(camera.mutable_up(), {0, 1, 0});
+  const tessera::render::Image shot = tessera::render::readPng((mRun / "wall.png").string());
+  const auto at = onWall(wall, camera, place.position);
+  ASSERT_TRUE(at) << "the note is off the wall";
+  EXPECT_GE(pixelsNear(shot, *at, 2, {1.0f, 210 / 255.0f, 60 / 255.0f}), 9)
+      << "the note's dot at " << at->x << "," << at->y << " in " << mRun / "wall.png";
+  const int x = int(at->x), y = int(at->y);
+  const int label = whitePixels(shot, x + 5, y - 30, x + 130, y - 4);
+  const int open_tail = whitePixels(shot, x + 140, y - 30, x + 230, y - 4);
+  const int left = whitePixels(shot, x - 130, y - 30, x - 5, y - 4);
+  RecordProperty("label_white_px", std::to_string(label));
+  EXPECT_GE(label, 60) << mRun / "wall.png";
+  EXPECT_GE(open_tail, 25) << "the open note shows its text, " << mRun / "wall.png";
+  EXPECT_LE(left, label / 4) << "text only where the label is, " << mRun / "wall.png";
+
+  // The next session starts from the database; C's note is acknowledged and the master is
+  // killed at once: the note is in the file.
+  mRun /= "next";  // its own logs
+  fs::create_directories(mRun);
+  auto next = startMaster(300.0, {"--annotations", db.string()});
+  EXPECT_TRUE(next->waitFor("annotations: \\S+notes.tadb: 3 layers, 2 places, 2 items", 5))
+      << next->output();
+  auto next_nodes = startNodes();
+  ASSERT_TRUE(next->waitFor("4 of 4 tiles have a node", 60)) << next->output();
+  auto c = startSite("c", "C", R"({"actions": [
+      {"frame": 1, "note": {"note": {"add": {"place": 1, "item": {
+          "layer": "damage", "kind": "link", "title": "report",
+          "uri": "https://example.org/bunny-survey.pdf"}}}}}]})",
+                     {"--no-render"});
+  ASSERT_TRUE(c->waitFor("note 1 committed: item 3 revision 1 at place 1", 90)) << c->output();
+  next->signal(SIGKILL);
+  EXPECT_EQ(next->wait(15), std::optional<int>(-SIGKILL));
+  for (auto* p : {c.get(), next_nodes[0].get(), next_nodes[1].get(), next_nodes[2].get(),
+                  next_nodes[3].get()}) {
+    p->signal(SIGTERM);
+    p->wait(15);
+  }
+  tessera::master::AnnotationDb notes(db, {.read_only = true});
+  ASSERT_TRUE(notes.item(3)) << "an acknowledged note survives kill -9 of the master";
+  EXPECT_EQ(notes.item(3)->link_uri, "https://example.org/bunny-survey.pdf");
+  EXPECT_EQ(notes.itemsAt(1), (std::vector<int64_t>{1, 3}));
+  EXPECT_EQ(notes.integrityCheck(), "ok");
 }

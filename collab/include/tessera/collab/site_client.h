@@ -38,6 +38,9 @@ struct SiteClientOptions {
   /// Called by receive() with each chunk of another site's video (unchecked: video_packet.h);
   /// without it they are dropped.
   std::function<void(std::string_view)> video;
+  /// Called by receive() with the master's answer to each SiteNote; without it they are
+  /// dropped.
+  std::function<void(const site::SiteNoteAnswer&)> note;
 };
 
 class SiteClient {

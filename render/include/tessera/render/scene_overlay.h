@@ -77,6 +77,11 @@ struct SceneOverlayOptions {
   glm::dvec2 view_px{0.0};
 };
 
+/// A note's label (an ANNOTATION node): its text, or for an open database note one line per
+/// item ("crack: 14 cm", "Edo restoration: seen in the 1962 photo", "report -> https://..."),
+/// long texts cut, at most 12 lines.
+std::string noteText(const scene::AnnotationPayload& a);
+
 /// A measurement's label: the value in a unit that keeps it readable and the bound of its
 /// error, "14.2 cm ± 0.3 mm", "path 2.315 m ± 4 mm", "37.52° ± 0.41°",
 /// "area 0.3 m² ± 20 cm²" (UTF-8).
