@@ -24,6 +24,7 @@ if [ "${TESSERA_SKIP_ASAN:-0}" != 1 ]; then
   echo "== sanitizer pass (asan: readers, decoders, the sync schema, the scene draw list, voice, video, annotation)"
   cmake --preset asan >/dev/null
   cmake --build --preset asan -j"$jobs" --target tessera_lod_tests tessera_sync_tests tessera_scene_tests \
-    tessera_site_unit_tests tessera_voice_tests tessera_video_tests tessera_annotation_tests
+    tessera_site_unit_tests tessera_voice_tests tessera_video_tests tessera_annotation_tests \
+    tessera_annotation_scene_tests
   ctest --preset asan -j"$jobs" --timeout 900 -L "lod|sync|scene|voice|video|annotation"
 fi

@@ -164,6 +164,49 @@ Problem checkNote(const site::SiteNote& n) {
   }
 }
 
+Problem checkMeasure(const site::SiteMeasure& m) {
+  if (!scene::MeasurementPayload::Type_IsValid(m.type()))
+    return "measure.type: unknown type " + std::to_string(int(m.type()));
+  const int n = m.points_size() / 3;
+  if (m.points_size() % 3 != 0)
+    return "measure.points: needs x y z triples, got " + std::to_string(m.points_size()) +
+           " numbers";
+  const auto type = m.type();
+  const int exact = type == scene::MeasurementPayload::DISTANCE ? 2
+                    : type == scene::MeasurementPayload::ANGLE  ? 3
+                                                                : 0;
+  const int least = type == scene::MeasurementPayload::AREA ? 3 : 2;
+  if ((exact && n != exact) || n < least || n > kMaxMeasurePoints)
+    return "measure.points: a " + scene::MeasurementPayload::Type_Name(type) + " needs " +
+           (exact ? std::to_string(exact) : std::to_string(least) + ".." +
+                                                 std::to_string(kMaxMeasurePoints)) +
+           " points, got " + std::to_string(n);
+  for (double x : m.points())
+    if (!(std::abs(x) <= kMaxCoordinate))
+      return std::string("measure.points: numbers must be finite, within 1e8 m");
+  for (const auto& [v, field] :
+       {std::pair{m.value(), "measure.value"}, {m.uncertainty(), "measure.uncertainty"}})
+    if (!(v >= 0.0 && v <= 1e17)) return std::string(field) + ": must be finite and >= 0";
+  // What the points alone give must be what the site says.
+  auto at = [&](int i) {
+    return glm::dvec3(m.points(3 * i), m.points(3 * i + 1), m.points(3 * i + 2));
+  };
+  double expected = -1.0;
+  if (type == scene::MeasurementPayload::DISTANCE || type == scene::MeasurementPayload::POLYLINE) {
+    expected = 0.0;
+    for (int i = 1; i < n; ++i) expected += glm::length(at(i) - at(i - 1));
+  } else if (type == scene::MeasurementPayload::ANGLE) {
+    const glm::dvec3 a = at(0) - at(1), b = at(2) - at(1);
+    if (!(glm::length(a) > 0.0 && glm::length(b) > 0.0))
+      return std::string("measure.points: an angle's arms must not be of zero length");
+    expected = std::atan2(glm::length(glm::cross(a, b)), glm::dot(a, b));
+  }
+  if (expected >= 0.0 && !(std::abs(m.value() - expected) <= 1e-9 * std::max(1.0, expected)))
+    return "measure.value: " + std::to_string(m.value()) + " is not what its points give (" +
+           std::to_string(expected) + ")";
+  return {};
+}
+
 }  // namespace
 
 Problem checkName(std::string_view name, const std::string& field) {
@@ -196,6 +239,8 @@ Problem checkToMaster(const site::ToMaster& m) {
     }
     case site::ToMaster::kNote:
       return checkNote(m.note());
+    case site::ToMaster::kMeasure:
+      return checkMeasure(m.measure());
     case site::ToMaster::kVideo: {
       VideoPacket packet;
       const std::string& v = m.video();

@@ -68,6 +68,7 @@ struct SiteRoster::Site {
   glm::dmat4 shown{0.0};
   NodeId layer = 0;              // its sketches' group (0: none yet)
   std::vector<NodeId> sketches;  // oldest first
+  std::vector<NodeId> measurements;  // oldest first
 
   PoseState current(double now) const {
     if (duration <= 0.0) return to;
@@ -141,6 +142,7 @@ void SiteRoster::apply(sync::SceneGraph& graph, uint32_t participant, const site
   Site& s = it->second;
   // Sketches the master removed meanwhile are forgotten.
   std::erase_if(s.sketches, [&](NodeId id) { return !graph.contains(id); });
+  std::erase_if(s.measurements, [&](NodeId id) { return !graph.contains(id); });
   if (s.layer && !graph.contains(s.layer)) s.layer = 0;
   switch (m.kind_case()) {
     case site::ToMaster::kPose: {
@@ -181,6 +183,29 @@ void SiteRoster::apply(sync::SceneGraph& graph, uint32_t participant, const site
           sync::addSketch(graph, s.layer, s.info.name, points, st.color(), st.width());
       s.sketches.push_back(id);
       s.info.strokes++;
+      return;
+    }
+    case site::ToMaster::kMeasure: {
+      const site::SiteMeasure& me = m.measure();
+      if (s.measurements.size() >= kMaxMeasurementsPerSite) {
+        std::printf(
+            "tessera-master: sites: %s: measurement ignored: it has %zu, the most a site may "
+            "keep\n",
+            s.info.name.c_str(), s.measurements.size());
+        return;
+      }
+      std::vector<glm::dvec3> points;
+      for (int i = 0; i + 2 < me.points_size(); i += 3)
+        points.emplace_back(me.points(i), me.points(i + 1), me.points(i + 2));
+      const NodeId layer = sync::layerGroup(graph, "measurements", s.info.name);
+      try {
+        s.measurements.push_back(sync::addMeasurement(graph, layer, s.info.name, me.type(),
+                                                      points, me.value(), me.uncertainty()));
+        s.info.measurements++;
+      } catch (const std::exception& e) {  // checked already: the scene's own rule
+        std::printf("tessera-master: sites: %s: measurement refused: %s\n", s.info.name.c_str(),
+                    e.what());
+      }
       return;
     }
     case site::ToMaster::kUndo:

@@ -19,7 +19,9 @@
 #include <tessera/collab/voice_bridge.h>
 #include <tessera/collab/voice_wav.h>
 #include <tessera/core/file_checks.h>
+#include <tessera/master/measure_tool.h>
 #include <tessera/master/one_button_navigation.h>
+#include <tessera/master/surface_pick.h>
 #include <tessera/render/gl_context.h>
 #include <tessera/render/scene_draw_list.h>
 #include <tessera/render/scene_overlay.h>
@@ -136,6 +138,17 @@ site::SiteScript loadSiteScript(const std::string& path) {
           fail(path, field + ".note", "a new place needs a pixel or a position");
         break;
       }
+      case site::SiteAction::kMeasure: {
+        const site::MeasureAction& me = a.measure();
+        if (!scene::MeasurementPayload::Type_IsValid(me.type()))
+          fail(path, field + ".measure.type", "unknown type");
+        if (me.pixels_size() % 2 != 0 || me.pixels_size() / 2 > kMaxMeasurePoints)
+          fail(path, field + ".measure.pixels",
+               "x y pairs, at most " + std::to_string(kMaxMeasurePoints));
+        for (float v : me.pixels())
+          if (!std::isfinite(v)) fail(path, field + ".measure.pixels", "numbers must be finite");
+        break;
+      }
       case site::SiteAction::kScreenshot:
         if (a.screenshot().empty() || a.screenshot().find('/') != std::string::npos)
           fail(path, field + ".screenshot", "a file name in the output folder");
@@ -169,7 +182,7 @@ struct SiteSession::Impl {
   uint64_t sequence = 0;
   std::ofstream strokes_csv;
   uint64_t strokes = 0;
-  uint64_t notes_sent = 0;
+  uint64_t notes_sent = 0, measures_sent = 0;
   bool want_pick = false;  // render pick ids (a note's pixel)
   // --window: one-button navigation (left button, wheel), strokes (right-button drag).
   master::OneButtonNavigation navigation;
@@ -555,6 +568,60 @@ struct SiteSession::Impl {
     client->send(m);
   }
 
+  /// A script's measurement: each pixel picked on the full-resolution surface under it (the
+  /// stores, or the chunks the master serves), measured here, checked as the master will
+  /// check it, and sent.
+  void measure(const site::MeasureAction& a, const config::Camera& c) {
+    const uint64_t index = ++measures_sent;
+    const std::string what = "measurement " + std::to_string(index);
+    if (!renderer) {
+      say(what + " skipped: picking needs rendering");
+      return;
+    }
+    want_pick = true;
+    (void)settled(c);
+    want_pick = false;
+    const render::ViewSetup v = view(c);
+    master::MeasureTool tool;
+    tool.setMode(a.type() == scene::MeasurementPayload::DISTANCE   ? master::MeasureTool::Mode::kDistance
+                 : a.type() == scene::MeasurementPayload::ANGLE    ? master::MeasureTool::Mode::kAngle
+                 : a.type() == scene::MeasurementPayload::POLYLINE ? master::MeasureTool::Mode::kPath
+                                                                   : master::MeasureTool::Mode::kArea);
+    std::optional<master::MeasureTool::Finished> done;
+    try {
+      for (int i = 0; i + 1 < a.pixels_size() && !done; i += 2) {
+        const auto at = master::pickUnderPixel(*renderer, instances, v, {a.pixels(i), a.pixels(i + 1)});
+        if (!at) {
+          say(what + " skipped: no surface under pixel " + std::to_string(int(a.pixels(i))) + "," +
+              std::to_string(int(a.pixels(i + 1))));
+          return;
+        }
+        done = tool.addPoint(*at, instances);
+      }
+      if (!done) done = tool.complete(instances);
+    } catch (const std::exception& e) {  // MeasureError, a store that cannot be read
+      say(what + " failed: " + e.what());
+      return;
+    }
+    if (!done) {
+      say(what + " skipped: too few points");
+      return;
+    }
+    site::ToMaster m;
+    site::SiteMeasure& me = *m.mutable_measure();
+    me.set_type(done->type);
+    for (const glm::dvec3& p : done->points)
+      for (int k = 0; k < 3; ++k) me.add_points(p[k]);
+    me.set_value(done->measured.value);
+    me.set_uncertainty(done->measured.uncertainty);
+    if (const auto why = checkToMaster(m)) {
+      say(what + " not sent: " + *why);
+      return;
+    }
+    say(what + " sent: " + tool.lastLabel());
+    client->send(m);
+  }
+
   void stroke(const site::StrokeAction& a, const config::Camera& c) {
     site::ToMaster m;
     site::SiteStroke& s = *m.mutable_stroke();
@@ -627,6 +694,9 @@ struct SiteSession::Impl {
         break;
       case site::SiteAction::kNote:
         note(a.note(), asSent(camera(now)));
+        break;
+      case site::SiteAction::kMeasure:
+        measure(a.measure(), asSent(camera(now)));
         break;
       case site::SiteAction::kUndo:
         m.mutable_undo();

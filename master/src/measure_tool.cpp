@@ -30,23 +30,46 @@ const char* MeasureTool::name(Mode mode) {
   }
 }
 
-std::optional<sync::SceneGraph::NodeId> MeasureTool::add(
-    const SurfacePick& pick, sync::SceneGraph& graph,
-    std::span<const render::ModelInstance> models, const std::string& author) {
+std::optional<MeasureTool::Finished> MeasureTool::addPoint(
+    const SurfacePick& pick, std::span<const render::ModelInstance> models) {
   if (mMode == Mode::kOff) return std::nullopt;
   if (mPoints.size() >= kMaxAreaLoop) return std::nullopt;  // the area's limit; paths alike
   mPoints.push_back(pick);
   const size_t complete = mMode == Mode::kDistance ? 2 : mMode == Mode::kAngle ? 3 : 0;
-  if (complete && mPoints.size() == complete) return make(graph, models, author);
+  if (complete && mPoints.size() == complete) return measure(models);
+  return std::nullopt;
+}
+
+std::optional<MeasureTool::Finished> MeasureTool::complete(
+    std::span<const render::ModelInstance> models) {
+  if ((mMode == Mode::kPath && mPoints.size() >= 2) ||
+      (mMode == Mode::kArea && mPoints.size() >= 3))
+    return measure(models);
+  return std::nullopt;
+}
+
+namespace {
+
+sync::SceneGraph::NodeId addNode(sync::SceneGraph& graph, const MeasureTool::Finished& f,
+                                 const std::string& author) {
+  const auto layer = sync::layerGroup(graph, "measurements", author);
+  return sync::addMeasurement(graph, layer, author, f.type, f.points, f.measured.value,
+                              f.measured.uncertainty);
+}
+
+}  // namespace
+
+std::optional<sync::SceneGraph::NodeId> MeasureTool::add(
+    const SurfacePick& pick, sync::SceneGraph& graph,
+    std::span<const render::ModelInstance> models, const std::string& author) {
+  if (const std::optional<Finished> f = addPoint(pick, models)) return addNode(graph, *f, author);
   return std::nullopt;
 }
 
 std::optional<sync::SceneGraph::NodeId> MeasureTool::finish(
     sync::SceneGraph& graph, std::span<const render::ModelInstance> models,
     const std::string& author) {
-  if ((mMode == Mode::kPath && mPoints.size() >= 2) ||
-      (mMode == Mode::kArea && mPoints.size() >= 3))
-    return make(graph, models, author);
+  if (const std::optional<Finished> f = complete(models)) return addNode(graph, *f, author);
   return std::nullopt;
 }
 
@@ -56,9 +79,7 @@ bool MeasureTool::undoPoint() {
   return true;
 }
 
-sync::SceneGraph::NodeId MeasureTool::make(sync::SceneGraph& graph,
-                                           std::span<const render::ModelInstance> models,
-                                           const std::string& author) {
+MeasureTool::Finished MeasureTool::measure(std::span<const render::ModelInstance> models) {
   std::vector<SurfacePoint> pts;
   std::vector<glm::dvec3> world;
   for (const SurfacePick& p : mPoints) {
@@ -92,11 +113,14 @@ sync::SceneGraph::NodeId MeasureTool::make(sync::SceneGraph& graph,
       m = surfaceArea(pts, project, o);
     }
   }
-  const auto layer = sync::layerGroup(graph, "measurements", author);
-  const auto id = sync::addMeasurement(graph, layer, author, type, world, m.value, m.uncertainty);
-  mLastLabel = render::measurementLabel(graph.node(id).measurement());
   mPoints.clear();
-  return id;
+  Finished out{type, std::move(world), m};
+  scene::MeasurementPayload shown;
+  shown.set_type(type);
+  shown.set_value(m.value);
+  shown.set_uncertainty(m.uncertainty);
+  mLastLabel = render::measurementLabel(shown);
+  return out;
 }
 
 }  // namespace tessera::master

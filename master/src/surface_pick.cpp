@@ -431,4 +431,29 @@ double dataResolution(const render::ModelInstance& model) {
   return 0.0;
 }
 
+std::optional<SurfacePick> pickUnderPixel(const render::ViewRenderer& renderer,
+                                          std::span<const render::ModelInstance> models,
+                                          const render::ViewSetup& view, glm::dvec2 px) {
+  if (!(px.x >= 0 && px.y >= 0 && px.x < view.width && px.y < view.height)) return std::nullopt;
+  const auto hit = renderer.pick(uint32_t(px.x), uint32_t(px.y));
+  if (!hit) return std::nullopt;
+  const glm::dmat4 world_from_clip = glm::inverse(view.projection * view.view);
+  const glm::dvec2 centre = glm::floor(px) + 0.5;
+  const double nx = centre.x / view.width * 2.0 - 1.0, ny = 1.0 - centre.y / view.height * 2.0;
+  const glm::dvec4 a = world_from_clip * glm::dvec4(nx, ny, -1.0, 1.0);
+  const glm::dvec4 b = world_from_clip * glm::dvec4(nx, ny, 1.0, 1.0);
+  const glm::dvec3 from = glm::dvec3(a) / a.w, dir = glm::normalize(glm::dvec3(b) / b.w - from);
+  PickOptions options;
+  // Perspective: the vertical field of view over the height (projection[1][1] = cot(fovy/2)).
+  options.pixel_angle = 2.0 * std::atan(1.0 / view.projection[1][1]) / view.height;
+  std::optional<SurfacePick> at = pickSurface(models, from, dir, options, hit->model);
+  if (!at) {
+    at = SurfacePick{};
+    at->point.world = hit->world;
+    at->point.uncertainty = glm::length(hit->world - from) * options.pixel_angle;
+    at->model = hit->model;
+  }
+  return at;
+}
+
 }  // namespace tessera::master

@@ -753,8 +753,11 @@ TEST_F(SiteSession, NotesAreCommittedShownOnTheWallAndSurviveAKilledMaster) {
       {"frame": 15, "note": {"note": {"open": {"place": 1, "open": true}}}},
       {"frame": 20, "note": {"note": {"update": {"item": 1, "baseRevision": 1, "content": {
           "layer": "damage/cracks", "kind": "text", "title": "crack A 14 cm",
-          "text": "seen in the 2026 survey"}}}}}]})");
+          "text": "seen in the 2026 survey"}}}}},
+      {"frame": 25, "measure": {"type": "DISTANCE", "pixels": [100, 105, 135, 95]}}]})");
   ASSERT_TRUE(a->waitFor("note 3 committed: item 1 revision 2", 90)) << a->output();
+  ASSERT_TRUE(a->waitFor("measurement 1 sent: [0-9.]+ (mm|cm) ± [0-9.]+ (um|µm|mm)", 90))
+      << a->output();
   EXPECT_TRUE(a->waitFor("note 1 committed: item 1 revision 1 at place 1", 1)) << a->output();
   // B edits what it saw at revision 1: refused as a conflict, nothing changed. Then a hot spot
   // with a number in another layer, a removal of an item that does not exist (refused), and a
@@ -770,7 +773,13 @@ TEST_F(SiteSession, NotesAreCommittedShownOnTheWallAndSurviveAKilledMaster) {
                      {"--no-render"});
   ASSERT_TRUE(b->waitFor("note 3 refused: ", 90)) << b->output();
   EXPECT_TRUE(b->waitFor("note 1 conflict: .*revision 2", 1)) << b->output();
-  EXPECT_TRUE(b->waitFor("note 2 committed: item 2 revision 1 at place 2", 1)) << b->output();
+  EXPECT_TRUE(b->waitFor("note 2 committed: item \\d+ revision 1 at place \\d+", 1))
+      << b->output();
+  // A's measurement may reach the database before or after B's hot spot.
+  const int64_t b_item = std::stoll(
+      tessera::test::captured(b->output(), "note 2 committed: item (\\d+)"));
+  const int64_t b_place = std::stoll(
+      tessera::test::captured(b->output(), "note 2 committed: item \\d+ revision 1 at place (\\d+)"));
   std::this_thread::sleep_for(std::chrono::milliseconds(500));  // a frame with all of it
   master->signal(SIGTERM);
   ASSERT_EQ(master->wait(60), std::optional<int>(0)) << master->output();
@@ -788,13 +797,21 @@ TEST_F(SiteSession, NotesAreCommittedShownOnTheWallAndSurviveAKilledMaster) {
     EXPECT_EQ(item->title, "crack A 14 cm");
     EXPECT_EQ(item->revision, 2);
     EXPECT_EQ(item->author, "A");
-    ASSERT_TRUE(notes.item(2));
-    EXPECT_EQ(notes.item(2)->number, 0.155);
-    EXPECT_EQ(notes.item(2)->author, "B");
+    ASSERT_TRUE(notes.item(b_item));
+    EXPECT_EQ(notes.item(b_item)->number, 0.155);
+    EXPECT_EQ(notes.item(b_item)->author, "B");
     place = *notes.place(1);
+    // A's measurement, made on its own picks at full resolution, stored by the master.
+    const auto hits = notes.search("distance");
+    ASSERT_EQ(hits.size(), 1u);
+    const auto measured = notes.item(hits[0].item);
+    EXPECT_EQ(measured->author, "A");
+    EXPECT_EQ(measured->unit, "m");
+    EXPECT_GT(measured->number, 0.005);
+    EXPECT_LT(measured->number, 0.08);
     EXPECT_EQ(place.model, "bunny");  // named by A's pick
-    ASSERT_TRUE(notes.place(2));
-    EXPECT_EQ(notes.place(2)->kind, tessera::master::PlaceKind::kHotSpot);
+    ASSERT_TRUE(notes.place(b_place));
+    EXPECT_EQ(notes.place(b_place)->kind, tessera::master::PlaceKind::kHotSpot);
   }
   // The wall: the note's dot where its place projects, and its open label (the item's title
   // and text on one line, wider than the closed label "crack A 14 cm" would be) up and right.
@@ -822,12 +839,13 @@ TEST_F(SiteSession, NotesAreCommittedShownOnTheWallAndSurviveAKilledMaster) {
   EXPECT_GE(open_tail, 25) << "the open note shows its text, " << mRun / "wall.png";
   EXPECT_LE(left, label / 4) << "text only where the label is, " << mRun / "wall.png";
 
-  // The next session starts from the database; C's note is acknowledged and the master is
+  // The next session starts from the database (A's measurement is a place and an item too);
+  // C's note is acknowledged and the master is
   // killed at once: the note is in the file.
   mRun /= "next";  // its own logs
   fs::create_directories(mRun);
   auto next = startMaster(300.0, {"--annotations", db.string()});
-  EXPECT_TRUE(next->waitFor("annotations: \\S+notes.tadb: 3 layers, 2 places, 2 items", 5))
+  EXPECT_TRUE(next->waitFor("annotations: \\S+notes.tadb: 4 layers, 3 places, 3 items", 5))
       << next->output();
   auto next_nodes = startNodes();
   ASSERT_TRUE(next->waitFor("4 of 4 tiles have a node", 60)) << next->output();
@@ -836,7 +854,8 @@ TEST_F(SiteSession, NotesAreCommittedShownOnTheWallAndSurviveAKilledMaster) {
           "layer": "damage", "kind": "link", "title": "report",
           "uri": "https://example.org/bunny-survey.pdf"}}}}}]})",
                      {"--no-render"});
-  ASSERT_TRUE(c->waitFor("note 1 committed: item 3 revision 1 at place 1", 90)) << c->output();
+  ASSERT_TRUE(c->waitFor("note 1 committed: item 4 revision 1 at place 1", 90)) << c->output();
+  // (Item 4: the first session made 3.)
   next->signal(SIGKILL);
   EXPECT_EQ(next->wait(15), std::optional<int>(-SIGKILL));
   for (auto* p : {c.get(), next_nodes[0].get(), next_nodes[1].get(), next_nodes[2].get(),
@@ -845,8 +864,8 @@ TEST_F(SiteSession, NotesAreCommittedShownOnTheWallAndSurviveAKilledMaster) {
     p->wait(15);
   }
   tessera::master::AnnotationDb notes(db, {.read_only = true});
-  ASSERT_TRUE(notes.item(3)) << "an acknowledged note survives kill -9 of the master";
-  EXPECT_EQ(notes.item(3)->link_uri, "https://example.org/bunny-survey.pdf");
-  EXPECT_EQ(notes.itemsAt(1), (std::vector<int64_t>{1, 3}));
+  ASSERT_TRUE(notes.item(4)) << "an acknowledged note survives kill -9 of the master";
+  EXPECT_EQ(notes.item(4)->link_uri, "https://example.org/bunny-survey.pdf");
+  EXPECT_EQ(notes.itemsAt(1), (std::vector<int64_t>{1, 4}));
   EXPECT_EQ(notes.integrityCheck(), "ok");
 }

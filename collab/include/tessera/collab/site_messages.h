@@ -22,6 +22,10 @@ constexpr size_t kMaxSiteMessageBytes = 128 * 1024;
 constexpr int kMaxStrokePoints = 3000;
 /// Sketches one site may keep in the scene; more is refused (undo or clear first).
 constexpr size_t kMaxSketchesPerSite = 1000;
+/// Points in one measurement (master/measurement.h kMaxAreaLoop), and the measurements one
+/// site may keep in the scene.
+constexpr int kMaxMeasurePoints = 1024;
+constexpr size_t kMaxMeasurementsPerSite = 1000;
 /// A note's text from a site, bytes (longer texts go in with tessera-annotate).
 constexpr size_t kMaxNoteTextBytes = 16 * 1024;
 /// Coordinates beyond this are refused (metres; georeferenced scenes stay far below it).

@@ -1,7 +1,7 @@
 // What the remote sites' requests do to the master's scene (issue 13), apart from the transport
 // (site_hub.h owns the sockets, keys and rates): participants join and leave, each one an AVATAR
 // node that follows its poses smoothly, their strokes become SKETCH nodes in a layer per site,
-// undo and clear, and follow-me (the leader's pose moves the scene camera).
+// undo and clear, their measurements MEASUREMENT nodes in "measurements", and follow-me (the leader's pose moves the scene camera).
 //
 // Avatar motion: each pose is reached over the measured interval between poses (at most 100 ms),
 // position linearly, orientation by slerp, starting at the previous frame (the pose arrived
@@ -26,7 +26,7 @@ struct SiteInfo {
   std::string name, key;  ///< unique name; Z85 public key
   uint32_t participant = 0, avatar = 0;
   bool leader = false;
-  uint64_t poses = 0, strokes = 0;
+  uint64_t poses = 0, strokes = 0, measurements = 0;
 };
 
 class SiteRoster {

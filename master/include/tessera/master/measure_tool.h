@@ -29,6 +29,18 @@ class MeasureTool {
   /// "distance", "path", "angle", "area" or "off".
   static const char* name(Mode mode);
 
+  /// A completed measurement: what a MEASUREMENT node holds.
+  struct Finished {
+    scene::MeasurementPayload::Type type = scene::MeasurementPayload::DISTANCE;
+    std::vector<glm::dvec3> points;  ///< world, metres
+    Measurement measured;
+  };
+  /// As add() and finish(), without a scene: the completed measurement for the caller to send
+  /// (a remote site asks the master to add it: site.proto SiteMeasure).
+  std::optional<Finished> addPoint(const SurfacePick& pick,
+                                   std::span<const render::ModelInstance> models);
+  std::optional<Finished> complete(std::span<const render::ModelInstance> models);
+
   /// Adds a picked point. A distance's second or an angle's third point completes it: the node
   /// is made in `graph` (author `author`) and returned. `models` are the instances the picks'
   /// model indices refer to (an area's surface is the first point's model).
@@ -49,9 +61,7 @@ class MeasureTool {
   const std::string& lastLabel() const { return mLastLabel; }
 
  private:
-  sync::SceneGraph::NodeId make(sync::SceneGraph& graph,
-                                std::span<const render::ModelInstance> models,
-                                const std::string& author);
+  Finished measure(std::span<const render::ModelInstance> models);
   Mode mMode = Mode::kOff;
   std::vector<SurfacePick> mPoints;
   std::string mLastLabel;

@@ -43,6 +43,15 @@ std::optional<SurfacePick> pickSurface(std::span<const render::ModelInstance> mo
                                        const PickOptions& options = {},
                                        std::optional<size_t> only_model = std::nullopt);
 
+/// The surface under pixel `px` (x right, y down, fractional) of the last frame `renderer` drew
+/// of `view`: the frame's pick ids name the model (nullopt on background, or a see-through frame
+/// without pick ids), then pickSurface() refines along the pixel's ray in that model's full
+/// resolution; where the refinement finds nothing (a corrupt chunk) the pixel's own depth,
+/// with a pixel's width of uncertainty. What the console's and a site's measuring tools click.
+std::optional<SurfacePick> pickUnderPixel(const render::ViewRenderer& renderer,
+                                          std::span<const render::ModelInstance> models,
+                                          const render::ViewSetup& view, glm::dvec2 px);
+
 /// A projector onto a point model's surface: from the sample nearest to the point, the plane
 /// fitted (least squares) to the leaf samples within `radius` metres of it, the point dropped
 /// onto it, refitted once where it landed (a moving least-squares step). nullopt where no sample

@@ -30,8 +30,9 @@ SceneGraph::NodeId addSketch(SceneGraph& graph, SceneGraph::NodeId layer, std::s
 
 /// A MEASUREMENT node under `layer`, recorded as `author`'s: the picked points (metres, scene
 /// frame, double), the value and its uncertainty as measured (master/measurement.h). Named
-/// after its type and number in the layer ("distance 3"); no colour: the overlay's. Throws SceneError when the payload
-/// is not valid (point count for the type, non-finite numbers).
+/// after its type and number in the layer ("distance 3"); no colour: the overlay's. Throws
+/// PreconditionError (TESSERA_CHECK) when the payload is not valid (point count for the type,
+/// non-finite numbers).
 SceneGraph::NodeId addMeasurement(SceneGraph& graph, SceneGraph::NodeId layer,
                                   std::string_view author,
                                   scene::MeasurementPayload::Type type,
