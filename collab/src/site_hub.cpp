@@ -15,6 +15,7 @@
 #include <tessera/collab/curve.h>
 #include <tessera/collab/site_messages.h>
 #include <tessera/collab/site_notes.h>
+#include <tessera/collab/site_selections.h>
 #include <tessera/collab/video_packet.h>
 #include <tessera/collab/voice_alsa.h>
 #include <tessera/collab/voice_bridge.h>
@@ -68,6 +69,7 @@ struct SiteHub::Impl {
   double last_reload = 0;
   SiteHubCounters counters;
   master::AnnotationScene* notes = nullptr;
+  std::unique_ptr<SiteSelections> selections;  // made with the first lasso
   std::unique_ptr<VoiceBridge> voice;               // with opt.voice
   std::unique_ptr<AlsaMicrophone> wall_microphone;  // --audio-in alsa:DEVICE
   std::unique_ptr<AlsaSpeaker> wall_speaker;        // --audio-out alsa:DEVICE
@@ -346,6 +348,12 @@ struct SiteHub::Impl {
         else
           say(roster.info(p.participant).name + ": note refused: " + answer.note().error());
         send(p, answer.SerializeAsString());
+      } else if (m.kind_case() == site::ToMaster::kSelect) {
+        if (!selections)
+          selections = std::make_unique<SiteSelections>([this](const std::string& line) {
+            say(line);
+          });
+        selections->request(graph, p.participant, roster.info(p.participant).name, m.select());
       } else if (m.kind_case() == site::ToMaster::kVideo) {
         video(graph, p, m.video(), now);
       } else if (m.kind_case() == site::ToMaster::kVoice) {
@@ -460,6 +468,7 @@ void SiteHub::beforeFrame(sync::SceneGraph& graph, uint64_t, double) {
     m->removeInset(graph, participant);
   }
   m->roster.animate(graph, now);
+  if (m->selections) m->selections->collect(graph);
   if (m->voice) {
     std::map<uint32_t, Peer*> by_participant;
     for (auto& [rid, p] : m->peers)

@@ -207,6 +207,35 @@ Problem checkMeasure(const site::SiteMeasure& m) {
   return {};
 }
 
+Problem checkSelect(const site::SiteSelect& m) {
+  if (m.model() == 0) return std::string("select.model: must name a MODEL node (> 0)");
+  for (const auto& [matrix, field] :
+       {std::pair{&m.view(), "select.view"}, {&m.projection(), "select.projection"}}) {
+    if (matrix->size() != 16)
+      return std::string(field) + ": needs 16 numbers, got " + std::to_string(matrix->size());
+    for (double v : *matrix)
+      if (!(std::abs(v) <= 1e12)) return std::string(field) + ": numbers must be finite";
+  }
+  for (const auto& [v, field] : {std::pair{m.width(), "select.width"}, {m.height(), "select.height"}})
+    if (v < 16 || v > 16384) return std::string(field) + ": 16..16384 pixels, got " + std::to_string(v);
+  if (m.lasso_size() % 2 != 0 || m.lasso_size() < 6 || m.lasso_size() > 2 * kMaxLassoPoints)
+    return "select.lasso: needs 3.." + std::to_string(kMaxLassoPoints) + " x y pairs, got " +
+           std::to_string(m.lasso_size()) + " numbers";
+  for (double v : m.lasso())
+    if (!(std::abs(v) <= 1e6)) return std::string("select.lasso: numbers must be finite, within 1e6");
+  // The view must be one: an invertible projection of a finite frustum.
+  glm::dmat4 vp(1.0), view(1.0);
+  for (int k = 0; k < 16; ++k) {
+    vp[k / 4][k % 4] = m.projection(k);
+    view[k / 4][k % 4] = m.view(k);
+  }
+  vp = vp * view;
+  const double det = glm::determinant(vp);
+  if (!std::isfinite(det) || std::abs(det) < 1e-300)
+    return std::string("select.projection: with the view, not invertible");
+  return {};
+}
+
 }  // namespace
 
 Problem checkName(std::string_view name, const std::string& field) {
@@ -241,6 +270,8 @@ Problem checkToMaster(const site::ToMaster& m) {
       return checkNote(m.note());
     case site::ToMaster::kMeasure:
       return checkMeasure(m.measure());
+    case site::ToMaster::kSelect:
+      return checkSelect(m.select());
     case site::ToMaster::kVideo: {
       VideoPacket packet;
       const std::string& v = m.video();

@@ -149,6 +149,15 @@ site::SiteScript loadSiteScript(const std::string& path) {
           if (!std::isfinite(v)) fail(path, field + ".measure.pixels", "numbers must be finite");
         break;
       }
+      case site::SiteAction::kLasso: {
+        const site::LassoAction& l = a.lasso();
+        if (l.pixels_size() % 2 != 0 || l.pixels_size() < 6 || l.pixels_size() > 2 * kMaxLassoPoints)
+          fail(path, field + ".lasso.pixels",
+               "3.." + std::to_string(kMaxLassoPoints) + " x y pairs");
+        for (float v : l.pixels())
+          if (!std::isfinite(v)) fail(path, field + ".lasso.pixels", "numbers must be finite");
+        break;
+      }
       case site::SiteAction::kScreenshot:
         if (a.screenshot().empty() || a.screenshot().find('/') != std::string::npos)
           fail(path, field + ".screenshot", "a file name in the output folder");
@@ -182,7 +191,7 @@ struct SiteSession::Impl {
   uint64_t sequence = 0;
   std::ofstream strokes_csv;
   uint64_t strokes = 0;
-  uint64_t notes_sent = 0, measures_sent = 0;
+  uint64_t notes_sent = 0, measures_sent = 0, lassos_sent = 0;
   bool want_pick = false;  // render pick ids (a note's pixel)
   // --window: one-button navigation (left button, wheel), strokes (right-button drag).
   master::OneButtonNavigation navigation;
@@ -622,6 +631,46 @@ struct SiteSession::Impl {
     client->send(m);
   }
 
+  /// A script's lasso: its pixels and this view go to the master, which selects (SiteSelect).
+  void lasso(const site::LassoAction& a, const config::Camera& c) {
+    const uint64_t index = ++lassos_sent;
+    const std::string what = "lasso " + std::to_string(index);
+    uint32_t model = 0;
+    if (!a.model().empty()) {
+      if (const auto id = graph.findByName(a.model());
+          id && graph.node(*id).kind() == scene::SceneNode::MODEL)
+        model = *id;
+    } else {
+      for (uint32_t id : graph.ids())
+        if (graph.node(id).kind() == scene::SceneNode::MODEL) {
+          model = id;
+          break;
+        }
+    }
+    if (!model) {
+      say(what + " skipped: the scene has no model " +
+          (a.model().empty() ? std::string() : "named \"" + a.model() + "\""));
+      return;
+    }
+    const render::ViewSetup v = view(c);
+    site::ToMaster m;
+    site::SiteSelect& s = *m.mutable_select();
+    s.set_model(model);
+    for (int k = 0; k < 16; ++k) {
+      s.add_view(v.view[k / 4][k % 4]);
+      s.add_projection(v.projection[k / 4][k % 4]);
+    }
+    s.set_width(v.width);
+    s.set_height(v.height);
+    for (float p : a.pixels()) s.add_lasso(p);
+    if (const auto why = checkToMaster(m)) {
+      say(what + " not sent: " + *why);
+      return;
+    }
+    say(what + " sent");
+    client->send(m);
+  }
+
   void stroke(const site::StrokeAction& a, const config::Camera& c) {
     site::ToMaster m;
     site::SiteStroke& s = *m.mutable_stroke();
@@ -697,6 +746,9 @@ struct SiteSession::Impl {
         break;
       case site::SiteAction::kMeasure:
         measure(a.measure(), asSent(camera(now)));
+        break;
+      case site::SiteAction::kLasso:
+        lasso(a.lasso(), asSent(camera(now)));
         break;
       case site::SiteAction::kUndo:
         m.mutable_undo();

@@ -5,10 +5,10 @@
 
 namespace tessera::master {
 
-LassoSelectResult selectWithLasso(sync::SceneGraph& graph, const render::ModelInstance& instance,
-                                  uint32_t model_node, const render::ViewSetup& view,
-                                  std::span<const glm::dvec2> pixels, const std::string& author) {
-  LassoSelectResult out;
+LassoSelection lassoSelection(const render::ModelInstance& instance, uint32_t model_node,
+                              const render::ViewSetup& view, std::span<const glm::dvec2> pixels,
+                              unsigned threads) {
+  LassoSelection out;
   if (pixels.size() < 3 || view.width == 0 || view.height == 0) return out;
   for (const glm::dvec2& p : pixels)
     if (!std::isfinite(p.x) || !std::isfinite(p.y)) return out;
@@ -22,13 +22,14 @@ LassoSelectResult selectWithLasso(sync::SceneGraph& graph, const render::ModelIn
   const LassoPolygon lasso(kept);
   LassoOptions o;
   o.model = instance.model;
+  o.threads = threads;
   if (!instance.mesh && !instance.store) return out;
   const LassoResult r = instance.mesh ? lassoTriangles(*instance.mesh, lv, lasso, o)
                                       : lassoPoints(*instance.store, lv, lasso, o);
   out.corrupt = r.stats.corrupt_chunks;
   out.count = r.selection.count();
   if (out.count == 0) return out;
-  scene::SelectionPayload s;
+  scene::SelectionPayload& s = out.payload;
   s.set_model(model_node);
   const glm::dmat4 vp = view.projection * view.view;
   for (int k = 0; k < 16; ++k) s.add_lasso_clip_from_world(vp[k / 4][k % 4]);
@@ -39,16 +40,33 @@ LassoSelectResult selectWithLasso(sync::SceneGraph& graph, const render::ModelIn
   const std::vector<uint8_t> bytes = r.selection.serialize();
   s.set_elements(std::string(bytes.begin(), bytes.end()));
   s.set_count(out.count);
+  return out;
+}
+
+sync::SceneGraph::NodeId addSelection(sync::SceneGraph& graph,
+                                      const scene::SelectionPayload& payload,
+                                      const std::string& author) {
   const auto layer = sync::layerGroup(graph, "selections", author);
-  out.node = graph.add(scene::SceneNode::SELECTION, layer,
-                       "selection " + std::to_string(graph.children(layer).size() + 1));
+  const auto node = graph.add(scene::SceneNode::SELECTION, layer,
+                              "selection " + std::to_string(graph.children(layer).size() + 1));
   try {
-    graph.setPayload(out.node, s);
+    graph.setPayload(node, payload);
   } catch (...) {
-    graph.remove(out.node);
+    graph.remove(node);
     throw;
   }
-  graph.setAuthor(out.node, author);
+  graph.setAuthor(node, author);
+  return node;
+}
+
+LassoSelectResult selectWithLasso(sync::SceneGraph& graph, const render::ModelInstance& instance,
+                                  uint32_t model_node, const render::ViewSetup& view,
+                                  std::span<const glm::dvec2> pixels, const std::string& author) {
+  const LassoSelection s = lassoSelection(instance, model_node, view, pixels);
+  LassoSelectResult out;
+  out.count = s.count;
+  out.corrupt = s.corrupt;
+  if (s.count > 0) out.node = addSelection(graph, s.payload, author);
   return out;
 }
 

@@ -20,7 +20,7 @@
 #include <tessera/collab/curve.h>
 #include <tessera/collab/site_messages.h>
 #include <tessera/lod/mesh.h>
-#include <tessera/master/annotation_db.h>
+#include <tessera/master/annotation_scene.h>
 #include <tessera/render/image.h>
 #include <tessera/render/tile_frustum.h>
 #include <tessera/render/wall_mosaic.h>
@@ -754,10 +754,14 @@ TEST_F(SiteSession, NotesAreCommittedShownOnTheWallAndSurviveAKilledMaster) {
       {"frame": 20, "note": {"note": {"update": {"item": 1, "baseRevision": 1, "content": {
           "layer": "damage/cracks", "kind": "text", "title": "crack A 14 cm",
           "text": "seen in the 2026 survey"}}}}},
-      {"frame": 25, "measure": {"type": "DISTANCE", "pixels": [100, 105, 135, 95]}}]})");
+      {"frame": 25, "measure": {"type": "DISTANCE", "pixels": [100, 105, 135, 95]}},
+      {"frame": 28, "lasso": {"model": "bunny", "pixels": [115, 150, 160, 150, 160, 185, 115, 185]}}]})");
   ASSERT_TRUE(a->waitFor("note 3 committed: item 1 revision 2", 90)) << a->output();
   ASSERT_TRUE(a->waitFor("measurement 1 sent: [0-9.]+ (mm|cm) ± [0-9.]+ (um|µm|mm)", 90))
       << a->output();
+  // Its lasso: selected by the master at full resolution on a worker thread.
+  ASSERT_TRUE(master->waitFor("A: lasso on model \\d+: [1-9]\\d* elements selected", 90))
+      << master->output();
   EXPECT_TRUE(a->waitFor("note 1 committed: item 1 revision 1 at place 1", 1)) << a->output();
   // B edits what it saw at revision 1: refused as a conflict, nothing changed. Then a hot spot
   // with a number in another layer, a removal of an item that does not exist (refused), and a
@@ -809,6 +813,14 @@ TEST_F(SiteSession, NotesAreCommittedShownOnTheWallAndSurviveAKilledMaster) {
     EXPECT_EQ(measured->unit, "m");
     EXPECT_GT(measured->number, 0.005);
     EXPECT_LT(measured->number, 0.08);
+    // And its selection, kept with the model's name.
+    int selections = 0;
+    for (const auto& p : notes.places())
+      if (p.selection_id == tessera::master::kSelectionBlob) {
+        ++selections;
+        EXPECT_EQ(p.model, "bunny");
+      }
+    EXPECT_EQ(selections, 1);
     EXPECT_EQ(place.model, "bunny");  // named by A's pick
     ASSERT_TRUE(notes.place(b_place));
     EXPECT_EQ(notes.place(b_place)->kind, tessera::master::PlaceKind::kHotSpot);
@@ -845,7 +857,7 @@ TEST_F(SiteSession, NotesAreCommittedShownOnTheWallAndSurviveAKilledMaster) {
   mRun /= "next";  // its own logs
   fs::create_directories(mRun);
   auto next = startMaster(300.0, {"--annotations", db.string()});
-  EXPECT_TRUE(next->waitFor("annotations: \\S+notes.tadb: 4 layers, 3 places, 3 items", 5))
+  EXPECT_TRUE(next->waitFor("annotations: \\S+notes.tadb: 4 layers, 4 places, 3 items", 5))
       << next->output();
   auto next_nodes = startNodes();
   ASSERT_TRUE(next->waitFor("4 of 4 tiles have a node", 60)) << next->output();

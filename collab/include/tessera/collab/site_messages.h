@@ -26,6 +26,8 @@ constexpr size_t kMaxSketchesPerSite = 1000;
 /// site may keep in the scene.
 constexpr int kMaxMeasurePoints = 1024;
 constexpr size_t kMaxMeasurementsPerSite = 1000;
+/// Vertices of a lasso (the scene's SelectionPayload limit).
+constexpr int kMaxLassoPoints = 4096;
 /// A note's text from a site, bytes (longer texts go in with tessera-annotate).
 constexpr size_t kMaxNoteTextBytes = 16 * 1024;
 /// Coordinates beyond this are refused (metres; georeferenced scenes stay far below it).
