@@ -195,6 +195,33 @@ int run(int argc, char** argv) {
 
   if (const auto code = cli::parse(app, argc, argv, "tessera-annotate")) return *code;
 
+  // Every composite value is checked before anything is opened, so a bad one is named as such
+  // (exit 2), not hidden behind a database that cannot be opened.
+  std::optional<Place> place;
+  if (add->parsed()) {
+    if (!at.empty()) {
+      place = Place{};
+      place->kind = radius > 0.0 ? PlaceKind::kHotSpot : PlaceKind::kPoint;
+      place->model = model;
+      place->position = cli::parseVec3(at, "--at");
+      place->radius = radius;
+      const glm::dvec3 up_v = cli::parseVec3(up, "--up");
+      const glm::dvec3 target_v =
+          target.empty() ? place->position : cli::parseVec3(target, "--target");
+      if (!eye.empty()) {
+        StoredView v{cli::parseVec3(eye, "--eye"), target_v, up_v, fovy};
+        cli::checkView(v.eye, v.target, v.up, "--eye/--target/--up");
+        place->view = v;
+      } else if (radius > 0.0) {
+        throw cli::UsageError("--radius: a hot spot needs a stored view (--eye)");
+      }
+    } else if (radius > 0.0 || !eye.empty() || !target.empty()) {
+      throw cli::UsageError("--radius, --eye, --target: only with --at");
+    }
+  }
+  std::optional<glm::dvec3> origin_v;
+  if (!origin.empty()) origin_v = cli::parseVec3(origin, "--origin");
+
   // Only edits create a database: a mistyped path to list or export is an error, not an empty
   // new file.
   if ((list->parsed() || search->parsed() || exp->parsed() || lay->parsed() ||
@@ -238,25 +265,6 @@ int run(int argc, char** argv) {
         throw cli::UsageError("--embed " + image_file + ": larger than " +
                               std::to_string(kMaxBlobBytes) + " bytes");
     }
-    std::optional<Place> place;
-    if (!at.empty()) {
-      place = Place{};
-      place->kind = radius > 0.0 ? PlaceKind::kHotSpot : PlaceKind::kPoint;
-      place->model = model;
-      place->position = cli::parseVec3(at, "--at");
-      place->radius = radius;
-      if (!eye.empty()) {
-        StoredView v{cli::parseVec3(eye, "--eye"),
-                     target.empty() ? place->position : cli::parseVec3(target, "--target"),
-                     cli::parseVec3(up, "--up"), fovy};
-        cli::checkView(v.eye, v.target, v.up, "--eye/--target/--up");
-        place->view = v;
-      } else if (radius > 0.0) {
-        throw cli::UsageError("--radius: a hot spot needs a stored view (--eye)");
-      }
-    } else if (radius > 0.0 || !eye.empty() || !target.empty()) {
-      throw cli::UsageError("--radius, --eye, --target: only with --at");
-    }
     if (place_id && !db.place(place_id))
       throw cli::UsageError("--place " + std::to_string(place_id) + ": no such place");
     const std::string title = item.title;
@@ -284,7 +292,7 @@ int run(int argc, char** argv) {
       std::optional<Georeference> geo;
       if (crs.empty() != origin.empty())
         throw cli::UsageError("--crs and --origin: give both or neither");
-      if (!crs.empty()) geo = Georeference{crs, cli::parseVec3(origin, "--origin")};
+      if (!crs.empty()) geo = Georeference{crs, *origin_v};
       exportGeoJson(db, text, geo);
     }
     if (const std::string error = writeFile(output, text.str()); !error.empty()) {
@@ -312,7 +320,7 @@ int run(int argc, char** argv) {
       std::cout << l.path << "\t" << (l.visible ? "visible" : "hidden")
                 << (l.visible && !db.layerShown(l.path) ? " (an ancestor is hidden)" : "") << "\n";
   } else if (georef->parsed()) {
-    db.setGeoreference(crs, cli::parseVec3(origin, "--origin"));
+    db.setGeoreference(crs, *origin_v);
   }
   return cli::kExitOk;
 }

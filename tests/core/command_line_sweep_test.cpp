@@ -229,6 +229,34 @@ TEST(CommandLineSweep, TesseraSite) {
   }
 }
 
+Tool annotate(const std::string& sub) {
+  // A database in a folder that does not exist: a value wrongly taken ends at opening it.
+  return {"tessera-annotate", kTimeout + TESSERA_ANNOTATE_TOOL + " -d /nonexistent/x.tadb " + sub};
+}
+
+TEST(CommandLineSweep, TesseraAnnotate) {
+  sweep(annotate("search crack"), {{"--limit", false, true}});
+  const std::string add = "add --layer a --title t --at=0,0,0";
+  sweep(annotate(add), {{"--radius", false, false},
+                        {"--fovy", false, false},
+                        {"--count", false, true}});
+  sweep(annotate("add --layer a --title t --kind link"), {{"--link-item", false, true}});
+  sweep(annotate("add --layer a --title t"), {{"--place", false, true}});
+  // Any finite number is a number item's value; nothing else.
+  for (const char* v : {"nan", "inf", "-inf", "1e400", "abc", "''"})
+    expectRefused(annotate("add --layer a --title t --kind number"), "--number", v);
+  for (const char* opt : {"--at", "--eye", "--target", "--up"}) {
+    for (const char* v : {"nan,0,0", "0,inf,0", "0,0,-inf", "1e400,0,0", "1,2", "1,2,3,4", "abc"})
+      expectRefused(annotate("add --layer a --title t --at=0,0,1 --radius 0.5 --eye=0,0,5"), opt,
+                    v);
+  }
+  for (const char* v : {"nan,0,0", "1,2", "0,inf,0"}) {
+    expectRefused(annotate("georef --crs EPSG:32633"), "--origin", v);
+    expectRefused(annotate("export --format geojson -o /nonexistent/x.json --crs EPSG:32633"),
+                  "--origin", v);
+  }
+}
+
 TEST(CommandLineSweep, TesseraNode) {
   sweep(node(), {{"--join-timeout", false, false},
                  {"--wait-master", true, false},
