@@ -190,19 +190,30 @@ HighlightPass::HighlightPass()
       mMask(size_t(kHighlightMaskSize) * kHighlightMaskSize / 8, nullptr, GL_DYNAMIC_STORAGE_BIT) {}
 
 double HighlightPass::run(FrameTarget& target, std::span<const Highlight> highlights,
-                          const glm::dmat4& clip_from_world) {
+                          const glm::dmat4& clip_from_world,
+                          std::optional<std::span<const PickSpan>> models) {
   if (highlights.empty()) return 0.0;
   GpuLap lap;
   mProgram.use();
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_DEPTH, target.depth().name());
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_IMAGE, target.image().name());
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_SCREEN_SCRATCH, mMask.name());
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_PICK, target.pick().name());
   mProgram.set("uSize", glm::ivec2(target.width(), target.height()));
   mProgram.set("uMaskSize", kHighlightMaskSize);
   const glm::dmat4 world_from_clip = glm::inverse(clip_from_world);
   for (const Highlight& h : highlights) {
     if (!h.mask || h.mask->size() * 32 != size_t(kHighlightMaskSize) * kHighlightMaskSize)
       continue;
+    // Only the selected model's pixels: its span of pick ids (none drawn: nothing to tint).
+    const PickSpan* span = nullptr;
+    if (h.model_node != 0 && models) {
+      for (const PickSpan& m : *models)
+        if (m.node == h.model_node) span = &m;
+      if (!span) continue;
+    }
+    mProgram.set("uPickFirst", span ? span->first : 0u);
+    mProgram.set("uPickCount", span ? span->count : 0xFFFFFFFFu);
     if (mUploaded != h.mask.get()) {
       glNamedBufferSubData(mMask.name(), 0, GLsizeiptr(h.mask->size() * 4), h.mask->data());
       mUploaded = h.mask.get();

@@ -118,7 +118,11 @@ void ViewRenderer::draw(std::span<const ModelInstance> models, const ViewSetup& 
         "opaque frames yet (set every point model's opacity to 1, or hide the meshes)");
   mStreamer->beginFrame();
   st.upload_ms = mStreamer->stats().upload_ms;
-  const bool pick = options.pick_ids && !see_through;
+  // A highlight on one model needs the pick ids to tell that model's pixels (HighlightPass).
+  bool model_highlights = false;
+  for (const Highlight& h : options.highlights) model_highlights |= h.model_node != 0;
+  const bool pick = (options.pick_ids || model_highlights) && !see_through;
+  std::vector<PickSpan> model_picks;
   mPickRanges.clear();
   mBatchNodes.clear();
   std::vector<DrawBatch> batches;
@@ -128,6 +132,7 @@ void ViewRenderer::draw(std::span<const ModelInstance> models, const ViewSetup& 
     return mPickRanges.empty() ? 0u : mPickRanges.back().base + mPickRanges.back().count;
   };
   for (size_t i = 0; i < models.size(); ++i) {
+    if (pick) model_picks.push_back({models[i].node, nextBase(), 0});
     if (models[i].mesh) {
       const size_t first = mesh_batches.size();
       addMeshModel(models[i], view, options, mesh_batches, mesh_nodes, st);
@@ -146,6 +151,10 @@ void ViewRenderer::draw(std::span<const ModelInstance> models, const ViewSetup& 
       mPickRanges.push_back({base, batches[b].count, i, mBatchNodes[b]});
     }
   }
+  // Each model's batches took consecutive pick ids: its span ends where the next one starts.
+  for (size_t i = 0; i < model_picks.size(); ++i)
+    model_picks[i].count =
+        (i + 1 < model_picks.size() ? model_picks[i + 1].first : nextBase()) - model_picks[i].first;
   mStreamer->endFrame();
   st.stream = mStreamer->stats();
   mPickUnproject = glm::inverse(view.projection * view.view);
@@ -197,7 +206,9 @@ void ViewRenderer::draw(std::span<const ModelInstance> models, const ViewSetup& 
   }
   if (!options.highlights.empty()) {
     if (!mHighlight) mHighlight = std::make_unique<HighlightPass>();
-    st.screen_ms += mHighlight->run(mTarget, options.highlights, view.projection * view.view);
+    st.screen_ms += mHighlight->run(mTarget, options.highlights, view.projection * view.view,
+                                    pick ? std::optional(std::span<const PickSpan>(model_picks))
+                                         : std::nullopt);
   }
   if (overlay && !overlay->empty()) {
     if (!mOverlay) mOverlay = std::make_unique<OverlayPass>();
@@ -271,6 +282,7 @@ void ViewRenderer::drawSeeThrough(std::span<const ModelInstance> models, const V
     sig = mixBytes(mix(mix(sig, b.cells), uint32_t(b.copies)), &b.jitter_k, sizeof b.jitter_k);
     sig = mixBytes(sig, &b.cell_spread, sizeof b.cell_spread);
     sig = mixBytes(sig, &b.ensemble_shift, sizeof b.ensemble_shift);
+    sig = mixBytes(sig, &b.clip, sizeof b.clip);
   }
   if (sig != mSpbrSignature) {
     mSpbrSignature = sig;
@@ -353,6 +365,7 @@ void ViewRenderer::addModel(const ModelInstance& instance, bool see_through, con
     // Double precision down to the node, float within it: georeferenced data stays exact.
     const glm::dmat4 world_from_local = model * glm::translate(glm::dmat4(1.0), chunk.offset);
     b.clip_from_local = glm::mat4(clip_from_world * world_from_local);
+    b.clip = gpuClipPlanes(instance.clip, world_from_local);
     b.spacing_k = float(n.spacing * k * options.splat_scale);
     b.splat_radius = splatRadiusCap(options);
     // The discs' bound: the node's nearest view depth (at a corner of its box), a leaf's
@@ -514,6 +527,7 @@ void ViewRenderer::addMeshModel(const ModelInstance& instance, const ViewSetup& 
     const glm::dmat4 world_from_local =
         instance.model * glm::translate(glm::dmat4(1.0), chunk.offset);
     b.clip_from_local = glm::mat4(clip_from_world * world_from_local);
+    b.clip = gpuClipPlanes(instance.clip, world_from_local);
     b.eye_local = glm::vec3(glm::inverse(world_from_local) * glm::dvec4(view.eye_world, 1.0));
     if (instance.color != glm::u8vec3(0) && !store.summary().colors)
       b.color_override = 0x1000000u | packRgb(instance.color);

@@ -766,7 +766,8 @@ TEST_F(SceneOverlayRenderTest, ASelectionIsTintedWhereItsSurfaceIsSeenFromAnyVie
   const std::vector<Highlight> highlights = sceneHighlights(g);
   ASSERT_EQ(highlights.size(), 1u);
 
-  const ModelInstance m[] = {{store.get(), storeModel(*store)}};
+  ModelInstance m[] = {{store.get(), storeModel(*store)}};
+  m[0].node = model;  // the selection's model (SceneDrawList sets it)
   ViewRenderer r(w, h);
   for (const ViewSetup* v : {&lasso_view, &other}) {
     RenderOptions opt;

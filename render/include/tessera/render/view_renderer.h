@@ -91,6 +91,8 @@ struct RenderOptions {
   bool flat_shading = false;
   /// Selections to tint (screen_passes.h HighlightPass; the scene's SELECTION nodes through
   /// sceneHighlights() in scene_overlay.h), drawn after eye-dome lighting, under the overlay.
+  /// A highlight naming a model (Highlight::model_node) makes an opaque frame write pick ids,
+  /// so only that model's pixels are tinted.
   std::vector<Highlight> highlights;
 };
 
@@ -133,6 +135,13 @@ struct ModelInstance {
   glm::u8vec3 color{0, 0, 0};
   /// A mesh store instead of `store` (last, so positional initialisers of point models stay).
   lod::MeshStore* mesh = nullptr;
+  /// What cuts the model, world frame (clip_planes.h; the scene's CLIP nodes through
+  /// SceneDrawList): each batch tests its points or fragments against these planes, moved to
+  /// its own frame in double. Empty: nothing cut.
+  ClipPlanes clip{};
+  /// The MODEL node drawn (SceneDrawList), 0: none. A Highlight naming it (model_node) tints
+  /// only this model's pixels.
+  uint32_t node = 0;
   /// The store drawn, whichever kind it is.
   lod::LodHierarchy* hierarchy() const {
     return mesh ? static_cast<lod::LodHierarchy*>(mesh) : store;
