@@ -21,7 +21,6 @@
 #include <glm/gtc/matrix_transform.hpp>
 #include <glm/gtc/type_ptr.hpp>
 
-#include <tessera/lod/mesh_builder.h>
 #include <tessera/render/scene_draw_list.h>
 #include <tessera/render/scene_overlay.h>
 #include <tessera/render/view_renderer.h>
@@ -33,6 +32,32 @@ namespace tessera::render {
 namespace {
 
 using sync::SceneGraph;
+
+void setVec(config::Vec3& v, const glm::dvec3& d) {
+  v.set_x(d.x);
+  v.set_y(d.y);
+  v.set_z(d.z);
+}
+
+/// A box payload: centre and half extents, node frame.
+scene::ClipPayload boxPayload(const glm::dvec3& centre, const glm::dvec3& half) {
+  scene::ClipPayload b;
+  setVec(*b.mutable_box_center(), centre);
+  setVec(*b.mutable_box_half_extents(), half);
+  return b;
+}
+
+/// Two MODEL nodes drawing the same store.
+std::pair<SceneGraph::NodeId, SceneGraph::NodeId> addTwoModels(SceneGraph& g,
+                                                               const std::string& store) {
+  scene::ModelPayload m;
+  m.set_store(store);
+  const auto a = g.add(scene::SceneNode::MODEL);
+  const auto b = g.add(scene::SceneNode::MODEL);
+  g.setPayload(a, m);
+  g.setPayload(b, m);
+  return {a, b};
+}
 
 // ---- The rule and its precision (no GL).
 
@@ -93,11 +118,7 @@ TEST(ClipPlanes, GeoreferencedPlanesKeepMicrometresInTheBatchFrame) {
 TEST(ClipPlanes, TheOverlayOutlinesBoxesAndPlanes) {
   SceneGraph g;
   const auto box = g.add(scene::SceneNode::CLIP);
-  scene::ClipPayload b;
-  b.mutable_box_half_extents()->set_x(1.0);
-  b.mutable_box_half_extents()->set_y(2.0);
-  b.mutable_box_half_extents()->set_z(3.0);
-  g.setPayload(box, b);
+  g.setPayload(box, boxPayload({0, 0, 0}, {1, 2, 3}));
   Overlay o;
   appendSceneOverlay(g, o);
   ASSERT_EQ(o.lines.size(), 12u);
@@ -131,19 +152,8 @@ TEST(ClipPlanes, TheOverlayOutlinesBoxesAndPlanes) {
 
 // ---- On the bunny.
 
-const std::string kBunnyMesh =
-    std::string(TESSERA_DATA_DIR) + "/stanford-bunny/reconstruction/bun_zipper.ply";
-
-class ClipRenderTest : public test::BunnyStoreTest {
+class ClipRenderTest : public test::BunnyMeshStoreTest {
  public:
-  static void SetUpTestSuite() {
-    test::BunnyStoreTest::SetUpTestSuite();
-    lod::MeshBuildOptions o;
-    o.patch_triangles = 1024;
-    o.quiet = true;
-    lod::buildMeshStore(std::vector<std::filesystem::path>{kBunnyMesh}, *sDir / "b.tmesh", o);
-  }
-
   static constexpr uint32_t kW = 320, kH = 240;
 
   /// The bunny's centre (world) and a view of it from the front-right, a little above.
@@ -314,13 +324,7 @@ TEST_F(ClipRenderTest, ABoxKeepsItsInsideAndInvertedItsOutside) {
   const glm::dvec3 c = centre();
   const glm::dvec3 half(0.035, 0.03, 0.05);
   const glm::dvec3 mid(0.01, 0.02, 0.0);  // around the upper body and head, node frame
-  scene::ClipPayload box;
-  box.mutable_box_center()->set_x(mid.x);
-  box.mutable_box_center()->set_y(mid.y);
-  box.mutable_box_center()->set_z(mid.z);
-  box.mutable_box_half_extents()->set_x(half.x);
-  box.mutable_box_half_extents()->set_y(half.y);
-  box.mutable_box_half_extents()->set_z(half.z);
+  scene::ClipPayload box = boxPayload(mid, half);
   const glm::dmat4 place = glm::translate(glm::dmat4(1.0), c);
   SyncedScene s((*sDir / "b.tlod").string(), box, place);
   const double margin = 0.004;
@@ -417,16 +421,8 @@ TEST_F(ClipRenderTest, SeeThroughEnsemblesAreCut) {
 /// under a hidden group cut nothing; a node that does not fit is left out and counted.
 TEST_F(ClipRenderTest, TheDrawListCollectsTheClipsOfEachModel) {
   SceneGraph g;
-  scene::ModelPayload m;
-  m.set_store((*sDir / "b.tlod").string());
-  const auto a = g.add(scene::SceneNode::MODEL);
-  const auto b = g.add(scene::SceneNode::MODEL);
-  g.setPayload(a, m);
-  g.setPayload(b, m);
-  scene::ClipPayload box;
-  box.mutable_box_half_extents()->set_x(1.0);
-  box.mutable_box_half_extents()->set_y(1.0);
-  box.mutable_box_half_extents()->set_z(1.0);
+  const auto [a, b] = addTwoModels(g, (*sDir / "b.tlod").string());
+  const scene::ClipPayload box = boxPayload({0, 0, 0}, {1, 1, 1});
   const auto all = g.add(scene::SceneNode::CLIP);
   g.setPayload(all, box);
   scene::ClipPayload only_b = planePayload();
@@ -469,12 +465,7 @@ TEST_F(ClipRenderTest, TheDrawListCollectsTheClipsOfEachModel) {
 TEST_F(ClipRenderTest, ASelectionTintsOnlyItsOwnModel) {
   const glm::dvec3 c = centre();
   SceneGraph g;
-  scene::ModelPayload m;
-  m.set_store((*sDir / "b.tlod").string());
-  const auto left = g.add(scene::SceneNode::MODEL);
-  const auto right = g.add(scene::SceneNode::MODEL);
-  g.setPayload(left, m);
-  g.setPayload(right, m);
+  const auto [left, right] = addTwoModels(g, (*sDir / "b.tlod").string());
   const glm::dmat4 shift = glm::translate(glm::dmat4(1.0), glm::dvec3(0.17, 0.0, -0.05));
   g.setTransform(right, std::span<const double>(glm::value_ptr(shift), 16));
   ViewSetup v;
