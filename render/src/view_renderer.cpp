@@ -125,6 +125,8 @@ void ViewRenderer::draw(std::span<const ModelInstance> models, const ViewSetup& 
   std::vector<PickSpan> model_picks;
   mPickRanges.clear();
   mBatchNodes.clear();
+  mBatchWorld.clear();
+  mMeshWorld.clear();
   std::vector<DrawBatch> batches;
   std::vector<MeshBatch> mesh_batches;
   std::vector<lod::NodeId> mesh_nodes;
@@ -206,15 +208,51 @@ void ViewRenderer::draw(std::span<const ModelInstance> models, const ViewSetup& 
   }
   if (!options.highlights.empty()) {
     if (!mHighlight) mHighlight = std::make_unique<HighlightPass>();
-    st.screen_ms += mHighlight->run(mTarget, options.highlights, view.projection * view.view,
-                                    pick ? std::optional(std::span<const PickSpan>(model_picks))
-                                         : std::nullopt);
+    const auto spans =
+        pick ? std::optional(std::span<const PickSpan>(model_picks)) : std::nullopt;
+    for (const Highlight& h : options.highlights) {
+      // Visible only: what the lasso's view shows of this frame's batches, drawn again from
+      // there (opaque frames: see-through ones tint through the depth).
+      const bool visible = h.visible_only && !see_through;
+      if (visible) drawLassoDepth(h.clip_from_world, view, batches, mesh_batches);
+      st.screen_ms += mHighlight->run(mTarget, std::span(&h, 1), view.projection * view.view,
+                                      spans, visible ? mLassoTarget.get() : nullptr);
+    }
   }
   if (overlay && !overlay->empty()) {
     if (!mOverlay) mOverlay = std::make_unique<OverlayPass>();
     st.overlay_ms = mOverlay->run(mTarget, view, *overlay);
   }
   if (stats) *stats = st;
+}
+
+void ViewRenderer::drawLassoDepth(const glm::dmat4& lasso_clip_from_world, const ViewSetup& view,
+                                  std::span<const DrawBatch> batches,
+                                  std::span<const MeshBatch> meshes) {
+  if (!mLassoTarget) mLassoTarget = std::make_unique<FrameTarget>(kLassoDepthSize, kLassoDepthSize);
+  FrameTarget& t = *mLassoTarget;
+  t.clearGeometry(false);
+  const glm::dmat4& m = lasso_clip_from_world;
+  // Splats keep their size on the surface: pixels per unit at distance one are half the plane's
+  // height times the projection's [1][1], the length of clip row 1's rotation part.
+  const double lasso_k =
+      0.5 * double(kLassoDepthSize) * glm::length(glm::dvec3(m[0][1], m[1][1], m[2][1]));
+  const float scale = float(lasso_k / pixelsPerUnitAtDistanceOne(view));
+  if (!meshes.empty()) {
+    std::vector<MeshBatch> moved(meshes.begin(), meshes.end());
+    for (size_t i = 0; i < moved.size(); ++i)
+      moved[i].clip_from_local = glm::mat4(m * mMeshWorld[i]);
+    mMeshes->draw(t, moved, MeshShading{});
+  }
+  std::vector<DrawBatch> moved(batches.begin(), batches.end());
+  for (size_t i = 0; i < moved.size(); ++i) {
+    moved[i].clip_from_local = glm::mat4(m * mBatchWorld[i]);
+    moved[i].spacing_k *= scale;
+    moved[i].max_disc_px *= scale;
+  }
+  PointShading depth_only;
+  depth_only.uniform_color = 0xFFFFFFFFu;
+  mPoints.draw(t, moved, depth_only);
 }
 
 std::optional<PickHit> ViewRenderer::pick(uint32_t x, uint32_t y) const {
@@ -431,6 +469,7 @@ void ViewRenderer::addModel(const ModelInstance& instance, bool see_through, con
     }
     batches.push_back(b);
     mBatchNodes.push_back(n.id);
+    mBatchWorld.push_back(world_from_local);
     stats.points += chunk.count;
     ++stats.nodes;
   };
@@ -533,6 +572,7 @@ void ViewRenderer::addMeshModel(const ModelInstance& instance, const ViewSetup& 
       b.color_override = 0x1000000u | packRgb(instance.color);
     batches.push_back(b);
     nodes.push_back(n.id);
+    mMeshWorld.push_back(world_from_local);
     stats.triangles += chunk.index_count / 3;
     ++stats.mesh_patches;
     ++stats.nodes;

@@ -143,12 +143,18 @@ struct Highlight {
   /// model's elements are tinted (other models inside the lasso's volume are not). 0: any
   /// surface. See-through frames have no pick ids: there any surface is tinted.
   uint32_t model_node = 0;
-  /// The lasso took only what its view showed (SelectionPayload::visible_only). Not used by the
-  /// pass: from the lasso's own view the depth plane shows exactly that surface, from other
-  /// views the tint goes through the depth as for a through-selection (no depth map of the
-  /// lasso's view is kept).
+  /// The lasso took only what its view showed (SelectionPayload::visible_only): a pixel is
+  /// tinted only where its surface point is not hidden from the lasso's view. The view renderer
+  /// draws the frame's batches once more from the lasso's view into a depth plane
+  /// (kLassoDepthSize^2 over its NDC square) and the pass compares eye depths, as the lasso did
+  /// (within 1%). Approximate where the lasso's view saw occluders this view's cut does not hold
+  /// (outside this view's frustum) and at the depth plane's resolution. Opaque frames only.
   bool visible_only = false;
 };
+
+/// The side of the depth plane a visible-only highlight is tested against, pixels over the
+/// lasso view's NDC square (4 MiB of planes).
+constexpr uint32_t kLassoDepthSize = 512;
 
 /// The pick ids one model's elements wrote in a frame, [first, first + count), and its node.
 struct PickSpan {
@@ -167,7 +173,10 @@ std::vector<uint32_t> rasterizeLasso(std::span<const glm::dvec2> ndc);
 /// `clip_from_world`: the view the depth was written with. `models`: the frame's pick ids per
 /// model, when the target holds pick ids: a highlight naming a model then tints only pixels of
 /// that model's span (and nothing when the model was not drawn); without them (see-through
-/// frames) any surface in the lasso is tinted. Milliseconds.
+/// frames) any surface in the lasso is tinted. `lasso_depth`: for visible-only highlights, the
+/// depth the lasso's view shows (a target whose depth plane was drawn with each highlight's
+/// clip_from_world; the caller draws it, so run() then takes one highlight); null: through the
+/// depth. Milliseconds.
 /// Cost per highlight: one pass over the pixels reading the depth, the pick id and the mask (a
 /// 128 KiB upload when the mask changed), like one eye-dome lighting stage.
 class HighlightPass {
@@ -175,7 +184,8 @@ class HighlightPass {
   HighlightPass();
   double run(FrameTarget& target, std::span<const Highlight> highlights,
              const glm::dmat4& clip_from_world,
-             std::optional<std::span<const PickSpan>> models = std::nullopt);
+             std::optional<std::span<const PickSpan>> models = std::nullopt,
+             const FrameTarget* lasso_depth = nullptr);
 
  private:
   GlProgram mProgram;
