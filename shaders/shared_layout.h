@@ -40,8 +40,10 @@
 // clips nothing. Planes are unit-normal floats in that frame (made in double on the CPU).
 #define TESSERA_MAX_CLIP_PLANES 12
 #ifndef __cplusplus
-uniform vec4 uClipPlanes[TESSERA_MAX_CLIP_PLANES];  // a b c d: inside where a x + b y + c z + d >= 0
-uniform uint uClipGroups[TESSERA_MAX_CLIP_PLANES];  // each plane's group (one per CLIP node)
+// uClipPlanes: a b c d, inside where a x + b y + c z + d >= 0; uClipGroups: each plane's group
+// (one per CLIP node).
+uniform vec4 uClipPlanes[TESSERA_MAX_CLIP_PLANES];
+uniform uint uClipGroups[TESSERA_MAX_CLIP_PLANES];
 uniform uint uClipCount;                            // planes used
 uniform uint uClipInvert;                           // bit g: group g keeps its outside
 // Whether a cut removes position p: group g keeps p where p is inside all its planes (outside

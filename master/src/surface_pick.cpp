@@ -304,10 +304,9 @@ std::optional<SurfacePick> pickSurface(std::span<const render::ModelInstance> mo
     if (!(f.world_per_local > 0.0) || !std::isfinite(f.world_per_local)) continue;
     // The model's CLIP nodes in its store's frame (double): what they cut away is not picked.
     const render::ClipPlanes clip = m.clip.transformed(m.model);
-    std::optional<SurfacePick> p =
-        m.mesh    ? pickTriangles(*m.mesh, f, clip, origin, dir, options)
-        : m.store ? pickPoints(*m.store, f, clip, origin, dir, options)
-                  : std::nullopt;
+    std::optional<SurfacePick> p = m.mesh    ? pickTriangles(*m.mesh, f, clip, origin, dir, options)
+                                   : m.store ? pickPoints(*m.store, f, clip, origin, dir, options)
+                                             : std::nullopt;
     if (!p) continue;
     const double distance = glm::length(p->point.world - origin);
     if (distance < best_distance) {

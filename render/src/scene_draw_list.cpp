@@ -153,7 +153,8 @@ const std::vector<ModelInstance>& SceneDrawList::update(const sync::SceneGraph& 
       // A hidden CLIP node (or one under a hidden group) cuts nothing.
       const NodePlacement placed = placeNode(graph, id);
       if (placed.visible) {
-        mClips[id] = {clipPlanesOf(node.clip(), placed.world), node.clip().invert(),
+        mClips[id] = {clipPlanesOf(node.clip(), placed.world),
+                      node.clip().invert(),
                       {node.clip().models().begin(), node.clip().models().end()}};
       } else {
         mClips.erase(id);

@@ -225,7 +225,8 @@ double HighlightPass::run(FrameTarget& target, std::span<const Highlight> highli
     // with P22 and P32 read off clip_from_world's rows (projection times a rigid view: row 3 is
     // minus the view's z row, row 2 = -P22 row 3 + P32 (0, 0, 0, 1)).
     const glm::dmat4& m = h.clip_from_world;
-    const glm::dvec4 row2(m[0][2], m[1][2], m[2][2], m[3][2]), row3(m[0][3], m[1][3], m[2][3], m[3][3]);
+    const glm::dvec4 row2(m[0][2], m[1][2], m[2][2], m[3][2]),
+        row3(m[0][3], m[1][3], m[2][3], m[3][3]);
     const double r3 = glm::dot(glm::dvec3(row3), glm::dvec3(row3));
     const bool visible = h.visible_only && lasso_depth && r3 > 0.0;
     const double p22 = visible ? -glm::dot(glm::dvec3(row2), glm::dvec3(row3)) / r3 : 0.0;
@@ -237,8 +238,7 @@ double HighlightPass::run(FrameTarget& target, std::span<const Highlight> highli
     if (visible) {
       glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_TARGET_DEPTH,
                        lasso_depth->depth().name());
-      mProgram.set("uLassoSize",
-                   glm::ivec2(int(lasso_depth->width()), int(lasso_depth->height())));
+      mProgram.set("uLassoSize", glm::ivec2(int(lasso_depth->width()), int(lasso_depth->height())));
     }
     mProgram.set("uTint", glm::vec4(h.tint) / 255.0f);
     dispatchPixels(target);

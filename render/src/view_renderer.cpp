@@ -208,15 +208,14 @@ void ViewRenderer::draw(std::span<const ModelInstance> models, const ViewSetup& 
   }
   if (!options.highlights.empty()) {
     if (!mHighlight) mHighlight = std::make_unique<HighlightPass>();
-    const auto spans =
-        pick ? std::optional(std::span<const PickSpan>(model_picks)) : std::nullopt;
+    const auto spans = pick ? std::optional(std::span<const PickSpan>(model_picks)) : std::nullopt;
     for (const Highlight& h : options.highlights) {
       // Visible only: what the lasso's view shows of this frame's batches, drawn again from
       // there (opaque frames: see-through ones tint through the depth).
       const bool visible = h.visible_only && !see_through;
       if (visible) drawLassoDepth(h.clip_from_world, view, batches, mesh_batches);
-      st.screen_ms += mHighlight->run(mTarget, std::span(&h, 1), view.projection * view.view,
-                                      spans, visible ? mLassoTarget.get() : nullptr);
+      st.screen_ms += mHighlight->run(mTarget, std::span(&h, 1), view.projection * view.view, spans,
+                                      visible ? mLassoTarget.get() : nullptr);
     }
   }
   if (overlay && !overlay->empty()) {

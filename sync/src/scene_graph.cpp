@@ -148,7 +148,8 @@ Problem checkClip(const scene::ClipPayload& c) {
   for (int i = 0; i < planes; ++i) {
     const double a = c.planes(4 * i), b = c.planes(4 * i + 1), cz = c.planes(4 * i + 2);
     // Relative to the plane's own numbers: (0, 0, 0, d) keeps everything or nothing.
-    const double largest = std::max({std::abs(a), std::abs(b), std::abs(cz), std::abs(c.planes(4 * i + 3))});
+    const double largest =
+        std::max({std::abs(a), std::abs(b), std::abs(cz), std::abs(c.planes(4 * i + 3))});
     if (!(std::max({std::abs(a), std::abs(b), std::abs(cz)}) > 1e-12 * largest))
       return "clip.planes: plane " + std::to_string(i) + " has a zero normal (a, b, c)";
   }

@@ -94,7 +94,8 @@ TEST(ClipPlanes, GeoreferencedPlanesKeepMicrometresInTheBatchFrame) {
   const glm::dvec4 world_plane(n, -glm::dot(n, site));
   ClipPlanes world;
   ASSERT_TRUE(world.addGroup(std::span(&world_plane, 1), false));
-  const glm::dmat4 world_from_local = glm::translate(glm::dmat4(1.0), site + glm::dvec3(0.7, 0.1, -0.2));
+  const glm::dmat4 world_from_local =
+      glm::translate(glm::dmat4(1.0), site + glm::dvec3(0.7, 0.1, -0.2));
   const GpuClipPlanes gpu = gpuClipPlanes(world, world_from_local);
   ASSERT_EQ(gpu.count, 1u);
   // Float positions in the batch's frame, 1 um either side of the plane: the float test (as
@@ -128,9 +129,9 @@ TEST(ClipPlanes, TheOverlayOutlinesBoxesAndPlanes) {
   }
   // A plane: a square of half-width `outline` lying in it; none without an outline.
   const auto plane = g.add(scene::SceneNode::CLIP);
-  g.setTransform(plane, std::span<const double>(glm::value_ptr(glm::translate(
-                                                    glm::dmat4(1.0), glm::dvec3(10, 0, 0))),
-                                                16));
+  g.setTransform(plane,
+                 std::span<const double>(
+                     glm::value_ptr(glm::translate(glm::dmat4(1.0), glm::dvec3(10, 0, 0))), 16));
   scene::ClipPayload p;
   for (double v : {1.0, 1.0, 0.0, -2.0}) p.add_planes(v);
   p.set_outline(0.5f);
@@ -177,9 +178,7 @@ class ClipRenderTest : public test::BunnyMeshStoreTest {
     Image image;
     std::vector<std::optional<PickHit>> hits;
     const uint8_t* rgb(size_t i) const { return &image.rgba[4 * i]; }
-    bool same(const Shot& o, size_t i) const {
-      return std::memcmp(rgb(i), o.rgb(i), 3) == 0;
-    }
+    bool same(const Shot& o, size_t i) const { return std::memcmp(rgb(i), o.rgb(i), 3) == 0; }
   };
   static Shot shoot(ViewRenderer& r, std::span<const ModelInstance> models,
                     RenderOptions opt = {}) {

@@ -26,7 +26,6 @@ const std::string kBunnyMesh = test::kBunnyMeshPly;
 
 class MeshPassTest : public test::BunnyMeshStoreTest {
  protected:
-
   /// A view of the bunny from `distance` metres, w x h.
   static ViewSetup view(const lod::MeshStore& s, double distance, uint32_t w, uint32_t h) {
     const glm::dvec3 c = s.summary().origin + 0.5 * (s.summary().bbox_min + s.summary().bbox_max);

@@ -903,7 +903,7 @@ TEST_F(SceneOverlayRenderTest, AVisibleOnlySelectionIsTintedOnlyWhereTheLassoVie
                     *t = pixel(tinted_through, int(x), int(y));
       const bool changed = std::memcmp(a, b, 3) != 0;
       through_missing += std::memcmp(a, t, 3) == 0;  // a THROUGH selection tints all of it
-      if (complete && d <= nearest * 1.004) {  // no nearer surface around: seen
+      if (complete && d <= nearest * 1.004) {        // no nearer surface around: seen
         ++seen;
         wrong += !changed;
       } else if (d > farthest * 1.03 + 0.005) {  // behind every surface around: hidden

@@ -475,15 +475,17 @@ TEST(SceneGraph, ClipNodesSyncAndBadOnesAreRefusedByField) {
     // The master's mutation is refused with the same words (and where the check failed).
     const size_t field = what.find("clip.");
     EXPECT_NE(field, std::string::npos) << what;
-    if (field != std::string::npos)
+    if (field != std::string::npos) {
       EXPECT_NE(master_says.find(what.substr(field)), std::string::npos) << master_says;
+    }
     return what;
   };
   auto says = [](const std::string& what, const std::string& field) {
     return what.find(field) != std::string::npos;
   };
   EXPECT_PRED2(says, refusal([](auto& b) { b.add_planes(1.0); }), "clip.planes: needs a b c d");
-  EXPECT_PRED2(says, refusal([](auto& b) { b.set_planes(2, NAN); }), "clip.planes: numbers must be finite");
+  EXPECT_PRED2(says, refusal([](auto& b) { b.set_planes(2, NAN); }),
+               "clip.planes: numbers must be finite");
   EXPECT_PRED2(says, refusal([](auto& b) { b.set_planes(2, 0.0); }),
                "clip.planes: plane 0 has a zero normal");
   EXPECT_PRED2(says, refusal([](auto& b) {
