@@ -44,8 +44,8 @@
 // (one per CLIP node).
 uniform vec4 uClipPlanes[TESSERA_MAX_CLIP_PLANES];
 uniform uint uClipGroups[TESSERA_MAX_CLIP_PLANES];
-uniform uint uClipCount;                            // planes used
-uniform uint uClipInvert;                           // bit g: group g keeps its outside
+uniform uint uClipCount;   // planes used
+uniform uint uClipInvert;  // bit g: group g keeps its outside
 // Whether a cut removes position p: group g keeps p where p is inside all its planes (outside
 // one of them, with bit g of uClipInvert); p is drawn when every group keeps it. The same rule
 // as render::ClipPlanes::keeps().

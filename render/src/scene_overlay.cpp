@@ -300,6 +300,18 @@ std::vector<Highlight> sceneHighlights(const sync::SceneGraph& graph) {
   return out;
 }
 
+void setSelectionLasso(scene::SelectionPayload& s, const ViewSetup& view,
+                       std::span<const glm::dvec2> px) {
+  s.clear_lasso_clip_from_world();
+  s.clear_lasso();
+  const glm::dmat4 vp = view.projection * view.view;
+  for (int k = 0; k < 16; ++k) s.add_lasso_clip_from_world(vp[k / 4][k % 4]);
+  for (const glm::dvec2& p : px) {
+    s.add_lasso(p.x / view.width * 2.0 - 1.0);
+    s.add_lasso(1.0 - p.y / view.height * 2.0);
+  }
+}
+
 bool isOverlayKind(sync::SceneGraph::Kind kind) {
   return kind == scene::SceneNode::SKETCH || kind == scene::SceneNode::AVATAR ||
          kind == scene::SceneNode::ANNOTATION || kind == scene::SceneNode::VIDEO_INSET ||

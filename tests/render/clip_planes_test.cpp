@@ -27,6 +27,7 @@
 #include <tessera/sync/wire.h>
 
 #include "../support/bunny_store_test.h"
+#include "../support/lasso_payload.h"
 
 namespace tessera::render {
 namespace {
@@ -164,13 +165,7 @@ class ClipRenderTest : public test::BunnyMeshStoreTest {
   }
   static ViewSetup view() {
     const glm::dvec3 c = centre();
-    ViewSetup v;
-    v.eye_world = c + glm::dvec3(0.22, 0.08, 0.3);
-    v.view = glm::lookAt(v.eye_world, c, glm::dvec3(0, 1, 0));
-    v.projection = glm::perspective(glm::radians(35.0), double(kW) / kH, 0.02, 5.0);
-    v.width = kW;
-    v.height = kH;
-    return v;
+    return test::lookingAt(c + glm::dvec3(0.22, 0.08, 0.3), c, kW, kH);
   }
 
   /// A frame and each pixel's surface (the frame's pick ids).
@@ -467,24 +462,12 @@ TEST_F(ClipRenderTest, ASelectionTintsOnlyItsOwnModel) {
   const auto [left, right] = addTwoModels(g, (*sDir / "b.tlod").string());
   const glm::dmat4 shift = glm::translate(glm::dmat4(1.0), glm::dvec3(0.17, 0.0, -0.05));
   g.setTransform(right, std::span<const double>(glm::value_ptr(shift), 16));
-  ViewSetup v;
-  v.eye_world = c + glm::dvec3(0.085, 0.05, 0.45);
-  v.view = glm::lookAt(v.eye_world, c + glm::dvec3(0.085, 0.0, 0.0), glm::dvec3(0, 1, 0));
-  v.projection = glm::perspective(glm::radians(40.0), double(kW) / kH, 0.02, 5.0);
-  v.width = kW;
-  v.height = kH;
+  const ViewSetup v = test::lookingAt(c + glm::dvec3(0.085, 0.05, 0.45),
+                                      c + glm::dvec3(0.085, 0.0, 0.0), kW, kH, 40.0);
   // A lasso across the middle of the picture, over both bunnies (pixels, y down).
   const std::vector<glm::dvec2> px = {{20, 70}, {300, 70}, {300, 170}, {20, 170}};
   const auto sel = g.add(scene::SceneNode::SELECTION);
-  scene::SelectionPayload s;
-  s.set_model(left);
-  const glm::dmat4 vp = v.projection * v.view;
-  for (int k = 0; k < 16; ++k) s.add_lasso_clip_from_world(vp[k / 4][k % 4]);
-  for (const glm::dvec2& p : px) {
-    s.add_lasso(p.x / kW * 2.0 - 1.0);
-    s.add_lasso(1.0 - p.y / kH * 2.0);
-  }
-  g.setPayload(sel, s);
+  g.setPayload(sel, test::lassoPayload(left, v, px));
   SceneDrawList list;
   const auto models = list.update(g, sync::SceneChanges::all());
   ASSERT_EQ(models.size(), 2u);

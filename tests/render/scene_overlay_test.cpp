@@ -22,6 +22,7 @@
 #include <tessera/sync/config.h>
 
 #include "../support/bunny_store_test.h"
+#include "../support/lasso_payload.h"
 
 namespace tessera::render {
 namespace {
@@ -728,42 +729,31 @@ double edgeDistance(const std::vector<glm::dvec2>& poly, const glm::dvec2& p) {
   return d;
 }
 
+/// w x h views of the bunny from 0.45 m: the lasso's, from +z, and one `angle` radians aside
+/// around y.
+std::pair<ViewSetup, ViewSetup> lassoViewAndAside(const lod::PointStore& store, double angle,
+                                                  uint32_t w, uint32_t h) {
+  const glm::dvec3 c = bunnyCentre(store);
+  auto from = [&](const glm::dvec3& eye) { return test::lookingAt(eye, c, w, h, 35.0, 0.05); };
+  return {from(c + glm::dvec3(0.0, 0.0, 0.45)),
+          from(c + 0.45 * glm::dvec3(std::sin(angle), 0.0, std::cos(angle)))};
+}
+
 // A selection lassoed in one view is tinted where its surface lies in another view too (the
 // same points, seen from 25 degrees aside): every pixel whose surface point projects into the
 // lasso (by the test's own point-in-polygon, away from the lasso's edge by the mask's
 // resolution) is tinted, every other pixel is the plain picture's, background included.
 TEST_F(SceneOverlayRenderTest, ASelectionIsTintedWhereItsSurfaceIsSeenFromAnyView) {
   auto store = lod::PointStore::open(*sDir / "b.tlod");
-  const glm::dvec3 c = bunnyCentre(*store);
   const uint32_t w = 400, h = 300;
-  auto viewFrom = [&](const glm::dvec3& eye) {
-    ViewSetup v;
-    v.eye_world = eye;
-    v.view = glm::lookAt(eye, c, glm::dvec3(0, 1, 0));
-    v.projection = glm::perspective(glm::radians(35.0), double(w) / h, 0.05, 5.0);
-    v.width = w;
-    v.height = h;
-    return v;
-  };
-  const ViewSetup lasso_view = viewFrom(c + glm::dvec3(0.0, 0.0, 0.45));
-  const ViewSetup other = viewFrom(c + 0.45 * glm::dvec3(std::sin(0.44), 0.0, std::cos(0.44)));
+  const auto [lasso_view, other] = lassoViewAndAside(*store, 0.44, w, h);
   // A concave lasso (an L) over the bunny's body, in the lasso view's pixels (y down).
   const std::vector<glm::dvec2> px = {{150, 120}, {260, 120}, {260, 170},
                                       {200, 170}, {200, 230}, {150, 230}};
-  std::vector<glm::dvec2> ndc;
-  for (const glm::dvec2& p : px) ndc.push_back({p.x / w * 2.0 - 1.0, 1.0 - p.y / h * 2.0});
   SceneGraph g;
   const auto model = g.add(scene::SceneNode::MODEL);
   const auto sel = g.add(scene::SceneNode::SELECTION);
-  scene::SelectionPayload s;
-  s.set_model(model);
-  const glm::dmat4 lasso_vp = lasso_view.projection * lasso_view.view;
-  for (int k = 0; k < 16; ++k) s.add_lasso_clip_from_world(lasso_vp[k / 4][k % 4]);
-  for (const glm::dvec2& p : ndc) {
-    s.add_lasso(p.x);
-    s.add_lasso(p.y);
-  }
-  g.setPayload(sel, s);
+  g.setPayload(sel, test::lassoPayload(model, lasso_view, px));
   const std::vector<Highlight> highlights = sceneHighlights(g);
   ASSERT_EQ(highlights.size(), 1u);
 
@@ -816,33 +806,15 @@ namespace {
 // against the depths around the pixel it projects to there, away from depth edges.
 TEST_F(SceneOverlayRenderTest, AVisibleOnlySelectionIsTintedOnlyWhereTheLassoViewSawIt) {
   auto store = lod::PointStore::open(*sDir / "b.tlod");
-  const glm::dvec3 c = bunnyCentre(*store);
   const uint32_t w = 400, h = 300;
-  auto viewFrom = [&](const glm::dvec3& eye) {
-    ViewSetup v;
-    v.eye_world = eye;
-    v.view = glm::lookAt(eye, c, glm::dvec3(0, 1, 0));
-    v.projection = glm::perspective(glm::radians(35.0), double(w) / h, 0.05, 5.0);
-    v.width = w;
-    v.height = h;
-    return v;
-  };
-  const ViewSetup lasso_view = viewFrom(c + glm::dvec3(0.0, 0.0, 0.45));
-  const ViewSetup other = viewFrom(c + 0.45 * glm::dvec3(std::sin(1.22), 0.0, std::cos(1.22)));
+  const auto [lasso_view, other] = lassoViewAndAside(*store, 1.22, w, h);
   // Over the whole bunny, so what its front hides lies inside the lasso too.
   const std::vector<glm::dvec2> px = {{60, 40}, {340, 40}, {340, 260}, {60, 260}};
   SceneGraph g;
   const auto model = g.add(scene::SceneNode::MODEL);
   const auto sel = g.add(scene::SceneNode::SELECTION);
-  scene::SelectionPayload s;
-  s.set_model(model);
+  scene::SelectionPayload s = test::lassoPayload(model, lasso_view, px);
   s.set_visible_only(true);
-  const glm::dmat4 lasso_vp = lasso_view.projection * lasso_view.view;
-  for (int k = 0; k < 16; ++k) s.add_lasso_clip_from_world(lasso_vp[k / 4][k % 4]);
-  for (const glm::dvec2& p : px) {
-    s.add_lasso(p.x / w * 2.0 - 1.0);
-    s.add_lasso(1.0 - p.y / h * 2.0);
-  }
   g.setPayload(sel, s);
   std::vector<Highlight> visible = sceneHighlights(g);
   ASSERT_EQ(visible.size(), 1u);

@@ -41,6 +41,7 @@
 #include <cstdint>
 #include <functional>
 #include <set>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -89,6 +90,12 @@ std::string measurementLabel(const scene::MeasurementPayload& m);
 /// its model only (Highlight::model_node: the SceneDrawList's instances carry their node).
 /// Cost: about a millisecond per selection (the mask's 1024 rows).
 std::vector<Highlight> sceneHighlights(const sync::SceneGraph& graph);
+
+/// Sets a SELECTION payload's lasso: the view it was drawn in (lasso_clip_from_world: `view`'s
+/// projection times its view) and the polygon `px`, in that view's pixels (x right, y down from
+/// the top-left), as the view's NDC (lasso).
+void setSelectionLasso(scene::SelectionPayload& selection, const ViewSetup& view,
+                       std::span<const glm::dvec2> px);
 
 /// Whether the node kind is one the scene overlay draws (SKETCH, AVATAR, ANNOTATION,
 /// VIDEO_INSET, MEASUREMENT, CLIP).
