@@ -195,6 +195,8 @@ const std::vector<ModelInstance>& SceneDrawList::update(const sync::SceneGraph& 
     e.instance.node = id;
     e.instance.clip = {};
     for (const auto& [clip_id, c] : mClips) {
+      // An empty CLIP node (no planes, no box yet) cuts nothing.
+      if (c.planes.empty()) continue;
       if (!c.models.empty() && std::find(c.models.begin(), c.models.end(), id) == c.models.end())
         continue;
       if (!e.instance.clip.addGroup(c.planes, c.invert)) ++mDroppedClips;

@@ -141,6 +141,8 @@ Problem checkClip(const scene::ClipPayload& c) {
            " planes, got " + std::to_string(planes);
   if (box && planes > 0)
     return std::string("clip.planes: a clip node holds planes or a box, not both");
+  if (c.has_box_center() && !box)
+    return std::string("clip.box_center: a box needs box_half_extents too");
   for (double v : c.planes())
     if (!(std::abs(v) <= kMaxClipValue))
       return "clip.planes: numbers must be finite, within +-" + num(kMaxClipValue) + ", got " +

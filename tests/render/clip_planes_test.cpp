@@ -423,6 +423,7 @@ TEST_F(ClipRenderTest, TheDrawListCollectsTheClipsOfEachModel) {
   only_b.add_models(b);
   const auto on_b = g.add(scene::SceneNode::CLIP);
   g.setPayload(on_b, only_b);
+  g.add(scene::SceneNode::CLIP);  // empty (as created): cuts nothing, not counted as dropped
   const auto group = g.add(scene::SceneNode::GROUP);
   const auto under = g.add(scene::SceneNode::CLIP, group);
   g.setPayload(under, planePayload());

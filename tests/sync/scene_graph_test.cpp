@@ -501,7 +501,16 @@ TEST(SceneGraph, ClipNodesSyncAndBadOnesAreRefusedByField) {
                  b.mutable_box_half_extents()->set_z(1.0);
                }),
                "clip.box_half_extents: each must be > 0, got 0");
-  EXPECT_PRED2(says, refusal([](auto& b) { b.mutable_box_center()->set_y(INFINITY); }),
+  EXPECT_PRED2(says, refusal([](auto& b) {
+                 b.clear_planes();
+                 b.mutable_box_center()->set_y(1.0);
+               }),
+               "clip.box_center: a box needs box_half_extents too");
+  EXPECT_PRED2(says, refusal([](auto& b) {
+                 b.clear_planes();
+                 b.mutable_box_half_extents()->set_x(1.0);
+                 b.mutable_box_center()->set_y(INFINITY);
+               }),
                "clip.box_center: numbers must be finite");
   EXPECT_PRED2(says, refusal([](auto& b) { b.add_models(0); }), "clip.models: ids must name MODEL");
   EXPECT_PRED2(says, refusal([](auto& b) {
