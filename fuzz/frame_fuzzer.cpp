@@ -23,7 +23,8 @@ void require(bool ok, const char* what) {
   std::abort();
 }
 
-/// Nodes 1 (group) > 2 (group) > 3 (model), 4 (annotation) at the root; version 1, frame 1.
+/// Nodes 1 (group) > 2 (group) > 3 (model), 4 (annotation) and 5 (a clip plane on model 3) at
+/// the root; version 1, frame 1.
 const SceneGraph& baseScene() {
   static const SceneGraph base = [] {
     SceneGraph g;
@@ -31,6 +32,11 @@ const SceneGraph& baseScene() {
     g.create(2, SceneNode::GROUP, 1);
     g.create(3, SceneNode::MODEL, 2, "model");
     g.create(4, SceneNode::ANNOTATION);
+    g.create(5, SceneNode::CLIP);
+    tessera::scene::ClipPayload clip;
+    for (double v : {1.0, 0.0, 0.0, -0.5}) clip.add_planes(v);
+    clip.add_models(3);
+    g.setPayload(5, clip);
     g.takeFrame(1, 0);
     return g;
   }();

@@ -15,6 +15,7 @@ uniform vec3 uEyeLocal;
 uniform uint uColorOverride;  // non-zero: 0x1000000 | rgb
 uniform float uMorph;         // 0: on the parent's surface, 1: the patch's own shape
 
+out vec3 vClipLocal;  // the position the clip planes test (patch frame)
 #ifdef MESH_FLAT
 out vec3 vLocal;
 out vec3 vBase;   // unlit
@@ -27,6 +28,7 @@ void main() {
   bool morphing = uMorph < 1.0;
   vec3 position = morphing ? mix(aMorph, aPosition, uMorph) : aPosition;
   gl_Position = uClipFromLocal * vec4(position, 1.0);
+  vClipLocal = position;
   vec3 base = uColorOverride != 0u
                   ? vec3(uColorOverride & 0xFFu, (uColorOverride >> 8) & 0xFFu,
                          (uColorOverride >> 16) & 0xFFu) / 255.0

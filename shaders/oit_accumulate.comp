@@ -25,6 +25,7 @@ uniform int uMaxRadius;
 void main() {
   uint i = gl_GlobalInvocationID.x;
   if (i >= uCount) return;
+  if (tesseraClipped(points[i].position)) return;  // cut away by a CLIP node
   vec4 c = uClip * vec4(points[i].position, 1.0);
   if (c.w <= 0.0) return;
   vec3 ndc = c.xyz / c.w;

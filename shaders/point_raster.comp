@@ -86,6 +86,7 @@ void write(uint idx, uint d, uint gi, uint i, float w, float k) {
 
 void raster(uint i) {
   uint gi = uFirst + i;
+  if (tesseraClipped(points[gi].position)) return;  // cut away by a CLIP node
   vec4 c = uClip * vec4(points[gi].position, 1.0);
   if (c.w <= 0.0) return;
   vec3 ndc = c.xyz / c.w;

@@ -34,6 +34,34 @@
 // half-width, pixels.
 #define TESSERA_EDL_MAX_FILTER_RADIUS 4
 
+// Clip planes (issue 16; render/clip_planes.h, the scene's CLIP nodes): most planes cutting one
+// model. The geometry passes (point_raster, spbr_raster, oit_accumulate, mesh) test each point
+// or fragment in its batch's frame with tesseraClipped(); a program that never sets uClipCount
+// clips nothing. Planes are unit-normal floats in that frame (made in double on the CPU).
+#define TESSERA_MAX_CLIP_PLANES 12
+#ifndef __cplusplus
+// uClipPlanes: a b c d, inside where a x + b y + c z + d >= 0; uClipGroups: each plane's group
+// (one per CLIP node).
+uniform vec4 uClipPlanes[TESSERA_MAX_CLIP_PLANES];
+uniform uint uClipGroups[TESSERA_MAX_CLIP_PLANES];
+uniform uint uClipCount;   // planes used
+uniform uint uClipInvert;  // bit g: group g keeps its outside
+// Whether a cut removes position p: group g keeps p where p is inside all its planes (outside
+// one of them, with bit g of uClipInvert); p is drawn when every group keeps it. The same rule
+// as render::ClipPlanes::keeps().
+bool tesseraClipped(vec3 p) {
+  if (uClipCount == 0u) return false;
+  uint present = 0u, outside = 0u;
+  for (uint i = 0u; i < uClipCount; ++i) {
+    uint bit = 1u << uClipGroups[i];
+    present |= bit;
+    if (dot(uClipPlanes[i].xyz, p) + uClipPlanes[i].w < 0.0) outside |= bit;
+  }
+  uint kept = (present & ~outside & ~uClipInvert) | (outside & uClipInvert);
+  return kept != present;
+}
+#endif
+
 // A point as the GPU reads it: 16 bytes, position relative to its batch's node box (metres,
 // float), rgba with r in the low byte. C++: render::GpuPoint.
 #define TESSERA_POINT_BYTES 16

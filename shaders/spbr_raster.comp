@@ -90,6 +90,7 @@ void main() {
   uint h = hash(uSeed ^ hash(i + 0x9e3779b9u));
   float k = uHasRatios != 0 ? uK * ratios[i] : uK;
   vec3 position = points[i].position;
+  if (tesseraClipped(position)) return;  // cut away by a CLIP node (its copies with it)
   vec3 axis_u = vec3(0.0), axis_v = vec3(0.0);
   if (uHasCells != 0) {
     uvec4 cell = cells[i];

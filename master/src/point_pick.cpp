@@ -24,6 +24,8 @@ std::optional<glm::dvec3> pickPoint(std::span<const render::ModelInstance> model
     glm::dvec3 d = glm::dvec3(inv * glm::dvec4(dir, 0.0));
     const double local_per_world = glm::length(d) / glm::length(dir);
     d = glm::normalize(d);
+    // What the model's CLIP nodes cut away is not there to pick (the store's frame, double).
+    const render::ClipPlanes clip = m.clip.transformed(m.model);
     double best_t = std::numeric_limits<double>::infinity();
     // Nearest boxes first, so far chunks are skipped once a hit is closer.
     std::vector<std::pair<double, lod::NodeId>> open = {{0.0, store.root()}};
@@ -60,6 +62,7 @@ std::optional<glm::dvec3> pickPoint(std::span<const render::ModelInstance> model
         const glm::dvec3 q = pts->offset + glm::dvec3(p) - o;
         const double t = glm::dot(q, d);
         if (t <= 0.0 || t >= best_t) continue;
+        if (!clip.empty() && !clip.keeps(pts->offset + glm::dvec3(p))) continue;
         const double r =
             std::max(double(info.spacing), options.pixel_angle * options.radius_px * t);
         if (glm::dot(q, q) - t * t <= r * r) best_t = t;

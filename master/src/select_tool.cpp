@@ -1,6 +1,7 @@
 #include <tessera/master/select_tool.h>
 
 #include <tessera/master/lasso_selection.h>
+#include <tessera/render/scene_overlay.h>
 #include <tessera/sync/scene_edits.h>
 
 namespace tessera::master {
@@ -31,12 +32,7 @@ LassoSelection lassoSelection(const render::ModelInstance& instance, uint32_t mo
   if (out.count == 0) return out;
   scene::SelectionPayload& s = out.payload;
   s.set_model(model_node);
-  const glm::dmat4 vp = view.projection * view.view;
-  for (int k = 0; k < 16; ++k) s.add_lasso_clip_from_world(vp[k / 4][k % 4]);
-  for (const glm::dvec2& p : pixels) {
-    s.add_lasso(p.x / view.width * 2.0 - 1.0);
-    s.add_lasso(1.0 - p.y / view.height * 2.0);
-  }
+  render::setSelectionLasso(s, view, pixels);
   const std::vector<uint8_t> bytes = r.selection.serialize();
   s.set_elements(std::string(bytes.begin(), bytes.end()));
   s.set_count(out.count);

@@ -78,8 +78,8 @@ struct PointCandidate {
 };
 
 std::optional<SurfacePick> pickPoints(lod::PointStore& store, const Frame& f,
-                                      const glm::dvec3& origin, const glm::dvec3& dir,
-                                      const PickOptions& options) {
+                                      const render::ClipPlanes& clip, const glm::dvec3& origin,
+                                      const glm::dvec3& dir, const PickOptions& options) {
   const glm::dvec3 o = f.local(origin);
   const glm::dvec3 d = glm::normalize(glm::dvec3(f.inverse * glm::dvec4(dir, 0.0)));
   const double per_px = options.pixel_angle;  // radians a pixel: the cone's width at distance t
@@ -108,6 +108,7 @@ std::optional<SurfacePick> pickPoints(lod::PointStore& store, const Frame& f,
           const glm::dvec3 q = p - o;
           const double t = glm::dot(q, d);
           if (t <= 0.0) continue;
+          if (!clip.empty() && !clip.keeps(p)) continue;  // cut away: not there to pick
           const double r = std::max(cone(t), double(info.spacing));
           const double perp2 = std::max(glm::dot(q, q) - t * t, 0.0);
           if (perp2 > r * r) continue;
@@ -162,8 +163,8 @@ glm::dvec3 vertex(const lod::MeshPatch& p, uint32_t i) {
 }
 
 std::optional<SurfacePick> pickTriangles(lod::MeshStore& store, const Frame& f,
-                                         const glm::dvec3& origin, const glm::dvec3& dir,
-                                         const PickOptions& options) {
+                                         const render::ClipPlanes& clip, const glm::dvec3& origin,
+                                         const glm::dvec3& dir, const PickOptions& options) {
   const glm::dvec3 o = f.local(origin);
   const glm::dvec3 d = glm::normalize(glm::dvec3(f.inverse * glm::dvec4(dir, 0.0)));
   double best_t = kInf;
@@ -184,7 +185,9 @@ std::optional<SurfacePick> pickTriangles(lod::MeshStore& store, const Frame& f,
           const glm::dvec3 a = vertex(patch, patch.indices[3 * t]),
                            b = vertex(patch, patch.indices[3 * t + 1]),
                            c = vertex(patch, patch.indices[3 * t + 2]);
-          if (auto hit = rayTriangle(o, d, a, b, c); hit && *hit < best_t) {
+          // A hit where the cut removed the surface goes on to what lies behind it.
+          if (auto hit = rayTriangle(o, d, a, b, c);
+              hit && *hit < best_t && (clip.empty() || clip.keeps(o + *hit * d))) {
             best_t = *hit;
             pick.node = id;
             pick.index = uint32_t(t);
@@ -299,8 +302,10 @@ std::optional<SurfacePick> pickSurface(std::span<const render::ModelInstance> mo
     const render::ModelInstance& m = models[i];
     const Frame f(m.model);
     if (!(f.world_per_local > 0.0) || !std::isfinite(f.world_per_local)) continue;
-    std::optional<SurfacePick> p = m.mesh    ? pickTriangles(*m.mesh, f, origin, dir, options)
-                                   : m.store ? pickPoints(*m.store, f, origin, dir, options)
+    // The model's CLIP nodes in its store's frame (double): what they cut away is not picked.
+    const render::ClipPlanes clip = m.clip.transformed(m.model);
+    std::optional<SurfacePick> p = m.mesh    ? pickTriangles(*m.mesh, f, clip, origin, dir, options)
+                                   : m.store ? pickPoints(*m.store, f, clip, origin, dir, options)
                                              : std::nullopt;
     if (!p) continue;
     const double distance = glm::length(p->point.world - origin);

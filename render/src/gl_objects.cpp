@@ -110,6 +110,13 @@ void GlProgram::set(const char* u, const glm::mat4& v) const {
   glProgramUniformMatrix4fv(mName, location(u), 1, GL_FALSE, glm::value_ptr(v));
 }
 
+void GlProgram::set(const char* u, std::span<const glm::vec4> v) const {
+  glProgramUniform4fv(mName, location(u), GLsizei(v.size()), glm::value_ptr(v[0]));
+}
+void GlProgram::set(const char* u, std::span<const uint32_t> v) const {
+  glProgramUniform1uiv(mName, location(u), GLsizei(v.size()), v.data());
+}
+
 GlTexture::GlTexture(uint32_t width, uint32_t height, uint32_t format)
     : mWidth(width), mHeight(height), mFormat(format) {
   GLint max_size = 0;

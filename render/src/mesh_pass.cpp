@@ -7,6 +7,7 @@
 #include <tessera/render/gl_context.h>
 #include <tessera/render/gl_objects.h>
 
+#include "clip_uniforms.h"
 #include "gpu_lap.h"
 #include "shaders.h"
 #include "shared_layout.h"
@@ -116,6 +117,7 @@ struct MeshPass::Impl {
       program.set("uColorOverride", b.color_override);
       program.set("uPickBase", b.pick_base);
       program.set("uMorph", std::clamp(b.morph, 0.0f, 1.0f));
+      setClipUniforms(program, b.clip);
       glVertexArrayVertexBuffer(vao, 0, b.vertices, 0, sizeof(GpuMeshVertex));
       glVertexArrayElementBuffer(vao, b.indices);
       glDrawElements(GL_TRIANGLES, GLsizei(b.index_count), GL_UNSIGNED_INT, nullptr);

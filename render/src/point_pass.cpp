@@ -9,6 +9,7 @@
 #define GL_GLEXT_PROTOTYPES
 #include <GL/glcorearb.h>
 
+#include "clip_uniforms.h"
 #include "gpu_lap.h"
 #include "shaders.h"
 #include "shared_layout.h"
@@ -106,6 +107,7 @@ PassTimings PointPass::draw(FrameTarget& target, std::span<const DrawBatch> batc
       program.set("uClip", b.clip_from_local);
       program.set("uRadius", no_spacing ? 0 : b.splat_radius);
       program.set("uBlendDepth", b.blend_depth);
+      setClipUniforms(program, b.clip);
       dispatchSlices(b.count, [&](uint32_t done, uint32_t count) {
         program.set("uFirst", b.first + done);
         program.set("uCount", count);
@@ -193,6 +195,7 @@ PassTimings PointPass::drawEnsembles(FrameTarget& target, std::span<const DrawBa
         mSpbr.set("uSeed", b.seed);
         mSpbr.set("uEyeLocal", b.eye_local);
         mSpbr.set("uColorOverride", b.color_override);
+        setClipUniforms(mSpbr, b.clip);
         // Batches with buffer 0 start at `first` in the pass's own buffer: offset the binding
         // instead of the index, so point indices (and so ensembles) stay per batch.
         if (!b.buffer && b.first) {
@@ -270,6 +273,7 @@ PassTimings PointPass::drawBlended(FrameTarget& target, std::span<const DrawBatc
     mOit.set("uDiscK", b.disc_k);
     mOit.set("uAlpha", b.point_alpha);
     mOit.set("uColorOverride", b.color_override);
+    setClipUniforms(mOit, b.clip);
     dispatchSlices(b.count, [&](uint32_t done, uint32_t c) {
       if (done) {
         glBindBufferRange(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_POINTS, points,

@@ -1,5 +1,6 @@
 #include <tessera/render/scene_draw_list.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <set>
 #include <stdexcept>
@@ -142,9 +143,25 @@ const std::vector<ModelInstance>& SceneDrawList::update(const sync::SceneGraph& 
   mMeshStores.merge(opened_meshes);
   mStarted = true;
 
-  for (const uint32_t id : gone) mEntries.erase(id);
+  for (const uint32_t id : gone) {
+    mEntries.erase(id);
+    mClips.erase(id);
+  }
   for (const uint32_t id : dirty) {
     const scene::SceneNode& node = graph.node(id);
+    if (node.kind() == scene::SceneNode::CLIP) {
+      // A hidden CLIP node (or one under a hidden group) cuts nothing.
+      const NodePlacement placed = placeNode(graph, id);
+      if (placed.visible) {
+        mClips[id] = {clipPlanesOf(node.clip(), placed.world),
+                      node.clip().invert(),
+                      {node.clip().models().begin(), node.clip().models().end()}};
+      } else {
+        mClips.erase(id);
+      }
+    } else {
+      mClips.erase(id);
+    }
     if (node.kind() != scene::SceneNode::MODEL) {
       mEntries.erase(id);
       continue;
@@ -171,9 +188,19 @@ const std::vector<ModelInstance>& SceneDrawList::update(const sync::SceneGraph& 
   std::set<std::string> used;
   mInstances.clear();
   mInstanceNodes.clear();
-  for (const auto& [id, e] : mEntries) {
+  mDroppedClips = 0;
+  for (auto& [id, e] : mEntries) {
     used.insert(e.path);
     if (!e.visible) continue;
+    e.instance.node = id;
+    e.instance.clip = {};
+    for (const auto& [clip_id, c] : mClips) {
+      // An empty CLIP node (no planes, no box yet) cuts nothing.
+      if (c.planes.empty()) continue;
+      if (!c.models.empty() && std::find(c.models.begin(), c.models.end(), id) == c.models.end())
+        continue;
+      if (!e.instance.clip.addGroup(c.planes, c.invert)) ++mDroppedClips;
+    }
     mInstances.push_back(e.instance);
     mInstanceNodes.push_back(id);
   }
@@ -193,6 +220,25 @@ const std::vector<ModelInstance>& SceneDrawList::update(const sync::SceneGraph& 
   return mInstances;
 }
 
+std::vector<glm::dvec4> SceneDrawList::clipPlanesOf(const scene::ClipPayload& clip,
+                                                    const glm::dmat4& world) {
+  ClipPlanes node;  // one group, the node frame
+  if (clip.has_box_half_extents()) {
+    const auto& c = clip.box_center();
+    const auto& h = clip.box_half_extents();
+    node.addGroup(boxPlanes({c.x(), c.y(), c.z()}, {h.x(), h.y(), h.z()}), false);
+  } else {
+    std::vector<glm::dvec4> planes;
+    for (int i = 0; i + 3 < clip.planes_size(); i += 4)
+      planes.emplace_back(clip.planes(i), clip.planes(i + 1), clip.planes(i + 2),
+                          clip.planes(i + 3));
+    node.addGroup(planes, false);
+  }
+  // The node frame's planes for world positions: x_node = inverse(world) x_world.
+  const ClipPlanes in_world = node.transformed(glm::inverse(world));
+  return {in_world.planes.begin(), in_world.planes.begin() + in_world.count};
+}
+
 void SceneDrawList::clear(std::span<ChunkStreamer* const> streamers) {
   for (auto& [path, store] : mStores)
     for (ChunkStreamer* s : streamers)
@@ -203,6 +249,7 @@ void SceneDrawList::clear(std::span<ChunkStreamer* const> streamers) {
   mStores.clear();
   mMeshStores.clear();
   mEntries.clear();
+  mClips.clear();
   mInstances.clear();
   mInstanceNodes.clear();
   mStarted = false;

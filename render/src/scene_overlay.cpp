@@ -205,6 +205,44 @@ void addMeasurement(const scene::MeasurementPayload& m, const glm::dmat4& world,
   out.labels.push_back(std::move(label));
 }
 
+/// A CLIP node's outline, faint, so people see where the cut is: a box's 12 edges, or for each
+/// plane a square of half-width `outline` around the plane's point nearest the node origin
+/// (none when outline is 0). The cut's own faces are not drawn.
+void addClip(const scene::ClipPayload& c, const glm::dmat4& world, float opacity, Overlay& out) {
+  const glm::u8vec4 color{255, 255, 255, fade(90, opacity)};
+  constexpr float kWidth = 1.5f;
+  auto line = [&](const glm::dvec3& a, const glm::dvec3& b) {
+    out.lines.push_back({glm::dvec3(world * glm::dvec4(a, 1.0)),
+                         glm::dvec3(world * glm::dvec4(b, 1.0)), color, kWidth});
+  };
+  if (c.has_box_half_extents()) {
+    const glm::dvec3 m(c.box_center().x(), c.box_center().y(), c.box_center().z());
+    const glm::dvec3 h(c.box_half_extents().x(), c.box_half_extents().y(),
+                       c.box_half_extents().z());
+    auto corner = [&](int k) {
+      return m + h * glm::dvec3(k & 1 ? 1 : -1, k & 2 ? 1 : -1, k & 4 ? 1 : -1);
+    };
+    for (int k = 0; k < 8; ++k)
+      for (int axis : {1, 2, 4})
+        if (!(k & axis)) line(corner(k), corner(k | axis));
+    return;
+  }
+  if (!(c.outline() > 0.0f)) return;
+  for (int i = 0; i + 3 < c.planes_size(); i += 4) {
+    const glm::dvec3 n(c.planes(i), c.planes(i + 1), c.planes(i + 2));
+    const double len = glm::length(n);
+    if (!(len > 0.0)) continue;
+    const glm::dvec3 u = n / len;
+    const glm::dvec3 at = -c.planes(i + 3) / len * u;  // the plane's point nearest the origin
+    // Two axes in the plane: the one of x, y, z least along the normal, crossed.
+    const glm::dvec3 pick = std::abs(u.x) < 0.6 ? glm::dvec3(1, 0, 0) : glm::dvec3(0, 1, 0);
+    const glm::dvec3 e1 = glm::normalize(glm::cross(u, pick)) * double(c.outline());
+    const glm::dvec3 e2 = glm::cross(u, e1);
+    const glm::dvec3 q[4] = {at - e1 - e2, at + e1 - e2, at + e1 + e2, at - e1 + e2};
+    for (int k = 0; k < 4; ++k) line(q[k], q[(k + 1) % 4]);
+  }
+}
+
 /// `v` in the unit of `units` (factor, name; largest first) that keeps it at 1 or more.
 std::string inUnit(double v, std::initializer_list<std::pair<double, const char*>> units,
                    const char* format) {
@@ -313,16 +351,30 @@ std::vector<Highlight> sceneHighlights(const sync::SceneGraph& graph) {
     for (int k = 0; k + 1 < s.lasso_size(); k += 2) lasso.push_back({s.lasso(k), s.lasso(k + 1)});
     h.mask = std::make_shared<const std::vector<uint32_t>>(rasterizeLasso(lasso));
     if (s.has_color()) h.tint = colorOf(true, s.color(), {}, 1.0f);
+    h.model_node = s.model();
+    h.visible_only = s.visible_only();
     h.tint.a = uint8_t(std::lround(120.0f * std::clamp(placed.opacity, 0.0f, 1.0f)));
     out.push_back(std::move(h));
   }
   return out;
 }
 
+void setSelectionLasso(scene::SelectionPayload& s, const ViewSetup& view,
+                       std::span<const glm::dvec2> px) {
+  s.clear_lasso_clip_from_world();
+  s.clear_lasso();
+  const glm::dmat4 vp = view.projection * view.view;
+  for (int k = 0; k < 16; ++k) s.add_lasso_clip_from_world(vp[k / 4][k % 4]);
+  for (const glm::dvec2& p : px) {
+    s.add_lasso(p.x / view.width * 2.0 - 1.0);
+    s.add_lasso(1.0 - p.y / view.height * 2.0);
+  }
+}
+
 bool isOverlayKind(sync::SceneGraph::Kind kind) {
   return kind == scene::SceneNode::SKETCH || kind == scene::SceneNode::AVATAR ||
          kind == scene::SceneNode::ANNOTATION || kind == scene::SceneNode::VIDEO_INSET ||
-         kind == scene::SceneNode::MEASUREMENT;
+         kind == scene::SceneNode::MEASUREMENT || kind == scene::SceneNode::CLIP;
 }
 
 std::set<uint32_t> shownVideoSources(const sync::SceneGraph& graph, const ViewSetup& view,
@@ -380,6 +432,9 @@ size_t appendSceneOverlay(const sync::SceneGraph& graph, Overlay& out,
         break;
       case scene::SceneNode::MEASUREMENT:
         addMeasurement(node.measurement(), placed.world, placed.opacity, options, out);
+        break;
+      case scene::SceneNode::CLIP:
+        addClip(node.clip(), placed.world, placed.opacity, out);
         break;
       case scene::SceneNode::VIDEO_INSET:
         // A site's own inset: it has the picture in front of it already.

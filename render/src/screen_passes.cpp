@@ -190,25 +190,56 @@ HighlightPass::HighlightPass()
       mMask(size_t(kHighlightMaskSize) * kHighlightMaskSize / 8, nullptr, GL_DYNAMIC_STORAGE_BIT) {}
 
 double HighlightPass::run(FrameTarget& target, std::span<const Highlight> highlights,
-                          const glm::dmat4& clip_from_world) {
+                          const glm::dmat4& clip_from_world,
+                          std::optional<std::span<const PickSpan>> models,
+                          const FrameTarget* lasso_depth) {
   if (highlights.empty()) return 0.0;
   GpuLap lap;
   mProgram.use();
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_DEPTH, target.depth().name());
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_IMAGE, target.image().name());
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_SCREEN_SCRATCH, mMask.name());
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_PICK, target.pick().name());
   mProgram.set("uSize", glm::ivec2(target.width(), target.height()));
   mProgram.set("uMaskSize", kHighlightMaskSize);
   const glm::dmat4 world_from_clip = glm::inverse(clip_from_world);
   for (const Highlight& h : highlights) {
     if (!h.mask || h.mask->size() * 32 != size_t(kHighlightMaskSize) * kHighlightMaskSize)
       continue;
+    // Only the selected model's pixels: its span of pick ids (none drawn: nothing to tint).
+    const PickSpan* span = nullptr;
+    if (h.model_node != 0 && models) {
+      for (const PickSpan& m : *models)
+        if (m.node == h.model_node) span = &m;
+      if (!span) continue;
+    }
+    mProgram.set("uPickFirst", span ? span->first : 0u);
+    mProgram.set("uPickCount", span ? span->count : 0xFFFFFFFFu);
     if (mUploaded != h.mask.get()) {
       glNamedBufferSubData(mMask.name(), 0, GLsizeiptr(h.mask->size() * 4), h.mask->data());
       mUploaded = h.mask.get();
       mKeep = h.mask;
     }
     mProgram.set("uLassoFromNdc", glm::mat4(h.clip_from_world * world_from_clip));
+    // Visible only: the lasso view's eye depth from its window depth, w = P32 / (ndc z + P22),
+    // with P22 and P32 read off clip_from_world's rows (projection times a rigid view: row 3 is
+    // minus the view's z row, row 2 = -P22 row 3 + P32 (0, 0, 0, 1)).
+    const glm::dmat4& m = h.clip_from_world;
+    const glm::dvec4 row2(m[0][2], m[1][2], m[2][2], m[3][2]),
+        row3(m[0][3], m[1][3], m[2][3], m[3][3]);
+    const double r3 = glm::dot(glm::dvec3(row3), glm::dvec3(row3));
+    const bool visible = h.visible_only && lasso_depth && r3 > 0.0;
+    const double p22 = visible ? -glm::dot(glm::dvec3(row2), glm::dvec3(row3)) / r3 : 0.0;
+    mProgram.set("uVisibleOnly", visible ? 1 : 0);
+    mProgram.set("uLassoP22", float(p22));
+    mProgram.set("uLassoP32", float(row2.w + p22 * row3.w));
+    mProgram.set("uWorldW", glm::vec4(world_from_clip[0][3], world_from_clip[1][3],
+                                      world_from_clip[2][3], world_from_clip[3][3]));
+    if (visible) {
+      glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_TARGET_DEPTH,
+                       lasso_depth->depth().name());
+      mProgram.set("uLassoSize", glm::ivec2(int(lasso_depth->width()), int(lasso_depth->height())));
+    }
     mProgram.set("uTint", glm::vec4(h.tint) / 255.0f);
     dispatchPixels(target);
   }

@@ -118,9 +118,15 @@ void ViewRenderer::draw(std::span<const ModelInstance> models, const ViewSetup& 
         "opaque frames yet (set every point model's opacity to 1, or hide the meshes)");
   mStreamer->beginFrame();
   st.upload_ms = mStreamer->stats().upload_ms;
-  const bool pick = options.pick_ids && !see_through;
+  // A highlight on one model needs the pick ids to tell that model's pixels (HighlightPass).
+  bool model_highlights = false;
+  for (const Highlight& h : options.highlights) model_highlights |= h.model_node != 0;
+  const bool pick = (options.pick_ids || model_highlights) && !see_through;
+  std::vector<PickSpan> model_picks;
   mPickRanges.clear();
   mBatchNodes.clear();
+  mBatchWorld.clear();
+  mMeshWorld.clear();
   std::vector<DrawBatch> batches;
   std::vector<MeshBatch> mesh_batches;
   std::vector<lod::NodeId> mesh_nodes;
@@ -128,6 +134,7 @@ void ViewRenderer::draw(std::span<const ModelInstance> models, const ViewSetup& 
     return mPickRanges.empty() ? 0u : mPickRanges.back().base + mPickRanges.back().count;
   };
   for (size_t i = 0; i < models.size(); ++i) {
+    if (pick) model_picks.push_back({models[i].node, nextBase(), 0});
     if (models[i].mesh) {
       const size_t first = mesh_batches.size();
       addMeshModel(models[i], view, options, mesh_batches, mesh_nodes, st);
@@ -146,6 +153,10 @@ void ViewRenderer::draw(std::span<const ModelInstance> models, const ViewSetup& 
       mPickRanges.push_back({base, batches[b].count, i, mBatchNodes[b]});
     }
   }
+  // Each model's batches took consecutive pick ids: its span ends where the next one starts.
+  for (size_t i = 0; i < model_picks.size(); ++i)
+    model_picks[i].count =
+        (i + 1 < model_picks.size() ? model_picks[i + 1].first : nextBase()) - model_picks[i].first;
   mStreamer->endFrame();
   st.stream = mStreamer->stats();
   mPickUnproject = glm::inverse(view.projection * view.view);
@@ -197,13 +208,50 @@ void ViewRenderer::draw(std::span<const ModelInstance> models, const ViewSetup& 
   }
   if (!options.highlights.empty()) {
     if (!mHighlight) mHighlight = std::make_unique<HighlightPass>();
-    st.screen_ms += mHighlight->run(mTarget, options.highlights, view.projection * view.view);
+    const auto spans = pick ? std::optional(std::span<const PickSpan>(model_picks)) : std::nullopt;
+    for (const Highlight& h : options.highlights) {
+      // Visible only: what the lasso's view shows of this frame's batches, drawn again from
+      // there (opaque frames: see-through ones tint through the depth).
+      const bool visible = h.visible_only && !see_through;
+      if (visible) drawLassoDepth(h.clip_from_world, view, batches, mesh_batches);
+      st.screen_ms += mHighlight->run(mTarget, std::span(&h, 1), view.projection * view.view, spans,
+                                      visible ? mLassoTarget.get() : nullptr);
+    }
   }
   if (overlay && !overlay->empty()) {
     if (!mOverlay) mOverlay = std::make_unique<OverlayPass>();
     st.overlay_ms = mOverlay->run(mTarget, view, *overlay);
   }
   if (stats) *stats = st;
+}
+
+void ViewRenderer::drawLassoDepth(const glm::dmat4& lasso_clip_from_world, const ViewSetup& view,
+                                  std::span<const DrawBatch> batches,
+                                  std::span<const MeshBatch> meshes) {
+  if (!mLassoTarget) mLassoTarget = std::make_unique<FrameTarget>(kLassoDepthSize, kLassoDepthSize);
+  FrameTarget& t = *mLassoTarget;
+  t.clearGeometry(false);
+  const glm::dmat4& m = lasso_clip_from_world;
+  // Splats keep their size on the surface: pixels per unit at distance one are half the plane's
+  // height times the projection's [1][1], the length of clip row 1's rotation part.
+  const double lasso_k =
+      0.5 * double(kLassoDepthSize) * glm::length(glm::dvec3(m[0][1], m[1][1], m[2][1]));
+  const float scale = float(lasso_k / pixelsPerUnitAtDistanceOne(view));
+  if (!meshes.empty()) {
+    std::vector<MeshBatch> moved(meshes.begin(), meshes.end());
+    for (size_t i = 0; i < moved.size(); ++i)
+      moved[i].clip_from_local = glm::mat4(m * mMeshWorld[i]);
+    mMeshes->draw(t, moved, MeshShading{});
+  }
+  std::vector<DrawBatch> moved(batches.begin(), batches.end());
+  for (size_t i = 0; i < moved.size(); ++i) {
+    moved[i].clip_from_local = glm::mat4(m * mBatchWorld[i]);
+    moved[i].spacing_k *= scale;
+    moved[i].max_disc_px *= scale;
+  }
+  PointShading depth_only;
+  depth_only.uniform_color = 0xFFFFFFFFu;
+  mPoints.draw(t, moved, depth_only);
 }
 
 std::optional<PickHit> ViewRenderer::pick(uint32_t x, uint32_t y) const {
@@ -271,6 +319,7 @@ void ViewRenderer::drawSeeThrough(std::span<const ModelInstance> models, const V
     sig = mixBytes(mix(mix(sig, b.cells), uint32_t(b.copies)), &b.jitter_k, sizeof b.jitter_k);
     sig = mixBytes(sig, &b.cell_spread, sizeof b.cell_spread);
     sig = mixBytes(sig, &b.ensemble_shift, sizeof b.ensemble_shift);
+    sig = mixBytes(sig, &b.clip, sizeof b.clip);
   }
   if (sig != mSpbrSignature) {
     mSpbrSignature = sig;
@@ -353,6 +402,7 @@ void ViewRenderer::addModel(const ModelInstance& instance, bool see_through, con
     // Double precision down to the node, float within it: georeferenced data stays exact.
     const glm::dmat4 world_from_local = model * glm::translate(glm::dmat4(1.0), chunk.offset);
     b.clip_from_local = glm::mat4(clip_from_world * world_from_local);
+    b.clip = gpuClipPlanes(instance.clip, world_from_local);
     b.spacing_k = float(n.spacing * k * options.splat_scale);
     b.splat_radius = splatRadiusCap(options);
     // The discs' bound: the node's nearest view depth (at a corner of its box), a leaf's
@@ -418,6 +468,7 @@ void ViewRenderer::addModel(const ModelInstance& instance, bool see_through, con
     }
     batches.push_back(b);
     mBatchNodes.push_back(n.id);
+    mBatchWorld.push_back(world_from_local);
     stats.points += chunk.count;
     ++stats.nodes;
   };
@@ -514,11 +565,13 @@ void ViewRenderer::addMeshModel(const ModelInstance& instance, const ViewSetup& 
     const glm::dmat4 world_from_local =
         instance.model * glm::translate(glm::dmat4(1.0), chunk.offset);
     b.clip_from_local = glm::mat4(clip_from_world * world_from_local);
+    b.clip = gpuClipPlanes(instance.clip, world_from_local);
     b.eye_local = glm::vec3(glm::inverse(world_from_local) * glm::dvec4(view.eye_world, 1.0));
     if (instance.color != glm::u8vec3(0) && !store.summary().colors)
       b.color_override = 0x1000000u | packRgb(instance.color);
     batches.push_back(b);
     nodes.push_back(n.id);
+    mMeshWorld.push_back(world_from_local);
     stats.triangles += chunk.index_count / 3;
     ++stats.mesh_patches;
     ++stats.nodes;

@@ -109,6 +109,8 @@ SceneNode::PayloadCase payloadCaseOf(SceneGraph::Kind kind) {
       return SceneNode::kMeasurement;
     case SceneNode::SELECTION:
       return SceneNode::kSelection;
+    case SceneNode::CLIP:
+      return SceneNode::kClip;
     default:
       return SceneNode::PAYLOAD_NOT_SET;
   }
@@ -167,6 +169,55 @@ Problem checkAnnotation(const scene::AnnotationPayload& a) {
     if (!std::isfinite(it.number())) return field + ".number: must be finite";
     if (it.revision() == 0) return field + ".revision: must be >= 1";
   }
+  return {};
+}
+
+/// Largest magnitude of a clip plane's numbers or a clip box's centre and extents (metres):
+/// beyond it the cut is outside any scene (and squares overflow floats).
+constexpr double kMaxClipValue = 1e9;
+
+Problem checkClip(const scene::ClipPayload& c) {
+  const bool box = c.has_box_half_extents();
+  if (c.planes_size() % 4 != 0)
+    return "clip.planes: needs a b c d quadruples, got " + std::to_string(c.planes_size()) +
+           " numbers";
+  const int planes = c.planes_size() / 4;
+  if (planes > SceneGraph::kMaxClipNodePlanes)
+    return "clip.planes: at most " + std::to_string(SceneGraph::kMaxClipNodePlanes) +
+           " planes, got " + std::to_string(planes);
+  if (box && planes > 0)
+    return std::string("clip.planes: a clip node holds planes or a box, not both");
+  if (c.has_box_center() && !box)
+    return std::string("clip.box_center: a box needs box_half_extents too");
+  for (double v : c.planes())
+    if (!(std::abs(v) <= kMaxClipValue))
+      return "clip.planes: numbers must be finite, within +-" + num(kMaxClipValue) + ", got " +
+             num(v);
+  for (int i = 0; i < planes; ++i) {
+    const double a = c.planes(4 * i), b = c.planes(4 * i + 1), cz = c.planes(4 * i + 2);
+    // Relative to the plane's own numbers: (0, 0, 0, d) keeps everything or nothing.
+    const double largest =
+        std::max({std::abs(a), std::abs(b), std::abs(cz), std::abs(c.planes(4 * i + 3))});
+    if (!(std::max({std::abs(a), std::abs(b), std::abs(cz)}) > 1e-12 * largest))
+      return "clip.planes: plane " + std::to_string(i) + " has a zero normal (a, b, c)";
+  }
+  for (const auto& [v, field] : {std::pair{&c.box_center(), "clip.box_center"},
+                                 {&c.box_half_extents(), "clip.box_half_extents"}})
+    for (double x : {v->x(), v->y(), v->z()})
+      if (!(std::abs(x) <= kMaxClipValue))
+        return std::string(field) + ": numbers must be finite, within +-" + num(kMaxClipValue) +
+               ", got " + num(x);
+  if (box)
+    for (double x : {c.box_half_extents().x(), c.box_half_extents().y(), c.box_half_extents().z()})
+      if (!(x > 0.0)) return "clip.box_half_extents: each must be > 0, got " + num(x);
+  if (c.models_size() > SceneGraph::kMaxClipModels)
+    return "clip.models: at most " + std::to_string(SceneGraph::kMaxClipModels) + " models, got " +
+           std::to_string(c.models_size());
+  for (uint32_t m : c.models())
+    if (m == 0) return std::string("clip.models: ids must name MODEL nodes (> 0)");
+  if (!std::isfinite(c.outline()) || c.outline() < 0.0f || c.outline() > kMaxClipValue)
+    return "clip.outline: must be finite and in [0, " + num(kMaxClipValue) + "], got " +
+           num(c.outline());
   return {};
 }
 
@@ -242,6 +293,8 @@ Problem checkPayload(const SceneNode& n) {
                " bytes; at most 16 MiB";
       return checkColor(s.color(), "selection.color");
     }
+    case SceneNode::kClip:
+      return checkClip(n.clip());
     case SceneNode::kVideoInset: {
       const auto& v = n.video_inset();
       if (auto p = checkNonNegative(v.width(), "video_inset.width")) return p;
@@ -469,6 +522,9 @@ SceneNode SceneGraph::defaultNode(NodeId id, Kind kind) {
     case SceneNode::kSelection:
       n.mutable_selection();
       break;
+    case SceneNode::kClip:
+      n.mutable_clip();
+      break;
     default:
       break;
   }
@@ -644,6 +700,10 @@ void SceneGraph::setPayload(NodeId id, const scene::AvatarPayload& payload) {
 
 void SceneGraph::setPayload(NodeId id, const scene::SelectionPayload& payload) {
   replacePayload(id, SceneNode::SELECTION, [&](SceneNode& n) { *n.mutable_selection() = payload; });
+}
+
+void SceneGraph::setPayload(NodeId id, const scene::ClipPayload& payload) {
+  replacePayload(id, SceneNode::CLIP, [&](SceneNode& n) { *n.mutable_clip() = payload; });
 }
 
 void SceneGraph::setPayload(NodeId id, const scene::MeasurementPayload& payload) {

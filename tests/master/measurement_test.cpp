@@ -447,6 +447,29 @@ class MeasureToolTest : public ::testing::Test {
   glm::dvec3 mCentre{0.0};
 };
 
+// A clip plane (issue 16: a CLIP node, ModelInstance::clip) makes what it cuts away unpickable:
+// the ray through the cut front goes on to the inside of the back, and a plane that removes the
+// whole model leaves nothing to pick.
+TEST_F(MeasureToolTest, WhatAClipPlaneCutsAwayIsNotPicked) {
+  const SurfacePick front = pickAt({0.0, 0.0});
+  const double cut_z = front.point.world.z - 0.005;
+  const glm::dvec4 keep_behind(0.0, 0.0, -1.0, cut_z);  // keep z <= cut_z
+  ASSERT_TRUE(mModel.clip.addGroup(std::span(&keep_behind, 1), false));
+  const SurfacePick behind = pickAt({0.0, 0.0});
+  EXPECT_LE(behind.point.world.z, cut_z);
+  EXPECT_GT(glm::length(behind.point.world - front.point.world), 0.005);
+  // Inverted (keep z >= cut_z): the front is there again.
+  mModel.clip = {};
+  ASSERT_TRUE(mModel.clip.addGroup(std::span(&keep_behind, 1), true));
+  EXPECT_LT(glm::length(pickAt({0.0, 0.0}).point.world - front.point.world), 1e-9);
+  // Everything cut: nothing to pick.
+  mModel.clip = {};
+  const glm::dvec4 none(0.0, 0.0, -1.0, mCentre.z - 1.0);
+  ASSERT_TRUE(mModel.clip.addGroup(std::span(&none, 1), false));
+  const glm::dvec3 eye = mCentre + glm::dvec3(0, 0, 0.5);
+  EXPECT_FALSE(pickSurface(std::span(&mModel, 1), eye, glm::dvec3(0, 0, -1)));
+}
+
 TEST_F(MeasureToolTest, ADistanceEndsAtItsSecondPointAsANodeEveryTileDraws) {
   sync::SceneGraph g;
   MeasureTool tool;

@@ -22,19 +22,10 @@
 namespace tessera::render {
 namespace {
 
-const std::string kBunnyMesh =
-    std::string(TESSERA_DATA_DIR) + "/stanford-bunny/reconstruction/bun_zipper.ply";
+const std::string kBunnyMesh = test::kBunnyMeshPly;
 
-class MeshPassTest : public test::BunnyStoreTest {
+class MeshPassTest : public test::BunnyMeshStoreTest {
  protected:
-  static void SetUpTestSuite() {
-    test::BunnyStoreTest::SetUpTestSuite();
-    lod::MeshBuildOptions o;
-    o.patch_triangles = 1024;
-    o.quiet = true;
-    lod::buildMeshStore(std::vector<std::filesystem::path>{kBunnyMesh}, *sDir / "b.tmesh", o);
-  }
-
   /// A view of the bunny from `distance` metres, w x h.
   static ViewSetup view(const lod::MeshStore& s, double distance, uint32_t w, uint32_t h) {
     const glm::dvec3 c = s.summary().origin + 0.5 * (s.summary().bbox_min + s.summary().bbox_max);

@@ -11,6 +11,7 @@
 
 #include <cmath>
 #include <cstdlib>
+#include <cstring>
 #include <numbers>
 
 #include <glm/gtc/matrix_transform.hpp>
@@ -21,6 +22,7 @@
 #include <tessera/sync/config.h>
 
 #include "../support/bunny_store_test.h"
+#include "../support/lasso_payload.h"
 
 namespace tessera::render {
 namespace {
@@ -727,46 +729,36 @@ double edgeDistance(const std::vector<glm::dvec2>& poly, const glm::dvec2& p) {
   return d;
 }
 
+/// w x h views of the bunny from 0.45 m: the lasso's, from +z, and one `angle` radians aside
+/// around y.
+std::pair<ViewSetup, ViewSetup> lassoViewAndAside(const lod::PointStore& store, double angle,
+                                                  uint32_t w, uint32_t h) {
+  const glm::dvec3 c = bunnyCentre(store);
+  auto from = [&](const glm::dvec3& eye) { return test::lookingAt(eye, c, w, h, 35.0, 0.05); };
+  return {from(c + glm::dvec3(0.0, 0.0, 0.45)),
+          from(c + 0.45 * glm::dvec3(std::sin(angle), 0.0, std::cos(angle)))};
+}
+
 // A selection lassoed in one view is tinted where its surface lies in another view too (the
 // same points, seen from 25 degrees aside): every pixel whose surface point projects into the
 // lasso (by the test's own point-in-polygon, away from the lasso's edge by the mask's
 // resolution) is tinted, every other pixel is the plain picture's, background included.
 TEST_F(SceneOverlayRenderTest, ASelectionIsTintedWhereItsSurfaceIsSeenFromAnyView) {
   auto store = lod::PointStore::open(*sDir / "b.tlod");
-  const glm::dvec3 c = bunnyCentre(*store);
   const uint32_t w = 400, h = 300;
-  auto viewFrom = [&](const glm::dvec3& eye) {
-    ViewSetup v;
-    v.eye_world = eye;
-    v.view = glm::lookAt(eye, c, glm::dvec3(0, 1, 0));
-    v.projection = glm::perspective(glm::radians(35.0), double(w) / h, 0.05, 5.0);
-    v.width = w;
-    v.height = h;
-    return v;
-  };
-  const ViewSetup lasso_view = viewFrom(c + glm::dvec3(0.0, 0.0, 0.45));
-  const ViewSetup other = viewFrom(c + 0.45 * glm::dvec3(std::sin(0.44), 0.0, std::cos(0.44)));
+  const auto [lasso_view, other] = lassoViewAndAside(*store, 0.44, w, h);
   // A concave lasso (an L) over the bunny's body, in the lasso view's pixels (y down).
   const std::vector<glm::dvec2> px = {{150, 120}, {260, 120}, {260, 170},
                                       {200, 170}, {200, 230}, {150, 230}};
-  std::vector<glm::dvec2> ndc;
-  for (const glm::dvec2& p : px) ndc.push_back({p.x / w * 2.0 - 1.0, 1.0 - p.y / h * 2.0});
   SceneGraph g;
   const auto model = g.add(scene::SceneNode::MODEL);
   const auto sel = g.add(scene::SceneNode::SELECTION);
-  scene::SelectionPayload s;
-  s.set_model(model);
-  const glm::dmat4 lasso_vp = lasso_view.projection * lasso_view.view;
-  for (int k = 0; k < 16; ++k) s.add_lasso_clip_from_world(lasso_vp[k / 4][k % 4]);
-  for (const glm::dvec2& p : ndc) {
-    s.add_lasso(p.x);
-    s.add_lasso(p.y);
-  }
-  g.setPayload(sel, s);
+  g.setPayload(sel, test::lassoPayload(model, lasso_view, px));
   const std::vector<Highlight> highlights = sceneHighlights(g);
   ASSERT_EQ(highlights.size(), 1u);
 
-  const ModelInstance m[] = {{store.get(), storeModel(*store)}};
+  ModelInstance m[] = {{store.get(), storeModel(*store)}};
+  m[0].node = model;  // the selection's model (SceneDrawList sets it)
   ViewRenderer r(w, h);
   for (const ViewSetup* v : {&lasso_view, &other}) {
     RenderOptions opt;
@@ -799,6 +791,103 @@ TEST_F(SceneOverlayRenderTest, ASelectionIsTintedWhereItsSurfaceIsSeenFromAnyVie
     EXPECT_GT(out, 4000u);
     EXPECT_EQ(wrong, 0u) << (v == &lasso_view ? "lasso view" : "other view");
   }
+}
+
+}  // namespace
+}  // namespace tessera::render
+
+namespace tessera::render {
+namespace {
+
+// A VISIBLE selection (the lasso took only what its view showed) seen from 70 degrees aside:
+// surfaces the lasso's view saw are tinted, surfaces it saw hidden behind nearer ones are not,
+// though they project into the lasso (a THROUGH selection tints them). Which is which the test
+// decides itself, from a full-resolution render of the lasso's view: each pixel's surface point
+// against the depths around the pixel it projects to there, away from depth edges.
+TEST_F(SceneOverlayRenderTest, AVisibleOnlySelectionIsTintedOnlyWhereTheLassoViewSawIt) {
+  auto store = lod::PointStore::open(*sDir / "b.tlod");
+  const uint32_t w = 400, h = 300;
+  const auto [lasso_view, other] = lassoViewAndAside(*store, 1.22, w, h);
+  // Over the whole bunny, so what its front hides lies inside the lasso too.
+  const std::vector<glm::dvec2> px = {{60, 40}, {340, 40}, {340, 260}, {60, 260}};
+  SceneGraph g;
+  const auto model = g.add(scene::SceneNode::MODEL);
+  const auto sel = g.add(scene::SceneNode::SELECTION);
+  scene::SelectionPayload s = test::lassoPayload(model, lasso_view, px);
+  s.set_visible_only(true);
+  g.setPayload(sel, s);
+  std::vector<Highlight> visible = sceneHighlights(g);
+  ASSERT_EQ(visible.size(), 1u);
+  ASSERT_TRUE(visible[0].visible_only);
+  std::vector<Highlight> through = visible;
+  through[0].visible_only = false;
+
+  ModelInstance m[] = {{store.get(), storeModel(*store)}};
+  m[0].node = model;
+  ViewRenderer r(w, h);
+  RenderOptions opt;
+  opt.pick_ids = true;
+  auto hitsOf = [&] {
+    std::vector<std::optional<PickHit>> hits(size_t(w) * h);
+    for (uint32_t y = 0; y < h; ++y)
+      for (uint32_t x = 0; x < w; ++x) hits[size_t(y) * w + x] = r.pick(x, y);
+    return hits;
+  };
+  r.renderSettled(m, lasso_view, opt);
+  const auto lasso_hits = hitsOf();
+  auto eyeDepth = [&](const glm::dvec3& p) { return -(lasso_view.view * glm::dvec4(p, 1.0)).z; };
+  const Image plain = r.renderSettled(m, other, opt);
+  const auto hits = hitsOf();
+  opt.highlights = visible;
+  const Image tinted = r.renderSettled(m, other, opt);
+  opt.highlights = through;
+  const Image tinted_through = r.renderSettled(m, other, opt);
+  maybeWrite("selection_visible_only", tinted);
+
+  size_t seen = 0, hidden = 0, wrong = 0, through_missing = 0;
+  for (uint32_t y = 0; y < h; ++y) {
+    for (uint32_t x = 0; x < w; ++x) {
+      const auto& hit = hits[size_t(y) * w + x];
+      if (!hit) continue;
+      const glm::dvec2 at = project(lasso_view, hit->world);
+      if (!inside(px, at) || edgeDistance(px, at) < 2.0) continue;
+      // The lasso view's surface depths around the pixel the point lands on there.
+      const double d = eyeDepth(hit->world);
+      double nearest = 1e300, farthest = 0.0;
+      bool complete = true;
+      for (int dy = -3; dy <= 3; ++dy) {
+        for (int dx = -3; dx <= 3; ++dx) {
+          const int qx = int(std::floor(at.x)) + dx, qy = int(std::floor(at.y)) + dy;
+          if (qx < 0 || qy < 0 || qx >= int(w) || qy >= int(h)) {
+            complete = false;
+            continue;
+          }
+          const auto& l = lasso_hits[size_t(qy) * w + size_t(qx)];
+          if (!l) {
+            complete = false;
+            continue;
+          }
+          nearest = std::min(nearest, eyeDepth(l->world));
+          farthest = std::max(farthest, eyeDepth(l->world));
+        }
+      }
+      const uint8_t *a = pixel(plain, int(x), int(y)), *b = pixel(tinted, int(x), int(y)),
+                    *t = pixel(tinted_through, int(x), int(y));
+      const bool changed = std::memcmp(a, b, 3) != 0;
+      through_missing += std::memcmp(a, t, 3) == 0;  // a THROUGH selection tints all of it
+      if (complete && d <= nearest * 1.004) {        // no nearer surface around: seen
+        ++seen;
+        wrong += !changed;
+      } else if (d > farthest * 1.03 + 0.005) {  // behind every surface around: hidden
+        ++hidden;
+        wrong += changed;
+      }
+    }
+  }
+  EXPECT_GT(seen, 1000u);
+  EXPECT_GT(hidden, 1000u);
+  EXPECT_EQ(through_missing, 0u);
+  EXPECT_LE(wrong, (seen + hidden) / 500) << "seen " << seen << ", hidden " << hidden;
 }
 
 }  // namespace

@@ -69,6 +69,16 @@ TEST(SceneFile, ShippedScenesLoadWithPathsBesideTheFile) {
   EXPECT_EQ(bunny.settings().shading(), scene::SHADING_EDL);
   EXPECT_EQ(loadSceneFile(kConfigs + "/scenes/autzen.json").settings().lod_pixels(), 1.0f);
   EXPECT_EQ(loadSceneFile(kConfigs + "/scenes/bunny-fused.json").nodes_size(), 2);
+  // A clip plane (issue 16) through the scene file's JSON mapping, checked as the wire's.
+  const scene::SceneFile clip = loadSceneFile(kConfigs + "/scenes/bunny-clip.json");
+  ASSERT_EQ(clip.nodes_size(), 6);
+  EXPECT_EQ(clip.nodes(2).kind(), scene::SceneNode::CLIP);
+  EXPECT_EQ(clip.nodes(2).clip().planes_size(), 4);
+  EXPECT_EQ(clip.nodes(2).clip().planes(0), -1.0);
+  const SceneGraph g = SceneGraph::fromFile(clip);
+  EXPECT_EQ(g.node(3).clip().models_size(), 1);
+  EXPECT_EQ(g.node(3).clip().models(0), 2u);  // the scans' MODEL node
+  EXPECT_EQ(g.node(12).clip().outline(), 0.09f);
 }
 
 TEST(SceneFile, EveryNodeKindAndGroupsLoad) {

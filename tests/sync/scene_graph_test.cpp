@@ -425,6 +425,102 @@ TEST_F(BadFrame, BadFields) {
   expectError(f, Code::kBadField, "kind: missing or unknown");
 }
 
+// A CLIP node (issue 16) reaches a replica through a frame, its later change too, and every
+// bad payload is refused with the field named, by the master's mutation and by a replica.
+TEST(SceneGraph, ClipNodesSyncAndBadOnesAreRefusedByField) {
+  SceneGraph master, replica;
+  const NodeId model = master.add(SceneNode::MODEL);
+  const NodeId clip = master.add(SceneNode::CLIP);
+  scene::ClipPayload c;
+  for (double v : {0.0, 0.0, -1.0, 0.25}) c.add_planes(v);  // keep z <= 0.25
+  c.add_models(model);
+  master.setPayload(clip, c);
+  replica.apply(wire(master.takeFrame(1, 0)));
+  ASSERT_TRUE(replica.contains(clip));
+  EXPECT_EQ(replica.node(clip).kind(), SceneNode::CLIP);
+  EXPECT_EQ(replica.node(clip).clip().planes_size(), 4);
+  EXPECT_EQ(replica.node(clip).clip().models(0), model);
+  // Turned into a box, then hidden: each change reaches the replica.
+  scene::ClipPayload box;
+  box.mutable_box_center()->set_x(1.0);
+  box.mutable_box_half_extents()->set_x(0.5);
+  box.mutable_box_half_extents()->set_y(0.5);
+  box.mutable_box_half_extents()->set_z(2.0);
+  box.set_invert(true);
+  master.setPayload(clip, box);
+  master.setVisible(clip, false);
+  replica.apply(wire(master.takeFrame(2, 0)));
+  EXPECT_TRUE(replica == master) << differences(replica, master);
+  EXPECT_TRUE(replica.node(clip).clip().has_box_half_extents());
+  EXPECT_FALSE(replica.node(clip).visible());
+
+  auto refusal = [&](const std::function<void(scene::ClipPayload&)>& edit) {
+    scene::ClipPayload bad = c;
+    edit(bad);
+    std::string master_says;
+    try {
+      master.setPayload(clip, bad);
+    } catch (const PreconditionError& e) {
+      master_says = e.what();
+    }
+    // The same payload from outside: a replica refuses the frame.
+    scene::Frame f;
+    f.set_number(3);
+    f.set_version(replica.version() + 1);
+    SceneNode* n = f.add_changed();
+    n->set_id(clip);
+    *n->mutable_clip() = bad;
+    auto [code, what] = errorOf([&] { replica.apply(f); });
+    EXPECT_EQ(int(code), int(Code::kBadField)) << what;
+    // The master's mutation is refused with the same words (and where the check failed).
+    const size_t field = what.find("clip.");
+    EXPECT_NE(field, std::string::npos) << what;
+    if (field != std::string::npos) {
+      EXPECT_NE(master_says.find(what.substr(field)), std::string::npos) << master_says;
+    }
+    return what;
+  };
+  auto says = [](const std::string& what, const std::string& field) {
+    return what.find(field) != std::string::npos;
+  };
+  EXPECT_PRED2(says, refusal([](auto& b) { b.add_planes(1.0); }), "clip.planes: needs a b c d");
+  EXPECT_PRED2(says, refusal([](auto& b) { b.set_planes(2, NAN); }),
+               "clip.planes: numbers must be finite");
+  EXPECT_PRED2(says, refusal([](auto& b) { b.set_planes(2, 0.0); }),
+               "clip.planes: plane 0 has a zero normal");
+  EXPECT_PRED2(says, refusal([](auto& b) {
+                 for (int i = 0; i < 24; ++i) b.add_planes(i % 4 == 0 ? 1.0 : 0.0);
+               }),
+               "clip.planes: at most 6 planes, got 7");
+  EXPECT_PRED2(says, refusal([](auto& b) { b.mutable_box_half_extents()->set_x(1.0); }),
+               "clip.planes: a clip node holds planes or a box, not both");
+  EXPECT_PRED2(says, refusal([](auto& b) {
+                 b.clear_planes();
+                 b.mutable_box_half_extents()->set_x(1.0);
+                 b.mutable_box_half_extents()->set_y(0.0);
+                 b.mutable_box_half_extents()->set_z(1.0);
+               }),
+               "clip.box_half_extents: each must be > 0, got 0");
+  EXPECT_PRED2(says, refusal([](auto& b) {
+                 b.clear_planes();
+                 b.mutable_box_center()->set_y(1.0);
+               }),
+               "clip.box_center: a box needs box_half_extents too");
+  EXPECT_PRED2(says, refusal([](auto& b) {
+                 b.clear_planes();
+                 b.mutable_box_half_extents()->set_x(1.0);
+                 b.mutable_box_center()->set_y(INFINITY);
+               }),
+               "clip.box_center: numbers must be finite");
+  EXPECT_PRED2(says, refusal([](auto& b) { b.add_models(0); }), "clip.models: ids must name MODEL");
+  EXPECT_PRED2(says, refusal([](auto& b) {
+                 for (int i = 0; i < 65; ++i) b.add_models(1);
+               }),
+               "clip.models: at most 64");
+  EXPECT_PRED2(says, refusal([](auto& b) { b.set_outline(-1.0f); }), "clip.outline");
+  EXPECT_TRUE(replica == master) << differences(replica, master);
+}
+
 TEST(SceneGraphSnapshot, BadSnapshotsAreErrors) {
   SceneGraph g;
   g.create(1, SceneNode::GROUP);

@@ -23,8 +23,9 @@ struct PickOptions {
 };
 
 /// The nearest hit point (world, metres) along the ray from `origin` in direction `dir`, over
-/// every model, or nullopt. Reads hierarchy pages and chunks through the stores' caches (thread-
-/// safe; may touch the disk). Corrupt chunks and pages are skipped.
+/// every model, or nullopt; samples a model's clip planes cut away are skipped. Reads hierarchy
+/// pages and chunks through the stores' caches (thread-safe; may touch the disk). Corrupt chunks
+/// and pages are skipped.
 std::optional<glm::dvec3> pickPoint(std::span<const render::ModelInstance> models,
                                     const glm::dvec3& origin, const glm::dvec3& dir,
                                     const PickOptions& options = {});

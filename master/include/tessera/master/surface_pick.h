@@ -36,8 +36,10 @@ struct SurfacePick {
 /// leaves of every model. Points: among the samples within `options.radius_px` pixels of the
 /// ray (at least the leaf's spacing), the front surface (samples within two spacings of the
 /// nearest one) and there the sample nearest to the ray. Meshes: the nearest triangle the ray
-/// crosses. `only_model`: search that model alone (the one the pick ids name). Reads at most
-/// `options.max_chunks` chunks or patches per model; corrupt ones are skipped.
+/// crosses. What a model's clip planes cut away (ModelInstance::clip) is skipped: a ray
+/// through a cut surface finds what lies behind. `only_model`: search that model alone (the one the
+/// pick ids name). Reads at most `options.max_chunks` chunks or patches per model; corrupt ones are
+/// skipped.
 std::optional<SurfacePick> pickSurface(std::span<const render::ModelInstance> models,
                                        const glm::dvec3& origin, const glm::dvec3& dir,
                                        const PickOptions& options = {},

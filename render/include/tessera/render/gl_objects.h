@@ -4,6 +4,7 @@
 #pragma once
 
 #include <cstdint>
+#include <span>
 #include <string>
 #include <utility>
 #include <vector>
@@ -51,6 +52,9 @@ class GlProgram {
   void set(const char* uniform, const glm::vec3& v) const;
   void set(const char* uniform, const glm::vec4& v) const;
   void set(const char* uniform, const glm::mat4& v) const;
+  /// Arrays from element 0 (uniform names the array).
+  void set(const char* uniform, std::span<const glm::vec4> v) const;
+  void set(const char* uniform, std::span<const uint32_t> v) const;
 
  private:
   uint32_t mName = 0;

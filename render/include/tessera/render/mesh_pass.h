@@ -27,6 +27,7 @@
 
 #include <glm/glm.hpp>
 
+#include <tessera/render/clip_planes.h>
 #include <tessera/render/frame_target.h>
 
 namespace tessera::render {
@@ -59,6 +60,9 @@ struct MeshBatch {
   /// Geomorphing: vertices at mix(morph target, position, morph). 1: the patch's own shape; 0:
   /// on its parent's surface (what it looks like the moment it replaces its parent).
   float morph = 1.0f;
+  /// Clip planes in the patch's frame (clip_planes.h): fragments they cut away are discarded
+  /// (no depth, colour or pick id), so what lies behind shows.
+  GpuClipPlanes clip{};
 };
 
 struct MeshShading {

@@ -16,6 +16,7 @@
 
 #include <glm/glm.hpp>
 
+#include <tessera/render/clip_planes.h>
 #include <tessera/render/frame_target.h>
 #include <tessera/render/gl_objects.h>
 #include <tessera/render/spbr.h>
@@ -52,6 +53,9 @@ struct DrawBatch {
   /// With PointShading::blend: points whose view depth is within this of the nearest's (world
   /// units: about a splat's diameter) blend their colours on the pixel.
   float blend_depth = 0.0f;
+  /// Clip planes in the batch's frame (clip_planes.h, the scene's CLIP nodes): points they cut
+  /// away are not drawn, in every mode (opaque, ensembles, blended baselines).
+  GpuClipPlanes clip{};
 
   // See-through (drawEnsembles() only; spbr.h):
   float spbr_k = 0.0f;          ///< copies per point over all ensembles (eq. 4), <= total ensembles

@@ -83,6 +83,17 @@ class SceneDrawList {
   /// Forgets and closes every store (before the streamers go).
   void clear(std::span<ChunkStreamer* const> streamers);
 
+  /// Clip planes and boxes (the scene's visible CLIP nodes, issue 16): each instance's
+  /// ModelInstance::clip holds, in the world frame (double), the planes of every visible CLIP
+  /// node that cuts it (its `models`, or all models when empty), one group per node in
+  /// ascending id, as long as they fit in kMaxClipPlanes; a node that does not fit is left out
+  /// whole for that model and counted here (the last update() that changed nodes).
+  size_t droppedClips() const { return mDroppedClips; }
+  /// The world planes of a CLIP node's payload (node frame, placed by `world`): its planes, or
+  /// its box's six (boxPlanes()). Plane' = plane * inverse(world), in double.
+  static std::vector<glm::dvec4> clipPlanesOf(const scene::ClipPayload& clip,
+                                              const glm::dmat4& world);
+
   /// The MODEL node of each instance of the last update(), in the same order.
   const std::vector<uint32_t>& instanceNodes() const { return mInstanceNodes; }
 
@@ -106,6 +117,15 @@ class SceneDrawList {
   std::map<std::string, std::unique_ptr<lod::PointStore>> mStores;  // by store path
   std::map<std::string, std::unique_ptr<lod::MeshStore>> mMeshStores;  // .tmesh, by path
   std::map<uint32_t, Entry> mEntries;                               // by node id
+  /// A visible CLIP node: its planes in the world, whether it keeps their outside, the models
+  /// it cuts (empty: all).
+  struct ClipEntry {
+    std::vector<glm::dvec4> planes;
+    bool invert = false;
+    std::vector<uint32_t> models;
+  };
+  std::map<uint32_t, ClipEntry> mClips;  // visible CLIP nodes by id
+  size_t mDroppedClips = 0;
   std::vector<ModelInstance> mInstances;
   std::vector<uint32_t> mInstanceNodes;  // parallel to mInstances
   bool mStarted = false;

@@ -23,6 +23,8 @@
 //  - MEASUREMENT (issue 16): lines through its points (closed for an area), a dot on each, and
 //    its label (measurementLabel()) at the distance's middle, the angle's vertex, the area's
 //    centroid or the path's end.
+//  - CLIP (issue 16): faint white lines where the cut is: a box's 12 edges, or a square of
+//    half-width `outline` on each plane around its point nearest the node origin.
 //  - VIDEO_INSET (issue 14): the picture of its source's stream (options.video_texture; a dark
 //    quad until one is decoded). In the world: an OverlayQuad width x height metres centred on
 //    the node frame's origin in its xy plane, depth-tested. On the screen: a ScreenRect placed
@@ -39,6 +41,7 @@
 #include <cstdint>
 #include <functional>
 #include <set>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -88,12 +91,19 @@ std::string noteText(const scene::AnnotationPayload& a);
 std::string measurementLabel(const scene::MeasurementPayload& m);
 
 /// The graph's visible SELECTION nodes as highlights (RenderOptions::highlights): each lasso
-/// rasterised into its mask (rasterizeLasso()), tinted with its colour (amber when unset).
+/// rasterised into its mask (rasterizeLasso()), tinted with its colour (amber when unset), on
+/// its model only (Highlight::model_node: the SceneDrawList's instances carry their node).
 /// Cost: about a millisecond per selection (the mask's 1024 rows).
 std::vector<Highlight> sceneHighlights(const sync::SceneGraph& graph);
 
+/// Sets a SELECTION payload's lasso: the view it was drawn in (lasso_clip_from_world: `view`'s
+/// projection times its view) and the polygon `px`, in that view's pixels (x right, y down from
+/// the top-left), as the view's NDC (lasso).
+void setSelectionLasso(scene::SelectionPayload& selection, const ViewSetup& view,
+                       std::span<const glm::dvec2> px);
+
 /// Whether the node kind is one the scene overlay draws (SKETCH, AVATAR, ANNOTATION,
-/// VIDEO_INSET, MEASUREMENT).
+/// VIDEO_INSET, MEASUREMENT, CLIP).
 bool isOverlayKind(sync::SceneGraph::Kind kind);
 
 /// The sources of the visible VIDEO_INSET nodes that `view` shows at least in part (world quads

@@ -6,6 +6,7 @@
 
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <span>
 #include <vector>
 
@@ -133,11 +134,32 @@ class EdlPass {
 constexpr uint32_t kHighlightMaskSize = 1024;
 
 /// A region to tint (a selection, issue 16): what the lasso drawn in view `clip_from_world`
-/// enclosed (`mask`: rasterizeLasso()), the whole depth through.
+/// enclosed (`mask`: rasterizeLasso()), the whole depth through, on one model.
 struct Highlight {
   glm::dmat4 clip_from_world{1.0};
   std::shared_ptr<const std::vector<uint32_t>> mask;
   glm::u8vec4 tint{255, 190, 0, 120};  ///< rgb and how much of it (alpha / 255) over the pixel
+  /// The MODEL node selected on (ModelInstance::node): only pixels whose pick id is one of that
+  /// model's elements are tinted (other models inside the lasso's volume are not). 0: any
+  /// surface. See-through frames have no pick ids: there any surface is tinted.
+  uint32_t model_node = 0;
+  /// The lasso took only what its view showed (SelectionPayload::visible_only): a pixel is
+  /// tinted only where its surface point is not hidden from the lasso's view. The view renderer
+  /// draws the frame's batches once more from the lasso's view into a depth plane
+  /// (kLassoDepthSize^2 over its NDC square) and the pass compares eye depths, as the lasso did
+  /// (within 1%). Approximate where the lasso's view saw occluders this view's cut does not hold
+  /// (outside this view's frustum) and at the depth plane's resolution. Opaque frames only.
+  bool visible_only = false;
+};
+
+/// The side of the depth plane a visible-only highlight is tested against, pixels over the
+/// lasso view's NDC square (4 MiB of planes).
+constexpr uint32_t kLassoDepthSize = 512;
+
+/// The pick ids one model's elements wrote in a frame, [first, first + count), and its node.
+struct PickSpan {
+  uint32_t node = 0;
+  uint32_t first = 0, count = 0;
 };
 
 /// The lasso `ndc` (the lasso view's normalised device coordinates, x right, y up; at least 3
@@ -148,14 +170,22 @@ std::vector<uint32_t> rasterizeLasso(std::span<const glm::dvec2> ndc);
 
 /// Tints the pixels whose surface point (this view's pixel centre at its depth) projects inside
 /// a highlight's lasso. Run after the resolve and eye-dome lighting, before the overlay.
-/// `clip_from_world`: the view the depth was written with. Milliseconds.
-/// Cost per highlight: one pass over the pixels reading the depth and the mask (a 128 KiB
-/// upload when the mask changed), like one eye-dome lighting stage.
+/// `clip_from_world`: the view the depth was written with. `models`: the frame's pick ids per
+/// model, when the target holds pick ids: a highlight naming a model then tints only pixels of
+/// that model's span (and nothing when the model was not drawn); without them (see-through
+/// frames) any surface in the lasso is tinted. `lasso_depth`: for visible-only highlights, the
+/// depth the lasso's view shows (a target whose depth plane was drawn with each highlight's
+/// clip_from_world; the caller draws it, so run() then takes one highlight); null: through the
+/// depth. Milliseconds.
+/// Cost per highlight: one pass over the pixels reading the depth, the pick id and the mask (a
+/// 128 KiB upload when the mask changed), like one eye-dome lighting stage.
 class HighlightPass {
  public:
   HighlightPass();
   double run(FrameTarget& target, std::span<const Highlight> highlights,
-             const glm::dmat4& clip_from_world);
+             const glm::dmat4& clip_from_world,
+             std::optional<std::span<const PickSpan>> models = std::nullopt,
+             const FrameTarget* lasso_depth = nullptr);
 
  private:
   GlProgram mProgram;

@@ -91,6 +91,8 @@ struct RenderOptions {
   bool flat_shading = false;
   /// Selections to tint (screen_passes.h HighlightPass; the scene's SELECTION nodes through
   /// sceneHighlights() in scene_overlay.h), drawn after eye-dome lighting, under the overlay.
+  /// A highlight naming a model (Highlight::model_node) makes an opaque frame write pick ids,
+  /// so only that model's pixels are tinted.
   std::vector<Highlight> highlights;
 };
 
@@ -133,6 +135,13 @@ struct ModelInstance {
   glm::u8vec3 color{0, 0, 0};
   /// A mesh store instead of `store` (last, so positional initialisers of point models stay).
   lod::MeshStore* mesh = nullptr;
+  /// What cuts the model, world frame (clip_planes.h; the scene's CLIP nodes through
+  /// SceneDrawList): each batch tests its points or fragments against these planes, moved to
+  /// its own frame in double. Empty: nothing cut.
+  ClipPlanes clip{};
+  /// The MODEL node drawn (SceneDrawList), 0: none. A Highlight naming it (model_node) tints
+  /// only this model's pixels.
+  uint32_t node = 0;
   /// The store drawn, whichever kind it is.
   lod::LodHierarchy* hierarchy() const {
     return mesh ? static_cast<lod::LodHierarchy*>(mesh) : store;
@@ -206,6 +215,11 @@ class ViewRenderer {
   void addMeshModel(const ModelInstance& instance, const ViewSetup& view,
                     const RenderOptions& options, std::vector<MeshBatch>& batches,
                     std::vector<lod::NodeId>& nodes, RenderStats& stats);
+  /// The depth the lasso view `lasso_clip_from_world` shows of this frame's batches, into
+  /// mLassoTarget (visible-only highlights, screen_passes.h): the same batches through that
+  /// view, splats scaled to its kLassoDepthSize^2 plane, depth only.
+  void drawLassoDepth(const glm::dmat4& lasso_clip_from_world, const ViewSetup& view,
+                      std::span<const DrawBatch> batches, std::span<const MeshBatch> meshes);
   /// A range of pick ids: the points of one batch, or the triangles of one patch.
   struct PickRange {
     uint32_t base = 0, count = 0;
@@ -224,6 +238,9 @@ class ViewRenderer {
   std::unique_ptr<HighlightPass> mHighlight;  ///< made on first use
   std::vector<PickRange> mPickRanges;     ///< the last frame's, by base
   std::vector<lod::NodeId> mBatchNodes;   ///< this frame's batches' nodes
+  std::vector<glm::dmat4> mBatchWorld;    ///< this frame's point batches' world_from_local
+  std::vector<glm::dmat4> mMeshWorld;     ///< ... and mesh batches'
+  std::unique_ptr<FrameTarget> mLassoTarget;  ///< visible-only highlights: made on first use
   glm::dmat4 mPickUnproject{1.0};         ///< world from NDC, the last frame's
   uint64_t mSpbrSignature = 0;            ///< what the accumulated ensembles show
   uint32_t mSpbrDone = 0;                 ///< ensembles accumulated for it

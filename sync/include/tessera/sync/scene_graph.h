@@ -81,6 +81,9 @@ class SceneGraph {
   /// A database place's items in one ANNOTATION node, and the text each carries (scene.proto).
   static constexpr int kMaxAnnotationItems = 64;
   static constexpr size_t kMaxAnnotationText = 4096;
+  /// A CLIP node's planes (ClipPayload::planes; a box is 6) and the MODEL nodes it names.
+  static constexpr int kMaxClipNodePlanes = 6;
+  static constexpr int kMaxClipModels = 64;
 
   /// An empty scene at version 0, frame 0: no nodes, camera at (0, 0, 1) looking at the origin
   /// with y up, settings defaultSettings().
@@ -130,6 +133,7 @@ class SceneGraph {
   void setPayload(NodeId id, const scene::VideoInsetPayload& payload);
   void setPayload(NodeId id, const scene::MeasurementPayload& payload);
   void setPayload(NodeId id, const scene::SelectionPayload& payload);
+  void setPayload(NodeId id, const scene::ClipPayload& payload);
 
   /// Sets the camera (metres, scene frame), stored in its wire form (camera_state.h): camera()
   /// then returns it rounded as every node will see it. Preconditions as encodeCamera().
