@@ -11,6 +11,8 @@
 #include <tessera/render/gl_context.h>
 #include <tessera/sync/scene_edits.h>
 
+#include "vec3.h"
+
 namespace tessera::master {
 
 namespace {
@@ -229,9 +231,9 @@ bool Console::handleInput(sync::SceneGraph& graph) {
     form.draft.position = at->point.world;
     form.draft.model = graph.node(nodes[at->model]).name();
     const config::Camera camera = graph.camera();
-    form.draft.view.eye = {camera.eye().x(), camera.eye().y(), camera.eye().z()};
-    form.draft.view.target = {camera.target().x(), camera.target().y(), camera.target().z()};
-    form.draft.view.up = {camera.up().x(), camera.up().y(), camera.up().z()};
+    form.draft.view.eye = detail::vec(camera.eye());
+    form.draft.view.target = detail::vec(camera.target());
+    form.draft.view.up = detail::vec(camera.up());
     form.draft.view.fovy_deg = glm::degrees(fovy);
     mNoteForm = form;
     mPlacingNote = false;

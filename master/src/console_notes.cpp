@@ -4,19 +4,14 @@
 
 #include <tessera/render/scene_draw_list.h>
 
+#include "vec3.h"
+
 namespace tessera::master {
 
 namespace {
 
-glm::dvec3 vec(const config::Vec3& v) {
-  return {v.x(), v.y(), v.z()};
-}
-
-void set(config::Vec3* d, const glm::dvec3& v) {
-  d->set_x(v.x);
-  d->set_y(v.y);
-  d->set_z(v.z);
-}
+using detail::set;
+using detail::vec;
 
 /// The note's anchor in the world (its node's placement applied to the payload's anchor).
 glm::dvec3 anchorOf(const sync::SceneGraph& graph, sync::SceneGraph::NodeId note) {

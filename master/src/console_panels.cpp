@@ -1,7 +1,8 @@
 // The console's Dear ImGui panels (issue 16): how they look and which edit each control makes.
 // What a note edit does lives in console_notes.h (tested without a window). Every panel is a
 // small collapsible window at the edges of the view, clear of its middle and of the
-// navigation's bar on the right.
+// navigation's bar on the right: Models, Tools and Layers down the left, Notes (the tallest)
+// at the right.
 #include "console.h"
 
 #include <algorithm>
@@ -125,7 +126,7 @@ void Console::modelsPanel(sync::SceneGraph& graph) {
 }
 
 void Console::toolsPanel(sync::SceneGraph& graph) {
-  if (beginPanel("Tools", ImVec2(8, float(mHeight) * 0.38f))) {
+  if (beginPanel("Tools", ImVec2(8, float(mHeight) * 0.27f))) {
     ImGui::TextUnformatted("Measure (M)");
     using Mode = MeasureTool::Mode;
     for (Mode m : {Mode::kOff, Mode::kDistance, Mode::kPath, Mode::kAngle, Mode::kArea}) {
@@ -177,8 +178,7 @@ void Console::toolsPanel(sync::SceneGraph& graph) {
 }
 
 void Console::layersPanel(sync::SceneGraph& graph) {
-  const float right = float(mWidth) * float(1.0 - OneButtonNavigation::kBarFraction) - 8.0f;
-  if (beginPanel("Layers", ImVec2(right - kPanelWidth, 8))) {
+  if (beginPanel("Layers", ImVec2(8, float(mHeight) * 0.64f))) {
     std::vector<LayerRow> rows;
     if (mAnnotations) {
       // The database's layers "a/b/c" as a tree: each under its parent path.
@@ -242,7 +242,7 @@ void Console::layersPanel(sync::SceneGraph& graph) {
 
 void Console::notesPanel(sync::SceneGraph& graph) {
   const float right = float(mWidth) * float(1.0 - OneButtonNavigation::kBarFraction) - 8.0f;
-  if (beginPanel("Notes", ImVec2(right - kPanelWidth, float(mHeight) * 0.36f))) {
+  if (beginPanel("Notes", ImVec2(right - kPanelWidth, 8))) {
     if (!mAnnotations) {
       ImGui::TextWrapped("Notes need tessera-master --annotations FILE: they are not kept.");
       ImGui::End();

@@ -171,10 +171,11 @@ class ConsolePanels : public ::testing::Test {
 
 // Where the panels are in the 640 x 366 console (console_panels.cpp: fixed positions, DejaVu
 // Sans 14 px): the Models panel's first row at the top left (its slider from x 72 to 250), the
-// Layers panel's first checkbox and the Notes panel's "Add note" at the right.
+// Layers panel's first checkbox at the bottom left (the panel at 0.64 of the height), the Notes
+// panel's "Add note" at the top right.
 constexpr int kSliderY = 46;
-constexpr int kLayerX = 349, kLayerY = 44;
-constexpr int kAddNoteX = 367, kAddNoteY = 169;
+constexpr int kLayerX = 26, kLayerY = 272;
+constexpr int kAddNoteX = 367, kAddNoteY = 37;
 
 TEST_F(ConsolePanels, TheSliderFadesAModelAndANoteTypedInIsStored) {
   using tessera::test::VirtualDisplay;
