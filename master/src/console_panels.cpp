@@ -65,6 +65,13 @@ void layerTree(const std::vector<LayerRow>& rows) {
   }
 }
 
+/// Greyed text wrapped at the panel's width.
+void disabledWrapped(const std::string& text) {
+  ImGui::PushStyleColor(ImGuiCol_Text, ImGui::GetStyleColorVec4(ImGuiCol_TextDisabled));
+  ImGui::TextWrapped("%s", text.c_str());
+  ImGui::PopStyleColor();
+}
+
 /// The line under a note's item: its kind's value, its author and revision.
 void itemDetails(const scene::AnnotationItem& it) {
   if (!it.title().empty()) ImGui::TextWrapped("%s", it.title().c_str());
@@ -73,9 +80,8 @@ void itemDetails(const scene::AnnotationItem& it) {
   if (it.kind() == "link" && !it.uri().empty()) ImGui::TextWrapped("link: %s", it.uri().c_str());
   if (it.kind() == "link" && it.link_item() != 0)
     ImGui::Text("link: item %llu", (unsigned long long)it.link_item());
-  ImGui::TextDisabled("%s, by %s, revision %llu", it.kind().c_str(),
-                      it.author().empty() ? "the master" : it.author().c_str(),
-                      (unsigned long long)it.revision());
+  disabledWrapped(it.kind() + ", by " + (it.author().empty() ? "the master" : it.author()) +
+                  ", revision " + std::to_string(it.revision()));
 }
 
 }  // namespace
@@ -275,6 +281,7 @@ void Console::notesPanel(sync::SceneGraph& graph) {
                 mHitPlaces.push_back(place);
         } catch (const AnnotationError& e) {  // a malformed query says why
           mSearchError = e.what();
+          say("search: " + mSearchError);
         }
       }
     }
@@ -307,7 +314,7 @@ void Console::notesPanel(sync::SceneGraph& graph) {
     if (mShown && graph.contains(mShown) &&
         graph.node(mShown).kind() == scene::SceneNode::ANNOTATION)
       shownNote(graph);
-    if (!mStatus.empty()) ImGui::TextDisabled("%s", mStatus.c_str());
+    if (!mStatus.empty()) disabledWrapped(mStatus);
   }
   ImGui::End();
 }

@@ -172,10 +172,10 @@ class ConsolePanels : public ::testing::Test {
 // Where the panels are in the 640 x 366 console (console_panels.cpp: fixed positions, DejaVu
 // Sans 14 px): the Models panel's first row at the top left (its slider from x 72 to 250), the
 // Layers panel's first checkbox at the bottom left (the panel at 0.64 of the height), the Notes
-// panel's "Add note" at the top right.
+// panel's "Add note" and search field at the top right.
 constexpr int kSliderY = 46;
 constexpr int kLayerX = 26, kLayerY = 272;
-constexpr int kAddNoteX = 367, kAddNoteY = 37;
+constexpr int kAddNoteX = 367, kAddNoteY = 37, kSearchX = 450, kSearchY = 61;
 
 TEST_F(ConsolePanels, TheSliderFadesAModelAndANoteTypedInIsStored) {
   using tessera::test::VirtualDisplay;
@@ -214,7 +214,14 @@ TEST_F(ConsolePanels, TheSliderFadesAModelAndANoteTypedInIsStored) {
   ASSERT_TRUE(std::regex_search(log, m, std::regex("note (\\d+) added \\(item (\\d+)")));
   const int64_t place = std::stoll(m[1].str()), item = std::stoll(m[2].str());
 
-  // (c) Its layer, now in the Layers panel, hidden there: stored in the database.
+  // (c) A malformed search typed into the search field: the reason said, the session goes on.
+  xdo("mousemove --window " + wid + " " + std::to_string(kSearchX) + " " +
+      std::to_string(kSearchY) + " click 1");
+  std::this_thread::sleep_for(std::chrono::milliseconds(1500));  // the field takes the keyboard
+  xdo("type --window " + wid + " --delay 60 '\"crack'");
+  ASSERT_TRUE(master->waitFor("console: search: AnnotationDb: .*", 30)) << master->output();
+
+  // (d) Its layer, now in the Layers panel, hidden there: stored in the database.
   xdo("mousemove --window " + wid + " " + std::to_string(kLayerX) + " " + std::to_string(kLayerY) +
       " click 1");
   ASSERT_TRUE(master->waitFor("console: layer notes hidden", 30)) << master->output();
