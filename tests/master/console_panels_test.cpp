@@ -126,44 +126,51 @@ TEST(ConsoleNotes, AddedNotesAreFoundNearTheCursorAndFlownTo) {
 class ConsolePanels : public ::testing::Test {
  protected:
   void SetUp() override {
-    const std::string data = TESSERA_DATA_DIR;
     tessera::test::writeText(dir.path() / "wall.json", tessera::test::smallWallJson());
     const std::string camera = tessera::test::cameraJson({-0.027, 0.11, 0.5}, {-0.027, 0.1, 0.0});
+    const std::string bunny = R"("model": {"store": ")" + std::string(TESSERA_DATA_DIR) +
+                              R"(/stanford-bunny/scans/bun.conf"})";
+    const std::string rest = R"(], "camera": )" + camera +
+                             R"(, "settings": {"background": {"r": 0.05, "g": 0.05, "b": 0.08}}})";
     tessera::test::writeText(
         dir.path() / "scene.json",
-        R"({"nodes": [{"kind": "MODEL", "name": "bunny", "model": {"store": ")" + data +
-            R"(/stanford-bunny/scans/bun.conf"}}], "camera": )" + camera +
-            R"(, "settings": {"background": {"r": 0.05, "g": 0.05, "b": 0.08}}})");
+        R"({"nodes": [{"kind": "MODEL", "name": "bunny", )" + bunny + "}" + rest);
+    // The bunny in a group "scans": a layer when there is no database.
+    tessera::test::writeText(dir.path() / "grouped.json",
+                             R"({"nodes": [{"id": 1, "kind": "GROUP", "name": "scans"},
+        {"id": 2, "kind": "MODEL", "name": "bunny", "parent": 1, )" +
+                                 bunny + "}" + rest);
     tessera::test::writeText(dir.path() / "hold.json",
                              R"({"name": "hold", "keyframes": [{"time": 0, )" +
                                  camera.substr(1, camera.size() - 2) + R"(}, {"time": 600, )" +
                                  camera.substr(1, camera.size() - 2) + "}]}");
   }
 
-  std::unique_ptr<Process> startMaster() {
-    return std::make_unique<Process>(std::vector<std::string>{TESSERA_MASTER,
-                                                              "--transport",
-                                                              "zmq",
-                                                              "--listen",
-                                                              "tcp://127.0.0.1:*",
-                                                              "--wall",
-                                                              (dir.path() / "wall.json").string(),
-                                                              "--scene",
-                                                              (dir.path() / "scene.json").string(),
-                                                              "--script",
-                                                              (dir.path() / "hold.json").string(),
-                                                              "--join-wait",
-                                                              "0.5",
-                                                              "--max-fps",
-                                                              "20",
-                                                              "--console",
-                                                              "--console-width",
-                                                              "640",
-                                                              "--console-screenshot",
-                                                              (dir.path() / "console.png").string(),
-                                                              "--annotations",
-                                                              (dir.path() / "notes.tadb").string()},
-                                     dir.path() / "master.log");
+  /// The master alone with its console on `scene`, and `extra` options.
+  std::unique_ptr<Process> startMaster(const std::string& scene,
+                                       const std::vector<std::string>& extra) {
+    std::vector<std::string> argv = {TESSERA_MASTER,
+                                     "--transport",
+                                     "zmq",
+                                     "--listen",
+                                     "tcp://127.0.0.1:*",
+                                     "--wall",
+                                     (dir.path() / "wall.json").string(),
+                                     "--scene",
+                                     (dir.path() / scene).string(),
+                                     "--script",
+                                     (dir.path() / "hold.json").string(),
+                                     "--join-wait",
+                                     "0.5",
+                                     "--max-fps",
+                                     "20",
+                                     "--console",
+                                     "--console-width",
+                                     "640",
+                                     "--console-screenshot",
+                                     (dir.path() / "console.png").string()};
+    argv.insert(argv.end(), extra.begin(), extra.end());
+    return std::make_unique<Process>(argv, dir.path() / "master.log");
   }
 
   tessera::test::TempDir dir;
@@ -175,6 +182,7 @@ class ConsolePanels : public ::testing::Test {
 // panel's "Add note" and search field at the top right.
 constexpr int kSliderY = 46;
 constexpr int kLayerX = 26, kLayerY = 272;
+constexpr int kGroupLayerY = 304;  // without a database, below the panel's note
 constexpr int kAddNoteX = 367, kAddNoteY = 37, kSearchX = 450, kSearchY = 61;
 
 TEST_F(ConsolePanels, TheSliderFadesAModelAndANoteTypedInIsStored) {
@@ -182,7 +190,7 @@ TEST_F(ConsolePanels, TheSliderFadesAModelAndANoteTypedInIsStored) {
   if (!VirtualDisplay::available())
     GTEST_SKIP() << "needs Xvfb and xdotool (scripts/deps.sh installs them)";
   const VirtualDisplay xdo(dir.path() / "xvfb.log");
-  auto master = startMaster();
+  auto master = startMaster("scene.json", {"--annotations", (dir.path() / "notes.tadb").string()});
   ASSERT_TRUE(master->waitFor("console open", 120)) << master->output();
   const std::string wid = xdo.window("tessera-master");
   ASSERT_FALSE(wid.empty()) << "no console window on " << xdo.name;
@@ -252,6 +260,35 @@ TEST_F(ConsolePanels, TheSliderFadesAModelAndANoteTypedInIsStored) {
   ASSERT_EQ(shot.width, 640u);
   const uint8_t* frame = &shot.rgba[(size_t(kSliderY - 6) * shot.width + 220) * 4];
   EXPECT_GT(int(frame[2]), int(frame[0]) + 40) << dir.path() / "console.png";
+}
+
+// Without --annotations the Layers panel lists the scene's groups: hiding "scans" there hides
+// the bunny in it (the console's last picture shows none of it).
+TEST_F(ConsolePanels, WithoutADatabaseTheScenesGroupsAreTheLayers) {
+  using tessera::test::VirtualDisplay;
+  if (!VirtualDisplay::available())
+    GTEST_SKIP() << "needs Xvfb and xdotool (scripts/deps.sh installs them)";
+  const VirtualDisplay xdo(dir.path() / "xvfb.log");
+  auto master = startMaster("grouped.json", {});
+  ASSERT_TRUE(master->waitFor("without --annotations notes are not kept", 120)) << master->output();
+  const std::string wid = xdo.window("tessera-master");
+  ASSERT_FALSE(wid.empty()) << "no console window on " << xdo.name;
+  ASSERT_TRUE(master->waitFor("0 of 4 tiles have a node", 60)) << master->output();
+  std::this_thread::sleep_for(std::chrono::seconds(2));
+  xdo("mousemove --window " + wid + " " + std::to_string(kLayerX) + " " +
+      std::to_string(kGroupLayerY) + " click 1");
+  ASSERT_TRUE(master->waitFor("console: layer scans hidden", 30)) << master->output();
+  xdo("mousemove --window " + wid + " 320 150");  // off the panels, over where the bunny was
+  std::this_thread::sleep_for(std::chrono::milliseconds(1500));
+  master->signal(SIGTERM);
+  ASSERT_EQ(master->wait(60), std::optional<int>(0)) << master->output();
+  // The middle of the view, where the bunny stood: the background only.
+  const tessera::render::Image shot = tessera::render::readPng(dir.path() / "console.png");
+  int bright = 0;
+  for (uint32_t y = 100; y < 260; y += 4)
+    for (uint32_t x = 270; x < 330; x += 4)
+      bright += shot.rgba[(size_t(y) * shot.width + x) * 4 + 1] > 60;
+  EXPECT_EQ(bright, 0) << dir.path() / "console.png";
 }
 
 }  // namespace
