@@ -21,6 +21,7 @@ namespace {
 constexpr const char* kAuthor = "console";  // notes' author in the database
 constexpr float kPanelWidth = 250.0f;       // pixels
 constexpr ImGuiWindowFlags kPanel = ImGuiWindowFlags_AlwaysAutoResize;
+constexpr float kFieldWidth = -64.0f;  // text fields leave this much for their labels
 
 /// A panel at `pos` (pixels from the window's top-left), `width` wide, its height following its
 /// content; false when collapsed (then only End()).
@@ -65,11 +66,16 @@ void layerTree(const std::vector<LayerRow>& rows) {
   }
 }
 
-/// Greyed text wrapped at the panel's width.
-void disabledWrapped(const std::string& text) {
-  ImGui::PushStyleColor(ImGuiCol_Text, ImGui::GetStyleColorVec4(ImGuiCol_TextDisabled));
+/// Text in `color`, wrapped at the panel's width.
+void wrapped(const ImVec4& color, const std::string& text) {
+  ImGui::PushStyleColor(ImGuiCol_Text, color);
   ImGui::TextWrapped("%s", text.c_str());
   ImGui::PopStyleColor();
+}
+
+/// Greyed text wrapped at the panel's width.
+void disabledWrapped(const std::string& text) {
+  wrapped(ImGui::GetStyleColorVec4(ImGuiCol_TextDisabled), text);
 }
 
 /// The line under a note's item: its kind's value, its author and revision.
@@ -285,8 +291,7 @@ void Console::notesPanel(sync::SceneGraph& graph) {
         }
       }
     }
-    if (!mSearchError.empty())
-      ImGui::TextColored(ImVec4(1.0f, 0.5f, 0.4f, 1.0f), "%s", mSearchError.c_str());
+    if (!mSearchError.empty()) wrapped(ImVec4(1.0f, 0.5f, 0.4f, 1.0f), mSearchError);
     std::vector<sync::SceneGraph::NodeId> listed;
     if (mSearchRan.empty()) {
       for (auto id : graph.ids())
@@ -323,6 +328,7 @@ void Console::noteForm(sync::SceneGraph& graph) {
   NoteFormState& f = *mNoteForm;
   ImGui::Separator();
   ImGui::Text("New note on %s", f.draft.model.c_str());
+  ImGui::PushItemWidth(kFieldWidth);
   ImGui::InputText("layer", f.layer, sizeof f.layer);
   if (f.focus) {  // typing goes to the title at once
     ImGui::SetKeyboardFocusHere();
@@ -363,10 +369,11 @@ void Console::noteForm(sync::SceneGraph& graph) {
     } catch (const AnnotationError& e) {
       say(std::string("note not added: ") + e.what());
     }
-    return;
+  } else {
+    ImGui::SameLine();
+    if (ImGui::Button("Cancel")) mNoteForm.reset();
   }
-  ImGui::SameLine();
-  if (ImGui::Button("Cancel")) mNoteForm.reset();
+  ImGui::PopItemWidth();
 }
 
 void Console::shownNote(sync::SceneGraph& graph) {
@@ -389,6 +396,7 @@ void Console::shownNote(sync::SceneGraph& graph) {
     ImGui::PushID(int(it.id()));
     if (mEdit && mEdit->item == int64_t(it.id())) {
       ItemEditState& e = *mEdit;
+      ImGui::PushItemWidth(kFieldWidth);
       ImGui::InputText("title", e.title, sizeof e.title);
       if (e.text_fits)
         ImGui::InputTextMultiline("text", e.text, sizeof e.text, ImVec2(0.0f, 40.0f));
@@ -409,23 +417,31 @@ void Console::shownNote(sync::SceneGraph& graph) {
               ")");
           mEdit.reset();
         } catch (const AnnotationError& err) {
-          say(std::string(err.kind() == AnnotationError::Kind::kConflict
-                              ? "not saved, changed meanwhile (reload to see it): "
-                              : "not saved: ") +
-              err.what());
+          if (err.kind() != AnnotationError::Kind::kConflict) {
+            say(std::string("not saved: ") + err.what());
+          } else {
+            // Nothing overwritten; a second save, knowingly, replaces the newer revision.
+            if (std::optional<Item> now = mAnnotations->db().item(e.item))
+              e.base_revision = now->revision;
+            say(std::string("not saved, changed meanwhile: ") + err.what() +
+                " (save again to replace it, or cancel)");
+          }
         }
       }
       ImGui::SameLine();
       if (ImGui::SmallButton("cancel")) mEdit.reset();
+      ImGui::PopItemWidth();
     } else {
       itemDetails(it);
       if (ImGui::SmallButton("edit")) {
         ItemEditState e;
         e.item = int64_t(it.id());
-        e.base_revision = int64_t(it.revision());
-        std::snprintf(e.title, sizeof e.title, "%s", it.title().c_str());
-        // The database's full text: the scene carries at most 4 KiB of it.
+        // From the database: the scene carries at most 4 KiB of the text, and another
+        // connection (tessera-annotate) may have changed the item since.
         const std::optional<Item> full = mAnnotations->db().item(e.item);
+        e.base_revision = full ? full->revision : int64_t(it.revision());
+        std::snprintf(e.title, sizeof e.title, "%s",
+                      full ? full->title.c_str() : it.title().c_str());
         const std::string text = full ? full->text : it.text();
         e.text_fits = text.size() < sizeof e.text;
         std::snprintf(e.text, sizeof e.text, "%s", text.c_str());

@@ -2,7 +2,8 @@
 // (console_notes.h); then a real tessera-master --console --annotations on a virtual X server,
 // driven with xdotool as an operator's mouse and keys would: the Models panel's slider fades the
 // bunny, "Add note" and a click on the bunny open the form, the title typed and Enter store the
-// note in the SQLite file, and its layer's checkbox hides the layer in the database.
+// note in the SQLite file, an edit is saved and a stale one refused, a malformed search is
+// answered, and the note's layer's checkbox hides the layer in the database.
 #include <gtest/gtest.h>
 
 #include <csignal>
@@ -184,6 +185,10 @@ constexpr int kSliderY = 46;
 constexpr int kLayerX = 26, kLayerY = 272;
 constexpr int kGroupLayerY = 304;  // without a database, below the panel's note
 constexpr int kAddNoteX = 367, kAddNoteY = 37, kSearchX = 450, kSearchY = 61;
+// The new note's items under the list: its "edit" button, then in edit mode the title field
+// (its text ends before x 495) and "save".
+constexpr int kEditX = 352, kEditY = 271, kTitleEndX = 495, kTitleY = 238, kSaveX = 355,
+              kSaveY = 303;
 
 TEST_F(ConsolePanels, TheSliderFadesAModelAndANoteTypedInIsStored) {
   using tessera::test::VirtualDisplay;
@@ -222,14 +227,39 @@ TEST_F(ConsolePanels, TheSliderFadesAModelAndANoteTypedInIsStored) {
   ASSERT_TRUE(std::regex_search(log, m, std::regex("note (\\d+) added \\(item (\\d+)")));
   const int64_t place = std::stoll(m[1].str()), item = std::stoll(m[2].str());
 
-  // (c) A malformed search typed into the search field: the reason said, the session goes on.
+  // (c) Edited in the panel: "edit", the end of the title clicked, typed at, "save".
+  auto click = [&](int x, int y) {
+    xdo("mousemove --window " + wid + " " + std::to_string(x) + " " + std::to_string(y) +
+        " click 1");
+    std::this_thread::sleep_for(std::chrono::milliseconds(1500));  // a frame or more
+  };
+  click(kEditX, kEditY);
+  click(kTitleEndX, kTitleY);
+  xdo("type --window " + wid + " --delay 60 ' wide'");
+  click(kSaveX, kSaveY);
+  ASSERT_TRUE(
+      master->waitFor("console: item " + std::to_string(item) + " saved \\(revision 2\\)", 30))
+      << master->output();
+  // An edit begun on revision 2 while another writer (a site, a tool) makes revision 3: saving
+  // it is refused and said, nothing overwritten.
+  click(kEditX, kEditY);
+  {
+    AnnotationDb other(dir.path() / "notes.tadb");
+    Item changed = *other.item(item);
+    changed.text = "changed meanwhile";
+    ASSERT_EQ(other.updateItem(changed, 2, "kyoto"), 3);
+  }
+  click(kSaveX, kSaveY);
+  ASSERT_TRUE(master->waitFor("console: not saved, changed meanwhile", 30)) << master->output();
+
+  // (d) A malformed search typed into the search field: the reason said, the session goes on.
   xdo("mousemove --window " + wid + " " + std::to_string(kSearchX) + " " +
       std::to_string(kSearchY) + " click 1");
   std::this_thread::sleep_for(std::chrono::milliseconds(1500));  // the field takes the keyboard
   xdo("type --window " + wid + " --delay 60 '\"crack'");
   ASSERT_TRUE(master->waitFor("console: search: AnnotationDb: .*", 30)) << master->output();
 
-  // (d) Its layer, now in the Layers panel, hidden there: stored in the database.
+  // (e) Its layer, now in the Layers panel, hidden there: stored in the database.
   xdo("mousemove --window " + wid + " " + std::to_string(kLayerX) + " " + std::to_string(kLayerY) +
       " click 1");
   ASSERT_TRUE(master->waitFor("console: layer notes hidden", 30)) << master->output();
@@ -244,9 +274,11 @@ TEST_F(ConsolePanels, TheSliderFadesAModelAndANoteTypedInIsStored) {
   AnnotationDb db(dir.path() / "notes.tadb", {.read_only = true});
   const auto stored = db.item(item);
   ASSERT_TRUE(stored) << "item " << item;
-  EXPECT_EQ(stored->title, "Measure its crack");
+  EXPECT_EQ(stored->title, "Measure its crack wide");
+  EXPECT_EQ(stored->text, "changed meanwhile");
+  EXPECT_EQ(stored->revision, 3);
+  EXPECT_EQ(stored->author, "kyoto");
   EXPECT_EQ(stored->layer, "notes");
-  EXPECT_EQ(stored->author, "console");
   const auto at = db.place(place);
   ASSERT_TRUE(at);
   EXPECT_EQ(at->model, "bunny");
