@@ -150,26 +150,11 @@ class ConsolePanels : public ::testing::Test {
   /// The master alone with its console on `scene`, and `extra` options.
   std::unique_ptr<Process> startMaster(const std::string& scene,
                                        const std::vector<std::string>& extra) {
-    std::vector<std::string> argv = {TESSERA_MASTER,
-                                     "--transport",
-                                     "zmq",
-                                     "--listen",
-                                     "tcp://127.0.0.1:*",
-                                     "--wall",
-                                     (dir.path() / "wall.json").string(),
-                                     "--scene",
-                                     (dir.path() / scene).string(),
-                                     "--script",
-                                     (dir.path() / "hold.json").string(),
-                                     "--join-wait",
-                                     "0.5",
-                                     "--max-fps",
-                                     "20",
-                                     "--console",
-                                     "--console-width",
-                                     "640",
-                                     "--console-screenshot",
-                                     (dir.path() / "console.png").string()};
+    std::vector<std::string> argv =
+        tessera::test::zmqMaster(TESSERA_MASTER, dir.path() / "wall.json", dir.path() / scene);
+    argv.insert(argv.end(), {"--script", (dir.path() / "hold.json").string(), "--join-wait", "0.5",
+                             "--max-fps", "20", "--console", "--console-width", "640",
+                             "--console-screenshot", (dir.path() / "console.png").string()});
     argv.insert(argv.end(), extra.begin(), extra.end());
     return std::make_unique<Process>(argv, dir.path() / "master.log");
   }
