@@ -2,8 +2,9 @@
 // (console_notes.h); then a real tessera-master --console --annotations on a virtual X server,
 // driven with xdotool as an operator's mouse and keys would: the Models panel's slider fades the
 // bunny, "Add note" and a click on the bunny open the form, the title typed and Enter store the
-// note in the SQLite file, an edit is saved and a stale one refused, a malformed search is
-// answered, and the note's layer's checkbox hides the layer in the database.
+// note in the SQLite file, O over it opens it on the wall, an edit is saved and a stale one
+// refused, a malformed search is answered, and the note's layer's checkbox hides the layer in
+// the database.
 #include <gtest/gtest.h>
 
 #include <csignal>
@@ -211,6 +212,13 @@ TEST_F(ConsolePanels, TheSliderFadesAModelAndANoteTypedInIsStored) {
   const std::string log = master->output();
   ASSERT_TRUE(std::regex_search(log, m, std::regex("note (\\d+) added \\(item (\\d+)")));
   const int64_t place = std::stoll(m[1].str()), item = std::stoll(m[2].str());
+
+  // O with the cursor on the note (placed where the bunny was clicked) opens it on the wall.
+  xdo("mousemove --window " + wid + " 282 228");
+  std::this_thread::sleep_for(std::chrono::milliseconds(500));
+  xdo("key --window " + wid + " o");
+  ASSERT_TRUE(master->waitFor("console: opened note " + std::to_string(place) + " on the wall", 30))
+      << master->output();
 
   // (c) Edited in the panel: "edit", the end of the title clicked, typed at, "save".
   auto click = [&](int x, int y) {
