@@ -11,6 +11,8 @@
 #include <tessera/render/gl_context.h>
 #include <tessera/sync/scene_edits.h>
 
+#include "vec3.h"
+
 namespace tessera::master {
 
 namespace {
@@ -18,8 +20,10 @@ namespace {
 // GLFW key codes (glfw3.h), kept here so this file needs no GLFW header.
 constexpr int kKey1 = 49, kKey9 = 57, kKeyEqual = 61, kKeyMinus = 45, kKeyH = 72, kKeyE = 69,
               kKeyPadAdd = 334, kKeyPadSubtract = 333, kKeyL = 76, kKeyU = 85, kKeyC = 67,
-              kKeyM = 77, kKeyEnter = 257, kKeyPadEnter = 335, kKeyBackspace = 259,
-              kKeyS = 83;
+              kKeyM = 77, kKeyEnter = 257, kKeyPadEnter = 335, kKeyBackspace = 259, kKeyS = 83,
+              kKeyO = 79;
+/// How near the cursor a note must be for O to open it, pixels.
+constexpr double kNoteReachPx = 24.0;
 
 /// The console's own name as a participant (sketch layer, author, leader).
 constexpr const char* kConsole = "console";
@@ -43,6 +47,7 @@ Console::Console(const config::WallConfig& wall, uint32_t max_width, float splat
   mWidth = std::max(1u, uint32_t(std::lround(whole.width * s)));
   mHeight = std::max(1u, uint32_t(std::lround(whole.height * s)));
   mWindow = render::Window::open(mWidth, mHeight, "tessera-master: " + mWall.name());
+  mWindow->enableUi();  // the panels (console_panels.cpp)
   mRenderer = std::make_unique<render::ViewRenderer>(mWidth, mHeight);
   mVideos = std::make_unique<render::VideoTextures>();
   // Screen-pinned insets: the console shows the whole wall.
@@ -97,6 +102,23 @@ void Console::save(const std::string& path) const {
               shown.height);
 }
 
+void Console::say(const std::string& text) {
+  std::printf("tessera-master: console: %s\n", text.c_str());
+  std::fflush(stdout);
+  mStatus = text;
+}
+
+void Console::measured(const std::function<std::optional<sync::SceneGraph::NodeId>()>& make) {
+  try {
+    if (auto id = make()) {
+      mMeasurements.push_back(*id);
+      say(std::string(MeasureTool::name(mTool.mode())) + " " + mTool.lastLabel());
+    }
+  } catch (const std::exception& e) {
+    say(std::string("no measurement: ") + e.what());
+  }
+}
+
 render::Overlay Console::overlay(const render::Overlay& scene) const {
   // The right-hand bar of the navigation, lightened (a quarter white over the scene), and a ring
   // where the target is, after the scene's own (so on top of them).
@@ -105,11 +127,13 @@ render::Overlay Console::overlay(const render::Overlay& scene) const {
   o.rects.push_back({{bar_x, 0.0f}, {float(mWidth), float(mHeight)}, {255, 255, 255, 64}});
   // The lasso being drawn, and the unfinished measurement's points and lines, on top.
   for (size_t i = 1; i < mLasso.size(); ++i)
-    o.rects.push_back({glm::vec2(mLasso[i]) - 1.5f, glm::vec2(mLasso[i]) + 1.5f, {255, 190, 0, 230}});
+    o.rects.push_back(
+        {glm::vec2(mLasso[i]) - 1.5f, glm::vec2(mLasso[i]) + 1.5f, {255, 190, 0, 230}});
   const auto& pts = mTool.points();
   for (size_t i = 0; i < pts.size(); ++i) {
     o.points.push_back({pts[i].point.world, {90, 230, 255, 255}, 7.0f, 1.5f});
-    if (i > 0) o.lines.push_back({pts[i - 1].point.world, pts[i].point.world, {90, 230, 255, 200}, 1.5f});
+    if (i > 0)
+      o.lines.push_back({pts[i - 1].point.world, pts[i].point.world, {90, 230, 255, 200}, 1.5f});
   }
   if (const auto& target = mNavigation.target()) {
     render::OverlayPoint ring;
@@ -123,8 +147,20 @@ render::Overlay Console::overlay(const render::Overlay& scene) const {
 }
 
 bool Console::handleInput(sync::SceneGraph& graph) {
-  const render::WindowInput in = mWindow->poll();
+  render::WindowInput in = mWindow->poll();
   if (mWindow->closing()) return false;
+  // The panels first: what they take (the mouse over them, the keyboard in a text field) the
+  // view does not also get.
+  mWindow->beginUi();
+  panels(graph);
+  mWindow->endUi();
+  if (mWindow->uiWantsMouse()) {
+    in.left = in.left_pressed = in.left_released = false;
+    in.scroll = 0.0;
+    in.path.clear();
+    if (!mRightHeld) in.right = false;  // a sketch begun on the model goes on
+  }
+  if (mWindow->uiWantsKeyboard()) in.keys.clear();
   const auto now = std::chrono::steady_clock::now();
   const double dt = std::chrono::duration<double>(now - mLastInput).count();
   mLastInput = now;
@@ -160,26 +196,15 @@ bool Console::handleInput(sync::SceneGraph& graph) {
     const auto [from, dir] = ray(px);
     return pickPoint(mInstances, from, dir, pick_options);
   };
-  // A measurement made (or refused: the console goes on whatever a click or a store does).
-  auto measured = [&](const std::function<std::optional<sync::SceneGraph::NodeId>()>& make) {
-    try {
-      if (auto id = make()) {
-        mMeasurements.push_back(*id);
-        std::printf("tessera-master: console: %s %s\n", MeasureTool::name(mTool.mode()),
-                    mTool.lastLabel().c_str());
-      }
-    } catch (const std::exception& e) {
-      std::printf("tessera-master: console: no measurement: %s\n", e.what());
-    }
-    std::fflush(stdout);
-  };
-  // Measuring: a click picks the surface under the pixel in the full-resolution data of the
-  // model the frame's pick ids name (surface_pick.h), not the coarse cut on screen.
-  auto measureAt = [&](glm::dvec2 px) {
-    if (!(px.x >= 0 && px.y >= 0 && px.x < mWidth && px.y < mHeight)) return;
+  // Measuring and placing notes: a click picks the surface under the pixel in the
+  // full-resolution data of the model the frame's pick ids name (surface_pick.h), not the
+  // coarse cut on screen.
+  auto surfaceAt = [&](glm::dvec2 px) -> std::optional<SurfacePick> {
+    if (!(px.x >= 0 && px.y >= 0 && px.x < mWidth && px.y < mHeight)) return std::nullopt;
     const auto hit = mRenderer->pick(uint32_t(px.x), uint32_t(px.y));
-    if (!hit) return;
     const auto [from, dir] = ray(px + 0.5);
+    // A see-through frame has no pick ids: then every model's data along the ray.
+    if (!hit) return pickSurface(mInstances, from, dir, pick_options);
     std::optional<SurfacePick> at = pickSurface(mInstances, from, dir, pick_options, hit->model);
     if (!at) {  // the refinement found nothing (a corrupt chunk): the pixel's own depth
       at = SurfacePick{};
@@ -187,9 +212,42 @@ bool Console::handleInput(sync::SceneGraph& graph) {
       at->point.uncertainty = glm::length(hit->world - from) * pick_options.pixel_angle;
       at->model = hit->model;
     }
-    measured([&] { return mTool.add(*at, graph, mInstances, kConsole); });
+    return at;
   };
-  if (mLassoing) {
+  auto measureAt = [&](glm::dvec2 px) {
+    if (const auto at = surfaceAt(px))
+      measured([&] { return mTool.add(*at, graph, mInstances, kConsole); });
+  };
+  // "Add note": the place is the point clicked; the form then asks for the rest, and a hot
+  // spot's view is the console's camera as it is now.
+  auto placeNoteAt = [&](glm::dvec2 px) {
+    const auto at = surfaceAt(px);
+    const auto& nodes = mModels.instanceNodes();
+    if (!at || at->model >= nodes.size() || !graph.contains(nodes[at->model])) {
+      say("no model under the click: click on the model to place the note");
+      return;
+    }
+    NoteFormState form;
+    form.draft.position = at->point.world;
+    form.draft.model = graph.node(nodes[at->model]).name();
+    const config::Camera camera = graph.camera();
+    form.draft.view.eye = detail::vec(camera.eye());
+    form.draft.view.target = detail::vec(camera.target());
+    form.draft.view.up = detail::vec(camera.up());
+    form.draft.view.fovy_deg = glm::degrees(fovy);
+    mNoteForm = form;
+    mPlacingNote = false;
+    char line[256];
+    std::snprintf(line, sizeof line, "note at %.4f %.4f %.4f on model %s: its title and text?",
+                  at->point.world.x, at->point.world.y, at->point.world.z,
+                  form.draft.model.c_str());
+    say(line);
+  };
+  if (mPlacingNote) {  // as measuring: a click places the note; the wheel still moves the view
+    if (in.left_pressed) mPressAt = p.cursor;
+    if (in.left_released && glm::length(p.cursor - mPressAt) <= 4.0) placeNoteAt(p.cursor);
+    p.down = p.pressed = p.released = false;
+  } else if (mLassoing) {
     // A left drag draws the lasso (every cursor position the window reported, so a fast drag
     // over slow frames keeps its shape); letting go selects what of the current model it
     // encloses.
@@ -205,10 +263,11 @@ bool Console::handleInput(sync::SceneGraph& graph) {
       const auto& nodes = mModels.instanceNodes();
       const uint32_t node = models.empty() ? 0 : models[std::min(mSelected, models.size() - 1)];
       const auto at = std::find(nodes.begin(), nodes.end(), node);
-      if (mLasso.size() >= 3 && at != nodes.end() && size_t(at - nodes.begin()) < mInstances.size()) {
+      if (mLasso.size() >= 3 && at != nodes.end() &&
+          size_t(at - nodes.begin()) < mInstances.size()) {
         try {
-          const LassoSelectResult r = selectWithLasso(
-              graph, mInstances[size_t(at - nodes.begin())], node, mLastView, mLasso, kConsole);
+          const LassoSelectResult r = selectWithLasso(graph, mInstances[size_t(at - nodes.begin())],
+                                                      node, mLastView, mLasso, kConsole);
           if (r.node) mSelections.push_back(r.node);
           std::printf("tessera-master: console: lasso on model %u: %llu %s selected%s\n", node,
                       (unsigned long long)r.count,
@@ -295,11 +354,11 @@ bool Console::handleInput(sync::SceneGraph& graph) {
     }
     if (key == kKeyM) {
       mLassoing = false;
-      std::printf("tessera-master: console: measuring: %s%s\n",
-                  MeasureTool::name(mTool.cycle()),
-                  mTool.mode() == MeasureTool::Mode::kPath || mTool.mode() == MeasureTool::Mode::kArea
-                      ? " (click points, Enter ends, Backspace drops the last)"
-                      : "");
+      std::printf(
+          "tessera-master: console: measuring: %s%s\n", MeasureTool::name(mTool.cycle()),
+          mTool.mode() == MeasureTool::Mode::kPath || mTool.mode() == MeasureTool::Mode::kArea
+              ? " (click points, Enter ends, Backspace drops the last)"
+              : "");
       std::fflush(stdout);
     }
     if (key == kKeyEnter || key == kKeyPadEnter)
@@ -315,6 +374,18 @@ bool Console::handleInput(sync::SceneGraph& graph) {
       if (!mMeasurements.empty()) {
         graph.remove(mMeasurements.back());
         mMeasurements.pop_back();
+      }
+    }
+    if (key == kKeyO && mAnnotations) {  // the note nearest the cursor, open on the wall or not
+      if (const auto note = noteNear(graph, mLastView, p.cursor, kNoteReachPx)) {
+        const auto& a = graph.node(*note).annotation();
+        try {
+          mAnnotations->setOpen(graph, int64_t(a.place()), !a.open(), "");
+          say(std::string(a.open() ? "closed" : "opened") + " note " + std::to_string(a.place()) +
+              " on the wall");
+        } catch (const std::exception& e) {
+          say(std::string("cannot open the note: ") + e.what());
+        }
       }
     }
     if (key >= kKey1 && key <= kKey9 && size_t(key - kKey1) < models.size())

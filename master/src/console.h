@@ -1,14 +1,20 @@
 // The master's console (--console): a GLFW window showing the whole wall at low resolution with
-// the nodes' renderer, one-button navigation (one_button_navigation.h) and keys for the models'
-// opacity and visibility. Its camera and opacity changes go into the master's scene graph, and
-// so to the nodes with the next frame. The window's GL context is current on the master's
-// thread for the console's life.
+// the nodes' renderer, one-button navigation (one_button_navigation.h), keys for the models'
+// opacity and visibility, and Dear ImGui panels over the picture (console_panels.cpp: models,
+// tools, layers, notes; their logic in console_notes.h). Its camera and opacity changes go into
+// the master's scene graph, and so to the nodes with the next frame. The window's GL context is
+// current on the master's thread for the console's life.
 #pragma once
 
 #include <chrono>
+#include <functional>
 #include <memory>
+#include <optional>
+#include <string>
 #include <vector>
 
+#include <tessera/master/annotation_scene.h>
+#include <tessera/master/console_notes.h>
 #include <tessera/master/measure_tool.h>
 #include <tessera/master/one_button_navigation.h>
 #include <tessera/render/scene_draw_list.h>
@@ -37,7 +43,16 @@ class Console {
              const google::protobuf::RepeatedPtrField<std::string>& packets);
   /// Writes what the window shows (its framebuffer) as a PNG. Throws render::RenderError.
   void save(const std::string& path) const;
-  /// Applies the input since the last call to `graph`: navigation to the camera, keys 1-9 select
+  /// The annotation database the panels show and edit (the master's, annotation_scene.h), or
+  /// null: then the Layers panel shows the scene's GROUP nodes and says that notes are not kept.
+  /// Not owned; must outlive the console.
+  void setAnnotations(AnnotationScene* annotations) { mAnnotations = annotations; }
+  /// Applies the input since the last call to `graph`. First the panels (Models: each model's
+  /// visibility and opacity; Tools: the measuring mode, the lasso, the measurements and
+  /// selections with a delete button each; Layers: the database's layer tree with visibility;
+  /// Notes: search, a note's items, fly to it, open it on the wall, edit, delete, add one at a
+  /// point clicked on the model): input the panels take (the mouse over them, the keyboard in a
+  /// text field) does nothing else. Then navigation to the camera, keys 1-9 select
   /// a model, + / - change its opacity by 0.1, H toggles its visibility, E toggles eye-dome
   /// lighting; a right-button drag draws a sketch on the model (layer "sketches/console"), U
   /// undoes the newest, C clears them; L makes the console lead the view (a site that led stops
@@ -45,8 +60,9 @@ class Console {
   /// off): clicks then pick points on the model instead of navigating, Enter ends a path or an
   /// area, Backspace drops the last point or else the newest measurement (layer
   /// "measurements"); S toggles the lasso: a left drag selects what of the current model it
-  /// encloses (layer "selections", tinted on every tile), Backspace removes the newest.
-  /// Returns false once the window is closed (or Escape).
+  /// encloses (layer "selections", tinted on every tile), Backspace removes the newest; O opens
+  /// or closes the note nearest the cursor (within 24 px) on the wall (with --annotations).
+  /// Returns false once the window is closed (or Escape outside a text field).
   bool handleInput(sync::SceneGraph& graph);
 
  private:
@@ -54,6 +70,19 @@ class Console {
   /// The scene's overlay (sketches, avatars, annotations) with the navigation's bar and the
   /// target marker on top.
   render::Overlay overlay(const render::Overlay& scene) const;
+  /// The panels (console_panels.cpp), built between the window's beginUi() and endUi().
+  void panels(sync::SceneGraph& graph);
+  void modelsPanel(sync::SceneGraph& graph);
+  void toolsPanel(sync::SceneGraph& graph);
+  void layersPanel(sync::SceneGraph& graph);
+  void notesPanel(sync::SceneGraph& graph);
+  void noteForm(sync::SceneGraph& graph);
+  void shownNote(sync::SceneGraph& graph);
+  /// A line on stdout ("tessera-master: console: ...") and in the panels.
+  void say(const std::string& text);
+  /// A measurement made by `make` (said with its label), or refused (said why): the console
+  /// goes on whatever a click or a store does.
+  void measured(const std::function<std::optional<sync::SceneGraph::NodeId>()>& make);
 
   config::WallConfig mWall;
   float mSplatScale;
@@ -73,10 +102,37 @@ class Console {
   MeasureTool mTool;
   glm::dvec2 mPressAt{0.0};  // where the left button went down (a click measures)
   std::vector<sync::SceneGraph::NodeId> mMeasurements;  // the console's, oldest first
-  bool mLassoing = false;              // S: left drags draw a lasso
-  std::vector<glm::dvec2> mLasso;      // its pixels so far
-  std::vector<sync::SceneGraph::NodeId> mSelections;  // the console's, oldest first
+  bool mLassoing = false;                               // S: left drags draw a lasso
+  std::vector<glm::dvec2> mLasso;                       // its pixels so far
+  std::vector<sync::SceneGraph::NodeId> mSelections;    // the console's, oldest first
   std::chrono::steady_clock::time_point mLastInput = std::chrono::steady_clock::now();
+
+  // The panels' state.
+  AnnotationScene* mAnnotations = nullptr;
+  bool mPlacingNote = false;  // "Add note": the next click on the model places it
+  struct NoteFormState {
+    NoteDraft draft;
+    char layer[256] = "notes", title[1025] = "", text[2048] = "", unit[32] = "", link[512] = "";
+    bool with_number = false;
+    double number = 0.0;
+    float radius = 0.0f;
+    bool focus = true;  // the title field takes the keyboard when the form opens
+  };
+  std::optional<NoteFormState> mNoteForm;
+  char mSearch[256] = "";
+  std::string mSearchRan;               // the query mHits answer
+  std::vector<int64_t> mHitPlaces;      // the places of the search's items, best first
+  std::string mSearchError;             // a malformed query's reason
+  sync::SceneGraph::NodeId mShown = 0;  // the note whose items the panel shows
+  struct ItemEditState {
+    int64_t item = 0, base_revision = 0;
+    char title[1025] = "", text[2048] = "";
+    bool text_fits = true;  // a longer text is kept as it is, not cut to the field
+    bool with_number = false;
+    double number = 0.0;
+  };
+  std::optional<ItemEditState> mEdit;
+  std::string mStatus;  // the last thing said
 };
 
 }  // namespace tessera::master

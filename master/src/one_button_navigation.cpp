@@ -4,19 +4,14 @@
 
 #include <glm/gtc/matrix_transform.hpp>
 
+#include "vec3.h"
+
 namespace tessera::master {
 
 namespace {
 
-glm::dvec3 vec(const config::Vec3& v) {
-  return {v.x(), v.y(), v.z()};
-}
-
-void set(config::Vec3* d, const glm::dvec3& v) {
-  d->set_x(v.x);
-  d->set_y(v.y);
-  d->set_z(v.z);
-}
+using detail::set;
+using detail::vec;
 
 glm::dvec3 rotate(const glm::dvec3& v, double angle, const glm::dvec3& axis) {
   return glm::dvec3(glm::rotate(glm::dmat4(1.0), angle, axis) * glm::dvec4(v, 0.0));

@@ -5,8 +5,13 @@
 #define GL_GLEXT_PROTOTYPES
 #include <GL/glcorearb.h>
 
+#include <backends/imgui_impl_glfw.h>
+#include <backends/imgui_impl_opengl3.h>
+#include <imgui.h>
+
 #include <algorithm>
 #include <cstdlib>
+#include <filesystem>
 
 #include <tessera/render/gl_context.h>
 
@@ -19,6 +24,8 @@ struct Window::Impl {
   WindowInput pending;
   glm::dvec2 last_cursor{0.0};
   bool was_left = false;
+  bool ui = false;        // enableUi() made an ImGui context
+  bool ui_frame = false;  // beginUi() called, endUi() not yet
 };
 
 namespace {
@@ -73,13 +80,22 @@ std::unique_ptr<Window> Window::open(uint32_t width, uint32_t height, const std:
   });
   glfwSetKeyCallback(w, [](GLFWwindow* gw, int key, int, int action, int) {
     if (action == GLFW_PRESS) implOf(gw)->pending.keys.push_back(key);
-    if (key == GLFW_KEY_ESCAPE && action == GLFW_PRESS) glfwSetWindowShouldClose(gw, GLFW_TRUE);
+    // Escape in a text field of the panels leaves the field, not the session.
+    if (key == GLFW_KEY_ESCAPE && action == GLFW_PRESS &&
+        !(implOf(gw)->ui && ImGui::GetIO().WantCaptureKeyboard))
+      glfwSetWindowShouldClose(gw, GLFW_TRUE);
   });
   glfwGetCursorPos(w, &win->mImpl->last_cursor.x, &win->mImpl->last_cursor.y);
   return win;
 }
 
 Window::~Window() {
+  if (mImpl->ui) {  // with the context still current
+    if (mImpl->ui_frame) ImGui::EndFrame();
+    ImGui_ImplOpenGL3_Shutdown();
+    ImGui_ImplGlfw_Shutdown();
+    ImGui::DestroyContext();
+  }
   if (mImpl->framebuffer) glDeleteFramebuffers(1, &mImpl->framebuffer);
   if (mImpl->texture) glDeleteTextures(1, &mImpl->texture);
   glfwDestroyWindow(mImpl->window);
@@ -116,11 +132,64 @@ void Window::present(uint32_t image_buffer, uint32_t width, uint32_t height) {
   // The image's first row is the top: flip while blitting into GL's bottom-up framebuffer.
   glBlitNamedFramebuffer(s.framebuffer, 0, 0, 0, GLint(width), GLint(height), 0, fh, fw, 0,
                          GL_COLOR_BUFFER_BIT, GL_LINEAR);
+  // The panels over the picture, from the last frame ended (ImGui keeps its draw data).
+  ImDrawData* ui = s.ui ? ImGui::GetDrawData() : nullptr;
+  if (ui && ui->Valid) {
+    glBindFramebuffer(GL_FRAMEBUFFER, 0);  // the backend draws into the bound framebuffer
+    ImGui_ImplOpenGL3_RenderDrawData(ui);
+  }
   glfwSwapBuffers(s.window);
   // The back buffer is undefined after a swap: draw the frame into it again so that
   // readFramebuffer() and the next partial update see what is on screen.
   glBlitNamedFramebuffer(s.framebuffer, 0, 0, 0, GLint(width), GLint(height), 0, fh, fw, 0,
                          GL_COLOR_BUFFER_BIT, GL_LINEAR);
+  if (ui && ui->Valid) ImGui_ImplOpenGL3_RenderDrawData(ui);
+}
+
+void Window::enableUi() {
+  Impl& s = *mImpl;
+  if (s.ui) return;
+  IMGUI_CHECKVERSION();
+  ImGui::CreateContext();
+  ImGuiIO& io = ImGui::GetIO();
+  io.IniFilename = nullptr;  // the panels start where the console puts them, every session
+  // A hinted sans-serif reads better than the built-in bitmap font in a screenshot; the
+  // built-in one where it is not installed.
+  const char* font = "/usr/share/fonts/truetype/dejavu/DejaVuSans.ttf";
+  if (std::error_code ec; std::filesystem::exists(font, ec))
+    io.Fonts->AddFontFromFileTTF(font, 14.0f);
+  ImGui::StyleColorsDark();
+  ImGui::GetStyle().WindowRounding = 3.0f;
+  ImGui::GetStyle().Alpha = 0.92f;
+  // Installed after the window's callbacks: the backend keeps them and calls them first.
+  ImGui_ImplGlfw_InitForOpenGL(s.window, true);
+  ImGui_ImplOpenGL3_Init("#version 450");
+  s.ui = true;
+}
+
+void Window::beginUi() {
+  Impl& s = *mImpl;
+  if (!s.ui) return;
+  if (s.ui_frame) ImGui::EndFrame();  // a frame begun and never ended: dropped
+  ImGui_ImplOpenGL3_NewFrame();
+  ImGui_ImplGlfw_NewFrame();
+  ImGui::NewFrame();
+  s.ui_frame = true;
+}
+
+void Window::endUi() {
+  Impl& s = *mImpl;
+  if (!s.ui_frame) return;
+  ImGui::Render();
+  s.ui_frame = false;
+}
+
+bool Window::uiWantsMouse() const {
+  return mImpl->ui && ImGui::GetIO().WantCaptureMouse;
+}
+
+bool Window::uiWantsKeyboard() const {
+  return mImpl->ui && ImGui::GetIO().WantCaptureKeyboard;
 }
 
 std::vector<uint8_t> Window::readFramebuffer(uint32_t& width, uint32_t& height) const {

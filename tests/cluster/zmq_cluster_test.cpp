@@ -28,6 +28,7 @@
 
 #include "../support/command.h"
 #include "../support/process.h"
+#include "../support/site_scripts.h"
 #include "../support/small_wall.h"
 #include "../support/temp_dir.h"
 
@@ -112,17 +113,9 @@ class ZmqWall : public ::testing::Test {
   /// tessera-master over ZeroMQ on an ephemeral loopback port; returns once it listens.
   std::unique_ptr<Process> startMaster(const std::vector<std::string>& args,
                                        const std::string& wall = "wall.json") {
-    std::vector<std::string> argv = {TESSERA_MASTER,
-                                     "--transport",
-                                     "zmq",
-                                     "--listen",
-                                     "tcp://127.0.0.1:*",
-                                     "--wall",
-                                     (sDir->path() / wall).string(),
-                                     "--scene",
-                                     (sDir->path() / "scene.json").string(),
-                                     "--out-dir",
-                                     mRun.string()};
+    std::vector<std::string> argv =
+        tessera::test::zmqMaster(TESSERA_MASTER, sDir->path() / wall, sDir->path() / "scene.json");
+    argv.insert(argv.end(), {"--out-dir", mRun.string()});
     argv.insert(argv.end(), args.begin(), args.end());
     auto m = std::make_unique<Process>(argv, mRun / "master.log");
     EXPECT_TRUE(m->waitFor("listening on (tcp://\\S+)", 30)) << m->output();

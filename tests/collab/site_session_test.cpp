@@ -34,6 +34,7 @@
 #include "../support/site_scripts.h"
 #include "../support/small_wall.h"
 #include "../support/temp_dir.h"
+#include "../support/virtual_display.h"
 
 namespace {
 
@@ -518,60 +519,7 @@ TEST_F(SiteSession, StrangersPlaintextWrongKeysGarbageAndFloodsGetNothingAndTheW
 // user's mouse and keys would: a right-button drag over the bunny becomes a sketch placed on it,
 // the wheel moves the site's camera (and so its avatar), L leads the view, R gives it back, P
 // saves a picture, Esc leaves.
-namespace {
-
-/// A virtual X server (Xvfb) on a free display, with xdotool to drive its windows as a user's
-/// mouse and keys would; DISPLAY is set for the processes the test starts meanwhile.
-struct VirtualDisplay {
-  static constexpr const char* kXvfb = "/usr/bin/Xvfb";
-  static constexpr const char* kXdotool = "/usr/bin/xdotool";
-  static bool available() { return fs::exists(kXvfb) && fs::exists(kXdotool); }
-
-  explicit VirtualDisplay(const fs::path& log) {
-    int n = 60 + int(getpid() % 300);
-    while (fs::exists("/tmp/.X11-unix/X" + std::to_string(n))) ++n;
-    name = ":" + std::to_string(n);
-    server = std::make_unique<Process>(
-        std::vector<std::string>{kXvfb, name, "-screen", "0", "1024x768x24", "-nolisten", "tcp"},
-        log);
-    for (int i = 0; i < 100 && !fs::exists("/tmp/.X11-unix/X" + std::to_string(n)); ++i)
-      std::this_thread::sleep_for(std::chrono::milliseconds(50));
-    setenv("DISPLAY", name.c_str(), 1);
-  }
-  ~VirtualDisplay() { unsetenv("DISPLAY"); }
-
-  /// xdotool ARGS on this display; its output.
-  std::string operator()(const std::string& args) const {
-    const auto r = tessera::test::runCommand("DISPLAY=" + name + " " + kXdotool + " " + args);
-    EXPECT_EQ(r.code, 0) << args << ": " << r.out;
-    return r.out;
-  }
-  /// The first window whose title matches `title`, waiting up to 10 s ("" if none).
-  std::string window(const std::string& title) const {
-    for (int i = 0; i < 100; ++i) {
-      const auto r = tessera::test::runCommand("DISPLAY=" + name + " " + kXdotool +
-                                               " search --name '" + title + "'");
-      if (r.code == 0 && !r.out.empty()) return r.out.substr(0, r.out.find('\n'));
-      std::this_thread::sleep_for(std::chrono::milliseconds(100));
-    }
-    return "";
-  }
-  /// A right-button drag along a row of the window, from x0 to x1 at y.
-  void rightDrag(const std::string& wid, int x0, int x1, int y) const {
-    (*this)("mousemove --window " + wid + " " + std::to_string(x0) + " " + std::to_string(y) +
-            " mousedown 3");
-    for (int x = x0 + 10; x <= x1; x += 10) {
-      (*this)("mousemove --window " + wid + " " + std::to_string(x) + " " + std::to_string(y));
-      std::this_thread::sleep_for(std::chrono::milliseconds(60));
-    }
-    (*this)("mouseup 3");
-  }
-
-  std::string name;
-  std::unique_ptr<Process> server;
-};
-
-}  // namespace
+using tessera::test::VirtualDisplay;
 
 TEST_F(SiteSession, AWindowDrivenByMouseAndKeys) {
   if (!VirtualDisplay::available())

@@ -12,6 +12,8 @@
 
 #include <glm/gtc/matrix_transform.hpp>
 
+#include <imgui.h>
+
 #include "../support/temp_dir.h"
 
 namespace tessera::render {
@@ -61,6 +63,47 @@ TEST(Window, ShowsTheRenderersPixelsAndMatchesHeadless) {
   auto ctx = GlContext::createHeadless();
   ViewRenderer r(320, 240);
   EXPECT_EQ(r.renderSettled({&inst, 1}, v, opt).rgba, windowed.rgba);
+}
+
+// The console's panels: Dear ImGui drawn over the picture, in what readFramebuffer() (so
+// --console-screenshot) reads, and nowhere else.
+TEST(Window, ThePanelsAreDrawnOverThePicture) {
+  const char* display = std::getenv("DISPLAY");
+  if (!display || !*display) GTEST_SKIP() << "no display (ctest runs this under xvfb-run)";
+  auto win = Window::open(320, 240, "tessera panels test");
+  win->enableUi();
+  ViewRenderer r(320, 240);
+  ViewSetup v;
+  v.view = glm::lookAt(glm::dvec3(0, 0, 1), glm::dvec3(0), glm::dvec3(0, 1, 0));
+  v.projection = glm::perspective(glm::radians(40.0), 320.0 / 240.0, 0.01, 10.0);
+  v.width = 320;
+  v.height = 240;
+  const Image picture = r.renderSettled({}, v, RenderOptions{});
+  (void)win->poll();
+  win->beginUi();
+  ImGui::SetNextWindowPos(ImVec2(10, 10));
+  ImGui::SetNextWindowSize(ImVec2(100, 60));
+  ImGui::Begin("panel");
+  ImGui::TextUnformatted("text");
+  ImGui::End();
+  win->endUi();
+  win->present(r.imageBuffer(), 320, 240);
+  EXPECT_FALSE(win->uiWantsKeyboard()) << "no text field is active";
+  uint32_t w = 0, h = 0;
+  const std::vector<uint8_t> shown = win->readFramebuffer(w, h);
+  ASSERT_EQ(w, 320u);
+  size_t inside = 0, outside = 0;
+  for (uint32_t y = 0; y < h; ++y)
+    for (uint32_t x = 0; x < w; ++x) {
+      const size_t i = (size_t(y) * w + x) * 4;
+      const bool differs = std::memcmp(&shown[i], &picture.rgba[i], 3) != 0;
+      const bool in_panel = x >= 12 && x < 108 && y >= 12 && y < 68;
+      const bool near_panel = x >= 6 && x < 114 && y >= 6 && y < 74;
+      if (in_panel) inside += differs;
+      if (!near_panel) outside += differs;
+    }
+  EXPECT_GT(inside, 96u * 56u * 9 / 10) << "the panel over the picture";
+  EXPECT_EQ(outside, 0u) << "the picture untouched beside it";
 }
 
 TEST(Window, WithoutADisplaySaysSo) {

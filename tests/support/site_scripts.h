@@ -33,6 +33,15 @@ inline std::string cameraJson(glm::dvec3 eye, glm::dvec3 target) {
   return s;
 }
 
+/// tessera-master's argv with the wall over ZeroMQ on an ephemeral loopback port, `wall` and
+/// `scene`; the caller appends the rest.
+inline std::vector<std::string> zmqMaster(const std::string& master,
+                                          const std::filesystem::path& wall,
+                                          const std::filesystem::path& scene) {
+  return {master,   "--transport", "zmq",     "--listen",    "tcp://127.0.0.1:*",
+          "--wall", wall.string(), "--scene", scene.string()};
+}
+
 /// tessera-master holding `camera_json` (a config.proto Camera as JSON) for `seconds` of real time
 /// (30 frames a second at most), the wall over ZeroMQ and remote sites over CURVE on ephemeral
 /// loopback ports: the argv, after writing its script to `run`/hold.json. `dir` holds
@@ -46,29 +55,11 @@ inline std::vector<std::string> masterWithSites(const std::string& master,
   writeText(run / "hold.json", R"({"name": "hold", "keyframes": [{"time": 0, )" + hold +
                                    R"(}, {"time": )" + std::to_string(seconds) + ", " + hold +
                                    "}]}");
-  std::vector<std::string> argv = {master,
-                                   "--transport",
-                                   "zmq",
-                                   "--listen",
-                                   "tcp://127.0.0.1:*",
-                                   "--wall",
-                                   (dir / "wall.json").string(),
-                                   "--scene",
-                                   (dir / "scene.json").string(),
-                                   "--script",
-                                   (run / "hold.json").string(),
-                                   "--max-fps",
-                                   "30",
-                                   "--stats",
-                                   (run / "stats.csv").string(),
-                                   "--sites",
-                                   "tcp://127.0.0.1:*",
-                                   "--site-key",
-                                   (dir / "master.key").string(),
-                                   "--allow",
-                                   (dir / "allow.txt").string(),
-                                   "--node-timeout",
-                                   "5000"};
+  std::vector<std::string> argv = zmqMaster(master, dir / "wall.json", dir / "scene.json");
+  argv.insert(argv.end(), {"--script", (run / "hold.json").string(), "--max-fps", "30", "--stats",
+                           (run / "stats.csv").string(), "--sites", "tcp://127.0.0.1:*",
+                           "--site-key", (dir / "master.key").string(), "--allow",
+                           (dir / "allow.txt").string(), "--node-timeout", "5000"});
   argv.insert(argv.end(), extra.begin(), extra.end());
   return argv;
 }

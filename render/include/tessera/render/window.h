@@ -22,9 +22,9 @@ struct WindowInput {
   /// Every cursor position reported since the previous poll, oldest first (at most 4096): a
   /// drag keeps its shape however slow the frames are.
   std::vector<glm::dvec2> path;
-  double scroll = 0.0;                               ///< wheel steps, up positive
-  std::vector<int> keys;                             ///< GLFW key codes pressed (not repeats)
-  glm::uvec2 size{0};                                ///< window size in screen coordinates
+  double scroll = 0.0;    ///< wheel steps, up positive
+  std::vector<int> keys;  ///< GLFW key codes pressed (not repeats)
+  glm::uvec2 size{0};     ///< window size in screen coordinates
 };
 
 class Window {
@@ -46,6 +46,21 @@ class Window {
   std::vector<uint8_t> readFramebuffer(uint32_t& width, uint32_t& height) const;
   /// Processes pending events.
   WindowInput poll();
+
+  /// Dear ImGui in this window (the master console's panels): a context with the GLFW and
+  /// OpenGL 3 backends (GLSL 450), whose GLFW callbacks are installed after the window's own and
+  /// call them first, so poll() reports the same input as without. No imgui.ini is written.
+  /// Once; a window without it never touches ImGui.
+  void enableUi();
+  /// Starts an ImGui frame (after poll()): ImGui:: calls until endUi() build it. Needs enableUi().
+  void beginUi();
+  /// Ends the frame begun: present() draws it over the picture, so readFramebuffer() sees it.
+  void endUi();
+  /// Whether the panels take the mouse / the keyboard now (io.WantCaptureMouse,
+  /// WantCaptureKeyboard of the last frame begun); false without enableUi(). While the keyboard
+  /// is taken (a text field is active) Escape does not close the window.
+  bool uiWantsMouse() const;
+  bool uiWantsKeyboard() const;
   void setTitle(const std::string& title);
 
   struct Impl;  ///< GLFW state (window.cpp); public so GLFW callbacks can reach it

@@ -1,0 +1,466 @@
+// The console's Dear ImGui panels (issue 16): how they look and which edit each control makes.
+// What a note edit does lives in console_notes.h (tested without a window). Every panel is a
+// small collapsible window at the edges of the view, clear of its middle and of the
+// navigation's bar on the right: Models, Tools and Layers down the left, Notes (the tallest)
+// at the right.
+#include "console.h"
+
+#include <algorithm>
+#include <cfloat>
+#include <cstdio>
+#include <map>
+
+#include <imgui.h>
+
+#include <tessera/render/scene_overlay.h>
+
+namespace tessera::master {
+
+namespace {
+
+constexpr const char* kAuthor = "console";  // notes' author in the database
+constexpr float kPanelWidth = 250.0f;       // pixels
+constexpr ImGuiWindowFlags kPanel = ImGuiWindowFlags_AlwaysAutoResize;
+constexpr float kFieldWidth = -64.0f;  // text fields leave this much for their labels
+
+/// A panel at `pos` (pixels from the window's top-left), `width` wide, its height following its
+/// content; false when collapsed (then only End()).
+bool beginPanel(const char* title, ImVec2 pos, float width = kPanelWidth) {
+  ImGui::SetNextWindowPos(pos, ImGuiCond_FirstUseEver);
+  ImGui::SetNextWindowSizeConstraints(ImVec2(width, 0.0f), ImVec2(width, FLT_MAX));
+  return ImGui::Begin(title, nullptr, kPanel);
+}
+
+/// `text` safe as an ImGui format string.
+std::string literal(const std::string& text) {
+  std::string out;
+  for (char c : text) {
+    out += c;
+    if (c == '%') out += '%';
+  }
+  return out;
+}
+
+/// One row of the layer tree: a name, its visibility, its sublayers, and how to set it.
+struct LayerRow {
+  std::string name;
+  bool visible = true;
+  std::function<void(bool)> show;
+  std::vector<LayerRow> children;
+};
+
+void layerTree(const std::vector<LayerRow>& rows) {
+  for (const LayerRow& row : rows) {
+    ImGui::PushID(row.name.c_str());
+    bool visible = row.visible;
+    if (ImGui::Checkbox("##shown", &visible)) row.show(visible);
+    ImGui::SameLine();
+    const ImGuiTreeNodeFlags flags =
+        row.children.empty() ? ImGuiTreeNodeFlags_Leaf | ImGuiTreeNodeFlags_NoTreePushOnOpen
+                             : ImGuiTreeNodeFlags_DefaultOpen;
+    if (ImGui::TreeNodeEx(row.name.c_str(), flags) && !row.children.empty()) {
+      layerTree(row.children);
+      ImGui::TreePop();
+    }
+    ImGui::PopID();
+  }
+}
+
+/// Text in `color`, wrapped at the panel's width.
+void wrapped(const ImVec4& color, const std::string& text) {
+  ImGui::PushStyleColor(ImGuiCol_Text, color);
+  ImGui::TextWrapped("%s", text.c_str());
+  ImGui::PopStyleColor();
+}
+
+/// Greyed text wrapped at the panel's width.
+void disabledWrapped(const std::string& text) {
+  wrapped(ImGui::GetStyleColorVec4(ImGuiCol_TextDisabled), text);
+}
+
+/// The line under a note's item: its kind's value, its author and revision.
+void itemDetails(const scene::AnnotationItem& it) {
+  if (!it.title().empty()) ImGui::TextWrapped("%s", it.title().c_str());
+  if (!it.text().empty()) ImGui::TextWrapped("%s", it.text().c_str());
+  if (it.kind() == "number") ImGui::Text("%g %s", it.number(), it.unit().c_str());
+  if (it.kind() == "link" && !it.uri().empty()) ImGui::TextWrapped("link: %s", it.uri().c_str());
+  if (it.kind() == "link" && it.link_item() != 0)
+    ImGui::Text("link: item %llu", (unsigned long long)it.link_item());
+  disabledWrapped(it.kind() + ", by " + (it.author().empty() ? "the master" : it.author()) +
+                  ", revision " + std::to_string(it.revision()));
+}
+
+}  // namespace
+
+void Console::panels(sync::SceneGraph& graph) {
+  modelsPanel(graph);
+  toolsPanel(graph);
+  layersPanel(graph);
+  notesPanel(graph);
+}
+
+void Console::modelsPanel(sync::SceneGraph& graph) {
+  if (beginPanel("Models", ImVec2(8, 8))) {
+    size_t index = 0;
+    for (auto id : graph.ids()) {
+      if (graph.node(id).kind() != scene::SceneNode::MODEL) continue;
+      const std::string name = graph.node(id).name();
+      bool visible = graph.node(id).visible();
+      float opacity = graph.node(id).opacity();
+      ImGui::PushID(int(id));
+      // The current model (1-9, the lasso's), shown, and its opacity.
+      if (ImGui::RadioButton("##current", mSelected == index)) mSelected = index;
+      if (ImGui::IsItemHovered()) ImGui::SetTooltip("the current model (keys 1-9, the lasso)");
+      ImGui::SameLine();
+      if (ImGui::Checkbox("##shown", &visible)) {
+        graph.setVisible(id, visible);
+        graph.setAuthor(id, "");
+        say("model " + name + (visible ? " shown" : " hidden"));
+      }
+      ImGui::SameLine();
+      ImGui::SetNextItemWidth(-FLT_MIN);
+      const std::string format = literal(name.empty() ? "model" : name) + " %.2f";
+      if (ImGui::SliderFloat("##opacity", &opacity, 0.0f, 1.0f, format.c_str())) {
+        graph.setOpacity(id, std::clamp(opacity, 0.0f, 1.0f));
+        graph.setAuthor(id, "");
+      }
+      if (ImGui::IsItemDeactivatedAfterEdit()) {
+        char line[64];
+        std::snprintf(line, sizeof line, ": opacity %.2f", graph.node(id).opacity());
+        say("model " + name + line);
+      }
+      ImGui::PopID();
+      ++index;
+    }
+    if (index == 0) ImGui::TextDisabled("no models");
+  }
+  ImGui::End();
+}
+
+void Console::toolsPanel(sync::SceneGraph& graph) {
+  if (beginPanel("Tools", ImVec2(8, float(mHeight) * 0.27f))) {
+    ImGui::TextUnformatted("Measure (M)");
+    using Mode = MeasureTool::Mode;
+    for (Mode m : {Mode::kOff, Mode::kDistance, Mode::kPath, Mode::kAngle, Mode::kArea}) {
+      if (m != Mode::kOff && m != Mode::kAngle) ImGui::SameLine();
+      if (ImGui::RadioButton(MeasureTool::name(m), mTool.mode() == m) && mTool.mode() != m) {
+        mTool.setMode(m);
+        if (m != Mode::kOff) mLassoing = mPlacingNote = false;
+        say(std::string("measuring: ") + MeasureTool::name(m));
+      }
+    }
+    if (mTool.mode() == Mode::kPath || mTool.mode() == Mode::kArea) {
+      if (ImGui::SmallButton("finish (Enter)"))
+        measured([&] { return mTool.finish(graph, mInstances, kAuthor); });
+      ImGui::SameLine();
+      if (ImGui::SmallButton("drop last point")) (void)mTool.undoPoint();
+    }
+    if (ImGui::Checkbox("Lasso (S): drag around a region", &mLassoing)) {
+      mLasso.clear();
+      if (mLassoing) {
+        mTool.setMode(Mode::kOff);
+        mPlacingNote = false;
+      }
+      say(std::string("lasso ") + (mLassoing ? "on" : "off"));
+    }
+    // Everyone's measurements and selections (the console's, sites', the database's).
+    std::vector<sync::SceneGraph::NodeId> gone;
+    for (auto id : graph.ids()) {
+      const auto& n = graph.node(id);
+      std::string line;
+      if (n.kind() == scene::SceneNode::MEASUREMENT)
+        line = n.name() + ": " + render::measurementLabel(n.measurement());
+      else if (n.kind() == scene::SceneNode::SELECTION)
+        line = n.name() + ": " + std::to_string(n.selection().count()) + " selected";
+      else
+        continue;
+      ImGui::PushID(int(id));
+      if (ImGui::SmallButton("x")) gone.push_back(id);
+      if (ImGui::IsItemHovered()) ImGui::SetTooltip("delete");
+      ImGui::SameLine();
+      ImGui::TextUnformatted(line.c_str());
+      ImGui::PopID();
+    }
+    for (auto id : gone) {
+      say("removed " + graph.node(id).name());
+      graph.remove(id);
+    }
+  }
+  ImGui::End();
+}
+
+void Console::layersPanel(sync::SceneGraph& graph) {
+  if (beginPanel("Layers", ImVec2(8, float(mHeight) * 0.64f))) {
+    std::vector<LayerRow> rows;
+    if (mAnnotations) {
+      // The database's layers "a/b/c" as a tree: each under its parent path.
+      std::vector<Layer> layers;
+      try {
+        layers = mAnnotations->db().layers();
+      } catch (const AnnotationError& e) {
+        ImGui::TextWrapped("%s", e.what());
+      }
+      std::map<std::string, std::vector<const Layer*>> under;  // parent path -> its layers
+      for (const Layer& l : layers) {
+        const size_t slash = l.path.rfind('/');
+        under[slash == std::string::npos ? std::string() : l.path.substr(0, slash)].push_back(&l);
+      }
+      std::function<std::vector<LayerRow>(const std::string&)> rowsUnder =
+          [&](const std::string& parent) {
+            std::vector<LayerRow> out;
+            for (const Layer* l : under[parent]) {
+              const std::string path = l->path;
+              out.push_back({path.substr(path.rfind('/') + 1), l->visible,
+                             [this, &graph, path](bool v) {
+                               try {
+                                 mAnnotations->setLayerVisible(graph, path, v, "");
+                                 say("layer " + path + (v ? " shown" : " hidden"));
+                               } catch (const AnnotationError& e) {
+                                 say(e.what());
+                               }
+                             },
+                             rowsUnder(path)});
+            }
+            return out;
+          };
+      rows = rowsUnder("");
+    } else {
+      // The scene's GROUP nodes stand for layers.
+      std::function<std::vector<LayerRow>(sync::SceneGraph::NodeId)> rowsUnder =
+          [&](sync::SceneGraph::NodeId parent) {
+            std::vector<LayerRow> out;
+            for (auto id : graph.children(parent)) {
+              const auto& n = graph.node(id);
+              if (n.kind() != scene::SceneNode::GROUP) continue;
+              out.push_back({n.name().empty() ? "group " + std::to_string(id) : n.name(),
+                             n.visible(),
+                             [this, &graph, id](bool v) {
+                               graph.setVisible(id, v);
+                               graph.setAuthor(id, "");
+                               say("layer " + graph.node(id).name() + (v ? " shown" : " hidden"));
+                             },
+                             rowsUnder(id)});
+            }
+            return out;
+          };
+      rows = rowsUnder(sync::SceneGraph::kRoot);
+      ImGui::TextWrapped("No --annotations: the scene's groups; notes are not kept.");
+    }
+    if (rows.empty()) ImGui::TextDisabled("no layers");
+    layerTree(rows);
+  }
+  ImGui::End();
+}
+
+void Console::notesPanel(sync::SceneGraph& graph) {
+  const float right = float(mWidth) * float(1.0 - OneButtonNavigation::kBarFraction) - 8.0f;
+  if (beginPanel("Notes", ImVec2(right - kPanelWidth, 8))) {
+    if (!mAnnotations) {
+      ImGui::TextWrapped("Notes need tessera-master --annotations FILE: they are not kept.");
+      ImGui::End();
+      return;
+    }
+    if (mPlacingNote) {
+      ImGui::TextWrapped("Click on the model where the note goes.");
+      if (ImGui::SmallButton("cancel")) mPlacingNote = false;
+    } else if (!mNoteForm && ImGui::Button("Add note")) {
+      mPlacingNote = true;
+      mLassoing = false;
+      mTool.setMode(MeasureTool::Mode::kOff);
+      say("add note: click on the model where it goes");
+    }
+    if (mNoteForm) noteForm(graph);
+
+    // The notes, or those of the search's items (FTS5, best first).
+    ImGui::SetNextItemWidth(-FLT_MIN);
+    ImGui::InputTextWithHint("##search", "search: words, \"a phrase\", pre*", mSearch,
+                             sizeof mSearch);
+    if (mSearchRan != mSearch) {
+      mSearchRan = mSearch;
+      mHitPlaces.clear();
+      mSearchError.clear();
+      if (!mSearchRan.empty()) {
+        try {
+          for (const SearchHit& hit : mAnnotations->db().search(mSearchRan))
+            for (int64_t place : mAnnotations->db().placesOf(hit.item))
+              if (std::find(mHitPlaces.begin(), mHitPlaces.end(), place) == mHitPlaces.end())
+                mHitPlaces.push_back(place);
+        } catch (const AnnotationError& e) {  // a malformed query says why
+          mSearchError = e.what();
+          say("search: " + mSearchError);
+        }
+      }
+    }
+    if (!mSearchError.empty()) wrapped(ImVec4(1.0f, 0.5f, 0.4f, 1.0f), mSearchError);
+    std::vector<sync::SceneGraph::NodeId> listed;
+    if (mSearchRan.empty()) {
+      for (auto id : graph.ids())
+        if (graph.node(id).kind() == scene::SceneNode::ANNOTATION &&
+            graph.node(id).annotation().place() != 0)
+          listed.push_back(id);
+    } else {
+      for (int64_t place : mHitPlaces)
+        for (auto id : mAnnotations->nodesOf(place))
+          if (graph.contains(id)) listed.push_back(id);
+    }
+    ImGui::BeginChild("notes", ImVec2(0.0f, 90.0f), true);
+    for (auto id : listed) {
+      const auto& a = graph.node(id).annotation();
+      ImGui::PushID(int(id));
+      const std::string label = a.text() + "  [" + a.layer() + "]";
+      if (ImGui::Selectable(label.c_str(), mShown == id)) {
+        mShown = id;
+        mEdit.reset();
+      }
+      ImGui::PopID();
+    }
+    if (listed.empty()) ImGui::TextDisabled(mSearchRan.empty() ? "no notes yet" : "no match");
+    ImGui::EndChild();
+    if (mShown && graph.contains(mShown) &&
+        graph.node(mShown).kind() == scene::SceneNode::ANNOTATION)
+      shownNote(graph);
+    if (!mStatus.empty()) disabledWrapped(mStatus);
+  }
+  ImGui::End();
+}
+
+void Console::noteForm(sync::SceneGraph& graph) {
+  NoteFormState& f = *mNoteForm;
+  ImGui::Separator();
+  ImGui::Text("New note on %s", f.draft.model.c_str());
+  ImGui::PushItemWidth(kFieldWidth);
+  ImGui::InputText("layer", f.layer, sizeof f.layer);
+  if (f.focus) {  // typing goes to the title at once
+    ImGui::SetKeyboardFocusHere();
+    f.focus = false;
+  }
+  const bool enter =
+      ImGui::InputText("title", f.title, sizeof f.title, ImGuiInputTextFlags_EnterReturnsTrue);
+  ImGui::InputTextMultiline("text", f.text, sizeof f.text, ImVec2(0.0f, 40.0f));
+  ImGui::Checkbox("number", &f.with_number);
+  if (f.with_number) {
+    ImGui::SetNextItemWidth(90.0f);
+    ImGui::InputDouble("##number", &f.number);
+    ImGui::SameLine();
+    ImGui::SetNextItemWidth(50.0f);
+    ImGui::InputText("unit", f.unit, sizeof f.unit);
+  }
+  ImGui::InputText("link", f.link, sizeof f.link);
+  ImGui::InputFloat("radius m", &f.radius, 0.0f, 0.0f, "%.3f");
+  if (ImGui::IsItemHovered()) ImGui::SetTooltip("> 0: a hot spot with the current view");
+  if (ImGui::Button("Add") || enter) {
+    NoteDraft d = f.draft;
+    d.layer = f.layer;
+    d.title = f.title;
+    d.text = f.text;
+    if (f.with_number) {
+      d.number = f.number;
+      d.unit = f.unit;
+    }
+    d.link = f.link;
+    d.radius = std::max(0.0f, f.radius);
+    try {
+      const auto [item, place] = addNote(*mAnnotations, graph, d, kAuthor);
+      say("note " + std::to_string(place) + " added (item " + std::to_string(item) + ", layer " +
+          d.layer + "): " + d.title);
+      const auto nodes = mAnnotations->nodesOf(place);
+      if (!nodes.empty()) mShown = nodes.front();
+      mNoteForm.reset();
+    } catch (const AnnotationError& e) {
+      say(std::string("note not added: ") + e.what());
+    }
+  } else {
+    ImGui::SameLine();
+    if (ImGui::Button("Cancel")) mNoteForm.reset();
+  }
+  ImGui::PopItemWidth();
+}
+
+void Console::shownNote(sync::SceneGraph& graph) {
+  const scene::AnnotationPayload a = graph.node(mShown).annotation();  // a copy: edits follow
+  ImGui::Separator();
+  ImGui::Text("%s %llu, layer %s", a.radius() > 0.0 ? "Hot spot" : "Point",
+              (unsigned long long)a.place(), a.layer().c_str());
+  if (ImGui::Button("Fly to")) graph.setCamera(flyToNote(graph, mShown, graph.camera()));
+  ImGui::SameLine();
+  bool open = a.open();
+  if (ImGui::Checkbox("open on the wall (O)", &open)) {
+    try {
+      mAnnotations->setOpen(graph, int64_t(a.place()), open, "");
+    } catch (const AnnotationError& e) {
+      say(e.what());
+    }
+  }
+  for (const scene::AnnotationItem& it : a.items()) {
+    ImGui::Separator();
+    ImGui::PushID(int(it.id()));
+    if (mEdit && mEdit->item == int64_t(it.id())) {
+      ItemEditState& e = *mEdit;
+      ImGui::PushItemWidth(kFieldWidth);
+      ImGui::InputText("title", e.title, sizeof e.title);
+      if (e.text_fits)
+        ImGui::InputTextMultiline("text", e.text, sizeof e.text, ImVec2(0.0f, 40.0f));
+      else
+        ImGui::TextDisabled("(its text is too long to edit here; it is kept)");
+      if (e.with_number) ImGui::InputDouble("number", &e.number);
+      if (ImGui::SmallButton("save")) {
+        try {
+          std::optional<Item> item = mAnnotations->db().item(e.item);
+          if (!item)
+            throw AnnotationError(AnnotationError::Kind::kNotFound,
+                                  "console: item " + std::to_string(e.item) + " is gone");
+          item->title = e.title;
+          if (e.text_fits) item->text = e.text;
+          if (e.with_number) item->number = e.number;
+          const int64_t revision = mAnnotations->updateItem(graph, *item, e.base_revision, kAuthor);
+          say("item " + std::to_string(e.item) + " saved (revision " + std::to_string(revision) +
+              ")");
+          mEdit.reset();
+        } catch (const AnnotationError& err) {
+          if (err.kind() != AnnotationError::Kind::kConflict) {
+            say(std::string("not saved: ") + err.what());
+          } else {
+            // Nothing overwritten; a second save, knowingly, replaces the newer revision.
+            if (std::optional<Item> now = mAnnotations->db().item(e.item))
+              e.base_revision = now->revision;
+            say(std::string("not saved, changed meanwhile: ") + err.what() +
+                " (save again to replace it, or cancel)");
+          }
+        }
+      }
+      ImGui::SameLine();
+      if (ImGui::SmallButton("cancel")) mEdit.reset();
+      ImGui::PopItemWidth();
+    } else {
+      itemDetails(it);
+      if (ImGui::SmallButton("edit")) {
+        ItemEditState e;
+        e.item = int64_t(it.id());
+        // From the database: the scene carries at most 4 KiB of the text, and another
+        // connection (tessera-annotate) may have changed the item since.
+        const std::optional<Item> full = mAnnotations->db().item(e.item);
+        e.base_revision = full ? full->revision : int64_t(it.revision());
+        std::snprintf(e.title, sizeof e.title, "%s",
+                      full ? full->title.c_str() : it.title().c_str());
+        const std::string text = full ? full->text : it.text();
+        e.text_fits = text.size() < sizeof e.text;
+        std::snprintf(e.text, sizeof e.text, "%s", text.c_str());
+        e.with_number = it.kind() == "number";
+        e.number = it.number();
+        mEdit = e;
+      }
+      ImGui::SameLine();
+      if (ImGui::SmallButton("delete")) {
+        try {
+          mAnnotations->removeItem(graph, int64_t(it.id()), int64_t(it.revision()));
+          say("item " + std::to_string(it.id()) + " deleted");
+        } catch (const AnnotationError& err) {
+          say(std::string("not deleted: ") + err.what());
+        }
+      }
+    }
+    ImGui::PopID();
+  }
+}
+
+}  // namespace tessera::master
