@@ -422,6 +422,10 @@ int main(int argc, char** argv) {
     app.add_flag("--still", still,
                  "The sites hold their poses (only strokes and undos change the scene): the cost "
                  "of sites that look, against sites that move");
+    bool draw_only = false;
+    app.add_flag("--draw-only", draw_only,
+                 "Only what the master's logic and a node's drawing cost per frame, in process "
+                 "(no processes, no sockets)");
     if (const auto code = tessera::cli::parse(app, argc, argv, "sites")) return *code;
     std::vector<int> counts;
     {
@@ -489,6 +493,7 @@ int main(int argc, char** argv) {
           frame, cpu_ms, overlay);
     }
     dcsv.close();
+    if (draw_only) return 0;
 
     // ---- 1. overhead ----
     std::ofstream ocsv(fs::path(out) / "sites_overhead.csv");

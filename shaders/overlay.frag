@@ -6,7 +6,6 @@
 layout(std430, binding = TESSERA_BINDING_DEPTH) readonly buffer Depth { uint depth[]; };  // raster order
 
 uniform ivec2 uSize;
-uniform int uDepthTest;
 in vec2 vUv;
 in vec4 vColor;
 flat in uint vMode;
@@ -16,7 +15,7 @@ uniform sampler2D uTexture;
 out vec4 fragColor;
 
 void main() {
-  if (uDepthTest != 0) {
+  if ((vMode & TESSERA_OVERLAY_DEPTH_TESTED) != 0u) {
     // Framebuffer row 0 is the image's top row; the depth plane is bottom row first.
     ivec2 p = ivec2(gl_FragCoord.xy);
     uint d = depth[uint(uSize.y - 1 - p.y) * uint(uSize.x) + uint(p.x)];
@@ -29,7 +28,7 @@ void main() {
   } else if (mode == TESSERA_OVERLAY_DOT) {
     float r = length(vUv * 2.0 - 1.0);
     float edge = max(fwidth(r), 1e-4);
-    float hole = float(vMode >> 8) / 255.0;  // rings: the inner radius, 0 for a dot
+    float hole = float((vMode >> 8) & 0xFFu) / 255.0;  // rings: the inner radius, 0 for a dot
     if (r > 1.0 || r < hole - edge) discard;
     c.a *= clamp((1.0 - r) / edge, 0.0, 1.0) * (hole > 0.0 ? clamp((r - hole) / edge, 0.0, 1.0) : 1.0);
   } else if (mode == TESSERA_OVERLAY_GLYPH) {

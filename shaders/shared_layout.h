@@ -25,6 +25,7 @@
 #define TESSERA_BINDING_FILL_DEPTH 15      // the fill's output planes: depth, colours, pick ids
 #define TESSERA_BINDING_FILL_COLORS 16
 #define TESSERA_BINDING_FILL_PICK 17
+#define TESSERA_BINDING_OVERLAY_ANCHORS 18  // vec4 per label: its anchor (overlay.vert)
 
 // The pull-push fill (shaders/fill.comp, FillPass): most pyramid levels above the frame (reach
 // 2^levels pixels).
@@ -79,6 +80,11 @@ struct Point {
 #define TESSERA_OVERLAY_TEXTURED 1u  // colour x texture
 #define TESSERA_OVERLAY_DOT 2u       // a round dot (or ring) inscribed in the quad (uv 0..1)
 #define TESSERA_OVERLAY_GLYPH 3u     // colour, alpha x the font atlas's coverage
+// Above the mode's low byte (and a ring's inner radius in the next): flags.
+#define TESSERA_OVERLAY_DEPTH_TESTED (1u << 16)  // hidden behind the scene's nearest surface
+#define TESSERA_OVERLAY_ANCHORED (1u << 17)      // shown whole or hidden by its anchor (labels)
+#define TESSERA_OVERLAY_ANCHOR_SHIFT 18u         // the anchor's index (0..16383) above the flags
+#define TESSERA_OVERLAY_MAX_ANCHORS 16384u
 #define TESSERA_OVERLAY_VERTEX_BYTES 32
 #ifndef __cplusplus
 struct OverlayVertex {

@@ -54,11 +54,10 @@ ImWchar glyphOf(uint32_t cp) {
   return cp > 0xFFFF ? ImWchar('?') : ImWchar(cp);
 }
 
-/// A batch of vertices drawn with one texture.
+/// A batch of vertices drawn with one texture (0: none bound yet; flat primitives take any).
 struct Run {
   uint32_t texture = 0;
   uint32_t first = 0, count = 0;
-  bool depth_test = true;
 };
 
 }  // namespace
@@ -75,6 +74,8 @@ struct OverlayPass::Impl {
   // Per run():
   std::vector<OverlayVertex> vertices;
   std::vector<Run> runs;
+  std::vector<glm::vec4> anchors;  // labels' (overlay.vert)
+  uint32_t flags = 0;              // or-ed into every vertex's mode: depth test, anchor
   glm::dmat4 clip_from_world{1.0};
   glm::dvec3 eye{0.0};
   glm::dvec2 size{1.0};
@@ -98,14 +99,23 @@ struct OverlayPass::Impl {
     c.y += px.y * 2.0 / size.y * c.w;
     return c;
   }
+  /// Primitives from here on are drawn with `texture` (0: any, for flat ones), depth-tested
+  /// against the scene or not. A new run (one draw call) only where the texture changes: on
+  /// llvmpipe a draw call costs more than the primitives of a label.
   void begin(uint32_t texture, bool depth_test) {
-    if (runs.empty() || runs.back().texture != texture || runs.back().depth_test != depth_test)
-      runs.push_back({texture, uint32_t(vertices.size()), 0, depth_test});
+    flags = depth_test ? TESSERA_OVERLAY_DEPTH_TESTED : 0u;
+    if (!runs.empty() && (texture == 0 || runs.back().texture == texture)) return;
+    if (!runs.empty() && runs.back().texture == 0) {  // only flat ones so far: bind this
+      runs.back().texture = texture;
+      return;
+    }
+    runs.push_back({texture, uint32_t(vertices.size()), 0});
   }
   /// Two triangles a b c, a c d.
   void quad(const std::array<glm::dvec4, 4>& c, const std::array<glm::vec2, 4>& uv, uint32_t rgba,
             uint32_t mode) {
-    for (int k : {0, 1, 2, 0, 2, 3}) vertices.push_back({glm::vec4(c[k]), uv[k], rgba, mode});
+    for (int k : {0, 1, 2, 0, 2, 3})
+      vertices.push_back({glm::vec4(c[k]), uv[k], rgba, mode | flags});
     runs.back().count += 6;
   }
   /// A pixel-space rectangle around a clip position (all corners at its depth).
@@ -120,7 +130,9 @@ struct OverlayPass::Impl {
 
   void addLine(const OverlayLine& l);
   void addLabel(const OverlayLabel& l, const FrameTarget& target, const glm::dmat4& projection);
-  glm::vec2 layout(const OverlayLabel& l, const glm::dvec4* anchor);
+  /// The label's box; with an anchor, its background and glyphs drawn there, their modes or-ed
+  /// with `anchored`.
+  glm::vec2 layout(const OverlayLabel& l, const glm::dvec4* anchor, uint32_t anchored = 0);
 };
 
 void OverlayPass::Impl::addLine(const OverlayLine& l) {
@@ -144,7 +156,8 @@ void OverlayPass::Impl::addLine(const OverlayLine& l) {
        {glm::vec2(0), glm::vec2(0), glm::vec2(0), glm::vec2(0)}, rgba, TESSERA_OVERLAY_FLAT);
 }
 
-glm::vec2 OverlayPass::Impl::layout(const OverlayLabel& l, const glm::dvec4* anchor) {
+glm::vec2 OverlayPass::Impl::layout(const OverlayLabel& l, const glm::dvec4* anchor,
+                                    uint32_t anchored) {
   const float scale = l.height_px / font->FontSize;
   const float pad = 0.2f * l.height_px;
   // Lines break at '\n', each kLineSpacing label heights below the one before.
@@ -168,9 +181,9 @@ glm::vec2 OverlayPass::Impl::layout(const OverlayLabel& l, const glm::dvec4* anc
   // A label is hidden or shown whole by its anchor (addLabel()), then drawn over the scene: a
   // surface in front of the box (the model curving towards the eye) must not eat its text.
   if (l.background.a > 0) {
-    begin(white.name(), false);
+    begin(0, false);
     sprite(*anchor, o, o + box, glm::vec2(0), glm::vec2(1), pack(l.background),
-           TESSERA_OVERLAY_FLAT);
+           TESSERA_OVERLAY_FLAT | anchored);
   }
   begin(font_texture.name(), false);
   float pen = o.x + pad, top = o.y + pad;
@@ -187,7 +200,8 @@ glm::vec2 OverlayPass::Impl::layout(const OverlayLabel& l, const glm::dvec4* anc
     if (g->Visible) {
       const glm::vec2 lo(pen + g->X0 * scale, top + g->Y0 * scale);
       const glm::vec2 hi(pen + g->X1 * scale, top + g->Y1 * scale);
-      sprite(*anchor, lo, hi, {g->U0, g->V0}, {g->U1, g->V1}, rgba, TESSERA_OVERLAY_GLYPH);
+      sprite(*anchor, lo, hi, {g->U0, g->V0}, {g->U1, g->V1}, rgba,
+             TESSERA_OVERLAY_GLYPH | anchored);
     }
     pen += g->AdvanceX * scale;
   }
@@ -202,23 +216,32 @@ void OverlayPass::Impl::addLabel(const OverlayLabel& l, const FrameTarget& targe
       !std::isfinite(l.height_px) || !std::isfinite(l.offset_px.x) ||
       !std::isfinite(l.offset_px.y) || !std::isfinite(l.align.x) || !std::isfinite(l.align.y))
     return;
-  // Hidden when the scene is in front of its anchor (one depth value read back): by more than
-  // 2% of the distance, since anchors sit on the surface the splats cover (or, a measurement's
-  // middle, on a chord just under it).
-  const double x = (a.x / a.w * 0.5 + 0.5) * size.x, y = (0.5 - a.y / a.w * 0.5) * size.y;
-  if (x >= 0.0 && y >= 0.0 && x < size.x && y < size.y) {
-    const uint32_t d = target.readAt(target.depth(), uint32_t(x), uint32_t(y));
+  // Hidden when the scene is in front of its anchor, by more than 2% of the distance (anchors
+  // sit on the surface the splats cover; a measurement's middle on a chord just under it):
+  // tested on the GPU per vertex (overlay.vert), so no label waits for a read-back. The
+  // anchor's pixel in the framebuffer's convention (row 0 the image's top, as gl_FragCoord).
+  const double x = (a.x / a.w * 0.5 + 0.5) * size.x, y = (0.5 + a.y / a.w * 0.5) * size.y;
+  const bool perspective = projection[2][3] != 0.0;
+  uint32_t anchored = 0;
+  if (anchors.size() < TESSERA_OVERLAY_MAX_ANCHORS) {
+    anchored = TESSERA_OVERLAY_ANCHORED | uint32_t(anchors.size()) << TESSERA_OVERLAY_ANCHOR_SHIFT;
+    anchors.emplace_back(float(x), float(y), float(perspective ? a.w : a.z / a.w),
+                         perspective ? 1.0f : 0.0f);
+  } else if (x >= 0.0 && y >= 0.0 && x < size.x && y < size.y) {
+    // Beyond the anchors' buffer (16384 labels in one view): one depth value read back (the
+    // depth plane is bottom row first).
+    const uint32_t d =
+        target.readAt(target.depth(), uint32_t(x), uint32_t(size.y) - 1 - uint32_t(y));
     if (d != kEmptyDepth) {
       float f = 0.0f;
       std::memcpy(&f, &d, 4);
       const double ndc = 2.0 * double(f) - 1.0;
-      const bool perspective = projection[2][3] != 0.0;
       const double stored = perspective ? projection[3][2] / (ndc + projection[2][2]) : ndc;
       const double anchor = perspective ? a.w : a.z / a.w;
       if (perspective ? anchor > 1.02 * std::abs(stored) : anchor > stored + 0.02) return;
     }
   }
-  layout(l, &a);
+  layout(l, &a, anchored);
 }
 
 OverlayPass::OverlayPass() : mImpl(std::make_unique<Impl>()) {
@@ -252,6 +275,7 @@ double OverlayPass::run(FrameTarget& target, const ViewSetup& view, const Overla
   Impl& s = *mImpl;
   s.vertices.clear();
   s.runs.clear();
+  s.anchors.clear();
   s.clip_from_world = view.projection * view.view;
   s.eye = view.eye_world;
   s.size = glm::dvec2(target.width(), target.height());
@@ -265,7 +289,7 @@ double OverlayPass::run(FrameTarget& target, const ViewSetup& view, const Overla
     s.quad(c, {glm::vec2(0, 0), glm::vec2(1, 0), glm::vec2(1, 1), glm::vec2(0, 1)}, pack(q.tint),
            TESSERA_OVERLAY_TEXTURED);
   }
-  s.begin(s.white.name(), true);
+  s.begin(0, true);
   for (const OverlayLine& l : overlay.lines) s.addLine(l);
   for (const OverlayPoint& p : overlay.points) {
     const glm::dvec4 a = s.clip(p.at);
@@ -281,7 +305,7 @@ double OverlayPass::run(FrameTarget& target, const ViewSetup& view, const Overla
     if (!std::isfinite(r.min.x) || !std::isfinite(r.min.y) || !std::isfinite(r.max.x) ||
         !std::isfinite(r.max.y))
       continue;
-    s.begin(r.texture ? r.texture->name() : s.white.name(), false);
+    s.begin(r.texture ? r.texture->name() : s.white.name(), false);  // textured mode
     const glm::dvec4 origin(-1.0, -1.0, -1.0, 1.0);  // the image's top-left corner, nearest
     s.sprite(origin, r.min, r.max, glm::vec2(0), glm::vec2(1), pack(r.color),
              TESSERA_OVERLAY_TEXTURED);
@@ -309,17 +333,20 @@ double OverlayPass::run(FrameTarget& target, const ViewSetup& view, const Overla
     const GlBuffer vertices(s.vertices.size() * sizeof(OverlayVertex), s.vertices.data());
     glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_OVERLAY, vertices.name());
     glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_DEPTH, target.depth().name());
+    if (s.anchors.empty()) s.anchors.emplace_back(0.0f);  // a buffer is bound either way
+    const GlBuffer anchors(s.anchors.size() * sizeof(glm::vec4), s.anchors.data());
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_OVERLAY_ANCHORS, anchors.name());
     s.draw.use();
     s.draw.set("uTexture", 0);
     s.draw.set("uSize", glm::ivec2(target.width(), target.height()));
+    s.draw.set("uDepthFromNdc", glm::vec2(float(view.projection[3][2]), float(view.projection[2][2])));
     // Overlays do not hide each other (later ones draw on top); colour blends over the scene,
     // the image's alpha stays opaque.
     glEnable(GL_BLEND);
     glBlendFuncSeparate(GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA, GL_ZERO, GL_ONE);
     for (const Run& r : s.runs) {
       if (r.count == 0) continue;
-      s.draw.set("uDepthTest", r.depth_test ? 1 : 0);
-      glBindTextureUnit(0, r.texture);
+      glBindTextureUnit(0, r.texture ? r.texture : s.white.name());
       glDrawArrays(GL_TRIANGLES, GLint(r.first), GLsizei(r.count));
     }
   }

@@ -364,4 +364,45 @@ TEST_F(FramePipelineTest, NonFiniteOverlayPrimitivesAreSkipped) {
 }
 
 }  // namespace
+// A label is shown or hidden whole by its anchor (tested on the GPU, overlay.vert): anchored
+// behind the bunny it is gone, even where its box lies over the background; anchored in front
+// of it, it is drawn whole over the bunny. Two lines make a box two lines high.
+TEST_F(FramePipelineTest, ALabelIsHiddenWholeByItsAnchorAndTakesLineBreaks) {
+  auto s = lod::PointStore::open(*sDir / "b.tlod");
+  glm::dvec3 c;
+  const ViewSetup v = frontView(*s, 0.4, 320, 240, &c);
+  ViewRenderer r(v.width, v.height);
+  const ModelInstance inst{s.get(), storeModel(*s)};
+  (void)r.renderSettled({&inst, 1}, v, RenderOptions{});  // every chunk resident
+  auto labelled = [&](glm::dvec3 at, const std::string& text) {
+    Overlay overlay;
+    OverlayLabel label;
+    label.at = at;
+    label.text = text;
+    label.color = {255, 255, 255, 255};
+    label.background = {255, 0, 255, 255};  // magenta: no bunny or background pixel is
+    overlay.labels.push_back(label);
+    const Image img = r.render({&inst, 1}, v, RenderOptions{}, nullptr, &overlay);
+    size_t magenta = 0;
+    for (uint32_t y = 0; y < v.height; ++y)
+      for (uint32_t x = 0; x < v.width; ++x) {
+        const uint8_t* p = pixel(img, x, y);
+        magenta += p[0] > 200 && p[1] < 60 && p[2] > 200;
+      }
+    return magenta;
+  };
+  const double depth = glm::length(c - glm::dvec3(glm::inverse(v.view)[3]));
+  const glm::dvec3 toward = glm::normalize(glm::dvec3(glm::inverse(v.view)[3]) - c);
+  const size_t behind = labelled(c - 0.3 * depth * toward, "behind");
+  const size_t front = labelled(c + 0.3 * depth * toward, "in front");
+  const size_t two = labelled(c + 0.3 * depth * toward, "in front\nin front");
+  EXPECT_EQ(behind, 0u) << "a label anchored behind the bunny is hidden whole";
+  EXPECT_GT(front, 200u) << "a label anchored in front is drawn";
+  const glm::vec2 one_box = OverlayPass().measure({c, "in front"});
+  const glm::vec2 two_box = OverlayPass().measure({c, "in front\nin front"});
+  EXPECT_EQ(one_box.x, two_box.x);
+  EXPECT_NEAR(two_box.y - one_box.y, 1.2 * 20.0, 1e-3) << "one more line, 1.2 heights";
+  EXPECT_GT(double(two), 1.5 * double(front)) << "the second line's box drawn too";
+}
+
 }  // namespace tessera::render
