@@ -364,13 +364,26 @@ TEST_F(ZmqWall, BadPeersAreRefusedAndTheWallIsUndisturbed) {
       EXPECT_EQ(int(looks(s, t)), int(TileLooks::kReference)) << t << " frame " << s.frame;
 }
 
+/// Every node's exit (if it ended) and log, for a failure's message.
+std::string nodeReports(std::vector<std::unique_ptr<Process>>& nodes) {
+  std::string out;
+  for (auto& n : nodes) {
+    const auto code = n->wait(0.0);
+    out += "\n--- " + n->log().filename().string() + " (pid " + std::to_string(n->pid()) + ", " +
+           (code ? "exit " + std::to_string(*code) : std::string("running")) + "):\n" +
+           n->output();
+  }
+  return out;
+}
+
 TEST_F(ZmqWall, LosingACriticalTileStopsTheWall) {
   write(sDir->path() / "wall-critical.json", smallWallJson(R"(, "critical": true)"));
   auto master = startMaster({"--frames", "100000", "--max-fps", "10", "--node-timeout", "1000"},
                             "wall-critical.json");
   std::vector<std::unique_ptr<Process>> nodes;
   for (const std::string& t : kTiles) nodes.push_back(startNode(t));
-  ASSERT_TRUE(master->waitFor("4 of 4 tiles have a node", 60)) << master->output();
+  ASSERT_TRUE(master->waitFor("4 of 4 tiles have a node", 60))
+      << master->output() << nodeReports(nodes);
   nodes[0]->signal(SIGKILL);  // not critical: the wall goes on
   ASSERT_TRUE(master->waitFor("tile-0-0 \\([^)]*\\) dropped", 30)) << master->output();
   EXPECT_TRUE(master->running());
