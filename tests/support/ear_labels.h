@@ -1,0 +1,68 @@
+// The bunny's ear as labels of space, for tests and benches of selections on stores built from
+// the bunny (its reconstruction as a mesh store, its scans as a point store), whose elements are
+// not the reconstruction's vertices.
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <unordered_map>
+#include <vector>
+
+#include <glm/glm.hpp>
+
+#include <tessera/lod/mesh.h>
+#include <tessera/master/lazy_snapping.h>
+
+#include "snapping_models.h"
+
+namespace tessera::test {
+
+/// The ear of the bunny's reconstruction (tests/support/snapping_models.h bunnyEar()) as labels
+/// of space: a position is "ear" or "not ear" by the nearest reconstruction vertex within 2 mm
+/// (a grid of 2 mm cells), unknown farther away and where vertices of both labels lie within
+/// `margin` (the ear's base, decided to a few millimetres only).
+class EarLabels {
+ public:
+  explicit EarLabels(const std::filesystem::path& data_dir) {
+    mSamples = master::surfaceFromMesh(lod::readMesh(bunnyMeshPath(data_dir)));
+    mEar = bunnyEar(mSamples);
+    for (uint32_t i = 0; i < mSamples.size(); ++i)
+      if (!mSamples.neighboursOf(i).empty()) mGrid[key(cell(mSamples.positions[i]))].push_back(i);
+  }
+  /// 1 ear, 0 not ear, -1 unknown.
+  int label(const glm::dvec3& p, double margin = 0.0) const {
+    const glm::ivec3 c = cell(p);
+    double best = kReach * kReach;
+    int out = -1;
+    bool ear = false, other = false;
+    for (int dz = -1; dz <= 1; ++dz)
+      for (int dy = -1; dy <= 1; ++dy)
+        for (int dx = -1; dx <= 1; ++dx) {
+          const auto it = mGrid.find(key(c + glm::ivec3(dx, dy, dz)));
+          if (it == mGrid.end()) continue;
+          for (uint32_t i : it->second) {
+            const glm::dvec3 d = mSamples.positions[i] - p;
+            const double d2 = glm::dot(d, d);
+            if (d2 < best) {
+              best = d2;
+              out = mEar[i];
+            }
+            if (d2 < margin * margin) (mEar[i] ? ear : other) = true;
+          }
+        }
+    return ear && other ? -1 : out;
+  }
+  const master::SurfaceSamples& samples() const { return mSamples; }
+
+ private:
+  static constexpr double kReach = 0.002;
+  static glm::ivec3 cell(const glm::dvec3& p) { return glm::ivec3(glm::floor(p / kReach)); }
+  static int64_t key(const glm::ivec3& c) {
+    return (int64_t(c.x) & 0xfffff) | (int64_t(c.y) & 0xfffff) << 20 | (int64_t(c.z) & 0xfffff) << 40;
+  }
+  master::SurfaceSamples mSamples;
+  std::vector<uint8_t> mEar;
+  std::unordered_map<int64_t, std::vector<uint32_t>> mGrid;
+};
+
+}  // namespace tessera::test
