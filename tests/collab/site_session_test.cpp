@@ -943,11 +943,14 @@ TEST_F(SiteSession, ASiteSnapsTheBunnysEarAndTheWallTintsIt) {
   const std::string count =
       tessera::test::captured(master->output(), "A: snap on model \\d+: (\\d+) elements selected");
   RecordProperty("snapped_points", count);
+  // A leaves, so its avatar (amber like the tint, in front of the ear) is not on the wall.
+  a->signal(SIGTERM);
+  a->wait(15);
+  EXPECT_TRUE(master->waitFor("A\\S* .*left: ", 30)) << master->output();
   std::this_thread::sleep_for(std::chrono::milliseconds(1500));  // frames with the selection
   master->signal(SIGTERM);
   ASSERT_EQ(master->wait(60), std::optional<int>(0)) << master->output();
   for (auto& n : nodes) EXPECT_EQ(n->wait(15), std::optional<int>(0)) << n->output();
-  a->wait(15);
   // The ear's points are about 6% of the scans' 3.6e5 inside the view (the ear holds 2100 of the
   // reconstruction's 35 947 vertices).
   EXPECT_GT(std::stoll(count), 5000) << master->output();
@@ -976,7 +979,10 @@ TEST_F(SiteSession, ASiteSnapsTheBunnysEarAndTheWallTintsIt) {
     return false;
   };
   int ear_in = 0, ear_all = 0, head_in = 0, head_all = 0;
-  for (double t = 0.1; t <= 0.9; t += 0.1) {  // along the ear stroke, on the front surface
+  if (const char* dir = std::getenv("TESSERA_TEST_PICTURES"))
+    fs::copy_file(mRun / "wall.png", fs::path(dir) / "site_snap_wall.png",
+                  fs::copy_options::overwrite_existing);
+  for (double t = 0.05; t <= 0.96; t += 0.05) {  // along the ear stroke, on the front surface
     const glm::dvec3 p = frontAt(mesh, glm::mix(-0.02, -0.045, t), glm::mix(0.178, 0.162, t));
     if (const auto at = onWall(wall, camera, p)) {
       ++ear_all;
@@ -989,7 +995,8 @@ TEST_F(SiteSession, ASiteSnapsTheBunnysEarAndTheWallTintsIt) {
       head_in += amber(*at);
     }
   }
-  EXPECT_GE(ear_all, 8);
+  RecordProperty("ear_on_wall", std::to_string(ear_all));
+  EXPECT_GE(ear_all, 8);  // the rest falls on the mullions
   EXPECT_GE(ear_in, ear_all - 1) << "the ear tinted on the wall, " << mRun / "wall.png";
   EXPECT_GE(head_all, 12);
   EXPECT_EQ(head_in, 0) << "the head not tinted, " << mRun / "wall.png";

@@ -57,11 +57,6 @@ std::vector<glm::dvec2> yDown(std::vector<glm::dvec2> px, const ViewSetup& v) {
   return px;
 }
 
-/// IoU of two sets given as per-element flags.
-double iou(const std::vector<uint8_t>& a, const std::vector<uint8_t>& b) {
-  return intersectionOverUnion(a, b);
-}
-
 class SnapToolTest : public test::BunnyMeshStoreTest {
  protected:
   static void SetUpTestSuite() {
@@ -156,26 +151,13 @@ TEST_F(SnapToolTest, SnapsTheBunnysEarOnTheMeshStore) {
   EXPECT_TRUE(s.payload.visible_only());
   EXPECT_EQ(s.payload.lasso_size(), 0);
   EXPECT_EQ(s.payload.mask_width(), 540u);
-  const std::string& bytes = s.payload.elements();
-  const Selection sel = Selection::deserialize({reinterpret_cast<const uint8_t*>(bytes.data()), bytes.size()});
+  const Selection sel = test::selectionOf(s.payload.elements());
   EXPECT_EQ(sel.elements(), SelectionElements::kTriangles);
   EXPECT_EQ(sel.count(), s.count);
   // Expected: every leaf triangle whose three vertices are the ear's (by position).
-  std::vector<uint8_t> got, want;
-  for (lod::NodeId id = 0; id < mesh->nodeCount(); ++id) {
-    if (!mesh->node(id).leaf()) continue;
-    const lod::MeshPatch p = mesh->readPatch(id);
-    for (uint32_t t = 0; t < p.triangles(); ++t) {
-      bool ear = true;
-      for (int k = 0; k < 3; ++k)
-        ear = ear && sEar->label(mesh->summary().origin + p.offset + glm::dvec3(p.positions[p.indices[3 * t + k]])) == 1;
-      want.push_back(ear);
-      got.push_back(sel.contains(id, t));
-    }
-  }
-  const double i = iou(got, want);
-  std::printf("mesh store: %llu triangles selected of %zu, IoU %.3f, %llu samples, %.0f ms\n",
-              (unsigned long long)s.count, want.size(), i, (unsigned long long)s.stats.samples,
+  const double i = test::earIoU(*mesh, sel, *sEar);
+  std::printf("mesh store: %llu triangles selected, IoU %.3f, %llu samples, %.0f ms\n",
+              (unsigned long long)s.count, i, (unsigned long long)s.stats.samples,
               s.stats.gather_ms + s.stats.cut_ms + s.stats.map_ms + s.stats.mask_ms);
   EXPECT_GE(i, 0.90);
   expectEarTinted(m, s.payload, "mesh");
@@ -190,31 +172,13 @@ TEST_F(SnapToolTest, SnapsTheBunnysEarOnThePointStore) {
   const SnapSelection s = snapSelection(m, 7, view, yDown(test::bunnyEarStroke(), view),
                                         yDown(test::bunnyHeadStroke(), view));
   ASSERT_GT(s.count, 0u);
-  const std::string& bytes = s.payload.elements();
-  const Selection sel = Selection::deserialize({reinterpret_cast<const uint8_t*>(bytes.data()), bytes.size()});
+  const Selection sel = test::selectionOf(s.payload.elements());
   EXPECT_EQ(sel.elements(), SelectionElements::kPoints);
   // Expected: every leaf point whose nearest reconstruction vertex (within 2 mm) is the ear's;
-  // points far from the reconstruction (scan noise, 3% of them) are left out of the count.
-  std::vector<uint8_t> got, want;
-  std::vector<lod::NodeId> stack{store->root()};
-  while (!stack.empty()) {
-    const lod::NodeId id = stack.back();
-    stack.pop_back();
-    if (!store->node(id).leaf()) {
-      for (lod::NodeId c : store->children(id)) stack.push_back(c);
-      continue;
-    }
-    const auto c = store->loadChunk(id);
-    for (uint32_t k = 0; k < c->size(); ++k) {
-      const int label = sEar->label(store->summary().origin + c->offset + glm::dvec3(c->positions[k]));
-      if (label < 0) continue;
-      want.push_back(uint8_t(label));
-      got.push_back(sel.contains(id, k));
-    }
-  }
-  const double i = iou(got, want);
-  std::printf("point store: %llu points selected, IoU %.3f over %zu labelled, %llu samples, %.0f ms\n",
-              (unsigned long long)s.count, i, want.size(), (unsigned long long)s.stats.samples,
+  // points far from the reconstruction (scan noise) are left out of the count.
+  const double i = test::earIoU(*store, sel, *sEar);
+  std::printf("point store: %llu points selected, IoU %.3f, %llu samples, %.0f ms\n",
+              (unsigned long long)s.count, i, (unsigned long long)s.stats.samples,
               s.stats.gather_ms + s.stats.cut_ms + s.stats.map_ms + s.stats.mask_ms);
   EXPECT_GE(i, 0.85);
   expectEarTinted(m, s.payload, "points");
@@ -232,22 +196,7 @@ TEST_F(SnapToolTest, RobustLassoAroundTheEarOnTheMeshStore) {
   const auto outline = yDown(test::earOutline(sEar->samples(), ear, visible, sv), view);
   const SnapSelection s = robustLassoSelection(m, 7, view, outline, 16.0);
   ASSERT_GT(s.count, 0u);
-  const std::string& bytes = s.payload.elements();
-  const Selection sel = Selection::deserialize({reinterpret_cast<const uint8_t*>(bytes.data()), bytes.size()});
-  size_t both = 0, any = 0;
-  for (lod::NodeId id = 0; id < mesh->nodeCount(); ++id) {
-    if (!mesh->node(id).leaf()) continue;
-    const lod::MeshPatch p = mesh->readPatch(id);
-    for (uint32_t t = 0; t < p.triangles(); ++t) {
-      bool e = true;
-      for (int k = 0; k < 3; ++k)
-        e = e && sEar->label(mesh->summary().origin + p.offset + glm::dvec3(p.positions[p.indices[3 * t + k]])) == 1;
-      const bool g = sel.contains(id, t);
-      both += e && g;
-      any += e || g;
-    }
-  }
-  const double i = double(both) / double(std::max<size_t>(any, 1));
+  const double i = test::earIoU(*mesh, test::selectionOf(s.payload.elements()), *sEar);
   std::printf("robust lasso, mesh store: IoU %.3f\n", i);
   EXPECT_GE(i, 0.85);
 }

@@ -5,13 +5,17 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <string>
 #include <unordered_map>
 #include <vector>
 
 #include <glm/glm.hpp>
 
 #include <tessera/lod/mesh.h>
+#include <tessera/lod/mesh_store.h>
+#include <tessera/lod/point_store.h>
 #include <tessera/master/lazy_snapping.h>
+#include <tessera/master/selection.h>
 
 #include "snapping_models.h"
 
@@ -64,5 +68,54 @@ class EarLabels {
   std::vector<uint8_t> mEar;
   std::unordered_map<int64_t, std::vector<uint32_t>> mGrid;
 };
+
+/// IoU of a selection of a mesh store's leaf triangles against the ear: the triangles whose
+/// three vertices are the ear's.
+inline double earIoU(const lod::MeshStore& store, const master::Selection& sel,
+                     const EarLabels& ear) {
+  std::vector<uint8_t> got, want;
+  for (lod::NodeId id = 0; id < store.nodeCount(); ++id) {
+    if (!store.node(id).leaf()) continue;
+    const lod::MeshPatch p = store.readPatch(id);
+    const glm::dvec3 at = store.summary().origin + p.offset;
+    for (uint32_t t = 0; t < p.triangles(); ++t) {
+      bool in = true;
+      for (int k = 0; k < 3; ++k)
+        in = in && ear.label(at + glm::dvec3(p.positions[p.indices[3 * t + k]])) == 1;
+      want.push_back(in);
+      got.push_back(sel.contains(id, t));
+    }
+  }
+  return master::intersectionOverUnion(got, want);
+}
+
+/// IoU of a selection of a point store's leaf points against the ear (points with no
+/// reconstruction vertex within 2 mm, scan noise, left out).
+inline double earIoU(lod::PointStore& store, const master::Selection& sel, const EarLabels& ear) {
+  std::vector<uint8_t> got, want;
+  std::vector<lod::NodeId> stack{store.root()};
+  while (!stack.empty()) {
+    const lod::NodeId id = stack.back();
+    stack.pop_back();
+    if (!store.node(id).leaf()) {
+      for (lod::NodeId c : store.children(id)) stack.push_back(c);
+      continue;
+    }
+    const auto c = store.loadChunk(id);
+    for (uint32_t k = 0; k < c->size(); ++k) {
+      const int label = ear.label(store.summary().origin + c->offset + glm::dvec3(c->positions[k]));
+      if (label < 0) continue;
+      want.push_back(uint8_t(label));
+      got.push_back(sel.contains(id, k));
+    }
+  }
+  return master::intersectionOverUnion(got, want);
+}
+
+/// A selection payload's elements.
+inline master::Selection selectionOf(const std::string& bytes) {
+  return master::Selection::deserialize(
+      {reinterpret_cast<const uint8_t*>(bytes.data()), bytes.size()});
+}
 
 }  // namespace tessera::test
