@@ -73,6 +73,20 @@ int participantOf(const std::string& master_log, const std::string& name) {
   return std::stoi(m[1].str());
 }
 
+/// The wall's camera of the tests (kWallEye looking at kTarget, y up).
+tessera::config::Camera wallCamera() {
+  tessera::config::Camera camera;
+  auto set = [](tessera::config::Vec3* v, glm::dvec3 x) {
+    v->set_x(x.x);
+    v->set_y(x.y);
+    v->set_z(x.z);
+  };
+  set(camera.mutable_eye(), kWallEye);
+  set(camera.mutable_target(), kTarget);
+  set(camera.mutable_up(), {0, 1, 0});
+  return camera;
+}
+
 /// Where `world` lands in the wall screenshot (bezels included), if on a tile.
 std::optional<glm::dvec2> onWall(const tessera::config::WallConfig& wall,
                                  const tessera::config::Camera& camera, glm::dvec3 world) {
@@ -239,15 +253,7 @@ TEST_F(SiteSession, AvatarsSketchFollowMeAndAKilledSiteOnTheWall) {
 
   // The wall at the last frame: the camera is the master's again (A gave it back).
   const auto wall = tessera::sync::loadWallConfig(*sDir / "wall.json");
-  tessera::config::Camera camera;
-  auto set = [](tessera::config::Vec3* v, glm::dvec3 x) {
-    v->set_x(x.x);
-    v->set_y(x.y);
-    v->set_z(x.z);
-  };
-  set(camera.mutable_eye(), kWallEye);
-  set(camera.mutable_target(), kTarget);
-  set(camera.mutable_up(), {0, 1, 0});
+  const tessera::config::Camera camera = wallCamera();
   const tessera::render::Image shot = tessera::render::readPng((mRun / "wall.png").string());
   for (const auto& [eye, colour, name] :
        {std::tuple{kEyeA, kColorA, "A"}, std::tuple{kEyeB, kColorB, "B"}}) {
@@ -829,15 +835,7 @@ TEST_F(SiteSession, NotesAreCommittedShownOnTheWallAndSurviveAKilledMaster) {
   // The wall: the note's dot where its place projects, and its open label (the item's title
   // and text on one line, wider than the closed label "crack A 14 cm" would be) up and right.
   const auto wall = tessera::sync::loadWallConfig(*sDir / "wall.json");
-  tessera::config::Camera camera;
-  auto set = [](tessera::config::Vec3* v, glm::dvec3 x) {
-    v->set_x(x.x);
-    v->set_y(x.y);
-    v->set_z(x.z);
-  };
-  set(camera.mutable_eye(), kWallEye);
-  set(camera.mutable_target(), kTarget);
-  set(camera.mutable_up(), {0, 1, 0});
+  const tessera::config::Camera camera = wallCamera();
   const tessera::render::Image shot = tessera::render::readPng((mRun / "wall.png").string());
   const auto at = onWall(wall, camera, place.position);
   ASSERT_TRUE(at) << "the note is off the wall";
@@ -958,15 +956,7 @@ TEST_F(SiteSession, ASiteSnapsTheBunnysEarAndTheWallTintsIt) {
 
   // The wall: amber where the ear's front faces it, not on the head under the head stroke.
   const auto wall = tessera::sync::loadWallConfig(*sDir / "wall.json");
-  tessera::config::Camera camera;
-  auto set = [](tessera::config::Vec3* v, glm::dvec3 x) {
-    v->set_x(x.x);
-    v->set_y(x.y);
-    v->set_z(x.z);
-  };
-  set(camera.mutable_eye(), kWallEye);
-  set(camera.mutable_target(), kTarget);
-  set(camera.mutable_up(), {0, 1, 0});
+  const tessera::config::Camera camera = wallCamera();
   const tessera::render::Image shot = tessera::render::readPng((mRun / "wall.png").string());
   auto amber = [&](glm::dvec2 at) {
     for (int dy = -1; dy <= 1; ++dy)

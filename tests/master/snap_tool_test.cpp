@@ -58,7 +58,7 @@ std::vector<glm::dvec2> yDown(std::vector<glm::dvec2> px, const ViewSetup& v) {
 }
 
 class SnapToolTest : public test::BunnyMeshStoreTest {
- protected:
+ public:
   static void SetUpTestSuite() {
     BunnyMeshStoreTest::SetUpTestSuite();
     sEar = new test::EarLabels(TESSERA_DATA_DIR);
@@ -123,12 +123,13 @@ class SnapToolTest : public test::BunnyMeshStoreTest {
                   t.ear_tinted, t.ear, t.other_tinted, t.other);
       ASSERT_GT(t.ear, 1500u);
       ASSERT_GT(t.other, 20000u);
-      // Measured (mesh / points): stroke view 0.99 / 0.99 of the ear's pixels tinted, aside
-      // 0.97 / 0.96 (the ear's side the stroke view did not see is not tinted: visible_only);
-      // the head and body: under 0.1% of their pixels. Bounds with room for the renderer's
-      // level of detail, not for a tint that spills over the head or leaves the ear dotted.
-      EXPECT_GE(double(t.ear_tinted) / double(t.ear), 0.85) << t.ear_tinted << " of " << t.ear;
-      EXPECT_LE(double(t.other_tinted) / double(t.other), 0.01) << t.other_tinted << " of " << t.other;
+      // Measured (mesh / points): of the ear's pixels (away from its base) 0.984 / 0.990 are
+      // tinted from the stroke view, 0.985 / 0.989 aside (the rest: the ear's rim the stroke
+      // view saw edge-on, and the mask's 1024^2 cells); elsewhere 0 / 2 pixels of 1.2e5. The
+      // bounds leave room for the renderer's level of detail, not for a dotted tint nor for one
+      // spilling over the head.
+      EXPECT_GE(double(t.ear_tinted) / double(t.ear), 0.95) << t.ear_tinted << " of " << t.ear;
+      EXPECT_LE(double(t.other_tinted) / double(t.other), 0.002) << t.other_tinted << " of " << t.other;
     }
   }
 };
@@ -136,12 +137,14 @@ class SnapToolTest : public test::BunnyMeshStoreTest {
 // The ear's IoU bound: lazy_snapping_test.cpp measures 0.95 on the reconstruction's vertices
 // with these strokes and asks 0.90 (the ear's base is a smooth saddle, +-2 mm). Through the tool
 // the cut runs on the store's leaves (welded patches, or the scans' 3.6e5 points with PCA
-// normals, where the ear is labelled by the nearest reconstruction vertex), measured below.
-TEST_F(SnapToolTest, SnapsTheBunnysEarOnTheMeshStore) {
-  auto mesh = lod::MeshStore::open(*sDir / "b.tmesh");
-  render::ModelInstance m;
-  m.mesh = mesh.get();
-  m.model = render::storeModel(*mesh);
+// normals, where the ear is labelled by the nearest reconstruction vertex): measured 0.948 to
+// 0.952 on the mesh store (a store built anew has other patches, so other watershed ties), 0.945
+// on the point store, 0.954 to 0.958 for the robust lasso; the same 0.90 bound.
+/// Snaps the ear with the strokes of lazy_snapping_test.cpp on `m` (`store`: its mesh or point
+/// store), checks the payload, the elements' IoU against the ear and the tint.
+template <class Store>
+void snapsTheEar(const render::ModelInstance& m, Store& store, SelectionElements elements,
+                 const std::string& name, test::EarLabels& ear) {
   const ViewSetup view = strokeView();
   const SnapSelection s = snapSelection(m, 7, view, yDown(test::bunnyEarStroke(), view),
                                         yDown(test::bunnyHeadStroke(), view));
@@ -152,15 +155,24 @@ TEST_F(SnapToolTest, SnapsTheBunnysEarOnTheMeshStore) {
   EXPECT_EQ(s.payload.lasso_size(), 0);
   EXPECT_EQ(s.payload.mask_width(), 540u);
   const Selection sel = test::selectionOf(s.payload.elements());
-  EXPECT_EQ(sel.elements(), SelectionElements::kTriangles);
+  EXPECT_EQ(sel.elements(), elements);
   EXPECT_EQ(sel.count(), s.count);
-  // Expected: every leaf triangle whose three vertices are the ear's (by position).
-  const double i = test::earIoU(*mesh, sel, *sEar);
-  std::printf("mesh store: %llu triangles selected, IoU %.3f, %llu samples, %.0f ms\n",
+  // Expected: the leaf triangles whose three vertices are the ear's, or the leaf points whose
+  // nearest reconstruction vertex (within 2 mm) is the ear's (scan noise left out).
+  const double i = test::earIoU(store, sel, ear);
+  std::printf("%s: %llu elements selected, IoU %.3f, %llu samples, %.0f ms\n", name.c_str(),
               (unsigned long long)s.count, i, (unsigned long long)s.stats.samples,
               s.stats.gather_ms + s.stats.cut_ms + s.stats.map_ms + s.stats.mask_ms);
   EXPECT_GE(i, 0.90);
-  expectEarTinted(m, s.payload, "mesh");
+  SnapToolTest::expectEarTinted(m, s.payload, name);
+}
+
+TEST_F(SnapToolTest, SnapsTheBunnysEarOnTheMeshStore) {
+  auto mesh = lod::MeshStore::open(*sDir / "b.tmesh");
+  render::ModelInstance m;
+  m.mesh = mesh.get();
+  m.model = render::storeModel(*mesh);
+  snapsTheEar(m, *mesh, SelectionElements::kTriangles, "mesh", *sEar);
 }
 
 TEST_F(SnapToolTest, SnapsTheBunnysEarOnThePointStore) {
@@ -168,20 +180,7 @@ TEST_F(SnapToolTest, SnapsTheBunnysEarOnThePointStore) {
   render::ModelInstance m;
   m.store = store.get();
   m.model = render::storeModel(*store);
-  const ViewSetup view = strokeView();
-  const SnapSelection s = snapSelection(m, 7, view, yDown(test::bunnyEarStroke(), view),
-                                        yDown(test::bunnyHeadStroke(), view));
-  ASSERT_GT(s.count, 0u);
-  const Selection sel = test::selectionOf(s.payload.elements());
-  EXPECT_EQ(sel.elements(), SelectionElements::kPoints);
-  // Expected: every leaf point whose nearest reconstruction vertex (within 2 mm) is the ear's;
-  // points far from the reconstruction (scan noise) are left out of the count.
-  const double i = test::earIoU(*store, sel, *sEar);
-  std::printf("point store: %llu points selected, IoU %.3f, %llu samples, %.0f ms\n",
-              (unsigned long long)s.count, i, (unsigned long long)s.stats.samples,
-              s.stats.gather_ms + s.stats.cut_ms + s.stats.map_ms + s.stats.mask_ms);
-  EXPECT_GE(i, 0.85);
-  expectEarTinted(m, s.payload, "points");
+  snapsTheEar(m, *store, SelectionElements::kPoints, "points", *sEar);
 }
 
 TEST_F(SnapToolTest, RobustLassoAroundTheEarOnTheMeshStore) {
@@ -198,7 +197,7 @@ TEST_F(SnapToolTest, RobustLassoAroundTheEarOnTheMeshStore) {
   ASSERT_GT(s.count, 0u);
   const double i = test::earIoU(*mesh, test::selectionOf(s.payload.elements()), *sEar);
   std::printf("robust lasso, mesh store: IoU %.3f\n", i);
-  EXPECT_GE(i, 0.85);
+  EXPECT_GE(i, 0.90);
 }
 
 TEST_F(SnapToolTest, RefusesStrokesOffTheModelAndTooManySamples) {
