@@ -297,8 +297,17 @@ void toolSeries(const fs::path& data_dir, const fs::path& work, int repeat,
       return t(a.stats) < t(b.stats);
     });
     const master::SnapSelection& s = runs[runs.size() / 2];
-    ToolRow t{m.name, m.kind, "snap_tool", s.stats.samples, elements, s.count,
-              s.stats.gather_ms, s.stats.cut_ms, s.stats.map_ms, s.stats.mask_ms, 0.0,
+    ToolRow t{m.name,
+              m.kind,
+              "snap_tool",
+              s.stats.samples,
+              elements,
+              s.count,
+              s.stats.gather_ms,
+              s.stats.cut_ms,
+              s.stats.map_ms,
+              s.stats.mask_ms,
+              0.0,
               iouOf(s.payload.elements())};
     t.total_ms = t.gather_ms + t.cut_ms + t.map_ms + t.mask_ms;
     rows.push_back(t);
@@ -309,8 +318,18 @@ void toolSeries(const fs::path& data_dir, const fs::path& work, int repeat,
     for (int k = 0; k < repeat; ++k)
       ms_runs.push_back(wallMs([&] { l = master::lassoSelection(inst, 1, view, outline, 1); }));
     std::sort(ms_runs.begin(), ms_runs.end());
-    ToolRow lr{m.name, m.kind, "lasso", 0, elements, l.count, 0, 0, 0, 0,
-               ms_runs[ms_runs.size() / 2], iouOf(l.payload.elements())};
+    ToolRow lr{m.name,
+               m.kind,
+               "lasso",
+               0,
+               elements,
+               l.count,
+               0,
+               0,
+               0,
+               0,
+               ms_runs[ms_runs.size() / 2],
+               iouOf(l.payload.elements())};
     rows.push_back(lr);
     if (!quiet) std::cerr << "lazy_snapping: " << csvLine(rows.back()) << "\n";
   }
@@ -390,9 +409,8 @@ void drawToolChart(const fs::path& out, const std::vector<ToolRow>& rows) {
       const ToolRow &s = rows[i], &l = rows[i + 1];
       char buf[512];
       std::snprintf(buf, sizeof buf, "\"%s %s\" %.3f %.3f %.3f %.3f %.3f %.3f %.3f %.3f\n",
-                    s.model.c_str(), (std::to_string(s.samples) + " samples").c_str(),
-                    s.gather_ms, s.cut_ms, s.map_ms, s.mask_ms, s.total_ms, l.total_ms, s.iou,
-                    l.iou);
+                    s.model.c_str(), (std::to_string(s.samples) + " samples").c_str(), s.gather_ms,
+                    s.cut_ms, s.map_ms, s.mask_ms, s.total_ms, l.total_ms, s.iou, l.iou);
       t << buf;
     }
   }
@@ -413,7 +431,8 @@ void drawToolChart(const fs::path& out, const std::vector<ToolRow>& rows) {
         "\\\n"
      << "     '' using 5 title 'region mask'\n"
      << "set title 'total time; labels: IoU of the elements against the ear'\n"
-     << "plot " << dat << " using 6:xtic(1) title 'snap tool', '' using 7 title 'lasso (1 thread)', "
+     << "plot " << dat
+     << " using 6:xtic(1) title 'snap tool', '' using 7 title 'lasso (1 thread)', "
         "\\\n"
      << "     '' using ($0 - 0.17):($6 * 1.6):(sprintf('%.3f', $8)) with labels notitle, \\\n"
      << "     '' using ($0 + 0.17):($7 * 1.6):(sprintf('%.3f', $9)) with labels notitle\n"
@@ -527,8 +546,9 @@ int main(int argc, char** argv) {
     {
       std::vector<ToolRow> tool;
       toolSeries(data, out_dir / "snap_tool_stores", repeat, tool, quiet);
-      const std::string header = "model,kind,method,samples,elements,selected,gather_ms,cut_ms,"
-                                 "map_ms,mask_ms,total_ms,iou";
+      const std::string header =
+          "model,kind,method,samples,elements,selected,gather_ms,cut_ms,"
+          "map_ms,mask_ms,total_ms,iou";
       std::ofstream csv(out_dir / "snap_tool.csv");
       std::cout << header << "\n";
       csv << header << "\n";

@@ -348,7 +348,8 @@ struct SiteHub::Impl {
         else
           say(roster.info(p.participant).name + ": note refused: " + answer.note().error());
         send(p, answer.SerializeAsString());
-      } else if (m.kind_case() == site::ToMaster::kSelect || m.kind_case() == site::ToMaster::kSnap) {
+      } else if (m.kind_case() == site::ToMaster::kSelect ||
+                 m.kind_case() == site::ToMaster::kSnap) {
         if (!selections)
           selections = std::make_unique<SiteSelections>([this](const std::string& line) {
             say(line);

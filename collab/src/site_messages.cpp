@@ -212,7 +212,8 @@ Problem checkMeasure(const site::SiteMeasure& m) {
 template <class M>
 Problem checkSentView(const M& m, const std::string& what) {
   if (m.model() == 0) return what + ".model: must name a MODEL node (> 0)";
-  for (const auto& [matrix, field] : {std::pair{&m.view(), ".view"}, {&m.projection(), ".projection"}}) {
+  for (const auto& [matrix, field] :
+       {std::pair{&m.view(), ".view"}, {&m.projection(), ".projection"}}) {
     if (matrix->size() != 16)
       return what + field + ": needs 16 numbers, got " + std::to_string(matrix->size());
     for (double v : *matrix)

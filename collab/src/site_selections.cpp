@@ -64,8 +64,8 @@ struct SiteSelections::Impl {
         if (job.kind == Job::Kind::kLasso)
           job.result = master::lassoSelection(job.instance, job.model, job.view, job.lasso, 1);
         else if (job.kind == Job::Kind::kSnap)
-          job.result = master::snapSelection(job.instance, job.model, job.view, job.lasso,
-                                             job.background);
+          job.result =
+              master::snapSelection(job.instance, job.model, job.view, job.lasso, job.background);
         else
           job.result = master::robustLassoSelection(job.instance, job.model, job.view, job.lasso,
                                                     job.heavy_width);
@@ -144,7 +144,9 @@ void SiteSelections::request(const sync::SceneGraph& graph, uint32_t site, const
 template <class Job>
 void SiteSelections::enqueue(const sync::SceneGraph& graph, uint32_t site, const std::string& name,
                              uint32_t model, Job job) {
-  auto refuse = [&](const std::string& why) { m->say(name + ": " + job.what() + " refused: " + why); };
+  auto refuse = [&](const std::string& why) {
+    m->say(name + ": " + job.what() + " refused: " + why);
+  };
   if (!graph.contains(model) || graph.node(model).kind() != scene::SceneNode::MODEL)
     return refuse("node " + std::to_string(model) + " is not a model");
   {
@@ -174,8 +176,8 @@ void SiteSelections::enqueue(const sync::SceneGraph& graph, uint32_t site, const
   const render::NodePlacement placed = render::placeNode(graph, model);
   job.instance.store = store.points.get();
   job.instance.mesh = store.mesh.get();
-  job.instance.model =
-      placed.world * (store.mesh ? render::storeModel(*store.mesh) : render::storeModel(*store.points));
+  job.instance.model = placed.world * (store.mesh ? render::storeModel(*store.mesh)
+                                                  : render::storeModel(*store.points));
   {
     std::lock_guard lock(m->mutex);
     m->per_site[site]++;
@@ -204,7 +206,8 @@ int SiteSelections::collect(sync::SceneGraph& graph) {
       continue;
     }
     if (j.result.count == 0) {
-      m->say(j.name + ": " + j.what() + " on model " + std::to_string(j.model) + ": nothing selected");
+      m->say(j.name + ": " + j.what() + " on model " + std::to_string(j.model) +
+             ": nothing selected");
       continue;
     }
     try {
@@ -212,8 +215,9 @@ int SiteSelections::collect(sync::SceneGraph& graph) {
       ++added;
       m->say(j.name + ": " + j.what() + " on model " + std::to_string(j.model) + ": " +
              std::to_string(j.result.count) + " elements selected" +
-             (j.result.corrupt ? " (" + std::to_string(j.result.corrupt) + " corrupt leaves skipped)"
-                               : std::string()));
+             (j.result.corrupt
+                  ? " (" + std::to_string(j.result.corrupt) + " corrupt leaves skipped)"
+                  : std::string()));
     } catch (const std::exception& e) {  // over 16 MiB of elements
       m->say(j.name + ": " + j.what() + " refused: " + e.what());
     }

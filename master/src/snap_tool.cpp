@@ -46,7 +46,7 @@ double pixelsPerUnit(const ScreenView& v, double depth) {
 /// The samples the view shows of one model and where each came from.
 struct Gathered {
   SurfaceSamples samples;
-  double spacing = 0.0;  ///< units of the positions
+  double spacing = 0.0;                                        ///< units of the positions
   std::vector<std::pair<lod::NodeId, uint32_t>> point_leaves;  ///< leaf, points (sample order)
   std::vector<lod::NodeId> patch_ids;
   std::vector<lod::MeshPatch> patches;
@@ -193,7 +193,8 @@ SnapSelection run(const render::ModelInstance& instance, uint32_t model_node,
   out.corrupt = g.corrupt;
   out.stats.samples = g.samples.size();
   out.stats.leaves = g.patches.size() + g.point_leaves.size();
-  if (g.samples.size() == 0) throw SnappingError("snapSelection(): the view shows no surface of the model");
+  if (g.samples.size() == 0)
+    throw SnappingError("snapSelection(): the view shows no surface of the model");
   out.stats.gather_ms = msSince(t0);
 
   t0 = Clock::now();
@@ -243,9 +244,9 @@ struct Integral {
     sum.assign(size_t(w + 1) * (h + 1), 0);
     for (uint32_t y = 0; y < h; ++y)
       for (uint32_t x = 0; x < w; ++x)
-        sum[size_t(y + 1) * (w + 1) + x + 1] = (set(x, y) ? 1u : 0u) + sum[size_t(y) * (w + 1) + x + 1] +
-                                               sum[size_t(y + 1) * (w + 1) + x] -
-                                               sum[size_t(y) * (w + 1) + x];
+        sum[size_t(y + 1) * (w + 1) + x + 1] =
+            (set(x, y) ? 1u : 0u) + sum[size_t(y) * (w + 1) + x + 1] +
+            sum[size_t(y + 1) * (w + 1) + x] - sum[size_t(y) * (w + 1) + x];
   }
   /// Set cells and cells of the window inside the image, around (x, y) by r.
   std::pair<uint32_t, uint32_t> window(uint32_t x, uint32_t y, uint32_t r) const {
@@ -262,8 +263,8 @@ struct Integral {
 SnapMask selectionMask(const SurfaceSamples& samples, std::span<const uint8_t> selected,
                        double spacing, const ScreenView& view, const SnapToolOptions& o) {
   SnapMask m;
-  const double scale = std::min(
-      1.0, double(std::max(o.max_mask_side, 1u)) / double(std::max(view.viewport.x, view.viewport.y)));
+  const double scale = std::min(1.0, double(std::max(o.max_mask_side, 1u)) /
+                                         double(std::max(view.viewport.x, view.viewport.y)));
   m.width = std::max(1u, uint32_t(std::lround(view.viewport.x * scale)));
   m.height = std::max(1u, uint32_t(std::lround(view.viewport.y * scale)));
   const double cx = double(m.width) / view.viewport.x, cy = double(m.height) / view.viewport.y;
@@ -276,8 +277,10 @@ SnapMask selectionMask(const SurfaceSamples& samples, std::span<const uint8_t> s
     const glm::dvec2 c(q.pixel.x * cx, q.pixel.y * cy);
     // Footprint: three quarters of the spacing, so neighbours' discs overlap on a regular grid.
     const double r = std::clamp(0.75 * spacing * pixelsPerUnit(view, q.depth) * cx, 0.5, 8.0);
-    const int x0 = std::max(0, int(std::floor(c.x - r))), x1 = std::min(int(m.width) - 1, int(c.x + r));
-    const int y0 = std::max(0, int(std::floor(c.y - r))), y1 = std::min(int(m.height) - 1, int(c.y + r));
+    const int x0 = std::max(0, int(std::floor(c.x - r))),
+              x1 = std::min(int(m.width) - 1, int(c.x + r));
+    const int y0 = std::max(0, int(std::floor(c.y - r))),
+              y1 = std::min(int(m.height) - 1, int(c.y + r));
     for (int y = y0; y <= y1; ++y)
       for (int x = x0; x <= x1; ++x) {
         const double dx = x + 0.5 - c.x, dy = y + 0.5 - c.y;
@@ -294,7 +297,8 @@ SnapMask selectionMask(const SurfaceSamples& samples, std::span<const uint8_t> s
   // the dilation only at silhouettes (gaps inside the region stay filled, borders with
   // unselected surface stay where the samples put them).
   const uint32_t k = o.close_cells;
-  const Integral sel(m.width, m.height, [&](uint32_t x, uint32_t y) { return label[size_t(y) * m.width + x] == 1; });
+  const Integral sel(m.width, m.height,
+                     [&](uint32_t x, uint32_t y) { return label[size_t(y) * m.width + x] == 1; });
   std::vector<uint8_t> dilated(label.size(), 0);
   for (uint32_t y = 0; y < m.height; ++y)
     for (uint32_t x = 0; x < m.width; ++x) {
@@ -318,33 +322,37 @@ SnapMask selectionMask(const SurfaceSamples& samples, std::span<const uint8_t> s
 
 SnapSelection snapSelection(const render::ModelInstance& instance, uint32_t model_node,
                             const render::ViewSetup& view, std::span<const glm::dvec2> foreground,
-                            std::span<const glm::dvec2> background, const SnapToolOptions& options) {
+                            std::span<const glm::dvec2> background,
+                            const SnapToolOptions& options) {
   if (foreground.empty() || background.empty())
     throw SnappingError("snapSelection(): needs a foreground and a background stroke");
   const std::vector<glm::dvec2> fg = windowPixels(foreground, view, "foreground stroke");
   const std::vector<glm::dvec2> bg = windowPixels(background, view, "background stroke");
-  return run(instance, model_node, view, options,
-             [&](const SurfaceSamples& s, const ScreenView& sv, const std::vector<uint8_t>& visible) {
-               Strokes st;
-               st.foreground = pickStroke(s, sv, fg, options.stroke_radius_px, visible);
-               st.background = pickStroke(s, sv, bg, options.stroke_radius_px, visible);
-               return st;
-             });
+  return run(
+      instance, model_node, view, options,
+      [&](const SurfaceSamples& s, const ScreenView& sv, const std::vector<uint8_t>& visible) {
+        Strokes st;
+        st.foreground = pickStroke(s, sv, fg, options.stroke_radius_px, visible);
+        st.background = pickStroke(s, sv, bg, options.stroke_radius_px, visible);
+        return st;
+      });
 }
 
 SnapSelection robustLassoSelection(const render::ModelInstance& instance, uint32_t model_node,
                                    const render::ViewSetup& view, std::span<const glm::dvec2> heavy,
                                    double width_px, const SnapToolOptions& options) {
   if (heavy.size() < 3 || !(width_px > 0.0) || !std::isfinite(width_px))
-    throw SnappingError("robustLassoSelection(): needs a closed stroke of 3 points or more and a width > 0");
+    throw SnappingError(
+        "robustLassoSelection(): needs a closed stroke of 3 points or more and a width > 0");
   HeavyStroke h;
   h.polyline = windowPixels(heavy, view, "heavy stroke");
   h.width_px = width_px;
   h.seed_band_px = width_px;
-  return run(instance, model_node, view, options,
-             [&](const SurfaceSamples& s, const ScreenView& sv, const std::vector<uint8_t>& visible) {
-               return robustLassoSeeds(s, sv, h, visible);
-             });
+  return run(
+      instance, model_node, view, options,
+      [&](const SurfaceSamples& s, const ScreenView& sv, const std::vector<uint8_t>& visible) {
+        return robustLassoSeeds(s, sv, h, visible);
+      });
 }
 
 }  // namespace tessera::master

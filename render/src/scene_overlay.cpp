@@ -346,7 +346,8 @@ std::shared_ptr<const std::vector<uint32_t>> highlightMaskOf(const scene::Select
   const uint32_t w = s.mask_width(), h = s.mask_height();
   auto bits = std::make_shared<std::vector<uint32_t>>(size_t(n) * n / 32, 0u);
   std::vector<uint32_t> column(n);
-  for (uint32_t col = 0; col < n; ++col) column[col] = uint32_t((uint64_t(col) * 2 + 1) * w / (2 * n));
+  for (uint32_t col = 0; col < n; ++col)
+    column[col] = uint32_t((uint64_t(col) * 2 + 1) * w / (2 * n));
   for (uint32_t row = 0; row < n; ++row) {
     const uint8_t* src = &cells[size_t((uint64_t(row) * 2 + 1) * h / (2 * n)) * w];
     for (uint32_t col = 0; col < n; ++col)

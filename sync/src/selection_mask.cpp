@@ -35,8 +35,8 @@ std::string encodeSelectionMask(std::span<const uint8_t> cells) {
 
 std::optional<std::string> decodeSelectionMask(std::string_view bytes, uint32_t width,
                                                uint32_t height, std::vector<uint8_t>* cells) {
-  for (const auto& [v, field] : {std::pair{width, "selection.mask_width"},
-                                 {height, "selection.mask_height"}})
+  for (const auto& [v, field] :
+       {std::pair{width, "selection.mask_width"}, {height, "selection.mask_height"}})
     if (v < 1 || v > kMaxSelectionMaskSide)
       return std::string(field) + ": 1.." + std::to_string(kMaxSelectionMaskSide) +
              " cells with a mask, got " + std::to_string(v);
@@ -62,13 +62,14 @@ std::optional<std::string> decodeSelectionMask(std::string_view bytes, uint32_t 
     if (run > total - at)
       return "selection.mask: runs pass the " + std::to_string(width) + " x " +
              std::to_string(height) + " cells";
-    if (set && cells) std::fill(cells->begin() + ptrdiff_t(at), cells->begin() + ptrdiff_t(at + run), 1);
+    if (set && cells)
+      std::fill(cells->begin() + ptrdiff_t(at), cells->begin() + ptrdiff_t(at + run), 1);
     at += run;
     set = !set;
   }
   if (at != total)
-    return "selection.mask: runs cover " + std::to_string(at) + " of the " +
-           std::to_string(total) + " cells";
+    return "selection.mask: runs cover " + std::to_string(at) + " of the " + std::to_string(total) +
+           " cells";
   return std::nullopt;
 }
 

@@ -172,14 +172,16 @@ TEST(SiteMessages, SnapsAreBoundedFiniteStrokesInAView) {
   EXPECT_EQ(why(snap({10, 10, 20, 20}, {30, 30}, 0)), "");
   EXPECT_EQ(why(snap({10, 10, 20, 20, 30, 10}, {}, 16)), "");  // the robust lasso
   const double nan = std::numeric_limits<double>::quiet_NaN();
-  EXPECT_EQ(why(snap({10, nan}, {30, 30}, 0)), "snap.foreground: numbers must be finite, within 1e6");
+  EXPECT_EQ(why(snap({10, nan}, {30, 30}, 0)),
+            "snap.foreground: numbers must be finite, within 1e6");
   EXPECT_EQ(why(snap({10, 10}, {}, 0)).rfind("snap.background: needs 1..2048", 0), 0u);
   EXPECT_EQ(why(snap({10, 10, 20}, {1, 1}, 0)).rfind("snap.foreground: needs", 0), 0u);
   EXPECT_EQ(why(snap({10, 10, 20, 20}, {}, 16)).rfind("snap.foreground: needs 3..2048", 0), 0u);
   EXPECT_EQ(why(snap({10, 10, 20, 20, 30, 10}, {1, 1}, 16)).rfind("snap.background:", 0), 0u);
   EXPECT_EQ(why(snap({10, 10}, {1, 1}, 0.5f)).rfind("snap.heavy_width:", 0), 0u);
   EXPECT_EQ(why(snap({10, 10}, {1, 1}, 1e9f)).rfind("snap.heavy_width:", 0), 0u);
-  EXPECT_EQ(why(snap(std::vector<double>(2 * 2049, 1.0), {1, 1}, 0)).rfind("snap.foreground:", 0), 0u);
+  EXPECT_EQ(why(snap(std::vector<double>(2 * 2049, 1.0), {1, 1}, 0)).rfind("snap.foreground:", 0),
+            0u);
   site::ToMaster m = snap({10, 10}, {1, 1}, 0);
   m.mutable_snap()->set_width(8);
   EXPECT_EQ(why(m), "snap.width: 16..16384 pixels, got 8");

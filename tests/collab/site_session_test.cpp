@@ -902,8 +902,8 @@ std::string pixelsJson(const std::vector<glm::dvec3>& world, glm::dvec3 eye, glm
   for (const glm::dvec3& p : world) {
     const glm::dvec4 c = vp * glm::dvec4(p, 1.0);
     char s[64];
-    std::snprintf(s, sizeof s, "%s%.1f, %.1f", out.empty() ? "" : ", ",
-                  (c.x / c.w + 1) * 0.5 * w, (1 - c.y / c.w) * 0.5 * h);
+    std::snprintf(s, sizeof s, "%s%.1f, %.1f", out.empty() ? "" : ", ", (c.x / c.w + 1) * 0.5 * w,
+                  (1 - c.y / c.w) * 0.5 * h);
     out += s;
   }
   return "[" + out + "]";
@@ -919,22 +919,23 @@ TEST_F(SiteSession, ASiteSnapsTheBunnysEarAndTheWallTintsIt) {
   auto master = startMaster(300.0);
   auto nodes = startNodes();
   ASSERT_TRUE(master->waitFor("4 of 4 tiles have a node", 60)) << master->output();
-  const auto mesh =
-      tessera::lod::readMesh(kData + "/stanford-bunny/reconstruction/bun_zipper.ply");
+  const auto mesh = tessera::lod::readMesh(kData + "/stanford-bunny/reconstruction/bun_zipper.ply");
   // The strokes of tests/support/snapping_models.h (bunnyEarStroke(), bunnyHeadStroke()) on
   // the front surface, seen from A's eye straight in front of the head.
   const glm::dvec3 target(-0.035, 0.15, 0.0), eye(-0.035, 0.15, 0.3);
   std::vector<glm::dvec3> ear, head;
-  for (const auto& [x, y] : {std::pair{-0.02, 0.178}, {-0.045, 0.162}}) ear.push_back(frontAt(mesh, x, y));
+  for (const auto& [x, y] : {std::pair{-0.02, 0.178}, {-0.045, 0.162}})
+    ear.push_back(frontAt(mesh, x, y));
   for (const auto& [x, y] : {std::pair{-0.085, 0.13}, {-0.06, 0.14}, {-0.03, 0.125}, {0.0, 0.12}})
     head.push_back(frontAt(mesh, x, y));
-  auto a = startSite("a", "A", R"({"width": 480, "height": 360, "actions": [
-      {"frame": 0, "camera": )" + cameraJson(eye, target) + R"(},
+  auto a = startSite("a", "A",
+                     R"({"width": 480, "height": 360, "actions": [
+      {"frame": 0, "camera": )" +
+                         cameraJson(eye, target) + R"(},
       {"frame": 3, "screenshot": "view.png"},
       {"frame": 5, "snap": {"model": "bunny", "foreground": )" +
-                                   pixelsJson(ear, eye, target, 480, 360, 45) +
-                                   R"(, "background": )" + pixelsJson(head, eye, target, 480, 360, 45) +
-                                   R"(}}]})");
+                         pixelsJson(ear, eye, target, 480, 360, 45) + R"(, "background": )" +
+                         pixelsJson(head, eye, target, 480, 360, 45) + R"(}}]})");
   ASSERT_TRUE(master->waitFor("A: snap on model \\d+: [1-9]\\d* elements selected", 120))
       << master->output() << a->output();
   EXPECT_TRUE(a->waitFor("snap 1 sent", 1)) << a->output();

@@ -51,6 +51,20 @@ ViewSetup asideView(double angle) {
   return v;
 }
 
+/// A store drawn where its file puts it.
+render::ModelInstance instanceOf(lod::MeshStore& mesh) {
+  render::ModelInstance m;
+  m.mesh = &mesh;
+  m.model = render::storeModel(mesh);
+  return m;
+}
+render::ModelInstance instanceOf(lod::PointStore& store) {
+  render::ModelInstance m;
+  m.store = &store;
+  m.model = render::storeModel(store);
+  return m;
+}
+
 /// ScreenView pixels (y up) as the tool's (y down).
 std::vector<glm::dvec2> yDown(std::vector<glm::dvec2> px, const ViewSetup& v) {
   for (glm::dvec2& p : px) p.y = double(v.height) - p.y;
@@ -101,7 +115,8 @@ class SnapToolTest : public test::BunnyMeshStoreTest {
       if (!hits[i]) continue;
       const int label = sEar->label(hits[i]->world, 0.004);
       if (label < 0) continue;
-      const bool changed = !std::equal(&plain.rgba[4 * i], &plain.rgba[4 * i + 3], &tinted.rgba[4 * i]);
+      const bool changed =
+          !std::equal(&plain.rgba[4 * i], &plain.rgba[4 * i + 3], &tinted.rgba[4 * i]);
       if (label == 1) {
         ++t.ear;
         t.ear_tinted += changed;
@@ -115,8 +130,8 @@ class SnapToolTest : public test::BunnyMeshStoreTest {
 
   static void expectEarTinted(const render::ModelInstance& m, const scene::SelectionPayload& p,
                               const std::string& name) {
-    for (const auto& [view, what] : {std::pair{strokeView(), "stroke_view"},
-                                     {asideView(M_PI / 6), "aside"}}) {
+    for (const auto& [view, what] :
+         {std::pair{strokeView(), "stroke_view"}, {asideView(M_PI / 6), "aside"}}) {
       const Tint t = tintOf(m, view, p, name + "_" + what);
       SCOPED_TRACE(what);
       std::printf("%s %s: ear %zu of %zu pixels tinted, elsewhere %zu of %zu\n", name.c_str(), what,
@@ -129,7 +144,8 @@ class SnapToolTest : public test::BunnyMeshStoreTest {
       // bounds leave room for the renderer's level of detail, not for a dotted tint nor for one
       // spilling over the head.
       EXPECT_GE(double(t.ear_tinted) / double(t.ear), 0.95) << t.ear_tinted << " of " << t.ear;
-      EXPECT_LE(double(t.other_tinted) / double(t.other), 0.002) << t.other_tinted << " of " << t.other;
+      EXPECT_LE(double(t.other_tinted) / double(t.other), 0.002)
+          << t.other_tinted << " of " << t.other;
     }
   }
 };
@@ -169,25 +185,19 @@ void snapsTheEar(const render::ModelInstance& m, Store& store, SelectionElements
 
 TEST_F(SnapToolTest, SnapsTheBunnysEarOnTheMeshStore) {
   auto mesh = lod::MeshStore::open(*sDir / "b.tmesh");
-  render::ModelInstance m;
-  m.mesh = mesh.get();
-  m.model = render::storeModel(*mesh);
+  const render::ModelInstance m = instanceOf(*mesh);
   snapsTheEar(m, *mesh, SelectionElements::kTriangles, "mesh", *sEar);
 }
 
 TEST_F(SnapToolTest, SnapsTheBunnysEarOnThePointStore) {
   auto store = lod::PointStore::open(*sDir / "b.tlod");
-  render::ModelInstance m;
-  m.store = store.get();
-  m.model = render::storeModel(*store);
+  const render::ModelInstance m = instanceOf(*store);
   snapsTheEar(m, *store, SelectionElements::kPoints, "points", *sEar);
 }
 
 TEST_F(SnapToolTest, RobustLassoAroundTheEarOnTheMeshStore) {
   auto mesh = lod::MeshStore::open(*sDir / "b.tmesh");
-  render::ModelInstance m;
-  m.mesh = mesh.get();
-  m.model = render::storeModel(*mesh);
+  const render::ModelInstance m = instanceOf(*mesh);
   const ViewSetup view = strokeView();
   const ScreenView sv = test::bunnyView();
   const std::vector<uint8_t> visible = visibleSamples(sEar->samples(), sv, 3.0, 0.003);
@@ -202,9 +212,7 @@ TEST_F(SnapToolTest, RobustLassoAroundTheEarOnTheMeshStore) {
 
 TEST_F(SnapToolTest, RefusesStrokesOffTheModelAndTooManySamples) {
   auto mesh = lod::MeshStore::open(*sDir / "b.tmesh");
-  render::ModelInstance m;
-  m.mesh = mesh.get();
-  m.model = render::storeModel(*mesh);
+  const render::ModelInstance m = instanceOf(*mesh);
   const ViewSetup view = strokeView();
   const std::vector<glm::dvec2> off = {{5, 5}, {20, 5}};
   try {
@@ -216,7 +224,8 @@ TEST_F(SnapToolTest, RefusesStrokesOffTheModelAndTooManySamples) {
   SnapToolOptions few;
   few.max_samples = 1000;
   try {
-    snapSelection(m, 7, view, yDown(test::bunnyEarStroke(), view), yDown(test::bunnyHeadStroke(), view), few);
+    snapSelection(m, 7, view, yDown(test::bunnyEarStroke(), view),
+                  yDown(test::bunnyHeadStroke(), view), few);
     FAIL() << "more samples than allowed were cut";
   } catch (const SnappingError& e) {
     EXPECT_NE(std::string(e.what()).find("zoom in"), std::string::npos) << e.what();

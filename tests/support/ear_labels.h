@@ -62,7 +62,8 @@ class EarLabels {
   static constexpr double kReach = 0.002;
   static glm::ivec3 cell(const glm::dvec3& p) { return glm::ivec3(glm::floor(p / kReach)); }
   static int64_t key(const glm::ivec3& c) {
-    return (int64_t(c.x) & 0xfffff) | (int64_t(c.y) & 0xfffff) << 20 | (int64_t(c.z) & 0xfffff) << 40;
+    return (int64_t(c.x) & 0xfffff) | (int64_t(c.y) & 0xfffff) << 20 |
+           (int64_t(c.z) & 0xfffff) << 40;
   }
   master::SurfaceSamples mSamples;
   std::vector<uint8_t> mEar;

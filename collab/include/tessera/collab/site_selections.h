@@ -1,6 +1,6 @@
-// Sites' lassos and snaps (site.proto SiteSelect, SiteSnap; issue 16): the master selects at full resolution what
-// of a model lies inside a site's lasso, on a worker thread of its own, so the wall never waits
-// for a selection of 10^8 points (about half a second here, bench/lasso). Each finished
+// Sites' lassos and snaps (site.proto SiteSelect, SiteSnap; issue 16): the master selects at full
+// resolution what of a model lies inside a site's lasso, on a worker thread of its own, so the wall
+// never waits for a selection of 10^8 points (about half a second here, bench/lasso). Each finished
 // selection becomes a SELECTION node recorded as the site's before the next frame.
 //
 // The master opens the stores it selects in itself (shared with the jobs that use them, so a
