@@ -234,6 +234,61 @@ TEST_F(SnapToolTest, RefusesStrokesOffTheModelAndTooManySamples) {
   EXPECT_THROW(snapSelection(m, 7, view, nan, off), SnappingError);
 }
 
+// The region mask on a known picture: a plane of samples 2 pixels apart whose left half is
+// selected, and a small unselected square nearer the eye over that half. The mask is solid over
+// the selected half (the closing fills the gaps between splats), empty over the other half and
+// wherever the nearer unselected square is seen, its borders within 2 cells of the truth.
+TEST(SelectionMask, SolidOverTheSelectedSurfaceAndNeverWhereUnselectedSurfaceIsNearer) {
+  SurfaceSamples s;
+  std::vector<uint8_t> selected;
+  for (int y = 0; y < 200; ++y)
+    for (int x = 0; x < 200; ++x) {
+      s.positions.emplace_back(x * 0.01 + 0.0025, y * 0.01 + 0.0025, 0.0);
+      selected.push_back(x * 0.01 < 1.0);
+    }
+  for (int y = 60; y <= 80; ++y)  // the occluder: x, y in [0.6, 0.8], 0.5 nearer
+    for (int x = 60; x <= 80; ++x) {
+      s.positions.emplace_back(x * 0.01 + 0.0025, y * 0.01 + 0.0025, 0.5);
+      selected.push_back(0);
+    }
+  ScreenView v;  // 200 pixels per unit, pixel (i, j) centred on (i + 0.5, j + 0.5) / 200
+  v.view = glm::lookAt(glm::dvec3(1, 1, 5), glm::dvec3(1, 1, 0), glm::dvec3(0, 1, 0));
+  v.projection = glm::ortho(-1.0, 1.0, -1.0, 1.0, 0.1, 10.0);
+  v.viewport = {400, 400};
+  const SnapMask m = selectionMask(s, selected, 0.01, v, {});
+  ASSERT_EQ(m.width, 400u);
+  ASSERT_EQ(m.height, 400u);
+  size_t wrong = 0, checked = 0;
+  for (uint32_t r = 0; r < m.height; ++r)
+    for (uint32_t c = 0; c < m.width; ++c) {
+      const double x = (c + 0.5) / 200.0, y = (r + 0.5) / 200.0;
+      auto near = [](double a, double b) { return std::abs(a - b) < 0.01 + 1e-9; };
+      if (near(x, 1.0) || near(x, 0.0) || near(y, 0.0) || near(y, 1.99) || near(x, 1.99)) continue;
+      const bool occluder = x >= 0.6 && x <= 0.8 && y >= 0.6 && y <= 0.8;
+      if (near(x, 0.6) || near(x, 0.8) || near(y, 0.6) || near(y, 0.8)) continue;
+      if (x > 1.99 || y > 1.99) continue;  // past the last samples
+      const bool want = x < 1.0 && !occluder;
+      ++checked;
+      wrong += (m.cells[size_t(r) * m.width + c] != 0) != want;
+    }
+  EXPECT_GT(checked, 140000u);
+  EXPECT_EQ(wrong, 0u);
+  // Splats of half a cell (a spacing given too small) leave 3 cells in 4 empty on this grid
+  // (samples on every other cell's centre): the closing is what fills them.
+  SnapToolOptions open;
+  open.close_cells = 0;
+  const SnapMask dotted = selectionMask(s, selected, 0.002, v, open);
+  size_t holes = 0;
+  for (uint32_t r = 20; r < 100; ++r)
+    for (uint32_t c = 20; c < 100; ++c) holes += dotted.cells[size_t(r) * m.width + c] == 0;
+  EXPECT_GT(holes, 1000u);
+  const SnapMask closed = selectionMask(s, selected, 0.002, v, {});
+  holes = 0;
+  for (uint32_t r = 20; r < 100; ++r)
+    for (uint32_t c = 20; c < 100; ++c) holes += closed.cells[size_t(r) * m.width + c] == 0;
+  EXPECT_EQ(holes, 0u);
+}
+
 // The mask's code: round trips, and what is not a mask is refused by name, never crashes.
 TEST(SelectionMask, RoundTripsAndRefusesGarbage) {
   std::mt19937 rng(5);
