@@ -8,9 +8,17 @@
 //   size     a UV sphere with a red cap in blue (10^3.7 .. 10^6 vertices), one stroke per side.
 //   lasso    the robust lasso (4.3.1) on the bunny's ear: a heavy stroke along the ear's outline
 //            on the screen (the convex hull of its projected vertices), 16 pixels wide.
-// Prints CSV; writes OUT/lazy_snapping.csv, OUT/lazy_snapping.png (chart) and
-// OUT/lazy_snapping_bunny.png (the selections on the bunny, front view) with gnuplot.
+//   tool     the snap tool end to end (master/snap_tool.h: gather the leaves the view shows,
+//            cut, map back to leaf elements, region mask) on stores of two sizes each, the
+//            bunny's reconstruction at 1/16 and full resolution as mesh stores and one scan and
+//            all ten as point stores, against the lasso (master/select_tool.h lassoSelection(),
+//            one thread) drawn around the ear's outline in the same view; IoU of the elements
+//            against the ear (tests/support/ear_labels.h).
+// Prints CSV; writes OUT/lazy_snapping.csv, OUT/lazy_snapping.png (chart),
+// OUT/lazy_snapping_bunny.png (the selections on the bunny, front view), OUT/snap_tool.csv and
+// OUT/snap_tool.png with gnuplot.
 #include <algorithm>
+#include <chrono>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -23,8 +31,13 @@
 #include <CLI/CLI.hpp>
 
 #include <tessera/lod/mesh.h>
+#include <tessera/lod/mesh_builder.h>
+#include <tessera/lod/store_builder.h>
 #include <tessera/master/lazy_snapping.h>
+#include <tessera/master/snap_tool.h>
+#include <tessera/render/view_renderer.h>
 
+#include "../tests/support/ear_labels.h"
 #include "../tests/support/snapping_models.h"
 #include "bench_stats.h"
 
@@ -189,6 +202,139 @@ void sizeSeries(const std::vector<uint32_t>& rings, int repeat, std::vector<Row>
   rows.insert(rows.end(), per_sample.begin(), per_sample.end());
 }
 
+/// One end-to-end run of the tool or the lasso on a store.
+struct ToolRow {
+  std::string model, kind, method;
+  uint64_t samples = 0, elements = 0, selected = 0;
+  double gather_ms = 0, cut_ms = 0, map_ms = 0, mask_ms = 0, total_ms = 0, iou = 0;
+};
+
+std::string csvLine(const ToolRow& r) {
+  char buf[512];
+  std::snprintf(buf, sizeof buf, "%s,%s,%s,%llu,%llu,%llu,%.2f,%.2f,%.2f,%.2f,%.2f,%.4f",
+                r.model.c_str(), r.kind.c_str(), r.method.c_str(), (unsigned long long)r.samples,
+                (unsigned long long)r.elements, (unsigned long long)r.selected, r.gather_ms,
+                r.cut_ms, r.map_ms, r.mask_ms, r.total_ms, r.iou);
+  return buf;
+}
+
+/// Wall-clock milliseconds (the tool's stages report wall time too; the median of `repeat`
+/// runs keeps other work on the machine out of the figures).
+double wallMs(const std::function<void()>& f) {
+  const auto t0 = std::chrono::steady_clock::now();
+  f();
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+}
+
+/// The tool and the lasso on the bunny's ear, per store (built into `work` once).
+void toolSeries(const fs::path& data_dir, const fs::path& work, int repeat,
+                std::vector<ToolRow>& rows, bool quiet) {
+  const test::EarLabels ear(data_dir);
+  const ScreenView sv = test::bunnyView();
+  render::ViewSetup view;
+  view.view = sv.view;
+  view.projection = sv.projection;
+  view.width = sv.viewport.x;
+  view.height = sv.viewport.y;
+  auto yDown = [&](std::vector<glm::dvec2> px) {
+    for (glm::dvec2& p : px) p.y = double(view.height) - p.y;
+    return px;
+  };
+  const auto fg = yDown(test::bunnyEarStroke()), bg = yDown(test::bunnyHeadStroke());
+  const std::vector<uint8_t> visible = master::visibleSamples(ear.samples(), sv, 3.0, 0.003);
+  const auto outline =
+      yDown(test::earOutline(ear.samples(), test::bunnyEar(ear.samples()), visible, sv));
+  const fs::path bunny = data_dir / "stanford-bunny";
+  struct Model {
+    std::string name, kind;
+    std::vector<fs::path> inputs;
+  };
+  const std::vector<Model> models = {
+      {"reconstruction_res2", "mesh", {bunny / "reconstruction/bun_zipper_res2.ply"}},
+      {"reconstruction", "mesh", {bunny / "reconstruction/bun_zipper.ply"}},
+      {"scan_bun000", "points", {bunny / "scans/bun000.ply"}},
+      {"scans_all", "points", {bunny / "scans/bun.conf"}}};
+  fs::create_directories(work);
+  for (const Model& m : models) {
+    const bool mesh = m.kind == "mesh";
+    const fs::path store = work / (m.name + (mesh ? ".tmesh" : ".tlod"));
+    if (!fs::exists(store)) {
+      if (mesh) {
+        lod::MeshBuildOptions o;
+        o.patch_triangles = 1024;
+        o.quiet = true;
+        lod::buildMeshStore(m.inputs, store, o);
+      } else {
+        lod::BuildOptions o;
+        o.quiet = true;
+        lod::buildStore(m.inputs, store, o);
+      }
+    }
+    std::unique_ptr<lod::MeshStore> ms;
+    std::unique_ptr<lod::PointStore> ps;
+    render::ModelInstance inst;
+    if (mesh) {
+      ms = lod::MeshStore::open(store);
+      inst.mesh = ms.get();
+      inst.model = render::storeModel(*ms);
+    } else {
+      ps = lod::PointStore::open(store);
+      inst.store = ps.get();
+      inst.model = render::storeModel(*ps);
+    }
+    const uint64_t elements = mesh ? ms->summary().input_triangles : ps->summary().points;
+    auto iouOf = [&](const std::string& bytes) {
+      const master::Selection sel = test::selectionOf(bytes);
+      return mesh ? test::earIoU(*ms, sel, ear) : test::earIoU(*ps, sel, ear);
+    };
+    // The tool: the run of median total time.
+    std::vector<master::SnapSelection> runs;
+    for (int k = 0; k < repeat; ++k) runs.push_back(master::snapSelection(inst, 1, view, fg, bg));
+    std::sort(runs.begin(), runs.end(), [](const auto& a, const auto& b) {
+      const auto t = [](const master::SnapToolStats& s) {
+        return s.gather_ms + s.cut_ms + s.map_ms + s.mask_ms;
+      };
+      return t(a.stats) < t(b.stats);
+    });
+    const master::SnapSelection& s = runs[runs.size() / 2];
+    ToolRow t{m.name,
+              m.kind,
+              "snap_tool",
+              s.stats.samples,
+              elements,
+              s.count,
+              s.stats.gather_ms,
+              s.stats.cut_ms,
+              s.stats.map_ms,
+              s.stats.mask_ms,
+              0.0,
+              iouOf(s.payload.elements())};
+    t.total_ms = t.gather_ms + t.cut_ms + t.map_ms + t.mask_ms;
+    rows.push_back(t);
+    if (!quiet) std::cerr << "lazy_snapping: " << csvLine(rows.back()) << "\n";
+    // The lasso around the ear's outline, the same view, one thread.
+    std::vector<double> ms_runs;
+    master::LassoSelection l;
+    for (int k = 0; k < repeat; ++k)
+      ms_runs.push_back(wallMs([&] { l = master::lassoSelection(inst, 1, view, outline, 1); }));
+    std::sort(ms_runs.begin(), ms_runs.end());
+    ToolRow lr{m.name,
+               m.kind,
+               "lasso",
+               0,
+               elements,
+               l.count,
+               0,
+               0,
+               0,
+               0,
+               ms_runs[ms_runs.size() / 2],
+               iouOf(l.payload.elements())};
+    rows.push_back(lr);
+    if (!quiet) std::cerr << "lazy_snapping: " << csvLine(rows.back()) << "\n";
+  }
+}
+
 bool runGnuplot(const fs::path& script) {
   std::string gnuplot = TESSERA_GNUPLOT;
   if (gnuplot.empty()) gnuplot = "gnuplot";
@@ -248,6 +394,48 @@ void drawChart(const fs::path& out, const std::vector<Row>& rows) {
      << "set ylabel 'nodes of the cut graph'\nset key top left\n"
      << "plot " << size("segments", "$6") << " with linespoints lw 2 title 'segments', \\\n"
      << "     " << size("per_sample", "$6") << " with linespoints lw 2 title 'per sample'\n"
+     << "unset multiplot\n";
+  gp.close();
+  runGnuplot(script);
+}
+
+/// The tool's stages per store, against the lasso's time, and both IoUs: a wide table (one line
+/// per store: its snap_tool row then its lasso row) for gnuplot's histograms.
+void drawToolChart(const fs::path& out, const std::vector<ToolRow>& rows) {
+  const fs::path table = out / "snap_tool_wide.dat";
+  {
+    std::ofstream t(table);
+    for (size_t i = 0; i + 1 < rows.size(); i += 2) {
+      const ToolRow &s = rows[i], &l = rows[i + 1];
+      char buf[512];
+      std::snprintf(buf, sizeof buf, "\"%s %s\" %.3f %.3f %.3f %.3f %.3f %.3f %.3f %.3f\n",
+                    s.model.c_str(), (std::to_string(s.samples) + " samples").c_str(), s.gather_ms,
+                    s.cut_ms, s.map_ms, s.mask_ms, s.total_ms, l.total_ms, s.iou, l.iou);
+      t << buf;
+    }
+  }
+  const fs::path script = out / "snap_tool.gp";
+  std::ofstream gp(script);
+  const std::string dat = "'" + table.string() + "'";
+  gp << "set terminal pngcairo noenhanced size 1300,560 font ',10'\n"
+     << "set output '" << (out / "snap_tool.png").string() << "'\n"
+     << "set multiplot layout 1,2 title \"The snap tool end to end on the bunny's ear (a stroke "
+        "on the ear, one on the head) against the lasso along the ear's outline, same view "
+        "(dev build, wall ms, median of 3)\"\n"
+     << "set style data histograms\nset style histogram clustered gap 1\n"
+     << "set style fill solid 0.8 border -1\nset grid y\nset key top left\n"
+     << "set logscale y\nset yrange [0.01:20000]\nset ylabel 'ms'\nset xtics rotate by -15\n"
+     << "set title 'snap tool: its stages'\n"
+     << "plot " << dat << " using 2:xtic(1) title 'gather leaves (k-NN + normals / weld)', \\\n"
+     << "     '' using 3 title 'over-segment + cut', '' using 4 title 'map back to leaf elements', "
+        "\\\n"
+     << "     '' using 5 title 'region mask'\n"
+     << "set title 'total time; labels: IoU of the elements against the ear'\n"
+     << "plot " << dat
+     << " using 6:xtic(1) title 'snap tool', '' using 7 title 'lasso (1 thread)', "
+        "\\\n"
+     << "     '' using ($0 - 0.17):($6 * 1.6):(sprintf('%.3f', $8)) with labels notitle, \\\n"
+     << "     '' using ($0 + 0.17):($7 * 1.6):(sprintf('%.3f', $9)) with labels notitle\n"
      << "unset multiplot\n";
   gp.close();
   runGnuplot(script);
@@ -336,7 +524,8 @@ int main(int argc, char** argv) {
   int repeat = 3;
   size_t max_strokes = 12;
   std::vector<uint32_t> rings{50, 100, 200, 400, 700};
-  bool quiet = false;
+  bool quiet = false, tool_only = false;
+  app.add_flag("--tool-only", tool_only, "Only the snap tool against the lasso (snap_tool.*)");
   app.add_option("--out", out, "Results folder")->capture_default_str();
   app.add_option("--data", data, "Shared data folder (stanford-bunny/...)")->capture_default_str();
   app.add_option("--repeat", repeat, "Timed runs per measurement; the median is kept")
@@ -354,6 +543,24 @@ int main(int argc, char** argv) {
   try {
     const fs::path out_dir = fs::absolute(out);
     fs::create_directories(out_dir);
+    {
+      std::vector<ToolRow> tool;
+      toolSeries(data, out_dir / "snap_tool_stores", repeat, tool, quiet);
+      const std::string header =
+          "model,kind,method,samples,elements,selected,gather_ms,cut_ms,"
+          "map_ms,mask_ms,total_ms,iou";
+      std::ofstream csv(out_dir / "snap_tool.csv");
+      std::cout << header << "\n";
+      csv << header << "\n";
+      for (const ToolRow& r : tool) {
+        std::cout << csvLine(r) << "\n";
+        csv << csvLine(r) << "\n";
+      }
+      csv.close();
+      if (!csv) throw std::runtime_error("cannot write " + (out_dir / "snap_tool.csv").string());
+      drawToolChart(out_dir, tool);
+      if (tool_only) return 0;
+    }
     std::vector<Row> rows;
     BunnyPicture pic;
     SurfaceSamples bunny;

@@ -167,6 +167,9 @@ scene {
   nodes { id: 1 kind: GROUP }
   nodes { id: 2 kind: MODEL parent: 1 model { store: "/s/a.tlod" } opacity: 0.5 }
   nodes { id: 9 kind: VIDEO_INSET parent: 2 video_inset { stream: "cam" width: 1 height: 0.5 } }
+  nodes { id: 10 kind: SELECTION parent: 1 selection { model: 2
+    lasso_clip_from_world: [1,0,0,0, 0,1,0,0, 0,0,1,0, 0,0,0,1]
+    mask: "\x05\x03\x02\x02\x04" mask_width: 4 mask_height: 4 visible_only: true count: 5 } }
 }
 END
 }
@@ -237,6 +240,11 @@ seed_site() {
   one notes.msgs <<<'note { request: 8 add { place: 1 item { layer: "a/b/c" kind: "link" title: "see" link_item: 1 } } }'
   one hello.msgs <<<'hello { protocol: 2 name: "Kyoto lab" }'
   one stroke.msgs <<<'stroke { points: [1e8, 1e8, 1e8, -1e8, -1e8, -1e8] color { b: 1 } width: 64 }'
+  local view='view: [1,0,0,0, 0,1,0,0, 0,0,1,0, 0,0,-1,1] projection: [1.8,0,0,0, 0,2.4,0,0, 0,0,-1.2,-1, 0,0,-0.2,0] width: 640 height: 480'
+  one select.msgs <<<"select { model: 2 $view lasso: [100, 100, 300, 100, 200, 300] }"
+  one snap.msgs <<<"snap { model: 2 $view foreground: [120, 80, 160, 90, 200, 120] background: [300, 300, 400, 320] }"
+  one snap.msgs <<<"snap { model: 2 $view foreground: [100, 100, 300, 100, 300, 300, 100, 300] heavy_width: 16 }"
+  one snap.msgs <<<"snap { model: 2 $view foreground: [1e6, -1e6] background: [0, 0] heavy_width: 0.5 }"
 }
 
 # Chunk requests (site.proto ChunkRequest), one a file: a range, an identity request, the

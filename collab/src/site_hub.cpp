@@ -348,12 +348,16 @@ struct SiteHub::Impl {
         else
           say(roster.info(p.participant).name + ": note refused: " + answer.note().error());
         send(p, answer.SerializeAsString());
-      } else if (m.kind_case() == site::ToMaster::kSelect) {
+      } else if (m.kind_case() == site::ToMaster::kSelect ||
+                 m.kind_case() == site::ToMaster::kSnap) {
         if (!selections)
           selections = std::make_unique<SiteSelections>([this](const std::string& line) {
             say(line);
           });
-        selections->request(graph, p.participant, roster.info(p.participant).name, m.select());
+        if (m.kind_case() == site::ToMaster::kSelect)
+          selections->request(graph, p.participant, roster.info(p.participant).name, m.select());
+        else
+          selections->request(graph, p.participant, roster.info(p.participant).name, m.snap());
       } else if (m.kind_case() == site::ToMaster::kVideo) {
         video(graph, p, m.video(), now);
       } else if (m.kind_case() == site::ToMaster::kVoice) {

@@ -207,23 +207,20 @@ Problem checkMeasure(const site::SiteMeasure& m) {
   return {};
 }
 
-Problem checkSelect(const site::SiteSelect& m) {
-  if (m.model() == 0) return std::string("select.model: must name a MODEL node (> 0)");
+/// A view sent with a lasso or strokes: 16 + 16 finite numbers, an invertible projection of a
+/// finite frustum, 16..16384 pixels a side. `what` names the message ("select", "snap").
+template <class M>
+Problem checkSentView(const M& m, const std::string& what) {
+  if (m.model() == 0) return what + ".model: must name a MODEL node (> 0)";
   for (const auto& [matrix, field] :
-       {std::pair{&m.view(), "select.view"}, {&m.projection(), "select.projection"}}) {
+       {std::pair{&m.view(), ".view"}, {&m.projection(), ".projection"}}) {
     if (matrix->size() != 16)
-      return std::string(field) + ": needs 16 numbers, got " + std::to_string(matrix->size());
+      return what + field + ": needs 16 numbers, got " + std::to_string(matrix->size());
     for (double v : *matrix)
-      if (!(std::abs(v) <= 1e12)) return std::string(field) + ": numbers must be finite";
+      if (!(std::abs(v) <= 1e12)) return what + field + ": numbers must be finite";
   }
-  for (const auto& [v, field] : {std::pair{m.width(), "select.width"}, {m.height(), "select.height"}})
-    if (v < 16 || v > 16384) return std::string(field) + ": 16..16384 pixels, got " + std::to_string(v);
-  if (m.lasso_size() % 2 != 0 || m.lasso_size() < 6 || m.lasso_size() > 2 * kMaxLassoPoints)
-    return "select.lasso: needs 3.." + std::to_string(kMaxLassoPoints) + " x y pairs, got " +
-           std::to_string(m.lasso_size()) + " numbers";
-  for (double v : m.lasso())
-    if (!(std::abs(v) <= 1e6)) return std::string("select.lasso: numbers must be finite, within 1e6");
-  // The view must be one: an invertible projection of a finite frustum.
+  for (const auto& [v, field] : {std::pair{m.width(), ".width"}, {m.height(), ".height"}})
+    if (v < 16 || v > 16384) return what + field + ": 16..16384 pixels, got " + std::to_string(v);
   glm::dmat4 vp(1.0), view(1.0);
   for (int k = 0; k < 16; ++k) {
     vp[k / 4][k % 4] = m.projection(k);
@@ -232,8 +229,40 @@ Problem checkSelect(const site::SiteSelect& m) {
   vp = vp * view;
   const double det = glm::determinant(vp);
   if (!std::isfinite(det) || std::abs(det) < 1e-300)
-    return std::string("select.projection: with the view, not invertible");
+    return what + ".projection: with the view, not invertible";
   return {};
+}
+
+/// x y pairs of pixels, `least`..`most` of them, each within 1e6.
+Problem checkPixels(const google::protobuf::RepeatedField<double>& px, int least, int most,
+                    const std::string& field) {
+  if (px.size() % 2 != 0 || px.size() < 2 * least || px.size() > 2 * most)
+    return field + ": needs " + std::to_string(least) + ".." + std::to_string(most) +
+           " x y pairs, got " + std::to_string(px.size()) + " numbers";
+  for (double v : px)
+    if (!(std::abs(v) <= 1e6)) return field + ": numbers must be finite, within 1e6";
+  return {};
+}
+
+Problem checkSelect(const site::SiteSelect& m) {
+  if (auto p = checkSentView(m, "select")) return p;
+  return checkPixels(m.lasso(), 3, kMaxLassoPoints, "select.lasso");
+}
+
+Problem checkSnap(const site::SiteSnap& m) {
+  if (auto p = checkSentView(m, "snap")) return p;
+  if (!(m.heavy_width() >= 0.0f && m.heavy_width() <= kMaxHeavyStrokeWidth) ||
+      (m.heavy_width() > 0.0f && m.heavy_width() < 1.0f))
+    return "snap.heavy_width: 0 or 1.." + std::to_string(int(kMaxHeavyStrokeWidth)) + " pixels";
+  const bool heavy = m.heavy_width() > 0.0f;
+  if (auto p = checkPixels(m.foreground(), heavy ? 3 : 1, kMaxSnapStrokePoints, "snap.foreground"))
+    return p;
+  if (heavy) {
+    if (m.background_size() != 0)
+      return std::string("snap.background: the robust lasso (heavy_width > 0) has none");
+    return {};
+  }
+  return checkPixels(m.background(), 1, kMaxSnapStrokePoints, "snap.background");
 }
 
 }  // namespace
@@ -272,6 +301,8 @@ Problem checkToMaster(const site::ToMaster& m) {
       return checkMeasure(m.measure());
     case site::ToMaster::kSelect:
       return checkSelect(m.select());
+    case site::ToMaster::kSnap:
+      return checkSnap(m.snap());
     case site::ToMaster::kVideo: {
       VideoPacket packet;
       const std::string& v = m.video();

@@ -9,6 +9,7 @@
 #include <tessera/lod/mesh_store.h>
 #include <tessera/lod/point_store.h>
 #include <tessera/master/select_tool.h>
+#include <tessera/master/snap_tool.h>
 #include <tessera/render/scene_draw_list.h>
 
 namespace tessera::collab {
@@ -27,14 +28,20 @@ struct SiteSelections::Impl {
   Say say;
   std::map<std::string, SharedStore> stores;  // by path, as the scene names them
   struct Job {
+    enum class Kind { kLasso, kSnap, kRobustLasso } kind = Kind::kLasso;
     uint32_t site = 0;
     std::string name, store;
     uint32_t model = 0;
     SharedStore shared;
     render::ModelInstance instance;
     render::ViewSetup view;
-    std::vector<glm::dvec2> lasso;
+    std::vector<glm::dvec2> lasso;       ///< the lasso, or the foreground or heavy stroke
+    std::vector<glm::dvec2> background;  ///< kSnap
+    double heavy_width = 0.0;            ///< kRobustLasso
     master::LassoSelection result;
+    const char* what() const {
+      return kind == Kind::kLasso ? "lasso" : kind == Kind::kSnap ? "snap" : "robust lasso";
+    }
     std::string error;
   };
   mutable std::mutex mutex;
@@ -54,7 +61,14 @@ struct SiteSelections::Impl {
       lock.unlock();
       try {
         // One thread: the master's loop and the nodes of this host keep the other core.
-        job.result = master::lassoSelection(job.instance, job.model, job.view, job.lasso, 1);
+        if (job.kind == Job::Kind::kLasso)
+          job.result = master::lassoSelection(job.instance, job.model, job.view, job.lasso, 1);
+        else if (job.kind == Job::Kind::kSnap)
+          job.result =
+              master::snapSelection(job.instance, job.model, job.view, job.lasso, job.background);
+        else
+          job.result = master::robustLassoSelection(job.instance, job.model, job.view, job.lasso,
+                                                    job.heavy_width);
       } catch (const std::exception& e) {
         job.error = e.what();
       }
@@ -85,18 +99,63 @@ int SiteSelections::pending() const {
   return n;
 }
 
+namespace {
+
+/// The job's view from a SiteSelect or SiteSnap (checked: 16 + 16 numbers).
+template <class M>
+render::ViewSetup sentView(const M& s) {
+  render::ViewSetup v;
+  for (int k = 0; k < 16; ++k) {
+    v.view[k / 4][k % 4] = s.view(k);
+    v.projection[k / 4][k % 4] = s.projection(k);
+  }
+  v.width = s.width();
+  v.height = s.height();
+  return v;
+}
+
+std::vector<glm::dvec2> pixelsOf(const google::protobuf::RepeatedField<double>& px) {
+  std::vector<glm::dvec2> out;
+  for (int i = 0; i + 1 < px.size(); i += 2) out.emplace_back(px[i], px[i + 1]);
+  return out;
+}
+
+}  // namespace
+
 void SiteSelections::request(const sync::SceneGraph& graph, uint32_t site, const std::string& name,
                              const site::SiteSelect& s) {
-  auto refuse = [&](const std::string& why) { m->say(name + ": lasso refused: " + why); };
-  if (!graph.contains(s.model()) || graph.node(s.model()).kind() != scene::SceneNode::MODEL)
-    return refuse("node " + std::to_string(s.model()) + " is not a model");
+  Impl::Job job;
+  job.view = sentView(s);
+  job.lasso = pixelsOf(s.lasso());
+  enqueue(graph, site, name, s.model(), std::move(job));
+}
+
+void SiteSelections::request(const sync::SceneGraph& graph, uint32_t site, const std::string& name,
+                             const site::SiteSnap& s) {
+  Impl::Job job;
+  job.kind = s.heavy_width() > 0.0f ? Impl::Job::Kind::kRobustLasso : Impl::Job::Kind::kSnap;
+  job.view = sentView(s);
+  job.lasso = pixelsOf(s.foreground());
+  job.background = pixelsOf(s.background());
+  job.heavy_width = s.heavy_width();
+  enqueue(graph, site, name, s.model(), std::move(job));
+}
+
+template <class Job>
+void SiteSelections::enqueue(const sync::SceneGraph& graph, uint32_t site, const std::string& name,
+                             uint32_t model, Job job) {
+  auto refuse = [&](const std::string& why) {
+    m->say(name + ": " + job.what() + " refused: " + why);
+  };
+  if (!graph.contains(model) || graph.node(model).kind() != scene::SceneNode::MODEL)
+    return refuse("node " + std::to_string(model) + " is not a model");
   {
     std::lock_guard lock(m->mutex);
     if (m->per_site[site] >= kMaxPending)
-      return refuse(std::to_string(kMaxPending) + " of its lassos are still being selected");
+      return refuse(std::to_string(kMaxPending) + " of its selections are still being made");
     if (int(m->queued.size()) >= kMaxQueued) return refuse("the master is busy selecting");
   }
-  const std::string& path = graph.node(s.model()).model().store();
+  const std::string& path = graph.node(model).model().store();
   SharedStore& store = m->stores[path];
   try {
     if (!store.points && !store.mesh) {
@@ -109,24 +168,16 @@ void SiteSelections::request(const sync::SceneGraph& graph, uint32_t site, const
     m->stores.erase(path);
     return refuse(e.what());
   }
-  Impl::Job job;
   job.site = site;
   job.name = name;
   job.store = path;
-  job.model = s.model();
+  job.model = model;
   job.shared = store;
-  const render::NodePlacement placed = render::placeNode(graph, s.model());
+  const render::NodePlacement placed = render::placeNode(graph, model);
   job.instance.store = store.points.get();
   job.instance.mesh = store.mesh.get();
-  job.instance.model =
-      placed.world * (store.mesh ? render::storeModel(*store.mesh) : render::storeModel(*store.points));
-  for (int k = 0; k < 16; ++k) {
-    job.view.view[k / 4][k % 4] = s.view(k);
-    job.view.projection[k / 4][k % 4] = s.projection(k);
-  }
-  job.view.width = s.width();
-  job.view.height = s.height();
-  for (int i = 0; i + 1 < s.lasso_size(); i += 2) job.lasso.emplace_back(s.lasso(i), s.lasso(i + 1));
+  job.instance.model = placed.world * (store.mesh ? render::storeModel(*store.mesh)
+                                                  : render::storeModel(*store.points));
   {
     std::lock_guard lock(m->mutex);
     m->per_site[site]++;
@@ -146,27 +197,29 @@ int SiteSelections::collect(sync::SceneGraph& graph) {
   int added = 0;
   for (const Impl::Job& j : done) {
     if (!j.error.empty()) {
-      m->say(j.name + ": lasso failed: " + j.error);
+      m->say(j.name + ": " + j.what() + " failed: " + j.error);
       continue;
     }
     if (!graph.contains(j.model) || graph.node(j.model).kind() != scene::SceneNode::MODEL ||
         graph.node(j.model).model().store() != j.store) {
-      m->say(j.name + ": lasso dropped: its model changed while it was selected");
+      m->say(j.name + ": " + j.what() + " dropped: its model changed while it was selected");
       continue;
     }
     if (j.result.count == 0) {
-      m->say(j.name + ": lasso on model " + std::to_string(j.model) + ": nothing inside");
+      m->say(j.name + ": " + j.what() + " on model " + std::to_string(j.model) +
+             ": nothing selected");
       continue;
     }
     try {
       master::addSelection(graph, j.result.payload, j.name);
       ++added;
-      m->say(j.name + ": lasso on model " + std::to_string(j.model) + ": " +
+      m->say(j.name + ": " + j.what() + " on model " + std::to_string(j.model) + ": " +
              std::to_string(j.result.count) + " elements selected" +
-             (j.result.corrupt ? " (" + std::to_string(j.result.corrupt) + " corrupt leaves skipped)"
-                               : std::string()));
+             (j.result.corrupt
+                  ? " (" + std::to_string(j.result.corrupt) + " corrupt leaves skipped)"
+                  : std::string()));
     } catch (const std::exception& e) {  // over 16 MiB of elements
-      m->say(j.name + ": lasso refused: " + e.what());
+      m->say(j.name + ": " + j.what() + " refused: " + e.what());
     }
   }
   return added;

@@ -8,6 +8,7 @@
 #include <fstream>
 #include <sstream>
 #include <thread>
+#include <tuple>
 
 #include <glm/gtc/matrix_transform.hpp>
 
@@ -158,6 +159,24 @@ site::SiteScript loadSiteScript(const std::string& path) {
           if (!std::isfinite(v)) fail(path, field + ".lasso.pixels", "numbers must be finite");
         break;
       }
+      case site::SiteAction::kSnap: {
+        const site::SnapAction& sn = a.snap();
+        const bool heavy = sn.heavy_width() > 0.0f;
+        if (!(sn.heavy_width() >= 0.0f && sn.heavy_width() <= kMaxHeavyStrokeWidth))
+          fail(path, field + ".snap.heavy_width",
+               "0 or up to " + std::to_string(int(kMaxHeavyStrokeWidth)) + " pixels");
+        for (const auto& [px, name, least] :
+             {std::tuple{&sn.foreground(), ".snap.foreground", heavy ? 3 : 1},
+              {&sn.background(), ".snap.background", heavy ? 0 : 1}}) {
+          const int most = heavy && least == 0 ? 0 : kMaxSnapStrokePoints;
+          if (px->size() % 2 != 0 || px->size() < 2 * least || px->size() > 2 * most)
+            fail(path, field + name,
+                 std::to_string(least) + ".." + std::to_string(most) + " x y pairs");
+          for (float v : *px)
+            if (!std::isfinite(v)) fail(path, field + name, "numbers must be finite");
+        }
+        break;
+      }
       case site::SiteAction::kScreenshot:
         if (a.screenshot().empty() || a.screenshot().find('/') != std::string::npos)
           fail(path, field + ".screenshot", "a file name in the output folder");
@@ -191,7 +210,7 @@ struct SiteSession::Impl {
   uint64_t sequence = 0;
   std::ofstream strokes_csv;
   uint64_t strokes = 0;
-  uint64_t notes_sent = 0, measures_sent = 0, lassos_sent = 0;
+  uint64_t notes_sent = 0, measures_sent = 0, lassos_sent = 0, snaps_sent = 0;
   bool want_pick = false;  // render pick ids (a note's pixel)
   // --window: one-button navigation (left button, wheel), strokes (right-button drag).
   master::OneButtonNavigation navigation;
@@ -631,30 +650,25 @@ struct SiteSession::Impl {
     client->send(m);
   }
 
-  /// A script's lasso: its pixels and this view go to the master, which selects (SiteSelect).
-  void lasso(const site::LassoAction& a, const config::Camera& c) {
-    const uint64_t index = ++lassos_sent;
-    const std::string what = "lasso " + std::to_string(index);
-    uint32_t model = 0;
-    if (!a.model().empty()) {
-      if (const auto id = graph.findByName(a.model());
+  /// The MODEL node named `name` (the first MODEL node when empty), or 0 (said, as `what`).
+  uint32_t modelFor(const std::string& name, const std::string& what) {
+    if (!name.empty()) {
+      if (const auto id = graph.findByName(name);
           id && graph.node(*id).kind() == scene::SceneNode::MODEL)
-        model = *id;
+        return *id;
     } else {
       for (uint32_t id : graph.ids())
-        if (graph.node(id).kind() == scene::SceneNode::MODEL) {
-          model = id;
-          break;
-        }
+        if (graph.node(id).kind() == scene::SceneNode::MODEL) return id;
     }
-    if (!model) {
-      say(what + " skipped: the scene has no model " +
-          (a.model().empty() ? std::string() : "named \"" + a.model() + "\""));
-      return;
-    }
+    say(what + " skipped: the scene has no model " +
+        (name.empty() ? std::string() : "named \"" + name + "\""));
+    return 0;
+  }
+
+  /// Fills a SiteSelect's or SiteSnap's model and view from this site's view `c`.
+  template <class M>
+  void setSentView(M& s, uint32_t model, const config::Camera& c) {
     const render::ViewSetup v = view(c);
-    site::ToMaster m;
-    site::SiteSelect& s = *m.mutable_select();
     s.set_model(model);
     for (int k = 0; k < 16; ++k) {
       s.add_view(v.view[k / 4][k % 4]);
@@ -662,13 +676,42 @@ struct SiteSession::Impl {
     }
     s.set_width(v.width);
     s.set_height(v.height);
-    for (float p : a.pixels()) s.add_lasso(p);
+  }
+
+  /// Checks and sends a selection request.
+  void sendChecked(const site::ToMaster& m, const std::string& what) {
     if (const auto why = checkToMaster(m)) {
       say(what + " not sent: " + *why);
       return;
     }
     say(what + " sent");
     client->send(m);
+  }
+
+  /// A script's lasso: its pixels and this view go to the master, which selects (SiteSelect).
+  void lasso(const site::LassoAction& a, const config::Camera& c) {
+    const std::string what = "lasso " + std::to_string(++lassos_sent);
+    const uint32_t model = modelFor(a.model(), what);
+    if (!model) return;
+    site::ToMaster m;
+    site::SiteSelect& s = *m.mutable_select();
+    setSentView(s, model, c);
+    for (float p : a.pixels()) s.add_lasso(p);
+    sendChecked(m, what);
+  }
+
+  /// A script's snap: its strokes and this view go to the master, which cuts (SiteSnap).
+  void snap(const site::SnapAction& a, const config::Camera& c) {
+    const std::string what = "snap " + std::to_string(++snaps_sent);
+    const uint32_t model = modelFor(a.model(), what);
+    if (!model) return;
+    site::ToMaster m;
+    site::SiteSnap& s = *m.mutable_snap();
+    setSentView(s, model, c);
+    for (float p : a.foreground()) s.add_foreground(p);
+    for (float p : a.background()) s.add_background(p);
+    s.set_heavy_width(a.heavy_width());
+    sendChecked(m, what);
   }
 
   void stroke(const site::StrokeAction& a, const config::Camera& c) {
@@ -749,6 +792,9 @@ struct SiteSession::Impl {
         break;
       case site::SiteAction::kLasso:
         lasso(a.lasso(), asSent(camera(now)));
+        break;
+      case site::SiteAction::kSnap:
+        snap(a.snap(), asSent(camera(now)));
         break;
       case site::SiteAction::kUndo:
         m.mutable_undo();

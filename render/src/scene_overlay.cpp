@@ -6,6 +6,7 @@
 #include <optional>
 
 #include <tessera/render/scene_draw_list.h>
+#include <tessera/sync/selection_mask.h>
 
 namespace tessera::render {
 
@@ -336,6 +337,28 @@ std::string measurementLabel(const scene::MeasurementPayload& m) {
   return what + value + " \u00b1 " + error;
 }
 
+std::shared_ptr<const std::vector<uint32_t>> highlightMaskOf(const scene::SelectionPayload& s) {
+  std::vector<uint8_t> cells;
+  if (sync::decodeSelectionMask(s.mask(), s.mask_width(), s.mask_height(), &cells)) return nullptr;
+  // Nearest cell at each highlight cell's centre: both cover the view's NDC square from the
+  // bottom row up.
+  constexpr uint32_t n = kHighlightMaskSize;
+  const uint32_t w = s.mask_width(), h = s.mask_height();
+  auto bits = std::make_shared<std::vector<uint32_t>>(size_t(n) * n / 32, 0u);
+  std::vector<uint32_t> column(n);
+  for (uint32_t col = 0; col < n; ++col)
+    column[col] = uint32_t((uint64_t(col) * 2 + 1) * w / (2 * n));
+  for (uint32_t row = 0; row < n; ++row) {
+    const uint8_t* src = &cells[size_t((uint64_t(row) * 2 + 1) * h / (2 * n)) * w];
+    for (uint32_t col = 0; col < n; ++col)
+      if (src[column[col]]) {
+        const size_t bit = size_t(row) * n + col;
+        (*bits)[bit >> 5] |= 1u << (bit & 31u);
+      }
+  }
+  return bits;
+}
+
 std::vector<Highlight> sceneHighlights(const sync::SceneGraph& graph) {
   std::vector<Highlight> out;
   for (const sync::SceneGraph::NodeId id : graph.ids()) {
@@ -344,12 +367,19 @@ std::vector<Highlight> sceneHighlights(const sync::SceneGraph& graph) {
     const NodePlacement placed = placeNode(graph, id);
     if (!placed.visible || !(placed.opacity > 0.0f)) continue;
     const scene::SelectionPayload& s = node.selection();
-    if (s.lasso_clip_from_world_size() != 16 || s.lasso_size() < 6) continue;
+    if (s.lasso_clip_from_world_size() != 16) continue;
     Highlight h;
     for (int k = 0; k < 16; ++k) h.clip_from_world[k / 4][k % 4] = s.lasso_clip_from_world(k);
-    std::vector<glm::dvec2> lasso;
-    for (int k = 0; k + 1 < s.lasso_size(); k += 2) lasso.push_back({s.lasso(k), s.lasso(k + 1)});
-    h.mask = std::make_shared<const std::vector<uint32_t>>(rasterizeLasso(lasso));
+    if (s.mask_width() != 0 || !s.mask().empty()) {  // a region mask (lazy snapping)
+      auto bits = highlightMaskOf(s);
+      if (!bits) continue;  // does not check (a graph validates it: not seen there)
+      h.mask = std::move(bits);
+    } else {
+      if (s.lasso_size() < 6) continue;
+      std::vector<glm::dvec2> lasso;
+      for (int k = 0; k + 1 < s.lasso_size(); k += 2) lasso.push_back({s.lasso(k), s.lasso(k + 1)});
+      h.mask = std::make_shared<const std::vector<uint32_t>>(rasterizeLasso(lasso));
+    }
     if (s.has_color()) h.tint = colorOf(true, s.color(), {}, 1.0f);
     h.model_node = s.model();
     h.visible_only = s.visible_only();

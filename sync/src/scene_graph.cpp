@@ -13,6 +13,7 @@
 
 #include <tessera/core/check.h>
 #include <tessera/sync/camera_state.h>
+#include <tessera/sync/selection_mask.h>
 
 namespace tessera::sync {
 namespace {
@@ -283,9 +284,16 @@ Problem checkPayload(const SceneNode& n) {
       for (double v : s.lasso_clip_from_world())
         if (!std::isfinite(v))
           return std::string("selection.lasso_clip_from_world: numbers must be finite");
-      if (s.lasso_size() % 2 != 0 || s.lasso_size() < 6 || s.lasso_size() > 8192)
-        return "selection.lasso: needs 3..4096 x y pairs, got " + std::to_string(s.lasso_size()) +
-               " numbers";
+      const bool has_mask = !s.mask().empty() || s.mask_width() != 0 || s.mask_height() != 0;
+      if (has_mask) {  // a region mask instead of a lasso (lazy snapping)
+        if (s.lasso_size() != 0)
+          return std::string("selection.lasso: a selection with a mask has no lasso");
+        if (auto p = decodeSelectionMask(s.mask(), s.mask_width(), s.mask_height(), nullptr))
+          return p;
+      } else if (s.lasso_size() % 2 != 0 || s.lasso_size() < 6 || s.lasso_size() > 8192) {
+        return "selection.lasso: needs 3..4096 x y pairs (or a mask), got " +
+               std::to_string(s.lasso_size()) + " numbers";
+      }
       for (double v : s.lasso())
         if (!(std::abs(v) <= 1e6)) return std::string("selection.lasso: numbers must be finite, within 1e6");
       if (s.elements().size() > (size_t(16) << 20))

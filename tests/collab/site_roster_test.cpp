@@ -151,6 +151,51 @@ TEST(SiteMessages, VoiceIsAVoicePacketChecked) {
   EXPECT_EQ(graph.version(), version);
 }
 
+TEST(SiteMessages, SnapsAreBoundedFiniteStrokesInAView) {
+  auto snap = [](std::vector<double> fg, std::vector<double> bg, float heavy) {
+    site::ToMaster m;
+    site::SiteSnap& s = *m.mutable_snap();
+    s.set_model(1);
+    const glm::dmat4 id(1.0);
+    for (int k = 0; k < 16; ++k) {
+      s.add_view(id[k / 4][k % 4]);
+      s.add_projection(id[k / 4][k % 4]);
+    }
+    s.set_width(640);
+    s.set_height(480);
+    for (double v : fg) s.add_foreground(v);
+    for (double v : bg) s.add_background(v);
+    s.set_heavy_width(heavy);
+    return m;
+  };
+  auto why = [](const site::ToMaster& m) { return collab::checkToMaster(m).value_or(""); };
+  EXPECT_EQ(why(snap({10, 10, 20, 20}, {30, 30}, 0)), "");
+  EXPECT_EQ(why(snap({10, 10, 20, 20, 30, 10}, {}, 16)), "");  // the robust lasso
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_EQ(why(snap({10, nan}, {30, 30}, 0)),
+            "snap.foreground: numbers must be finite, within 1e6");
+  EXPECT_EQ(why(snap({10, 10}, {}, 0)).rfind("snap.background: needs 1..2048", 0), 0u);
+  EXPECT_EQ(why(snap({10, 10, 20}, {1, 1}, 0)).rfind("snap.foreground: needs", 0), 0u);
+  EXPECT_EQ(why(snap({10, 10, 20, 20}, {}, 16)).rfind("snap.foreground: needs 3..2048", 0), 0u);
+  EXPECT_EQ(why(snap({10, 10, 20, 20, 30, 10}, {1, 1}, 16)).rfind("snap.background:", 0), 0u);
+  EXPECT_EQ(why(snap({10, 10}, {1, 1}, 0.5f)).rfind("snap.heavy_width:", 0), 0u);
+  EXPECT_EQ(why(snap({10, 10}, {1, 1}, 1e9f)).rfind("snap.heavy_width:", 0), 0u);
+  EXPECT_EQ(why(snap(std::vector<double>(2 * 2049, 1.0), {1, 1}, 0)).rfind("snap.foreground:", 0),
+            0u);
+  site::ToMaster m = snap({10, 10}, {1, 1}, 0);
+  m.mutable_snap()->set_width(8);
+  EXPECT_EQ(why(m), "snap.width: 16..16384 pixels, got 8");
+  m = snap({10, 10}, {1, 1}, 0);
+  m.mutable_snap()->clear_projection();
+  EXPECT_EQ(why(m), "snap.projection: needs 16 numbers, got 0");
+  m = snap({10, 10}, {1, 1}, 0);
+  m.mutable_snap()->set_model(0);
+  EXPECT_EQ(why(m), "snap.model: must name a MODEL node (> 0)");
+  // Two strokes of the largest size fit a message.
+  m = snap(std::vector<double>(2 * 2048, 1234.5678), std::vector<double>(2 * 2048, 1234.5678), 0);
+  EXPECT_LE(m.ByteSizeLong(), collab::kMaxSiteMessageBytes);
+}
+
 TEST(SiteMessages, NamesAreShortPrintableUtf8) {
   EXPECT_FALSE(collab::checkName("Kyoto lab", "name"));
   EXPECT_FALSE(collab::checkName("京都ラボ", "name"));

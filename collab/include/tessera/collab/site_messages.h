@@ -28,6 +28,10 @@ constexpr int kMaxMeasurePoints = 1024;
 constexpr size_t kMaxMeasurementsPerSite = 1000;
 /// Vertices of a lasso (the scene's SelectionPayload limit).
 constexpr int kMaxLassoPoints = 4096;
+/// Points of each stroke of a snap (SiteSnap: two strokes of doubles fit a message).
+constexpr int kMaxSnapStrokePoints = 2048;
+/// Widest heavy stroke of the robust lasso, pixels.
+constexpr float kMaxHeavyStrokeWidth = 512.0f;
 /// A note's text from a site, bytes (longer texts go in with tessera-annotate).
 constexpr size_t kMaxNoteTextBytes = 16 * 1024;
 /// Coordinates beyond this are refused (metres; georeferenced scenes stay far below it).

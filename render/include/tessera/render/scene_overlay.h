@@ -40,6 +40,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <functional>
+#include <memory>
 #include <set>
 #include <span>
 #include <string>
@@ -90,8 +91,13 @@ std::string noteText(const scene::AnnotationPayload& a);
 /// "area 0.3 m² ± 20 cm²" (UTF-8).
 std::string measurementLabel(const scene::MeasurementPayload& m);
 
+/// A selection's region mask (SelectionPayload.mask, sync/selection_mask.h) resampled to the
+/// highlight's kHighlightMaskSize^2 bits (nearest cell). Null when the mask does not check.
+std::shared_ptr<const std::vector<uint32_t>> highlightMaskOf(const scene::SelectionPayload& s);
+
 /// The graph's visible SELECTION nodes as highlights (RenderOptions::highlights): each lasso
-/// rasterised into its mask (rasterizeLasso()), tinted with its colour (amber when unset), on
+/// rasterised into its mask (rasterizeLasso()), or its region mask resampled
+/// (highlightMaskOf()), tinted with its colour (amber when unset), on
 /// its model only (Highlight::model_node: the SceneDrawList's instances carry their node).
 /// Cost: about a millisecond per selection (the mask's 1024 rows).
 std::vector<Highlight> sceneHighlights(const sync::SceneGraph& graph);
