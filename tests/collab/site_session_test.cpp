@@ -103,20 +103,6 @@ std::optional<glm::dvec2> onWall(const tessera::config::WallConfig& wall,
   return std::nullopt;
 }
 
-/// The master's camera in these tests: at kWallEye looking at kTarget, y up.
-tessera::config::Camera wallCamera() {
-  tessera::config::Camera camera;
-  auto set = [](tessera::config::Vec3* v, glm::dvec3 x) {
-    v->set_x(x.x);
-    v->set_y(x.y);
-    v->set_z(x.z);
-  };
-  set(camera.mutable_eye(), kWallEye);
-  set(camera.mutable_target(), kTarget);
-  set(camera.mutable_up(), {0, 1, 0});
-  return camera;
-}
-
 /// Pixels within `radius` of `at` whose colour is within `tolerance` (0..1 per channel) of `c`.
 int pixelsNear(const tessera::render::Image& img, glm::dvec2 at, int radius, glm::vec3 c,
                float tolerance = 0.12f) {
