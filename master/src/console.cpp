@@ -199,20 +199,8 @@ bool Console::handleInput(sync::SceneGraph& graph) {
   // Measuring and placing notes: a click picks the surface under the pixel in the
   // full-resolution data of the model the frame's pick ids name (surface_pick.h), not the
   // coarse cut on screen.
-  auto surfaceAt = [&](glm::dvec2 px) -> std::optional<SurfacePick> {
-    if (!(px.x >= 0 && px.y >= 0 && px.x < mWidth && px.y < mHeight)) return std::nullopt;
-    const auto hit = mRenderer->pick(uint32_t(px.x), uint32_t(px.y));
-    const auto [from, dir] = ray(px + 0.5);
-    // A see-through frame has no pick ids: then every model's data along the ray.
-    if (!hit) return pickSurface(mInstances, from, dir, pick_options);
-    std::optional<SurfacePick> at = pickSurface(mInstances, from, dir, pick_options, hit->model);
-    if (!at) {  // the refinement found nothing (a corrupt chunk): the pixel's own depth
-      at = SurfacePick{};
-      at->point.world = hit->world;
-      at->point.uncertainty = glm::length(hit->world - from) * pick_options.pixel_angle;
-      at->model = hit->model;
-    }
-    return at;
+  auto surfaceAt = [&](glm::dvec2 px) {
+    return pickUnderPixel(*mRenderer, mInstances, mLastView, px);
   };
   auto measureAt = [&](glm::dvec2 px) {
     if (const auto at = surfaceAt(px))

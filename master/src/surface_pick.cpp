@@ -441,7 +441,6 @@ std::optional<SurfacePick> pickUnderPixel(const render::ViewRenderer& renderer,
                                           const render::ViewSetup& view, glm::dvec2 px) {
   if (!(px.x >= 0 && px.y >= 0 && px.x < view.width && px.y < view.height)) return std::nullopt;
   const auto hit = renderer.pick(uint32_t(px.x), uint32_t(px.y));
-  if (!hit) return std::nullopt;
   const glm::dmat4 world_from_clip = glm::inverse(view.projection * view.view);
   const glm::dvec2 centre = glm::floor(px) + 0.5;
   const double nx = centre.x / view.width * 2.0 - 1.0, ny = 1.0 - centre.y / view.height * 2.0;
@@ -451,6 +450,8 @@ std::optional<SurfacePick> pickUnderPixel(const render::ViewRenderer& renderer,
   PickOptions options;
   // Perspective: the vertical field of view over the height (projection[1][1] = cot(fovy/2)).
   options.pixel_angle = 2.0 * std::atan(1.0 / view.projection[1][1]) / view.height;
+  // A see-through frame has no pick ids: then every model's data along the ray.
+  if (!hit) return pickSurface(models, from, dir, options);
   std::optional<SurfacePick> at = pickSurface(models, from, dir, options, hit->model);
   if (!at) {
     at = SurfacePick{};

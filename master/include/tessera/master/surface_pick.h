@@ -46,9 +46,9 @@ std::optional<SurfacePick> pickSurface(std::span<const render::ModelInstance> mo
                                        std::optional<size_t> only_model = std::nullopt);
 
 /// The surface under pixel `px` (x right, y down, fractional) of the last frame `renderer` drew
-/// of `view`: the frame's pick ids name the model (nullopt on background, or a see-through frame
-/// without pick ids), then pickSurface() refines along the pixel's ray in that model's full
-/// resolution; where the refinement finds nothing (a corrupt chunk) the pixel's own depth,
+/// of `view`: the frame's pick ids name the model (nullopt on background), then pickSurface()
+/// refines along the pixel's ray in that model's full resolution (a see-through frame has no
+/// pick ids: then every model's data along the ray is searched); where the refinement finds nothing (a corrupt chunk) the pixel's own depth,
 /// with a pixel's width of uncertainty. What the console's and a site's measuring tools click.
 std::optional<SurfacePick> pickUnderPixel(const render::ViewRenderer& renderer,
                                           std::span<const render::ModelInstance> models,
