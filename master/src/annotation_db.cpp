@@ -913,6 +913,12 @@ std::optional<std::pair<std::string, glm::dvec3>> AnnotationDb::georeference() {
   return std::make_pair(s.text(0), glm::dvec3(s.real(1), s.real(2), s.real(3)));
 }
 
+int64_t AnnotationDb::dataVersion() {
+  Statement s(mDb, mFile, "PRAGMA data_version");
+  s.step();
+  return s.integer(0);
+}
+
 std::string AnnotationDb::integrityCheck() {
   Statement s(mDb, mFile, "PRAGMA integrity_check");
   std::string out;

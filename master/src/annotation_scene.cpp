@@ -138,8 +138,38 @@ NodeId AnnotationScene::layerNode(sync::SceneGraph& graph, const std::string& la
   return node;
 }
 
+void AnnotationScene::addPicture(const Item& item, scene::AnnotationItem& out, size_t& budget) {
+  auto [at, fresh] = mPictures.try_emplace({item.id, item.revision});
+  Picture& p = at->second;
+  if (fresh) {
+    try {
+      p.picture = item.data.empty()
+                      ? readNotePicture(item.path, mDb.file().parent_path(), kNotePicturePx)
+                      : decodeNotePicture(item.data, kNotePicturePx);
+    } catch (const std::exception& e) {
+      p.problem = cut(e.what(), 256);
+      std::fprintf(stderr, "tessera-master: annotations: item %lld's picture: %s\n",
+                   static_cast<long long>(item.id), p.problem.c_str());
+    }
+  }
+  if (!p.problem.empty()) {
+    out.set_picture_problem(p.problem);
+    return;
+  }
+  if (p.picture.rgba.size() > budget) {
+    out.set_picture_problem("not shown: the note's pictures would exceed " +
+                            std::to_string(sync::SceneGraph::kMaxAnnotationPictureBytes >> 20) +
+                            " MiB");
+    return;
+  }
+  budget -= p.picture.rgba.size();
+  out.set_picture_width(p.picture.width);
+  out.set_picture_height(p.picture.height);
+  out.set_picture(p.picture.rgba.data(), p.picture.rgba.size());
+}
+
 void AnnotationScene::refreshPlace(sync::SceneGraph& graph, int64_t place_id,
-                                   const std::string& author) {
+                                   const std::string& author, std::optional<bool> open_now) {
   const std::optional<Place> place = mDb.place(place_id);
   std::map<std::string, std::vector<Item>> by_layer;
   if (place && place->kind != PlaceKind::kSelection) {
@@ -167,6 +197,7 @@ void AnnotationScene::refreshPlace(sync::SceneGraph& graph, int64_t place_id,
       const glm::dmat4 t = glm::translate(glm::dmat4(1.0), place->position);
       graph.setTransform(node, std::span<const double>(glm::value_ptr(t), 16));
     }
+    if (open_now) open = *open_now;
     scene::AnnotationPayload a;
     a.set_text(labelOf(items));
     a.set_layer(layer);
@@ -178,69 +209,130 @@ void AnnotationScene::refreshPlace(sync::SceneGraph& graph, int64_t place_id,
         for (int k = 0; k < 3; ++k) a.add_view(p[k]);
       a.add_view(v.fovy_deg);
     }
-    for (size_t i = 0; i < items.size() && i < size_t(sync::SceneGraph::kMaxAnnotationItems); ++i)
-      *a.add_items() = shown(items[i]);
+    // An open note carries its pictures; a closed one sends none to the tiles.
+    size_t budget = sync::SceneGraph::kMaxAnnotationPictureBytes;
+    for (size_t i = 0; i < items.size() && i < size_t(sync::SceneGraph::kMaxAnnotationItems); ++i) {
+      scene::AnnotationItem& shown_item = *a.add_items();
+      shown_item = shown(items[i]);
+      if (open && items[i].kind == ItemKind::kImage) addPicture(items[i], shown_item, budget);
+    }
     a.set_open(open);
+    const scene::SceneNode& n = graph.node(node);
+    if (n.has_annotation() && n.annotation().SerializeAsString() == a.SerializeAsString())
+      continue;  // unchanged: the tiles get nothing
     graph.setPayload(node, a);
     graph.setAuthor(node, author);
   }
 }
 
+void AnnotationScene::loadStored(sync::SceneGraph& graph, const Place& p) {
+  // The measurement's number item, if any: its title names the node, its layer places it.
+  std::optional<Item> item;
+  for (int64_t id : mDb.itemsAt(p.id))
+    if ((item = mDb.item(id))) break;
+  if (p.selection_id == kMeasurementBlob) {
+    scene::MeasurementPayload m;
+    if (!m.ParseFromString(std::string(p.selection.begin(), p.selection.end())))
+      throw std::runtime_error("its measurement does not parse");
+    const std::string layer = item ? item->layer : "measurements";
+    const NodeId node = graph.add(scene::SceneNode::MEASUREMENT, layerNode(graph, layer, ""),
+                                  item ? item->title : "measurement");
+    try {
+      graph.setPayload(node, m);
+    } catch (...) {
+      graph.remove(node);
+      throw;
+    }
+    if (item) graph.setAuthor(node, item->author == "wall" ? "" : item->author);
+    mStoredNodes[node] = {p.id, item ? item->id : 0};
+  } else if (p.selection_id == kSelectionBlob) {
+    scene::SelectionPayload s;
+    if (!s.ParseFromString(std::string(p.selection.begin(), p.selection.end())))
+      throw std::runtime_error("its selection does not parse");
+    const std::optional<NodeId> model = graph.findByName(p.model);
+    if (!model || graph.node(*model).kind() != scene::SceneNode::MODEL)
+      throw std::runtime_error("the scene has no model named \"" + p.model + "\"");
+    s.set_model(*model);
+    const NodeId node = graph.add(scene::SceneNode::SELECTION, layerNode(graph, "selections", ""),
+                                  item ? item->title : "selection " + std::to_string(p.id));
+    try {
+      graph.setPayload(node, s);
+    } catch (...) {
+      graph.remove(node);
+      throw;
+    }
+    mStoredNodes[node] = {p.id, item ? item->id : 0};
+  }
+  // Other selection formats (imports from other tools) are kept, not shown.
+}
+
+namespace {
+
+std::string storedProblem(const Place& p, const std::string& why) {
+  return "place " + std::to_string(p.id) + " (" + p.selection_id + " on \"" + p.model +
+         "\"): " + why + "; it stays in the database";
+}
+
+}  // namespace
+
 std::vector<std::string> AnnotationScene::load(sync::SceneGraph& graph) {
   std::vector<std::string> problems;
+  mDataVersion = mDb.dataVersion();
   for (const Layer& l : mDb.layers()) layerNode(graph, l.path, "");
   for (const Place& p : mDb.places()) {
     if (p.kind != PlaceKind::kSelection) {
       refreshPlace(graph, p.id, "");
       continue;
     }
-    auto refuse = [&](const std::string& why) {
-      problems.push_back("place " + std::to_string(p.id) + " (" + p.selection_id + " on \"" +
-                         p.model + "\"): " + why + "; it stays in the database");
-    };
-    // The measurement's number item, if any: its title names the node, its layer places it.
-    std::optional<Item> item;
-    for (int64_t id : mDb.itemsAt(p.id))
-      if ((item = mDb.item(id))) break;
     try {
-      if (p.selection_id == kMeasurementBlob) {
-        scene::MeasurementPayload m;
-        if (!m.ParseFromString(std::string(p.selection.begin(), p.selection.end())))
-          throw std::runtime_error("its measurement does not parse");
-        const std::string layer = item ? item->layer : "measurements";
-        const NodeId node = graph.add(scene::SceneNode::MEASUREMENT, layerNode(graph, layer, ""),
-                                      item ? item->title : "measurement");
-        try {
-          graph.setPayload(node, m);
-        } catch (...) {
-          graph.remove(node);
-          throw;
-        }
-        if (item) graph.setAuthor(node, item->author == "wall" ? "" : item->author);
-        mStoredNodes[node] = {p.id, item ? item->id : 0};
-      } else if (p.selection_id == kSelectionBlob) {
-        scene::SelectionPayload s;
-        if (!s.ParseFromString(std::string(p.selection.begin(), p.selection.end())))
-          throw std::runtime_error("its selection does not parse");
-        const std::optional<NodeId> model = graph.findByName(p.model);
-        if (!model || graph.node(*model).kind() != scene::SceneNode::MODEL)
-          throw std::runtime_error("the scene has no model named \"" + p.model + "\"");
-        s.set_model(*model);
-        const NodeId node =
-            graph.add(scene::SceneNode::SELECTION, layerNode(graph, "selections", ""),
-                      item ? item->title : "selection " + std::to_string(p.id));
-        try {
-          graph.setPayload(node, s);
-        } catch (...) {
-          graph.remove(node);
-          throw;
-        }
-        mStoredNodes[node] = {p.id, item ? item->id : 0};
-      }
-      // Other selection formats (imports from other tools) are kept, not shown.
+      loadStored(graph, p);
     } catch (const std::exception& e) {
-      refuse(e.what());
+      problems.push_back(storedProblem(p, e.what()));
     }
+  }
+  return problems;
+}
+
+std::vector<std::string> AnnotationScene::refresh(sync::SceneGraph& graph) {
+  std::vector<std::string> problems;
+  const int64_t version = mDb.dataVersion();
+  if (version == mDataVersion) return problems;
+  mDataVersion = version;
+  // Layers: new ones get their groups; a flag changed elsewhere shows or hides the group.
+  for (const Layer& l : mDb.layers()) {
+    const NodeId node = layerNode(graph, l.path, "");
+    bool& stored = mLayerShown[l.path];
+    if (stored != l.visible) {
+      stored = l.visible;
+      if (graph.node(node).visible() != l.visible) graph.setVisible(node, l.visible);
+    }
+  }
+  std::set<int64_t> places, stored_places;
+  for (const auto& [node, s] : mStoredNodes) stored_places.insert(s.place);
+  for (const Place& p : mDb.places()) {
+    places.insert(p.id);
+    if (p.kind != PlaceKind::kSelection) {
+      refreshPlace(graph, p.id, "");
+    } else if (!stored_places.count(p.id)) {
+      try {
+        loadStored(graph, p);
+      } catch (const std::exception& e) {
+        problems.push_back(storedProblem(p, e.what()));
+      }
+    }
+  }
+  // Notes and stored nodes whose places were deleted elsewhere go from the scene.
+  std::set<int64_t> gone;
+  for (const auto& [key, node] : mNotes)
+    if (!places.count(key.first)) gone.insert(key.first);
+  for (int64_t place : gone) refreshPlace(graph, place, "");
+  for (auto it = mStoredNodes.begin(); it != mStoredNodes.end();) {
+    if (places.count(it->second.place)) {
+      ++it;
+      continue;
+    }
+    if (graph.contains(it->first)) graph.remove(it->first);
+    it = mStoredNodes.erase(it);
   }
   return problems;
 }
@@ -285,6 +377,21 @@ void AnnotationScene::storeNode(sync::SceneGraph& graph, NodeId node) {
 }
 
 void AnnotationScene::sync(sync::SceneGraph& graph) {
+  const auto now = std::chrono::steady_clock::now();
+  if (now - mPolled >= mPollEvery) {
+    mPolled = now;
+    try {
+      const int64_t before = mDataVersion;
+      for (const std::string& p : refresh(graph))
+        std::fprintf(stderr, "tessera-master: annotations: %s\n", p.c_str());
+      if (mDataVersion != before)
+        std::fprintf(stderr, "tessera-master: annotations: took in other programs' edits of %s\n",
+                     mDb.file().string().c_str());
+    } catch (const AnnotationError& e) {
+      std::fprintf(stderr, "tessera-master: annotations: reading other programs' edits: %s\n",
+                   e.what());
+    }
+  }
   if (!graph.hasPendingChanges() && mSyncedVersion == graph.version()) return;
   mSyncedVersion = graph.version();
   for (NodeId id : graph.ids()) {
@@ -392,17 +499,10 @@ void AnnotationScene::setLayerVisible(sync::SceneGraph& graph, const std::string
 
 void AnnotationScene::setOpen(sync::SceneGraph& graph, int64_t place, bool open,
                               const std::string& author) {
-  const std::vector<NodeId> nodes = nodesOf(place);
-  if (nodes.empty())
+  if (nodesOf(place).empty())
     throw AnnotationError(AnnotationError::Kind::kNotFound,
                           "AnnotationDb: no note at place " + std::to_string(place));
-  for (NodeId node : nodes) {
-    if (!graph.contains(node) || graph.node(node).annotation().open() == open) continue;
-    scene::AnnotationPayload a = graph.node(node).annotation();
-    a.set_open(open);
-    graph.setPayload(node, a);
-    graph.setAuthor(node, author);
-  }
+  refreshPlace(graph, place, author, open);
 }
 
 std::vector<NodeId> AnnotationScene::nodesOf(int64_t place) const {

@@ -5,6 +5,7 @@
 #include <cstring>
 #include <filesystem>
 #include <limits>
+#include <map>
 
 #include <imgui.h>
 
@@ -70,6 +71,13 @@ struct OverlayPass::Impl {
   GlTexture white;
   GlFramebuffer framebuffer;
   uint32_t vao = 0;
+  // Labels' pictures by key, kept while some label of the last run showed them.
+  struct Picture {
+    GlTexture texture;
+    uint64_t used = 0;  // the last run() that drew it
+  };
+  std::map<uint64_t, Picture> pictures;
+  uint64_t runs_done = 0;
 
   // Per run():
   std::vector<OverlayVertex> vertices;
@@ -128,6 +136,21 @@ struct OverlayPass::Impl {
          rgba, mode);
   }
 
+  /// The texture of a label's picture (uploaded on its first use), or null when its pixels do
+  /// not match its size.
+  const GlTexture* pictureTexture(const LabelPicture& p) {
+    if (!p.rgba || p.width == 0 || p.height == 0 || p.width > 4096 || p.height > 4096 ||
+        p.rgba->size() != size_t(p.width) * p.height * 4)
+      return nullptr;
+    auto [it, fresh] = pictures.try_emplace(p.key);
+    if (fresh || it->second.texture.width() != p.width || it->second.texture.height() != p.height) {
+      it->second.texture = GlTexture(p.width, p.height, GL_RGBA8);
+      it->second.texture.upload(p.rgba->data());
+    }
+    it->second.used = runs_done;
+    return &it->second.texture;
+  }
+
   void addLine(const OverlayLine& l);
   void addLabel(const OverlayLabel& l, const FrameTarget& target, const glm::dmat4& projection);
   /// The label's box; with an anchor, its background and glyphs drawn there, their modes or-ed
@@ -175,7 +198,16 @@ glm::vec2 OverlayPass::Impl::layout(const OverlayLabel& l, const glm::dvec4* anc
     width = std::max(width, line);
   }
   const float text_height = l.height_px * (1.0f + kLineSpacing * float(lines - 1));
-  const glm::vec2 box(width + 2.0f * pad, text_height + 2.0f * pad);
+  // Pictures in a row under the text, `pad` apart.
+  glm::vec2 row(0.0f);
+  for (const LabelPicture& p : l.pictures) {
+    if (!(p.size_px.x > 0.0f && p.size_px.y > 0.0f && p.size_px.x < 1e4f && p.size_px.y < 1e4f))
+      continue;
+    row.x += (row.x > 0.0f ? pad : 0.0f) + p.size_px.x;
+    row.y = std::max(row.y, p.size_px.y);
+  }
+  const float pictures_top = text_height + (row.y > 0.0f ? pad : 0.0f);
+  const glm::vec2 box(std::max(width, row.x) + 2.0f * pad, pictures_top + row.y + 2.0f * pad);
   if (!anchor) return box;
   const glm::vec2 o = l.offset_px - glm::clamp(l.align, glm::vec2(0.0f), glm::vec2(1.0f)) * box;
   // A label is hidden or shown whole by its anchor (addLabel()), then drawn over the scene: a
@@ -204,6 +236,18 @@ glm::vec2 OverlayPass::Impl::layout(const OverlayLabel& l, const glm::dvec4* anc
              TESSERA_OVERLAY_GLYPH | anchored);
     }
     pen += g->AdvanceX * scale;
+  }
+  float left = o.x + pad;
+  for (const LabelPicture& p : l.pictures) {
+    if (!(p.size_px.x > 0.0f && p.size_px.y > 0.0f && p.size_px.x < 1e4f && p.size_px.y < 1e4f))
+      continue;
+    if (const GlTexture* texture = pictureTexture(p)) {
+      begin(texture->name(), false);
+      const glm::vec2 lo(left, o.y + pad + pictures_top);
+      sprite(*anchor, lo, lo + p.size_px, glm::vec2(0), glm::vec2(1), 0xFFFFFFFFu,
+             TESSERA_OVERLAY_TEXTURED | anchored);
+    }
+    left += p.size_px.x + pad;
   }
   return box;
 }
@@ -358,6 +402,9 @@ double OverlayPass::run(FrameTarget& target, const ViewSetup& view, const Overla
   glBindBuffer(GL_PIXEL_PACK_BUFFER, 0);
   glBindFramebuffer(GL_FRAMEBUFFER, 0);
   glBindVertexArray(0);
+  // Pictures no label showed this time are released (a note closed).
+  std::erase_if(s.pictures, [&](const auto& p) { return p.second.used != s.runs_done; });
+  ++s.runs_done;
   return lap();
 }
 

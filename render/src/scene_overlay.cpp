@@ -133,7 +133,33 @@ std::string noteText(const scene::AnnotationPayload& a) {
     } else if (!it.text().empty()) {
       line += ": " + it.text();
     }
+    if (it.kind() == "image" && !it.picture_problem().empty())
+      line += " (no picture: " + it.picture_problem() + ")";
     out += (lines++ ? "\n" : "") + clipped(line);
+  }
+  return out;
+}
+
+std::vector<LabelPicture> notePictures(const scene::AnnotationPayload& a, float max_px) {
+  std::vector<LabelPicture> out;
+  if (!(max_px > 0.0f)) return out;
+  for (const scene::AnnotationItem& it : a.items()) {
+    const uint32_t w = it.picture_width(), h = it.picture_height();
+    if (it.picture().empty() || w == 0 || h == 0 || it.picture().size() != size_t(w) * h * 4)
+      continue;  // the scene graph checked it; a payload made elsewhere may not be
+    LabelPicture p;
+    p.width = w;
+    p.height = h;
+    p.rgba = std::make_shared<const std::vector<uint8_t>>(it.picture().begin(), it.picture().end());
+    // FNV-1a over the size and the pixels: the pass keeps a texture per key.
+    uint64_t key = 0xcbf29ce484222325ull;
+    auto mix = [&](uint8_t b) { key = (key ^ b) * 0x100000001b3ull; };
+    for (int k = 0; k < 4; ++k) mix(uint8_t(w >> (8 * k))), mix(uint8_t(h >> (8 * k)));
+    for (uint8_t b : *p.rgba) mix(b);
+    p.key = key;
+    const float scale = std::min(1.0f, max_px / float(std::max(w, h)));
+    p.size_px = {float(w) * scale, float(h) * scale};
+    out.push_back(std::move(p));
   }
   return out;
 }
@@ -168,6 +194,7 @@ void addAnnotation(const scene::AnnotationPayload& a, const glm::dmat4& world, f
   OverlayLabel label;
   label.at = at;
   label.text = noteText(a);
+  if (a.open()) label.pictures = notePictures(a, o.note_picture_px);
   label.color = {255, 255, 255, fade(255, opacity)};
   label.background = {0, 0, 0, fade(200, opacity)};
   label.height_px = o.label_px;

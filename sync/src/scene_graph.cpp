@@ -152,6 +152,7 @@ Problem checkAnnotation(const scene::AnnotationPayload& a) {
   if (a.items_size() > SceneGraph::kMaxAnnotationItems)
     return "annotation.items: at most " + std::to_string(SceneGraph::kMaxAnnotationItems) +
            ", got " + std::to_string(a.items_size());
+  size_t picture_bytes = 0;
   for (int i = 0; i < a.items_size(); ++i) {
     const scene::AnnotationItem& it = a.items(i);
     const std::string field = "annotation.items[" + std::to_string(i) + "]";
@@ -169,6 +170,23 @@ Problem checkAnnotation(const scene::AnnotationPayload& a) {
     if (it.uri().size() > 4096) return field + ".uri: at most 4096 bytes";
     if (!std::isfinite(it.number())) return field + ".number: must be finite";
     if (it.revision() == 0) return field + ".revision: must be >= 1";
+    if (it.picture_problem().size() > 256) return field + ".picture_problem: at most 256 bytes";
+    if (it.picture().empty() && it.picture_width() == 0 && it.picture_height() == 0) continue;
+    if (it.kind() != "image") return field + ".picture: only an image item has one";
+    const uint32_t w = it.picture_width(), h = it.picture_height();
+    if (w == 0 || h == 0 || w > SceneGraph::kMaxAnnotationPicturePx ||
+        h > SceneGraph::kMaxAnnotationPicturePx)
+      return field + ".picture_width, picture_height: each in [1, " +
+             std::to_string(SceneGraph::kMaxAnnotationPicturePx) + "], got " + std::to_string(w) +
+             "x" + std::to_string(h);
+    if (it.picture().size() != size_t(w) * h * 4)
+      return field + ".picture: " + std::to_string(w) + "x" + std::to_string(h) +
+             " RGBA needs " + std::to_string(size_t(w) * h * 4) + " bytes, got " +
+             std::to_string(it.picture().size());
+    picture_bytes += it.picture().size();
+    if (picture_bytes > SceneGraph::kMaxAnnotationPictureBytes)
+      return field + ".picture: the payload's pictures exceed " +
+             std::to_string(SceneGraph::kMaxAnnotationPictureBytes) + " bytes together";
   }
   return {};
 }

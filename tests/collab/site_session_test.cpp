@@ -863,6 +863,79 @@ std::string pixelsJson(const std::vector<glm::dvec3>& world, glm::dvec3 eye, glm
 // across the head, in pixels of its view; the master gathers the point store's leaves the view
 // shows, cuts them on its selection worker and adds the SELECTION node with the region mask.
 // The master says how many points; the wall's screenshot shows the tint on the ear, not the head.
+TEST_F(SiteSession, ANoteAnotherProgramAddsShowsItsPictureOnTheWallWhenOpened) {
+  const fs::path db = mRun / "notes.tadb";
+  auto master = startMaster(300.0, {"--annotations", db.string()});
+  auto nodes = startNodes();
+  ASSERT_TRUE(master->waitFor("4 of 4 tiles have a node", 60)) << master->output();
+  // A 1962 photo (left half red, right half blue) added by another program while the master
+  // runs: a file beside the database, named relatively, left of the bunny, where its note's
+  // box stays on one tile (clear of the mullions).
+  tessera::render::Image photo{240, 160, std::vector<uint8_t>(240 * 160 * 4, 255)};
+  for (uint32_t y = 0; y < photo.height; ++y)
+    for (uint32_t x = 0; x < photo.width; ++x) {
+      uint8_t* px = &photo.rgba[(size_t(y) * photo.width + x) * 4];
+      px[0] = x < 120 ? 230 : 20;
+      px[1] = 20;
+      px[2] = x < 120 ? 20 : 230;
+    }
+  tessera::render::writePng((mRun / "photo.png").string(), photo);
+  const glm::dvec3 at(-0.18, 0.11, 0.08);
+  {
+    tessera::master::AnnotationDb other(db);
+    tessera::master::Place place;
+    place.model = "bunny";
+    place.position = at;
+    tessera::master::Item item;
+    item.layer = "documents";
+    item.kind = tessera::master::ItemKind::kImage;
+    item.title = "1962 photo";
+    item.path = "photo.png";
+    item.mime = "image/png";
+    other.attach(other.addItem(item, "archive"), other.addPlace(place));
+  }
+  ASSERT_TRUE(master->waitFor("took in other programs' edits", 30)) << master->output();
+  // A site opens it (place 1: the database was new).
+  auto a = startSite("a", "A", R"({"actions": [
+      {"frame": 2, "note": {"note": {"open": {"place": 1, "open": true}}}}]})", {"--no-render"});
+  ASSERT_TRUE(a->waitFor("note 1 committed", 90)) << a->output();
+  std::this_thread::sleep_for(std::chrono::milliseconds(500));  // a frame with it
+  master->signal(SIGTERM);
+  ASSERT_EQ(master->wait(60), std::optional<int>(0)) << master->output();
+  for (auto& n : nodes) EXPECT_EQ(n->wait(15), std::optional<int>(0)) << n->output();
+  EXPECT_TRUE(a->wait(15)) << a->output();
+
+  // The picture in the note's box, up and right of its dot: red on the left, blue on the right,
+  // at the size the overlay gives it (fit to 160 px: 160 x 107).
+  const auto wall = tessera::sync::loadWallConfig(*sDir / "wall.json");
+  const tessera::render::Image shot = tessera::render::readPng((mRun / "wall.png").string());
+  const auto dot = onWall(wall, wallCamera(), at);
+  ASSERT_TRUE(dot) << "the note is off the wall";
+  int red = 0, blue = 0;
+  double red_x = 0, blue_x = 0;
+  for (int y = int(dot->y) - 220; y < int(dot->y); ++y)
+    for (int x = int(dot->x); x < int(dot->x) + 220; ++x) {
+      if (x < 0 || y < 0 || x >= int(shot.width) || y >= int(shot.height)) continue;
+      const uint8_t* p = &shot.rgba[(size_t(y) * shot.width + x) * 4];
+      if (p[0] > 200 && p[1] < 50 && p[2] < 50) ++red, red_x += x;
+      if (p[2] > 200 && p[0] < 50 && p[1] < 50) ++blue, blue_x += x;
+    }
+  RecordProperty("picture_red_px", std::to_string(red));
+  RecordProperty("picture_blue_px", std::to_string(blue));
+  EXPECT_GT(red, 80 * 100) << mRun / "wall.png";
+  EXPECT_LT(red, 80 * 110) << "one picture, at 160 px: " << mRun / "wall.png";
+  EXPECT_GT(blue, 80 * 100) << mRun / "wall.png";
+  EXPECT_LT(blue, 80 * 110) << mRun / "wall.png";
+  if (red > 0 && blue > 0) {
+    EXPECT_LT(red_x / red + 60, blue_x / blue) << "not mirrored";
+  }
+  // Its title above it.
+  EXPECT_GE(whitePixels(shot, int(dot->x) + 5, int(dot->y) - 150, int(dot->x) + 120,
+                        int(dot->y) - 100),
+            30)
+      << mRun / "wall.png";
+}
+
 TEST_F(SiteSession, ASiteSnapsTheBunnysEarAndTheWallTintsIt) {
   auto master = startMaster(300.0);
   auto nodes = startNodes();

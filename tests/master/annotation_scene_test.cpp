@@ -138,6 +138,7 @@ TEST_F(AnnotationSceneTest, LoadsLayersAsNestedGroupsAndPlacesAsNotesThatReachAR
 
   // A node replicates them: the snapshot a late joiner gets, then a frame with an edit.
   g.takeFrame(1, 0);
+  (void)g.takeFrame(1, 0);
   SceneGraph replica;
   replica.apply(g.snapshot());
   EXPECT_EQ(notes(replica).size(), 3u);
@@ -314,6 +315,206 @@ TEST_F(AnnotationSceneTest, AStoredPlaceTheSceneCannotTakeIsReportedAndKept) {
     }
   }
   EXPECT_EQ(scene.db().places().size(), 3u);
+}
+
+}  // namespace
+}  // namespace tessera::master
+
+namespace tessera::master {
+namespace {
+
+/// A 24-bit BMP of w x h: left half red, right half blue, a green top row (BMP rows are stored
+/// bottom up, so the orientation is checked too).
+std::vector<uint8_t> bmp(int w, int h) {
+  const int row = (w * 3 + 3) & ~3;
+  std::vector<uint8_t> out(54 + size_t(row) * h, 0);
+  auto put32 = [&](size_t at, uint32_t v) {
+    for (int k = 0; k < 4; ++k) out[at + k] = uint8_t(v >> (8 * k));
+  };
+  out[0] = 'B';
+  out[1] = 'M';
+  put32(2, uint32_t(out.size()));
+  put32(10, 54);
+  put32(14, 40);
+  put32(18, uint32_t(w));
+  put32(22, uint32_t(h));
+  out[26] = 1;
+  out[28] = 24;
+  put32(34, uint32_t(row) * h);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      uint8_t* p = &out[54 + size_t(h - 1 - y) * row + size_t(x) * 3];  // BGR
+      const bool top = y == 0;
+      p[0] = !top && x >= w / 2 ? 255 : 0;
+      p[1] = top ? 255 : 0;
+      p[2] = !top && x < w / 2 ? 255 : 0;
+    }
+  return out;
+}
+
+TEST(NotePicture, DecodesAndScalesAndSaysWhyItCannot) {
+  const NotePicture p = decodeNotePicture(bmp(600, 300), 192);
+  ASSERT_EQ(p.width, 192u);
+  ASSERT_EQ(p.height, 96u);
+  auto px = [&](uint32_t x, uint32_t y) { return &p.rgba[(size_t(y) * p.width + x) * 4]; };
+  EXPECT_GT(px(40, 48)[0], 240);  // red on the left
+  EXPECT_LT(px(40, 48)[2], 15);
+  EXPECT_GT(px(150, 48)[2], 240);  // blue on the right
+  EXPECT_LT(px(150, 48)[0], 15);
+  EXPECT_GT(px(40, 0)[1], 60);  // the green top row, averaged with red below it
+  EXPECT_EQ(px(40, 0)[3], 255);
+  // Never enlarged.
+  const NotePicture small = decodeNotePicture(bmp(20, 10), 192);
+  EXPECT_EQ(small.width, 20u);
+  EXPECT_EQ(small.height, 10u);
+
+  auto why = [](std::span<const uint8_t> bytes) {
+    try {
+      decodeNotePicture(bytes, 192);
+    } catch (const std::runtime_error& e) {
+      return std::string(e.what());
+    }
+    return std::string("decoded");
+  };
+  const std::string text = "just text, not a picture";
+  EXPECT_NE(why({reinterpret_cast<const uint8_t*>(text.data()), text.size()}).find("not an image"),
+            std::string::npos);
+  // A PNG signature over garbage, and a truncated picture: the decoder's reason, no crash.
+  std::vector<uint8_t> png = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n', 1, 2, 3, 4, 5};
+  EXPECT_NE(why(png), "decoded");
+  std::vector<uint8_t> cut = bmp(64, 64);
+  cut.resize(200);
+  EXPECT_NE(why(cut), "decoded");
+  // A small file declaring a huge picture is refused before it is allocated.
+  std::vector<uint8_t> bomb = bmp(4, 4);
+  for (int k = 0; k < 4; ++k) bomb[18 + k] = uint8_t(100000u >> (8 * k)), bomb[22 + k] = uint8_t(100000u >> (8 * k));
+  EXPECT_NE(why(bomb), "decoded");
+}
+
+TEST_F(AnnotationSceneTest, AnOpenNoteCarriesItsPicturesAndAClosedOneNone) {
+  int64_t place = 0;
+  {
+    AnnotationDb db(file);
+    place = db.addPlace(point({1, 2, 3}));
+    Item embedded = text("docs", "1962 photo");
+    embedded.kind = ItemKind::kImage;
+    embedded.data = bmp(600, 300);
+    embedded.mime = "image/bmp";
+    db.attach(db.addItem(embedded, "kyoto"), place);
+    // A file beside the database, named relatively.
+    const std::vector<uint8_t> bytes = bmp(100, 200);
+    FILE* f = std::fopen((dir / "sketch.bmp").c_str(), "wb");
+    ASSERT_TRUE(f);
+    std::fwrite(bytes.data(), 1, bytes.size(), f);
+    std::fclose(f);
+    Item by_path = text("docs", "sketch");
+    by_path.kind = ItemKind::kImage;
+    by_path.path = "sketch.bmp";
+    by_path.mime = "image/bmp";
+    db.attach(db.addItem(by_path, "kyoto"), place);
+    Item missing = text("docs", "lost scan");
+    missing.kind = ItemKind::kImage;
+    missing.path = "nowhere/scan.jpg";
+    missing.mime = "image/jpeg";
+    db.attach(db.addItem(missing, "kyoto"), place);
+  }
+  AnnotationScene notes(file);
+  SceneGraph g = sceneWithModel();
+  notes.load(g);
+  ASSERT_EQ(notes.nodesOf(place).size(), 1u);
+  const auto node = notes.nodesOf(place)[0];
+  auto items = [&] { return g.node(node).annotation().items(); };
+  ASSERT_EQ(items().size(), 3);
+  for (const auto& it : items()) EXPECT_TRUE(it.picture().empty()) << "a closed note sends none";
+
+  notes.setOpen(g, place, true, "A");
+  ASSERT_EQ(items().size(), 3);
+  EXPECT_EQ(items()[0].picture_width(), 192u);
+  EXPECT_EQ(items()[0].picture_height(), 96u);
+  EXPECT_EQ(items()[0].picture().size(), 192u * 96 * 4);
+  EXPECT_EQ(items()[1].picture_width(), 96u);
+  EXPECT_EQ(items()[1].picture_height(), 192u);
+  EXPECT_TRUE(items()[2].picture().empty());
+  EXPECT_NE(items()[2].picture_problem().find("nowhere/scan.jpg"), std::string::npos)
+      << items()[2].picture_problem();
+  // The payload passes the scene graph's checks on a replica.
+  (void)g.takeFrame(1, 0);
+  SceneGraph replica;
+  replica.apply(g.snapshot());
+  EXPECT_EQ(replica.node(node).annotation().items(1).picture(), items()[1].picture());
+
+  // Opening again changes nothing; closing drops the pictures.
+  const uint64_t version = g.version();
+  notes.setOpen(g, place, true, "A");
+  EXPECT_FALSE(g.hasPendingChanges()) << "an unchanged payload is not sent again";
+  notes.setOpen(g, place, false, "A");
+  for (const auto& it : items()) EXPECT_TRUE(it.picture().empty());
+  EXPECT_GE(g.version(), version);
+}
+
+TEST_F(AnnotationSceneTest, WhatOtherProgramsCommitReachesTheScene) {
+  AnnotationScene notes(file);
+  notes.setExternalPoll(std::chrono::milliseconds(0));
+  SceneGraph g = sceneWithModel();
+  notes.load(g);
+  notes.sync(g);
+  (void)g.takeFrame(2, 0);
+  // Nothing changed elsewhere: nothing changes here.
+  EXPECT_TRUE(notes.refresh(g).empty());
+  EXPECT_FALSE(g.hasPendingChanges());
+
+  AnnotationDb other(file);  // tessera-annotate, say
+  const int64_t place = other.addPlace(point({4, 5, 6}));
+  const int64_t item = other.addItem(text("survey/north", "crack"), "tool");
+  other.attach(item, place);
+  notes.sync(g);
+  ASSERT_EQ(notes.nodesOf(place).size(), 1u);
+  const auto node = notes.nodesOf(place)[0];
+  EXPECT_EQ(g.node(node).annotation().text(), "crack");
+  EXPECT_EQ(g.node(node).annotation().items(0).author(), "tool");
+
+  Item edited = *other.item(item);
+  edited.title = "crack, 14 cm";
+  other.updateItem(edited, 1, "tool");
+  other.setLayerVisible("survey", false);
+  notes.sync(g);
+  EXPECT_EQ(g.node(node).annotation().text(), "crack, 14 cm");
+  const auto survey = g.findByName("survey");
+  ASSERT_TRUE(survey);
+  EXPECT_FALSE(g.node(*survey).visible());
+  // Hiding it here is stored, and is not mistaken for another program's edit.
+  notes.setLayerVisible(g, "survey", true, "A");
+  notes.sync(g);
+  EXPECT_TRUE(g.node(*survey).visible());
+  EXPECT_TRUE(other.layerShown("survey/north"));
+
+  // A measurement stored by another session's tool comes in; deleted, it goes.
+  scene::MeasurementPayload m;
+  m.set_type(scene::MeasurementPayload::DISTANCE);
+  for (double v : {0.0, 0.0, 0.0, 1.0, 0.0, 0.0}) m.add_points(v);
+  m.set_value(1.0);
+  m.set_uncertainty(0.001);
+  Place stored;
+  stored.kind = PlaceKind::kSelection;
+  stored.model = "scene";
+  stored.selection_id = kMeasurementBlob;
+  const std::string bytes = m.SerializeAsString();
+  stored.selection.assign(bytes.begin(), bytes.end());
+  const int64_t stored_place = other.addPlace(stored);
+  notes.sync(g);
+  int measurements = 0;
+  for (auto id : g.ids()) measurements += g.node(id).kind() == scene::SceneNode::MEASUREMENT;
+  EXPECT_EQ(measurements, 1);
+  other.removePlace(stored_place);
+  other.removeItem(item, 2);
+  notes.sync(g);
+  measurements = 0;
+  for (auto id : g.ids()) measurements += g.node(id).kind() == scene::SceneNode::MEASUREMENT;
+  EXPECT_EQ(measurements, 0);
+  EXPECT_TRUE(notes.nodesOf(place).empty());
+  EXPECT_FALSE(g.contains(node));
+  // Nor was anything written back by taking these in.
+  EXPECT_EQ(other.places().size(), 1u);  // the point, now without items
 }
 
 }  // namespace

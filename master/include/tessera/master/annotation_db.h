@@ -257,6 +257,9 @@ class AnnotationDb {
   }
   /// PRAGMA integrity_check: "ok" or SQLite's list of problems.
   std::string integrityCheck();
+  /// SQLite's PRAGMA data_version: changes when another connection (tessera-annotate, a second
+  /// tool) committed to the file since the last call, not for this connection's own commits.
+  int64_t dataVersion();
 
   /// The raw connection, for the exporter and the tests.
   sqlite3* handle() { return mDb; }

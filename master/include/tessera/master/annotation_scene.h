@@ -28,6 +28,7 @@
 // Not thread-safe: the master's loop thread uses it.
 #pragma once
 
+#include <chrono>
 #include <cstdint>
 #include <filesystem>
 #include <map>
@@ -38,6 +39,7 @@
 #include <vector>
 
 #include <tessera/master/annotation_db.h>
+#include <tessera/master/note_picture.h>
 #include <tessera/sync/scene_graph.h>
 
 namespace tessera::master {
@@ -61,8 +63,19 @@ class AnnotationScene {
 
   /// Before each frame: stores the measurements and selections made since, deletes removed
   /// ones, and stores layer visibility changes. Cost: nothing when the scene's version did not
-  /// change; else one pass over the nodes, one commit per change.
+  /// change; else one pass over the nodes, one commit per change. Then, at most every
+  /// `external_poll` (below), takes in what other programs committed to the file meanwhile
+  /// (refresh()).
   void sync(sync::SceneGraph& graph);
+
+  /// What other connections (tessera-annotate, another tool) changed since load() or the last
+  /// refresh, into the scene: new, edited and removed notes, layers shown or hidden, stored
+  /// measurements and selections added or deleted. Only what differs is touched. Cost: one
+  /// PRAGMA (microseconds) when nothing changed; else a read of every place and its items.
+  /// Returns the problems of stored places the scene cannot take, as load() does.
+  std::vector<std::string> refresh(sync::SceneGraph& graph);
+  /// How often sync() looks for other programs' commits (0: every frame).
+  void setExternalPoll(std::chrono::milliseconds every) { mPollEvery = every; }
 
   // --- Edits: committed, then applied to the scene (throw AnnotationError) --------------------
   /// A new item at a new place (`place.id` ignored), or at the existing place `at` (> 0).
@@ -77,6 +90,8 @@ class AnnotationScene {
   void setLayerVisible(sync::SceneGraph& graph, const std::string& layer, bool visible,
                        const std::string& author);
   /// Shows a place's items on every tile (open) or only its label. Not stored: a view state.
+  /// An open note carries its image items' pictures (note_picture.h, at most kNotePicturePx a
+  /// side, decoded once per item revision), so tiles and sites show them under its text.
   void setOpen(sync::SceneGraph& graph, int64_t place, bool open, const std::string& author);
 
   /// The ANNOTATION nodes of a place (one per layer of its items).
@@ -86,9 +101,20 @@ class AnnotationScene {
 
   AnnotationDb& db() { return mDb; }
 
+  /// The side an open note's pictures are scaled to fit.
+  static constexpr uint32_t kNotePicturePx = 192;
+
  private:
-  /// Rebuilds the ANNOTATION nodes of `place` from the database (none when it has no items).
-  void refreshPlace(sync::SceneGraph& graph, int64_t place, const std::string& author);
+  /// Rebuilds the ANNOTATION nodes of `place` from the database (none when it has no items);
+  /// `open` changes their open state (else kept). A node whose payload would not change is
+  /// left alone.
+  void refreshPlace(sync::SceneGraph& graph, int64_t place, const std::string& author,
+                    std::optional<bool> open = std::nullopt);
+  /// A stored measurement or selection as its scene node (load(), refresh()); throws saying
+  /// why the scene cannot take it.
+  void loadStored(sync::SceneGraph& graph, const Place& place);
+  /// Sets an image item's picture (or the reason there is none) on its scene item.
+  void addPicture(const Item& item, scene::AnnotationItem& shown, size_t& budget);
   NodeId layerNode(sync::SceneGraph& graph, const std::string& layer, const std::string& author);
   void storeNode(sync::SceneGraph& graph, NodeId node);
 
@@ -102,6 +128,14 @@ class AnnotationScene {
   std::map<NodeId, Stored> mStoredNodes;  // MEASUREMENT and SELECTION nodes in the database
   std::set<NodeId> mRefused;              // nodes that could not be stored (said once)
   uint64_t mSyncedVersion = UINT64_MAX;
+  struct Picture {
+    NotePicture picture;
+    std::string problem;
+  };
+  std::map<std::pair<int64_t, int64_t>, Picture> mPictures;  // (item, revision) ->
+  int64_t mDataVersion = 0;  // the file's data_version when last read
+  std::chrono::milliseconds mPollEvery{250};
+  std::chrono::steady_clock::time_point mPolled{};
 };
 
 }  // namespace tessera::master

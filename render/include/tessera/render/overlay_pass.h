@@ -42,12 +42,22 @@ struct OverlayPoint {
   float ring_px = 0.0f;
 };
 
-/// Text at a world position: its box's top-left corner `offset_px` from where the position
+/// Text (and pictures) at a world position: its box's top-left corner `offset_px` from where the position
 /// projects (y down), then moved by -align times the box's size (so align (0.5, 1) puts the
 /// box's bottom centre at the offset: text centred above its anchor), `height_px` tall, over a
 /// `background` box (alpha 0: none). UTF-8; glyphs the font lacks show as '?'. Hidden when its
 /// anchor is (the scene nearer than it by over 2% at the anchor's pixel: one depth value read
 /// back per label), else drawn whole over the scene.
+/// A picture in a label's box, under its text (an open note's image items): RGBA8 pixels, top
+/// row first, shown `size_px` large. The pass keeps a texture per `key` while labels use it, so
+/// the same key must always mean the same pixels (scene_overlay.cpp hashes them).
+struct LabelPicture {
+  uint64_t key = 0;
+  uint32_t width = 0, height = 0;
+  std::shared_ptr<const std::vector<uint8_t>> rgba;  ///< width * height * 4 bytes
+  glm::vec2 size_px{0.0f};
+};
+
 struct OverlayLabel {
   glm::dvec3 at{0.0};
   std::string text;
@@ -56,6 +66,7 @@ struct OverlayLabel {
   float height_px = 20.0f;
   glm::vec2 offset_px{8.0f, -28.0f};
   glm::vec2 align{0.0f};  ///< fractions of the box's width and height, each in [0, 1]
+  std::vector<LabelPicture> pictures{};  ///< in a row under the text, inside the box
 };
 
 /// A textured quad in the world, corners in order (texture u, v): (0,0) (1,0) (1,1) (0,1), v = 0

@@ -19,7 +19,8 @@
 //    head (a dot at the eye over a dark ring), its view frustum out to `reach` metres (the 4
 //    edges from the eye and the far rectangle; left out when fovy_deg, aspect or reach is 0),
 //    and its name (the payload's site, else the node's name) centred above the head.
-//  - ANNOTATION: its text at its anchor over a dark box, and a small dot at the anchor.
+//  - ANNOTATION: its text at its anchor over a dark box, and a small dot at the anchor; an open
+//    database note lists its items and shows its image items' pictures under them.
 //  - MEASUREMENT (issue 16): lines through its points (closed for an area), a dot on each, and
 //    its label (measurementLabel()) at the distance's middle, the angle's vertex, the area's
 //    centroid or the path's end.
@@ -62,6 +63,7 @@ struct SceneOverlayOptions {
   float avatar_frustum_px = 1.5f;
   float label_px = 16.0f;  ///< avatar names and annotation texts, the text's height
   float annotation_dot_px = 7.0f;
+  float note_picture_px = 160.0f;  ///< an open note's pictures fit this square (smaller: 1:1)
   float measure_width_px = 2.0f;  ///< a measurement's lines
   float measure_dot_px = 6.0f;    ///< its picked points
   /// A site's own view: its own avatar (payload site == hide_site) is not drawn ("": all are),
@@ -85,6 +87,10 @@ struct SceneOverlayOptions {
 /// item ("crack: 14 cm", "Edo restoration: seen in the 1962 photo", "report -> https://..."),
 /// long texts cut, at most 12 lines.
 std::string noteText(const scene::AnnotationPayload& a);
+
+/// An open note's pictures (its image items' RGBA from the master, AnnotationItem.picture) as
+/// label pictures, each scaled to fit `max_px` (never enlarged), keyed by a hash of its pixels.
+std::vector<LabelPicture> notePictures(const scene::AnnotationPayload& a, float max_px);
 
 /// A measurement's label: the value in a unit that keeps it readable and the bound of its
 /// error, "14.2 cm ± 0.3 mm", "path 2.315 m ± 4 mm", "37.52° ± 0.41°",

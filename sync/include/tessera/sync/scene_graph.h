@@ -81,6 +81,10 @@ class SceneGraph {
   /// A database place's items in one ANNOTATION node, and the text each carries (scene.proto).
   static constexpr int kMaxAnnotationItems = 64;
   static constexpr size_t kMaxAnnotationText = 4096;
+  /// An image item's picture in an open note: at most this many pixels a side, and all of a
+  /// payload's pictures together at most kMaxAnnotationPictureBytes.
+  static constexpr uint32_t kMaxAnnotationPicturePx = 256;
+  static constexpr size_t kMaxAnnotationPictureBytes = size_t(1) << 20;
   /// A CLIP node's planes (ClipPayload::planes; a box is 6) and the MODEL nodes it names.
   static constexpr int kMaxClipNodePlanes = 6;
   static constexpr int kMaxClipModels = 64;
