@@ -5,13 +5,13 @@
 # which is also replayed first, so a regression that comes back fails at once.
 # Usage: fuzz/run.sh [SECONDS] [TARGET...]
 #   (targets: ply las text obj conf tlod chunk tmesh frame link site chunk_request voice wav
-#    video selection annotation; default all)
+#    video selection annotation picture; default all)
 set -euo pipefail
 
 cd "$(dirname "$0")/.."
 SECONDS_PER_TARGET=${1:-300}
 shift || true
-TARGETS=("${@:-ply las text obj conf tlod chunk tmesh frame link site chunk_request voice wav video selection annotation}")
+TARGETS=("${@:-ply las text obj conf tlod chunk tmesh frame link site chunk_request voice wav video selection annotation picture}")
 read -r -a TARGETS <<<"${TARGETS[*]}"
 DATA=${TESSERA_DATA_DIR:-$(cd .. && pwd)/shared/data}
 BUILD=build/fuzz
@@ -315,9 +315,15 @@ seed_annotation() {
   cp "$OLDPWD"/fuzz/seeds/annotation/*.json .
 }
 
+# Pictures: tiny PNG, JPEG and GIF (gnuplot), BMP and TIFF (hand-made) in fuzz/seeds/picture/.
+seed_picture() {
+  cp "$OLDPWD"/fuzz/seeds/picture/* .
+}
+
 declare -A MAX_LEN=([ply]=8192 [las]=8192 [text]=4096 [obj]=4096 [conf]=1024 [tlod]=32768
   [chunk]=8192 [frame]=4096 [link]=4096 [site]=4096 [chunk_request]=1024 [voice]=8192
-  [wav]=16384 [tmesh]=16384 [video]=32768 [selection]=4096 [annotation]=16384)
+  [wav]=16384 [tmesh]=16384 [video]=32768 [selection]=4096 [annotation]=16384
+  [picture]=8192)
 export UBSAN_OPTIONS=halt_on_error=1:print_stacktrace=1
 status=0
 summary=()

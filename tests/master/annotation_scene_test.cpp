@@ -13,6 +13,9 @@
 
 #include <tessera/sync/scene_edits.h>
 
+#include "../../fuzz/picture_fuzz.h"
+#include "../support/temp_dir.h"
+
 namespace tessera::master {
 namespace {
 
@@ -389,6 +392,28 @@ TEST(NotePicture, DecodesAndScalesAndSaysWhyItCannot) {
   std::vector<uint8_t> bomb = bmp(4, 4);
   for (int k = 0; k < 4; ++k) bomb[18 + k] = uint8_t(100000u >> (8 * k)), bomb[22 + k] = uint8_t(100000u >> (8 * k));
   EXPECT_NE(why(bomb), "decoded");
+}
+
+// The fuzz target's seeds (one tiny picture per format) and every input it ever crashed on
+// (fuzz/picture_fuzz.h), through the same checks; the seeds must decode.
+TEST(NotePictureFuzz, SeedsAndRegressionsReplay) {
+  const fs::path fuzz_dir = TESSERA_FUZZ_DIR;
+  size_t decoded = 0, replayed = 0;
+  for (const char* dir : {"seeds/picture", "regressions/picture"}) {
+    if (!fs::exists(fuzz_dir / dir)) continue;
+    for (const auto& entry : fs::directory_iterator(fuzz_dir / dir)) {
+      const auto bytes = tessera::test::readBytes(entry.path());
+      SCOPED_TRACE(entry.path().string());
+      tessera::fuzz::decodePicture(bytes.data(), bytes.size());  // aborts on a broken rule
+      ++replayed;
+      if (std::string(dir) == "seeds/picture") {
+        EXPECT_NO_THROW(decodeNotePicture(bytes, 64));
+        ++decoded;
+      }
+    }
+  }
+  EXPECT_EQ(decoded, 5u) << "png, jpeg, gif, bmp, tiff";
+  EXPECT_GE(replayed, decoded);
 }
 
 TEST_F(AnnotationSceneTest, AnOpenNoteCarriesItsPicturesAndAClosedOneNone) {
