@@ -21,7 +21,9 @@ namespace {
 constexpr int kKey1 = 49, kKey9 = 57, kKeyEqual = 61, kKeyMinus = 45, kKeyH = 72, kKeyE = 69,
               kKeyPadAdd = 334, kKeyPadSubtract = 333, kKeyL = 76, kKeyU = 85, kKeyC = 67,
               kKeyM = 77, kKeyEnter = 257, kKeyPadEnter = 335, kKeyBackspace = 259, kKeyS = 83,
-              kKeyO = 79;
+              kKeyO = 79, kKeyN = 78;
+/// The robust lasso's stroke width when the console snaps with a foreground stroke only, pixels.
+constexpr double kHeavyStrokePx = 16.0;
 /// How near the cursor a note must be for O to open it, pixels.
 constexpr double kNoteReachPx = 24.0;
 
@@ -119,6 +121,56 @@ void Console::measured(const std::function<std::optional<sync::SceneGraph::NodeI
   }
 }
 
+void Console::only(Tool tool) {
+  if (tool != Tool::kMeasure) mTool.setMode(MeasureTool::Mode::kOff);
+  mLassoing = tool == Tool::kLasso;
+  mLasso.clear();
+  mSnapping = tool == Tool::kSnap;
+  mSnapFg.clear();
+  mSnapBg.clear();
+  mPlacingNote = tool == Tool::kPlaceNote;
+}
+
+std::optional<std::pair<sync::SceneGraph::NodeId, size_t>> Console::currentModel(
+    const sync::SceneGraph& graph) const {
+  const auto models = modelIds(graph);
+  if (models.empty()) return std::nullopt;
+  const auto node = models[std::min(mSelected, models.size() - 1)];
+  const auto& nodes = mModels.instanceNodes();
+  const auto at = std::find(nodes.begin(), nodes.end(), node);
+  if (at == nodes.end() || size_t(at - nodes.begin()) >= mInstances.size()) return std::nullopt;
+  return std::pair{node, size_t(at - nodes.begin())};
+}
+
+void Console::snap(const sync::SceneGraph& graph) {
+  const auto model = currentModel(graph);
+  if (!model) return say("snap: the current model is not drawn");
+  if (mSnapFg.empty()) return say("snap: first stroke what to select (left drag)");
+  SelectionRequest r;
+  r.model = model->first;
+  r.view = mLastView;
+  r.pixels = mSnapFg;
+  if (!mSnapBg.empty()) {
+    r.kind = SelectionRequest::Kind::kSnap;
+    r.background = mSnapBg;
+  } else {
+    r.kind = SelectionRequest::Kind::kRobustLasso;
+    r.heavy_width = kHeavyStrokePx;
+    if (r.pixels.size() < 3)
+      return say("snap: stroke what not to select (right drag), or around the region");
+  }
+  if (!mSnaps)
+    mSnaps = std::make_unique<SelectionWorker>([this](const std::string& line) {
+      const std::string own = std::string(kConsole) + ": ";
+      say(line.rfind(own, 0) == 0 ? line.substr(own.size()) : line);
+    });
+  if (mSnaps->request(graph, 0, kConsole, std::move(r)))
+    say(std::string("snap: selecting on model ") + std::to_string(model->first) + " (" +
+        (mSnapBg.empty() ? "robust lasso" : "lazy snapping") + ")");
+  mSnapFg.clear();
+  mSnapBg.clear();
+}
+
 render::Overlay Console::overlay(const render::Overlay& scene) const {
   // The right-hand bar of the navigation, lightened (a quarter white over the scene), and a ring
   // where the target is, after the scene's own (so on top of them).
@@ -126,9 +178,13 @@ render::Overlay Console::overlay(const render::Overlay& scene) const {
   const float bar_x = float(mWidth * (1.0 - OneButtonNavigation::kBarFraction));
   o.rects.push_back({{bar_x, 0.0f}, {float(mWidth), float(mHeight)}, {255, 255, 255, 64}});
   // The lasso being drawn, and the unfinished measurement's points and lines, on top.
-  for (size_t i = 1; i < mLasso.size(); ++i)
-    o.rects.push_back(
-        {glm::vec2(mLasso[i]) - 1.5f, glm::vec2(mLasso[i]) + 1.5f, {255, 190, 0, 230}});
+  auto stroke = [&](const std::vector<glm::dvec2>& px, glm::u8vec4 color) {
+    for (size_t i = 1; i < px.size(); ++i)
+      o.rects.push_back({glm::vec2(px[i]) - 1.5f, glm::vec2(px[i]) + 1.5f, color});
+  };
+  stroke(mLasso, {255, 190, 0, 230});
+  stroke(mSnapFg, {60, 230, 90, 230});  // what to select
+  stroke(mSnapBg, {240, 60, 60, 230});  // what not to
   const auto& pts = mTool.points();
   for (size_t i = 0; i < pts.size(); ++i) {
     o.points.push_back({pts[i].point.world, {90, 230, 255, 255}, 7.0f, 1.5f});
@@ -231,7 +287,24 @@ bool Console::handleInput(sync::SceneGraph& graph) {
                   form.draft.model.c_str());
     say(line);
   };
-  if (mPlacingNote) {  // as measuring: a click places the note; the wheel still moves the view
+  if (mSnaps) mSnaps->collect(graph);  // snaps finished since: SELECTION nodes
+  auto record = [&](std::vector<glm::dvec2>& stroke, glm::dvec2 q) {
+    if (stroke.empty() || glm::length(q - stroke.back()) >= 2.0) stroke.push_back(q);
+  };
+  if (mSnapping) {
+    // Left drag: what to select; right drag: what not to (not a sketch). A new drag replaces
+    // its stroke. Every cursor position the window reported, as the lasso.
+    if (in.left_pressed) mSnapFg.clear();
+    if (in.left || in.left_pressed || in.left_released) {
+      for (const glm::dvec2& q : in.path) record(mSnapFg, q * scale);
+      record(mSnapFg, p.cursor);
+    }
+    if (in.right && !mSnapRight) mSnapBg.clear();
+    if (in.right) record(mSnapBg, p.cursor);
+    mSnapRight = in.right;
+    in.right = false;
+    p.down = p.pressed = p.released = false;
+  } else if (mPlacingNote) {  // as measuring: a click places the note; the wheel still moves the view
     if (in.left_pressed) mPressAt = p.cursor;
     if (in.left_released && glm::length(p.cursor - mPressAt) <= 4.0) placeNoteAt(p.cursor);
     p.down = p.pressed = p.released = false;
@@ -240,26 +313,19 @@ bool Console::handleInput(sync::SceneGraph& graph) {
     // over slow frames keeps its shape); letting go selects what of the current model it
     // encloses.
     if (in.left || in.left_pressed || in.left_released) {
-      auto add = [&](glm::dvec2 q) {
-        if (mLasso.empty() || glm::length(q - mLasso.back()) >= 2.0) mLasso.push_back(q);
-      };
-      for (const glm::dvec2& q : in.path) add(q * scale);
-      add(p.cursor);
+      for (const glm::dvec2& q : in.path) record(mLasso, q * scale);
+      record(mLasso, p.cursor);
     }
     if (!in.left && !mLasso.empty()) {
-      const auto models = modelIds(graph);
-      const auto& nodes = mModels.instanceNodes();
-      const uint32_t node = models.empty() ? 0 : models[std::min(mSelected, models.size() - 1)];
-      const auto at = std::find(nodes.begin(), nodes.end(), node);
-      if (mLasso.size() >= 3 && at != nodes.end() &&
-          size_t(at - nodes.begin()) < mInstances.size()) {
+      const auto model = currentModel(graph);
+      if (mLasso.size() >= 3 && model) {
+        const auto [node, index] = *model;
         try {
-          const LassoSelectResult r = selectWithLasso(graph, mInstances[size_t(at - nodes.begin())],
-                                                      node, mLastView, mLasso, kConsole);
+          const LassoSelectResult r =
+              selectWithLasso(graph, mInstances[index], node, mLastView, mLasso, kConsole);
           if (r.node) mSelections.push_back(r.node);
           std::printf("tessera-master: console: lasso on model %u: %llu %s selected%s\n", node,
-                      (unsigned long long)r.count,
-                      mInstances[size_t(at - nodes.begin())].mesh ? "triangles" : "points",
+                      (unsigned long long)r.count, mInstances[index].mesh ? "triangles" : "points",
                       r.corrupt ? " (some chunks could not be read)" : "");
         } catch (const std::exception& e) {  // a selection over 16 MiB, ...
           std::printf("tessera-master: console: no selection: %s\n", e.what());
@@ -330,10 +396,14 @@ bool Console::handleInput(sync::SceneGraph& graph) {
       for (auto id : mSketches) graph.remove(id);
       mSketches.clear();
     }
+    if (key == kKeyN) {
+      only(mSnapping ? Tool::kNone : Tool::kSnap);
+      say(mSnapping ? "snap on (left drag: what to select, right drag: what not to; Enter "
+                      "selects; Backspace drops the strokes)"
+                    : "snap off");
+    }
     if (key == kKeyS) {
-      mLassoing = !mLassoing;
-      mLasso.clear();
-      if (mLassoing) mTool.setMode(MeasureTool::Mode::kOff);
+      only(mLassoing ? Tool::kNone : Tool::kLasso);
       std::printf("tessera-master: console: lasso %s\n",
                   mLassoing ? "on (drag around a region of the current model; Backspace removes "
                               "the newest selection)"
@@ -341,7 +411,7 @@ bool Console::handleInput(sync::SceneGraph& graph) {
       std::fflush(stdout);
     }
     if (key == kKeyM) {
-      mLassoing = false;
+      mLassoing = mSnapping = false;
       std::printf(
           "tessera-master: console: measuring: %s%s\n", MeasureTool::name(mTool.cycle()),
           mTool.mode() == MeasureTool::Mode::kPath || mTool.mode() == MeasureTool::Mode::kArea
@@ -349,9 +419,24 @@ bool Console::handleInput(sync::SceneGraph& graph) {
               : "");
       std::fflush(stdout);
     }
-    if (key == kKeyEnter || key == kKeyPadEnter)
+    if ((key == kKeyEnter || key == kKeyPadEnter) && mSnapping) {
+      snap(graph);
+    } else if (key == kKeyEnter || key == kKeyPadEnter) {
       measured([&] { return mTool.finish(graph, mInstances, kConsole); });
-    if (key == kKeyBackspace && mLassoing) {
+    }
+    if (key == kKeyBackspace && mSnapping) {
+      if (!mSnapFg.empty() || !mSnapBg.empty()) {
+        mSnapFg.clear();
+        mSnapBg.clear();
+      } else {  // the newest selection the console snapped
+        sync::SceneGraph::NodeId newest = 0;
+        for (auto id : graph.ids())
+          if (graph.node(id).kind() == scene::SceneNode::SELECTION &&
+              graph.node(id).author() == kConsole)
+            newest = std::max(newest, id);
+        if (newest) graph.remove(newest);
+      }
+    } else if (key == kKeyBackspace && mLassoing) {
       std::erase_if(mSelections, [&](auto id) { return !graph.contains(id); });
       if (!mSelections.empty()) {
         graph.remove(mSelections.back());

@@ -17,6 +17,7 @@
 #include <tessera/master/console_notes.h>
 #include <tessera/master/measure_tool.h>
 #include <tessera/master/one_button_navigation.h>
+#include <tessera/master/selection_worker.h>
 #include <tessera/render/scene_draw_list.h>
 #include <tessera/render/scene_overlay.h>
 #include <tessera/render/video_textures.h>
@@ -60,7 +61,11 @@ class Console {
   /// off): clicks then pick points on the model instead of navigating, Enter ends a path or an
   /// area, Backspace drops the last point or else the newest measurement (layer
   /// "measurements"); S toggles the lasso: a left drag selects what of the current model it
-  /// encloses (layer "selections", tinted on every tile), Backspace removes the newest; O opens
+  /// encloses (layer "selections", tinted on every tile), Backspace removes the newest; N
+  /// toggles lazy snapping (snap_tool.h): a left drag strokes what to select, a right drag what
+  /// not to (instead of a sketch), Enter selects on a worker thread (the wall does not wait;
+  /// with no background stroke, the left stroke around the region is a robust lasso 16 px
+  /// wide), Backspace drops the strokes, else the newest snapped selection; O opens
   /// or closes the note nearest the cursor (within 24 px) on the wall (with --annotations).
   /// Returns false once the window is closed (or Escape outside a text field).
   bool handleInput(sync::SceneGraph& graph);
@@ -105,6 +110,18 @@ class Console {
   bool mLassoing = false;                               // S: left drags draw a lasso
   std::vector<glm::dvec2> mLasso;                       // its pixels so far
   std::vector<sync::SceneGraph::NodeId> mSelections;    // the console's, oldest first
+  bool mSnapping = false;                               // N: strokes for lazy snapping
+  std::vector<glm::dvec2> mSnapFg, mSnapBg;             // the strokes, the view's pixels
+  bool mSnapRight = false;                              // the right button was down
+  std::unique_ptr<SelectionWorker> mSnaps;              // made with the first snap
+  /// Turns one tool on (the others off) or every tool off.
+  enum class Tool { kNone, kMeasure, kLasso, kSnap, kPlaceNote };
+  void only(Tool tool);
+  /// The current model's MODEL node and its index among the drawn instances, if drawn.
+  std::optional<std::pair<sync::SceneGraph::NodeId, size_t>> currentModel(
+      const sync::SceneGraph& graph) const;
+  /// Sends the snap strokes to the worker (N, then Enter).
+  void snap(const sync::SceneGraph& graph);
   std::chrono::steady_clock::time_point mLastInput = std::chrono::steady_clock::now();
 
   // The panels' state.

@@ -24,10 +24,11 @@ constexpr ImGuiWindowFlags kPanel = ImGuiWindowFlags_AlwaysAutoResize;
 constexpr float kFieldWidth = -64.0f;  // text fields leave this much for their labels
 
 /// A panel at `pos` (pixels from the window's top-left), `width` wide, its height following its
-/// content; false when collapsed (then only End()).
-bool beginPanel(const char* title, ImVec2 pos, float width = kPanelWidth) {
+/// content up to `max_height`; false when collapsed (then only End()).
+bool beginPanel(const char* title, ImVec2 pos, float width = kPanelWidth,
+                float max_height = FLT_MAX) {
   ImGui::SetNextWindowPos(pos, ImGuiCond_FirstUseEver);
-  ImGui::SetNextWindowSizeConstraints(ImVec2(width, 0.0f), ImVec2(width, FLT_MAX));
+  ImGui::SetNextWindowSizeConstraints(ImVec2(width, 0.0f), ImVec2(width, max_height));
   return ImGui::Begin(title, nullptr, kPanel);
 }
 
@@ -138,14 +139,16 @@ void Console::modelsPanel(sync::SceneGraph& graph) {
 }
 
 void Console::toolsPanel(sync::SceneGraph& graph) {
-  if (beginPanel("Tools", ImVec2(8, float(mHeight) * 0.27f))) {
+  // At most down to where Layers begins (a long list of measurements scrolls with the wheel).
+  if (beginPanel("Tools", ImVec2(8, float(mHeight) * 0.27f), kPanelWidth,
+                 float(mHeight) * (0.64f - 0.27f) - 6.0f)) {
     ImGui::TextUnformatted("Measure (M)");
     using Mode = MeasureTool::Mode;
     for (Mode m : {Mode::kOff, Mode::kDistance, Mode::kPath, Mode::kAngle, Mode::kArea}) {
       if (m != Mode::kOff && m != Mode::kAngle) ImGui::SameLine();
       if (ImGui::RadioButton(MeasureTool::name(m), mTool.mode() == m) && mTool.mode() != m) {
         mTool.setMode(m);
-        if (m != Mode::kOff) mLassoing = mPlacingNote = false;
+        if (m != Mode::kOff) mLassoing = mPlacingNote = mSnapping = false;
         say(std::string("measuring: ") + MeasureTool::name(m));
       }
     }
@@ -155,13 +158,26 @@ void Console::toolsPanel(sync::SceneGraph& graph) {
       ImGui::SameLine();
       if (ImGui::SmallButton("drop last point")) (void)mTool.undoPoint();
     }
-    if (ImGui::Checkbox("Lasso (S): drag around a region", &mLassoing)) {
-      mLasso.clear();
-      if (mLassoing) {
-        mTool.setMode(Mode::kOff);
-        mPlacingNote = false;
-      }
+    if (bool on = mLassoing; ImGui::Checkbox("Lasso (S)", &on)) {
+      only(on ? Tool::kLasso : Tool::kNone);
       say(std::string("lasso ") + (mLassoing ? "on" : "off"));
+    }
+    if (ImGui::IsItemHovered()) ImGui::SetTooltip("drag around a region of the current model");
+    ImGui::SameLine();
+    if (bool on = mSnapping; ImGui::Checkbox("Snap (N)", &on)) {
+      only(on ? Tool::kSnap : Tool::kNone);
+      say(std::string("snap ") + (mSnapping ? "on" : "off"));
+    }
+    if (ImGui::IsItemHovered())
+      ImGui::SetTooltip("lazy snapping: a left drag over what to select, a right drag over what "
+                        "not to, then Enter");
+    if (mSnapping) {
+      ImGui::TextDisabled("left drag: select, right drag: not");
+      if (ImGui::SmallButton("select (Enter)")) snap(graph);
+      if (mSnaps && mSnaps->pending() > 0) {
+        ImGui::SameLine();
+        ImGui::TextUnformatted("selecting...");
+      }
     }
     // Everyone's measurements and selections (the console's, sites', the database's).
     std::vector<sync::SceneGraph::NodeId> gone;
@@ -264,9 +280,7 @@ void Console::notesPanel(sync::SceneGraph& graph) {
       ImGui::TextWrapped("Click on the model where the note goes.");
       if (ImGui::SmallButton("cancel")) mPlacingNote = false;
     } else if (!mNoteForm && ImGui::Button("Add note")) {
-      mPlacingNote = true;
-      mLassoing = false;
-      mTool.setMode(MeasureTool::Mode::kOff);
+      only(Tool::kPlaceNote);
       say("add note: click on the model where it goes");
     }
     if (mNoteForm) noteForm(graph);

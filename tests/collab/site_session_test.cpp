@@ -41,6 +41,7 @@ namespace {
 
 namespace fs = std::filesystem;
 using tessera::test::Process;
+using tessera::test::VirtualDisplay;
 const std::string kData = TESSERA_DATA_DIR;
 
 using tessera::test::cameraJson;
@@ -189,6 +190,30 @@ class SiteSession : public ::testing::Test {
                                                   *sDir / (key + ".key"), mRun / name,
                                                   mRun / (name + ".json"), extra);
     return std::make_unique<Process>(argv, mRun / (name + ".log"));
+  }
+
+  /// The master with its console (640 px wide, on a virtual display, its screenshot
+  /// console.png) and the wall's four nodes, once every tile has a node; `wid` is the console's
+  /// window, empty when it did not come up (the test has failed then).
+  struct ConsoleRun {
+    std::unique_ptr<VirtualDisplay> xdo;
+    std::unique_ptr<Process> master;
+    std::vector<std::unique_ptr<Process>> nodes;
+    std::string wid;
+  };
+  ConsoleRun startConsole(double seconds) {
+    ConsoleRun r;
+    r.xdo = std::make_unique<VirtualDisplay>(mRun / "xvfb.log");
+    r.master = startMaster(seconds, {"--console", "--console-width", "640",
+                                     "--console-screenshot", (mRun / "console.png").string()});
+    r.nodes = startNodes();
+    if (!r.master->waitFor("4 of 4 tiles have a node", 60)) {
+      ADD_FAILURE() << r.master->output();
+      return r;
+    }
+    r.wid = r.xdo->window("tessera-master");
+    EXPECT_FALSE(r.wid.empty()) << "no console window on " << r.xdo->name;
+    return r;
   }
 
   static tessera::test::TempDir* sDir;
@@ -526,7 +551,6 @@ TEST_F(SiteSession, StrangersPlaintextWrongKeysGarbageAndFloodsGetNothingAndTheW
 // user's mouse and keys would: a right-button drag over the bunny becomes a sketch placed on it,
 // the wheel moves the site's camera (and so its avatar), L leads the view, R gives it back, P
 // saves a picture, Esc leaves.
-using tessera::test::VirtualDisplay;
 
 TEST_F(SiteSession, AWindowDrivenByMouseAndKeys) {
   if (!VirtualDisplay::available())
@@ -581,13 +605,9 @@ TEST_F(SiteSession, AWindowDrivenByMouseAndKeys) {
 TEST_F(SiteSession, TheConsoleMeasuresAndLassos) {
   if (!VirtualDisplay::available())
     GTEST_SKIP() << "needs Xvfb and xdotool (scripts/deps.sh installs them)";
-  const VirtualDisplay xdo(mRun / "xvfb.log");
-  auto master = startMaster(300.0, {"--console", "--console-width", "640", "--console-screenshot",
-                                    (mRun / "console.png").string()});
-  auto nodes = startNodes();
-  ASSERT_TRUE(master->waitFor("4 of 4 tiles have a node", 60)) << master->output();
-  const std::string wid = xdo.window("tessera-master");
-  ASSERT_FALSE(wid.empty()) << "no console window on " << xdo.name;
+  auto [display, master, nodes, wid] = startConsole(300.0);
+  ASSERT_FALSE(wid.empty());
+  const VirtualDisplay& xdo = *display;
   xdo("key --window " + wid + " m");
   ASSERT_TRUE(master->waitFor("console: measuring: distance", 30)) << master->output();
   for (const char* at : {"290 225", "350 225"}) {
@@ -638,20 +658,57 @@ TEST_F(SiteSession, TheConsoleMeasuresAndLassos) {
   EXPECT_GE(line, 8) << "the measurement on the wall, " << mRun / "wall.png";
 }
 
+// Lazy snapping at the console (N): a left stroke over the bunny's body, a right stroke over its
+// ear, Enter; the master's worker cuts while the wall goes on, and every tile tints the body
+// and not the ear.
+TEST_F(SiteSession, TheConsoleSnapsWithTwoStrokes) {
+  if (!VirtualDisplay::available())
+    GTEST_SKIP() << "needs Xvfb and xdotool (scripts/deps.sh installs them)";
+  auto [display, master, nodes, wid] = startConsole(300.0);
+  ASSERT_FALSE(wid.empty());
+  const VirtualDisplay& xdo = *display;
+  xdo("key --window " + wid + " n");
+  ASSERT_TRUE(master->waitFor("console: snap on", 30)) << master->output();
+  xdo.drag(wid, 1, 350, 410, 215);  // the body
+  xdo.drag(wid, 3, 290, 330, 92);  // the ear: not a sketch now
+  std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  xdo("key --window " + wid + " Return");
+  ASSERT_TRUE(master->waitFor("console: snap: selecting on model \\d+ \\(lazy snapping\\)", 30))
+      << master->output();
+  ASSERT_TRUE(master->waitFor("console: snap on model \\d+: [1-9]\\d* elements selected", 120))
+      << master->output();
+  std::this_thread::sleep_for(std::chrono::milliseconds(500));  // a frame with the selection
+  master->signal(SIGTERM);
+  ASSERT_EQ(master->wait(60), std::optional<int>(0)) << master->output();
+  for (auto& n : nodes) EXPECT_EQ(n->wait(15), std::optional<int>(0)) << n->output();
+  EXPECT_EQ(master->output().find("sketch of"), std::string::npos)
+      << "the right stroke drew no sketch";
+  const tessera::render::Image wall = tessera::render::readPng((mRun / "wall.png").string());
+  const double scale = double(wall.width) / 640.0;
+  auto amber = [&](int x, int y) {
+    const uint8_t* p = &wall.rgba[(size_t(y * scale) * wall.width + size_t(x * scale)) * 4];
+    return p[0] > p[2] + 40 && p[1] > p[2] + 20;
+  };
+  int body = 0, ear = 0, samples_body = 0;
+  for (int y = 205; y <= 225; y += 5)
+    for (int x = 350; x <= 410; x += 5) body += amber(x, y), ++samples_body;
+  for (int y = 85; y <= 100; y += 5)
+    for (int x = 290; x <= 330; x += 5) ear += amber(x, y);
+  RecordProperty("body_tinted", std::to_string(body) + "/" + std::to_string(samples_body));
+  EXPECT_GE(body, samples_body * 3 / 4) << "the stroked body tinted, " << mRun / "wall.png";
+  EXPECT_EQ(ear, 0) << "the ear stroked out is not, " << mRun / "wall.png";
+}
+
 // The wall's own console takes part as a participant: it takes the lead from a site that led,
 // and a right-button drag on it draws a sketch on the model that every tile shows.
 TEST_F(SiteSession, TheConsoleLeadsAndDraws) {
   if (!VirtualDisplay::available())
     GTEST_SKIP() << "needs Xvfb and xdotool (scripts/deps.sh installs them)";
-  const VirtualDisplay xdo(mRun / "xvfb.log");
-  auto master = startMaster(40.0, {"--console", "--console-width", "640", "--console-screenshot",
-                                   (mRun / "console.png").string()});
-  auto nodes = startNodes();
-  ASSERT_TRUE(master->waitFor("4 of 4 tiles have a node", 60)) << master->output();
+  auto [display, master, nodes, wid] = startConsole(40.0);
+  ASSERT_FALSE(wid.empty());
+  const VirtualDisplay& xdo = *display;
   auto a = startSite("a", "A", R"({"actions": [{"frame": 2, "lead": true}]})", {"--no-render"});
   ASSERT_TRUE(master->waitFor("A leads the view", 60)) << master->output();
-  const std::string wid = xdo.window("tessera-master");
-  ASSERT_FALSE(wid.empty()) << "no console window on " << xdo.name;
   xdo("key --window " + wid + " l");
   ASSERT_TRUE(master->waitFor("console: leads the view", 30)) << master->output();
   // The console shows the whole wall at 640 px wide: the bunny is in the middle.

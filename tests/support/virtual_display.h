@@ -57,14 +57,17 @@ struct VirtualDisplay {
     return "";
   }
   /// A right-button drag along a row of the window, from x0 to x1 at y.
-  void rightDrag(const std::string& wid, int x0, int x1, int y) const {
+  void rightDrag(const std::string& wid, int x0, int x1, int y) const { drag(wid, 3, x0, x1, y); }
+  /// A horizontal drag with mouse `button` (1 left, 3 right) from x0 to x1 along row y.
+  void drag(const std::string& wid, int button, int x0, int x1, int y) const {
+    const std::string b = std::to_string(button);
     (*this)("mousemove --window " + wid + " " + std::to_string(x0) + " " + std::to_string(y) +
-            " mousedown 3");
+            " mousedown " + b);
     for (int x = x0 + 10; x <= x1; x += 10) {
       (*this)("mousemove --window " + wid + " " + std::to_string(x) + " " + std::to_string(y));
       std::this_thread::sleep_for(std::chrono::milliseconds(60));
     }
-    (*this)("mouseup 3");
+    (*this)("mouseup " + b);
   }
 
   std::string name;
