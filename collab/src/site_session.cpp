@@ -20,6 +20,7 @@
 #include <tessera/collab/voice_bridge.h>
 #include <tessera/collab/voice_wav.h>
 #include <tessera/core/file_checks.h>
+#include <tessera/master/console_notes.h>
 #include <tessera/master/measure_tool.h>
 #include <tessera/master/one_button_navigation.h>
 #include <tessera/master/surface_pick.h>
@@ -217,6 +218,13 @@ struct SiteSession::Impl {
   render::ViewSetup last_view;
   std::vector<float> drag;  // the right-button drag's pixels so far
   bool right_held = false;
+  // --window tools, as the master's console has them (keys M, S, N, O), sent as the script's
+  // actions are: measure (clicks), lasso (a left drag), snap (left stroke in, right stroke out).
+  enum class Tool { kNone, kMeasure, kLasso, kSnap } window_tool = Tool::kNone;
+  scene::MeasurementPayload::Type measure_type = scene::MeasurementPayload::DISTANCE;
+  std::vector<float> tool_px, snap_bg;  // x y pairs: the clicks, the lasso or the snap strokes
+  glm::dvec2 press_at{0.0};
+  bool snap_right = false;
   Clock::time_point last_input = Clock::now();
   // --audio-in / --audio-out (issue 14): its microphone and speaker, clocked from the welcome.
   std::unique_ptr<VoiceStation> station;
@@ -406,10 +414,18 @@ struct SiteSession::Impl {
         ring.color = {255, 255, 255, 230};
         o.points.push_back(ring);
       }
-      for (size_t i = 0; i + 3 < drag.size(); i += 2)  // the stroke being drawn, on top
-        o.rects.push_back({{drag[i] - 2.0f, drag[i + 1] - 2.0f},
-                           {drag[i] + 2.0f, drag[i + 1] + 2.0f},
-                           {255, 255, 255, 200}});
+      // The stroke being drawn, and the tools' clicks and strokes, on top.
+      auto marks = [&](const std::vector<float>& px, glm::u8vec4 color, float r) {
+        for (size_t i = 0; i + 1 < px.size(); i += 2)
+          o.rects.push_back({{px[i] - r, px[i + 1] - r}, {px[i] + r, px[i + 1] + r}, color});
+      };
+      marks(drag, {255, 255, 255, 200}, 2.0f);
+      marks(tool_px,
+            window_tool == Tool::kMeasure ? glm::u8vec4{90, 230, 255, 255}
+            : window_tool == Tool::kLasso ? glm::u8vec4{255, 190, 0, 230}
+                                   : glm::u8vec4{60, 230, 90, 230},
+            window_tool == Tool::kMeasure ? 4.0f : 1.5f);
+      marks(snap_bg, {240, 60, 60, 230}, 1.5f);
     }
     return o;
   }
@@ -841,9 +857,153 @@ struct SiteSession::Impl {
     return true;
   }
 
+  /// The --window tools' input (window_tool != kNone): clicks and drags become pixels of the
+  /// measurement, lasso or snap, sent as their script actions when complete.
+  void toolInput(render::WindowInput& in, const glm::dvec2& scale, const glm::dvec2& cursor,
+                 double now) {
+    auto record = [&](std::vector<float>& px, glm::dvec2 q) {
+      const size_t n = px.size();
+      if (n >= 2 && glm::length(q - glm::dvec2(px[n - 2], px[n - 1])) < 2.0) return;
+      if (n >= 2 * 2048) return;  // the most a selection request takes
+      px.push_back(float(q.x));
+      px.push_back(float(q.y));
+    };
+    if (window_tool == Tool::kMeasure) {
+      if (in.left_pressed) press_at = cursor;
+      if (in.left_released && glm::length(cursor - press_at) <= 4.0) {
+        record(tool_px, cursor);
+        const size_t n = tool_px.size() / 2;
+        if ((measure_type == scene::MeasurementPayload::DISTANCE && n == 2) ||
+            (measure_type == scene::MeasurementPayload::ANGLE && n == 3))
+          sendTool(now);
+      }
+    } else {
+      std::vector<float>& fg = tool_px;
+      if (in.left_pressed) fg.clear();
+      if (in.left || in.left_pressed || in.left_released) {
+        for (const glm::dvec2& q : in.path) record(fg, q * scale);
+        record(fg, cursor);
+      }
+      if (window_tool == Tool::kLasso && in.left_released) sendTool(now);
+      if (window_tool == Tool::kSnap) {  // the right button strokes what not to select
+        if (in.right && !snap_right) snap_bg.clear();
+        if (in.right) record(snap_bg, cursor);
+        snap_right = in.right;
+        in.right = false;
+      }
+    }
+    in.left = in.left_pressed = in.left_released = false;  // no navigation meanwhile
+  }
+
+  /// The MODEL node under pixel `px` of the last frame (its pick ids), else the first one.
+  std::string modelNameAt(float x, float y) {
+    if (renderer && x >= 0 && y >= 0 && x < float(script.width()) && y < float(script.height()))
+      if (const auto hit = renderer->pick(uint32_t(x), uint32_t(y))) {
+        const std::vector<uint32_t>& nodes = models.instanceNodes();
+        if (hit->model < nodes.size() && graph.contains(nodes[hit->model]))
+          return graph.node(nodes[hit->model]).name();
+      }
+    return {};
+  }
+
+  /// Sends what the current tool has (Enter, or a measurement's last click, or the lasso's
+  /// release) as its script action, then starts over.
+  void sendTool(double now) {
+    site::SiteAction a;
+    if (window_tool == Tool::kMeasure) {
+      a.mutable_measure()->set_type(measure_type);
+      for (float v : tool_px) a.mutable_measure()->add_pixels(v);
+    } else if (window_tool == Tool::kLasso) {
+      if (tool_px.size() < 6) return tool_px.clear();
+      a.mutable_lasso()->set_model(modelNameAt(tool_px[0], tool_px[1]));
+      for (float v : tool_px) a.mutable_lasso()->add_pixels(v);
+    } else if (window_tool == Tool::kSnap) {
+      if (tool_px.empty()) return say("snap: first stroke what to select (left drag)");
+      site::SnapAction& sn = *a.mutable_snap();
+      sn.set_model(modelNameAt(tool_px[0], tool_px[1]));
+      for (float v : tool_px) sn.add_foreground(v);
+      for (float v : snap_bg) sn.add_background(v);
+      if (snap_bg.empty()) sn.set_heavy_width(16.0f);  // one stroke around: the robust lasso
+    } else {
+      return;
+    }
+    tool_px.clear();
+    snap_bg.clear();
+    act(a, now);
+  }
+
+  /// A tool key (M, S, N, O, Enter, Backspace). True when it was one.
+  bool toolKey(int key, const glm::dvec2& cursor, double now) {
+    using T = scene::MeasurementPayload;
+    auto use = [&](Tool t, const std::string& said) {
+      window_tool = t;
+      tool_px.clear();
+      snap_bg.clear();
+      say(said);
+    };
+    switch (key) {
+      case 77:  // M: distance, path, angle, area, off
+        if (window_tool != Tool::kMeasure) {
+          measure_type = T::DISTANCE;
+        } else if (measure_type == T::AREA) {
+          use(Tool::kNone, "measuring off");
+          return true;
+        } else {
+          measure_type = measure_type == T::DISTANCE ? T::POLYLINE
+                         : measure_type == T::POLYLINE ? T::ANGLE
+                                                       : T::AREA;
+        }
+        use(Tool::kMeasure, "measuring: " + T::Type_Name(measure_type) +
+                                " (clicks; Enter ends a path or an area)");
+        return true;
+      case 83:  // S
+        use(window_tool == Tool::kLasso ? Tool::kNone : Tool::kLasso,
+            window_tool == Tool::kLasso ? "lasso off" : "lasso on (drag around a region)");
+        return true;
+      case 78:  // N
+        use(window_tool == Tool::kSnap ? Tool::kNone : Tool::kSnap,
+            window_tool == Tool::kSnap ? "snap off"
+                                : "snap on (left drag: what to select, right drag: what not "
+                                  "to; Enter)");
+        return true;
+      case 257:  // Enter, keypad Enter
+      case 335:
+        sendTool(now);
+        return true;
+      case 259:  // Backspace: the last click, or the strokes
+        if (window_tool == Tool::kMeasure && tool_px.size() >= 2) {
+          tool_px.resize(tool_px.size() - 2);
+        } else {
+          tool_px.clear();
+          snap_bg.clear();
+        }
+        return true;
+      case 79: {  // O: open or close the note nearest the cursor
+        const auto node = master::noteNear(graph, last_view, cursor, 24.0);
+        if (!node) {
+          say("no note within 24 px of the cursor");
+          return true;
+        }
+        const scene::AnnotationPayload& n = graph.node(*node).annotation();
+        if (n.place() == 0) {
+          say("that note is not in the database: it cannot be opened");
+          return true;
+        }
+        site::SiteAction a;
+        site::PlaceOpen& open = *a.mutable_note()->mutable_note()->mutable_open();
+        open.set_place(n.place());
+        open.set_open(!n.open());
+        act(a, now);
+        return true;
+      }
+      default:
+        return false;
+    }
+  }
+
   /// --window: the user's input since the last frame. False when the window closes.
   bool interact(double now) {
-    const render::WindowInput in = window->poll();
+    render::WindowInput in = window->poll();
     if (window->closing()) return false;
     const auto t = Clock::now();
     const double dt = std::chrono::duration<double>(t - last_input).count();
@@ -857,6 +1017,10 @@ struct SiteSession::Impl {
     p.released = in.left_released;
     p.scroll = in.scroll;
     p.size = glm::dvec2(script.width(), script.height());
+    if (window_tool != Tool::kNone) {
+      toolInput(in, scale, p.cursor, now);
+      p.down = p.pressed = p.released = false;
+    }
     if (p.pressed || p.down || p.released || p.scroll != 0 || navigation.flying()) {
       if (following && (p.pressed || p.scroll != 0)) {
         following = false;  // taking control back
@@ -898,6 +1062,7 @@ struct SiteSession::Impl {
     right_held = in.right;
     // Keys (GLFW codes): L lead, R release, F follow, U undo, C clear, P screenshot.
     for (int key : in.keys) {
+      if (toolKey(key, p.cursor, now)) continue;
       site::SiteAction a;
       switch (key) {
         case 76:
@@ -930,7 +1095,7 @@ struct SiteSession::Impl {
                           ? " | following " + (leader.empty() ? std::string("the wall") : leader)
                           : "") +
                      " | left: navigate, right: draw; L lead, R release, F follow, U undo, C "
-                     "clear, P picture, Esc quit");
+                     "clear, M measure, S lasso, N snap, O open note, P picture, Esc quit");
     return true;
   }
 

@@ -749,6 +749,87 @@ int whitePixels(const tessera::render::Image& img, int x0, int y0, int x1, int y
 // acknowledged only once committed, shown on every tile where it was placed (opened, with its
 // text), and two sites editing one item resolve by revision; the database outlives a master
 // killed with SIGKILL right after an acknowledgement, and the next session starts from it.
+// The same person's tools, as at the wall's console: O by a note opens it on the wall, M and
+// two clicks measure a distance, S and a drag lasso the bunny's middle; each reaches the master
+// as the script's actions do, and the database keeps what it should.
+TEST_F(SiteSession, AWindowedSiteOpensANoteMeasuresAndLassos) {
+  if (!VirtualDisplay::available())
+    GTEST_SKIP() << "needs Xvfb and xdotool (scripts/deps.sh installs them)";
+  const VirtualDisplay xdo(mRun / "xvfb.log");
+  const fs::path db = mRun / "notes.tadb";
+  // A note by the middle of the site's window (where the view looks), off the wall's mullions.
+  const glm::dvec3 note = kTarget + glm::dvec3(0.012, 0.008, 0.07);  // in front of the body
+  {
+    tessera::master::AnnotationDb notes(db);
+    tessera::master::Place place;
+    place.model = "bunny";
+    place.position = note;
+    tessera::master::Item item;
+    item.layer = "survey";
+    item.title = "middle";
+    item.text = "the body's centre";
+    notes.attach(notes.addItem(item, "archive"), notes.addPlace(place));
+  }
+  auto master = startMaster(300.0, {"--annotations", db.string()});
+  auto nodes = startNodes();
+  ASSERT_TRUE(master->waitFor("4 of 4 tiles have a node", 60)) << master->output();
+  write(mRun / "W.json", "{}");
+  fs::create_directories(mRun / "W");
+  auto site = std::make_unique<Process>(
+      std::vector<std::string>{TESSERA_SITE, "--master", mSites, "--master-key", sKeys["master"],
+                               "--name", "W", "--key", (*sDir / "a.key").string(), "--window",
+                               "--size", "480x320", "-o", (mRun / "W").string()},
+      mRun / "W.log");
+  ASSERT_TRUE(site->waitFor("joined as participant", 60)) << site->output();
+  const std::string wid = xdo.window("tessera-site");
+  ASSERT_FALSE(wid.empty()) << "no tessera-site window on " << xdo.name;
+  std::this_thread::sleep_for(std::chrono::seconds(2));  // its first frames
+  xdo("mousemove --window " + wid + " 242 158 key --window " + wid + " o");
+  ASSERT_TRUE(site->waitFor("note 1 committed", 60)) << site->output();
+  xdo("key --window " + wid + " m");
+  ASSERT_TRUE(site->waitFor("measuring: DISTANCE", 30)) << site->output();
+  // The bunny is about 90 px wide in the site's view.
+  for (const char* at : {"228 160", "254 160"}) {
+    xdo(std::string("mousemove --window ") + wid + " " + at + " click 1");
+    std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  }
+  ASSERT_TRUE(site->waitFor("measurement 1 sent: [0-9.]+ (mm|cm) ± ", 60)) << site->output();
+  xdo("key --window " + wid + " s");
+  ASSERT_TRUE(site->waitFor("lasso on", 30)) << site->output();
+  xdo("mousemove --window " + wid + " 230 150 mousedown 1");
+  for (const char* at : {"252 150", "252 172", "230 172", "230 152"}) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(80));
+    xdo(std::string("mousemove --window ") + wid + " " + at);
+  }
+  std::this_thread::sleep_for(std::chrono::milliseconds(80));
+  xdo("mouseup 1");
+  ASSERT_TRUE(master->waitFor("W: lasso on model \\d+: [1-9]\\d* elements selected", 60))
+      << master->output() << site->output();
+  xdo("key --window " + wid + " Escape");
+  EXPECT_EQ(site->wait(30), std::optional<int>(0)) << site->output();
+  std::this_thread::sleep_for(std::chrono::milliseconds(500));  // a frame: stored
+  master->signal(SIGTERM);
+  ASSERT_EQ(master->wait(60), std::optional<int>(0)) << master->output();
+  for (auto& n : nodes) EXPECT_EQ(n->wait(15), std::optional<int>(0)) << n->output();
+  EXPECT_EQ(site->output().find("stroke 1"), std::string::npos) << "no sketch was drawn";
+
+  tessera::master::AnnotationDb notes(db, {.read_only = true});
+  const auto hits = notes.search("distance");
+  ASSERT_EQ(hits.size(), 1u);
+  EXPECT_EQ(notes.item(hits[0].item)->author, "W");
+  int selections = 0;
+  for (const auto& p : notes.places()) selections += p.selection_id == tessera::master::kSelectionBlob;
+  EXPECT_EQ(selections, 1);
+  // The opened note lists its item on the wall: its text, right of its title.
+  const auto wall = tessera::sync::loadWallConfig(*sDir / "wall.json");
+  const tessera::render::Image shot = tessera::render::readPng((mRun / "wall.png").string());
+  const auto at = onWall(wall, wallCamera(), note);
+  ASSERT_TRUE(at);
+  EXPECT_GE(whitePixels(shot, int(at->x) + 60, int(at->y) - 30, int(at->x) + 200, int(at->y) - 4),
+            40)
+      << "the open note's text, " << mRun / "wall.png";
+}
+
 TEST_F(SiteSession, NotesAreCommittedShownOnTheWallAndSurviveAKilledMaster) {
   const fs::path db = mRun / "notes.tadb";
   auto master = startMaster(300.0, {"--annotations", db.string()});
