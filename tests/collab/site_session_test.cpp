@@ -216,6 +216,16 @@ class SiteSession : public ::testing::Test {
     return r;
   }
 
+  /// Site "W" with a 480x320 window (key a), on the display of the test's VirtualDisplay.
+  std::unique_ptr<Process> startWindowSite() {
+    fs::create_directories(mRun / "W");
+    return std::make_unique<Process>(
+        std::vector<std::string>{TESSERA_SITE, "--master", mSites, "--master-key", sKeys["master"],
+                                 "--name", "W", "--key", (*sDir / "a.key").string(), "--window",
+                                 "--size", "480x320", "-o", (mRun / "W").string()},
+        mRun / "W.log");
+  }
+
   static tessera::test::TempDir* sDir;
   static std::map<std::string, std::string> sKeys;  // public keys by name
   fs::path mRun;
@@ -559,13 +569,7 @@ TEST_F(SiteSession, AWindowDrivenByMouseAndKeys) {
   auto master = startMaster(40.0);
   auto nodes = startNodes();
   ASSERT_TRUE(master->waitFor("4 of 4 tiles have a node", 60)) << master->output();
-  write(mRun / "W.json", "{}");
-  fs::create_directories(mRun / "W");
-  auto site = std::make_unique<Process>(
-      std::vector<std::string>{TESSERA_SITE, "--master", mSites, "--master-key", sKeys["master"],
-                               "--name", "W", "--key", (*sDir / "a.key").string(), "--window",
-                               "--size", "480x320", "-o", (mRun / "W").string()},
-      mRun / "W.log");
+  auto site = startWindowSite();
   ASSERT_TRUE(site->waitFor("joined as participant", 60)) << site->output();
   const std::string wid = xdo.window("tessera-site");
   ASSERT_FALSE(wid.empty()) << "no tessera-site window on " << xdo.name;
@@ -773,13 +777,7 @@ TEST_F(SiteSession, AWindowedSiteOpensANoteMeasuresAndLassos) {
   auto master = startMaster(300.0, {"--annotations", db.string()});
   auto nodes = startNodes();
   ASSERT_TRUE(master->waitFor("4 of 4 tiles have a node", 60)) << master->output();
-  write(mRun / "W.json", "{}");
-  fs::create_directories(mRun / "W");
-  auto site = std::make_unique<Process>(
-      std::vector<std::string>{TESSERA_SITE, "--master", mSites, "--master-key", sKeys["master"],
-                               "--name", "W", "--key", (*sDir / "a.key").string(), "--window",
-                               "--size", "480x320", "-o", (mRun / "W").string()},
-      mRun / "W.log");
+  auto site = startWindowSite();
   ASSERT_TRUE(site->waitFor("joined as participant", 60)) << site->output();
   const std::string wid = xdo.window("tessera-site");
   ASSERT_FALSE(wid.empty()) << "no tessera-site window on " << xdo.name;
