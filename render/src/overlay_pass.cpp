@@ -83,6 +83,7 @@ struct OverlayPass::Impl {
   std::vector<OverlayVertex> vertices;
   std::vector<Run> runs;
   std::vector<glm::vec4> anchors;  // labels' (overlay.vert)
+  std::vector<glm::vec4> placed;   // labels' boxes so far this run, pixels (min x, y, max x, y)
   uint32_t flags = 0;              // or-ed into every vertex's mode: depth test, anchor
   glm::dmat4 clip_from_world{1.0};
   glm::dvec3 eye{0.0};
@@ -153,6 +154,9 @@ struct OverlayPass::Impl {
 
   void addLine(const OverlayLine& l);
   void addLabel(const OverlayLabel& l, const FrameTarget& target, const glm::dmat4& projection);
+  /// `l` moved (its offset and alignment) to where its box meets no label placed before it
+  /// this run, its anchor at pixel `at`; the box is then taken.
+  OverlayLabel place(const OverlayLabel& l, glm::vec2 at);
   /// The label's box; with an anchor, its background and glyphs drawn there, their modes or-ed
   /// with `anchored`.
   glm::vec2 layout(const OverlayLabel& l, const glm::dvec4* anchor, uint32_t anchored = 0);
@@ -285,7 +289,46 @@ void OverlayPass::Impl::addLabel(const OverlayLabel& l, const FrameTarget& targe
       if (perspective ? anchor > 1.02 * std::abs(stored) : anchor > stored + 0.02) return;
     }
   }
-  layout(l, &a, anchored);
+  layout(place(l, glm::vec2(float(x), float(y))), &a, anchored);
+}
+
+OverlayLabel OverlayPass::Impl::place(const OverlayLabel& l, glm::vec2 at) {
+  // Labels make room for each other: the first place of these whose box meets no box placed
+  // before it this run: as asked, mirrored left-right, up-down, both, then as asked and moved
+  // up by one to three box heights (a stack); else as asked. Earlier labels keep their place.
+  const glm::vec2 box = layout(l, nullptr);
+  const glm::vec2 align = glm::clamp(l.align, glm::vec2(0.0f), glm::vec2(1.0f));
+  auto rect = [&](glm::vec2 offset, glm::vec2 al) {
+    const glm::vec2 lo = at + offset - al * box;
+    return glm::vec4(lo, lo + box);
+  };
+  auto free = [&](const glm::vec4& r) {
+    for (const glm::vec4& q : placed)
+      if (r.x < q.z && q.x < r.z && r.y < q.w && q.y < r.w) return false;
+    return true;
+  };
+  OverlayLabel out = l;
+  const glm::vec2 o = l.offset_px;
+  const std::array<std::pair<glm::vec2, glm::vec2>, 7> tries = {{
+      {o, align},
+      {{-o.x, o.y}, {1.0f - align.x, align.y}},
+      {{o.x, -o.y}, {align.x, 1.0f - align.y}},
+      {-o, glm::vec2(1.0f) - align},
+      {o - glm::vec2(0.0f, box.y + 2.0f), align},
+      {o - glm::vec2(0.0f, 2.0f * (box.y + 2.0f)), align},
+      {o - glm::vec2(0.0f, 3.0f * (box.y + 2.0f)), align},
+  }};
+  glm::vec4 chosen = rect(o, align);
+  for (const auto& [offset, al] : tries) {
+    const glm::vec4 r = rect(offset, al);
+    if (!free(r)) continue;
+    out.offset_px = offset;
+    out.align = al;
+    chosen = r;
+    break;
+  }
+  placed.push_back(chosen);
+  return out;
 }
 
 OverlayPass::OverlayPass() : mImpl(std::make_unique<Impl>()) {
@@ -320,6 +363,7 @@ double OverlayPass::run(FrameTarget& target, const ViewSetup& view, const Overla
   s.vertices.clear();
   s.runs.clear();
   s.anchors.clear();
+  s.placed.clear();
   s.clip_from_world = view.projection * view.view;
   s.eye = view.eye_world;
   s.size = glm::dvec2(target.width(), target.height());

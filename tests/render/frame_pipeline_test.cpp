@@ -405,4 +405,58 @@ TEST_F(FramePipelineTest, ALabelIsHiddenWholeByItsAnchorAndTakesLineBreaks) {
   EXPECT_GT(double(two), 1.5 * double(front)) << "the second line's box drawn too";
 }
 
+// Labels make room for each other: three at one anchor (two notes and a measurement at one
+// spot) are all drawn whole, none over another, and the first keeps the place it asked for.
+TEST_F(FramePipelineTest, LabelsAtOneSpotDoNotCoverEachOther) {
+  auto s = lod::PointStore::open(*sDir / "b.tlod");
+  glm::dvec3 c;
+  const ViewSetup v = frontView(*s, 0.4, 320, 240, &c);
+  ViewRenderer r(v.width, v.height);
+  const ModelInstance inst{s.get(), storeModel(*s)};
+  (void)r.renderSettled({&inst, 1}, v, RenderOptions{});
+  const glm::dvec3 toward = glm::normalize(glm::dvec3(glm::inverse(v.view)[3]) - c);
+  const glm::dvec3 at = c + 0.05 * toward;  // in front of the bunny: never hidden
+  const std::array<glm::u8vec4, 3> colors = {
+      glm::u8vec4{255, 0, 255, 255}, glm::u8vec4{0, 255, 255, 255}, glm::u8vec4{255, 255, 0, 255}};
+  Overlay overlay;
+  for (const glm::u8vec4& color : colors) {
+    OverlayLabel label;
+    label.at = at;
+    label.text = "crack A";
+    label.color = {0, 0, 0, 0};  // no glyphs: the boxes alone
+    label.background = color;
+    overlay.labels.push_back(label);
+  }
+  const glm::vec2 box = OverlayPass().measure(overlay.labels[0]);
+  const Image img = r.render({&inst, 1}, v, RenderOptions{}, nullptr, &overlay);
+  std::array<size_t, 3> seen{};
+  glm::dvec2 first_lo(1e9), first_hi(-1e9);
+  for (uint32_t y = 0; y < v.height; ++y)
+    for (uint32_t x = 0; x < v.width; ++x) {
+      const uint8_t* p = pixel(img, x, y);
+      for (size_t k = 0; k < colors.size(); ++k)
+        if (std::abs(p[0] - colors[k].r) < 8 && std::abs(p[1] - colors[k].g) < 8 &&
+            std::abs(p[2] - colors[k].b) < 8) {
+          ++seen[k];
+          if (k == 0) {
+            first_lo = glm::min(first_lo, glm::dvec2(x, y));
+            first_hi = glm::max(first_hi, glm::dvec2(x, y));
+          }
+        }
+    }
+  const double area = double(box.x) * double(box.y);
+  for (size_t k = 0; k < colors.size(); ++k) {
+    SCOPED_TRACE("label " + std::to_string(k));
+    EXPECT_GT(double(seen[k]), 0.9 * area) << "drawn whole";
+    EXPECT_LT(double(seen[k]), 1.1 * area) << "one box";
+  }
+  // The first as asked: its box's top-left corner at the offset from the anchor.
+  const glm::dvec4 clip = v.projection * v.view * glm::dvec4(at, 1.0);
+  const glm::dvec2 px((clip.x / clip.w * 0.5 + 0.5) * v.width, (0.5 - clip.y / clip.w * 0.5) * v.height);
+  const OverlayLabel defaults;
+  EXPECT_NEAR(first_lo.x, px.x + defaults.offset_px.x, 1.5);
+  EXPECT_NEAR(first_lo.y, px.y + defaults.offset_px.y, 1.5);
+  EXPECT_NEAR(first_hi.x - first_lo.x + 1.0, box.x, 1.5);
+}
+
 }  // namespace tessera::render

@@ -47,7 +47,9 @@ struct OverlayPoint {
 /// box's bottom centre at the offset: text centred above its anchor), `height_px` tall, over a
 /// `background` box (alpha 0: none). UTF-8; glyphs the font lacks show as '?'. Hidden when its
 /// anchor is (the scene nearer than it by over 2% at the anchor's pixel: one depth value read
-/// back per label), else drawn whole over the scene.
+/// back per label), else drawn whole over the scene. Labels make room for each other: one whose
+/// box would meet an earlier label's is mirrored to another side of its anchor, or stacked above
+/// (overlay_pass.cpp place()); earlier labels keep their place.
 /// A picture in a label's box, under its text (an open note's image items): RGBA8 pixels, top
 /// row first, shown `size_px` large. The pass keeps a texture per `key` while labels use it, so
 /// the same key must always mean the same pixels (scene_overlay.cpp hashes them).
