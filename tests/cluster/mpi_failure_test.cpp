@@ -1,7 +1,8 @@
 // The MPI job's failures as a user meets them: real mpirun jobs (master + 2 headless nodes on a
 // small 1x2 wall, loopback), one rank made to fail in turn. Whichever rank it is, the master must
 // name it (tile, host, pid) and the job must end with the one exit code the README documents for
-// that kind of failure: 4 a node hung, 1 a node failed, 17 the master hung.
+// that kind of failure: 4 a node hung, 1 a node failed, 17 the master hung, mpirun's 137 a node
+// killed by SIGKILL.
 //
 // Processes are stopped and killed by PID only: mpirun is the test's child, and a rank is only
 // signalled after checking it descends from that mpirun. Every wait is bounded; ctest's TIMEOUT
@@ -259,6 +260,31 @@ TEST_F(MpiFailure, AFailedNodeEndsEveryRankWithTheMastersCodeWhicheverRankFails)
          it != std::sregex_iterator(); ++it)
       codes.insert((*it)[1]);
     EXPECT_TRUE(codes.empty() || codes == std::set<std::string>{"1"}) << out;
+  }
+}
+
+TEST_F(MpiFailure, AKilledNodeEndsTheJobWithMpirunsCodeNamingItsRank) {
+  // kill -9 of a node: mpirun notices, names the rank and the signal and exits 128 + 9, for the
+  // first rank as for the second; the master's join lines map the rank to its tile.
+  for (const std::string killed_tile : {"left", "right"}) {
+    SCOPED_TRACE("killed: tile " + killed_tile);
+    auto mpirun = job({node(), node()}, "killed-" + killed_tile + ".log");
+    ASSERT_TRUE(mpirun->waitFor("mpi transport; 2 of 2 tiles have a node", kJobEndS))
+        << mpirun->output();
+    const std::vector<Joined> joined = joins(mpirun->output());
+    const Joined* killed = nullptr;
+    for (const Joined& j : joined)
+      if (j.tile == killed_tile) killed = &j;
+    ASSERT_TRUE(killed) << mpirun->output();
+    ASSERT_TRUE(descendsFrom(killed->pid, mpirun->pid())) << "pid " << killed->pid;
+    ASSERT_EQ(commandName(killed->pid), "tessera-node");
+    kill(killed->pid, SIGKILL);
+    const std::optional<int> code = mpirun->wait(kJobEndS);
+    ASSERT_TRUE(code.has_value()) << "the job did not end:\n" << mpirun->output();
+    const std::string out = mpirun->output();
+    EXPECT_EQ(*code, 128 + SIGKILL) << out;
+    EXPECT_NE(out.find("process rank " + std::to_string(killed->rank)), std::string::npos) << out;
+    EXPECT_NE(out.find("exited on signal 9"), std::string::npos) << out;
   }
 }
 
