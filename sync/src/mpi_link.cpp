@@ -54,6 +54,24 @@ void MpiMasterLink::abortHung(const std::vector<int>& ranks, const std::string& 
   mMpi.abort(kExitRankHung, why);
 }
 
+std::vector<std::string> MpiMasterLink::receiveFromEveryNode(const char* what,
+                                                             const char* missing) {
+  const std::vector<int> ranks = nodeRanks();
+  std::vector<std::optional<std::string>> got =
+      mMpi.receiveEach(ranks, kTagFromNode, mMpi.timeout(), what);
+  std::vector<int> late;
+  for (size_t i = 0; i < ranks.size(); ++i)
+    if (!got[i]) late.push_back(ranks[i]);
+  if (!late.empty()) abortHung(late, missing);
+  std::vector<std::string> out;
+  for (std::optional<std::string>& bytes : got) {
+    mCounters.bytes_received += bytes->size();
+    mCounters.messages_received += 1;
+    out.push_back(std::move(*bytes));
+  }
+  return out;
+}
+
 LinkEvents MpiMasterLink::poll(LinkClock::time_point deadline) {
   LinkEvents events;
   if (mJoined) {  // nothing comes between the frames: wait as asked, without spinning a core
@@ -67,20 +85,12 @@ LinkEvents MpiMasterLink::poll(LinkClock::time_point deadline) {
   std::snprintf(timeout, sizeof timeout, "%.17g", mMpi.timeout());
   const auto timeout_bytes = std::make_shared<const std::string>(timeout);
   for (int r : nodeRanks()) mMpi.post(r, kTagTimeout, timeout_bytes, "the master's timeout");
-  const std::vector<int> ranks = nodeRanks();
-  const std::vector<std::optional<std::string>> hellos =
-      mMpi.receiveEach(ranks, kTagFromNode, mMpi.timeout(), "every node's join");
-  std::vector<int> missing;
-  for (size_t i = 0; i < ranks.size(); ++i)
-    if (!hellos[i]) missing.push_back(ranks[i]);
-  if (!missing.empty()) abortHung(missing, "no join");
-  for (size_t i = 0; i < ranks.size(); ++i) {
-    const PeerId peer = PeerId(ranks[i]);
-    mCounters.bytes_received += hellos[i]->size();
-    mCounters.messages_received += 1;
+  const std::vector<std::string> hellos = receiveFromEveryNode("every node's join", "no join");
+  for (size_t i = 0; i < hellos.size(); ++i) {
+    const PeerId peer = PeerId(i + 1);
     cluster::FromNode f;
     std::string why;
-    if (!parseFromNode(*hellos[i], f, why) || !f.has_hello()) {
+    if (!parseFromNode(hellos[i], f, why) || !f.has_hello()) {
       if (why.empty()) why = "the first message was not a join";
       events.faults.emplace_back(peer, why);
       refuse(peer, why);
@@ -135,20 +145,12 @@ void MpiMasterLink::publish(const cluster::FrameMessage& frame) {
 LinkEvents MpiMasterLink::collect(uint64_t, const std::set<PeerId>&, LinkClock::duration,
                                   LinkClock::time_point) {
   LinkEvents events;
-  const std::vector<int> ranks = nodeRanks();
-  const std::vector<std::optional<std::string>> parts =
-      mMpi.receiveEach(ranks, kTagFromNode, mMpi.timeout(), "every node's report");
-  std::vector<int> missing;
-  for (size_t i = 0; i < ranks.size(); ++i)
-    if (!parts[i]) missing.push_back(ranks[i]);
-  if (!missing.empty()) abortHung(missing, "no report");
-  for (size_t i = 0; i < ranks.size(); ++i) {
-    const PeerId peer = PeerId(ranks[i]);
-    mCounters.bytes_received += parts[i]->size();
-    mCounters.messages_received += 1;
+  const std::vector<std::string> parts = receiveFromEveryNode("every node's report", "no report");
+  for (size_t i = 0; i < parts.size(); ++i) {
+    const PeerId peer = PeerId(i + 1);
     cluster::FromNode f;
     std::string why;
-    if (!parseFromNode(*parts[i], f, why) || !f.has_report()) {
+    if (!parseFromNode(parts[i], f, why) || !f.has_report()) {
       events.faults.emplace_back(peer, why.empty() ? "expected a report" : why);
       continue;
     }

@@ -69,6 +69,9 @@ class MpiMasterLink final : public MasterLink {
   void sendEach(const cluster::ToNode& message, const char* what);
   void send(PeerId peer, const cluster::ToNode& message, const char* what);
   std::vector<int> nodeRanks() const;
+  /// The next FromNode of every node rank (index r - 1), waiting up to the transport's timeout;
+  /// ranks that sent nothing are named with "hung: `missing` within T s" and end the job.
+  std::vector<std::string> receiveFromEveryNode(const char* what, const char* missing);
   /// "tile right (host vm, pid 4242, rank 2)", or what is known of it.
   std::string describe(int rank) const;
   /// Names each of `ranks` with "hung: `what` within T s" and aborts the job (kExitRankHung).
