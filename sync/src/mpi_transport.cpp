@@ -55,8 +55,9 @@ struct MpiTransport::Send {
   MPI_Request request = MPI_REQUEST_NULL;
 };
 
+// Held by unique_ptr from MPI_Imrecv to its end: the string MPI writes into never moves.
 struct MpiTransport::Buffer {
-  std::vector<char> bytes;
+  std::string bytes;
   MPI_Request request = MPI_REQUEST_NULL;
 };
 
@@ -172,7 +173,7 @@ std::vector<std::optional<std::string>> MpiTransport::receiveEach(const std::vec
       int done = 0;
       check(MPI_Test(&incoming[i]->request, &done, MPI_STATUS_IGNORE), "receiving", what);
       if (!done) continue;
-      out[i].emplace(incoming[i]->bytes.begin(), incoming[i]->bytes.end());
+      out[i] = std::move(incoming[i]->bytes);
       incoming[i].reset();
       --left;
     }
