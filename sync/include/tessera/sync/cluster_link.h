@@ -90,8 +90,8 @@ class MasterLink {
 
   /// Waits until `deadline` for anything from the nodes (joins first of all), returning early
   /// once something arrived. MPI: the first call waits for every rank's Hello (up to the
-  /// transport's timeout, then ends the job naming the missing ranks); later calls return
-  /// nothing.
+  /// transport's timeout, then ends the job naming the missing ranks); later calls wait until
+  /// `deadline` and return nothing.
   virtual LinkEvents poll(LinkClock::time_point deadline) = 0;
 
   /// Answers a join. welcome: the peer is a member from now on and gets every publish() and
