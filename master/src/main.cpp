@@ -142,7 +142,8 @@ int run(int argc, char** argv) {
       ->check(cli::finiteRange(0.01, 1e5))
       ->capture_default_str();
   app.add_option("--timeout", timeout_s,
-                 "mpi: seconds any rank may keep the others waiting before the job is aborted")
+                 "mpi: seconds a node rank may keep the master waiting (to join, report or take "
+                 "a message) before the job is aborted, naming it (exit 4)")
       ->check(cli::finiteRange(0.1, 86400.0))
       ->capture_default_str();
 

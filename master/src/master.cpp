@@ -186,7 +186,12 @@ void Master::handleJoins(const sync::LinkEvents& events) {
       const uint32_t tile = std::get<uint32_t>(claim);
       mTiles->assign(tile, peer, hello, mGraph.frameNumber());
       mLink.welcome(peer, setupFor(tile));
+      // Which process drives which tile: what a hung or failed node is named by later.
+      std::printf(
+          "%s\n",
+          message(mTiles->describe(tile) + " joined (rank " + std::to_string(peer) + ")").c_str());
     }
+    std::fflush(stdout);
     return;
   }
   for (const auto& [peer, hello] : events.joins) {

@@ -44,7 +44,8 @@ int run(int argc, char** argv) {
       ->check(cli::finiteRange(1.0, 86400.0))
       ->capture_default_str();
   app.add_option("--timeout", timeout_s,
-                 "MPI: seconds to wait for the master at any step before aborting the job")
+                 "MPI: seconds to wait for the master's first message before aborting the job "
+                 "(exit 17); after it, twice the larger of this and the master's --timeout")
       ->check(cli::finiteRange(0.1, 86400.0))
       ->capture_default_str();
 
@@ -90,7 +91,10 @@ int run(int argc, char** argv) {
                "tcp://HOST:PORT for ZeroMQ");
   }
   sync::MpiNodeLink link(*mpi);
-  return render_node::RenderNode(link, o).run();
+  const int own = render_node::RenderNode(link, o).run();
+  // One MPI job, one exit code: every rank exits with the master's (its quit), so mpirun's code
+  // does not depend on which rank ends first. This node's own failure is in the master's message.
+  return link.quitCode().value_or(own);
 }
 
 }  // namespace

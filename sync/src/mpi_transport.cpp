@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <climits>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -18,7 +19,47 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
+/// A wait's time limit that does not count time this process did not run: a rank stopped
+/// (SIGSTOP, a debugger) and continued must not blame the others for its own pause.
+class Budget {
+ public:
+  explicit Budget(double timeout_s) : mTimeoutS(timeout_s) {}
+
+  /// Written so that a NaN timeout ends the wait, never waits forever.
+  bool expired() {
+    const auto now = Clock::now();
+    const double gap_s = std::chrono::duration<double>(now - mLast).count();
+    if (gap_s > kPauseS) mPausedS += gap_s;  // polls are 0.2 ms apart: this process was stopped
+    mLast = now;
+    return !(std::chrono::duration<double>(now - mStart).count() - mPausedS <= mTimeoutS);
+  }
+
+  /// Between polls: MPI's own blocking waits spin, which on an oversubscribed machine takes the
+  /// core from the rank being waited for.
+  void pause() const {
+    std::this_thread::sleep_for(std::chrono::microseconds(msSince(mStart) < 1.0 ? 20 : 200));
+  }
+
+ private:
+  static constexpr double kPauseS = 1.0;
+  const Clock::time_point mStart = Clock::now();
+  Clock::time_point mLast = mStart;
+  double mTimeoutS = 0, mPausedS = 0;
+};
+
 }  // namespace
+
+struct MpiTransport::Send {
+  std::shared_ptr<const std::string> bytes;
+  int to = 0;
+  MPI_Request request = MPI_REQUEST_NULL;
+};
+
+// Held by unique_ptr from MPI_Imrecv to its end: the string MPI writes into never moves.
+struct MpiTransport::Buffer {
+  std::string bytes;
+  MPI_Request request = MPI_REQUEST_NULL;
+};
 
 MpiTransport::MpiTransport(int* argc, char*** argv, std::string who, double timeout_s)
     : mWho(std::move(who)) {
@@ -56,101 +97,93 @@ void MpiTransport::abort(int code, const std::string& why) const {
   std::_Exit(code);  // MPI_Abort does not return; this keeps [[noreturn]] honest
 }
 
-void MpiTransport::wait(void* request_ptr, const char* what) {
-  auto* request = static_cast<MPI_Request*>(request_ptr);
-  const auto start = Clock::now();
-  // Poll, then sleep a little between polls: MPI's own blocking waits spin, which on an
-  // oversubscribed machine takes the core from the rank being waited for.
-  for (int polls = 0;; ++polls) {
+void MpiTransport::check(int mpi_result, const char* doing, const char* what) const {
+  if (mpi_result == MPI_SUCCESS) return;
+  char text[MPI_MAX_ERROR_STRING] = {};
+  int len = 0;
+  MPI_Error_string(mpi_result, text, &len);
+  abort(kExitMpiFailed, std::string("MPI failed ") + doing + " (" + what + "): " + text);
+}
+
+void MpiTransport::post(int to, int tag, std::shared_ptr<const std::string> bytes,
+                        const char* what) {
+  TESSERA_CHECK(to >= 0 && to < mSize && to != mRank && bytes, "post() to another rank");
+  if (bytes->size() > size_t(INT_MAX))
+    abort(1, std::string(what) + ": " + std::to_string(bytes->size()) +
+                 " bytes are over MPI's 2 GiB count limit");
+  auto send = std::make_unique<Send>();
+  send->bytes = std::move(bytes);
+  send->to = to;
+  check(MPI_Isend(send->bytes->data(), int(send->bytes->size()), MPI_BYTE, to, tag, MPI_COMM_WORLD,
+                  &send->request),
+        "sending", what);
+  mSends.push_back(std::move(send));
+}
+
+bool MpiTransport::progressSends(const char* what) {
+  for (size_t i = 0; i < mSends.size();) {
     int done = 0;
-    if (MPI_Test(request, &done, MPI_STATUS_IGNORE) != MPI_SUCCESS)
-      abort(3, std::string("MPI failed while waiting for ") + what);
-    if (done) return;
-    const double ms = msSince(start);
-    if (!(ms <= mTimeoutS * 1000.0)) {  // written so that a NaN timeout aborts, never waits
-      char why[256];
-      std::snprintf(why, sizeof why, "no %s after %.0f s (a rank hung or died); aborting the job",
-                    what, mTimeoutS);
-      abort(4, why);
-    }
-    std::this_thread::sleep_for(std::chrono::microseconds(ms < 1.0 ? 20 : 200));
-  }
-}
-
-uint64_t MpiTransport::broadcast(std::string& bytes, const char* what) {
-  uint64_t size = mRank == 0 ? bytes.size() : 0;
-  MPI_Request request;
-  MPI_Ibcast(&size, 1, MPI_UINT64_T, 0, MPI_COMM_WORLD, &request);
-  wait(&request, what);
-  if (size > uint64_t(INT32_MAX))
-    abort(5, std::string("a broadcast of ") + std::to_string(size) +
-                 " bytes is over MPI's 2 GiB count limit");
-  if (mRank != 0) bytes.resize(size);
-  if (size == 0) return sizeof size;
-  MPI_Ibcast(bytes.data(), int(size), MPI_BYTE, 0, MPI_COMM_WORLD, &request);
-  wait(&request, what);
-  return sizeof size + size;
-}
-
-double MpiTransport::swapBarrier() {
-  const auto start = Clock::now();
-  MPI_Request request;
-  MPI_Ibarrier(MPI_COMM_WORLD, &request);
-  wait(&request, "swap barrier (a rank did not finish its frame)");
-  return msSince(start);
-}
-
-std::vector<std::string> MpiTransport::gatherBytes(std::string_view mine, const char* what) {
-  if (mine.size() > size_t(INT32_MAX))
-    abort(5, std::string(what) + ": " + std::to_string(mine.size()) +
-                 " bytes are over MPI's 2 GiB limit");
-  const int my_count = int(mine.size());
-  std::vector<int> counts(mRank == 0 ? size_t(mSize) : 0);
-  MPI_Request request;
-  MPI_Igather(&my_count, 1, MPI_INT, counts.data(), 1, MPI_INT, 0, MPI_COMM_WORLD, &request);
-  wait(&request, what);
-  std::vector<int> displs(counts.size(), 0);
-  std::vector<char> all;
-  if (mRank == 0) {
-    int64_t total = 0;
-    for (size_t i = 0; i < counts.size(); ++i) {
-      displs[i] = int(total);
-      total += counts[i];
-      if (total > int64_t(INT32_MAX)) abort(5, std::string(what) + ": over MPI's 2 GiB limit");
-    }
-    all.resize(size_t(total));
-  }
-  MPI_Igatherv(mine.data(), my_count, MPI_BYTE, all.data(), counts.data(), displs.data(), MPI_BYTE,
-               0, MPI_COMM_WORLD, &request);
-  wait(&request, what);
-  std::vector<std::string> parts;
-  for (size_t i = 0; i < counts.size(); ++i)
-    parts.emplace_back(all.data() + displs[i], size_t(counts[i]));
-  return parts;
-}
-
-std::string MpiTransport::scatterBytes(const std::vector<std::string>& parts, const char* what) {
-  std::vector<int> counts, displs;
-  std::string all;
-  if (mRank == 0) {
-    TESSERA_CHECK(parts.size() == size_t(mSize), "one part per rank");
-    for (const std::string& p : parts) {
-      if (all.size() + p.size() > size_t(INT32_MAX))
-        abort(5, std::string(what) + ": over MPI's 2 GiB limit");
-      counts.push_back(int(p.size()));
-      displs.push_back(int(all.size()));
-      all += p;
+    check(MPI_Test(&mSends[i]->request, &done, MPI_STATUS_IGNORE), "sending", what);
+    if (done) {
+      mSends.erase(mSends.begin() + std::ptrdiff_t(i));
+    } else {
+      ++i;
     }
   }
-  int my_count = 0;
-  MPI_Request request;
-  MPI_Iscatter(counts.data(), 1, MPI_INT, &my_count, 1, MPI_INT, 0, MPI_COMM_WORLD, &request);
-  wait(&request, what);
-  std::string mine(size_t(my_count), '\0');
-  MPI_Iscatterv(all.data(), counts.data(), displs.data(), MPI_BYTE, mine.data(), my_count, MPI_BYTE,
-                0, MPI_COMM_WORLD, &request);
-  wait(&request, what);
-  return mine;
+  return mSends.empty();
+}
+
+std::vector<int> MpiTransport::flush(double timeout_s, const char* what) {
+  Budget budget(timeout_s);
+  while (!progressSends(what) && !budget.expired()) budget.pause();
+  std::vector<int> late;
+  for (const auto& s : mSends) late.push_back(s->to);
+  std::sort(late.begin(), late.end());
+  late.erase(std::unique(late.begin(), late.end()), late.end());
+  return late;
+}
+
+std::vector<std::optional<std::string>> MpiTransport::receiveEach(const std::vector<int>& from,
+                                                                  int tag, double timeout_s,
+                                                                  const char* what) {
+  std::vector<std::optional<std::string>> out(from.size());
+  // A message is matched (MPI_Improbe, which tells its size), then received into a buffer of
+  // that size (MPI_Imrecv): no rank's message can be taken by another's receive.
+  std::vector<std::unique_ptr<Buffer>> incoming(from.size());
+  size_t left = from.size();
+  Budget budget(timeout_s);
+  while (true) {
+    for (size_t i = 0; i < from.size(); ++i) {
+      if (out[i]) continue;
+      if (!incoming[i]) {
+        int found = 0;
+        MPI_Message message;
+        MPI_Status status;
+        check(MPI_Improbe(from[i], tag, MPI_COMM_WORLD, &found, &message, &status), "receiving",
+              what);
+        if (!found) continue;
+        int count = 0;
+        MPI_Get_count(&status, MPI_BYTE, &count);
+        incoming[i] = std::make_unique<Buffer>();
+        incoming[i]->bytes.resize(size_t(std::max(count, 0)));
+        check(
+            MPI_Imrecv(incoming[i]->bytes.data(), count, MPI_BYTE, &message, &incoming[i]->request),
+            "receiving", what);
+      }
+      int done = 0;
+      check(MPI_Test(&incoming[i]->request, &done, MPI_STATUS_IGNORE), "receiving", what);
+      if (!done) continue;
+      out[i] = std::move(incoming[i]->bytes);
+      incoming[i].reset();
+      --left;
+    }
+    progressSends(what);
+    if (left == 0 || budget.expired()) break;
+    budget.pause();
+  }
+  for (auto& b : incoming)
+    if (b) mAbandoned.push_back(std::move(b));
+  return out;
 }
 
 }  // namespace tessera::sync

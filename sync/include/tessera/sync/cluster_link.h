@@ -8,8 +8,9 @@
 // and on a node:          receive() a frame -> render -> report() -> receive() the swap -> present.
 //
 // Transports differ in what they can survive, not in what they say:
-//   MPI  every rank is known at start; all calls are collective; a rank that dies or hangs ends
-//        the whole job after the transport's timeout (MPI cannot drop a rank).
+//   MPI  every rank is known at start; one message at a time between the master and each node;
+//        a node that hangs ends the whole job after the master's timeout, named (MPI cannot drop
+//        a rank), and every rank exits with one code (mpi_link.h).
 //   ZMQ  nodes join at any time, any order; a node that misses the deadline is dropped and may
 //        join again; the master's death is noticed by every node within the heartbeat timeout.
 //
@@ -88,12 +89,13 @@ class MasterLink {
   virtual bool canDropNodes() const = 0;
 
   /// Waits until `deadline` for anything from the nodes (joins first of all), returning early
-  /// once something arrived. MPI: the first call gathers every rank's Hello (a collective);
-  /// later calls return nothing.
+  /// once something arrived. MPI: the first call waits for every rank's Hello (up to the
+  /// transport's timeout, then ends the job naming the missing ranks); later calls wait until
+  /// `deadline` and return nothing.
   virtual LinkEvents poll(LinkClock::time_point deadline) = 0;
 
   /// Answers a join. welcome: the peer is a member from now on and gets every publish() and
-  /// swap(). MPI: answers are held until every rank's join is answered, then scattered.
+  /// swap().
   virtual void welcome(PeerId peer, const cluster::ClusterSetup& setup) = 0;
   virtual void refuse(PeerId peer, const std::string& reason) = 0;
 
@@ -104,9 +106,9 @@ class MasterLink {
   /// Waits until every peer in `awaited` reported `frame`, or was silent for `quiet` (since the
   /// call, or since its last NodeReport{working}, which is not returned), or `cap`
   /// passed; returns all that arrived meanwhile (reports of other frames and joins too). Peers in
-  /// `awaited` that disconnect end the wait for them early (they are in `gone`). MPI: a gather
-  /// from every rank (`awaited`, `quiet` and `cap` are not used; the transport's own timeout ends
-  /// the job).
+  /// `awaited` that disconnect end the wait for them early (they are in `gone`). MPI: the next
+  /// report of every rank (`awaited`, `quiet` and `cap` are not used: a rank silent for the
+  /// transport's timeout ends the job, named).
   virtual LinkEvents collect(uint64_t frame, const std::set<PeerId>& awaited,
                              LinkClock::duration quiet, LinkClock::time_point cap) = 0;
 
@@ -139,7 +141,7 @@ class NodeLink {
                                      LinkClock::time_point deadline) = 0;
 
   /// The next message from the master, or false when `deadline` passed first. Throws MasterLost
-  /// when the master is gone. MPI: after report() the next receive() is the swap barrier.
+  /// when the master is gone. MPI: after report() the next message is the present (the swap).
   virtual bool receive(cluster::ToNode& message, LinkClock::time_point deadline) = 0;
 
   /// True when a message from the master is waiting now (a node behind applies the frames that
@@ -148,7 +150,8 @@ class NodeLink {
 
   /// The node renders `frame` from now until its next report(): ZMQ sends NodeReport{working}
   /// every 100 ms meanwhile, from a thread of its own (so even one long GL call is covered; a
-  /// stopped or dead process sends nothing). MPI: nothing (reports are collectives).
+  /// stopped or dead process sends nothing). MPI: nothing (the master waits its --timeout for a
+  /// report).
   virtual void working(uint64_t frame) = 0;
 
   /// Sends a report (a frame done, or a startup failure).
