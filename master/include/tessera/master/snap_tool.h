@@ -18,8 +18,8 @@
 //      between splats but never grows into a cell an unselected sample is nearest in. So the tint
 //      is a solid region, and visible unselected surface is never tinted.
 //
-// Window-free and GL-free: the console and the sites' worker (collab/site_selections.h) call
-// it with a view and pixels. Thread-safe over the stores (their reads are).
+// Window-free and GL-free: the master's selection worker (selection_worker.h) calls it with a
+// view and pixels, for the console and the sites. Thread-safe over the stores (their reads are).
 #pragma once
 
 #include <cstdint>
