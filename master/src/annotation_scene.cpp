@@ -142,6 +142,15 @@ void AnnotationScene::addPicture(const Item& item, scene::AnnotationItem& out, s
   auto [at, fresh] = mPictures.try_emplace({item.id, item.revision});
   Picture& p = at->second;
   if (fresh) {
+    // Kept: the newest revision of each item, at most kMaxPictures (some 30 MiB) in all.
+    std::erase_if(mPictures, [&](const auto& e) {
+      return e.first.first == item.id && e.first.second != item.revision;
+    });
+    while (mPictures.size() > kMaxPictures) {
+      auto victim = mPictures.begin();
+      if (victim->first == at->first) ++victim;
+      mPictures.erase(victim);
+    }
     try {
       p.picture = item.data.empty()
                       ? readNotePicture(item.path, mDb.file().parent_path(), kNotePicturePx)

@@ -19,6 +19,9 @@
 // "measurements", so full-text search finds "distance"); removed ones are deleted; a layer
 // group's visibility, changed by anyone, becomes the layer's flag.
 //
+// Other programs' commits (tessera-annotate while the master runs) come in through refresh(),
+// which sync() calls at most every quarter second: only what differs changes in the scene.
+//
 // Edits (the console's panels, sites' SiteNote requests) commit to the database first and then
 // change the scene: an edit is acknowledged (returns) only once committed, so an acknowledged
 // item survives kill -9 of the master (tests/master/annotation_scene_test.cpp). Two edits of
@@ -132,6 +135,7 @@ class AnnotationScene {
     NotePicture picture;
     std::string problem;
   };
+  static constexpr size_t kMaxPictures = 256;
   std::map<std::pair<int64_t, int64_t>, Picture> mPictures;  // (item, revision) ->
   int64_t mDataVersion = 0;  // the file's data_version when last read
   std::chrono::milliseconds mPollEvery{250};
