@@ -174,6 +174,11 @@ uint32_t partition(std::vector<idx_t>& xadj, std::vector<idx_t>& adjncy, std::ve
   options[METIS_OPTION_SEED] = 42;  // the same store from the same mesh
   options[METIS_OPTION_NUMBERING] = 0;
   std::vector<idx_t> part(size_t(n), 0);
+  // One METIS call at a time: its random numbers come from one process-wide generator
+  // (GKlib's, seeded per call), so concurrent calls took each other's numbers and the same
+  // mesh made different stores from run to run (issue 15: verify's bounds then differed too).
+  static std::mutex metis_mutex;
+  std::lock_guard lock(metis_mutex);
   const int rc = METIS_PartGraphKway(&n, &ncon, xadj.data(), adjncy.data(),
                                      vwgt ? vwgt->data() : nullptr, nullptr,
                                      adjwgt ? adjwgt->data() : nullptr, &nparts, nullptr, nullptr,
