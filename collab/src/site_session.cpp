@@ -11,6 +11,7 @@
 #include <tuple>
 
 #include <glm/gtc/matrix_transform.hpp>
+#include <imgui.h>
 
 #include <tessera/collab/chunk_client.h>
 #include <tessera/collab/site_messages.h>
@@ -220,7 +221,12 @@ struct SiteSession::Impl {
   bool right_held = false;
   // --window tools, as the master's console has them (keys M, S, N, O), sent as the script's
   // actions are: measure (clicks), lasso (a left drag), snap (left stroke in, right stroke out).
-  enum class Tool { kNone, kMeasure, kLasso, kSnap } window_tool = Tool::kNone;
+  enum class Tool { kNone, kMeasure, kLasso, kSnap, kNote } window_tool = Tool::kNone;
+  // A: the next click on the model places a note, then a small form (Dear ImGui) asks its layer,
+  // title and text; Add sends it as the script's note action does (SiteNote add).
+  std::optional<glm::dvec2> note_pixel;
+  char note_layer[256] = "notes", note_title[1025] = "", note_text[2048] = "";
+  bool note_focus = false;
   scene::MeasurementPayload::Type measure_type = scene::MeasurementPayload::DISTANCE;
   std::vector<float> tool_px, snap_bg;  // x y pairs: the clicks, the lasso or the snap strokes
   glm::dvec2 press_at{0.0};
@@ -868,7 +874,16 @@ struct SiteSession::Impl {
       px.push_back(float(q.x));
       px.push_back(float(q.y));
     };
-    if (window_tool == Tool::kMeasure) {
+    if (window_tool == Tool::kNote) {  // a click places the note: the form opens
+      if (in.left_pressed) press_at = cursor;
+      if (in.left_released && glm::length(cursor - press_at) <= 4.0) {
+        note_pixel = cursor;
+        note_focus = true;
+        window_tool = Tool::kNone;
+        say("note at pixel " + std::to_string(int(cursor.x)) + "," + std::to_string(int(cursor.y)) +
+            ": its title and text?");
+      }
+    } else if (window_tool == Tool::kMeasure) {
       if (in.left_pressed) press_at = cursor;
       if (in.left_released && glm::length(cursor - press_at) <= 4.0) {
         record(tool_px, cursor);
@@ -932,7 +947,50 @@ struct SiteSession::Impl {
     act(a, now);
   }
 
-  /// A tool key (M, S, N, O, Enter, Backspace). True when it was one.
+  /// The new note's form (Dear ImGui, between the window's beginUi() and endUi()), while a
+  /// note is being placed.
+  void noteForm(double now) {
+    if (!note_pixel) return;
+    bool open = true;
+    ImGui::SetNextWindowPos(ImVec2(8.0f, 8.0f), ImGuiCond_Appearing);
+    ImGui::SetNextWindowSizeConstraints(ImVec2(300.0f, 0.0f), ImVec2(300.0f, FLT_MAX));
+    if (ImGui::Begin("New note", &open, ImGuiWindowFlags_AlwaysAutoResize)) {
+      ImGui::PushItemWidth(-48.0f);
+      ImGui::InputText("layer", note_layer, sizeof note_layer);
+      if (note_focus) {
+        ImGui::SetKeyboardFocusHere();
+        note_focus = false;
+      }
+      const bool enter = ImGui::InputText("title", note_title, sizeof note_title,
+                                          ImGuiInputTextFlags_EnterReturnsTrue);
+      ImGui::InputTextMultiline("text", note_text, sizeof note_text, ImVec2(-48.0f, 54.0f));
+      ImGui::PopItemWidth();
+      if (ImGui::Button("Add (Enter)") || enter) {
+        if (note_title[0] == '\0') {
+          say("a note needs a title");
+        } else {
+          site::SiteAction a;
+          site::NoteAction& na = *a.mutable_note();
+          na.add_pixel(float(note_pixel->x));
+          na.add_pixel(float(note_pixel->y));
+          site::NoteContent& item = *na.mutable_note()->mutable_add()->mutable_item();
+          item.set_layer(note_layer);
+          item.set_kind("text");
+          item.set_title(note_title);
+          item.set_text(note_text);
+          note_pixel.reset();
+          note_title[0] = note_text[0] = '\0';
+          act(a, now);
+        }
+      }
+      ImGui::SameLine();
+      if (ImGui::Button("Cancel")) open = false;
+    }
+    ImGui::End();
+    if (!open) note_pixel.reset();
+  }
+
+  /// A tool key (A, M, S, N, O, Enter, Backspace). True when it was one.
   bool toolKey(int key, const glm::dvec2& cursor, double now) {
     using T = scene::MeasurementPayload;
     auto use = [&](Tool t, const std::string& said) {
@@ -942,6 +1000,11 @@ struct SiteSession::Impl {
       say(said);
     };
     switch (key) {
+      case 65:  // A: a note where the next click lands
+        use(window_tool == Tool::kNote ? Tool::kNone : Tool::kNote,
+            window_tool == Tool::kNote ? "add note: cancelled"
+                                       : "add note: click on the model where it goes");
+        return true;
       case 77:  // M: distance, path, angle, area, off
         if (window_tool != Tool::kMeasure) {
           measure_type = T::DISTANCE;
@@ -1005,6 +1068,18 @@ struct SiteSession::Impl {
   bool interact(double now) {
     render::WindowInput in = window->poll();
     if (window->closing()) return false;
+    // The note form first: what it takes (the mouse over it, the keyboard in a field) the view
+    // does not also get.
+    window->beginUi();
+    noteForm(now);
+    window->endUi();
+    if (window->uiWantsMouse()) {
+      in.left = in.left_pressed = in.left_released = false;
+      in.scroll = 0.0;
+      in.path.clear();
+      if (!right_held) in.right = false;
+    }
+    if (window->uiWantsKeyboard()) in.keys.clear();
     const auto t = Clock::now();
     const double dt = std::chrono::duration<double>(t - last_input).count();
     last_input = t;
@@ -1095,7 +1170,7 @@ struct SiteSession::Impl {
                           ? " | following " + (leader.empty() ? std::string("the wall") : leader)
                           : "") +
                      " | left: navigate, right: draw; L lead, R release, F follow, U undo, C "
-                     "clear, M measure, S lasso, N snap, O open note, P picture, Esc quit");
+                     "clear, A add note, M measure, S lasso, N snap, O open note, P picture, Esc quit");
     return true;
   }
 
@@ -1109,11 +1184,13 @@ struct SiteSession::Impl {
       script.set_height(opt.window_height);
     }
     if (opt.render) {
-      if (opt.window)
+      if (opt.window) {
         window = render::Window::open(script.width(), script.height(),
                                       "tessera-site: " + opt.client.name);
-      else
+        window->enableUi();  // the note form (A)
+      } else {
         context = render::GlContext::createHeadless();
+      }
       render::StreamerOptions stream;
       stream.density_ratios = true;
       // Loaders reading over the link mostly wait: more of them keep more requests in flight

@@ -754,8 +754,9 @@ int whitePixels(const tessera::render::Image& img, int x0, int y0, int x1, int y
 // text), and two sites editing one item resolve by revision; the database outlives a master
 // killed with SIGKILL right after an acknowledgement, and the next session starts from it.
 // The same person's tools, as at the wall's console: O by a note opens it on the wall, M and
-// two clicks measure a distance, S and a drag lasso the bunny's middle; each reaches the master
-// as the script's actions do, and the database keeps what it should.
+// two clicks measure a distance, S and a drag lasso the bunny's middle, A, a click and a title
+// typed add a note; each reaches the master as the script's actions do, and the database keeps
+// what it should.
 TEST_F(SiteSession, AWindowedSiteOpensANoteMeasuresAndLassos) {
   if (!VirtualDisplay::available())
     GTEST_SKIP() << "needs Xvfb and xdotool (scripts/deps.sh installs them)";
@@ -803,6 +804,14 @@ TEST_F(SiteSession, AWindowedSiteOpensANoteMeasuresAndLassos) {
   xdo("mouseup 1");
   ASSERT_TRUE(master->waitFor("W: lasso on model \\d+: [1-9]\\d* elements selected", 60))
       << master->output() << site->output();
+  // A, a click on the body, a title typed into the form (it has the keyboard), Enter.
+  xdo("key --window " + wid + " s a");  // the lasso off, add note
+  ASSERT_TRUE(site->waitFor("add note: click on the model", 30)) << site->output();
+  xdo("mousemove --window " + wid + " 246 168 click 1");
+  ASSERT_TRUE(site->waitFor("note at pixel \\d+,\\d+: its title and text", 30)) << site->output();
+  xdo.typeAndEnter(wid, "crack W");  // the form has the keyboard
+  ASSERT_TRUE(site->waitFor("note 2 committed: item (\\d+) revision 1 at place (\\d+)", 60))
+      << site->output();
   xdo("key --window " + wid + " Escape");
   EXPECT_EQ(site->wait(30), std::optional<int>(0)) << site->output();
   std::this_thread::sleep_for(std::chrono::milliseconds(500));  // a frame: stored
@@ -815,6 +824,12 @@ TEST_F(SiteSession, AWindowedSiteOpensANoteMeasuresAndLassos) {
   const auto hits = notes.search("distance");
   ASSERT_EQ(hits.size(), 1u);
   EXPECT_EQ(notes.item(hits[0].item)->author, "W");
+  const auto typed = notes.search("crack");
+  ASSERT_EQ(typed.size(), 1u) << "the note typed at the site";
+  EXPECT_EQ(notes.item(typed[0].item)->title, "crack W");
+  EXPECT_EQ(notes.item(typed[0].item)->layer, "notes");
+  EXPECT_EQ(notes.item(typed[0].item)->author, "W");
+  EXPECT_EQ(notes.place(notes.placesOf(typed[0].item).at(0))->model, "bunny");
   int selections = 0;
   for (const auto& p : notes.places()) selections += p.selection_id == tessera::master::kSelectionBlob;
   EXPECT_EQ(selections, 1);

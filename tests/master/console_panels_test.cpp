@@ -200,12 +200,7 @@ TEST_F(ConsolePanels, TheSliderFadesAModelAndANoteTypedInIsStored) {
   xdo("mousemove --window " + wid + " 280 230 click 1");  // the bunny's body
   ASSERT_TRUE(master->waitFor("console: note at \\S+ \\S+ \\S+ on model bunny", 30))
       << master->output();
-  std::this_thread::sleep_for(std::chrono::milliseconds(1500));  // the form takes the keyboard
-  xdo("type --window " + wid + " --delay 60 'Measure its crack'");
-  // Held over a frame: ImGui 1.86 reads keys as held, not as events.
-  xdo("keydown --window " + wid + " Return");
-  std::this_thread::sleep_for(std::chrono::milliseconds(1500));
-  xdo("keyup --window " + wid + " Return");
+  xdo.typeAndEnter(wid, "Measure its crack");  // the form has the keyboard
   ASSERT_TRUE(master->waitFor("console: note (\\d+) added \\(item (\\d+), layer notes\\)", 30))
       << master->output();
   std::smatch m;

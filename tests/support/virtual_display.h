@@ -58,6 +58,16 @@ struct VirtualDisplay {
   }
   /// A right-button drag along a row of the window, from x0 to x1 at y.
   void rightDrag(const std::string& wid, int x0, int x1, int y) const { drag(wid, 3, x0, x1, y); }
+  /// Types `text` into the Dear ImGui field that has the keyboard, after giving the form a
+  /// moment to open, then Enter held over a frame (ImGui 1.86 reads keys as held, not as
+  /// events, so a key shorter than a slow llvmpipe frame could be missed).
+  void typeAndEnter(const std::string& wid, const std::string& text) const {
+    std::this_thread::sleep_for(std::chrono::milliseconds(1500));
+    (*this)("type --window " + wid + " --delay 60 '" + text + "'");
+    (*this)("keydown --window " + wid + " Return");
+    std::this_thread::sleep_for(std::chrono::milliseconds(1500));
+    (*this)("keyup --window " + wid + " Return");
+  }
   /// A horizontal drag with mouse `button` (1 left, 3 right) from x0 to x1 along row y.
   void drag(const std::string& wid, int button, int x0, int x1, int y) const {
     const std::string b = std::to_string(button);
