@@ -230,7 +230,6 @@ struct SiteSession::Impl {
   scene::MeasurementPayload::Type measure_type = scene::MeasurementPayload::DISTANCE;
   std::vector<float> tool_px, snap_bg;  // x y pairs: the clicks, the lasso or the snap strokes
   glm::dvec2 press_at{0.0};
-  bool snap_right = false;
   Clock::time_point last_input = Clock::now();
   // --audio-in / --audio-out (issue 14): its microphone and speaker, clocked from the welcome.
   std::unique_ptr<VoiceStation> station;
@@ -895,15 +894,14 @@ struct SiteSession::Impl {
     } else {
       std::vector<float>& fg = tool_px;
       if (in.left_pressed) fg.clear();
-      if (in.left || in.left_pressed || in.left_released) {
-        for (const glm::dvec2& q : in.path) record(fg, q * scale);
-        record(fg, cursor);
-      }
+      for (const glm::dvec2& q : in.dragOf(render::WindowInput::kLeftHeld)) record(fg, q * scale);
+      if (in.left) record(fg, cursor);
       if (window_tool == Tool::kLasso && in.left_released) sendTool(now);
       if (window_tool == Tool::kSnap) {  // the right button strokes what not to select
-        if (in.right && !snap_right) snap_bg.clear();
+        if (in.right_pressed) snap_bg.clear();
+        for (const glm::dvec2& q : in.dragOf(render::WindowInput::kRightHeld))
+          record(snap_bg, q * scale);
         if (in.right) record(snap_bg, cursor);
-        snap_right = in.right;
         in.right = false;
       }
     }
@@ -1077,6 +1075,7 @@ struct SiteSession::Impl {
       in.left = in.left_pressed = in.left_released = false;
       in.scroll = 0.0;
       in.path.clear();
+      in.path_buttons.clear();
       if (!right_held) in.right = false;
     }
     if (window->uiWantsKeyboard()) in.keys.clear();

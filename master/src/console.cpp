@@ -5,6 +5,8 @@
 #include <cstdio>
 #include <functional>
 
+#include <glm/gtc/matrix_transform.hpp>
+
 #include <tessera/master/point_pick.h>
 #include <tessera/master/select_tool.h>
 #include <tessera/master/surface_pick.h>
@@ -21,7 +23,7 @@ namespace {
 constexpr int kKey1 = 49, kKey9 = 57, kKeyEqual = 61, kKeyMinus = 45, kKeyH = 72, kKeyE = 69,
               kKeyPadAdd = 334, kKeyPadSubtract = 333, kKeyL = 76, kKeyU = 85, kKeyC = 67,
               kKeyM = 77, kKeyEnter = 257, kKeyPadEnter = 335, kKeyBackspace = 259, kKeyS = 83,
-              kKeyO = 79, kKeyN = 78;
+              kKeyO = 79, kKeyN = 78, kKeyK = 75;
 /// The robust lasso's stroke width when the console snaps with a foreground stroke only, pixels.
 constexpr double kHeavyStrokePx = 16.0;
 /// How near the cursor a note must be for O to open it, pixels.
@@ -295,13 +297,11 @@ bool Console::handleInput(sync::SceneGraph& graph) {
     // Left drag: what to select; right drag: what not to (not a sketch). A new drag replaces
     // its stroke. Every cursor position the window reported, as the lasso.
     if (in.left_pressed) mSnapFg.clear();
-    if (in.left || in.left_pressed || in.left_released) {
-      for (const glm::dvec2& q : in.path) record(mSnapFg, q * scale);
-      record(mSnapFg, p.cursor);
-    }
-    if (in.right && !mSnapRight) mSnapBg.clear();
+    for (const glm::dvec2& q : in.dragOf(render::WindowInput::kLeftHeld)) record(mSnapFg, q * scale);
+    if (in.left) record(mSnapFg, p.cursor);
+    if (in.right_pressed) mSnapBg.clear();
+    for (const glm::dvec2& q : in.dragOf(render::WindowInput::kRightHeld)) record(mSnapBg, q * scale);
     if (in.right) record(mSnapBg, p.cursor);
-    mSnapRight = in.right;
     in.right = false;
     p.down = p.pressed = p.released = false;
   } else if (mPlacingNote) {  // as measuring: a click places the note; the wheel still moves the view
@@ -312,10 +312,8 @@ bool Console::handleInput(sync::SceneGraph& graph) {
     // A left drag draws the lasso (every cursor position the window reported, so a fast drag
     // over slow frames keeps its shape); letting go selects what of the current model it
     // encloses.
-    if (in.left || in.left_pressed || in.left_released) {
-      for (const glm::dvec2& q : in.path) record(mLasso, q * scale);
-      record(mLasso, p.cursor);
-    }
+    for (const glm::dvec2& q : in.dragOf(render::WindowInput::kLeftHeld)) record(mLasso, q * scale);
+    if (in.left) record(mLasso, p.cursor);
     if (!in.left && !mLasso.empty()) {
       const auto model = currentModel(graph);
       if (mLasso.size() >= 3 && model) {
@@ -447,6 +445,20 @@ bool Console::handleInput(sync::SceneGraph& graph) {
       if (!mMeasurements.empty()) {
         graph.remove(mMeasurements.back());
         mMeasurements.pop_back();
+      }
+    }
+    if (key == kKeyK) {  // a section: a clip plane through the surface under the cursor
+      std::erase_if(mClips, [&](auto id) { return !graph.contains(id); });
+      if (!mClips.empty()) {
+        for (auto id : mClips) graph.remove(id);
+        mClips.clear();
+        say("clip removed");
+      } else if (const auto at = surfaceAt(p.cursor)) {
+        mClips.push_back(addSectionClip(graph, at->point.world, graph.camera(), kConsole));
+        say("clip: everything nearer than the surface under the cursor is cut away (K again "
+            "removes it)");
+      } else {
+        say("clip: no model under the cursor");
       }
     }
     if (key == kKeyO && mAnnotations) {  // the note nearest the cursor, open on the wall or not

@@ -65,7 +65,9 @@ class Console {
   /// toggles lazy snapping (snap_tool.h): a left drag strokes what to select, a right drag what
   /// not to (instead of a sketch), Enter selects on a worker thread (the wall does not wait;
   /// with no background stroke, the left stroke around the region is a robust lasso 16 px
-  /// wide), Backspace drops the strokes, else the newest snapped selection; O opens
+  /// wide), Backspace drops the strokes, else the newest snapped selection; K cuts the models
+  /// with a plane through the surface under the cursor, facing the view (a section: what is
+  /// nearer is cut away on every tile), K again removes it; O opens
   /// or closes the note nearest the cursor (within 24 px) on the wall (with --annotations).
   /// Returns false once the window is closed (or Escape outside a text field).
   bool handleInput(sync::SceneGraph& graph);
@@ -112,8 +114,8 @@ class Console {
   std::vector<sync::SceneGraph::NodeId> mSelections;    // the console's, oldest first
   bool mSnapping = false;                               // N: strokes for lazy snapping
   std::vector<glm::dvec2> mSnapFg, mSnapBg;             // the strokes, the view's pixels
-  bool mSnapRight = false;                              // the right button was down
   std::unique_ptr<SelectionWorker> mSnaps;              // made with the first snap
+  std::vector<sync::SceneGraph::NodeId> mClips;         // K: the console's section
   /// Turns one tool on (the others off) or every tool off.
   enum class Tool { kNone, kMeasure, kLasso, kSnap, kPlaceNote };
   void only(Tool tool);

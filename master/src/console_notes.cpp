@@ -2,7 +2,10 @@
 
 #include <cmath>
 
+#include <glm/gtc/matrix_transform.hpp>
+
 #include <tessera/render/scene_draw_list.h>
+#include <tessera/sync/scene_edits.h>
 
 #include "vec3.h"
 
@@ -99,6 +102,25 @@ std::optional<sync::SceneGraph::NodeId> noteNear(const sync::SceneGraph& graph,
     }
   }
   return best;
+}
+
+sync::SceneGraph::NodeId addSectionClip(sync::SceneGraph& graph, const glm::dvec3& at,
+                                        const config::Camera& camera, const std::string& author) {
+  // Keep where dot(forward, x - at) >= 0. The node sits at `at`, so its plane passes through
+  // the node origin and the outline is drawn around the point.
+  const glm::dvec3 eye = detail::vec(camera.eye());
+  glm::dvec3 forward = detail::vec(camera.target()) - eye;
+  forward = glm::length(forward) > 0.0 ? glm::normalize(forward) : glm::dvec3(0.0, 0.0, -1.0);
+  const auto layer = sync::layerGroup(graph, "clips", author);
+  const auto id = graph.add(scene::SceneNode::CLIP, layer, author + " section");
+  const glm::dmat4 t = glm::translate(glm::dmat4(1.0), at);
+  graph.setTransform(id, std::span<const double>(&t[0][0], 16));
+  scene::ClipPayload clip;
+  for (double v : {forward.x, forward.y, forward.z, 0.0}) clip.add_planes(v);
+  clip.set_outline(float(0.25 * glm::length(at - eye)));
+  graph.setPayload(id, clip);
+  graph.setAuthor(id, author);
+  return id;
 }
 
 }  // namespace tessera::master

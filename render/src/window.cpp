@@ -40,6 +40,20 @@ Window::Impl* implOf(GLFWwindow* w) {
   return static_cast<Window::Impl*>(glfwGetWindowUserPointer(w));
 }
 
+/// A cursor position into the poll's path, with the buttons held there (GLFW's state is that
+/// of the events handled so far, so a drag's points are told from those before and after it).
+void pushPath(GLFWwindow* gw, double x, double y) {
+  WindowInput& in = implOf(gw)->pending;
+  if (in.path.size() >= 4096) return;
+  in.path.push_back({x, y});
+  in.path_buttons.push_back(
+      uint8_t((glfwGetMouseButton(gw, GLFW_MOUSE_BUTTON_LEFT) == GLFW_PRESS ? WindowInput::kLeftHeld
+                                                                           : 0) |
+              (glfwGetMouseButton(gw, GLFW_MOUSE_BUTTON_RIGHT) == GLFW_PRESS
+                   ? WindowInput::kRightHeld
+                   : 0)));
+}
+
 }  // namespace
 
 Window::Window() : mImpl(std::make_unique<Impl>()) {}
@@ -70,14 +84,22 @@ std::unique_ptr<Window> Window::open(uint32_t width, uint32_t height, const std:
   // Button transitions are latched as they happen: a click shorter than a frame (a slow frame
   // on llvmpipe lasts a second) is a press and a release, not nothing.
   glfwSetMouseButtonCallback(w, [](GLFWwindow* gw, int button, int action, int) {
-    if (button != GLFW_MOUSE_BUTTON_LEFT) return;
-    if (action == GLFW_PRESS) implOf(gw)->pending.left_pressed = true;
-    if (action == GLFW_RELEASE) implOf(gw)->pending.left_released = true;
+    WindowInput& in = implOf(gw)->pending;
+    if (button == GLFW_MOUSE_BUTTON_LEFT) {
+      if (action == GLFW_PRESS) in.left_pressed = true;
+      if (action == GLFW_RELEASE) in.left_released = true;
+    } else if (button == GLFW_MOUSE_BUTTON_RIGHT) {
+      if (action == GLFW_PRESS) in.right_pressed = true;
+      if (action == GLFW_RELEASE) in.right_released = true;
+    } else {
+      return;
+    }
+    // Where a drag begins, with the buttons held from now on.
+    double x = 0.0, y = 0.0;
+    glfwGetCursorPos(gw, &x, &y);
+    pushPath(gw, x, y);
   });
-  glfwSetCursorPosCallback(w, [](GLFWwindow* gw, double x, double y) {
-    std::vector<glm::dvec2>& path = implOf(gw)->pending.path;
-    if (path.size() < 4096) path.push_back({x, y});
-  });
+  glfwSetCursorPosCallback(w, [](GLFWwindow* gw, double x, double y) { pushPath(gw, x, y); });
   glfwSetKeyCallback(w, [](GLFWwindow* gw, int key, int, int action, int) {
     if (action == GLFW_PRESS) implOf(gw)->pending.keys.push_back(key);
     // Escape in a text field of the panels leaves the field, not the session.

@@ -664,7 +664,7 @@ TEST_F(SiteSession, TheConsoleMeasuresAndLassos) {
 
 // Lazy snapping at the console (N): a left stroke over the bunny's body, a right stroke over its
 // ear, Enter; the master's worker cuts while the wall goes on, and every tile tints the body
-// and not the ear.
+// and not the ear. K puts a section through the body and takes it away again.
 TEST_F(SiteSession, TheConsoleSnapsWithTwoStrokes) {
   if (!VirtualDisplay::available())
     GTEST_SKIP() << "needs Xvfb and xdotool (scripts/deps.sh installs them)";
@@ -681,6 +681,13 @@ TEST_F(SiteSession, TheConsoleSnapsWithTwoStrokes) {
       << master->output();
   ASSERT_TRUE(master->waitFor("console: snap on model \\d+: [1-9]\\d* elements selected", 120))
       << master->output();
+  // K: a section through the body facing the view; K again takes it away (the tint checked
+  // below is on the whole body again).
+  xdo("mousemove --window " + wid + " 380 215 key --window " + wid + " k");
+  ASSERT_TRUE(master->waitFor("console: clip: everything nearer than the surface", 30))
+      << master->output();
+  xdo("key --window " + wid + " k");
+  ASSERT_TRUE(master->waitFor("console: clip removed", 30)) << master->output();
   std::this_thread::sleep_for(std::chrono::milliseconds(500));  // a frame with the selection
   master->signal(SIGTERM);
   ASSERT_EQ(master->wait(60), std::optional<int>(0)) << master->output();

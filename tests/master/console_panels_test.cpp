@@ -16,6 +16,8 @@
 #include <tessera/master/annotation_db.h>
 #include <tessera/master/annotation_scene.h>
 #include <tessera/master/console_notes.h>
+#include <tessera/render/clip_planes.h>
+#include <tessera/render/scene_draw_list.h>
 #include <tessera/render/image.h>
 
 #include "../support/site_scripts.h"
@@ -68,6 +70,43 @@ TEST(ConsoleNotes, ADraftBecomesAPointOrAHotSpotWithTheItemOfItsKind) {
   } catch (const AnnotationError& e) {
     EXPECT_EQ(e.kind(), AnnotationError::Kind::kBadInput);
   }
+}
+
+// K's section: a plane through the point under the cursor, facing the view; what is nearer
+// than the point is cut away on every view (render::ClipPlanes, the renderer's rule), what is at
+// or beyond it kept, whatever the camera's distance to the model.
+TEST(ConsoleNotes, ASectionCutsAwayWhatIsNearerThanThePointFacingTheView) {
+  tessera::sync::SceneGraph graph;
+  tessera::config::Camera camera;
+  camera.mutable_eye()->set_x(3.0);
+  camera.mutable_eye()->set_y(1.0);
+  camera.mutable_eye()->set_z(5.0);
+  camera.mutable_up()->set_y(1.0);  // looking at the origin
+  const glm::dvec3 at(0.5, -0.2, 0.25);
+  const auto id = addSectionClip(graph, at, camera, "console");
+  const auto& n = graph.node(id);
+  ASSERT_EQ(n.kind(), tessera::scene::SceneNode::CLIP);
+  EXPECT_EQ(n.author(), "console");
+  EXPECT_EQ(graph.node(n.parent()).name(), "clips");
+  // The plane, placed by the node's transform, through the CPU rule the renderer follows.
+  const tessera::render::NodePlacement placed = tessera::render::placeNode(graph, id);
+  const auto& c = n.clip();
+  ASSERT_EQ(c.planes_size(), 4);
+  const glm::dvec4 local(c.planes(0), c.planes(1), c.planes(2), c.planes(3));
+  // A plane a x + d >= 0 in the node frame is (a, d) * inverse(world) in the world frame.
+  const glm::dvec4 world_plane = local * glm::inverse(placed.world);
+  tessera::render::ClipPlanes cut;
+  ASSERT_TRUE(cut.addGroup(std::span(&world_plane, 1), false));
+  const glm::dvec3 eye(3.0, 1.0, 5.0), forward = glm::normalize(-eye);
+  EXPECT_TRUE(cut.keeps(at + 1e-6 * forward));
+  EXPECT_TRUE(cut.keeps(at + 0.3 * forward));
+  EXPECT_FALSE(cut.keeps(at - 0.01 * forward)) << "nearer than the point: cut away";
+  EXPECT_FALSE(cut.keeps(eye * 0.5));
+  // Sideways along the plane the cut is the same: the plane faces the view.
+  const glm::dvec3 side = glm::normalize(glm::cross(forward, glm::dvec3(0, 1, 0)));
+  EXPECT_TRUE(cut.keeps(at + 0.7 * side + 1e-6 * forward));
+  EXPECT_FALSE(cut.keeps(at + 0.7 * side - 1e-3 * forward));
+  EXPECT_NEAR(c.outline(), 0.25 * glm::length(at - eye), 1e-6);
 }
 
 TEST(ConsoleNotes, AddedNotesAreFoundNearTheCursorAndFlownTo) {

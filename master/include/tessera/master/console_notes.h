@@ -53,4 +53,10 @@ std::optional<sync::SceneGraph::NodeId> noteNear(const sync::SceneGraph& graph,
                                                  const render::ViewSetup& view, glm::dvec2 cursor,
                                                  double max_px);
 
+/// A section (the console's K): a CLIP node (layer "clips", by `author`) whose plane passes
+/// through `at` facing `camera`'s view, keeping what lies at or beyond it (what is nearer is cut
+/// away), its outline a square a quarter of the eye's distance across around `at`.
+sync::SceneGraph::NodeId addSectionClip(sync::SceneGraph& graph, const glm::dvec3& at,
+                                        const config::Camera& camera, const std::string& author);
+
 }  // namespace tessera::master

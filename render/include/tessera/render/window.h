@@ -19,9 +19,21 @@ struct WindowInput {
   bool left = false, right = false, middle = false;  ///< buttons held now
   /// Transitions since the previous poll; a click within one poll sets both (left then false).
   bool left_pressed = false, left_released = false;
+  bool right_pressed = false, right_released = false;
   /// Every cursor position reported since the previous poll, oldest first (at most 4096): a
   /// drag keeps its shape however slow the frames are.
   std::vector<glm::dvec2> path;
+  /// Per path point, the buttons held there (kLeftHeld | kRightHeld); a button's press adds the
+  /// point where it went down. So one poll's left drag and right drag stay apart.
+  std::vector<uint8_t> path_buttons;
+  static constexpr uint8_t kLeftHeld = 1, kRightHeld = 2;
+  /// The path's points where `button` (kLeftHeld or kRightHeld) was held, in order.
+  std::vector<glm::dvec2> dragOf(uint8_t button) const {
+    std::vector<glm::dvec2> out;
+    for (size_t i = 0; i < path.size() && i < path_buttons.size(); ++i)
+      if (path_buttons[i] & button) out.push_back(path[i]);
+    return out;
+  }
   double scroll = 0.0;    ///< wheel steps, up positive
   std::vector<int> keys;  ///< GLFW key codes pressed (not repeats)
   glm::uvec2 size{0};     ///< window size in screen coordinates
