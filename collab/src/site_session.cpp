@@ -219,8 +219,8 @@ struct SiteSession::Impl {
   render::ViewSetup last_view;
   std::vector<float> drag;  // the right-button drag's pixels so far
   bool right_held = false;
-  // --window tools, as the master's console has them (keys M, S, N, O), sent as the script's
-  // actions are: measure (clicks), lasso (a left drag), snap (left stroke in, right stroke out).
+  // --window tools, as the master's console has them (keys A, M, S, N, O), sent as the script's
+  // actions are: a note, measure (clicks), lasso (a left drag), snap (left stroke in, right out).
   enum class Tool { kNone, kMeasure, kLasso, kSnap, kNote } window_tool = Tool::kNone;
   // A: the next click on the model places a note, then a small form (Dear ImGui) asks its layer,
   // title and text; Add sends it as the script's note action does (SiteNote add).
