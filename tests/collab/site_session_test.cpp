@@ -626,13 +626,7 @@ TEST_F(SiteSession, TheConsoleMeasuresAndLassos) {
   xdo("key --window " + wid + " s");
   ASSERT_TRUE(master->waitFor("console: lasso on", 30)) << master->output();
   // A box around the body, drawn as a drag.
-  xdo("mousemove --window " + wid + " 300 200 mousedown 1");
-  for (const char* at : {"340 200", "340 250", "300 250", "300 205"}) {
-    std::this_thread::sleep_for(std::chrono::milliseconds(80));
-    xdo(std::string("mousemove --window ") + wid + " " + at);
-  }
-  std::this_thread::sleep_for(std::chrono::milliseconds(80));
-  xdo("mouseup 1");
+  xdo.boxDrag(wid, 300, 200, 340, 250);
   ASSERT_TRUE(master->waitFor("console: lasso on model \\d+: [1-9]\\d* points selected", 30))
       << master->output();
   std::this_thread::sleep_for(std::chrono::milliseconds(500));  // a frame with the selection
@@ -802,13 +796,7 @@ TEST_F(SiteSession, AWindowedSiteOpensANoteMeasuresAndLassos) {
   ASSERT_TRUE(site->waitFor("measurement 1 sent: [0-9.]+ (mm|cm) ± ", 60)) << site->output();
   xdo("key --window " + wid + " s");
   ASSERT_TRUE(site->waitFor("lasso on", 30)) << site->output();
-  xdo("mousemove --window " + wid + " 230 150 mousedown 1");
-  for (const char* at : {"252 150", "252 172", "230 172", "230 152"}) {
-    std::this_thread::sleep_for(std::chrono::milliseconds(80));
-    xdo(std::string("mousemove --window ") + wid + " " + at);
-  }
-  std::this_thread::sleep_for(std::chrono::milliseconds(80));
-  xdo("mouseup 1");
+  xdo.boxDrag(wid, 230, 150, 252, 172);
   ASSERT_TRUE(master->waitFor("W: lasso on model \\d+: [1-9]\\d* elements selected", 60))
       << master->output() << site->output();
   // A, a click on the body, a title typed into the form (it has the keyboard), Enter.

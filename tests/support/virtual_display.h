@@ -58,6 +58,20 @@ struct VirtualDisplay {
   }
   /// A right-button drag along a row of the window, from x0 to x1 at y.
   void rightDrag(const std::string& wid, int x0, int x1, int y) const { drag(wid, 3, x0, x1, y); }
+  /// A left drag around the box (x0, y0)-(x1, y1), back near its start (a lasso), 80 ms a side.
+  void boxDrag(const std::string& wid, int x0, int y0, int x1, int y1) const {
+    auto move = [&](int x, int y) {
+      (*this)("mousemove --window " + wid + " " + std::to_string(x) + " " + std::to_string(y));
+    };
+    (*this)("mousemove --window " + wid + " " + std::to_string(x0) + " " + std::to_string(y0) +
+            " mousedown 1");
+    for (const auto& [x, y] : {std::pair{x1, y0}, {x1, y1}, {x0, y1}, {x0, y0 + 5}}) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(80));
+      move(x, y);
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(80));
+    (*this)("mouseup 1");
+  }
   /// Types `text` into the Dear ImGui field that has the keyboard, after giving the form a
   /// moment to open, then Enter held over a frame (ImGui 1.86 reads keys as held, not as
   /// events, so a key shorter than a slow llvmpipe frame could be missed).
