@@ -43,6 +43,7 @@ uniform uint uCount;
 uniform ivec2 uSize;    // viewport in pixels
 uniform int uRadius;    // the largest splat radius, pixels (the radius when uSpacingK is 0)
 uniform float uSpacingK;  // node spacing in pixels at view depth 1 (0: fixed radius uRadius)
+uniform float uOwnScaleCap;  // a point's top byte widens its disc up to this (1: the node's)
 uniform int uFill;      // 1 px points plus their splat footprints, for the pull-push fill (fill.comp)
 
 // Pass 0 keeps the nearest depth; pass 1, among the points at that depth, one colour (below)
@@ -108,7 +109,7 @@ void raster(uint i) {
   // radii (uFill) both follow it. A leaf point's own scale (render/splat_sizes.h) widens its
   // disc to close the gaps of its sampling pattern (scan lines): 1 + top byte / 64. NaN (a bad
   // spacing) draws a single pixel.
-  float scale = 1.0 + float(points[gi].rgba >> 24) / 64.0;
+  float scale = min(1.0 + float(points[gi].rgba >> 24) / 64.0, uOwnScaleCap);
   float disc = uSpacingK > 0.0 ? min(0.5 * uSpacingK * scale / c.w, float(uRadius)) : 0.0;
   if (!(disc >= 0.0)) disc = 0.0;
   // A neighbour k pixels away has its centre at least k - 1/2 from the point: a disc of radius

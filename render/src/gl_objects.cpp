@@ -55,12 +55,13 @@ GlProgram GlProgram::compute(const char* source, const char* label, const std::s
   return p;
 }
 
-GlProgram GlProgram::graphics(const char* vertex, const char* fragment, const char* label) {
+GlProgram GlProgram::graphics(const char* vertex, const char* fragment, const char* label,
+                             const std::string& defines) {
   GlProgram p;
-  const GLuint vs = compileStage(GL_VERTEX_SHADER, vertex, label);
+  const GLuint vs = compileStage(GL_VERTEX_SHADER, vertex, label, defines);
   GLuint fs = 0;
   try {
-    fs = compileStage(GL_FRAGMENT_SHADER, fragment, label);
+    fs = compileStage(GL_FRAGMENT_SHADER, fragment, label, defines);
   } catch (...) {
     glDeleteShader(vs);
     throw;

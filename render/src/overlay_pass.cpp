@@ -55,16 +55,44 @@ ImWchar glyphOf(uint32_t cp) {
   return cp > 0xFFFF ? ImWchar('?') : ImWchar(cp);
 }
 
-/// A batch of vertices drawn with one texture (0: none bound yet; flat primitives take any).
+/// What a run of primitives is: lines, dots, labels (flat boxes, glyphs, pictures) or textured
+/// quads. Runs of one group share a draw call while their texture allows.
+enum class Group : uint8_t { kLines, kDots, kLabels, kTextured };
+
+/// Which fragment code a run needs (overlay.frag's variants): a bit per primitive mode
+/// (TESSERA_OVERLAY_FLAT..GLYPH), and whether some of its primitives are depth-tested and
+/// some not.
+constexpr uint32_t kTestedBit = 1u << 4, kUntestedBit = 1u << 5;
+
+/// A batch of vertices drawn with one texture (0: none bound yet; flat primitives take any) and
+/// one fragment variant.
 struct Run {
   uint32_t texture = 0;
   uint32_t first = 0, count = 0;
+  Group group = Group::kLines;
+  uint32_t variant = 0;
 };
+
+/// overlay.frag's #defines for a variant: the code of the modes it does not hold is left out,
+/// as llvmpipe would run every branch under masks (a line's fragments sampling a texture).
+std::string variantDefines(uint32_t v) {
+  int kinds = 0;
+  for (uint32_t m = 0; m < 4; ++m) kinds += (v >> m) & 1u;
+  std::string d;
+  auto def = [&](const char* name, bool on) { d += std::string("#define ") + name + (on ? " 1\n" : " 0\n"); };
+  def("HAS_TEXTURED", v & (1u << TESSERA_OVERLAY_TEXTURED));
+  def("HAS_DOT", v & (1u << TESSERA_OVERLAY_DOT));
+  def("HAS_GLYPH", v & (1u << TESSERA_OVERLAY_GLYPH));
+  def("HAS_TESTED", v & kTestedBit);
+  def("HAS_UNTESTED", v & kUntestedBit);
+  def("ONE_MODE", kinds == 1);
+  return d;
+}
 
 }  // namespace
 
 struct OverlayPass::Impl {
-  GlProgram draw;
+  std::map<uint32_t, GlProgram> programs;  // by variant, compiled on first use
   ImFontAtlas atlas;
   ImFont* font = nullptr;
   GlTexture font_texture;
@@ -108,17 +136,21 @@ struct OverlayPass::Impl {
     c.y += px.y * 2.0 / size.y * c.w;
     return c;
   }
-  /// Primitives from here on are drawn with `texture` (0: any, for flat ones), depth-tested
-  /// against the scene or not. A new run (one draw call) only where the texture changes: on
-  /// llvmpipe a draw call costs more than the primitives of a label.
-  void begin(uint32_t texture, bool depth_test) {
+  /// Primitives from here on belong to `group`, are drawn with `texture` (0: any, for flat
+  /// ones), depth-tested against the scene or not. A new run (one draw call) only where the
+  /// group or the texture changes: on llvmpipe a draw call costs more than the primitives of a
+  /// label, and a run of one group needs only its own fragment code (a line's fragments
+  /// sample no texture, a label's read no depth).
+  void begin(Group group, uint32_t texture, bool depth_test) {
     flags = depth_test ? TESSERA_OVERLAY_DEPTH_TESTED : 0u;
-    if (!runs.empty() && (texture == 0 || runs.back().texture == texture)) return;
-    if (!runs.empty() && runs.back().texture == 0) {  // only flat ones so far: bind this
-      runs.back().texture = texture;
-      return;
+    if (!runs.empty() && runs.back().group == group) {
+      if (texture == 0 || runs.back().texture == texture) return;
+      if (runs.back().texture == 0) {  // only flat ones so far: bind this
+        runs.back().texture = texture;
+        return;
+      }
     }
-    runs.push_back({texture, uint32_t(vertices.size()), 0});
+    runs.push_back({texture, uint32_t(vertices.size()), 0, group, 0});
   }
   /// Two triangles a b c, a c d.
   void quad(const std::array<glm::dvec4, 4>& c, const std::array<glm::vec2, 4>& uv, uint32_t rgba,
@@ -126,6 +158,15 @@ struct OverlayPass::Impl {
     for (int k : {0, 1, 2, 0, 2, 3})
       vertices.push_back({glm::vec4(c[k]), uv[k], rgba, mode | flags});
     runs.back().count += 6;
+    runs.back().variant |= 1u << (mode & 0xFFu) | (flags ? kTestedBit : kUntestedBit);
+  }
+  /// The program of a run's variant.
+  GlProgram& program(uint32_t variant) {
+    auto [it, fresh] = programs.try_emplace(variant);
+    if (fresh)
+      it->second = GlProgram::graphics(shaders::kOverlayVert, shaders::kOverlayFrag,
+                                       "overlay.vert/frag", variantDefines(variant));
+    return it->second;
   }
   /// A pixel-space rectangle around a clip position (all corners at its depth).
   void sprite(const glm::dvec4& anchor, glm::vec2 lo, glm::vec2 hi, glm::vec2 uv_lo,
@@ -217,11 +258,11 @@ glm::vec2 OverlayPass::Impl::layout(const OverlayLabel& l, const glm::dvec4* anc
   // A label is hidden or shown whole by its anchor (addLabel()), then drawn over the scene: a
   // surface in front of the box (the model curving towards the eye) must not eat its text.
   if (l.background.a > 0) {
-    begin(0, false);
+    begin(Group::kLabels, 0, false);
     sprite(*anchor, o, o + box, glm::vec2(0), glm::vec2(1), pack(l.background),
            TESSERA_OVERLAY_FLAT | anchored);
   }
-  begin(font_texture.name(), false);
+  begin(Group::kLabels, font_texture.name(), false);
   float pen = o.x + pad, top = o.y + pad;
   const uint32_t rgba = pack(l.color);
   for (size_t i = 0; i < l.text.size();) {
@@ -246,7 +287,7 @@ glm::vec2 OverlayPass::Impl::layout(const OverlayLabel& l, const glm::dvec4* anc
     if (!(p.size_px.x > 0.0f && p.size_px.y > 0.0f && p.size_px.x < 1e4f && p.size_px.y < 1e4f))
       continue;
     if (const GlTexture* texture = pictureTexture(p)) {
-      begin(texture->name(), false);
+      begin(Group::kLabels, texture->name(), false);
       const glm::vec2 lo(left, o.y + pad + pictures_top);
       sprite(*anchor, lo, lo + p.size_px, glm::vec2(0), glm::vec2(1), 0xFFFFFFFFu,
              TESSERA_OVERLAY_TEXTURED | anchored);
@@ -333,7 +374,6 @@ OverlayLabel OverlayPass::Impl::place(const OverlayLabel& l, glm::vec2 at) {
 
 OverlayPass::OverlayPass() : mImpl(std::make_unique<Impl>()) {
   Impl& s = *mImpl;
-  s.draw = GlProgram::graphics(shaders::kOverlayVert, shaders::kOverlayFrag, "overlay.vert/frag");
   if (std::filesystem::exists(kFontFile)) s.font = s.atlas.AddFontFromFileTTF(kFontFile, 32.0f);
   if (!s.font) s.font = s.atlas.AddFontDefault();
   unsigned char* pixels = nullptr;
@@ -370,15 +410,16 @@ double OverlayPass::run(FrameTarget& target, const ViewSetup& view, const Overla
   s.bias = std::clamp(overlay.depth_bias, 0.0, 0.5);
 
   for (const OverlayQuad& q : overlay.quads) {
-    s.begin(q.texture ? q.texture->name() : s.white.name(), true);
+    s.begin(Group::kTextured, q.texture ? q.texture->name() : s.white.name(), true);
     std::array<glm::dvec4, 4> c;
     for (int k = 0; k < 4; ++k) c[k] = s.clip(q.corners[k]);
     if (!(c[0].w > 0.0) || !(c[1].w > 0.0) || !(c[2].w > 0.0) || !(c[3].w > 0.0)) continue;
     s.quad(c, {glm::vec2(0, 0), glm::vec2(1, 0), glm::vec2(1, 1), glm::vec2(0, 1)}, pack(q.tint),
            TESSERA_OVERLAY_TEXTURED);
   }
-  s.begin(0, true);
+  s.begin(Group::kLines, 0, true);
   for (const OverlayLine& l : overlay.lines) s.addLine(l);
+  s.begin(Group::kDots, 0, true);
   for (const OverlayPoint& p : overlay.points) {
     const glm::dvec4 a = s.clip(p.at);
     if (!(a.w > 0.0) || !(p.size_px > 0.0f) || !std::isfinite(p.size_px)) continue;
@@ -393,7 +434,7 @@ double OverlayPass::run(FrameTarget& target, const ViewSetup& view, const Overla
     if (!std::isfinite(r.min.x) || !std::isfinite(r.min.y) || !std::isfinite(r.max.x) ||
         !std::isfinite(r.max.y))
       continue;
-    s.begin(r.texture ? r.texture->name() : s.white.name(), false);  // textured mode
+    s.begin(Group::kTextured, r.texture ? r.texture->name() : s.white.name(), false);
     const glm::dvec4 origin(-1.0, -1.0, -1.0, 1.0);  // the image's top-left corner, nearest
     s.sprite(origin, r.min, r.max, glm::vec2(0), glm::vec2(1), pack(r.color),
              TESSERA_OVERLAY_TEXTURED);
@@ -424,16 +465,18 @@ double OverlayPass::run(FrameTarget& target, const ViewSetup& view, const Overla
     if (s.anchors.empty()) s.anchors.emplace_back(0.0f);  // a buffer is bound either way
     const GlBuffer anchors(s.anchors.size() * sizeof(glm::vec4), s.anchors.data());
     glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_OVERLAY_ANCHORS, anchors.name());
-    s.draw.use();
-    s.draw.set("uTexture", 0);
-    s.draw.set("uSize", glm::ivec2(target.width(), target.height()));
-    s.draw.set("uDepthFromNdc", glm::vec2(float(view.projection[3][2]), float(view.projection[2][2])));
     // Overlays do not hide each other (later ones draw on top); colour blends over the scene,
     // the image's alpha stays opaque.
     glEnable(GL_BLEND);
     glBlendFuncSeparate(GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA, GL_ZERO, GL_ONE);
     for (const Run& r : s.runs) {
       if (r.count == 0) continue;
+      GlProgram& draw = s.program(r.variant);
+      draw.use();
+      draw.set("uTexture", 0);
+      draw.set("uSize", glm::ivec2(target.width(), target.height()));
+      draw.set("uDepthFromNdc",
+               glm::vec2(float(view.projection[3][2]), float(view.projection[2][2])));
       glBindTextureUnit(0, r.texture ? r.texture : s.white.name());
       glDrawArrays(GL_TRIANGLES, GLint(r.first), GLsizei(r.count));
     }

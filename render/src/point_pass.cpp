@@ -103,6 +103,7 @@ PassTimings PointPass::draw(FrameTarget& target, std::span<const DrawBatch> batc
       // A spacing that is not a number (bad input upstream) draws single pixels.
       const bool no_spacing = std::isnan(b.spacing_k);
       program.set("uSpacingK", no_spacing ? 0.0f : b.spacing_k);
+      program.set("uOwnScaleCap", std::max(1.0f, b.own_scale_cap));
       program.set("uColorOverride", b.color_override);
       program.set("uClip", b.clip_from_local);
       program.set("uRadius", no_spacing ? 0 : b.splat_radius);

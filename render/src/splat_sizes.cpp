@@ -7,6 +7,26 @@
 
 namespace tessera::render {
 
+namespace {
+
+/// Whether a neighbourhood is a surface (its spread along the normal at most
+/// kMaxNormalVarianceShare of its spread): a volume of points (foliage, the random cube) has no
+/// surface whose gaps a wider disc would close, only an outline it would fatten.
+bool surfaceLike(std::span<const detail::Neighbour> near, const glm::dvec3& normal) {
+  glm::dvec3 mean(0.0);
+  for (const detail::Neighbour& q : near) mean += glm::dvec3(q.q);
+  mean /= double(near.size());
+  double along = 0.0, all = 0.0;
+  for (const detail::Neighbour& q : near) {
+    const glm::dvec3 d = glm::dvec3(q.q) - mean;
+    along += glm::dot(d, normal) * glm::dot(d, normal);
+    all += glm::dot(d, d);
+  }
+  return along <= kMaxNormalVarianceShare * all;
+}
+
+}  // namespace
+
 std::vector<uint8_t> splatScales(std::span<const glm::vec3> points, double spacing) {
   const size_t n = points.size();
   std::vector<uint8_t> codes(n, 0);
@@ -18,6 +38,7 @@ std::vector<uint8_t> splatScales(std::span<const glm::vec3> points, double spaci
   glm::dvec3 t1, t2;
   for (size_t i = 0; i < n; ++i) {
     if (!detail::tangentNeighbours(grid, points, i, float(radius), near, t1, t2)) continue;
+    if (!surfaceLike(near, glm::cross(t1, t2))) continue;
     detail::tangentCell(near, t1, t2, radius, poly, scratch);
     if (poly.size() < 3) continue;
     double reach2 = 0;

@@ -395,6 +395,23 @@ void ViewRenderer::addModel(const ModelInstance& instance, bool see_through, con
   // See-through batches need the chunks' density (and ratios, normals, cells): only their
   // chunks are measured on loading.
   const ChunkUse use = see_through ? ChunkUse::kSeeThrough : ChunkUse::kOpaque;
+  // Opaque leaves whose discs are a pixel across or more (at their nearest) show their
+  // sampling's gaps (scan lines; range-scan rows a few mean spacings apart): the loader
+  // measures each of their points' own splat size (splat_sizes.h). Discs of 0.5 to 2 px radius
+  // draw those sizes up to 1.5x (the gaps between range-scan rows at a wall tile's scale:
+  // SplatSizes.RangeScansOnAWallTileHaveNoOpenPixel; the full 4x there cost a fifth more frame
+  // time for the same open pixels, as llvmpipe runs each group of points to its largest disc),
+  // larger discs (close-ups, LiDAR ground under the eye) up to kMaxPointSplatScale.
+  constexpr double kOwnSizesFromRadiusPx = 0.5, kFullOwnSizesFromRadiusPx = 2.0;
+  constexpr float kSmallDiscOwnScaleCap = 1.5f;
+  // (A node around the eye has no bound: distance and projected spacing 0.)
+  auto discPx = [&](const CutNode& n) {
+    return n.distance == 0.0 ? std::numeric_limits<double>::infinity()
+                             : 0.5 * options.splat_scale * n.projected_spacing_px;
+  };
+  auto close = [&](const CutNode& n) {
+    return !see_through && discPx(n) >= kOwnSizesFromRadiusPx && store.node(n.id).leaf();
+  };
   auto addBatch = [&](const CutNode& n, const GpuChunk& chunk) {
     DrawBatch b;
     b.buffer = chunk.buffer.name();
@@ -417,9 +434,12 @@ void ViewRenderer::addModel(const ModelInstance& instance, bool see_through, con
       nearest_w =
           std::min(nearest_w, -(view_from_local * glm::dvec4(corner - chunk.offset, 1.0)).z);
     }
-    if (nearest_w > 0)
-      b.max_disc_px =
-          float(0.5 * b.spacing_k * (chunk.splat_sized ? kMaxPointSplatScale : 1.0) / nearest_w);
+    // Own sizes only where this view would measure them: a chunk measured for a closer view
+    // draws as one that never was.
+    if (chunk.splat_sized && close(n))
+      b.own_scale_cap =
+          discPx(n) >= kFullOwnSizesFromRadiusPx ? kMaxPointSplatScale : kSmallDiscOwnScaleCap;
+    if (nearest_w > 0) b.max_disc_px = float(0.5 * b.spacing_k * b.own_scale_cap / nearest_w);
     b.blend_depth = float(n.spacing * unit * options.splat_scale);
     if (instance.color != glm::u8vec3(0) && (store.summary().attributes & lod::kColor) == 0)
       b.color_override = 0x1000000u | packRgb(instance.color);
@@ -471,14 +491,6 @@ void ViewRenderer::addModel(const ModelInstance& instance, bool see_through, con
     mBatchWorld.push_back(world_from_local);
     stats.points += chunk.count;
     ++stats.nodes;
-  };
-  // Opaque leaves whose discs reach 2 px (at their nearest) show their sampling's gaps (scan
-  // lines): the loader measures each of their points' own splat size (splat_sizes.h).
-  auto close = [&](const CutNode& n) {
-    // (A node around the eye has no bound: distance and projected spacing 0.)
-    return !see_through &&
-           (n.distance == 0.0 || 0.5 * options.splat_scale * n.projected_spacing_px >= 2.0) &&
-           store.node(n.id).leaf();
   };
   std::vector<bool> drawn_above(cut.above.size(), false);
   for (const CutNode& n : cut.nodes) {  // nearest first

@@ -26,8 +26,9 @@ class GlProgram {
   /// right after #version: variants of one source. Throws RenderError naming `label` and GL's
   /// log.
   static GlProgram compute(const char* source, const char* label, const std::string& defines = {});
-  /// A vertex and a fragment shader, each prefixed like compute().
-  static GlProgram graphics(const char* vertex, const char* fragment, const char* label);
+  /// A vertex and a fragment shader, each prefixed like compute() (`defines` in both).
+  static GlProgram graphics(const char* vertex, const char* fragment, const char* label,
+                            const std::string& defines = {});
   ~GlProgram();
   GlProgram(GlProgram&& o) noexcept { *this = std::move(o); }
   GlProgram& operator=(GlProgram&& o) noexcept {

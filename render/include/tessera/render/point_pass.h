@@ -46,6 +46,11 @@ struct DrawBatch {
   /// With spacing_k > 0: a bound on the batch's disc radii, pixels (from its box's nearest view
   /// depth); at most 0.5 draws every point as one pixel with the variant that has no disc code.
   float max_disc_px = std::numeric_limits<float>::infinity();
+  /// The largest of the points' own splat scales (the top byte, splat_sizes.h) drawn: 1 draws
+  /// every point with the node's disc. The view decides per node and view, so a chunk measured
+  /// for an earlier, closer view draws as one that never was (pixels do not depend on what was
+  /// seen before).
+  float own_scale_cap = 1.0f;
   uint32_t color_override = 0;  ///< non-zero: 0x1000000 | rgb for every point (r low byte)
   /// With PointShading::pick: point i of the batch writes pick id pick_base + i where it is the
   /// nearest (the view keeps which batch owns which range).

@@ -25,6 +25,11 @@ constexpr float kMaxPointSplatScale = 4.0f;
 /// a slanted surface, so exact discs leave slivers where three cells meet.
 constexpr double kCellMargin = 1.1;
 
+/// A neighbourhood whose spread along its normal is more than this share of its whole spread
+/// is a volume, not a surface (uniform random points in a ball: a third), and its points keep
+/// the node's disc. A scanned surface with noise and curvature within 4 spacings: a few hundredths.
+constexpr double kMaxNormalVarianceShare = 0.05;
+
 /// The splat scale in a GPU point's top byte (GpuPoint::rgba >> 24): 1 + byte / 64, so 0 is the
 /// node's own disc and points without a measured scale draw as before.
 constexpr float pointSplatScale(uint32_t rgba) {
@@ -36,7 +41,8 @@ constexpr float pointSplatScale(uint32_t rgba) {
 /// disc is at the default splat scale 2), at least 1 and at most kMaxPointSplatScale. The Voronoi cell is
 /// taken among the neighbours within 4 spacings (a gap wider than about 4 spacings is not the
 /// sampling's but the data's, and stays); its vertices on that search square (the cell is open:
-/// the edge of the data or of the node) do not count. Empty `points`, a non-finite or
+/// the edge of the data or of the node) do not count. Points whose neighbourhood is a volume
+/// (kMaxNormalVarianceShare) keep 0. Empty `points`, a non-finite or
 /// non-positive spacing, or fewer than 8 points: all 0. O(n), ~12 neighbours a point.
 std::vector<uint8_t> splatScales(std::span<const glm::vec3> points, double spacing);
 
