@@ -18,6 +18,7 @@
 
 #include <zmq.hpp>
 
+#include <tessera/collab/chunk_cache.h>
 #include <tessera/collab/chunk_server.h>
 #include <tessera/collab/site_messages.h>
 
@@ -77,6 +78,7 @@ struct Link {
   uint64_t next_id = 1;
   ChunkClientCounters counters;
   std::string cache_problem;
+  std::unique_ptr<ChunkCacheBudget> cache_budget;  // with a cache folder
 
   ~Link() {
     stop = true;
@@ -198,6 +200,7 @@ class RemoteRangeSource final : public lod::RangeSource {
     if (mFolder.empty()) return false;
     std::error_code ec;
     if (!fs::remove(file(offset, n), ec)) return false;  // it came from the server
+    mClient->cache_budget->removed(file(offset, n));
     std::lock_guard lock(mClient->mutex);
     ++mClient->counters.refetched;
     return true;
@@ -222,6 +225,7 @@ class RemoteRangeSource final : public lod::RangeSource {
       if (ok) done += size_t(got);
     }
     ::close(fd);
+    if (ok) mClient->cache_budget->used(p);
     std::lock_guard lock(mClient->mutex);
     if (!ok) {  // the wrong size or unreadable: fetched again and rewritten
       ++mClient->counters.refetched;
@@ -250,6 +254,7 @@ class RemoteRangeSource final : public lod::RangeSource {
     if (fd >= 0 && ::close(fd) != 0) ok = false;
     std::error_code ec;
     if (ok) fs::rename(tmp, final_path, ec);  // atomic: a reader sees all of it or nothing
+    if (ok && !ec) mClient->cache_budget->added(final_path, bytes.size());
     if (!ok || ec) {
       fs::remove(tmp, ec);
       mClient->noteCacheProblem("cannot write " + final_path.string() + ": " +
@@ -282,6 +287,9 @@ ChunkClient::ChunkClient(ChunkClientOptions options) : m(std::make_shared<Impl>(
     throw lod::RangeError("chunk server " + m->opt.endpoint +
                           ": not a ZeroMQ endpoint: " + e.what());
   }
+  if (!m->opt.cache_dir.empty())
+    m->cache_budget =
+        std::make_unique<ChunkCacheBudget>(m->opt.cache_dir, m->opt.cache_limit_bytes);
   m->wake = ::eventfd(0, EFD_NONBLOCK | EFD_CLOEXEC);
   if (m->wake < 0) throw lod::RangeError(std::string("eventfd: ") + std::strerror(errno));
   m->thread = std::thread([impl = m.get()] { impl->run(); });
@@ -322,7 +330,12 @@ std::unique_ptr<lod::RangeSource> ChunkClient::open(const std::string& path) {
 
 ChunkClientCounters ChunkClient::counters() const {
   std::lock_guard lock(m->mutex);
-  return m->counters;
+  ChunkClientCounters c = m->counters;
+  if (m->cache_budget) {
+    c.cache_evicted_files = m->cache_budget->evictedFiles();
+    c.cache_evicted_bytes = m->cache_budget->evictedBytes();
+  }
+  return c;
 }
 
 std::string ChunkClient::cacheProblem() const {

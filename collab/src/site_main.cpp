@@ -62,6 +62,11 @@ int run(int argc, char** argv) {
                "where this host has a file at the scene's path (without it: only stores not here)");
   app.add_option("--cache", o.cache_dir,
                  "Keep the chunks fetched from the master in this folder between sessions");
+  app.add_option("--cache-mb", o.cache_mb,
+                 "The --cache folder's bound over all stores, MB: past it the ranges used least "
+                 "recently are removed")
+      ->check(cli::finiteRange(0.01, 1e9))
+      ->capture_default_str();
   app.add_option("--chunk-timeout", o.chunk_timeout_s,
                  "Seconds a chunk request may go unanswered before it is sent again (once)")
       ->check(cli::finiteRange(0.1, 3600.0))

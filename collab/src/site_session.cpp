@@ -333,6 +333,14 @@ struct SiteSession::Impl {
                     (unsigned long long)c.retries, (unsigned long long)c.cache_hits,
                     (unsigned long long)c.cache_bytes, (unsigned long long)c.refetched);
       say(line);
+      if (c.cache_evicted_files > 0) {
+        std::snprintf(line, sizeof line,
+                      "chunks: %llu cached ranges (%llu bytes) removed to keep the cache within "
+                      "%.1f MB",
+                      (unsigned long long)c.cache_evicted_files,
+                      (unsigned long long)c.cache_evicted_bytes, opt.cache_mb);
+        say(line);
+      }
       if (!chunks->cacheProblem().empty())
         say("chunks: the disk cache is not complete: " + chunks->cacheProblem());
       chunks.reset();
@@ -1275,6 +1283,7 @@ struct SiteSession::Impl {
       co.master_key = opt.client.master_key;
       co.keys = opt.client.keys;
       co.cache_dir = opt.cache_dir;
+      co.cache_limit_bytes = uint64_t(opt.cache_mb * 1e6);
       co.timeout_s = opt.chunk_timeout_s;
       chunks = std::make_unique<ChunkClient>(co);
       say("chunks from " + co.endpoint +

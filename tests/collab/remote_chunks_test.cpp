@@ -258,6 +258,30 @@ TEST_F(RemoteChunks, AColdSiteOnASlowLinkConvergesToTheLocalPixelsAndItsCacheKee
       samePixels(shot_local, tessera::render::readPng((mRun / "mended" / "view.png").string())),
       1.0);
 
+  // A cache bounded at a third of what the view needs (--cache-mb): the oldest ranges make
+  // room, the folder stays within the bound, and the view is the same.
+  const fs::path small = mRun / "cache-small";
+  const double bound_mb = double(c.fetched) / 3.0 / 1e6;
+  char mb[32];
+  std::snprintf(mb, sizeof mb, "%.6f", bound_mb);
+  auto bounded = startSite("remote", "bounded",
+                           {"--remote-stores", "--cache", small.string(), "--cache-mb", mb});
+  ASSERT_EQ(bounded->wait(60), std::optional<int>(0)) << bounded->output();
+  EXPECT_NE(bounded->output().find("removed to keep the cache within"), std::string::npos)
+      << bounded->output();
+  uint64_t kept = 0, largest = 0;
+  for (const auto& d : fs::recursive_directory_iterator(small))
+    if (d.is_regular_file() && d.path().filename().string().find('+') != std::string::npos) {
+      kept += d.file_size();
+      largest = std::max<uint64_t>(largest, d.file_size());
+    }
+  // Within the bound, unless the last range written is larger than the bound by itself.
+  EXPECT_LE(double(kept), std::max(bound_mb * 1e6, double(largest))) << kept << " bytes kept";
+  EXPECT_GT(kept, 0u);
+  EXPECT_EQ(
+      samePixels(shot_local, tessera::render::readPng((mRun / "bounded" / "view.png").string())),
+      1.0);
+
   ASSERT_EQ(master->wait(120), std::optional<int>(0)) << master->output();
   EXPECT_EQ(mNode->wait(15), std::optional<int>(0)) << mNode->output();
   EXPECT_NE(master->output().find("0 refused, 0 discarded"), std::string::npos) << master->output();

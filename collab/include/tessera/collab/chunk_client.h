@@ -16,7 +16,8 @@
 // (ChunkStoreInfo: its size and first 4 KiB), so a store changed on the master is never read
 // from an old copy; a file per range ("OFFSET+LENGTH"), written to a temporary file and renamed
 // into place, so a reader sees a whole range or none. A cache file of the wrong size is
-// ignored and fetched again.
+// ignored and fetched again. The folder holds at most `cache_limit_bytes` over all its stores,
+// least recently used ranges removed first (chunk_cache.h).
 #pragma once
 
 #include <cstdint>
@@ -33,6 +34,7 @@ struct ChunkClientOptions {
   std::string master_key;   ///< the master's public key, Z85
   KeyPair keys;             ///< this site's
   std::string cache_dir;    ///< "" : no disk cache (every range from the server)
+  uint64_t cache_limit_bytes = uint64_t(4) << 30;  ///< the disk cache's bound, all stores
   double timeout_s = 30.0;  ///< per request, then sent once more
 };
 
@@ -43,6 +45,7 @@ struct ChunkClientCounters {
   uint64_t cache_hits = 0, cache_bytes = 0;  ///< ranges read from the disk cache
   uint64_t refetched = 0;     ///< cached ranges that failed the store's checksum (or size)
   uint64_t cache_errors = 0;  ///< ranges that could not be written to the cache
+  uint64_t cache_evicted_files = 0, cache_evicted_bytes = 0;  ///< removed to keep the bound
 };
 
 class ChunkClient {

@@ -38,6 +38,7 @@ struct SiteSessionOptions {
   /// `remote_stores` takes every store from the chunk server.
   bool remote_stores = false;
   std::string cache_dir;        ///< the chunks' disk cache ("" : none)
+  double cache_mb = 4096;       ///< its bound over all stores, MB (least recently used go first)
   double chunk_timeout_s = 30;  ///< a chunk request unanswered for this long is sent again
   /// Voice (issue 14; the master runs --voice): its microphone, a WAV file sent from the
   /// welcome on, and what it hears (the wall's microphone and the other sites), written as WAV
