@@ -80,6 +80,8 @@ struct ChunkServer::Impl {
   uint64_t served_generation = ~0ull;
   std::map<std::string, Store> stores;
   std::map<std::string, Site> sites;
+  TokenBucket total;        // all sites together (opt.total_bytes_per_s > 0)
+  std::string last_served;  // the site served last: the next round starts after it
   double last_said = 0;
   uint64_t unsaid = 0;
 
@@ -214,11 +216,27 @@ struct ChunkServer::Impl {
   /// until the next one may go (at most `idle`).
   double serve(double idle) {
     double next = idle;
+    const bool capped = opt.total_bytes_per_s > 0;
     for (bool sent = true; sent;) {
       sent = false;
       const double now = seconds();
-      for (auto& [key, s] : sites) {
+      // In turn from the site after the one served last, so that under the cap on all sites
+      // together the first sites in key order do not take every reply the cap allows.
+      std::vector<std::map<std::string, Site>::iterator> order;
+      for (auto it = sites.upper_bound(last_served); it != sites.end(); ++it) order.push_back(it);
+      for (auto it = sites.begin(); it != sites.end() && it->first <= last_served; ++it)
+        order.push_back(it);
+      for (auto site : order) {
+        const std::string& key = site->first;
+        Site& s = site->second;
         if (s.waiting.empty()) continue;
+        if (capped) {
+          const double all = total.wait(now);
+          if (all > 0) {
+            next = std::min(next, all);
+            break;
+          }
+        }
         if (now < s.blocked_until) {
           next = std::min(next, s.blocked_until - now);
           continue;
@@ -259,6 +277,8 @@ struct ChunkServer::Impl {
           continue;
         }
         s.bytes.take(double(w.request.length()), now);
+        if (capped) total.take(double(w.request.length()), now);
+        last_served = key;
         count(&ChunkServerCounters::replies);
         count(&ChunkServerCounters::bytes_out, w.request.length());
         sent = true;
@@ -291,6 +311,8 @@ struct ChunkServer::Impl {
 ChunkServer::ChunkServer(zmq::context_t& context, const KeyPair& keys, ChunkServerOptions options)
     : m(std::make_unique<Impl>()) {
   m->opt = std::move(options);
+  if (m->opt.total_bytes_per_s > 0)
+    m->total.start(m->opt.total_bytes_per_s, m->opt.burst_s, seconds());
   m->socket = bindSiteServer(context, keys, m->opt.endpoint, 64, int64_t(kMaxChunkRequestBytes),
                              "collab::ChunkServer");
   m->endpoint = m->socket.get(zmq::sockopt::last_endpoint);

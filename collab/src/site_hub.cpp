@@ -386,6 +386,7 @@ SiteHub::SiteHub(SiteHubOptions options) : m(std::make_unique<Impl>()) {
     ChunkServerOptions co;
     co.endpoint = m->opt.chunks_endpoint;
     co.bytes_per_s = m->opt.chunk_bytes_per_s;
+    co.total_bytes_per_s = m->opt.chunk_total_bytes_per_s;
     m->chunks = std::make_unique<ChunkServer>(m->context, m->keys, co);
   }
   if (m->opt.voice) {

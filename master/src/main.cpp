@@ -114,7 +114,7 @@ int run(int argc, char** argv) {
                  "once)")
       ->check(cli::finiteRange(0.5, 3600.0))
       ->capture_default_str();
-  double chunk_rate_mbit = 100.0;
+  double chunk_rate_mbit = 100.0, chunk_total_mbit = 0.0;
   app.add_option("--chunks", sites.chunks_endpoint,
                  "Serve the scene's stores to sites that do not have them (chunks on demand, "
                  "over CURVE with --sites' keys and allow list), e.g. tcp://*:7402; needs --sites");
@@ -140,6 +140,11 @@ int run(int argc, char** argv) {
   app.add_option("--chunk-rate", chunk_rate_mbit,
                  "With --chunks: each site's bandwidth for chunks, Mbit/s (a token bucket)")
       ->check(cli::finiteRange(0.01, 1e5))
+      ->capture_default_str();
+  app.add_option("--chunk-total-rate", chunk_total_mbit,
+                 "With --chunks: the bandwidth for chunks of all sites together, Mbit/s, shared "
+                 "in turn (the master's uplink; 0: only each site's --chunk-rate)")
+      ->check(cli::finiteRange(0.0, 1e6))
       ->capture_default_str();
   app.add_option("--timeout", timeout_s,
                  "mpi: seconds a node rank may keep the master waiting (to join, report or take "
@@ -246,6 +251,7 @@ int run(int argc, char** argv) {
     return cli::kExitBadCommandLine;
   }
   sites.chunk_bytes_per_s = chunk_rate_mbit * 1e6 / 8.0;
+  sites.chunk_total_bytes_per_s = chunk_total_mbit * 1e6 / 8.0;
   if (!video_screen.empty()) {
     float x = -1, y = -1, w = -1;
     char tail = 0;
@@ -300,8 +306,11 @@ int run(int argc, char** argv) {
       hub = std::make_unique<collab::SiteHub>(sites);
       std::printf("tessera-master: remote sites join on %s\n", hub->endpoint().c_str());
       if (!sites.chunks_endpoint.empty())
-        std::printf("tessera-master: chunks served on %s (%g Mbit/s per site)\n",
-                    hub->chunksEndpoint().c_str(), chunk_rate_mbit);
+        std::printf("tessera-master: chunks served on %s (%g Mbit/s per site%s)\n",
+                    hub->chunksEndpoint().c_str(), chunk_rate_mbit,
+                    chunk_total_mbit > 0
+                        ? (", " + std::to_string(chunk_total_mbit) + " Mbit/s for all").c_str()
+                        : "");
       std::fflush(stdout);
       m.setParticipants(hub.get());
       hub->setAnnotations(m.annotations());

@@ -128,11 +128,13 @@ class RemoteChunks : public ::testing::Test {
 
   /// The master for `seconds` of real time with its chunk server at `mbit` Mbit/s per site,
   /// and its one node; returns once the tile has its node.
-  std::unique_ptr<Process> startMaster(double seconds, double mbit) {
-    const auto argv = tessera::test::masterWithSites(
-        TESSERA_MASTER, sDir->path(), mRun, seconds, cameraJson(kWallEye, kTarget),
-        {"--chunks", "tcp://127.0.0.1:*", "--chunk-rate", std::to_string(mbit), "--site-timeout",
-         "60"});
+  std::unique_ptr<Process> startMaster(double seconds, double mbit,
+                                       const std::vector<std::string>& extra = {}) {
+    std::vector<std::string> options = {"--chunks",           "tcp://127.0.0.1:*", "--chunk-rate",
+                                        std::to_string(mbit), "--site-timeout",    "60"};
+    options.insert(options.end(), extra.begin(), extra.end());
+    const auto argv = tessera::test::masterWithSites(TESSERA_MASTER, sDir->path(), mRun, seconds,
+                                                     cameraJson(kWallEye, kTarget), options);
     auto m = std::make_unique<Process>(argv, mRun / "master.log");
     EXPECT_TRUE(m->waitFor("chunks served on (tcp://\\S+)", 30)) << m->output();
     const std::string out = m->output();
@@ -323,6 +325,39 @@ struct RawChunkClient {
   }
 };
 
+/// The store's path as the master's scene names it, from the snapshot a raw site (`keys`) is
+/// welcomed with at `sites`; "" (and a test failure) without a welcome.
+std::string sceneStore(const std::string& sites, const tessera::collab::KeyPair& keys,
+                       const std::string& master_key) {
+  zmq::context_t ctx{1};
+  zmq::socket_t site{ctx, zmq::socket_type::dealer};
+  tessera::collab::curveClient(site, keys, master_key);
+  site.set(zmq::sockopt::linger, 0);
+  site.connect(sites);
+  tessera::site::ToMaster hello;
+  hello.mutable_hello()->set_protocol(tessera::sync::kProtocolVersion);
+  hello.mutable_hello()->set_name("raw");
+  site.send(zmq::buffer(hello.SerializeAsString()));
+  zmq::pollitem_t item{site.handle(), 0, ZMQ_POLLIN, 0};
+  zmq::message_t msg;
+  tessera::site::ToSite w;
+  if (zmq::poll(&item, 1, std::chrono::milliseconds(20000)) <= 0 || !site.recv(msg) ||
+      !w.ParseFromArray(msg.data(), int(msg.size())) || !w.has_welcome()) {
+    ADD_FAILURE() << "no welcome from " << sites;
+    return "";
+  }
+  EXPECT_FALSE(w.welcome().chunks().empty()) << "the welcome names the chunk server";
+  tessera::sync::SceneGraph g;
+  g.apply(tessera::sync::parseSnapshot(w.welcome().snapshot()));
+  std::string store;
+  for (const auto id : g.ids())
+    if (g.node(id).kind() == tessera::scene::SceneNode::MODEL) store = g.node(id).model().store();
+  tessera::site::ToMaster bye;
+  bye.mutable_bye();
+  site.send(zmq::buffer(bye.SerializeAsString()));
+  return store;
+}
+
 }  // namespace
 
 TEST_F(RemoteChunks, OnlyTheScenesStoresWithinTheirBoundsAreServedAndTheWallGoesOn) {
@@ -330,32 +365,7 @@ TEST_F(RemoteChunks, OnlyTheScenesStoresWithinTheirBoundsAreServedAndTheWallGoes
   const auto keys = tessera::collab::readKeyFile(*sDir / "raw.key");
   const auto stranger = tessera::collab::readKeyFile(*sDir / "stranger.key");
   // The store's path as the scene names it: from the snapshot a site is welcomed with.
-  std::string store;
-  {
-    zmq::context_t ctx{1};
-    zmq::socket_t site{ctx, zmq::socket_type::dealer};
-    tessera::collab::curveClient(site, keys, sKeys["master"]);
-    site.set(zmq::sockopt::linger, 0);
-    site.connect(mSites);
-    tessera::site::ToMaster hello;
-    hello.mutable_hello()->set_protocol(tessera::sync::kProtocolVersion);
-    hello.mutable_hello()->set_name("raw");
-    site.send(zmq::buffer(hello.SerializeAsString()));
-    zmq::pollitem_t item{site.handle(), 0, ZMQ_POLLIN, 0};
-    ASSERT_GT(zmq::poll(&item, 1, std::chrono::milliseconds(20000)), 0);
-    zmq::message_t msg;
-    ASSERT_TRUE(site.recv(msg));
-    tessera::site::ToSite w;
-    ASSERT_TRUE(w.ParseFromArray(msg.data(), int(msg.size())) && w.has_welcome());
-    EXPECT_FALSE(w.welcome().chunks().empty()) << "the welcome names the chunk server";
-    tessera::sync::SceneGraph g;
-    g.apply(tessera::sync::parseSnapshot(w.welcome().snapshot()));
-    for (const auto id : g.ids())
-      if (g.node(id).kind() == tessera::scene::SceneNode::MODEL) store = g.node(id).model().store();
-    tessera::site::ToMaster bye;
-    bye.mutable_bye();
-    site.send(zmq::buffer(bye.SerializeAsString()));
-  }
+  const std::string store = sceneStore(mSites, keys, sKeys["master"]);
   ASSERT_FALSE(store.empty());
   const std::vector<uint8_t> file = tessera::test::readBytes(store);
   const uint64_t size = file.size();
@@ -419,6 +429,57 @@ TEST_F(RemoteChunks, OnlyTheScenesStoresWithinTheirBoundsAreServedAndTheWallGoes
   EXPECT_EQ(mNode->wait(15), std::optional<int>(0)) << mNode->output();
   EXPECT_NE(master->output().find("refused a request"), std::string::npos) << master->output();
   expectEveryFrame(200);
+}
+
+TEST_F(RemoteChunks, TheCapOnAllSitesTogetherHoldsAndIsSharedInTurn) {
+  // Each site may take 100 Mbit/s, all together 2 Mbit/s (250 kB/s): two raw sites asking for
+  // 8 ranges of 32 KiB each get their 512 KiB in no less than the cap allows, replies
+  // alternating between them.
+  auto master = startMaster(20.0, 100.0, {"--chunk-total-rate", "2"});
+  const auto a_keys = tessera::collab::readKeyFile(*sDir / "raw.key");
+  const auto b_keys = tessera::collab::readKeyFile(*sDir / "local.key");
+  const std::string store = sceneStore(mSites, a_keys, sKeys["master"]);
+  ASSERT_FALSE(store.empty());
+  ASSERT_GE(fs::file_size(store), 8u * 32768u);
+  RawChunkClient a(mChunks, a_keys, sKeys["master"]), b(mChunks, b_keys, sKeys["master"]);
+  // Connected and served once each (the size), so both queue their ranges at once below.
+  a.ask(100, store, 0, 0);
+  b.ask(100, store, 0, 0);
+  ASSERT_TRUE(a.receive(10) && b.receive(10)) << master->output();
+  constexpr int kRanges = 8;
+  constexpr uint32_t kBytes = 32768;
+  const auto start = std::chrono::steady_clock::now();
+  for (int i = 0; i < kRanges; ++i) {
+    a.ask(uint64_t(i + 1), store, uint64_t(i) * kBytes, kBytes);
+    b.ask(uint64_t(i + 1), store, uint64_t(i) * kBytes, kBytes);
+  }
+  std::string order;  // which site each reply went to, in arrival order
+  int got_a = 0, got_b = 0;
+  for (int polls = 0; (got_a < kRanges || got_b < kRanges) && polls < 2000; ++polls) {
+    for (auto [client, tag, got] : {std::tuple{&a, 'a', &got_a}, std::tuple{&b, 'b', &got_b}})
+      if (auto r = client->receive(0.01)) {
+        ASSERT_TRUE(r->has_data()) << r->refused();
+        ASSERT_EQ(r->data().size(), kBytes);
+        ++*got;
+        order += tag;
+      }
+  }
+  const double took =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  ASSERT_EQ(got_a, kRanges) << master->output();
+  ASSERT_EQ(got_b, kRanges) << master->output();
+  // A reply goes when the bucket is out of debt and then takes its bytes: 16 replies of 32 KiB
+  // at 250 kB/s take at least 15 replies' time less the bucket's 0.05 s burst, 1.92 s, whatever
+  // the machine (a slow one only takes longer).
+  EXPECT_GE(took, ((2.0 * kRanges - 1.0) * kBytes - 0.05 * 250e3) / 250e3 * 0.98) << order;
+  // In turn: neither site is ever more than two replies ahead of the other.
+  int lead = 0, most = 0;
+  for (char c : order) most = std::max(most, std::abs(lead += c == 'a' ? 1 : -1));
+  EXPECT_LE(most, 2) << order;
+  std::printf("two sites under a 2 Mbit/s cap: 512 KiB in %.2f s, replies %s\n", took,
+              order.c_str());
+  ASSERT_EQ(master->wait(60), std::optional<int>(0)) << master->output();
+  EXPECT_EQ(mNode->wait(15), std::optional<int>(0)) << mNode->output();
 }
 
 TEST_F(RemoteChunks, ChunksWithoutSitesIsABadCommandLine) {

@@ -13,7 +13,8 @@
 // Bandwidth: each site (by its CURVE key, so reconnecting does not reset it) has a token bucket
 // of `bytes_per_s` with `burst_s` seconds of burst; a reply is sent when the bucket is not in
 // debt, and its bytes taken from it. Sites with requests waiting are served in turn, one reply
-// each, so one site's burst does not hold the others back. A site may have `queue_per_site`
+// each, so one site's burst does not hold the others back; `total_bytes_per_s` caps all sites
+// together (the master's uplink), shared in turn. A site may have `queue_per_site`
 // requests waiting; more are refused at once ("too many requests waiting").
 #pragma once
 
@@ -35,6 +36,9 @@ struct ChunkServerOptions {
   /// Per site, bytes per second of replies (tessera-master --chunk-rate, in Mbit/s).
   double bytes_per_s = 100e6 / 8;
   double burst_s = 0.05;  ///< small: the rate holds from the first reply on
+  /// All sites together, bytes per second of replies (tessera-master --chunk-total-rate); 0:
+  /// no cap beyond each site's.
+  double total_bytes_per_s = 0;
   size_t queue_per_site = 256;
   /// Requests per second a site may send (refusals included) before the excess is discarded
   /// unanswered.

@@ -54,6 +54,7 @@ struct SiteHubOptions {
   /// then need the stores themselves. It serves the stores the scene's models name now.
   std::string chunks_endpoint;
   double chunk_bytes_per_s = 100e6 / 8;  ///< per site (--chunk-rate, Mbit/s)
+  double chunk_total_bytes_per_s = 0;    ///< all sites (--chunk-total-rate, Mbit/s); 0: none
   /// Voice (issue 14; voice_bridge.h): the master mixes what sites say, sends each its
   /// mix-minus and plays every site in the wall room. The clock is the master's loop: mixing
   /// happens before each frame, 20 ms periods at a time.
