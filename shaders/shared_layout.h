@@ -26,6 +26,9 @@
 #define TESSERA_BINDING_FILL_COLORS 16
 #define TESSERA_BINDING_FILL_PICK 17
 #define TESSERA_BINDING_OVERLAY_ANCHORS 18  // vec4 per label: its anchor (overlay.vert)
+#define TESSERA_BINDING_OVERLAY_LINES 19    // OverlayLine[]: opaque lines (overlay_lines.comp)
+#define TESSERA_BINDING_OVERLAY_OWNER 20    // uint per pixel: the last line covering it, + 1
+#define TESSERA_BINDING_OVERLAY_STEPS 21    // uint per step along the lines: its line
 
 // The pull-push fill (shaders/fill.comp, FillPass): most pyramid levels above the frame (reach
 // 2^levels pixels).
@@ -92,6 +95,24 @@ struct OverlayVertex {
   vec2 uv;
   uint rgba;
   uint mode;
+};
+#endif
+
+// An opaque overlay line drawn by shaders/overlay_lines.comp: its ends in pixels (x right, y
+// down from the image's top), its window depth (as gl_FragCoord.z) at the first end and its
+// change per pixel along the line, its half width in pixels, whether it is depth-tested, and
+// its rgb (r in the low byte); its steps (columns if x-major, else rows, `first` the first on
+// screen) are numbered from `base` among all lines'. 48 bytes.
+// C++: render::GpuOverlayLine (render/src/overlay_pass.cpp).
+#define TESSERA_OVERLAY_LINE_BYTES 48
+#ifndef __cplusplus
+struct OverlayLine {
+  vec4 ends;      // a.x, a.y, b.x, b.y
+  vec4 depth;     // depth at a, its change per pixel towards b, half width, depth-tested (0/1)
+  uint rgb;
+  uint base;   // the line's first step among all lines'
+  int first;   // its first column or row on screen
+  uint flags;  // bit 0: x-major (steps are columns)
 };
 #endif
 

@@ -28,6 +28,43 @@ struct OverlayVertex {
 };
 static_assert(sizeof(OverlayVertex) == TESSERA_OVERLAY_VERTEX_BYTES);
 
+/// C++ twin of shaders/shared_layout.h's OverlayLine (overlay_lines.comp).
+struct GpuOverlayLine {
+  glm::vec4 ends;   // pixels, y down from the image's top
+  glm::vec4 depth;  // window depth at the first end, per pixel along, half width, tested
+  uint32_t rgb = 0;
+  uint32_t base = 0;   // its first step among all lines'
+  int32_t first = 0;   // its first column (x-major) or row on screen
+  uint32_t flags = 0;  // bit 0: x-major
+};
+static_assert(sizeof(GpuOverlayLine) == TESSERA_OVERLAY_LINE_BYTES);
+
+/// Clips the segment p + t (q - p), t in [0, 1], to the box [lo, hi] (Liang and Barsky):
+/// false when nothing is left, else the interval [t0, t1].
+bool clipSegment(const glm::dvec2& p, const glm::dvec2& q, const glm::dvec2& lo,
+                 const glm::dvec2& hi, double& t0, double& t1) {
+  t0 = 0.0;
+  t1 = 1.0;
+  const glm::dvec2 d = q - p;
+  for (int axis = 0; axis < 2; ++axis)
+    for (const auto& [num, den] :
+         {std::pair{p[axis] - lo[axis], -d[axis]}, std::pair{hi[axis] - p[axis], d[axis]}}) {
+      if (den == 0.0) {
+        if (num < 0.0) return false;
+        continue;
+      }
+      const double t = num / den;
+      if (den < 0.0)
+        t0 = std::max(t0, t);
+      else
+        t1 = std::min(t1, t);
+    }
+  return t0 <= t1;
+}
+
+/// The most steps (columns or rows of lines) overlay_lines.comp draws in one run.
+constexpr size_t kMostDirectSteps = size_t(1) << 24;
+
 uint32_t pack(const glm::u8vec4& c) {
   return uint32_t(c.r) | uint32_t(c.g) << 8 | uint32_t(c.b) << 16 | uint32_t(c.a) << 24;
 }
@@ -79,7 +116,9 @@ std::string variantDefines(uint32_t v) {
   int kinds = 0;
   for (uint32_t m = 0; m < 4; ++m) kinds += (v >> m) & 1u;
   std::string d;
-  auto def = [&](const char* name, bool on) { d += std::string("#define ") + name + (on ? " 1\n" : " 0\n"); };
+  auto def = [&](const char* name, bool on) {
+    d += std::string("#define ") + name + (on ? " 1\n" : " 0\n");
+  };
   def("HAS_TEXTURED", v & (1u << TESSERA_OVERLAY_TEXTURED));
   def("HAS_DOT", v & (1u << TESSERA_OVERLAY_DOT));
   def("HAS_GLYPH", v & (1u << TESSERA_OVERLAY_GLYPH));
@@ -93,6 +132,10 @@ std::string variantDefines(uint32_t v) {
 
 struct OverlayPass::Impl {
   std::map<uint32_t, GlProgram> programs;  // by variant, compiled on first use
+  GlProgram line_passes[2];                // overlay_lines.comp, made on first use
+  GlBuffer owner;                          // its per-pixel owner plane, all zero between runs
+  std::vector<GpuOverlayLine> gpu_lines;   // per run(): the opaque lines it writes
+  std::vector<uint32_t> step_lines;        // per run(): each step's line (overlay_lines.comp)
   ImFontAtlas atlas;
   ImFont* font = nullptr;
   GlTexture font_texture;
@@ -193,7 +236,12 @@ struct OverlayPass::Impl {
     return &it->second.texture;
   }
 
-  void addLine(const OverlayLine& l);
+  /// `l` as a quad of the raster pass, or with `direct` as a line of overlay_lines.comp.
+  void addLine(const OverlayLine& l, bool direct);
+  /// Writes the direct lines into the image (overlay_lines.comp's two passes).
+  void drawDirectLines(FrameTarget& target);
+  /// The end of a run(): unused pictures released; the pass's milliseconds.
+  double finish(GpuLap& lap);
   void addLabel(const OverlayLabel& l, const FrameTarget& target, const glm::dmat4& projection);
   /// `l` moved (its offset and alignment) to where its box meets no label placed before it
   /// this run, its anchor at pixel `at`; the box is then taken.
@@ -203,7 +251,7 @@ struct OverlayPass::Impl {
   glm::vec2 layout(const OverlayLabel& l, const glm::dvec4* anchor, uint32_t anchored = 0);
 };
 
-void OverlayPass::Impl::addLine(const OverlayLine& l) {
+void OverlayPass::Impl::addLine(const OverlayLine& l, bool direct) {
   glm::dvec4 a = clip(l.a), b = clip(l.b);
   if (std::isnan(a.w) || std::isnan(b.w) || !(l.width_px > 0.0f) || !std::isfinite(l.width_px))
     return;
@@ -218,10 +266,80 @@ void OverlayPass::Impl::addLine(const OverlayLine& l) {
   d = len > 1e-9 ? d / len : glm::dvec2(1.0, 0.0);
   const double h = 0.5 * double(l.width_px);
   const glm::dvec2 along = d * h, across = glm::dvec2(-d.y, d.x) * h;
+  if (direct) {
+    // Pixels, y down from the image's top (the clip position's y is flipped already), and
+    // window depths, clipped to the view widened by the line's half width and a pixel.
+    const glm::dvec2 pa = (glm::dvec2(a) / a.w * 0.5 + 0.5) * size,
+                     pb = (glm::dvec2(b) / b.w * 0.5 + 0.5) * size;
+    const double za = a.z / a.w * 0.5 + 0.5, zb = b.z / b.w * 0.5 + 0.5;
+    double t0 = 0.0, t1 = 1.0;
+    const glm::dvec2 margin(h + 1.0);
+    if (!clipSegment(pa, pb, -margin, size + margin, t0, t1)) return;
+    GpuOverlayLine g;
+    const glm::dvec2 qa = pa + (pb - pa) * t0, qb = pa + (pb - pa) * t1;
+    g.ends = glm::vec4(qa.x, qa.y, qb.x, qb.y);
+    // Depth as the raster's quad has it: za at the start cap's edge (h before a), zb at the end
+    // cap's, linear in between; from the clipped start on, per pixel along the line.
+    const double full = glm::length(pb - pa), per_px = (zb - za) / (full + 2.0 * h);
+    g.depth = glm::vec4(float(za + per_px * (t0 * full + h)), float(per_px), float(h),
+                        flags ? 1.0f : 0.0f);
+    g.rgb = pack(l.color) & 0xFFFFFFu;
+    // Its steps: the columns (or rows) its rectangle spans on screen, a pixel wider each side.
+    const glm::vec2 fa(g.ends.x, g.ends.y), fb(g.ends.z, g.ends.w);
+    const bool x_major = std::abs(fb.x - fa.x) >= std::abs(fb.y - fa.y);
+    const int axis = x_major ? 0 : 1;
+    const double lo = std::min(fa[axis], fb[axis]) - h - 1.0,
+                 hi = std::max(fa[axis], fb[axis]) + h + 1.0;
+    const int first = std::max(0, int(std::floor(lo)));
+    const int last = std::min(int(size[axis]) - 1, int(std::ceil(hi)));
+    if (last < first) return;
+    // (A frame of more than 2^24 steps, 64 MB of step list: the rest are quads of the raster.)
+    if (step_lines.size() + size_t(last - first + 1) <= kMostDirectSteps) {
+      g.base = uint32_t(step_lines.size());
+      g.first = first;
+      g.flags = x_major ? 1u : 0u;
+      step_lines.insert(step_lines.end(), size_t(last - first + 1), uint32_t(gpu_lines.size()));
+      gpu_lines.push_back(g);
+      return;
+    }
+  }
   const uint32_t rgba = pack(l.color);
   quad({shifted(a, -along - across), shifted(b, along - across), shifted(b, along + across),
         shifted(a, -along + across)},
        {glm::vec2(0), glm::vec2(0), glm::vec2(0), glm::vec2(0)}, rgba, TESSERA_OVERLAY_FLAT);
+}
+
+void OverlayPass::Impl::drawDirectLines(FrameTarget& target) {
+  for (int pass = 0; pass < 2; ++pass)
+    if (!line_passes[pass])
+      line_passes[pass] = GlProgram::compute(shaders::kOverlayLines, "overlay_lines.comp",
+                                             "#define PASS " + std::to_string(pass) + "\n");
+  const size_t plane = target.pixels() * sizeof(uint32_t);
+  if (owner.bytes() != plane) {
+    owner = GlBuffer(plane, nullptr);
+    owner.clear(0u);
+  }
+  const GlBuffer lines(gpu_lines.size() * sizeof(GpuOverlayLine), gpu_lines.data());
+  const GlBuffer steps(step_lines.size() * sizeof(uint32_t), step_lines.data());
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_OVERLAY_LINES, lines.name());
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_OVERLAY_STEPS, steps.name());
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_OVERLAY_OWNER, owner.name());
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_DEPTH, target.depth().name());
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_IMAGE, target.image().name());
+  for (int pass = 0; pass < 2; ++pass) {
+    glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+    const GlProgram& p = line_passes[pass];
+    p.use();
+    p.set("uSize", glm::ivec2(target.width(), target.height()));
+    p.set("uSteps", uint32_t(step_lines.size()));
+    constexpr size_t kStepsPerDispatch = 65535 * 64;
+    for (size_t first = 0; first < step_lines.size(); first += kStepsPerDispatch) {
+      p.set("uFirst", uint32_t(first));
+      const size_t n = std::min(kStepsPerDispatch, step_lines.size() - first);
+      glDispatchCompute(GLuint((n + 63) / 64), 1, 1);
+    }
+  }
+  glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT | GL_PIXEL_BUFFER_BARRIER_BIT);
 }
 
 glm::vec2 OverlayPass::Impl::layout(const OverlayLabel& l, const glm::dvec4* anchor,
@@ -417,8 +535,14 @@ double OverlayPass::run(FrameTarget& target, const ViewSetup& view, const Overla
     s.quad(c, {glm::vec2(0, 0), glm::vec2(1, 0), glm::vec2(1, 1), glm::vec2(0, 1)}, pack(q.tint),
            TESSERA_OVERLAY_TEXTURED);
   }
+  // Opaque lines go straight into the image (overlay_lines.comp: llvmpipe rasterises long thin
+  // quads slowly), unless a textured quad (a video inset) is drawn first and must stay under
+  // them: then every line is a quad of the raster pass, in order.
+  s.gpu_lines.clear();
+  s.step_lines.clear();
+  const bool direct = overlay.quads.empty();
   s.begin(Group::kLines, 0, true);
-  for (const OverlayLine& l : overlay.lines) s.addLine(l);
+  for (const OverlayLine& l : overlay.lines) s.addLine(l, direct && l.color.a == 255);
   s.begin(Group::kDots, 0, true);
   for (const OverlayPoint& p : overlay.points) {
     const glm::dvec4 a = s.clip(p.at);
@@ -440,6 +564,9 @@ double OverlayPass::run(FrameTarget& target, const ViewSetup& view, const Overla
              TESSERA_OVERLAY_TEXTURED);
   }
 
+  if (!s.gpu_lines.empty()) s.drawDirectLines(target);
+  if (s.vertices.empty()) return s.finish(lap);
+
   if (s.framebuffer.width() != target.width() || s.framebuffer.height() != target.height())
     s.framebuffer = GlFramebuffer(target.width(), target.height(), false);
   // The image into the framebuffer's colour (row 0 = the image's top row): a copy from the
@@ -458,28 +585,26 @@ double OverlayPass::run(FrameTarget& target, const ViewSetup& view, const Overla
   glBindVertexArray(s.vao);
   glDisable(GL_DEPTH_TEST);
 
-  if (!s.vertices.empty()) {
-    const GlBuffer vertices(s.vertices.size() * sizeof(OverlayVertex), s.vertices.data());
-    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_OVERLAY, vertices.name());
-    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_DEPTH, target.depth().name());
-    if (s.anchors.empty()) s.anchors.emplace_back(0.0f);  // a buffer is bound either way
-    const GlBuffer anchors(s.anchors.size() * sizeof(glm::vec4), s.anchors.data());
-    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_OVERLAY_ANCHORS, anchors.name());
-    // Overlays do not hide each other (later ones draw on top); colour blends over the scene,
-    // the image's alpha stays opaque.
-    glEnable(GL_BLEND);
-    glBlendFuncSeparate(GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA, GL_ZERO, GL_ONE);
-    for (const Run& r : s.runs) {
-      if (r.count == 0) continue;
-      GlProgram& draw = s.program(r.variant);
-      draw.use();
-      draw.set("uTexture", 0);
-      draw.set("uSize", glm::ivec2(target.width(), target.height()));
-      draw.set("uDepthFromNdc",
-               glm::vec2(float(view.projection[3][2]), float(view.projection[2][2])));
-      glBindTextureUnit(0, r.texture ? r.texture : s.white.name());
-      glDrawArrays(GL_TRIANGLES, GLint(r.first), GLsizei(r.count));
-    }
+  const GlBuffer vertices(s.vertices.size() * sizeof(OverlayVertex), s.vertices.data());
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_OVERLAY, vertices.name());
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_DEPTH, target.depth().name());
+  if (s.anchors.empty()) s.anchors.emplace_back(0.0f);  // a buffer is bound either way
+  const GlBuffer anchors(s.anchors.size() * sizeof(glm::vec4), s.anchors.data());
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_OVERLAY_ANCHORS, anchors.name());
+  // Overlays do not hide each other (later ones draw on top); colour blends over the scene,
+  // the image's alpha stays opaque.
+  glEnable(GL_BLEND);
+  glBlendFuncSeparate(GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA, GL_ZERO, GL_ONE);
+  for (const Run& r : s.runs) {
+    if (r.count == 0) continue;
+    GlProgram& draw = s.program(r.variant);
+    draw.use();
+    draw.set("uTexture", 0);
+    draw.set("uSize", glm::ivec2(target.width(), target.height()));
+    draw.set("uDepthFromNdc",
+             glm::vec2(float(view.projection[3][2]), float(view.projection[2][2])));
+    glBindTextureUnit(0, r.texture ? r.texture : s.white.name());
+    glDrawArrays(GL_TRIANGLES, GLint(r.first), GLsizei(r.count));
   }
   glDisable(GL_BLEND);
   glBindBuffer(GL_PIXEL_PACK_BUFFER, target.image().name());
@@ -489,9 +614,13 @@ double OverlayPass::run(FrameTarget& target, const ViewSetup& view, const Overla
   glBindBuffer(GL_PIXEL_PACK_BUFFER, 0);
   glBindFramebuffer(GL_FRAMEBUFFER, 0);
   glBindVertexArray(0);
+  return s.finish(lap);
+}
+
+double OverlayPass::Impl::finish(GpuLap& lap) {
   // Pictures no label showed this time are released (a note closed).
-  std::erase_if(s.pictures, [&](const auto& p) { return p.second.used != s.runs_done; });
-  ++s.runs_done;
+  std::erase_if(pictures, [&](const auto& p) { return p.second.used != runs_done; });
+  ++runs_done;
   return lap();
 }
 

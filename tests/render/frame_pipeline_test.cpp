@@ -208,6 +208,56 @@ TEST_F(FramePipelineTest, OverlayIsHiddenBehindTheModelAndDrawnInFrontOfIt) {
   EXPECT_EQ(std::memcmp(pixel(img, 0, 0), pixel(plain, 0, 0), 4), 0);
 }
 
+// Opaque lines are written straight into the image (overlay_lines.comp) unless a textured quad
+// must stay under them; then they are quads of the raster pass. Both ways give the same
+// pixels: lines of every direction and width, through the bunny (partly hidden), off the
+// view's edges, crossing each other (the later on top).
+TEST_F(FramePipelineTest, DirectLinesDrawTheRasterPathsPixels) {
+  auto s = lod::PointStore::open(*sDir / "b.tlod");
+  glm::dvec3 c;
+  const ViewSetup v = frontView(*s, 0.4, 320, 240, &c);
+  ModelInstance inst{s.get(), storeModel(*s)};
+  ViewRenderer r(v.width, v.height);
+  (void)r.renderSettled({&inst, 1}, v, RenderOptions{});
+  Overlay direct;
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> u(-0.25, 0.25);
+  for (int i = 0; i < 60; ++i) {
+    const glm::u8vec4 colour(uint8_t(rng() % 256), uint8_t(rng() % 256), uint8_t(rng() % 256), 255);
+    direct.lines.push_back({c + glm::dvec3(u(rng), u(rng), u(rng)),
+                            c + glm::dvec3(u(rng), u(rng), u(rng)), colour,
+                            float(1.0 + (i % 7) * 0.5)});
+  }
+  // Off the view's left and right edges, and along a row and a column exactly.
+  direct.lines.push_back(
+      {c + glm::dvec3(-3, 0.02, 0), c + glm::dvec3(3, 0.05, 0), {0, 255, 0, 255}, 2.0f});
+  direct.lines.push_back(
+      {c + glm::dvec3(-0.1, 0.0, 0.1), c + glm::dvec3(0.1, 0.0, 0.1), {255, 0, 0, 255}, 3.0f});
+  direct.lines.push_back(
+      {c + glm::dvec3(0.0, -0.1, 0.1), c + glm::dvec3(0.0, 0.1, 0.1), {0, 0, 255, 255}, 3.0f});
+  Overlay raster = direct;
+  // A quad behind the eye (never drawn) makes every line a quad of the raster pass.
+  raster.quads.push_back({{v.eye_world + glm::dvec3(0, 0, 1), v.eye_world + glm::dvec3(1, 0, 1),
+                           v.eye_world + glm::dvec3(1, 1, 1), v.eye_world + glm::dvec3(0, 1, 1)},
+                          nullptr,
+                          {0, 0, 0, 0}});
+  const Image a = r.render({&inst, 1}, v, RenderOptions{}, nullptr, &direct);
+  const Image b = r.render({&inst, 1}, v, RenderOptions{}, nullptr, &raster);
+  const Image plain = r.render({&inst, 1}, v, RenderOptions{});
+  size_t lines = 0, differ = 0;
+  for (uint32_t y = 0; y < v.height; ++y)
+    for (uint32_t x = 0; x < v.width; ++x) {
+      const bool in_a = std::memcmp(pixel(a, x, y), pixel(plain, x, y), 3) != 0;
+      const bool in_b = std::memcmp(pixel(b, x, y), pixel(plain, x, y), 3) != 0;
+      lines += in_a || in_b;
+      differ += std::memcmp(pixel(a, x, y), pixel(b, x, y), 4) != 0;
+    }
+  EXPECT_GT(lines, 3000u);
+  // Both follow the rasteriser's tie rule (axis-aligned lines on pixel edges: the 3 px lines
+  // through the view's centre); float rounding moves a few pixels (11 of 17,664 here).
+  EXPECT_LE(double(differ), 0.002 * double(lines)) << differ << " of " << lines << " line pixels";
+}
+
 TEST_F(FramePipelineTest, LabelsQuadsAndScreenRectsLandWhereTheyShould) {
   auto s = lod::PointStore::open(*sDir / "b.tlod");
   glm::dvec3 c;
@@ -452,7 +502,8 @@ TEST_F(FramePipelineTest, LabelsAtOneSpotDoNotCoverEachOther) {
   }
   // The first as asked: its box's top-left corner at the offset from the anchor.
   const glm::dvec4 clip = v.projection * v.view * glm::dvec4(at, 1.0);
-  const glm::dvec2 px((clip.x / clip.w * 0.5 + 0.5) * v.width, (0.5 - clip.y / clip.w * 0.5) * v.height);
+  const glm::dvec2 px((clip.x / clip.w * 0.5 + 0.5) * v.width,
+                      (0.5 - clip.y / clip.w * 0.5) * v.height);
   const OverlayLabel defaults;
   EXPECT_NEAR(first_lo.x, px.x + defaults.offset_px.x, 1.5);
   EXPECT_NEAR(first_lo.y, px.y + defaults.offset_px.y, 1.5);
