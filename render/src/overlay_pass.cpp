@@ -266,12 +266,15 @@ void OverlayPass::Impl::addLine(const OverlayLine& l, bool direct) {
   d = len > 1e-9 ? d / len : glm::dvec2(1.0, 0.0);
   const double h = 0.5 * double(l.width_px);
   const glm::dvec2 along = d * h, across = glm::dvec2(-d.y, d.x) * h;
-  if (direct) {
-    // Pixels, y down from the image's top (the clip position's y is flipped already), and
-    // window depths, clipped to the view widened by the line's half width and a pixel.
-    const glm::dvec2 pa = (glm::dvec2(a) / a.w * 0.5 + 0.5) * size,
-                     pb = (glm::dvec2(b) / b.w * 0.5 + 0.5) * size;
-    const double za = a.z / a.w * 0.5 + 0.5, zb = b.z / b.w * 0.5 + 0.5;
+  // Pixels, y down from the image's top (the clip position's y is flipped already), and
+  // window depths. An end millions of pixels away (just in front of the eye) is left to the
+  // raster's clipping: float steps there are pixels wide.
+  const glm::dvec2 pa = (glm::dvec2(a) / a.w * 0.5 + 0.5) * size,
+                   pb = (glm::dvec2(b) / b.w * 0.5 + 0.5) * size;
+  const double za = a.z / a.w * 0.5 + 0.5, zb = b.z / b.w * 0.5 + 0.5;
+  auto near = [](const glm::dvec2& p) { return std::abs(p.x) < 1e6 && std::abs(p.y) < 1e6; };
+  if (direct && near(pa) && near(pb) && std::isfinite(za) && std::isfinite(zb)) {
+    // Clipped to the view widened by the line's half width and a pixel.
     double t0 = 0.0, t1 = 1.0;
     const glm::dvec2 margin(h + 1.0);
     if (!clipSegment(pa, pb, -margin, size + margin, t0, t1)) return;
