@@ -22,6 +22,7 @@
 #include "crc32c.h"
 #include "file_io.h"
 #include "mesh_format.h"
+#include "metis_pool.h"
 #include "morton.h"
 #include "triangle_grid.h"
 
@@ -159,30 +160,21 @@ struct BuildNode {
 
 /// METIS k-way partition of a CSR graph into `parts`; part ids dense from 0 (empty parts
 /// dropped). Returns the part count.
-uint32_t partition(std::vector<idx_t>& xadj, std::vector<idx_t>& adjncy, std::vector<idx_t>* vwgt,
-                   std::vector<idx_t>* adjwgt, uint32_t parts, std::vector<uint32_t>& out) {
-  idx_t n = idx_t(xadj.size() - 1);
+uint32_t partition(MetisPool& metis, const std::vector<idx_t>& xadj,
+                   const std::vector<idx_t>& adjncy, const std::vector<idx_t>* vwgt,
+                   const std::vector<idx_t>* adjwgt, uint32_t parts, std::vector<uint32_t>& out) {
+  const idx_t n = idx_t(xadj.size() - 1);
   out.assign(size_t(n), 0);
   if (parts <= 1 || n <= 1) return n > 0 ? 1 : 0;
   if (parts >= uint32_t(n)) {
     std::iota(out.begin(), out.end(), 0u);
     return uint32_t(n);
   }
-  idx_t ncon = 1, nparts = idx_t(parts), objval = 0;
-  idx_t options[METIS_NOPTIONS];
-  METIS_SetDefaultOptions(options);
-  options[METIS_OPTION_SEED] = 42;  // the same store from the same mesh
-  options[METIS_OPTION_NUMBERING] = 0;
-  std::vector<idx_t> part(size_t(n), 0);
-  // One METIS call at a time: its random numbers come from one process-wide generator
-  // (GKlib's, seeded per call), so concurrent calls took each other's numbers and the same
-  // mesh made different stores from run to run (issue 15: verify's bounds then differed too).
-  static std::mutex metis_mutex;
-  std::lock_guard lock(metis_mutex);
-  const int rc = METIS_PartGraphKway(&n, &ncon, xadj.data(), adjncy.data(),
-                                     vwgt ? vwgt->data() : nullptr, nullptr,
-                                     adjwgt ? adjwgt->data() : nullptr, &nparts, nullptr, nullptr,
-                                     options, &objval, part.data());
+  // The same seed for every call: a call's parts depend on its graph only (metis_pool.h), so the
+  // same mesh makes the same store on any number of threads (issue 15).
+  constexpr idx_t kSeed = 42;
+  std::vector<idx_t> part;
+  const int rc = metis.partGraphKway(xadj, adjncy, vwgt, adjwgt, idx_t(parts), kSeed, part);
   if (rc != METIS_OK)
     throw std::runtime_error("lod::buildMeshStore(): METIS failed (" + std::to_string(rc) + ")");
   std::vector<int64_t> dense(parts, -1);
@@ -216,14 +208,15 @@ void localVertices(size_t vertex_count, const std::vector<Triangle>& tris,
   for (uint32_t v : verts) table[v] = ~0u;
 }
 
+constexpr size_t kBlockPatches = 64;
+
 /// Leaf patches: METIS k-way on the dual graph, into parts of about `patch` triangles. Large
 /// meshes are first cut into blocks of consecutive triangles in Morton order of their
 /// centroids (kBlockPatches patches each), partitioned in parallel: METIS on the whole graph
 /// took 94 of a 17.8 M-triangle build's 189 s on one core. `part` gets each triangle's patch.
 uint32_t leafPatches(const Prepared& p, const std::vector<idx_t>& xadj,
                      const std::vector<idx_t>& adjncy, uint32_t patch, uint32_t threads,
-                     std::vector<uint32_t>& part) {
-  constexpr size_t kBlockPatches = 64;
+                     MetisPool& metis, std::vector<uint32_t>& part) {
   const size_t nt = p.tris.size(), block = size_t(patch) * kBlockPatches;
   part.assign(nt, 0);
   // Triangles in Morton order of their centroids' grid cells (21 bits an axis).
@@ -262,7 +255,7 @@ uint32_t leafPatches(const Prepared& p, const std::vector<idx_t>& xadj,
     }
     std::vector<uint32_t> local;
     const uint32_t want = uint32_t((end - begin + patch - 1) / patch);
-    block_parts[b] = partition(bx, ba, nullptr, nullptr, want, local);
+    block_parts[b] = partition(metis, bx, ba, nullptr, nullptr, want, local);
     for (size_t i = begin; i < end; ++i) part[order[i].second] = local[i - begin];
   });
   for (size_t b = 0; b < blocks; ++b) first_part[b + 1] = first_part[b] + block_parts[b];
@@ -425,6 +418,12 @@ MeshBuildReport buildMeshStore(const Mesh& mesh, const std::filesystem::path& ou
                     " (this builder holds the whole mesh)");
   const uint32_t threads =
       o.threads ? o.threads : std::max(1u, std::thread::hardware_concurrency());
+  // Partition workers, one per thread that can use one, forked before any thread starts and
+  // while the process is smallest (metis_pool.h: METIS's generator is process-wide). Leaf
+  // blocks are the only calls made concurrently; a single block needs none.
+  const size_t blocks = (mesh.triangles.size() + size_t(o.patch_triangles) * kBlockPatches - 1) /
+                        (size_t(o.patch_triangles) * kBlockPatches);
+  MetisPool metis(threads > 1 && blocks > 1 ? uint32_t(std::min<size_t>(threads, blocks)) : 0);
   const Prepared p = prepare(mesh, threads);
   r.triangles = p.tris.size();
   r.dropped_triangles = p.dropped;
@@ -447,7 +446,7 @@ MeshBuildReport buildMeshStore(const Mesh& mesh, const std::filesystem::path& ou
     std::vector<idx_t> xadj, adjncy;
     dualGraph(p, threads, xadj, adjncy);
     std::vector<uint32_t> part;
-    const uint32_t parts = leafPatches(p, xadj, adjncy, o.patch_triangles, threads, part);
+    const uint32_t parts = leafPatches(p, xadj, adjncy, o.patch_triangles, threads, metis, part);
     nodes.resize(parts);
     for (size_t t = 0; t < p.tris.size(); ++t) nodes[part[t]].tris.push_back(p.tris[t]);
     adjacency.resize(parts);
@@ -486,7 +485,8 @@ MeshBuildReport buildMeshStore(const Mesh& mesh, const std::filesystem::path& ou
         xadj[i + 1] = idx_t(adjncy.size());
         vwgt[i] = idx_t(std::max<size_t>(1, nodes[level_nodes[i]].tris.size()));
       }
-      groups = partition(xadj, adjncy, &vwgt, &adjwgt, uint32_t((n + o.arity - 1) / o.arity), group);
+      groups = partition(metis, xadj, adjncy, &vwgt, &adjwgt, uint32_t((n + o.arity - 1) / o.arity),
+                         group);
     } else {
       group.assign(n, 0);
     }
