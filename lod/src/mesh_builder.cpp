@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdio>
 #include <functional>
+#include <memory>
 #include <mutex>
 #include <numeric>
 #include <thread>
@@ -58,6 +59,16 @@ void parallelFor(size_t n, uint32_t threads, const std::function<void(size_t)>& 
   work();
   for (std::thread& t : pool) t.join();
   if (error) std::rethrow_exception(error);
+}
+
+constexpr size_t kChunk = 1 << 16;
+
+/// parallelFor over [0, n) in chunks of kChunk: f(begin, end) for each (cheap bodies over large
+/// arrays).
+template <class F>
+void parallelChunks(size_t n, uint32_t threads, const F& f) {
+  parallelFor((n + kChunk - 1) / kChunk, threads,
+              [&](size_t c) { f(c * kChunk, std::min(n, (c + 1) * kChunk)); });
 }
 
 /// The mesh as the builder works on it: usable triangles, grid positions, normals.
@@ -114,10 +125,10 @@ Prepared prepare(const Mesh& mesh, uint32_t threads) {
   p.step = std::max(median / 256.0, extent / double(1 << 30));
   p.grid.resize(nv);
   p.pos.resize(nv);
-  constexpr size_t kStep = 1 << 16;
-  std::vector<double> chunk_error((nv + kStep - 1) / kStep, 0.0);
-  parallelFor(chunk_error.size(), threads, [&](size_t chunk) {
-    for (size_t i = chunk * kStep; i < std::min(nv, (chunk + 1) * kStep); ++i) {
+  std::vector<double> chunk_error((nv + kChunk - 1) / kChunk, 0.0);
+  parallelChunks(nv, threads, [&](size_t begin, size_t end) {
+    const size_t chunk = begin / kChunk;
+    for (size_t i = begin; i < end; ++i) {
       const glm::dvec3 v = mesh.positions[i];
       if (!std::isfinite(v.x) || !std::isfinite(v.y) || !std::isfinite(v.z)) continue;  // unused
       const glm::dvec3 q = glm::clamp(glm::round((v - p.lo) / p.step), glm::dvec3(0.0),
@@ -141,9 +152,8 @@ Prepared prepare(const Mesh& mesh, uint32_t threads) {
     }
   }
   p.normals.resize(nv);
-  parallelFor((nv + kStep - 1) / kStep, threads, [&](size_t chunk) {
-    for (size_t i = chunk * kStep; i < std::min(nv, (chunk + 1) * kStep); ++i)
-      p.normals[i] = meshfmt::octEncode(n[i]);
+  parallelChunks(nv, threads, [&](size_t begin, size_t end) {
+    for (size_t i = begin; i < end; ++i) p.normals[i] = meshfmt::octEncode(n[i]);
   });
   if (mesh.colors.size() == nv) p.colors = mesh.colors;
   return p;
@@ -224,9 +234,8 @@ uint32_t leafPatches(const Prepared& p, const std::vector<idx_t>& xadj,
   glm::i64vec3 hi(1);
   for (const glm::i32vec3& g : p.grid) hi = glm::max(hi, glm::i64vec3(g));
   const int shift = std::max(0, int(std::ceil(std::log2(double(std::max({hi.x, hi.y, hi.z}) + 1)))) - 21);
-  constexpr size_t kStep = 1 << 16;
-  parallelFor((nt + kStep - 1) / kStep, threads, [&](size_t chunk) {
-    for (size_t t = chunk * kStep; t < std::min(nt, (chunk + 1) * kStep); ++t) {
+  parallelChunks(nt, threads, [&](size_t begin, size_t end) {
+    for (size_t t = begin; t < end; ++t) {
       const glm::i64vec3 c = (glm::i64vec3(p.grid[p.tris[t].x]) +
                               glm::i64vec3(p.grid[p.tris[t].y]) +
                               glm::i64vec3(p.grid[p.tris[t].z])) / int64_t(3);
@@ -239,7 +248,9 @@ uint32_t leafPatches(const Prepared& p, const std::vector<idx_t>& xadj,
   const size_t blocks = (nt + block - 1) / block;
   std::vector<uint32_t> first_part(blocks + 1, 0), block_parts(blocks, 0);
   std::vector<uint32_t> local_of(nt, 0);
-  for (size_t i = 0; i < nt; ++i) local_of[order[i].second] = uint32_t(i % block);
+  parallelChunks(nt, threads, [&](size_t begin, size_t end) {
+    for (size_t i = begin; i < end; ++i) local_of[order[i].second] = uint32_t(i % block);
+  });
   parallelFor(blocks, threads, [&](size_t b) {
     const size_t begin = b * block, end = std::min(nt, begin + block);
     // The block's own graph: edges to other blocks dropped.
@@ -259,7 +270,9 @@ uint32_t leafPatches(const Prepared& p, const std::vector<idx_t>& xadj,
     for (size_t i = begin; i < end; ++i) part[order[i].second] = local[i - begin];
   });
   for (size_t b = 0; b < blocks; ++b) first_part[b + 1] = first_part[b] + block_parts[b];
-  for (size_t i = 0; i < nt; ++i) part[order[i].second] += first_part[i / block];
+  parallelChunks(nt, threads, [&](size_t begin, size_t end) {
+    for (size_t i = begin; i < end; ++i) part[order[i].second] += first_part[i / block];
+  });
   return first_part[blocks];
 }
 
@@ -323,7 +336,8 @@ void bounds(const Prepared& p, BuildNode& n) {
 void dualGraph(const Prepared& p, uint32_t threads, std::vector<idx_t>& xadj,
                std::vector<idx_t>& adjncy) {
   const size_t nv = p.grid.size(), nt = p.tris.size();
-  std::vector<uint32_t> start(nv + 1, 0), items(nt * 3);
+  std::vector<uint32_t> start(nv + 1, 0);
+  const auto items = std::make_unique_for_overwrite<uint32_t[]>(nt * 3);  // each written once
   for (const Triangle& t : p.tris)
     for (int k = 0; k < 3; ++k) ++start[t[k] + 1];
   for (size_t v = 1; v <= nv; ++v) start[v] += start[v - 1];
@@ -334,11 +348,10 @@ void dualGraph(const Prepared& p, uint32_t threads, std::vector<idx_t>& xadj,
   // other triangle; a non-manifold edge's further ones beyond the slots are left out of the
   // graph: it only steers the partition), then packed.
   constexpr int kSlots = 6;
-  std::vector<uint32_t> slots(nt * kSlots);
+  const auto slots = std::make_unique_for_overwrite<uint32_t[]>(nt * kSlots);  // counts[i] used
   std::vector<uint8_t> counts(nt, 0);
-  constexpr size_t kStep = 1 << 16;
-  parallelFor((nt + kStep - 1) / kStep, threads, [&](size_t chunk) {
-    for (size_t i = chunk * kStep; i < std::min(nt, (chunk + 1) * kStep); ++i) {
+  parallelChunks(nt, threads, [&](size_t begin, size_t end) {
+    for (size_t i = begin; i < end; ++i) {
       const Triangle& t = p.tris[i];
       uint32_t* mine = &slots[i * kSlots];
       int n = 0;
@@ -358,8 +371,11 @@ void dualGraph(const Prepared& p, uint32_t threads, std::vector<idx_t>& xadj,
   xadj.assign(nt + 1, 0);
   for (size_t i = 0; i < nt; ++i) xadj[i + 1] = xadj[i] + counts[i];
   adjncy.resize(size_t(xadj[nt]));
-  for (size_t i = 0; i < nt; ++i)
-    for (int k = 0; k < counts[i]; ++k) adjncy[size_t(xadj[i]) + k] = idx_t(slots[i * kSlots + k]);
+  parallelChunks(nt, threads, [&](size_t begin, size_t end) {
+    for (size_t i = begin; i < end; ++i)
+      for (int k = 0; k < counts[i]; ++k)
+        adjncy[size_t(xadj[i]) + k] = idx_t(slots[i * kSlots + k]);
+  });
 }
 
 /// The inputs fused into one mesh in the first one's frame.
@@ -447,14 +463,29 @@ MeshBuildReport buildMeshStore(const Mesh& mesh, const std::filesystem::path& ou
     dualGraph(p, threads, xadj, adjncy);
     std::vector<uint32_t> part;
     const uint32_t parts = leafPatches(p, xadj, adjncy, o.patch_triangles, threads, metis, part);
+    // Each leaf's triangles and shared edges, by ranges of leaves in parallel. Every range scans
+    // all triangles in order, so a leaf gets its triangles, and its map their neighbours, in the
+    // order of one pass: the same store on any number of threads.
     nodes.resize(parts);
-    for (size_t t = 0; t < p.tris.size(); ++t) nodes[part[t]].tris.push_back(p.tris[t]);
     adjacency.resize(parts);
-    for (size_t t = 0; t < p.tris.size(); ++t)
-      for (idx_t e = xadj[t]; e < xadj[t + 1]; ++e) {
-        const uint32_t a = part[t], b = part[size_t(adjncy[size_t(e)])];
-        if (a != b) ++adjacency[a][b];
+    const size_t ranges = std::min<size_t>(threads, parts);
+    parallelFor(ranges, threads, [&](size_t range) {
+      const uint32_t lo = uint32_t(parts * range / ranges);
+      const uint32_t hi = uint32_t(parts * (range + 1) / ranges);
+      std::vector<uint32_t> count(hi - lo, 0);
+      for (uint32_t a : part)
+        if (a >= lo && a < hi) ++count[a - lo];
+      for (uint32_t a = lo; a < hi; ++a) nodes[a].tris.reserve(count[a - lo]);
+      for (size_t t = 0; t < p.tris.size(); ++t) {
+        const uint32_t a = part[t];
+        if (a < lo || a >= hi) continue;
+        nodes[a].tris.push_back(p.tris[t]);
+        for (idx_t e = xadj[t]; e < xadj[t + 1]; ++e) {
+          const uint32_t b = part[size_t(adjncy[size_t(e)])];
+          if (a != b) ++adjacency[a][b];
+        }
       }
+    });
     parallelFor(parts, threads, [&](size_t i) {
       bounds(p, nodes[i]);
       nodes[i].error = float(p.quant_error);
