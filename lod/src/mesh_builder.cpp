@@ -198,24 +198,31 @@ uint32_t partition(MetisPool& metis, const std::vector<idx_t>& xadj,
 }
 
 /// A triangle set's vertices numbered in order of first use: `verts` gets the global ids,
-/// `local` the local index of each triangle corner. O(corners): a per-thread table over every
-/// vertex of the mesh, reset after use.
+/// `local` the local index of each triangle corner. O(corners): an open-addressing table sized
+/// to the set (per thread, reused), not one over every vertex of the mesh, which each of
+/// parallelFor()'s new threads had to allocate and fill (36 MB a thread at 9 M vertices).
 void localVertices(size_t vertex_count, const std::vector<Triangle>& tris,
                    std::vector<uint32_t>& verts, std::vector<uint32_t>& local) {
-  thread_local std::vector<uint32_t> table;
-  if (table.size() < vertex_count) table.assign(vertex_count, ~0u);
+  thread_local std::vector<uint64_t> table;  // (global id + 1) << 32 | local index; 0: empty
+  const size_t most = std::min(tris.size() * 3, vertex_count);  // distinct vertices
+  int bits = 4;
+  while ((size_t(1) << bits) < 2 * most) ++bits;  // at most half full
+  const size_t mask = (size_t(1) << bits) - 1;
+  table.assign(mask + 1, 0);
   verts.clear();
   local.resize(tris.size() * 3);
   for (size_t t = 0; t < tris.size(); ++t)
     for (int k = 0; k < 3; ++k) {
-      uint32_t& slot = table[tris[t][k]];
-      if (slot == ~0u) {
-        slot = uint32_t(verts.size());
-        verts.push_back(tris[t][k]);
+      const uint32_t v = tris[t][k];
+      const uint64_t key = (uint64_t(v) + 1) << 32;
+      size_t h = size_t((uint64_t(v) * 0x9E3779B97F4A7C15ull) >> (64 - bits));
+      while (table[h] != 0 && (table[h] & ~0xFFFFFFFFull) != key) h = (h + 1) & mask;
+      if (table[h] == 0) {
+        table[h] = key | verts.size();
+        verts.push_back(v);
       }
-      local[3 * t + size_t(k)] = slot;
+      local[3 * t + size_t(k)] = uint32_t(table[h]);
     }
-  for (uint32_t v : verts) table[v] = ~0u;
 }
 
 constexpr size_t kBlockPatches = 64;
