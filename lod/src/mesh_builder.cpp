@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdio>
 #include <functional>
+#include <memory>
 #include <mutex>
 #include <numeric>
 #include <thread>
@@ -22,6 +23,7 @@
 #include "crc32c.h"
 #include "file_io.h"
 #include "mesh_format.h"
+#include "metis_pool.h"
 #include "morton.h"
 #include "triangle_grid.h"
 
@@ -57,6 +59,16 @@ void parallelFor(size_t n, uint32_t threads, const std::function<void(size_t)>& 
   work();
   for (std::thread& t : pool) t.join();
   if (error) std::rethrow_exception(error);
+}
+
+constexpr size_t kChunk = 1 << 16;
+
+/// parallelFor over [0, n) in chunks of kChunk: f(begin, end) for each (cheap bodies over large
+/// arrays).
+template <class F>
+void parallelChunks(size_t n, uint32_t threads, const F& f) {
+  parallelFor((n + kChunk - 1) / kChunk, threads,
+              [&](size_t c) { f(c * kChunk, std::min(n, (c + 1) * kChunk)); });
 }
 
 /// The mesh as the builder works on it: usable triangles, grid positions, normals.
@@ -113,10 +125,10 @@ Prepared prepare(const Mesh& mesh, uint32_t threads) {
   p.step = std::max(median / 256.0, extent / double(1 << 30));
   p.grid.resize(nv);
   p.pos.resize(nv);
-  constexpr size_t kStep = 1 << 16;
-  std::vector<double> chunk_error((nv + kStep - 1) / kStep, 0.0);
-  parallelFor(chunk_error.size(), threads, [&](size_t chunk) {
-    for (size_t i = chunk * kStep; i < std::min(nv, (chunk + 1) * kStep); ++i) {
+  std::vector<double> chunk_error((nv + kChunk - 1) / kChunk, 0.0);
+  parallelChunks(nv, threads, [&](size_t begin, size_t end) {
+    const size_t chunk = begin / kChunk;
+    for (size_t i = begin; i < end; ++i) {
       const glm::dvec3 v = mesh.positions[i];
       if (!std::isfinite(v.x) || !std::isfinite(v.y) || !std::isfinite(v.z)) continue;  // unused
       const glm::dvec3 q = glm::clamp(glm::round((v - p.lo) / p.step), glm::dvec3(0.0),
@@ -140,9 +152,8 @@ Prepared prepare(const Mesh& mesh, uint32_t threads) {
     }
   }
   p.normals.resize(nv);
-  parallelFor((nv + kStep - 1) / kStep, threads, [&](size_t chunk) {
-    for (size_t i = chunk * kStep; i < std::min(nv, (chunk + 1) * kStep); ++i)
-      p.normals[i] = meshfmt::octEncode(n[i]);
+  parallelChunks(nv, threads, [&](size_t begin, size_t end) {
+    for (size_t i = begin; i < end; ++i) p.normals[i] = meshfmt::octEncode(n[i]);
   });
   if (mesh.colors.size() == nv) p.colors = mesh.colors;
   return p;
@@ -159,30 +170,21 @@ struct BuildNode {
 
 /// METIS k-way partition of a CSR graph into `parts`; part ids dense from 0 (empty parts
 /// dropped). Returns the part count.
-uint32_t partition(std::vector<idx_t>& xadj, std::vector<idx_t>& adjncy, std::vector<idx_t>* vwgt,
-                   std::vector<idx_t>* adjwgt, uint32_t parts, std::vector<uint32_t>& out) {
-  idx_t n = idx_t(xadj.size() - 1);
+uint32_t partition(MetisPool& metis, const std::vector<idx_t>& xadj,
+                   const std::vector<idx_t>& adjncy, const std::vector<idx_t>* vwgt,
+                   const std::vector<idx_t>* adjwgt, uint32_t parts, std::vector<uint32_t>& out) {
+  const idx_t n = idx_t(xadj.size() - 1);
   out.assign(size_t(n), 0);
   if (parts <= 1 || n <= 1) return n > 0 ? 1 : 0;
   if (parts >= uint32_t(n)) {
     std::iota(out.begin(), out.end(), 0u);
     return uint32_t(n);
   }
-  idx_t ncon = 1, nparts = idx_t(parts), objval = 0;
-  idx_t options[METIS_NOPTIONS];
-  METIS_SetDefaultOptions(options);
-  options[METIS_OPTION_SEED] = 42;  // the same store from the same mesh
-  options[METIS_OPTION_NUMBERING] = 0;
-  std::vector<idx_t> part(size_t(n), 0);
-  // One METIS call at a time: its random numbers come from one process-wide generator
-  // (GKlib's, seeded per call), so concurrent calls took each other's numbers and the same
-  // mesh made different stores from run to run (issue 15: verify's bounds then differed too).
-  static std::mutex metis_mutex;
-  std::lock_guard lock(metis_mutex);
-  const int rc = METIS_PartGraphKway(&n, &ncon, xadj.data(), adjncy.data(),
-                                     vwgt ? vwgt->data() : nullptr, nullptr,
-                                     adjwgt ? adjwgt->data() : nullptr, &nparts, nullptr, nullptr,
-                                     options, &objval, part.data());
+  // The same seed for every call: a call's parts depend on its graph only (metis_pool.h), so the
+  // same mesh makes the same store on any number of threads (issue 15).
+  constexpr idx_t kSeed = 42;
+  std::vector<idx_t> part;
+  const int rc = metis.partGraphKway(xadj, adjncy, vwgt, adjwgt, idx_t(parts), kSeed, part);
   if (rc != METIS_OK)
     throw std::runtime_error("lod::buildMeshStore(): METIS failed (" + std::to_string(rc) + ")");
   std::vector<int64_t> dense(parts, -1);
@@ -196,25 +198,34 @@ uint32_t partition(std::vector<idx_t>& xadj, std::vector<idx_t>& adjncy, std::ve
 }
 
 /// A triangle set's vertices numbered in order of first use: `verts` gets the global ids,
-/// `local` the local index of each triangle corner. O(corners): a per-thread table over every
-/// vertex of the mesh, reset after use.
+/// `local` the local index of each triangle corner. O(corners): an open-addressing table sized
+/// to the set (per thread, reused), not one over every vertex of the mesh, which each of
+/// parallelFor()'s new threads had to allocate and fill (36 MB a thread at 9 M vertices).
 void localVertices(size_t vertex_count, const std::vector<Triangle>& tris,
                    std::vector<uint32_t>& verts, std::vector<uint32_t>& local) {
-  thread_local std::vector<uint32_t> table;
-  if (table.size() < vertex_count) table.assign(vertex_count, ~0u);
+  thread_local std::vector<uint64_t> table;  // (global id + 1) << 32 | local index; 0: empty
+  const size_t most = std::min(tris.size() * 3, vertex_count);  // distinct vertices
+  int bits = 4;
+  while ((size_t(1) << bits) < 2 * most) ++bits;  // at most half full
+  const size_t mask = (size_t(1) << bits) - 1;
+  table.assign(mask + 1, 0);
   verts.clear();
   local.resize(tris.size() * 3);
   for (size_t t = 0; t < tris.size(); ++t)
     for (int k = 0; k < 3; ++k) {
-      uint32_t& slot = table[tris[t][k]];
-      if (slot == ~0u) {
-        slot = uint32_t(verts.size());
-        verts.push_back(tris[t][k]);
+      const uint32_t v = tris[t][k];
+      const uint64_t key = (uint64_t(v) + 1) << 32;
+      size_t h = size_t((uint64_t(v) * 0x9E3779B97F4A7C15ull) >> (64 - bits));
+      while (table[h] != 0 && (table[h] & ~0xFFFFFFFFull) != key) h = (h + 1) & mask;
+      if (table[h] == 0) {
+        table[h] = key | verts.size();
+        verts.push_back(v);
       }
-      local[3 * t + size_t(k)] = slot;
+      local[3 * t + size_t(k)] = uint32_t(table[h]);
     }
-  for (uint32_t v : verts) table[v] = ~0u;
 }
+
+constexpr size_t kBlockPatches = 64;
 
 /// Leaf patches: METIS k-way on the dual graph, into parts of about `patch` triangles. Large
 /// meshes are first cut into blocks of consecutive triangles in Morton order of their
@@ -222,8 +233,7 @@ void localVertices(size_t vertex_count, const std::vector<Triangle>& tris,
 /// took 94 of a 17.8 M-triangle build's 189 s on one core. `part` gets each triangle's patch.
 uint32_t leafPatches(const Prepared& p, const std::vector<idx_t>& xadj,
                      const std::vector<idx_t>& adjncy, uint32_t patch, uint32_t threads,
-                     std::vector<uint32_t>& part) {
-  constexpr size_t kBlockPatches = 64;
+                     MetisPool& metis, std::vector<uint32_t>& part) {
   const size_t nt = p.tris.size(), block = size_t(patch) * kBlockPatches;
   part.assign(nt, 0);
   // Triangles in Morton order of their centroids' grid cells (21 bits an axis).
@@ -231,9 +241,8 @@ uint32_t leafPatches(const Prepared& p, const std::vector<idx_t>& xadj,
   glm::i64vec3 hi(1);
   for (const glm::i32vec3& g : p.grid) hi = glm::max(hi, glm::i64vec3(g));
   const int shift = std::max(0, int(std::ceil(std::log2(double(std::max({hi.x, hi.y, hi.z}) + 1)))) - 21);
-  constexpr size_t kStep = 1 << 16;
-  parallelFor((nt + kStep - 1) / kStep, threads, [&](size_t chunk) {
-    for (size_t t = chunk * kStep; t < std::min(nt, (chunk + 1) * kStep); ++t) {
+  parallelChunks(nt, threads, [&](size_t begin, size_t end) {
+    for (size_t t = begin; t < end; ++t) {
       const glm::i64vec3 c = (glm::i64vec3(p.grid[p.tris[t].x]) +
                               glm::i64vec3(p.grid[p.tris[t].y]) +
                               glm::i64vec3(p.grid[p.tris[t].z])) / int64_t(3);
@@ -246,7 +255,9 @@ uint32_t leafPatches(const Prepared& p, const std::vector<idx_t>& xadj,
   const size_t blocks = (nt + block - 1) / block;
   std::vector<uint32_t> first_part(blocks + 1, 0), block_parts(blocks, 0);
   std::vector<uint32_t> local_of(nt, 0);
-  for (size_t i = 0; i < nt; ++i) local_of[order[i].second] = uint32_t(i % block);
+  parallelChunks(nt, threads, [&](size_t begin, size_t end) {
+    for (size_t i = begin; i < end; ++i) local_of[order[i].second] = uint32_t(i % block);
+  });
   parallelFor(blocks, threads, [&](size_t b) {
     const size_t begin = b * block, end = std::min(nt, begin + block);
     // The block's own graph: edges to other blocks dropped.
@@ -262,11 +273,13 @@ uint32_t leafPatches(const Prepared& p, const std::vector<idx_t>& xadj,
     }
     std::vector<uint32_t> local;
     const uint32_t want = uint32_t((end - begin + patch - 1) / patch);
-    block_parts[b] = partition(bx, ba, nullptr, nullptr, want, local);
+    block_parts[b] = partition(metis, bx, ba, nullptr, nullptr, want, local);
     for (size_t i = begin; i < end; ++i) part[order[i].second] = local[i - begin];
   });
   for (size_t b = 0; b < blocks; ++b) first_part[b + 1] = first_part[b] + block_parts[b];
-  for (size_t i = 0; i < nt; ++i) part[order[i].second] += first_part[i / block];
+  parallelChunks(nt, threads, [&](size_t begin, size_t end) {
+    for (size_t i = begin; i < end; ++i) part[order[i].second] += first_part[i / block];
+  });
   return first_part[blocks];
 }
 
@@ -330,7 +343,8 @@ void bounds(const Prepared& p, BuildNode& n) {
 void dualGraph(const Prepared& p, uint32_t threads, std::vector<idx_t>& xadj,
                std::vector<idx_t>& adjncy) {
   const size_t nv = p.grid.size(), nt = p.tris.size();
-  std::vector<uint32_t> start(nv + 1, 0), items(nt * 3);
+  std::vector<uint32_t> start(nv + 1, 0);
+  const auto items = std::make_unique_for_overwrite<uint32_t[]>(nt * 3);  // each written once
   for (const Triangle& t : p.tris)
     for (int k = 0; k < 3; ++k) ++start[t[k] + 1];
   for (size_t v = 1; v <= nv; ++v) start[v] += start[v - 1];
@@ -341,11 +355,10 @@ void dualGraph(const Prepared& p, uint32_t threads, std::vector<idx_t>& xadj,
   // other triangle; a non-manifold edge's further ones beyond the slots are left out of the
   // graph: it only steers the partition), then packed.
   constexpr int kSlots = 6;
-  std::vector<uint32_t> slots(nt * kSlots);
+  const auto slots = std::make_unique_for_overwrite<uint32_t[]>(nt * kSlots);  // counts[i] used
   std::vector<uint8_t> counts(nt, 0);
-  constexpr size_t kStep = 1 << 16;
-  parallelFor((nt + kStep - 1) / kStep, threads, [&](size_t chunk) {
-    for (size_t i = chunk * kStep; i < std::min(nt, (chunk + 1) * kStep); ++i) {
+  parallelChunks(nt, threads, [&](size_t begin, size_t end) {
+    for (size_t i = begin; i < end; ++i) {
       const Triangle& t = p.tris[i];
       uint32_t* mine = &slots[i * kSlots];
       int n = 0;
@@ -365,8 +378,11 @@ void dualGraph(const Prepared& p, uint32_t threads, std::vector<idx_t>& xadj,
   xadj.assign(nt + 1, 0);
   for (size_t i = 0; i < nt; ++i) xadj[i + 1] = xadj[i] + counts[i];
   adjncy.resize(size_t(xadj[nt]));
-  for (size_t i = 0; i < nt; ++i)
-    for (int k = 0; k < counts[i]; ++k) adjncy[size_t(xadj[i]) + k] = idx_t(slots[i * kSlots + k]);
+  parallelChunks(nt, threads, [&](size_t begin, size_t end) {
+    for (size_t i = begin; i < end; ++i)
+      for (int k = 0; k < counts[i]; ++k)
+        adjncy[size_t(xadj[i]) + k] = idx_t(slots[i * kSlots + k]);
+  });
 }
 
 /// The inputs fused into one mesh in the first one's frame.
@@ -425,6 +441,12 @@ MeshBuildReport buildMeshStore(const Mesh& mesh, const std::filesystem::path& ou
                     " (this builder holds the whole mesh)");
   const uint32_t threads =
       o.threads ? o.threads : std::max(1u, std::thread::hardware_concurrency());
+  // Partition workers, one per thread that can use one, forked before any thread starts and
+  // while the process is smallest (metis_pool.h: METIS's generator is process-wide). Leaf
+  // blocks are the only calls made concurrently; a single block needs none.
+  const size_t blocks = (mesh.triangles.size() + size_t(o.patch_triangles) * kBlockPatches - 1) /
+                        (size_t(o.patch_triangles) * kBlockPatches);
+  MetisPool metis(threads > 1 && blocks > 1 ? uint32_t(std::min<size_t>(threads, blocks)) : 0);
   const Prepared p = prepare(mesh, threads);
   r.triangles = p.tris.size();
   r.dropped_triangles = p.dropped;
@@ -447,15 +469,30 @@ MeshBuildReport buildMeshStore(const Mesh& mesh, const std::filesystem::path& ou
     std::vector<idx_t> xadj, adjncy;
     dualGraph(p, threads, xadj, adjncy);
     std::vector<uint32_t> part;
-    const uint32_t parts = leafPatches(p, xadj, adjncy, o.patch_triangles, threads, part);
+    const uint32_t parts = leafPatches(p, xadj, adjncy, o.patch_triangles, threads, metis, part);
+    // Each leaf's triangles and shared edges, by ranges of leaves in parallel. Every range scans
+    // all triangles in order, so a leaf gets its triangles, and its map their neighbours, in the
+    // order of one pass: the same store on any number of threads.
     nodes.resize(parts);
-    for (size_t t = 0; t < p.tris.size(); ++t) nodes[part[t]].tris.push_back(p.tris[t]);
     adjacency.resize(parts);
-    for (size_t t = 0; t < p.tris.size(); ++t)
-      for (idx_t e = xadj[t]; e < xadj[t + 1]; ++e) {
-        const uint32_t a = part[t], b = part[size_t(adjncy[size_t(e)])];
-        if (a != b) ++adjacency[a][b];
+    const size_t ranges = std::min<size_t>(threads, parts);
+    parallelFor(ranges, threads, [&](size_t range) {
+      const uint32_t lo = uint32_t(parts * range / ranges);
+      const uint32_t hi = uint32_t(parts * (range + 1) / ranges);
+      std::vector<uint32_t> count(hi - lo, 0);
+      for (uint32_t a : part)
+        if (a >= lo && a < hi) ++count[a - lo];
+      for (uint32_t a = lo; a < hi; ++a) nodes[a].tris.reserve(count[a - lo]);
+      for (size_t t = 0; t < p.tris.size(); ++t) {
+        const uint32_t a = part[t];
+        if (a < lo || a >= hi) continue;
+        nodes[a].tris.push_back(p.tris[t]);
+        for (idx_t e = xadj[t]; e < xadj[t + 1]; ++e) {
+          const uint32_t b = part[size_t(adjncy[size_t(e)])];
+          if (a != b) ++adjacency[a][b];
+        }
       }
+    });
     parallelFor(parts, threads, [&](size_t i) {
       bounds(p, nodes[i]);
       nodes[i].error = float(p.quant_error);
@@ -486,7 +523,8 @@ MeshBuildReport buildMeshStore(const Mesh& mesh, const std::filesystem::path& ou
         xadj[i + 1] = idx_t(adjncy.size());
         vwgt[i] = idx_t(std::max<size_t>(1, nodes[level_nodes[i]].tris.size()));
       }
-      groups = partition(xadj, adjncy, &vwgt, &adjwgt, uint32_t((n + o.arity - 1) / o.arity), group);
+      groups = partition(metis, xadj, adjncy, &vwgt, &adjwgt, uint32_t((n + o.arity - 1) / o.arity),
+                         group);
     } else {
       group.assign(n, 0);
     }

@@ -54,6 +54,9 @@ struct MeshBuildReport {
 /// Reads `inputs` (PLY or OBJ meshes, fused into one in the first one's frame) and writes `out`
 /// (through out + ".partial", renamed when complete). Throws ReadError for bad inputs,
 /// StoreError when the output cannot be written, PreconditionError for bad options.
+/// With more than one thread and more than one leaf block (64 patches), a build forks up to
+/// `threads` partition workers at its start (lod/src/metis_pool.h: METIS's random generator is
+/// process-wide), which only run METIS and are reaped before it returns or throws.
 MeshBuildReport buildMeshStore(const std::vector<std::filesystem::path>& inputs,
                                const std::filesystem::path& out, const MeshBuildOptions& options);
 /// The same from a mesh in memory (benchmarks, tests).
