@@ -1,5 +1,6 @@
 #include "metis_pool.h"
 
+#include <malloc.h>
 #include <signal.h>
 #include <sys/socket.h>
 #include <sys/wait.h>
@@ -121,6 +122,10 @@ size_t bytesOf(const std::vector<T>& v) {
     if (::sigaction(s, nullptr, &sa) == 0 && sa.sa_handler != SIG_DFL && sa.sa_handler != SIG_IGN)
       ::signal(s, SIG_DFL);
   }
+  // The parent's free heap memory, given back: what the parent allocates from it next would
+  // otherwise be copied on its first write and the old copy kept here (about 200 MB a worker in
+  // the 17.8 M-triangle bench, whose heap held the subdivision's freed tables).
+  ::malloc_trim(0);
   serve(fd);
 }
 

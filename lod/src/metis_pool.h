@@ -30,8 +30,10 @@ class MetisPool {
   /// Forks `workers` processes (0: every call runs in this process, one at a time). Call it
   /// before starting threads that may hold locks a child would need (glibc's malloc and stdio
   /// are fork-safe). Each worker closes every descriptor but stdin/stdout/stderr and its socket,
-  /// resets caught signals to their defaults, and leaves with _exit() when its socket closes (no
-  /// atexit handlers, no stdio flush). A worker that cannot be forked is left out (a message on
+  /// resets caught signals to their defaults, gives back its copy of the parent's free heap
+  /// (malloc_trim), and leaves with _exit() when its socket closes (no atexit handlers, no stdio
+  /// flush). Memory: about 45 MB a worker besides pages shared with the parent, for leaf blocks
+  /// of 262,144 triangles. A worker that cannot be forked is left out (a message on
   /// stderr); with none, calls run in this process.
   explicit MetisPool(uint32_t workers);
   /// Closes the sockets and reaps every worker (no zombies, also after a worker died).
