@@ -24,12 +24,12 @@ class MeshMemorySource final : public lod::RangeSource {
  public:
   explicit MeshMemorySource(std::vector<uint8_t> bytes) : mBytes(std::move(bytes)) {}
   uint64_t size() const override { return mBytes.size(); }
-  void read(uint64_t offset, void* dst, size_t n) const override {
-    if (n > 0) std::memcpy(dst, mBytes.data() + offset, n);
-  }
   std::string name() const override { return "fuzz.tmesh"; }
 
  private:
+  void readRange(uint64_t offset, void* dst, size_t n, std::stop_token) const override {
+    if (n > 0) std::memcpy(dst, mBytes.data() + offset, n);
+  }
   std::vector<uint8_t> mBytes;
 };
 

@@ -13,6 +13,7 @@
 #include <filesystem>
 #include <fstream>
 #include <mutex>
+#include <stop_token>
 #include <thread>
 #include <unordered_map>
 
@@ -92,11 +93,21 @@ struct Link {
     if (cache_problem.empty()) cache_problem = why;
   }
 
-  /// Sends `request` and waits for its reply; once more after a timeout. Any thread.
-  site::ChunkReply call(site::ChunkRequest request, const std::string& what) {
+  /// Sends `request` and waits for its reply; once more after a timeout. When `cancel` is
+  /// stopped first, withdraws it from the server (a cancel message) and throws
+  /// lod::ReadCancelled. Any thread.
+  site::ChunkReply call(site::ChunkRequest request, const std::string& what,
+                        std::stop_token cancel = {}) {
     const auto timeout = std::chrono::duration<double>(opt.timeout_s);
     for (int attempt = 0; attempt < 2; ++attempt) {
+      if (cancel.stop_requested()) throw lod::ReadCancelled("cancelled before it was sent");
       Pending p;
+      // Wakes the wait below; declared before `lock`, so that it is destroyed after the mutex is
+      // released (its destructor waits for a callback running on the cancelling thread).
+      std::stop_callback wake_on_cancel(cancel, [this] {
+        std::lock_guard woken(mutex);
+        answered.notify_all();
+      });
       std::unique_lock lock(mutex);
       const uint64_t id = next_id++;
       request.set_id(id);
@@ -106,10 +117,19 @@ struct Link {
       if (attempt > 0) ++counters.retries;
       const uint64_t one = 1;
       (void)!::write(wake, &one, sizeof one);  // fails only when the counter is full: awake anyway
-      const bool got = answered.wait_for(lock, timeout, [&] { return p.done || stop.load(); });
+      const bool got = answered.wait_for(
+          lock, timeout, [&] { return p.done || stop.load() || cancel.stop_requested(); });
       pending.erase(id);
       if (got && p.done) return std::move(p.reply);
       if (stop) throw lod::RangeError("the chunk client was closed");
+      if (cancel.stop_requested()) {
+        site::ChunkRequest withdraw;
+        withdraw.add_cancel(id);
+        outbox.push_back(withdraw.SerializeAsString());
+        ++counters.cancelled;
+        (void)!::write(wake, &one, sizeof one);
+        throw lod::ReadCancelled("cancelled: " + what + " is no longer needed");
+      }
     }
     char secs[32];
     std::snprintf(secs, sizeof secs, "%g", opt.timeout_s);
@@ -176,26 +196,6 @@ class RemoteRangeSource final : public lod::RangeSource {
   uint64_t size() const override { return mSize; }
   std::string name() const override { return mPath; }
 
-  void read(uint64_t offset, void* dst, size_t n) const override {
-    if (readCached(offset, dst, n)) return;
-    site::ChunkRequest q;
-    q.set_store(mPath);
-    q.set_offset(offset);
-    q.set_length(uint32_t(n));
-    if (n > kMaxChunkRangeBytes)
-      throw lod::RangeError(rangeText(offset, n) + " of " + mPath + ": more than the " +
-                            std::to_string(kMaxChunkRangeBytes) + " one request may ask for");
-    site::ChunkReply r = mClient->call(q, rangeText(offset, n) + " of " + mPath);
-    if (r.kind_case() == site::ChunkReply::kRefused)
-      throw lod::RangeError("the chunk server refused " + rangeText(offset, n) + ": " +
-                            r.refused());
-    if (r.kind_case() != site::ChunkReply::kData || r.data().size() != n)
-      throw lod::RangeError("the chunk server sent " + std::to_string(r.data().size()) +
-                            " bytes for " + rangeText(offset, n));
-    std::memcpy(dst, r.data().data(), n);
-    writeCached(offset, r.data());
-  }
-
   bool refetch(uint64_t offset, size_t n) const override {
     if (mFolder.empty()) return false;
     std::error_code ec;
@@ -207,6 +207,26 @@ class RemoteRangeSource final : public lod::RangeSource {
   }
 
  private:
+  void readRange(uint64_t offset, void* dst, size_t n, std::stop_token cancel) const override {
+    if (readCached(offset, dst, n)) return;
+    site::ChunkRequest q;
+    q.set_store(mPath);
+    q.set_offset(offset);
+    q.set_length(uint32_t(n));
+    if (n > kMaxChunkRangeBytes)
+      throw lod::RangeError(rangeText(offset, n) + " of " + mPath + ": more than the " +
+                            std::to_string(kMaxChunkRangeBytes) + " one request may ask for");
+    site::ChunkReply r = mClient->call(q, rangeText(offset, n) + " of " + mPath, cancel);
+    if (r.kind_case() == site::ChunkReply::kRefused)
+      throw lod::RangeError("the chunk server refused " + rangeText(offset, n) + ": " +
+                            r.refused());
+    if (r.kind_case() != site::ChunkReply::kData || r.data().size() != n)
+      throw lod::RangeError("the chunk server sent " + std::to_string(r.data().size()) +
+                            " bytes for " + rangeText(offset, n));
+    std::memcpy(dst, r.data().data(), n);
+    writeCached(offset, r.data());
+  }
+
   fs::path file(uint64_t offset, size_t n) const {
     return mFolder / (std::to_string(offset) + "+" + std::to_string(n));
   }

@@ -191,6 +191,14 @@ struct ChunkServer::Impl {
     if (auto why = parseChunkRequest(
             std::string_view(static_cast<const char*>(payload.data()), payload.size()), r))
       return refuse(rid, key, r.id(), *why);
+    if (r.cancel_size() > 0) {  // withdrawn by the site: dropped unanswered if still waiting
+      const std::set<uint64_t> ids(r.cancel().begin(), r.cancel().end());
+      const size_t dropped = std::erase_if(s.waiting, [&](const Waiting& w) {
+        return w.rid == rid && ids.count(w.request.id()) != 0;
+      });
+      count(&ChunkServerCounters::cancelled, dropped);
+      return;
+    }
     std::string why;
     Store* st = store(r.store(), why);
     if (!st) return refuse(rid, key, r.id(), why);

@@ -584,10 +584,10 @@ void SiteHub::end(const std::string& reason) {
     const ChunkServerCounters k = m->chunks->counters();
     std::snprintf(line, sizeof line,
                   "chunk server: %llu requests, %llu replies (%llu range bytes), %llu refused, "
-                  "%llu discarded (over the request rate)",
+                  "%llu discarded (over the request rate), %llu withdrawn by their site",
                   (unsigned long long)k.requests, (unsigned long long)k.replies,
                   (unsigned long long)k.bytes_out, (unsigned long long)k.refused,
-                  (unsigned long long)k.discarded);
+                  (unsigned long long)k.discarded, (unsigned long long)k.cancelled);
     m->say(line);
   }
 }

@@ -333,6 +333,14 @@ Problem parseChunkRequest(std::string_view bytes, site::ChunkRequest& out) {
   if (!out.ParseFromArray(bytes.data(), int(bytes.size())))
     return "chunk request: " + std::to_string(bytes.size()) + " bytes are not a chunk request";
   out.DiscardUnknownFields();
+  if (out.cancel_size() > 0) {
+    if (size_t(out.cancel_size()) > kMaxChunkCancelIds)
+      return "chunk request.cancel: " + std::to_string(out.cancel_size()) +
+             " ids, more than the " + std::to_string(kMaxChunkCancelIds) + " one cancel may name";
+    if (!out.store().empty() || out.offset() != 0 || out.length() != 0)
+      return std::string("chunk request: a cancel names no store, offset or length");
+    return {};
+  }
   if (out.store().empty() || out.store().size() > kMaxStorePathBytes)
     return "chunk request.store: needs 1.." + std::to_string(kMaxStorePathBytes) + " bytes, got " +
            std::to_string(out.store().size());

@@ -328,10 +328,11 @@ struct SiteSession::Impl {
       std::snprintf(line, sizeof line,
                     "chunks: fetched %llu bytes in %llu requests (%llu sent again); %llu ranges "
                     "(%llu bytes) from the cache, %llu cached ranges failed their checksum or "
-                    "size and were fetched again",
+                    "size and were fetched again; %llu requests withdrawn (the view moved on)",
                     (unsigned long long)c.fetched_bytes, (unsigned long long)c.requests,
                     (unsigned long long)c.retries, (unsigned long long)c.cache_hits,
-                    (unsigned long long)c.cache_bytes, (unsigned long long)c.refetched);
+                    (unsigned long long)c.cache_bytes, (unsigned long long)c.refetched,
+                    (unsigned long long)c.cancelled);
       say(line);
       if (c.cache_evicted_files > 0) {
         std::snprintf(line, sizeof line,

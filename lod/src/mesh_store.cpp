@@ -156,22 +156,25 @@ std::vector<NodeId> MeshStore::children(NodeId id) {
   return out;
 }
 
-MeshPatch MeshStore::readPatch(NodeId id) const {
+MeshPatch MeshStore::readPatch(NodeId id, std::stop_token cancel) const {
   const MeshNodeRecord& r = mNodes.at(id);
   const std::string where = nodeName(mPath.string(), id);
   std::vector<uint8_t> bytes(r.payload_bytes);
   try {
-    mSource->read(r.payload_offset, bytes.data(), bytes.size());
+    mSource->read(r.payload_offset, bytes.data(), bytes.size(), cancel);
+  } catch (const ReadCancelled&) {
+    throw;
   } catch (const RangeError& e) {
     throw StoreError(where + ": " + e.what());
   }
   return meshfmt::decodePatch(bytes.data(), bytes.size(), r, mSummary, where);
 }
 
-MeshStore::MorphTargets MeshStore::morphTargets(NodeId id, const MeshPatch& patch) const {
+MeshStore::MorphTargets MeshStore::morphTargets(NodeId id, const MeshPatch& patch,
+                                                std::stop_token cancel) const {
   const NodeId up = parent(id);
   if (up == kNoNode) return {patch.positions, patch.normals};
-  const MeshPatch p = readPatch(up);
+  const MeshPatch p = readPatch(up, cancel);
   // Both patches are in the store's one frame (MeshPatch::offset is the store's box minimum).
   std::vector<glm::dvec3> parent_pos(p.positions.begin(), p.positions.end());
   const TriangleGrid grid(parent_pos, p.indices);

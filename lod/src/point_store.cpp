@@ -53,11 +53,14 @@ struct PointStore::Impl {
     throw StoreError("lod::PointStore: " + name + ": " + what);
   }
 
-  void readAt(uint64_t off, void* dst, size_t n, const char* what) const {
+  void readAt(uint64_t off, void* dst, size_t n, const char* what,
+              std::stop_token cancel = {}) const {
     if (off > file_size || n > file_size - off)
       fail(std::string(what) + " lies beyond the end of the file (truncated?)");
     try {
-      source->read(off, dst, n);
+      source->read(off, dst, n, cancel);
+    } catch (const ReadCancelled&) {
+      throw;  // nobody needs these bytes any more: not a fault of the store
     } catch (const RangeError& e) {
       fail(std::string("reading ") + what + " failed: " + e.what());
     }
@@ -66,11 +69,12 @@ struct PointStore::Impl {
   /// readAt(), then `intact()` on the bytes; when they fail it and the source can fetch them
   /// again (a cached copy was corrupt: range_source.h), reads once more. Returns intact().
   template <class Intact>
-  bool readChecked(uint64_t off, void* dst, size_t n, const char* what, Intact intact) const {
-    readAt(off, dst, n, what);
+  bool readChecked(uint64_t off, void* dst, size_t n, const char* what, Intact intact,
+                   std::stop_token cancel = {}) const {
+    readAt(off, dst, n, what, cancel);
     if (intact()) return true;
     if (!source->refetch(off, n)) return false;
-    readAt(off, dst, n, what);
+    readAt(off, dst, n, what, cancel);
     return intact();
   }
 
@@ -302,7 +306,7 @@ uint32_t PointStore::chunkBytes(NodeId id) const {
   return mImpl->nodes[id].payload_size;
 }
 
-std::shared_ptr<ChunkPoints> PointStore::decodeChunk(NodeId id) const {
+std::shared_ptr<ChunkPoints> PointStore::decodeChunk(NodeId id, std::stop_token cancel) const {
   const Impl& m = *mImpl;
   Impl::Entry e;
   {
@@ -318,8 +322,9 @@ std::shared_ptr<ChunkPoints> PointStore::decodeChunk(NodeId id) const {
   const std::string what = m.name + ": node " + std::to_string(id) + " (level " +
                            std::to_string(e.info.level) + ", payload at byte " +
                            std::to_string(e.payload_offset) + ")";
-  if (!m.readChecked(e.payload_offset, bytes.data(), bytes.size(), "a chunk payload",
-                     [&] { return crc32c(bytes.data(), bytes.size()) == e.crc; })) {
+  if (!m.readChecked(
+          e.payload_offset, bytes.data(), bytes.size(), "a chunk payload",
+          [&] { return crc32c(bytes.data(), bytes.size()) == e.crc; }, cancel)) {
     throw StoreError("lod::PointStore: " + what + ": corrupt chunk (checksum mismatch); skipped");
   }
   lod::decodeChunk(bytes, e.info.box_min, *out, what);

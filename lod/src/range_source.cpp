@@ -28,7 +28,7 @@ FileRangeSource::~FileRangeSource() {
   if (mFd >= 0) ::close(mFd);
 }
 
-void FileRangeSource::read(uint64_t offset, void* dst, size_t n) const {
+void FileRangeSource::readRange(uint64_t offset, void* dst, size_t n, std::stop_token) const {
   size_t done = 0;
   while (done < n) {
     const ssize_t got =

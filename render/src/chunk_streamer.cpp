@@ -6,6 +6,7 @@
 #include <condition_variable>
 #include <mutex>
 #include <span>
+#include <stop_token>
 #include <thread>
 #include <unordered_map>
 #include <unordered_set>
@@ -70,6 +71,7 @@ struct Loaded {
   std::vector<glm::uvec4> cells;  ///< SurfaceCell packed (packCell())
   bool page = false;
   bool failed = false;
+  bool cancelled = false;  ///< given up: no frame wanted it any more (Impl::cancelUnwanted())
   bool measured = false;
   bool splat_sized = false;  ///< splat sizes asked for (measured if a leaf)
   glm::dvec3 offset{0.0};
@@ -116,6 +118,11 @@ struct ChunkStreamer::Impl {
   size_t next = 0;               ///< the next item a loader thread takes
   /// Per loader thread, the item it works on (store null: none). forget() waits on these.
   std::vector<Item> flight;
+  /// Per loader thread, what gives its item up (a fresh source per item), and the frames in a
+  /// row that did not want that item.
+  std::vector<std::stop_source> flight_cancel;
+  std::vector<uint32_t> flight_unwanted;
+  uint64_t cancelled = 0;  ///< items given up since the last beginFrame()
   std::vector<Loaded> done;
   /// Chunks in `done` (not to be queued again), mapped to what they were decoded with.
   std::unordered_map<Key, uint8_t, KeyHash> done_keys;
@@ -150,11 +157,16 @@ struct ChunkStreamer::Impl {
       if (stop) return;
       const Item item = queue[next++];
       flight[slot] = item;
+      flight_cancel[slot] = std::stop_source();
+      flight_unwanted[slot] = 0;
+      const std::stop_token cancel = flight_cancel[slot].get_token();
       lock.unlock();
-      Loaded out = load(item);
+      Loaded out = load(item, cancel);
       lock.lock();
       flight[slot].store = nullptr;
-      if (!item.page || out.failed) {
+      if (out.cancelled) {
+        ++cancelled;  // not done: asked for again when a view wants it
+      } else if (!item.page || out.failed) {
         if (!item.page) done_keys[out.key] |= item.needs;
         done.push_back(std::move(out));
       }
@@ -163,8 +175,9 @@ struct ChunkStreamer::Impl {
   }
 
   /// Reads a hierarchy page, or decodes (and measures) a chunk. Any loader thread, no lock:
-  /// PointStore reads are thread-safe and decode outside its locks.
-  Loaded load(const Item& item) const {
+  /// PointStore reads are thread-safe and decode outside its locks. A stopped `cancel` gives a
+  /// chunk up (Loaded::cancelled) during a slow read or before its measurements.
+  Loaded load(const Item& item, std::stop_token cancel) const {
     Loaded out;
     out.key = {item.store, item.node};
     out.page = item.page;
@@ -177,11 +190,15 @@ struct ChunkStreamer::Impl {
       return out;
     }
     if (item.mesh) {
-      loadPatch(item, out);
+      loadPatch(item, out, cancel);
       return out;
     }
     try {
-      auto chunk = item.points->decodeChunk(item.node);
+      auto chunk = item.points->decodeChunk(item.node, cancel);
+      if (cancel.stop_requested() && (item.needs & (kMeasure | kSplatSizes))) {
+        out.cancelled = true;  // the costly part skipped
+        return out;
+      }
       out.disk_bytes = item.store->chunkBytes(item.node);
       out.spacing = item.store->node(item.node).spacing;
       if (item.needs & kMeasure) measure(*item.points, item.node, chunk->positions, out);
@@ -203,6 +220,8 @@ struct ChunkStreamer::Impl {
         if (!scales.empty()) rgb |= uint32_t(scales[i]) << 24;
         out.points[i] = {chunk->positions[i], rgb};
       }
+    } catch (const lod::ReadCancelled&) {
+      out.cancelled = true;
     } catch (const lod::StoreError&) {
       out.failed = true;  // corrupt chunk: never drawn as garbage, never retried
     }
@@ -210,13 +229,13 @@ struct ChunkStreamer::Impl {
   }
 
   /// Decodes a mesh patch into the mesh pass's vertex layout.
-  void loadPatch(const Item& item, Loaded& out) const {
+  void loadPatch(const Item& item, Loaded& out, std::stop_token cancel) const {
     try {
-      const lod::MeshPatch p = item.mesh->readPatch(item.node);
+      const lod::MeshPatch p = item.mesh->readPatch(item.node, cancel);
       out.disk_bytes = item.store->chunkBytes(item.node);
       out.spacing = item.store->node(item.node).spacing;
       out.offset = p.offset;
-      const lod::MeshStore::MorphTargets morph = item.mesh->morphTargets(item.node, p);
+      const lod::MeshStore::MorphTargets morph = item.mesh->morphTargets(item.node, p, cancel);
       out.mesh_vertices.resize(p.positions.size());
       for (size_t i = 0; i < p.positions.size(); ++i) {
         uint32_t rgba = grey | 0xFF000000u;
@@ -228,6 +247,8 @@ struct ChunkStreamer::Impl {
                                 morph.positions[i], packNormal1010102(morph.normals[i])};
       }
       out.mesh_indices = p.indices;
+    } catch (const lod::ReadCancelled&) {
+      out.cancelled = true;
     } catch (const lod::StoreError&) {
       out.failed = true;  // corrupt patch: its ancestor stands in, never retried
     }
@@ -272,6 +293,8 @@ ChunkStreamer::ChunkStreamer(const StreamerOptions& options) : mImpl(std::make_u
   uint32_t threads = options.loader_threads;
   if (threads == 0) threads = std::max(1u, std::thread::hardware_concurrency());
   mImpl->flight.assign(threads, Item{nullptr, nullptr, nullptr, lod::kNoNode, false, 0, 0, 0.0});
+  mImpl->flight_cancel.resize(threads);
+  mImpl->flight_unwanted.assign(threads, 0);
   for (size_t i = 0; i < threads; ++i)
     mImpl->loaders.emplace_back([impl = mImpl.get(), i] { impl->run(i); });
 }
@@ -296,6 +319,8 @@ void ChunkStreamer::beginFrame() {
     std::lock_guard lock(s.mutex);
     done.swap(s.done);
     s.done_keys.clear();
+    mStats.cancelled = s.cancelled;
+    s.cancelled = 0;
   }
   for (Loaded& l : done) {
     if (l.failed) {
@@ -417,6 +442,7 @@ bool ChunkStreamer::failed(const lod::LodHierarchy& store, lod::NodeId node) con
 void ChunkStreamer::endFrame() {
   Impl& s = *mImpl;
   std::stable_sort(s.wanted.begin(), s.wanted.end(), before);
+  std::vector<std::stop_source> give_up;
   {
     std::lock_guard lock(s.mutex);
     s.queue.clear();
@@ -431,7 +457,21 @@ void ChunkStreamer::endFrame() {
       s.queue.push_back(i);
     }
     mStats.queued = s.queue.size();
+    // Chunks in flight that no frame wants any more (the view moved on) are given up after
+    // `cancel_after_frames` such frames in a row; a chunk flickering at the cut's edge is not.
+    for (size_t slot = 0; slot < s.flight.size(); ++slot) {
+      const Item& f = s.flight[slot];
+      if (!f.store || f.page) continue;
+      if (s.wanted_chunks.count({f.store, f.node})) {
+        s.flight_unwanted[slot] = 0;
+      } else if (s.options.cancel_after_frames > 0 &&
+                 ++s.flight_unwanted[slot] == s.options.cancel_after_frames) {
+        give_up.push_back(s.flight_cancel[slot]);
+      }
+    }
   }
+  // Outside the lock: a source's cancel callback runs on this thread (chunk_client.cpp).
+  for (std::stop_source& c : give_up) c.request_stop();
   s.wake.notify_all();
   mStats.resident_chunks = s.resident.size();
   mStats.resident_bytes = s.resident_bytes;
@@ -464,7 +504,12 @@ void ChunkStreamer::forget(const lod::LodHierarchy& store) {
     s.queue.erase(std::remove_if(s.queue.begin() + std::ptrdiff_t(s.next), s.queue.end(),
                                  [&](const Item& i) { return i.store == &store; }),
                   s.queue.end());
-    // Every loader thread on an item of it finishes that item first.
+    // Every loader thread on an item of it gives it up, or finishes it when it cannot (a
+    // file's read; a page). The cancel callbacks run here, with `mutex` held: they take only
+    // their source's own lock (chunk_client.cpp), which no holder of `mutex` waits for.
+    for (size_t slot = 0; slot < s.flight.size(); ++slot) {
+      if (s.flight[slot].store == &store) s.flight_cancel[slot].request_stop();
+    }
     s.idle.wait(lock, [&] {
       return std::none_of(s.flight.begin(), s.flight.end(),
                           [&](const Item& f) { return f.store == &store; });

@@ -9,6 +9,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <numeric>
 #include <regex>
 
 #include <zmq.hpp>
@@ -40,6 +41,7 @@ const glm::dvec3 kSiteEye{-0.06, 0.13, 0.30};
 /// What a site said about its chunks when it left (site_session.cpp).
 struct ChunkReport {
   uint64_t fetched = 0, requests = 0, retries = 0, cache_hits = 0, cache_bytes = 0, refetched = 0;
+  uint64_t withdrawn = 0;
   bool found = false;
 };
 
@@ -58,6 +60,8 @@ ChunkReport chunkReport(const std::string& log) {
   r.cache_hits = std::stoull(m[4]);
   r.cache_bytes = std::stoull(m[5]);
   r.refetched = std::stoull(m[6]);
+  if (std::regex_search(log, m, std::regex("(\\d+) requests withdrawn")))
+    r.withdrawn = std::stoull(m[1]);
   return r;
 }
 
@@ -290,6 +294,51 @@ TEST_F(RemoteChunks, AColdSiteOnASlowLinkConvergesToTheLocalPixelsAndItsCacheKee
   expectEveryFrame(100);
 }
 
+TEST_F(RemoteChunks, ASiteWhoseViewMovesOnWithdrawsWhatItNoLongerNeeds) {
+  // A site close to the bunny's flank on a 2 Mbit/s link asks for fine chunks; a few frames
+  // later it steps far back, where coarse levels are all it draws. The fine chunks still
+  // waiting at the server are withdrawn (the loaders take the new view's chunks instead), and
+  // the settled far view is the local one.
+  auto master = startMaster(30.0, 2.0);
+  const glm::dvec3 close = kTarget + glm::dvec3(-0.011, 0.01, 0.1);
+  const glm::dvec3 far = kTarget + glm::dvec3(0.3, 0.2, 1.4);
+  for (const std::string name : {"local-moves", "remote-moves"})
+    writeText(mRun / (name + ".json"), R"({"width": 320, "height": 240, "actions": [
+        {"frame": 0, "camera": )" + cameraJson(close, kTarget) +
+                                           R"(},
+        {"frame": 6, "camera": )" + cameraJson(far, kTarget) +
+                                           R"(},
+        {"frame": 8, "screenshot": "view.png"}, {"frame": 10, "bye": true}]})");
+  auto run = [&](const std::string& key, const std::string& name, std::vector<std::string> extra) {
+    fs::create_directories(mRun / name);
+    Process p(tessera::test::headlessSite(TESSERA_SITE, mSites, sKeys["master"], name,
+                                          *sDir / (key + ".key"), mRun / name,
+                                          mRun / (name + ".json"), extra),
+              mRun / (name + ".log"));
+    EXPECT_EQ(p.wait(90), std::optional<int>(0)) << p.output();
+    showProgress(name, p.output());
+    return p.output();
+  };
+  const std::string local = run("local", "local-moves", {});
+  const std::string remote = run("remote", "remote-moves", {"--remote-stores"});
+  const ChunkReport r = chunkReport(remote);
+  ASSERT_TRUE(r.found) << remote;
+  EXPECT_GE(r.withdrawn, 1u) << remote;
+  const auto shot_local = tessera::render::readPng((mRun / "local-moves" / "view.png").string());
+  const auto shot_remote = tessera::render::readPng((mRun / "remote-moves" / "view.png").string());
+  EXPECT_GT(modelPixels(shot_local), 0.005) << "the far view shows the bunny";
+  EXPECT_EQ(samePixels(shot_local, shot_remote), 1.0)
+      << "the remote site's settled far view is the local one";
+  std::printf("a site that moved on: %llu requests withdrawn, %llu bytes fetched\n",
+              (unsigned long long)r.withdrawn, (unsigned long long)r.fetched);
+  ASSERT_EQ(master->wait(120), std::optional<int>(0)) << master->output();
+  EXPECT_EQ(mNode->wait(15), std::optional<int>(0)) << mNode->output();
+  std::smatch m;
+  const std::string log = master->output();
+  ASSERT_TRUE(std::regex_search(log, m, std::regex("(\\d+) withdrawn by their site"))) << log;
+  EXPECT_GE(std::stoull(m[1]), 1u) << "dropped at the server before they were sent";
+}
+
 }  // namespace
 
 namespace {
@@ -311,6 +360,11 @@ struct RawChunkClient {
     q.set_store(store);
     q.set_offset(offset);
     q.set_length(length);
+    send(q.SerializeAsString());
+  }
+  void withdraw(const std::vector<uint64_t>& ids) {
+    tessera::site::ChunkRequest q;
+    for (const uint64_t id : ids) q.add_cancel(id);
     send(q.SerializeAsString());
   }
   std::optional<tessera::site::ChunkReply> receive(double seconds) {
@@ -480,6 +534,56 @@ TEST_F(RemoteChunks, TheCapOnAllSitesTogetherHoldsAndIsSharedInTurn) {
               order.c_str());
   ASSERT_EQ(master->wait(60), std::optional<int>(0)) << master->output();
   EXPECT_EQ(mNode->wait(15), std::optional<int>(0)) << mNode->output();
+}
+
+TEST_F(RemoteChunks, AWithdrawnRequestIsDroppedUnansweredAndTheSiteIsServedOn) {
+  // 0.5 Mbit/s a site: a 32 KiB reply every half second, so requests queue at the server. Six
+  // asked, four of them withdrawn at once, then a seventh: the replies are 1, 2 and 7, in that
+  // order (the server answers a site in order, so 3 would come before 7 had it stayed).
+  auto master = startMaster(14.0, 0.5);
+  const auto keys = tessera::collab::readKeyFile(*sDir / "raw.key");
+  const std::string store = sceneStore(mSites, keys, sKeys["master"]);
+  ASSERT_FALSE(store.empty());
+  ASSERT_GE(fs::file_size(store), 7u * 32768u);
+  RawChunkClient raw(mChunks, keys, sKeys["master"]);
+  raw.ask(100, store, 0, 0);
+  ASSERT_TRUE(raw.receive(10)) << master->output();
+  constexpr uint32_t kBytes = 32768;
+  for (uint64_t id = 1; id <= 6; ++id) raw.ask(id, store, (id - 1) * kBytes, kBytes);
+  raw.withdraw({3, 4, 5, 6, 999});  // 999: never asked for, nothing to drop
+  raw.ask(7, store, 6 * kBytes, kBytes);
+  std::vector<uint64_t> ids;
+  while (ids.size() < 3) {
+    auto r = raw.receive(10);
+    ASSERT_TRUE(r) << "replies so far: " << ids.size() << "\n" << master->output();
+    ASSERT_TRUE(r->has_data()) << r->refused();
+    ids.push_back(r->id());
+  }
+  EXPECT_EQ(ids, (std::vector<uint64_t>{1, 2, 7}));
+  EXPECT_FALSE(raw.receive(1.5)) << "nothing after 7: the withdrawn ranges never come";
+
+  // A withdrawal that also asks for a range, or names too many ids, is refused with why.
+  tessera::site::ChunkRequest mixed;
+  mixed.set_id(8);
+  mixed.set_store(store);
+  mixed.set_length(100);
+  mixed.add_cancel(1);
+  raw.send(mixed.SerializeAsString());
+  auto r = raw.receive(10);
+  ASSERT_TRUE(r && r->kind_case() == tessera::site::ChunkReply::kRefused);
+  EXPECT_NE(r->refused().find("a cancel names no store"), std::string::npos) << r->refused();
+  std::vector<uint64_t> many(tessera::collab::kMaxChunkCancelIds + 1);
+  std::iota(many.begin(), many.end(), 1000);
+  raw.withdraw(many);
+  r = raw.receive(10);
+  ASSERT_TRUE(r && r->kind_case() == tessera::site::ChunkReply::kRefused);
+  EXPECT_NE(r->refused().find("more than the 256"), std::string::npos) << r->refused();
+
+  ASSERT_EQ(master->wait(60), std::optional<int>(0)) << master->output();
+  EXPECT_EQ(mNode->wait(15), std::optional<int>(0)) << mNode->output();
+  EXPECT_NE(master->output().find("4 withdrawn by their site"), std::string::npos)
+      << master->output();
+  expectEveryFrame(100);
 }
 
 TEST_F(RemoteChunks, ChunksWithoutSitesIsABadCommandLine) {

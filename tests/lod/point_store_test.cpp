@@ -339,7 +339,7 @@ class FlakySource final : public RangeSource {
       : mBytes(bytes), mMendable(mendable), mBroken(broken_offset) {}
   uint64_t size() const override { return mBytes.size(); }
   std::string name() const override { return "flaky.tlod"; }
-  void read(uint64_t offset, void* dst, size_t n) const override {
+  void readRange(uint64_t offset, void* dst, size_t n, std::stop_token) const override {
     std::lock_guard lock(mMutex);
     std::memcpy(dst, mBytes.data() + offset, n);
     last_offset = offset;

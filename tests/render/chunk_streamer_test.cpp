@@ -1,11 +1,16 @@
 // The chunk streamer's loader pool (render/chunk_streamer.h): several loader threads settle to
 // the same pixels as one, forget() waits for every item of a store in flight on any of them,
 // and the see-through measurements are taken only for chunks drawn see-through, also when a
-// model turns see-through after it was drawn opaque. Built and run under AddressSanitizer too
-// (scripts/test.sh), where a loader thread decoding into a closed store is a use-after-free.
+// model turns see-through after it was drawn opaque; chunks in flight that no frame wants any
+// more are given up, and forget() gives up a store's stalled reads. Built and run under
+// AddressSanitizer too (scripts/test.sh), where a loader thread decoding into a closed store is
+// a use-after-free.
 #include <gtest/gtest.h>
 
+#include <atomic>
 #include <chrono>
+#include <condition_variable>
+#include <mutex>
 #include <thread>
 
 #include <glm/gtc/matrix_transform.hpp>
@@ -126,6 +131,99 @@ TEST_F(ChunkStreamerTest, ForgetWaitsForEveryItemOfTheStoreInFlight) {
   const Image expected = alone.renderSettled({&both[1], 1}, v, options);
   EXPECT_TRUE(after.rgba == expected.rgba);
   EXPECT_EQ(r.streamer().stats().resident_bytes, alone.streamer().stats().resident_bytes);
+}
+
+/// The store's file through a link that stops answering while `stalled`: every read then
+/// waits until its reader gives it up (its cancel token, range_source.h) or the link answers
+/// again. A stand-in for a chunk server whose queue holds the site's requests.
+class StalledLink final : public lod::RangeSource {
+ public:
+  explicit StalledLink(const std::filesystem::path& path) : mFile(path) {}
+  uint64_t size() const override { return mFile.size(); }
+  std::string name() const override { return mFile.name(); }
+  void stall(bool on) {
+    {
+      std::lock_guard lock(mMutex);
+      mStalled = on;
+    }
+    mAnswer.notify_all();
+  }
+  mutable std::atomic<int> given_up{0};
+
+ private:
+  void readRange(uint64_t offset, void* dst, size_t n, std::stop_token cancel) const override {
+    {
+      std::unique_lock lock(mMutex);
+      std::condition_variable_any& answer = mAnswer;
+      if (!answer.wait(lock, cancel, [&] { return !mStalled; })) {
+        ++given_up;
+        throw lod::ReadCancelled("given up");
+      }
+    }
+    mFile.read(offset, dst, n);
+  }
+  lod::FileRangeSource mFile;
+  mutable std::mutex mMutex;
+  mutable std::condition_variable_any mAnswer;
+  bool mStalled = false;
+};
+
+TEST_F(ChunkStreamerTest, ChunksInFlightThatNoFrameWantsAreGivenUpAndAskedForAgainLater) {
+  auto link = std::make_unique<StalledLink>(*sDir / "b.tlod");
+  StalledLink& stalled = *link;
+  auto s = lod::PointStore::open(std::move(link));
+  ModelInstance inst{s.get(), storeModel(*s)};
+  const ViewSetup v = view(*s);
+  const RenderOptions options = fullResolution();
+  StreamerOptions so = measuring(2);
+  ASSERT_EQ(so.cancel_after_frames, 2u);
+  ViewRenderer r(v.width, v.height, nullptr, so);
+  stalled.stall(true);
+  r.draw({&inst, 1}, v, options);  // the loader threads take the root and wait on the link
+  const auto give_up = std::chrono::steady_clock::now() + std::chrono::seconds(60);
+  while (r.streamer().inFlight() < 1 && std::chrono::steady_clock::now() < give_up)
+    std::this_thread::yield();
+  ASSERT_GE(r.streamer().inFlight(), 1u);
+  const uint32_t waiting = r.streamer().inFlight();
+
+  // The view moves on to nothing of the model: one frame that does not want the chunks keeps
+  // them (a chunk at the cut's edge may come back), the second gives them up.
+  r.draw({}, v, options);
+  EXPECT_EQ(r.streamer().inFlight(), waiting);
+  EXPECT_EQ(stalled.given_up.load(), 0);
+  r.draw({}, v, options);
+  while (r.streamer().inFlight() > 0 && std::chrono::steady_clock::now() < give_up)
+    std::this_thread::yield();
+  EXPECT_EQ(r.streamer().inFlight(), 0u) << "the stalled reads were given up";
+  EXPECT_EQ(stalled.given_up.load(), int(waiting));
+  r.draw({}, v, options);
+  EXPECT_EQ(r.streamer().stats().cancelled, waiting);
+  EXPECT_EQ(r.streamer().stats().failed, 0u) << "given up is not broken";
+  EXPECT_FALSE(r.streamer().failed(*s, s->root()));
+
+  // Wanted again once the link answers: the same pixels as a store read from its file.
+  stalled.stall(false);
+  const Image back = r.renderSettled({&inst, 1}, v, options);
+  auto plain = open();
+  ModelInstance plain_inst{plain.get(), storeModel(*plain)};
+  ViewRenderer fresh(v.width, v.height, nullptr, so);
+  EXPECT_TRUE(back.rgba == fresh.renderSettled({&plain_inst, 1}, v, options).rgba);
+
+  // forget() gives a store's stalled reads up instead of waiting for a link that may never
+  // answer; the store can then be closed.
+  auto other_link = std::make_unique<StalledLink>(*sDir / "b.tlod");
+  StalledLink& other_stalled = *other_link;
+  auto other = lod::PointStore::open(std::move(other_link));
+  ModelInstance other_inst{other.get(), storeModel(*other)};
+  other_stalled.stall(true);
+  r.draw({&other_inst, 1}, v, options);
+  while (r.streamer().inFlight() < 1 && std::chrono::steady_clock::now() < give_up)
+    std::this_thread::yield();
+  ASSERT_GE(r.streamer().inFlight(), 1u);
+  r.streamer().forget(*other);
+  EXPECT_EQ(r.streamer().inFlight(), 0u);
+  EXPECT_GE(other_stalled.given_up.load(), 1);
+  other.reset();
 }
 
 TEST_F(ChunkStreamerTest, OnlyChunksDrawnSeeThroughAreMeasured) {

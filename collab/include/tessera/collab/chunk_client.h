@@ -8,7 +8,10 @@
 // One DEALER socket per client, shared by its stores and driven by a network thread of its
 // own; the loader threads (render/chunk_streamer.h) each wait for their own request, so as many
 // requests are in flight as loaders are reading, answered in the order the server takes them
-// (the loaders' order: coarse and near first). A request unanswered for `timeout_s` is sent
+// (the loaders' order: coarse and near first). A loader whose chunk no frame wants any more
+// (the view moved on) stops its read's token (range_source.h): the request is withdrawn from
+// the server, which drops it if it still waits for the site's bandwidth, and the loader moves
+// on to what the present view needs. A request unanswered for `timeout_s` is sent
 // once more; a second timeout or a refusal is a lod::RangeError naming the store, the range and
 // why, which PointStore turns into a StoreError (the chunk is then drawn by its ancestor).
 //
@@ -42,6 +45,7 @@ struct ChunkClientCounters {
   uint64_t requests = 0;                     ///< range and info requests sent (retries included)
   uint64_t fetched_bytes = 0;                ///< range bytes received
   uint64_t retries = 0;                      ///< requests sent again after a timeout
+  uint64_t cancelled = 0;  ///< requests withdrawn unanswered (the reader's cancel was stopped)
   uint64_t cache_hits = 0, cache_bytes = 0;  ///< ranges read from the disk cache
   uint64_t refetched = 0;     ///< cached ranges that failed the store's checksum (or size)
   uint64_t cache_errors = 0;  ///< ranges that could not be written to the cache

@@ -15,7 +15,9 @@
 // debt, and its bytes taken from it. Sites with requests waiting are served in turn, one reply
 // each, so one site's burst does not hold the others back; `total_bytes_per_s` caps all sites
 // together (the master's uplink), shared in turn. A site may have `queue_per_site`
-// requests waiting; more are refused at once ("too many requests waiting").
+// requests waiting; more are refused at once ("too many requests waiting"). A site withdraws
+// requests it no longer needs (its view moved on) by id: those still waiting are dropped, so
+// the link carries what the site's present view needs.
 #pragma once
 
 #include <cstdint>
@@ -47,6 +49,7 @@ struct ChunkServerOptions {
 
 struct ChunkServerCounters {
   uint64_t requests = 0, replies = 0, refused = 0, discarded = 0;
+  uint64_t cancelled = 0;  ///< requests withdrawn by their site while waiting: never sent
   uint64_t bytes_out = 0;  ///< range bytes sent
 };
 

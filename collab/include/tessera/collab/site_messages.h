@@ -38,17 +38,19 @@ constexpr size_t kMaxNoteTextBytes = 16 * 1024;
 constexpr double kMaxCoordinate = 1e8;
 
 /// Chunks on demand (site.proto ChunkRequest): the largest request message, the largest range
-/// one request may ask for, and the longest store path.
+/// one request may ask for, the longest store path, and the most ids one cancel may name.
 constexpr size_t kMaxChunkRequestBytes = 8 * 1024;
 constexpr uint32_t kMaxChunkRangeBytes = 8u << 20;
 constexpr size_t kMaxStorePathBytes = 4096;
+constexpr size_t kMaxChunkCancelIds = 256;
 
 /// Parses and checks one message from a site. Returns the reason it is refused ("pose.eye:
 /// numbers must be finite"), or std::nullopt with `out` filled.
 std::optional<std::string> parseToMaster(std::string_view bytes, site::ToMaster& out);
 
 /// Parses and checks a chunk request: its size, the store path (1..kMaxStorePathBytes, no NUL),
-/// the length (0..kMaxChunkRangeBytes) and that offset + length does not overflow. Whether the
+/// the length (0..kMaxChunkRangeBytes) and that offset + length does not overflow; or, for a
+/// cancel (`cancel` ids), 1..kMaxChunkCancelIds ids and no store, offset or length. Whether the
 /// store is served and the range lies within it is the server's to check. Returns the reason
 /// it is refused, or std::nullopt with `out` filled.
 std::optional<std::string> parseChunkRequest(std::string_view bytes, site::ChunkRequest& out);

@@ -21,6 +21,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <memory>
+#include <stop_token>
 #include <vector>
 
 #include <tessera/lod/lod_hierarchy.h>
@@ -94,8 +95,9 @@ class MeshStore : public LodHierarchy {
 
   /// Reads, checks and decodes one patch. Thread-safe (positional reads). Throws StoreError
   /// naming the node when its bytes fail their CRC or do not decode to what the table says.
-  /// Cost: one read of chunkBytes(id) and about 1 ms per 10^4 triangles to decode.
-  MeshPatch readPatch(NodeId id) const;
+  /// Cost: one read of chunkBytes(id) and about 1 ms per 10^4 triangles to decode. A stopped
+  /// `cancel` gives up a slow read with lod::ReadCancelled (range_source.h).
+  MeshPatch readPatch(NodeId id, std::stop_token cancel = {}) const;
   /// The node's parent (kNoNode for the root).
   NodeId parent(NodeId id) const { return mParents.at(id); }
   /// Geomorphing targets of a decoded patch: for each vertex, the nearest point of its parent's
@@ -106,7 +108,7 @@ class MeshStore : public LodHierarchy {
   struct MorphTargets {
     std::vector<glm::vec3> positions, normals;
   };
-  MorphTargets morphTargets(NodeId id, const MeshPatch& patch) const;
+  MorphTargets morphTargets(NodeId id, const MeshPatch& patch, std::stop_token cancel = {}) const;
 
  private:
   MeshStore() = default;

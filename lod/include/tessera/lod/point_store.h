@@ -9,6 +9,7 @@
 #include <mutex>
 #include <shared_mutex>
 #include <stdexcept>
+#include <stop_token>
 #include <string>
 #include <vector>
 
@@ -104,8 +105,10 @@ class PointStore : public LodHierarchy {
   /// different nodes proceed in parallel. Throws StoreError for a corrupt chunk (checksum
   /// mismatch or bad encoding): such a chunk is never returned as garbage.
   std::shared_ptr<const ChunkPoints> loadChunk(NodeId id);
-  /// Like loadChunk but bypassing the cache (verification, benchmarks).
-  std::shared_ptr<ChunkPoints> decodeChunk(NodeId id) const;
+  /// Like loadChunk but bypassing the cache (verification, benchmarks, the chunk streamer).
+  /// When `cancel` is stopped while its bytes are read from a slow source (range_source.h),
+  /// throws lod::ReadCancelled, not StoreError.
+  std::shared_ptr<ChunkPoints> decodeChunk(NodeId id, std::stop_token cancel = {}) const;
   /// Compressed bytes of a node's chunk on disk.
   uint32_t chunkBytes(NodeId id) const override;
 

@@ -11,6 +11,7 @@
 #include <filesystem>
 #include <memory>
 #include <stdexcept>
+#include <stop_token>
 #include <string>
 
 namespace tessera::lod {
@@ -22,6 +23,14 @@ class RangeError : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
+/// A read given up because whoever asked for it no longer needs it (its stop token was
+/// stopped: the chunk streamer's view moved on). Not a fault of the source or the store:
+/// PointStore and MeshStore pass it on as it is, and the chunk may be asked for again.
+class ReadCancelled : public RangeError {
+ public:
+  using RangeError::RangeError;
+};
+
 /// The bytes of one store, read by offset. Every method is thread-safe: the loader pool
 /// (render/chunk_streamer.h) reads from several threads at once.
 class RangeSource {
@@ -30,8 +39,12 @@ class RangeSource {
   /// The store's size, bytes; constant for the source's lifetime.
   virtual uint64_t size() const = 0;
   /// Copies the `n` bytes at `offset` to `dst`, which holds at least `n` bytes. Precondition:
-  /// offset + n <= size() (PointStore checks). Blocks until done; throws RangeError.
-  virtual void read(uint64_t offset, void* dst, size_t n) const = 0;
+  /// offset + n <= size() (PointStore checks). Blocks until done; throws RangeError. A source
+  /// that waits on something slow (a link) gives up when `cancel` is stopped and throws
+  /// ReadCancelled (what `dst` then holds is unspecified); a file's read ignores it.
+  void read(uint64_t offset, void* dst, size_t n, std::stop_token cancel = {}) const {
+    readRange(offset, dst, n, std::move(cancel));
+  }
   /// The name messages use (the store's path, as the scene names it).
   virtual std::string name() const = 0;
   /// The bytes just read at [offset, offset + n) failed the store's checksum. A source that
@@ -43,6 +56,10 @@ class RangeSource {
     (void)n;
     return false;
   }
+
+ private:
+  /// read(), by each kind of source.
+  virtual void readRange(uint64_t offset, void* dst, size_t n, std::stop_token cancel) const = 0;
 };
 
 /// A regular file (pread, any number of threads). A FIFO or device is refused, never waited
@@ -56,10 +73,11 @@ class FileRangeSource final : public RangeSource {
   FileRangeSource& operator=(const FileRangeSource&) = delete;
 
   uint64_t size() const override { return mSize; }
-  void read(uint64_t offset, void* dst, size_t n) const override;
   std::string name() const override { return mName; }
 
  private:
+  void readRange(uint64_t offset, void* dst, size_t n, std::stop_token cancel) const override;
+
   std::string mName;
   int mFd = -1;
   uint64_t mSize = 0;

@@ -7,7 +7,8 @@
 // Per frame, on the GL thread: beginFrame() uploads what the loader finished and evicts; the
 // renderer asks find() for each chunk it wants and request()s the missing ones; endFrame() hands
 // this frame's requests to the loader, replacing the previous frame's (a camera that moved on
-// does not keep stale work queued). Chunks used in the previous frame are never evicted, so a
+// does not keep stale work queued; work in flight that frames stopped wanting is given up,
+// StreamerOptions::cancel_after_frames). Chunks used in the previous frame are never evicted, so a
 // resting view settles even when its cut is larger than the budget (the budget is then exceeded
 // and says so in the stats).
 //
@@ -67,6 +68,9 @@ struct StreamStats {
   uint64_t resident_disk_bytes = 0;  ///< the resident chunks' compressed size in their stores
   uint64_t budget_bytes = 0;
   uint64_t queued = 0;  ///< handed to the loader and not done
+  /// Chunks the loader gave up in flight since the previous frame: no frame wanted them any
+  /// more (StreamerOptions::cancel_after_frames) or their store was forgotten.
+  uint64_t cancelled = 0;
   double upload_ms = 0.0;
 };
 
@@ -96,6 +100,11 @@ struct StreamerOptions {
   /// benchmarks compare against it; views that may turn see-through at any moment need not, a
   /// chunk is measured again when first wanted see-through.
   bool measure_every_chunk = false;
+  /// A chunk in flight that this many frames in a row did not want (the view moved on) is
+  /// given up: a slow source's read is withdrawn (lod::RangeSource's cancel token: a remote
+  /// site's request leaves the chunk server's queue), its measuring skipped, and the loader
+  /// thread takes what the present view needs. 0: never.
+  uint32_t cancel_after_frames = 2;
 };
 
 /// What a view draws a chunk for (request(), find()).
@@ -145,9 +154,10 @@ class ChunkStreamer {
   /// Holds (true) or releases every loader thread before its next item (items in flight are
   /// finished): lets tests observe frames drawn while data is missing.
   void pauseLoader(bool paused);
-  /// Drops every chunk of a store (before it is closed): removes its queued items, waits for
-  /// every item of it in flight on any loader thread, discards what they produced and frees its
-  /// resident chunks. After it returns no loader thread touches the store.
+  /// Drops every chunk of a store (before it is closed): removes its queued items, gives up its
+  /// items in flight (a remote read is withdrawn, not waited for) and waits for the loader
+  /// threads to leave them, discards what they produced and frees its resident chunks. After
+  /// it returns no loader thread touches the store.
   void forget(const lod::LodHierarchy& store);
   /// Loader threads (StreamerOptions::loader_threads resolved).
   uint32_t loaderThreads() const;
