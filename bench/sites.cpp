@@ -7,6 +7,9 @@
 //     samples every two seconds undone a second later, and applies every frame; so the figure is
 //     the master's and the node's cost (checking, applying, sending frames to every site, drawing
 //     the avatars and sketches) and not this machine's two cores shared by K site processes.
+//     That thread and the sites' ZeroMQ threads run at nice 19 (--traffic-nice): the sites stand
+//     for other machines, so their own encryption and parsing take the cycles the wall leaves
+//     instead of competing with its node as equals; their CPU is reported beside.
 //     Each count runs the same seconds of real time; the master's own time before the nodes
 //     render (its `sync_ms`, the sites' work included) is reported too.
 //  2. Latency from a site's pose message to the frame that carries it: an in-process site
@@ -15,12 +18,14 @@
 //     avatar has reached the pose; the wall's median frame time is added for the glass.
 //  3. Bytes per second per site, each way, at 30 Hz poses.
 //
-//   sites [--seconds S] [--counts 0,4,16] [--out DIR]
+//   sites [--seconds S] [--counts 0,4,16] [--traffic-nice 19] [--out DIR]
 //
 // Writes DIR/sites_overhead.csv, DIR/sites_latency.csv and DIR/sites.png (gnuplot); prints the
 // figures. Every process runs on THIS machine (2 cores).
 #include <CLI/CLI.hpp>
 
+#include <sys/resource.h>
+#include <sys/syscall.h>
 #include <time.h>
 #include <unistd.h>
 
@@ -29,6 +34,7 @@
 #include <atomic>
 #include <cmath>
 #include <cstdio>
+#include <exception>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
@@ -190,19 +196,41 @@ Wall startWall(const Setup& s, const std::string& name, double seconds) {
 /// not this machine's two cores shared with K site processes.
 class TrafficSites {
  public:
+  /// `nice`: the scheduling priority (0..19) of the thread that joins and drives the sites,
+  /// and so of the ZeroMQ I/O threads their contexts start (threads inherit it). The sites
+  /// stand for other machines: at 19 their encryption and parsing take what the wall leaves of
+  /// this machine's two cores instead of competing with its render node as an equal.
   TrafficSites(const std::string& endpoint, const std::string& master_key,
-               const std::vector<tessera::collab::KeyPair>& keys, int k, bool still)
+               const std::vector<tessera::collab::KeyPair>& keys, int k, bool still, int nice)
       : mStill(still) {
-    for (int i = 0; i < k; ++i) {
-      tessera::collab::SiteClientOptions o;
-      o.master = endpoint;
-      o.master_key = master_key;
-      o.keys = keys[size_t(i)];
-      o.name = "traffic " + std::to_string(i);
-      mSites.push_back({std::make_unique<tessera::collab::SiteClient>(o), {}});
-      mSites.back().client->join(mSites.back().replica, Clock::now() + std::chrono::seconds(30));
+    std::atomic<int> joined{0};
+    std::exception_ptr failed;
+    mThread = std::thread([&, k, nice] {
+      if (nice != 0 && ::setpriority(PRIO_PROCESS, pid_t(::syscall(SYS_gettid)), nice) != 0)
+        std::perror("sites: setpriority");
+      try {
+        for (int i = 0; i < k; ++i) {
+          tessera::collab::SiteClientOptions o;
+          o.master = endpoint;
+          o.master_key = master_key;
+          o.keys = keys[size_t(i)];
+          o.name = "traffic " + std::to_string(i);
+          mSites.push_back({std::make_unique<tessera::collab::SiteClient>(o), {}});
+          mSites.back().client->join(mSites.back().replica,
+                                     Clock::now() + std::chrono::seconds(30));
+        }
+      } catch (...) {
+        failed = std::current_exception();
+      }
+      joined = 1;
+      joined.notify_all();
+      if (!failed) run();
+    });
+    joined.wait(0);
+    if (failed) {
+      mThread.join();
+      std::rethrow_exception(failed);
     }
-    mThread = std::thread([this] { run(); });
   }
   ~TrafficSites() {
     mStop = true;
@@ -422,6 +450,13 @@ int main(int argc, char** argv) {
     app.add_flag("--still", still,
                  "The sites hold their poses (only strokes and undos change the scene): the cost "
                  "of sites that look, against sites that move");
+    int traffic_nice = 19;
+    app.add_option("--traffic-nice", traffic_nice,
+                   "Scheduling priority of the thread driving the K sites and of their ZeroMQ "
+                   "threads (0..19): they stand for other machines, so by default they take what "
+                   "the wall leaves of this machine; 0 makes them compete with it as equals")
+        ->check(CLI::Range(0, 19))
+        ->capture_default_str();
     bool draw_only = false;
     app.add_flag("--draw-only", draw_only,
                  "Only what the master's logic and a node's drawing cost per frame, in process "
@@ -501,15 +536,20 @@ int main(int argc, char** argv) {
             "in_bytes_per_site_s,out_bytes_per_site_s,master_sync_ms_mean,master_cpu_ms_per_frame,"
             "node_cpu_ms_per_frame,traffic_cpu_percent\n";
     double base_fps = 0;
-    std::printf("master frame rate with sites (1 tile 640x360, %.0f s each, sites --no-render):\n",
-                seconds);
+    std::printf(
+        "master frame rate with sites (1 tile 640x360, %.0f s each, sites --no-render, their "
+        "traffic at nice %d):\n",
+        seconds, traffic_nice);
     for (int k : counts) {
-      const double total = seconds + 12.0;  // joins, then the measured window
+      const double total = seconds + 16.0;  // joins, the warm-up, then the measured window
       Wall w = startWall(s, "overhead-" + std::to_string(k), total);
       std::unique_ptr<TrafficSites> sites;
       if (k > 0)
-        sites = std::make_unique<TrafficSites>(w.sites, s.master_public, site_keys, k, still);
-      std::this_thread::sleep_for(std::chrono::milliseconds(500));
+        sites = std::make_unique<TrafficSites>(w.sites, s.master_public, site_keys, k, still,
+                                               traffic_nice);
+      // The same warm-up for every count: the node's first cut loads in about 2 s here, and a
+      // window that began in it would make the count that joins fastest (none) look slower.
+      std::this_thread::sleep_for(std::chrono::seconds(4));
       const double from = now_s();
       const double master_cpu0 = cpuSeconds(w.master->pid()), node_cpu0 = cpuSeconds(w.node->pid()),
                    sites_cpu0 = cpuSeconds(getpid());
