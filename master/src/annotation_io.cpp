@@ -94,10 +94,14 @@ std::string isoTime(int64_t us) {
   return std::string(buf) + frac;
 }
 
-/// RFC 4180: quoted when it holds a comma, quote or line break; quotes doubled.
+/// RFC 4180: quoted when it holds a comma, quote or line break; quotes doubled. Text that a
+/// spreadsheet would take for a formula (it begins with = + - @, a tab or a carriage return:
+/// "=HYPERLINK(...)" typed into a note at a remote site) gets a leading apostrophe and quotes
+/// (OWASP's advice against CSV injection), so opening the export runs nothing.
 std::string csvField(const std::string& s) {
-  if (s.find_first_of(",\"\r\n") == std::string::npos) return s;
-  std::string out = "\"";
+  const bool formula = !s.empty() && std::string_view("=+-@\t\r").find(s[0]) != std::string::npos;
+  if (!formula && s.find_first_of(",\"\r\n") == std::string::npos) return s;
+  std::string out = formula ? "\"'" : "\"";
   for (char c : s) out += c == '"' ? std::string("\"\"") : std::string(1, c);
   return out + "\"";
 }

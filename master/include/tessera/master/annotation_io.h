@@ -25,7 +25,9 @@ void exportJson(AnnotationDb& db, std::ostream& out);
 
 /// One row per item of `layer` and its sublayers ("" for all), RFC 4180 quoting, times in UTC
 /// ISO 8601; the first point or hot spot the item hangs at in x, y, z (local frame, metres);
-/// embedded image bytes are not written (data_bytes gives their size).
+/// embedded image bytes are not written (data_bytes gives their size). A text field that begins
+/// like a spreadsheet formula (= + - @, tab, carriage return) is written with a leading
+/// apostrophe, so that opening the file in a spreadsheet runs nothing a participant typed.
 void exportCsv(AnnotationDb& db, std::ostream& out, const std::string& layer = "");
 
 /// A georeference: a projected CRS in metres ("EPSG:32633") and the CRS coordinates of the
