@@ -81,33 +81,113 @@ struct Prepared {
   std::vector<glm::u8vec4> colors;
   std::vector<Triangle> tris;
   uint64_t dropped = 0;
+  /// Per vertex, the triangles using it, in triangle order (CSR: vertex v's are
+  /// tri_items[tri_start[v] .. tri_start[v + 1])); for the normals and the dual graph, then
+  /// released (releaseVertexTriangles()).
+  std::vector<uint32_t> tri_start;
+  std::unique_ptr<uint32_t[]> tri_items;
 };
+
+/// Frees Prepared's vertex-to-triangle lists once the dual graph has them.
+void releaseVertexTriangles(Prepared& p) {
+  p.tri_start = {};
+  p.tri_items.reset();
+}
+
+/// Ranges [n r / ranges, n (r + 1) / ranges) of [0, n), one a thread: the parallel passes
+/// below split their input so, and stitch the ranges' results in range order, so every result
+/// is the serial pass's, on any number of threads.
+size_t rangeBegin(size_t n, size_t r, size_t ranges) {
+  return n * r / ranges;
+}
+
+/// The triangles of every vertex, in triangle order, as a CSR (a counting sort of the
+/// triangles' corners by vertex): each range of triangles counts its corners per vertex, the
+/// counts' prefix over vertices and ranges gives each range its own place in every vertex's
+/// list, and the ranges fill their places in parallel.
+void vertexTriangles(Prepared& p, size_t nv, uint32_t threads) {
+  const size_t nt = p.tris.size();
+  const size_t ranges = std::max<size_t>(1, std::min<size_t>(threads, nt / kChunk + 1));
+  std::vector<std::vector<uint32_t>> at(ranges);
+  parallelFor(ranges, threads, [&](size_t r) {
+    at[r].assign(nv, 0);
+    for (size_t i = rangeBegin(nt, r, ranges); i < rangeBegin(nt, r + 1, ranges); ++i)
+      for (int k = 0; k < 3; ++k) ++at[r][p.tris[i][k]];
+  });
+  // Each range's first place in each vertex's list; the lists' starts.
+  p.tri_start.assign(nv + 1, 0);
+  uint32_t next = 0;
+  for (size_t v = 0; v < nv; ++v) {
+    p.tri_start[v] = next;
+    for (size_t r = 0; r < ranges; ++r) {
+      const uint32_t c = at[r][v];
+      at[r][v] = next;
+      next += c;
+    }
+  }
+  p.tri_start[nv] = next;
+  p.tri_items = std::make_unique_for_overwrite<uint32_t[]>(nt * 3);  // each written once
+  parallelFor(ranges, threads, [&](size_t r) {
+    for (size_t i = rangeBegin(nt, r, ranges); i < rangeBegin(nt, r + 1, ranges); ++i)
+      for (int k = 0; k < 3; ++k) p.tri_items[at[r][p.tris[i][k]]++] = uint32_t(i);
+  });
+}
 
 Prepared prepare(const Mesh& mesh, uint32_t threads) {
   Prepared p;
   p.origin = mesh.origin;
   const size_t nv = mesh.positions.size();
-  p.tris.reserve(mesh.triangles.size());
-  for (const Triangle& t : mesh.triangles) {
-    if (t.x >= nv || t.y >= nv || t.z >= nv || t.x == t.y || t.y == t.z || t.x == t.z) {
-      ++p.dropped;
-      continue;
-    }
-    p.tris.push_back(t);
-  }
-  if (p.tris.empty()) throw ReadError("lod::buildMeshStore(): no usable triangles");
   if (nv > 0xFFFFFFF0ull) throw ReadError("lod::buildMeshStore(): more than 2^32 vertices");
+  // Usable triangles (indices in range, three distinct corners) and their box, by ranges of
+  // triangles in parallel: each range counts and bounds its own, then copies them to its place.
+  const size_t nin = mesh.triangles.size();
+  const size_t ranges = std::max<size_t>(1, std::min<size_t>(threads, nin / kChunk + 1));
+  struct Range {
+    size_t kept = 0, at = 0;
+    glm::dvec3 lo{std::numeric_limits<double>::max()}, hi{-std::numeric_limits<double>::max()};
+    uint64_t bad_vertex = UINT64_MAX;  // the first corner that is not finite, if any
+  };
+  std::vector<Range> rs(ranges);
+  auto usable = [&](const Triangle& t) {
+    return t.x < nv && t.y < nv && t.z < nv && t.x != t.y && t.y != t.z && t.x != t.z;
+  };
+  parallelFor(ranges, threads, [&](size_t r) {
+    Range& g = rs[r];
+    for (size_t i = rangeBegin(nin, r, ranges); i < rangeBegin(nin, r + 1, ranges); ++i) {
+      const Triangle& t = mesh.triangles[i];
+      if (!usable(t)) continue;
+      ++g.kept;
+      for (int k = 0; k < 3; ++k) {
+        const glm::dvec3& v = mesh.positions[t[k]];
+        if (!std::isfinite(v.x) || !std::isfinite(v.y) || !std::isfinite(v.z)) {
+          g.bad_vertex = std::min<uint64_t>(g.bad_vertex, t[k]);
+          continue;
+        }
+        g.lo = glm::min(g.lo, v);
+        g.hi = glm::max(g.hi, v);
+      }
+    }
+  });
   p.lo = glm::dvec3(std::numeric_limits<double>::max());
   p.hi = -p.lo;
-  for (const Triangle& t : p.tris)
-    for (int k = 0; k < 3; ++k) {
-      const glm::dvec3& v = mesh.positions[t[k]];
-      if (!std::isfinite(v.x) || !std::isfinite(v.y) || !std::isfinite(v.z))
-        throw ReadError("lod::buildMeshStore(): vertex " + std::to_string(t[k]) +
-                        " is not finite");
-      p.lo = glm::min(p.lo, v);
-      p.hi = glm::max(p.hi, v);
-    }
+  size_t kept = 0;
+  for (Range& g : rs) {
+    if (g.bad_vertex != UINT64_MAX)  // the first range's: the same message on any threads
+      throw ReadError("lod::buildMeshStore(): vertex " + std::to_string(g.bad_vertex) +
+                      " is not finite");
+    g.at = kept;
+    kept += g.kept;
+    p.lo = glm::min(p.lo, g.lo);
+    p.hi = glm::max(p.hi, g.hi);
+  }
+  p.dropped = nin - kept;
+  if (kept == 0) throw ReadError("lod::buildMeshStore(): no usable triangles");
+  p.tris.resize(kept);
+  parallelFor(ranges, threads, [&](size_t r) {
+    size_t at = rs[r].at;
+    for (size_t i = rangeBegin(nin, r, ranges); i < rangeBegin(nin, r + 1, ranges); ++i)
+      if (usable(mesh.triangles[i])) p.tris[at++] = mesh.triangles[i];
+  });
   // The grid: a 256th of the median edge (sampled), so quantisation stays far below the
   // detail the mesh resolves; never finer than 2^30 steps over the box (int32 coordinates).
   std::vector<double> edges;
@@ -131,8 +211,8 @@ Prepared prepare(const Mesh& mesh, uint32_t threads) {
     for (size_t i = begin; i < end; ++i) {
       const glm::dvec3 v = mesh.positions[i];
       if (!std::isfinite(v.x) || !std::isfinite(v.y) || !std::isfinite(v.z)) continue;  // unused
-      const glm::dvec3 q = glm::clamp(glm::round((v - p.lo) / p.step), glm::dvec3(0.0),
-                                      glm::dvec3(double(1 << 30)));
+      const glm::dvec3 q =
+          glm::clamp(glm::round((v - p.lo) / p.step), glm::dvec3(0.0), glm::dvec3(double(1 << 30)));
       p.grid[i] = glm::i32vec3(q);
       p.pos[i] = q * p.step;  // store-local: relative to the box minimum
       chunk_error[chunk] = std::max(chunk_error[chunk], glm::length(p.pos[i] - (v - p.lo)));
@@ -141,19 +221,22 @@ Prepared prepare(const Mesh& mesh, uint32_t threads) {
   for (double e : chunk_error) p.quant_error = std::max(p.quant_error, e);
   // Normals: the file's, else area-weighted face normals of the whole mesh (so neighbouring
   // patches shade their shared vertices alike).
-  std::vector<glm::vec3> n(nv, glm::vec3(0.0f));
+  vertexTriangles(p, nv, threads);
   const bool file_normals = mesh.normals.size() == nv;
-  if (file_normals) {
-    n = mesh.normals;
-  } else {
-    for (const Triangle& t : p.tris) {
-      const glm::dvec3 f = glm::cross(p.pos[t.y] - p.pos[t.x], p.pos[t.z] - p.pos[t.x]);
-      for (int k = 0; k < 3; ++k) n[t[k]] += glm::vec3(f);
-    }
-  }
   p.normals.resize(nv);
   parallelChunks(nv, threads, [&](size_t begin, size_t end) {
-    for (size_t i = begin; i < end; ++i) p.normals[i] = meshfmt::octEncode(n[i]);
+    for (size_t i = begin; i < end; ++i) {
+      glm::vec3 n(0.0f);
+      if (file_normals) {
+        n = mesh.normals[i];
+      } else {  // summed in triangle order, per vertex
+        for (uint32_t s = p.tri_start[i]; s < p.tri_start[i + 1]; ++s) {
+          const Triangle& t = p.tris[p.tri_items[s]];
+          n += glm::vec3(glm::cross(p.pos[t.y] - p.pos[t.x], p.pos[t.z] - p.pos[t.x]));
+        }
+      }
+      p.normals[i] = meshfmt::octEncode(n);
+    }
   });
   if (mesh.colors.size() == nv) p.colors = mesh.colors;
   return p;
@@ -231,6 +314,28 @@ constexpr size_t kBlockPatches = 64;
 /// meshes are first cut into blocks of consecutive triangles in Morton order of their
 /// centroids (kBlockPatches patches each), partitioned in parallel: METIS on the whole graph
 /// took 94 of a 17.8 M-triangle build's 189 s on one core. `part` gets each triangle's patch.
+/// std::sort of `v` (whose elements are all distinct, so the order is unique) by ranges in
+/// parallel, then merged pairwise.
+template <class T>
+void sortInRanges(std::vector<T>& v, uint32_t threads) {
+  const size_t ranges = std::max<size_t>(1, std::min<size_t>(threads, v.size() / kChunk + 1));
+  parallelFor(ranges, threads, [&](size_t r) {
+    std::sort(v.begin() + std::ptrdiff_t(rangeBegin(v.size(), r, ranges)),
+              v.begin() + std::ptrdiff_t(rangeBegin(v.size(), r + 1, ranges)));
+  });
+  for (size_t width = 1; width < ranges; width *= 2) {
+    const size_t pairs = (ranges + 2 * width - 1) / (2 * width);
+    parallelFor(pairs, threads, [&](size_t i) {
+      const size_t a = 2 * width * i, m = std::min(ranges, a + width),
+                   b = std::min(ranges, a + 2 * width);
+      if (m == b) return;
+      std::inplace_merge(v.begin() + std::ptrdiff_t(rangeBegin(v.size(), a, ranges)),
+                         v.begin() + std::ptrdiff_t(rangeBegin(v.size(), m, ranges)),
+                         v.begin() + std::ptrdiff_t(rangeBegin(v.size(), b, ranges)));
+    });
+  }
+}
+
 uint32_t leafPatches(const Prepared& p, const std::vector<idx_t>& xadj,
                      const std::vector<idx_t>& adjncy, uint32_t patch, uint32_t threads,
                      MetisPool& metis, std::vector<uint32_t>& part) {
@@ -240,18 +345,20 @@ uint32_t leafPatches(const Prepared& p, const std::vector<idx_t>& xadj,
   std::vector<std::pair<uint64_t, uint32_t>> order(nt);
   glm::i64vec3 hi(1);
   for (const glm::i32vec3& g : p.grid) hi = glm::max(hi, glm::i64vec3(g));
-  const int shift = std::max(0, int(std::ceil(std::log2(double(std::max({hi.x, hi.y, hi.z}) + 1)))) - 21);
+  const int shift =
+      std::max(0, int(std::ceil(std::log2(double(std::max({hi.x, hi.y, hi.z}) + 1)))) - 21);
   parallelChunks(nt, threads, [&](size_t begin, size_t end) {
     for (size_t t = begin; t < end; ++t) {
-      const glm::i64vec3 c = (glm::i64vec3(p.grid[p.tris[t].x]) +
-                              glm::i64vec3(p.grid[p.tris[t].y]) +
-                              glm::i64vec3(p.grid[p.tris[t].z])) / int64_t(3);
-      order[t] = {mortonEncode(uint64_t(c.x >> shift), uint64_t(c.y >> shift),
-                               uint64_t(c.z >> shift)),
-                  uint32_t(t)};
+      const glm::i64vec3 c =
+          (glm::i64vec3(p.grid[p.tris[t].x]) + glm::i64vec3(p.grid[p.tris[t].y]) +
+           glm::i64vec3(p.grid[p.tris[t].z])) /
+          int64_t(3);
+      order[t] = {
+          mortonEncode(uint64_t(c.x >> shift), uint64_t(c.y >> shift), uint64_t(c.z >> shift)),
+          uint32_t(t)};
     }
   });
-  if (nt > block) std::sort(order.begin(), order.end());
+  if (nt > block) sortInRanges(order, threads);
   const size_t blocks = (nt + block - 1) / block;
   std::vector<uint32_t> first_part(blocks + 1, 0), block_parts(blocks, 0);
   std::vector<uint32_t> local_of(nt, 0);
@@ -297,10 +404,9 @@ std::pair<std::vector<Triangle>, double> simplifyGroup(const Prepared& p,
   for (size_t i = 0; i < verts.size(); ++i) pos[i] = glm::vec3(p.pos[verts[i]] - base);
   std::vector<uint32_t> out(local.size());
   float rel_error = 0.0f;
-  const size_t kept =
-      meshopt_simplify(out.data(), local.data(), local.size(), &pos[0].x, pos.size(),
-                       sizeof(glm::vec3), size_t(target) * 3, 1.0f,
-                       meshopt_SimplifyLockBorder, &rel_error);
+  const size_t kept = meshopt_simplify(out.data(), local.data(), local.size(), &pos[0].x,
+                                       pos.size(), sizeof(glm::vec3), size_t(target) * 3, 1.0f,
+                                       meshopt_SimplifyLockBorder, &rel_error);
   out.resize(kept);
   std::vector<Triangle> result(kept / 3);
   for (size_t t = 0; t < result.size(); ++t)
@@ -325,7 +431,8 @@ std::pair<std::vector<Triangle>, double> simplifyGroup(const Prepared& p,
     for (size_t i = 0; i < removed.size(); i += stride)
       measured = std::max(measured, grid.distance(p.pos[removed[i]]));
   }
-  const double estimated = double(rel_error) * meshopt_simplifyScale(&pos[0].x, pos.size(), sizeof(glm::vec3));
+  const double estimated =
+      double(rel_error) * meshopt_simplifyScale(&pos[0].x, pos.size(), sizeof(glm::vec3));
   return {std::move(result), std::max(measured, estimated)};
 }
 
@@ -342,15 +449,9 @@ void bounds(const Prepared& p, BuildNode& n) {
 /// The triangles' dual graph (triangles sharing an edge), CSR for METIS.
 void dualGraph(const Prepared& p, uint32_t threads, std::vector<idx_t>& xadj,
                std::vector<idx_t>& adjncy) {
-  const size_t nv = p.grid.size(), nt = p.tris.size();
-  std::vector<uint32_t> start(nv + 1, 0);
-  const auto items = std::make_unique_for_overwrite<uint32_t[]>(nt * 3);  // each written once
-  for (const Triangle& t : p.tris)
-    for (int k = 0; k < 3; ++k) ++start[t[k] + 1];
-  for (size_t v = 1; v <= nv; ++v) start[v] += start[v - 1];
-  std::vector<uint32_t> fill(start.begin(), start.end() - 1);
-  for (size_t i = 0; i < nt; ++i)
-    for (int k = 0; k < 3; ++k) items[fill[p.tris[i][k]]++] = uint32_t(i);
+  const size_t nt = p.tris.size();
+  const std::vector<uint32_t>& start = p.tri_start;
+  const uint32_t* items = p.tri_items.get();
   // Neighbours per triangle in parallel, at most kSlots each (an edge of a manifold has one
   // other triangle; a non-manifold edge's further ones beyond the slots are left out of the
   // graph: it only steers the partition), then packed.
@@ -363,12 +464,16 @@ void dualGraph(const Prepared& p, uint32_t threads, std::vector<idx_t>& xadj,
       uint32_t* mine = &slots[i * kSlots];
       int n = 0;
       for (int k = 0; k < 3; ++k) {
+        // The triangles on edge (a, b): those in both corners' lists, which are sorted (the
+        // lists are in triangle order), so a merge finds them without reading any triangle.
         const uint32_t a = t[k], b = t[(k + 1) % 3];
+        uint32_t sb = start[b];
+        const uint32_t eb = start[b + 1];
         for (uint32_t s = start[a]; s < start[a + 1] && n < kSlots; ++s) {
           const uint32_t u = items[s];
-          if (u == i) continue;
-          const Triangle& o = p.tris[u];
-          if (o.x != b && o.y != b && o.z != b) continue;
+          while (sb < eb && items[sb] < u) ++sb;
+          if (sb == eb) break;
+          if (items[sb] != u || u == i) continue;
           if (std::find(mine, mine + n, u) == mine + n) mine[n++] = u;
         }
       }
@@ -447,18 +552,12 @@ MeshBuildReport buildMeshStore(const Mesh& mesh, const std::filesystem::path& ou
   const size_t blocks = (mesh.triangles.size() + size_t(o.patch_triangles) * kBlockPatches - 1) /
                         (size_t(o.patch_triangles) * kBlockPatches);
   MetisPool metis(threads > 1 && blocks > 1 ? uint32_t(std::min<size_t>(threads, blocks)) : 0);
-  const Prepared p = prepare(mesh, threads);
+  Prepared p = prepare(mesh, threads);
   r.triangles = p.tris.size();
   r.dropped_triangles = p.dropped;
   r.step = p.step;
   r.quant_error = p.quant_error;
-  {
-    size_t used = 0;
-    std::vector<uint8_t> seen(p.grid.size(), 0);
-    for (const Triangle& t : p.tris)
-      for (int k = 0; k < 3; ++k) used += seen[t[k]]++ == 0;
-    r.vertices = used;
-  }
+  for (size_t v = 0; v < p.grid.size(); ++v) r.vertices += p.tri_start[v + 1] > p.tri_start[v];
 
   // Leaves: METIS patches of the dual graph.
   const auto tp = Clock::now();
@@ -468,6 +567,7 @@ MeshBuildReport buildMeshStore(const Mesh& mesh, const std::filesystem::path& ou
   {
     std::vector<idx_t> xadj, adjncy;
     dualGraph(p, threads, xadj, adjncy);
+    releaseVertexTriangles(p);
     std::vector<uint32_t> part;
     const uint32_t parts = leafPatches(p, xadj, adjncy, o.patch_triangles, threads, metis, part);
     // Each leaf's triangles and shared edges, by ranges of leaves in parallel. Every range scans
@@ -505,7 +605,8 @@ MeshBuildReport buildMeshStore(const Mesh& mesh, const std::filesystem::path& ou
   // Bottom up: group neighbours, merge, simplify with the group's border locked.
   const auto ts = Clock::now();
   uint64_t groups_total = 0;
-  for (size_t n = level_nodes.size(); n > 1; n = (n + o.arity - 1) / o.arity) groups_total += (n + o.arity - 1) / o.arity;
+  for (size_t n = level_nodes.size(); n > 1; n = (n + o.arity - 1) / o.arity)
+    groups_total += (n + o.arity - 1) / o.arity;
   Progress progress("simplify", groups_total, "patches", o.quiet);
   uint8_t level = 0;
   while (level_nodes.size() > 1) {
@@ -534,8 +635,9 @@ MeshBuildReport buildMeshStore(const Mesh& mesh, const std::filesystem::path& ou
     std::vector<std::vector<uint32_t>> split;
     for (auto& m : members) {
       for (size_t s = 0; s < m.size(); s += meshfmt::kMaxChildren)
-        split.emplace_back(m.begin() + std::ptrdiff_t(s),
-                           m.begin() + std::ptrdiff_t(std::min(m.size(), s + meshfmt::kMaxChildren)));
+        split.emplace_back(
+            m.begin() + std::ptrdiff_t(s),
+            m.begin() + std::ptrdiff_t(std::min(m.size(), s + meshfmt::kMaxChildren)));
     }
     std::vector<uint32_t> group_of(n);
     for (size_t g = 0; g < split.size(); ++g)
@@ -639,7 +741,8 @@ MeshBuildReport buildMeshStore(const Mesh& mesh, const std::filesystem::path& ou
     const uint32_t id = stack.back();
     stack.pop_back();
     dfs.push_back(id);
-    for (uint32_t c = records[id].child_count; c-- > 0;) stack.push_back(records[id].first_child + c);
+    for (uint32_t c = records[id].child_count; c-- > 0;)
+      stack.push_back(records[id].first_child + c);
   }
   uint64_t at = meshfmt::kHeaderBytes;
   for (uint32_t id : dfs) {
@@ -662,7 +765,8 @@ MeshBuildReport buildMeshStore(const Mesh& mesh, const std::filesystem::path& ou
       pwriteAll(fd.get(), payloads[id].data(), payloads[id].size(), records[id].payload_offset,
                 fd.name());
     pwriteAll(fd.get(), table.data(), table.size(), table_offset, fd.name());
-    if (::fsync(fd.get()) != 0) throw StoreError("lod::buildMeshStore(): fsync " + fd.name() + " failed");
+    if (::fsync(fd.get()) != 0)
+      throw StoreError("lod::buildMeshStore(): fsync " + fd.name() + " failed");
   }
   std::error_code ec;
   std::filesystem::rename(partial, out, ec);
@@ -681,7 +785,6 @@ MeshBuildReport buildMeshStore(const Mesh& mesh, const std::filesystem::path& ou
   return r;
 }
 
-
 namespace {
 
 /// A triangle by its vertices' grid positions, rotated so the smallest comes first (the
@@ -690,8 +793,10 @@ uint64_t triangleKey(glm::i32vec3 a, glm::i32vec3 b, glm::i32vec3 c) {
   auto less = [](const glm::i32vec3& x, const glm::i32vec3& y) {
     return std::tie(x.x, x.y, x.z) < std::tie(y.x, y.y, y.z);
   };
-  if (less(b, a) && !less(c, b)) std::tie(a, b, c) = std::make_tuple(b, c, a);
-  else if (less(c, a) && less(c, b)) std::tie(a, b, c) = std::make_tuple(c, a, b);
+  if (less(b, a) && !less(c, b))
+    std::tie(a, b, c) = std::make_tuple(b, c, a);
+  else if (less(c, a) && less(c, b))
+    std::tie(a, b, c) = std::make_tuple(c, a, b);
   uint64_t h = 0x243F6A8885A308D3ull;
   for (const glm::i32vec3* v : {&a, &b, &c})
     for (int k = 0; k < 3; ++k) {
@@ -783,7 +888,8 @@ MeshVerifyReport verifyMeshStore(const std::filesystem::path& store_path,
     std::vector<glm::dvec3> pos;
     std::vector<uint32_t> idx;
     for (NodeId id = 0; id < store->nodeCount(); ++id) {
-      const bool on_cut = depth_of[id] == d || (depth_of[id] < d && store->record(id).child_count == 0);
+      const bool on_cut =
+          depth_of[id] == d || (depth_of[id] < d && store->record(id).child_count == 0);
       if (!on_cut) continue;
       e.stated = std::max(e.stated, double(store->record(id).error));
       const uint32_t base = uint32_t(pos.size());
