@@ -2,7 +2,9 @@
 // demand"): the snapshot's bytes, the time to its first image and to a settled view (the whole
 // cut of its view resident), with the stores on the site's host against chunks fetched from the
 // master's chunk server into an empty cache over a link throttled by the server to 100, 20 and
-// 5 Mbit/s (tessera-master --chunk-rate), and from a warm cache at the slowest rate.
+// 5 Mbit/s (tessera-master --chunk-rate), and from a warm cache at the slowest rate; and a site
+// whose view moves on before its chunks came, its requests withdrawn (the default) against kept
+// until answered (--withdraw-after 0), at 1 Mbit/s: the second view's settling and the bytes.
 //
 // The scene is the autzen lidar tile (its store built once into the results folder), the site a
 // real tessera-site process rendering headless 640x480 from the scene's camera, taking one
@@ -43,6 +45,7 @@ using tessera::test::Process;
 /// What one site run said.
 struct Join {
   double snapshot_bytes = 0, joined_s = 0, first_s = 0, settled_s = 0, fetched = 0;
+  double withdrawn = 0;  ///< chunk requests withdrawn because the view moved on
 };
 
 std::string slurp(const fs::path& p) {
@@ -70,6 +73,8 @@ std::optional<Join> parseJoin(const std::string& log) {
   j.settled_s = std::stod(m[1]);
   if (std::regex_search(log, m, std::regex("chunks: fetched (\\d+) bytes")))
     j.fetched = std::stod(m[1]);
+  if (std::regex_search(log, m, std::regex("(\\d+) requests withdrawn")))
+    j.withdrawn = std::stod(m[1]);
   return j;
 }
 
@@ -110,13 +115,16 @@ struct Bench {
     return {std::move(master), std::move(node)};
   }
 
-  Join site(const std::string& sites, const std::string& name, std::vector<std::string> extra) {
+  /// A site run: `actions` its script's actions (default: one settled screenshot of the scene's
+  /// camera, then goodbye).
+  Join site(const std::string& sites, const std::string& name, std::vector<std::string> extra,
+            const std::string& actions = R"([{"frame": 1, "screenshot": "view.png"},
+              {"frame": 2, "bye": true}])") {
     const fs::path out = dir / name;
     fs::remove_all(out);
     fs::create_directories(out);
     std::ofstream(out / "script.json")
-        << R"({"width": 640, "height": 480, "actions": [{"frame": 1, "screenshot": "view.png"},
-              {"frame": 2, "bye": true}]})";
+        << R"({"width": 640, "height": 480, "actions": )" << actions << "}";
     std::vector<std::string> argv = {site_bin,
                                      "--master",
                                      sites,
@@ -196,7 +204,8 @@ int main(int argc, char** argv) {
     fs::permissions(b.dir / "allow.txt", fs::perms::owner_read | fs::perms::owner_write);
 
     std::ofstream csv(fs::path(out) / "site_join.csv");
-    csv << "case,rate_mbit,run,snapshot_bytes,joined_s,first_image_s,settled_s,fetched_bytes\n";
+    csv << "case,rate_mbit,run,snapshot_bytes,joined_s,first_image_s,settled_s,fetched_bytes,"
+           "withdrawn_requests\n";
     struct Case {
       std::string name;
       double rate;
@@ -231,7 +240,40 @@ int main(int argc, char** argv) {
               b.site(sites, "site-" + std::to_string(int(rate)) + "-" + std::to_string(r), extra);
           c.joins.push_back(j);
           csv << '"' << kind << "\"," << c.rate << "," << r << "," << j.snapshot_bytes << ","
-              << j.joined_s << "," << j.first_s << "," << j.settled_s << "," << j.fetched << "\n";
+              << j.joined_s << "," << j.first_s << "," << j.settled_s << "," << j.fetched << ","
+              << j.withdrawn << "\n";
+          csv.flush();
+        }
+        cases.push_back(std::move(c));
+      }
+    }
+    // A view that moves on before its chunks came: close over the tile's west end, then after
+    // 0.2 s over its east end, settled there. Requests withdrawn (the default) against kept
+    // until answered (--withdraw-after 0), at a rate where the first view's chunks still wait.
+    {
+      constexpr double kMovedRate = 1.0;
+      std::string sites;
+      auto w = b.wall(kMovedRate, sites);
+      const glm::dvec3 origin(636590.49, 849216.55, 463.39);  // the store's, as the scene's
+      const glm::dvec3 west = origin + glm::dvec3(-520.0, -150.0, -40.0),
+                       east = origin + glm::dvec3(520.0, 150.0, -40.0);
+      const std::string actions =
+          R"([{"frame": 0, "camera": )" +
+          tessera::test::cameraJson(west + glm::dvec3(0.0, -60.0, 60.0), west) +
+          R"(}, {"frame": 6, "camera": )" +
+          tessera::test::cameraJson(east + glm::dvec3(0.0, -60.0, 60.0), east) +
+          R"(}, {"frame": 8, "screenshot": "view.png"}, {"frame": 9, "bye": true}])";
+      for (const auto& [kind, after] :
+           {std::pair<std::string, std::string>{"moved on, withdrawn", "2"},
+            {"moved on, kept", "0"}}) {
+        Case c{kind + " 1 Mbit/s", kMovedRate, {}};
+        for (int r = 0; r < runs; ++r) {
+          const Join j = b.site(sites, "site-moved-" + after + "-" + std::to_string(r),
+                                {"--remote-stores", "--withdraw-after", after}, actions);
+          c.joins.push_back(j);
+          csv << '"' << c.name << "\"," << c.rate << "," << r << "," << j.snapshot_bytes << ","
+              << j.joined_s << "," << j.first_s << "," << j.settled_s << "," << j.fetched << ","
+              << j.withdrawn << "\n";
           csv.flush();
         }
         cases.push_back(std::move(c));
@@ -240,7 +282,7 @@ int main(int argc, char** argv) {
     csv.close();
 
     std::ofstream sum(fs::path(out) / "site_join_summary.csv");
-    sum << "case,snapshot_bytes,joined_s,first_image_s,settled_s,fetched_bytes\n";
+    sum << "case,snapshot_bytes,joined_s,first_image_s,settled_s,fetched_bytes,withdrawn\n";
     std::printf(
         "remote site join (autzen store %.1f MB, view 640x480, %d runs, medians; times "
         "from the site's start):\n",
@@ -253,12 +295,12 @@ int main(int argc, char** argv) {
       };
       sum << '"' << c.name << "\"," << pick(&Join::snapshot_bytes) << "," << pick(&Join::joined_s)
           << "," << pick(&Join::first_s) << "," << pick(&Join::settled_s) << ","
-          << pick(&Join::fetched) << "\n";
+          << pick(&Join::fetched) << "," << pick(&Join::withdrawn) << "\n";
       std::printf(
-          "  %-22s snapshot %6.0f B, joined %.3f s, first image %.3f s, settled %.3f s, "
-          "fetched %.0f bytes\n",
+          "  %-30s snapshot %6.0f B, joined %.3f s, first image %.3f s, settled %.3f s, "
+          "fetched %.0f bytes, %.0f requests withdrawn\n",
           c.name.c_str(), pick(&Join::snapshot_bytes), pick(&Join::joined_s), pick(&Join::first_s),
-          pick(&Join::settled_s), pick(&Join::fetched));
+          pick(&Join::settled_s), pick(&Join::fetched), pick(&Join::withdrawn));
     }
     sum.close();
 

@@ -71,6 +71,11 @@ int run(int argc, char** argv) {
                  "Seconds a chunk request may go unanswered before it is sent again (once)")
       ->check(cli::finiteRange(0.1, 3600.0))
       ->capture_default_str();
+  app.add_option("--withdraw-after", o.withdraw_after_frames,
+                 "Frames in a row that may not want a chunk requested from the master before its "
+                 "request is withdrawn (the view moved on); 0: every request waits for its answer")
+      ->check(cli::integerRange<uint32_t>(0, 1000000))
+      ->capture_default_str();
   app.add_option("--audio-in", o.audio_in,
                  "Voice (the master runs --voice): this site's microphone, a WAV file (16-bit "
                  "PCM, any rate, mono or stereo) sent from the join on, or a sound device "

@@ -10,8 +10,8 @@
 #include <thread>
 #include <tuple>
 
-#include <glm/gtc/matrix_transform.hpp>
 #include <imgui.h>
+#include <glm/gtc/matrix_transform.hpp>
 
 #include <tessera/collab/chunk_client.h>
 #include <tessera/collab/site_messages.h>
@@ -154,7 +154,8 @@ site::SiteScript loadSiteScript(const std::string& path) {
       }
       case site::SiteAction::kLasso: {
         const site::LassoAction& l = a.lasso();
-        if (l.pixels_size() % 2 != 0 || l.pixels_size() < 6 || l.pixels_size() > 2 * kMaxLassoPoints)
+        if (l.pixels_size() % 2 != 0 || l.pixels_size() < 6 ||
+            l.pixels_size() > 2 * kMaxLassoPoints)
           fail(path, field + ".lasso.pixels",
                "3.." + std::to_string(kMaxLassoPoints) + " x y pairs");
         for (float v : l.pixels())
@@ -437,7 +438,7 @@ struct SiteSession::Impl {
       marks(tool_px,
             window_tool == Tool::kMeasure ? glm::u8vec4{90, 230, 255, 255}
             : window_tool == Tool::kLasso ? glm::u8vec4{255, 190, 0, 230}
-                                   : glm::u8vec4{60, 230, 90, 230},
+                                          : glm::u8vec4{60, 230, 90, 230},
             window_tool == Tool::kMeasure ? 4.0f : 1.5f);
       marks(snap_bg, {240, 60, 60, 230}, 1.5f);
     }
@@ -474,7 +475,7 @@ struct SiteSession::Impl {
 
   render::RenderOptions options() const {
     render::RenderOptions o = render::SceneDrawList::options(graph, 2.0f);
-    o.pick_ids = want_pick;  // a note placed under a pixel names its model
+    o.pick_ids = want_pick;                         // a note placed under a pixel names its model
     o.highlights = render::sceneHighlights(graph);  // selections, as the wall tints them
     return o;
   }
@@ -557,8 +558,8 @@ struct SiteSession::Impl {
   /// nor takes a neighbouring splat that stands in front on a slanted surface. None when most
   /// of them show the background, or the pixel is outside the view.
   static std::optional<Surface> surfaceAt(const std::vector<uint32_t>& depth,
-                                          const render::ViewSetup& v,
-                                          const glm::dmat4& unproject, glm::dvec2 pixel) {
+                                          const render::ViewSetup& v, const glm::dmat4& unproject,
+                                          glm::dvec2 pixel) {
     if (!(pixel.x >= 0 && pixel.y >= 0 && pixel.x < v.width && pixel.y < v.height))
       return std::nullopt;
     const uint32_t x = uint32_t(pixel.x), y = uint32_t(pixel.y);
@@ -641,14 +642,16 @@ struct SiteSession::Impl {
     want_pick = false;
     const render::ViewSetup v = view(c);
     master::MeasureTool tool;
-    tool.setMode(a.type() == scene::MeasurementPayload::DISTANCE   ? master::MeasureTool::Mode::kDistance
-                 : a.type() == scene::MeasurementPayload::ANGLE    ? master::MeasureTool::Mode::kAngle
-                 : a.type() == scene::MeasurementPayload::POLYLINE ? master::MeasureTool::Mode::kPath
-                                                                   : master::MeasureTool::Mode::kArea);
+    tool.setMode(
+        a.type() == scene::MeasurementPayload::DISTANCE   ? master::MeasureTool::Mode::kDistance
+        : a.type() == scene::MeasurementPayload::ANGLE    ? master::MeasureTool::Mode::kAngle
+        : a.type() == scene::MeasurementPayload::POLYLINE ? master::MeasureTool::Mode::kPath
+                                                          : master::MeasureTool::Mode::kArea);
     std::optional<master::MeasureTool::Finished> done;
     try {
       for (int i = 0; i + 1 < a.pixels_size() && !done; i += 2) {
-        const auto at = master::pickUnderPixel(*renderer, instances, v, {a.pixels(i), a.pixels(i + 1)});
+        const auto at =
+            master::pickUnderPixel(*renderer, instances, v, {a.pixels(i), a.pixels(i + 1)});
         if (!at) {
           say(what + " skipped: no surface under pixel " + std::to_string(int(a.pixels(i))) + "," +
               std::to_string(int(a.pixels(i + 1))));
@@ -1019,12 +1022,12 @@ struct SiteSession::Impl {
           use(Tool::kNone, "measuring off");
           return true;
         } else {
-          measure_type = measure_type == T::DISTANCE ? T::POLYLINE
+          measure_type = measure_type == T::DISTANCE   ? T::POLYLINE
                          : measure_type == T::POLYLINE ? T::ANGLE
                                                        : T::AREA;
         }
-        use(Tool::kMeasure, "measuring: " + T::Type_Name(measure_type) +
-                                " (clicks; Enter ends a path or an area)");
+        use(Tool::kMeasure,
+            "measuring: " + T::Type_Name(measure_type) + " (clicks; Enter ends a path or an area)");
         return true;
       case 83:  // S
         use(window_tool == Tool::kLasso ? Tool::kNone : Tool::kLasso,
@@ -1033,8 +1036,8 @@ struct SiteSession::Impl {
       case 78:  // N
         use(window_tool == Tool::kSnap ? Tool::kNone : Tool::kSnap,
             window_tool == Tool::kSnap ? "snap off"
-                                : "snap on (left drag: what to select, right drag: what not "
-                                  "to; Enter)");
+                                       : "snap on (left drag: what to select, right drag: what not "
+                                         "to; Enter)");
         return true;
       case 257:  // Enter, keypad Enter
       case 335:
@@ -1172,13 +1175,13 @@ struct SiteSession::Impl {
       act(a, now);
     }
     const std::string& leader = graph.settings().leader();
-    window->setTitle("tessera-site: " + welcome.name() +
-                     (leader == welcome.name() ? " | leading the view"
-                      : following
-                          ? " | following " + (leader.empty() ? std::string("the wall") : leader)
-                          : "") +
-                     " | left: navigate, right: draw; L lead, R release, F follow, U undo, C "
-                     "clear, A add note, M measure, S lasso, N snap, O open note, P picture, Esc quit");
+    window->setTitle(
+        "tessera-site: " + welcome.name() +
+        (leader == welcome.name() ? " | leading the view"
+         : following ? " | following " + (leader.empty() ? std::string("the wall") : leader)
+                     : "") +
+        " | left: navigate, right: draw; L lead, R release, F follow, U undo, C "
+        "clear, A add note, M measure, S lasso, N snap, O open note, P picture, Esc quit");
     return true;
   }
 
@@ -1204,6 +1207,7 @@ struct SiteSession::Impl {
       // Loaders reading over the link mostly wait: more of them keep more requests in flight
       // (Bettio et al. 4: pipelined requests), as many as fill the link.
       if (opt.remote_stores || !opt.cache_dir.empty()) stream.loader_threads = 8;
+      stream.cancel_after_frames = opt.withdraw_after_frames;
       renderer =
           std::make_unique<render::ViewRenderer>(script.width(), script.height(), nullptr, stream);
       std::error_code ec;

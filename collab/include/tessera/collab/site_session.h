@@ -40,6 +40,10 @@ struct SiteSessionOptions {
   std::string cache_dir;        ///< the chunks' disk cache ("" : none)
   double cache_mb = 4096;       ///< its bound over all stores, MB (least recently used go first)
   double chunk_timeout_s = 30;  ///< a chunk request unanswered for this long is sent again
+  /// A chunk in flight that this many frames in a row did not want is given up (its request
+  /// withdrawn from the chunk server); 0: every request waits for its answer
+  /// (render::StreamerOptions::cancel_after_frames).
+  uint32_t withdraw_after_frames = 2;
   /// Voice (issue 14; the master runs --voice): its microphone, a WAV file sent from the
   /// welcome on, and what it hears (the wall's microphone and the other sites), written as WAV
   /// when the session ends; or "alsa:DEVICE", a sound device (voice_alsa.h). "" : none.
