@@ -260,6 +260,8 @@ seed_chunk_request() {
   one past.req <<<'id: 3 store: "b.tlod" offset: 746460 length: 100'
   one overflow.req <<<'id: 4 store: "b.tlod" offset: 18446744073709551610 length: 100'
   one long.req <<<'id: 5 store: "b.tlod" offset: 0 length: 8388609'
+  one cancel.req <<<'cancel: 3 cancel: 4 cancel: 18446744073709551615'
+  one mixed.req <<<'id: 6 store: "b.tlod" length: 100 cancel: 1'
 }
 
 # Voice packets (voice_fuzzer.cpp records: 2-byte length, 1-byte delay, packet): real Opus

@@ -71,7 +71,7 @@ struct Loaded {
   std::vector<glm::uvec4> cells;  ///< SurfaceCell packed (packCell())
   bool page = false;
   bool failed = false;
-  bool cancelled = false;  ///< given up: no frame wanted it any more (Impl::cancelUnwanted())
+  bool cancelled = false;  ///< given up: no frame wanted it any more (endFrame()), or forget()
   bool measured = false;
   bool splat_sized = false;  ///< splat sizes asked for (measured if a leaf)
   glm::dvec3 offset{0.0};
