@@ -310,10 +310,6 @@ void localVertices(size_t vertex_count, const std::vector<Triangle>& tris,
 
 constexpr size_t kBlockPatches = 64;
 
-/// Leaf patches: METIS k-way on the dual graph, into parts of about `patch` triangles. Large
-/// meshes are first cut into blocks of consecutive triangles in Morton order of their
-/// centroids (kBlockPatches patches each), partitioned in parallel: METIS on the whole graph
-/// took 94 of a 17.8 M-triangle build's 189 s on one core. `part` gets each triangle's patch.
 /// std::sort of `v` (whose elements are all distinct, so the order is unique) by ranges in
 /// parallel, then merged pairwise.
 template <class T>
@@ -336,6 +332,10 @@ void sortInRanges(std::vector<T>& v, uint32_t threads) {
   }
 }
 
+/// Leaf patches: METIS k-way on the dual graph, into parts of about `patch` triangles. Large
+/// meshes are first cut into blocks of consecutive triangles in Morton order of their
+/// centroids (kBlockPatches patches each), partitioned in parallel: METIS on the whole graph
+/// took 94 of a 17.8 M-triangle build's 189 s on one core. `part` gets each triangle's patch.
 uint32_t leafPatches(const Prepared& p, const std::vector<idx_t>& xadj,
                      const std::vector<idx_t>& adjncy, uint32_t patch, uint32_t threads,
                      MetisPool& metis, std::vector<uint32_t>& part) {
