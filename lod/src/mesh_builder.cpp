@@ -22,6 +22,7 @@
 
 #include "crc32c.h"
 #include "file_io.h"
+#include "huge_pages.h"
 #include "mesh_format.h"
 #include "metis_pool.h"
 #include "morton.h"
@@ -110,12 +111,12 @@ void vertexTriangles(Prepared& p, size_t nv, uint32_t threads) {
   const size_t ranges = std::max<size_t>(1, std::min<size_t>(threads, nt / kChunk + 1));
   std::vector<std::vector<uint32_t>> at(ranges);
   parallelFor(ranges, threads, [&](size_t r) {
-    at[r].assign(nv, 0);
+    detail::assignHuge(at[r], nv, 0u);
     for (size_t i = rangeBegin(nt, r, ranges); i < rangeBegin(nt, r + 1, ranges); ++i)
       for (int k = 0; k < 3; ++k) ++at[r][p.tris[i][k]];
   });
   // Each range's first place in each vertex's list; the lists' starts.
-  p.tri_start.assign(nv + 1, 0);
+  detail::assignHuge(p.tri_start, nv + 1, 0u);
   uint32_t next = 0;
   for (size_t v = 0; v < nv; ++v) {
     p.tri_start[v] = next;
@@ -127,6 +128,7 @@ void vertexTriangles(Prepared& p, size_t nv, uint32_t threads) {
   }
   p.tri_start[nv] = next;
   p.tri_items = std::make_unique_for_overwrite<uint32_t[]>(nt * 3);  // each written once
+  detail::adviseHugePages(p.tri_items.get(), nt * 3 * sizeof(uint32_t));
   parallelFor(ranges, threads, [&](size_t r) {
     for (size_t i = rangeBegin(nt, r, ranges); i < rangeBegin(nt, r + 1, ranges); ++i)
       for (int k = 0; k < 3; ++k) p.tri_items[at[r][p.tris[i][k]]++] = uint32_t(i);
@@ -182,7 +184,7 @@ Prepared prepare(const Mesh& mesh, uint32_t threads) {
   }
   p.dropped = nin - kept;
   if (kept == 0) throw ReadError("lod::buildMeshStore(): no usable triangles");
-  p.tris.resize(kept);
+  detail::assignHuge(p.tris, kept);
   parallelFor(ranges, threads, [&](size_t r) {
     size_t at = rs[r].at;
     for (size_t i = rangeBegin(nin, r, ranges); i < rangeBegin(nin, r + 1, ranges); ++i)
@@ -203,8 +205,8 @@ Prepared prepare(const Mesh& mesh, uint32_t threads) {
     median = edges[edges.size() / 2];
   }
   p.step = std::max(median / 256.0, extent / double(1 << 30));
-  p.grid.resize(nv);
-  p.pos.resize(nv);
+  detail::assignHuge(p.grid, nv);
+  detail::assignHuge(p.pos, nv);
   std::vector<double> chunk_error((nv + kChunk - 1) / kChunk, 0.0);
   parallelChunks(nv, threads, [&](size_t begin, size_t end) {
     const size_t chunk = begin / kChunk;
@@ -223,7 +225,7 @@ Prepared prepare(const Mesh& mesh, uint32_t threads) {
   // patches shade their shared vertices alike).
   vertexTriangles(p, nv, threads);
   const bool file_normals = mesh.normals.size() == nv;
-  p.normals.resize(nv);
+  detail::assignHuge(p.normals, nv);
   parallelChunks(nv, threads, [&](size_t begin, size_t end) {
     for (size_t i = begin; i < end; ++i) {
       glm::vec3 n(0.0f);
@@ -340,9 +342,10 @@ uint32_t leafPatches(const Prepared& p, const std::vector<idx_t>& xadj,
                      const std::vector<idx_t>& adjncy, uint32_t patch, uint32_t threads,
                      MetisPool& metis, std::vector<uint32_t>& part) {
   const size_t nt = p.tris.size(), block = size_t(patch) * kBlockPatches;
-  part.assign(nt, 0);
+  detail::assignHuge(part, nt, 0u);
   // Triangles in Morton order of their centroids' grid cells (21 bits an axis).
-  std::vector<std::pair<uint64_t, uint32_t>> order(nt);
+  std::vector<std::pair<uint64_t, uint32_t>> order;
+  detail::assignHuge(order, nt);
   glm::i64vec3 hi(1);
   for (const glm::i32vec3& g : p.grid) hi = glm::max(hi, glm::i64vec3(g));
   const int shift =
@@ -361,7 +364,8 @@ uint32_t leafPatches(const Prepared& p, const std::vector<idx_t>& xadj,
   if (nt > block) sortInRanges(order, threads);
   const size_t blocks = (nt + block - 1) / block;
   std::vector<uint32_t> first_part(blocks + 1, 0), block_parts(blocks, 0);
-  std::vector<uint32_t> local_of(nt, 0);
+  std::vector<uint32_t> local_of;
+  detail::assignHuge(local_of, nt, 0u);
   parallelChunks(nt, threads, [&](size_t begin, size_t end) {
     for (size_t i = begin; i < end; ++i) local_of[order[i].second] = uint32_t(i % block);
   });
@@ -457,7 +461,9 @@ void dualGraph(const Prepared& p, uint32_t threads, std::vector<idx_t>& xadj,
   // graph: it only steers the partition), then packed.
   constexpr int kSlots = 6;
   const auto slots = std::make_unique_for_overwrite<uint32_t[]>(nt * kSlots);  // counts[i] used
-  std::vector<uint8_t> counts(nt, 0);
+  detail::adviseHugePages(slots.get(), nt * kSlots * sizeof(uint32_t));
+  std::vector<uint8_t> counts;
+  detail::assignHuge(counts, nt, uint8_t(0));
   parallelChunks(nt, threads, [&](size_t begin, size_t end) {
     for (size_t i = begin; i < end; ++i) {
       const Triangle& t = p.tris[i];
@@ -480,9 +486,9 @@ void dualGraph(const Prepared& p, uint32_t threads, std::vector<idx_t>& xadj,
       counts[i] = uint8_t(n);
     }
   });
-  xadj.assign(nt + 1, 0);
+  detail::assignHuge(xadj, nt + 1, idx_t(0));
   for (size_t i = 0; i < nt; ++i) xadj[i + 1] = xadj[i] + counts[i];
-  adjncy.resize(size_t(xadj[nt]));
+  detail::assignHuge(adjncy, size_t(xadj[nt]), idx_t(0));
   parallelChunks(nt, threads, [&](size_t begin, size_t end) {
     for (size_t i = begin; i < end; ++i)
       for (int k = 0; k < counts[i]; ++k)
