@@ -5,7 +5,9 @@
 //   the bunny reconstruction, and a mesh of --large-levels midpoint subdivisions of it (each
 //   level 4x the triangles; new vertices displaced along the normal by a hashed 2% of the edge
 //   so the surface keeps detail to simplify: 4 levels make 17.8 M triangles); seconds, triangles
-//   per second, bytes per triangle on disk, peak memory (VmHWM).
+//   per second, bytes per triangle on disk, peak memory (VmHWM). The large mesh is built twice:
+//   from memory (the builder alone), and from a binary PLY of it written to --out first (the
+//   whole `tessera-lod build`, reading the file included).
 // Drawing, on the large mesh, one view at --size:
 //   frame time and PSNR against the full-resolution cut, across pixel thresholds (0 = every
 //   leaf); and the mesh pass's triangles per second against a bare glDrawElements of the same
@@ -14,9 +16,11 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <stdexcept>
 #include <string>
 #include <tuple>
 #include <unordered_map>
@@ -55,6 +59,36 @@ uint64_t peakBytes() {
 }
 void resetPeak() {
   std::ofstream("/proc/self/clear_refs") << "5";
+}
+
+/// `m` as a binary little-endian PLY (float positions, uchar-int face lists), as scan archives
+/// hold meshes; positions relative to the mesh's origin, written in the header's comment.
+void writeMeshPly(const fs::path& path, const lod::Mesh& m) {
+  std::ofstream out(path, std::ios::binary);
+  out << "ply\nformat binary_little_endian 1.0\ncomment written by bench/mesh_lod\n"
+      << "element vertex " << m.positions.size()
+      << "\nproperty float x\nproperty float y\nproperty float z\n"
+      << "element face " << m.triangles.size()
+      << "\nproperty list uchar int vertex_indices\nend_header\n";
+  std::vector<char> buf;
+  buf.reserve(1 << 20);
+  auto flush = [&] {
+    out.write(buf.data(), std::streamsize(buf.size()));
+    buf.clear();
+  };
+  for (const glm::dvec3& v : m.positions) {
+    const float f[3] = {float(v.x), float(v.y), float(v.z)};
+    buf.insert(buf.end(), reinterpret_cast<const char*>(f), reinterpret_cast<const char*>(f) + 12);
+    if (buf.size() > (1 << 20) - 16) flush();
+  }
+  for (const lod::Triangle& t : m.triangles) {
+    buf.push_back(3);
+    const int32_t i[3] = {int32_t(t.x), int32_t(t.y), int32_t(t.z)};
+    buf.insert(buf.end(), reinterpret_cast<const char*>(i), reinterpret_cast<const char*>(i) + 12);
+    if (buf.size() > (1 << 20) - 16) flush();
+  }
+  flush();
+  if (!out) throw std::runtime_error("bench/mesh_lod: cannot write " + path.string());
 }
 
 /// One midpoint subdivision: every triangle into four, shared edges sharing their midpoint, which
@@ -147,22 +181,24 @@ int main(int argc, char** argv) {
     bo.quiet = true;
     if (!pass_only) {
       const lod::Mesh bunny = lod::readMesh(bunny_path);
-      auto build = [&](const std::string& name, const lod::Mesh& m, const fs::path& file,
-                       double thesis_rate) {
+      auto build = [&](const std::string& name, const lod::Mesh* m, const fs::path& input,
+                       const fs::path& file, double thesis_rate) {
         resetPeak();
         const auto t0 = Clock::now();
-        const lod::MeshBuildReport r = lod::buildMeshStore(m, file, bo);
+        const lod::MeshBuildReport r =
+            m ? lod::buildMeshStore(*m, file, bo) : lod::buildMeshStore({input}, file, bo);
         const double s = since(t0);
         rows.push_back({name, r.triangles, s, double(r.triangles) / s,
                         double(r.file_bytes) / double(r.triangles), double(peakBytes()) / 1e6,
                         thesis_rate});
         std::fprintf(stderr,
-                     "mesh_lod: built %s: %llu triangles in %.2f s (partition %.2f, simplify %.2f, "
-                     "write %.2f), %.2f B/triangle\n",
-                     name.c_str(), (unsigned long long)r.triangles, s, r.seconds_partition,
+                     "mesh_lod: built %s: %llu triangles in %.2f s (read %.2f, partition %.2f, "
+                     "simplify %.2f, write %.2f), %.2f B/triangle\n",
+                     name.c_str(), (unsigned long long)r.triangles, s, r.seconds_read,
+                     r.seconds_partition,
                      r.seconds_simplify, r.seconds_write, rows.back().bytes_per_tri);
       };
-      build("bunny", bunny, fs::path(out) / "mesh_lod_bunny.tmesh", kThesisBunnyRate);
+      build("bunny", &bunny, {}, fs::path(out) / "mesh_lod_bunny.tmesh", kThesisBunnyRate);
       lod::Mesh large = bunny;
       {
         const auto t0 = Clock::now();
@@ -181,8 +217,14 @@ int main(int argc, char** argv) {
         std::fprintf(stderr, "mesh_lod: subdivided the bunny %d times: %zu triangles (%.1f s)\n",
                      levels, large.triangles.size(), since(t0));
       }
-      build("bunny x4^" + std::to_string(levels), large, large_store, kThesisLargeRate);
+      build("bunny x4^" + std::to_string(levels), &large, {}, large_store, kThesisLargeRate);
+      // The whole `tessera-lod build` of the same mesh from a PLY file, reading included.
+      const fs::path large_ply = fs::path(out) / "mesh_lod_large.ply";
+      writeMeshPly(large_ply, large);
       large = lod::Mesh{};  // free it before drawing
+      build("bunny x4^" + std::to_string(levels) + " from PLY", nullptr, large_ply, large_store,
+            kThesisLargeRate);
+      fs::remove(large_ply);
       std::ofstream bcsv(fs::path(out) / "mesh_lod_build.csv");
       const char* bhead =
           "mesh,triangles,seconds,triangles_per_s,bytes_per_triangle,peak_mb,thesis_triangles_per_"

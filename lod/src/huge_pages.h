@@ -11,6 +11,10 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <memory>
+#include <new>
+#include <type_traits>
+#include <utility>
 #include <vector>
 
 namespace tessera::lod::detail {
@@ -27,19 +31,57 @@ inline void adviseHugePages(const void* p, size_t bytes) {
 
 /// `v` empty with fresh storage for `n` elements advised for huge pages (what it held is
 /// dropped): for arrays filled by push_back or insert up to a known size.
-template <class T>
-void reserveHuge(std::vector<T>& v, size_t n) {
-  std::vector<T>().swap(v);
+template <class T, class A>
+void reserveHuge(std::vector<T, A>& v, size_t n) {
+  std::vector<T, A>().swap(v);
   v.reserve(n);
   adviseHugePages(v.data(), n * sizeof(T));
 }
 
 /// `v` holding `n` copies of `value` in fresh storage advised for huge pages (what it held is
 /// dropped).
-template <class T>
-void assignHuge(std::vector<T>& v, size_t n, const T& value = T()) {
+template <class T, class A>
+void assignHuge(std::vector<T, A>& v, size_t n, const T& value = T()) {
   reserveHuge(v, n);
   v.assign(n, value);
+}
+
+/// An allocator whose value-less construct() default-initialises: resize() of a vector of
+/// trivial elements leaves them unwritten instead of zero-filling them on one thread, so a
+/// parallel pass that writes every element is also the arrays' first touch (the kernel clears
+/// the pages on the writing threads). Constructing from values is as std::allocator's.
+template <class T>
+struct DefaultInitAllocator : std::allocator<T> {
+  using value_type = T;
+  template <class U>
+  struct rebind {
+    using other = DefaultInitAllocator<U>;
+  };
+  DefaultInitAllocator() = default;
+  template <class U>
+  DefaultInitAllocator(const DefaultInitAllocator<U>&) noexcept {}
+  template <class U>
+  void construct(U* p) noexcept(std::is_nothrow_default_constructible_v<U>) {
+    ::new (static_cast<void*>(p)) U;
+  }
+  template <class U, class... Args>
+  void construct(U* p, Args&&... args) {
+    ::new (static_cast<void*>(p)) U(std::forward<Args>(args)...);
+  }
+};
+
+/// A builder's large array: resize() does not initialise trivial elements (see above).
+template <class T>
+using HugeVector = std::vector<T, DefaultInitAllocator<T>>;
+
+/// `v` holding `n` unwritten elements in fresh storage advised for huge pages (what it held is
+/// dropped); the caller writes every one of them, in parallel where it is large.
+template <class T>
+void sizeHuge(HugeVector<T>& v, size_t n) {
+  HugeVector<T>().swap(v);
+  v.reserve(n);
+  adviseHugePages(v.data(), n * sizeof(T));
+  v.resize(n);
 }
 
 }  // namespace tessera::lod::detail

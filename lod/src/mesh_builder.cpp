@@ -76,16 +76,18 @@ void parallelChunks(size_t n, uint32_t threads, const F& f) {
 struct Prepared {
   glm::dvec3 origin{0.0}, lo{0.0}, hi{0.0};
   double step = 1.0, quant_error = 0.0;
-  std::vector<glm::i32vec3> grid;  ///< per vertex
-  std::vector<glm::dvec3> pos;     ///< per vertex: lo + grid * step (what the store holds)
-  std::vector<uint16_t> normals;   ///< octahedral
+  // The large arrays are written in parallel passes without being zero-filled first
+  // (huge_pages.h: DefaultInitAllocator).
+  detail::HugeVector<glm::i32vec3> grid;  ///< per vertex
+  detail::HugeVector<glm::dvec3> pos;     ///< per vertex: lo + grid * step (what the store holds)
+  detail::HugeVector<uint16_t> normals;   ///< octahedral
   std::vector<glm::u8vec4> colors;
-  std::vector<Triangle> tris;
+  detail::HugeVector<Triangle> tris;
   uint64_t dropped = 0;
   /// Per vertex, the triangles using it, in triangle order (CSR: vertex v's are
   /// tri_items[tri_start[v] .. tri_start[v + 1])); for the normals and the dual graph, then
   /// released (releaseVertexTriangles()).
-  std::vector<uint32_t> tri_start;
+  detail::HugeVector<uint32_t> tri_start;
   std::unique_ptr<uint32_t[]> tri_items;
 };
 
@@ -116,7 +118,7 @@ void vertexTriangles(Prepared& p, size_t nv, uint32_t threads) {
       for (int k = 0; k < 3; ++k) ++at[r][p.tris[i][k]];
   });
   // Each range's first place in each vertex's list; the lists' starts.
-  detail::assignHuge(p.tri_start, nv + 1, 0u);
+  detail::sizeHuge(p.tri_start, nv + 1);  // every element written below
   uint32_t next = 0;
   for (size_t v = 0; v < nv; ++v) {
     p.tri_start[v] = next;
@@ -184,7 +186,7 @@ Prepared prepare(const Mesh& mesh, uint32_t threads) {
   }
   p.dropped = nin - kept;
   if (kept == 0) throw ReadError("lod::buildMeshStore(): no usable triangles");
-  detail::assignHuge(p.tris, kept);
+  detail::sizeHuge(p.tris, kept);  // each range writes its own
   parallelFor(ranges, threads, [&](size_t r) {
     size_t at = rs[r].at;
     for (size_t i = rangeBegin(nin, r, ranges); i < rangeBegin(nin, r + 1, ranges); ++i)
@@ -205,14 +207,18 @@ Prepared prepare(const Mesh& mesh, uint32_t threads) {
     median = edges[edges.size() / 2];
   }
   p.step = std::max(median / 256.0, extent / double(1 << 30));
-  detail::assignHuge(p.grid, nv);
-  detail::assignHuge(p.pos, nv);
+  detail::sizeHuge(p.grid, nv);  // every element written below
+  detail::sizeHuge(p.pos, nv);
   std::vector<double> chunk_error((nv + kChunk - 1) / kChunk, 0.0);
   parallelChunks(nv, threads, [&](size_t begin, size_t end) {
     const size_t chunk = begin / kChunk;
     for (size_t i = begin; i < end; ++i) {
       const glm::dvec3 v = mesh.positions[i];
-      if (!std::isfinite(v.x) || !std::isfinite(v.y) || !std::isfinite(v.z)) continue;  // unused
+      if (!std::isfinite(v.x) || !std::isfinite(v.y) || !std::isfinite(v.z)) {  // unused
+        p.grid[i] = glm::i32vec3(0);
+        p.pos[i] = glm::dvec3(0.0);
+        continue;
+      }
       const glm::dvec3 q =
           glm::clamp(glm::round((v - p.lo) / p.step), glm::dvec3(0.0), glm::dvec3(double(1 << 30)));
       p.grid[i] = glm::i32vec3(q);
@@ -225,7 +231,7 @@ Prepared prepare(const Mesh& mesh, uint32_t threads) {
   // patches shade their shared vertices alike).
   vertexTriangles(p, nv, threads);
   const bool file_normals = mesh.normals.size() == nv;
-  detail::assignHuge(p.normals, nv);
+  detail::sizeHuge(p.normals, nv);  // every element written below
   parallelChunks(nv, threads, [&](size_t begin, size_t end) {
     for (size_t i = begin; i < end; ++i) {
       glm::vec3 n(0.0f);
@@ -314,8 +320,8 @@ constexpr size_t kBlockPatches = 64;
 
 /// std::sort of `v` (whose elements are all distinct, so the order is unique) by ranges in
 /// parallel, then merged pairwise.
-template <class T>
-void sortInRanges(std::vector<T>& v, uint32_t threads) {
+template <class T, class A>
+void sortInRanges(std::vector<T, A>& v, uint32_t threads) {
   const size_t ranges = std::max<size_t>(1, std::min<size_t>(threads, v.size() / kChunk + 1));
   parallelFor(ranges, threads, [&](size_t r) {
     std::sort(v.begin() + std::ptrdiff_t(rangeBegin(v.size(), r, ranges)),
@@ -338,14 +344,14 @@ void sortInRanges(std::vector<T>& v, uint32_t threads) {
 /// meshes are first cut into blocks of consecutive triangles in Morton order of their
 /// centroids (kBlockPatches patches each), partitioned in parallel: METIS on the whole graph
 /// took 94 of a 17.8 M-triangle build's 189 s on one core. `part` gets each triangle's patch.
-uint32_t leafPatches(const Prepared& p, const std::vector<idx_t>& xadj,
-                     const std::vector<idx_t>& adjncy, uint32_t patch, uint32_t threads,
-                     MetisPool& metis, std::vector<uint32_t>& part) {
+uint32_t leafPatches(const Prepared& p, const detail::HugeVector<idx_t>& xadj,
+                     const detail::HugeVector<idx_t>& adjncy, uint32_t patch, uint32_t threads,
+                     MetisPool& metis, detail::HugeVector<uint32_t>& part) {
   const size_t nt = p.tris.size(), block = size_t(patch) * kBlockPatches;
-  detail::assignHuge(part, nt, 0u);
+  detail::sizeHuge(part, nt);  // written by the blocks below (`order` is a permutation)
   // Triangles in Morton order of their centroids' grid cells (21 bits an axis).
-  std::vector<std::pair<uint64_t, uint32_t>> order;
-  detail::assignHuge(order, nt);
+  detail::HugeVector<std::pair<uint64_t, uint32_t>> order;
+  detail::sizeHuge(order, nt);
   glm::i64vec3 hi(1);
   for (const glm::i32vec3& g : p.grid) hi = glm::max(hi, glm::i64vec3(g));
   const int shift =
@@ -364,8 +370,8 @@ uint32_t leafPatches(const Prepared& p, const std::vector<idx_t>& xadj,
   if (nt > block) sortInRanges(order, threads);
   const size_t blocks = (nt + block - 1) / block;
   std::vector<uint32_t> first_part(blocks + 1, 0), block_parts(blocks, 0);
-  std::vector<uint32_t> local_of;
-  detail::assignHuge(local_of, nt, 0u);
+  detail::HugeVector<uint32_t> local_of;
+  detail::sizeHuge(local_of, nt);
   parallelChunks(nt, threads, [&](size_t begin, size_t end) {
     for (size_t i = begin; i < end; ++i) local_of[order[i].second] = uint32_t(i % block);
   });
@@ -451,10 +457,10 @@ void bounds(const Prepared& p, BuildNode& n) {
 }
 
 /// The triangles' dual graph (triangles sharing an edge), CSR for METIS.
-void dualGraph(const Prepared& p, uint32_t threads, std::vector<idx_t>& xadj,
-               std::vector<idx_t>& adjncy) {
+void dualGraph(const Prepared& p, uint32_t threads, detail::HugeVector<idx_t>& xadj,
+               detail::HugeVector<idx_t>& adjncy) {
   const size_t nt = p.tris.size();
-  const std::vector<uint32_t>& start = p.tri_start;
+  const detail::HugeVector<uint32_t>& start = p.tri_start;
   const uint32_t* items = p.tri_items.get();
   // Neighbours per triangle in parallel, at most kSlots each (an edge of a manifold has one
   // other triangle; a non-manifold edge's further ones beyond the slots are left out of the
@@ -462,8 +468,8 @@ void dualGraph(const Prepared& p, uint32_t threads, std::vector<idx_t>& xadj,
   constexpr int kSlots = 6;
   const auto slots = std::make_unique_for_overwrite<uint32_t[]>(nt * kSlots);  // counts[i] used
   detail::adviseHugePages(slots.get(), nt * kSlots * sizeof(uint32_t));
-  std::vector<uint8_t> counts;
-  detail::assignHuge(counts, nt, uint8_t(0));
+  detail::HugeVector<uint8_t> counts;
+  detail::sizeHuge(counts, nt);  // every element written below
   parallelChunks(nt, threads, [&](size_t begin, size_t end) {
     for (size_t i = begin; i < end; ++i) {
       const Triangle& t = p.tris[i];
@@ -486,9 +492,10 @@ void dualGraph(const Prepared& p, uint32_t threads, std::vector<idx_t>& xadj,
       counts[i] = uint8_t(n);
     }
   });
-  detail::assignHuge(xadj, nt + 1, idx_t(0));
+  detail::sizeHuge(xadj, nt + 1);
+  xadj[0] = 0;
   for (size_t i = 0; i < nt; ++i) xadj[i + 1] = xadj[i] + counts[i];
-  detail::assignHuge(adjncy, size_t(xadj[nt]), idx_t(0));
+  detail::sizeHuge(adjncy, size_t(xadj[nt]));  // every element written below
   parallelChunks(nt, threads, [&](size_t begin, size_t end) {
     for (size_t i = begin; i < end; ++i)
       for (int k = 0; k < counts[i]; ++k)
@@ -571,10 +578,10 @@ MeshBuildReport buildMeshStore(const Mesh& mesh, const std::filesystem::path& ou
   std::vector<uint32_t> level_nodes;  // the current level's node indices
   std::vector<std::unordered_map<uint32_t, uint32_t>> adjacency;  // per current node: shared edges
   {
-    std::vector<idx_t> xadj, adjncy;
+    detail::HugeVector<idx_t> xadj, adjncy;
     dualGraph(p, threads, xadj, adjncy);
     releaseVertexTriangles(p);
-    std::vector<uint32_t> part;
+    detail::HugeVector<uint32_t> part;
     const uint32_t parts = leafPatches(p, xadj, adjncy, o.patch_triangles, threads, metis, part);
     // Each leaf's triangles and shared edges, by ranges of leaves in parallel. Every range scans
     // all triangles in order, so a leaf gets its triangles, and its map their neighbours, in the
