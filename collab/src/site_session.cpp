@@ -506,14 +506,16 @@ struct SiteSession::Impl {
     return img;
   }
 
-  /// Opens a store the scene names: from this host, or from the master's chunk server.
-  std::unique_ptr<lod::PointStore> openStore(const std::string& path) {
+  /// Opens a store the scene names (a lod::PointStore or lod::MeshStore): from this host, or
+  /// from the master's chunk server.
+  template <class Store>
+  std::unique_ptr<Store> openStore(const std::string& path, const char* kind) {
     std::error_code ec;
     const bool here = fs::is_regular_file(path, ec);
     if (!chunks || (here && !opt.remote_stores)) {
-      if (here || chunks) return lod::PointStore::open(path);
+      if (here || chunks) return Store::open(path);
       try {
-        return lod::PointStore::open(path);
+        return Store::open(path);
       } catch (const lod::StoreError& e) {
         throw lod::StoreError(std::string(e.what()) +
                               " (not on this host, and the master serves no chunks: start it "
@@ -521,9 +523,10 @@ struct SiteSession::Impl {
       }
     }
     try {
-      return lod::PointStore::open(chunks->open(path));
+      return Store::open(chunks->open(path));
     } catch (const lod::RangeError& e) {
-      throw lod::StoreError("lod::PointStore: " + path + ": from the chunk server: " + e.what());
+      throw lod::StoreError(std::string(kind) + ": " + path +
+                            ": from the chunk server: " + e.what());
     }
   }
 
@@ -1297,7 +1300,12 @@ struct SiteSession::Impl {
       throw lod::StoreError(
           "--remote-stores: the master serves no chunks (start it with --chunks)");
     }
-    models.setStoreOpener([this](const std::string& path) { return openStore(path); });
+    models.setStoreOpener([this](const std::string& path) {
+      return openStore<lod::PointStore>(path, "lod::PointStore");
+    });
+    models.setMeshStoreOpener([this](const std::string& path) {
+      return openStore<lod::MeshStore>(path, "lod::MeshStore");
+    });
     update(sync::SceneChanges::all());
     own = graph.camera();
     const auto period = std::chrono::duration<double>(1.0 / script.fps());

@@ -14,7 +14,9 @@ std::string nodeName(const std::string& store, NodeId id) {
   return "lod::MeshStore: " + store + ": patch " + std::to_string(id);
 }
 
-bool finite(const glm::vec3& v) { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); }
+bool finite(const glm::vec3& v) {
+  return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z);
+}
 
 }  // namespace
 
@@ -160,13 +162,21 @@ MeshPatch MeshStore::readPatch(NodeId id, std::stop_token cancel) const {
   const MeshNodeRecord& r = mNodes.at(id);
   const std::string where = nodeName(mPath.string(), id);
   std::vector<uint8_t> bytes(r.payload_bytes);
-  try {
-    mSource->read(r.payload_offset, bytes.data(), bytes.size(), cancel);
-  } catch (const ReadCancelled&) {
-    throw;
-  } catch (const RangeError& e) {
-    throw StoreError(where + ": " + e.what());
-  }
+  auto read = [&] {
+    try {
+      mSource->read(r.payload_offset, bytes.data(), bytes.size(), cancel);
+    } catch (const ReadCancelled&) {
+      throw;
+    } catch (const RangeError& e) {
+      throw StoreError(where + ": " + e.what());
+    }
+  };
+  read();
+  // A copy that fails its checksum is read once more where the source can fetch it again (a
+  // site's disk cache of a chunk server's ranges: range_source.h), as PointStore does.
+  if (crc32c(bytes.data(), bytes.size()) != r.payload_crc &&
+      mSource->refetch(r.payload_offset, bytes.size()))
+    read();
   return meshfmt::decodePatch(bytes.data(), bytes.size(), r, mSummary, where);
 }
 

@@ -53,8 +53,7 @@ sync::SceneGraph loadSceneWithStores(const std::string& path, const std::string&
         } catch (const std::exception& e) {
           throw std::runtime_error(who + ": " + path + ": nodes[" + std::to_string(i) +
                                    "].model.store: " + m.store() +
-                                   ": cannot sample the mesh for see-through drawing: " +
-                                   e.what());
+                                   ": cannot sample the mesh for see-through drawing: " + e.what());
         }
       }
       continue;
@@ -127,7 +126,7 @@ const std::vector<ModelInstance>& SceneDrawList::update(const sync::SceneGraph& 
       continue;
     try {
       if (isMeshPath(path)) {
-        opened_meshes.emplace(path, lod::MeshStore::open(path));
+        opened_meshes.emplace(path, mMeshOpener ? mMeshOpener(path) : lod::MeshStore::open(path));
       } else if (path != node.model().store()) {  // a see-through mesh: its sampled points
         opened.emplace(path, lod::PointStore::open(lod::cachedStoreFor(
                                  node.model().store(), "render::SceneDrawList", true)));

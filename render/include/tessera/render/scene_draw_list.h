@@ -49,7 +49,7 @@ NodePlacement placeNode(const sync::SceneGraph& graph, sync::SceneGraph::NodeId 
 class SceneDrawList {
  public:
   /// Whether a scene's store path names a mesh store (.tmesh, lod/mesh_store.h): opened as a
-  /// MeshStore and drawn by the mesh pass. Remote sites open meshes from a local copy only.
+  /// MeshStore and drawn by the mesh pass.
   static bool isMeshPath(const std::string& path);
   /// What a MODEL node is drawn from: its store path, or for a mesh whose opacity (with its
   /// ancestors') is below 1, PATH#points: a point store of samples on its triangles
@@ -63,6 +63,12 @@ class SceneDrawList {
 
   /// Sets how update() opens stores from now on (stores already open stay). Empty: the default.
   void setStoreOpener(StoreOpener opener) { mOpener = std::move(opener); }
+
+  /// The same for mesh stores (.tmesh; default lod::MeshStore::open(path)): a remote site opens
+  /// them through the chunk server too. A see-through mesh's sampled points are made from the
+  /// mesh on this host (lod::cachedStoreFor), so they need the file here.
+  using MeshStoreOpener = std::function<std::unique_ptr<lod::MeshStore>(const std::string& path)>;
+  void setMeshStoreOpener(MeshStoreOpener opener) { mMeshOpener = std::move(opener); }
 
   /// Brings the list up to date with `graph` after `changes` (what SceneGraph::apply() returned,
   /// or SceneChanges::of() the frame the master took; SceneChanges::all() rebuilds). The list
@@ -114,9 +120,9 @@ class SceneDrawList {
     ModelInstance instance;
     bool visible = false;
   };
-  std::map<std::string, std::unique_ptr<lod::PointStore>> mStores;  // by store path
+  std::map<std::string, std::unique_ptr<lod::PointStore>> mStores;     // by store path
   std::map<std::string, std::unique_ptr<lod::MeshStore>> mMeshStores;  // .tmesh, by path
-  std::map<uint32_t, Entry> mEntries;                               // by node id
+  std::map<uint32_t, Entry> mEntries;                                  // by node id
   /// A visible CLIP node: its planes in the world, whether it keeps their outside, the models
   /// it cuts (empty: all).
   struct ClipEntry {
@@ -131,6 +137,7 @@ class SceneDrawList {
   bool mStarted = false;
   size_t mVisited = 0;
   StoreOpener mOpener;
+  MeshStoreOpener mMeshOpener;
 };
 
 }  // namespace tessera::render
