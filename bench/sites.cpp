@@ -18,12 +18,18 @@
 //     avatar has reached the pose; the wall's median frame time is added for the glass.
 //  3. Bytes per second per site, each way, at 30 Hz poses.
 //
-//   sites [--seconds S] [--counts 0,4,16] [--traffic-nice 19] [--out DIR]
+//   sites [--seconds S] [--counts 0,4,16] [--rounds 3] [--traffic-nice 19 | --traffic-idle]
+//         [--out DIR]
+//
+// Each count is measured --rounds times in turn (0, 4, 16, 0, 4, 16, ...) and the medians are
+// reported: this virtual machine's speed drifts by 10% from one minute to the next, which a
+// single window per count turns into its ratio.
 //
 // Writes DIR/sites_overhead.csv, DIR/sites_latency.csv and DIR/sites.png (gnuplot); prints the
 // figures. Every process runs on THIS machine (2 cores).
 #include <CLI/CLI.hpp>
 
+#include <sched.h>
 #include <sys/resource.h>
 #include <sys/syscall.h>
 #include <time.h>
@@ -199,15 +205,23 @@ class TrafficSites {
   /// `nice`: the scheduling priority (0..19) of the thread that joins and drives the sites,
   /// and so of the ZeroMQ I/O threads their contexts start (threads inherit it). The sites
   /// stand for other machines: at 19 their encryption and parsing take what the wall leaves of
-  /// this machine's two cores instead of competing with its render node as an equal.
+  /// this machine's two cores instead of competing with its render node as an equal. kIdle:
+  /// SCHED_IDLE, they run only on a core nothing else wants (a nice-19 thread that wakes still
+  /// preempts a render thread, and llvmpipe's other thread then waits for it at the frame's end).
+  static constexpr int kIdle = -1;
   TrafficSites(const std::string& endpoint, const std::string& master_key,
                const std::vector<tessera::collab::KeyPair>& keys, int k, bool still, int nice)
       : mStill(still) {
     std::atomic<int> joined{0};
     std::exception_ptr failed;
     mThread = std::thread([&, k, nice] {
-      if (nice != 0 && ::setpriority(PRIO_PROCESS, pid_t(::syscall(SYS_gettid)), nice) != 0)
+      if (nice == kIdle) {
+        sched_param none{};
+        if (::sched_setscheduler(0, SCHED_IDLE, &none) != 0) std::perror("sites: SCHED_IDLE");
+      } else if (nice != 0 &&
+                 ::setpriority(PRIO_PROCESS, pid_t(::syscall(SYS_gettid)), nice) != 0) {
         std::perror("sites: setpriority");
+      }
       try {
         for (int i = 0; i < k; ++i) {
           tessera::collab::SiteClientOptions o;
@@ -457,6 +471,17 @@ int main(int argc, char** argv) {
                    "the wall leaves of this machine; 0 makes them compete with it as equals")
         ->check(CLI::Range(0, 19))
         ->capture_default_str();
+    bool traffic_idle = false;
+    app.add_flag("--traffic-idle", traffic_idle,
+                 "Run that thread and its ZeroMQ threads under SCHED_IDLE instead of a nice "
+                 "value: only on a core the wall does not want");
+    int rounds = 3;
+    app.add_option("--rounds", rounds,
+                   "Measure the counts this many times in turn (0, 4, 16, 0, 4, 16 ...): the "
+                   "medians over rounds are reported (this machine's speed drifts by 10% "
+                   "between minutes)")
+        ->check(CLI::Range(1, 20))
+        ->capture_default_str();
     bool draw_only = false;
     app.add_flag("--draw-only", draw_only,
                  "Only what the master's logic and a node's drawing cost per frame, in process "
@@ -534,19 +559,26 @@ int main(int argc, char** argv) {
     std::ofstream ocsv(fs::path(out) / "sites_overhead.csv");
     ocsv << "sites,frames_per_s,frame_ms_median,frame_ms_p99,ratio_to_no_sites,"
             "in_bytes_per_site_s,out_bytes_per_site_s,master_sync_ms_mean,master_cpu_ms_per_frame,"
-            "node_cpu_ms_per_frame,traffic_cpu_percent\n";
-    double base_fps = 0;
+            "node_cpu_ms_per_frame,traffic_cpu_percent,rounds,frames_per_s_min,frames_per_s_max\n";
+    const std::string traffic_how =
+        traffic_idle ? std::string("SCHED_IDLE") : "nice " + std::to_string(traffic_nice);
     std::printf(
-        "master frame rate with sites (1 tile 640x360, %.0f s each, sites --no-render, their "
-        "traffic at nice %d):\n",
-        seconds, traffic_nice);
-    for (int k : counts) {
+        "master frame rate with sites (1 tile 640x360, %.0f s each, %d rounds in turn, sites "
+        "--no-render, their traffic at %s):\n",
+        seconds, rounds, traffic_how.c_str());
+    /// One window of one count: its figures.
+    struct Window {
+      double fps = 0, frame_median = 0, frame_p99 = 0, in_rate = 0, out_rate = 0, sync_mean = 0,
+             master_cpu_ms = 0, node_cpu_ms = 0, traffic_percent = 0;
+    };
+    std::map<int, std::vector<Window>> windows;
+    auto measure = [&](int k, int round) {
       const double total = seconds + 16.0;  // joins, the warm-up, then the measured window
-      Wall w = startWall(s, "overhead-" + std::to_string(k), total);
+      Wall w = startWall(s, "overhead-" + std::to_string(k) + "-" + std::to_string(round), total);
       std::unique_ptr<TrafficSites> sites;
       if (k > 0)
         sites = std::make_unique<TrafficSites>(w.sites, s.master_public, site_keys, k, still,
-                                               traffic_nice);
+                                               traffic_idle ? TrafficSites::kIdle : traffic_nice);
       // The same warm-up for every count: the node's first cut loads in about 2 s here, and a
       // window that began in it would make the count that joins fastest (none) look slower.
       std::this_thread::sleep_for(std::chrono::seconds(4));
@@ -567,8 +599,8 @@ int main(int argc, char** argv) {
       (void)w.master->wait(total + 60);
       sites.reset();
       (void)w.node->wait(10);
-      const double fps = double(ms.size()) / (to - from);
-      if (k == 0) base_fps = fps;
+      Window win;
+      win.fps = double(ms.size()) / (to - from);
       double in_rate = 0, out_rate = 0;
       std::smatch m;
       const std::string log = slurp(w.log);
@@ -578,22 +610,54 @@ int main(int argc, char** argv) {
         in_rate = std::stod(m[1].str()) / total / k;
         out_rate = std::stod(m[2].str()) / total / k;
       }
-      const double ratio = base_fps > 0 ? fps / base_fps : 1.0;
-      double sync_mean = 0;
-      for (double v : sync_ms) sync_mean += v / double(std::max<size_t>(1, sync_ms.size()));
+      for (double v : sync_ms) win.sync_mean += v / double(std::max<size_t>(1, sync_ms.size()));
       const double frames_n = std::max<double>(1.0, double(ms.size()));
-      const double master_cpu_ms = master_cpu * 1000.0 / frames_n,
-                   node_cpu_ms = node_cpu * 1000.0 / frames_n;
-      ocsv << k << "," << fps << "," << percentile(ms, 0.5) << "," << percentile(ms, 0.99) << ","
-           << ratio << "," << in_rate << "," << out_rate << "," << sync_mean << "," << master_cpu_ms
-           << "," << node_cpu_ms << "," << 100.0 * sites_cpu / (to - from) << "\n";
+      win.master_cpu_ms = master_cpu * 1000.0 / frames_n;
+      win.node_cpu_ms = node_cpu * 1000.0 / frames_n;
+      win.frame_median = percentile(ms, 0.5);
+      win.frame_p99 = percentile(ms, 0.99);
+      win.in_rate = in_rate;
+      win.out_rate = out_rate;
+      win.traffic_percent = 100.0 * sites_cpu / (to - from);
+      std::printf("    round %d, %2d sites: %6.1f frames/s\n", round + 1, k, win.fps);
+      std::fflush(stdout);
+      windows[k].push_back(win);
+    };
+    for (int round = 0; round < rounds; ++round)
+      for (int k : counts) measure(k, round);
+    // Per count, the medians over its rounds.
+    auto median = [](const std::vector<Window>& ws, double Window::*field) {
+      std::vector<double> v;
+      for (const Window& w : ws) v.push_back(w.*field);
+      return percentile(v, 0.5);
+    };
+    double base_fps = 0;
+    for (int k : counts) {
+      const std::vector<Window>& ws = windows[k];
+      const double fps = median(ws, &Window::fps);
+      if (k == 0) base_fps = fps;
+      const double ratio = base_fps > 0 ? fps / base_fps : 1.0;
+      double lo = 1e300, hi = 0;
+      for (const Window& w : ws) {
+        lo = std::min(lo, w.fps);
+        hi = std::max(hi, w.fps);
+      }
+      ocsv << k << "," << fps << "," << median(ws, &Window::frame_median) << ","
+           << median(ws, &Window::frame_p99) << "," << ratio << "," << median(ws, &Window::in_rate)
+           << "," << median(ws, &Window::out_rate) << "," << median(ws, &Window::sync_mean) << ","
+           << median(ws, &Window::master_cpu_ms) << "," << median(ws, &Window::node_cpu_ms) << ","
+           << median(ws, &Window::traffic_percent) << "," << ws.size() << "," << lo << "," << hi
+           << "\n";
       std::printf(
-          "  %2d sites: %6.1f frames/s (%.2f of none), frame %.2f ms median, %.2f ms p99; "
-          "master before the nodes %.2f ms; CPU per frame: master %.2f ms, node %.2f ms; "
-          "the K sites' traffic itself %.0f%% of a core; per site %.0f B/s in, %.0f B/s "
-          "out\n",
-          k, fps, ratio, percentile(ms, 0.5), percentile(ms, 0.99), sync_mean, master_cpu_ms,
-          node_cpu_ms, 100.0 * sites_cpu / (to - from), in_rate, out_rate);
+          "  %2d sites: %6.1f frames/s (%.2f of none; rounds %.1f-%.1f), frame %.2f ms median, "
+          "%.2f ms p99; master before the nodes %.2f ms; CPU per frame: master %.2f ms, node "
+          "%.2f ms; the K sites' traffic itself %.0f%% of a core; per site %.0f B/s in, %.0f "
+          "B/s out\n",
+          k, fps, ratio, lo, hi, median(ws, &Window::frame_median),
+          median(ws, &Window::frame_p99), median(ws, &Window::sync_mean),
+          median(ws, &Window::master_cpu_ms), median(ws, &Window::node_cpu_ms),
+          median(ws, &Window::traffic_percent), median(ws, &Window::in_rate),
+          median(ws, &Window::out_rate));
       std::fflush(stdout);
     }
     ocsv.close();

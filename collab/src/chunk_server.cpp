@@ -16,6 +16,8 @@
 #include <tessera/collab/curve.h>
 #include <tessera/collab/site_messages.h>
 #include <tessera/lod/range_source.h>
+#include <tessera/lod/store_cache.h>
+#include <tessera/render/scene_draw_list.h>
 
 #include "server_socket.h"
 #include "token_bucket.h"
@@ -144,13 +146,24 @@ struct ChunkServer::Impl {
     auto it = stores.find(path);
     if (it != stores.end()) return &it->second;
     try {
+      // A see-through mesh's points (SceneDrawList::storeKey(): MESH#points) are the store its
+      // host sampled from the mesh into the store cache: served once the master has made it.
+      std::string file = path;
+      if (const auto mesh = render::SceneDrawList::meshOfPointsKey(path)) {
+        file = lod::cachedStorePath(*mesh, "chunk server").string();
+        std::error_code ec;
+        if (!std::filesystem::is_regular_file(file, ec)) {
+          why = "store " + path + ": the mesh's see-through points are not made on the master yet";
+          return nullptr;
+        }
+      }
       Store s;
-      s.source = std::make_unique<lod::FileRangeSource>(path);
+      s.source = std::make_unique<lod::FileRangeSource>(file);
       std::string head(std::min<uint64_t>(s.source->size(), kIdentityHeadBytes), '\0');
       s.source->read(0, head.data(), head.size());
       s.identity = storeIdentity(s.source->size(), head.data(), head.size());
       return &stores.emplace(path, std::move(s)).first->second;
-    } catch (const lod::RangeError& e) {
+    } catch (const std::runtime_error& e) {  // lod::RangeError; the cache's folder
       why = "store " + path + " on the master: " + e.what();
       return nullptr;
     }

@@ -20,6 +20,7 @@
 #include <tessera/collab/voice_alsa.h>
 #include <tessera/collab/voice_bridge.h>
 #include <tessera/collab/voice_wav.h>
+#include <tessera/render/scene_draw_list.h>
 #include <tessera/sync/cluster_link.h>
 #include <tessera/sync/wire.h>
 
@@ -69,7 +70,7 @@ struct SiteHub::Impl {
   double last_reload = 0;
   SiteHubCounters counters;
   master::AnnotationScene* notes = nullptr;
-  std::unique_ptr<SiteSelections> selections;  // made with the first lasso
+  std::unique_ptr<SiteSelections> selections;       // made with the first lasso
   std::unique_ptr<VoiceBridge> voice;               // with opt.voice
   std::unique_ptr<AlsaMicrophone> wall_microphone;  // --audio-in alsa:DEVICE
   std::unique_ptr<AlsaSpeaker> wall_speaker;        // --audio-out alsa:DEVICE
@@ -351,9 +352,8 @@ struct SiteHub::Impl {
       } else if (m.kind_case() == site::ToMaster::kSelect ||
                  m.kind_case() == site::ToMaster::kSnap) {
         if (!selections)
-          selections = std::make_unique<SiteSelections>([this](const std::string& line) {
-            say(line);
-          });
+          selections =
+              std::make_unique<SiteSelections>([this](const std::string& line) { say(line); });
         if (m.kind_case() == site::ToMaster::kSelect)
           selections->request(graph, p.participant, roster.info(p.participant).name, m.select());
         else
@@ -420,7 +420,9 @@ SiteHub::~SiteHub() {
   m->zap.reset();
 }
 
-void SiteHub::setAnnotations(master::AnnotationScene* notes) { m->notes = notes; }
+void SiteHub::setAnnotations(master::AnnotationScene* notes) {
+  m->notes = notes;
+}
 
 std::string SiteHub::endpoint() const {
   return m->socket.get(zmq::sockopt::last_endpoint);
@@ -448,7 +450,11 @@ void SiteHub::beforeFrame(sync::SceneGraph& graph, uint64_t, double) {
       std::vector<std::string> stores;
       for (const auto id : graph.ids()) {
         const scene::SceneNode& n = graph.node(id);
-        if (n.kind() == scene::SceneNode::MODEL) stores.push_back(n.model().store());
+        if (n.kind() != scene::SceneNode::MODEL) continue;
+        stores.push_back(n.model().store());
+        // A see-through mesh is drawn from its sampled points (MESH#points): those too.
+        const std::string key = render::SceneDrawList::storeKey(graph, id);
+        if (key != n.model().store()) stores.push_back(key);
       }
       m->chunks->setStores(std::move(stores));
     }

@@ -21,6 +21,7 @@
 #include <tessera/collab/voice_bridge.h>
 #include <tessera/collab/voice_wav.h>
 #include <tessera/core/file_checks.h>
+#include <tessera/lod/store_cache.h>
 #include <tessera/master/console_notes.h>
 #include <tessera/master/measure_tool.h>
 #include <tessera/master/one_button_navigation.h>
@@ -1300,7 +1301,14 @@ struct SiteSession::Impl {
       throw lod::StoreError(
           "--remote-stores: the master serves no chunks (start it with --chunks)");
     }
-    models.setStoreOpener([this](const std::string& path) {
+    models.setStoreOpener([this](const std::string& path) -> std::unique_ptr<lod::PointStore> {
+      // A see-through mesh's points: sampled here from the mesh when this host has it (as the
+      // master and its nodes do), else the master's copy through its chunk server.
+      if (const auto mesh = render::SceneDrawList::meshOfPointsKey(path)) {
+        std::error_code ec;
+        if (!chunks || (fs::is_regular_file(*mesh, ec) && !opt.remote_stores))
+          return lod::PointStore::open(lod::cachedStoreFor(*mesh, "tessera-site", true));
+      }
       return openStore<lod::PointStore>(path, "lod::PointStore");
     });
     models.setMeshStoreOpener([this](const std::string& path) {

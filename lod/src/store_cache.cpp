@@ -12,7 +12,7 @@ namespace tessera::lod {
 
 namespace fs = std::filesystem;
 
-fs::path cachedStoreFor(const fs::path& input, const std::string& who, bool quiet) {
+fs::path cachedStorePath(const fs::path& input, const std::string& who) {
   if (input.extension() == ".tlod") return input;
   std::error_code ec;
   const auto size = fs::file_size(input, ec);
@@ -29,7 +29,13 @@ fs::path cachedStoreFor(const fs::path& input, const std::string& who, bool quie
                              ec.message());
   const size_t key = std::hash<std::string>{}(fs::absolute(input).string() + ":" +
                                               std::to_string(size) + ":" + std::to_string(mtime));
-  const fs::path out = cache / (input.stem().string() + "-" + std::to_string(key) + ".tlod");
+  return cache / (input.stem().string() + "-" + std::to_string(key) + ".tlod");
+}
+
+fs::path cachedStoreFor(const fs::path& input, const std::string& who, bool quiet) {
+  if (input.extension() == ".tlod") return input;
+  const fs::path out = cachedStorePath(input, who);
+  std::error_code ec;
   if (!fs::exists(out)) {
     std::fprintf(stderr, "%s: converting %s into %s\n", who.c_str(), input.c_str(), out.c_str());
     BuildOptions o;

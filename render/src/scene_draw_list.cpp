@@ -76,9 +76,21 @@ bool SceneDrawList::isMeshPath(const std::string& path) {
   return std::filesystem::path(path).extension() == ".tmesh";
 }
 
+namespace {
+constexpr std::string_view kPointsSuffix = "#points";
+}  // namespace
+
+std::optional<std::string> SceneDrawList::meshOfPointsKey(const std::string& key) {
+  if (!key.ends_with(kPointsSuffix)) return std::nullopt;
+  std::string mesh = key.substr(0, key.size() - kPointsSuffix.size());
+  if (!isMeshPath(mesh)) return std::nullopt;
+  return mesh;
+}
+
 std::string SceneDrawList::storeKey(const sync::SceneGraph& graph, uint32_t id) {
   const std::string& path = graph.node(id).model().store();
-  if (isMeshPath(path) && placeNode(graph, id).opacity < 1.0f) return path + "#points";
+  if (isMeshPath(path) && placeNode(graph, id).opacity < 1.0f)
+    return path + std::string(kPointsSuffix);
   return path;
 }
 
@@ -127,7 +139,7 @@ const std::vector<ModelInstance>& SceneDrawList::update(const sync::SceneGraph& 
     try {
       if (isMeshPath(path)) {
         opened_meshes.emplace(path, mMeshOpener ? mMeshOpener(path) : lod::MeshStore::open(path));
-      } else if (path != node.model().store()) {  // a see-through mesh: its sampled points
+      } else if (path != node.model().store() && !mOpener) {  // a see-through mesh's points
         opened.emplace(path, lod::PointStore::open(lod::cachedStoreFor(
                                  node.model().store(), "render::SceneDrawList", true)));
       } else {

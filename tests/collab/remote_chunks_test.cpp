@@ -197,6 +197,28 @@ class RemoteChunks : public ::testing::Test {
     EXPECT_GE(last, at_least);
   }
 
+  /// The bunny's reconstruction as a mesh store (issue 15), `opacity` its node's, in a scene
+  /// of its own in `dir` (the wall, the keys and the allow list are the suite's). Returns the
+  /// store's path.
+  fs::path meshScene(const fs::path& dir, double opacity) {
+    fs::create_directories(dir);
+    const fs::path mesh = dir / "bunny.tmesh";
+    const auto built =
+        tessera::test::runCommand(std::string(TESSERA_LOD_TOOL) + " build " + TESSERA_DATA_DIR +
+                                  "/stanford-bunny/reconstruction/bun_zipper.ply -o " +
+                                  mesh.string() + " --patch-triangles 512 --quiet");
+    EXPECT_EQ(built.code, 0) << built.out;
+    for (const char* f : {"wall.json", "master.key", "allow.txt"})
+      fs::copy_file(*sDir / f, dir / f);
+    writeText(dir / "scene.json", R"({"nodes": [{"kind": "MODEL", "name": "bunny mesh",
+          "opacity": )" + std::to_string(opacity) +
+                                      R"(, "model": {"store": ")" + mesh.string() +
+                                      R"("}}], "camera": )" + cameraJson(kWallEye, kTarget) +
+                                      R"(, "settings": {"background": {"r": 0.05, "g": 0.05,
+          "b": 0.08}, "lodPixels": 1.0, "shading": "SHADING_EDL"}})");
+    return mesh;
+  }
+
   static tessera::test::TempDir* sDir;
   static std::map<std::string, std::string> sKeys;
   fs::path mRun;
@@ -424,22 +446,8 @@ std::string sceneStore(const std::string& sites, const tessera::collab::KeyPair&
 }  // namespace
 
 TEST_F(RemoteChunks, AMeshTheSiteDoesNotHaveIsStreamedPatchByPatchToTheLocalPixels) {
-  // The bunny's reconstruction as a mesh store (issue 15) in a scene of its own: the wall, the
-  // keys and the allow list are the suite's.
   const fs::path dir = mRun / "mesh-scene";
-  fs::create_directories(dir);
-  const fs::path mesh = dir / "bunny.tmesh";
-  const auto built =
-      tessera::test::runCommand(std::string(TESSERA_LOD_TOOL) + " build " + TESSERA_DATA_DIR +
-                                "/stanford-bunny/reconstruction/bun_zipper.ply -o " +
-                                mesh.string() + " --patch-triangles 512 --quiet");
-  ASSERT_EQ(built.code, 0) << built.out;
-  for (const char* f : {"wall.json", "master.key", "allow.txt"}) fs::copy_file(*sDir / f, dir / f);
-  writeText(dir / "scene.json", R"({"nodes": [{"kind": "MODEL", "name": "bunny mesh", "model":
-        {"store": ")" + mesh.string() +
-                                    R"("}}], "camera": )" + cameraJson(kWallEye, kTarget) +
-                                    R"(, "settings": {"background": {"r": 0.05, "g": 0.05,
-        "b": 0.08}, "lodPixels": 1.0, "shading": "SHADING_EDL"}})");
+  const fs::path mesh = meshScene(dir, 1.0);
   auto master = startMaster(24.0, 20.0, {}, dir);
   const fs::path cache = mRun / "cache";
   auto local = startSite("local", "local");
@@ -486,6 +494,40 @@ TEST_F(RemoteChunks, AMeshTheSiteDoesNotHaveIsStreamedPatchByPatchToTheLocalPixe
   EXPECT_EQ(
       samePixels(shot_local, tessera::render::readPng((mRun / "mended" / "view.png").string())),
       1.0);
+  ASSERT_EQ(master->wait(120), std::optional<int>(0)) << master->output();
+  EXPECT_EQ(mNode->wait(15), std::optional<int>(0)) << mNode->output();
+}
+
+TEST_F(RemoteChunks, ASeeThroughMeshReachesTheSiteAsTheMastersSampledPoints) {
+  // A see-through mesh is drawn from points sampled on its triangles into the store cache of
+  // the host that draws it (the master makes them at load); a site without the mesh takes the
+  // master's through the chunk server. One cache folder for this test's processes.
+  const fs::path xdg = mRun / "xdg-cache";
+  ::setenv("XDG_CACHE_HOME", xdg.c_str(), 1);
+  const fs::path dir = mRun / "see-through-scene";
+  meshScene(dir, 0.5);
+  auto master = startMaster(24.0, 20.0, {}, dir);
+  auto local = startSite("local", "local");
+  auto remote =
+      startSite("remote", "remote", {"--remote-stores", "--cache", (mRun / "cache").string()});
+  ASSERT_EQ(local->wait(60), std::optional<int>(0)) << local->output();
+  ASSERT_EQ(remote->wait(60), std::optional<int>(0)) << remote->output();
+  ::unsetenv("XDG_CACHE_HOME");
+  showProgress("local", local->output());
+  showProgress("remote", remote->output());
+  std::vector<fs::path> sampled;
+  for (const auto& d : fs::directory_iterator(xdg / "tessera"))
+    if (d.path().extension() == ".tlod") sampled.push_back(d.path());
+  ASSERT_EQ(sampled.size(), 1u) << "one store of sampled points, made by the master";
+  const ChunkReport r = chunkReport(remote->output());
+  ASSERT_TRUE(r.found) << remote->output();
+  EXPECT_GT(r.fetched, 0u);
+  EXPECT_LE(r.fetched, fs::file_size(sampled[0])) << "the points' ranges, each once";
+  const auto shot_local = tessera::render::readPng((mRun / "local" / "view.png").string());
+  const auto shot_remote = tessera::render::readPng((mRun / "remote" / "view.png").string());
+  EXPECT_GT(modelPixels(shot_local), 0.05) << "the view shows the see-through bunny";
+  EXPECT_EQ(samePixels(shot_local, shot_remote), 1.0)
+      << "the remote site's settled see-through view is the local one";
   ASSERT_EQ(master->wait(120), std::optional<int>(0)) << master->output();
   EXPECT_EQ(mNode->wait(15), std::optional<int>(0)) << mNode->output();
 }

@@ -15,11 +15,16 @@
 namespace tessera::lod {
 
 /// `input` itself when it is a .tlod; else the cached store built from it (a .tmesh mesh store:
-/// from points sampled on its triangles, mesh_samples.h, for see-through drawing) (building it first
-/// when missing: progress on stderr unless `quiet`, a line "WHO: converting INPUT into STORE").
-/// Throws std::runtime_error (lod::StoreError, ReadError ...) naming the file when the input
-/// cannot be read or the store not written.
+/// from points sampled on its triangles, mesh_samples.h, for see-through drawing) (building it
+/// first when missing: progress on stderr unless `quiet`, a line "WHO: converting INPUT into
+/// STORE"). Throws std::runtime_error (lod::StoreError, ReadError ...) naming the file when the
+/// input cannot be read or the store not written.
 std::filesystem::path cachedStoreFor(const std::filesystem::path& input, const std::string& who,
                                      bool quiet = false);
+
+/// Where cachedStoreFor() keeps (or will keep) the store of `input`, without building it:
+/// `input` itself for a .tlod. Throws std::runtime_error naming the input when it cannot be
+/// stat'ed or the cache folder not made.
+std::filesystem::path cachedStorePath(const std::filesystem::path& input, const std::string& who);
 
 }  // namespace tessera::lod

@@ -15,6 +15,7 @@
 #include <functional>
 #include <map>
 #include <memory>
+#include <optional>
 #include <span>
 #include <string>
 #include <vector>
@@ -55,18 +56,22 @@ class SceneDrawList {
   /// ancestors') is below 1, PATH#points: a point store of samples on its triangles
   /// (lod/mesh_samples.h, cached by lod::cachedStoreFor), drawn see-through like any scan.
   static std::string storeKey(const sync::SceneGraph& graph, uint32_t id);
+  /// The mesh path of a storeKey() that names a see-through mesh's points (MESH#points); none
+  /// for any other key.
+  static std::optional<std::string> meshOfPointsKey(const std::string& key);
 
-  /// Opens the (point) store a MODEL node names (its path exactly as in the scene). Throws
-  /// lod::StoreError naming the store and why. The default is lod::PointStore::open(path); a
-  /// remote site opens through the master's chunk server (collab/chunk_client.h).
+  /// Opens the (point) store a MODEL node names (its path exactly as in the scene, or a
+  /// see-through mesh's storeKey(), MESH#points). Throws lod::StoreError naming the store and
+  /// why. The default is lod::PointStore::open(path), and for MESH#points the store sampled
+  /// from the mesh on this host (lod::cachedStoreFor); a remote site opens through the
+  /// master's chunk server (collab/chunk_client.h).
   using StoreOpener = std::function<std::unique_ptr<lod::PointStore>(const std::string& path)>;
 
   /// Sets how update() opens stores from now on (stores already open stay). Empty: the default.
   void setStoreOpener(StoreOpener opener) { mOpener = std::move(opener); }
 
   /// The same for mesh stores (.tmesh; default lod::MeshStore::open(path)): a remote site opens
-  /// them through the chunk server too. A see-through mesh's sampled points are made from the
-  /// mesh on this host (lod::cachedStoreFor), so they need the file here.
+  /// them through the chunk server too.
   using MeshStoreOpener = std::function<std::unique_ptr<lod::MeshStore>(const std::string& path)>;
   void setMeshStoreOpener(MeshStoreOpener opener) { mMeshOpener = std::move(opener); }
 
