@@ -195,8 +195,8 @@ int main(int argc, char** argv) {
                      "mesh_lod: built %s: %llu triangles in %.2f s (read %.2f, partition %.2f, "
                      "simplify %.2f, write %.2f), %.2f B/triangle\n",
                      name.c_str(), (unsigned long long)r.triangles, s, r.seconds_read,
-                     r.seconds_partition,
-                     r.seconds_simplify, r.seconds_write, rows.back().bytes_per_tri);
+                     r.seconds_partition, r.seconds_simplify, r.seconds_write,
+                     rows.back().bytes_per_tri);
       };
       build("bunny", &bunny, {}, fs::path(out) / "mesh_lod_bunny.tmesh", kThesisBunnyRate);
       lod::Mesh large = bunny;

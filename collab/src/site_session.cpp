@@ -9,6 +9,7 @@
 #include <sstream>
 #include <thread>
 #include <tuple>
+#include <type_traits>
 
 #include <imgui.h>
 #include <glm/gtc/matrix_transform.hpp>
@@ -21,7 +22,6 @@
 #include <tessera/collab/voice_bridge.h>
 #include <tessera/collab/voice_wav.h>
 #include <tessera/core/file_checks.h>
-#include <tessera/lod/store_cache.h>
 #include <tessera/master/console_notes.h>
 #include <tessera/master/measure_tool.h>
 #include <tessera/master/one_button_navigation.h>
@@ -509,15 +509,24 @@ struct SiteSession::Impl {
 
   /// Opens a store the scene names (a lod::PointStore or lod::MeshStore): from this host, or
   /// from the master's chunk server.
+  /// A see-through mesh's points (MESH#points) are on this host when the mesh is: sampled here,
+  /// as the master and its nodes do.
   template <class Store>
   std::unique_ptr<Store> openStore(const std::string& path, const char* kind) {
-    std::error_code ec;
-    const bool here = fs::is_regular_file(path, ec);
-    if (!chunks || (here && !opt.remote_stores)) {
-      if (here || chunks) return Store::open(path);
-      try {
+    auto local = [&] {
+      if constexpr (std::is_same_v<Store, lod::PointStore>)
+        return render::SceneDrawList::openLocalStore(path);
+      else
         return Store::open(path);
-      } catch (const lod::StoreError& e) {
+    };
+    const auto mesh = render::SceneDrawList::meshOfPointsKey(path);
+    std::error_code ec;
+    const bool here = fs::is_regular_file(mesh ? *mesh : path, ec);
+    if (!chunks || (here && !opt.remote_stores)) {
+      if (here) return local();
+      try {
+        return local();
+      } catch (const std::runtime_error& e) {
         throw lod::StoreError(std::string(e.what()) +
                               " (not on this host, and the master serves no chunks: start it "
                               "with --chunks to stream them)");
@@ -1301,14 +1310,7 @@ struct SiteSession::Impl {
       throw lod::StoreError(
           "--remote-stores: the master serves no chunks (start it with --chunks)");
     }
-    models.setStoreOpener([this](const std::string& path) -> std::unique_ptr<lod::PointStore> {
-      // A see-through mesh's points: sampled here from the mesh when this host has it (as the
-      // master and its nodes do), else the master's copy through its chunk server.
-      if (const auto mesh = render::SceneDrawList::meshOfPointsKey(path)) {
-        std::error_code ec;
-        if (!chunks || (fs::is_regular_file(*mesh, ec) && !opt.remote_stores))
-          return lod::PointStore::open(lod::cachedStoreFor(*mesh, "tessera-site", true));
-      }
+    models.setStoreOpener([this](const std::string& path) {
       return openStore<lod::PointStore>(path, "lod::PointStore");
     });
     models.setMeshStoreOpener([this](const std::string& path) {

@@ -87,6 +87,12 @@ std::optional<std::string> SceneDrawList::meshOfPointsKey(const std::string& key
   return mesh;
 }
 
+std::unique_ptr<lod::PointStore> SceneDrawList::openLocalStore(const std::string& key) {
+  if (const auto mesh = meshOfPointsKey(key))  // a see-through mesh's points
+    return lod::PointStore::open(lod::cachedStoreFor(*mesh, "render::SceneDrawList", true));
+  return lod::PointStore::open(key);
+}
+
 std::string SceneDrawList::storeKey(const sync::SceneGraph& graph, uint32_t id) {
   const std::string& path = graph.node(id).model().store();
   if (isMeshPath(path) && placeNode(graph, id).opacity < 1.0f)
@@ -139,11 +145,8 @@ const std::vector<ModelInstance>& SceneDrawList::update(const sync::SceneGraph& 
     try {
       if (isMeshPath(path)) {
         opened_meshes.emplace(path, mMeshOpener ? mMeshOpener(path) : lod::MeshStore::open(path));
-      } else if (path != node.model().store() && !mOpener) {  // a see-through mesh's points
-        opened.emplace(path, lod::PointStore::open(lod::cachedStoreFor(
-                                 node.model().store(), "render::SceneDrawList", true)));
       } else {
-        opened.emplace(path, mOpener ? mOpener(path) : lod::PointStore::open(path));
+        opened.emplace(path, mOpener ? mOpener(path) : openLocalStore(path));
       }
     } catch (const std::runtime_error& e) {
       throw lod::StoreError("render::SceneDrawList::update(): model " + std::to_string(id) + " '" +

@@ -59,12 +59,15 @@ class SceneDrawList {
   /// The mesh path of a storeKey() that names a see-through mesh's points (MESH#points); none
   /// for any other key.
   static std::optional<std::string> meshOfPointsKey(const std::string& key);
+  /// The point store of a storeKey() from this host (the default StoreOpener below):
+  /// lod::PointStore::open(key), or for MESH#points the store sampled from the mesh
+  /// (lod::cachedStoreFor, made on first use).
+  static std::unique_ptr<lod::PointStore> openLocalStore(const std::string& key);
 
   /// Opens the (point) store a MODEL node names (its path exactly as in the scene, or a
   /// see-through mesh's storeKey(), MESH#points). Throws lod::StoreError naming the store and
-  /// why. The default is lod::PointStore::open(path), and for MESH#points the store sampled
-  /// from the mesh on this host (lod::cachedStoreFor); a remote site opens through the
-  /// master's chunk server (collab/chunk_client.h).
+  /// why. The default is openLocalStore(); a remote site opens through the master's chunk
+  /// server (collab/chunk_client.h).
   using StoreOpener = std::function<std::unique_ptr<lod::PointStore>(const std::string& path)>;
 
   /// Sets how update() opens stores from now on (stores already open stay). Empty: the default.
