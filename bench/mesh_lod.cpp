@@ -62,13 +62,16 @@ void resetPeak() {
 }
 
 /// `m` as a binary little-endian PLY (float positions, uchar-int face lists), as scan archives
-/// hold meshes; positions relative to the mesh's origin, written in the header's comment.
-void writeMeshPly(const fs::path& path, const lod::Mesh& m) {
+/// hold meshes; positions relative to the mesh's origin. `copies` > 1 writes that many copies
+/// side by side along x (1.1 box widths apart), one mesh of copies x the triangles.
+void writeMeshPly(const fs::path& path, const lod::Mesh& m, int copies = 1) {
   std::ofstream out(path, std::ios::binary);
+  const auto [lo, hi] = m.bounds();
+  const double gap = 1.1 * (hi.x - lo.x);
   out << "ply\nformat binary_little_endian 1.0\ncomment written by bench/mesh_lod\n"
-      << "element vertex " << m.positions.size()
+      << "element vertex " << m.positions.size() * size_t(copies)
       << "\nproperty float x\nproperty float y\nproperty float z\n"
-      << "element face " << m.triangles.size()
+      << "element face " << m.triangles.size() * size_t(copies)
       << "\nproperty list uchar int vertex_indices\nend_header\n";
   std::vector<char> buf;
   buf.reserve(1 << 20);
@@ -76,17 +79,22 @@ void writeMeshPly(const fs::path& path, const lod::Mesh& m) {
     out.write(buf.data(), std::streamsize(buf.size()));
     buf.clear();
   };
-  for (const glm::dvec3& v : m.positions) {
-    const float f[3] = {float(v.x), float(v.y), float(v.z)};
-    buf.insert(buf.end(), reinterpret_cast<const char*>(f), reinterpret_cast<const char*>(f) + 12);
-    if (buf.size() > (1 << 20) - 16) flush();
-  }
-  for (const lod::Triangle& t : m.triangles) {
-    buf.push_back(3);
-    const int32_t i[3] = {int32_t(t.x), int32_t(t.y), int32_t(t.z)};
-    buf.insert(buf.end(), reinterpret_cast<const char*>(i), reinterpret_cast<const char*>(i) + 12);
-    if (buf.size() > (1 << 20) - 16) flush();
-  }
+  for (int c = 0; c < copies; ++c)
+    for (const glm::dvec3& v : m.positions) {
+      const float f[3] = {float(v.x + c * gap), float(v.y), float(v.z)};
+      buf.insert(buf.end(), reinterpret_cast<const char*>(f),
+                 reinterpret_cast<const char*>(f) + 12);
+      if (buf.size() > (1 << 20) - 16) flush();
+    }
+  for (int c = 0; c < copies; ++c)
+    for (const lod::Triangle& t : m.triangles) {
+      buf.push_back(3);
+      const int32_t base = int32_t(size_t(c) * m.positions.size());
+      const int32_t i[3] = {base + int32_t(t.x), base + int32_t(t.y), base + int32_t(t.z)};
+      buf.insert(buf.end(), reinterpret_cast<const char*>(i),
+                 reinterpret_cast<const char*>(i) + 12);
+      if (buf.size() > (1 << 20) - 16) flush();
+    }
   flush();
   if (!out) throw std::runtime_error("bench/mesh_lod: cannot write " + path.string());
 }
@@ -152,7 +160,9 @@ int main(int argc, char** argv) {
     int levels = 4;
     std::string size = "1920x1080";
     int repeats = 3;
-    bool build_only = false, pass_only = false;
+    bool build_only = false, pass_only = false, keep_ply = false;
+    int copies = 1;
+    uint64_t blocks_mb = 2048;
     app.add_option("--out", out, "Folder for the CSV, the chart and the inputs")
         ->capture_default_str();
     app.add_option("--large-levels", levels, "Subdivisions of the bunny for the large mesh")
@@ -162,12 +172,23 @@ int main(int argc, char** argv) {
     app.add_option("--repeats", repeats, "Frames per measurement (the best counts)")
         ->check(cli::integerRange(1, 100))
         ->capture_default_str();
+    app.add_option("--copies", copies,
+                   "Copies of the large mesh side by side in its PLY (more than 1: the PLY is "
+                   "built in blocks only)")
+        ->check(cli::integerRange(1, 8))
+        ->capture_default_str();
+    app.add_option("--blocks-mb", blocks_mb,
+                   "--memory-mb of the build in blocks from the PLY (0: no such build)")
+        ->capture_default_str();
+    app.add_flag("--keep-ply", keep_ply, "Keep the large mesh's PLY in --out");
     app.add_flag("--build-only", build_only, "Measure the builds only (no drawing, no chart)");
     app.add_flag("--pass-only", pass_only,
                  "Only the mesh pass against bare glDrawElements, on the large store an earlier "
                  "run left in --out");
     if (const auto code = cli::parse(app, argc, argv, "mesh_lod")) return *code;
     const cli::Size view_size = cli::parseSize(size, "--size", 8192);
+    if (copies > 1 && !build_only)
+      throw cli::UsageError("--copies: with --build-only only (the drawing is of one copy)");
     fs::create_directories(out);
     const std::string bunny_path =
         std::string(TESSERA_DATA_DIR) + "/stanford-bunny/reconstruction/bun_zipper.ply";
@@ -182,21 +203,25 @@ int main(int argc, char** argv) {
     if (!pass_only) {
       const lod::Mesh bunny = lod::readMesh(bunny_path);
       auto build = [&](const std::string& name, const lod::Mesh* m, const fs::path& input,
-                       const fs::path& file, double thesis_rate) {
+                       const fs::path& file, double thesis_rate, uint64_t memory_mb = 0) {
         resetPeak();
         const auto t0 = Clock::now();
+        lod::MeshBuildOptions o = bo;
+        if (memory_mb > 0) o.memory_mb = memory_mb;
         const lod::MeshBuildReport r =
-            m ? lod::buildMeshStore(*m, file, bo) : lod::buildMeshStore({input}, file, bo);
+            m ? lod::buildMeshStore(*m, file, o) : lod::buildMeshStore({input}, file, o);
         const double s = since(t0);
         rows.push_back({name, r.triangles, s, double(r.triangles) / s,
                         double(r.file_bytes) / double(r.triangles), double(peakBytes()) / 1e6,
                         thesis_rate});
         std::fprintf(stderr,
                      "mesh_lod: built %s: %llu triangles in %.2f s (read %.2f, partition %.2f, "
-                     "simplify %.2f, write %.2f), %.2f B/triangle\n",
+                     "simplify %.2f, write %.2f), %.2f B/triangle, %llu blocks, peak %.0f MB, "
+                     "root error %.3g\n",
                      name.c_str(), (unsigned long long)r.triangles, s, r.seconds_read,
                      r.seconds_partition, r.seconds_simplify, r.seconds_write,
-                     rows.back().bytes_per_tri);
+                     rows.back().bytes_per_tri, (unsigned long long)r.blocks,
+                     rows.back().peak_mb, r.root_error);
       };
       build("bunny", &bunny, {}, fs::path(out) / "mesh_lod_bunny.tmesh", kThesisBunnyRate);
       lod::Mesh large = bunny;
@@ -217,14 +242,26 @@ int main(int argc, char** argv) {
         std::fprintf(stderr, "mesh_lod: subdivided the bunny %d times: %zu triangles (%.1f s)\n",
                      levels, large.triangles.size(), since(t0));
       }
-      build("bunny x4^" + std::to_string(levels), &large, {}, large_store, kThesisLargeRate);
+      const std::string large_name = "bunny x4^" + std::to_string(levels);
+      if (copies == 1)
+        build(large_name, &large, {}, large_store, kThesisLargeRate);
       // The whole `tessera-lod build` of the same mesh from a PLY file, reading included.
       const fs::path large_ply = fs::path(out) / "mesh_lod_large.ply";
-      writeMeshPly(large_ply, large);
+      writeMeshPly(large_ply, large, copies);
       large = lod::Mesh{};  // free it before drawing
-      build("bunny x4^" + std::to_string(levels) + " from PLY", nullptr, large_ply, large_store,
-            kThesisLargeRate);
-      fs::remove(large_ply);
+      if (copies == 1)
+        build(large_name + " from PLY", nullptr, large_ply, large_store, kThesisLargeRate);
+      // The same in blocks, within --blocks-mb (mesh_builder_blocks.cpp).
+      if (blocks_mb > 0) {
+        const std::string name = (copies > 1 ? std::to_string(copies) + "x " : std::string()) +
+                                 large_name + " from PLY in blocks, " +
+                                 std::to_string(blocks_mb) + " MB";
+        build(name, nullptr, large_ply,
+              copies == 1 ? fs::path(out) / "mesh_lod_blocks.tmesh" : large_store,
+              kThesisLargeRate, blocks_mb);
+      }
+      if (!keep_ply) fs::remove(large_ply);
+
       std::ofstream bcsv(fs::path(out) / "mesh_lod_build.csv");
       const char* bhead =
           "mesh,triangles,seconds,triangles_per_s,bytes_per_triangle,peak_mb,thesis_triangles_per_"

@@ -23,6 +23,7 @@
 #include "crc32c.h"
 #include "file_io.h"
 #include "huge_pages.h"
+#include "mesh_build_steps.h"
 #include "mesh_format.h"
 #include "metis_pool.h"
 #include "morton.h"
@@ -32,7 +33,7 @@
 #include <unistd.h>
 
 namespace tessera::lod {
-namespace {
+namespace meshbuild {
 
 using Clock = std::chrono::steady_clock;
 double since(Clock::time_point t0) {
@@ -72,24 +73,6 @@ void parallelChunks(size_t n, uint32_t threads, const F& f) {
               [&](size_t c) { f(c * kChunk, std::min(n, (c + 1) * kChunk)); });
 }
 
-/// The mesh as the builder works on it: usable triangles, grid positions, normals.
-struct Prepared {
-  glm::dvec3 origin{0.0}, lo{0.0}, hi{0.0};
-  double step = 1.0, quant_error = 0.0;
-  // The large arrays are written in parallel passes without being zero-filled first
-  // (huge_pages.h: DefaultInitAllocator).
-  detail::HugeVector<glm::i32vec3> grid;  ///< per vertex
-  detail::HugeVector<glm::dvec3> pos;     ///< per vertex: lo + grid * step (what the store holds)
-  detail::HugeVector<uint16_t> normals;   ///< octahedral
-  std::vector<glm::u8vec4> colors;
-  detail::HugeVector<Triangle> tris;
-  uint64_t dropped = 0;
-  /// Per vertex, the triangles using it, in triangle order (CSR: vertex v's are
-  /// tri_items[tri_start[v] .. tri_start[v + 1])); for the normals and the dual graph, then
-  /// released (releaseVertexTriangles()).
-  detail::HugeVector<uint32_t> tri_start;
-  std::unique_ptr<uint32_t[]> tri_items;
-};
 
 /// Frees Prepared's vertex-to-triangle lists once the dual graph has them.
 void releaseVertexTriangles(Prepared& p) {
@@ -137,32 +120,24 @@ void vertexTriangles(Prepared& p, size_t nv, uint32_t threads) {
   });
 }
 
-Prepared prepare(const Mesh& mesh, uint32_t threads) {
-  Prepared p;
-  p.origin = mesh.origin;
-  const size_t nv = mesh.positions.size();
-  if (nv > 0xFFFFFFF0ull) throw ReadError("lod::buildMeshStore(): more than 2^32 vertices");
-  // Usable triangles (indices in range, three distinct corners) and their box, by ranges of
-  // triangles in parallel: each range counts and bounds its own, then copies them to its place.
-  const size_t nin = mesh.triangles.size();
-  const size_t ranges = std::max<size_t>(1, std::min<size_t>(threads, nin / kChunk + 1));
+UsableTriangles usableTriangles(const glm::dvec3* positions, size_t nv, const Triangle* tris,
+                                size_t nt, uint32_t threads, uint8_t* used) {
+  const size_t ranges = std::max<size_t>(1, std::min<size_t>(threads, nt / kChunk + 1));
   struct Range {
-    size_t kept = 0, at = 0;
+    size_t kept = 0;
     glm::dvec3 lo{std::numeric_limits<double>::max()}, hi{-std::numeric_limits<double>::max()};
     uint64_t bad_vertex = UINT64_MAX;  // the first corner that is not finite, if any
   };
   std::vector<Range> rs(ranges);
-  auto usable = [&](const Triangle& t) {
-    return t.x < nv && t.y < nv && t.z < nv && t.x != t.y && t.y != t.z && t.x != t.z;
-  };
   parallelFor(ranges, threads, [&](size_t r) {
     Range& g = rs[r];
-    for (size_t i = rangeBegin(nin, r, ranges); i < rangeBegin(nin, r + 1, ranges); ++i) {
-      const Triangle& t = mesh.triangles[i];
-      if (!usable(t)) continue;
+    for (size_t i = rangeBegin(nt, r, ranges); i < rangeBegin(nt, r + 1, ranges); ++i) {
+      const Triangle& t = tris[i];
+      if (!usableTriangle(t, nv)) continue;
       ++g.kept;
       for (int k = 0; k < 3; ++k) {
-        const glm::dvec3& v = mesh.positions[t[k]];
+        if (used != nullptr) std::atomic_ref<uint8_t>(used[t[k]]).store(1, std::memory_order_relaxed);
+        const glm::dvec3& v = positions[t[k]];
         if (!std::isfinite(v.x) || !std::isfinite(v.y) || !std::isfinite(v.z)) {
           g.bad_vertex = std::min<uint64_t>(g.bad_vertex, t[k]);
           continue;
@@ -172,23 +147,52 @@ Prepared prepare(const Mesh& mesh, uint32_t threads) {
       }
     }
   });
-  p.lo = glm::dvec3(std::numeric_limits<double>::max());
-  p.hi = -p.lo;
-  size_t kept = 0;
-  for (Range& g : rs) {
+  UsableTriangles u;
+  u.lo = glm::dvec3(std::numeric_limits<double>::max());
+  u.hi = -u.lo;
+  for (const Range& g : rs) {
     if (g.bad_vertex != UINT64_MAX)  // the first range's: the same message on any threads
       throw ReadError("lod::buildMeshStore(): vertex " + std::to_string(g.bad_vertex) +
                       " is not finite");
-    g.at = kept;
-    kept += g.kept;
-    p.lo = glm::min(p.lo, g.lo);
-    p.hi = glm::max(p.hi, g.hi);
+    u.kept += g.kept;
+    u.range_kept.push_back(g.kept);
+    u.lo = glm::min(u.lo, g.lo);
+    u.hi = glm::max(u.hi, g.hi);
   }
+  if (u.kept == 0) throw ReadError("lod::buildMeshStore(): no usable triangles");
+  return u;
+}
+
+double gridStep(std::vector<double>& edges, double extent) {
+  extent = std::max(extent, 1e-30);
+  double median = extent / 1024.0;
+  if (!edges.empty()) {
+    std::nth_element(edges.begin(), edges.begin() + edges.size() / 2, edges.end());
+    median = edges[edges.size() / 2];
+  }
+  return std::max(median / 256.0, extent / double(1 << 30));
+}
+
+Prepared prepare(const Mesh& mesh, uint32_t threads) {
+  Prepared p;
+  p.origin = mesh.origin;
+  const size_t nv = mesh.positions.size();
+  if (nv > 0xFFFFFFF0ull) throw ReadError("lod::buildMeshStore(): more than 2^32 vertices");
+  // Usable triangles and their box, by ranges of triangles in parallel: each range counts and
+  // bounds its own, then copies them to its place.
+  const size_t nin = mesh.triangles.size();
+  const UsableTriangles u =
+      usableTriangles(mesh.positions.data(), nv, mesh.triangles.data(), nin, threads, nullptr);
+  p.lo = u.lo;
+  p.hi = u.hi;
+  const size_t kept = u.kept, ranges = u.range_kept.size();
   p.dropped = nin - kept;
-  if (kept == 0) throw ReadError("lod::buildMeshStore(): no usable triangles");
+  std::vector<size_t> range_at(ranges, 0);
+  for (size_t r = 1; r < ranges; ++r) range_at[r] = range_at[r - 1] + u.range_kept[r - 1];
+  auto usable = [&](const Triangle& t) { return usableTriangle(t, nv); };
   detail::sizeHuge(p.tris, kept);  // each range writes its own
   parallelFor(ranges, threads, [&](size_t r) {
-    size_t at = rs[r].at;
+    size_t at = range_at[r];
     for (size_t i = rangeBegin(nin, r, ranges); i < rangeBegin(nin, r + 1, ranges); ++i)
       if (usable(mesh.triangles[i])) p.tris[at++] = mesh.triangles[i];
   });
@@ -200,13 +204,7 @@ Prepared prepare(const Mesh& mesh, uint32_t threads) {
     const double e = glm::length(mesh.positions[p.tris[i].x] - mesh.positions[p.tris[i].y]);
     if (e > 0) edges.push_back(e);
   }
-  const double extent = std::max({p.hi.x - p.lo.x, p.hi.y - p.lo.y, p.hi.z - p.lo.z, 1e-30});
-  double median = extent / 1024.0;
-  if (!edges.empty()) {
-    std::nth_element(edges.begin(), edges.begin() + edges.size() / 2, edges.end());
-    median = edges[edges.size() / 2];
-  }
-  p.step = std::max(median / 256.0, extent / double(1 << 30));
+  p.step = gridStep(edges, std::max({p.hi.x - p.lo.x, p.hi.y - p.lo.y, p.hi.z - p.lo.z}));
   detail::sizeHuge(p.grid, nv);  // every element written below
   detail::sizeHuge(p.pos, nv);
   std::vector<double> chunk_error((nv + kChunk - 1) / kChunk, 0.0);
@@ -249,15 +247,6 @@ Prepared prepare(const Mesh& mesh, uint32_t threads) {
   if (mesh.colors.size() == nv) p.colors = mesh.colors;
   return p;
 }
-
-/// A node while building: its triangles (global vertex ids), error, children.
-struct BuildNode {
-  std::vector<Triangle> tris;
-  std::vector<uint32_t> children;  ///< indices into the node list
-  float error = 0.0f;
-  uint8_t level = 0;  ///< 0 for leaves, counted up
-  glm::dvec3 lo{0.0}, hi{0.0};
-};
 
 /// METIS k-way partition of a CSR graph into `parts`; part ids dense from 0 (empty parts
 /// dropped). Returns the part count.
@@ -531,99 +520,56 @@ Mesh readMeshes(const std::vector<std::filesystem::path>& inputs) {
   return mesh;
 }
 
-}  // namespace
-
-MeshBuildReport buildMeshStore(const std::vector<std::filesystem::path>& inputs,
-                               const std::filesystem::path& out, const MeshBuildOptions& o) {
-  TESSERA_CHECK(!inputs.empty(), "lod::buildMeshStore(): no inputs");
-  const auto t0 = Clock::now();
-  const Mesh mesh = readMeshes(inputs);
-  return buildMeshStore(mesh, out, o, since(t0));
+void buildLeaves(Prepared& p, const MeshBuildOptions& o, uint32_t threads, MetisPool& metis,
+                 std::vector<BuildNode>& nodes, std::vector<uint32_t>& level,
+                 Adjacency& adjacency) {
+  detail::HugeVector<idx_t> xadj, adjncy;
+  dualGraph(p, threads, xadj, adjncy);
+  releaseVertexTriangles(p);
+  detail::HugeVector<uint32_t> part;
+  const uint32_t parts = leafPatches(p, xadj, adjncy, o.patch_triangles, threads, metis, part);
+  // Each leaf's triangles and shared edges, by ranges of leaves in parallel. Every range scans
+  // all triangles in order, so a leaf gets its triangles, and its map their neighbours, in the
+  // order of one pass: the same store on any number of threads.
+  const size_t first = nodes.size();
+  nodes.resize(first + parts);
+  adjacency.assign(parts, {});
+  const size_t ranges = std::min<size_t>(threads, parts);
+  parallelFor(ranges, threads, [&](size_t range) {
+    const uint32_t lo = uint32_t(parts * range / ranges);
+    const uint32_t hi = uint32_t(parts * (range + 1) / ranges);
+    std::vector<uint32_t> count(hi - lo, 0);
+    for (uint32_t a : part)
+      if (a >= lo && a < hi) ++count[a - lo];
+    for (uint32_t a = lo; a < hi; ++a) nodes[first + a].tris.reserve(count[a - lo]);
+    for (size_t t = 0; t < p.tris.size(); ++t) {
+      const uint32_t a = part[t];
+      if (a < lo || a >= hi) continue;
+      nodes[first + a].tris.push_back(p.tris[t]);
+      for (idx_t e = xadj[t]; e < xadj[t + 1]; ++e) {
+        const uint32_t b = part[size_t(adjncy[size_t(e)])];
+        if (a != b) ++adjacency[a][b];
+      }
+    }
+  });
+  parallelFor(parts, threads, [&](size_t i) {
+    bounds(p, nodes[first + i]);
+    nodes[first + i].error = float(p.quant_error);
+  });
+  level.resize(parts);
+  std::iota(level.begin(), level.end(), uint32_t(first));
 }
 
-MeshBuildReport buildMeshStore(const Mesh& mesh, const std::filesystem::path& out,
-                               const MeshBuildOptions& o, double seconds_read) {
-  TESSERA_CHECK(o.patch_triangles >= 64 && o.patch_triangles <= (1u << 20),
-                "lod::buildMeshStore(): patch_triangles must be in 64..1048576");
-  TESSERA_CHECK(o.arity >= 2 && o.arity <= 8, "lod::buildMeshStore(): arity must be in 2..8");
-  TESSERA_CHECK(o.threads <= kMaxMeshThreads, "lod::buildMeshStore(): at most 256 threads");
-  const auto t0 = Clock::now();
-  MeshBuildReport r;
-  r.seconds_read = seconds_read;
-  const uint64_t need = uint64_t(mesh.triangles.size()) * 110 + mesh.positions.size() * 64;
-  r.peak_bytes = need;
-  if (need > o.memory_mb * (1ull << 20))
-    throw ReadError("lod::buildMeshStore(): " + std::to_string(mesh.triangles.size()) +
-                    " triangles need about " + std::to_string(need >> 20) +
-                    " MB to build, beyond --memory-mb " + std::to_string(o.memory_mb) +
-                    " (this builder holds the whole mesh)");
-  const uint32_t threads =
-      o.threads ? o.threads : std::max(1u, std::thread::hardware_concurrency());
-  // Partition workers, one per thread that can use one, forked before any thread starts and
-  // while the process is smallest (metis_pool.h: METIS's generator is process-wide). Leaf
-  // blocks are the only calls made concurrently; a single block needs none.
-  const size_t blocks = (mesh.triangles.size() + size_t(o.patch_triangles) * kBlockPatches - 1) /
-                        (size_t(o.patch_triangles) * kBlockPatches);
-  MetisPool metis(threads > 1 && blocks > 1 ? uint32_t(std::min<size_t>(threads, blocks)) : 0);
-  Prepared p = prepare(mesh, threads);
-  r.triangles = p.tris.size();
-  r.dropped_triangles = p.dropped;
-  r.step = p.step;
-  r.quant_error = p.quant_error;
-  for (size_t v = 0; v < p.grid.size(); ++v) r.vertices += p.tri_start[v + 1] > p.tri_start[v];
+uint64_t groupsUpToRoot(size_t n, uint32_t arity) {
+  uint64_t groups = 0;
+  for (; n > 1; n = (n + arity - 1) / arity) groups += (n + arity - 1) / arity;
+  return groups;
+}
 
-  // Leaves: METIS patches of the dual graph.
-  const auto tp = Clock::now();
-  std::vector<BuildNode> nodes;
-  std::vector<uint32_t> level_nodes;  // the current level's node indices
-  std::vector<std::unordered_map<uint32_t, uint32_t>> adjacency;  // per current node: shared edges
-  {
-    detail::HugeVector<idx_t> xadj, adjncy;
-    dualGraph(p, threads, xadj, adjncy);
-    releaseVertexTriangles(p);
-    detail::HugeVector<uint32_t> part;
-    const uint32_t parts = leafPatches(p, xadj, adjncy, o.patch_triangles, threads, metis, part);
-    // Each leaf's triangles and shared edges, by ranges of leaves in parallel. Every range scans
-    // all triangles in order, so a leaf gets its triangles, and its map their neighbours, in the
-    // order of one pass: the same store on any number of threads.
-    nodes.resize(parts);
-    adjacency.resize(parts);
-    const size_t ranges = std::min<size_t>(threads, parts);
-    parallelFor(ranges, threads, [&](size_t range) {
-      const uint32_t lo = uint32_t(parts * range / ranges);
-      const uint32_t hi = uint32_t(parts * (range + 1) / ranges);
-      std::vector<uint32_t> count(hi - lo, 0);
-      for (uint32_t a : part)
-        if (a >= lo && a < hi) ++count[a - lo];
-      for (uint32_t a = lo; a < hi; ++a) nodes[a].tris.reserve(count[a - lo]);
-      for (size_t t = 0; t < p.tris.size(); ++t) {
-        const uint32_t a = part[t];
-        if (a < lo || a >= hi) continue;
-        nodes[a].tris.push_back(p.tris[t]);
-        for (idx_t e = xadj[t]; e < xadj[t + 1]; ++e) {
-          const uint32_t b = part[size_t(adjncy[size_t(e)])];
-          if (a != b) ++adjacency[a][b];
-        }
-      }
-    });
-    parallelFor(parts, threads, [&](size_t i) {
-      bounds(p, nodes[i]);
-      nodes[i].error = float(p.quant_error);
-    });
-    for (uint32_t i = 0; i < parts; ++i) level_nodes.push_back(i);
-  }
-  r.leaves = nodes.size();
-  r.seconds_partition = since(tp);
-
-  // Bottom up: group neighbours, merge, simplify with the group's border locked.
-  const auto ts = Clock::now();
-  uint64_t groups_total = 0;
-  for (size_t n = level_nodes.size(); n > 1; n = (n + o.arity - 1) / o.arity)
-    groups_total += (n + o.arity - 1) / o.arity;
-  Progress progress("simplify", groups_total, "patches", o.quiet);
-  uint8_t level = 0;
-  while (level_nodes.size() > 1) {
-    ++level;
+void buildLevels(const Prepared& p, const MeshBuildOptions& o, uint32_t threads,
+                 MetisPool& metis, std::vector<BuildNode>& nodes, std::vector<uint32_t>& level_nodes,
+                 Adjacency& adjacency, size_t stop_at, Progress& progress) {
+  while (level_nodes.size() > std::max<size_t>(1, stop_at)) {
     const size_t n = level_nodes.size();
     std::vector<uint32_t> group;
     uint32_t groups = 1;
@@ -662,11 +608,13 @@ MeshBuildReport buildMeshStore(const Mesh& mesh, const std::filesystem::path& ou
       BuildNode& parent = nodes[first + g];
       std::vector<Triangle> merged;
       float child_error = 0.0f;
+      uint8_t child_level = 0;
       for (uint32_t i : split[g]) {
         const BuildNode& c = nodes[level_nodes[i]];
         merged.insert(merged.end(), c.tris.begin(), c.tris.end());
         parent.children.push_back(level_nodes[i]);
         child_error = std::max(child_error, c.error);
+        child_level = std::max(child_level, c.level);
       }
       const uint32_t target =
           uint32_t(std::min<size_t>(o.patch_triangles, std::max<size_t>(1, merged.size() / 2)));
@@ -674,7 +622,7 @@ MeshBuildReport buildMeshStore(const Mesh& mesh, const std::filesystem::path& ou
       parent.tris = std::move(tris);
       parent.error = float(double(child_error) + measured);
       parent.error = std::nextafter(parent.error, std::numeric_limits<float>::infinity());
-      parent.level = level;
+      parent.level = uint8_t(child_level + 1);
       bounds(p, parent);
       for (uint32_t i : split[g]) {  // a parent's box holds its children's (culling)
         parent.lo = glm::min(parent.lo, nodes[level_nodes[i]].lo);
@@ -683,7 +631,7 @@ MeshBuildReport buildMeshStore(const Mesh& mesh, const std::filesystem::path& ou
       std::lock_guard lock(progress_mutex);
       progress.add(1);
     });
-    std::vector<std::unordered_map<uint32_t, uint32_t>> next(split.size());
+    Adjacency next(split.size());
     for (size_t i = 0; i < n; ++i)
       for (const auto& [j, w] : adjacency[i])
         if (group_of[i] != group_of[j]) next[group_of[i]][group_of[j]] += w;
@@ -691,57 +639,42 @@ MeshBuildReport buildMeshStore(const Mesh& mesh, const std::filesystem::path& ou
     level_nodes.resize(split.size());
     std::iota(level_nodes.begin(), level_nodes.end(), uint32_t(first));
   }
-  progress.finish();
-  r.seconds_simplify = since(ts);
+}
 
-  // Ids breadth-first from the root (children contiguous), payloads depth-first.
-  const auto tw = Clock::now();
-  const uint32_t root = level_nodes.front();
+std::vector<uint8_t> encodeNode(const Prepared& p, const BuildNode& b, MeshNodeRecord& rec) {
+  const bool colors = !p.colors.empty();
+  std::vector<uint32_t> ids, idx;
+  localVertices(p.grid.size(), b.tris, ids, idx);
+  std::vector<meshfmt::QuantVertex> verts(ids.size());
+  for (size_t i = 0; i < ids.size(); ++i) {
+    verts[i].grid = p.grid[ids[i]];
+    verts[i].normal = p.normals[ids[i]];
+    if (colors) verts[i].color = p.colors[ids[i]];
+  }
+  std::vector<uint8_t> payload = meshfmt::encodePatch(std::move(verts), std::move(idx), colors, rec);
+  rec.payload_bytes = uint32_t(payload.size());
+  rec.payload_crc = crc32c(payload.data(), payload.size());
+  rec.box_min = glm::vec3(b.lo);
+  rec.box_max = glm::vec3(b.hi);
+  rec.error = b.error;
+  rec.level = b.level;
+  rec.child_count = uint8_t(b.children.size());
+  return payload;
+}
+
+std::vector<uint32_t> breadthFirst(
+    uint32_t root, const std::function<const std::vector<uint32_t>&(uint32_t)>& children) {
   std::vector<uint32_t> bfs{root};
   for (size_t i = 0; i < bfs.size(); ++i)
-    for (uint32_t c : nodes[bfs[i]].children) bfs.push_back(c);
-  std::vector<uint32_t> id_of(nodes.size());
-  for (size_t i = 0; i < bfs.size(); ++i) id_of[bfs[i]] = uint32_t(i);
-  std::vector<MeshNodeRecord> records(bfs.size());
-  std::vector<std::vector<uint8_t>> payloads(bfs.size());
-  const bool colors = !p.colors.empty();
-  parallelFor(bfs.size(), threads, [&](size_t id) {
-    const BuildNode& b = nodes[bfs[id]];
-    std::vector<uint32_t> ids, idx;
-    localVertices(p.grid.size(), b.tris, ids, idx);
-    std::vector<meshfmt::QuantVertex> verts(ids.size());
-    for (size_t i = 0; i < ids.size(); ++i) {
-      verts[i].grid = p.grid[ids[i]];
-      verts[i].normal = p.normals[ids[i]];
-      if (colors) verts[i].color = p.colors[ids[i]];
-    }
-    MeshNodeRecord& rec = records[id];
-    payloads[id] = meshfmt::encodePatch(std::move(verts), std::move(idx), colors, rec);
-    rec.payload_bytes = uint32_t(payloads[id].size());
-    rec.payload_crc = crc32c(payloads[id].data(), payloads[id].size());
-    rec.box_min = glm::vec3(b.lo);
-    rec.box_max = glm::vec3(b.hi);
-    rec.error = b.error;
-    rec.level = b.level;
-    rec.child_count = uint8_t(b.children.size());
-    rec.first_child = b.children.empty() ? 0 : id_of[b.children.front()];
-  });
-  // Children were pushed in order, so their ids are contiguous; check it.
-  for (size_t id = 0; id < bfs.size(); ++id) {
-    const BuildNode& b = nodes[bfs[id]];
-    for (size_t c = 0; c < b.children.size(); ++c)
-      TESSERA_CHECK(id_of[b.children[c]] == records[id].first_child + c,
-                    "lod::buildMeshStore(): children not contiguous");
-  }
-  MeshSummary s;
-  s.origin = p.origin + p.lo;  // store-local frame: the box minimum at 0
-  s.bbox_min = glm::dvec3(0.0);
-  s.bbox_max = p.hi - p.lo;
-  s.step = p.step;
-  s.input_triangles = r.triangles;
-  s.input_vertices = r.vertices;
+    for (uint32_t c : children(bfs[i])) bfs.push_back(c);
+  return bfs;
+}
+
+void writeStore(const std::filesystem::path& out, MeshSummary& s,
+                std::vector<MeshNodeRecord>& records,
+                const std::function<void(uint32_t, std::vector<uint8_t>&)>& payload) {
   s.nodes = records.size();
-  s.colors = colors;
+  s.stored_triangles = 0;
   uint32_t depth = 0;
   for (const auto& rec : records) {
     s.stored_triangles += rec.triangles;
@@ -774,9 +707,13 @@ MeshBuildReport buildMeshStore(const Mesh& mesh, const std::filesystem::path& ou
     ScopedFd fd(partial, O_WRONLY | O_CREAT | O_TRUNC, "the mesh store being written");
     const auto header = meshfmt::writeHeader(s, table_offset, crc32c(table.data(), table.size()));
     pwriteAll(fd.get(), header.data(), header.size(), 0, fd.name());
-    for (uint32_t id : dfs)
-      pwriteAll(fd.get(), payloads[id].data(), payloads[id].size(), records[id].payload_offset,
-                fd.name());
+    std::vector<uint8_t> bytes;
+    for (uint32_t id : dfs) {
+      payload(id, bytes);
+      TESSERA_CHECK(bytes.size() == records[id].payload_bytes,
+                    "lod::buildMeshStore(): a payload changed size");
+      pwriteAll(fd.get(), bytes.data(), bytes.size(), records[id].payload_offset, fd.name());
+    }
     pwriteAll(fd.get(), table.data(), table.size(), table_offset, fd.name());
     if (::fsync(fd.get()) != 0)
       throw StoreError("lod::buildMeshStore(): fsync " + fd.name() + " failed");
@@ -788,6 +725,98 @@ MeshBuildReport buildMeshStore(const Mesh& mesh, const std::filesystem::path& ou
     throw StoreError("lod::buildMeshStore(): cannot rename " + partial.string() + " to " +
                      out.string());
   }
+}
+
+}  // namespace meshbuild
+
+using namespace meshbuild;
+
+MeshBuildReport buildMeshStore(const std::vector<std::filesystem::path>& inputs,
+                               const std::filesystem::path& out, const MeshBuildOptions& o) {
+  TESSERA_CHECK(!inputs.empty(), "lod::buildMeshStore(): no inputs");
+  if (o.block_triangles > 0 || !inMemoryBuildFits(inputs, o.memory_mb))
+    return buildInBlocks(inputs, out, o);
+  const auto t0 = Clock::now();
+  const Mesh mesh = readMeshes(inputs);
+  return buildMeshStore(mesh, out, o, since(t0));
+}
+
+MeshBuildReport buildMeshStore(const Mesh& mesh, const std::filesystem::path& out,
+                               const MeshBuildOptions& o, double seconds_read) {
+  TESSERA_CHECK(o.patch_triangles >= 64 && o.patch_triangles <= (1u << 20),
+                "lod::buildMeshStore(): patch_triangles must be in 64..1048576");
+  TESSERA_CHECK(o.arity >= 2 && o.arity <= 8, "lod::buildMeshStore(): arity must be in 2..8");
+  TESSERA_CHECK(o.threads <= kMaxMeshThreads, "lod::buildMeshStore(): at most 256 threads");
+  const uint64_t need = inMemoryBuildBytes(mesh.triangles.size(), mesh.positions.size());
+  if (o.block_triangles > 0 || need > o.memory_mb * (1ull << 20))
+    return buildInBlocks(mesh, out, o);
+  const auto t0 = Clock::now();
+  MeshBuildReport r;
+  r.seconds_read = seconds_read;
+  r.peak_bytes = need;
+  const uint32_t threads =
+      o.threads ? o.threads : std::max(1u, std::thread::hardware_concurrency());
+  // Partition workers, one per thread that can use one, forked before any thread starts and
+  // while the process is smallest (metis_pool.h: METIS's generator is process-wide). Leaf
+  // blocks are the only calls made concurrently; a single block needs none.
+  const size_t blocks = (mesh.triangles.size() + size_t(o.patch_triangles) * kBlockPatches - 1) /
+                        (size_t(o.patch_triangles) * kBlockPatches);
+  MetisPool metis(threads > 1 && blocks > 1 ? uint32_t(std::min<size_t>(threads, blocks)) : 0);
+  Prepared p = prepare(mesh, threads);
+  r.triangles = p.tris.size();
+  r.dropped_triangles = p.dropped;
+  r.step = p.step;
+  r.quant_error = p.quant_error;
+  for (size_t v = 0; v < p.grid.size(); ++v) r.vertices += p.tri_start[v + 1] > p.tri_start[v];
+
+  // Leaves: METIS patches of the dual graph.
+  const auto tp = Clock::now();
+  std::vector<BuildNode> nodes;
+  std::vector<uint32_t> level_nodes;  // the current level's node indices
+  Adjacency adjacency;                // per current node: shared edges
+  buildLeaves(p, o, threads, metis, nodes, level_nodes, adjacency);
+  r.leaves = nodes.size();
+  r.seconds_partition = since(tp);
+
+  // Bottom up: group neighbours, merge, simplify with the group's border locked.
+  const auto ts = Clock::now();
+  Progress progress("simplify", groupsUpToRoot(level_nodes.size(), o.arity), "patches", o.quiet);
+  buildLevels(p, o, threads, metis, nodes, level_nodes, adjacency, 1, progress);
+  progress.finish();
+  r.seconds_simplify = since(ts);
+
+  // Ids breadth-first from the root (children contiguous), payloads depth-first.
+  const auto tw = Clock::now();
+  const std::vector<uint32_t> bfs =
+      breadthFirst(level_nodes.front(), [&](uint32_t i) -> const std::vector<uint32_t>& {
+        return nodes[i].children;
+      });
+  std::vector<uint32_t> id_of(nodes.size());
+  for (size_t i = 0; i < bfs.size(); ++i) id_of[bfs[i]] = uint32_t(i);
+  std::vector<MeshNodeRecord> records(bfs.size());
+  std::vector<std::vector<uint8_t>> payloads(bfs.size());
+  parallelFor(bfs.size(), threads, [&](size_t id) {
+    const BuildNode& b = nodes[bfs[id]];
+    payloads[id] = encodeNode(p, b, records[id]);
+    records[id].first_child = b.children.empty() ? 0 : id_of[b.children.front()];
+  });
+  // Children were pushed in order, so their ids are contiguous; check it.
+  for (size_t id = 0; id < bfs.size(); ++id) {
+    const BuildNode& b = nodes[bfs[id]];
+    for (size_t c = 0; c < b.children.size(); ++c)
+      TESSERA_CHECK(id_of[b.children[c]] == records[id].first_child + c,
+                    "lod::buildMeshStore(): children not contiguous");
+  }
+  MeshSummary s;
+  s.origin = p.origin + p.lo;  // store-local frame: the box minimum at 0
+  s.bbox_min = glm::dvec3(0.0);
+  s.bbox_max = p.hi - p.lo;
+  s.step = p.step;
+  s.input_triangles = r.triangles;
+  s.input_vertices = r.vertices;
+  s.colors = !p.colors.empty();
+  writeStore(out, s, records,
+             [&](uint32_t id, std::vector<uint8_t>& bytes) { bytes.swap(payloads[id]); });
   r.nodes = records.size();
   r.depth = s.depth;
   r.stored_triangles = s.stored_triangles;

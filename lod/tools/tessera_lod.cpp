@@ -173,6 +173,9 @@ int runMeshBuild(const std::vector<std::filesystem::path>& paths, const std::str
                 (unsigned long long)r.dropped_triangles, (unsigned long long)r.vertices,
                 (unsigned long long)r.nodes, (unsigned long long)r.leaves, r.depth,
                 double(r.stored_triangles) / double(r.triangles));
+    if (r.blocks > 0)
+      std::printf("  built in %llu blocks (estimated peak %.0f MB)\n",
+                  (unsigned long long)r.blocks, double(r.peak_bytes) / double(1 << 20));
     std::printf("  %.2f bytes/triangle, grid step %.3g (quantisation error %.3g), root error %.3g\n",
                 double(r.file_bytes) / double(r.triangles), r.step, r.quant_error, r.root_error);
     std::printf("  %.2f s (read %.2f, partition %.2f, simplify %.2f, write %.2f): %.2f M "
@@ -372,6 +375,11 @@ int run(int argc, char** argv) {
   build->add_option("--arity", mbo.arity, ".tmesh: children per inner patch")
       ->check(cli::integerRange<uint32_t>(2, 8))
       ->capture_default_str();
+  build
+      ->add_option("--block-triangles", mbo.block_triangles,
+                   ".tmesh: build in blocks of at most this many triangles (default: in blocks "
+                   "only when the whole build would not fit --memory-mb, as large as it allows)")
+      ->check(cli::integerRange<uint64_t>(64, uint64_t(1) << 40));
 
   std::string verify_store;
   std::vector<std::string> verify_in;
@@ -430,6 +438,7 @@ int run(int argc, char** argv) {
   if (*build) {
     mbo.threads = bo.threads;
     mbo.quiet = bo.quiet;
+    mbo.temp_dir = bo.temp_dir;
     if (bo.memory_mb != BuildOptions{}.memory_mb) mbo.memory_mb = bo.memory_mb;
     return runBuild(build_in, build_out, bo, mbo);
   }

@@ -101,10 +101,10 @@ TEST_F(MeshStoreTest, VerifyFindsEveryTriangleOnceAndErrorsWithinTheirBounds) {
   EXPECT_LT(r.levels.back().max_to_input, report_.step);
 }
 
-TEST_F(MeshStoreTest, EveryCutIsCrackFree) {
-  // A cut mixing levels at random: the open border of its union must be the input's own open
-  // border (the bunny has holes at the bottom), edge for edge.
-  auto store = MeshStore::open(store_);
+/// Cuts of `path` mixing levels at random: the open border of each cut's union must be the
+/// input's own open border (the bunny has holes at the bottom), edge for edge.
+void expectEveryCutCrackFree(const std::filesystem::path& path) {
+  auto store = MeshStore::open(path);
   std::vector<MeshPatch> leaves;
   for (NodeId id = 0; id < store->nodeCount(); ++id)
     if (store->record(id).child_count == 0) leaves.push_back(store->readPatch(id));
@@ -134,6 +134,8 @@ TEST_F(MeshStoreTest, EveryCutIsCrackFree) {
   }
   EXPECT_GE(mixed_cuts, 6);  // the cuts did mix levels
 }
+
+TEST_F(MeshStoreTest, EveryCutIsCrackFree) { expectEveryCutCrackFree(store_); }
 
 // The same mesh makes the same store, byte for byte, however the threads run: the leaf blocks
 // are partitioned in parallel, and METIS draws on one process-wide random generator (its calls
@@ -258,6 +260,132 @@ TEST_F(MeshStoreTest, SamplesForSeeThroughLieOnTheTrianglesByArea) {
       if (inside) best = std::min(best, d);
     }
     EXPECT_LT(best, 1e-6) << "sample " << k;
+  }
+}
+
+// A mesh beyond the memory budget is built in blocks (mesh_builder_blocks.cpp): each block up to
+// a few nodes with its border locked, then the blocks' tops joined. The store must hold what the
+// one built in memory holds: every input triangle once at the leaves, errors that grow towards
+// the root and bound the distance to the input, every cut crack-free (across block borders
+// too), and the same shading (normals summed over the whole mesh, not per block).
+TEST_F(MeshStoreTest, ABuildInBlocksHoldsWhatTheBuildInMemoryHolds) {
+  MeshBuildOptions o;
+  o.patch_triangles = 1024;
+  o.block_triangles = 20000;  // four blocks of the bunny's 69,451 triangles
+  o.quiet = true;
+  const std::filesystem::path blocks = dir_->path() / "blocks.tmesh";
+  const MeshBuildReport r = buildMeshStore(std::vector<std::filesystem::path>{kBunny}, blocks, o);
+  EXPECT_EQ(r.blocks, 4u);
+  EXPECT_EQ(r.triangles, 69451u);
+  EXPECT_EQ(r.vertices, report_.vertices);
+  EXPECT_EQ(r.step, report_.step);  // the same grid
+  for (const auto& e : std::filesystem::directory_iterator(dir_->path()))  // temporaries gone
+    EXPECT_EQ(e.path().string().find(".partial"), std::string::npos) << e.path();
+  const MeshVerifyReport v = verifyMeshStore(blocks, {kBunny}, true);
+  EXPECT_TRUE(v.ok());
+  EXPECT_EQ(v.matched, 69451u);
+  for (const MeshLevelError& e : v.levels) {
+    SCOPED_TRACE("depth " + std::to_string(e.depth));
+    EXPECT_LE(e.max_from_input, e.stated * 1.0001 + 1e-7);
+    EXPECT_LE(e.max_to_input, e.stated * 1.5 + 1e-7);
+  }
+  expectEveryCutCrackFree(blocks);
+  // Every leaf vertex has the normal the build in memory gave the vertex at its grid position.
+  auto normals = [](const std::filesystem::path& path) {
+    auto store = MeshStore::open(path);
+    std::map<Key, glm::vec3> n;
+    for (NodeId id = 0; id < store->nodeCount(); ++id) {
+      if (store->record(id).child_count) continue;
+      const MeshPatch p = store->readPatch(id);
+      for (size_t i = 0; i < p.grid.size(); ++i) n[key(p.grid[i])] = p.normals[i];
+    }
+    return n;
+  };
+  const auto whole = normals(store_), in_blocks = normals(blocks);
+  EXPECT_EQ(in_blocks.size(), whole.size());
+  size_t same = 0;
+  for (const auto& [k, n] : in_blocks) {
+    const auto it = whole.find(k);
+    same += it != whole.end() && it->second == n;
+  }
+  EXPECT_EQ(same, whole.size());
+  // The same bytes on one thread and on three.
+  o.threads = 1;
+  buildMeshStore(std::vector<std::filesystem::path>{kBunny}, dir_->path() / "b1.tmesh", o);
+  o.threads = 3;
+  buildMeshStore(std::vector<std::filesystem::path>{kBunny}, dir_->path() / "b3.tmesh", o);
+  const auto bytes = [](const std::filesystem::path& p) {
+    std::ifstream in(p, std::ios::binary);
+    return std::string(std::istreambuf_iterator<char>(in), {});
+  };
+  EXPECT_TRUE(bytes(dir_->path() / "b1.tmesh") == bytes(blocks));
+  EXPECT_TRUE(bytes(dir_->path() / "b3.tmesh") == bytes(blocks));
+}
+
+/// A height field of n x n quads (2 n^2 triangles) over [0, 1]^2.
+Mesh heightField(int n) {
+  Mesh m;
+  for (int y = 0; y <= n; ++y)
+    for (int x = 0; x <= n; ++x)
+      m.positions.emplace_back(double(x) / n, double(y) / n,
+                               0.05 * std::sin(9.0 * x / n) * std::cos(7.0 * y / n));
+  const auto at = [&](int x, int y) { return uint32_t(y * (n + 1) + x); };
+  for (int y = 0; y < n; ++y)
+    for (int x = 0; x < n; ++x) {
+      m.triangles.emplace_back(at(x, y), at(x + 1, y), at(x + 1, y + 1));
+      m.triangles.emplace_back(at(x, y), at(x + 1, y + 1), at(x, y + 1));
+    }
+  return m;
+}
+
+// The budget decides: a mesh whose build in memory needs more than memory_mb is built in blocks
+// as large as the rest of the budget allows; a budget that cannot hold its vertices and one
+// block is refused with the figure it would need.
+TEST(MeshBuilder, AMeshBeyondTheBudgetIsBuiltInBlocksAndATinyBudgetIsRefused) {
+  test::TempDir dir;
+  const Mesh m = heightField(300);  // 180,000 triangles: about 26 MB to build in memory
+  MeshBuildOptions o;
+  o.patch_triangles = 256;
+  o.quiet = true;
+  const MeshBuildReport whole = buildMeshStore(m, dir.path() / "whole.tmesh", o);
+  EXPECT_EQ(whole.blocks, 0u);
+  o.memory_mb = 22;
+  const MeshBuildReport r = buildMeshStore(m, dir.path() / "field.tmesh", o);
+  EXPECT_GT(r.blocks, 1u);
+  EXPECT_LE(r.peak_bytes, o.memory_mb << 20);
+  EXPECT_EQ(r.stored_triangles >= r.triangles, true);
+  auto store = MeshStore::open(dir.path() / "field.tmesh");
+  uint64_t leaves = 0;
+  for (NodeId id = 0; id < store->nodeCount(); ++id)
+    if (store->record(id).child_count == 0) leaves += store->record(id).triangles;
+  EXPECT_EQ(leaves, 180000u);
+  // The coarsest level is simplified as far as in memory (the field's own border stays: 1,200
+  // edges): the blocks' locked borders are released once they meet.
+  EXPECT_LE(store->record(store->root()).triangles,
+            MeshStore::open(dir.path() / "whole.tmesh")->record(0).triangles * 5 / 4);
+  o.memory_mb = 1;
+  try {
+    buildMeshStore(m, dir.path() / "tiny.tmesh", o);
+    FAIL() << "built within 1 MB";
+  } catch (const ReadError& e) {
+    EXPECT_NE(std::string(e.what()).find("beyond --memory-mb 1"), std::string::npos) << e.what();
+  }
+  EXPECT_FALSE(std::filesystem::exists(dir.path() / "tiny.tmesh"));
+  // Bad input through the blocks too: a non-finite vertex is named, out-of-range triangles
+  // dropped.
+  Mesh bad = heightField(20);
+  bad.triangles.emplace_back(0, 1, 99999);
+  o.memory_mb = 64;
+  o.block_triangles = 300;
+  const MeshBuildReport rb = buildMeshStore(bad, dir.path() / "bad.tmesh", o);
+  EXPECT_EQ(rb.dropped_triangles, 1u);
+  EXPECT_EQ(rb.triangles, 800u);
+  bad.positions[5].y = std::numeric_limits<double>::infinity();
+  try {
+    buildMeshStore(bad, dir.path() / "nan.tmesh", o);
+    FAIL() << "built a mesh with an infinite vertex";
+  } catch (const ReadError& e) {
+    EXPECT_NE(std::string(e.what()).find("vertex 5 is not finite"), std::string::npos) << e.what();
   }
 }
 

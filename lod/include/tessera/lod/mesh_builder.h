@@ -14,8 +14,11 @@
 // inequality an upper bound on the distance to the input surface, up to that sampling;
 // `tessera-lod verify` measures each level against the input both ways).
 //
-// Memory: the whole mesh is held (about 100 bytes a triangle at the peak, measured at 17.8 M triangles: 1.8 GB); a mesh
-// beyond `memory_mb` is refused before reading further (out-of-core building is not there yet).
+// Memory: a build in memory holds the whole mesh (about 110 bytes a triangle at the peak,
+// measured at 17.8 M triangles: 1.8 GB). A mesh whose build would need more than `memory_mb`
+// is built in blocks instead (lod/src/mesh_builder_blocks.cpp): the inputs streamed to files
+// beside the output, the vertex arrays mapped (about 45 bytes a vertex), one block of as many
+// triangles as the rest of the budget allows built at a time, the blocks' tops joined last.
 #pragma once
 
 #include <cstdint>
@@ -33,7 +36,11 @@ struct MeshBuildOptions {
   uint32_t patch_triangles = 4096;  ///< leaf patch size and inner nodes' target, 64..1<<20
   uint32_t arity = 4;               ///< children per inner node, 2..8
   uint32_t threads = 0;             ///< 0: every core
-  uint64_t memory_mb = 16384;       ///< refuse meshes whose build would need more
+  uint64_t memory_mb = 16384;       ///< builds needing more in memory are made in blocks
+  /// Triangles a block (0: as many as `memory_mb` allows, and blocks only when the whole mesh
+  /// does not fit); set, the build is made in blocks of at most this many (tests, benchmarks).
+  uint64_t block_triangles = 0;
+  std::filesystem::path temp_dir;  ///< a build in blocks' temporary files (empty: beside `out`)
   bool quiet = false;
 };
 
@@ -49,10 +56,12 @@ struct MeshBuildReport {
   double seconds = 0.0, seconds_read = 0.0, seconds_partition = 0.0, seconds_simplify = 0.0,
          seconds_write = 0.0;
   uint64_t peak_bytes = 0;  ///< the build's estimated peak memory
+  uint64_t blocks = 0;      ///< blocks built one at a time (0: built whole in memory)
 };
 
 /// Reads `inputs` (PLY or OBJ meshes, fused into one in the first one's frame) and writes `out`
-/// (through out + ".partial", renamed when complete). Throws ReadError for bad inputs,
+/// (through out + ".partial", renamed when complete; a build in blocks keeps its temporary
+/// files beside it, as out + ".partial.*", and removes them). Throws ReadError for bad inputs,
 /// StoreError when the output cannot be written, PreconditionError for bad options.
 /// With more than one thread and more than one leaf block (64 patches), a build forks up to
 /// `threads` partition workers at its start (lod/src/metis_pool.h: METIS's random generator is
