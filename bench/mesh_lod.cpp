@@ -5,14 +5,17 @@
 //   the bunny reconstruction, and a mesh of --large-levels midpoint subdivisions of it (each
 //   level 4x the triangles; new vertices displaced along the normal by a hashed 2% of the edge
 //   so the surface keeps detail to simplify: 4 levels make 17.8 M triangles); seconds, triangles
-//   per second, bytes per triangle on disk, peak memory (VmHWM). The large mesh is built twice:
-//   from memory (the builder alone), and from a binary PLY of it written to --out first (the
-//   whole `tessera-lod build`, reading the file included).
-// Drawing, on the large mesh, one view at --size:
+//   per second, bytes per triangle on disk, peak memory (VmHWM). The large mesh is built from
+//   memory (the builder alone), from a binary PLY of it written to --out first (the whole
+//   `tessera-lod build`, reading the file included), and from the PLY in blocks within
+//   --blocks-mb (the build for meshes beyond the memory budget; --copies N puts N copies side by
+//   side in the PLY, for 10^8 triangles and more).
+// Drawing, on the large mesh, one view at --size and each tile of --wall:
 //   frame time and PSNR against the full-resolution cut, across pixel thresholds (0 = every
 //   leaf); and the mesh pass's triangles per second against a bare glDrawElements of the same
 //   leaf patches in the same context (MeshPass::drawBare: GL's depth test, a constant colour).
-// Prints CSV; writes OUT/mesh_lod_build.csv, OUT/mesh_lod_frames.csv and OUT/mesh_lod.png.
+// Prints CSV; writes OUT/mesh_lod_build.csv, OUT/mesh_lod_frames.csv, OUT/mesh_lod_wall.csv and
+// OUT/mesh_lod.png.
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -34,7 +37,9 @@
 #include <tessera/lod/mesh_builder.h>
 #include <tessera/render/gl_context.h>
 #include <tessera/render/mesh_pass.h>
+#include <tessera/render/tile_frustum.h>
 #include <tessera/render/view_renderer.h>
+#include <tessera/sync/config.h>
 
 #include "../lod/src/huge_pages.h"
 #include "bench_images.h"
@@ -162,6 +167,7 @@ int main(int argc, char** argv) {
     int repeats = 3;
     bool build_only = false, pass_only = false, keep_ply = false;
     int copies = 1;
+    std::string wall_path = TESSERA_CONFIG_DIR "/walls/2x2.json";
     uint64_t blocks_mb = 2048;
     app.add_option("--out", out, "Folder for the CSV, the chart and the inputs")
         ->capture_default_str();
@@ -169,6 +175,7 @@ int main(int argc, char** argv) {
         ->check(cli::integerRange(1, 5))
         ->capture_default_str();
     app.add_option("--size", size, "View size WxH")->capture_default_str();
+    app.add_option("--wall", wall_path, "Wall for the per-tile frames")->capture_default_str();
     app.add_option("--repeats", repeats, "Frames per measurement (the best counts)")
         ->check(cli::integerRange(1, 100))
         ->capture_default_str();
@@ -250,12 +257,12 @@ int main(int argc, char** argv) {
       writeMeshPly(large_ply, large, copies);
       large = lod::Mesh{};  // free it before drawing
       if (copies == 1)
-        build(large_name + " from PLY", nullptr, large_ply, large_store, kThesisLargeRate);
+        build("x4^" + std::to_string(levels) + " from PLY", nullptr, large_ply, large_store,
+              kThesisLargeRate);
       // The same in blocks, within --blocks-mb (mesh_builder_blocks.cpp).
       if (blocks_mb > 0) {
         const std::string name = (copies > 1 ? std::to_string(copies) + "x " : std::string()) +
-                                 large_name + " from PLY in blocks, " +
-                                 std::to_string(blocks_mb) + " MB";
+                                 "x4^" + std::to_string(levels) + " PLY in blocks";
         build(name, nullptr, large_ply,
               copies == 1 ? fs::path(out) / "mesh_lod_blocks.tmesh" : large_store,
               kThesisLargeRate, blocks_mb);
@@ -301,17 +308,20 @@ int main(int argc, char** argv) {
     so.budget_bytes = 4ull << 30;
     render::ViewRenderer renderer(v.width, v.height, nullptr, so);
     render::RenderOptions o;
-    auto frame = [&](double px, render::RenderStats& st) {
+    // A settled frame at threshold px, then the best of `repeats` frames of it (no readback).
+    auto frameOf = [&](render::ViewRenderer& vr, const render::ViewSetup& view, double px,
+                       render::RenderStats& st) {
       o.lod_pixels = px;
-      render::Image img = renderer.renderSettled({&m, 1}, v, o, &st);
+      render::Image img = vr.renderSettled({&m, 1}, view, o, &st);
       double best = 1e300;
       for (int i = 0; i < repeats; ++i) {
-        img = renderer.render({&m, 1}, v, o, &st);
+        img = vr.render({&m, 1}, view, o, &st);
         best = std::min(best, st.totalMs() - st.readback_ms);
       }
       st.frames = 0;
       return std::make_pair(img, best);
     };
+    auto frame = [&](double px, render::RenderStats& st) { return frameOf(renderer, v, px, st); };
     render::RenderStats full_st;
     double full_ms = 0.0;
     if (!pass_only) {
@@ -335,6 +345,41 @@ int main(int argc, char** argv) {
         std::printf("%s", line);
       }
       fcsv.close();
+
+      // The same per tile of the 2x2 wall, each tile with its own renderer and streamer as its
+      // node has, the camera of the view above.
+      const config::WallConfig wall = sync::loadWallConfig(wall_path);
+      config::Camera cam;
+      cam.mutable_eye()->set_x(v.eye_world.x);
+      cam.mutable_eye()->set_y(v.eye_world.y);
+      cam.mutable_eye()->set_z(v.eye_world.z);
+      cam.mutable_target()->set_x(c.x);
+      cam.mutable_target()->set_y(c.y);
+      cam.mutable_target()->set_z(c.z);
+      cam.mutable_up()->set_y(1.0);
+      std::ofstream wcsv(fs::path(out) / "mesh_lod_wall.csv");
+      const char* whead = "tile,threshold_px,triangles,patches,frame_ms,psnr_db\n";
+      wcsv << whead;
+      std::printf("%s", whead);
+      for (const auto& tile : wall.tiles()) {
+        const render::ViewSetup tv = render::tileView(wall, tile, cam);
+        render::ViewRenderer tr(tv.width, tv.height, nullptr, so);
+        render::RenderStats tile_full_st;
+        const auto [tile_full, tile_full_ms] = frameOf(tr, tv, 1e-9, tile_full_st);
+        for (double px : {0.0, 0.5, 1.0, 2.0, 4.0}) {
+          render::RenderStats st = tile_full_st;
+          render::Image img = tile_full;
+          double ms = tile_full_ms;
+          if (px > 0.0) std::tie(img, ms) = frameOf(tr, tv, px, st);
+          char line[256];
+          std::snprintf(line, sizeof line, "%s,%g,%llu,%zu,%.1f,%.2f\n", tile.name().c_str(), px,
+                        (unsigned long long)st.triangles, st.mesh_patches, ms,
+                        bench::psnr(img, tile_full));
+          wcsv << line;
+          std::printf("%s", line);
+        }
+      }
+      wcsv.close();
     }
 
     // The pass against a bare glDrawElements: every leaf patch, one context, interleaved.
@@ -382,10 +427,10 @@ int main(int argc, char** argv) {
 
     const fs::path gp = fs::path(out) / "mesh_lod.gp";
     std::ofstream g(gp);
-    g << "set terminal pngcairo size 1100,420 font 'DejaVu Sans,10'\n"
+    g << "set terminal pngcairo size 1650,420 font 'DejaVu Sans,10'\n"
       << "set output '" << (fs::path(out) / "mesh_lod.png").string() << "'\n"
       << "set datafile separator ','\nset key autotitle columnhead\nset grid\n"
-      << "set multiplot layout 1,2 title 'Mesh LOD (" << size << ", " << full_st.triangles
+      << "set multiplot layout 1,3 title 'Mesh LOD (" << size << ", " << full_st.triangles
       << " triangles at full resolution)'\n"
       << "set title 'Frame time against accuracy (full resolution: " << int(full_ms)
       << " ms)'\nset xlabel 'frame (ms, log scale)'\nset logscale x\n"
@@ -394,10 +439,14 @@ int main(int argc, char** argv) {
       << "' using ($1 > 0 ? $4 : 1/0):6:(($1 == 2 || $1 == 8) ? '' : sprintf('%g px', $1)) "
          "with labels offset 0,0.9 notitle, '' using ($1 > 0 ? $4 : 1/0):6 with linespoints pt 7 "
          "title 'cut by pixel threshold'\n"
+      << "set title 'Per tile of the 2x2 wall (960x540 each)'\n"
+      << "plot for [t in 'tile-0-0 tile-1-0 tile-0-1 tile-1-1'] '"
+      << (fs::path(out) / "mesh_lod_wall.csv").string()
+      << "' using ($2 > 0 && strcol(1) eq t ? $5 : 1/0):6 with linespoints pt 7 title t\n"
       << "unset logscale x\nset yrange [*:*]\n"
       << "set title 'Build throughput'\nset xlabel ''\nset ylabel 'triangles per second'\n"
       << "set style data histograms\nset style fill solid 0.7\nset logscale y\n"
-      << "set yrange [1000:1e7]\nset key top left\n"
+      << "set yrange [1000:1e7]\nset key below\nset xtics font ',8'\n"
       << "set arrow from graph 0, first 1e6 to graph 1, first 1e6 nohead dt 2 lc rgb 'red'\n"
       << "set label 'goal at 10^7 triangles: 10^6/s' at graph 0.55, first 1.4e6 tc rgb 'red'\n"
       << "plot '" << (fs::path(out) / "mesh_lod_build.csv").string()
