@@ -49,6 +49,17 @@ class TriangleGrid {
       a = cellOf(lo);
       b = cellOf(hi2);
     };
+    // Each triangle's bounding sphere (centroid, farthest corner): a query skips a triangle
+    // whose sphere lies farther than the nearest point found so far.
+    mSpheres.resize(n);
+    for (size_t t = 0; t < n; ++t) {
+      const glm::dvec3 a = positions[indices[3 * t]], b = positions[indices[3 * t + 1]],
+                       c = positions[indices[3 * t + 2]];
+      const glm::dvec3 m = (a + b + c) / 3.0;
+      const double r2 = std::max({glm::dot(a - m, a - m), glm::dot(b - m, b - m),
+                                  glm::dot(c - m, c - m)});
+      mSpheres[t] = glm::dvec4(m, std::sqrt(r2));
+    }
     for (int pass = 0; pass < 2; ++pass) {
       for (size_t t = 0; t < n; ++t) {
         glm::ivec3 a, b;
@@ -99,6 +110,12 @@ class TriangleGrid {
             const size_t cell = index({x, y, z});
             for (uint32_t k = mStart[cell]; k < mStart[cell + 1]; ++k) {
               const uint32_t t = mItems[k];
+              // No point of the triangle is nearer than its sphere: |p - m| - radius >= best
+              // means it cannot be strictly nearer (the same result, fewer tests).
+              const glm::dvec4& s = mSpheres[t];
+              const glm::dvec3 pm = p - glm::dvec3(s);
+              const double reach = best + s.w;
+              if (glm::dot(pm, pm) >= reach * reach) continue;
               const glm::dvec3 q = closestOnTriangle(p, mPos[mIdx[3 * t]], mPos[mIdx[3 * t + 1]],
                                                      mPos[mIdx[3 * t + 2]]);
               const double d = glm::length(q - p);
@@ -141,6 +158,7 @@ class TriangleGrid {
   double mCell = 1.0;
   glm::ivec3 mDims{1};
   std::vector<uint32_t> mStart, mFill, mItems;
+  std::vector<glm::dvec4> mSpheres;  ///< per triangle: centroid, radius
 };
 
 }  // namespace tessera::lod
