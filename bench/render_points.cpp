@@ -82,10 +82,16 @@ int main(int argc, char** argv) {
 
   auto ctx = render::GlContext::createHeadless();
   auto store = lod::PointStore::open(store_path);
-  // Leaves, nearest the root first, until enough points: positions in the store frame (float).
-  std::vector<render::GpuPoint> pts;
+  const auto& sum = store->summary();
+  glm::dvec3 centre = 0.5 * (sum.bbox_min + sum.bbox_max);
+  double radius = 0.5 * glm::length(sum.bbox_max - sum.bbox_min);
+  const glm::dvec3 eye = centre + glm::dvec3(0, 0, 2.2 * radius);
+  // Leaves until enough points (depth first from the root), then drawn nearest first as the
+  // renderer draws its cut (lod_selector.h): positions in the store frame (float).
+  std::vector<std::pair<double, lod::NodeId>> leaves;
+  uint64_t taken = 0;
   std::vector<lod::NodeId> stack{store->root()};
-  while (!stack.empty() && pts.size() < max_points) {
+  while (!stack.empty() && taken < max_points) {
     lod::NodeId id = stack.back();
     stack.pop_back();
     lod::NodeInfo n = store->node(id);
@@ -93,17 +99,22 @@ int main(int argc, char** argv) {
       for (lod::NodeId c : store->children(id)) stack.push_back(c);
       continue;
     }
+    const glm::dvec3 nearest = glm::clamp(eye, n.box_min, n.box_max);
+    leaves.emplace_back(glm::length(nearest - eye), id);
+    taken += n.points;
+  }
+  std::stable_sort(leaves.begin(), leaves.end(),
+                   [](const auto& a, const auto& b) { return a.first < b.first; });
+  std::vector<render::GpuPoint> pts;
+  for (const auto& [distance, id] : leaves) {
     auto c = store->loadChunk(id);
     for (size_t i = 0; i < c->size() && pts.size() < max_points; ++i) {
       pts.push_back({glm::vec3(c->offset + glm::dvec3(c->positions[i])), 0xFFC8C8C8u});
     }
   }
-  const auto& sum = store->summary();
-  glm::dvec3 centre = 0.5 * (sum.bbox_min + sum.bbox_max);
-  double radius = 0.5 * glm::length(sum.bbox_max - sum.bbox_min);
   const uint32_t W = 1920, H = 1080;
   glm::mat4 clip(glm::perspective(glm::radians(45.0), double(W) / H, 0.1 * radius, 10 * radius) *
-                 glm::lookAt(centre + glm::dvec3(0, 0, 2.2 * radius), centre, glm::dvec3(0, 1, 0)));
+                 glm::lookAt(eye, centre, glm::dvec3(0, 1, 0)));
   const uint32_t n = uint32_t(pts.size());
 
   GLuint vbo;

@@ -41,7 +41,7 @@ uint32_t packColor(const glm::vec3& c) {
 }
 
 PointPass::PointPass() : mNone(16, nullptr) {
-  raster(0, false);  // compiles now: a shader error shows at construction
+  raster(0, false, true);  // compiles now: a shader error shows at construction
 }
 
 void PointPass::setPoints(std::span<const GpuPoint> points) {
@@ -57,11 +57,12 @@ void PointPass::fit(const FrameTarget& target) {
   mLayers = 0;
 }
 
-const GlProgram& PointPass::raster(int pass, bool one_pixel) {
-  GlProgram& p = mRaster[pass][one_pixel];
+const GlProgram& PointPass::raster(int pass, bool one_pixel, bool clipping) {
+  GlProgram& p = mRaster[pass][one_pixel][clipping];
   if (!p) {
     const std::string defines = "#define PASS " + std::to_string(pass) + "\n#define ONE_PIXEL " +
-                                std::to_string(int(one_pixel)) + "\n";
+                                std::to_string(int(one_pixel)) + "\n#define TESSERA_CLIPPING " +
+                                std::to_string(int(clipping)) + "\n";
     p = GlProgram::compute(shaders::kPointRaster, "point_raster.comp", defines);
   }
   return p;
@@ -86,7 +87,8 @@ PassTimings PointPass::draw(FrameTarget& target, std::span<const DrawBatch> batc
       // leave their footprints).
       const bool one_pixel = !shading.fill && (b.splat_radius == 0 || std::isnan(b.spacing_k) ||
                                                (b.spacing_k > 0.0f && b.max_disc_px <= 0.5f));
-      const GlProgram& program = raster(pass, one_pixel);
+      // Batches without clip planes: the variant without plane code (shared_layout.h).
+      const GlProgram& program = raster(pass, one_pixel, b.clip.count > 0);
       if (&program != in_use) {
         in_use = &program;
         program.use();

@@ -145,8 +145,8 @@ class PointPass {
   /// (Re)allocates the per-pixel buffers of the see-through modes for `target`.
   void fit(const FrameTarget& target);
   /// The point_raster.comp variant for a pass, compiled on first use.
-  const GlProgram& raster(int pass, bool one_pixel);
-  GlProgram mRaster[2][2];  ///< [pass][one pixel]
+  const GlProgram& raster(int pass, bool one_pixel, bool clipping);
+  GlProgram mRaster[2][2][2];  ///< [pass][one pixel][clip planes]
   GlProgram mSpbr, mAccumulate, mOit, mOitResolve;
   GlBuffer mPoints;
   size_t mPlane = 0;  ///< pixels the buffers below are sized for
