@@ -24,17 +24,22 @@ uint32_t packNormal1010102(const glm::vec3& n) {
 
 namespace {
 
-/// The flat-shading variant of a mesh shader's source.
-std::string flat(const char* source) {
-  return std::string("#define MESH_FLAT 1\n") + source;
+/// The variant of the mesh pass's program: flat or smooth shading, with or without the clip
+/// plane test (shared_layout.h: TESSERA_CLIPPING 0 for batches without planes, which llvmpipe
+/// would otherwise pay for on every fragment).
+GlProgram shadeProgram(bool flat, bool clipping) {
+  const std::string defines =
+      std::string(flat ? "#define MESH_FLAT 1\n" : "") + "#define TESSERA_CLIPPING " +
+      (clipping ? "1" : "0") + "\n";
+  return GlProgram::graphics(shaders::kMeshVert, shaders::kMeshFrag,
+                             flat ? "mesh pass (flat)" : "mesh pass", defines);
 }
 
 }  // namespace
 
 struct MeshPass::Impl {
-  GlProgram draw = GlProgram::graphics(shaders::kMeshVert, shaders::kMeshFrag, "mesh pass");
-  GlProgram draw_flat = GlProgram::graphics(flat(shaders::kMeshVert).c_str(),
-                                            flat(shaders::kMeshFrag).c_str(), "mesh pass (flat)");
+  GlProgram shade[2][2] = {{shadeProgram(false, false), shadeProgram(false, true)},
+                           {shadeProgram(true, false), shadeProgram(true, true)}};  ///< [flat][clip]
   GlProgram bare = GlProgram::graphics(shaders::kMeshVert, shaders::kMeshBareFrag, "mesh pass (bare)");
   GlProgram merge = GlProgram::compute(shaders::kMeshMerge, "mesh merge");
   uint32_t vao = 0, fbo = 0;
@@ -94,8 +99,9 @@ struct MeshPass::Impl {
                         "x" + std::to_string(h));
   }
 
-  /// Clears and binds the framebuffer, draws every batch with `program`.
-  void rasterise(const GlProgram& program, std::span<const MeshBatch> batches) {
+  /// Clears and binds the framebuffer, draws every batch with `program(batch)`.
+  template <class ProgramOf>
+  void rasterise(const ProgramOf& programOf, std::span<const MeshBatch> batches) {
     glBindFramebuffer(GL_FRAMEBUFFER, fbo);
     glViewport(0, 0, GLsizei(width), GLsizei(height));
     const float far = 1.0f;
@@ -108,10 +114,15 @@ struct MeshPass::Impl {
     glDepthMask(GL_TRUE);
     glDisable(GL_CULL_FACE);  // scans are open surfaces, seen from both sides
     glDisable(GL_BLEND);
-    program.use();
     glBindVertexArray(vao);
+    const GlProgram* in_use = nullptr;
     for (const MeshBatch& b : batches) {
       if (b.index_count == 0) continue;
+      const GlProgram& program = programOf(b);
+      if (&program != in_use) {
+        program.use();
+        in_use = &program;
+      }
       program.set("uClipFromLocal", b.clip_from_local);
       program.set("uEyeLocal", b.eye_local);
       program.set("uColorOverride", b.color_override);
@@ -137,7 +148,9 @@ double MeshPass::draw(FrameTarget& target, std::span<const MeshBatch> batches,
   GpuLap lap;
   Impl& s = *mImpl;
   s.ensure(target.width(), target.height());
-  s.rasterise(shading.flat ? s.draw_flat : s.draw, batches);
+  s.rasterise([&](const MeshBatch& b) -> const GlProgram& {
+    return s.shade[shading.flat][b.clip.count > 0];
+  }, batches);
   glMemoryBarrier(GL_TEXTURE_FETCH_BARRIER_BIT | GL_FRAMEBUFFER_BARRIER_BIT);
   s.merge.use();
   s.merge.set("uSize", glm::ivec2(int(target.width()), int(target.height())));
@@ -158,7 +171,7 @@ double MeshPass::drawBare(const FrameTarget& target, std::span<const MeshBatch> 
   GpuLap lap;
   Impl& s = *mImpl;
   s.ensure(target.width(), target.height());
-  s.rasterise(s.bare, batches);
+  s.rasterise([&](const MeshBatch&) -> const GlProgram& { return s.bare; }, batches);
   return lap();
 }
 

@@ -124,8 +124,11 @@ PassTimings PointPass::draw(FrameTarget& target, std::span<const DrawBatch> batc
 }
 
 void PointPass::beginEnsembles(FrameTarget& target) {
-  if (!mSpbr) {
-    mSpbr = GlProgram::compute(shaders::kSpbrRaster, "spbr_raster.comp");
+  if (!mSpbr[0]) {
+    for (int clipping : {0, 1})  // without and with the clip plane test (shared_layout.h)
+      mSpbr[clipping] = GlProgram::compute(shaders::kSpbrRaster, "spbr_raster.comp",
+                                           "#define TESSERA_CLIPPING " +
+                                               std::to_string(clipping) + "\n");
     mAccumulate = GlProgram::compute(shaders::kSpbrAccumulate, "spbr_accumulate.comp");
   }
   fit(target);
@@ -162,43 +165,50 @@ PassTimings PointPass::drawEnsembles(FrameTarget& target, std::span<const DrawBa
       glClearNamedBufferSubData(mLayerColors.name(), GL_R32UI, 0, GLsizeiptr(plane * cleared * 4),
                                 GL_RED_INTEGER, GL_UNSIGNED_INT, &all_ones);
     }
-    mSpbr.use();
     bind(TESSERA_BINDING_DEPTH, mLayerDepth);
     bind(TESSERA_BINDING_COLORS, mLayerColors);
-    mSpbr.set("uSize", size);
-    mSpbr.set("uTotal", total);
-    mSpbr.set("uMaxRadius", 16);
-    mSpbr.set("uSlantOff", slant_off ? 1 : 0);
-    mSpbr.set("uOneLayer", one_layer ? 1 : 0);
-    mSpbr.set("uGroupFirst", group);
-    mSpbr.set("uGroupCount", n);
+    for (const GlProgram& spbr : mSpbr) {
+      spbr.set("uSize", size);
+      spbr.set("uTotal", total);
+      spbr.set("uMaxRadius", 16);
+      spbr.set("uSlantOff", slant_off ? 1 : 0);
+      spbr.set("uOneLayer", one_layer ? 1 : 0);
+      spbr.set("uGroupFirst", group);
+      spbr.set("uGroupCount", n);
+    }
     for (int pass = 0; pass < passes; ++pass) {
-      mSpbr.set("uPass", pass);
+      for (const GlProgram& spbr : mSpbr) spbr.set("uPass", pass);
+      const GlProgram* in_use = nullptr;
       for (const DrawBatch& b : batches) {
         if (b.count == 0 || b.spbr_k <= 0.0f) continue;
+        const GlProgram& spbr_b = mSpbr[b.clip.count > 0];
+        if (&spbr_b != in_use) {
+          spbr_b.use();
+          in_use = &spbr_b;
+        }
         const GLuint points = b.buffer ? b.buffer : mPoints.name();
         glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_POINTS, points);
         glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_NORMALS,
                          b.normals ? b.normals : mNone.name());
         glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_RATIOS,
                          b.density_ratios ? b.density_ratios : mNone.name());
-        mSpbr.set("uHasRatios", b.density_ratios ? 1 : 0);
+        spbr_b.set("uHasRatios", b.density_ratios ? 1 : 0);
         glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_CELLS,
                          b.cells ? b.cells : mNone.name());
-        mSpbr.set("uHasCells", b.cells ? 1 : 0);
-        mSpbr.set("uJitterK", b.jitter_k);
-        mSpbr.set("uInCell", b.cells && b.copies == SpbrCopies::kInCell ? 1 : 0);
-        mSpbr.set("uCellUnit", b.cell_unit);
-        mSpbr.set("uCellSpread", b.cell_spread);
-        mSpbr.set("uEnsembleShift", b.ensemble_shift);
-        mSpbr.set("uCopyCap", total);
-        mSpbr.set("uClip", b.clip_from_local);
-        mSpbr.set("uDiscK", b.disc_k);
-        mSpbr.set("uK", b.spbr_k);
-        mSpbr.set("uSeed", b.seed);
-        mSpbr.set("uEyeLocal", b.eye_local);
-        mSpbr.set("uColorOverride", b.color_override);
-        setClipUniforms(mSpbr, b.clip);
+        spbr_b.set("uHasCells", b.cells ? 1 : 0);
+        spbr_b.set("uJitterK", b.jitter_k);
+        spbr_b.set("uInCell", b.cells && b.copies == SpbrCopies::kInCell ? 1 : 0);
+        spbr_b.set("uCellUnit", b.cell_unit);
+        spbr_b.set("uCellSpread", b.cell_spread);
+        spbr_b.set("uEnsembleShift", b.ensemble_shift);
+        spbr_b.set("uCopyCap", total);
+        spbr_b.set("uClip", b.clip_from_local);
+        spbr_b.set("uDiscK", b.disc_k);
+        spbr_b.set("uK", b.spbr_k);
+        spbr_b.set("uSeed", b.seed);
+        spbr_b.set("uEyeLocal", b.eye_local);
+        spbr_b.set("uColorOverride", b.color_override);
+        setClipUniforms(spbr_b, b.clip);
         // Batches with buffer 0 start at `first` in the pass's own buffer: offset the binding
         // instead of the index, so point indices (and so ensembles) stay per batch.
         if (!b.buffer && b.first) {
@@ -206,13 +216,13 @@ PassTimings PointPass::drawEnsembles(FrameTarget& target, std::span<const DrawBa
                             GLintptr(b.first) * 16, GLsizeiptr(b.count) * 16);
         }
         dispatchSlices(b.count, [&](uint32_t done, uint32_t c) {
-          mSpbr.set("uCount", c);
+          spbr_b.set("uCount", c);
           // Later slices of a huge batch: a bound range keeps indices within the slice; the
           // seed changes with the slice so their points stay independent.
           if (done) {
             glBindBufferRange(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_POINTS, points,
                               GLintptr(b.first + done) * 16, GLsizeiptr(c) * 16);
-            mSpbr.set("uSeed", b.seed ^ (done * 0x9E3779B9u));
+            spbr_b.set("uSeed", b.seed ^ (done * 0x9E3779B9u));
           }
         });
       }
@@ -254,8 +264,11 @@ PassTimings PointPass::drawBlended(FrameTarget& target, std::span<const DrawBatc
                                    const glm::vec3& background, bool weighted_blended) {
   PassTimings timings;
   GpuLap lap;
-  if (!mOit) {
-    mOit = GlProgram::compute(shaders::kOitAccumulate, "oit_accumulate.comp");
+  if (!mOit[0]) {
+    for (int clipping : {0, 1})
+      mOit[clipping] = GlProgram::compute(shaders::kOitAccumulate, "oit_accumulate.comp",
+                                          "#define TESSERA_CLIPPING " +
+                                              std::to_string(clipping) + "\n");
     mOitResolve = GlProgram::compute(shaders::kOitResolve, "oit_resolve.comp");
   }
   fit(target);
@@ -263,26 +276,33 @@ PassTimings PointPass::drawBlended(FrameTarget& target, std::span<const DrawBatc
   const float zero = 0.0f;
   glClearNamedBufferData(mOitSums.name(), GL_R32F, GL_RED, GL_FLOAT, &zero);
   const glm::ivec2 size(target.width(), target.height());
-  mOit.use();
   bind(TESSERA_BINDING_ACCUM, mOitSums);
-  mOit.set("uSize", size);
-  mOit.set("uMode", weighted_blended ? 1 : 0);
-  mOit.set("uMaxRadius", 16);
+  for (const GlProgram& oit : mOit) {
+    oit.set("uSize", size);
+    oit.set("uMode", weighted_blended ? 1 : 0);
+    oit.set("uMaxRadius", 16);
+  }
+  const GlProgram* in_use = nullptr;
   for (const DrawBatch& b : batches) {
     if (b.count == 0 || b.point_alpha <= 0.0f) continue;
+    const GlProgram& oit = mOit[b.clip.count > 0];
+    if (&oit != in_use) {
+      oit.use();
+      in_use = &oit;
+    }
     const GLuint points = b.buffer ? b.buffer : mPoints.name();
     glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_POINTS, points);
-    mOit.set("uClip", b.clip_from_local);
-    mOit.set("uDiscK", b.disc_k);
-    mOit.set("uAlpha", b.point_alpha);
-    mOit.set("uColorOverride", b.color_override);
-    setClipUniforms(mOit, b.clip);
+    oit.set("uClip", b.clip_from_local);
+    oit.set("uDiscK", b.disc_k);
+    oit.set("uAlpha", b.point_alpha);
+    oit.set("uColorOverride", b.color_override);
+    setClipUniforms(oit, b.clip);
     dispatchSlices(b.count, [&](uint32_t done, uint32_t c) {
       if (done) {
         glBindBufferRange(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_POINTS, points,
                           GLintptr(b.first + done) * 16, GLsizeiptr(c) * 16);
       }
-      mOit.set("uCount", c);
+      oit.set("uCount", c);
     });
   }
   glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);

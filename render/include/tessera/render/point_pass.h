@@ -147,7 +147,7 @@ class PointPass {
   /// The point_raster.comp variant for a pass, compiled on first use.
   const GlProgram& raster(int pass, bool one_pixel, bool clipping);
   GlProgram mRaster[2][2][2];  ///< [pass][one pixel][clip planes]
-  GlProgram mSpbr, mAccumulate, mOit, mOitResolve;
+  GlProgram mSpbr[2], mAccumulate, mOit[2], mOitResolve;  ///< [clip planes]
   GlBuffer mPoints;
   size_t mPlane = 0;  ///< pixels the buffers below are sized for
   GlBuffer mLayerDepth, mLayerColors, mAccum, mOitSums, mNone;
