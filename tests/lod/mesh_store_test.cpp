@@ -343,7 +343,9 @@ Mesh heightField(int n) {
 // block is refused with the figure it would need.
 TEST(MeshBuilder, AMeshBeyondTheBudgetIsBuiltInBlocksAndATinyBudgetIsRefused) {
   test::TempDir dir;
-  const Mesh m = heightField(300);  // 180,000 triangles: about 26 MB to build in memory
+  Mesh m = heightField(300);  // 180,000 triangles: about 26 MB to build in memory
+  for (const glm::dvec3& p : m.positions)  // per-vertex colour, to come through the blocks
+    m.colors.emplace_back(uint8_t(p.x * 255.0), uint8_t(p.y * 255.0), 80, 255);
   MeshBuildOptions o;
   o.patch_triangles = 256;
   o.quiet = true;
@@ -359,6 +361,23 @@ TEST(MeshBuilder, AMeshBeyondTheBudgetIsBuiltInBlocksAndATinyBudgetIsRefused) {
   for (NodeId id = 0; id < store->nodeCount(); ++id)
     if (store->record(id).child_count == 0) leaves += store->record(id).triangles;
   EXPECT_EQ(leaves, 180000u);
+  // Every leaf vertex keeps its input colour.
+  ASSERT_TRUE(store->summary().colors);
+  size_t coloured = 0, right = 0;
+  for (NodeId id = 0; id < store->nodeCount(); ++id) {
+    if (store->record(id).child_count) continue;
+    const MeshPatch p = store->readPatch(id);
+    ASSERT_EQ(p.colors.size(), p.positions.size());
+    for (size_t i = 0; i < p.positions.size(); ++i) {
+      const glm::dvec3 w = store->summary().origin + p.offset + glm::dvec3(p.positions[i]);
+      // The input vertex at that place (the grid step is far below the field's spacing).
+      const size_t x = size_t(std::lround(w.x * 300.0)), y = size_t(std::lround(w.y * 300.0));
+      ++coloured;
+      right += p.colors[i] == m.colors[y * 301 + x];
+    }
+  }
+  EXPECT_GT(coloured, 90000u);
+  EXPECT_EQ(right, coloured);
   // The coarsest level is simplified as far as in memory (the field's own border stays: 1,200
   // edges): the blocks' locked borders are released once they meet.
   EXPECT_LE(store->record(store->root()).triangles,
