@@ -52,24 +52,22 @@ uniform int uFill;      // 1 px points plus their splat footprints, for the pull
 // Potree's: Botsch et al. 2005), pass 1 adds the colour of every point whose view depth w is
 // within uBlendDepth of the nearest's, weighted by its splat kernel `k`, so the colours of the
 // points that overlap on a surface average instead of the nearest one aliasing.
-// Pass 0 returns whether the point was a candidate (as near as the depth it read).
-bool write(uint idx, uint d, uint gi, uint i, float w, float k) {
+void write(uint idx, uint d, uint gi, uint i, float w, float k) {
 #if PASS == 0
   // A read before the atomic: most points of a scan are behind the nearest (depth complexity),
   // and a read costs llvmpipe far less than an atomic.
-  if (d > depth[idx]) return false;
+  if (d > depth[idx]) return;
   atomicMin(depth[idx], d);
-  return true;
 #else
   uint nearest = depth[idx];
-  if (nearest != d && uBlend == 0) return false;  // behind: most points, nothing more to read
+  if (nearest != d && uBlend == 0) return;  // behind: most points, nothing more to read
   if (nearest == d && uWritePick != 0) atomicMin(pick[idx], uPickBase + i);
   uint rgb = uColorOverride != 0u ? uColorOverride & 0xFFFFFFu : points[gi].rgba & 0xFFFFFFu;
   if (uBlend != 0) {
     // The nearest point always counts: far away, window depth's float steps exceed the
     // tolerance, and the view depth recovered from it may fall short of the point's own.
     float near_w = uP32 / ((uintBitsToFloat(nearest) * 2.0 - 1.0) + uP22);
-    if (nearest != d && w > near_w + uBlendDepth) return false;
+    if (nearest != d && w > near_w + uBlendDepth) return;
     uint q = uint(clamp(k, 1.0 / 64.0, 1.0) * 255.0 + 0.5);
     atomicAdd(sums[idx * 4u], (rgb & 0xFFu) * q);
     atomicAdd(sums[idx * 4u + 1u], ((rgb >> 8) & 0xFFu) * q);
@@ -84,27 +82,25 @@ bool write(uint idx, uint d, uint gi, uint i, float w, float k) {
     uint h = (b.x * 0x9E3779B1u) ^ (b.y * 0x85EBCA77u) ^ (b.z * 0xC2B2AE3Du);
     atomicMin(colors[idx], (h ^ (h >> 15)) << 24 | rgb);
   }
-  return true;
 #endif
 }
 
-// Pass 0: whether the point was a candidate for any pixel.
-bool raster(uint i) {
+void raster(uint i) {
   uint gi = uFirst + i;
-  if (tesseraClipped(points[gi].position)) return false;  // cut away by a CLIP node
+  if (tesseraClipped(points[gi].position)) return;  // cut away by a CLIP node
   vec4 c = uClip * vec4(points[gi].position, 1.0);
-  if (c.w <= 0.0) return false;
+  if (c.w <= 0.0) return;
   vec3 ndc = c.xyz / c.w;
-  if (ndc.z < -1.0 || ndc.z > 1.0) return false;
+  if (ndc.z < -1.0 || ndc.z > 1.0) return;
   vec2 pos = (ndc.xy * 0.5 + 0.5) * vec2(uSize);  // pixels, sub-pixel exact
   // Far off screen, or NaN (a bad position or transform): nothing to draw.
   vec2 margin = vec2(float(uRadius) + 2.0);
-  if (!(all(greaterThan(pos, -margin)) && all(lessThan(pos, vec2(uSize) + margin)))) return false;
+  if (!(all(greaterThan(pos, -margin)) && all(lessThan(pos, vec2(uSize) + margin)))) return;
   ivec2 centre = ivec2(floor(pos));
   uint d = floatBitsToUint(ndc.z * 0.5 + 0.5);
 #if ONE_PIXEL
-  if (centre.x < 0 || centre.y < 0 || centre.x >= uSize.x || centre.y >= uSize.y) return false;
-  return write(uint(centre.y) * uint(uSize.x) + uint(centre.x), d, gi, i, c.w, 1.0);
+  if (centre.x < 0 || centre.y < 0 || centre.x >= uSize.x || centre.y >= uSize.y) return;
+  write(uint(centre.y) * uint(uSize.x) + uint(centre.x), d, gi, i, c.w, 1.0);
 #else
   // With a spacing, the splat is the disc of diameter (projected spacing) around the point's
   // exact position: it covers the pixels whose centres it contains, and always its own pixel.
@@ -145,19 +141,20 @@ bool raster(uint i) {
                      sub.y;
         if (print > footprints[2u * idx]) atomicMax(footprints[2u * idx], print);
       }
-      return d <= old;
+      return;
     }
 #else
-    return write(idx, d, gi, i, c.w, 1.0);
+    write(idx, d, gi, i, c.w, 1.0);
+    return;
 #endif
   }
   if (radius == 0) {
     // One pixel (fine LOD levels, far points): no loop, which llvmpipe runs much faster.
-    if (centre.x < 0 || centre.y < 0 || centre.x >= uSize.x || centre.y >= uSize.y) return false;
+    if (centre.x < 0 || centre.y < 0 || centre.x >= uSize.x || centre.y >= uSize.y) return;
     uint idx = uint(centre.y) * uint(uSize.x) + uint(centre.x);
-    return write(idx, d, gi, i, c.w, 1.0);
+    write(idx, d, gi, i, c.w, 1.0);
+    return;
   }
-  bool candidate = false;
   int r2 = radius * radius + radius;
   for (int dy = -radius; dy <= radius; ++dy) {
     for (int dx = -radius; dx <= radius; ++dx) {
@@ -173,10 +170,9 @@ bool raster(uint i) {
       // The splat kernel: 1 at the point, falling to 0 at the disc's edge.
       vec2 o = vec2(q) + 0.5 - pos;
       float r = uSpacingK > 0.0 ? disc : float(radius) + 0.5;
-      candidate = write(idx, d, gi, i, c.w, 1.0 - dot(o, o) / (r * r)) || candidate;
+      write(idx, d, gi, i, c.w, 1.0 - dot(o, o) / (r * r));
     }
   }
-  return candidate;
 #endif
 }
 

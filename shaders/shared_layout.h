@@ -55,7 +55,7 @@ uniform uint uClipInvert;  // bit g: group g keeps its outside
 // as render::ClipPlanes::keeps().
 // A program compiled with TESSERA_CLIPPING 0 (for batches without planes) clips nothing and
 // has no plane code at all: on llvmpipe the test cost a one-pixel point pass as much as its
-// scatter even with uClipCount 0 (bench/render_points: 186 ms against 107 ms a pass for 10^7
+// scatter even with uClipCount 0 (bench/render_points: 186 ms against 87 ms a pass for 10^7
 // points).
 #ifndef TESSERA_CLIPPING
 #define TESSERA_CLIPPING 1

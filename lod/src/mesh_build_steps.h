@@ -23,6 +23,9 @@ namespace tessera::lod::meshbuild {
 /// exception is rethrown once all stopped.
 void parallelFor(size_t n, uint32_t threads, const std::function<void(size_t)>& f);
 
+/// Throws PreconditionError for options out of range (patch size, arity, threads).
+void checkOptions(const MeshBuildOptions& o);
+
 /// Vertices and triangles as the builder works on them: grid positions, normals, triangles by
 /// index into them.
 struct Prepared {

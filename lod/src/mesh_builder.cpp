@@ -727,6 +727,13 @@ void writeStore(const std::filesystem::path& out, MeshSummary& s,
   }
 }
 
+void checkOptions(const MeshBuildOptions& o) {
+  TESSERA_CHECK(o.patch_triangles >= 64 && o.patch_triangles <= (1u << 20),
+                "lod::buildMeshStore(): patch_triangles must be in 64..1048576");
+  TESSERA_CHECK(o.arity >= 2 && o.arity <= 8, "lod::buildMeshStore(): arity must be in 2..8");
+  TESSERA_CHECK(o.threads <= kMaxMeshThreads, "lod::buildMeshStore(): at most 256 threads");
+}
+
 }  // namespace meshbuild
 
 using namespace meshbuild;
@@ -743,10 +750,7 @@ MeshBuildReport buildMeshStore(const std::vector<std::filesystem::path>& inputs,
 
 MeshBuildReport buildMeshStore(const Mesh& mesh, const std::filesystem::path& out,
                                const MeshBuildOptions& o, double seconds_read) {
-  TESSERA_CHECK(o.patch_triangles >= 64 && o.patch_triangles <= (1u << 20),
-                "lod::buildMeshStore(): patch_triangles must be in 64..1048576");
-  TESSERA_CHECK(o.arity >= 2 && o.arity <= 8, "lod::buildMeshStore(): arity must be in 2..8");
-  TESSERA_CHECK(o.threads <= kMaxMeshThreads, "lod::buildMeshStore(): at most 256 threads");
+  checkOptions(o);
   const uint64_t need = inMemoryBuildBytes(mesh.triangles.size(), mesh.positions.size());
   if (o.block_triangles > 0 || need > o.memory_mb * (1ull << 20))
     return buildInBlocks(mesh, out, o);

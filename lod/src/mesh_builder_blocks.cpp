@@ -201,8 +201,6 @@ struct Frame {
   uint64_t kept = 0, dropped = 0, used_vertices = 0;
   int shift = 0;  ///< grid bits dropped for the 21-bit Morton cells
   std::vector<uint8_t> used;            ///< per vertex: used by a kept triangle
-  /// Per vertex, its index in the block being prepared (UINT32_MAX outside it; reset after).
-  mutable std::vector<uint32_t> local_id;
   detail::HugeVector<glm::vec3> normal;  ///< per vertex, when the source has none
   bool usable(const Triangle& t, size_t nv) const { return usableTriangle(t, nv); }
   glm::i32vec3 grid(const glm::dvec3& v) const {
@@ -224,7 +222,6 @@ Frame frameOf(const Source& src, uint32_t threads) {
   Frame f;
   const size_t nv = src.vertices, nt = src.triangles;
   f.used.assign(nv, 0);
-  f.local_id.assign(nv, UINT32_MAX);
   const UsableTriangles u =
       usableTriangles(src.positions, nv, src.tris, nt, threads, f.used.data());
   f.kept = u.kept;
@@ -282,24 +279,26 @@ struct Placed {
 };
 
 /// A block's (or the top's) vertices on the store's grid: the Prepared of `tris` (ids of the
-/// source), renumbered; `verts` gets the source ids.
+/// source), renumbered; `verts` gets the source ids. `local_id`: per source vertex UINT32_MAX,
+/// used to number the subset's and left as it was.
 Prepared prepareSubset(const Source& src, const Frame& f, const std::vector<Triangle>& tris,
-                       std::vector<uint32_t>& verts, uint32_t threads) {
-  // Numbered in order of first use, as localVertices() numbers them, through the frame's
-  // per-vertex table (a hash table sized for a block would be as large and slower).
+                       std::vector<uint32_t>& local_id, std::vector<uint32_t>& verts,
+                       uint32_t threads) {
+  // Numbered in order of first use, as localVertices() numbers them, through a per-vertex
+  // table (a hash table sized for a block would be as large and slower).
   verts.clear();
   detail::HugeVector<Triangle> local;
   detail::sizeHuge(local, tris.size());
   for (size_t t = 0; t < tris.size(); ++t)
     for (int k = 0; k < 3; ++k) {
-      uint32_t& id = f.local_id[tris[t][k]];
+      uint32_t& id = local_id[tris[t][k]];
       if (id == UINT32_MAX) {
         id = uint32_t(verts.size());
         verts.push_back(tris[t][k]);
       }
       local[t][k] = id;
     }
-  for (uint32_t v : verts) f.local_id[v] = UINT32_MAX;
+  for (uint32_t v : verts) local_id[v] = UINT32_MAX;
   Prepared p;
   p.origin = src.origin;
   p.lo = f.lo;
@@ -350,10 +349,7 @@ void place(const Prepared& p, const std::vector<BuildNode>& nodes, size_t first,
 MeshBuildReport build(const Source& src, const std::filesystem::path& out,
                       const MeshBuildOptions& o, double seconds_read, Clock::time_point t0,
                       TempFile* tris_file) {
-  TESSERA_CHECK(o.patch_triangles >= 64 && o.patch_triangles <= (1u << 20),
-                "lod::buildMeshStore(): patch_triangles must be in 64..1048576");
-  TESSERA_CHECK(o.arity >= 2 && o.arity <= 8, "lod::buildMeshStore(): arity must be in 2..8");
-  TESSERA_CHECK(o.threads <= kMaxMeshThreads, "lod::buildMeshStore(): at most 256 threads");
+  checkOptions(o);
   const uint32_t threads =
       o.threads ? o.threads : std::max(1u, std::thread::hardware_concurrency());
   MeshBuildReport r;
@@ -377,6 +373,7 @@ MeshBuildReport build(const Source& src, const std::filesystem::path& out,
   MetisPool metis(threads > 1 ? threads : 0);
 
   const Frame f = frameOf(src, threads);
+  std::vector<uint32_t> local_id(src.vertices, UINT32_MAX);  // prepareSubset()'s numbering
   r.triangles = f.kept;
   r.dropped_triangles = f.dropped;
   r.step = f.step;
@@ -453,7 +450,7 @@ MeshBuildReport build(const Source& src, const std::filesystem::path& out,
     std::vector<Triangle> tris(block_size[b]);
     ordered.readAt(tris.data(), tris.size() * sizeof(Triangle), block_start[b] * sizeof(Triangle));
     std::vector<uint32_t> verts;
-    Prepared p = prepareSubset(src, f, tris, verts, threads);
+    Prepared p = prepareSubset(src, f, tris, local_id, verts, threads);
     std::vector<Triangle>().swap(tris);
     vertexTriangles(p, verts.size(), threads);
     std::vector<BuildNode> nodes;
@@ -484,7 +481,7 @@ MeshBuildReport build(const Source& src, const std::filesystem::path& out,
   std::vector<Triangle> all;
   for (const Top& t : tops) all.insert(all.end(), t.tris.begin(), t.tris.end());
   std::vector<uint32_t> verts;
-  const Prepared q = prepareSubset(src, f, all, verts, threads);
+  const Prepared q = prepareSubset(src, f, all, local_id, verts, threads);
   std::vector<BuildNode> nodes(tops.size());
   std::unordered_map<uint64_t, uint32_t> edge_owner;  // an edge's first node
   Adjacency adjacency(tops.size());

@@ -5,7 +5,15 @@
 #include <tessera/render/clip_planes.h>
 #include <tessera/render/gl_objects.h>
 
+#include <string>
+
 namespace tessera::render {
+
+/// The define that compiles a geometry program with (batches with clip planes) or without the
+/// plane test (shared_layout.h: TESSERA_CLIPPING).
+inline std::string clippingDefine(bool clipping) {
+  return std::string("#define TESSERA_CLIPPING ") + (clipping ? "1" : "0") + "\n";
+}
 
 inline void setClipUniforms(const GlProgram& program, const GpuClipPlanes& clip) {
   program.set("uClipCount", clip.count);

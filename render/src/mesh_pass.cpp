@@ -29,8 +29,7 @@ namespace {
 /// would otherwise pay for on every fragment).
 GlProgram shadeProgram(bool flat, bool clipping) {
   const std::string defines =
-      std::string(flat ? "#define MESH_FLAT 1\n" : "") + "#define TESSERA_CLIPPING " +
-      (clipping ? "1" : "0") + "\n";
+      std::string(flat ? "#define MESH_FLAT 1\n" : "") + clippingDefine(clipping);
   return GlProgram::graphics(shaders::kMeshVert, shaders::kMeshFrag,
                              flat ? "mesh pass (flat)" : "mesh pass", defines);
 }

@@ -61,8 +61,7 @@ const GlProgram& PointPass::raster(int pass, bool one_pixel, bool clipping) {
   GlProgram& p = mRaster[pass][one_pixel][clipping];
   if (!p) {
     const std::string defines = "#define PASS " + std::to_string(pass) + "\n#define ONE_PIXEL " +
-                                std::to_string(int(one_pixel)) + "\n#define TESSERA_CLIPPING " +
-                                std::to_string(int(clipping)) + "\n";
+                                std::to_string(int(one_pixel)) + "\n" + clippingDefine(clipping);
     p = GlProgram::compute(shaders::kPointRaster, "point_raster.comp", defines);
   }
   return p;
@@ -126,9 +125,8 @@ PassTimings PointPass::draw(FrameTarget& target, std::span<const DrawBatch> batc
 void PointPass::beginEnsembles(FrameTarget& target) {
   if (!mSpbr[0]) {
     for (int clipping : {0, 1})  // without and with the clip plane test (shared_layout.h)
-      mSpbr[clipping] = GlProgram::compute(shaders::kSpbrRaster, "spbr_raster.comp",
-                                           "#define TESSERA_CLIPPING " +
-                                               std::to_string(clipping) + "\n");
+      mSpbr[clipping] =
+          GlProgram::compute(shaders::kSpbrRaster, "spbr_raster.comp", clippingDefine(clipping));
     mAccumulate = GlProgram::compute(shaders::kSpbrAccumulate, "spbr_accumulate.comp");
   }
   fit(target);
@@ -267,8 +265,7 @@ PassTimings PointPass::drawBlended(FrameTarget& target, std::span<const DrawBatc
   if (!mOit[0]) {
     for (int clipping : {0, 1})
       mOit[clipping] = GlProgram::compute(shaders::kOitAccumulate, "oit_accumulate.comp",
-                                          "#define TESSERA_CLIPPING " +
-                                              std::to_string(clipping) + "\n");
+                                          clippingDefine(clipping));
     mOitResolve = GlProgram::compute(shaders::kOitResolve, "oit_resolve.comp");
   }
   fit(target);
