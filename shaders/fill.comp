@@ -50,15 +50,22 @@ layout(std430, binding = TESSERA_BINDING_PICK) readonly buffer Pick { uint pick[
 layout(std430, binding = TESSERA_BINDING_SPLAT_FOOTPRINTS) readonly buffer Footprints {
   uint footprints[];
 };
-// Level 0's samples, levels 1 .. uLevels of the pull's, then from uWinners the push's winners.
-layout(std430, binding = TESSERA_BINDING_FILL_PYRAMID) buffer Pyramid { uvec2 pyramid[]; };
+// The pyramid as two RG32UI textures with mip levels (FillPass): the samples, level l at mip l,
+// and the push's winners, level l at mip l - 1. Read with texelFetch, written with imageStore to
+// one mip level: llvmpipe gathers texels with vector code, where it reads a buffer lane by lane
+// (a 4x4 and a 3x3 read: 8 ms against 18 ms a pass over 960x540 texels on this machine).
+layout(binding = TESSERA_TEXTURE_FILL_SAMPLES) uniform usampler2D uSamples;
+layout(binding = TESSERA_TEXTURE_FILL_WINNERS) uniform usampler2D uWinnerTexels;
+// The level written (stage 1: the samples of uLevel; 2: the winners of uLevel), and in stage 1
+// at level 1 the level-0 samples packed on the way.
+layout(rg32ui, binding = TESSERA_IMAGE_FILL_OUT) uniform writeonly uimage2D uOut;
+layout(rg32ui, binding = TESSERA_IMAGE_FILL_LEVEL0) uniform writeonly uimage2D uLevel0;
 layout(std430, binding = TESSERA_BINDING_FILL_DEPTH) writeonly buffer OutDepth { uint out_depth[]; };
 layout(std430, binding = TESSERA_BINDING_FILL_COLORS) writeonly buffer OutColors { uint out_colors[]; };
 layout(std430, binding = TESSERA_BINDING_FILL_PICK) writeonly buffer OutPick { uint out_pick[]; };
 
 uniform int uLevel;        // pull and push of a level: the level written, 1..uLevels
 uniform int uLevels;       // coarsest level, <= TESSERA_FILL_MAX_LEVELS
-uniform uint uWinners;     // first texel of the push phase's winners in `pyramid`
 uniform ivec2 uSize;       // level 0 (the frame target) in pixels
 uniform float uMaxRadius;  // radii above are clamped to it (pixels)
 uniform float uTolerance;  // depth tolerance in splat radii
@@ -72,16 +79,6 @@ const uint kEmpty = 0xFFFFFFFFu;
 
 ivec2 levelSize(int l) {
   return (uSize + ivec2((1 << l) - 1)) >> l;
-}
-
-// Level l's first texel in `pyramid` (levels 0.. concatenated).
-uint levelOffset(int l) {
-  uint o = 0u;
-  for (int k = 0; k < l; ++k) {
-    ivec2 s = levelSize(k);
-    o += uint(s.x) * uint(s.y);
-  }
-  return o;
 }
 
 uint idOf(ivec2 p) {
@@ -100,7 +97,7 @@ float viewDepth(uint d) {
 uvec2 texel(int l, ivec2 q, bool winners) {
   ivec2 size = levelSize(l);
   if (q.x < 0 || q.y < 0 || q.x >= size.x || q.y >= size.y) return uvec2(0u, kEmpty);
-  return pyramid[(winners ? uWinners : 0u) + levelOffset(l) + uint(q.y) * uint(size.x) + uint(q.x)];
+  return winners ? texelFetch(uWinnerTexels, q, l - 1).xy : texelFetch(uSamples, q, l).xy;
 }
 
 // A sample unpacked: view depth, radius, the point's position (pixels) and the depth tolerance
@@ -165,7 +162,7 @@ uvec2 packPixel(ivec2 p) {
     s = uvec2((packHalf2x16(vec2(viewDepth(d), 0.0)) & 0xFFFFu) | r8 << 16 | sub.x << 24 |
                   sub.y << 28,
               idOf(p));
-  pyramid[pixel] = s;
+  imageStore(uLevel0, p, uvec4(s, 0u, 0u));
   return s;
 }
 
@@ -210,7 +207,7 @@ void pull() {
   pullChild(best, front, centre, c1);
   pullChild(best, front, centre, c2);
   pullChild(best, front, centre, c3);
-  pyramid[levelOffset(uLevel) + uint(t.y) * uint(size.x) + uint(t.x)] = best.s;
+  imageStore(uOut, t, uvec4(best.s, 0u, 0u));
 }
 
 // Push, a level >= 1: the best of the level l - 1 samples under texel t and a ring of one
@@ -223,18 +220,19 @@ void pushLevel() {
   vec2 at = (vec2(t) + 0.5) * scale;
   float slack = 0.70711 * scale;
   Winner best = noWinner();
-  for (int j = -1; j <= 2; ++j)
-    for (int i = -1; i <= 2; ++i) {
-      uvec2 c = texel(uLevel - 1, 2 * t + ivec2(i, j), false);
-      consider(best, at, slack, c, unpack(c));
-    }
-  if (uLevel < uLevels)
-    for (int j = -1; j <= 1; ++j)
-      for (int i = -1; i <= 1; ++i) {
-        uvec2 c = texel(uLevel + 1, (t >> 1) + ivec2(i, j), true);
-        consider(best, at, slack, c, unpack(c));
-      }
-  pyramid[uWinners + levelOffset(uLevel) + uint(t.y) * uint(size.x) + uint(t.x)] = best.s;
+  // Nothing reaches t when the coarser winners around its parent are all empty (see push()).
+  bool top = uLevel == uLevels, any = top;
+  for (int k = 0; k < 9 && !top; ++k)
+    any = any || texel(uLevel + 1, (t >> 1) + ivec2(k % 3, k / 3) - 1, true).y != kEmpty;
+  for (int k = any ? 0 : 16; k < 16; ++k) {
+    uvec2 c = texel(uLevel - 1, 2 * t + ivec2(k & 3, k >> 2) - 1, false);
+    consider(best, at, slack, c, unpack(c));
+  }
+  for (int k = any && !top ? 0 : 9; k < 9; ++k) {
+    uvec2 c = texel(uLevel + 1, (t >> 1) + ivec2(k % 3, k / 3) - 1, true);
+    consider(best, at, slack, c, unpack(c));
+  }
+  imageStore(uOut, t, uvec4(best.s, 0u, 0u));
 }
 
 // The four pixels of the 2x2 block at `base` consider candidate `c` (four variables, not an
@@ -269,18 +267,25 @@ void resolvePixel(ivec2 p, Winner best) {
 // Push, the pixels: one invocation per 2x2 block (a level-1 texel), so each candidate is read
 // and unpacked once for the four: the level-0 samples of the block and a ring of one (4x4), and
 // the winners of the block's level-1 texel and its 8 neighbours.
+// Skipped where nothing can reach: each level-0 sample of the 4x4 lies in one of those 9 level-1
+// texels and reaches it (a sample reaches any texel it lies in: the slack is the texel's half
+// diagonal), so when all 9 winners are empty so are the samples, and the block is background.
+// pushLevel() skips likewise from the winners around its parent. The candidates are read in
+// loops with a per-invocation start rather than branches: llvmpipe runs both sides of a branch
+// its lanes disagree on under a mask, but leaves a loop as soon as no lane is in it (on the 10^7
+// point cube at 1920x1080 this pass went from 55 to 29 ms, the pixels unchanged).
 void push() {
   ivec2 t = ivec2(gl_GlobalInvocationID.xy);
   ivec2 size = levelSize(1);
   if (t.x >= size.x || t.y >= size.y) return;
   ivec2 base = 2 * t;
   Winner b0 = noWinner(), b1 = noWinner(), b2 = noWinner(), b3 = noWinner();
-  for (int j = -1; j <= 2; ++j)
-    for (int i = -1; i <= 2; ++i)
-      considerBlock(b0, b1, b2, b3, base, texel(0, base + ivec2(i, j), false));
-  for (int j = -1; j <= 1; ++j)
-    for (int i = -1; i <= 1; ++i)
-      considerBlock(b0, b1, b2, b3, base, texel(1, t + ivec2(i, j), true));
+  bool any = false;
+  for (int k = 0; k < 9; ++k) any = any || texel(1, t + ivec2(k % 3, k / 3) - 1, true).y != kEmpty;
+  for (int k = any ? 0 : 16; k < 16; ++k)
+    considerBlock(b0, b1, b2, b3, base, texel(0, base + ivec2(k & 3, k >> 2) - 1, false));
+  for (int k = any ? 0 : 9; k < 9; ++k)
+    considerBlock(b0, b1, b2, b3, base, texel(1, t + ivec2(k % 3, k / 3) - 1, true));
   resolvePixel(base, b0);
   resolvePixel(base + ivec2(1, 0), b1);
   resolvePixel(base + ivec2(0, 1), b2);

@@ -21,7 +21,6 @@
 #define TESSERA_BINDING_COLOR_SUMS 11   // uvec4 per pixel: weighted r, g, b sums and weight
 #define TESSERA_BINDING_SCREEN_SCRATCH 12  // float per pixel: a screen pass's own plane (EDL)
 #define TESSERA_BINDING_SPLAT_FOOTPRINTS 13  // uvec2 per pixel: the nearest point's splat (fill)
-#define TESSERA_BINDING_FILL_PYRAMID 14    // uvec2 per texel: the fill's pyramid (fill.comp)
 #define TESSERA_BINDING_FILL_DEPTH 15      // the fill's output planes: depth, colours, pick ids
 #define TESSERA_BINDING_FILL_COLORS 16
 #define TESSERA_BINDING_FILL_PICK 17
@@ -31,8 +30,13 @@
 #define TESSERA_BINDING_OVERLAY_STEPS 21    // uint per step along the lines: its line
 
 // The pull-push fill (shaders/fill.comp, FillPass): most pyramid levels above the frame (reach
-// 2^levels pixels).
+// 2^levels pixels); its pyramid's texture units (samples, the push's winners) and image units
+// (the level written, level 0's samples).
 #define TESSERA_FILL_MAX_LEVELS 4
+#define TESSERA_TEXTURE_FILL_SAMPLES 0
+#define TESSERA_TEXTURE_FILL_WINNERS 1
+#define TESSERA_IMAGE_FILL_OUT 0
+#define TESSERA_IMAGE_FILL_LEVEL0 1
 
 // Eye-dome lighting (shaders/edl.comp, EdlOptions::filter_radius): the largest fitted window's
 // half-width, pixels.

@@ -118,7 +118,7 @@ void GlProgram::set(const char* u, std::span<const uint32_t> v) const {
   glProgramUniform1uiv(mName, location(u), GLsizei(v.size()), v.data());
 }
 
-GlTexture::GlTexture(uint32_t width, uint32_t height, uint32_t format)
+GlTexture::GlTexture(uint32_t width, uint32_t height, uint32_t format, uint32_t levels)
     : mWidth(width), mHeight(height), mFormat(format) {
   GLint max_size = 0;
   glGetIntegerv(GL_MAX_TEXTURE_SIZE, &max_size);
@@ -126,9 +126,12 @@ GlTexture::GlTexture(uint32_t width, uint32_t height, uint32_t format)
     throw RenderError("render::GlTexture: " + std::to_string(width) + "x" + std::to_string(height) +
                       " pixels (1.." + std::to_string(max_size) + " each way)");
   glCreateTextures(GL_TEXTURE_2D, 1, &mName);
-  glTextureStorage2D(mName, 1, format, GLsizei(width), GLsizei(height));
-  glTextureParameteri(mName, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
-  glTextureParameteri(mName, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
+  glTextureStorage2D(mName, GLsizei(levels), format, GLsizei(width), GLsizei(height));
+  // Integer textures are incomplete (read as zero) with linear filtering.
+  const bool integer = format == GL_RG32UI;
+  glTextureParameteri(mName, GL_TEXTURE_MIN_FILTER,
+                      integer ? GL_NEAREST_MIPMAP_NEAREST : GL_LINEAR);
+  glTextureParameteri(mName, GL_TEXTURE_MAG_FILTER, integer ? GL_NEAREST : GL_LINEAR);
   glTextureParameteri(mName, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
   glTextureParameteri(mName, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
 }

@@ -106,13 +106,13 @@ double FillPass::run(FrameTarget& target, const glm::dmat4& projection, float ma
   const uint32_t w = target.width(), h = target.height();
   if (mPixels != target.pixels()) {
     mPixels = target.pixels();
-    // Samples of levels 0 .. kFillMaxLevels, then winners of levels 1 .. kFillMaxLevels.
-    size_t texels = 0;
-    for (int l = 0; l <= kFillMaxLevels; ++l)
-      texels += size_t((w + (1u << l) - 1) >> l) * ((h + (1u << l) - 1) >> l);
-    mWinners = uint32_t(texels - mPixels);  // winners of level l at mWinners + offset of l
-    for (GlBuffer* b : {&mPyramid, &mDepth, &mColors, &mPick}) *b = GlBuffer();
-    mPyramid = GlBuffer((2 * texels - mPixels) * 8, nullptr);
+    constexpr uint32_t kAlign = 1u << kFillMaxLevels;
+    const uint32_t aw = (w + kAlign - 1) / kAlign * kAlign, ah = (h + kAlign - 1) / kAlign * kAlign;
+    for (GlBuffer* b : {&mDepth, &mColors, &mPick}) *b = GlBuffer();
+    mSamples = GlTexture();
+    mWinners = GlTexture();
+    mSamples = GlTexture(aw, ah, GL_RG32UI, kFillMaxLevels + 1);
+    mWinners = GlTexture(aw / 2, ah / 2, GL_RG32UI, kFillMaxLevels);
     mDepth = GlBuffer(mPixels * 4, nullptr);
   }
   if (colors && !mColors) mColors = GlBuffer(mPixels * 4, nullptr);
@@ -122,19 +122,19 @@ double FillPass::run(FrameTarget& target, const glm::dmat4& projection, float ma
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_PICK, target.pick().name());
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_SPLAT_FOOTPRINTS,
                    target.splatFootprints().name());
-  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_FILL_PYRAMID, mPyramid.name());
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_FILL_DEPTH, mDepth.name());
   // Unused output planes are bound to the depth output (never written: uWrite* is 0).
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_FILL_COLORS,
                    colors ? mColors.name() : mDepth.name());
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_FILL_PICK,
                    pick ? mPick.name() : mDepth.name());
+  glBindTextureUnit(TESSERA_TEXTURE_FILL_SAMPLES, mSamples.name());
+  glBindTextureUnit(TESSERA_TEXTURE_FILL_WINNERS, mWinners.name());
   auto level = [&](int stage, int l) {
     const GlProgram& p = mStages[stage];
     p.use();
     p.set("uSize", glm::ivec2(w, h));
     p.set("uLevels", levels);
-    p.set("uWinners", mWinners);
     p.set("uMaxRadius", max_radius);
     p.set("uTolerance", kFillDepthTolerance);
     p.set("uPixelK", float(2.0 / (projection[1][1] * h)));
@@ -143,7 +143,18 @@ double FillPass::run(FrameTarget& target, const glm::dmat4& projection, float ma
     p.set("uWriteColor", colors ? 1 : 0);
     p.set("uWritePick", pick ? 1 : 0);
     p.set("uLevel", l);
+    // Stage 1 writes the samples of level l (and at level 1 those of level 0), stage 2 the
+    // winners of level l; stage 3 the output planes.
+    if (stage == 1)
+      glBindImageTexture(TESSERA_IMAGE_FILL_OUT, mSamples.name(), l, GL_FALSE, 0, GL_WRITE_ONLY,
+                         GL_RG32UI);
+    if (stage == 2)
+      glBindImageTexture(TESSERA_IMAGE_FILL_OUT, mWinners.name(), l - 1, GL_FALSE, 0,
+                         GL_WRITE_ONLY, GL_RG32UI);
+    glBindImageTexture(TESSERA_IMAGE_FILL_LEVEL0, mSamples.name(), 0, GL_FALSE, 0, GL_WRITE_ONLY,
+                       GL_RG32UI);
     dispatchPixels((w + (1u << l) - 1) >> l, (h + (1u << l) - 1) >> l);
+    glMemoryBarrier(GL_TEXTURE_FETCH_BARRIER_BIT | GL_SHADER_IMAGE_ACCESS_BARRIER_BIT);
   };
   for (int l = 1; l < std::max(levels, 2); ++l) level(1, l);  // pack level 0, pull levels
   for (int l = levels; l >= 1; --l) level(2, l);              // push, coarse to fine
@@ -153,6 +164,10 @@ double FillPass::run(FrameTarget& target, const glm::dmat4& projection, float ma
   if (colors) glCopyNamedBufferSubData(mColors.name(), target.colors().name(), 0, 0, bytes);
   if (pick) glCopyNamedBufferSubData(mPick.name(), target.pick().name(), 0, 0, bytes);
   glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT | GL_SHADER_STORAGE_BARRIER_BIT);
+  for (uint32_t unit : {TESSERA_TEXTURE_FILL_SAMPLES, TESSERA_TEXTURE_FILL_WINNERS})
+    glBindTextureUnit(unit, 0);
+  for (uint32_t unit : {TESSERA_IMAGE_FILL_OUT, TESSERA_IMAGE_FILL_LEVEL0})
+    glBindImageTexture(unit, 0, 0, GL_FALSE, 0, GL_WRITE_ONLY, GL_RG32UI);
   return lap();
 }
 

@@ -62,12 +62,14 @@ class GlProgram {
   mutable std::vector<std::pair<std::string, int>> mLocations;
 };
 
-/// An immutable 2D texture, linear filtering, clamped at its edges.
+/// An immutable 2D texture, clamped at its edges: linear filtering, or nearest for an integer
+/// format (read with texelFetch).
 class GlTexture {
  public:
   GlTexture() = default;
-  /// `format`: GL_RGBA8 or GL_R8 (one level). Throws RenderError when GL refuses the size.
-  GlTexture(uint32_t width, uint32_t height, uint32_t format);
+  /// `format`: GL_RGBA8 or GL_R8 (uploadable), or GL_RG32UI (written by shaders); `levels` mip
+  /// levels, each half the one before (rounded down). Throws RenderError when GL refuses the size.
+  GlTexture(uint32_t width, uint32_t height, uint32_t format, uint32_t levels = 1);
   ~GlTexture();
   GlTexture(GlTexture&& o) noexcept { *this = std::move(o); }
   GlTexture& operator=(GlTexture&& o) noexcept {

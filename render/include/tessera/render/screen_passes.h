@@ -70,9 +70,12 @@ class FillPass {
 
  private:
   GlProgram mStages[4];  ///< shaders/fill.comp's stages 1-3: pull, push a level, the pixels
-  GlBuffer mPyramid, mDepth, mColors, mPick;
-  size_t mPixels = 0;     ///< target size the buffers are for
-  uint32_t mWinners = 0;  ///< first texel of the push phase's winners in mPyramid
+  /// The pyramid: samples of levels 0 .. kFillMaxLevels (mip l), the push's winners of levels
+  /// 1 .. kFillMaxLevels (mip l - 1); sized up to a multiple of 2^kFillMaxLevels so every
+  /// level's mip holds its texels.
+  GlTexture mSamples, mWinners;
+  GlBuffer mDepth, mColors, mPick;
+  size_t mPixels = 0;  ///< target size the planes are for
 };
 
 /// EdlOptions::filter_radius's largest value (TESSERA_EDL_MAX_FILTER_RADIUS in
