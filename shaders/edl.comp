@@ -5,13 +5,13 @@
 // d the linear view depth, k the strength; the image's colour is multiplied by it. Needs no
 // normals, reads only depth, so it serves points and meshes alike. Two methods (EdlOptions):
 //
-// Classic (uStage 2; Potree's form): raw depths, neighbours at uEdlRadius pixels, the sum divided
+// Classic (stage 2; Potree's form): raw depths, neighbours at uEdlRadius pixels, the sum divided
 // by 8 whatever the number of neighbours with a point. On scans this speckles: range noise (0.2
 // mm on the bunny scan, about one pixel footprint at 26 cm) gives each pixel the log depth of
 // whichever noisy sample won it, so the shade changes with the LOD level (fewer, larger splats
 // win) and with every small camera move.
 //
-// Robust (uStage 0, then 1): stage 0 writes a denoised log depth per pixel, the value at the
+// Robust (stage 0, then 1): stage 0 writes a denoised log depth per pixel, the value at the
 // pixel centre of a least-squares plane fitted to the depths of its (2 uFilterRadius + 1)^2
 // window: a depth plane over the splats, since Boucheny's shading is a function of the surface,
 // not of the sample that wins a pixel. Only window pixels on the same surface take part: their
@@ -27,13 +27,20 @@
 // at any radius (a plane's response grows with the neighbour distance).
 layout(local_size_x = 16, local_size_y = 16) in;
 
-layout(std430, binding = TESSERA_BINDING_DEPTH) readonly buffer Depth { uint depth[]; };
+// The frame's depth and (stage 1) the denoised log depth, read as buffer textures: llvmpipe
+// gathers texels with vector code, where it reads a storage buffer lane by lane.
+layout(binding = TESSERA_TEXTURE_DEPTH) uniform usamplerBuffer uDepth;
+layout(binding = TESSERA_TEXTURE_SCREEN_SCRATCH) uniform samplerBuffer uFiltered;
 layout(std430, binding = TESSERA_BINDING_IMAGE) buffer Image { uint image[]; };
 // Robust: the denoised log2 depth per pixel (stage 0), raster order, kNone where nothing was
 // drawn.
-layout(std430, binding = TESSERA_BINDING_SCREEN_SCRATCH) buffer Filtered { float filtered[]; };
+layout(std430, binding = TESSERA_BINDING_SCREEN_SCRATCH) writeonly buffer Filtered {
+  float filtered[];
+};
 
-uniform int uStage;  // robust: 0 denoised log depth, 1 shade from it; 2: classic shade
+// TESSERA_EDL_STAGE (EdlPass compiles one program per stage; a uniform's branches cost
+// llvmpipe the untaken stages' work under a mask, 40 ms a pass at 1920x1080): robust 0 denoised
+// log depth, 1 shade from it; 2: classic shade.
 uniform ivec2 uSize;
 uniform float uEdlStrength;
 uniform int uEdlRadius;     // neighbour distance, pixels
@@ -45,6 +52,10 @@ uniform float uP22;         // projection[2][2] and [3][2]: linear depth from ND
 uniform float uP32;
 
 const float kNone = -1e30;
+
+uint depthAt(uint index) {
+  return texelFetch(uDepth, int(index)).x;
+}
 const ivec2 kDirs[8] = ivec2[8](ivec2(1, 0), ivec2(-1, 0), ivec2(0, 1), ivec2(0, -1),
                                 ivec2(1, 1), ivec2(-1, -1), ivec2(1, -1), ivec2(-1, 1));
 
@@ -57,7 +68,7 @@ float logOf(uint d) {
 // The same, 0 where nothing was drawn (so a depth of exactly 1 m counts as empty: the classic
 // form has always done so).
 float logDepth(ivec2 q) {
-  uint d = depth[uint(q.y) * uint(uSize.x) + uint(q.x)];
+  uint d = depthAt(uint(q.y) * uint(uSize.x) + uint(q.x));
   return d == 0xFFFFFFFFu ? 0.0 : logOf(d);
 }
 
@@ -96,7 +107,7 @@ float median3x3(ivec2 p, float centre) {
   for (int k = 0; k < 9; ++k) {
     ivec2 q = p + ivec2(k % 3 - 1, k / 3 - 1);
     bool inside = q.x >= 0 && q.y >= 0 && q.x < uSize.x && q.y < uSize.y;
-    uint d = inside ? depth[uint(q.y) * uint(uSize.x) + uint(q.x)] : 0xFFFFFFFFu;
+    uint d = inside ? depthAt(uint(q.y) * uint(uSize.x) + uint(q.x)) : 0xFFFFFFFFu;
     v[k] = d == 0xFFFFFFFFu ? centre : uintBitsToFloat(d);
   }
   order(v[1], v[2]), order(v[4], v[5]), order(v[7], v[8]);
@@ -128,7 +139,7 @@ float denoise(ivec2 p, uint d) {
   ivec2 lo = max(p - r, ivec2(0)) - p, hi = min(p + r, uSize - 1) - p;
   for (int dy = lo.y; dy <= hi.y; ++dy) {
     for (int dx = lo.x; dx <= hi.x; ++dx) {
-      uint dq = depth[uint(p.y + dy) * uint(uSize.x) + uint(p.x + dx)];
+      uint dq = depthAt(uint(p.y + dy) * uint(uSize.x) + uint(p.x + dx));
       if (dq == 0xFFFFFFFFu) continue;
       float v = uintBitsToFloat(dq) - centre;
       float x = float(dx), y = float(dy);
@@ -159,13 +170,13 @@ float denoise(ivec2 p, uint d) {
 }
 
 void robustShade(ivec2 p) {
-  float here = filtered[uint(p.y) * uint(uSize.x) + uint(p.x)];
+  float here = texelFetch(uFiltered, p.y * uSize.x + p.x).x;
   float sum = 0.0;
   int n = 0;
   for (int k = 0; k < 8; ++k) {
     ivec2 q = p + kDirs[k] * uEdlRadius;
     if (q.x < 0 || q.y < 0 || q.x >= uSize.x || q.y >= uSize.y) continue;
-    float there = filtered[uint(q.y) * uint(uSize.x) + uint(q.x)];
+    float there = texelFetch(uFiltered, q.y * uSize.x + q.x).x;
     if (there == kNone) continue;
     sum += max(0.0, here - there);
     ++n;
@@ -178,15 +189,12 @@ void main() {
   ivec2 p = ivec2(gl_GlobalInvocationID.xy);
   if (p.x >= uSize.x || p.y >= uSize.y) return;
   uint index = uint(p.y) * uint(uSize.x) + uint(p.x);
-  uint d = depth[index];
-  if (uStage == 0) {
-    filtered[index] = d != 0xFFFFFFFFu ? denoise(p, d) : kNone;
-    return;
-  }
-  if (d == 0xFFFFFFFFu) return;
-  if (uStage == 1) {
-    robustShade(p);
-  } else {
-    classic(p);
-  }
+  uint d = depthAt(index);
+#if TESSERA_EDL_STAGE == 0
+  filtered[index] = d != 0xFFFFFFFFu ? denoise(p, d) : kNone;
+#elif TESSERA_EDL_STAGE == 1
+  if (d != 0xFFFFFFFFu) robustShade(p);
+#else
+  if (d != 0xFFFFFFFFu) classic(p);
+#endif
 }

@@ -20,22 +20,24 @@
 layout(local_size_x = 128) in;
 
 // struct Point: shaders/shared_layout.h
-layout(std430, binding = TESSERA_BINDING_POINTS) readonly buffer Points { Point points[]; };
+layout(binding = TESSERA_TEXTURE_POINTS) uniform usamplerBuffer uPointTexels;
+// Point gi as RGBA32UI texel: position bits, rgba.
+uvec4 pointAt(uint gi) {
+  return texelFetch(uPointTexels, int(gi));
+}
 layout(std430, binding = TESSERA_BINDING_DEPTH) buffer Depth { uint depth[]; };
 layout(std430, binding = TESSERA_BINDING_COLORS) buffer Colors { uint colors[]; };  // rgb, 0xFFFFFFFF: none
 layout(std430, binding = TESSERA_BINDING_PICK) buffer Pick { uint pick[]; };  // frame-wide point id
 layout(std430, binding = TESSERA_BINDING_COLOR_SUMS) buffer Sums { uint sums[]; };  // w r, w g, w b, w
-// uFill: per pixel the footprint of the nearest point drawn on it (radius and position) and
+// FILL: per pixel the footprint of the nearest point drawn on it (radius and position) and
 // whether more than one point fell there: two words a pixel.
 layout(std430, binding = TESSERA_BINDING_SPLAT_FOOTPRINTS) buffer Footprints { uint footprints[]; };
 
 uniform mat4 uClip;            // clip from the batch's node frame
 uniform uint uColorOverride;  // non-zero: 0x1000000 | rgb for every point of the batch
 uniform int uWriteColor;      // pass 1 writes colours (0: one colour for all, only pick ids)
-uniform int uWritePick;       // pass 1 writes pick ids uPickBase + i
 uniform uint uPickBase;       // pick id of this dispatch's first point
-uniform int uBlend;           // pass 1 blends: every point within uBlendDepth of the nearest adds
-uniform float uBlendDepth;    // its colour, weighted by its splat's kernel, to sums[] (metres)
+uniform float uBlendDepth;    // BLEND: the depth within which points add their colours (metres)
 uniform float uP22;           // projection[2][2] and [3][2]: view depth from window depth
 uniform float uP32;
 uniform uint uFirst;    // first point of the batch in `points`
@@ -44,7 +46,16 @@ uniform ivec2 uSize;    // viewport in pixels
 uniform int uRadius;    // the largest splat radius, pixels (the radius when uSpacingK is 0)
 uniform float uSpacingK;  // node spacing in pixels at view depth 1 (0: fixed radius uRadius)
 uniform float uOwnScaleCap;  // a point's top byte widens its disc up to this (1: the node's)
-uniform int uFill;      // 1 px points plus their splat footprints, for the pull-push fill (fill.comp)
+// The program's variant (PointPass compiles one per combination used, as it does for PASS,
+// ONE_PIXEL and TESSERA_CLIPPING): a uniform's branches cost llvmpipe their work under a mask
+// even where no lane takes them, an atomic a loop over the lanes (blending and pick ids compiled
+// out took the RGB colour pass of 10^7 points from 83 to 63 ms).
+// WRITE_PICK: pass 1 writes pick ids uPickBase + i. BLEND: pass 1 blends, every point within
+// uBlendDepth of the nearest adding its colour, weighted by its splat's kernel, to sums[].
+// FILL: 1 px points plus their splat footprints, for the pull-push fill (fill.comp).
+const bool kWritePick = WRITE_PICK != 0;
+const bool kBlend = BLEND != 0;
+const bool kFill = FILL != 0;
 
 // Pass 0 keeps the nearest depth; pass 1, among the points at that depth, one colour (below)
 // and the smallest pick id (two points at exactly the same depth may give the colour of one and
@@ -60,10 +71,10 @@ void write(uint idx, uint d, uint gi, uint i, float w, float k) {
   atomicMin(depth[idx], d);
 #else
   uint nearest = depth[idx];
-  if (nearest != d && uBlend == 0) return;  // behind: most points, nothing more to read
-  if (nearest == d && uWritePick != 0) atomicMin(pick[idx], uPickBase + i);
-  uint rgb = uColorOverride != 0u ? uColorOverride & 0xFFFFFFu : points[gi].rgba & 0xFFFFFFu;
-  if (uBlend != 0) {
+  if (nearest != d && !kBlend) return;  // behind: most points, nothing more to read
+  if (nearest == d && kWritePick) atomicMin(pick[idx], uPickBase + i);
+  uint rgb = uColorOverride != 0u ? uColorOverride & 0xFFFFFFu : pointAt(gi).w & 0xFFFFFFu;
+  if (kBlend) {
     // The nearest point always counts: far away, window depth's float steps exceed the
     // tolerance, and the view depth recovered from it may fall short of the point's own.
     float near_w = uP32 / ((uintBitsToFloat(nearest) * 2.0 - 1.0) + uP22);
@@ -78,7 +89,7 @@ void write(uint idx, uint d, uint gi, uint i, float w, float k) {
     // hash of the point's position in the top byte, then colour: an unbiased pick among the
     // tied points, the same in every process. The smallest colour alone would always pick the
     // darkest (a black-and-white plane came out black).
-    uvec3 b = floatBitsToUint(points[gi].position);
+    uvec3 b = pointAt(gi).xyz;
     uint h = (b.x * 0x9E3779B1u) ^ (b.y * 0x85EBCA77u) ^ (b.z * 0xC2B2AE3Du);
     atomicMin(colors[idx], (h ^ (h >> 15)) << 24 | rgb);
   }
@@ -87,8 +98,10 @@ void write(uint idx, uint d, uint gi, uint i, float w, float k) {
 
 void raster(uint i) {
   uint gi = uFirst + i;
-  if (tesseraClipped(points[gi].position)) return;  // cut away by a CLIP node
-  vec4 c = uClip * vec4(points[gi].position, 1.0);
+  uvec4 point = pointAt(gi);
+  vec3 position = uintBitsToFloat(point.xyz);
+  if (tesseraClipped(position)) return;  // cut away by a CLIP node
+  vec4 c = uClip * vec4(position, 1.0);
   if (c.w <= 0.0) return;
   vec3 ndc = c.xyz / c.w;
   if (ndc.z < -1.0 || ndc.z > 1.0) return;
@@ -106,17 +119,17 @@ void raster(uint i) {
   // exact position: it covers the pixels whose centres it contains, and always its own pixel.
   // Fixed splats cover the integer disc of radius uRadius around the point's pixel.
   // This is the one place a splat's size is decided: the discs below and the pull-push fill's
-  // radii (uFill) both follow it. A leaf point's own scale (render/splat_sizes.h) widens its
+  // radii (FILL) both follow it. A leaf point's own scale (render/splat_sizes.h) widens its
   // disc to close the gaps of its sampling pattern (scan lines): 1 + top byte / 64. NaN (a bad
   // spacing) draws a single pixel.
-  float scale = min(1.0 + float(points[gi].rgba >> 24) / 64.0, uOwnScaleCap);
+  float scale = min(1.0 + float(point.w >> 24) / 64.0, uOwnScaleCap);
   float disc = uSpacingK > 0.0 ? min(0.5 * uSpacingK * scale / c.w, float(uRadius)) : 0.0;
   if (!(disc >= 0.0)) disc = 0.0;
   // A neighbour k pixels away has its centre at least k - 1/2 from the point: a disc of radius
   // up to 1/2 stays in the point's own pixel.
   int radius = uSpacingK > 0.0 ? int(ceil(disc - 0.5)) : max(uRadius, 0);
   bool on_screen = centre.x >= 0 && centre.y >= 0 && centre.x < uSize.x && centre.y < uSize.y;
-  if (uFill != 0 && on_screen) {
+  if (kFill && on_screen) {
     // Fill mode (Marroquim et al. 2007): the point as one pixel and the footprint its disc would
     // have had. Points off screen keep their discs: the fill has no samples beyond the viewport,
     // and their discs reach into it exactly as without the fill (the tiles of a wall meet as

@@ -38,6 +38,12 @@
 #define TESSERA_IMAGE_FILL_OUT 0
 #define TESSERA_IMAGE_FILL_LEVEL0 1
 
+// Texture units of the screen passes' buffer views (GlBufferTexture): the frame's depth, and a
+// pass's own plane (EDL's denoised depth).
+#define TESSERA_TEXTURE_DEPTH 2
+#define TESSERA_TEXTURE_POINTS 4
+#define TESSERA_TEXTURE_SCREEN_SCRATCH 3
+
 // Eye-dome lighting (shaders/edl.comp, EdlOptions::filter_radius): the largest fitted window's
 // half-width, pixels.
 #define TESSERA_EDL_MAX_FILTER_RADIUS 4

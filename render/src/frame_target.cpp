@@ -15,9 +15,13 @@ GlBuffer plane(uint32_t width, uint32_t height) {
 }  // namespace
 
 FrameTarget::FrameTarget(uint32_t width, uint32_t height) : mWidth(width), mHeight(height) {
-  if (width == 0 || height == 0 || width > 16384 || height > 16384)
+  // The screen passes read the planes as buffer textures (GlBufferTexture): at most 2^27 texels
+  // in Mesa (GL_MAX_TEXTURE_BUFFER_SIZE), 11585x11585 or 16384x8192.
+  if (width == 0 || height == 0 || width > 16384 || height > 16384 ||
+      size_t(width) * height > kMaxFramePixels)
     throw RenderError("render::FrameTarget: a view of " + std::to_string(width) + "x" +
-                      std::to_string(height) + " pixels (1..16384 each way)");
+                      std::to_string(height) + " pixels (1..16384 each way, at most " +
+                      std::to_string(kMaxFramePixels) + " pixels)");
   mDepth = plane(width, height);
   mColors = plane(width, height);
   mPick = plane(width, height);

@@ -5,6 +5,7 @@
 #define GL_GLEXT_PROTOTYPES
 #include <GL/glcorearb.h>
 
+#include <tessera/render/gl_buffer.h>
 #include <tessera/render/gl_context.h>
 
 #include "shaders.h"
@@ -145,6 +146,30 @@ void GlTexture::upload(const void* pixels) {
   glTextureSubImage2D(mName, 0, 0, 0, GLsizei(mWidth), GLsizei(mHeight),
                       mFormat == GL_R8 ? GL_RED : GL_RGBA, GL_UNSIGNED_BYTE, pixels);
   glPixelStorei(GL_UNPACK_ALIGNMENT, 4);
+}
+
+GlBufferTexture::GlBufferTexture(const GlBuffer& buffer, uint32_t format)
+    : GlBufferTexture(buffer.name(), format) {}
+
+GlBufferTexture::GlBufferTexture(uint32_t buffer_name, uint32_t format) {
+  GLint max_texels = 0;
+  glGetIntegerv(GL_MAX_TEXTURE_BUFFER_SIZE, &max_texels);
+  GLint64 bytes = 0;
+  glGetNamedBufferParameteri64v(buffer_name, GL_BUFFER_SIZE, &bytes);
+  const GLint64 texel_bytes = format == GL_RG32UI ? 8 : format == GL_RGBA32UI ? 16 : 4;
+  if (bytes / texel_bytes > max_texels)
+    throw RenderError("render::GlBufferTexture: " + std::to_string(bytes / texel_bytes) +
+                      " texels (at most " + std::to_string(max_texels) + ")");
+  glCreateTextures(GL_TEXTURE_BUFFER, 1, &mName);
+  glTextureBuffer(mName, format, buffer_name);
+}
+
+GlBufferTexture::~GlBufferTexture() {
+  if (mName) glDeleteTextures(1, &mName);
+}
+
+void GlBufferTexture::bind(uint32_t unit) const {
+  glBindTextureUnit(unit, mName);
 }
 
 GlFramebuffer::GlFramebuffer(uint32_t width, uint32_t height, bool depth)

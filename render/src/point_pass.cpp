@@ -9,6 +9,8 @@
 #define GL_GLEXT_PROTOTYPES
 #include <GL/glcorearb.h>
 
+#include <tessera/core/check.h>
+
 #include "clip_uniforms.h"
 #include "gpu_lap.h"
 #include "shaders.h"
@@ -41,10 +43,14 @@ uint32_t packColor(const glm::vec3& c) {
 }
 
 PointPass::PointPass() : mNone(16, nullptr) {
-  raster(0, false, true);  // compiles now: a shader error shows at construction
+  raster({.clipping = true});  // compiles now: a shader error shows at construction
 }
 
 void PointPass::setPoints(std::span<const GpuPoint> points) {
+  // The raster reads points as a buffer texture: Mesa allows 2^27 texels.
+  TESSERA_CHECK(points.size() <= (size_t(1) << 27),
+                "render::PointPass::setPoints: " + std::to_string(points.size()) +
+                    " points (at most 2^27 in one buffer)");
   std::vector<GpuPoint> rgb(points.begin(), points.end());
   for (GpuPoint& p : rgb) p.rgba &= 0xFFFFFFu;
   mPoints = GlBuffer(rgb.size() * sizeof(GpuPoint), rgb.empty() ? nullptr : rgb.data());
@@ -57,11 +63,17 @@ void PointPass::fit(const FrameTarget& target) {
   mLayers = 0;
 }
 
-const GlProgram& PointPass::raster(int pass, bool one_pixel, bool clipping) {
-  GlProgram& p = mRaster[pass][one_pixel][clipping];
+const GlProgram& PointPass::raster(const RasterVariant& v) {
+  const int index = v.pass | v.one_pixel << 1 | v.clipping << 2 | v.blend << 3 | v.pick << 4 |
+                    v.fill << 5;
+  GlProgram& p = mRaster[index];
   if (!p) {
-    const std::string defines = "#define PASS " + std::to_string(pass) + "\n#define ONE_PIXEL " +
-                                std::to_string(int(one_pixel)) + "\n" + clippingDefine(clipping);
+    auto define = [](const char* name, int value) {
+      return "#define " + std::string(name) + " " + std::to_string(value) + "\n";
+    };
+    const std::string defines = define("PASS", v.pass) + define("ONE_PIXEL", v.one_pixel) +
+                                define("BLEND", v.blend) + define("WRITE_PICK", v.pick) +
+                                define("FILL", v.fill) + clippingDefine(v.clipping);
     p = GlProgram::compute(shaders::kPointRaster, "point_raster.comp", defines);
   }
   return p;
@@ -87,20 +99,24 @@ PassTimings PointPass::draw(FrameTarget& target, std::span<const DrawBatch> batc
       const bool one_pixel = !shading.fill && (b.splat_radius == 0 || std::isnan(b.spacing_k) ||
                                                (b.spacing_k > 0.0f && b.max_disc_px <= 0.5f));
       // Batches without clip planes: the variant without plane code (shared_layout.h).
-      const GlProgram& program = raster(pass, one_pixel, b.clip.count > 0);
+      const GlProgram& program = raster({.pass = pass,
+                                         .one_pixel = one_pixel,
+                                         .clipping = b.clip.count > 0,
+                                         .blend = pass == 1 && blend,
+                                         .pick = pass == 1 && shading.pick,
+                                         .fill = shading.fill});
       if (&program != in_use) {
         in_use = &program;
         program.use();
-        program.set("uFill", shading.fill ? 1 : 0);
-        program.set("uBlend", blend ? 1 : 0);
         program.set("uP22", float(shading.projection[2][2]));
         program.set("uP32", float(shading.projection[3][2]));
         program.set("uSize", glm::ivec2(target.width(), target.height()));
         program.set("uWriteColor", shading.uniform_color == 0 ? 1 : 0);
-        program.set("uWritePick", shading.pick ? 1 : 0);
       }
-      glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_POINTS,
-                       b.buffer ? b.buffer : mPoints.name());
+      // The points as a buffer texture (point_raster.comp reads them with texelFetch), alive
+      // until the dispatches are issued.
+      const GlBufferTexture texels(b.buffer ? b.buffer : mPoints.name(), GL_RGBA32UI);
+      texels.bind(TESSERA_TEXTURE_POINTS);
       // A spacing that is not a number (bad input upstream) draws single pixels.
       const bool no_spacing = std::isnan(b.spacing_k);
       program.set("uSpacingK", no_spacing ? 0.0f : b.spacing_k);
@@ -119,6 +135,7 @@ PassTimings PointPass::draw(FrameTarget& target, std::span<const DrawBatch> batc
     glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
     (pass == 0 ? timings.depth_ms : timings.color_ms) = lap();
   }
+  glBindTextureUnit(TESSERA_TEXTURE_POINTS, 0);
   return timings;
 }
 

@@ -49,7 +49,11 @@ double ResolvePass::run(FrameTarget& target, const glm::vec3& background, uint32
   return lap();
 }
 
-EdlPass::EdlPass() : mProgram(GlProgram::compute(shaders::kEdl, "edl.comp")) {}
+EdlPass::EdlPass() {
+  for (int stage = 0; stage < 3; ++stage)
+    mStages[stage] = GlProgram::compute(shaders::kEdl, "edl.comp",
+                                        "#define TESSERA_EDL_STAGE " + std::to_string(stage) + "\n");
+}
 
 double EdlPass::run(FrameTarget& target, const EdlOptions& options, const glm::dmat4& projection) {
   if (options.strength <= 0.0f) return 0.0;
@@ -57,32 +61,39 @@ double EdlPass::run(FrameTarget& target, const EdlOptions& options, const glm::d
   TESSERA_CHECK(options.filter_radius >= 0 && options.filter_radius <= kEdlMaxFilterRadius,
                 "render::EdlPass: filter_radius must be in [0, kEdlMaxFilterRadius]");
   GpuLap lap;
-  mProgram.use();
-  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_DEPTH, target.depth().name());
+  const GlBufferTexture depth(target.depth(), GL_R32UI);
+  depth.bind(TESSERA_TEXTURE_DEPTH);
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_IMAGE, target.image().name());
-  mProgram.set("uSize", glm::ivec2(target.width(), target.height()));
-  mProgram.set("uEdlStrength", options.strength);
-  mProgram.set("uEdlRadius", options.radius);
-  mProgram.set("uP22", float(projection[2][2]));
-  mProgram.set("uP32", float(projection[3][2]));
-  if (options.method == EdlMethod::kClassic) {
-    mProgram.set("uStage", 2);
-    dispatchPixels(target);
-    return lap();
+  const bool robust = options.method != EdlMethod::kClassic;
+  if (robust && mFiltered.bytes() != target.pixels() * 4) {
+    mFiltered = GlBuffer(target.pixels() * 4, nullptr);
+    mFilteredTexels = GlBufferTexture(mFiltered, GL_R32F);
   }
-  if (mFiltered.bytes() != target.pixels() * 4) mFiltered = GlBuffer(target.pixels() * 4, nullptr);
-  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_SCREEN_SCRATCH, mFiltered.name());
+  if (robust) {
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_SCREEN_SCRATCH, mFiltered.name());
+    mFilteredTexels.bind(TESSERA_TEXTURE_SCREEN_SCRATCH);
+  }
   // One pixel's angle at the view centre (radians): the projection maps tan(angle) to
   // NDC y by projection[1][1], and NDC y spans 2 over the height.
   const double pixel_angle = 2.0 / (projection[1][1] * target.height());
-  mProgram.set("uFilterRadius", options.filter_radius);
-  mProgram.set("uEdgeTau", float(std::log2(1.0 + double(options.edge_slope) * pixel_angle)));
-  mProgram.set("uPlaneFit", options.plane_fit ? 1 : 0);
-  mProgram.set("uMedian", options.median_reference ? 1 : 0);
-  for (int stage = 0; stage < 2; ++stage) {
-    mProgram.set("uStage", stage);
+  const int first = robust ? 0 : 2, last = robust ? 1 : 2;
+  for (int stage = first; stage <= last; ++stage) {
+    const GlProgram& p = mStages[stage];
+    p.use();
+    p.set("uSize", glm::ivec2(target.width(), target.height()));
+    p.set("uEdlStrength", options.strength);
+    p.set("uEdlRadius", options.radius);
+    p.set("uP22", float(projection[2][2]));
+    p.set("uP32", float(projection[3][2]));
+    p.set("uFilterRadius", options.filter_radius);
+    p.set("uEdgeTau", float(std::log2(1.0 + double(options.edge_slope) * pixel_angle)));
+    p.set("uPlaneFit", options.plane_fit ? 1 : 0);
+    p.set("uMedian", options.median_reference ? 1 : 0);
     dispatchPixels(target);
+    glMemoryBarrier(GL_TEXTURE_FETCH_BARRIER_BIT);
   }
+  for (uint32_t unit : {TESSERA_TEXTURE_DEPTH, TESSERA_TEXTURE_SCREEN_SCRATCH})
+    glBindTextureUnit(unit, 0);
   return lap();
 }
 

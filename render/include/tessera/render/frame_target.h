@@ -8,6 +8,7 @@
 // projection maps y up); the image is top row first (PNG, window upload, wall mosaic).
 #pragma once
 
+#include <cstddef>
 #include <cstdint>
 #include <vector>
 
@@ -18,6 +19,8 @@ namespace tessera::render {
 
 /// The depth plane's empty value (no point on the pixel).
 constexpr uint32_t kEmptyDepth = 0xFFFFFFFFu;
+/// The most pixels a frame target holds (2^27: Mesa's largest buffer texture).
+constexpr size_t kMaxFramePixels = size_t(1) << 27;
 /// The pick plane's empty value.
 constexpr uint32_t kNoPick = 0xFFFFFFFFu;
 

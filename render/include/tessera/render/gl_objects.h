@@ -94,6 +94,37 @@ class GlTexture {
   uint32_t mName = 0, mWidth = 0, mHeight = 0, mFormat = 0;
 };
 
+class GlBuffer;
+
+/// A buffer's words seen as a texture (GL_TEXTURE_BUFFER; GLSL usamplerBuffer or samplerBuffer,
+/// read with texelFetch), no copy made. llvmpipe gathers texels with vector code where it reads
+/// a storage buffer lane by lane: about 1.7x faster for the neighbourhood reads of the screen
+/// passes. Valid while the buffer lives; a view of a later buffer needs a new one.
+class GlBufferTexture {
+ public:
+  GlBufferTexture() = default;
+  /// `format`: GL_R32UI, GL_R32F, GL_RG32UI or GL_RGBA32UI: one texel per that many bytes of
+  /// `buffer`. Throws RenderError when the buffer holds more texels than GL allows.
+  GlBufferTexture(const GlBuffer& buffer, uint32_t format);
+  /// The same for a buffer known by its GL name (the GPU cache's chunk buffers).
+  GlBufferTexture(uint32_t buffer_name, uint32_t format);
+  ~GlBufferTexture();
+  GlBufferTexture(GlBufferTexture&& o) noexcept { std::swap(mName, o.mName); }
+  GlBufferTexture& operator=(GlBufferTexture&& o) noexcept {
+    std::swap(mName, o.mName);
+    return *this;
+  }
+  GlBufferTexture(const GlBufferTexture&) = delete;
+  GlBufferTexture& operator=(const GlBufferTexture&) = delete;
+
+  /// Binds the view to texture unit `unit`.
+  void bind(uint32_t unit) const;
+  uint32_t name() const { return mName; }
+
+ private:
+  uint32_t mName = 0;
+};
+
 /// A framebuffer object with a colour texture and optionally a depth texture of its own.
 class GlFramebuffer {
  public:

@@ -145,8 +145,13 @@ class PointPass {
   /// (Re)allocates the per-pixel buffers of the see-through modes for `target`.
   void fit(const FrameTarget& target);
   /// The point_raster.comp variant for a pass, compiled on first use.
-  const GlProgram& raster(int pass, bool one_pixel, bool clipping);
-  GlProgram mRaster[2][2][2];  ///< [pass][one pixel][clip planes]
+  /// shaders/point_raster.comp compiled for one combination (on first use).
+  struct RasterVariant {
+    int pass = 0;
+    bool one_pixel = false, clipping = false, blend = false, pick = false, fill = false;
+  };
+  const GlProgram& raster(const RasterVariant& v);
+  GlProgram mRaster[64];  ///< by the variant's bits
   GlProgram mSpbr[2], mAccumulate, mOit[2], mOitResolve;  ///< [clip planes]
   GlBuffer mPoints;
   size_t mPlane = 0;  ///< pixels the buffers below are sized for

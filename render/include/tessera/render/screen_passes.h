@@ -128,8 +128,9 @@ class EdlPass {
   double run(FrameTarget& target, const EdlOptions& options, const glm::dmat4& projection);
 
  private:
-  GlProgram mProgram;
-  GlBuffer mFiltered;  ///< kRobust: denoised log2 depth per pixel
+  GlProgram mStages[3];  ///< shaders/edl.comp's stages: robust 0 and 1, classic 2
+  GlBuffer mFiltered;    ///< kRobust: denoised log2 depth per pixel
+  GlBufferTexture mFilteredTexels;  ///< mFiltered as stage 1 reads it
 };
 
 /// The side of a highlight mask, bits: 1024 x 1024 over the lasso view's NDC square (128 KiB),
