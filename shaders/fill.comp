@@ -41,15 +41,14 @@
 // a surface sloped up to atan(uTolerance) from the view plane.
 layout(local_size_x = 16, local_size_y = 16) in;
 
-layout(std430, binding = TESSERA_BINDING_DEPTH) readonly buffer Depth { uint depth[]; };
-layout(std430, binding = TESSERA_BINDING_COLORS) readonly buffer Colors { uint colors[]; };
-layout(std430, binding = TESSERA_BINDING_PICK) readonly buffer Pick { uint pick[]; };
-// Per pixel the footprint of its nearest point (point_raster.comp): the top 16 bits of its
-// inverted depth, its radius in 1/16 pixels (bits 8-15), its position in the pixel in 1/16
-// pixels (x bits 4-7, y bits 0-3); then non-zero when more than one point fell on the pixel.
-layout(std430, binding = TESSERA_BINDING_SPLAT_FOOTPRINTS) readonly buffer Footprints {
-  uint footprints[];
-};
+// The frame's planes, read as buffer textures (FillPass binds views of them): depth, colours,
+// pick ids, and per pixel the footprint of its nearest point (point_raster.comp): the top 16
+// bits of its inverted depth, its radius in 1/16 pixels (bits 8-15), its position in the pixel
+// in 1/16 pixels (x bits 4-7, y bits 0-3); then non-zero when more than one point fell on it.
+layout(binding = TESSERA_TEXTURE_DEPTH) uniform usamplerBuffer uDepth;
+layout(binding = TESSERA_TEXTURE_COLORS) uniform usamplerBuffer uColors;
+layout(binding = TESSERA_TEXTURE_PICK) uniform usamplerBuffer uPick;
+layout(binding = TESSERA_TEXTURE_FOOTPRINTS) uniform usamplerBuffer uFootprints;
 // The pyramid as two RG32UI textures with mip levels (FillPass): the samples, level l at mip l,
 // and the push's winners, level l at mip l - 1. Read with texelFetch, written with imageStore to
 // one mip level: llvmpipe gathers texels with vector code, where it reads a buffer lane by lane
@@ -148,12 +147,13 @@ void consider(inout Winner best, vec2 at, float slack, uvec2 cand, Sample s) {
 uvec2 packPixel(ivec2 p) {
   if (p.x >= uSize.x || p.y >= uSize.y) return uvec2(0u, kEmpty);
   uint pixel = uint(p.y) * uint(uSize.x) + uint(p.x);
-  uint d = depth[pixel];
-  uint f = footprints[2u * pixel];
+  uint d = texelFetch(uDepth, int(pixel)).x;
+  uvec2 print = texelFetch(uFootprints, int(pixel)).xy;
+  uint f = print.x;
   // The footprint is the nearest point's unless that was a disc from off screen (no footprint).
   bool nearest = d != kEmpty && (f >> 16) == (~d >> 16);
   float r = nearest ? min(float((f >> 8) & 0xFFu) / 16.0, uMaxRadius) : 0.0;
-  bool several = footprints[2u * pixel + 1u] != 0u;
+  bool several = print.y != 0u;
   uvec2 sub = several ? uvec2(8u) : uvec2((f >> 4) & 0xFu, f & 0xFu);
   if (several && r > 0.0) r += 0.70711;
   uint r8 = uint(min(r * 16.0 + 0.5, 255.0));  // to 1/32 px of the disc's
@@ -254,14 +254,14 @@ void considerBlock(inout Winner b0, inout Winner b1, inout Winner b2, inout Winn
 void resolvePixel(ivec2 p, Winner best) {
   if (p.x >= uSize.x || p.y >= uSize.y) return;
   uint pixel = uint(p.y) * uint(uSize.x) + uint(p.x);
-  uint own = depth[pixel];
+  uint own = texelFetch(uDepth, int(pixel)).x;
   uint src = pixel;
   if (best.s.y != kEmpty && (own == kEmpty || viewDepth(own) > best.w + best.tol))
     src = indexOf(best.s.y);
-  uint d = src == pixel ? own : depth[src];
+  uint d = src == pixel ? own : texelFetch(uDepth, int(src)).x;
   out_depth[pixel] = d;
-  if (uWriteColor != 0) out_colors[pixel] = d == kEmpty ? kEmpty : colors[src];
-  if (uWritePick != 0) out_pick[pixel] = d == kEmpty ? kEmpty : pick[src];
+  if (uWriteColor != 0) out_colors[pixel] = d == kEmpty ? kEmpty : texelFetch(uColors, int(src)).x;
+  if (uWritePick != 0) out_pick[pixel] = d == kEmpty ? kEmpty : texelFetch(uPick, int(src)).x;
 }
 
 // Push, the pixels: one invocation per 2x2 block (a level-1 texel), so each candidate is read

@@ -38,11 +38,14 @@
 #define TESSERA_IMAGE_FILL_OUT 0
 #define TESSERA_IMAGE_FILL_LEVEL0 1
 
-// Texture units of the screen passes' buffer views (GlBufferTexture): the frame's depth, and a
-// pass's own plane (EDL's denoised depth).
+// Texture units of buffer views (GlBufferTexture): the frame's planes, a screen pass's own plane
+// (EDL's denoised depth), the points of a batch (point_raster.comp).
 #define TESSERA_TEXTURE_DEPTH 2
-#define TESSERA_TEXTURE_POINTS 4
 #define TESSERA_TEXTURE_SCREEN_SCRATCH 3
+#define TESSERA_TEXTURE_POINTS 4
+#define TESSERA_TEXTURE_COLORS 5
+#define TESSERA_TEXTURE_PICK 6
+#define TESSERA_TEXTURE_FOOTPRINTS 7
 
 // Eye-dome lighting (shaders/edl.comp, EdlOptions::filter_radius): the largest fitted window's
 // half-width, pixels.

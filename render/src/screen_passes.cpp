@@ -128,11 +128,13 @@ double FillPass::run(FrameTarget& target, const glm::dmat4& projection, float ma
   }
   if (colors && !mColors) mColors = GlBuffer(mPixels * 4, nullptr);
   if (pick && !mPick) mPick = GlBuffer(mPixels * 4, nullptr);
-  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_DEPTH, target.depth().name());
-  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_COLORS, target.colors().name());
-  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_PICK, target.pick().name());
-  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_SPLAT_FOOTPRINTS,
-                   target.splatFootprints().name());
+  // The frame's planes as buffer textures (fill.comp reads them with texelFetch).
+  const GlBufferTexture depth(target.depth(), GL_R32UI), colors_in(target.colors(), GL_R32UI),
+      pick_in(target.pick(), GL_R32UI), footprints(target.splatFootprints(), GL_RG32UI);
+  depth.bind(TESSERA_TEXTURE_DEPTH);
+  colors_in.bind(TESSERA_TEXTURE_COLORS);
+  pick_in.bind(TESSERA_TEXTURE_PICK);
+  footprints.bind(TESSERA_TEXTURE_FOOTPRINTS);
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_FILL_DEPTH, mDepth.name());
   // Unused output planes are bound to the depth output (never written: uWrite* is 0).
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_FILL_COLORS,
@@ -175,7 +177,9 @@ double FillPass::run(FrameTarget& target, const glm::dmat4& projection, float ma
   if (colors) glCopyNamedBufferSubData(mColors.name(), target.colors().name(), 0, 0, bytes);
   if (pick) glCopyNamedBufferSubData(mPick.name(), target.pick().name(), 0, 0, bytes);
   glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT | GL_SHADER_STORAGE_BARRIER_BIT);
-  for (uint32_t unit : {TESSERA_TEXTURE_FILL_SAMPLES, TESSERA_TEXTURE_FILL_WINNERS})
+  for (uint32_t unit : {TESSERA_TEXTURE_FILL_SAMPLES, TESSERA_TEXTURE_FILL_WINNERS,
+                        TESSERA_TEXTURE_DEPTH, TESSERA_TEXTURE_COLORS, TESSERA_TEXTURE_PICK,
+                        TESSERA_TEXTURE_FOOTPRINTS})
     glBindTextureUnit(unit, 0);
   for (uint32_t unit : {TESSERA_IMAGE_FILL_OUT, TESSERA_IMAGE_FILL_LEVEL0})
     glBindImageTexture(unit, 0, 0, GL_FALSE, 0, GL_WRITE_ONLY, GL_RG32UI);
