@@ -232,7 +232,7 @@ int main(int argc, char** argv) {
                100.0 * t_scatter / t_renderer, 100.0 * t_scatter / t_uniform,
                100.0 * t_scatter_texels / t_renderer, 100.0 * t_scatter_texels / t_uniform);
   std::ofstream gp(std::filesystem::path(out) / "render_points.gp");
-  gp << "set terminal pngcairo size 1100,450 font 'sans,10' noenhanced\nset output '"
+  gp << "set terminal pngcairo size 1400,480 font 'sans,10' noenhanced\nset output '"
      << (std::filesystem::path(out) / "render_points.png").string() << "'\n"
      << "set datafile separator ','\nset style data histograms\nset style fill solid 0.8 border "
         "-1\nset logscale y\n"

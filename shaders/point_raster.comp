@@ -140,13 +140,17 @@ void raster(uint i) {
       // The footprint, packed as fill.comp reads it: the top 16 bits of the inverted depth (so
       // the nearest point's wins), the radius in 1/16 pixels (bits 8-15, to 15.9) and the point's
       // position in its pixel in 1/16 pixels (x bits 4-7, y bits 0-3), so the fill tests reach
-      // as the disc loop below does (a fixed disc is centred on its pixel). Only a point that
-      // comes nearer than all before it writes one (atomicMin tells), so a pixel sees a few
-      // atomics, not one per point; the next word says that more than one point fell there
-      // (their other positions are lost). The same whatever order the points arrive in.
+      // as the disc loop below does (a fixed disc is centred on its pixel). The largest print
+      // wins: the nearest point's top depth bits, then among points with the same top bits (1%
+      // apart in depth) the largest radius and position, whatever order the points arrive in.
+      // Only a point whose top bits reach those of the nearest before it can be among those
+      // (atomicMin tells), so a pixel sees a few atomics, not one per point. (Writing only for a
+      // point nearer than all before it, as until issue 12's last session, left ties to the
+      // arrival order: 0.0742% or 0.0746% open pixels on Autzen from run to run.) The next word
+      // says that more than one point fell there (their other positions are lost).
       uint old = atomicMin(depth[idx], d);
       if (old != 0xFFFFFFFFu && footprints[2u * idx + 1u] == 0u) footprints[2u * idx + 1u] = 1u;
-      if (d <= old) {
+      if ((~d >> 16) >= (~old >> 16)) {
         float reach = uSpacingK > 0.0 ? disc : sqrt(float(radius * radius + radius));
         vec2 in_pixel = uSpacingK > 0.0 ? clamp(pos - vec2(centre), 0.0, 1.0) : vec2(0.5);
         uvec2 sub = uvec2(min(in_pixel * 16.0, vec2(15.0)));

@@ -489,6 +489,33 @@ TEST_F(FillTest, FilledPixelsTakeTheDepthAndPickIdOfTheSampleThatReachesThem) {
   EXPECT_EQ(white, 1u);
 }
 
+TEST_F(FillTest, TheFillIsTheSameWhateverOrderThePointsArriveIn) {
+  // Pairs of points on one pixel, 0.1% apart in depth (the same top bits of the footprint's
+  // depth), the nearer with 1.5 px discs, the farther with 3.5 px: drawn in either order, the
+  // footprints and so the filled pixels are the same. (The footprint written only by a point
+  // nearer than all before it kept the nearer's small disc in one order and the farther's large
+  // one in the other.)
+  std::vector<GpuPoint> pts;
+  addRandomPlane(pts, 2.0, -0.8, 0.8, 1.0 / 8.0, 0xFF00FF00u, 7, 0.0, 0.8);
+  const size_t near = pts.size();
+  for (size_t i = 0; i < near; ++i) {
+    GpuPoint p = pts[i];
+    p.position *= 1.001f;  // the same pixel, a little further
+    pts.push_back(p);
+  }
+  const DrawBatch a = splats(0, near, 2.0, 1.5), b = splats(near, near, 2.0, 3.5);
+  const Frame ab = drawFill(pts, {a, b}, Mode::kPullPush);
+  const Frame ba = drawFill(pts, {b, a}, Mode::kPullPush);
+  size_t covered = 0, differ = 0;
+  for (size_t i = 0; i < ab.depth.size(); ++i) {
+    covered += ab.depth[i] != kEmptyDepth;
+    differ += ab.depth[i] != ba.depth[i] || ab.pick[i] != ba.pick[i];
+  }
+  EXPECT_GT(covered, ab.depth.size() / 2);  // the large discs close most of the 0.8 x 0.8 view
+  EXPECT_EQ(differ, 0u);
+  EXPECT_TRUE(ab.image.rgba == ba.image.rgba) << "the pictures differ";
+}
+
 TEST_F(FillTest, BadSizesAndRadiiAreRefusedOrIgnored) {
   EXPECT_THROW(FrameTarget(0, 16), RenderError);
   FrameTarget target(16, 16);
