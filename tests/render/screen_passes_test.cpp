@@ -518,6 +518,9 @@ TEST_F(FillTest, TheFillIsTheSameWhateverOrderThePointsArriveIn) {
 
 TEST_F(FillTest, BadSizesAndRadiiAreRefusedOrIgnored) {
   EXPECT_THROW(FrameTarget(0, 16), RenderError);
+  // Within 16384 each way but beyond the 2^27 texels a buffer texture (the screen passes' view
+  // of the planes) may hold: refused before anything is allocated.
+  EXPECT_THROW(FrameTarget(16384, 16384), RenderError);
   FrameTarget target(16, 16);
   target.clearGeometry(true, false, true);
   FillPass fill;
