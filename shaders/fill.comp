@@ -10,9 +10,9 @@
 // in its pixel (1/16 px, x bits 24-27, y bits 28-31); .y its level-0 pixel, y << 16 | x, from
 // which the winner's depth, colour and pick id are read. Two words a candidate, since llvmpipe
 // reads buffers lane by lane and the reads are the cost. Where several points fell on a pixel
-// (point_raster.comp flags it) the sample sits at the pixel's centre with the nearest point's
-// radius grown by half the pixel's diagonal: a disc that holds the others' too where their radii
-// are alike (points of one LOD node).
+// within 1% of the nearest in depth (point_raster.comp flags it) the sample sits at the pixel's
+// centre with the largest of their radii grown by half the pixel's diagonal: a disc that holds
+// the others' too where their radii are alike (points of one LOD node).
 //
 // Stages (TESSERA_FILL_STAGE, one program each):
 // Pull (1, levels 1 .. uLevels - 1; level 1 first packs level 0's samples from the frame
@@ -39,12 +39,26 @@
 // Depth tolerance: uTolerance splat radii at the sample's view depth (the radius in pixels times
 // the world size of a pixel there), at least one pixel's worth: the depth change across a disc of
 // a surface sloped up to atan(uTolerance) from the view plane.
-layout(local_size_x = 16, local_size_y = 16) in;
+//
+// Tiles: the pass works only where a sample can reach. Stage 0 marks the tiles of
+// TESSERA_FILL_TILE pixels that hold a drawn pixel; FillPass reads the marks back, grows them by
+// the farthest reach (a sample's radius plus the coarsest texel's half diagonal, so no winner of
+// any level lies outside) and lists those tiles together with last frame's (which this frame
+// empties); every other stage runs over the listed tiles only, an invocation per texel of its
+// level. Texels of unlisted tiles hold kEmpty at every level (FillPass clears the pyramid when
+// it is made or its levels change, and a tile leaving the list is emptied by the frame that
+// lists it last), and their pixels keep the frame's own values: no disc reaches them.
+#if TESSERA_FILL_STAGE == 0
+layout(local_size_x = 8, local_size_y = 8) in;
+#else
+layout(local_size_x = 64) in;
+#endif
 
 // The frame's planes, read as buffer textures (FillPass binds views of them): depth, colours,
 // pick ids, and per pixel the footprint of its nearest point (point_raster.comp): the top 16
 // bits of its inverted depth, its radius in 1/16 pixels (bits 8-15), its position in the pixel
-// in 1/16 pixels (x bits 4-7, y bits 0-3); then non-zero when more than one point fell on it.
+// in 1/16 pixels (x bits 4-7, y bits 0-3); then the same top bits where more than one point fell
+// within them.
 layout(binding = TESSERA_TEXTURE_DEPTH) uniform usamplerBuffer uDepth;
 layout(binding = TESSERA_TEXTURE_COLORS) uniform usamplerBuffer uColors;
 layout(binding = TESSERA_TEXTURE_PICK) uniform usamplerBuffer uPick;
@@ -62,6 +76,18 @@ layout(rg32ui, binding = TESSERA_IMAGE_FILL_LEVEL0) uniform writeonly uimage2D u
 layout(std430, binding = TESSERA_BINDING_FILL_DEPTH) writeonly buffer OutDepth { uint out_depth[]; };
 layout(std430, binding = TESSERA_BINDING_FILL_COLORS) writeonly buffer OutColors { uint out_colors[]; };
 layout(std430, binding = TESSERA_BINDING_FILL_PICK) writeonly buffer OutPick { uint out_pick[]; };
+// Stage 0: a word per tile, set where the tile holds a drawn pixel. Stage 4: the frame's planes,
+// written back from the pass's own (then bound to uDepth, uColors, uPick) in the listed tiles.
+layout(std430, binding = TESSERA_BINDING_FILL_TILE_MARKS) writeonly buffer TileMarks {
+  uint tile_marks[];
+};
+layout(std430, binding = TESSERA_BINDING_DEPTH) writeonly buffer FrameDepth { uint frame_depth[]; };
+layout(std430, binding = TESSERA_BINDING_COLORS) writeonly buffer FrameColors {
+  uint frame_colors[];
+};
+layout(std430, binding = TESSERA_BINDING_PICK) writeonly buffer FramePick { uint frame_pick[]; };
+// The listed tiles, y << 16 | x each.
+layout(binding = TESSERA_TEXTURE_FILL_TILES) uniform usamplerBuffer uTiles;
 
 uniform int uLevel;        // pull and push of a level: the level written, 1..uLevels
 uniform int uLevels;       // coarsest level, <= TESSERA_FILL_MAX_LEVELS
@@ -73,11 +99,26 @@ uniform float uP22;        // projection[2][2] and [3][2]: view depth from windo
 uniform float uP32;
 uniform int uWriteColor;   // copy colours of the winners
 uniform int uWritePick;    // copy pick ids of the winners
+uniform int uTileCount;    // tiles listed
+uniform int uTileShift;    // log2 of a tile's side in this stage's texels (2x2 blocks: 3)
 
 const uint kEmpty = 0xFFFFFFFFu;
 
 ivec2 levelSize(int l) {
   return (uSize + ivec2((1 << l) - 1)) >> l;
+}
+
+// The texel of this invocation: invocations run over the listed tiles, 4^uTileShift each, x
+// fastest. (-1, -1) past the list.
+ivec2 tiledTexel() {
+  uint g = (gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x) * gl_WorkGroupSize.x +
+           gl_LocalInvocationIndex;
+  uint tile = g >> (2 * uTileShift);
+  if (tile >= uint(uTileCount)) return ivec2(-1);
+  uint id = texelFetch(uTiles, int(tile)).x;
+  uint side = 1u << uTileShift, local = g & (side * side - 1u);
+  return (ivec2(id & 0xFFFFu, id >> 16) << uTileShift) +
+         ivec2(local & (side - 1u), local >> uTileShift);
 }
 
 uint idOf(ivec2 p) {
@@ -97,6 +138,33 @@ uvec2 texel(int l, ivec2 q, bool winners) {
   ivec2 size = levelSize(l);
   if (q.x < 0 || q.y < 0 || q.x >= size.x || q.y >= size.y) return uvec2(0u, kEmpty);
   return winners ? texelFetch(uWinnerTexels, q, l - 1).xy : texelFetch(uSamples, q, l).xy;
+}
+
+// The push's winners of the 3x3 texels of level l around q, read once (nine variables, not an
+// array: llvmpipe keeps an indexed array in memory and reads it lane by lane), and whether any
+// is not empty. None read when `skip`.
+struct Around3x3 {
+  uvec2 c0, c1, c2, c3, c4, c5, c6, c7, c8;
+  bool any;
+};
+
+uvec2 aroundAt(Around3x3 a, int k) {
+  return k < 4 ? (k < 2 ? (k == 0 ? a.c0 : a.c1) : (k == 2 ? a.c2 : a.c3))
+               : (k < 6 ? (k == 4 ? a.c4 : a.c5) : (k < 8 ? (k == 6 ? a.c6 : a.c7) : a.c8));
+}
+
+Around3x3 around(int l, ivec2 q, bool skip) {
+  Around3x3 a;
+  a.c0 = a.c1 = a.c2 = a.c3 = a.c4 = a.c5 = a.c6 = a.c7 = a.c8 = uvec2(0u, kEmpty);
+  for (int k = skip ? 9 : 0; k < 9; ++k) {
+    uvec2 c = texel(l, q + ivec2(k % 3, k / 3) - 1, true);
+    if (k == 0) a.c0 = c; if (k == 1) a.c1 = c; if (k == 2) a.c2 = c;
+    if (k == 3) a.c3 = c; if (k == 4) a.c4 = c; if (k == 5) a.c5 = c;
+    if (k == 6) a.c6 = c; if (k == 7) a.c7 = c; if (k == 8) a.c8 = c;
+  }
+  a.any =
+      (a.c0.y & a.c1.y & a.c2.y & a.c3.y & a.c4.y & a.c5.y & a.c6.y & a.c7.y & a.c8.y) != kEmpty;
+  return a;
 }
 
 // A sample unpacked: view depth, radius, the point's position (pixels) and the depth tolerance
@@ -153,7 +221,7 @@ uvec2 packPixel(ivec2 p) {
   // The footprint is the nearest point's unless that was a disc from off screen (no footprint).
   bool nearest = d != kEmpty && (f >> 16) == (~d >> 16);
   float r = nearest ? min(float((f >> 8) & 0xFFu) / 16.0, uMaxRadius) : 0.0;
-  bool several = print.y != 0u;
+  bool several = (print.y >> 16) == (~d >> 16);
   uvec2 sub = several ? uvec2(8u) : uvec2((f >> 4) & 0xFu, f & 0xFu);
   if (several && r > 0.0) r += 0.70711;
   uint r8 = uint(min(r * 16.0 + 0.5, 255.0));  // to 1/32 px of the disc's
@@ -183,9 +251,9 @@ void pullChild(inout Winner best, float front, vec2 centre, uvec2 c) {
 // Pull level uLevel; level 1 packs level 0's samples on the way (stage 0: one invocation per
 // 2x2 pixels, so the frame's planes are read once).
 void pull() {
-  ivec2 t = ivec2(gl_GlobalInvocationID.xy);
+  ivec2 t = tiledTexel();
   ivec2 size = levelSize(uLevel);
-  if (t.x >= size.x || t.y >= size.y) return;
+  if (t.x < 0 || t.x >= size.x || t.y >= size.y) return;
   ivec2 b = 2 * t;
   uvec2 c0, c1, c2, c3;
   if (uLevel == 1) {
@@ -213,23 +281,23 @@ void pull() {
 // Push, a level >= 1: the best of the level l - 1 samples under texel t and a ring of one
 // (4x4), and of the winners of the 3x3 level l + 1 texels around its parent.
 void pushLevel() {
-  ivec2 t = ivec2(gl_GlobalInvocationID.xy);
+  ivec2 t = tiledTexel();
   ivec2 size = levelSize(uLevel);
-  if (t.x >= size.x || t.y >= size.y) return;
+  if (t.x < 0 || t.x >= size.x || t.y >= size.y) return;
   float scale = float(1 << uLevel);
   vec2 at = (vec2(t) + 0.5) * scale;
   float slack = 0.70711 * scale;
   Winner best = noWinner();
   // Nothing reaches t when the coarser winners around its parent are all empty (see push()).
-  bool top = uLevel == uLevels, any = top;
-  for (int k = 0; k < 9 && !top; ++k)
-    any = any || texel(uLevel + 1, (t >> 1) + ivec2(k % 3, k / 3) - 1, true).y != kEmpty;
+  bool top = uLevel == uLevels;
+  Around3x3 w = around(uLevel + 1, t >> 1, top);
+  bool any = top || w.any;
   for (int k = any ? 0 : 16; k < 16; ++k) {
     uvec2 c = texel(uLevel - 1, 2 * t + ivec2(k & 3, k >> 2) - 1, false);
     consider(best, at, slack, c, unpack(c));
   }
   for (int k = any && !top ? 0 : 9; k < 9; ++k) {
-    uvec2 c = texel(uLevel + 1, (t >> 1) + ivec2(k % 3, k / 3) - 1, true);
+    uvec2 c = aroundAt(w, k);
     consider(best, at, slack, c, unpack(c));
   }
   imageStore(uOut, t, uvec4(best.s, 0u, 0u));
@@ -275,31 +343,57 @@ void resolvePixel(ivec2 p, Winner best) {
 // its lanes disagree on under a mask, but leaves a loop as soon as no lane is in it (on the 10^7
 // point cube at 1920x1080 this pass went from 55 to 29 ms, the pixels unchanged).
 void push() {
-  ivec2 t = ivec2(gl_GlobalInvocationID.xy);
+  ivec2 t = tiledTexel();
   ivec2 size = levelSize(1);
-  if (t.x >= size.x || t.y >= size.y) return;
+  if (t.x < 0 || t.x >= size.x || t.y >= size.y) return;
   ivec2 base = 2 * t;
   Winner b0 = noWinner(), b1 = noWinner(), b2 = noWinner(), b3 = noWinner();
-  bool any = false;
-  for (int k = 0; k < 9; ++k) any = any || texel(1, t + ivec2(k % 3, k / 3) - 1, true).y != kEmpty;
-  for (int k = any ? 0 : 16; k < 16; ++k)
+  Around3x3 w = around(1, t, false);
+  for (int k = w.any ? 0 : 16; k < 16; ++k)
     considerBlock(b0, b1, b2, b3, base, texel(0, base + ivec2(k & 3, k >> 2) - 1, false));
-  for (int k = any ? 0 : 9; k < 9; ++k)
-    considerBlock(b0, b1, b2, b3, base, texel(1, t + ivec2(k % 3, k / 3) - 1, true));
+  for (int k = w.any ? 0 : 9; k < 9; ++k) considerBlock(b0, b1, b2, b3, base, aroundAt(w, k));
   resolvePixel(base, b0);
   resolvePixel(base + ivec2(1, 0), b1);
   resolvePixel(base + ivec2(0, 1), b2);
   resolvePixel(base + ivec2(1), b3);
 }
 
+// Stage 0: marks the tile of each 2x2 block that holds a drawn pixel (an 8x8 group a tile).
+void mark() {
+  ivec2 b = 2 * ivec2(gl_GlobalInvocationID.xy);
+  bool any = false;
+  for (int k = 0; k < 4; ++k) {
+    ivec2 p = b + ivec2(k & 1, k >> 1);
+    bool inside = p.x < uSize.x && p.y < uSize.y;
+    any = any || (inside && texelFetch(uDepth, p.y * uSize.x + p.x).x != kEmpty);
+  }
+  int tiles_x = (uSize.x + TESSERA_FILL_TILE - 1) / TESSERA_FILL_TILE;
+  if (any) tile_marks[(b.y / TESSERA_FILL_TILE) * tiles_x + b.x / TESSERA_FILL_TILE] = 1u;
+}
+
+// Stage 4: the pass's planes (bound to uDepth, uColors, uPick) back into the frame's, a pixel an
+// invocation over the listed tiles.
+void writeBack() {
+  ivec2 p = tiledTexel();
+  if (p.x < 0 || p.x >= uSize.x || p.y >= uSize.y) return;
+  int pixel = p.y * uSize.x + p.x;
+  frame_depth[pixel] = texelFetch(uDepth, pixel).x;
+  if (uWriteColor != 0) frame_colors[pixel] = texelFetch(uColors, pixel).x;
+  if (uWritePick != 0) frame_pick[pixel] = texelFetch(uPick, pixel).x;
+}
+
 // Each stage is its own program (FillPass defines TESSERA_FILL_STAGE), so each compiles to just
 // its own code.
 void main() {
-#if TESSERA_FILL_STAGE == 1
+#if TESSERA_FILL_STAGE == 0
+  mark();
+#elif TESSERA_FILL_STAGE == 1
   pull();
 #elif TESSERA_FILL_STAGE == 2
   pushLevel();
-#else
+#elif TESSERA_FILL_STAGE == 3
   push();
+#else
+  writeBack();
 #endif
 }

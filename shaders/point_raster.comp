@@ -30,8 +30,10 @@ layout(std430, binding = TESSERA_BINDING_COLORS) buffer Colors { uint colors[]; 
 layout(std430, binding = TESSERA_BINDING_PICK) buffer Pick { uint pick[]; };  // frame-wide point id
 layout(std430, binding = TESSERA_BINDING_COLOR_SUMS) buffer Sums { uint sums[]; };  // w r, w g, w b, w
 // FILL: per pixel the footprint of the nearest point drawn on it (radius and position) and
-// whether more than one point fell there: two words a pixel.
-layout(std430, binding = TESSERA_BINDING_SPLAT_FOOTPRINTS) buffer Footprints { uint footprints[]; };
+// whether more than one point fell near it: two words a pixel.
+layout(std430, binding = TESSERA_BINDING_SPLAT_FOOTPRINTS) buffer Footprints {
+  uvec2 footprints[];
+};
 
 uniform mat4 uClip;            // clip from the batch's node frame
 uniform uint uColorOverride;  // non-zero: 0x1000000 | rgb for every point of the batch
@@ -143,20 +145,29 @@ void raster(uint i) {
       // as the disc loop below does (a fixed disc is centred on its pixel). The largest print
       // wins: the nearest point's top depth bits, then among points with the same top bits (1%
       // apart in depth) the largest radius and position, whatever order the points arrive in.
-      // Only a point whose top bits reach those of the nearest before it can be among those
-      // (atomicMin tells), so a pixel sees a few atomics, not one per point. (Writing only for a
-      // point nearer than all before it, as until issue 12's last session, left ties to the
-      // arrival order: 0.0742% or 0.0746% open pixels on Autzen from run to run.) The next word
-      // says that more than one point fell there (their other positions are lost).
-      uint old = atomicMin(depth[idx], d);
-      if (old != 0xFFFFFFFFu && footprints[2u * idx + 1u] == 0u) footprints[2u * idx + 1u] = 1u;
-      if ((~d >> 16) >= (~old >> 16)) {
+      // The second word says that more than one point fell in that nearest group (their other
+      // positions are lost): the largest top bits of a point that found the pixel's nearest so
+      // far in its own group. Only a point whose top bits reach those of the nearest so far can
+      // be among the group: a read tells the others (in a volume of points, most), and the
+      // atomic on the depth is taken only by a point nearer than what the read saw. (Writing
+      // only for a point nearer than all before it, as until issue 12's session before last,
+      // left ties to the arrival order: 0.0742% or 0.0746% open pixels on Autzen from run to
+      // run. Every point took the atomic and read the flag until the last session: 40-60% more
+      // depth pass than the 1 px points, now 30-50%.)
+      uint old = depth[idx];
+      if ((d >> 16) > (old >> 16)) return;
+      if (d < old) old = atomicMin(depth[idx], d);
+      uint group = ~d & 0xFFFF0000u;
+      if (group >= (~old & 0xFFFF0000u)) {
+        uvec2 kept = footprints[idx];
         float reach = uSpacingK > 0.0 ? disc : sqrt(float(radius * radius + radius));
         vec2 in_pixel = uSpacingK > 0.0 ? clamp(pos - vec2(centre), 0.0, 1.0) : vec2(0.5);
         uvec2 sub = uvec2(min(in_pixel * 16.0, vec2(15.0)));
-        uint print = (~d & 0xFFFF0000u) | uint(min(reach * 16.0 + 0.5, 255.0)) << 8 | sub.x << 4 |
-                     sub.y;
-        if (print > footprints[2u * idx]) atomicMax(footprints[2u * idx], print);
+        uint print = group | uint(min(reach * 16.0 + 0.5, 255.0)) << 8 | sub.x << 4 | sub.y;
+        if (print > kept.x) atomicMax(footprints[idx].x, print);
+        // The nearest so far in this point's group: more than one point in it.
+        bool several = old != 0xFFFFFFFFu && group == (~old & 0xFFFF0000u);
+        if (several && group > kept.y) atomicMax(footprints[idx].y, group);
       }
       return;
     }
@@ -165,7 +176,10 @@ void raster(uint i) {
     return;
 #endif
   }
-  if (radius == 0) {
+  // Not compiled in fill mode, where every point on screen returned above and one off screen
+  // has no pixel of its own: llvmpipe runs a branch's body under a mask even when no lane takes
+  // it, and this one's read and atomic took the fill's depth pass 40-60% over the 1 px pass.
+  if (!kFill && radius == 0) {
     // One pixel (fine LOD levels, far points): no loop, which llvmpipe runs much faster.
     if (centre.x < 0 || centre.y < 0 || centre.x >= uSize.x || centre.y >= uSize.y) return;
     uint idx = uint(centre.y) * uint(uSize.x) + uint(centre.x);

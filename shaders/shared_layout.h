@@ -24,6 +24,7 @@
 #define TESSERA_BINDING_FILL_DEPTH 15      // the fill's output planes: depth, colours, pick ids
 #define TESSERA_BINDING_FILL_COLORS 16
 #define TESSERA_BINDING_FILL_PICK 17
+#define TESSERA_BINDING_FILL_TILE_MARKS 14  // uint per fill tile: holds a drawn pixel
 #define TESSERA_BINDING_OVERLAY_ANCHORS 18  // vec4 per label: its anchor (overlay.vert)
 #define TESSERA_BINDING_OVERLAY_LINES 19    // OverlayLine[]: opaque lines (overlay_lines.comp)
 #define TESSERA_BINDING_OVERLAY_OWNER 20    // uint per pixel: the last line covering it, + 1
@@ -33,6 +34,7 @@
 // 2^levels pixels); its pyramid's texture units (samples, the push's winners) and image units
 // (the level written, level 0's samples).
 #define TESSERA_FILL_MAX_LEVELS 4
+#define TESSERA_FILL_TILE 16  // the fill works in tiles of 2^TESSERA_FILL_MAX_LEVELS pixels
 #define TESSERA_TEXTURE_FILL_SAMPLES 0
 #define TESSERA_TEXTURE_FILL_WINNERS 1
 #define TESSERA_IMAGE_FILL_OUT 0
@@ -46,6 +48,7 @@
 #define TESSERA_TEXTURE_COLORS 5
 #define TESSERA_TEXTURE_PICK 6
 #define TESSERA_TEXTURE_FOOTPRINTS 7
+#define TESSERA_TEXTURE_FILL_TILES 8  // the fill's list of tiles
 
 // Eye-dome lighting (shaders/edl.comp, EdlOptions::filter_radius): the largest fitted window's
 // half-width, pixels.

@@ -51,8 +51,8 @@ double ResolvePass::run(FrameTarget& target, const glm::vec3& background, uint32
 
 EdlPass::EdlPass() {
   for (int stage = 0; stage < 3; ++stage)
-    mStages[stage] = GlProgram::compute(shaders::kEdl, "edl.comp",
-                                        "#define TESSERA_EDL_STAGE " + std::to_string(stage) + "\n");
+    mStages[stage] = GlProgram::compute(
+        shaders::kEdl, "edl.comp", "#define TESSERA_EDL_STAGE " + std::to_string(stage) + "\n");
 }
 
 double EdlPass::run(FrameTarget& target, const EdlOptions& options, const glm::dmat4& projection) {
@@ -98,11 +98,20 @@ double EdlPass::run(FrameTarget& target, const EdlOptions& options, const glm::d
 }
 
 FillPass::FillPass() {
-  for (int stage = 1; stage < 4; ++stage) {
+  for (int stage = 0; stage < 5; ++stage) {
     const std::string source =
         "#define TESSERA_FILL_STAGE " + std::to_string(stage) + "\n" + shaders::kFill;
     mStages[stage] = GlProgram::compute(source.c_str(), "fill.comp");
   }
+}
+
+void FillPass::clearPyramid() {
+  const uint32_t empty[2] = {0u, 0xFFFFFFFFu};
+  for (int l = 0; l <= kFillMaxLevels; ++l)
+    glClearTexImage(mSamples.name(), l, GL_RG_INTEGER, GL_UNSIGNED_INT, empty);
+  for (int l = 0; l < kFillMaxLevels; ++l)
+    glClearTexImage(mWinners.name(), l, GL_RG_INTEGER, GL_UNSIGNED_INT, empty);
+  mListedBefore.clear();
 }
 
 double FillPass::run(FrameTarget& target, const glm::dmat4& projection, float max_radius,
@@ -115,16 +124,27 @@ double FillPass::run(FrameTarget& target, const glm::dmat4& projection, float ma
   while (levels < kFillMaxLevels && float(1 << levels) < max_radius) ++levels;
   max_radius = std::min(max_radius, float(1 << levels));
   const uint32_t w = target.width(), h = target.height();
-  if (mPixels != target.pixels()) {
+  constexpr uint32_t kTile = TESSERA_FILL_TILE;
+  static_assert(kTile == 1u << kFillMaxLevels, "a tile holds one texel of the coarsest level");
+  const uint32_t tiles_x = (w + kTile - 1) / kTile, tiles_y = (h + kTile - 1) / kTile;
+  if (mPixels != target.pixels() || mWidth != w) {
     mPixels = target.pixels();
-    constexpr uint32_t kAlign = 1u << kFillMaxLevels;
-    const uint32_t aw = (w + kAlign - 1) / kAlign * kAlign, ah = (h + kAlign - 1) / kAlign * kAlign;
+    mWidth = w;
+    const uint32_t aw = tiles_x * kTile, ah = tiles_y * kTile;
     for (GlBuffer* b : {&mDepth, &mColors, &mPick}) *b = GlBuffer();
     mSamples = GlTexture();
     mWinners = GlTexture();
     mSamples = GlTexture(aw, ah, GL_RG32UI, kFillMaxLevels + 1);
     mWinners = GlTexture(aw / 2, ah / 2, GL_RG32UI, kFillMaxLevels);
     mDepth = GlBuffer(mPixels * 4, nullptr);
+    mMarks = GlBuffer(size_t(tiles_x) * tiles_y * 4, nullptr);
+    mTiles = GlBuffer(size_t(tiles_x) * tiles_y * 4, nullptr, GL_DYNAMIC_STORAGE_BIT);
+    mTileTexels = GlBufferTexture(mTiles, GL_R32UI);
+    clearPyramid();
+  }
+  if (levels != mLevels) {
+    clearPyramid();
+    mLevels = levels;
   }
   if (colors && !mColors) mColors = GlBuffer(mPixels * 4, nullptr);
   if (pick && !mPick) mPick = GlBuffer(mPixels * 4, nullptr);
@@ -135,16 +155,7 @@ double FillPass::run(FrameTarget& target, const glm::dmat4& projection, float ma
   colors_in.bind(TESSERA_TEXTURE_COLORS);
   pick_in.bind(TESSERA_TEXTURE_PICK);
   footprints.bind(TESSERA_TEXTURE_FOOTPRINTS);
-  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_FILL_DEPTH, mDepth.name());
-  // Unused output planes are bound to the depth output (never written: uWrite* is 0).
-  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_FILL_COLORS,
-                   colors ? mColors.name() : mDepth.name());
-  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_FILL_PICK,
-                   pick ? mPick.name() : mDepth.name());
-  glBindTextureUnit(TESSERA_TEXTURE_FILL_SAMPLES, mSamples.name());
-  glBindTextureUnit(TESSERA_TEXTURE_FILL_WINNERS, mWinners.name());
-  auto level = [&](int stage, int l) {
-    const GlProgram& p = mStages[stage];
+  auto common = [&](const GlProgram& p) {
     p.use();
     p.set("uSize", glm::ivec2(w, h));
     p.set("uLevels", levels);
@@ -155,31 +166,103 @@ double FillPass::run(FrameTarget& target, const glm::dmat4& projection, float ma
     p.set("uP32", float(projection[3][2]));
     p.set("uWriteColor", colors ? 1 : 0);
     p.set("uWritePick", pick ? 1 : 0);
+  };
+
+  // Stage 0: which tiles hold a drawn pixel.
+  mMarks.clear(0u);
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_FILL_TILE_MARKS, mMarks.name());
+  common(mStages[0]);
+  glDispatchCompute(tiles_x, tiles_y, 1);
+  glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT);
+  std::vector<uint32_t> marks(size_t(tiles_x) * tiles_y);
+  mMarks.read(0, marks.size() * 4, marks.data());
+  // Grown by the farthest reach of a sample (its radius, at most max_radius, plus the slack of
+  // a level-`levels` texel, its half diagonal): no winner of any level lies further.
+  const int grow = int((max_radius + 0.70711f * float(1 << levels)) / float(kTile)) + 1;
+  std::vector<uint8_t> listed(marks.size(), 0);
+  for (uint32_t ty = 0; ty < tiles_y; ++ty)
+    for (uint32_t tx = 0; tx < tiles_x; ++tx) {
+      if (!marks[size_t(ty) * tiles_x + tx]) continue;
+      const uint32_t x0 = uint32_t(std::max(0, int(tx) - grow)),
+                     x1 = std::min(tiles_x - 1, tx + uint32_t(grow)),
+                     y0 = uint32_t(std::max(0, int(ty) - grow)),
+                     y1 = std::min(tiles_y - 1, ty + uint32_t(grow));
+      for (uint32_t y = y0; y <= y1; ++y)
+        std::fill(listed.begin() + (size_t(y) * tiles_x + x0),
+                  listed.begin() + (size_t(y) * tiles_x + x1 + 1), uint8_t(1));
+    }
+  // Last frame's tiles too: this frame empties those no sample reaches any more.
+  std::vector<uint32_t> list;
+  for (size_t i = 0; i < listed.size(); ++i)
+    if (listed[i] || (i < mListedBefore.size() && mListedBefore[i]))
+      list.push_back(uint32_t(i / tiles_x) << 16 | uint32_t(i % tiles_x));
+  mListedBefore = std::move(listed);
+  if (list.empty()) {
+    for (uint32_t unit : {TESSERA_TEXTURE_DEPTH, TESSERA_TEXTURE_COLORS, TESSERA_TEXTURE_PICK,
+                          TESSERA_TEXTURE_FOOTPRINTS})
+      glBindTextureUnit(unit, 0);
+    return lap();
+  }
+  glNamedBufferSubData(mTiles.name(), 0, GLsizeiptr(list.size() * 4), list.data());
+  mTileTexels.bind(TESSERA_TEXTURE_FILL_TILES);
+
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_FILL_DEPTH, mDepth.name());
+  // Unused output planes are bound to the depth output (never written: uWrite* is 0).
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_FILL_COLORS,
+                   colors ? mColors.name() : mDepth.name());
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_FILL_PICK,
+                   pick ? mPick.name() : mDepth.name());
+  glBindTextureUnit(TESSERA_TEXTURE_FILL_SAMPLES, mSamples.name());
+  glBindTextureUnit(TESSERA_TEXTURE_FILL_WINNERS, mWinners.name());
+  // A stage over the listed tiles: 4^shift invocations a tile, 64 a group, in rows of at most
+  // 32768 groups (GL guarantees 65535 a dimension).
+  auto overTiles = [&](int shift) {
+    const uint64_t groups = (uint64_t(list.size()) << (2 * shift)) / 64 +
+                            ((uint64_t(list.size()) << (2 * shift)) % 64 != 0);
+    const uint32_t gx = uint32_t(std::min<uint64_t>(groups, 32768)),
+                   gy = uint32_t((groups + gx - 1) / gx);
+    return std::pair<uint32_t, uint32_t>(gx, gy);
+  };
+  auto level = [&](int stage, int l, int shift) {
+    const GlProgram& p = mStages[stage];
+    common(p);
     p.set("uLevel", l);
+    p.set("uTileCount", int(list.size()));
+    p.set("uTileShift", shift);
     // Stage 1 writes the samples of level l (and at level 1 those of level 0), stage 2 the
-    // winners of level l; stage 3 the output planes.
+    // winners of level l; stage 3 the output planes, stage 4 the frame's.
     if (stage == 1)
       glBindImageTexture(TESSERA_IMAGE_FILL_OUT, mSamples.name(), l, GL_FALSE, 0, GL_WRITE_ONLY,
                          GL_RG32UI);
     if (stage == 2)
-      glBindImageTexture(TESSERA_IMAGE_FILL_OUT, mWinners.name(), l - 1, GL_FALSE, 0,
-                         GL_WRITE_ONLY, GL_RG32UI);
+      glBindImageTexture(TESSERA_IMAGE_FILL_OUT, mWinners.name(), l - 1, GL_FALSE, 0, GL_WRITE_ONLY,
+                         GL_RG32UI);
     glBindImageTexture(TESSERA_IMAGE_FILL_LEVEL0, mSamples.name(), 0, GL_FALSE, 0, GL_WRITE_ONLY,
                        GL_RG32UI);
-    dispatchPixels((w + (1u << l) - 1) >> l, (h + (1u << l) - 1) >> l);
-    glMemoryBarrier(GL_TEXTURE_FETCH_BARRIER_BIT | GL_SHADER_IMAGE_ACCESS_BARRIER_BIT);
+    const auto [gx, gy] = overTiles(shift);
+    p.use();
+    glDispatchCompute(gx, gy, 1);
+    glMemoryBarrier(GL_TEXTURE_FETCH_BARRIER_BIT | GL_SHADER_IMAGE_ACCESS_BARRIER_BIT |
+                    GL_SHADER_STORAGE_BARRIER_BIT);
   };
-  for (int l = 1; l < std::max(levels, 2); ++l) level(1, l);  // pack level 0, pull levels
-  for (int l = levels; l >= 1; --l) level(2, l);              // push, coarse to fine
-  level(3, 1);  // push the pixels, a 2x2 block an invocation
-  const auto bytes = GLsizeiptr(mPixels * 4);
-  glCopyNamedBufferSubData(mDepth.name(), target.depth().name(), 0, 0, bytes);
-  if (colors) glCopyNamedBufferSubData(mColors.name(), target.colors().name(), 0, 0, bytes);
-  if (pick) glCopyNamedBufferSubData(mPick.name(), target.pick().name(), 0, 0, bytes);
-  glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT | GL_SHADER_STORAGE_BARRIER_BIT);
+  // Shift: a tile is 2^(kFillMaxLevels - l) texels of level l a side.
+  for (int l = 1; l < std::max(levels, 2); ++l) level(1, l, kFillMaxLevels - l);  // pack, pull
+  for (int l = levels; l >= 1; --l) level(2, l, kFillMaxLevels - l);  // push, coarse to fine
+  level(3, 1, kFillMaxLevels - 1);  // push the pixels, a 2x2 block an invocation
+  // Stage 4: the pass's planes back into the frame's, in the listed tiles.
+  const GlBufferTexture depth_out(mDepth, GL_R32UI),
+      colors_out(colors ? mColors : mDepth, GL_R32UI), pick_out(pick ? mPick : mDepth, GL_R32UI);
+  depth_out.bind(TESSERA_TEXTURE_DEPTH);
+  colors_out.bind(TESSERA_TEXTURE_COLORS);
+  pick_out.bind(TESSERA_TEXTURE_PICK);
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_DEPTH, target.depth().name());
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_COLORS, target.colors().name());
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_PICK,
+                   pick ? target.pick().name() : target.depth().name());
+  level(4, 0, kFillMaxLevels);
   for (uint32_t unit : {TESSERA_TEXTURE_FILL_SAMPLES, TESSERA_TEXTURE_FILL_WINNERS,
                         TESSERA_TEXTURE_DEPTH, TESSERA_TEXTURE_COLORS, TESSERA_TEXTURE_PICK,
-                        TESSERA_TEXTURE_FOOTPRINTS})
+                        TESSERA_TEXTURE_FOOTPRINTS, TESSERA_TEXTURE_FILL_TILES})
     glBindTextureUnit(unit, 0);
   for (uint32_t unit : {TESSERA_IMAGE_FILL_OUT, TESSERA_IMAGE_FILL_LEVEL0})
     glBindImageTexture(unit, 0, 0, GL_FALSE, 0, GL_WRITE_ONLY, GL_RG32UI);
@@ -234,8 +317,7 @@ double HighlightPass::run(FrameTarget& target, std::span<const Highlight> highli
   mProgram.set("uMaskSize", kHighlightMaskSize);
   const glm::dmat4 world_from_clip = glm::inverse(clip_from_world);
   for (const Highlight& h : highlights) {
-    if (!h.mask || h.mask->size() * 32 != size_t(kHighlightMaskSize) * kHighlightMaskSize)
-      continue;
+    if (!h.mask || h.mask->size() * 32 != size_t(kHighlightMaskSize) * kHighlightMaskSize) continue;
     // Only the selected model's pixels: its span of pick ids (none drawn: nothing to tint).
     const PickSpan* span = nullptr;
     if (h.model_node != 0 && models) {

@@ -323,8 +323,10 @@ struct Frame {
 
 enum class Mode { kDiscs, kPoints, kPullPush };  // kPoints: 1 px points, no fill
 
-/// Draws `batches` of `points` (pick ids: index in `points`) and resolves them on black.
-Frame drawFill(const std::vector<GpuPoint>& points, std::vector<DrawBatch> batches, Mode mode) {
+/// Draws `batches` of `points` (pick ids: index in `points`) and resolves them on black; the
+/// fill by `fill` (a fresh pass when null) with splat radii up to `max_radius`.
+Frame drawFill(const std::vector<GpuPoint>& points, std::vector<DrawBatch> batches, Mode mode,
+               FillPass* fill = nullptr, float max_radius = 8.0f) {
   FrameTarget target(kSize, kSize);
   PointPass pass;
   pass.setPoints(points);
@@ -338,7 +340,9 @@ Frame drawFill(const std::vector<GpuPoint>& points, std::vector<DrawBatch> batch
   }
   target.clearGeometry(true, false, shading.fill);
   pass.draw(target, batches, shading);
-  if (mode == Mode::kPullPush) FillPass().run(target, squareProjection(), 8.0f, true, true);
+  FillPass fresh;
+  if (mode == Mode::kPullPush)
+    (fill ? *fill : fresh).run(target, squareProjection(), max_radius, true, true);
   ResolvePass().run(target, glm::vec3(0.0f), 0);
   return {target.readImage(), target.readDepth(), target.readPick()};
 }
@@ -474,8 +478,8 @@ TEST_F(FillTest, FilledPixelsTakeTheDepthAndPickIdOfTheSampleThatReachesThem) {
       const float dist = glm::length(px - glm::vec2(x + 0.5f, y + 0.5f));
       const float radius = id < surface ? 0.5f * b[0].spacing_k / c.w : 0.0f;
       // Within the sample's radius; where several points fell on the sample's pixel, the
-      // nearest of them gives depth and pick id, the largest splat the reach from anywhere in
-      // the pixel: up to the pixel's diagonal further.
+      // nearest of them gives depth and pick id, the largest splat among those as near (in the
+      // footprint's top depth bits) its reach and position: up to the pixel's diagonal further.
       EXPECT_LE(dist, radius + 1.4143f) << "at " << x << "," << y;
       EXPECT_NEAR(std::bit_cast<float>(d), c.z / c.w * 0.5f + 0.5f, 1e-6f)
           << "at " << x << "," << y;
@@ -514,6 +518,83 @@ TEST_F(FillTest, TheFillIsTheSameWhateverOrderThePointsArriveIn) {
   EXPECT_GT(covered, ab.depth.size() / 2);  // the large discs close most of the 0.8 x 0.8 view
   EXPECT_EQ(differ, 0u);
   EXPECT_TRUE(ab.image.rgba == ba.image.rgba) << "the pictures differ";
+}
+
+/// View-space position at view depth z that projects to image pixel coordinates (x right, y
+/// down, pixel centres at + 0.5) `px`.
+glm::vec3 atPixel(glm::dvec2 px, double z) {
+  const glm::dmat4 p = squareProjection();
+  const double nx = px.x / kSize * 2.0 - 1.0, ny = 1.0 - px.y / kSize * 2.0;
+  return glm::vec3(float(nx * z / p[0][0]), float(ny * z / p[1][1]), float(-z));
+}
+
+TEST_F(FillTest, LargeDiscsAreFilledAcrossTileBorders) {
+  // The fill works only in the tiles of 16 px around drawn pixels: single points with 15 px
+  // discs a little off the tiles' corners and edges must still cover their whole discs, in
+  // every tile the discs reach, and nothing further.
+  const std::vector<glm::dvec2> centres{{32.1, 32.2}, {79.9, 48.05}, {64.0, 100.9}, {16.3, 111.8}};
+  std::vector<GpuPoint> pts;
+  for (const glm::dvec2& c : centres) pts.push_back({atPixel(c, 2.0), 0xFF00FF00u});
+  std::vector<DrawBatch> b{splats(0, pts.size(), 2.0, 15.0)};
+  b[0].splat_radius = 16;  // the largest disc drawn (drawFill's default: 8)
+  const Frame f = drawFill(pts, b, Mode::kPullPush, nullptr, 16.0f);
+  size_t inside = 0;
+  for (uint32_t y = 0; y < kSize; ++y)
+    for (uint32_t x = 0; x < kSize; ++x) {
+      double nearest = 1e9;
+      for (const glm::dvec2& c : centres)
+        nearest = std::min(nearest, glm::length(glm::dvec2(x + 0.5, y + 0.5) - c));
+      const bool covered = at(f, x, y)[1] != 0;
+      // Radii and positions are kept to 1/16 px.
+      if (nearest < 15.0 - 0.15) {
+        ++inside;
+        EXPECT_TRUE(covered) << "open at " << x << "," << y << ", " << nearest << " px away";
+      }
+      if (nearest > 15.0 + 0.15) {
+        EXPECT_FALSE(covered) << "at " << x << "," << y;
+      }
+    }
+  EXPECT_GT(inside, centres.size() * 650);  // pi 15^2 = 707 a disc, less the image's edges
+}
+
+TEST_F(FillTest, AFillPassReusedFrameAfterFrameGivesWhatAFreshOneGives) {
+  // The pass keeps its pyramid between frames and works only in the tiles around drawn pixels,
+  // emptying those it left: what a frame before left must never show. A closed surface over the
+  // whole view, then a small patch behind it (its tiles border the surface's old ones, whose
+  // samples would win where they reach), then nothing, the surface again with deeper levels
+  // (larger radii), and the patch again with deeper, then shallower levels.
+  std::vector<GpuPoint> wall, patch;
+  addRandomPlane(wall, 1.5, -1.0, 1.0, 1.0 / 4.0, 0xFF0000FFu, 8);
+  addRandomPlane(patch, 2.0, -0.1, 0.1, 1.0 / 3.0, 0xFF00FF00u, 9, 0.0, 0.1);
+  const std::vector<DrawBatch> on_wall{splats(0, wall.size(), 1.5, 4.0)},
+      on_patch{splats(0, patch.size(), 2.0, 3.0)};
+  FillPass reused;
+  struct Step {
+    const std::vector<GpuPoint>* points;
+    const std::vector<DrawBatch>* batches;
+    float max_radius;
+  };
+  const std::vector<GpuPoint> none{{glm::vec3(0.0f, 0.0f, 5.0f), 0xFFFFFFFFu}};  // behind the eye
+  const std::vector<DrawBatch> on_none{splats(0, 1, 2.0, 4.0)};
+  const Step steps[] = {{&wall, &on_wall, 8.0f},    {&patch, &on_patch, 8.0f},
+                        {&none, &on_none, 8.0f},    {&wall, &on_wall, 16.0f},
+                        {&patch, &on_patch, 16.0f}, {&wall, &on_wall, 16.0f},
+                        {&patch, &on_patch, 4.0f}};
+  for (size_t i = 0; i < std::size(steps); ++i) {
+    const Step& s = steps[i];
+    const Frame again = drawFill(*s.points, *s.batches, Mode::kPullPush, &reused, s.max_radius);
+    const Frame fresh = drawFill(*s.points, *s.batches, Mode::kPullPush, nullptr, s.max_radius);
+    size_t differ = 0, covered = 0;
+    for (size_t p = 0; p < fresh.depth.size(); ++p) {
+      covered += fresh.depth[p] != kEmptyDepth;
+      differ += again.depth[p] != fresh.depth[p] || again.pick[p] != fresh.pick[p];
+    }
+    EXPECT_EQ(differ, 0u) << "step " << i;
+    EXPECT_TRUE(again.image.rgba == fresh.image.rgba) << "step " << i;
+    if (s.points != &none) {
+      EXPECT_GT(covered, 100u) << "step " << i;
+    }
+  }
 }
 
 TEST_F(FillTest, BadSizesAndRadiiAreRefusedOrIgnored) {

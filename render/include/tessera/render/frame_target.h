@@ -49,8 +49,8 @@ class FrameTarget {
   /// Splat footprints for the pull-push fill (PointShading::fill, FillPass): per pixel two words,
   /// the disc the pixel's nearest point would have had (radius and position in the pixel,
   /// packed as shaders/point_raster.comp describes; 0 where no point was drawn as one pixel) and
-  /// non-zero when points behind it fell on the pixel too. Made on first use (8 bytes a
-  /// pixel). Raster order.
+  /// non-zero when other points within 1% of its depth fell on the pixel too. Made on first use
+  /// (8 bytes a pixel). Raster order.
   const GlBuffer& splatFootprints();
 
   /// Starts a frame's geometry: depth and colours empty; pick ids empty when `pick`; colour

@@ -92,10 +92,10 @@ struct PointShading {
   bool blend = false;
   glm::dmat4 projection{1.0};
   /// For the pull-push fill (FillPass; Marroquim et al. 2007): every point on screen is one
-  /// pixel, and the colour pass (run even for one colour) also keeps per pixel the footprint of
-  /// the nearest point's disc (the target's splatFootprints(); a read per point, an atomic per
-  /// pixel). Points off screen still draw their discs, so what reaches into the view from
-  /// outside is as before.
+  /// pixel, and the depth pass also keeps per pixel the footprint of the nearest point's disc
+  /// (the target's splatFootprints(); a read more for each point as near as the nearest so far
+  /// in its top depth bits, an atomic when its print is larger). Points off screen still draw
+  /// their discs, so what reaches into the view from outside is as before.
   bool fill = false;
 };
 
@@ -151,7 +151,7 @@ class PointPass {
     bool one_pixel = false, clipping = false, blend = false, pick = false, fill = false;
   };
   const GlProgram& raster(const RasterVariant& v);
-  GlProgram mRaster[64];  ///< by the variant's bits
+  GlProgram mRaster[64];                                  ///< by the variant's bits
   GlProgram mSpbr[2], mAccumulate, mOit[2], mOitResolve;  ///< [clip planes]
   GlBuffer mPoints;
   size_t mPlane = 0;  ///< pixels the buffers below are sized for

@@ -46,19 +46,24 @@ constexpr float kFillDepthTolerance = 4.0f;
 /// without a sample, or lying behind that sample by more than kFillDepthTolerance radii (a back
 /// surface seen through a hole of the front), takes it; so does its depth, colour (when
 /// `colors`) and pick id (when `pick`), so later passes and pick() see the filled surface. Pixels
-/// no disc reaches stay empty: silhouettes grow no more than the discs' (half a pixel more where
-/// several points share a pixel). Where discs overlap, the surface shows the sample whose disc
-/// holds the pixel deepest rather than the nearest in depth. Run after the point pass and before
-/// the resolve. Milliseconds.
+/// no disc reaches stay empty: silhouettes grow no more than the discs'. Where discs overlap,
+/// the surface shows the sample whose disc holds the pixel deepest rather than the nearest in
+/// depth. Run after the point pass and before the resolve. Milliseconds.
 ///
-/// Cost: levels = ceil(log2(max_radius)) (1 to kFillMaxLevels). One pass over the pixels in 2x2
-/// blocks reading the frame's depth and footprints (3 words a pixel) into packed samples (8
-/// bytes); pull and push passes over each level's texels (a quarter of the pixels and less; 4
-/// and 25 samples read a texel); one pass over the pixels in 2x2 blocks (25 samples read a
-/// block, 9 where no sample reaches); copies of the planes written. At 1920x1080 on llvmpipe
-/// 70-75 ms, about 6 resolve passes. Owns two pyramid textures of 8 bytes a texel (level 0
-/// included: 1.7 times the pixels) and output planes of 4 bytes a pixel, reallocated when the
-/// target's size changes.
+/// The pass works in tiles of 2^kFillMaxLevels pixels: those holding a drawn pixel, grown by the
+/// farthest reach of a sample, and those it worked in last time (which it empties). A run is
+/// the same as on a fresh pass (FillTest.AFillPassReusedFrameAfterFrameGivesWhatAFreshOneGives).
+///
+/// Cost: levels = ceil(log2(max_radius)) (1 to kFillMaxLevels). One read of the depth over the
+/// whole frame (which tiles hold a drawn pixel; a word a tile read back). Then in the tiles only:
+/// one pass over the pixels in 2x2 blocks reading the frame's depth and footprints (2 words a
+/// pixel) into packed samples (8 bytes); pull and push passes over each level's texels (a quarter
+/// of the pixels and less; 4 and 16 samples and 9 winners read a texel); one pass over the pixels
+/// in 2x2 blocks (16 samples and 9 winners read a block, the 9 winners only where no sample
+/// reaches); planes written, then copied into the frame's. At 1920x1080 on llvmpipe 30-45 ms
+/// where a model covers a quarter to a third of the view (bench/fill), 70-75 ms over the whole
+/// frame. Owns two pyramid textures of 8 bytes a texel (level 0 included: 1.7 times the pixels)
+/// and output planes of 4 bytes a pixel, reallocated when the target's size changes.
 class FillPass {
  public:
   FillPass();
@@ -70,13 +75,22 @@ class FillPass {
              bool pick);
 
  private:
-  GlProgram mStages[4];  ///< shaders/fill.comp's stages 1-3: pull, push a level, the pixels
+  /// Empties every texel of the pyramid and forgets the tiles listed.
+  void clearPyramid();
+
+  /// shaders/fill.comp's stages 0-4: mark tiles, pull, push a level, the pixels, write back
+  GlProgram mStages[5];
   /// The pyramid: samples of levels 0 .. kFillMaxLevels (mip l), the push's winners of levels
-  /// 1 .. kFillMaxLevels (mip l - 1); sized up to a multiple of 2^kFillMaxLevels so every
-  /// level's mip holds its texels.
+  /// 1 .. kFillMaxLevels (mip l - 1); sized up to whole tiles (2^kFillMaxLevels pixels) so every
+  /// level's mip holds its texels. Outside the tiles listed last, every texel is empty.
   GlTexture mSamples, mWinners;
   GlBuffer mDepth, mColors, mPick;
-  size_t mPixels = 0;  ///< target size the planes are for
+  GlBuffer mMarks, mTiles;  ///< per tile: holds a drawn pixel; the tiles listed (y << 16 | x)
+  GlBufferTexture mTileTexels;
+  std::vector<uint8_t> mListedBefore;  ///< per tile: listed by the last run
+  size_t mPixels = 0;                  ///< target size the planes are for
+  uint32_t mWidth = 0;
+  int mLevels = 0;  ///< the levels the pyramid was last built with
 };
 
 /// EdlOptions::filter_radius's largest value (TESSERA_EDL_MAX_FILTER_RADIUS in
@@ -130,8 +144,8 @@ class EdlPass {
   double run(FrameTarget& target, const EdlOptions& options, const glm::dmat4& projection);
 
  private:
-  GlProgram mStages[3];  ///< shaders/edl.comp's stages: robust 0 and 1, classic 2
-  GlBuffer mFiltered;    ///< kRobust: denoised log2 depth per pixel
+  GlProgram mStages[3];             ///< shaders/edl.comp's stages: robust 0 and 1, classic 2
+  GlBuffer mFiltered;               ///< kRobust: denoised log2 depth per pixel
   GlBufferTexture mFilteredTexels;  ///< mFiltered as stage 1 reads it
 };
 
@@ -196,7 +210,7 @@ class HighlightPass {
  private:
   GlProgram mProgram;
   GlBuffer mMask;
-  const std::vector<uint32_t>* mUploaded = nullptr;  ///< the mask in mMask (by identity)
+  const std::vector<uint32_t>* mUploaded = nullptr;    ///< the mask in mMask (by identity)
   std::shared_ptr<const std::vector<uint32_t>> mKeep;  ///< keeps that identity valid
 };
 
