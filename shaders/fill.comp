@@ -10,9 +10,10 @@
 // in its pixel (1/16 px, x bits 24-27, y bits 28-31); .y its level-0 pixel, y << 16 | x, from
 // which the winner's depth, colour and pick id are read. Two words a candidate, since llvmpipe
 // reads buffers lane by lane and the reads are the cost. Where several points fell on a pixel
-// within 1% of the nearest in depth (point_raster.comp flags it) the sample sits at the pixel's
-// centre with the largest of their radii grown by half the pixel's diagonal: a disc that holds
-// the others' too where their radii are alike (points of one LOD node).
+// in the nearest's depth group (point_raster.comp's fillGroup(), 1.6-3.2% of the view depth) the
+// sample sits at the pixel's centre with the largest of their radii grown by half the pixel's
+// diagonal: a disc that holds the others' too where their radii are alike (points of one LOD
+// node).
 //
 // Stages (TESSERA_FILL_STAGE, one program each):
 // Pull (1, levels 1 .. uLevels - 1; level 1 first packs level 0's samples from the frame
@@ -55,10 +56,9 @@ layout(local_size_x = 64) in;
 #endif
 
 // The frame's planes, read as buffer textures (FillPass binds views of them): depth, colours,
-// pick ids, and per pixel the footprint of its nearest point (point_raster.comp): the top 16
-// bits of its inverted depth, its radius in 1/16 pixels (bits 8-15), its position in the pixel
-// in 1/16 pixels (x bits 4-7, y bits 0-3); then the same top bits where more than one point fell
-// within them.
+// pick ids, and per pixel the footprint of its nearest point (point_raster.comp): its depth
+// group (top 14 bits), its radius in 1/16 pixels (bits 8-15), its position in the pixel in 1/16
+// pixels (x bits 4-7, y bits 0-3); then the same group where more than one point fell in it.
 layout(binding = TESSERA_TEXTURE_DEPTH) uniform usamplerBuffer uDepth;
 layout(binding = TESSERA_TEXTURE_COLORS) uniform usamplerBuffer uColors;
 layout(binding = TESSERA_TEXTURE_PICK) uniform usamplerBuffer uPick;
@@ -219,9 +219,11 @@ uvec2 packPixel(ivec2 p) {
   uvec2 print = texelFetch(uFootprints, int(pixel)).xy;
   uint f = print.x;
   // The footprint is the nearest point's unless that was a disc from off screen (no footprint).
-  bool nearest = d != kEmpty && (f >> 16) == (~d >> 16);
+  // Its group, as point_raster.comp's fillGroup(): the top bits of 1 - window depth.
+  uint group = floatBitsToUint(1.0 - uintBitsToFloat(d)) & 0xFFFC0000u;
+  bool nearest = d != kEmpty && (f & 0xFFFF0000u) == group;
   float r = nearest ? min(float((f >> 8) & 0xFFu) / 16.0, uMaxRadius) : 0.0;
-  bool several = (print.y >> 16) == (~d >> 16);
+  bool several = print.y != 0u && print.y == group;
   uvec2 sub = several ? uvec2(8u) : uvec2((f >> 4) & 0xFu, f & 0xFu);
   if (several && r > 0.0) r += 0.70711;
   uint r8 = uint(min(r * 16.0 + 0.5, 255.0));  // to 1/32 px of the disc's

@@ -494,8 +494,8 @@ TEST_F(FillTest, FilledPixelsTakeTheDepthAndPickIdOfTheSampleThatReachesThem) {
 }
 
 TEST_F(FillTest, TheFillIsTheSameWhateverOrderThePointsArriveIn) {
-  // Pairs of points on one pixel, 0.1% apart in depth (the same top bits of the footprint's
-  // depth), the nearer with 1.5 px discs, the farther with 3.5 px: drawn in either order, the
+  // Pairs of points on one pixel, 0.1% apart in depth (mostly in one of the footprints' depth
+  // groups), the nearer with 1.5 px discs, the farther with 3.5 px: drawn in either order, the
   // footprints and so the filled pixels are the same. (The footprint written only by a point
   // nearer than all before it kept the nearer's small disc in one order and the farther's large
   // one in the other.)

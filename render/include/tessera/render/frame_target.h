@@ -49,7 +49,7 @@ class FrameTarget {
   /// Splat footprints for the pull-push fill (PointShading::fill, FillPass): per pixel two words,
   /// the disc the pixel's nearest point would have had (radius and position in the pixel,
   /// packed as shaders/point_raster.comp describes; 0 where no point was drawn as one pixel) and
-  /// non-zero when other points within 1% of its depth fell on the pixel too. Made on first use
+  /// non-zero when other points in its depth group (2-3%) fell on the pixel too. Made on first use
   /// (8 bytes a pixel). Raster order.
   const GlBuffer& splatFootprints();
 
