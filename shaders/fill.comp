@@ -97,12 +97,17 @@ uniform float uTolerance;  // depth tolerance in splat radii
 uniform float uPixelK;     // world size of a pixel at view depth 1 (2 / (P11 height))
 uniform float uP22;        // projection[2][2] and [3][2]: view depth from window depth
 uniform float uP32;
-uniform int uWriteColor;   // copy colours of the winners
-uniform int uWritePick;    // copy pick ids of the winners
+// WRITE_COLOR, WRITE_PICK (defines, FillPass compiles a program per combination): copy the
+// colours, the pick ids of the winners.
+const bool kWriteColor = WRITE_COLOR != 0;
+const bool kWritePick = WRITE_PICK != 0;
 uniform int uTileCount;    // tiles listed
 uniform int uTileShift;    // log2 of a tile's side in this stage's texels (2x2 blocks: 3)
 
 const uint kEmpty = 0xFFFFFFFFu;
+// In the pass's depth plane: the pixel keeps the frame's own values (no window depth has these
+// bits).
+const uint kKeep = 0xFFFFFFFEu;
 
 ivec2 levelSize(int l) {
   return (uSize + ivec2((1 << l) - 1)) >> l;
@@ -328,10 +333,16 @@ void resolvePixel(ivec2 p, Winner best) {
   uint src = pixel;
   if (best.s.y != kEmpty && (own == kEmpty || viewDepth(own) > best.w + best.tol))
     src = indexOf(best.s.y);
-  uint d = src == pixel ? own : texelFetch(uDepth, int(src)).x;
-  out_depth[pixel] = d;
-  if (uWriteColor != 0) out_colors[pixel] = d == kEmpty ? kEmpty : texelFetch(uColors, int(src)).x;
-  if (uWritePick != 0) out_pick[pixel] = d == kEmpty ? kEmpty : texelFetch(uPick, int(src)).x;
+  // Most pixels keep their own values: one word says so, and the colour and pick id are read
+  // and written in a loop only the lanes of changed pixels enter (llvmpipe runs a branch's body
+  // under a mask for every lane, but leaves a loop no lane is in).
+  bool keep = src == pixel;
+  uint d = keep ? own : texelFetch(uDepth, int(src)).x;
+  out_depth[pixel] = keep ? kKeep : d;
+  for (int k = keep ? 1 : 0; k < 1; ++k) {
+    if (kWriteColor) out_colors[pixel] = d == kEmpty ? kEmpty : texelFetch(uColors, int(src)).x;
+    if (kWritePick) out_pick[pixel] = d == kEmpty ? kEmpty : texelFetch(uPick, int(src)).x;
+  }
 }
 
 // Push, the pixels: one invocation per 2x2 block (a level-1 texel), so each candidate is read
@@ -373,15 +384,18 @@ void mark() {
   if (any) tile_marks[(b.y / TESSERA_FILL_TILE) * tiles_x + b.x / TESSERA_FILL_TILE] = 1u;
 }
 
-// Stage 4: the pass's planes (bound to uDepth, uColors, uPick) back into the frame's, a pixel an
-// invocation over the listed tiles.
+// Stage 4: the pass's planes (bound to uDepth, uColors, uPick) back into the frame's where the
+// fill changed a pixel, a pixel an invocation over the listed tiles.
 void writeBack() {
   ivec2 p = tiledTexel();
   if (p.x < 0 || p.x >= uSize.x || p.y >= uSize.y) return;
   int pixel = p.y * uSize.x + p.x;
-  frame_depth[pixel] = texelFetch(uDepth, pixel).x;
-  if (uWriteColor != 0) frame_colors[pixel] = texelFetch(uColors, pixel).x;
-  if (uWritePick != 0) frame_pick[pixel] = texelFetch(uPick, pixel).x;
+  uint d = texelFetch(uDepth, pixel).x;
+  for (int k = d == kKeep ? 1 : 0; k < 1; ++k) {  // only pixels the fill changed
+    frame_depth[pixel] = d;
+    if (kWriteColor) frame_colors[pixel] = texelFetch(uColors, pixel).x;
+    if (kWritePick) frame_pick[pixel] = texelFetch(uPick, pixel).x;
+  }
 }
 
 // Each stage is its own program (FillPass defines TESSERA_FILL_STAGE), so each compiles to just

@@ -97,12 +97,20 @@ double EdlPass::run(FrameTarget& target, const EdlOptions& options, const glm::d
   return lap();
 }
 
-FillPass::FillPass() {
-  for (int stage = 0; stage < 5; ++stage) {
-    const std::string source =
-        "#define TESSERA_FILL_STAGE " + std::to_string(stage) + "\n" + shaders::kFill;
-    mStages[stage] = GlProgram::compute(source.c_str(), "fill.comp");
+FillPass::FillPass() = default;
+
+const GlProgram& FillPass::stage(int stage, bool colors, bool pick) {
+  // Stages 0-2 write no colours or pick ids: one program each.
+  const int index = stage * 4 + (stage >= 3 ? int(colors) | int(pick) << 1 : 0);
+  GlProgram& p = mStages[index];
+  if (!p) {
+    const std::string source = "#define TESSERA_FILL_STAGE " + std::to_string(stage) +
+                               "\n#define WRITE_COLOR " + std::to_string(int(colors)) +
+                               "\n#define WRITE_PICK " + std::to_string(int(pick)) + "\n" +
+                               shaders::kFill;
+    p = GlProgram::compute(source.c_str(), "fill.comp");
   }
+  return p;
 }
 
 void FillPass::clearPyramid() {
@@ -164,14 +172,12 @@ double FillPass::run(FrameTarget& target, const glm::dmat4& projection, float ma
     p.set("uPixelK", float(2.0 / (projection[1][1] * h)));
     p.set("uP22", float(projection[2][2]));
     p.set("uP32", float(projection[3][2]));
-    p.set("uWriteColor", colors ? 1 : 0);
-    p.set("uWritePick", pick ? 1 : 0);
   };
 
   // Stage 0: which tiles hold a drawn pixel.
   mMarks.clear(0u);
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_FILL_TILE_MARKS, mMarks.name());
-  common(mStages[0]);
+  common(stage(0, colors, pick));
   glDispatchCompute(tiles_x, tiles_y, 1);
   glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT);
   std::vector<uint32_t> marks(size_t(tiles_x) * tiles_y);
@@ -224,7 +230,7 @@ double FillPass::run(FrameTarget& target, const glm::dmat4& projection, float ma
     return std::pair<uint32_t, uint32_t>(gx, gy);
   };
   auto level = [&](int stage, int l, int shift) {
-    const GlProgram& p = mStages[stage];
+    const GlProgram& p = this->stage(stage, colors, pick);
     common(p);
     p.set("uLevel", l);
     p.set("uTileCount", int(list.size()));

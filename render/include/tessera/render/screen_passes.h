@@ -60,10 +60,11 @@ constexpr float kFillDepthTolerance = 4.0f;
 /// pixel) into packed samples (8 bytes); pull and push passes over each level's texels (a quarter
 /// of the pixels and less; 4 and 16 samples and 9 winners read a texel); one pass over the pixels
 /// in 2x2 blocks (16 samples and 9 winners read a block, the 9 winners only where no sample
-/// reaches); planes written, then copied into the frame's. At 1920x1080 on llvmpipe 30-45 ms
-/// where a model covers a quarter to a third of the view (bench/fill), 70-75 ms over the whole
-/// frame. Owns two pyramid textures of 8 bytes a texel (level 0 included: 1.7 times the pixels)
-/// and output planes of 4 bytes a pixel, reallocated when the target's size changes.
+/// reaches); planes written where the fill changes a pixel, then copied into the frame's. At
+/// 1920x1080 on llvmpipe 30-45 ms where a model covers a quarter to a third of the view
+/// (bench/fill), 70-75 ms over the whole frame. Owns two pyramid textures of 8 bytes a texel (level
+/// 0 included: 1.7 times the pixels) and output planes of 4 bytes a pixel, reallocated when the
+/// target's size changes.
 class FillPass {
  public:
   FillPass();
@@ -77,9 +78,11 @@ class FillPass {
  private:
   /// Empties every texel of the pyramid and forgets the tiles listed.
   void clearPyramid();
+  /// shaders/fill.comp's stage 0-4 (mark tiles, pull, push a level, the pixels, write back),
+  /// compiled on first use; stages 3 and 4 per copy of colours and pick ids.
+  const GlProgram& stage(int stage, bool colors, bool pick);
 
-  /// shaders/fill.comp's stages 0-4: mark tiles, pull, push a level, the pixels, write back
-  GlProgram mStages[5];
+  GlProgram mStages[5 * 4];
   /// The pyramid: samples of levels 0 .. kFillMaxLevels (mip l), the push's winners of levels
   /// 1 .. kFillMaxLevels (mip l - 1); sized up to whole tiles (2^kFillMaxLevels pixels) so every
   /// level's mip holds its texels. Outside the tiles listed last, every texel is empty.
