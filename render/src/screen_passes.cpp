@@ -213,7 +213,8 @@ double FillPass::run(FrameTarget& target, const glm::dmat4& projection, float ma
   mTileTexels.bind(TESSERA_TEXTURE_FILL_TILES);
 
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_FILL_DEPTH, mDepth.name());
-  // Unused output planes are bound to the depth output (never written: uWrite* is 0).
+  // Unused output planes are bound to the depth output (never written: WRITE_COLOR and
+  // WRITE_PICK are 0 in the programs for them).
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_FILL_COLORS,
                    colors ? mColors.name() : mDepth.name());
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_FILL_PICK,
@@ -246,7 +247,6 @@ double FillPass::run(FrameTarget& target, const glm::dmat4& projection, float ma
     glBindImageTexture(TESSERA_IMAGE_FILL_LEVEL0, mSamples.name(), 0, GL_FALSE, 0, GL_WRITE_ONLY,
                        GL_RG32UI);
     const auto [gx, gy] = overTiles(shift);
-    p.use();
     glDispatchCompute(gx, gy, 1);
     glMemoryBarrier(GL_TEXTURE_FETCH_BARRIER_BIT | GL_SHADER_IMAGE_ACCESS_BARRIER_BIT |
                     GL_SHADER_STORAGE_BARRIER_BIT);
