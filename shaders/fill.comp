@@ -10,10 +10,10 @@
 // in its pixel (1/16 px, x bits 24-27, y bits 28-31); .y its level-0 pixel, y << 16 | x, from
 // which the winner's depth, colour and pick id are read. Two words a candidate, since llvmpipe
 // reads buffers lane by lane and the reads are the cost. Where several points fell on a pixel
-// in the nearest's depth group (point_raster.comp's fillGroup(), 1.6-3.2% of the view depth) the
-// sample sits at the pixel's centre with the largest of their radii grown by half the pixel's
-// diagonal: a disc that holds the others' too where their radii are alike (points of one LOD
-// node).
+// in the nearest's depth group (tesseraFillGroup() in shared_layout.h, 1.6-3.2% of the view
+// depth) the sample sits at the pixel's centre with the largest of their radii grown by half the
+// pixel's diagonal: a disc that holds the others' too where their radii are alike (points of
+// one LOD node).
 //
 // Stages (TESSERA_FILL_STAGE, one program each):
 // Pull (1, levels 1 .. uLevels - 1; level 1 first packs level 0's samples from the frame
@@ -224,8 +224,7 @@ uvec2 packPixel(ivec2 p) {
   uvec2 print = texelFetch(uFootprints, int(pixel)).xy;
   uint f = print.x;
   // The footprint is the nearest point's unless that was a disc from off screen (no footprint).
-  // Its group, as point_raster.comp's fillGroup(): the top bits of 1 - window depth.
-  uint group = floatBitsToUint(1.0 - uintBitsToFloat(d)) & 0xFFFC0000u;
+  uint group = tesseraFillGroup(d);
   bool nearest = d != kEmpty && (f & 0xFFFF0000u) == group;
   float r = nearest ? min(float((f >> 8) & 0xFFu) / 16.0, uMaxRadius) : 0.0;
   bool several = print.y != 0u && print.y == group;
@@ -255,8 +254,8 @@ void pullChild(inout Winner best, float front, vec2 centre, uvec2 c) {
   if (s.w <= front + s.tol && (best.s.y == kEmpty || deeper)) best = Winner(c, s.w, 0.0, power);
 }
 
-// Pull level uLevel; level 1 packs level 0's samples on the way (stage 0: one invocation per
-// 2x2 pixels, so the frame's planes are read once).
+// Pull level uLevel; level 1 packs level 0's samples on the way (one invocation per 2x2 pixels,
+// so the frame's planes are read once).
 void pull() {
   ivec2 t = tiledTexel();
   ivec2 size = levelSize(uLevel);

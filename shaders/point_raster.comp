@@ -98,19 +98,6 @@ void write(uint idx, uint d, uint gi, uint i, float w, float k) {
 #endif
 }
 
-// FILL: the group of points as near as the nearest that a pixel's footprint is chosen among: the
-// top 14 bits of 1 - window depth (exponent and 5 bits of mantissa), the larger the nearer (0 for
-// none). Under a perspective projection 1 - window depth falls as 1 / view depth, so a group is
-// 1.6-3.2% of the view depth wide wherever it is (1.0 - x is exact for window depths above 1/2,
-// and the fill computes the same). The top bits of the window depth itself held most of a model
-// at once (window depth crowds towards 1 with the distance), so every point of the 10^7-point
-// cube took the footprint's atomics; narrower groups (16 bits) split more of a surface's points
-// at a group's edge, whose pixels then lose the grown disc of several points (bench/fill: the
-// bunny scan's open pixels 0.0044% at 12 bits, 0.016% at 14, 0.027% at 16).
-uint fillGroup(uint d) {
-  return d == 0xFFFFFFFFu ? 0u : floatBitsToUint(1.0 - uintBitsToFloat(d)) & 0xFFFC0000u;
-}
-
 void raster(uint i) {
   uint gi = uFirst + i;
   uvec4 point = pointAt(gi);
@@ -152,27 +139,26 @@ void raster(uint i) {
     uint idx = uint(centre.y) * uint(uSize.x) + uint(centre.x);
 #if PASS == 0
     {
-      // The footprint, packed as fill.comp reads it: the point's fillGroup() (so the nearest
-      // point's wins), the radius in 1/16 pixels (bits 8-15, to 15.9) and the point's position
-      // in its pixel in 1/16 pixels (x bits 4-7, y bits 0-3), so the fill tests reach as the
-      // disc loop below does (a fixed disc is centred on its pixel). The largest print wins:
-      // the nearest point's group, then within it the largest radius and position, whatever
+      // The footprint, packed as fill.comp reads it: the point's tesseraFillGroup() (so the
+      // nearest point's wins), the radius in 1/16 pixels (bits 8-15, to 15.9) and the point's
+      // position in its pixel in 1/16 pixels (x bits 4-7, y bits 0-3), so the fill tests reach
+      // as the disc loop below does (a fixed disc is centred on its pixel). The largest print
+      // wins: the nearest point's group, then within it the largest radius and position, whatever
       // order the points arrive in. The second word says that more than one point fell in that
       // nearest group (their other positions are lost): the largest group of a point that found
       // the pixel's nearest so far in its own group. Only a point whose group reaches that of
       // the nearest so far can be among the group: a read tells the others (in a volume of
       // points, most), and the atomic on the depth is taken only by a point nearer than what
-      // the read saw. (Until issue 12's last session the group was the top bits of the window
-      // depth, which held all of the 10^7-point cube at once. Writing
-      // only for a point nearer than all before it, as until issue 12's session before last,
-      // left ties to the arrival order: 0.0742% or 0.0746% open pixels on Autzen from run to
-      // run. Every point took the atomic and read the flag until the last session: 40-60% more
-      // depth pass than the 1 px points, now 30-50%.)
+      // the read saw. (Writing only for a point nearer than all before it, as until issue 12's
+      // session before last, left ties to the arrival order: 0.0742% or 0.0746% open pixels on
+      // Autzen from run to run. Every point took the depth atomic and read the flag, and the
+      // group was the top bits of the window depth itself, until the last session: 40-60% more
+      // depth pass than the 1 px points, now 20-35%.)
       uint old = depth[idx];
-      uint group = fillGroup(d);
-      if (group < fillGroup(old)) return;
+      uint group = tesseraFillGroup(d);
+      if (group < tesseraFillGroup(old)) return;
       if (d < old) old = atomicMin(depth[idx], d);
-      uint old_group = fillGroup(old);
+      uint old_group = tesseraFillGroup(old);
       if (group >= old_group) {
         uvec2 kept = footprints[idx];
         float reach = uSpacingK > 0.0 ? disc : sqrt(float(radius * radius + radius));
