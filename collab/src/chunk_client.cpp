@@ -184,6 +184,15 @@ struct Link {
   }
 };
 
+/// The cached copy this thread's last read came from (empty: it came from the server), so that
+/// refetch() drops the copy that read and not a good one another thread has written since.
+struct CachedCopy {
+  fs::path path;
+  dev_t dev = 0;
+  ino_t ino = 0;
+};
+thread_local CachedCopy tLastCached;
+
 /// One store's bytes: the disk cache, else the chunk server.
 class RemoteRangeSource final : public lod::RangeSource {
  public:
@@ -197,17 +206,16 @@ class RemoteRangeSource final : public lod::RangeSource {
   std::string name() const override { return mPath; }
 
   bool refetch(uint64_t offset, size_t n) const override {
-    if (mFolder.empty()) return false;
-    std::error_code ec;
-    if (!fs::remove(file(offset, n), ec)) return false;  // it came from the server
-    mClient->cache_budget->removed(file(offset, n));
-    std::lock_guard lock(mClient->mutex);
-    ++mClient->counters.refetched;
+    const fs::path p = file(offset, n);
+    if (mFolder.empty() || tLastCached.path != p) return false;  // it came from the server
+    dropCopy(p, tLastCached.dev, tLastCached.ino);
+    tLastCached.path.clear();
     return true;
   }
 
  private:
   void readRange(uint64_t offset, void* dst, size_t n, std::stop_token cancel) const override {
+    tLastCached.path.clear();
     if (readCached(offset, dst, n)) return;
     site::ChunkRequest q;
     q.set_store(mPath);
@@ -245,15 +253,31 @@ class RemoteRangeSource final : public lod::RangeSource {
       if (ok) done += size_t(got);
     }
     ::close(fd);
-    if (ok) mClient->cache_budget->used(p);
-    std::lock_guard lock(mClient->mutex);
     if (!ok) {  // the wrong size or unreadable: fetched again and rewritten
-      ++mClient->counters.refetched;
+      dropCopy(p, st.st_dev, st.st_ino);
       return false;
     }
+    mClient->cache_budget->used(p);
+    tLastCached = {p, st.st_dev, st.st_ino};
+    std::lock_guard lock(mClient->mutex);
     ++mClient->counters.cache_hits;
     mClient->counters.cache_bytes += n;
     return true;
+  }
+
+  /// Removes the cached copy `p` if it is still the file (dev, ino) a read found broken, and
+  /// counts it. Loader threads may read one broken copy at once (a patch, and its child's morph
+  /// targets): the first drops it, and a good copy another thread has put in its place since is
+  /// kept, so each broken copy counts once.
+  void dropCopy(const fs::path& p, dev_t dev, ino_t ino) const {
+    std::lock_guard files(mFiles);
+    struct stat st {};
+    std::error_code ec;
+    if (::stat(p.c_str(), &st) != 0 || st.st_dev != dev || st.st_ino != ino || !fs::remove(p, ec))
+      return;
+    mClient->cache_budget->removed(p);
+    std::lock_guard lock(mClient->mutex);
+    ++mClient->counters.refetched;
   }
 
   void writeCached(uint64_t offset, const std::string& bytes) const {
@@ -273,7 +297,10 @@ class RemoteRangeSource final : public lod::RangeSource {
     const int err = errno;
     if (fd >= 0 && ::close(fd) != 0) ok = false;
     std::error_code ec;
-    if (ok) fs::rename(tmp, final_path, ec);  // atomic: a reader sees all of it or nothing
+    if (ok) {
+      std::lock_guard files(mFiles);    // never between dropCopy()'s look and its removal
+      fs::rename(tmp, final_path, ec);  // atomic: a reader sees all of it or nothing
+    }
     if (ok && !ec) mClient->cache_budget->added(final_path, bytes.size());
     if (!ok || ec) {
       fs::remove(tmp, ec);
@@ -285,7 +312,8 @@ class RemoteRangeSource final : public lod::RangeSource {
   std::shared_ptr<Link> mClient;
   std::string mPath;
   uint64_t mSize;
-  fs::path mFolder;  // empty: no disk cache
+  fs::path mFolder;           // empty: no disk cache
+  mutable std::mutex mFiles;  // dropCopy() against writeCached()'s rename
 };
 
 }  // namespace

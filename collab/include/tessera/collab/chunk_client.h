@@ -19,7 +19,8 @@
 // (ChunkStoreInfo: its size and first 4 KiB), so a store changed on the master is never read
 // from an old copy; a file per range ("OFFSET+LENGTH"), written to a temporary file and renamed
 // into place, so a reader sees a whole range or none. A cache file of the wrong size is
-// ignored and fetched again. The folder holds at most `cache_limit_bytes` over all its stores,
+// dropped and fetched again. Loader threads that read one broken copy at once all read again;
+// the copy is dropped (and counted in `refetched`) once, never a good one written since. The folder holds at most `cache_limit_bytes` over all its stores,
 // least recently used ranges removed first (chunk_cache.h).
 #pragma once
 
