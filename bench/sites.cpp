@@ -26,7 +26,9 @@
 // single window per count turns into its ratio.
 //
 // Writes DIR/sites_overhead.csv, DIR/sites_latency.csv and DIR/sites.png (gnuplot); prints the
-// figures. Every process runs on THIS machine (2 cores).
+// figures. Every process runs on THIS machine (2 cores). --split-cores puts the node alone on
+// CPU 0 (llvmpipe with one thread) and the master and the traffic on CPU 1, as a master on a
+// machine of its own; its files are named sites_*_split_cores.
 #include <CLI/CLI.hpp>
 
 #include <sched.h>
@@ -38,8 +40,10 @@
 #include <algorithm>
 #include <array>
 #include <atomic>
+#include <cerrno>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <exception>
 #include <filesystem>
 #include <fstream>
@@ -135,6 +139,9 @@ std::string cameraJson(double x, double y, double z) {
 struct Setup {
   fs::path dir;
   std::string master_bin, node_bin;
+  /// --split-cores: the node alone on CPU 0 with one llvmpipe thread, the master (and this
+  /// process's site traffic) on CPU 1.
+  bool split_cores = false;
   std::string master_public;
   std::vector<fs::path> site_keys;
 };
@@ -156,27 +163,39 @@ Wall startWall(const Setup& s, const std::string& name, double seconds) {
   w.stats = run / "stats.csv";
   w.log = run / "master.log";
   fs::remove(w.log);
-  w.master = std::make_unique<Process>(std::vector<std::string>{s.master_bin,
-                                                                "--transport",
-                                                                "zmq",
-                                                                "--listen",
-                                                                "tcp://127.0.0.1:*",
-                                                                "--wall",
-                                                                (s.dir / "wall.json").string(),
-                                                                "--scene",
-                                                                (s.dir / "scene.json").string(),
-                                                                "--script",
-                                                                (run / "hold.json").string(),
-                                                                "--stats",
-                                                                w.stats.string(),
-                                                                "--sites",
-                                                                "tcp://127.0.0.1:*",
-                                                                "--site-key",
-                                                                (s.dir / "master.key").string(),
-                                                                "--allow",
-                                                                (s.dir / "allow.txt").string(),
-                                                                "--site-timeout",
-                                                                "30"},
+  // taskset and env exec the program: the process keeps its pid.
+  const std::vector<std::string> on_master_cpu =
+      s.split_cores ? std::vector<std::string>{"/usr/bin/taskset", "-c", "1"}
+                    : std::vector<std::string>{};
+  const std::vector<std::string> on_node_cpu =
+      s.split_cores ? std::vector<std::string>{"/usr/bin/env", "LP_NUM_THREADS=1",
+                                               "/usr/bin/taskset", "-c", "0"}
+                    : std::vector<std::string>{};
+  auto launch = [](std::vector<std::string> prefix, const std::vector<std::string>& argv) {
+    prefix.insert(prefix.end(), argv.begin(), argv.end());
+    return prefix;
+  };
+  w.master = std::make_unique<Process>(launch(on_master_cpu, {s.master_bin,
+                                                              "--transport",
+                                                              "zmq",
+                                                              "--listen",
+                                                              "tcp://127.0.0.1:*",
+                                                              "--wall",
+                                                              (s.dir / "wall.json").string(),
+                                                              "--scene",
+                                                              (s.dir / "scene.json").string(),
+                                                              "--script",
+                                                              (run / "hold.json").string(),
+                                                              "--stats",
+                                                              w.stats.string(),
+                                                              "--sites",
+                                                              "tcp://127.0.0.1:*",
+                                                              "--site-key",
+                                                              (s.dir / "master.key").string(),
+                                                              "--allow",
+                                                              (s.dir / "allow.txt").string(),
+                                                              "--site-timeout",
+                                                              "30"}),
                                        w.log);
   if (!w.master->waitFor("remote sites join on tcp://[^:]+:(\\d+)", 30))
     throw std::runtime_error("the master did not start: " + w.master->output());
@@ -187,8 +206,7 @@ Wall startWall(const Setup& s, const std::string& name, double seconds) {
   std::regex_search(out, m, std::regex("remote sites join on tcp://[^:]+:(\\d+)"));
   w.sites = "tcp://127.0.0.1:" + m[1].str();
   w.node = std::make_unique<Process>(
-      std::vector<std::string>{s.node_bin, "--master", wall_endpoint, "--headless"},
-      run / "node.log");
+      launch(on_node_cpu, {s.node_bin, "--master", wall_endpoint, "--headless"}), run / "node.log");
   if (!w.master->waitFor("1 of 1 tiles have a node", 60))
     throw std::runtime_error("the node did not join: " + w.master->output());
   return w;
@@ -486,6 +504,12 @@ int main(int argc, char** argv) {
     app.add_flag("--draw-only", draw_only,
                  "Only what the master's logic and a node's drawing cost per frame, in process "
                  "(no processes, no sockets)");
+    bool split_cores = false;
+    app.add_flag("--split-cores", split_cores,
+                 "Put the render node alone on CPU 0 (llvmpipe with one thread) and the master "
+                 "and the sites' traffic on CPU 1: a master on a machine of its own, as a "
+                 "cluster runs it, so the figure is what the sites cost the master and the "
+                 "node, not the node's cores shared with the master");
     if (const auto code = tessera::cli::parse(app, argc, argv, "sites")) return *code;
     std::vector<int> counts;
     {
@@ -499,6 +523,14 @@ int main(int argc, char** argv) {
     }
 
     Setup s;
+    s.split_cores = split_cores;
+    if (split_cores) {
+      cpu_set_t cpus;
+      CPU_ZERO(&cpus);
+      if (::sched_getaffinity(0, sizeof cpus, &cpus) != 0 || !CPU_ISSET(0, &cpus) ||
+          !CPU_ISSET(1, &cpus))
+        throw tessera::cli::UsageError("--split-cores needs CPUs 0 and 1 (see nproc, taskset)");
+    }
     s.dir = fs::path(out) / "sites-work";
     fs::remove_all(s.dir);
     fs::create_directories(s.dir);
@@ -554,9 +586,18 @@ int main(int argc, char** argv) {
     }
     dcsv.close();
     if (draw_only) return 0;
+    if (split_cores) {  // this thread, and the traffic and ZeroMQ threads it starts from now on
+      cpu_set_t cpus;
+      CPU_ZERO(&cpus);
+      CPU_SET(1, &cpus);
+      if (::sched_setaffinity(0, sizeof cpus, &cpus) != 0)
+        throw std::runtime_error(std::string("--split-cores: sched_setaffinity: ") +
+                                 std::strerror(errno));
+    }
 
     // ---- 1. overhead ----
-    std::ofstream ocsv(fs::path(out) / "sites_overhead.csv");
+    const std::string tag = split_cores ? "_split_cores" : "";  // its own files
+    std::ofstream ocsv(fs::path(out) / ("sites_overhead" + tag + ".csv"));
     ocsv << "sites,frames_per_s,frame_ms_median,frame_ms_p99,ratio_to_no_sites,"
             "in_bytes_per_site_s,out_bytes_per_site_s,master_sync_ms_mean,master_cpu_ms_per_frame,"
             "node_cpu_ms_per_frame,traffic_cpu_percent,rounds,frames_per_s_min,frames_per_s_max\n";
@@ -564,8 +605,9 @@ int main(int argc, char** argv) {
         traffic_idle ? std::string("SCHED_IDLE") : "nice " + std::to_string(traffic_nice);
     std::printf(
         "master frame rate with sites (1 tile 640x360, %.0f s each, %d rounds in turn, sites "
-        "--no-render, their traffic at %s):\n",
-        seconds, rounds, traffic_how.c_str());
+        "--no-render, their traffic at %s%s):\n",
+        seconds, rounds, traffic_how.c_str(),
+        split_cores ? "; the node alone on CPU 0, the master and the traffic on CPU 1" : "");
     /// One window of one count: its figures.
     struct Window {
       double fps = 0, frame_median = 0, frame_p99 = 0, in_rate = 0, out_rate = 0, sync_mean = 0,
@@ -653,11 +695,10 @@ int main(int argc, char** argv) {
           "%.2f ms p99; master before the nodes %.2f ms; CPU per frame: master %.2f ms, node "
           "%.2f ms; the K sites' traffic itself %.0f%% of a core; per site %.0f B/s in, %.0f "
           "B/s out\n",
-          k, fps, ratio, lo, hi, median(ws, &Window::frame_median),
-          median(ws, &Window::frame_p99), median(ws, &Window::sync_mean),
-          median(ws, &Window::master_cpu_ms), median(ws, &Window::node_cpu_ms),
-          median(ws, &Window::traffic_percent), median(ws, &Window::in_rate),
-          median(ws, &Window::out_rate));
+          k, fps, ratio, lo, hi, median(ws, &Window::frame_median), median(ws, &Window::frame_p99),
+          median(ws, &Window::sync_mean), median(ws, &Window::master_cpu_ms),
+          median(ws, &Window::node_cpu_ms), median(ws, &Window::traffic_percent),
+          median(ws, &Window::in_rate), median(ws, &Window::out_rate));
       std::fflush(stdout);
     }
     ocsv.close();
@@ -673,7 +714,7 @@ int main(int argc, char** argv) {
     tessera::sync::SceneGraph replica;
     const tessera::site::SiteWelcome welcome =
         client.join(replica, Clock::now() + std::chrono::seconds(20));
-    std::ofstream lcsv(fs::path(out) / "sites_latency.csv");
+    std::ofstream lcsv(fs::path(out) / ("sites_latency" + tag + ".csv"));
     lcsv << "move,first_frame_ms,reached_ms\n";
     std::vector<double> first_ms, reached_ms;
     uint64_t seq = 0;
@@ -747,7 +788,7 @@ int main(int argc, char** argv) {
         percentile(reached_ms, 0.5), percentile(reached_ms, 0.99), wall_median);
     std::printf("bytes per site at 30 Hz poses: %.0f B/s to the master, %.0f B/s from it\n", up,
                 down);
-    std::ofstream(fs::path(out) / "sites_summary.csv")
+    std::ofstream(fs::path(out) / ("sites_summary" + tag + ".csv"))
         << "what,value\nfirst_frame_ms_median," << percentile(first_ms, 0.5)
         << "\nfirst_frame_ms_p99," << percentile(first_ms, 0.99) << "\nreached_ms_median,"
         << percentile(reached_ms, 0.5) << "\nreached_ms_p99," << percentile(reached_ms, 0.99)
@@ -756,21 +797,22 @@ int main(int argc, char** argv) {
 
     // ---- chart ----
     const fs::path res = fs::path(out);
-    std::ofstream gp(res / "sites.gp");
+    std::ofstream gp(res / ("sites" + tag + ".gp"));
     gp << "set terminal pngcairo noenhanced size 1300,480 font ',10'\n"
-       << "set output '" << (res / "sites.png").string() << "'\n"
+       << "set output '" << (res / ("sites" + tag + ".png")).string() << "'\n"
        << "set datafile separator ','\nset multiplot layout 1,2\nset grid\n"
-       << "set title 'Master frame rate with remote sites (1 tile 640x360, sites without "
-          "rendering, 2 "
-          "cores)'\nset xlabel 'sites'\nset ylabel 'frames per second'\nset yrange [0:*]\n"
+       << "set title 'Wall frame rate with K sites (a 640x360 tile; "
+       << (split_cores ? "node on CPU 0, master on CPU 1" : "node and master share 2 CPUs")
+       << ")'\nset xlabel 'sites'\nset ylabel 'frames per second'\nset yrange [0:*]\n"
        << "set style fill solid 0.6\nset boxwidth 0.6\nset key top right\n"
-       << "plot '" << (res / "sites_overhead.csv").string()
+       << "set offsets 0, 0, graph 0.15, 0\n"  // room for the key above the bars
+       << "plot '" << (res / ("sites_overhead" + tag + ".csv")).string()
        << "' skip 1 using 0:2:xtic(1) with boxes lc rgb '#1f77b4' title 'frames/s', \\\n"
        << "  '' skip 1 using 0:($2*0+" << base_fps * 0.9
        << ") with lines dt 2 lw 2 lc rgb '#d62728' title 'goal: 90% of no sites'\n"
        << "set title 'Pose message to the frame that carries it (loopback)'\n"
        << "set xlabel 'move'\nset ylabel 'ms'\nset yrange [0:*]\nset key top left\n"
-       << "plot '" << (res / "sites_latency.csv").string()
+       << "plot '" << (res / ("sites_latency" + tag + ".csv")).string()
        << "' skip 1 using 1:2 with points pt 7 title 'first frame that moves', \\\n"
        << "  '' skip 1 using 1:3 with points pt 6 title 'frame that reaches it', \\\n"
        << "  " << wall_median << " with lines dt 2 title \"the wall's median frame\"\n"
@@ -778,10 +820,11 @@ int main(int argc, char** argv) {
     gp.close();
     std::string gnuplot = TESSERA_GNUPLOT;
     if (gnuplot.empty()) gnuplot = "gnuplot";
-    if (std::system(("'" + gnuplot + "' '" + (res / "sites.gp").string() + "'").c_str()))
+    if (std::system(
+            ("'" + gnuplot + "' '" + (res / ("sites" + tag + ".gp")).string() + "'").c_str()))
       std::cerr << "sites: gnuplot failed; the CSVs are still there\n";
     else
-      std::cerr << "chart: " << (res / "sites.png").string() << "\n";
+      std::cerr << "chart: " << (res / ("sites" + tag + ".png")).string() << "\n";
     return 0;
   });
 }
