@@ -530,6 +530,10 @@ int main(int argc, char** argv) {
       if (::sched_getaffinity(0, sizeof cpus, &cpus) != 0 || !CPU_ISSET(0, &cpus) ||
           !CPU_ISSET(1, &cpus))
         throw tessera::cli::UsageError("--split-cores needs CPUs 0 and 1 (see nproc, taskset)");
+      for (const char* tool : {"/usr/bin/taskset", "/usr/bin/env"})
+        if (::access(tool, X_OK) != 0)
+          throw tessera::cli::UsageError(std::string("--split-cores needs ") + tool +
+                                         " (Debian: util-linux, coreutils)");
     }
     s.dir = fs::path(out) / "sites-work";
     fs::remove_all(s.dir);
