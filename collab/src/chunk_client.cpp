@@ -185,11 +185,12 @@ struct Link {
 };
 
 /// The cached copy this thread's last read came from (empty: it came from the server), so that
-/// refetch() drops the copy that read and not a good one another thread has written since.
+/// refetch() drops the copy that read and not a good one another thread has written since: the
+/// copy's generation, how many times this source had written that file when it was opened (a
+/// file's inode number is no identity: a new file may take the one just freed).
 struct CachedCopy {
   fs::path path;
-  dev_t dev = 0;
-  ino_t ino = 0;
+  uint64_t generation = 0;
 };
 thread_local CachedCopy tLastCached;
 
@@ -208,7 +209,7 @@ class RemoteRangeSource final : public lod::RangeSource {
   bool refetch(uint64_t offset, size_t n) const override {
     const fs::path p = file(offset, n);
     if (mFolder.empty() || tLastCached.path != p) return false;  // it came from the server
-    dropCopy(p, tLastCached.dev, tLastCached.ino);
+    dropCopy(p, tLastCached.generation);
     tLastCached.path.clear();
     return true;
   }
@@ -242,7 +243,13 @@ class RemoteRangeSource final : public lod::RangeSource {
   bool readCached(uint64_t offset, void* dst, size_t n) const {
     if (mFolder.empty()) return false;
     const fs::path p = file(offset, n);
-    const int fd = ::open(p.c_str(), O_RDONLY | O_CLOEXEC | O_NOFOLLOW | O_NONBLOCK);
+    int fd = -1;
+    uint64_t generation = 0;
+    {
+      std::lock_guard files(mFiles);  // the file opened and its generation go together
+      fd = ::open(p.c_str(), O_RDONLY | O_CLOEXEC | O_NOFOLLOW | O_NONBLOCK);
+      generation = generationOf(p);
+    }
     if (fd < 0) return false;
     struct stat st {};
     bool ok = ::fstat(fd, &st) == 0 && S_ISREG(st.st_mode) && uint64_t(st.st_size) == n;
@@ -254,27 +261,32 @@ class RemoteRangeSource final : public lod::RangeSource {
     }
     ::close(fd);
     if (!ok) {  // the wrong size or unreadable: fetched again and rewritten
-      dropCopy(p, st.st_dev, st.st_ino);
+      dropCopy(p, generation);
       return false;
     }
     mClient->cache_budget->used(p);
-    tLastCached = {p, st.st_dev, st.st_ino};
+    tLastCached = {p, generation};
     std::lock_guard lock(mClient->mutex);
     ++mClient->counters.cache_hits;
     mClient->counters.cache_bytes += n;
     return true;
   }
 
-  /// Removes the cached copy `p` if it is still the file (dev, ino) a read found broken, and
-  /// counts it. Loader threads may read one broken copy at once (a patch, and its child's morph
-  /// targets): the first drops it, and a good copy another thread has put in its place since is
-  /// kept, so each broken copy counts once.
-  void dropCopy(const fs::path& p, dev_t dev, ino_t ino) const {
+  /// How many times this source has written the cached file `p` (0: a previous session's, or
+  /// none). Caller holds mFiles.
+  uint64_t generationOf(const fs::path& p) const {
+    const auto it = mWritten.find(p.string());
+    return it == mWritten.end() ? 0 : it->second;
+  }
+
+  /// Removes the cached copy `p` if it is still the copy of `generation` a read found broken,
+  /// and counts it. Loader threads may read one broken copy at once (a patch, and its child's
+  /// morph targets): the first drops it, and a good copy another thread has put in its place
+  /// since is kept, so each broken copy counts once.
+  void dropCopy(const fs::path& p, uint64_t generation) const {
     std::lock_guard files(mFiles);
-    struct stat st {};
     std::error_code ec;
-    if (::stat(p.c_str(), &st) != 0 || st.st_dev != dev || st.st_ino != ino || !fs::remove(p, ec))
-      return;
+    if (generationOf(p) != generation || !fs::remove(p, ec)) return;
     mClient->cache_budget->removed(p);
     std::lock_guard lock(mClient->mutex);
     ++mClient->counters.refetched;
@@ -300,6 +312,7 @@ class RemoteRangeSource final : public lod::RangeSource {
     if (ok) {
       std::lock_guard files(mFiles);    // never between dropCopy()'s look and its removal
       fs::rename(tmp, final_path, ec);  // atomic: a reader sees all of it or nothing
+      if (!ec) ++mWritten[final_path.string()];
     }
     if (ok && !ec) mClient->cache_budget->added(final_path, bytes.size());
     if (!ok || ec) {
@@ -314,6 +327,7 @@ class RemoteRangeSource final : public lod::RangeSource {
   uint64_t mSize;
   fs::path mFolder;           // empty: no disk cache
   mutable std::mutex mFiles;  // dropCopy() against writeCached()'s rename
+  mutable std::unordered_map<std::string, uint64_t> mWritten;  // generations, under mFiles
 };
 
 }  // namespace
