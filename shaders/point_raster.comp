@@ -26,6 +26,18 @@ uvec4 pointAt(uint gi) {
   return texelFetch(uPointTexels, int(gi));
 }
 layout(std430, binding = TESSERA_BINDING_DEPTH) buffer Depth { uint depth[]; };
+// The reads before the atomics (is this point nearer? is its footprint larger?) go through texel
+// views of the same depth and footprint buffers (PointPass binds them): llvmpipe gathers a
+// texture's texels with vector code where it reads a storage buffer lane by lane. Within a
+// dispatch the two views are not coherent, so a read may return a value the atomics have since
+// lowered (depth) or raised (footprints), never one that was not there: the read only decides
+// whether to take the atomic, and a stale one only takes it where it was not needed, so the
+// result is the same.
+layout(binding = TESSERA_TEXTURE_DEPTH) uniform usamplerBuffer uDepthTexels;
+layout(binding = TESSERA_TEXTURE_FOOTPRINTS) uniform usamplerBuffer uFootprintTexels;
+uint depthAt(uint idx) {
+  return texelFetch(uDepthTexels, int(idx)).x;
+}
 layout(std430, binding = TESSERA_BINDING_COLORS) buffer Colors { uint colors[]; };  // rgb, 0xFFFFFFFF: none
 layout(std430, binding = TESSERA_BINDING_PICK) buffer Pick { uint pick[]; };  // frame-wide point id
 layout(std430, binding = TESSERA_BINDING_COLOR_SUMS) buffer Sums { uint sums[]; };  // w r, w g, w b, w
@@ -69,10 +81,10 @@ void write(uint idx, uint d, uint gi, uint i, float w, float k) {
 #if PASS == 0
   // A read before the atomic: most points of a scan are behind the nearest (depth complexity),
   // and a read costs llvmpipe far less than an atomic.
-  if (d > depth[idx]) return;
+  if (d > depthAt(idx)) return;
   atomicMin(depth[idx], d);
 #else
-  uint nearest = depth[idx];
+  uint nearest = depthAt(idx);
   if (nearest != d && !kBlend) return;  // behind: most points, nothing more to read
   if (nearest == d && kWritePick) atomicMin(pick[idx], uPickBase + i);
   uint rgb = uColorOverride != 0u ? uColorOverride & 0xFFFFFFu : pointAt(gi).w & 0xFFFFFFu;
@@ -154,13 +166,13 @@ void raster(uint i) {
       // Autzen from run to run. Every point took the depth atomic and read the flag, and the
       // group was the top bits of the window depth itself, until the last session: 40-60% more
       // depth pass than the 1 px points, now 20-35%.)
-      uint old = depth[idx];
+      uint old = depthAt(idx);
       uint group = tesseraFillGroup(d);
       if (group < tesseraFillGroup(old)) return;
       if (d < old) old = atomicMin(depth[idx], d);
       uint old_group = tesseraFillGroup(old);
       if (group >= old_group) {
-        uvec2 kept = footprints[idx];
+        uvec2 kept = texelFetch(uFootprintTexels, int(idx)).xy;
         float reach = uSpacingK > 0.0 ? disc : sqrt(float(radius * radius + radius));
         vec2 in_pixel = uSpacingK > 0.0 ? clamp(pos - vec2(centre), 0.0, 1.0) : vec2(0.5);
         uvec2 sub = uvec2(min(in_pixel * 16.0, vec2(15.0)));

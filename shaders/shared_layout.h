@@ -64,6 +64,10 @@ uint tesseraFillGroup(uint d) {
 #define TESSERA_TEXTURE_PICK 6
 #define TESSERA_TEXTURE_FOOTPRINTS 7
 #define TESSERA_TEXTURE_FILL_TILES 8  // the fill's list of tiles
+// See-through (spbr_raster.comp): each point's normal, density ratio and surface cell.
+#define TESSERA_TEXTURE_SPBR_NORMALS 9
+#define TESSERA_TEXTURE_SPBR_RATIOS 10
+#define TESSERA_TEXTURE_SPBR_CELLS 11
 
 // Eye-dome lighting (shaders/edl.comp, EdlOptions::filter_radius): the largest fitted window's
 // half-width, pixels.

@@ -11,50 +11,58 @@
 //
 // Sparse scans (2 to 8 points a pixel; the paper assumes ~38), where the copies of a point would
 // fill most ensembles alike and the L images average to binary noise:
-// - uInCell (SpbrCopies::kInCell, the default): copy c of point i lands uniformly in the
+// - IN_CELL (SpbrCopies::kInCell, the default): copy c of point i lands uniformly in the
 //   rectangle of the point's surface cell (spbr.h surfaceCells(): its Voronoi cell in the tangent
 //   plane, by area moments), at the c-th point of an R2 sequence (Roberts 2018) shifted by a hash
 //   of h(i): the copies of one point are stratified over its cell across the ensembles, the
 //   number of copies follows the cell's area, so every ensemble is an even cover of the surface
 //   and the copies never leave the point's cell (edges stay within a spacing).
 // - uJitterK > 0 (SpbrCopies::kGaussian): copy c moves in the image plane by a Gaussian offset
-//   of uJitterK / w pixels from a hash of (h(i), c); with uHasCells, copies are centred on the
+//   of uJitterK / w pixels from a hash of (h(i), c); with HAS_CELLS, copies are centred on the
 //   cell's centroid and their number scaled by the cell's area.
 // Eq. 1 then holds per ensemble for a cover of the surface rather than for one frozen sample of
 // it (with a correction for the cover's regularity, view_renderer.cpp).
+//
+// Variants (PointPass compiles one per combination used; STYLE.md: llvmpipe runs a uniform's
+// branch under a mask even where no lane takes it, so the Gaussian copies' logarithm, sine and
+// cosine cost the default in-cell copies their time while they were switched by uniforms): PASS
+// 0 (depth) or 1 (colour); HAS_CELLS (cells[] centre and weigh each point's copies); IN_CELL
+// (copies stratified over the cell's rectangle, needs HAS_CELLS); JITTER (Gaussian copies,
+// uJitterK > 0, without IN_CELL); SLANT_OFF (cross-section s cos(theta), from the point's
+// normal); HAS_RATIOS (k scaled by each point's density ratio, for density jumps in a node);
+// ONE_LAYER (every ensemble into layer 0: one opaque pass, a speed baseline).
+// The per-point inputs are read as texels of buffer views (PointPass binds them): llvmpipe
+// gathers a texture's texels with vector code where it reads a storage buffer lane by lane.
 layout(local_size_x = 128) in;
 
-// struct Point: shaders/shared_layout.h
-layout(std430, binding = TESSERA_BINDING_POINTS) readonly buffer Points { Point points[]; };
+// struct Point: shaders/shared_layout.h, as an RGBA32UI texel (position bits, rgba).
+layout(binding = TESSERA_TEXTURE_POINTS) uniform usamplerBuffer uPointTexels;
+layout(binding = TESSERA_TEXTURE_SPBR_NORMALS) uniform usamplerBuffer uNormals;  // 10:10:10 snorm
+layout(binding = TESSERA_TEXTURE_SPBR_RATIOS) uniform samplerBuffer uRatios;  // node / local density
+layout(binding = TESSERA_TEXTURE_SPBR_CELLS) uniform usamplerBuffer uCells;   // packCell()
+// The colour pass's read of the depth a layer kept (final after the depth pass).
+layout(binding = TESSERA_TEXTURE_DEPTH) uniform usamplerBuffer uDepthTexels;
 layout(std430, binding = TESSERA_BINDING_DEPTH) buffer Depth { uint depth[]; };    // uGroupCount layers
 layout(std430, binding = TESSERA_BINDING_COLORS) buffer Colors { uint colors[]; };  // uGroupCount layers
-layout(std430, binding = TESSERA_BINDING_NORMALS) readonly buffer Normals { uint normals[]; };  // 10:10:10 snorm
-layout(std430, binding = TESSERA_BINDING_RATIOS) readonly buffer Ratios { float ratios[]; };   // node / local density
-layout(std430, binding = TESSERA_BINDING_CELLS) readonly buffer Cells { uvec4 cells[]; };  // packCell()
 
 uniform mat4 uClip;
 uniform uint uColorOverride;  // non-zero: 0x1000000 | rgb for every point of the batch
+uniform uint uFirst;          // the batch's first point (texel) and its inputs', this slice's
 uniform uint uCount;
 uniform ivec2 uSize;
 uniform float uDiscK;     // disc radius in pixels at view depth 1
 uniform float uK;         // copies per point over all uTotal ensembles, <= uCopyCap
 uniform uint uCopyCap;    // most copies of one point (uTotal)
 uniform float uJitterK;   // copies' offset standard deviation, pixels at view depth 1 (0: none)
-uniform int uHasCells;    // 1: cells[] centre and weigh each point's copies
-uniform int uInCell;      // 1: copies stratified over the cell's rectangle (needs uHasCells)
 uniform float uCellUnit;  // store units of the cells' axes
-uniform float uEnsembleShift;  // uInCell: pixels over which whole ensembles shift (1: a pixel)
-uniform float uCellSpread;  // uInCell: how far copies spread over their cells (spbrCellSpread())
+uniform float uEnsembleShift;  // IN_CELL: pixels over which whole ensembles shift (1: a pixel)
+uniform float uCellSpread;  // IN_CELL: how far copies spread over their cells (spbrCellSpread())
 uniform uint uTotal;      // L
 uniform uint uGroupFirst;
 uniform uint uGroupCount;
 uniform uint uSeed;       // stable key of the node
-uniform int uPass;        // 0: depth, 1: colour
 uniform int uMaxRadius;
-uniform int uSlantOff;    // 1: cross-section s cos(theta), from the point's normal
-uniform vec3 uEyeLocal;   // the eye in the batch's frame (for theta)
-uniform int uHasRatios;   // 1: scale k by each point's density ratio (density jumps in a node)
-uniform int uOneLayer;    // 1: every ensemble into layer 0 (one opaque pass, a speed baseline)
+uniform vec3 uEyeLocal;   // the eye in the batch's frame (for theta, SLANT_OFF)
 
 uint hash(uint x) {  // lowbias32 (C. Wellons)
   x ^= x >> 16;
@@ -67,7 +75,7 @@ uint hash(uint x) {  // lowbias32 (C. Wellons)
 
 void splat(uint layer, vec2 pos, ivec2 centre, float r, uint d, uint rgb) {
   int reach = min(int(floor(r + 0.5)), uMaxRadius);
-  uint base = uOneLayer != 0 ? 0u : layer * uint(uSize.x) * uint(uSize.y);
+  uint base = ONE_LAYER != 0 ? 0u : layer * uint(uSize.x) * uint(uSize.y);
   for (int dy = -reach; dy <= reach; ++dy) {
     for (int dx = -reach; dx <= reach; ++dx) {
       ivec2 q = centre + ivec2(dx, dy);
@@ -75,11 +83,11 @@ void splat(uint layer, vec2 pos, ivec2 centre, float r, uint d, uint rgb) {
       if (dot(off, off) > r * r) continue;
       if (q.x < 0 || q.y < 0 || q.x >= uSize.x || q.y >= uSize.y) continue;
       uint idx = base + uint(q.y) * uint(uSize.x) + uint(q.x);
-      if (uPass == 0) {
-        atomicMin(depth[idx], d);
-      } else if (depth[idx] == d) {
-        atomicMin(colors[idx], rgb);
-      }
+#if PASS == 0
+      atomicMin(depth[idx], d);
+#else
+      if (texelFetch(uDepthTexels, int(idx)).x == d) atomicMin(colors[idx], rgb);
+#endif
     }
   }
 }
@@ -88,18 +96,21 @@ void main() {
   uint i = gl_GlobalInvocationID.x;
   if (i >= uCount) return;
   uint h = hash(uSeed ^ hash(i + 0x9e3779b9u));
-  float k = uHasRatios != 0 ? uK * ratios[i] : uK;
-  vec3 position = points[i].position;
+  int gi = int(uFirst + i);
+  float k = HAS_RATIOS != 0 ? uK * texelFetch(uRatios, gi).x : uK;
+  uvec4 point = texelFetch(uPointTexels, gi);
+  vec3 position = uintBitsToFloat(point.xyz);
   if (tesseraClipped(position)) return;  // cut away by a CLIP node (its copies with it)
   vec3 axis_u = vec3(0.0), axis_v = vec3(0.0);
-  if (uHasCells != 0) {
-    uvec4 cell = cells[i];
+#if HAS_CELLS
+  {
+    uvec4 cell = texelFetch(uCells, gi);
     vec2 a = unpackHalf2x16(cell.x), b = unpackHalf2x16(cell.y), e = unpackHalf2x16(cell.z);
     axis_u = vec3(a, b.x) * uCellUnit;
     axis_v = vec3(b.y, e) * uCellUnit;
     vec2 centre = unpackSnorm4x8(cell.w).zw * 4.0;  // the centroid in the rectangle's frame
     float weight = unpackHalf2x16(cell.w).x;
-    if (uInCell != 0) {
+    if (IN_CELL != 0) {
       // Part way (uCellSpread < 1): the rectangle, the centroid and the weight scaled towards
       // the paper's copies at the point.
       centre *= uCellSpread;
@@ -110,6 +121,7 @@ void main() {
     position += centre.x * axis_u + centre.y * axis_v;
     k *= weight;
   }
+#endif
   // A large cell may ask for more copies than ensembles: the disc grows to keep its area.
   float grow = k > float(uCopyCap) ? sqrt(k / float(uCopyCap)) : 1.0;
   k = min(k, float(uCopyCap));
@@ -130,22 +142,24 @@ void main() {
   vec2 pos = (ndc.xy * 0.5 + 0.5) * vec2(uSize);
   uint d = floatBitsToUint(ndc.z * 0.5 + 0.5);
   float r = grow * uDiscK / c.w;
-  if (uSlantOff != 0) {
+#if SLANT_OFF
+  {
     // s cos(theta): the disc's area shrinks with the angle between the surface normal and the
     // line of sight, cancelling eq. 2's gain on slanted surfaces.
-    uint bits = normals[i];
+    uint bits = texelFetch(uNormals, gi).x;
     vec3 n = vec3(float(int(bits << 22) >> 22), float(int(bits << 12) >> 22),
                   float(int(bits << 2) >> 22)) / 511.0;
     vec3 view = normalize(uEyeLocal - position);
     float cosine = abs(dot(normalize(n + 1e-9), view));
     r *= sqrt(max(cosine, 0.02));
   }
-  uint rgb = uColorOverride != 0u ? uColorOverride & 0xFFFFFFu : points[i].rgba & 0xFFFFFFu;
+#endif
+  uint rgb = uColorOverride != 0u ? uColorOverride & 0xFFFFFFu : point.w & 0xFFFFFFu;
   float sigma = uJitterK / c.w;
   // The cell's rectangle on the screen (affine: a cell is a fraction of a pixel to a few).
   vec2 du = vec2(0.0), dv = vec2(0.0);
   vec2 r2 = vec2(0.0);
-  if (uInCell != 0) {
+  if (IN_CELL != 0) {
     vec4 cu = uClip * vec4(position + axis_u, 1.0), cv = uClip * vec4(position + axis_v, 1.0);
     du = (cu.xy / cu.w - ndc.xy) * 0.5 * vec2(uSize);
     dv = (cv.xy / cv.w - ndc.xy) * 0.5 * vec2(uSize);
@@ -158,7 +172,7 @@ void main() {
     layer %= uTotal;
     if (layer >= uGroupCount) continue;
     vec2 p = pos;
-    if (uInCell != 0) {
+    if (IN_CELL != 0) {
       // Copy cc at the cc-th point of R2 (1 / phi2, 1 / phi2^2), phi2 the plastic number.
       vec2 q = fract(r2 + float(cc) * vec2(0.7548776662, 0.5698402910)) * 2.0 - 1.0;
       p += q.x * du + q.y * dv;
@@ -168,7 +182,7 @@ void main() {
       uint se = hash(ensemble * 0x9e3779b9u + 0x7f4a7c15u);
       p += (vec2(float(se >> 16), float(se & 0xFFFFu)) * (1.0 / 65536.0) - 0.5) * uCellSpread *
            uEnsembleShift;
-    } else if (sigma > 0.0) {
+    } else if (JITTER != 0 && sigma > 0.0) {
       // Box-Muller from the copy's own hash: the same offset in both passes and on every tile.
       uint g = hash(h ^ hash(cc * 0x27d4eb2fu + 0x165667b1u));
       float u1 = (float(g >> 8) + 0.5) * (1.0 / 16777216.0);

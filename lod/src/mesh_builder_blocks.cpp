@@ -228,7 +228,7 @@ Frame frameOf(const Source& src, uint32_t threads) {
   f.lo = u.lo;
   f.hi = u.hi;
   f.dropped = nt - f.kept;
-  for (uint8_t u : f.used) f.used_vertices += u;
+  for (uint8_t used : f.used) f.used_vertices += used;
   // The grid step from the same sample of edges as the in-memory build's.
   std::vector<double> edges;
   const size_t stride = std::max<size_t>(1, f.kept / 4096);

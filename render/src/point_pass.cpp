@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -79,6 +80,24 @@ const GlProgram& PointPass::raster(const RasterVariant& v) {
   return p;
 }
 
+const GlProgram& PointPass::spbr(const SpbrVariant& v) {
+  const int index = v.pass | v.cells << 1 | v.in_cell << 2 | v.jitter << 3 | v.slant_off << 4 |
+                    v.ratios << 5 | v.one_layer << 6 | v.clipping << 7;
+  GlProgram& p = mSpbr[index];
+  if (!p) {
+    auto define = [](const char* name, int value) {
+      return "#define " + std::string(name) + " " + std::to_string(value) + "\n";
+    };
+    const std::string defines =
+        define("PASS", v.pass) + define("HAS_CELLS", v.cells) + define("IN_CELL", v.in_cell) +
+        define("JITTER", v.jitter) + define("SLANT_OFF", v.slant_off) +
+        define("HAS_RATIOS", v.ratios) + define("ONE_LAYER", v.one_layer) +
+        clippingDefine(v.clipping);
+    p = GlProgram::compute(shaders::kSpbrRaster, "spbr_raster.comp", defines);
+  }
+  return p;
+}
+
 PassTimings PointPass::draw(FrameTarget& target, std::span<const DrawBatch> batches,
                             const PointShading& shading) {
   PassTimings timings;
@@ -89,6 +108,15 @@ PassTimings PointPass::draw(FrameTarget& target, std::span<const DrawBatch> batc
   const bool blend = shading.blend && shading.uniform_color == 0;
   if (blend) bind(TESSERA_BINDING_COLOR_SUMS, target.colorSums());
   if (shading.fill) bind(TESSERA_BINDING_SPLAT_FOOTPRINTS, target.splatFootprints());
+  // Texel views of the depth and footprints for the reads before the atomics
+  // (point_raster.comp).
+  const GlBufferTexture depth_texels(target.depth(), GL_R32UI);
+  depth_texels.bind(TESSERA_TEXTURE_DEPTH);
+  std::optional<GlBufferTexture> footprint_texels;
+  if (shading.fill) {
+    footprint_texels.emplace(target.splatFootprints(), GL_RG32UI);
+    footprint_texels->bind(TESSERA_TEXTURE_FOOTPRINTS);
+  }
   const int passes = shading.uniform_color != 0 && !shading.pick ? 1 : 2;
   for (int pass = 0; pass < passes; ++pass) {
     const GlProgram* in_use = nullptr;
@@ -132,18 +160,17 @@ PassTimings PointPass::draw(FrameTarget& target, std::span<const DrawBatch> batc
         program.set("uPickBase", b.pick_base + done);
       });
     }
-    glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+    glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT | GL_TEXTURE_FETCH_BARRIER_BIT);
     (pass == 0 ? timings.depth_ms : timings.color_ms) = lap();
   }
-  glBindTextureUnit(TESSERA_TEXTURE_POINTS, 0);
+  for (uint32_t unit : {TESSERA_TEXTURE_POINTS, TESSERA_TEXTURE_DEPTH, TESSERA_TEXTURE_FOOTPRINTS})
+    glBindTextureUnit(unit, 0);
   return timings;
 }
 
 void PointPass::beginEnsembles(FrameTarget& target) {
-  if (!mSpbr[0]) {
-    for (int clipping : {0, 1})  // without and with the clip plane test (shared_layout.h)
-      mSpbr[clipping] =
-          GlProgram::compute(shaders::kSpbrRaster, "spbr_raster.comp", clippingDefine(clipping));
+  if (!mAccumulate) {
+    spbr({.cells = true, .in_cell = true});  // the default's: a shader error shows at once
     mAccumulate = GlProgram::compute(shaders::kSpbrAccumulate, "spbr_accumulate.comp");
   }
   fit(target);
@@ -182,37 +209,39 @@ PassTimings PointPass::drawEnsembles(FrameTarget& target, std::span<const DrawBa
     }
     bind(TESSERA_BINDING_DEPTH, mLayerDepth);
     bind(TESSERA_BINDING_COLORS, mLayerColors);
-    for (const GlProgram& spbr : mSpbr) {
-      spbr.set("uSize", size);
-      spbr.set("uTotal", total);
-      spbr.set("uMaxRadius", 16);
-      spbr.set("uSlantOff", slant_off ? 1 : 0);
-      spbr.set("uOneLayer", one_layer ? 1 : 0);
-      spbr.set("uGroupFirst", group);
-      spbr.set("uGroupCount", n);
-    }
+    // The colour pass reads the depth its layers kept as texels (spbr_raster.comp).
+    const GlBufferTexture layer_depth(mLayerDepth, GL_R32UI);
+    layer_depth.bind(TESSERA_TEXTURE_DEPTH);
     for (int pass = 0; pass < passes; ++pass) {
-      for (const GlProgram& spbr : mSpbr) spbr.set("uPass", pass);
-      const GlProgram* in_use = nullptr;
       for (const DrawBatch& b : batches) {
         if (b.count == 0 || b.spbr_k <= 0.0f) continue;
-        const GlProgram& spbr_b = mSpbr[b.clip.count > 0];
-        if (&spbr_b != in_use) {
-          spbr_b.use();
-          in_use = &spbr_b;
-        }
-        const GLuint points = b.buffer ? b.buffer : mPoints.name();
-        glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_POINTS, points);
-        glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_NORMALS,
-                         b.normals ? b.normals : mNone.name());
-        glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_RATIOS,
-                         b.density_ratios ? b.density_ratios : mNone.name());
-        spbr_b.set("uHasRatios", b.density_ratios ? 1 : 0);
-        glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_CELLS,
-                         b.cells ? b.cells : mNone.name());
-        spbr_b.set("uHasCells", b.cells ? 1 : 0);
+        const bool in_cell = b.cells && b.copies == SpbrCopies::kInCell;
+        const GlProgram& spbr_b = spbr({.pass = pass,
+                                        .cells = b.cells != 0,
+                                        .in_cell = in_cell,
+                                        .jitter = !in_cell && b.jitter_k > 0.0f,
+                                        .slant_off = slant_off,
+                                        .ratios = b.density_ratios != 0,
+                                        .one_layer = one_layer,
+                                        .clipping = b.clip.count > 0});
+        spbr_b.use();
+        spbr_b.set("uSize", size);
+        spbr_b.set("uTotal", total);
+        spbr_b.set("uMaxRadius", 16);
+        spbr_b.set("uGroupFirst", group);
+        spbr_b.set("uGroupCount", n);
+        // The batch's points and their normals, density ratios and cells as texels (alive until
+        // the dispatches are issued); a missing input reads as zeros from a small buffer, never
+        // read by the variant chosen.
+        const GlBufferTexture points(b.buffer ? b.buffer : mPoints.name(), GL_RGBA32UI),
+            normals(b.normals ? b.normals : mNone.name(), GL_R32UI),
+            ratios(b.density_ratios ? b.density_ratios : mNone.name(), GL_R32F),
+            cells(b.cells ? b.cells : mNone.name(), GL_RGBA32UI);
+        points.bind(TESSERA_TEXTURE_POINTS);
+        normals.bind(TESSERA_TEXTURE_SPBR_NORMALS);
+        ratios.bind(TESSERA_TEXTURE_SPBR_RATIOS);
+        cells.bind(TESSERA_TEXTURE_SPBR_CELLS);
         spbr_b.set("uJitterK", b.jitter_k);
-        spbr_b.set("uInCell", b.cells && b.copies == SpbrCopies::kInCell ? 1 : 0);
         spbr_b.set("uCellUnit", b.cell_unit);
         spbr_b.set("uCellSpread", b.cell_spread);
         spbr_b.set("uEnsembleShift", b.ensemble_shift);
@@ -224,24 +253,16 @@ PassTimings PointPass::drawEnsembles(FrameTarget& target, std::span<const DrawBa
         spbr_b.set("uEyeLocal", b.eye_local);
         spbr_b.set("uColorOverride", b.color_override);
         setClipUniforms(spbr_b, b.clip);
-        // Batches with buffer 0 start at `first` in the pass's own buffer: offset the binding
-        // instead of the index, so point indices (and so ensembles) stay per batch.
-        if (!b.buffer && b.first) {
-          glBindBufferRange(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_POINTS, points,
-                            GLintptr(b.first) * 16, GLsizeiptr(b.count) * 16);
-        }
         dispatchSlices(b.count, [&](uint32_t done, uint32_t c) {
+          // Point indices (and so ensembles) stay per batch and per slice: the texels are read
+          // from `first`; later slices of a huge batch change the seed so their points stay
+          // independent.
+          spbr_b.set("uFirst", b.first + done);
           spbr_b.set("uCount", c);
-          // Later slices of a huge batch: a bound range keeps indices within the slice; the
-          // seed changes with the slice so their points stay independent.
-          if (done) {
-            glBindBufferRange(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_POINTS, points,
-                              GLintptr(b.first + done) * 16, GLsizeiptr(c) * 16);
-            spbr_b.set("uSeed", b.seed ^ (done * 0x9E3779B9u));
-          }
+          if (done) spbr_b.set("uSeed", b.seed ^ (done * 0x9E3779B9u));
         });
       }
-      glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+      glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT | GL_TEXTURE_FETCH_BARRIER_BIT);
       (pass == 0 ? timings.depth_ms : timings.color_ms) += lap();
     }
     mAccumulate.use();
@@ -258,6 +279,9 @@ PassTimings PointPass::drawEnsembles(FrameTarget& target, std::span<const DrawBa
     glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
     timings.resolve_ms += lap();
   }
+  for (uint32_t unit : {TESSERA_TEXTURE_POINTS, TESSERA_TEXTURE_DEPTH, TESSERA_TEXTURE_SPBR_NORMALS,
+                        TESSERA_TEXTURE_SPBR_RATIOS, TESSERA_TEXTURE_SPBR_CELLS})
+    glBindTextureUnit(unit, 0);
   return timings;
 }
 

@@ -151,8 +151,16 @@ class PointPass {
     bool one_pixel = false, clipping = false, blend = false, pick = false, fill = false;
   };
   const GlProgram& raster(const RasterVariant& v);
-  GlProgram mRaster[64];                                  ///< by the variant's bits
-  GlProgram mSpbr[2], mAccumulate, mOit[2], mOitResolve;  ///< [clip planes]
+  /// spbr_raster.comp's variants (its defines), compiled on first use.
+  struct SpbrVariant {
+    int pass = 0;
+    bool cells = false, in_cell = false, jitter = false, slant_off = false, ratios = false,
+         one_layer = false, clipping = false;
+  };
+  const GlProgram& spbr(const SpbrVariant& v);
+  GlProgram mRaster[64];                       ///< by the variant's bits
+  GlProgram mSpbr[256];                        ///< by the variant's bits
+  GlProgram mAccumulate, mOit[2], mOitResolve;  ///< [clip planes]
   GlBuffer mPoints;
   size_t mPlane = 0;  ///< pixels the buffers below are sized for
   GlBuffer mLayerDepth, mLayerColors, mAccum, mOitSums, mNone;
