@@ -197,6 +197,23 @@ PassTimings PointPass::drawEnsembles(FrameTarget& target, std::span<const DrawBa
   }
   const int passes = shading.uniform_color != 0 ? 1 : 2;
   const glm::ivec2 size(target.width(), target.height());
+  // Each batch's points and their normals, density ratios and cells as texels, made once for
+  // every group and pass of the frame. Normals are read only with slant shading off, where a
+  // batch without them reads zeros from a small spare buffer (as the storage buffers before);
+  // ratios and cells only by the variants of batches that have them.
+  struct Inputs {
+    GlBufferTexture points, normals, ratios, cells;
+  };
+  std::vector<Inputs> inputs(batches.size());
+  for (size_t i = 0; i < batches.size(); ++i) {
+    const DrawBatch& b = batches[i];
+    if (b.count == 0 || b.spbr_k <= 0.0f) continue;
+    inputs[i].points = GlBufferTexture(b.buffer ? b.buffer : mPoints.name(), GL_RGBA32UI);
+    if (slant_off)
+      inputs[i].normals = GlBufferTexture(b.normals ? b.normals : mNone.name(), GL_R32UI);
+    if (b.density_ratios) inputs[i].ratios = GlBufferTexture(b.density_ratios, GL_R32F);
+    if (b.cells) inputs[i].cells = GlBufferTexture(b.cells, GL_RGBA32UI);
+  }
   for (uint32_t group = first; group < first + count; group += layers) {
     const uint32_t n = std::min(layers, first + count - group);
     const uint32_t cleared = one_layer ? 1 : n;
@@ -213,7 +230,8 @@ PassTimings PointPass::drawEnsembles(FrameTarget& target, std::span<const DrawBa
     const GlBufferTexture layer_depth(mLayerDepth, GL_R32UI);
     layer_depth.bind(TESSERA_TEXTURE_DEPTH);
     for (int pass = 0; pass < passes; ++pass) {
-      for (const DrawBatch& b : batches) {
+      for (size_t i = 0; i < batches.size(); ++i) {
+        const DrawBatch& b = batches[i];
         if (b.count == 0 || b.spbr_k <= 0.0f) continue;
         const bool in_cell = b.cells && b.copies == SpbrCopies::kInCell;
         const GlProgram& spbr_b = spbr({.pass = pass,
@@ -230,17 +248,11 @@ PassTimings PointPass::drawEnsembles(FrameTarget& target, std::span<const DrawBa
         spbr_b.set("uMaxRadius", 16);
         spbr_b.set("uGroupFirst", group);
         spbr_b.set("uGroupCount", n);
-        // The batch's points and their normals, density ratios and cells as texels (alive until
-        // the dispatches are issued); a missing input reads as zeros from a small buffer, never
-        // read by the variant chosen.
-        const GlBufferTexture points(b.buffer ? b.buffer : mPoints.name(), GL_RGBA32UI),
-            normals(b.normals ? b.normals : mNone.name(), GL_R32UI),
-            ratios(b.density_ratios ? b.density_ratios : mNone.name(), GL_R32F),
-            cells(b.cells ? b.cells : mNone.name(), GL_RGBA32UI);
-        points.bind(TESSERA_TEXTURE_POINTS);
-        normals.bind(TESSERA_TEXTURE_SPBR_NORMALS);
-        ratios.bind(TESSERA_TEXTURE_SPBR_RATIOS);
-        cells.bind(TESSERA_TEXTURE_SPBR_CELLS);
+        const Inputs& in = inputs[i];
+        in.points.bind(TESSERA_TEXTURE_POINTS);
+        if (in.normals.name()) in.normals.bind(TESSERA_TEXTURE_SPBR_NORMALS);
+        if (in.ratios.name()) in.ratios.bind(TESSERA_TEXTURE_SPBR_RATIOS);
+        if (in.cells.name()) in.cells.bind(TESSERA_TEXTURE_SPBR_CELLS);
         spbr_b.set("uJitterK", b.jitter_k);
         spbr_b.set("uCellUnit", b.cell_unit);
         spbr_b.set("uCellSpread", b.cell_spread);
