@@ -68,6 +68,7 @@ uint tesseraFillGroup(uint d) {
 #define TESSERA_TEXTURE_SPBR_NORMALS 9
 #define TESSERA_TEXTURE_SPBR_RATIOS 10
 #define TESSERA_TEXTURE_SPBR_CELLS 11
+#define TESSERA_TEXTURE_COLOR_SUMS 12  // blended points' sums (resolve.comp)
 
 // Eye-dome lighting (shaders/edl.comp, EdlOptions::filter_radius): the largest fitted window's
 // half-width, pixels.

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <optional>
 #include <string>
 
 #include <tessera/core/check.h>
@@ -28,24 +29,38 @@ void dispatchPixels(const FrameTarget& target) {
 
 }  // namespace
 
-ResolvePass::ResolvePass() : mProgram(GlProgram::compute(shaders::kResolve, "resolve.comp")) {}
+ResolvePass::ResolvePass() {
+  for (int mode = 0; mode < 3; ++mode)
+    mPrograms[mode] =
+        GlProgram::compute(shaders::kResolve, "resolve.comp", "#define MODE " + std::to_string(mode) + "\n");
+}
 
 double ResolvePass::run(FrameTarget& target, const glm::vec3& background, uint32_t uniform_color,
                         bool blended) {
   GpuLap lap;
-  mProgram.use();
-  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_DEPTH, target.depth().name());
-  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_COLORS, target.colors().name());
+  // resolve.comp's MODE: one colour for the frame, the blended points' means, the nearest's.
+  const int mode = uniform_color != 0 ? 2 : blended ? 1 : 0;
+  const GlProgram& program = mPrograms[mode];
+  program.use();
+  const GlBufferTexture depth(target.depth(), GL_R32UI);
+  depth.bind(TESSERA_TEXTURE_DEPTH);
+  std::optional<GlBufferTexture> colors, sums;
+  if (mode == 0) {
+    colors.emplace(target.colors(), GL_R32UI);
+    colors->bind(TESSERA_TEXTURE_COLORS);
+  }
+  if (mode == 1) {
+    sums.emplace(target.colorSums(), GL_RGBA32UI);
+    sums->bind(TESSERA_TEXTURE_COLOR_SUMS);
+  }
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_IMAGE, target.image().name());
-  mProgram.set("uSize", glm::ivec2(target.width(), target.height()));
+  program.set("uSize", glm::ivec2(target.width(), target.height()));
   const glm::uvec3 bg = glm::uvec3(glm::clamp(background, 0.0f, 1.0f) * 255.0f + 0.5f);
-  mProgram.set("uBackground", bg.r | bg.g << 8 | bg.b << 16 | 0xFF000000u);
-  mProgram.set("uUniformColor", uniform_color);
-  mProgram.set("uBlended", blended ? 1 : 0);
-  if (blended)
-    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_COLOR_SUMS,
-                     target.colorSums().name());
+  program.set("uBackground", bg.r | bg.g << 8 | bg.b << 16 | 0xFF000000u);
+  program.set("uUniformColor", uniform_color);
   dispatchPixels(target);
+  for (uint32_t unit : {TESSERA_TEXTURE_DEPTH, TESSERA_TEXTURE_COLORS, TESSERA_TEXTURE_COLOR_SUMS})
+    glBindTextureUnit(unit, 0);
   return lap();
 }
 

@@ -19,7 +19,7 @@ namespace tessera::render {
 
 /// Depth + colours -> image: the nearest colour, `uniform_color` (non-zero: every element has
 /// it and no colour was written), or `background` where nothing was drawn. Milliseconds.
-/// Cost: one read of depth and colours and one write per pixel.
+/// Cost: one read of depth and colours (texels) and one write per pixel.
 class ResolvePass {
  public:
   ResolvePass();
@@ -28,7 +28,7 @@ class ResolvePass {
              bool blended = false);
 
  private:
-  GlProgram mProgram;
+  GlProgram mPrograms[3];  ///< resolve.comp's MODE: nearest colour, blended, one colour
 };
 
 /// FillPass's most pyramid levels (TESSERA_FILL_MAX_LEVELS in shaders/shared_layout.h): radii
