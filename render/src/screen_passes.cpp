@@ -31,8 +31,8 @@ void dispatchPixels(const FrameTarget& target) {
 
 ResolvePass::ResolvePass() {
   for (int mode = 0; mode < 3; ++mode)
-    mPrograms[mode] =
-        GlProgram::compute(shaders::kResolve, "resolve.comp", "#define MODE " + std::to_string(mode) + "\n");
+    mPrograms[mode] = GlProgram::compute(shaders::kResolve, "resolve.comp",
+                                         "#define MODE " + std::to_string(mode) + "\n");
 }
 
 double ResolvePass::run(FrameTarget& target, const glm::vec3& background, uint32_t uniform_color,
