@@ -11,10 +11,7 @@
 #define TESSERA_BINDING_DEPTH 1    // uint per pixel (per layer, see-through): nearest depth
 #define TESSERA_BINDING_COLORS 2   // uint per pixel (per layer): the nearest point's rgb
 #define TESSERA_BINDING_IMAGE 3    // uint per pixel: the resolved RGBA8 image
-#define TESSERA_BINDING_NORMALS 4  // uint per point: 10:10:10 snorm normal (slant shading)
 #define TESSERA_BINDING_ACCUM 5    // see-through: r, g, b sums per pixel; OIT: 5 floats a pixel
-#define TESSERA_BINDING_RATIOS 6   // float per point: node / local density (see-through)
-#define TESSERA_BINDING_CELLS 7    // uvec2 per point: surface cell (sparse see-through)
 #define TESSERA_BINDING_PICK 8     // uint per pixel: the nearest element's frame-wide pick id
 #define TESSERA_BINDING_TARGET_DEPTH 9  // the frame target's depth (see-through: nearest copy)
 #define TESSERA_BINDING_OVERLAY 10      // overlay primitives (overlay_pass.h)

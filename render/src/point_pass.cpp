@@ -32,6 +32,11 @@ void dispatchSlices(uint32_t count, F&& setSlice) {
   }
 }
 
+/// A shader variant's define line (PointPass::raster(), spbr()).
+std::string define(const char* name, int value) {
+  return "#define " + std::string(name) + " " + std::to_string(value) + "\n";
+}
+
 void bind(uint32_t binding, const GlBuffer& b) {
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, binding, b.name());
 }
@@ -69,9 +74,6 @@ const GlProgram& PointPass::raster(const RasterVariant& v) {
                     v.fill << 5;
   GlProgram& p = mRaster[index];
   if (!p) {
-    auto define = [](const char* name, int value) {
-      return "#define " + std::string(name) + " " + std::to_string(value) + "\n";
-    };
     const std::string defines = define("PASS", v.pass) + define("ONE_PIXEL", v.one_pixel) +
                                 define("BLEND", v.blend) + define("WRITE_PICK", v.pick) +
                                 define("FILL", v.fill) + clippingDefine(v.clipping);
@@ -85,9 +87,6 @@ const GlProgram& PointPass::spbr(const SpbrVariant& v) {
                     v.ratios << 5 | v.one_layer << 6 | v.clipping << 7;
   GlProgram& p = mSpbr[index];
   if (!p) {
-    auto define = [](const char* name, int value) {
-      return "#define " + std::string(name) + " " + std::to_string(value) + "\n";
-    };
     const std::string defines =
         define("PASS", v.pass) + define("HAS_CELLS", v.cells) + define("IN_CELL", v.in_cell) +
         define("JITTER", v.jitter) + define("SLANT_OFF", v.slant_off) +
