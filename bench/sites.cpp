@@ -68,6 +68,7 @@
 #include <tessera/render/view_renderer.h>
 #include <tessera/sync/cluster_link.h>
 #include <tessera/sync/scene_edits.h>
+#include <tessera/sync/transform.h>
 #include <tessera/sync/wire.h>
 
 #include "../tests/support/process.h"
@@ -735,7 +736,7 @@ int main(int argc, char** argv) {
               replica.node(id).avatar().site() == welcome.name())
             avatar = id;
       if (!avatar || !replica.contains(*avatar) || !replica.node(*avatar).visible()) return {};
-      return replica.node(*avatar).transform().m(12);
+      return tessera::sync::transformMatrix(replica.node(*avatar).transform())[3][0];
     };
     for (int frame = 0; now_s() - start < seconds; ++frame) {
       const double tick = start + frame / 30.0;

@@ -1,15 +1,17 @@
 // libFuzzer target: bytes parsed as a scene::Frame and applied to a replica of a small scene, and
 // parsed as a scene::Snapshot and applied to an empty one. SyncError is the only failure allowed;
 // after a successful apply the replica must still be consistent: its snapshot, applied to a
-// fresh graph, gives an equal graph.
+// fresh graph, gives an equal graph, and every node's transform decodes to finite numbers.
 #include <google/protobuf/stubs/logging.h>
 
+#include <cmath>
 #include <cstdint>
 #include <cstdio>
 #include <cstdlib>
 #include <string_view>
 
 #include <tessera/sync/scene_graph.h>
+#include <tessera/sync/transform.h>
 #include <tessera/sync/wire.h>
 
 namespace {
@@ -47,6 +49,12 @@ void requireConsistent(const SceneGraph& g) {
   SceneGraph copy;
   copy.apply(g.snapshot());  // a SyncError here escapes: the replica held an invalid state
   require(copy == g, "replica differs from a graph made from its own snapshot");
+  // Every accepted transform, in either form (sync/transform.h), is a finite matrix.
+  for (SceneGraph::NodeId id : g.ids()) {
+    const glm::dmat4 m = tessera::sync::transformMatrix(g.node(id).transform());
+    for (int c = 0; c < 4; ++c)
+      for (int r = 0; r < 4; ++r) require(std::isfinite(m[c][r]), "a transform decodes to NaN");
+  }
 }
 
 }  // namespace

@@ -10,6 +10,7 @@
 
 #include <tessera/collab/site_messages.h>
 #include <tessera/sync/scene_edits.h>
+#include <tessera/sync/transform.h>
 
 namespace tessera::collab {
 
@@ -41,11 +42,9 @@ struct PoseState {
     s.aspect = p.aspect();
     return s;
   }
-  glm::dmat4 frame() const {
-    glm::dmat4 m = glm::mat4_cast(orientation);
-    m[3] = glm::dvec4(eye, 1.0);
-    return m;
-  }
+  /// The avatar's node transform, in the rigid form (46 bytes a frame to every node and site,
+  /// not 132: sync/transform.h).
+  scene::Transform transform() const { return sync::rigidTransform(glm::quat(orientation), eye); }
   static PoseState mix(const PoseState& a, const PoseState& b, double s) {
     if (s >= 1.0) return b;
     PoseState r = b;
@@ -244,9 +243,10 @@ void SiteRoster::animate(sync::SceneGraph& graph, double now) {
     s.info.leader = graph.settings().leader() == s.info.name;
     if (!s.has_pose || !graph.contains(s.info.avatar)) continue;
     const PoseState p = s.current(now);
-    const glm::dmat4 frame = p.frame();
+    const scene::Transform pose = p.transform();
+    const glm::dmat4 frame = sync::transformMatrix(pose);
     if (frame != s.shown) {
-      graph.setTransform(s.info.avatar, std::span<const double>(glm::value_ptr(frame), 16));
+      graph.setTransform(s.info.avatar, pose);
       s.shown = frame;
     }
     const scene::AvatarPayload& old = graph.node(s.info.avatar).avatar();

@@ -7,16 +7,15 @@
 
 #include <tessera/lod/store_cache.h>
 #include <tessera/sync/config.h>
+#include <tessera/sync/transform.h>
 
-#include <glm/gtc/type_ptr.hpp>
 
 namespace tessera::render {
 
 namespace {
 
 glm::dmat4 transformOf(const scene::SceneNode& node) {
-  if (node.transform().m_size() != 16) return glm::dmat4(1.0);
-  return glm::make_mat4(node.transform().m().data());
+  return sync::transformMatrix(node.transform());
 }
 
 }  // namespace

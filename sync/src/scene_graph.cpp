@@ -14,6 +14,7 @@
 #include <tessera/core/check.h>
 #include <tessera/sync/camera_state.h>
 #include <tessera/sync/selection_mask.h>
+#include <tessera/sync/transform.h>
 
 namespace tessera::sync {
 namespace {
@@ -368,13 +369,40 @@ Problem checkTransform(std::span<const double> m) {
   return {};
 }
 
+/// A node transform as it travels: none (identity), 16 numbers (checkTransform() above), or the
+/// rigid form: a translation of 3 finite numbers within kMaxTransformValue and a rotation
+/// quaternion of 4 finite numbers of length 1 within 1e-3 (sync/transform.h), never both forms.
+Problem checkTransform(const scene::Transform& t) {
+  const bool rigid = t.translation_size() != 0 || t.rotation_size() != 0;
+  if (!rigid) return checkTransform(std::span<const double>(t.m().data(), size_t(t.m_size())));
+  if (t.m_size() != 0)
+    return std::string("transform: 16 numbers and the rigid form (translation, rotation) at once");
+  if (t.translation_size() != 3 || t.rotation_size() != 4)
+    return "transform: the rigid form needs a translation of 3 numbers and a rotation of 4, got " +
+           std::to_string(t.translation_size()) + " and " + std::to_string(t.rotation_size());
+  for (double v : t.translation()) {
+    if (!std::isfinite(v)) return std::string("transform: translation must be finite");
+    if (std::abs(v) > kMaxTransformValue)
+      return "transform: translation " + num(v) + " is beyond +-" + num(kMaxTransformValue) +
+             " (the model would leave every view)";
+  }
+  double length2 = 0.0;
+  for (float v : t.rotation()) {
+    if (!std::isfinite(v)) return std::string("transform: rotation must be finite");
+    length2 += double(v) * double(v);
+  }
+  if (!(std::abs(std::sqrt(length2) - 1.0) <= 1e-3))
+    return "transform: rotation must be a unit quaternion (w x y z), its length is " +
+           num(std::sqrt(length2));
+  return {};
+}
+
 /// The fields present in `n` (a full state or a delta) for a node of `kind`.
 Problem checkNodeFields(const SceneNode& n, SceneGraph::Kind kind) {
   if (n.has_opacity() && !(n.opacity() >= 0.0f && n.opacity() <= 1.0f))
     return "opacity: " + num(n.opacity()) + " is not in [0, 1]";
   if (n.has_transform()) {
-    const auto& m = n.transform().m();
-    if (auto p = checkTransform(std::span<const double>(m.data(), size_t(m.size())))) return p;
+    if (auto p = checkTransform(n.transform())) return p;
   }
   if (n.has_shading() && !scene::Shading_IsValid(n.shading()))
     return "shading: unknown value " + std::to_string(int(n.shading()));
@@ -683,7 +711,13 @@ void SceneGraph::setTransform(NodeId id, std::span<const double> matrix) {
                 "sync::SceneGraph::setTransform(): needs 16 numbers or none");
   const Problem problem = checkTransform(matrix);
   TESSERA_CHECK(!problem, "sync::SceneGraph::setTransform(): " + problem.value_or(""));
-  mutableNode(id).mutable_transform()->mutable_m()->Assign(matrix.begin(), matrix.end());
+  *mutableNode(id).mutable_transform() = encodeTransform(matrix);
+}
+
+void SceneGraph::setTransform(NodeId id, const scene::Transform& transform) {
+  const Problem problem = checkTransform(transform);
+  TESSERA_CHECK(!problem, "sync::SceneGraph::setTransform(): " + problem.value_or(""));
+  *mutableNode(id).mutable_transform() = transform;
 }
 
 void SceneGraph::setShading(NodeId id, scene::Shading shading) {

@@ -16,6 +16,7 @@
 #include <tessera/collab/video_packet.h>
 #include <tessera/collab/voice_packet.h>
 #include <tessera/sync/scene_graph.h>
+#include <tessera/sync/transform.h>
 
 namespace {
 
@@ -44,8 +45,7 @@ site::ToMaster stroke(std::initializer_list<double> xyz) {
 }
 
 glm::dvec3 avatarEye(const sync::SceneGraph& g, uint32_t id) {
-  const auto& m = g.node(id).transform().m();
-  return {m[12], m[13], m[14]};
+  return glm::dvec3(sync::transformMatrix(g.node(id).transform())[3]);
 }
 
 /// A replica kept up to date with the master's frames, as nodes and sites keep theirs.
@@ -225,8 +225,8 @@ TEST(SiteRoster, AvatarFollowsPosesSmoothlyAndLeavesWithItsSite) {
   EXPECT_NEAR(glm::length(avatarEye(s.replica, avatar) - glm::dvec3(0, 0, 2)), 0.0, 1e-12);
   EXPECT_FLOAT_EQ(s.replica.node(avatar).avatar().reach(), 2.0f);
   // Frame of the avatar: right, up, back (the view negated), eye.
-  const auto& m = s.replica.node(avatar).transform().m();
-  EXPECT_NEAR(m[8] * 0 + m[10], 1.0, 1e-12) << "back = +z for a view down -z";
+  const glm::dmat4 m = sync::transformMatrix(s.replica.node(avatar).transform());
+  EXPECT_NEAR(m[2][2], 1.0, 1e-7) << "back = +z for a view down -z";
 
   double t = 1.0 / 60;
   s.roster.apply(s.master, a, pose(2, {1, 0, 2}, {1, 0, 0}), t + 0.005);
@@ -270,11 +270,11 @@ TEST(SiteRoster, StrokesAreSketchesInTheSitesLayerWithUndoAndClear) {
   ASSERT_EQ(sketches.size(), 2u);
   const scene::SceneNode& first = s.replica.node(sketches[0]);
   EXPECT_EQ(first.author(), "Kyoto lab");
-  const auto& t = first.transform().m();
+  const glm::dvec3 t(sync::transformMatrix(first.transform())[3]);
   const auto& p = first.sketch().points();
-  EXPECT_NEAR(t[12] + p[3], 636590.5, 1e-3);
-  EXPECT_NEAR(t[13] + p[4], 847900.25, 1e-3);
-  EXPECT_NEAR(t[12] + p[0], 636590.001, 1e-6);
+  EXPECT_NEAR(t.x + p[3], 636590.5, 1e-3);
+  EXPECT_NEAR(t.y + p[4], 847900.25, 1e-3);
+  EXPECT_NEAR(t.x + p[0], 636590.001, 1e-6);
 
   s.roster.apply(s.master, a, site::ToMaster(), 0);  // nothing
   site::ToMaster undo;

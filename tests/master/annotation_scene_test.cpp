@@ -12,6 +12,7 @@
 #include <numbers>
 
 #include <tessera/sync/scene_edits.h>
+#include <tessera/sync/transform.h>
 
 #include "../../fuzz/picture_fuzz.h"
 #include "../support/temp_dir.h"
@@ -122,10 +123,10 @@ TEST_F(AnnotationSceneTest, LoadsLayersAsNestedGroupsAndPlacesAsNotesThatReachAR
       EXPECT_EQ(a.items(0).author(), "kyoto");
       EXPECT_EQ(a.items(0).revision(), 1u);
       // The place's position exactly, in the transform's doubles.
-      ASSERT_EQ(node->transform().m_size(), 16);
-      EXPECT_EQ(node->transform().m(12), georef.x);
-      EXPECT_EQ(node->transform().m(13), georef.y);
-      EXPECT_EQ(node->transform().m(14), georef.z);
+      const glm::dmat4 place = sync::transformMatrix(node->transform());
+      EXPECT_EQ(place[3][0], georef.x);
+      EXPECT_EQ(place[3][1], georef.y);
+      EXPECT_EQ(place[3][2], georef.z);
     } else if (a.radius() > 0) {
       ++hot_node;
       EXPECT_EQ(a.radius(), 0.25);

@@ -3,6 +3,7 @@
 
 #include <tessera/sync/config.h>
 #include <tessera/sync/scene_graph.h>
+#include <tessera/sync/transform.h>
 
 namespace tessera::sync {
 namespace {
@@ -89,7 +90,8 @@ TEST(SceneFile, EveryNodeKindAndGroupsLoad) {
         {"kind": "MODEL", "parent": 5, "model": {"store": "a.tlod"}, "opacity": 0.5},
         {"kind": "ANNOTATION", "parent": 5, "annotation": {"text": "crack", "anchor": {"x": 1},
          "layer": "survey/2026"}},
-        {"kind": "SKETCH", "sketch": {"points": [0, 0, 0, 1, 1, 1], "width": 2}}]})",
+        {"kind": "SKETCH", "sketch": {"points": [0, 0, 0, 1, 1, 1], "width": 2},
+         "transform": {"translation": [636590, 847900, 3], "rotation": [0, 0, 0, 1]}}]})",
                                             "s.json", "/data");
   ASSERT_EQ(f.nodes_size(), 4);
   EXPECT_EQ(f.nodes(1).id(), 6u);
@@ -99,6 +101,9 @@ TEST(SceneFile, EveryNodeKindAndGroupsLoad) {
   EXPECT_EQ(g.node(6).parent(), 5u);
   EXPECT_EQ(g.node(7).annotation().text(), "crack");
   EXPECT_EQ(g.node(6).opacity(), 0.5f);
+  // A transform in the rigid form (sync/transform.h): a half turn about z, then the translation.
+  EXPECT_EQ(transformMatrix(g.node(8).transform()),
+            glm::dmat4(-1, 0, 0, 0, 0, -1, 0, 0, 0, 0, 1, 0, 636590, 847900, 3, 1));
 }
 
 TEST(SceneFile, BadScenesNameTheField) {
@@ -116,6 +121,9 @@ TEST(SceneFile, BadScenesNameTheField) {
   EXPECT_NE(err(model(R"(, "opacity": "NaN")")).find("nodes[0] (node 1): opacity"),
             std::string::npos);
   EXPECT_NE(err(model(R"(, "transform": {"m": [1, 2]})")).find("nodes[0] (node 1): transform"),
+            std::string::npos);
+  EXPECT_NE(err(model(R"(, "transform": {"translation": [1, 2, 3], "rotation": [2, 0, 0, 0]})"))
+                .find("nodes[0] (node 1): transform: rotation must be a unit quaternion"),
             std::string::npos);
   EXPECT_NE(err(model(R"(, "parent": 9)")).find("s.json: node 1: parent 9 does not exist"),
             std::string::npos);

@@ -10,11 +10,13 @@
 #include <random>
 
 #include <glm/glm.hpp>
+#include <glm/gtc/quaternion.hpp>
 
 #include <tessera/core/check.h>
 #include <tessera/sync/camera_state.h>
 #include <tessera/sync/config.h>
 #include <tessera/sync/scene_graph.h>
+#include <tessera/sync/transform.h>
 #include <tessera/sync/wire.h>
 
 namespace tessera::sync {
@@ -398,6 +400,27 @@ TEST_F(BadFrame, BadFields) {
   expectError(withChange([](SceneNode& n) { n.set_opacity(NAN); }), Code::kBadField, "opacity");
   expectError(withChange([](SceneNode& n) { n.mutable_transform()->add_m(1.0); }), Code::kBadField,
               "transform: needs 16 numbers");
+  // The rigid form (sync/transform.h): sizes, both forms at once, numbers, a unit quaternion.
+  auto rigid = [&](std::vector<double> t, std::vector<float> q, bool with_m = false) {
+    return withChange([=](SceneNode& n) {
+      scene::Transform* x = n.mutable_transform();
+      for (double v : t) x->add_translation(v);
+      for (float v : q) x->add_rotation(v);
+      if (with_m)
+        for (int i = 0; i < 16; ++i) x->add_m(i % 5 == 0 ? 1.0 : 0.0);
+    });
+  };
+  expectError(rigid({1, 2}, {1, 0, 0, 0}), Code::kBadField,
+              "changed[0] (node 3): transform: the rigid form needs a translation of 3 numbers and "
+              "a rotation of 4, got 2 and 4");
+  expectError(rigid({1, 2, 3}, {1, 0, 0}), Code::kBadField, "got 3 and 3");
+  expectError(rigid({1, 2, 3}, {1, 0, 0, 0}, true), Code::kBadField,
+              "16 numbers and the rigid form");
+  expectError(rigid({1, NAN, 3}, {1, 0, 0, 0}), Code::kBadField, "translation must be finite");
+  expectError(rigid({1, 2, -2e9}, {1, 0, 0, 0}), Code::kBadField, "beyond");
+  expectError(rigid({1, 2, 3}, {1, 0, INFINITY, 0}), Code::kBadField, "rotation must be finite");
+  expectError(rigid({1, 2, 3}, {0, 0, 0, 0}), Code::kBadField, "its length is 0");
+  expectError(rigid({1, 2, 3}, {2, 0, 0, 0}), Code::kBadField, "unit quaternion");
   expectError(withChange([](SceneNode& n) { n.set_kind(SceneNode::SKETCH); }), Code::kBadField,
               "kind");
   expectError(withChange([](SceneNode& n) { n.mutable_sketch(); }), Code::kBadField,
@@ -613,6 +636,11 @@ class RandomScene {
       g.setOpacity(id, float(pick(101)) / 100.0f);
     } else if (op < 58) {
       g.setVisible(id, pick(2) == 0);
+    } else if (op < 64 && pick(3) == 0) {
+      // A pose in the rigid form, as the avatars' (sync/transform.h).
+      const glm::quat q = glm::normalize(glm::quat(float(pick(201)) - 99.5f, float(pick(201) - 100),
+                                                   float(pick(201) - 100), float(pick(201) - 100)));
+      g.setTransform(id, rigidTransform(q, {636590.0 + pick(2001) / 7.0, pick(2001) / 3.0, 0.25}));
     } else if (op < 64) {
       std::vector<double> m;
       if (pick(4) != 0) {

@@ -124,7 +124,10 @@ class SceneGraph {
   /// opacity in [0, 1].
   void setOpacity(NodeId id, float opacity);
   /// 16 finite numbers, column-major, node frame to parent frame, metres; or none: identity.
+  /// Kept in the rigid form when that gives back exactly these numbers (sync/transform.h).
   void setTransform(NodeId id, std::span<const double> matrix);
+  /// A Transform as it travels (sync/transform.h: rigidTransform() for a pose).
+  void setTransform(NodeId id, const scene::Transform& transform);
   /// Any Shading; SHADING_INHERIT uses the wall-level setting.
   void setShading(NodeId id, scene::Shading shading);
   /// pixels >= 0; 0 uses the wall-level setting.
