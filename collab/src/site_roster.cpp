@@ -42,8 +42,8 @@ struct PoseState {
     s.aspect = p.aspect();
     return s;
   }
-  /// The avatar's node transform, in the rigid form (46 bytes a frame to every node and site,
-  /// not 132: sync/transform.h).
+  /// The avatar's node transform, in the rigid form (44 bytes a frame to every node and site,
+  /// not 130: sync/transform.h).
   scene::Transform transform() const { return sync::rigidTransform(glm::quat(orientation), eye); }
   static PoseState mix(const PoseState& a, const PoseState& b, double s) {
     if (s >= 1.0) return b;

@@ -9,7 +9,6 @@
 #include <tessera/sync/config.h>
 #include <tessera/sync/transform.h>
 
-
 namespace tessera::render {
 
 namespace {

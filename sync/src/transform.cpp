@@ -1,5 +1,6 @@
 #include <tessera/sync/transform.h>
 
+#include <cmath>
 #include <cstring>
 
 #include <glm/gtc/type_ptr.hpp>

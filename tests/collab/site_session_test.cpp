@@ -573,7 +573,9 @@ TEST_F(SiteSession, AWindowDrivenByMouseAndKeys) {
   ASSERT_TRUE(site->waitFor("joined as participant", 60)) << site->output();
   const std::string wid = xdo.window("tessera-site");
   ASSERT_FALSE(wid.empty()) << "no tessera-site window on " << xdo.name;
-  std::this_thread::sleep_for(std::chrono::seconds(2));  // its first frames
+  // Its view drawn and every chunk of it loaded, before the first key (picks read its depth):
+  // a fixed wait was too short under load.
+  ASSERT_TRUE(site->waitFor("view settled", 60)) << site->output();
   xdo("key --window " + wid + " p");
   ASSERT_TRUE(site->waitFor("wrote \\S+site-\\d+\\.png", 60)) << site->output();
   // The drag: across the middle of the view, where the wall's camera shows the bunny.
@@ -783,7 +785,9 @@ TEST_F(SiteSession, AWindowedSiteOpensANoteMeasuresAndLassos) {
   ASSERT_TRUE(site->waitFor("joined as participant", 60)) << site->output();
   const std::string wid = xdo.window("tessera-site");
   ASSERT_FALSE(wid.empty()) << "no tessera-site window on " << xdo.name;
-  std::this_thread::sleep_for(std::chrono::seconds(2));  // its first frames
+  // Its view drawn and every chunk of it loaded, before the first key (picks read its depth):
+  // a fixed wait was too short under load.
+  ASSERT_TRUE(site->waitFor("view settled", 60)) << site->output();
   xdo("mousemove --window " + wid + " 242 158 key --window " + wid + " o");
   ASSERT_TRUE(site->waitFor("note 1 committed", 60)) << site->output();
   xdo("key --window " + wid + " m");

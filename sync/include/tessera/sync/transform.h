@@ -1,6 +1,6 @@
 // A scene node's transform (scene.proto Transform) as a matrix, and a matrix as the smallest
 // Transform that gives it back exactly: 16 doubles, or for a rigid motion its translation and
-// the unit quaternion of its rotation (46 bytes on the wire instead of 132; every avatar moves
+// the unit quaternion of its rotation (44 bytes on the wire instead of 130; every avatar moves
 // every frame, so this is most of what a site receives while others move).
 #pragma once
 
