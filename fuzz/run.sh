@@ -159,6 +159,11 @@ END
   encode Frame unchanged.frame <<'END'
 number: 2 version: 1 time_us: 33333
 END
+  # An avatar's pose in the rigid form (sync/transform.h).
+  encode Frame pose.frame <<'END'
+number: 2 version: 2 time_us: 33333
+changed { id: 3 transform { translation: [636590.5, 847900.25, 3] rotation: [0.5, 0.5, -0.5, 0.5] } }
+END
   encode Snapshot scene.snapshot <<'END'
 version: 7 frame: 40
 scene {
