@@ -26,14 +26,14 @@
 #include <vector>
 
 #include <tessera/core/cli.h>
-#include <tessera/master/annotation_db.h>
+#include <tessera/annotate/annotation_db.h>
 
 #include "bench_stats.h"
 
 namespace {
 
 namespace fs = std::filesystem;
-using namespace tessera::master;
+using namespace tessera::annotate;
 using Clock = std::chrono::steady_clock;
 
 double seconds(Clock::time_point since) {

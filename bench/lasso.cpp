@@ -39,7 +39,7 @@
 #include <tessera/lod/mesh_builder.h>
 #include <tessera/lod/point_writer.h>
 #include <tessera/lod/store_builder.h>
-#include <tessera/master/lasso_selection.h>
+#include <tessera/annotate/lasso_selection.h>
 
 namespace {
 
@@ -114,8 +114,8 @@ std::pair<fs::path, double> surfaceMesh(const fs::path& cache, uint64_t n, int t
 }
 
 /// The mesh baseline: every leaf patch read, every triangle's centroid tested (the lasso's test).
-uint64_t bruteForce(lod::MeshStore& store, const master::LassoProjector& proj,
-                    const master::LassoPolygon& poly, glm::uvec2 viewport) {
+uint64_t bruteForce(lod::MeshStore& store, const annotate::LassoProjector& proj,
+                    const annotate::LassoPolygon& poly, glm::uvec2 viewport) {
   uint64_t selected = 0;
   for (lod::NodeId id = 0; id < store.nodeCount(); ++id) {
     if (store.record(id).child_count != 0) continue;
@@ -132,8 +132,8 @@ uint64_t bruteForce(lod::MeshStore& store, const master::LassoProjector& proj,
 }
 
 /// The baseline: every leaf read, every point tested (the same test as the lasso's leaves).
-uint64_t bruteForce(lod::PointStore& store, const master::LassoProjector& proj,
-                    const master::LassoPolygon& poly, glm::uvec2 viewport) {
+uint64_t bruteForce(lod::PointStore& store, const annotate::LassoProjector& proj,
+                    const annotate::LassoPolygon& poly, glm::uvec2 viewport) {
   uint64_t selected = 0;
   std::vector<lod::NodeId> open = {store.root()};
   while (!open.empty()) {
@@ -187,7 +187,7 @@ int main(int argc, char** argv) {
     fs::create_directories(cache_dir);
 
     const glm::uvec2 viewport(1920, 1080);
-    master::LassoView view;
+    annotate::LassoView view;
     const glm::dvec3 target(50.0, 50.0, 0.0), eye(5.0, -15.0, 45.0);
     view.view = glm::lookAt(eye, target, glm::dvec3(0, 0, 1));
     view.projection =
@@ -199,7 +199,7 @@ int main(int argc, char** argv) {
       const double r = 190.0 * (1.0 + 0.3 * std::sin(7 * t));
       vertices.push_back(glm::dvec2(1000, 520) + r * glm::dvec2(1.3 * std::cos(t), std::sin(t)));
     }
-    const master::LassoPolygon poly(vertices);
+    const annotate::LassoPolygon poly(vertices);
 
     // One size of one kind: the baseline first, then the lasso on fresh stores (the chunk cache
     // empty; the OS page cache warm for both), best of --repeats against the other builds on
@@ -215,23 +215,23 @@ int main(int argc, char** argv) {
         auto fresh = open();
         const glm::dmat4 model = glm::translate(glm::dmat4(1.0), origin(*fresh));
         const auto t0 = Clock::now();
-        brute = bruteForce(*fresh, master::LassoProjector(view, model), poly, viewport);
+        brute = bruteForce(*fresh, annotate::LassoProjector(view, model), poly, viewport);
         brute_ms = msSince(t0);
       }
-      master::LassoResult r, warm, single;
+      annotate::LassoResult r, warm, single;
       double cold = 1e300, warm_ms = 1e300, single_ms = 1e300;
       for (int k = 0; k < repeats; ++k) {
-        master::LassoOptions one;
+        annotate::LassoOptions one;
         one.threads = 1;
         auto t0 = Clock::now();
         single = lasso(*open(), one);
         single_ms = std::min(single_ms, msSince(t0));
         auto store = open();
         t0 = Clock::now();
-        r = lasso(*store, master::LassoOptions{});
+        r = lasso(*store, annotate::LassoOptions{});
         cold = std::min(cold, msSince(t0));
         t0 = Clock::now();
-        warm = lasso(*store, master::LassoOptions{});
+        warm = lasso(*store, annotate::LassoOptions{});
         warm_ms = std::min(warm_ms, msSince(t0));
       }
       if (skip_baseline) brute = r.selection.count();
@@ -260,8 +260,8 @@ int main(int argc, char** argv) {
       const auto [path, build_s] = surfaceStore(cache_dir, n, build_threads);
       measure(
           csv, n, build_s, [&, p = path] { return lod::PointStore::open(p, 64ull << 20); },
-          [&](lod::PointStore& st, const master::LassoOptions& o) {
-            return master::lassoPoints(st, view, poly, o);
+          [&](lod::PointStore& st, const annotate::LassoOptions& o) {
+            return annotate::lassoPoints(st, view, poly, o);
           },
           [](const lod::PointStore& st) { return st.summary().origin; });
     }
@@ -277,8 +277,8 @@ int main(int argc, char** argv) {
       const auto [path, build_s] = surfaceMesh(cache_dir, n, build_threads);
       measure(
           mesh_csv, n, build_s, [&, p = path] { return lod::MeshStore::open(p); },
-          [&](lod::MeshStore& st, const master::LassoOptions& o) {
-            return master::lassoTriangles(st, view, poly, o);
+          [&](lod::MeshStore& st, const annotate::LassoOptions& o) {
+            return annotate::lassoTriangles(st, view, poly, o);
           },
           [](const lod::MeshStore& st) { return st.summary().origin; });
     }

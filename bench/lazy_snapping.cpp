@@ -33,8 +33,8 @@
 #include <tessera/lod/mesh.h>
 #include <tessera/lod/mesh_builder.h>
 #include <tessera/lod/store_builder.h>
-#include <tessera/master/lazy_snapping.h>
-#include <tessera/master/snap_tool.h>
+#include <tessera/annotate/lazy_snapping.h>
+#include <tessera/interact/snap_tool.h>
 #include <tessera/render/view_renderer.h>
 
 #include "../tests/support/ear_labels.h"
@@ -43,12 +43,12 @@
 
 namespace fs = std::filesystem;
 using namespace tessera;
-using master::LazySnapping;
-using master::ScreenView;
-using master::SnapOptions;
-using master::SnapResult;
-using master::Strokes;
-using master::SurfaceSamples;
+using annotate::LazySnapping;
+using annotate::ScreenView;
+using annotate::SnapOptions;
+using annotate::SnapResult;
+using annotate::Strokes;
+using annotate::SurfaceSamples;
 
 namespace {
 
@@ -134,12 +134,12 @@ void bunnySeries(const fs::path& data_dir, int repeat, size_t max_strokes, std::
                  BunnyPicture& pic, SurfaceSamples& s, std::vector<uint8_t>& ear,
                  std::vector<uint8_t>& visible) {
   const lod::Mesh mesh = lod::readMesh(test::bunnyMeshPath(data_dir));
-  s = master::surfaceFromMesh(mesh);
+  s = annotate::surfaceFromMesh(mesh);
   ear = test::bunnyEar(s);
   const ScreenView view = test::bunnyView();
-  visible = master::visibleSamples(s, view, 3.0, 0.003);
-  const Strokes first{master::pickStroke(s, view, test::bunnyEarStroke(), 4.0, visible),
-                      master::pickStroke(s, view, test::bunnyHeadStroke(), 4.0, visible)};
+  visible = annotate::visibleSamples(s, view, 3.0, 0.003);
+  const Strokes first{annotate::pickStroke(s, view, test::bunnyEarStroke(), 4.0, visible),
+                      annotate::pickStroke(s, view, test::bunnyHeadStroke(), 4.0, visible)};
   for (bool over : {true, false}) {
     double prepare = 0;
     const auto snapping = prepareSnapping(s, over, repeat, prepare);
@@ -148,7 +148,7 @@ void bunnySeries(const fs::path& data_dir, int repeat, size_t max_strokes, std::
       SnapResult r;
       const double cut = medianMs(repeat, [&] { r = snapping->cut(strokes, &view); });
       rows.push_back({"strokes", "bunny_ear", s.size(), count, methodName(over), r.graph_nodes,
-                      prepare, cut, master::intersectionOverUnion(r.selected, ear)});
+                      prepare, cut, annotate::intersectionOverUnion(r.selected, ear)});
       if (over && count == 2) {
         pic.strokes_selected = r.selected;
         pic.strokes = strokes;
@@ -156,26 +156,26 @@ void bunnySeries(const fs::path& data_dir, int repeat, size_t max_strokes, std::
       // The next stroke: a dab of 6 pixels on the largest visible error, kept on its side.
       const int64_t at = largestError(s, r.selected, ear, visible);
       if (at < 0) break;
-      const master::ScreenPoint sp = master::project(view, s.positions[size_t(at)]);
+      const annotate::ScreenPoint sp = annotate::project(view, s.positions[size_t(at)]);
       const glm::dvec2 dab[] = {sp.pixel};
       auto& list = ear[size_t(at)] ? strokes.foreground : strokes.background;
-      for (uint32_t i : master::pickStroke(s, view, dab, 6.0, visible))
+      for (uint32_t i : annotate::pickStroke(s, view, dab, 6.0, visible))
         if (ear[i] == ear[size_t(at)]) list.push_back(i);
     }
   }
   // The robust lasso: a heavy stroke along the ear's outline as seen from the view.
-  master::HeavyStroke heavy;
+  annotate::HeavyStroke heavy;
   heavy.polyline = test::earOutline(s, ear, visible, view);
   heavy.width_px = 16;
   heavy.seed_band_px = 16;
   pic.lasso = heavy.polyline;
-  pic.lasso_seeds = master::robustLassoSeeds(s, view, heavy, visible);
+  pic.lasso_seeds = annotate::robustLassoSeeds(s, view, heavy, visible);
   const LazySnapping snapping(s);
   SnapResult r;
   const double cut = medianMs(repeat, [&] { r = snapping.cut(pic.lasso_seeds, &view); });
   pic.lasso_selected = r.selected;
   rows.push_back({"lasso", "bunny_ear", s.size(), 1, "robust_lasso", r.graph_nodes, 0.0, cut,
-                  master::intersectionOverUnion(r.selected, ear)});
+                  annotate::intersectionOverUnion(r.selected, ear)});
 }
 
 /// The size series on capped spheres.
@@ -185,7 +185,7 @@ void sizeSeries(const std::vector<uint32_t>& rings, int repeat, std::vector<Row>
   for (uint32_t ring_count : rings) {
     std::vector<uint8_t> cap;
     const lod::Mesh mesh = test::cappedSphere(ring_count, &cap);
-    const SurfaceSamples s = master::surfaceFromMesh(mesh);
+    const SurfaceSamples s = annotate::surfaceFromMesh(mesh);
     const Strokes strokes{test::samplesNear(s, {{-0.5, 0, 0.87}, {0.5, 0, 0.87}}, 0.03),
                           test::samplesNear(s, {{1, 0, 0}, {0, 1, 0}, {-1, 0, 0}}, 0.03)};
     for (bool over : {true, false}) {
@@ -195,7 +195,7 @@ void sizeSeries(const std::vector<uint32_t>& rings, int repeat, std::vector<Row>
       const double cut = medianMs(repeat, [&] { r = snapping->cut(strokes); });
       auto& into = over ? rows : per_sample;
       into.push_back({"size", "capped_sphere", s.size(), 2, methodName(over), r.graph_nodes,
-                      prepare, cut, master::intersectionOverUnion(r.selected, cap)});
+                      prepare, cut, annotate::intersectionOverUnion(r.selected, cap)});
       if (!quiet) std::cerr << "lazy_snapping: " << csvLine(into.back()) << "\n";
     }
   }
@@ -241,7 +241,7 @@ void toolSeries(const fs::path& data_dir, const fs::path& work, int repeat,
     return px;
   };
   const auto fg = yDown(test::bunnyEarStroke()), bg = yDown(test::bunnyHeadStroke());
-  const std::vector<uint8_t> visible = master::visibleSamples(ear.samples(), sv, 3.0, 0.003);
+  const std::vector<uint8_t> visible = annotate::visibleSamples(ear.samples(), sv, 3.0, 0.003);
   const auto outline =
       yDown(test::earOutline(ear.samples(), test::bunnyEar(ear.samples()), visible, sv));
   const fs::path bunny = data_dir / "stanford-bunny";
@@ -284,19 +284,19 @@ void toolSeries(const fs::path& data_dir, const fs::path& work, int repeat,
     }
     const uint64_t elements = mesh ? ms->summary().input_triangles : ps->summary().points;
     auto iouOf = [&](const std::string& bytes) {
-      const master::Selection sel = test::selectionOf(bytes);
+      const annotate::Selection sel = test::selectionOf(bytes);
       return mesh ? test::earIoU(*ms, sel, ear) : test::earIoU(*ps, sel, ear);
     };
     // The tool: the run of median total time.
-    std::vector<master::SnapSelection> runs;
-    for (int k = 0; k < repeat; ++k) runs.push_back(master::snapSelection(inst, 1, view, fg, bg));
+    std::vector<interact::SnapSelection> runs;
+    for (int k = 0; k < repeat; ++k) runs.push_back(interact::snapSelection(inst, 1, view, fg, bg));
     std::sort(runs.begin(), runs.end(), [](const auto& a, const auto& b) {
-      const auto t = [](const master::SnapToolStats& s) {
+      const auto t = [](const interact::SnapToolStats& s) {
         return s.gather_ms + s.cut_ms + s.map_ms + s.mask_ms;
       };
       return t(a.stats) < t(b.stats);
     });
-    const master::SnapSelection& s = runs[runs.size() / 2];
+    const interact::SnapSelection& s = runs[runs.size() / 2];
     ToolRow t{m.name,
               m.kind,
               "snap_tool",
@@ -314,9 +314,9 @@ void toolSeries(const fs::path& data_dir, const fs::path& work, int repeat,
     if (!quiet) std::cerr << "lazy_snapping: " << csvLine(rows.back()) << "\n";
     // The lasso around the ear's outline, the same view, one thread.
     std::vector<double> ms_runs;
-    master::LassoSelection l;
+    interact::LassoSelection l;
     for (int k = 0; k < repeat; ++k)
-      ms_runs.push_back(wallMs([&] { l = master::lassoSelection(inst, 1, view, outline, 1); }));
+      ms_runs.push_back(wallMs([&] { l = interact::lassoSelection(inst, 1, view, outline, 1); }));
     std::sort(ms_runs.begin(), ms_runs.end());
     ToolRow lr{m.name,
                m.kind,
@@ -454,7 +454,7 @@ void drawBunny(const fs::path& out, const SurfaceSamples& s, const std::vector<u
     for (uint32_t i : strokes.background) mark[i] = 2;
     for (uint32_t i = 0; i < s.size(); ++i) {
       if (!visible[i] || s.neighboursOf(i).empty()) continue;
-      const glm::dvec2 p = master::project(view, s.positions[i]).pixel;
+      const glm::dvec2 p = annotate::project(view, s.positions[i]).pixel;
       // 0 neither, 1 selected and ear, 2 selected only, 3 missed; 4/5 stroke fg/bg
       const int kind = mark[i] ? 3 + mark[i]
                                : (selected[i] && ear[i] ? 1

@@ -23,9 +23,9 @@
 #include <tessera/lod/point_store.h>
 #include <tessera/lod/point_writer.h>
 #include <tessera/lod/store_builder.h>
-#include <tessera/master/measurement.h>
-#include <tessera/master/point_pick.h>
-#include <tessera/master/surface_pick.h>
+#include <tessera/annotate/measurement.h>
+#include <tessera/interact/point_pick.h>
+#include <tessera/interact/surface_pick.h>
 
 #include "bench_stats.h"
 
@@ -93,7 +93,7 @@ int run(int argc, char** argv) {
       for (const glm::dvec3& p : b.positions) input.push_back(reader->info().origin + p);
   }
   std::mt19937 rng(17);
-  master::PickOptions po;
+  interact::PickOptions po;
   po.pixel_angle = 0.5e-3;  // about a 1920-pixel-wide wall tile seen at 60 degrees
   std::vector<double> full_ms, view_ms, full_err, view_err;
   // Warm the caches once (pages and chunks), then time.
@@ -103,10 +103,10 @@ int run(int argc, char** argv) {
       const glm::dvec3 eye = target + glm::dvec3(20.0, -35.0, 300.0);
       const glm::dvec3 dir = glm::normalize(target - eye);
       auto t0 = Clock::now();
-      const auto full = master::pickSurface(std::span(&m, 1), eye, dir, po);
+      const auto full = interact::pickSurface(std::span(&m, 1), eye, dir, po);
       const double f_ms = msSince(t0);
       t0 = Clock::now();
-      const auto coarse = master::pickPoint(std::span(&m, 1), eye, dir, po);
+      const auto coarse = interact::pickPoint(std::span(&m, 1), eye, dir, po);
       const double v_ms = msSince(t0);
       if (pass == 0 || !full || !coarse) continue;
       full_ms.push_back(f_ms);
@@ -152,23 +152,23 @@ int run(int argc, char** argv) {
   auto sphere_store = lod::PointStore::open(res / "measure-inputs/sphere.tlod");
   render::ModelInstance sm;
   sm.store = sphere_store.get();
-  const master::SurfaceProjector analytic = [](const glm::dvec3& p) -> std::optional<glm::dvec3> {
+  const annotate::SurfaceProjector analytic = [](const glm::dvec3& p) -> std::optional<glm::dvec3> {
     return glm::normalize(p);
   };
-  const master::SurfaceProjector scanned = master::pointSurfaceProjector(sm);
-  std::vector<master::SurfacePoint> picks;
+  const annotate::SurfaceProjector scanned = interact::pointSurfaceProjector(sm);
+  std::vector<annotate::SurfacePoint> picks;
   for (const glm::dvec3& p : loop) picks.push_back({p, 0.0});
   std::ofstream csv(res / "measure_area.csv");
   csv << "surface,levels,triangles,ms,relative_error,relative_bound\n";
   for (const auto& [name, projector] :
        {std::pair{"analytic", &analytic}, std::pair{"point store", &scanned}}) {
     for (int levels = 0; levels <= 6; ++levels) {
-      master::AreaOptions o;
+      annotate::AreaOptions o;
       o.max_levels = levels;
       o.relative_tolerance = 0.0;  // exactly `levels` refinements
       o.max_triangles = size_t(1) << 20;
       const auto t0 = Clock::now();
-      const master::AreaMeasurement a = master::surfaceArea(picks, *projector, o);
+      const annotate::AreaMeasurement a = annotate::surfaceArea(picks, *projector, o);
       const double ms = msSince(t0);
       const double err = std::abs(a.value - reference) / reference;
       csv << name << "," << a.levels << "," << a.triangles.size() << "," << ms << "," << err

@@ -34,8 +34,8 @@
 #include <vector>
 
 #include <tessera/collab/curve.h>
-#include <tessera/collab/video_packet.h>
-#include <tessera/collab/video_pattern.h>
+#include <tessera/media/video_packet.h>
+#include <tessera/media/video_pattern.h>
 #include <tessera/core/cli.h>
 #include <tessera/render/image.h>
 
@@ -63,30 +63,30 @@ struct CodecRow {
 };
 
 CodecRow codecCost(const Size& size, int frames) {
-  collab::VideoSettings s;
+  media::VideoSettings s;
   s.width = size.width;
   s.height = size.height;
   s.kbps = size.kbps;
-  collab::VideoSender sender(s, 1);
-  collab::VideoReceiver receiver;
-  collab::VideoPicture picture;
+  media::VideoSender sender(s, 1);
+  media::VideoReceiver receiver;
+  media::VideoPicture picture;
   double encode = 0, decode = 0, psnr = 0;
   size_t bytes = 0;
   int measured = 0;
   for (int f = 0; f < frames; ++f) {
-    collab::drawTestPattern(picture, s.width, s.height, {uint32_t(f), uint32_t(40 * f)});
+    media::drawTestPattern(picture, s.width, s.height, {uint32_t(f), uint32_t(40 * f)});
     double t = threadCpuSeconds();
     const auto packets = sender.send(picture);
     encode += threadCpuSeconds() - t;
     t = threadCpuSeconds();
     for (const auto& b : packets) {
       bytes += b.size();
-      collab::VideoPacket p;
-      if (!collab::decodeVideoPacket(b, p)) receiver.receive(p);
+      media::VideoPacket p;
+      if (!media::decodeVideoPacket(b, p)) receiver.receive(p);
     }
     decode += threadCpuSeconds() - t;
     if (f % 10 == 9) {
-      psnr += collab::videoPsnr(picture, receiver.picture(), 0, 0, s.width, s.height);
+      psnr += media::videoPsnr(picture, receiver.picture(), 0, 0, s.width, s.height);
       ++measured;
     }
   }
@@ -193,13 +193,13 @@ LatencyRun glassToGlass(const Size& size, const fs::path& work, const std::strin
       continue;
     const double swapped = std::stod(s[1]);
     const render::Image image = render::readPng((*it)[2].str());
-    const auto code = collab::readTestPattern(image.rgba.data(), int(image.width), x, y, w, h);
+    const auto code = media::readTestPattern(image.rgba.data(), int(image.width), x, y, w, h);
     if (!code) {
       ++r.unreadable;
       continue;
     }
     r.latency_ms.push_back(
-        double(collab::patternDelayMs(code->time_ms, uint32_t(uint64_t(swapped) & 0xFFFFFFFFu))));
+        double(media::patternDelayMs(code->time_ms, uint32_t(uint64_t(swapped) & 0xFFFFFFFFu))));
   }
   r.load = loadAverage();
   r.wall_frame_ms = statsMedian(work / "stats.csv", "master", "frame_ms");

@@ -30,7 +30,7 @@
 #include <string>
 #include <vector>
 
-#include <tessera/collab/voice_codec.h>
+#include <tessera/media/voice_codec.h>
 #include <tessera/core/cli.h>
 
 #include "../tests/support/voice_path.h"
@@ -52,12 +52,12 @@ using test::VoicePathOptions;
 /// plays output sample o at 0.0037 + o / rate (runVoicePath's device).
 std::vector<double> latencies(const VoicePath& path) {
   std::vector<double> out;
-  for (const collab::PlayedFrame& f : path.history) {
-    if (f.kind != collab::PlayedFrame::Kind::kDecoded) continue;
+  for (const media::PlayedFrame& f : path.history) {
+    if (f.kind != media::PlayedFrame::Kind::kDecoded) continue;
     const double captured =
-        (double(uint32_t(f.timestamp - 0xFFFF0000u)) - path.lookahead) / collab::kVoiceRate;
+        (double(uint32_t(f.timestamp - 0xFFFF0000u)) - path.lookahead) / media::kVoiceRate;
     if (captured < 1.0) continue;
-    out.push_back(0.0037 + double(f.output) / collab::kVoiceRate - captured);
+    out.push_back(0.0037 + double(f.output) / media::kVoiceRate - captured);
   }
   return out;
 }
@@ -120,11 +120,11 @@ int main(int argc, char** argv) {
     cpu << "complexity,encode_ms_per_s,decode_ms_per_s,kbit_per_s\n";
     std::printf("== codec CPU per stream (one core of this machine)\n");
     for (int complexity : {5, 9, 10}) {
-      collab::VoiceSettings s;
+      media::VoiceSettings s;
       s.complexity = complexity;
       s.dtx = false;
-      collab::VoiceEncoder enc(s);
-      collab::VoiceDecoder dec;
+      media::VoiceEncoder enc(s);
+      media::VoiceDecoder dec;
       std::vector<std::vector<uint8_t>> packets;
       const size_t n = size_t(s.frameSamples());
       size_t bytes = 0;
@@ -141,7 +141,7 @@ int main(int argc, char** argv) {
       t0 = threadCpuSeconds();
       for (const auto& p : packets) dec.decode(p, frame);
       const double decode_s = threadCpuSeconds() - t0;
-      const double audio_s = double(packets.size() * n) / collab::kVoiceRate;
+      const double audio_s = double(packets.size() * n) / media::kVoiceRate;
       const double kbps = double(bytes) * 8 / audio_s / 1000;
       cpu << complexity << "," << encode_s / audio_s * 1000 << "," << decode_s / audio_s * 1000
           << "," << kbps << "\n";

@@ -9,8 +9,8 @@
 #include <sstream>
 #include <string_view>
 
-#include <tessera/master/annotation_db.h>
-#include <tessera/master/annotation_io.h>
+#include <tessera/annotate/annotation_db.h>
+#include <tessera/annotate/annotation_io.h>
 
 namespace tessera::fuzz {
 
@@ -22,19 +22,19 @@ inline void requireAnnotation(bool ok, const char* what) {
 
 inline int importAnnotations(const uint8_t* data, size_t size) {
   const std::string_view bytes(reinterpret_cast<const char*>(data), size);
-  master::AnnotationDb db(":memory:");
+  annotate::AnnotationDb db(":memory:");
   try {
-    master::importJson(db, bytes, "fuzz.json");
-  } catch (const master::AnnotationError&) {
+    annotate::importJson(db, bytes, "fuzz.json");
+  } catch (const annotate::AnnotationError&) {
     requireAnnotation(db.items().empty() && db.places().empty() && db.layers().empty(),
                       "a refused import left data behind");
     return 0;
   }
   std::ostringstream first, second;
-  master::exportJson(db, first);
-  master::AnnotationDb copy(":memory:");
-  master::importJson(copy, first.str(), "export.json");  // must not throw
-  master::exportJson(copy, second);
+  annotate::exportJson(db, first);
+  annotate::AnnotationDb copy(":memory:");
+  annotate::importJson(copy, first.str(), "export.json");  // must not throw
+  annotate::exportJson(copy, second);
   requireAnnotation(first.str() == second.str(), "export -> import -> export is not exact");
   requireAnnotation(db.integrityCheck() == "ok", "integrity_check failed after an import");
   return 0;

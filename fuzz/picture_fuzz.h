@@ -9,14 +9,14 @@
 #include <span>
 #include <stdexcept>
 
-#include <tessera/master/note_picture.h>
+#include <tessera/annotate/note_picture.h>
 
 namespace tessera::fuzz {
 
 inline int decodePicture(const uint8_t* data, size_t size) {
   constexpr uint32_t kFit = 64;
   try {
-    const master::NotePicture p = master::decodeNotePicture(std::span(data, size), kFit);
+    const annotate::NotePicture p = annotate::decodeNotePicture(std::span(data, size), kFit);
     if (p.width == 0 || p.height == 0 || p.width > kFit || p.height > kFit ||
         p.rgba.size() != size_t(p.width) * p.height * 4) {
       std::fprintf(stderr, "picture fuzz: broken invariant: %ux%u, %zu bytes\n", p.width,

@@ -271,7 +271,7 @@ seed_chunk_request() {
 
 # Voice packets (voice_fuzzer.cpp records: 2-byte length, 1-byte delay, packet): real Opus
 # packets of a tone, in order, lost and reordered, and in 10 ms frames (fuzz/seeds/voice/, written
-# by collab::VoiceSender).
+# by media::VoiceSender).
 seed_voice() {
   cp "$OLDPWD"/fuzz/seeds/voice/*.rec .
 }

@@ -10,7 +10,7 @@
 #include <span>
 #include <vector>
 
-#include <tessera/master/selection.h>
+#include <tessera/annotate/selection.h>
 
 namespace tessera::fuzz {
 
@@ -30,7 +30,7 @@ inline int readSelection(const uint8_t* data, size_t size) {
   for (int pass = 0; pass < 2; ++pass) {
     if (pass == 1) fixSelectionChecksum(bytes.data(), bytes.size());
     try {
-      const master::Selection s = master::Selection::deserialize(bytes);
+      const annotate::Selection s = annotate::Selection::deserialize(bytes);
       if (s.serialize() != bytes) std::abort();
       uint64_t count = 0;
       for (const auto& [id, node] : s.nodes()) {
@@ -38,7 +38,7 @@ inline int readSelection(const uint8_t* data, size_t size) {
         count += node.count();
       }
       if (count != s.count()) std::abort();
-    } catch (const master::SelectionError&) {
+    } catch (const annotate::SelectionError&) {
     }
   }
   return 0;

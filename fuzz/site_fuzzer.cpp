@@ -20,7 +20,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   google::protobuf::LogSilencer quiet;
   tessera::sync::SceneGraph graph;
   tessera::collab::SiteRoster roster;
-  tessera::master::AnnotationScene notes(":memory:");
+  tessera::annotate::AnnotationScene notes(":memory:");
   const uint32_t a = roster.join(graph, "fuzz", "key-a");
   const uint32_t b = roster.join(graph, "fuzz", "key-b");
   double now = 0;

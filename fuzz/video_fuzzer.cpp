@@ -9,10 +9,10 @@
 #include <cstdlib>
 #include <span>
 
-#include <tessera/collab/video_packet.h>
+#include <tessera/media/video_packet.h>
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
-  using namespace tessera::collab;
+  using namespace tessera::media;
   VideoReceiver receiver;
   int records = 0;
   for (size_t at = 0; at + 3 <= size && records < 200; ++records) {

@@ -9,12 +9,12 @@
 #include <string>
 #include <vector>
 
-#include <tessera/collab/video_packet.h>
-#include <tessera/collab/video_pattern.h>
+#include <tessera/media/video_packet.h>
+#include <tessera/media/video_pattern.h>
 
 namespace {
 
-using namespace tessera::collab;
+using namespace tessera::media;
 
 void record(std::ofstream& out, const std::vector<uint8_t>& packet, uint8_t flags) {
   const uint8_t head[3] = {uint8_t(packet.size()), uint8_t(packet.size() >> 8), flags};

@@ -11,11 +11,11 @@
 #include <span>
 #include <vector>
 
-#include <tessera/collab/voice_jitter_buffer.h>
-#include <tessera/collab/voice_packet.h>
+#include <tessera/media/voice_jitter_buffer.h>
+#include <tessera/media/voice_packet.h>
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
-  using namespace tessera::collab;
+  using namespace tessera::media;
   JitterBufferSettings settings;
   settings.max_packets = 32;
   JitterBuffer buffer(settings);

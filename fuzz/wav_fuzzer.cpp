@@ -4,15 +4,15 @@
 #include <cstdint>
 #include <span>
 
-#include <tessera/collab/voice_wav.h>
+#include <tessera/media/voice_wav.h>
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   try {
-    const tessera::collab::WavAudio audio =
-        tessera::collab::parseWav(std::span<const uint8_t>(data, size), "fuzz.wav");
+    const tessera::media::WavAudio audio =
+        tessera::media::parseWav(std::span<const uint8_t>(data, size), "fuzz.wav");
     // Long inputs at low rates resample slowly; a few seconds of output are plenty.
-    if (audio.samples.size() < 200000) (void)tessera::collab::toVoice(audio);
-  } catch (const tessera::collab::WavError&) {
+    if (audio.samples.size() < 200000) (void)tessera::media::toVoice(audio);
+  } catch (const tessera::media::WavError&) {
   }
   return 0;
 }

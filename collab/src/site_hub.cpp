@@ -16,10 +16,10 @@
 #include <tessera/collab/site_messages.h>
 #include <tessera/collab/site_notes.h>
 #include <tessera/collab/site_selections.h>
-#include <tessera/collab/video_packet.h>
-#include <tessera/collab/voice_alsa.h>
-#include <tessera/collab/voice_bridge.h>
-#include <tessera/collab/voice_wav.h>
+#include <tessera/media/video_packet.h>
+#include <tessera/media/voice_alsa.h>
+#include <tessera/media/voice_bridge.h>
+#include <tessera/media/voice_wav.h>
 #include <tessera/render/scene_draw_list.h>
 #include <tessera/sync/cluster_link.h>
 #include <tessera/sync/wire.h>
@@ -69,11 +69,11 @@ struct SiteHub::Impl {
   uint64_t allow_generation = 0;
   double last_reload = 0;
   SiteHubCounters counters;
-  master::AnnotationScene* notes = nullptr;
+  annotate::AnnotationScene* notes = nullptr;
   std::unique_ptr<SiteSelections> selections;       // made with the first lasso
-  std::unique_ptr<VoiceBridge> voice;               // with opt.voice
-  std::unique_ptr<AlsaMicrophone> wall_microphone;  // --audio-in alsa:DEVICE
-  std::unique_ptr<AlsaSpeaker> wall_speaker;        // --audio-out alsa:DEVICE
+  std::unique_ptr<media::VoiceBridge> voice;               // with opt.voice
+  std::unique_ptr<media::AlsaMicrophone> wall_microphone;  // --audio-in alsa:DEVICE
+  std::unique_ptr<media::AlsaSpeaker> wall_speaker;        // --audio-out alsa:DEVICE
   std::deque<float> room_queue;                     // the room's mix not yet on wall_speaker
   double voice_start = 0;
   /// A site's video inset: its VIDEO_INSET node and when its last chunk came.
@@ -92,7 +92,7 @@ struct SiteHub::Impl {
   /// the head, a quarter of the avatar's reach (its distance to what it looks at) wide and
   /// resized when the reach changes by a quarter (so it keeps its size among what the site looks
   /// at), or pinned to the screen. Beside an avatar that has no pose yet: made at a later chunk.
-  void showInset(sync::SceneGraph& graph, const Peer& p, const VideoPacket& packet, double now) {
+  void showInset(sync::SceneGraph& graph, const Peer& p, const media::VideoPacket& packet, double now) {
     Inset& in = insets[p.participant];
     in.last = now;
     const bool exists = in.node && graph.contains(in.node);
@@ -180,11 +180,11 @@ struct SiteHub::Impl {
       return;
     }
     std::vector<uint8_t> chunk(bytes.begin(), bytes.end());
-    VideoPacket packet;
-    if (decodeVideoPacket(chunk, packet)) return;  // cannot happen: checked by parseToMaster
+    media::VideoPacket packet;
+    if (media::decodeVideoPacket(chunk, packet)) return;  // cannot happen: checked by parseToMaster
     showInset(graph, p, packet, now);
     // Its site field says who sent it, as the link authenticated, whatever the site wrote.
-    setVideoPacketSite(chunk, uint16_t(p.participant));
+    media::setVideoPacketSite(chunk, uint16_t(p.participant));
     std::string forwarded(chunk.begin(), chunk.end());
     if (media_bytes + forwarded.size() <= kMaxMediaBytes) {
       media_bytes += forwarded.size();
@@ -362,9 +362,9 @@ struct SiteHub::Impl {
         video(graph, p, m.video(), now);
       } else if (m.kind_case() == site::ToMaster::kVoice) {
         counters.voice_in++;
-        VoicePacket packet;
+        media::VoicePacket packet;
         if (voice &&
-            !decodeVoicePacket(
+            !media::decodeVoicePacket(
                 {reinterpret_cast<const uint8_t*>(m.voice().data()), m.voice().size()}, packet))
           voice->receive(p.participant, packet, now - voice_start);
       } else {
@@ -390,25 +390,25 @@ SiteHub::SiteHub(SiteHubOptions options) : m(std::make_unique<Impl>()) {
     m->chunks = std::make_unique<ChunkServer>(m->context, m->keys, co);
   }
   if (m->opt.voice) {
-    const VoiceSettings settings;
+    const media::VoiceSettings settings;
     const auto say_device = [impl = m.get()](const std::string& line) { impl->say(line); };
-    const std::optional<std::string> in_device = alsaDeviceOf(m->opt.audio_in);
-    const std::optional<std::string> out_device = alsaDeviceOf(m->opt.audio_out);
+    const std::optional<std::string> in_device = media::alsaDeviceOf(m->opt.audio_in);
+    const std::optional<std::string> out_device = media::alsaDeviceOf(m->opt.audio_out);
     if (in_device) {
       m->wall_microphone =
-          std::make_unique<AlsaMicrophone>(*in_device, settings.frameSamples(), say_device);
+          std::make_unique<media::AlsaMicrophone>(*in_device, settings.frameSamples(), say_device);
       m->say("voice: the wall room's microphone: " + m->wall_microphone->pcm().describe());
     }
     if (out_device) {
       // 150 ms queued on the device: the master's frame loop (15-30 frames a second, slower
       // when a node is late) must not let it run dry between two frames.
       m->wall_speaker =
-          std::make_unique<AlsaSpeaker>(*out_device, settings.frameSamples(), 0.15, say_device);
+          std::make_unique<media::AlsaSpeaker>(*out_device, settings.frameSamples(), 0.15, say_device);
       m->say("voice: the wall room's speakers: " + m->wall_speaker->pcm().describe());
     }
-    m->voice = std::make_unique<VoiceBridge>(settings, m->opt.audio_in.empty() || in_device
+    m->voice = std::make_unique<media::VoiceBridge>(settings, m->opt.audio_in.empty() || in_device
                                                            ? std::vector<float>{}
-                                                           : readVoiceWav(m->opt.audio_in));
+                                                           : media::readVoiceWav(m->opt.audio_in));
     m->voice_start = seconds(Clock::now());
   }
 }
@@ -420,7 +420,7 @@ SiteHub::~SiteHub() {
   m->zap.reset();
 }
 
-void SiteHub::setAnnotations(master::AnnotationScene* notes) {
+void SiteHub::setAnnotations(annotate::AnnotationScene* notes) {
   m->notes = notes;
 }
 
@@ -502,7 +502,7 @@ void SiteHub::beforeFrame(sync::SceneGraph& graph, uint64_t, double) {
       const std::vector<float> room = m->voice->takeRoom();
       auto& q = m->room_queue;
       q.insert(q.end(), room.begin(), room.end());
-      const size_t most = size_t(kVoiceMaxCatchUp_s * kVoiceRate);
+      const size_t most = size_t(media::kVoiceMaxCatchUp_s * media::kVoiceRate);
       if (q.size() > most) q.erase(q.begin(), q.end() - ptrdiff_t(most));
       m->wall_speaker->pump(voice_now, [&](double, std::span<float> frame) {
         const size_t have = std::min(frame.size(), q.size());
@@ -554,9 +554,9 @@ void SiteHub::end(const std::string& reason) {
            std::to_string(m->counters.voice_out) + " to them");
     if (!m->opt.audio_out.empty() && !m->wall_speaker) {
       try {
-        writeWav(m->opt.audio_out, m->voice->room());
+        media::writeWav(m->opt.audio_out, m->voice->room());
         m->say("the wall room's audio: " + m->opt.audio_out);
-      } catch (const WavError& e) {
+      } catch (const media::WavError& e) {
         std::fprintf(stderr, "tessera-master: %s\n", e.what());
       }
     }

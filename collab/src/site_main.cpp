@@ -100,7 +100,7 @@ int run(int argc, char** argv) {
       ->capture_default_str();
   if (const auto code = cli::parse(app, argc, argv, "tessera-site")) return *code;
   {
-    const cli::Size vs = cli::parseSize(video_size, "--video-size", collab::kMaxVideoSide);
+    const cli::Size vs = cli::parseSize(video_size, "--video-size", media::kMaxVideoSide);
     o.video_settings.width = int(vs.width);
     o.video_settings.height = int(vs.height);
     if (auto why = o.video_settings.problem()) throw cli::UsageError("--video-size: " + *why);

@@ -3,8 +3,10 @@
 #include <cmath>
 #include <cstdint>
 
-#include <tessera/collab/video_packet.h>
-#include <tessera/collab/voice_packet.h>
+#include <tessera/media/video_packet.h>
+#include <tessera/media/voice_packet.h>
+#include <tessera/sync/vec3.h>
+#include <tessera/sync/view.h>
 
 namespace tessera::collab {
 
@@ -32,13 +34,8 @@ Problem checkPose(const site::SitePose& p) {
   if (auto e = checkCoordinates(p.eye(), 3, "pose.eye")) return e;
   if (auto e = checkCoordinates(p.target(), 3, "pose.target")) return e;
   if (auto e = checkCoordinates(p.up(), 3, "pose.up")) return e;
-  const glm::dvec3 view = vec(p.target()) - vec(p.eye()), up = vec(p.up());
-  const double lv = glm::length(view), lu = glm::length(up);
-  if (!(lv > 1e-9 * std::max(1.0, glm::length(vec(p.eye())))))
-    return std::string("pose: the target is at the eye");
-  if (!(lu > 0.0)) return std::string("pose.up: zero vector");
-  if (glm::length(glm::cross(view / lv, up / lu)) < 1e-6)
-    return std::string("pose.up: along the view direction");
+  if (const auto problem = sync::viewProblem(vec(p.eye()), vec(p.target()), vec(p.up())))
+    return sync::describe(*problem, "pose");
   if (!(p.fovy_deg() > 0.0f && p.fovy_deg() < 180.0f))
     return "pose.fovy_deg: must be in (0, 180), got " + std::to_string(p.fovy_deg());
   if (!(p.aspect() > 0.0f && p.aspect() <= 100.0f))
@@ -288,10 +285,10 @@ Problem checkToMaster(const site::ToMaster& m) {
     case site::ToMaster::kBye:
       return {};
     case site::ToMaster::kVoice: {
-      VoicePacket packet;
+      media::VoicePacket packet;
       const std::string& v = m.voice();
       if (auto why =
-              decodeVoicePacket({reinterpret_cast<const uint8_t*>(v.data()), v.size()}, packet))
+              media::decodeVoicePacket({reinterpret_cast<const uint8_t*>(v.data()), v.size()}, packet))
         return "voice: " + *why;
       return {};
     }
@@ -304,10 +301,10 @@ Problem checkToMaster(const site::ToMaster& m) {
     case site::ToMaster::kSnap:
       return checkSnap(m.snap());
     case site::ToMaster::kVideo: {
-      VideoPacket packet;
+      media::VideoPacket packet;
       const std::string& v = m.video();
       if (auto why =
-              decodeVideoPacket({reinterpret_cast<const uint8_t*>(v.data()), v.size()}, packet))
+              media::decodeVideoPacket({reinterpret_cast<const uint8_t*>(v.data()), v.size()}, packet))
         return "video: " + *why;
       return {};
     }
@@ -375,26 +372,14 @@ config::Camera poseCamera(const site::SitePose& p) {
 }
 
 config::Camera blendCameras(const config::Camera& a, const config::Camera& b, double s) {
-  auto v = [](const config::Vec3& x) { return glm::dvec3(x.x(), x.y(), x.z()); };
-  auto set = [](config::Vec3* x, const glm::dvec3& y) {
-    x->set_x(y.x);
-    x->set_y(y.y);
-    x->set_z(y.z);
-  };
-  const glm::dvec3 eye = glm::mix(v(a.eye()), v(b.eye()), s);
-  const glm::dvec3 target = glm::mix(v(a.target()), v(b.target()), s);
-  const glm::dvec3 up = glm::mix(v(a.up()), v(b.up()), s);
-  const glm::dvec3 view = target - eye;
-  const double lv = glm::length(view), lu = glm::length(up);
-  bool finite = true;
-  for (int k = 0; k < 3; ++k)
-    finite &= std::isfinite(eye[k]) && std::isfinite(target[k]) && std::isfinite(up[k]);
-  if (!finite || !(lv > 0.0) || !(lu > 0.0) || glm::length(glm::cross(view / lv, up / lu)) < 1e-6)
-    return b;
+  const glm::dvec3 eye = glm::mix(sync::vec(a.eye()), sync::vec(b.eye()), s);
+  const glm::dvec3 target = glm::mix(sync::vec(a.target()), sync::vec(b.target()), s);
+  const glm::dvec3 up = glm::mix(sync::vec(a.up()), sync::vec(b.up()), s);
+  if (sync::viewProblem(eye, target, up)) return b;
   config::Camera c;
-  set(c.mutable_eye(), eye);
-  set(c.mutable_target(), target);
-  set(c.mutable_up(), up);
+  sync::set(c.mutable_eye(), eye);
+  sync::set(c.mutable_target(), target);
+  sync::set(c.mutable_up(), up);
   return c;
 }
 

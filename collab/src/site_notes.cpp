@@ -6,39 +6,39 @@ namespace tessera::collab {
 
 namespace {
 
-master::Item itemOf(const site::NoteContent& c) {
-  master::Item it;
+annotate::Item itemOf(const site::NoteContent& c) {
+  annotate::Item it;
   it.layer = c.layer();
-  it.kind = master::parseItemKind(c.kind()).value_or(master::ItemKind::kText);
+  it.kind = annotate::parseItemKind(c.kind()).value_or(annotate::ItemKind::kText);
   it.title = c.title();
   it.text = c.text();
-  if (it.kind == master::ItemKind::kNumber) {
+  if (it.kind == annotate::ItemKind::kNumber) {
     it.number = c.number();
     it.unit = c.unit();
   }
-  if (it.kind == master::ItemKind::kLink) {
+  if (it.kind == annotate::ItemKind::kLink) {
     it.link_uri = c.uri();
     it.link_item = int64_t(c.link_item());
   }
   return it;
 }
 
-master::Place placeOf(const site::NoteAdd& a) {
-  master::Place p;
-  p.kind = a.radius() > 0.0 ? master::PlaceKind::kHotSpot : master::PlaceKind::kPoint;
+annotate::Place placeOf(const site::NoteAdd& a) {
+  annotate::Place p;
+  p.kind = a.radius() > 0.0 ? annotate::PlaceKind::kHotSpot : annotate::PlaceKind::kPoint;
   p.model = a.model().empty() ? "scene" : a.model();
   if (a.position_size() == 3) p.position = {a.position(0), a.position(1), a.position(2)};
   p.radius = a.radius();
   if (a.view_size() == 10) {
     const auto& v = a.view();
-    p.view = master::StoredView{{v[0], v[1], v[2]}, {v[3], v[4], v[5]}, {v[6], v[7], v[8]}, v[9]};
+    p.view = annotate::StoredView{{v[0], v[1], v[2]}, {v[3], v[4], v[5]}, {v[6], v[7], v[8]}, v[9]};
   }
   return p;
 }
 
 }  // namespace
 
-site::SiteNoteAnswer applySiteNote(master::AnnotationScene* notes, sync::SceneGraph& graph,
+site::SiteNoteAnswer applySiteNote(annotate::AnnotationScene* notes, sync::SceneGraph& graph,
                                    const std::string& author, const site::SiteNote& note) {
   site::SiteNoteAnswer out;
   out.set_request(note.request());
@@ -58,7 +58,7 @@ site::SiteNoteAnswer applySiteNote(master::AnnotationScene* notes, sync::SceneGr
         break;
       }
       case site::SiteNote::kUpdate: {
-        master::Item it = itemOf(note.update().content());
+        annotate::Item it = itemOf(note.update().content());
         it.id = int64_t(note.update().item());
         out.set_item(note.update().item());
         out.set_revision(uint64_t(
@@ -82,8 +82,8 @@ site::SiteNoteAnswer applySiteNote(master::AnnotationScene* notes, sync::SceneGr
         return out;
     }
     out.set_ok(true);
-  } catch (const master::AnnotationError& e) {
-    out.set_conflict(e.kind() == master::AnnotationError::Kind::kConflict);
+  } catch (const annotate::AnnotationError& e) {
+    out.set_conflict(e.kind() == annotate::AnnotationError::Kind::kConflict);
     out.set_error(e.what());
   }
   return out;

@@ -16,16 +16,16 @@
 
 #include <tessera/collab/chunk_client.h>
 #include <tessera/collab/site_messages.h>
-#include <tessera/collab/video_packet.h>
-#include <tessera/collab/video_source.h>
-#include <tessera/collab/voice_alsa.h>
-#include <tessera/collab/voice_bridge.h>
-#include <tessera/collab/voice_wav.h>
+#include <tessera/media/video_packet.h>
+#include <tessera/media/video_source.h>
+#include <tessera/media/voice_alsa.h>
+#include <tessera/media/voice_bridge.h>
+#include <tessera/media/voice_wav.h>
 #include <tessera/core/file_checks.h>
-#include <tessera/master/console_notes.h>
-#include <tessera/master/measure_tool.h>
-#include <tessera/master/one_button_navigation.h>
-#include <tessera/master/surface_pick.h>
+#include <tessera/interact/console_notes.h>
+#include <tessera/interact/measure_tool.h>
+#include <tessera/interact/one_button_navigation.h>
+#include <tessera/interact/surface_pick.h>
 #include <tessera/render/gl_context.h>
 #include <tessera/render/scene_draw_list.h>
 #include <tessera/render/scene_overlay.h>
@@ -34,12 +34,15 @@
 #include <tessera/render/window.h>
 #include <tessera/sync/camera_state.h>
 #include <tessera/sync/config.h>
+#include <tessera/sync/vec3.h>
+#include <tessera/sync/view.h>
 
 namespace tessera::collab {
 
 namespace {
 
 namespace fs = std::filesystem;
+using sync::vec;
 using Clock = std::chrono::steady_clock;
 using Why = SiteSessionEnded::Why;
 
@@ -48,24 +51,6 @@ using Why = SiteSessionEnded::Why;
                           (field.empty() ? "" : field + ": ") + what);
 }
 
-glm::dvec3 vec(const config::Vec3& v) {
-  return {v.x(), v.y(), v.z()};
-}
-
-bool finite(const config::Vec3& v) {
-  return std::isfinite(v.x()) && std::isfinite(v.y()) && std::isfinite(v.z());
-}
-
-std::optional<std::string> cameraProblem(const config::Camera& c) {
-  if (!finite(c.eye()) || !finite(c.target()) || !finite(c.up()))
-    return std::string("numbers must be finite");
-  const glm::dvec3 view = vec(c.target()) - vec(c.eye());
-  if (!(glm::length(view) > 0)) return std::string("eye and target coincide");
-  if (glm::length(glm::cross(view, vec(c.up()))) <=
-      1e-9 * glm::length(view) * glm::length(vec(c.up())))
-    return std::string("up must not be zero or along the view direction");
-  return std::nullopt;
-}
 
 /// The camera every process of the session would decode from it (the wire's rounding), so a
 /// leader and its followers render the very same view.
@@ -107,7 +92,8 @@ site::SiteScript loadSiteScript(const std::string& path) {
     previous = a.frame();
     switch (a.action_case()) {
       case site::SiteAction::kCamera:
-        if (auto why = cameraProblem(a.camera())) fail(path, field + ".camera", *why);
+        if (auto why = sync::viewProblem(a.camera()))
+          fail(path, field + (why->on_up ? ".camera.up" : ".camera"), why->what);
         break;
       case site::SiteAction::kStroke: {
         const site::StrokeAction& st = a.stroke();
@@ -217,7 +203,7 @@ struct SiteSession::Impl {
   uint64_t notes_sent = 0, measures_sent = 0, lassos_sent = 0, snaps_sent = 0;
   bool want_pick = false;  // render pick ids (a note's pixel)
   // --window: one-button navigation (left button, wheel), strokes (right-button drag).
-  master::OneButtonNavigation navigation;
+  interact::OneButtonNavigation navigation;
   render::ViewSetup last_view;
   std::vector<float> drag;  // the right-button drag's pixels so far
   bool right_held = false;
@@ -234,14 +220,14 @@ struct SiteSession::Impl {
   glm::dvec2 press_at{0.0};
   Clock::time_point last_input = Clock::now();
   // --audio-in / --audio-out (issue 14): its microphone and speaker, clocked from the welcome.
-  std::unique_ptr<VoiceStation> station;
-  std::unique_ptr<AlsaMicrophone> microphone;  // --audio-in alsa:DEVICE
-  std::unique_ptr<AlsaSpeaker> speaker;        // --audio-out alsa:DEVICE
+  std::unique_ptr<media::VoiceStation> station;
+  std::unique_ptr<media::AlsaMicrophone> microphone;  // --audio-in alsa:DEVICE
+  std::unique_ptr<media::AlsaSpeaker> speaker;        // --audio-out alsa:DEVICE
   Clock::time_point voice_start = Clock::now();
   // --video (issue 14): its source and sender, paced by the loop; other sites' insets.
-  std::unique_ptr<VideoSource> video_source;
-  std::unique_ptr<VideoSender> video_sender;
-  VideoPicture video_picture;
+  std::unique_ptr<media::VideoSource> video_source;
+  std::unique_ptr<media::VideoSender> video_sender;
+  media::VideoPicture video_picture;
   Clock::time_point video_next;
   uint64_t video_frames = 0, video_bytes = 0;
   double video_encode_ms = 0;
@@ -316,9 +302,9 @@ struct SiteSession::Impl {
   void writeSpeaker() {
     if (!station || opt.audio_out.empty() || speaker) return;
     try {
-      writeWav(opt.audio_out, station->speaker());
+      media::writeWav(opt.audio_out, station->speaker());
       say("wrote what this site heard to " + opt.audio_out);
-    } catch (const WavError& e) {
+    } catch (const media::WavError& e) {
       std::fprintf(stderr, "tessera-site: %s\n", e.what());
     }
   }
@@ -420,12 +406,12 @@ struct SiteSession::Impl {
     render::appendSceneOverlay(graph, o, so);
     if (window) {  // the navigation's bar and target, as the master's console shows them
       const float w = float(script.width()), h = float(script.height());
-      const float bar = w * float(1.0 - master::OneButtonNavigation::kBarFraction);
+      const float bar = w * float(1.0 - interact::OneButtonNavigation::kBarFraction);
       o.rects.push_back({{bar, 0.0f}, {w, h}, {255, 255, 255, 64}});
       if (const auto& t = navigation.target()) {
         render::OverlayPoint ring;
         ring.at = *t;
-        ring.size_px = 2.0f * float(master::OneButtonNavigation::kTargetRadiusPx);
+        ring.size_px = 2.0f * float(interact::OneButtonNavigation::kTargetRadiusPx);
         ring.ring_px = 3.0f;
         ring.color = {255, 255, 255, 230};
         o.points.push_back(ring);
@@ -654,17 +640,17 @@ struct SiteSession::Impl {
     (void)settled(c);
     want_pick = false;
     const render::ViewSetup v = view(c);
-    master::MeasureTool tool;
+    interact::MeasureTool tool;
     tool.setMode(
-        a.type() == scene::MeasurementPayload::DISTANCE   ? master::MeasureTool::Mode::kDistance
-        : a.type() == scene::MeasurementPayload::ANGLE    ? master::MeasureTool::Mode::kAngle
-        : a.type() == scene::MeasurementPayload::POLYLINE ? master::MeasureTool::Mode::kPath
-                                                          : master::MeasureTool::Mode::kArea);
-    std::optional<master::MeasureTool::Finished> done;
+        a.type() == scene::MeasurementPayload::DISTANCE   ? interact::MeasureTool::Mode::kDistance
+        : a.type() == scene::MeasurementPayload::ANGLE    ? interact::MeasureTool::Mode::kAngle
+        : a.type() == scene::MeasurementPayload::POLYLINE ? interact::MeasureTool::Mode::kPath
+                                                          : interact::MeasureTool::Mode::kArea);
+    std::optional<interact::MeasureTool::Finished> done;
     try {
       for (int i = 0; i + 1 < a.pixels_size() && !done; i += 2) {
         const auto at =
-            master::pickUnderPixel(*renderer, instances, v, {a.pixels(i), a.pixels(i + 1)});
+            interact::pickUnderPixel(*renderer, instances, v, {a.pixels(i), a.pixels(i + 1)});
         if (!at) {
           say(what + " skipped: no surface under pixel " + std::to_string(int(a.pixels(i))) + "," +
               std::to_string(int(a.pixels(i + 1))));
@@ -673,7 +659,7 @@ struct SiteSession::Impl {
         done = tool.addPoint(*at, instances);
       }
       if (!done) done = tool.complete(instances);
-    } catch (const std::exception& e) {  // MeasureError, a store that cannot be read
+    } catch (const std::exception& e) {  // annotate::MeasureError, a store that cannot be read
       say(what + " failed: " + e.what());
       return;
     }
@@ -1065,7 +1051,7 @@ struct SiteSession::Impl {
         }
         return true;
       case 79: {  // O: open or close the note nearest the cursor
-        const auto node = master::noteNear(graph, last_view, cursor, 24.0);
+        const auto node = interact::noteNear(graph, last_view, cursor, 24.0);
         if (!node) {
           say("no note within 24 px of the cursor");
           return true;
@@ -1109,7 +1095,7 @@ struct SiteSession::Impl {
     last_input = t;
     const glm::dvec2 scale(script.width() / std::max(1.0, double(in.size.x)),
                            script.height() / std::max(1.0, double(in.size.y)));
-    master::PointerInput p;
+    interact::PointerInput p;
     p.cursor = in.cursor * scale;
     p.down = in.left;
     p.pressed = in.left_pressed;
@@ -1233,22 +1219,22 @@ struct SiteSession::Impl {
       strokes_csv << "stroke,px,py,x,y,z,depth\n";
     }
     if (!opt.audio_in.empty() || !opt.audio_out.empty()) {
-      const VoiceSettings voice;
+      const media::VoiceSettings voice;
       const auto say_device = [this](const std::string& line) { say(line); };
-      const std::optional<std::string> in_device = alsaDeviceOf(opt.audio_in);
-      const std::optional<std::string> out_device = alsaDeviceOf(opt.audio_out);
+      const std::optional<std::string> in_device = media::alsaDeviceOf(opt.audio_in);
+      const std::optional<std::string> out_device = media::alsaDeviceOf(opt.audio_out);
       if (in_device) {
-        microphone = std::make_unique<AlsaMicrophone>(*in_device, voice.frameSamples(), say_device);
+        microphone = std::make_unique<media::AlsaMicrophone>(*in_device, voice.frameSamples(), say_device);
         say("voice: microphone " + microphone->pcm().describe());
       }
       if (out_device) {
         speaker =
-            std::make_unique<AlsaSpeaker>(*out_device, voice.frameSamples(), 0.08, say_device);
+            std::make_unique<media::AlsaSpeaker>(*out_device, voice.frameSamples(), 0.08, say_device);
         say("voice: speaker " + speaker->pcm().describe());
       }
-      station = std::make_unique<VoiceStation>(voice, opt.audio_in.empty() || in_device
+      station = std::make_unique<media::VoiceStation>(voice, opt.audio_in.empty() || in_device
                                                           ? std::vector<float>{}
-                                                          : readVoiceWav(opt.audio_in));
+                                                          : media::readVoiceWav(opt.audio_in));
       station->setLive(microphone != nullptr, speaker != nullptr);
       opt.client.voice = [this](std::string_view bytes) {
         station->receive({reinterpret_cast<const uint8_t*>(bytes.data()), bytes.size()},
@@ -1262,7 +1248,7 @@ struct SiteSession::Impl {
       };
     }
     if (!opt.video.empty()) {
-      video_source = openVideoSource(opt.video, opt.video_settings.width, opt.video_settings.height,
+      video_source = media::openVideoSource(opt.video, opt.video_settings.width, opt.video_settings.height,
                                      opt.video_settings.fps);
     }
     opt.client.note = [this](const site::SiteNoteAnswer& a) {
@@ -1282,7 +1268,7 @@ struct SiteSession::Impl {
     voice_start = Clock::now();
     if (video_source) {
       video_sender =
-          std::make_unique<VideoSender>(opt.video_settings, uint16_t(welcome.participant()));
+          std::make_unique<media::VideoSender>(opt.video_settings, uint16_t(welcome.participant()));
       video_next = Clock::now();
       say("sends video: " + video_source->describe() + ", H.264 " +
           std::to_string(opt.video_settings.kbps) + " kbit/s");
@@ -1387,13 +1373,13 @@ int SiteSession::run() {
 int SiteSession::runSession() {
   try {
     return m->session();
-  } catch (const WavError& e) {
+  } catch (const media::WavError& e) {
     std::fprintf(stderr, "tessera-site: --audio-in: %s\n", e.what());
     return kSiteFailed;
-  } catch (const AlsaError& e) {
+  } catch (const media::AlsaError& e) {
     std::fprintf(stderr, "tessera-site: --audio-in/--audio-out: %s\n", e.what());
     return kSiteFailed;
-  } catch (const VideoError& e) {
+  } catch (const media::VideoError& e) {
     std::fprintf(stderr, "tessera-site: --video: %s\n", e.what());
     return kSiteFailed;
   } catch (const SiteSessionEnded& e) {

@@ -160,24 +160,6 @@ glm::dvec3 parseVec3(const std::string& text, const std::string& option, double 
   return v;
 }
 
-void checkView(const glm::dvec3& eye, const glm::dvec3& target, const glm::dvec3& up,
-               const std::string& option) {
-  for (const auto* v : {&eye, &target, &up}) {
-    if (!std::isfinite(v->x) || !std::isfinite(v->y) || !std::isfinite(v->z))
-      throw UsageError(option + ": eye, target and up must be finite");
-  }
-  const glm::dvec3 view = target - eye;
-  const double dist = glm::length(view);
-  const double scale = std::max({glm::length(eye), glm::length(target), 1.0});
-  // Below ~1e-12 of the coordinates' size the direction is rounding noise.
-  if (!(dist > 1e-12 * scale) || !std::isfinite(dist))
-    throw UsageError(option + ": the eye is at the target: no view direction");
-  const double up_len = glm::length(up);
-  if (!(up_len > 0) || !std::isfinite(up_len)) throw UsageError(option + ": up is zero");
-  const double sine = glm::length(glm::cross(view / dist, up / up_len));
-  if (!(sine > 1e-6)) throw UsageError(option + ": up is parallel to the view direction");
-}
-
 void refuseOverwrite(const std::filesystem::path& output,
                      std::span<const std::filesystem::path> inputs, const std::string& option) {
   if (const auto in = sameFileAs(output, inputs)) {

@@ -7,13 +7,13 @@
 
 #include <glm/gtc/matrix_transform.hpp>
 
-#include <tessera/master/point_pick.h>
-#include <tessera/master/select_tool.h>
-#include <tessera/master/surface_pick.h>
+#include <tessera/interact/point_pick.h>
+#include <tessera/interact/select_tool.h>
+#include <tessera/interact/surface_pick.h>
 #include <tessera/render/gl_context.h>
 #include <tessera/sync/scene_edits.h>
 
-#include "vec3.h"
+#include <tessera/sync/vec3.h>
 
 namespace tessera::master {
 
@@ -116,7 +116,7 @@ void Console::measured(const std::function<std::optional<sync::SceneGraph::NodeI
   try {
     if (auto id = make()) {
       mMeasurements.push_back(*id);
-      say(std::string(MeasureTool::name(mTool.mode())) + " " + mTool.lastLabel());
+      say(std::string(interact::MeasureTool::name(mTool.mode())) + " " + mTool.lastLabel());
     }
   } catch (const std::exception& e) {
     say(std::string("no measurement: ") + e.what());
@@ -124,7 +124,7 @@ void Console::measured(const std::function<std::optional<sync::SceneGraph::NodeI
 }
 
 void Console::only(Tool tool) {
-  if (tool != Tool::kMeasure) mTool.setMode(MeasureTool::Mode::kOff);
+  if (tool != Tool::kMeasure) mTool.setMode(interact::MeasureTool::Mode::kOff);
   mLassoing = tool == Tool::kLasso;
   mLasso.clear();
   mSnapping = tool == Tool::kSnap;
@@ -177,7 +177,7 @@ render::Overlay Console::overlay(const render::Overlay& scene) const {
   // The right-hand bar of the navigation, lightened (a quarter white over the scene), and a ring
   // where the target is, after the scene's own (so on top of them).
   render::Overlay o = scene;
-  const float bar_x = float(mWidth * (1.0 - OneButtonNavigation::kBarFraction));
+  const float bar_x = float(mWidth * (1.0 - interact::OneButtonNavigation::kBarFraction));
   o.rects.push_back({{bar_x, 0.0f}, {float(mWidth), float(mHeight)}, {255, 255, 255, 64}});
   // The lasso being drawn, and the unfinished measurement's points and lines, on top.
   auto stroke = [&](const std::vector<glm::dvec2>& px, glm::u8vec4 color) {
@@ -197,7 +197,7 @@ render::Overlay Console::overlay(const render::Overlay& scene) const {
     render::OverlayPoint ring;
     ring.at = *target;
     ring.color = {255, 200, 40, 255};
-    ring.size_px = float(OneButtonNavigation::kTargetRadiusPx);
+    ring.size_px = float(interact::OneButtonNavigation::kTargetRadiusPx);
     ring.ring_px = 2.0f;
     o.points.push_back(ring);
   }
@@ -226,7 +226,7 @@ bool Console::handleInput(sync::SceneGraph& graph) {
   // Window coordinates to view pixels (present() scales the image to the window).
   const glm::dvec2 scale(mWidth / std::max(1.0, double(in.size.x)),
                          mHeight / std::max(1.0, double(in.size.y)));
-  PointerInput p;
+  interact::PointerInput p;
   p.cursor = in.cursor * scale;
   p.down = in.left;
   p.pressed = in.left_pressed;
@@ -243,7 +243,7 @@ bool Console::handleInput(sync::SceneGraph& graph) {
     const glm::dvec3 from = glm::dvec3(a) / a.w, to = glm::dvec3(b) / b.w;
     return std::pair{from, glm::normalize(to - from)};
   };
-  PickOptions pick_options;
+  interact::PickOptions pick_options;
   pick_options.pixel_angle = fovy / mHeight;
   auto pick = [&](glm::dvec2 px) -> std::optional<glm::dvec3> {
     // The frame's pick ids name the point under the pixel; a see-through frame has none: then
@@ -252,13 +252,13 @@ bool Console::handleInput(sync::SceneGraph& graph) {
       if (auto hit = mRenderer->pick(uint32_t(px.x), uint32_t(px.y))) return hit->world;
     }
     const auto [from, dir] = ray(px);
-    return pickPoint(mInstances, from, dir, pick_options);
+    return interact::pickPoint(mInstances, from, dir, pick_options);
   };
   // Measuring and placing notes: a click picks the surface under the pixel in the
   // full-resolution data of the model the frame's pick ids name (surface_pick.h), not the
   // coarse cut on screen.
   auto surfaceAt = [&](glm::dvec2 px) {
-    return pickUnderPixel(*mRenderer, mInstances, mLastView, px);
+    return interact::pickUnderPixel(*mRenderer, mInstances, mLastView, px);
   };
   auto measureAt = [&](glm::dvec2 px) {
     if (const auto at = surfaceAt(px))
@@ -277,9 +277,9 @@ bool Console::handleInput(sync::SceneGraph& graph) {
     form.draft.position = at->point.world;
     form.draft.model = graph.node(nodes[at->model]).name();
     const config::Camera camera = graph.camera();
-    form.draft.view.eye = detail::vec(camera.eye());
-    form.draft.view.target = detail::vec(camera.target());
-    form.draft.view.up = detail::vec(camera.up());
+    form.draft.view.eye = sync::vec(camera.eye());
+    form.draft.view.target = sync::vec(camera.target());
+    form.draft.view.up = sync::vec(camera.up());
     form.draft.view.fovy_deg = glm::degrees(fovy);
     mNoteForm = form;
     mPlacingNote = false;
@@ -319,8 +319,8 @@ bool Console::handleInput(sync::SceneGraph& graph) {
       if (mLasso.size() >= 3 && model) {
         const auto [node, index] = *model;
         try {
-          const LassoSelectResult r =
-              selectWithLasso(graph, mInstances[index], node, mLastView, mLasso, kConsole);
+          const interact::LassoSelectResult r =
+              interact::selectWithLasso(graph, mInstances[index], node, mLastView, mLasso, kConsole);
           if (r.node) mSelections.push_back(r.node);
           std::printf("tessera-master: console: lasso on model %u: %llu %s selected%s\n", node,
                       (unsigned long long)r.count, mInstances[index].mesh ? "triangles" : "points",
@@ -333,7 +333,7 @@ bool Console::handleInput(sync::SceneGraph& graph) {
       mLasso.clear();
     }
     p.down = p.pressed = p.released = false;
-  } else if (mTool.mode() != MeasureTool::Mode::kOff) {
+  } else if (mTool.mode() != interact::MeasureTool::Mode::kOff) {
     // Clicks measure; the wheel still moves the view.
     if (in.left_pressed) mPressAt = p.cursor;
     if (in.left_released && glm::length(p.cursor - mPressAt) <= 4.0) measureAt(p.cursor);
@@ -411,8 +411,8 @@ bool Console::handleInput(sync::SceneGraph& graph) {
     if (key == kKeyM) {
       mLassoing = mSnapping = false;
       std::printf(
-          "tessera-master: console: measuring: %s%s\n", MeasureTool::name(mTool.cycle()),
-          mTool.mode() == MeasureTool::Mode::kPath || mTool.mode() == MeasureTool::Mode::kArea
+          "tessera-master: console: measuring: %s%s\n", interact::MeasureTool::name(mTool.cycle()),
+          mTool.mode() == interact::MeasureTool::Mode::kPath || mTool.mode() == interact::MeasureTool::Mode::kArea
               ? " (click points, Enter ends, Backspace drops the last)"
               : "");
       std::fflush(stdout);
@@ -454,7 +454,7 @@ bool Console::handleInput(sync::SceneGraph& graph) {
         mClips.clear();
         say("clip removed");
       } else if (const auto at = surfaceAt(p.cursor)) {
-        mClips.push_back(addSectionClip(graph, at->point.world, graph.camera(), kConsole));
+        mClips.push_back(interact::addSectionClip(graph, at->point.world, graph.camera(), kConsole));
         say("clip: everything nearer than the surface under the cursor is cut away (K again "
             "removes it)");
       } else {
@@ -462,7 +462,7 @@ bool Console::handleInput(sync::SceneGraph& graph) {
       }
     }
     if (key == kKeyO && mAnnotations) {  // the note nearest the cursor, open on the wall or not
-      if (const auto note = noteNear(graph, mLastView, p.cursor, kNoteReachPx)) {
+      if (const auto note = interact::noteNear(graph, mLastView, p.cursor, kNoteReachPx)) {
         const auto& a = graph.node(*note).annotation();
         try {
           mAnnotations->setOpen(graph, int64_t(a.place()), !a.open(), "");

@@ -13,10 +13,10 @@
 #include <string>
 #include <vector>
 
-#include <tessera/master/annotation_scene.h>
-#include <tessera/master/console_notes.h>
-#include <tessera/master/measure_tool.h>
-#include <tessera/master/one_button_navigation.h>
+#include <tessera/annotate/annotation_scene.h>
+#include <tessera/interact/console_notes.h>
+#include <tessera/interact/measure_tool.h>
+#include <tessera/interact/one_button_navigation.h>
 #include <tessera/master/selection_worker.h>
 #include <tessera/render/scene_draw_list.h>
 #include <tessera/render/scene_overlay.h>
@@ -47,7 +47,7 @@ class Console {
   /// The annotation database the panels show and edit (the master's, annotation_scene.h), or
   /// null: then the Layers panel shows the scene's GROUP nodes and says that notes are not kept.
   /// Not owned; must outlive the console.
-  void setAnnotations(AnnotationScene* annotations) { mAnnotations = annotations; }
+  void setAnnotations(annotate::AnnotationScene* annotations) { mAnnotations = annotations; }
   /// Applies the input since the last call to `graph`. First the panels (Models: each model's
   /// visibility and opacity; Tools: the measuring mode, the lasso, the measurements and
   /// selections with a delete button each; Layers: the database's layer tree with visibility;
@@ -101,12 +101,12 @@ class Console {
   render::SceneOverlay mSceneOverlay;
   std::unique_ptr<render::VideoTextures> mVideos;  // destroyed with the context current
   render::ViewSetup mLastView;
-  OneButtonNavigation mNavigation;
+  interact::OneButtonNavigation mNavigation;
   size_t mSelected = 0;           // index among the MODEL nodes
   std::vector<glm::dvec2> mDrag;  // the right-button drag's pixels so far
   bool mRightHeld = false;
   std::vector<sync::SceneGraph::NodeId> mSketches;  // the console's, oldest first
-  MeasureTool mTool;
+  interact::MeasureTool mTool;
   glm::dvec2 mPressAt{0.0};  // where the left button went down (a click measures)
   std::vector<sync::SceneGraph::NodeId> mMeasurements;  // the console's, oldest first
   bool mLassoing = false;                               // S: left drags draw a lasso
@@ -127,10 +127,10 @@ class Console {
   std::chrono::steady_clock::time_point mLastInput = std::chrono::steady_clock::now();
 
   // The panels' state.
-  AnnotationScene* mAnnotations = nullptr;
+  annotate::AnnotationScene* mAnnotations = nullptr;
   bool mPlacingNote = false;  // "Add note": the next click on the model places it
   struct NoteFormState {
-    NoteDraft draft;
+    interact::NoteDraft draft;
     char layer[256] = "notes", title[1025] = "", text[2048] = "", unit[32] = "", link[512] = "";
     bool with_number = false;
     double number = 0.0;

@@ -143,13 +143,13 @@ void Console::toolsPanel(sync::SceneGraph& graph) {
   if (beginPanel("Tools", ImVec2(8, float(mHeight) * 0.27f), kPanelWidth,
                  float(mHeight) * (0.64f - 0.27f) - 6.0f)) {
     ImGui::TextUnformatted("Measure (M)");
-    using Mode = MeasureTool::Mode;
+    using Mode = interact::MeasureTool::Mode;
     for (Mode m : {Mode::kOff, Mode::kDistance, Mode::kPath, Mode::kAngle, Mode::kArea}) {
       if (m != Mode::kOff && m != Mode::kAngle) ImGui::SameLine();
-      if (ImGui::RadioButton(MeasureTool::name(m), mTool.mode() == m) && mTool.mode() != m) {
+      if (ImGui::RadioButton(interact::MeasureTool::name(m), mTool.mode() == m) && mTool.mode() != m) {
         mTool.setMode(m);
         if (m != Mode::kOff) mLassoing = mPlacingNote = mSnapping = false;
-        say(std::string("measuring: ") + MeasureTool::name(m));
+        say(std::string("measuring: ") + interact::MeasureTool::name(m));
       }
     }
     if (mTool.mode() == Mode::kPath || mTool.mode() == Mode::kArea) {
@@ -210,28 +210,28 @@ void Console::layersPanel(sync::SceneGraph& graph) {
     std::vector<LayerRow> rows;
     if (mAnnotations) {
       // The database's layers "a/b/c" as a tree: each under its parent path.
-      std::vector<Layer> layers;
+      std::vector<annotate::Layer> layers;
       try {
         layers = mAnnotations->db().layers();
-      } catch (const AnnotationError& e) {
+      } catch (const annotate::AnnotationError& e) {
         ImGui::TextWrapped("%s", e.what());
       }
-      std::map<std::string, std::vector<const Layer*>> under;  // parent path -> its layers
-      for (const Layer& l : layers) {
+      std::map<std::string, std::vector<const annotate::Layer*>> under;  // parent path -> its layers
+      for (const annotate::Layer& l : layers) {
         const size_t slash = l.path.rfind('/');
         under[slash == std::string::npos ? std::string() : l.path.substr(0, slash)].push_back(&l);
       }
       std::function<std::vector<LayerRow>(const std::string&)> rowsUnder =
           [&](const std::string& parent) {
             std::vector<LayerRow> out;
-            for (const Layer* l : under[parent]) {
+            for (const annotate::Layer* l : under[parent]) {
               const std::string path = l->path;
               out.push_back({path.substr(path.rfind('/') + 1), l->visible,
                              [this, &graph, path](bool v) {
                                try {
                                  mAnnotations->setLayerVisible(graph, path, v, "");
                                  say("layer " + path + (v ? " shown" : " hidden"));
-                               } catch (const AnnotationError& e) {
+                               } catch (const annotate::AnnotationError& e) {
                                  say(e.what());
                                }
                              },
@@ -269,7 +269,7 @@ void Console::layersPanel(sync::SceneGraph& graph) {
 }
 
 void Console::notesPanel(sync::SceneGraph& graph) {
-  const float right = float(mWidth) * float(1.0 - OneButtonNavigation::kBarFraction) - 8.0f;
+  const float right = float(mWidth) * float(1.0 - interact::OneButtonNavigation::kBarFraction) - 8.0f;
   if (beginPanel("Notes", ImVec2(right - kPanelWidth, 8))) {
     if (!mAnnotations) {
       ImGui::TextWrapped("Notes need tessera-master --annotations FILE: they are not kept.");
@@ -295,11 +295,11 @@ void Console::notesPanel(sync::SceneGraph& graph) {
       mSearchError.clear();
       if (!mSearchRan.empty()) {
         try {
-          for (const SearchHit& hit : mAnnotations->db().search(mSearchRan))
+          for (const annotate::SearchHit& hit : mAnnotations->db().search(mSearchRan))
             for (int64_t place : mAnnotations->db().placesOf(hit.item))
               if (std::find(mHitPlaces.begin(), mHitPlaces.end(), place) == mHitPlaces.end())
                 mHitPlaces.push_back(place);
-        } catch (const AnnotationError& e) {  // a malformed query says why
+        } catch (const annotate::AnnotationError& e) {  // a malformed query says why
           mSearchError = e.what();
           say("search: " + mSearchError);
         }
@@ -363,7 +363,7 @@ void Console::noteForm(sync::SceneGraph& graph) {
   ImGui::InputFloat("radius m", &f.radius, 0.0f, 0.0f, "%.3f");
   if (ImGui::IsItemHovered()) ImGui::SetTooltip("> 0: a hot spot with the current view");
   if (ImGui::Button("Add") || enter) {
-    NoteDraft d = f.draft;
+    interact::NoteDraft d = f.draft;
     d.layer = f.layer;
     d.title = f.title;
     d.text = f.text;
@@ -374,13 +374,13 @@ void Console::noteForm(sync::SceneGraph& graph) {
     d.link = f.link;
     d.radius = std::max(0.0f, f.radius);
     try {
-      const auto [item, place] = addNote(*mAnnotations, graph, d, kAuthor);
+      const auto [item, place] = interact::addNote(*mAnnotations, graph, d, kAuthor);
       say("note " + std::to_string(place) + " added (item " + std::to_string(item) + ", layer " +
           d.layer + "): " + d.title);
       const auto nodes = mAnnotations->nodesOf(place);
       if (!nodes.empty()) mShown = nodes.front();
       mNoteForm.reset();
-    } catch (const AnnotationError& e) {
+    } catch (const annotate::AnnotationError& e) {
       say(std::string("note not added: ") + e.what());
     }
   } else {
@@ -395,13 +395,13 @@ void Console::shownNote(sync::SceneGraph& graph) {
   ImGui::Separator();
   ImGui::Text("%s %llu, layer %s", a.radius() > 0.0 ? "Hot spot" : "Point",
               (unsigned long long)a.place(), a.layer().c_str());
-  if (ImGui::Button("Fly to")) graph.setCamera(flyToNote(graph, mShown, graph.camera()));
+  if (ImGui::Button("Fly to")) graph.setCamera(interact::flyToNote(graph, mShown, graph.camera()));
   ImGui::SameLine();
   bool open = a.open();
   if (ImGui::Checkbox("open on the wall (O)", &open)) {
     try {
       mAnnotations->setOpen(graph, int64_t(a.place()), open, "");
-    } catch (const AnnotationError& e) {
+    } catch (const annotate::AnnotationError& e) {
       say(e.what());
     }
   }
@@ -419,9 +419,9 @@ void Console::shownNote(sync::SceneGraph& graph) {
       if (e.with_number) ImGui::InputDouble("number", &e.number);
       if (ImGui::SmallButton("save")) {
         try {
-          std::optional<Item> item = mAnnotations->db().item(e.item);
+          std::optional<annotate::Item> item = mAnnotations->db().item(e.item);
           if (!item)
-            throw AnnotationError(AnnotationError::Kind::kNotFound,
+            throw annotate::AnnotationError(annotate::AnnotationError::Kind::kNotFound,
                                   "console: item " + std::to_string(e.item) + " is gone");
           item->title = e.title;
           if (e.text_fits) item->text = e.text;
@@ -430,12 +430,12 @@ void Console::shownNote(sync::SceneGraph& graph) {
           say("item " + std::to_string(e.item) + " saved (revision " + std::to_string(revision) +
               ")");
           mEdit.reset();
-        } catch (const AnnotationError& err) {
-          if (err.kind() != AnnotationError::Kind::kConflict) {
+        } catch (const annotate::AnnotationError& err) {
+          if (err.kind() != annotate::AnnotationError::Kind::kConflict) {
             say(std::string("not saved: ") + err.what());
           } else {
             // Nothing overwritten; a second save, knowingly, replaces the newer revision.
-            if (std::optional<Item> now = mAnnotations->db().item(e.item))
+            if (std::optional<annotate::Item> now = mAnnotations->db().item(e.item))
               e.base_revision = now->revision;
             say(std::string("not saved, changed meanwhile: ") + err.what() +
                 " (save again to replace it, or cancel)");
@@ -452,7 +452,7 @@ void Console::shownNote(sync::SceneGraph& graph) {
         e.item = int64_t(it.id());
         // From the database: the scene carries at most 4 KiB of the text, and another
         // connection (tessera-annotate) may have changed the item since.
-        const std::optional<Item> full = mAnnotations->db().item(e.item);
+        const std::optional<annotate::Item> full = mAnnotations->db().item(e.item);
         e.base_revision = full ? full->revision : int64_t(it.revision());
         std::snprintf(e.title, sizeof e.title, "%s",
                       full ? full->title.c_str() : it.title().c_str());
@@ -468,7 +468,7 @@ void Console::shownNote(sync::SceneGraph& graph) {
         try {
           mAnnotations->removeItem(graph, int64_t(it.id()), int64_t(it.revision()));
           say("item " + std::to_string(it.id()) + " deleted");
-        } catch (const AnnotationError& err) {
+        } catch (const annotate::AnnotationError& err) {
           say(std::string("not deleted: ") + err.what());
         }
       }

@@ -84,15 +84,15 @@ void Master::prepare() {
   mTiles = std::make_unique<TileTable>(mWall, mOpt.wall);
   if (!mOpt.annotations.empty()) {
     try {
-      mAnnotations = std::make_unique<AnnotationScene>(mOpt.annotations);
+      mAnnotations = std::make_unique<annotate::AnnotationScene>(mOpt.annotations);
       for (const std::string& p : mAnnotations->load(mGraph))
         std::printf("tessera-master: --annotations %s: %s\n", mOpt.annotations.c_str(), p.c_str());
-      AnnotationDb& db = mAnnotations->db();
+      annotate::AnnotationDb& db = mAnnotations->db();
       std::printf("tessera-master: annotations: %s: %zu layers, %zu places, %zu items\n",
                   mOpt.annotations.c_str(), db.layers().size(), db.places().size(),
                   db.items().size());
       std::fflush(stdout);
-    } catch (const AnnotationError& e) {
+    } catch (const annotate::AnnotationError& e) {
       throw StartError("tessera-master: --annotations: " + std::string(e.what()));
     }
   }

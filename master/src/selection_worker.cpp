@@ -8,8 +8,8 @@
 
 #include <tessera/lod/mesh_store.h>
 #include <tessera/lod/point_store.h>
-#include <tessera/master/select_tool.h>
-#include <tessera/master/snap_tool.h>
+#include <tessera/interact/select_tool.h>
+#include <tessera/interact/snap_tool.h>
 #include <tessera/render/scene_draw_list.h>
 
 namespace tessera::master {
@@ -33,7 +33,7 @@ struct SelectionWorker::Impl {
     std::string name, store;
     SharedStore shared;
     render::ModelInstance instance;
-    LassoSelection result;
+    interact::LassoSelection result;
     std::string error;
   };
   mutable std::mutex mutex;
@@ -55,12 +55,12 @@ struct SelectionWorker::Impl {
         // One thread: the master's loop and the nodes of this host keep the other core.
         const SelectionRequest& r = job.request;
         if (r.kind == SelectionRequest::Kind::kLasso)
-          job.result = lassoSelection(job.instance, r.model, r.view, r.pixels, 1);
+          job.result = interact::lassoSelection(job.instance, r.model, r.view, r.pixels, 1);
         else if (r.kind == SelectionRequest::Kind::kSnap)
-          job.result = snapSelection(job.instance, r.model, r.view, r.pixels, r.background);
+          job.result = interact::snapSelection(job.instance, r.model, r.view, r.pixels, r.background);
         else
           job.result =
-              robustLassoSelection(job.instance, r.model, r.view, r.pixels, r.heavy_width);
+              interact::robustLassoSelection(job.instance, r.model, r.view, r.pixels, r.heavy_width);
       } catch (const std::exception& e) {
         job.error = e.what();
       }
@@ -165,7 +165,7 @@ int SelectionWorker::collect(sync::SceneGraph& graph) {
       continue;
     }
     try {
-      addSelection(graph, j.result.payload, j.name);
+      interact::addSelection(graph, j.result.payload, j.name);
       ++added;
       m->say(j.name + ": " + j.request.what() + " on model " + std::to_string(model) + ": " +
              std::to_string(j.result.count) + " elements selected" +

@@ -1,18 +1,14 @@
 #include <tessera/render/tile_frustum.h>
 
+#include <tessera/sync/vec3.h>
+
 #include <algorithm>
 #include <cmath>
 
 #include <glm/gtc/matrix_transform.hpp>
 
 namespace tessera::render {
-namespace {
-
-glm::dvec3 vec(const config::Vec3& v) {
-  return {v.x(), v.y(), v.z()};
-}
-
-}  // namespace
+using sync::vec;
 
 glm::dmat4 cameraView(const config::Camera& camera) {
   return glm::lookAt(vec(camera.eye()), vec(camera.target()), vec(camera.up()));

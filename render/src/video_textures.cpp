@@ -10,8 +10,8 @@ VideoTextures::~VideoTextures() = default;
 
 std::optional<std::string> VideoTextures::receive(std::span<const uint8_t> bytes) {
   ++mStats.packets;
-  collab::VideoPacket packet;
-  if (auto why = collab::decodeVideoPacket(bytes, packet)) {
+  media::VideoPacket packet;
+  if (auto why = media::decodeVideoPacket(bytes, packet)) {
     ++mStats.refused;
     mStats.last_problem = *why;
     return why;
@@ -26,7 +26,7 @@ std::optional<std::string> VideoTextures::receive(std::span<const uint8_t> bytes
     it = mStreams.emplace(packet.site, std::make_unique<Stream>()).first;
     it->second->receiver.setShown(mShown.count(packet.site) > 0);
   }
-  collab::VideoReceiver& r = it->second->receiver;
+  media::VideoReceiver& r = it->second->receiver;
   const uint64_t errors = r.stats().errors;
   r.receive(packet);
   if (r.stats().errors != errors) mStats.last_problem = r.stats().last_error;
@@ -41,9 +41,9 @@ void VideoTextures::setShown(const std::set<uint32_t>& sources) {
 bool VideoTextures::upload() {
   bool remade = false;
   for (auto& [source, stream] : mStreams) {
-    const collab::VideoReceiver& r = stream->receiver;
+    const media::VideoReceiver& r = stream->receiver;
     if (r.generation() == stream->uploaded) continue;
-    const collab::VideoPicture& p = r.picture();
+    const media::VideoPicture& p = r.picture();
     if (p.empty()) continue;
     if (!stream->texture || stream->texture.width() != uint32_t(p.width) ||
         stream->texture.height() != uint32_t(p.height)) {
@@ -66,7 +66,7 @@ VideoTextureStats VideoTextures::stats() const {
   VideoTextureStats s = mStats;
   s.decoded = s.skipped = s.errors = s.lost = 0;
   for (const auto& [source, stream] : mStreams) {
-    const collab::VideoReceiverStats& r = stream->receiver.stats();
+    const media::VideoReceiverStats& r = stream->receiver.stats();
     s.decoded += r.decoded;
     s.skipped += r.skipped;
     s.errors += r.errors;

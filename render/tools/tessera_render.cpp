@@ -28,11 +28,14 @@
 #include <tessera/render/wall_mosaic.h>
 #include <tessera/render/window.h>
 #include <tessera/sync/config.h>
+#include <tessera/sync/vec3.h>
+#include <tessera/sync/view.h>
 
 namespace {
 
 using namespace tessera;
 namespace fs = std::filesystem;
+using sync::vec;
 
 /// A bad command line: main() reports it and exits 2 (cli::runMain).
 [[noreturn]] void usage(const std::string& what) {
@@ -60,9 +63,7 @@ config::Camera parseCamera(const std::string& s) {
     ++seen;
   }
   if (seen != 3) usage("--camera: give eye, target and up");
-  cli::checkView({c.eye().x(), c.eye().y(), c.eye().z()},
-                 {c.target().x(), c.target().y(), c.target().z()},
-                 {c.up().x(), c.up().y(), c.up().z()}, "--camera");
+  sync::requireView(sync::vec(c.eye()), sync::vec(c.target()), sync::vec(c.up()), "--camera");
   return c;
 }
 
@@ -86,25 +87,10 @@ config::Camera fitCamera(const render::ModelInstance& m) {
   glm::dvec3 eye = flat ? c + glm::dvec3(0, -1.6 * r, 1.2 * r) : c + glm::dvec3(0, 0, 2.6 * r);
   glm::dvec3 up = flat ? glm::dvec3(0, 0, 1) : glm::dvec3(0, 1, 0);
   config::Camera cam;
-  auto set = [](config::Vec3* d, const glm::dvec3& v) {
-    d->set_x(v.x);
-    d->set_y(v.y);
-    d->set_z(v.z);
-  };
-  set(cam.mutable_eye(), eye);
-  set(cam.mutable_target(), c);
-  set(cam.mutable_up(), up);
+  sync::set(cam.mutable_eye(), eye);
+  sync::set(cam.mutable_target(), c);
+  sync::set(cam.mutable_up(), up);
   return cam;
-}
-
-glm::dvec3 vec(const config::Vec3& v) {
-  return {v.x(), v.y(), v.z()};
-}
-
-void setVec(config::Vec3* d, const glm::dvec3& v) {
-  d->set_x(v.x);
-  d->set_y(v.y);
-  d->set_z(v.z);
 }
 
 /// Shows the view in `win` until it closes (or `frames` frames): left drag orbits the target,
@@ -143,8 +129,8 @@ config::Camera interactive(render::Window& win, config::Camera cam,
       target += (-in.cursor_delta.x * right + in.cursor_delta.y * cam_up) * per_px;
     }
     if (in.scroll != 0) back *= std::pow(0.85, in.scroll);
-    setVec(cam.mutable_eye(), target + back);
-    setVec(cam.mutable_target(), target);
+    sync::set(cam.mutable_eye(), target + back);
+    sync::set(cam.mutable_target(), target);
   }
   return cam;
 }

@@ -13,8 +13,6 @@ namespace tessera::sync {
 namespace {
 
 using detail::failConfig;
-using detail::toVec3;
-using detail::vec;
 
 config::Camera keyframeCamera(const config::CameraKeyframe& k) {
   config::Camera c;

@@ -6,14 +6,12 @@
 
 #include <tessera/core/check.h>
 
-#include "vec3.h"
+#include <tessera/sync/vec3.h>
+#include <tessera/sync/view.h>
 
 namespace tessera::sync {
 namespace {
 
-using detail::finite;
-using detail::toVec3;
-using detail::vec;
 
 // The frame roll is measured in: r is the world axis z (or y when the view is within 26 degrees
 // of z, where z's projection gets short) projected onto the plane orthogonal to the unit view d,
@@ -27,18 +25,14 @@ void rollFrame(const glm::dvec3& d, glm::dvec3& r, glm::dvec3& s) {
 }  // namespace
 
 scene::CameraState encodeCamera(const config::Camera& camera) {
-  const glm::dvec3 eye = vec(camera.eye()), target = vec(camera.target()), up = vec(camera.up());
-  TESSERA_CHECK(finite(eye) && finite(target) && finite(up),
-                "sync::encodeCamera(): camera numbers must be finite");
-  const glm::dvec3 view = target - eye;
-  const glm::vec3 view_f(view);
-  TESSERA_CHECK(finite(glm::dvec3(view_f)) && glm::length(view_f) > 0.0f,
-                "sync::encodeCamera(): eye and target coincide or are too far apart for a float");
-  // Roll is taken around the view direction the decoder will see (the float one).
+  const auto problem = viewProblem(camera);
+  TESSERA_CHECK(!problem, "sync::encodeCamera(): " + describe(*problem, "camera"));
+  const glm::dvec3 eye = vec(camera.eye()), up = vec(camera.up());
+  const glm::vec3 view_f(vec(camera.target()) - eye);
+  // Roll is taken around the view direction the decoder will see (the float one); the view rule
+  // keeps up at more than 1e-6 radians from it, so up_ortho is never zero.
   const glm::dvec3 d = glm::normalize(glm::dvec3(view_f));
   const glm::dvec3 up_ortho = up - d * glm::dot(d, up);
-  TESSERA_CHECK(glm::length(up_ortho) > 1e-9 * glm::length(up),
-                "sync::encodeCamera(): up must not be zero or along the view direction");
   glm::dvec3 r, s;
   rollFrame(d, r, s);
   scene::CameraState state;

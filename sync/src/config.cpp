@@ -69,7 +69,7 @@ config::WallConfig parseWallConfig(const std::string& json, const std::string& n
       fail(fn, name, "tiles", what);
     }
   }
-  if (!wall.has_eye() || !detail::finite(wall.eye()) || !(wall.eye().z() > 0)) {
+  if (!wall.has_eye() || !finite(wall.eye()) || !(wall.eye().z() > 0)) {
     fail(fn, name, "eye", "the viewer's eye must be in front of the wall (z > 0, metres)");
   }
   if (wall.min_live_tiles() > uint32_t(wall.tiles_size()))

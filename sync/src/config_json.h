@@ -15,7 +15,8 @@
 #include <tessera/core/file_checks.h>
 #include <tessera/sync/config.h>
 
-#include "vec3.h"
+#include <tessera/sync/vec3.h>
+#include <tessera/sync/view.h>
 
 namespace tessera::sync::detail {
 
@@ -48,18 +49,11 @@ void parseConfigJson(const std::string& json, const std::string& name, const cha
                "not a valid " + msg.GetDescriptor()->name() + ": " + std::string(status.message()));
 }
 
-/// A camera from a file: finite, eye != target, up not zero or along the view. Errors name
-/// `field` (and `field`.up).
+/// A camera from a file, by the one view rule (view.h). Errors name `field` (or `field`.up).
 inline void checkConfigCamera(const config::Camera& c, const char* fn, const std::string& file,
                               const std::string& field) {
-  if (!finite(c.eye()) || !finite(c.target()) || !finite(c.up()))
-    failConfig(fn, file, field, "numbers must be finite");
-  const glm::dvec3 view = vec(c.target()) - vec(c.eye());
-  if (glm::length(view) == 0) failConfig(fn, file, field, "eye and target coincide");
-  if (glm::length(glm::cross(view, vec(c.up()))) <=
-      1e-9 * glm::length(view) * glm::length(vec(c.up()))) {
-    failConfig(fn, file, field + ".up", "up must not be zero or along the view direction");
-  }
+  if (const auto problem = viewProblem(c))
+    failConfig(fn, file, problem->on_up ? field + ".up" : field, problem->what);
 }
 
 }  // namespace tessera::sync::detail

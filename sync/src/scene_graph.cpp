@@ -1,4 +1,5 @@
 #include <tessera/sync/scene_graph.h>
+#include <tessera/sync/view.h>
 
 #include <google/protobuf/util/message_differencer.h>
 
@@ -142,11 +143,8 @@ Problem checkAnnotation(const scene::AnnotationPayload& a) {
   if (a.view_size() == 10) {
     const auto& v = a.view();
     const glm::dvec3 eye(v[0], v[1], v[2]), target(v[3], v[4], v[5]), up(v[6], v[7], v[8]);
-    const glm::dvec3 dir = target - eye;
-    if (!(glm::length(dir) > 0.0) || !(glm::length(glm::cross(dir, up)) > 0.0))
-      return std::string(
-          "annotation.view: the target must differ from the eye, and up must not lie along the "
-          "view");
+    if (const auto problem = viewProblem(eye, target, up))
+      return describe(*problem, "annotation.view");
     if (!(v[9] > 0.0 && v[9] < 180.0))
       return "annotation.view: fovy must be in (0, 180) degrees, got " + num(v[9]);
   }

@@ -13,8 +13,8 @@
 
 #include <tessera/collab/site_messages.h>
 #include <tessera/collab/site_roster.h>
-#include <tessera/collab/video_packet.h>
-#include <tessera/collab/voice_packet.h>
+#include <tessera/media/video_packet.h>
+#include <tessera/media/voice_packet.h>
 #include <tessera/sync/scene_graph.h>
 #include <tessera/sync/transform.h>
 
@@ -66,11 +66,11 @@ TEST(SiteMessages, RefusesNonFiniteDegenerateAndOversizedInput) {
   EXPECT_EQ(collab::checkToMaster(pose(1, {nan, 0, 2}, {0, 0, 0})).value_or(""),
             "pose.eye: numbers must be finite");
   EXPECT_EQ(collab::checkToMaster(pose(1, {0, 0, 0}, {0, 0, 0})).value_or(""),
-            "pose: the target is at the eye");
+            "pose: eye and target coincide");
   EXPECT_EQ(collab::checkToMaster(pose(1, {0, 0, 2}, {0, 0, 0}, {0, 0, 0})).value_or(""),
-            "pose.up: zero vector");
+            "pose.up: up is zero");
   EXPECT_EQ(collab::checkToMaster(pose(1, {0, 0, 2}, {0, 0, 0}, {0, 0, 1})).value_or(""),
-            "pose.up: along the view direction");
+            "pose.up: up is along the view direction");
   EXPECT_TRUE(collab::checkToMaster(pose(1, {1e9, 0, 2}, {0, 0, 0})));
   site::ToMaster fov = ok;
   fov.mutable_pose()->set_fovy_deg(180);
@@ -101,11 +101,11 @@ TEST(SiteMessages, RefusesNonFiniteDegenerateAndOversizedInput) {
 }
 
 TEST(SiteMessages, VideoIsAVideoPacketChecked) {
-  collab::VideoPacket p;
+  media::VideoPacket p;
   p.width = 640;
   p.height = 480;
-  p.payload.assign(collab::kMaxVideoChunkBytes, 7);
-  const std::vector<uint8_t> packet = collab::encodeVideoPacket(p);
+  p.payload.assign(media::kMaxVideoChunkBytes, 7);
+  const std::vector<uint8_t> packet = media::encodeVideoPacket(p);
   site::ToMaster m;
   m.set_video(packet.data(), packet.size());
   site::ToMaster parsed;
@@ -126,7 +126,7 @@ TEST(SiteMessages, VideoIsAVideoPacketChecked) {
 }
 
 TEST(SiteMessages, VoiceIsAVoicePacketChecked) {
-  collab::VoiceSender sender(collab::VoiceSettings{}, 1);
+  media::VoiceSender sender(media::VoiceSettings{}, 1);
   std::vector<float> tone(960);
   for (size_t i = 0; i < tone.size(); ++i) tone[i] = 0.3f * float(std::sin(0.05 * double(i)));
   const std::vector<uint8_t> packet = *sender.send(tone);

@@ -21,7 +21,7 @@
 #include <tessera/collab/curve.h>
 #include <tessera/collab/site_messages.h>
 #include <tessera/lod/mesh.h>
-#include <tessera/master/annotation_scene.h>
+#include <tessera/annotate/annotation_scene.h>
 #include <tessera/render/image.h>
 #include <tessera/render/tile_frustum.h>
 #include <tessera/render/wall_mosaic.h>
@@ -768,11 +768,11 @@ TEST_F(SiteSession, AWindowedSiteOpensANoteMeasuresAndLassos) {
   // A note by the middle of the site's window (where the view looks), off the wall's mullions.
   const glm::dvec3 note = kTarget + glm::dvec3(0.012, 0.008, 0.07);  // in front of the body
   {
-    tessera::master::AnnotationDb notes(db);
-    tessera::master::Place place;
+    tessera::annotate::AnnotationDb notes(db);
+    tessera::annotate::Place place;
     place.model = "bunny";
     place.position = note;
-    tessera::master::Item item;
+    tessera::annotate::Item item;
     item.layer = "survey";
     item.title = "middle";
     item.text = "the body's centre";
@@ -819,7 +819,7 @@ TEST_F(SiteSession, AWindowedSiteOpensANoteMeasuresAndLassos) {
   for (auto& n : nodes) EXPECT_EQ(n->wait(15), std::optional<int>(0)) << n->output();
   EXPECT_EQ(site->output().find("stroke 1"), std::string::npos) << "no sketch was drawn";
 
-  tessera::master::AnnotationDb notes(db, {.read_only = true});
+  tessera::annotate::AnnotationDb notes(db, {.read_only = true});
   const auto hits = notes.search("distance");
   ASSERT_EQ(hits.size(), 1u);
   EXPECT_EQ(notes.item(hits[0].item)->author, "W");
@@ -830,7 +830,7 @@ TEST_F(SiteSession, AWindowedSiteOpensANoteMeasuresAndLassos) {
   EXPECT_EQ(notes.item(typed[0].item)->author, "W");
   EXPECT_EQ(notes.place(notes.placesOf(typed[0].item).at(0))->model, "bunny");
   int selections = 0;
-  for (const auto& p : notes.places()) selections += p.selection_id == tessera::master::kSelectionBlob;
+  for (const auto& p : notes.places()) selections += p.selection_id == tessera::annotate::kSelectionBlob;
   EXPECT_EQ(selections, 1);
   // The opened note lists its item on the wall: its text, right of its title.
   const auto wall = tessera::sync::loadWallConfig(*sDir / "wall.json");
@@ -898,9 +898,9 @@ TEST_F(SiteSession, NotesAreCommittedShownOnTheWallAndSurviveAKilledMaster) {
   EXPECT_NE(master->output().find("annotations: 4 edits from sites committed"), std::string::npos)
       << master->output();
 
-  tessera::master::Place place;
+  tessera::annotate::Place place;
   {
-    tessera::master::AnnotationDb notes(db, {.read_only = true});
+    tessera::annotate::AnnotationDb notes(db, {.read_only = true});
     const auto item = notes.item(1);
     ASSERT_TRUE(item);
     EXPECT_EQ(item->title, "crack A 14 cm");
@@ -921,14 +921,14 @@ TEST_F(SiteSession, NotesAreCommittedShownOnTheWallAndSurviveAKilledMaster) {
     // And its selection, kept with the model's name.
     int selections = 0;
     for (const auto& p : notes.places())
-      if (p.selection_id == tessera::master::kSelectionBlob) {
+      if (p.selection_id == tessera::annotate::kSelectionBlob) {
         ++selections;
         EXPECT_EQ(p.model, "bunny");
       }
     EXPECT_EQ(selections, 1);
     EXPECT_EQ(place.model, "bunny");  // named by A's pick
     ASSERT_TRUE(notes.place(b_place));
-    EXPECT_EQ(notes.place(b_place)->kind, tessera::master::PlaceKind::kHotSpot);
+    EXPECT_EQ(notes.place(b_place)->kind, tessera::annotate::PlaceKind::kHotSpot);
   }
   // The wall: the note's dot where its place projects, and its open label (the item's title
   // and text on one line, wider than the closed label "crack A 14 cm" would be) up and right.
@@ -972,7 +972,7 @@ TEST_F(SiteSession, NotesAreCommittedShownOnTheWallAndSurviveAKilledMaster) {
     p->signal(SIGTERM);
     p->wait(15);
   }
-  tessera::master::AnnotationDb notes(db, {.read_only = true});
+  tessera::annotate::AnnotationDb notes(db, {.read_only = true});
   ASSERT_TRUE(notes.item(4)) << "an acknowledged note survives kill -9 of the master";
   EXPECT_EQ(notes.item(4)->link_uri, "https://example.org/bunny-survey.pdf");
   EXPECT_EQ(notes.itemsAt(1), (std::vector<int64_t>{1, 4}));
@@ -1032,13 +1032,13 @@ TEST_F(SiteSession, ANoteAnotherProgramAddsShowsItsPictureOnTheWallWhenOpened) {
   tessera::render::writePng((mRun / "photo.png").string(), photo);
   const glm::dvec3 at(-0.18, 0.11, 0.08);
   {
-    tessera::master::AnnotationDb other(db);
-    tessera::master::Place place;
+    tessera::annotate::AnnotationDb other(db);
+    tessera::annotate::Place place;
     place.model = "bunny";
     place.position = at;
-    tessera::master::Item item;
+    tessera::annotate::Item item;
     item.layer = "documents";
-    item.kind = tessera::master::ItemKind::kImage;
+    item.kind = tessera::annotate::ItemKind::kImage;
     item.title = "1962 photo";
     item.path = "photo.png";
     item.mime = "image/png";

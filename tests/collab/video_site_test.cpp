@@ -14,8 +14,8 @@
 #include <thread>
 
 #include <tessera/collab/site_client.h>
-#include <tessera/collab/video_packet.h>
-#include <tessera/collab/video_pattern.h>
+#include <tessera/media/video_packet.h>
+#include <tessera/media/video_pattern.h>
 #include <tessera/render/image.h>
 
 #include "../support/command.h"
@@ -115,7 +115,7 @@ std::unique_ptr<RunningWall> startWall(const fs::path& dir, const VideoWall& s, 
 struct Shot {
   fs::path path;
   double swapped_ms = 0;
-  std::optional<collab::PatternCode> code;
+  std::optional<media::PatternCode> code;
   render::Image image;
 };
 
@@ -130,22 +130,22 @@ std::vector<Shot> readShots(const std::string& log, int x, int y, int w, int h) 
         test::captured(log, "frame " + (*it)[1].str() + ": swapped at unix ms ([0-9.]+)");
     if (!swapped.empty()) s.swapped_ms = std::stod(swapped);
     s.image = render::readPng(s.path.string());
-    s.code = collab::readTestPattern(s.image.rgba.data(), int(s.image.width), x, y, w, h);
+    s.code = media::readTestPattern(s.image.rgba.data(), int(s.image.width), x, y, w, h);
     shots.push_back(std::move(s));
   }
   return shots;
 }
 
 /// PSNR of the wall's pixels (x, y, w, h) against the pattern of `code` drawn at that size.
-double insetPsnr(const render::Image& image, const collab::PatternCode& code, int x, int y, int w,
+double insetPsnr(const render::Image& image, const media::PatternCode& code, int x, int y, int w,
                  int h) {
-  collab::VideoPicture sent, shown;
-  collab::drawTestPattern(sent, w, h, code);
+  media::VideoPicture sent, shown;
+  media::drawTestPattern(sent, w, h, code);
   shown.resize(w, h);
   for (int yy = 0; yy < h; ++yy)
     std::copy_n(&image.rgba[(size_t(y + yy) * image.width + size_t(x)) * 4], size_t(w) * 4,
                 shown.pixel(0, yy));
-  return collab::videoPsnr(sent, shown, 0, 0, w, h);
+  return media::videoPsnr(sent, shown, 0, 0, w, h);
 }
 
 // The inset pinned at 0.1, 0.1 of the wall, 0.8 wide: 640x480 wall pixels from (80, 60), one
@@ -182,7 +182,7 @@ TEST(VideoSites, TheWallShowsASitesVideoLiveAndFaithfully) {
     previous = shot.code->frame;
     // The clocks are one machine's: the picture was made before the wall showed it, and a
     // stale picture (seconds old) would be a bug, whatever the machine's speed.
-    const int64_t ms = collab::patternDelayMs(shot.code->time_ms,
+    const int64_t ms = media::patternDelayMs(shot.code->time_ms,
                                               uint32_t(uint64_t(shot.swapped_ms) & 0xFFFFFFFFu));
     EXPECT_GE(ms, 0) << shot.path;
     EXPECT_LT(ms, 2000) << shot.path;
@@ -191,7 +191,7 @@ TEST(VideoSites, TheWallShowsASitesVideoLiveAndFaithfully) {
     const double psnr = insetPsnr(shot.image, *shot.code, kX, kY, kW, kH);
     EXPECT_GT(psnr, 30.0) << shot.path;
     // ... and a test that can fail: the picture three frames earlier scores far lower.
-    collab::PatternCode earlier = *shot.code;
+    media::PatternCode earlier = *shot.code;
     earlier.frame -= 3;
     EXPECT_LT(insetPsnr(shot.image, earlier, kX, kY, kW, kH), psnr - 6.0) << shot.path;
   }
@@ -284,7 +284,7 @@ TEST(VideoSites, AnotherSiteSeesTheInsetInItsOwnView) {
       << viewer.output();
   const render::Image view = render::readPng((dir / "b" / "b-view.png").string());
   ASSERT_EQ(view.width, 640u);
-  const auto code = collab::readTestPattern(view.rgba.data(), int(view.width), 64, 48, 512, 384);
+  const auto code = media::readTestPattern(view.rgba.data(), int(view.width), 64, 48, 512, 384);
   ASSERT_TRUE(code) << "no readable inset in site b's own view";
   EXPECT_GT(code->frame, 30u);
 }
@@ -325,50 +325,50 @@ TEST(VideoSites, DamagedTruncatedOversizedAndFloodingVideoNeverShowsOrStopsTheWa
   Process &master = *w->master, &left = *w->left, &right = *w->right;
   const std::string& sites = w->sites;
   TestSite good(sites, s.keys.at("master"), dir / "good.key", "good");
-  collab::VideoSettings vs;
-  collab::VideoSender sender(vs, uint16_t(good.participant));
+  media::VideoSettings vs;
+  media::VideoSender sender(vs, uint16_t(good.participant));
   std::mt19937 rng(11);
-  collab::VideoPicture picture;
+  media::VideoPicture picture;
   // Frames 0..89 clean, 90..179 damaged (payload bytes randomised, access units cut to a few
   // bytes, chunks left out), 180.. clean again: 30 a second.
   const uint32_t kDamagedFrom = 90, kCleanAgain = 180, kEnd = 240;
   const auto start = std::chrono::steady_clock::now();
   for (uint32_t f = 0; f < kEnd; ++f) {
     std::this_thread::sleep_until(start + std::chrono::milliseconds(f * 1000 / 30));
-    collab::drawTestPattern(picture, vs.width, vs.height, {f, collab::patternClockMs()});
+    media::drawTestPattern(picture, vs.width, vs.height, {f, media::patternClockMs()});
     for (std::vector<uint8_t> bytes : sender.send(picture)) {
       if (f >= kDamagedFrom && f < kCleanAgain) {
-        collab::VideoPacket p;
-        ASSERT_EQ(collab::decodeVideoPacket(bytes, p), std::nullopt);
+        media::VideoPacket p;
+        ASSERT_EQ(media::decodeVideoPacket(bytes, p), std::nullopt);
         if (f % 7 == 0) continue;                                                 // missing
         if (f % 3 == 0) p.payload.resize(std::min<size_t>(p.payload.size(), 9));  // truncated
         for (size_t i = 4; i < p.payload.size(); i += 5) p.payload[i] = uint8_t(rng());
-        bytes = collab::encodeVideoPacket(p);
+        bytes = media::encodeVideoPacket(p);
       }
       good.send(bytes);
     }
     good.keepUp();
     if (f == 40) {  // a site whose packet does not check: dropped, the wall goes on
       TestSite bad(sites, s.keys.at("master"), dir / "bad.key", "bad");
-      collab::VideoPacket p;
+      media::VideoPacket p;
       p.width = 640;
       p.height = 480;
       p.payload.assign(2000, 0x42);
-      std::vector<uint8_t> b = collab::encodeVideoPacket(p);
+      std::vector<uint8_t> b = media::encodeVideoPacket(p);
       b.resize(b.size() - 3);  // the payload size field no longer matches
       bad.send(b);
       TestSite big(sites, s.keys.at("master"), dir / "big.key", "big");
-      p.payload.assign(collab::kMaxVideoChunkBytes, 0x42);
-      std::vector<uint8_t> oversized = collab::encodeVideoPacket(p);
+      p.payload.assign(media::kMaxVideoChunkBytes, 0x42);
+      std::vector<uint8_t> oversized = media::encodeVideoPacket(p);
       oversized.resize(oversized.size() + 4000, 0x42);  // 20 kB: more than a packet may be
       big.send(oversized);
       // A site sending twice the cap for a second: throttled, its chunks dropped.
       TestSite flood(sites, s.keys.at("master"), dir / "flood.key", "flood");
-      p.payload.assign(collab::kMaxVideoChunkBytes, 0);
+      p.payload.assign(media::kMaxVideoChunkBytes, 0);
       for (int k = 0; k < 100; ++k) {
         p.frame = uint32_t(k);
         std::generate(p.payload.begin(), p.payload.end(), [&] { return uint8_t(rng()); });
-        flood.send(collab::encodeVideoPacket(p));
+        flood.send(media::encodeVideoPacket(p));
         if (k % 10 == 0) std::this_thread::sleep_for(std::chrono::milliseconds(50));
       }
       // The bad site hears why it was dropped.

@@ -8,8 +8,8 @@
 
 #include <filesystem>
 
-#include <tessera/collab/voice_alsa.h>
-#include <tessera/collab/voice_wav.h>
+#include <tessera/media/voice_alsa.h>
+#include <tessera/media/voice_wav.h>
 
 #include "../support/command.h"
 #include "../support/process.h"
@@ -31,7 +31,7 @@ struct Heard {
 };
 
 Heard heard(const fs::path& wav) {
-  const std::vector<float> x = collab::readVoiceWav(wav);
+  const std::vector<float> x = media::readVoiceWav(wav);
   return {test::db(test::power(x, kWallHz, 0, x.size())),
           test::db(test::power(x, kAHz, 0, x.size())), test::db(test::power(x, kBHz, 0, x.size()))};
 }
@@ -100,9 +100,9 @@ TEST(VoiceSites, TheWallAndTwoSitesHearEachOtherButNotThemselves) {
   ASSERT_FALSE(keys.empty());
   const std::string camera = writeOneTileWall(dir.path());
   // 8 s of each voice (pausing every 1.2 s); the session lasts 14 s.
-  collab::writeWav(dir / "wall-mic.wav", test::talking(kWallHz, 8));
-  collab::writeWav(dir / "a-mic.wav", test::talking(kAHz, 8));
-  collab::writeWav(dir / "b-mic.wav", test::talking(kBHz, 8));
+  media::writeWav(dir / "wall-mic.wav", test::talking(kWallHz, 8));
+  media::writeWav(dir / "a-mic.wav", test::talking(kAHz, 8));
+  media::writeWav(dir / "b-mic.wav", test::talking(kBHz, 8));
 
   const auto argv = test::masterWithSites(TESSERA_MASTER, dir.path(), dir.path(), 14.0, camera,
                                           {"--voice", "--audio-in", (dir / "wall-mic.wav").string(),
@@ -177,8 +177,8 @@ TEST(VoiceSites, VoiceOptionsAreChecked) {
 
 TEST(VoiceSites, SoundDevicesThroughAlsa) {
   try {
-    collab::AlsaPcm probe("null", collab::AlsaPcm::Direction::kPlayback, 960);
-  } catch (const collab::AlsaError& e) {
+    media::AlsaPcm probe("null", media::AlsaPcm::Direction::kPlayback, 960);
+  } catch (const media::AlsaError& e) {
     GTEST_SKIP() << "alsa-lib's null PCM cannot be opened here: " << e.what();
   }
   test::TempDir dir;

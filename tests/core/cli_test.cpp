@@ -70,18 +70,6 @@ TEST(Cli, SizesAndVectors) {
   EXPECT_EQ(parseVec3("1,0,0.5", "--background", 0.0, 1.0), glm::dvec3(1, 0, 0.5));
 }
 
-TEST(Cli, ViewsMustBeViews) {
-  EXPECT_NO_THROW(checkView({0, 0, 5}, {0, 0, 0}, {0, 1, 0}, "--camera"));
-  // Far from the origin (LiDAR coordinates), a 1 m view is still a view.
-  EXPECT_NO_THROW(checkView({636000, 848000, 500}, {636000, 848001, 500}, {0, 0, 1}, "--camera"));
-  const double nan = std::nan("");
-  EXPECT_THROW(checkView({nan, 0, 5}, {0, 0, 0}, {0, 1, 0}, "--camera"), UsageError);
-  EXPECT_THROW(checkView({1, 2, 3}, {1, 2, 3}, {0, 1, 0}, "--camera"), UsageError);
-  EXPECT_THROW(checkView({0, 0, 5}, {0, 0, 0}, {0, 0, 0}, "--camera"), UsageError);
-  EXPECT_THROW(checkView({0, 0, 5}, {0, 0, 0}, {0, 0, 2}, "--camera"), UsageError);
-  EXPECT_THROW(checkView({0, 0, 5}, {0, 0, 0}, {0, 0, -1}, "--camera"), UsageError);
-}
-
 TEST(FileChecks, TheSameFileByAnyPath) {
   test::TempDir dir;
   const auto a = dir / "a.las";

@@ -13,9 +13,9 @@
 #include <glm/gtc/matrix_transform.hpp>
 #include <glm/gtc/type_ptr.hpp>
 
-#include <tessera/master/annotation_db.h>
-#include <tessera/master/annotation_scene.h>
-#include <tessera/master/console_notes.h>
+#include <tessera/annotate/annotation_db.h>
+#include <tessera/annotate/annotation_scene.h>
+#include <tessera/interact/console_notes.h>
 #include <tessera/render/clip_planes.h>
 #include <tessera/render/scene_draw_list.h>
 #include <tessera/render/image.h>
@@ -28,7 +28,8 @@
 namespace {
 
 namespace fs = std::filesystem;
-using namespace tessera::master;
+using namespace tessera::annotate;
+using namespace tessera::interact;
 using tessera::sync::SceneGraph;
 using tessera::test::Process;
 

@@ -14,8 +14,8 @@
 #include <tessera/lod/mesh.h>
 #include <tessera/lod/mesh_store.h>
 #include <tessera/lod/point_store.h>
-#include <tessera/master/lazy_snapping.h>
-#include <tessera/master/selection.h>
+#include <tessera/annotate/lazy_snapping.h>
+#include <tessera/annotate/selection.h>
 
 #include "snapping_models.h"
 
@@ -28,7 +28,7 @@ namespace tessera::test {
 class EarLabels {
  public:
   explicit EarLabels(const std::filesystem::path& data_dir) {
-    mSamples = master::surfaceFromMesh(lod::readMesh(bunnyMeshPath(data_dir)));
+    mSamples = annotate::surfaceFromMesh(lod::readMesh(bunnyMeshPath(data_dir)));
     mEar = bunnyEar(mSamples);
     for (uint32_t i = 0; i < mSamples.size(); ++i)
       if (!mSamples.neighboursOf(i).empty()) mGrid[key(cell(mSamples.positions[i]))].push_back(i);
@@ -56,7 +56,7 @@ class EarLabels {
         }
     return ear && other ? -1 : out;
   }
-  const master::SurfaceSamples& samples() const { return mSamples; }
+  const annotate::SurfaceSamples& samples() const { return mSamples; }
 
  private:
   static constexpr double kReach = 0.002;
@@ -65,14 +65,14 @@ class EarLabels {
     return (int64_t(c.x) & 0xfffff) | (int64_t(c.y) & 0xfffff) << 20 |
            (int64_t(c.z) & 0xfffff) << 40;
   }
-  master::SurfaceSamples mSamples;
+  annotate::SurfaceSamples mSamples;
   std::vector<uint8_t> mEar;
   std::unordered_map<int64_t, std::vector<uint32_t>> mGrid;
 };
 
 /// IoU of a selection of a mesh store's leaf triangles against the ear: the triangles whose
 /// three vertices are the ear's.
-inline double earIoU(const lod::MeshStore& store, const master::Selection& sel,
+inline double earIoU(const lod::MeshStore& store, const annotate::Selection& sel,
                      const EarLabels& ear) {
   std::vector<uint8_t> got, want;
   for (lod::NodeId id = 0; id < store.nodeCount(); ++id) {
@@ -87,12 +87,12 @@ inline double earIoU(const lod::MeshStore& store, const master::Selection& sel,
       got.push_back(sel.contains(id, t));
     }
   }
-  return master::intersectionOverUnion(got, want);
+  return annotate::intersectionOverUnion(got, want);
 }
 
 /// IoU of a selection of a point store's leaf points against the ear (points with no
 /// reconstruction vertex within 2 mm, scan noise, left out).
-inline double earIoU(lod::PointStore& store, const master::Selection& sel, const EarLabels& ear) {
+inline double earIoU(lod::PointStore& store, const annotate::Selection& sel, const EarLabels& ear) {
   std::vector<uint8_t> got, want;
   std::vector<lod::NodeId> stack{store.root()};
   while (!stack.empty()) {
@@ -110,12 +110,12 @@ inline double earIoU(lod::PointStore& store, const master::Selection& sel, const
       got.push_back(sel.contains(id, k));
     }
   }
-  return master::intersectionOverUnion(got, want);
+  return annotate::intersectionOverUnion(got, want);
 }
 
 /// A selection payload's elements.
-inline master::Selection selectionOf(const std::string& bytes) {
-  return master::Selection::deserialize(
+inline annotate::Selection selectionOf(const std::string& bytes) {
+  return annotate::Selection::deserialize(
       {reinterpret_cast<const uint8_t*>(bytes.data()), bytes.size()});
 }
 

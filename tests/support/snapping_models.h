@@ -13,12 +13,12 @@
 #include <glm/gtc/matrix_transform.hpp>
 
 #include <tessera/lod/mesh.h>
-#include <tessera/master/lazy_snapping.h>
+#include <tessera/annotate/lazy_snapping.h>
 
 namespace tessera::test {
 
-using master::ScreenView;
-using master::SurfaceSamples;
+using annotate::ScreenView;
+using annotate::SurfaceSamples;
 
 /// A UV sphere of radius 1 with `rings` latitude rings; vertices with z > 0.5 (the cap) are
 /// red, the rest blue, each channel with uniform noise of +-20.
@@ -139,7 +139,7 @@ inline std::vector<glm::dvec2> earOutline(const SurfaceSamples& s, const std::ve
                                           const ScreenView& view) {
   std::vector<glm::dvec2> p;
   for (uint32_t i = 0; i < s.size(); ++i)
-    if (ear[i] && visible[i]) p.push_back(master::project(view, s.positions[i]).pixel);
+    if (ear[i] && visible[i]) p.push_back(annotate::project(view, s.positions[i]).pixel);
   std::sort(p.begin(), p.end(),
             [](auto a, auto b) { return a.x < b.x || (a.x == b.x && a.y < b.y); });
   if (p.size() < 3) return p;

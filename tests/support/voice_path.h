@@ -19,14 +19,14 @@
 #include <string>
 #include <vector>
 
-#include <tessera/collab/voice_codec.h>
-#include <tessera/collab/voice_jitter_buffer.h>
-#include <tessera/collab/voice_packet.h>
-#include <tessera/collab/voice_wav.h>
+#include <tessera/media/voice_codec.h>
+#include <tessera/media/voice_jitter_buffer.h>
+#include <tessera/media/voice_packet.h>
+#include <tessera/media/voice_wav.h>
 
 namespace tessera::test {
 
-using collab::kVoiceRate;
+using media::kVoiceRate;
 
 /// A sine of `hz`, `seconds` long, peak `amplitude` (full scale 1).
 inline std::vector<float> tone(double hz, double seconds, float amplitude = 0.3f) {
@@ -96,7 +96,7 @@ inline std::vector<float> syntheticSpeech(double seconds, uint32_t seed = 7) {
   return x;
 }
 
-/// A sentence spoken by espeak-ng (Debian espeak-ng), resampled to 48 kHz by collab::readWav;
+/// A sentence spoken by espeak-ng (Debian espeak-ng), resampled to 48 kHz by media::readWav;
 /// std::nullopt when espeak-ng is not installed.
 inline std::optional<std::vector<float>> espeakSpeech(const std::filesystem::path& wav,
                                                       const std::string& sentence) {
@@ -104,7 +104,7 @@ inline std::optional<std::vector<float>> espeakSpeech(const std::filesystem::pat
   const std::string command =
       "espeak-ng -w '" + wav.string() + "' '" + sentence + "' >/dev/null 2>&1";
   if (std::system(command.c_str()) != 0) return std::nullopt;
-  return collab::readVoiceWav(wav);
+  return media::readVoiceWav(wav);
 }
 
 struct NetworkModel {
@@ -116,8 +116,8 @@ struct NetworkModel {
 };
 
 struct VoicePathOptions {
-  collab::VoiceSettings codec;
-  collab::JitterBufferSettings buffer;
+  media::VoiceSettings codec;
+  media::JitterBufferSettings buffer;
   double tick_s = 0.010;  ///< the playout device's period
   /// Called with each packet's bytes as sent; returns what the network carries instead (the
   /// packet, changed, or with garbage around it: tests of corrupt packets).
@@ -130,8 +130,8 @@ struct VoicePath {
   /// The played frames put back at the sender timestamps they stand for (inserted frames left
   /// out): the sent signal delayed by the codec's lookahead, where the path delivered it.
   std::vector<float> in_sender_time;
-  collab::JitterStats stats;
-  std::vector<collab::PlayedFrame> history;
+  media::JitterStats stats;
+  std::vector<media::PlayedFrame> history;
   int lookahead = 0;
   size_t frames_sent = 0, packets_sent = 0, packets_lost = 0, packets_refused = 0;
   size_t payload_bytes = 0;
@@ -146,7 +146,7 @@ inline VoicePath runVoicePath(std::span<const float> signal, const NetworkModel&
   constexpr uint16_t kFirstSequence = 65500;
   constexpr uint32_t kFirstTimestamp = 0xFFFF0000u;
   VoicePath out;
-  collab::VoiceSender sender(options.codec, 3, kFirstSequence, kFirstTimestamp);
+  media::VoiceSender sender(options.codec, 3, kFirstSequence, kFirstTimestamp);
   out.lookahead = sender.encoder().lookahead();
   const size_t frame = size_t(sender.frameSamples());
   std::vector<float> padded(signal.begin(), signal.end());
@@ -164,7 +164,7 @@ inline VoicePath runVoicePath(std::span<const float> signal, const NetworkModel&
     auto bytes = sender.send(std::span<const float>(padded).subspan(at, frame));
     if (!bytes) continue;
     out.packets_sent += 1;
-    out.payload_bytes += bytes->size() - collab::kVoiceHeaderBytes;
+    out.payload_bytes += bytes->size() - media::kVoiceHeaderBytes;
     const double sent = double(at + frame) / kVoiceRate;  // the frame is whole when captured
     std::vector<std::vector<uint8_t>> carried;
     if (options.tamper)
@@ -186,9 +186,9 @@ inline VoicePath runVoicePath(std::span<const float> signal, const NetworkModel&
   std::stable_sort(arrivals.begin(), arrivals.end(),
                    [](const Arrival& a, const Arrival& b) { return a.at < b.at; });
 
-  collab::JitterBufferSettings buffer = options.buffer;
+  media::JitterBufferSettings buffer = options.buffer;
   buffer.record = true;
-  collab::JitterBuffer receiver(buffer);
+  media::JitterBuffer receiver(buffer);
   const size_t block = size_t(options.tick_s * kVoiceRate);
   const double end = double(padded.size()) / kVoiceRate + 1.0;
   size_t next = 0;
@@ -196,8 +196,8 @@ inline VoicePath runVoicePath(std::span<const float> signal, const NetworkModel&
   // The device's clock runs at its own phase against the sender's frames.
   for (double t = 0.0037; t < end; t += options.tick_s) {
     for (; next < arrivals.size() && arrivals[next].at <= t; ++next) {
-      collab::VoicePacket packet;
-      if (collab::decodeVoicePacket(arrivals[next].bytes, packet)) {
+      media::VoicePacket packet;
+      if (media::decodeVoicePacket(arrivals[next].bytes, packet)) {
         out.packets_refused += 1;
         continue;
       }
@@ -210,8 +210,8 @@ inline VoicePath runVoicePath(std::span<const float> signal, const NetworkModel&
   out.stats = receiver.stats();
   out.history = receiver.history();
   out.in_sender_time.assign(padded.size() + size_t(out.lookahead), 0.0f);
-  for (const collab::PlayedFrame& f : out.history) {
-    if (f.kind == collab::PlayedFrame::Kind::kInserted) continue;
+  for (const media::PlayedFrame& f : out.history) {
+    if (f.kind == media::PlayedFrame::Kind::kInserted) continue;
     const size_t at = uint32_t(f.timestamp - kFirstTimestamp);
     for (int i = 0; i < f.samples; ++i)
       if (at + size_t(i) < out.in_sender_time.size() && f.output + size_t(i) < out.played.size())

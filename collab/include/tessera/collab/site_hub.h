@@ -110,7 +110,7 @@ class SiteHub final : public master::Participants {
 
   /// The annotation database the sites' SiteNote edits go to (not owned; null: refused with
   /// a reason). Master::annotations().
-  void setAnnotations(master::AnnotationScene* notes);
+  void setAnnotations(annotate::AnnotationScene* notes);
 
  private:
   struct Impl;

@@ -6,7 +6,7 @@
 
 #include <string>
 
-#include <tessera/master/annotation_scene.h>
+#include <tessera/annotate/annotation_scene.h>
 #include <tessera/site.pb.h>
 #include <tessera/sync/scene_graph.h>
 
@@ -16,7 +16,7 @@ namespace tessera::collab {
 /// the answer says so. Every refusal (unknown item, stale revision, a layer path or URI the
 /// database refuses) is an answer with ok false and the reason; nothing throws, and a refused
 /// edit changes neither the database nor the scene.
-site::SiteNoteAnswer applySiteNote(master::AnnotationScene* notes, sync::SceneGraph& graph,
+site::SiteNoteAnswer applySiteNote(annotate::AnnotationScene* notes, sync::SceneGraph& graph,
                                    const std::string& author, const site::SiteNote& note);
 
 }  // namespace tessera::collab

@@ -12,7 +12,7 @@
 #include <string>
 
 #include <tessera/collab/site_client.h>
-#include <tessera/collab/video_codec.h>
+#include <tessera/media/video_codec.h>
 #include <tessera/site.pb.h>
 
 namespace tessera::collab {
@@ -52,7 +52,7 @@ struct SiteSessionOptions {
   /// sent from the welcome on as H.264 (video_codec.h); "" : none. Other sites' insets are
   /// decoded and drawn when they are in view.
   std::string video;
-  VideoSettings video_settings;
+  media::VideoSettings video_settings;
 };
 
 /// A site script from a file, checked: fps in (0, 240], a view of 16..8192 pixels, fovy in

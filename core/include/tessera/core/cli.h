@@ -126,11 +126,6 @@ glm::dvec3 parseVec3(const std::string& text, const std::string& option);
 /// As parseVec3, each component in [lo, hi] (a colour: 0, 1).
 glm::dvec3 parseVec3(const std::string& text, const std::string& option, double lo, double hi);
 
-/// Throws UsageError naming `option` unless eye, target and up make a view: finite, the eye
-/// away from the target, up non-zero and not parallel to the view direction.
-void checkView(const glm::dvec3& eye, const glm::dvec3& target, const glm::dvec3& up,
-               const std::string& option);
-
 /// Throws UsageError when `output` is, by any path (symlinks, "./", hard links: the same
 /// device and inode), one of `inputs`: "OPTION OUTPUT: is the input INPUT; refusing to write
 /// over an input". Inputs that do not exist are ignored; call before anything is written.

@@ -24,7 +24,7 @@
 #include <string>
 #include <vector>
 
-#include <tessera/master/annotation_scene.h>
+#include <tessera/annotate/annotation_scene.h>
 #include <tessera/master/script_player.h>
 #include <tessera/master/tile_table.h>
 #include <tessera/sync/cluster_link.h>
@@ -104,7 +104,7 @@ class Master {
 
   /// The annotation database as part of the scene (after prepare(); null without
   /// --annotations). Sites' note requests go through it.
-  AnnotationScene* annotations() { return mAnnotations.get(); }
+  annotate::AnnotationScene* annotations() { return mAnnotations.get(); }
 
   /// Remote participants that join the session (not owned; must outlive run()).
   void setParticipants(Participants* participants) { mParticipants = participants; }
@@ -135,7 +135,7 @@ class Master {
   std::unique_ptr<TileTable> mTiles;
   sync::SceneGraph mGraph;
   std::optional<ScriptPlayer> mPlayer;
-  std::unique_ptr<AnnotationScene> mAnnotations;
+  std::unique_ptr<annotate::AnnotationScene> mAnnotations;
   std::unique_ptr<Console> mConsole;
   Participants* mParticipants = nullptr;
   std::unique_ptr<std::ofstream> mCsv;

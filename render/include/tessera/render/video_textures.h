@@ -1,4 +1,4 @@
-// Video insets (issue 14) on a view: one receiver (collab/video_packet.h: assembler, H.264
+// Video insets on a view: one receiver (media/video_packet.h: assembler, H.264
 // decoder, the policy that keeps the picture good) and one RGBA texture per remote site's
 // stream. Render nodes feed it the video packets of each frame message, the console and sites
 // those the master forwards; the scene overlay (scene_overlay.h) draws the textures on the
@@ -19,7 +19,7 @@
 #include <span>
 #include <string>
 
-#include <tessera/collab/video_packet.h>
+#include <tessera/media/video_packet.h>
 #include <tessera/render/gl_objects.h>
 
 namespace tessera::render {
@@ -55,7 +55,7 @@ class VideoTextures {
 
  private:
   struct Stream {
-    collab::VideoReceiver receiver;
+    media::VideoReceiver receiver;
     GlTexture texture;
     uint64_t uploaded = 0;  // the receiver's generation in the texture
   };
