@@ -1,4 +1,4 @@
-// bench/annotation_db: the annotation database on this machine's disk (issue 16).
+// bench/annotation_db: the annotation database on this machine's disk.
 //
 //  1. Writes per second with durability on: one item added and committed per acknowledged edit
 //     with synchronous=FULL in WAL mode (what AnnotationDb does; each commit waits for fsync of

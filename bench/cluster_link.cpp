@@ -1,4 +1,4 @@
-// bench/cluster_link: the cluster link's cost and its behaviour under faults (issue 11).
+// bench/cluster_link: the cluster link's cost and its behaviour under faults.
 //
 //  1. Frame overhead: what a frame costs beyond rendering (the master's frame time minus the
 //     slowest node's render time: take the frame, send it, collect the reports, release the

@@ -1,4 +1,4 @@
-// edl: eye-dome lighting without speckle (issue 12), on the 10^8-point virtual bunny scan, in one
+// edl: eye-dome lighting without speckle, on the 10^8-point virtual bunny scan, in one
 // run on one context with today's method as the baseline. Four depth planes are rendered once
 // (every leaf, and lod-px 1; each at the bench camera and 0.1 degree of orbit further); then for
 // each EDL method and setting, on copies of those planes:
@@ -26,6 +26,7 @@
 
 #include <tessera/core/cli.h>
 #include <tessera/core/stopwatch.h>
+#include <tessera/render/pass_timing.h>
 #include <tessera/render/gl_context.h>
 #include <tessera/render/view_renderer.h>
 
@@ -93,6 +94,7 @@ render::ViewSetup orbitView(double degrees, uint32_t w, uint32_t h) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  tessera::render::timePasses(true);  // the per-pass figures
   CLI::App app{"edl: eye-dome lighting's accuracy across LOD levels and its flicker, by method"};
   bench::StoreInputs input;
   input.addOptions(app);

@@ -1,4 +1,4 @@
-// fill: what closing surfaces costs (issue 12), discs against the pull-push fill (Marroquim,
+// fill: what closing surfaces costs, discs against the pull-push fill (Marroquim,
 // Kraus, Cavalcanti 2007; FillPass), in one process on one context, at 1920x1080, on
 //   cube    10^7 points uniformly random in the unit cube (tests/support/random_cube.h), the
 //           camera of bench/paraview_peer, one grey (the depth pass alone);
@@ -32,6 +32,7 @@
 #include <glm/gtc/matrix_transform.hpp>
 
 #include <tessera/core/stopwatch.h>
+#include <tessera/render/pass_timing.h>
 #include <tessera/render/gl_context.h>
 #include <tessera/render/view_renderer.h>
 
@@ -121,6 +122,7 @@ struct Result {
 }  // namespace
 
 int main(int argc, char** argv) {
+  tessera::render::timePasses(true);  // the per-pass figures
   CLI::App app{"fill: discs against 1 px points and the pull-push fill, cost and accuracy"};
   bench::StoreInputs input;
   input.points = 10'000'000;

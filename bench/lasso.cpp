@@ -1,5 +1,5 @@
-// lasso: lasso selection time against store size (issue 16: 10^6 to 10^8 points, goal at most
-// 2 s at 10^8 on this machine), the hierarchy's pruning (master/lasso_selection.h) against the
+// lasso: lasso selection time against store size (10^6 to 10^8 points, goal at most
+// 2 s at 10^8 on this machine), the hierarchy's pruning (annotate/lasso_selection.h) against the
 // baseline that reads every leaf and tests every point with the same point test, in one process.
 //
 // Input: a scan-like surface, points on a wavy height field over a square (what terrain LiDAR
@@ -157,7 +157,7 @@ uint64_t bruteForce(lod::PointStore& store, const annotate::LassoProjector& proj
 
 int main(int argc, char** argv) {
   return cli::runMain("lasso", [&]() -> int {
-    CLI::App app{"lasso: lasso selection time against store size (issue 16)"};
+    CLI::App app{"lasso: lasso selection time against store size"};
     std::string out = TESSERA_BENCH_RESULTS_DIR;
     std::string cache;
     std::vector<uint64_t> sizes = {1'000'000, 10'000'000};
@@ -266,7 +266,7 @@ int main(int argc, char** argv) {
           [](const lod::PointStore& st) { return st.summary().origin; });
     }
     csv.close();
-    // The same surface as meshes of 10^6 and 10^7 triangles (issue 16: selection on models of
+    // The same surface as meshes of 10^6 and 10^7 triangles (selection on models of
     // 10^7 triangles), the lasso testing the leaf triangles' centroids.
     const fs::path mesh_csv_path = fs::path(out) / "lasso_mesh.csv";
     std::ofstream mesh_csv(mesh_csv_path);

@@ -1,6 +1,6 @@
 // lazy_snapping: 3D lazy snapping's time and accuracy (IoU against known labels) against the
 // number of strokes and against the model's size, with the baseline of a per-sample graph cut
-// (no over-segmentation) in the same run (issue 16, thesis 4.2).
+// (no over-segmentation) in the same run (thesis 4.2).
 //   strokes  the Stanford bunny's ear (tests/support/snapping_models.h): one stroke on the ear
 //            and one on the head, then a simulated user adds one corrective dab at a time on
 //            the largest visible error (the visible sample with the most wrong samples within
@@ -8,10 +8,10 @@
 //   size     a UV sphere with a red cap in blue (10^3.7 .. 10^6 vertices), one stroke per side.
 //   lasso    the robust lasso (4.3.1) on the bunny's ear: a heavy stroke along the ear's outline
 //            on the screen (the convex hull of its projected vertices), 16 pixels wide.
-//   tool     the snap tool end to end (master/snap_tool.h: gather the leaves the view shows,
+//   tool     the snap tool end to end (interact/snap_tool.h: gather the leaves the view shows,
 //            cut, map back to leaf elements, region mask) on stores of two sizes each, the
 //            bunny's reconstruction at 1/16 and full resolution as mesh stores and one scan and
-//            all ten as point stores, against the lasso (master/select_tool.h lassoSelection(),
+//            all ten as point stores, against the lasso (interact/select_tool.h lassoSelection(),
 //            one thread) drawn around the ear's outline in the same view; IoU of the elements
 //            against the ear (tests/support/ear_labels.h).
 // Prints CSV; writes OUT/lazy_snapping.csv, OUT/lazy_snapping.png (chart),
@@ -35,6 +35,7 @@
 #include <tessera/lod/store_builder.h>
 #include <tessera/annotate/lazy_snapping.h>
 #include <tessera/interact/snap_tool.h>
+#include <tessera/render/pass_timing.h>
 #include <tessera/render/view_renderer.h>
 
 #include "../tests/support/ear_labels.h"
@@ -515,6 +516,7 @@ void drawBunny(const fs::path& out, const SurfaceSamples& s, const std::vector<u
 }  // namespace
 
 int main(int argc, char** argv) {
+  tessera::render::timePasses(true);  // the per-pass figures
   CLI::App app{
       "lazy_snapping: time and IoU of 3D lazy snapping against strokes (the bunny's ear) and "
       "model size (capped spheres), segments against one node per sample. Prints CSV; writes "

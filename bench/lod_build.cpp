@@ -3,7 +3,7 @@
 // bunny, next to a plain read of the same inputs in the same run (the ceiling a build can reach).
 // Each build runs in a child process so its peak RSS is its own. Prints CSV on stdout, writes
 // OUT/lod_build.csv and draws OUT/lod_build.png with gnuplot.
-// Goals (issue 3): >= 3 M points/s end to end with --memory-mb 2048 and peak RSS < 2.5 GB,
+// Goals: >= 3 M points/s end to end with --memory-mb 2048 and peak RSS < 2.5 GB,
 // <= 3.5 bytes/point for position + RGB, >= 100 M points/s decoding on 2 cores.
 #include <sys/resource.h>
 #include <sys/wait.h>

@@ -1,6 +1,6 @@
-// Measuring (issue 16), speed against accuracy, each against its baseline in one process:
-//  - pick latency: the full-resolution pick (master/surface_pick.h, down to the leaves) against
-//    the view-level pick the navigation uses (master/point_pick.h), on the Autzen LiDAR built
+// Measuring, speed against accuracy, each against its baseline in one process:
+//  - pick latency: the full-resolution pick (interact/surface_pick.h, down to the leaves) against
+//    the view-level pick the navigation uses (interact/point_pick.h), on the Autzen LiDAR built
 //    with exact leaves, over random rays looking down at the ground; also how far each lands
 //    from the real input point nearest the ray (the accuracy the refinement buys);
 //  - area: time and error of surfaceArea() against its refinement levels on a spherical cap (48

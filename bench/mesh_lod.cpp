@@ -1,4 +1,4 @@
-// mesh_lod: the mesh patch hierarchy (issue 15), build and drawing, in one process.
+// mesh_lod: the mesh patch hierarchy, build and drawing, in one process.
 //
 // Build, against the patch-LOD thesis' timings (../shared/papers/patch-lod-annotation-thesis.txt,
 // Table 6.3.1: the bunny, 69,451 triangles, in 13.1 s; its largest, Kawara, 5.59 M, in 1595 s):
@@ -35,6 +35,7 @@
 #include <tessera/core/cli.h>
 #include <tessera/lod/mesh.h>
 #include <tessera/lod/mesh_builder.h>
+#include <tessera/render/pass_timing.h>
 #include <tessera/render/gl_context.h>
 #include <tessera/render/mesh_pass.h>
 #include <tessera/render/tile_frustum.h>
@@ -159,8 +160,9 @@ constexpr double kThesisLargeRate = 5593696.0 / 1595.0;
 }  // namespace
 
 int main(int argc, char** argv) {
+  tessera::render::timePasses(true);  // the per-pass figures
   return cli::runMain("mesh_lod", [&]() -> int {
-    CLI::App app{"mesh_lod: the mesh patch hierarchy's build and drawing (issue 15)"};
+    CLI::App app{"mesh_lod: the mesh patch hierarchy's build and drawing"};
     std::string out = TESSERA_BENCH_RESULTS_DIR;
     int levels = 4;
     std::string size = "1920x1080";

@@ -1,4 +1,4 @@
-// paraview_peer: Tessera against the peer a user would pick instead (issue 12): ParaView 5.11's
+// paraview_peer: Tessera against the peer a user would pick instead: ParaView 5.11's
 // pvbatch drawing 1 px OpenGL points, on the same 10^7 and 5x10^7 points uniformly random in the
 // unit cube, from the same camera (ParaView's reset camera: the bounding sphere fills the 30
 // degree view, looking along (1, -0.8, 0.6)), 1920x1080, on this machine, runs interleaved
@@ -42,6 +42,7 @@
 #include <tessera/core/stopwatch.h>
 #include <tessera/lod/point_writer.h>
 #include <tessera/lod/store_builder.h>
+#include <tessera/render/pass_timing.h>
 #include <tessera/render/gl_context.h>
 #include <tessera/render/view_renderer.h>
 
@@ -284,6 +285,7 @@ void chart(const fs::path& out) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  tessera::render::timePasses(true);  // the per-pass figures
   CLI::App app{"paraview_peer: Tessera against ParaView pvbatch on random points in a cube"};
   std::string out = TESSERA_BENCH_RESULTS_DIR;
   std::vector<uint64_t> sizes{10'000'000, 50'000'000};

@@ -1,5 +1,5 @@
 // render_lod: the renderer's speed against its accuracy on the 10^8-point virtual bunny scan
-// (issue 4), in one run on one context:
+//, in one run on one context:
 //  (1) lod-px in {0.5, 1, 2, 4, 8}: frame time (all chunks resident) and PSNR to the
 //      full-resolution image (every leaf drawn), with points drawn and GPU bytes resident;
 //  (2) the 2x2 wall (configs/walls/2x2.json): per tile, with its own streamer as a wall node
@@ -17,6 +17,7 @@
 #include <CLI/CLI.hpp>
 #include <glm/gtc/matrix_transform.hpp>
 
+#include <tessera/render/pass_timing.h>
 #include <tessera/render/gl_context.h>
 #include <tessera/render/view_renderer.h>
 #include <tessera/sync/config.h>
@@ -60,6 +61,7 @@ Measure measure(std::span<const render::ModelInstance> models, const render::Vie
 }  // namespace
 
 int main(int argc, char** argv) {
+  tessera::render::timePasses(true);  // the per-pass figures
   CLI::App app{"render_lod: frame time against PSNR for LOD thresholds; per-tile cost of a wall"};
   bench::StoreInputs in;
   std::string wall_path = TESSERA_CONFIG_DIR "/walls/2x2.json";

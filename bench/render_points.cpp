@@ -1,5 +1,5 @@
 // render_points: the point pass against its baselines, in one run, on one context, with the same
-// resident points at 1920x1080 (issue 4): (a) bare GL_POINTS into a depth-tested framebuffer,
+// resident points at 1920x1080: (a) bare GL_POINTS into a depth-tested framebuffer,
 // (b) a bare compute atomicMin scatter (one pass, one pixel per point), (c) the renderer's point
 // pass (PointPass: depth pass, colour pass; then ResolvePass). Points come from a .tlod store's
 // leaves. Prints CSV, writes OUT/render_points.csv and OUT/render_points.png.

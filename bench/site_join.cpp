@@ -1,4 +1,4 @@
-// bench/site_join: how long a remote site takes to join and see the scene (issue 13, "chunks on
+// bench/site_join: how long a remote site takes to join and see the scene ("chunks on
 // demand"): the snapshot's bytes, the time to its first image and to a settled view (the whole
 // cut of its view resident), with the stores on the site's host against chunks fetched from the
 // master's chunk server into an empty cache over a link throttled by the server to 100, 20 and

@@ -1,4 +1,4 @@
-// bench/sites: what remote sites cost the wall and how fast their poses reach it (issue 13).
+// bench/sites: what remote sites cost the wall and how fast their poses reach it.
 //
 //  1. The master's frame rate with 0, 4 and 16 sites (goal: 16 sites cost at most 10%). The
 //     wall is one tessera-node tile (640x360); the sites are K real site connections (CURVE,
@@ -62,6 +62,7 @@
 #include <tessera/core/cli.h>
 #include <tessera/lod/point_store.h>
 #include <tessera/lod/store_builder.h>
+#include <tessera/render/pass_timing.h>
 #include <tessera/render/gl_context.h>
 #include <tessera/render/scene_draw_list.h>
 #include <tessera/render/scene_overlay.h>
@@ -470,6 +471,7 @@ std::vector<std::array<double, 2>> masterWork(const std::vector<int>& counts) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  tessera::render::timePasses(true);  // the per-pass figures
   return tessera::cli::runMain("sites", [&]() -> int {
     CLI::App app{"bench/sites: the master's frame rate with remote sites, pose latency, bytes"};
     double seconds = 12.0;

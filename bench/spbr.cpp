@@ -1,5 +1,5 @@
 // spbr: see-through rendering (stochastic point-based rendering, Tanaka et al. 2016) measured,
-// all in one run on one context (issue 5):
+// all in one run on one context:
 //  figure5   the paper's Figure 5: a white plane of n_raw uniformly random points parallel to the
 //            image, black background, 512x512, alpha 0.05..0.95: mean intensity and its standard
 //            deviation against 255 alpha, for n_raw = 10^6 and 4 x 10^6 (L = 64);
@@ -32,6 +32,7 @@
 
 #include <tessera/lod/point_writer.h>
 #include <tessera/lod/store_builder.h>
+#include <tessera/render/pass_timing.h>
 #include <tessera/render/gl_context.h>
 #include <tessera/render/reference_compositor.h>
 #include <tessera/render/view_renderer.h>
@@ -675,6 +676,7 @@ void breaks(const fs::path& out) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  tessera::render::timePasses(true);  // the per-pass figures
   CLI::App app{
       "spbr: see-through rendering: Figure 5, accuracy against an exact compositor, "
       "speed, and where it breaks"};

@@ -1,4 +1,4 @@
-// splat_sizes: closing scanned surfaces on close views (issue 12), in one run on one context
+// splat_sizes: closing scanned surfaces on close views, in one run on one context
 // against the baseline of discs sized by the node's mean spacing. Two real scans seen close: the
 // Stanford bunny's range scans (a close-up of the back) and Autzen's airborne LiDAR (the issue's
 // close view of the ground, whose scan lines lie several spacings apart). For each method:
@@ -30,6 +30,7 @@
 #include <tessera/core/cli.h>
 #include <tessera/lod/point_store.h>
 #include <tessera/lod/store_cache.h>
+#include <tessera/render/pass_timing.h>
 #include <tessera/render/chunk_streamer.h>
 #include <tessera/render/gl_context.h>
 #include <tessera/render/image.h>
@@ -106,6 +107,7 @@ std::vector<uint8_t> footprint(const std::vector<uint32_t>& depth, const render:
 }  // namespace
 
 int main(int argc, char** argv) {
+  tessera::render::timePasses(true);  // the per-pass figures
   CLI::App app{
       "splat_sizes: open pixels and frame time on close views of real scans, splats sized by "
       "the node's spacing against each point's own"};

@@ -1,7 +1,7 @@
 // sync_bytes: bytes on the wire per serialized frame (scene::Frame, what the master broadcasts
 // each frame) and per snapshot (what a late joiner receives), for scenes of 10 to 10^4 nodes.
 // Cases per scene: nothing changed; a camera-only change, eye, target and roll all moving (goal
-// from issue 6: <= 64 bytes); the camera plus one opacity change (goal: adds <= 32 bytes); a few
+// goal: <= 64 bytes); the camera plus one opacity change (goal: adds <= 32 bytes); a few
 // changes (camera, 3 opacities, a visibility, a georeferenced transform); the whole scene as a
 // snapshot. Frames are numbered as an hour into a 60 Hz session (frame 216000), so the varint
 // headers are not flattered by small numbers. Sizes are deterministic: no timing here. Prints CSV
@@ -27,8 +27,8 @@ using tessera::scene::SceneNode;
 using tessera::sync::SceneGraph;
 
 constexpr const char* kCsvName = "sync_bytes.csv";
-constexpr size_t kCameraGoal = 64;    // issue 6: a camera-only frame
-constexpr size_t kOpacityGoal = 32;   // issue 6: what one opacity change may add
+constexpr size_t kCameraGoal = 64;    // a camera-only frame
+constexpr size_t kOpacityGoal = 32;   // what one opacity change may add
 constexpr uint64_t kFrame = 216'000;  // one hour at 60 Hz
 constexpr uint64_t kFrameUs = 16'667;
 

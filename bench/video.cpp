@@ -1,4 +1,4 @@
-// bench/video: the video insets of issue 14 on this machine.
+// bench/video: the video insets on this machine.
 //
 //  1. Codec cost per stream: the test pattern through the real H.264 encoder (libx264,
 //     ultrafast, zerolatency, intra refresh every 0.5 s, the default caps: 1000 kbit/s at
@@ -37,6 +37,7 @@
 #include <tessera/media/video_packet.h>
 #include <tessera/media/video_pattern.h>
 #include <tessera/core/cli.h>
+#include <tessera/render/pass_timing.h>
 #include <tessera/render/image.h>
 
 #include "../tests/support/process.h"
@@ -216,6 +217,7 @@ LatencyRun glassToGlass(const Size& size, const fs::path& work, const std::strin
 }  // namespace
 
 int main(int argc, char** argv) {
+  tessera::render::timePasses(true);  // the per-pass figures
   return cli::runMain("video", [&] {
     CLI::App app{"video: H.264 inset cost per stream and glass-to-glass latency on loopback"};
     double seconds = 30;

@@ -1,4 +1,4 @@
-// bench/voice: the voice path of issue 14 on this machine, without a sound device.
+// bench/voice: the voice path on this machine, without a sound device.
 //
 //  1. Mouth-to-ear latency against network jitter: a synthetic voice through the real Opus
 //     encoder, a simulated network (20 ms fixed delay plus exponential jitter of 0..40 ms mean),

@@ -1,5 +1,5 @@
 // The body of the annotation import fuzz target and its regression replay: the bytes are a JSON
-// export (master/src/annotation_io.cpp) imported into a fresh database in memory. AnnotationError
+// export (annotate/src/annotation_io.cpp) imported into a fresh database in memory. AnnotationError
 // is the only failure allowed; a file that imports must export, import into another empty
 // database and export again to the same bytes (the exact round trip the format promises).
 #pragma once

@@ -1,6 +1,6 @@
 // The body of the note picture fuzz target and its regression replay: bytes from an image item
 // (a database file or the file it names: outside bytes) decoded and scaled for the wall
-// (master/note_picture.h). std::runtime_error is the only failure allowed; a decoded picture
+// (annotate/note_picture.h). std::runtime_error is the only failure allowed; a decoded picture
 // fits the square it was asked for and holds exactly its pixels.
 #pragma once
 

@@ -302,7 +302,7 @@ seed_wav() {
   wav odd8k.wav 1 8000 101
 }
 
-# Serialised selections (master/selection.h), checksums left zero (the target fixes them): all of
+# Serialised selections (annotate/selection.h), checksums left zero (the target fixes them): all of
 # a node, two ranges, a bitset, and three nodes at once.
 seed_selection() {
   local head='TSEL\x01\x00\x00\x00' sum='\x00\x00\x00\x00\x00\x00\x00\x00'

@@ -1,6 +1,6 @@
 // The check the selection fuzz target makes, shared with its regression replay
 // (tests/master/lasso_selection_test.cpp): bytes read as a serialised selection
-// (master/selection.h), as given and with the checksum fixed so the structure checks are
+// (annotate/selection.h), as given and with the checksum fixed so the structure checks are
 // reached. A SelectionError is the only failure allowed; bytes that pass must serialise back to
 // themselves (the form is canonical).
 #pragma once

@@ -1,4 +1,4 @@
-// libFuzzer target: bytes read as a serialised selection (master/selection.h), as given and with
+// libFuzzer target: bytes read as a serialised selection (annotate/selection.h), as given and with
 // the checksum fixed (selection_fuzz.h).
 #include "selection_fuzz.h"
 

@@ -1,4 +1,4 @@
-// libFuzzer target: video packets from outside (collab/video_packet.h) as a render node, the
+// libFuzzer target: video packets from outside (media/video_packet.h) as a render node, the
 // console or a site takes them. The bytes are a sequence of records: 2 bytes little-endian
 // length, 1 byte of flags (bit 0: the stream is shown from this packet on, bit 1: not shown),
 // then that many bytes of packet. Each packet is checked (decodeVideoPacket); the ones that pass

@@ -1,4 +1,4 @@
-// libFuzzer target: voice packets from outside (collab/voice_packet.h) as a site's or the
+// libFuzzer target: voice packets from outside (media/voice_packet.h) as a site's or the
 // wall's receiver takes them. The bytes are a sequence of records: 2 bytes little-endian length,
 // 1 byte of arrival delay (units of 2 ms after the previous record's arrival), then that many
 // bytes of packet. Each packet is checked (decodeVoicePacket); the ones that pass go into a jitter

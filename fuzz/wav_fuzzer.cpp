@@ -1,4 +1,4 @@
-// libFuzzer target: WAV files from outside (collab/voice_wav.h) parsed from memory and turned
+// libFuzzer target: WAV files from outside (media/voice_wav.h) parsed from memory and turned
 // into a 48 kHz mono voice stream (mixdown and resampling). A WavError is the only failure
 // allowed.
 #include <cstdint>

@@ -26,6 +26,8 @@ PACKAGES=(
   libprotobuf-dev protobuf-compiler
   # tests and benchmarks
   libgtest-dev libgmock-dev libbenchmark-dev gnuplot-nox
+  # the target graph (scripts/target_graph.sh)
+  graphviz
   # annotations database, mesh LOD, console UI, command line, logging
   libsqlite3-dev libmeshoptimizer-dev libmetis-dev libimgui-dev libcli11-dev libspdlog-dev
   # virtual scanner ray casting, point chunk entropy coding, images

@@ -17,7 +17,7 @@ echo "== tests"
 ctest --preset dev -j"$jobs" --timeout 600
 
 if [ "${TESSERA_SKIP_ASAN:-0}" != 1 ]; then
-  # Decoders of outside bytes also run under AddressSanitizer and UBSan (STYLE.md).
+  # Decoders of outside bytes also run under AddressSanitizer and UBSan.
   # The scene draw list too: a loader decoding into a closed store would be a use-after-free.
   # Voice: packets and WAV files from outside, the jitter buffer and libopus behind them.
   # Annotation: JSON imports and database files from outside.

@@ -1,4 +1,4 @@
-// The highlight pass (screen_passes.h, issue 16): tints the pixels whose surface point, seen
+// The highlight pass (screen_passes.h): tints the pixels whose surface point, seen
 // through the lasso's view, falls inside the lasso. The pixel's NDC (its centre and its depth)
 // goes through uLassoFromNdc (the lasso's clip-from-world times this view's world-from-clip,
 // composed in double on the CPU, so no world coordinate is ever a float) to the lasso's NDC,

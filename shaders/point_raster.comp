@@ -1,4 +1,4 @@
-// Compute-shader point rasterisation (DESIGN.md: GL_POINTS draws ~5 M points/s on llvmpipe, a
+// Compute-shader point rasterisation (GL_POINTS draws ~5 M points/s on llvmpipe, a
 // compute atomicMin scatter ~100 M points/s). Without 64-bit atomics the nearest point wins in
 // two passes over the same points: pass 0 keeps the smallest depth per pixel (atomicMin on the
 // depth's float bits, which order like the floats for depths in [0, 1]); pass 1, among points at
@@ -8,7 +8,7 @@
 // pixels), times the point's own scale on leaves, so surfaces close at every LOD level without
 // fat blobs behind near ones, radius capped at uRadius.
 //
-// Variants (render/src/point_pass.cpp compiles each, STYLE.md: no run-time branch that llvmpipe
+// Variants (render/src/point_pass.cpp compiles each, no run-time branch that llvmpipe
 // would execute on both sides): PASS 0 or 1; ONE_PIXEL 1 when every splat of the dispatch is
 // one pixel (far points, fine levels: no disc code at all).
 #ifndef PASS
@@ -161,7 +161,7 @@ void raster(uint i) {
       // the pixel's nearest so far in its own group. Only a point whose group reaches that of
       // the nearest so far can be among the group: a read tells the others (in a volume of
       // points, most), and the atomic on the depth is taken only by a point nearer than what
-      // the read saw. (Writing only for a point nearer than all before it, as until issue 12's
+      // the read saw. (Writing only for a point nearer than all before it, as the simpler variant did
       // session before last, left ties to the arrival order: 0.0742% or 0.0746% open pixels on
       // Autzen from run to run. Every point took the depth atomic and read the flag, and the
       // group was the top bits of the window depth itself, until the last session: 40-60% more

@@ -1,6 +1,6 @@
 // The resolve pass: each pixel's nearest colour (or its blended points' weighted mean, or the
 // one colour of the frame, or the background where nothing was drawn) into the image, rows flipped so row 0 is the top.
-// MODE (ResolvePass compiles one program each, STYLE.md: no uniform branch that llvmpipe would
+// MODE (ResolvePass compiles one program each: no uniform branch that llvmpipe would
 // run under a mask for every pixel): 0 the nearest colour, 1 the blended points' weighted mean,
 // 2 one colour for the frame (no colour pass ran). The planes are read as texels of buffer views
 // (ResolvePass binds them): llvmpipe gathers texels with vector code where it reads a storage

@@ -1,5 +1,5 @@
 // Buffer bindings and struct layouts shared by the C++ renderer (render/src/*_pass.cpp)
-// and every compute shader here (STYLE.md; niagara's config.h): C++ includes this file, and the
+// and every compute shader here (niagara's config.h): C++ includes this file, and the
 // render library puts it in front of each shader's source (after #version), so a binding or a
 // layout is written once. GLSL's preprocessor takes the #defines; the GLSL structs are guarded
 // by __cplusplus and their C++ twins static_assert the same sizes.
@@ -71,7 +71,7 @@ uint tesseraFillGroup(uint d) {
 // half-width, pixels.
 #define TESSERA_EDL_MAX_FILTER_RADIUS 4
 
-// Clip planes (issue 16; render/clip_planes.h, the scene's CLIP nodes): most planes cutting one
+// Clip planes (render/clip_planes.h, the scene's CLIP nodes): most planes cutting one
 // model. The geometry passes (point_raster, spbr_raster, oit_accumulate, mesh) test each point
 // or fragment in its batch's frame with tesseraClipped(); a program that never sets uClipCount
 // clips nothing. Planes are unit-normal floats in that frame (made in double on the CPU).

@@ -23,7 +23,7 @@
 // Eq. 1 then holds per ensemble for a cover of the surface rather than for one frozen sample of
 // it (with a correction for the cover's regularity, view_renderer.cpp).
 //
-// Variants (PointPass compiles one per combination used; STYLE.md: llvmpipe runs a uniform's
+// Variants (PointPass compiles one per combination used: llvmpipe runs a uniform's
 // branch under a mask even where no lane takes it, so the Gaussian copies' logarithm, sine and
 // cosine cost the default in-cell copies their time while they were switched by uniforms): PASS
 // 0 (depth) or 1 (colour); HAS_CELLS (cells[] centre and weigh each point's copies); IN_CELL

@@ -1,4 +1,4 @@
-// tessera-annotate: the annotation database from the command line (issue 16): list, search,
+// tessera-annotate: the annotation database from the command line: list, search,
 // add, export (CSV, JSON, GeoJSON), import, layers, georef. `tessera-annotate --help` lists
 // them. Exit codes (README, "Exit codes"): 0 success, 1 bad input (a damaged or newer database,
 // a malformed import, a bad query), 2 bad command line, 3 an output could not be written.

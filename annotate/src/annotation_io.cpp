@@ -2,6 +2,8 @@
 
 #include <sqlite3.h>
 
+#include <tessera/core/json_string.h>
+
 #include <algorithm>
 #include <charconv>
 #include <cmath>
@@ -22,12 +24,6 @@ constexpr int kFormatVersion = 2;
 
 std::string vec(const glm::dvec3& v) {
   return "[" + json::number(v.x) + ", " + json::number(v.y) + ", " + json::number(v.z) + "]";
-}
-
-std::string jsonString(std::string_view s) {
-  std::string out;
-  json::appendString(out, s);
-  return out;
 }
 
 std::string viewJson(const StoredView& v, const glm::dvec3& offset = glm::dvec3(0.0)) {

@@ -50,9 +50,6 @@ const char* typeName(Value::Type type);
 /// the size; nesting deeper than `max_depth` is refused (no stack overflow on hostile input).
 Value parse(std::string_view text, int max_depth = 32);
 
-/// Appends `s` as a JSON string: quoted, with ", \ and control characters escaped.
-void appendString(std::string& out, std::string_view s);
-
 /// The shortest decimal text that reads back as exactly `v` (std::to_chars); v must be finite.
 std::string number(double v);
 

@@ -11,6 +11,7 @@
 
 #include <glm/gtc/matrix_transform.hpp>
 
+#include <tessera/core/parallel.h>
 #include <tessera/core/check.h>
 
 namespace tessera::annotate {
@@ -465,10 +466,7 @@ class Lasso {
       }
     };
     threads = std::max(1u, std::min<unsigned>(threads, unsigned(mLeaves.size())));
-    std::vector<std::jthread> pool;
-    for (unsigned t = 1; t < threads; ++t) pool.emplace_back(work);
-    work();
-    pool.clear();  // joins
+    runWorkers(threads, [&](unsigned) { work(); });
     if (failure) std::rethrow_exception(failure);
     for (size_t k = 0; k < mLeaves.size(); ++k) {
       if (results[k].corrupt) {
@@ -500,7 +498,7 @@ class Lasso {
 
 unsigned threadCount(const LassoOptions& o) {
   TESSERA_CHECK(o.threads <= 256, "lasso: at most 256 threads");
-  return o.threads > 0 ? o.threads : std::max(1u, std::thread::hardware_concurrency());
+  return tessera::threadCount(int(o.threads));
 }
 
 }  // namespace

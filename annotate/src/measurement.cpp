@@ -34,7 +34,7 @@ Measurement distance(const SurfacePoint& a, const SurfacePoint& b) {
 }
 
 Measurement polylineLength(std::span<const SurfacePoint> points) {
-  if (points.size() < 2) throw MeasureError("master::polylineLength(): needs at least 2 points");
+  if (points.size() < 2) throw MeasureError("annotate::polylineLength(): needs at least 2 points");
   for (const SurfacePoint& p : points) check(p, "polyline length: a point");
   Measurement m;
   for (size_t i = 0; i + 1 < points.size(); ++i)
@@ -63,7 +63,7 @@ Measurement angle(const SurfacePoint& a, const SurfacePoint& vertex, const Surfa
   const glm::dvec3 u = a.world - vertex.world, v = b.world - vertex.world;
   const double lu = glm::length(u), lv = glm::length(v);
   if (!(lu > 0.0) || !(lv > 0.0))
-    throw MeasureError("master::angle(): an end point coincides with the vertex");
+    throw MeasureError("annotate::angle(): an end point coincides with the vertex");
   // atan2 of |u x v| and u.v keeps precision near 0 and pi, where acos does not.
   const double value = std::atan2(glm::length(glm::cross(u, v)), glm::dot(u, v));
   // Moving an end point sideways by e turns its ray by e / length; the vertex turns both.
@@ -74,13 +74,13 @@ Measurement angle(const SurfacePoint& a, const SurfacePoint& vertex, const Surfa
 
 std::vector<glm::u32vec3> minimumAreaTriangulation(std::span<const glm::dvec3> loop) {
   const size_t n = loop.size();
-  if (n < 3) throw MeasureError("master::minimumAreaTriangulation(): needs at least 3 points");
+  if (n < 3) throw MeasureError("annotate::minimumAreaTriangulation(): needs at least 3 points");
   if (n > kMaxAreaLoop)
-    throw MeasureError("master::minimumAreaTriangulation(): " + std::to_string(n) +
+    throw MeasureError("annotate::minimumAreaTriangulation(): " + std::to_string(n) +
                        " points; at most " + std::to_string(kMaxAreaLoop) +
                        " (resample the loop)");
   for (const glm::dvec3& p : loop)
-    if (!finite(p)) throw MeasureError("master::minimumAreaTriangulation(): a point is not finite");
+    if (!finite(p)) throw MeasureError("annotate::minimumAreaTriangulation(): a point is not finite");
   // W(i, j): the least area spanning the sub-polygon i, i+1, ..., j closed by the chord (i, j);
   // W(i, i+1) = 0 and W(i, j) = min over i < k < j of W(i, k) + W(k, j) + area(i, k, j)
   // (Barequet and Sharir 1995; Liepa 2003 uses the same recurrence to fill holes).
@@ -119,8 +119,8 @@ std::vector<glm::u32vec3> minimumAreaTriangulation(std::span<const glm::dvec3> l
 
 AreaMeasurement surfaceArea(std::span<const SurfacePoint> loop, const SurfaceProjector& project,
                             const AreaOptions& options) {
-  if (loop.size() < 3) throw MeasureError("master::surfaceArea(): needs at least 3 points");
-  if (!project) throw MeasureError("master::surfaceArea(): no surface to measure on");
+  if (loop.size() < 3) throw MeasureError("annotate::surfaceArea(): needs at least 3 points");
+  if (!project) throw MeasureError("annotate::surfaceArea(): no surface to measure on");
   for (const SurfacePoint& p : loop) check(p, "area: a point of the loop");
   AreaMeasurement m;
   m.vertices.reserve(loop.size());

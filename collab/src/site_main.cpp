@@ -1,4 +1,4 @@
-// tessera-site: a remote site of a Tessera session (issue 13). Parses the command line and runs
+// tessera-site: a remote site of a Tessera session. Parses the command line and runs
 // collab::SiteSession (site_session.h); `keygen` makes the CURVE key pairs of sites and masters.
 //   tessera-site keygen -o site.key        # prints the public key for the master's allow list
 //   tessera-site --master tcp://HOST:7401 --master-key MASTER_PUBLIC_KEY|FILE --name "Kyoto lab"

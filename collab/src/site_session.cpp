@@ -219,12 +219,12 @@ struct SiteSession::Impl {
   std::vector<float> tool_px, snap_bg;  // x y pairs: the clicks, the lasso or the snap strokes
   glm::dvec2 press_at{0.0};
   Clock::time_point last_input = Clock::now();
-  // --audio-in / --audio-out (issue 14): its microphone and speaker, clocked from the welcome.
+  // --audio-in / --audio-out: its microphone and speaker, clocked from the welcome.
   std::unique_ptr<media::VoiceStation> station;
   std::unique_ptr<media::AlsaMicrophone> microphone;  // --audio-in alsa:DEVICE
   std::unique_ptr<media::AlsaSpeaker> speaker;        // --audio-out alsa:DEVICE
   Clock::time_point voice_start = Clock::now();
-  // --video (issue 14): its source and sender, paced by the loop; other sites' insets.
+  // --video: its source and sender, paced by the loop; other sites' insets.
   std::unique_ptr<media::VideoSource> video_source;
   std::unique_ptr<media::VideoSender> video_sender;
   media::VideoPicture video_picture;

@@ -104,7 +104,7 @@ MeasureTool::Finished MeasureTool::measure(std::span<const render::ModelInstance
       type = scene::MeasurementPayload::AREA;
       const size_t model = mPoints.front().model;
       if (model >= models.size())
-        throw annotate::MeasureError("master::MeasureTool: the area's model is no longer in the scene");
+        throw annotate::MeasureError("interact::MeasureTool: the area's model is no longer in the scene");
       const render::ModelInstance& instance = models[model];
       const annotate::SurfaceProjector project = instance.mesh ? meshSurfaceProjector(instance)
                                                      : pointSurfaceProjector(instance);

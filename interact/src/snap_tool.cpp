@@ -1,5 +1,7 @@
 #include <tessera/interact/snap_tool.h>
 
+#include <tessera/core/stopwatch.h>
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -15,10 +17,6 @@ namespace tessera::interact {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-
-double msSince(Clock::time_point t0) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
-}
 
 /// Whether a node's box lies wholly outside one plane of the clip volume.
 bool outsideFrustum(const glm::dmat4& clip_from_local, const lod::NodeInfo& n) {

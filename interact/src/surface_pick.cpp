@@ -320,7 +320,7 @@ std::optional<SurfacePick> pickSurface(std::span<const render::ModelInstance> mo
 
 annotate::SurfaceProjector pointSurfaceProjector(const render::ModelInstance& model, double radius,
                                        double reach) {
-  if (!model.store) throw annotate::MeasureError("master::pointSurfaceProjector(): not a point model");
+  if (!model.store) throw annotate::MeasureError("interact::pointSurfaceProjector(): not a point model");
   lod::PointStore* store = model.store;
   const Frame f(model.model);
   const lod::StoreSummary& s = store->summary();
@@ -387,7 +387,7 @@ annotate::SurfaceProjector pointSurfaceProjector(const render::ModelInstance& mo
 }
 
 annotate::SurfaceProjector meshSurfaceProjector(const render::ModelInstance& model, double reach) {
-  if (!model.mesh) throw annotate::MeasureError("master::meshSurfaceProjector(): not a mesh model");
+  if (!model.mesh) throw annotate::MeasureError("interact::meshSurfaceProjector(): not a mesh model");
   lod::MeshStore* store = model.mesh;
   const Frame f(model.model);
   const lod::MeshSummary& s = store->summary();

@@ -10,6 +10,7 @@
 #include <unordered_map>
 #include <vector>
 
+#include <tessera/core/parallel.h>
 #include <tessera/core/progress.h>
 #include <tessera/lod/mesh_builder.h>
 
@@ -19,9 +20,8 @@
 
 namespace tessera::lod::meshbuild {
 
-/// Runs f(i) for i in [0, n) on `threads` threads (the calling one among them); the first
-/// exception is rethrown once all stopped.
-void parallelFor(size_t n, uint32_t threads, const std::function<void(size_t)>& f);
+using tessera::parallelFor;
+using tessera::threadCount;
 
 /// Throws PreconditionError for options out of range (patch size, arity, threads).
 void checkOptions(const MeshBuildOptions& o);

@@ -40,28 +40,6 @@ double since(Clock::time_point t0) {
   return std::chrono::duration<double>(Clock::now() - t0).count();
 }
 
-/// Runs f(i) for i in [0, n) on `threads` threads (the calling one among them).
-void parallelFor(size_t n, uint32_t threads, const std::function<void(size_t)>& f) {
-  std::atomic<size_t> next{0};
-  std::exception_ptr error;
-  std::mutex error_mutex;
-  auto work = [&] {
-    for (size_t i; (i = next.fetch_add(1)) < n;) {
-      try {
-        f(i);
-      } catch (...) {
-        std::lock_guard lock(error_mutex);
-        if (!error) error = std::current_exception();
-        next = n;
-      }
-    }
-  };
-  std::vector<std::thread> pool;
-  for (uint32_t t = 1; t < std::min<size_t>(threads, n); ++t) pool.emplace_back(work);
-  work();
-  for (std::thread& t : pool) t.join();
-  if (error) std::rethrow_exception(error);
-}
 
 constexpr size_t kChunk = 1 << 16;
 
@@ -261,7 +239,7 @@ uint32_t partition(MetisPool& metis, const std::vector<idx_t>& xadj,
     return uint32_t(n);
   }
   // The same seed for every call: a call's parts depend on its graph only (metis_pool.h), so the
-  // same mesh makes the same store on any number of threads (issue 15).
+  // same mesh makes the same store on any number of threads.
   constexpr idx_t kSeed = 42;
   std::vector<idx_t> part;
   const int rc = metis.partGraphKway(xadj, adjncy, vwgt, adjwgt, idx_t(parts), kSeed, part);
@@ -759,7 +737,7 @@ MeshBuildReport buildMeshStore(const Mesh& mesh, const std::filesystem::path& ou
   r.seconds_read = seconds_read;
   r.peak_bytes = need;
   const uint32_t threads =
-      o.threads ? o.threads : std::max(1u, std::thread::hardware_concurrency());
+      threadCount(int(o.threads));
   // Partition workers, one per thread that can use one, forked before any thread starts and
   // while the process is smallest (metis_pool.h: METIS's generator is process-wide). Leaf
   // blocks are the only calls made concurrently; a single block needs none.

@@ -1,5 +1,5 @@
 // The mesh build in blocks, for meshes whose in-memory build would not fit `memory_mb`
-// (issue 15: 10^8 triangles within a budget). Out of core as the batched multiresolution
+// (10^8 triangles within a memory budget). Out of core as the batched multiresolution
 // builders do it (Cignoni et al., Batched Multi-Triangulation, 2005: the mesh is cut into
 // pieces built one at a time, whose shared borders stay locked until the pieces meet):
 //  1. the inputs are streamed once into files beside the output (vertices, triangles); the
@@ -351,7 +351,7 @@ MeshBuildReport build(const Source& src, const std::filesystem::path& out,
                       TempFile* tris_file) {
   checkOptions(o);
   const uint32_t threads =
-      o.threads ? o.threads : std::max(1u, std::thread::hardware_concurrency());
+      threadCount(int(o.threads));
   MeshBuildReport r;
   r.seconds_read = seconds_read;
   // The budget: the vertex arrays, then blocks as large as the rest allows.

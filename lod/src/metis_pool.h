@@ -3,7 +3,7 @@
 //
 // Why processes: METIS 5.1 draws its random numbers from one process-wide generator (GKlib's
 // Mersenne twister, seeded per call from METIS_OPTION_SEED), so concurrent calls in one process
-// take each other's numbers and the same mesh made different stores from run to run (issue 15).
+// take each other's numbers and the same mesh made different stores from run to run.
 // Serialising the calls made builds reproducible but cost the partition phase its threads. A
 // worker forked from the builder has a generator of its own: one call at a time per worker,
 // any number of workers at once.

@@ -17,6 +17,7 @@
 #include <thread>
 #include <tuple>
 
+#include <tessera/core/parallel.h>
 #include <tessera/core/progress.h>
 #include <tessera/lod/point_store.h>
 
@@ -155,32 +156,22 @@ void PointDistributor::forEachRaw(const std::string& label, int parts,
   const int fd = file.get();
   Progress progress(label, mPoints, " points", mQuiet);
   std::atomic<uint64_t> done{0};
-  std::exception_ptr failure;
-  std::mutex failure_mutex;
-  auto work = [&](int part) {
-    try {
-      std::vector<BuildPoint> pts;
-      const uint64_t kBlock = 1 << 16;
-      const uint64_t begin = mPoints * uint64_t(part) / uint64_t(parts);
-      const uint64_t end = mPoints * uint64_t(part + 1) / uint64_t(parts);
-      for (uint64_t i = begin; i < end; i += kBlock) {
-        uint64_t n = std::min(kBlock, end - i);
-        pts.resize(n);
-        readTempPoints(fd, i, n, pts.data(), mRawFile.string());
-        fn(part, pts);
-        uint64_t total = done += n;
-        if (part == 0) progress.update(total);
-      }
-    } catch (...) {
-      std::lock_guard lock(failure_mutex);
-      if (!failure) failure = std::current_exception();
+  // One part a worker; where the system starts fewer threads, the workers take the rest.
+  parallelFor(size_t(parts), unsigned(parts), [&](size_t p) {
+    const int part = int(p);
+    std::vector<BuildPoint> pts;
+    const uint64_t kBlock = 1 << 16;
+    const uint64_t begin = mPoints * uint64_t(part) / uint64_t(parts);
+    const uint64_t end = mPoints * uint64_t(part + 1) / uint64_t(parts);
+    for (uint64_t i = begin; i < end; i += kBlock) {
+      uint64_t n = std::min(kBlock, end - i);
+      pts.resize(n);
+      readTempPoints(fd, i, n, pts.data(), mRawFile.string());
+      fn(part, pts);
+      uint64_t total = done += n;
+      if (part == 0) progress.update(total);
     }
-  };
-  std::vector<std::thread> pool;
-  for (int part = 1; part < parts; ++part) pool.emplace_back(work, part);
-  work(0);
-  for (auto& t : pool) t.join();
-  if (failure) std::rethrow_exception(failure);
+  });
   progress.update(done);
 }
 

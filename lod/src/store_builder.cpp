@@ -16,6 +16,7 @@
 #include <unordered_map>
 
 #include <tessera/core/check.h>
+#include <tessera/core/parallel.h>
 #include <tessera/core/file_checks.h>
 #include <tessera/core/progress.h>
 #include <tessera/lod/store_format.h>
@@ -232,8 +233,7 @@ BuildReport buildStore(const std::vector<std::filesystem::path>& inputs,
                        same->string() + " (the same file); refusing to write over an input");
     }
   }
-  const int threads = options.threads > 0 ? options.threads
-                                          : int(std::max(1u, std::thread::hardware_concurrency()));
+  const int threads = int(threadCount(options.threads));
   const std::filesystem::path partial = output.string() + ".partial";
   const std::filesystem::path temp_dir =
       (options.temp_dir.empty() ? output.parent_path() : options.temp_dir) /
@@ -287,12 +287,13 @@ BuildReport buildStore(const std::vector<std::filesystem::path>& inputs,
   {
     Progress progress("build 4/5 chunks", dist.points(), " points", options.quiet);
     std::atomic<size_t> next{0};
+    std::atomic<bool> failed{false};
     std::mutex progress_mutex;
-    std::exception_ptr failure;
-    auto work = [&] {
+    // Chunks largest first, each worker with its own point buffer.
+    runWorkers(unsigned(threads), [&](unsigned) {
       std::vector<BuildPoint> pts;
       try {
-        for (size_t ci; (ci = next++) < chunks.size();) {
+        for (size_t ci; !failed && (ci = next++) < chunks.size();) {
           const Chunk& c = chunks[ci];
           pts.resize(c.count);
           readTempPoints(points_fd.get(), c.first, c.count, pts.data(), points_fd.name());
@@ -306,23 +307,10 @@ BuildReport buildStore(const std::vector<std::filesystem::path>& inputs,
           progress.add(c.count);
         }
       } catch (...) {
-        std::lock_guard lock(progress_mutex);
-        if (!failure) failure = std::current_exception();
-        next = chunks.size();
+        failed = true;
+        throw;
       }
-      pts.clear();
-      pts.shrink_to_fit();
-    };
-    std::vector<std::thread> pool;
-    try {
-      for (int t = 1; t < threads; ++t) pool.emplace_back(work);
-    } catch (const std::system_error&) {
-      // The system has no more threads: the ones started share the chunks (a vector of
-      // joinable threads destroyed here would std::terminate and leave the temporaries behind).
-    }
-    work();
-    for (auto& t : pool) t.join();
-    if (failure) std::rethrow_exception(failure);
+    });
   }
 
   // Levels above the chunks: each upper node is a grid sample of its children's points.

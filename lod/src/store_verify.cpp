@@ -17,6 +17,7 @@
 #include <thread>
 #include <unordered_map>
 
+#include <tessera/core/parallel.h>
 #include <tessera/core/progress.h>
 #include <tessera/lod/store_format.h>
 
@@ -107,8 +108,7 @@ VerifyReport verifyStore(const std::filesystem::path& store_path,
   const uint64_t region_max = std::max<uint64_t>(200'000, (options.memory_mb << 20) / 400);
   std::vector<Chunk> regions =
       dist.distribute(region_max, temp_dir / "points.bin",
-                      options.threads > 0 ? options.threads
-                                          : int(std::max(1u, std::thread::hardware_concurrency())));
+                      int(threadCount(options.threads)));
   std::sort(regions.begin(), regions.end(),
             [](const Chunk& a, const Chunk& b) { return a.key < b.key; });
 

@@ -14,6 +14,7 @@
 #include <system_error>
 #include <thread>
 
+#include <tessera/core/parallel.h>
 #include <tessera/core/check.h>
 #include <tessera/core/progress.h>
 #include <glm/gtc/quaternion.hpp>
@@ -214,7 +215,7 @@ ScanResult scanMesh(const Mesh& mesh, const std::filesystem::path& out_dir, cons
   const double noise = o.noise_mm * o.units_per_mm;
   const double cos_limit = std::cos(o.max_incidence_deg * std::numbers::pi / 180.0);
   const uint64_t cells = uint64_t(o.columns) * o.rows;
-  int threads = o.threads > 0 ? o.threads : int(std::max(1u, std::thread::hardware_concurrency()));
+  const unsigned threads = threadCount(o.threads);
 
   ScanResult result;
   result.conf = out_dir / "scans.conf";
@@ -259,14 +260,7 @@ ScanResult scanMesh(const Mesh& mesh, const std::filesystem::path& out_dir, cons
         }
       }
     };
-    std::vector<std::thread> pool;
-    try {
-      for (int k = 1; k < threads; ++k) pool.emplace_back(work);
-    } catch (const std::system_error&) {
-      // No more threads: the ones started share the rows (never terminate with joinables).
-    }
-    work();
-    for (auto& th : pool) th.join();
+    runWorkers(threads, [&](unsigned) { work(); });
 
     ScanInfo info;
     char name[32];

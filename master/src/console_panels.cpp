@@ -1,4 +1,4 @@
-// The console's Dear ImGui panels (issue 16): how they look and which edit each control makes.
+// The console's Dear ImGui panels: how they look and which edit each control makes.
 // What a note edit does lives in console_notes.h (tested without a window). Every panel is a
 // small collapsible window at the edges of the view, clear of its middle and of the
 // navigation's bar on the right: Models, Tools and Layers down the left, Notes (the tallest)

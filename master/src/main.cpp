@@ -1,4 +1,4 @@
-// tessera-master: owns the scene and drives the wall's render nodes (DESIGN.md, master/). Parses
+// tessera-master: owns the scene and drives the wall's render nodes (master/). Parses
 // the command line and wires a cluster link to master::Master (master/master.h), which does the
 // rest. Inside one MPI job (MPMD, the master first):
 //   mpirun -np 1 tessera-master --wall W.json --scene S.json [...] : -np K tessera-node --headless

@@ -6,6 +6,8 @@
 #include <mutex>
 #include <thread>
 
+#include <set>
+
 #include <tessera/lod/mesh_store.h>
 #include <tessera/lod/point_store.h>
 #include <tessera/interact/select_tool.h>
@@ -176,7 +178,23 @@ int SelectionWorker::collect(sync::SceneGraph& graph) {
       m->say(j.name + ": " + j.request.what() + " refused: " + e.what());
     }
   }
+  done.clear();
+  // Stores stay open while a model of the scene names them (the next lasso on it opens
+  // nothing); one no model names and no job holds closes. Only this thread copies the map's
+  // pointers, so a count of one means no job has it.
+  std::set<std::string> named;
+  for (const auto id : graph.ids())
+    if (graph.node(id).kind() == scene::SceneNode::MODEL) named.insert(graph.node(id).model().store());
+  std::erase_if(m->stores, [&](const auto& entry) {
+    const SharedStore& s = entry.second;
+    return !named.count(entry.first) && (!s.points || s.points.use_count() == 1) &&
+           (!s.mesh || s.mesh.use_count() == 1);
+  });
   return added;
+}
+
+size_t SelectionWorker::openStores() const {
+  return m->stores.size();
 }
 
 }  // namespace tessera::master

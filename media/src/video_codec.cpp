@@ -83,15 +83,15 @@ struct VideoEncoder::Impl {
 };
 
 VideoEncoder::VideoEncoder(const VideoSettings& s) : mSettings(s), m(std::make_unique<Impl>()) {
-  if (auto p = s.problem()) throw VideoError("collab::VideoEncoder: " + *p);
+  if (auto p = s.problem()) throw VideoError("media::VideoEncoder: " + *p);
   quietFfmpeg();
   const AVCodec* codec = avcodec_find_encoder_by_name("libx264");
   if (!codec)
     throw VideoError(
-        "collab::VideoEncoder: this libavcodec has no libx264 encoder (Debian's libavcodec59 "
+        "media::VideoEncoder: this libavcodec has no libx264 encoder (Debian's libavcodec59 "
         "has it; a build without GPL parts does not)");
   m->context.reset(avcodec_alloc_context3(codec));
-  if (!m->context) throw VideoError("collab::VideoEncoder: out of memory");
+  if (!m->context) throw VideoError("media::VideoEncoder: out of memory");
   AVCodecContext* c = m->context.get();
   c->width = s.width;
   c->height = s.height;
@@ -111,7 +111,7 @@ VideoEncoder::VideoEncoder(const VideoSettings& s) : mSettings(s), m(std::make_u
   auto set = [&](const char* key, const char* value) {
     const int r = av_opt_set(c->priv_data, key, value, 0);
     if (r < 0)
-      throw VideoError(std::string("collab::VideoEncoder: libx264 option ") + key + "=" + value +
+      throw VideoError(std::string("media::VideoEncoder: libx264 option ") + key + "=" + value +
                        ": " + avError(r));
   };
   set("preset", s.preset.c_str());
@@ -120,16 +120,16 @@ VideoEncoder::VideoEncoder(const VideoSettings& s) : mSettings(s), m(std::make_u
   // Headers (SPS/PPS) in the stream at every key, not out of band: a receiver may start at any.
   set("x264-params", "repeat-headers=1");
   if (const int r = avcodec_open2(c, codec, nullptr); r < 0)
-    throw VideoError("collab::VideoEncoder: avcodec_open2(libx264, " + std::to_string(s.width) +
+    throw VideoError("media::VideoEncoder: avcodec_open2(libx264, " + std::to_string(s.width) +
                      "x" + std::to_string(s.height) + ", preset " + s.preset + "): " + avError(r));
   m->frame.reset(av_frame_alloc());
   m->packet.reset(av_packet_alloc());
-  if (!m->frame || !m->packet) throw VideoError("collab::VideoEncoder: out of memory");
+  if (!m->frame || !m->packet) throw VideoError("media::VideoEncoder: out of memory");
   m->frame->format = AV_PIX_FMT_YUV420P;
   m->frame->width = s.width;
   m->frame->height = s.height;
   if (const int r = av_frame_get_buffer(m->frame.get(), 0); r < 0)
-    throw VideoError("collab::VideoEncoder: av_frame_get_buffer: " + avError(r));
+    throw VideoError("media::VideoEncoder: av_frame_get_buffer: " + avError(r));
 }
 
 VideoEncoder::~VideoEncoder() = default;
@@ -139,19 +139,19 @@ VideoEncoder& VideoEncoder::operator=(VideoEncoder&&) noexcept = default;
 EncodedVideo VideoEncoder::encode(const VideoPicture& picture) {
   if (picture.empty() || picture.width > kMaxVideoSide || picture.height > kMaxVideoSide ||
       picture.rgba.size() != size_t(picture.width) * size_t(picture.height) * 4)
-    throw VideoError("collab::VideoEncoder::encode(): a picture of " +
+    throw VideoError("media::VideoEncoder::encode(): a picture of " +
                      std::to_string(picture.width) + "x" + std::to_string(picture.height) +
                      " with " + std::to_string(picture.rgba.size()) + " bytes");
   AVCodecContext* c = m->context.get();
   if (!m->sws || m->sws_w != picture.width || m->sws_h != picture.height) {
     m->sws.reset(sws_getContext(picture.width, picture.height, AV_PIX_FMT_RGBA, c->width, c->height,
                                 AV_PIX_FMT_YUV420P, SWS_BILINEAR, nullptr, nullptr, nullptr));
-    if (!m->sws) throw VideoError("collab::VideoEncoder::encode(): sws_getContext failed");
+    if (!m->sws) throw VideoError("media::VideoEncoder::encode(): sws_getContext failed");
     m->sws_w = picture.width;
     m->sws_h = picture.height;
   }
   if (const int r = av_frame_make_writable(m->frame.get()); r < 0)
-    throw VideoError("collab::VideoEncoder::encode(): av_frame_make_writable: " + avError(r));
+    throw VideoError("media::VideoEncoder::encode(): av_frame_make_writable: " + avError(r));
   const uint8_t* src[1] = {picture.rgba.data()};
   const int stride[1] = {picture.width * 4};
   sws_scale(m->sws.get(), src, stride, 0, picture.height, m->frame->data, m->frame->linesize);
@@ -160,13 +160,13 @@ EncodedVideo VideoEncoder::encode(const VideoPicture& picture) {
   m->frame->key_frame = mForceKey ? 1 : 0;
   mForceKey = false;
   if (const int r = avcodec_send_frame(c, m->frame.get()); r < 0)
-    throw VideoError("collab::VideoEncoder::encode(): avcodec_send_frame: " + avError(r));
+    throw VideoError("media::VideoEncoder::encode(): avcodec_send_frame: " + avError(r));
   EncodedVideo out;
   while (true) {
     const int r = avcodec_receive_packet(c, m->packet.get());
     if (r == AVERROR(EAGAIN) || r == AVERROR_EOF) break;
     if (r < 0)
-      throw VideoError("collab::VideoEncoder::encode(): avcodec_receive_packet: " + avError(r));
+      throw VideoError("media::VideoEncoder::encode(): avcodec_receive_packet: " + avError(r));
     out.bytes.insert(out.bytes.end(), m->packet->data, m->packet->data + m->packet->size);
     out.key |= (m->packet->flags & AV_PKT_FLAG_KEY) != 0;
     av_packet_unref(m->packet.get());
@@ -187,16 +187,16 @@ struct VideoDecoder::Impl {
   void open() {
     quietFfmpeg();
     const AVCodec* codec = avcodec_find_decoder(AV_CODEC_ID_H264);
-    if (!codec) throw VideoError("collab::VideoDecoder: this libavcodec has no H.264 decoder");
+    if (!codec) throw VideoError("media::VideoDecoder: this libavcodec has no H.264 decoder");
     context.reset(avcodec_alloc_context3(codec));
-    if (!context) throw VideoError("collab::VideoDecoder: out of memory");
+    if (!context) throw VideoError("media::VideoDecoder: out of memory");
     // One thread: frame threads would hold pictures back (a frame of delay per thread).
     context->thread_count = 1;
     context->flags |= AV_CODEC_FLAG_LOW_DELAY;
     // Bounds on what outside bytes can make the decoder allocate.
     context->max_pixels = int64_t(kMaxVideoSide) * kMaxVideoSide;
     if (const int r = avcodec_open2(context.get(), codec, nullptr); r < 0)
-      throw VideoError("collab::VideoDecoder: avcodec_open2(h264): " + avError(r));
+      throw VideoError("media::VideoDecoder: avcodec_open2(h264): " + avError(r));
   }
 };
 
@@ -204,7 +204,7 @@ VideoDecoder::VideoDecoder() : m(std::make_unique<Impl>()) {
   m->open();
   m->frame.reset(av_frame_alloc());
   m->packet.reset(av_packet_alloc());
-  if (!m->frame || !m->packet) throw VideoError("collab::VideoDecoder: out of memory");
+  if (!m->frame || !m->packet) throw VideoError("media::VideoDecoder: out of memory");
 }
 
 VideoDecoder::~VideoDecoder() = default;

@@ -10,10 +10,10 @@ namespace tessera::media {
 
 std::vector<uint8_t> encodeVideoPacket(const VideoPacket& p) {
   TESSERA_CHECK(!p.payload.empty() && p.payload.size() <= kMaxVideoChunkBytes,
-                "collab::encodeVideoPacket(): the payload is " + std::to_string(p.payload.size()) +
+                "media::encodeVideoPacket(): the payload is " + std::to_string(p.payload.size()) +
                     " bytes, expected 1.." + std::to_string(kMaxVideoChunkBytes));
   TESSERA_CHECK(p.chunk < p.chunks && p.chunks <= kMaxVideoChunks,
-                "collab::encodeVideoPacket(): chunk " + std::to_string(p.chunk) + " of " +
+                "media::encodeVideoPacket(): chunk " + std::to_string(p.chunk) + " of " +
                     std::to_string(p.chunks));
   std::vector<uint8_t> bytes(kVideoHeaderBytes + p.payload.size());
   bytes[0] = kVideoPacketVersion;
@@ -68,7 +68,7 @@ std::optional<std::string> decodeVideoPacket(std::span<const uint8_t> bytes, Vid
 }
 
 void setVideoPacketSite(std::vector<uint8_t>& bytes, uint16_t site) {
-  TESSERA_CHECK(bytes.size() >= kVideoHeaderBytes, "collab::setVideoPacketSite(): not a packet");
+  TESSERA_CHECK(bytes.size() >= kVideoHeaderBytes, "media::setVideoPacketSite(): not a packet");
   putLe16(&bytes[2], site);
 }
 

@@ -43,7 +43,7 @@ uint32_t patternClockMs() {
 }
 
 void drawTestPattern(VideoPicture& out, int width, int height, const PatternCode& code) {
-  TESSERA_CHECK(width >= 32 && height >= 32, "collab::drawTestPattern(): " + std::to_string(width) +
+  TESSERA_CHECK(width >= 32 && height >= 32, "media::drawTestPattern(): " + std::to_string(width) +
                                                  "x" + std::to_string(height) + ", at least 32x32");
   if (out.width != width || out.height != height) out.resize(width, height);
   const uint64_t bits = pack(code);

@@ -42,7 +42,7 @@ class Demuxed {
   Demuxed(const std::string& url, const AVInputFormat* format, AVDictionary** options, int w, int h)
       : mUrl(url), mWidth(w), mHeight(h) {
     const auto fail = [&](const std::string& what, int r) {
-      throw VideoError("collab::openVideoSource(): " + url + ": " + what + avError(r));
+      throw VideoError("media::openVideoSource(): " + url + ": " + what + avError(r));
     };
     if (const int r = avformat_open_input(&mFormat, url.c_str(), format, options); r < 0)
       fail("", r);
@@ -83,18 +83,18 @@ class Demuxed {
       }
       if (got == AVERROR_EOF) return false;
       if (got != AVERROR(EAGAIN))
-        throw VideoError("collab::VideoSource: " + mUrl + ": decoding: " + avError(got));
+        throw VideoError("media::VideoSource: " + mUrl + ": decoding: " + avError(got));
       const int r = av_read_frame(mFormat, mPacket);
       if (r == AVERROR_EOF) {
         avcodec_send_packet(mCodec, nullptr);  // drain
         continue;
       }
       if (r == AVERROR(EAGAIN)) continue;
-      if (r < 0) throw VideoError("collab::VideoSource: " + mUrl + ": reading: " + avError(r));
+      if (r < 0) throw VideoError("media::VideoSource: " + mUrl + ": reading: " + avError(r));
       if (mPacket->stream_index == mStream) avcodec_send_packet(mCodec, mPacket);
       av_packet_unref(mPacket);
     }
-    throw VideoError("collab::VideoSource: " + mUrl + ": no picture in 100000 packets");
+    throw VideoError("media::VideoSource: " + mUrl + ": no picture in 100000 packets");
   }
 
   const std::string& description() const { return mDescription; }
@@ -105,7 +105,7 @@ class Demuxed {
                                 mWidth, mHeight, AV_PIX_FMT_RGBA, SWS_BILINEAR, nullptr, nullptr,
                                 nullptr);
     if (!mSws)
-      throw VideoError("collab::VideoSource: " + mUrl + ": cannot convert pixel format " +
+      throw VideoError("media::VideoSource: " + mUrl + ": cannot convert pixel format " +
                        std::to_string(mFrame->format));
     if (out.width != mWidth || out.height != mHeight) out.resize(mWidth, mHeight);
     uint8_t* dst[1] = {out.rgba.data()};
@@ -138,7 +138,7 @@ class FileSource final : public VideoSource {
     // At the end: open it again (seeking is not possible in every format, raw H.264 among them).
     mDemuxed = std::make_unique<Demuxed>(mPath, nullptr, nullptr, mWidth, mHeight);
     if (mDemuxed->next(out)) return true;
-    throw VideoError("collab::VideoSource: " + mDescription + ": no picture after starting over");
+    throw VideoError("media::VideoSource: " + mDescription + ": no picture after starting over");
   }
   std::string describe() const override { return mDescription; }
 
@@ -157,7 +157,7 @@ class CameraSource final : public VideoSource {
     avdevice_register_all();
     const AVInputFormat* v4l2 = av_find_input_format("video4linux2");
     if (!v4l2)
-      throw VideoError("collab::openVideoSource(): " + device +
+      throw VideoError("media::openVideoSource(): " + device +
                        ": this libavdevice has no video4linux2 input");
     AVDictionary* options = nullptr;
     av_dict_set(&options, "video_size", (std::to_string(w) + "x" + std::to_string(h)).c_str(), 0);
@@ -193,7 +193,7 @@ class CameraSource final : public VideoSource {
       try {
         if (!mDemuxed->next(p)) {
           std::lock_guard lock(mMutex);
-          mError = "collab::VideoSource: " + mDescription + ": the camera stopped";
+          mError = "media::VideoSource: " + mDescription + ": the camera stopped";
           return;
         }
       } catch (const VideoError& e) {
@@ -222,7 +222,7 @@ class CameraSource final : public VideoSource {
 std::unique_ptr<VideoSource> openVideoSource(const std::string& spec, int width, int height,
                                              double fps) {
   if (width < 32 || height < 32 || width > kMaxVideoSide || height > kMaxVideoSide)
-    throw VideoError("collab::openVideoSource(): a picture size of " + std::to_string(width) + "x" +
+    throw VideoError("media::openVideoSource(): a picture size of " + std::to_string(width) + "x" +
                      std::to_string(height) + " (32.." + std::to_string(kMaxVideoSide) +
                      " each way)");
   if (spec == "test") return std::make_unique<PatternSource>(width, height);

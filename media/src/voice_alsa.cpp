@@ -35,7 +35,7 @@ std::optional<std::string> alsaDeviceOf(const std::string& audio) {
   if (audio.compare(0, kPrefix.size(), kPrefix) != 0) return std::nullopt;
   std::string device = audio.substr(kPrefix.size());
   if (device.empty())
-    throw AlsaError("collab::alsaDeviceOf(): " + audio +
+    throw AlsaError("media::alsaDeviceOf(): " + audio +
                     ": no device after alsa: (expected e.g. alsa:default or alsa:hw:0,0)");
   return device;
 }
@@ -45,7 +45,7 @@ void AlsaPcm::Close::operator()(_snd_pcm* pcm) const noexcept {
 }
 
 void AlsaPcm::fail(const char* what, int err) const {
-  throw AlsaError(std::string("collab::AlsaPcm: ") + directionName(mDirection) + " device '" +
+  throw AlsaError(std::string("media::AlsaPcm: ") + directionName(mDirection) + " device '" +
                   mDevice + "': " + what + snd_strerror(err));
 }
 
@@ -53,7 +53,7 @@ AlsaPcm::AlsaPcm(const std::string& device, Direction direction, int frame_sampl
                  int buffer_frames, std::function<void(const std::string&)> say)
     : mDevice(device), mDirection(direction), mFrameSamples(frame_samples), mSay(std::move(say)) {
   if (frame_samples <= 0 || frame_samples > kMaxVoiceFrameSamples || buffer_frames < 2)
-    throw AlsaError("collab::AlsaPcm: " + device + ": a frame of " + std::to_string(frame_samples) +
+    throw AlsaError("media::AlsaPcm: " + device + ": a frame of " + std::to_string(frame_samples) +
                     " samples and a buffer of " + std::to_string(buffer_frames) +
                     " frames; expected at most 960 samples and at least 2 frames");
   if (!mSay) mSay = [](const std::string& line) { std::fprintf(stderr, "%s\n", line.c_str()); };
@@ -88,7 +88,7 @@ AlsaPcm::AlsaPcm(const std::string& device, Direction direction, int frame_sampl
   mPeriod = period;
   mBuffer = buffer;
   if (mBuffer < snd_pcm_uframes_t(frame_samples) * 2)
-    throw AlsaError("collab::AlsaPcm: " + std::string(directionName(direction)) + " device '" +
+    throw AlsaError("media::AlsaPcm: " + std::string(directionName(direction)) + " device '" +
                     device + "': a buffer of " + std::to_string(mBuffer) +
                     " samples, expected at least two frames");
 
@@ -118,7 +118,7 @@ void AlsaPcm::recover(long err, const char* what) {
   if (r < 0) fail(what, int(err));
   ++mXruns;
   if (worthSaying(mXruns))
-    mSay("collab::AlsaPcm: " + std::string(directionName(mDirection)) + " device '" + mDevice +
+    mSay("media::AlsaPcm: " + std::string(directionName(mDirection)) + " device '" + mDevice +
          "': " +
          (err == -EPIPE ? (mDirection == Direction::kCapture ? "overrun" : "underrun")
                         : std::string(snd_strerror(int(err)))) +

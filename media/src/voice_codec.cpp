@@ -12,13 +12,13 @@ namespace {
 
 void expectRange(int value, int lo, int hi, const char* what) {
   if (value < lo || value > hi)
-    throw VoiceError("collab::VoiceEncoder: " + std::string(what) + " is " + std::to_string(value) +
+    throw VoiceError("media::VoiceEncoder: " + std::string(what) + " is " + std::to_string(value) +
                      ", expected " + std::to_string(lo) + ".." + std::to_string(hi));
 }
 
 void expectOk(int rc, const char* what) {
   if (rc != OPUS_OK)
-    throw VoiceError("collab::VoiceEncoder: " + std::string(what) +
+    throw VoiceError("media::VoiceEncoder: " + std::string(what) +
                      " failed: " + opus_strerror(rc));
 }
 
@@ -37,7 +37,7 @@ void VoiceDecoder::Free::operator()(OpusDecoder* d) const noexcept {
 
 VoiceEncoder::VoiceEncoder(const VoiceSettings& s) {
   if (s.frame_ms != 10 && s.frame_ms != 20)
-    throw VoiceError("collab::VoiceEncoder: frame_ms is " + std::to_string(s.frame_ms) +
+    throw VoiceError("media::VoiceEncoder: frame_ms is " + std::to_string(s.frame_ms) +
                      ", expected 10 or 20");
   expectRange(s.bitrate, 6000, 128000, "bitrate (bits/s)");
   expectRange(s.expected_loss_percent, 0, 100, "expected_loss_percent");
@@ -64,13 +64,13 @@ VoiceEncoder& VoiceEncoder::operator=(VoiceEncoder&&) noexcept = default;
 
 bool VoiceEncoder::encode(std::span<const float> pcm, std::vector<uint8_t>& payload) {
   TESSERA_CHECK(pcm.size() == size_t(mFrameSamples),
-                "collab::VoiceEncoder::encode(): a frame is " + std::to_string(mFrameSamples) +
+                "media::VoiceEncoder::encode(): a frame is " + std::to_string(mFrameSamples) +
                     " samples, got " + std::to_string(pcm.size()));
   payload.resize(kMaxOpusPayloadBytes);
   const opus_int32 n = opus_encode_float(mEncoder.get(), pcm.data(), mFrameSamples, payload.data(),
                                          opus_int32(payload.size()));
   // Only API misuse makes opus_encode_float fail (the frame size and buffer are ours).
-  TESSERA_CHECK(n > 0, std::string("collab::VoiceEncoder::encode(): ") + opus_strerror(n));
+  TESSERA_CHECK(n > 0, std::string("media::VoiceEncoder::encode(): ") + opus_strerror(n));
   payload.resize(size_t(n));
   // "If the return value is 2 bytes or less, then the packet does not need to be transmitted
   // (DTX)" (opus.h, opus_encode).
@@ -98,7 +98,7 @@ VoiceDecoder::VoiceDecoder() {
   int rc = OPUS_OK;
   mDecoder.reset(opus_decoder_create(kVoiceRate, 1, &rc));
   if (rc != OPUS_OK)
-    throw VoiceError(std::string("collab::VoiceDecoder: opus_decoder_create failed: ") +
+    throw VoiceError(std::string("media::VoiceDecoder: opus_decoder_create failed: ") +
                      opus_strerror(rc));
 }
 
@@ -107,9 +107,9 @@ VoiceDecoder::VoiceDecoder(VoiceDecoder&&) noexcept = default;
 VoiceDecoder& VoiceDecoder::operator=(VoiceDecoder&&) noexcept = default;
 
 bool VoiceDecoder::decode(std::span<const uint8_t> packet, std::span<float> out) {
-  TESSERA_CHECK(wholeFrame(out.size()), "collab::VoiceDecoder::decode(): bad frame size");
+  TESSERA_CHECK(wholeFrame(out.size()), "media::VoiceDecoder::decode(): bad frame size");
   TESSERA_CHECK(!packet.empty() && packet.size() <= kMaxOpusPayloadBytes,
-                "collab::VoiceDecoder::decode(): packet size out of range");
+                "media::VoiceDecoder::decode(): packet size out of range");
   const int n = opus_decode_float(mDecoder.get(), packet.data(), opus_int32(packet.size()),
                                   out.data(), int(out.size()), 0);
   if (n == int(out.size())) return true;
@@ -118,9 +118,9 @@ bool VoiceDecoder::decode(std::span<const uint8_t> packet, std::span<float> out)
 }
 
 bool VoiceDecoder::decodeFec(std::span<const uint8_t> next_packet, std::span<float> out) {
-  TESSERA_CHECK(wholeFrame(out.size()), "collab::VoiceDecoder::decodeFec(): bad frame size");
+  TESSERA_CHECK(wholeFrame(out.size()), "media::VoiceDecoder::decodeFec(): bad frame size");
   TESSERA_CHECK(!next_packet.empty() && next_packet.size() <= kMaxOpusPayloadBytes,
-                "collab::VoiceDecoder::decodeFec(): packet size out of range");
+                "media::VoiceDecoder::decodeFec(): packet size out of range");
   // With decode_fec = 1, frame_size must be exactly the missing duration (opus.h).
   const int n = opus_decode_float(mDecoder.get(), next_packet.data(),
                                   opus_int32(next_packet.size()), out.data(), int(out.size()), 1);
@@ -130,7 +130,7 @@ bool VoiceDecoder::decodeFec(std::span<const uint8_t> next_packet, std::span<flo
 }
 
 void VoiceDecoder::conceal(std::span<float> out) {
-  TESSERA_CHECK(wholeFrame(out.size()), "collab::VoiceDecoder::conceal(): bad frame size");
+  TESSERA_CHECK(wholeFrame(out.size()), "media::VoiceDecoder::conceal(): bad frame size");
   const int n = opus_decode_float(mDecoder.get(), nullptr, 0, out.data(), int(out.size()), 0);
   if (n != int(out.size())) std::fill(out.begin(), out.end(), 0.0f);
 }

@@ -20,7 +20,7 @@ float softLimit(float x) {
 }
 
 VoiceMixer::VoiceMixer(size_t block_samples) : mTotal(block_samples, 0.0f) {
-  TESSERA_CHECK(block_samples > 0, "collab::VoiceMixer: a block has at least one sample");
+  TESSERA_CHECK(block_samples > 0, "media::VoiceMixer: a block has at least one sample");
 }
 
 void VoiceMixer::clear() {
@@ -30,7 +30,7 @@ void VoiceMixer::clear() {
 
 void VoiceMixer::add(uint32_t source, std::span<const float> pcm) {
   TESSERA_CHECK(pcm.size() == mTotal.size(),
-                "collab::VoiceMixer::add(): source " + std::to_string(source) + " gave " +
+                "media::VoiceMixer::add(): source " + std::to_string(source) + " gave " +
                     std::to_string(pcm.size()) + " samples, the block is " +
                     std::to_string(mTotal.size()));
   auto [it, fresh] = mSources.try_emplace(source, mTotal.size(), 0.0f);
@@ -41,7 +41,7 @@ void VoiceMixer::add(uint32_t source, std::span<const float> pcm) {
 }
 
 void VoiceMixer::minus(uint32_t source, std::span<float> out) const {
-  TESSERA_CHECK(out.size() == mTotal.size(), "collab::VoiceMixer: the output is not one block");
+  TESSERA_CHECK(out.size() == mTotal.size(), "media::VoiceMixer: the output is not one block");
   const auto own = mSources.find(source);
   for (size_t i = 0; i < out.size(); ++i) {
     const float own_i = own == mSources.end() ? 0.0f : own->second[i];

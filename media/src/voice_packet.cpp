@@ -10,7 +10,7 @@ namespace tessera::media {
 
 std::vector<uint8_t> encodeVoicePacket(const VoicePacket& packet) {
   TESSERA_CHECK(!packet.payload.empty() && packet.payload.size() <= kMaxOpusPayloadBytes,
-                "collab::encodeVoicePacket(): the payload is " +
+                "media::encodeVoicePacket(): the payload is " +
                     std::to_string(packet.payload.size()) + " bytes, expected 1..1275");
   std::vector<uint8_t> bytes(kVoiceHeaderBytes + packet.payload.size());
   bytes[0] = kVoicePacketVersion;

@@ -25,7 +25,7 @@ constexpr int kMaxRate = 192000;
 
 WavAudio parseWav(std::span<const uint8_t> bytes, const std::string& name) {
   const auto fail = [&](const std::string& why) {
-    return WavError("collab::readWav(): " + name + ": " + why);
+    return WavError("media::readWav(): " + name + ": " + why);
   };
   if (bytes.size() < 12 || std::memcmp(bytes.data(), "RIFF", 4) != 0 ||
       std::memcmp(bytes.data() + 8, "WAVE", 4) != 0)
@@ -91,7 +91,7 @@ WavAudio parseWav(std::span<const uint8_t> bytes, const std::string& name) {
 WavAudio readWav(const std::filesystem::path& path) {
   std::string why;
   const int fd = openRegularFile(path, why);
-  if (fd < 0) throw WavError("collab::readWav(): " + path.string() + ": " + why);
+  if (fd < 0) throw WavError("media::readWav(): " + path.string() + ": " + why);
   std::vector<uint8_t> bytes;
   uint8_t block[1 << 16];
   for (;;) {
@@ -100,12 +100,12 @@ WavAudio readWav(const std::filesystem::path& path) {
     if (n < 0) {
       const std::string error = std::strerror(errno);
       ::close(fd);
-      throw WavError("collab::readWav(): " + path.string() + ": " + error);
+      throw WavError("media::readWav(): " + path.string() + ": " + error);
     }
     if (n == 0) break;
     if (bytes.size() + size_t(n) > kMaxWavBytes) {
       ::close(fd);
-      throw WavError("collab::readWav(): " + path.string() + ": larger than " +
+      throw WavError("media::readWav(): " + path.string() + ": larger than " +
                      std::to_string(kMaxWavBytes >> 20) + " MiB");
     }
     bytes.insert(bytes.end(), block, block + n);
@@ -132,7 +132,7 @@ std::vector<float> readVoiceWav(const std::filesystem::path& path) {
 
 std::vector<float> resample(std::span<const float> in, int from_rate, int to_rate) {
   if (from_rate < kMinRate || from_rate > kMaxRate || to_rate < kMinRate || to_rate > kMaxRate)
-    throw WavError("collab::resample(): rates " + std::to_string(from_rate) + " -> " +
+    throw WavError("media::resample(): rates " + std::to_string(from_rate) + " -> " +
                    std::to_string(to_rate) + " Hz, expected 8000..192000");
   if (from_rate == to_rate) return {in.begin(), in.end()};
   // Cut-off at the lower rate's Nyquist frequency, in input samples' units (1 = input Nyquist).
@@ -162,14 +162,14 @@ std::vector<float> resample(std::span<const float> in, int from_rate, int to_rat
 void writeWav(const std::filesystem::path& path, std::span<const float> samples, int rate,
               int channels) {
   if (channels != 1 && channels != 2)
-    throw WavError("collab::writeWav(): " + path.string() + ": " + std::to_string(channels) +
+    throw WavError("media::writeWav(): " + path.string() + ": " + std::to_string(channels) +
                    " channels, expected 1 or 2");
   if (rate < kMinRate || rate > kMaxRate)
-    throw WavError("collab::writeWav(): " + path.string() + ": rate " + std::to_string(rate) +
+    throw WavError("media::writeWav(): " + path.string() + ": rate " + std::to_string(rate) +
                    " Hz, expected 8000..192000");
   const uint64_t data = uint64_t(samples.size()) * 2;
   if (data + 36 > 0xFFFFFFFFu)
-    throw WavError("collab::writeWav(): " + path.string() + ": too long for a WAV file");
+    throw WavError("media::writeWav(): " + path.string() + ": too long for a WAV file");
   std::vector<uint8_t> bytes(44 + data);
   uint8_t* p = bytes.data();
   std::memcpy(p, "RIFF", 4);
@@ -190,10 +190,10 @@ void writeWav(const std::filesystem::path& path, std::span<const float> samples,
   }
   std::ofstream out(path, std::ios::binary | std::ios::trunc);
   if (!out)
-    throw WavError("collab::writeWav(): " + path.string() + ": " + whyNotWritable(path, errno));
+    throw WavError("media::writeWav(): " + path.string() + ": " + whyNotWritable(path, errno));
   out.write(reinterpret_cast<const char*>(bytes.data()), std::streamsize(bytes.size()));
   if (!out.flush())
-    throw WavError("collab::writeWav(): " + path.string() + ": write failed (disk full?)");
+    throw WavError("media::writeWav(): " + path.string() + ": write failed (disk full?)");
 }
 
 }  // namespace tessera::media

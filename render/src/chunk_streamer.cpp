@@ -1,5 +1,7 @@
 #include <tessera/render/chunk_streamer.h>
 
+#include <tessera/core/parallel.h>
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -291,7 +293,7 @@ ChunkStreamer::ChunkStreamer(const StreamerOptions& options) : mImpl(std::make_u
                 uint32_t(options.default_color.b) << 16;
   mStats.budget_bytes = options.budget_bytes;
   uint32_t threads = options.loader_threads;
-  if (threads == 0) threads = std::max(1u, std::thread::hardware_concurrency());
+  if (threads == 0) threads = threadCount();
   mImpl->flight.assign(threads, Item{nullptr, nullptr, nullptr, lod::kNoNode, false, 0, 0, 0.0});
   mImpl->flight_cancel.resize(threads);
   mImpl->flight_unwanted.assign(threads, 0);

@@ -297,7 +297,7 @@ PassTimings PointPass::drawEnsembles(FrameTarget& target, std::span<const DrawBa
 }
 
 double PointPass::resolveEnsembles(FrameTarget& target, uint32_t accumulated) {
-  const auto t = std::chrono::steady_clock::now();
+  GpuLap lap;
   mAccumulate.use();
   bind(TESSERA_BINDING_IMAGE, target.image());
   bind(TESSERA_BINDING_ACCUM, mAccum);
@@ -306,8 +306,7 @@ double PointPass::resolveEnsembles(FrameTarget& target, uint32_t accumulated) {
   mAccumulate.set("uAccumulated", accumulated);
   glDispatchCompute((target.width() + 15) / 16, (target.height() + 15) / 16, 1);
   glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT | GL_SHADER_STORAGE_BARRIER_BIT);
-  glFinish();
-  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t).count();
+  return lap();
 }
 
 PassTimings PointPass::drawBlended(FrameTarget& target, std::span<const DrawBatch> batches,

@@ -22,6 +22,7 @@
 #include <tessera/lod/store_builder.h>
 #include <tessera/lod/store_cache.h>
 #include <tessera/render/gl_context.h>
+#include <tessera/render/pass_timing.h>
 #include <tessera/render/scene_draw_list.h>
 #include <tessera/render/scene_overlay.h>
 #include <tessera/render/view_renderer.h>
@@ -178,7 +179,7 @@ int run(int argc, char** argv) {
   app.add_flag("--edl", edl,
                "Eye-dome lighting (shape without normals; default: the scene's shading)");
   app.add_flag("--edl-classic", edl_classic,
-               "Eye-dome lighting from raw depths, as before issue 12 (speckles on noisy scans)");
+               "Eye-dome lighting from raw depths, the classic method (speckles on noisy scans)");
   app.add_option("--splat-scale", splat_scale,
                  "Splat size as a multiple of the projected sample spacing (raise for LiDAR)")
       ->check(cli::finiteRange(0.25, 8.0))
@@ -336,7 +337,10 @@ int run(int argc, char** argv) {
     for (const std::string& m : models) read.push_back(m.substr(0, m.rfind(':')));
     for (const std::string& m : models) read.push_back(m);
     if (!out.empty()) cli::refuseOverwrite(out, read, "-o");
-    if (!stats_path.empty()) cli::refuseOverwrite(stats_path, read, "--stats");
+    if (!stats_path.empty()) {
+      cli::refuseOverwrite(stats_path, read, "--stats");
+      render::timePasses(true);  // the CSV's per-pass columns
+    }
     std::error_code ec;
     if (!out.empty() && !stats_path.empty() &&
         fs::weakly_canonical(out, ec) == fs::weakly_canonical(stats_path, ec))

@@ -1,4 +1,4 @@
-// tessera-node: one render node of the wall (DESIGN.md, render_node/). Parses the command line
+// tessera-node: one render node of the wall (render_node/). Parses the command line
 // and wires a cluster link to render_node::RenderNode (render_node/render_node.h). Inside one MPI
 // job, started by mpirun after the master:
 //   mpirun -np 1 tessera-master --wall W.json --scene S.json ... : -np K tessera-node [--headless]

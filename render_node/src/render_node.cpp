@@ -80,7 +80,7 @@ struct RenderNode::Impl {
     videos.reset();
   }
 
-  /// Video insets (issue 14): the frame's video packets to the streams this tile shows, the
+  /// Video insets: the frame's video packets to the streams this tile shows, the
   /// new pictures to their textures; a texture made or resized rebuilds the overlay.
   void applyMedia(const cluster::FrameMessage& frame) {
     if (!videos || (frame.media_size() == 0)) return;

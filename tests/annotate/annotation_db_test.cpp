@@ -1,4 +1,4 @@
-// The annotation database (master/src/annotation_db.cpp, annotation_io.cpp) and
+// The annotation database (annotate/src/annotation_db.cpp, annotation_io.cpp) and
 // tessera-annotate: every item kind, layers, both link directions, full-text search, the v1
 // migration, refusals of bad files and bad values, the concurrency rule, the exports and the
 // import round trip, and durability across kill -9 of a writing process.

@@ -1,4 +1,4 @@
-// The annotation database as part of the scene (master/annotation_scene.h): layers as nested
+// The annotation database as part of the scene (annotate/annotation_scene.h): layers as nested
 // groups with their visibility, notes as ANNOTATION nodes that reach a replica, measurements
 // and selections stored and brought back in a later session, edits committed before they
 // return, and conflicting edits refused without touching the scene.

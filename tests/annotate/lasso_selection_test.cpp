@@ -1,7 +1,7 @@
-// The lasso (master/lasso_selection.h) against brute force: every leaf element of a store
+// The lasso (annotate/lasso_selection.h) against brute force: every leaf element of a store
 // projected and tested against every edge of the polygon. The sets must be identical, element
 // for element, whatever the hierarchy pruned or took whole. Then the selection type
-// (master/selection.h): set algebra, its byte form, and corrupt input.
+// (annotate/selection.h): set algebra, its byte form, and corrupt input.
 #include <gtest/gtest.h>
 
 #include <cmath>

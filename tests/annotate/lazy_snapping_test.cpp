@@ -1,4 +1,4 @@
-// 3D lazy snapping and the robust lasso (master/src/lazy_snapping.cpp, max_flow.cpp,
+// 3D lazy snapping and the robust lasso (annotate/src/lazy_snapping.cpp, max_flow.cpp,
 // watershed.cpp, robust_lasso.cpp, surface_samples.cpp).
 #include <tessera/annotate/lazy_snapping.h>
 

@@ -1,4 +1,4 @@
-// Measurement (master/measurement.h, master/surface_pick.h) against analytic shapes and real
+// Measurement (annotate/measurement.h, interact/surface_pick.h) against analytic shapes and real
 // data: exact areas of planar polygons, a spherical polygon's area by its spherical excess, a
 // cylinder patch, the same sphere as a point store, the full-resolution pick against a brute
 // force over every leaf sample of the Autzen LiDAR (georeferenced: millimetres hundreds of km
@@ -447,7 +447,7 @@ class MeasureToolTest : public ::testing::Test {
   glm::dvec3 mCentre{0.0};
 };
 
-// A clip plane (issue 16: a CLIP node, ModelInstance::clip) makes what it cuts away unpickable:
+// A clip plane (a CLIP node, ModelInstance::clip) makes what it cuts away unpickable:
 // the ray through the cut front goes on to the inside of the back, and a plane that removes the
 // whole model leaves nothing to pick.
 TEST_F(MeasureToolTest, WhatAClipPlaneCutsAwayIsNotPicked) {

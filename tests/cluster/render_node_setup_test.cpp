@@ -1,5 +1,5 @@
 // A render node checks the numbers in the master's setup as the command line checks its own
-// (issue 10: every number from the wire). A fake link stands in for the master.
+// (every number from the wire). A fake link stands in for the master.
 #include <gtest/gtest.h>
 
 #include <cmath>

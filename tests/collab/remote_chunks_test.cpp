@@ -1,4 +1,4 @@
-// Chunks on demand (issue 13) as users run them: a real tessera-master serving the bunny's
+// Chunks on demand as users run them: a real tessera-master serving the bunny's
 // store from its chunk server (--chunks, throttled with --chunk-rate) beside its site hub, one
 // real tessera-node for the wall, and real tessera-site processes that take the store from the
 // master instead of this host (--remote-stores) into a disk cache (--cache). Checked from what
@@ -197,7 +197,7 @@ class RemoteChunks : public ::testing::Test {
     EXPECT_GE(last, at_least);
   }
 
-  /// The bunny's reconstruction as a mesh store (issue 15), `opacity` its node's, in a scene
+  /// The bunny's reconstruction as a mesh store, `opacity` its node's, in a scene
   /// of its own in `dir` (the wall, the keys and the allow list are the suite's). Returns the
   /// store's path.
   fs::path meshScene(const fs::path& dir, double opacity) {

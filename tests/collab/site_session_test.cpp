@@ -1009,7 +1009,7 @@ std::string pixelsJson(const std::vector<glm::dvec3>& world, glm::dvec3 eye, glm
 
 }  // namespace
 
-// A site snaps the bunny's ear (issue 16, 3D lazy snapping): one stroke along the ear and one
+// A site snaps the bunny's ear (3D lazy snapping): one stroke along the ear and one
 // across the head, in pixels of its view; the master gathers the point store's leaves the view
 // shows, cuts them on its selection worker and adds the SELECTION node with the region mask.
 // The master says how many points; the wall's screenshot shows the tint on the ear, not the head.

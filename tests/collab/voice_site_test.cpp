@@ -1,4 +1,4 @@
-// Voice over the site link with real processes on loopback (issue 14): tessera-master --voice
+// Voice over the site link with real processes on loopback: tessera-master --voice
 // with a one-tile wall and the wall room's microphone from a WAV file, and two headless
 // tessera-site processes (no rendering), each talking from its own WAV file and writing what it
 // hears. Each voice is a tone of its own pitch, so who hears whom is read from the spectra:

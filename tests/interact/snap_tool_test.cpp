@@ -1,4 +1,4 @@
-// The lazy snapping tool (master/src/snap_tool.cpp): strokes on the bunny's ear and head, drawn
+// The lazy snapping tool (interact/src/snap_tool.cpp): strokes on the bunny's ear and head, drawn
 // in pixels of a known view, select the ear's elements of the mesh store and of the scans' point
 // store; the SELECTION node's region mask tints the ear and not the head from the stroke view
 // and from 30 degrees aside. The region mask's code (sync/selection_mask.h) is checked here too.

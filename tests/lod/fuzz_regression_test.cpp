@@ -55,7 +55,7 @@ TEST(FuzzRegressions, EveryRecordedConfStoreAndChunkInputIsHandled) {
     for (const auto& entry : std::filesystem::directory_iterator(folder)) {
       auto bytes = test::readBytes(entry.path());
       SCOPED_TRACE(entry.path().string());
-      // Before issue 10 the .conf cycles here recursed until the stack overflowed (SIGSEGV).
+      // Unguarded, the .conf cycles here would recurse until the stack overflowed (SIGSEGV).
       replay(bytes.data(), bytes.size(), fixture.path());
       ++replayed;
     }

@@ -289,7 +289,7 @@ TEST(PlyReader, TruncatedRealFilesFailCleanly) {
 }
 
 TEST(PlyReader, MagicLineWithTrailingBlanksIsRead) {
-  // Some exporters write "ply " or "ply\t" (issue 10); before, "not a PLY file". From memory,
+  // Some exporters write "ply " or "ply\t"; before, "not a PLY file". From memory,
   // and from a file named .ply and not (detection by magic).
   const std::string body =
       "format ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\n"

@@ -1,4 +1,4 @@
-// The console's panels (issue 16): first what they do with notes, without a window
+// The console's panels: first what they do with notes, without a window
 // (console_notes.h); then a real tessera-master --console --annotations on a virtual X server,
 // driven with xdotool as an operator's mouse and keys would: the Models panel's slider fades the
 // bunny, "Add note" and a click on the bunny open the form, the title typed and Enter store the

@@ -1,4 +1,4 @@
-// Video insets (issue 14): the real H.264 path without sockets: libx264 in, FFmpeg's decoder out,
+// Video insets: the real H.264 path without sockets: libx264 in, FFmpeg's decoder out,
 // through the packets and the receiver; the test pattern read back from what comes out; late
 // joiners, lost, corrupt, truncated and oversized packets.
 #include <gtest/gtest.h>

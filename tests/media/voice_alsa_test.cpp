@@ -1,4 +1,4 @@
-// Sound devices through ALSA (collab/voice_alsa.h) on alsa-lib's "null" PCM, which exists
+// Sound devices through ALSA (media/voice_alsa.h) on alsa-lib's "null" PCM, which exists
 // without a sound card: capture gives silence and playback discards, both at any speed (it has
 // no clock), so the session's clock paces them. An unknown device is refused by name.
 #include <gtest/gtest.h>

@@ -1,4 +1,4 @@
-// The voice ends of the site link (collab/voice_bridge.h) in one process: three voices (the
+// The voice ends of the site link (media/voice_bridge.h) in one process: three voices (the
 // wall's microphone and two sites, each a tone of its own pitch) through stations, a simulated
 // link with delay and jitter both ways, and the master's bridge. Who hears whom is read from
 // the outputs' spectra (Goertzel): the room hears the sites, each site the others, nobody itself.

@@ -1,4 +1,4 @@
-// Opus wrappers (collab/voice_codec.h) with the real libopus: settings checked, a tone through
+// Opus wrappers (media/voice_codec.h) with the real libopus: settings checked, a tone through
 // the codec, DTX on silence, in-band FEC recovering a lost frame better than concealment, and
 // decoding garbage without harm.
 #include <gtest/gtest.h>

@@ -1,4 +1,4 @@
-// The jitter buffer (collab/voice_jitter_buffer.h) on a simulated clock with real Opus packets:
+// The jitter buffer (media/voice_jitter_buffer.h) on a simulated clock with real Opus packets:
 // in order, duplicated, reordered, lost, late, from a restarted sender, with garbage payloads;
 // the target delay following the jitter up and down. Nothing sleeps: times are passed in.
 #include <gtest/gtest.h>

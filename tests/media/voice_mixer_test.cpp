@@ -1,4 +1,4 @@
-// The mixer (collab/voice_mixer.h): the room hears the sites, each site hears everyone but
+// The mixer (media/voice_mixer.h): the room hears the sites, each site hears everyone but
 // itself, and loud sums bend under full scale without clipping, wrapping or clicks.
 #include <gtest/gtest.h>
 

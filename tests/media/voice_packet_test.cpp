@@ -1,4 +1,4 @@
-// The voice packet (collab/voice_packet.h): round trip, every field checked, every truncation
+// The voice packet (media/voice_packet.h): round trip, every field checked, every truncation
 // and extension refused, random bytes never crash, and the sender's numbering with DTX.
 #include <gtest/gtest.h>
 

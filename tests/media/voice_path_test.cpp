@@ -1,4 +1,4 @@
-// Voice end to end (issue 14): a tone, a synthetic voice and espeak-ng speech through the real
+// Voice end to end: a tone, a synthetic voice and espeak-ng speech through the real
 // Opus encoder, a simulated network (seeded loss and jitter), the packet decoder, the adaptive
 // jitter buffer and the playout clock. The received signal is put back at the sender's
 // timestamps, aligned to the sent one by cross-correlation, and measured: SNR against the sent

@@ -1,4 +1,4 @@
-// WAV files (collab/voice_wav.h): round trips, stereo mixed down, other rates resampled to
+// WAV files (media/voice_wav.h): round trips, stereo mixed down, other rates resampled to
 // 48 kHz, and every bad file refused with its name and what is wrong.
 #include <gtest/gtest.h>
 

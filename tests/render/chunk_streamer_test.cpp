@@ -268,7 +268,7 @@ TEST_F(ChunkStreamerTest, OnlyChunksDrawnSeeThroughAreMeasured) {
   EXPECT_TRUE(r.renderSettled({&inst, 1}, v, fullResolution(), &st).rgba == opaque.rgba);
   EXPECT_EQ(st.frames, 1u);
 
-  // The loader before issue 12 measured every chunk: still there for benchmarks.
+  // The loader can measure every chunk: the baseline of bench/loader_pool.
   StreamerOptions every = measuring(2);
   every.measure_every_chunk = true;
   ViewRenderer all(v.width, v.height, nullptr, every);

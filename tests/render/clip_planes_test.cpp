@@ -1,4 +1,4 @@
-// Clip planes and boxes (render/clip_planes.h, the scene's CLIP nodes, issue 16): the rule and
+// Clip planes and boxes (render/clip_planes.h, the scene's CLIP nodes): the rule and
 // its precision on the CPU; the scene draw list collecting visible CLIP nodes per model; then
 // on the bunny (scans and reconstruction) through real GL: a plane synced to a replica removes
 // exactly its half-space (kept pixels unchanged, removed ones show the background or what lies

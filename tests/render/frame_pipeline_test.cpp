@@ -13,6 +13,7 @@
 
 #include <tessera/lod/point_writer.h>
 #include <tessera/lod/store_builder.h>
+#include <tessera/render/pass_timing.h>
 #include <tessera/render/gl_context.h>
 #include <tessera/render/view_renderer.h>
 #include <tessera/sync/config.h>
@@ -513,4 +514,32 @@ TEST_F(FramePipelineTest, LabelsAtOneSpotDoNotCoverEachOther) {
   EXPECT_NEAR(first_hi.x - first_lo.x + 1.0, box.x, 1.5);
 }
 
+}  // namespace tessera::render
+
+namespace tessera::render {
+namespace {
+
+// Timing a pass waits for the GL at every pass, so the passes time themselves only when asked
+// (pass_timing.h); the picture is the same either way.
+TEST_F(FramePipelineTest, PassesAreTimedOnlyWhenAsked) {
+  auto s = lod::PointStore::open(*sDir / "b.tlod");
+  const ViewSetup v = frontView(*s, 0.5, 160, 120);
+  ModelInstance m[1] = {{s.get(), storeModel(*s)}};
+  RenderOptions o;
+  o.fill = SurfaceFill::kPullPush;
+  o.edl.strength = 1.0f;
+  ViewRenderer r(v.width, v.height);
+  ASSERT_FALSE(timingPasses());  // the default
+  RenderStats off, on;
+  const Image quiet = r.renderSettled(m, v, o, &off);
+  EXPECT_EQ(off.depth_ms + off.color_ms + off.resolve_ms + off.fill_ms + off.screen_ms, 0.0);
+  timePasses(true);
+  const Image timed = r.renderSettled(m, v, o, &on);
+  timePasses(false);
+  EXPECT_GT(on.depth_ms + on.resolve_ms + on.fill_ms + on.screen_ms, 0.0);
+  EXPECT_EQ(quiet.rgba, timed.rgba);
+  EXPECT_GT(off.points, 0u);
+}
+
+}  // namespace
 }  // namespace tessera::render

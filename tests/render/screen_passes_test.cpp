@@ -1,6 +1,6 @@
 // The screen passes (screen_passes.h): eye-dome lighting leaves a plane facing the camera
 // unshaded (exact, and with scanner-like range noise for the robust method), darkens the far
-// side of a depth step, and on a noisy virtual scan of the bunny (issue 12) the 1 px LOD view
+// side of a depth step, and on a noisy virtual scan of the bunny the 1 px LOD view
 // matches the full-resolution render to at least 35 dB and flickers at most half as much as the
 // classic method over a 0.1 degree orbit step.
 #include <gtest/gtest.h>

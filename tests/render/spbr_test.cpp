@@ -298,7 +298,7 @@ TEST_F(SpbrRenderTest, WhitePlaneShowsTheRequestedOpacity) {
   }
 }
 
-// Sparse scans (issue 12): the same plane holds 2 points a pixel, where the paper assumes ~38.
+// Sparse scans: the same plane holds 2 points a pixel, where the paper assumes ~38.
 // With the default (copies stratified over surface cells, SpbrCopies::kInCell) the picture is the
 // binomial one and the edge stays sharp: mean within 2.5% of 255 alpha, standard deviation at
 // most 1.5x the binomial 255 sqrt(alpha (1 - alpha) / L) of L independent ensembles, and a

@@ -1,4 +1,4 @@
-// Voice (issue 14) end to end without a sound device, for the tests and bench/voice: the test
+// Voice end to end without a sound device, for the tests and bench/voice: the test
 // signals (a tone, a synthetic voice, espeak-ng speech), a simulated network (seeded loss,
 // jitter, duplicates), the real sender -> packet bytes -> decodeVoicePacket -> jitter buffer ->
 // playout clock path, and the measures (alignment by cross-correlation, SNR, clicks).

@@ -70,7 +70,7 @@ TEST(SceneFile, ShippedScenesLoadWithPathsBesideTheFile) {
   EXPECT_EQ(bunny.settings().shading(), scene::SHADING_EDL);
   EXPECT_EQ(loadSceneFile(kConfigs + "/scenes/autzen.json").settings().lod_pixels(), 1.0f);
   EXPECT_EQ(loadSceneFile(kConfigs + "/scenes/bunny-fused.json").nodes_size(), 2);
-  // A clip plane (issue 16) through the scene file's JSON mapping, checked as the wire's.
+  // A clip plane through the scene file's JSON mapping, checked as the wire's.
   const scene::SceneFile clip = loadSceneFile(kConfigs + "/scenes/bunny-clip.json");
   ASSERT_EQ(clip.nodes_size(), 6);
   EXPECT_EQ(clip.nodes(2).kind(), scene::SceneNode::CLIP);

@@ -448,7 +448,7 @@ TEST_F(BadFrame, BadFields) {
   expectError(f, Code::kBadField, "kind: missing or unknown");
 }
 
-// A CLIP node (issue 16) reaches a replica through a frame, its later change too, and every
+// A CLIP node reaches a replica through a frame, its later change too, and every
 // bad payload is refused with the field named, by the master's mutation and by a replica.
 TEST(SceneGraph, ClipNodesSyncAndBadOnesAreRefusedByField) {
   SceneGraph master, replica;
@@ -615,7 +615,7 @@ TEST(Wire, GarbageAndTruncatedBytesAreErrorsNotCrashes) {
 }
 
 // ---------------------------------------------------------------------------------------------
-// The property test (issue 6): random operations on a master; a replica from the start and one
+// The property test: random operations on a master; a replica from the start and one
 // from a snapshot taken at a random point equal the master after every frame.
 
 class RandomScene {

@@ -1,5 +1,5 @@
 // The annotation database: what people learn about a model, kept in an SQLite file beside the
-// scene (DESIGN.md, "Annotation"; issue 16, "Information").
+// scene ("Annotation", "Information").
 //
 // The information model follows the thesis (patch-lod-annotation-thesis.txt, ch. 5: text,
 // numbers, images and links assigned to selected regions, kept in a database next to the model)

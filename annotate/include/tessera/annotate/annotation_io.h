@@ -1,4 +1,4 @@
-// Exports and imports of the annotation database (issue 16: CSV, JSON, GeoJSON), used by
+// Exports and imports of the annotation database (CSV, JSON, GeoJSON), used by
 // tessera-annotate. Imports are outside bytes: everything is validated, an error names the file
 // and the field ("importJson(): notes.json: items[3].position[1]: expected a finite number"),
 // and a file with any error imports nothing (one transaction).

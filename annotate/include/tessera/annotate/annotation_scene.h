@@ -1,4 +1,4 @@
-// The annotation database as part of the scene (issue 16, "Information"; DESIGN.md,
+// The annotation database as part of the scene ("Information",
 // "Annotation"): tessera-master --annotations FILE opens an AnnotationDb (annotation_db.h) beside
 // the scene and keeps the two in step, so what people learn is on every tile and site, and
 // what they measure and select on the wall survives the session.

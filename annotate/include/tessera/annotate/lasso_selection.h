@@ -1,4 +1,4 @@
-// Lasso selection on huge models (issue 16): every element of a store whose projection falls
+// Lasso selection on huge models: every element of a store whose projection falls
 // inside a closed screen polygon, through the whole depth or only where it is visible, exact at
 // the leaves and out of core. The thesis' base selection method back-projects the lasso's 2D
 // region onto the model and keeps the vertices rendered inside it

@@ -1,4 +1,4 @@
-// 3D lazy snapping and the robust lasso (issue 16; thesis "patch-lod-annotation", chapter 4):
+// 3D lazy snapping and the robust lasso (thesis "patch-lod-annotation", chapter 4):
 // select a region of a scanned surface from a few foreground and background strokes.
 //
 // The pipeline runs on the CPU over the samples a selection needs (the vertices of a mesh, or

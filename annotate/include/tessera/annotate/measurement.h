@@ -1,4 +1,4 @@
-// Measuring on the model (Atelier3D section 4.1; DESIGN.md, "Annotation"): distance, polyline
+// Measuring on the model (Atelier3D section 4.1): distance, polyline
 // length, angle, and the area of a surface region bounded by a closed polyline, in metres, each
 // with the bound of its error that the data allows. Pure geometry on doubles (georeferenced
 // LiDAR keeps millimetres hundreds of kilometres from its origin); the surface enters only

@@ -1,4 +1,4 @@
-// An image item's picture as the wall shows it in an open note (issue 16, "Information": items
+// An image item's picture as the wall shows it in an open note ("Information": items
 // are text, numbers, images and links; the thesis' information model, chapter 5, shows a
 // place's documents beside the model). The master decodes the item's image (its bytes in the
 // database, or the file it names) and scales it to fit a small square, once per item revision;

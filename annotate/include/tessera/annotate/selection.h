@@ -1,5 +1,5 @@
 // A selection of elements (points or triangles) of one store, kept compactly per leaf node: the
-// issue 16 selection "stored compactly (per chunk ranges or bitsets)". Elements are named by
+// selection stored compactly (per chunk ranges or bitsets). Elements are named by
 // (leaf node id, index in the node's decoded payload): PointStore leaf chunks (every input point
 // is in exactly one leaf; the LOD copies in inner nodes are never selected) or MeshStore leaf
 // patches (their triangles in index-buffer order).

@@ -1,4 +1,4 @@
-// A site's end of chunks on demand (issue 13; Bettio et al. 2009, section 4): the stores the
+// A site's end of chunks on demand (Bettio et al. 2009, section 4): the stores the
 // scene names, read as byte ranges from the master's chunk server (chunk_server.h) over CURVE,
 // kept in a disk cache between sessions. Each store is a lod::RangeSource (range_source.h) that
 // lod::PointStore reads through, so every range is checked by the store's own CRC-32C on use:

@@ -1,4 +1,4 @@
-// The master's chunk server (issue 13, "chunks on demand"; Bettio et al. 2009, section 4): the
+// The master's chunk server ("chunks on demand"; Bettio et al. 2009, section 4): the
 // byte ranges of the scene's stores for sites that do not have them (collab/chunk_client.h).
 // A CURVE ROUTER socket of its own beside the site hub, in the hub's ZeroMQ context, so the
 // hub's ZAP handler admits the same keys (one handler per context, curve.h), served by a thread

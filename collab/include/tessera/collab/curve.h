@@ -1,4 +1,4 @@
-// CURVE security for the site links (issue 13; libzmq 4.3 with libsodium): key pairs and key
+// CURVE security for the site links (libzmq 4.3 with libsodium): key pairs and key
 // files, the master's allow list of site public keys, and the ZAP handler that admits only
 // those keys. A site link is a CURVE server socket on the master (curveServer()) and a CURVE
 // client socket at each site (curveClient()); ZeroMQ encrypts and authenticates every message

@@ -1,4 +1,4 @@
-// A site's end of the site link (issue 13): a CURVE DEALER socket to the master's site hub
+// A site's end of the site link: a CURVE DEALER socket to the master's site hub
 // (site_hub.h), the hello and welcome, the frames and snapshots that keep the site's replica of
 // the scene, and the requests it sends. See site.proto for the session.
 #pragma once

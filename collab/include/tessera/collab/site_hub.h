@@ -1,4 +1,4 @@
-// The master's side of the remote sites (issue 13; DESIGN.md, collab/): one CURVE ROUTER socket
+// The master's side of the remote sites (collab/): one CURVE ROUTER socket
 // that sites join over the internet (collab/curve.h: only keys on the allow list get in), as
 // master::Participants of the master's loop.
 //
@@ -55,7 +55,7 @@ struct SiteHubOptions {
   std::string chunks_endpoint;
   double chunk_bytes_per_s = 100e6 / 8;  ///< per site (--chunk-rate, Mbit/s)
   double chunk_total_bytes_per_s = 0;    ///< all sites (--chunk-total-rate, Mbit/s); 0: none
-  /// Voice (issue 14; voice_bridge.h): the master mixes what sites say, sends each its
+  /// Voice (voice_bridge.h): the master mixes what sites say, sends each its
   /// mix-minus and plays every site in the wall room. The clock is the master's loop: mixing
   /// happens before each frame, 20 ms periods at a time.
   bool voice = false;
@@ -64,7 +64,7 @@ struct SiteHubOptions {
   std::string audio_in;
   /// The wall room's speakers: a WAV file written at the end or "alsa:DEVICE"; needs voice.
   std::string audio_out;
-  /// Video insets (issue 14): each site's video is held to this many kbit/s (sustained, with a
+  /// Video insets: each site's video is held to this many kbit/s (sustained, with a
   /// one-second burst); chunks over it are dropped and the master says so once a second. The
   /// stream recovers at its next intra refresh; the wall never waits for it.
   double video_cap_kbps = 4000;

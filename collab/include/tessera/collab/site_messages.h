@@ -1,5 +1,5 @@
 // What a site may send (site.proto's ToMaster), checked before the master looks at it: the
-// master is never disturbed by a misbehaving site (issue 13). Sizes, counts, ids and numbers
+// master is never disturbed by a misbehaving site. Sizes, counts, ids and numbers
 // are bounded; names are UTF-8; everything a check refuses names the message and the field.
 #pragma once
 
@@ -22,7 +22,7 @@ constexpr size_t kMaxSiteMessageBytes = 128 * 1024;
 constexpr int kMaxStrokePoints = 3000;
 /// Sketches one site may keep in the scene; more is refused (undo or clear first).
 constexpr size_t kMaxSketchesPerSite = 1000;
-/// Points in one measurement (master/measurement.h kMaxAreaLoop), and the measurements one
+/// Points in one measurement (annotate/measurement.h kMaxAreaLoop), and the measurements one
 /// site may keep in the scene.
 constexpr int kMaxMeasurePoints = 1024;
 constexpr size_t kMaxMeasurementsPerSite = 1000;

@@ -1,5 +1,5 @@
-// A site's edits of the annotation database (site.proto SiteNote; issue 16): checked messages
-// (site_messages.h) become edits of the master's AnnotationScene (master/annotation_scene.h),
+// A site's edits of the annotation database (site.proto SiteNote): checked messages
+// (site_messages.h) become edits of the master's AnnotationScene (annotate/annotation_scene.h),
 // committed and then applied to the scene, with the answer the site gets. The site hub calls
 // it for every SiteNote; the author of each edit is the site's name.
 #pragma once

@@ -1,4 +1,4 @@
-// What the remote sites' requests do to the master's scene (issue 13), apart from the transport
+// What the remote sites' requests do to the master's scene, apart from the transport
 // (site_hub.h owns the sockets, keys and rates): participants join and leave, each one an AVATAR
 // node that follows its poses smoothly, their strokes become SKETCH nodes in a layer per site,
 // undo and clear, their measurements MEASUREMENT nodes in "measurements", and follow-me (the leader's pose moves the scene camera).

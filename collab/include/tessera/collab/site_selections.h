@@ -1,4 +1,4 @@
-// Sites' lassos and snaps (site.proto SiteSelect, SiteSnap; issue 16) as requests to the master's
+// Sites' lassos and snaps (site.proto SiteSelect, SiteSnap) as requests to the master's
 // selection worker (master/selection_worker.h): selected at full resolution on a thread of its
 // own, so the wall never waits for a selection of 10^8 points; each finished one becomes a
 // SELECTION node recorded as the site's before the next frame. At most
@@ -24,7 +24,7 @@ class SiteSelections {
   void request(const sync::SceneGraph& graph, uint32_t site, const std::string& name,
                const site::SiteSelect& select);
   /// Queues a checked SiteSnap (lazy snapping, or the robust lasso with heavy_width > 0; see
-  /// master/snap_tool.h).
+  /// interact/snap_tool.h).
   void request(const sync::SceneGraph& graph, uint32_t site, const std::string& name,
                const site::SiteSnap& snap);
   /// Before a frame: the finished selections as SELECTION nodes. Returns how many were added.

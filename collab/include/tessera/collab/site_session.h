@@ -1,4 +1,4 @@
-// tessera-site's loop (issue 13), a library class as the master's and the node's are: join the
+// tessera-site's loop, a library class as the master's and the node's are: join the
 // master's session over the site link (site_client.h), keep a replica of the scene, render it
 // locally with the renderer and the scene path every node uses (render::SceneDrawList, the
 // scene overlay: every avatar but its own, every sketch), and send its pose about 30 times a
@@ -44,11 +44,11 @@ struct SiteSessionOptions {
   /// withdrawn from the chunk server); 0: every request waits for its answer
   /// (render::StreamerOptions::cancel_after_frames).
   uint32_t withdraw_after_frames = 2;
-  /// Voice (issue 14; the master runs --voice): its microphone, a WAV file sent from the
+  /// Voice (the master runs --voice): its microphone, a WAV file sent from the
   /// welcome on, and what it hears (the wall's microphone and the other sites), written as WAV
   /// when the session ends; or "alsa:DEVICE", a sound device (voice_alsa.h). "" : none.
   std::string audio_in, audio_out;
-  /// Video (issue 14): "test" (the test pattern), a video file, or a V4L2 camera (/dev/videoN)
+  /// Video: "test" (the test pattern), a video file, or a V4L2 camera (/dev/videoN)
   /// sent from the welcome on as H.264 (video_codec.h); "" : none. Other sites' insets are
   /// decoded and drawn when they are in view.
   std::string video;

@@ -1,4 +1,4 @@
-// What the console's panels do with notes (issue 16, "Information"), apart from how the panels
+// What the console's panels do with notes ("Information"), apart from how the panels
 // look (master/src/console_panels.cpp), so tests drive it without a window: a note drafted at a
 // picked point becomes a database place and item, a note's node gives the camera to fly to, and
 // the note nearest the cursor is found for the O key. Window-free, no GL.

@@ -1,4 +1,4 @@
-// The measuring tool (issue 16): points picked one by one on the model (surface_pick.h) become a
+// The measuring tool: points picked one by one on the model (surface_pick.h) become a
 // MEASUREMENT node of the scene (layer "measurements"), measured with measurement.h, so every
 // tile and site shows it with its label. A distance ends at its second point and an angle at its
 // third (the vertex is the second); a path and an area end when the user says so. Window-free:

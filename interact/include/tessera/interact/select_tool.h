@@ -1,4 +1,4 @@
-// The lasso on the wall (issue 16; thesis 4.1): a lasso drawn over a view becomes a SELECTION
+// The lasso on the wall (thesis 4.1): a lasso drawn over a view becomes a SELECTION
 // node of the scene (layer "selections"): the exact leaf elements inside it (lasso_selection.h,
 // through the whole depth) and the lasso with its view, from which every tile, console and site
 // tints the region (render/scene_overlay.h sceneHighlights()). Window-free: the console feeds

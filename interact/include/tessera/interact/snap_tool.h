@@ -1,4 +1,4 @@
-// The lazy snapping tool (issue 16; thesis chapter 4): strokes drawn over a view become a
+// The lazy snapping tool (thesis chapter 4): strokes drawn over a view become a
 // SELECTION node, as the lasso's do (select_tool.h), on point and mesh stores alike.
 //
 //   1. Gather: the leaves of the model's hierarchy whose boxes meet the view frustum (point

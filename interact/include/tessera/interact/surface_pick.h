@@ -1,5 +1,5 @@
 // Picking for measurement: the surface under a pixel found in the full-resolution data, not in
-// the coarse cut the view happens to show (issue 16; Atelier3D section 4.1). The frame's pick
+// the coarse cut the view happens to show (Atelier3D section 4.1). The frame's pick
 // ids say which model is there and roughly where (ViewRenderer::pick()); this goes down the
 // model's hierarchy to the leaves around the pixel's ray and returns a real sample (points) or
 // the ray's hit on an input triangle (meshes), in double precision world coordinates. Also the

@@ -1,8 +1,8 @@
 // A multiresolution hierarchy as a view cuts and streams it (Bettio et al. 2009, section 4.1):
-// the point store's octree now (point_store.h), mesh patch hierarchies next (DESIGN.md,
-// "Meshes"). The cut selection (render/lod_selector.h) and the chunk streamer's hierarchy paging
-// and bookkeeping (render/chunk_streamer.h) see only this interface, so a second kind of
-// hierarchy needs no second copy of them: only its payload's decoding.
+// the point store's octree (point_store.h) and the mesh patch hierarchy (mesh_store.h). The cut
+// selection (render/lod_selector.h) and the chunk streamer's hierarchy paging and bookkeeping
+// (render/chunk_streamer.h) see only this interface, so a second kind of hierarchy needs no
+// second copy of them: only its payload's decoding.
 //
 // Contract: nodes are self-contained (one node's payload draws on its own, so a cut is drawn
 // from its nodes only); a node's spacing is the distance below which its samples do not resolve

@@ -1,4 +1,4 @@
-// Read-only access to a .tmesh mesh store (DESIGN.md, "Meshes"): a patch hierarchy after the
+// Read-only access to a .tmesh mesh store ("Meshes"): a patch hierarchy after the
 // patch-LOD thesis (../shared/papers/patch-lod-annotation-thesis.txt, chapter 3). The leaves are
 // METIS patches of the input mesh at full resolution; each inner node is its children merged and
 // simplified with the borders it shares with the rest of the mesh locked, so any cut of the tree

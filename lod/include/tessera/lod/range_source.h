@@ -1,4 +1,4 @@
-// Where a point store's bytes come from (issue 13, "chunks on demand"): a file on this host, or
+// Where a point store's bytes come from ("chunks on demand"): a file on this host, or
 // byte ranges fetched from elsewhere (collab/chunk_client.h: the master's chunk server, with a
 // disk cache). PointStore reads everything through one: the header, the source table, each
 // hierarchy page and each chunk payload is one read() of a byte range, and each is checked by

@@ -37,7 +37,4 @@ std::string summaryText(const SourceSummary& s);
 /// position_color_bytes_per_point and sources.
 std::string summaryJson(const SourceSummary& s);
 
-/// JSON string literal with escapes.
-std::string jsonString(std::string_view s);
-
 }  // namespace tessera::lod

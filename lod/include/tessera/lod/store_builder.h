@@ -31,7 +31,7 @@ struct BuildOptions {
   uint32_t leaf_max = 16384;  ///< nodes with at most this many points stay leaves
   /// Leaves keep the input's own resolution (its declared precision, e.g. a LAS scale factor,
   /// or a 1024th of the leaf spacing when it declares none) instead of a quarter of their
-  /// spacing: measurement-grade picks (master/surface_pick.h) at a larger store.
+  /// spacing: measurement-grade picks (interact/surface_pick.h) at a larger store.
   bool exact_leaves = false;
   /// Points per out-of-core chunk; 0 derives it from memory_mb (tests force small chunks).
   uint64_t chunk_points = 0;

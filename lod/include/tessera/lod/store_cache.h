@@ -1,10 +1,11 @@
 // Raw scans as stores without a build step: any file a reader takes (PLY, LAS, .conf, XYZ, OBJ)
 // is built once into a .tlod in a cache folder and reused while the file is unchanged. The cache
 // is $XDG_CACHE_HOME/tessera (else ~/.cache/tessera); entries are keyed by the input's absolute
-// path, size and modification time, and written as .partial then renamed (store_builder.h), so a
-// killed build never leaves an entry that opens. tessera-render --model and the master's scenes
-// use it; the master converts before any node sees the scene, so the nodes of its host share the
-// entry.
+// path, size and modification time. Several processes may share the cache: an entry is built by
+// one process under a lock beside it (the others wait, then open it), under names of its own,
+// and renamed into place whole, so a killed build never leaves an entry that opens.
+// tessera-render --model and the master's scenes use it; the master converts before any node
+// sees the scene, so the nodes of its host share the entry.
 #pragma once
 
 #include <filesystem>

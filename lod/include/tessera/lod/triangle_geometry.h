@@ -1,5 +1,5 @@
 // Small exact geometry on triangles in double precision, shared by the mesh builder's distances
-// (src/triangle_grid.h) and measuring on meshes (master/surface_pick.h). Header-only.
+// (src/triangle_grid.h) and measuring on meshes (interact/surface_pick.h). Header-only.
 #pragma once
 
 #include <cmath>

@@ -1,4 +1,4 @@
-// The master's loop (DESIGN.md, master/): owns the scene graph, plays the script and the
+// The master's loop (master/): owns the scene graph, plays the script and the
 // console's input into it, and drives the render nodes through a cluster link
 // (sync/cluster_link.h), whichever its transport. Per frame:
 //
@@ -48,7 +48,7 @@ class Participants {
   virtual void afterFrame(const sync::SceneGraph& graph, const std::string& bytes) = 0;
   /// The session ends (every participant is told why).
   virtual void end(const std::string& reason) = 0;
-  /// Media for the render nodes with the frame being taken (video packets, issue 14; checked
+  /// Media for the render nodes with the frame being taken (video packets; checked
   /// by the participants): appended to `out`, which the master sends in the frame message.
   virtual void takeMedia(std::vector<std::string>& out) { (void)out; }
 };

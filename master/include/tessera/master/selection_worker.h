@@ -1,4 +1,4 @@
-// Selections made off the master's loop (issue 16): a lasso on 10^8 points takes about half a
+// Selections made off the master's loop: a lasso on 10^8 points takes about half a
 // second here (bench/lasso), lazy snapping on a point store seconds (bench/lazy_snapping), and
 // the wall must not wait for either. Requests from sites (collab/site_selections.h) and the
 // console's snap tool go to one worker thread; each finished selection becomes a SELECTION node
@@ -58,6 +58,9 @@ class SelectionWorker {
   int collect(sync::SceneGraph& graph);
   /// Jobs queued or at work.
   int pending() const;
+  /// Stores held open for selections: those the scene's models name, and those a job still
+  /// uses (collect() closes the rest).
+  size_t openStores() const;
 
  private:
   struct Impl;

@@ -1,4 +1,4 @@
-// Video insets (issue 14): H.264 through libavcodec (libx264 to encode, FFmpeg's own decoder),
+// Video insets: H.264 through libavcodec (libx264 to encode, FFmpeg's own decoder),
 // RAII over the codec contexts, pictures as RGBA (converted with libswscale). No GL, no sockets:
 // the sanitizer pass and the fuzzer link only this.
 //

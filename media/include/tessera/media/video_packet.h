@@ -1,4 +1,4 @@
-// Video insets (issue 14): H.264 access units cut into chunks for the site link (one chunk per
+// Video insets: H.264 access units cut into chunks for the site link (one chunk per
 // site message, so no message nears kMaxSiteMessageBytes) and for the cluster link (the master
 // forwards chunks to the render nodes in its frame messages). Little-endian, a 16-byte header,
 // then the chunk's bytes:

@@ -1,4 +1,4 @@
-// Video insets (issue 14): the generated test pattern, whose pictures carry their own frame
+// Video insets: the generated test pattern, whose pictures carry their own frame
 // number and capture time, so a test or a benchmark reads them back from a wall screenshot
 // (glass-to-glass latency, which frame the wall shows) and compares the inset with what was sent.
 //

@@ -1,4 +1,4 @@
-// Video insets (issue 14): where a site's pictures come from (tessera-site --video):
+// Video insets: where a site's pictures come from (tessera-site --video):
 //   "test"         the generated test pattern (video_pattern.h), its frame number and the system
 //                  clock burned in at the moment it is grabbed
 //   /dev/videoN    a V4L2 camera through libavdevice's video4linux2 input, at the asked size and
@@ -26,7 +26,7 @@ class VideoSource {
   virtual std::string describe() const = 0;
 };
 
-/// Opens `spec` as above. Throws VideoError naming the file or device and what failed ("collab::
+/// Opens `spec` as above. Throws VideoError naming the file or device and what failed ("media::
 /// openVideoSource(): /dev/video0: No such file or directory").
 std::unique_ptr<VideoSource> openVideoSource(const std::string& spec, int width, int height,
                                              double fps);

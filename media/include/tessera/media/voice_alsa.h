@@ -1,4 +1,4 @@
-// Voice (issue 14): a sound device through ALSA (alsa-lib, libasound2 from Debian): a site's or
+// Voice: a sound device through ALSA (alsa-lib, libasound2 from Debian): a site's or
 // the wall room's microphone and speaker, as the voice path takes them: 48 kHz mono, whole
 // frames (10 or 20 ms), 16-bit samples on the device and floats in [-1, 1] here.
 //
@@ -27,7 +27,7 @@ struct _snd_pcm;
 namespace tessera::media {
 
 /// A sound device that cannot be opened, set up or used; what() names the device and gives
-/// alsa-lib's reason ("collab::AlsaPcm: capture device 'nosuchdevice': No such file or
+/// alsa-lib's reason ("media::AlsaPcm: capture device 'nosuchdevice': No such file or
 /// directory").
 struct AlsaError : std::runtime_error {
   using std::runtime_error::runtime_error;

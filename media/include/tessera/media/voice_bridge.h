@@ -1,4 +1,4 @@
-// Voice over the site link (issue 14), without sockets: the two ends the site link carries
+// Voice over the site link, without sockets: the two ends the site link carries
 // voice packets between, each driven by a clock (seconds since it started) from its owner's loop.
 //
 // VoiceStation is a site's end: its microphone (samples, e.g. a WAV file; silence after them)

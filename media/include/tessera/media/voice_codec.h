@@ -1,4 +1,4 @@
-// Voice (issue 14): Opus (RFC 6716, libopus from Debian) at 48 kHz mono, as the sites and the
+// Voice: Opus (RFC 6716, libopus from Debian) at 48 kHz mono, as the sites and the
 // wall send it. RAII wrappers: the encoder applies the settings below once; the decoder decodes a
 // packet, recovers a lost frame from the next packet's in-band FEC, or conceals a gap (PLC).
 // Samples are floats in [-1, 1] (full scale); a frame is 10 or 20 ms (480 or 960 samples).

@@ -1,4 +1,4 @@
-// Voice (issue 14): the receiving end of one voice stream. Packets go in as they arrive (any
+// Voice: the receiving end of one voice stream. Packets go in as they arrive (any
 // order, late, twice); 48 kHz mono samples come out at the playout clock. The buffer holds
 // packets long enough to absorb the network's jitter and no longer:
 //

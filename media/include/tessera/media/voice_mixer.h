@@ -1,4 +1,4 @@
-// Voice (issue 14): what each participant hears, one block of samples at a time. The wall room
+// Voice: what each participant hears, one block of samples at a time. The wall room
 // hears every site (not its own microphone: that would feed back through the room's speakers);
 // each site hears the wall's microphone and every other site, never itself ("mix-minus", as in
 // broadcast and conference bridges). Sums are limited with a soft knee, so a loud moment bends

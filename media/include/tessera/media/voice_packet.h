@@ -1,4 +1,4 @@
-// Voice (issue 14): one Opus frame on the wire, as a site or the wall sends it. Little-endian,
+// Voice: one Opus frame on the wire, as a site or the wall sends it. Little-endian,
 // a 12-byte header then the Opus packet (RFC 6716):
 //
 //   offset size  field

@@ -1,4 +1,4 @@
-// Voice (issue 14): WAV files in and out, for machines without a sound device (tests, the demo)
+// Voice: WAV files in and out, for machines without a sound device (tests, the demo)
 // and for recording what a participant hears. Reads 16-bit PCM, mono or stereo, at any rate
 // from 8 to 192 kHz (RIFF/WAVE, WAVE_FORMAT_PCM or WAVE_FORMAT_EXTENSIBLE with PCM); voice
 // streams take it as 48 kHz mono (stereo mixed down, other rates resampled). Writes 16-bit PCM.
@@ -14,7 +14,7 @@
 namespace tessera::media {
 
 /// A WAV file that cannot be read or written; what() names the file and what is wrong with it
-/// ("collab::readWav(): talk.wav: 24-bit samples, expected 16-bit PCM").
+/// ("media::readWav(): talk.wav: 24-bit samples, expected 16-bit PCM").
 struct WavError : std::runtime_error {
   using std::runtime_error::runtime_error;
 };

@@ -96,7 +96,7 @@ struct StreamerOptions {
   bool point_splat_sizes = true;
   /// Loader threads decoding (and measuring) in parallel; 0: std::thread::hardware_concurrency().
   uint32_t loader_threads = 0;
-  /// Measure every chunk as if it were drawn see-through (the loader before issue 12 did):
+  /// Measure every chunk as if it were drawn see-through (the baseline of bench/loader_pool):
   /// benchmarks compare against it; views that may turn see-through at any moment need not, a
   /// chunk is measured again when first wanted see-through.
   bool measure_every_chunk = false;

@@ -1,4 +1,4 @@
-// Clip planes and clip boxes (issue 16, the scene's CLIP nodes, sync/proto/tessera/scene.proto
+// Clip planes and clip boxes (the scene's CLIP nodes, sync/proto/tessera/scene.proto
 // ClipPayload): what cuts one model, as the scene draw list collects it (world frame, double)
 // and as the geometry passes test it per point and per fragment (the batch's local frame,
 // float: shaders/shared_layout.h tesseraClipped(), the same rule as keeps() here).

@@ -1,4 +1,4 @@
-// The frame target of one view (DESIGN.md, "The frame"): the per-pixel planes every pass of the
+// The frame target of one view ("The frame"): the per-pixel planes every pass of the
 // view shares. Geometry passes (points now, meshes next) write depth, colour and pick ids; screen
 // passes read them and write the image (resolve, eye-dome lighting); the overlay pass draws on
 // the image with depth test against the scene. Owned by the view (ViewRenderer), one per view

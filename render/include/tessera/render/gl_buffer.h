@@ -1,4 +1,4 @@
-// A GL buffer object as a move-only value (STYLE.md, resources): created and destroyed only with
+// A GL buffer object as a move-only value (resources follow their owner): created and destroyed only with
 // its context current on the calling thread.
 #pragma once
 

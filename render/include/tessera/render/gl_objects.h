@@ -1,4 +1,4 @@
-// GL objects as move-only values (STYLE.md, resources): programs with their uniform locations
+// GL objects as move-only values (resources follow their owner): programs with their uniform locations
 // cached, 2D textures and framebuffers. Each is created and destroyed only with its context
 // current on the calling thread; GlBuffer (gl_buffer.h) is the buffer of the same family.
 #pragma once

@@ -1,4 +1,4 @@
-// The mesh pass (DESIGN.md, "Render pipeline"): the geometry pass for triangle patches
+// The mesh pass ("Render pipeline"): the geometry pass for triangle patches
 // (lod/mesh_store.h). GL rasterises the batches with its own depth test into the pass's
 // framebuffer (depth, packed colour, pick id), then a compute step writes the frame target's
 // depth, colours and pick ids where a triangle is nearest (shaders/mesh_merge.comp). Run it

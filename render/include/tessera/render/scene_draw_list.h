@@ -1,4 +1,4 @@
-// The scene draw list (DESIGN.md, "Scene path"): what a scene graph (sync/scene_graph.h) asks the
+// The scene draw list ("Scene path"): what a scene graph (sync/scene_graph.h) asks the
 // renderer to draw: its MODEL nodes as render::ModelInstances with their stores open, and the
 // wall-level settings as render::RenderOptions. Render nodes, the master's console and
 // `tessera-render --scene` use it, so all draw one scene the same way: the same stores,
@@ -97,7 +97,7 @@ class SceneDrawList {
   /// Forgets and closes every store (before the streamers go).
   void clear(std::span<ChunkStreamer* const> streamers);
 
-  /// Clip planes and boxes (the scene's visible CLIP nodes, issue 16): each instance's
+  /// Clip planes and boxes (the scene's visible CLIP nodes): each instance's
   /// ModelInstance::clip holds, in the world frame (double), the planes of every visible CLIP
   /// node that cuts it (its `models`, or all models when empty), one group per node in
   /// ascending id, as long as they fit in kMaxClipPlanes; a node that does not fit is left out

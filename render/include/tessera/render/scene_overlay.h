@@ -1,4 +1,4 @@
-// The scene overlay (issue 13): the scene graph's SKETCH, AVATAR and ANNOTATION nodes as overlay
+// The scene overlay: the scene graph's SKETCH, AVATAR and ANNOTATION nodes as overlay
 // primitives (overlay_pass.h), so every tile of every wall and the master's console draw the
 // same sketches, remote participants' glyphs and notes, depth-tested against the models. Render
 // nodes, the console and `tessera-render --scene` all build it here, as they build their models
@@ -21,12 +21,12 @@
 //    and its name (the payload's site, else the node's name) centred above the head.
 //  - ANNOTATION: its text at its anchor over a dark box, and a small dot at the anchor; an open
 //    database note lists its items and shows its image items' pictures under them.
-//  - MEASUREMENT (issue 16): lines through its points (closed for an area), a dot on each, and
+//  - MEASUREMENT: lines through its points (closed for an area), a dot on each, and
 //    its label (measurementLabel()) at the distance's middle, the angle's vertex, the area's
 //    centroid or the path's end.
-//  - CLIP (issue 16): faint white lines where the cut is: a box's 12 edges, or a square of
+//  - CLIP: faint white lines where the cut is: a box's 12 edges, or a square of
 //    half-width `outline` on each plane around its point nearest the node origin.
-//  - VIDEO_INSET (issue 14): the picture of its source's stream (options.video_texture; a dark
+//  - VIDEO_INSET: the picture of its source's stream (options.video_texture; a dark
 //    quad until one is decoded). In the world: an OverlayQuad width x height metres centred on
 //    the node frame's origin in its xy plane, depth-tested. On the screen: a ScreenRect placed
 //    in fractions of options.screen_wall, drawn where this view (options.screen_view, in the

@@ -124,7 +124,7 @@ struct EdlOptions {
   /// sample of a layer behind keeps its depth and shades dark).
   bool median_reference = true;
 
-  /// The method before issue 12: kClassic at radius 1.
+  /// The classic method: kClassic at radius 1.
   static EdlOptions classic() {
     EdlOptions o;
     o.radius = 1;
@@ -156,7 +156,7 @@ class EdlPass {
 /// so a lasso drawn on a 1920-pixel view is followed to about 2 of its pixels.
 constexpr uint32_t kHighlightMaskSize = 1024;
 
-/// A region to tint (a selection, issue 16): what the lasso drawn in view `clip_from_world`
+/// A region to tint (a selection): what the lasso drawn in view `clip_from_world`
 /// enclosed (`mask`: rasterizeLasso()), the whole depth through, on one model.
 struct Highlight {
   glm::dmat4 clip_from_world{1.0};
@@ -187,7 +187,7 @@ struct PickSpan {
 
 /// The lasso `ndc` (the lasso view's normalised device coordinates, x right, y up; at least 3
 /// finite vertices, else an empty mask) as kHighlightMaskSize^2 bits, row-major from NDC y = -1,
-/// by the even-odd rule at each cell's centre (master/lasso_selection.h's rule). Cost: one
+/// by the even-odd rule at each cell's centre (annotate/lasso_selection.h's rule). Cost: one
 /// pass over the rows, O(rows x edges + cells / 32).
 std::vector<uint32_t> rasterizeLasso(std::span<const glm::dvec2> ndc);
 

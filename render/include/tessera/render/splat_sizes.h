@@ -1,6 +1,6 @@
 // Per-point splat sizes from each point's own neighbours. A node's spacing is a mean: on
 // airborne LiDAR the samples lie on scan lines whose gaps are several times the spacing along
-// them, so discs sized from the node's spacing leave stripes on close views (issue 12). The
+// them, so discs sized from the node's spacing leave stripes on close views. The
 // loader measures, for each point of a leaf, the disc that closes the surface around it, and
 // the point pass draws that disc (shaders/point_raster.comp): the radius of the point's Voronoi
 // cell in its tangent plane, i.e. the distance to the cell's farthest vertex. Discs of those

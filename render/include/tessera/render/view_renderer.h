@@ -128,7 +128,7 @@ struct ModelInstance {
   lod::PointStore* store = nullptr;
   glm::dmat4 model{1.0};
   /// (0, 1]: below 1 the view is drawn see-through with stochastic point-based rendering
-  /// (spbr.h; issue 5), every model with its own opacity.
+  /// (spbr.h), every model with its own opacity.
   float opacity = 1.0f;
   /// The colour of every point (or triangle) of a store without colours (0, 0, 0:
   /// RenderOptions's default_color), e.g. to tell fused scans apart.

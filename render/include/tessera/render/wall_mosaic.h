@@ -1,7 +1,7 @@
 // The whole wall as one picture from its tiles' pictures: each tile at its place in
 // wholeWallView()'s image, the bezels (the gaps between tiles) dark grey. What
 // `tessera-render --mosaic` writes and what the master assembles from its nodes' read-backs for a
-// wall screenshot (DESIGN.md, "The frame", step 6), so both give the same pixels.
+// wall screenshot ("The frame", step 6), so both give the same pixels.
 #pragma once
 
 #include <cstdint>

@@ -1,4 +1,4 @@
-// A render node's loop (DESIGN.md, render_node/): joins the master through a cluster link
+// A render node's loop (render_node/): joins the master through a cluster link
 // (sync/cluster_link.h), receives the wall, its tile and a snapshot, then per frame applies the
 // master's changes to its replica, renders its tile's off-axis view, reports (statistics, and the
 // pixels when the frame asks for read-back), and presents at the swap. A node that cannot start

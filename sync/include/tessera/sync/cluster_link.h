@@ -1,4 +1,4 @@
-// The cluster link (DESIGN.md, "The seams"): what the master and the render nodes say to each
+// The cluster link ("The seams"): what the master and the render nodes say to each
 // other, independent of the transport. The master and node loops (master/master.h,
 // render_node/render_node.h) are written once against it; MpiMasterLink / MpiNodeLink
 // (mpi_link.h) carry it inside one mpirun job, ZmqMasterLink / ZmqNodeLink (zmq_link.h) over

@@ -29,7 +29,7 @@ SceneGraph::NodeId addSketch(SceneGraph& graph, SceneGraph::NodeId layer, std::s
                              float width);
 
 /// A MEASUREMENT node under `layer`, recorded as `author`'s: the picked points (metres, scene
-/// frame, double), the value and its uncertainty as measured (master/measurement.h). Named
+/// frame, double), the value and its uncertainty as measured (annotate/measurement.h). Named
 /// after its type and number in the layer ("distance 3"); no colour: the overlay's. Throws
 /// PreconditionError (TESSERA_CHECK) when the payload is not valid (point count for the type,
 /// non-finite numbers).

@@ -1,4 +1,4 @@
-// The versioned scene graph and its differential sync (issue 6; Equalizer's distributed objects:
+// The versioned scene graph and its differential sync (Equalizer's distributed objects:
 // instance data plus deltas, versions). The master mutates its SceneGraph, and once per frame
 // takeFrame() turns what changed since the previous frame into one scene::Frame; each node's
 // replica SceneGraph apply()s the frames, or first a snapshot() when it joins late. Applying a

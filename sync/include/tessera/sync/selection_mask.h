@@ -1,6 +1,6 @@
 // The region mask of a SELECTION node without a lasso (scene.proto SelectionPayload.mask; issue
 // 16, 3D lazy snapping): cells over the selection view's NDC square, run-length coded. Encoded
-// by the master (master/snap_tool.h), checked by the scene graph, decoded by every view that
+// by the master (interact/snap_tool.h), checked by the scene graph, decoded by every view that
 // tints the selection (render/scene_overlay.h sceneHighlights()).
 #pragma once
 

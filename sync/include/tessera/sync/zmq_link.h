@@ -1,5 +1,5 @@
 // The cluster link over ZeroMQ (libzmq 4.3 + cppzmq): walls whose nodes come and go, die, hang
-// and come back (issue 11). See cluster_link.h for the protocol.
+// and come back. See cluster_link.h for the protocol.
 //
 // One ROUTER socket on the master, one DEALER per node, for everything: the master knows each
 // node by its connection, and a snapshot and the frames after it travel on one ordered pipe, so a
