@@ -183,7 +183,7 @@ std::string storeErrorOf(const std::function<void()>& fn) {
   return "";
 }
 
-// Issue 10: a corrupt child hierarchy page dropped its nodes without a word.
+// A corrupt child hierarchy page dropped its nodes without a word.
 TEST(PointStore, ACorruptChildPageIsCountedAndItsNodesLeaveCleanly) {
   test::TempDir dir;
   buildStore({kBunny}, dir / "d.tlod", quiet(20000, 400));
@@ -296,7 +296,7 @@ TEST(PointStore, BadStoresAreRefusedWithTheReason) {
   }
   store::FileHeader h;
   std::memcpy(&h, bytes.data(), sizeof h);
-  // Issue 10: the source table had no checksum, so a flipped byte renamed a source silently.
+  // The source table had no checksum, so a flipped byte renamed a source silently.
   {
     auto b = bytes;
     b[h.source_table_offset] ^= 0x20;
@@ -364,7 +364,7 @@ class FlakySource final : public RangeSource {
 
 }  // namespace
 
-// Issue 13: a store read through a RangeSource (a chunk server and its disk cache) decodes the
+// A store read through a RangeSource (a chunk server and its disk cache) decodes the
 // same points as from its file; bytes that fail a checksum are read once more when the source
 // can fetch them again, else refused as before, naming the source.
 TEST(PointStore, RangeSourcesReadTheSameStoreAndACorruptCopyIsFetchedAgain) {

@@ -171,7 +171,7 @@ TEST(TesseraLodBuild, KilledBuildLeavesNoHalfFile) {
 
 }  // namespace
 
-// Issue 10: no lost input, no crash, no hang from anything a user can type.
+// No lost input, no crash, no hang from anything a user can type.
 namespace {
 
 using tessera::test::TempDir;

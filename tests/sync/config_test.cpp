@@ -150,7 +150,7 @@ TEST(SceneFile, BadScenesNameTheField) {
   EXPECT_NE(err("{}").find("camera: a scene needs an initial camera"), std::string::npos);
 }
 
-// Issue 10: a zero or 1e300 model transform gave a blank picture while reporting points drawn.
+// A zero or 1e300 model transform gave a blank picture while reporting points drawn.
 TEST(SceneFile, DegenerateTransformsAreRefusedWhenRead) {
   auto err = [](const std::string& m) {
     return errorOf([&] {
@@ -184,7 +184,7 @@ TEST(SceneFile, SettingsLimitsAreCheckedWhenRead) {
   EXPECT_NE(e.find("spbr_ensembles"), std::string::npos) << e;
 }
 
-// Issue 10: tiles 100 km apart made --mosaic and the master's screenshot die of std::bad_alloc
+// Tiles 100 km apart made --mosaic and the master's screenshot die of std::bad_alloc
 // (at 1 km they allocated 4 to 9 GB and wrote a 0-byte PNG).
 TEST(WallConfig, AWallTooLargeToPictureIsRefusedWhenRead) {
   auto wall = [](double x) {

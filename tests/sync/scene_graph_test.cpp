@@ -276,7 +276,7 @@ TEST(CameraState, GeoreferencedCameraSurvivesTheWireForm) {
 }
 
 TEST(CameraState, FramesStayWithinTheByteBudget) {
-  // Issue 6: a camera-only change at most 64 bytes; one opacity change adds at most 32.
+  // A camera-only change at most 64 bytes; one opacity change adds at most 32.
   SceneGraph g;
   for (int i = 0; i < 20'000; ++i) g.add(SceneNode::MODEL);
   g.takeFrame(1, 0);
