@@ -289,6 +289,10 @@ void Master::absorb(sync::LinkEvents& events) {
   for (sync::PeerId peer : events.gone)
     if (const auto tile = mTiles->tileOf(peer)) loseTile(*tile, "dead: its connection closed");
   events.gone.clear();
+  for (sync::PeerId peer : events.stalled)
+    if (const auto tile = mTiles->tileOf(peer))
+      loseTile(*tile, "hung: connected, but not reading (its queue of messages is full)");
+  events.stalled.clear();
   handleJoins(events);
   events.joins.clear();
   events.faults.clear();

@@ -34,6 +34,7 @@ void LinkEvents::append(LinkEvents&& more) {
   for (auto& r : more.reports) reports.push_back(std::move(r));
   for (auto& f : more.faults) faults.push_back(std::move(f));
   gone.insert(more.gone.begin(), more.gone.end());
+  stalled.insert(more.stalled.begin(), more.stalled.end());
 }
 
 std::string envelope(cluster::ToNode message) {

@@ -30,12 +30,16 @@ void setCommonOptions(zmq::socket_t& s, const ZmqLinkOptions& o) {
   s.set(zmq::sockopt::rcvhwm, 1000);
 }
 
-/// Milliseconds from now to `deadline`, for zmq::poll (0 when passed).
+/// Milliseconds from now to `deadline`, rounded up, for zmq::poll (0 once it passed): a wait
+/// that ends before its deadline would make its caller spin through the last millisecond.
 std::chrono::milliseconds until(LinkClock::time_point deadline) {
-  const auto left =
-      std::chrono::duration_cast<std::chrono::milliseconds>(deadline - LinkClock::now());
+  const auto left = std::chrono::ceil<std::chrono::milliseconds>(deadline - LinkClock::now());
   return left.count() > 0 ? left : std::chrono::milliseconds(0);
 }
+
+/// How often a member is probed while a closed connection is being matched to its peer: each
+/// probe is a message in the member's queue, read only between its frames.
+constexpr auto kProbeInterval = std::chrono::milliseconds(20);
 
 /// Reads one monitor event: true when it says a connection closed; `fd` is then its socket.
 bool readMonitorEvent(zmq::socket_t& monitor, int* fd = nullptr) {
@@ -61,6 +65,7 @@ struct ZmqMasterLink::Impl {
     bool member = false;  // welcomed and not dropped: gets frames and swaps
     bool told = false;    // sent Dropped/Refused since its last join: stale reports are ignored
     int fd = -1;          // the TCP socket its last message came from (ZMQ_SRCFD)
+    LinkClock::time_point probed{};  // its last probe
   };
 
   zmq::context_t ctx{1};
@@ -72,6 +77,7 @@ struct ZmqMasterLink::Impl {
   LinkCounters counters;
   std::string endpoint;
   LinkClock::time_point probe_until{};  // after a closed connection: probe the members
+  std::set<PeerId> stalled;             // members a message could not be queued for
 
   enum class Sent { kYes, kQueueFull, kGone };
 
@@ -162,8 +168,11 @@ struct ZmqMasterLink::Impl {
       }
       return true;
     }
-    if (!peers[id].told) tell(id, why, true);
-    events.faults.emplace_back(id, why);
+    // One refusal and one fault per connection: the rest of a flood is read and let go.
+    if (!peers[id].told) {
+      tell(id, why, true);
+      events.faults.emplace_back(id, why);
+    }
     return true;
   }
 
@@ -187,13 +196,33 @@ struct ZmqMasterLink::Impl {
         }
       }
     }
-    if (LinkClock::now() >= probe_until) return;
+    takeStalled(events);
+    const auto now = LinkClock::now();
+    if (now >= probe_until) return;
     for (auto& [id, peer] : peers) {
-      if (peer.member && !reachable(id)) {
+      if (!peer.member || now - peer.probed < kProbeInterval) continue;
+      peer.probed = now;
+      if (!reachable(id)) {
         peer.member = false;
         events.gone.insert(id);
       }
     }
+  }
+
+  /// Sends `bytes` to every member. A member whose queue is full (it stopped reading) would
+  /// silently miss the message: it stops being a member and the next wait reports it stalled.
+  void sendToMembers(const std::string& bytes) {
+    for (auto& [id, peer] : peers) {
+      if (peer.member && send(id, bytes) == Sent::kQueueFull) {
+        peer.member = false;
+        stalled.insert(id);
+      }
+    }
+  }
+
+  void takeStalled(LinkEvents& events) {
+    events.stalled.insert(stalled.begin(), stalled.end());
+    stalled.clear();
   }
 
   /// Waits for traffic until `deadline` or until `done(events)`.
@@ -261,9 +290,7 @@ void ZmqMasterLink::refuse(PeerId peer, const std::string& reason) {
 void ZmqMasterLink::publish(const cluster::FrameMessage& frame) {
   cluster::ToNode t;
   *t.mutable_frame() = frame;
-  const std::string bytes = envelope(t);
-  for (auto& [id, peer] : m->peers)
-    if (peer.member) m->send(id, bytes);
+  m->sendToMembers(envelope(t));
 }
 
 LinkEvents ZmqMasterLink::collect(uint64_t frame, const std::set<PeerId>& awaited,
@@ -292,6 +319,7 @@ LinkEvents ZmqMasterLink::collect(uint64_t frame, const std::set<PeerId>& awaite
     }
     more.reports.clear();
     for (PeerId id : more.gone) left.erase(id);
+    for (PeerId id : more.stalled) left.erase(id);
     for (const auto& [id, why] : more.faults) left.erase(id);
     events.append(std::move(more));
     LinkClock::time_point until_next = LinkClock::time_point::min();
@@ -316,9 +344,7 @@ LinkEvents ZmqMasterLink::collect(uint64_t frame, const std::set<PeerId>& awaite
 void ZmqMasterLink::swap(uint64_t frame) {
   cluster::ToNode t;
   t.mutable_present()->set_frame(frame);
-  const std::string bytes = envelope(t);
-  for (auto& [id, peer] : m->peers)
-    if (peer.member) m->send(id, bytes);
+  m->sendToMembers(envelope(t));
 }
 
 void ZmqMasterLink::drop(PeerId peer, const std::string& reason) {
@@ -333,9 +359,7 @@ void ZmqMasterLink::quit(uint32_t code, const std::string& reason) {
   cluster::ToNode t;
   t.mutable_quit()->set_code(code);
   t.mutable_quit()->set_reason(reason);
-  const std::string bytes = envelope(t);
-  for (auto& [id, peer] : m->peers)
-    if (peer.member) m->send(id, bytes);
+  m->sendToMembers(envelope(t));
 }
 
 LinkCounters ZmqMasterLink::counters() const {

@@ -67,8 +67,13 @@ struct LinkEvents {
   std::vector<std::pair<PeerId, std::string>> faults;
   /// Peers whose connection closed (ZMQ: TCP closed or heartbeats stopped).
   std::set<PeerId> gone;
+  /// Members a frame or swap could not be queued for: connected, but they stopped reading and
+  /// their queue is full (ZMQ_SNDHWM). They are no longer members; the master drops their tiles.
+  std::set<PeerId> stalled;
 
-  bool empty() const { return joins.empty() && reports.empty() && faults.empty() && gone.empty(); }
+  bool empty() const {
+    return joins.empty() && reports.empty() && faults.empty() && gone.empty() && stalled.empty();
+  }
   void append(LinkEvents&& more);
 };
 
@@ -100,7 +105,7 @@ class MasterLink {
   virtual void refuse(PeerId peer, const std::string& reason) = 0;
 
   /// Sends the frame to every member. Never blocks on a slow node (ZMQ: a member whose queue is
-  /// full is reported gone by the next collect()).
+  /// full is reported stalled by the next collect() or poll()).
   virtual void publish(const cluster::FrameMessage& frame) = 0;
 
   /// Waits until every peer in `awaited` reported `frame`, or was silent for `quiet` (since the
