@@ -19,7 +19,7 @@ struct SiteClient::Impl {
   /// The next message until `deadline`, or nothing.
   std::optional<site::ToSite> next(Clock::time_point deadline) {
     const auto left =
-        std::chrono::duration_cast<std::chrono::milliseconds>(deadline - Clock::now());
+        std::chrono::ceil<std::chrono::milliseconds>(deadline - Clock::now());
     zmq::pollitem_t item{socket.handle(), 0, ZMQ_POLLIN, 0};
     if (zmq::poll(&item, 1,
                   std::max<std::chrono::milliseconds>(left, std::chrono::milliseconds(0))) <= 0)

@@ -380,10 +380,11 @@ struct ZmqNodeLink::Impl {
   zmq::context_t ctx{1};
   std::unique_ptr<zmq::socket_t> dealer, monitor;
   bool lost = false;
-  std::string lost_why;
+  bool joined = false;  // join() was called before: the next one starts a new connection
 
   void open() {
     monitor.reset();
+    if (dealer) dealer->set(zmq::sockopt::linger, 0);  // what it still queues is stale
     dealer.reset();
     dealer = std::make_unique<zmq::socket_t>(ctx, zmq::socket_type::dealer);
     monitor = std::make_unique<zmq::socket_t>(ctx, zmq::socket_type::pair);
@@ -477,7 +478,11 @@ void ZmqNodeLink::working(uint64_t frame) {
 cluster::ClusterSetup ZmqNodeLink::join(const cluster::Hello& hello,
                                         LinkClock::time_point deadline) {
   std::lock_guard socket(m->socket_mutex);
-  if (m->lost) m->open();
+  // A join after the first starts on a new connection: the old one may be closed under the
+  // node's feet (a node stopped past the heartbeat timeout reads its queued "dropped" before
+  // the close), and a hello on it would be answered twice.
+  if (m->lost || m->joined) m->open();
+  m->joined = true;
   cluster::FromNode f;
   *f.mutable_hello() = hello;
   m->send(envelope(f));

@@ -83,6 +83,13 @@ std::optional<uint64_t> frameOf(const std::string& log, const std::string& patte
   return std::stoull(m[1].str());
 }
 
+/// How many times `pattern` matches `text`.
+size_t countOf(const std::string& text, const std::string& pattern) {
+  const std::regex re(pattern);
+  return size_t(std::distance(std::sregex_iterator(text.begin(), text.end(), re),
+                              std::sregex_iterator()));
+}
+
 enum class TileLooks { kReference, kLost, kOther };
 
 class ZmqWall : public ::testing::Test {
@@ -246,12 +253,6 @@ TEST_F(ZmqWall, KilledNodeIsDroppedTheWallGoesOnAndTheRestartedNodeMatches) {
   expectDropAndReturn(this, screenshots(log), "tile-1-0", *lost, *back);
 }
 
-/// How many times `pattern` matches `text`.
-size_t countOf(const std::string& text, const std::string& pattern) {
-  const std::regex re(pattern);
-  return size_t(std::distance(std::sregex_iterator(text.begin(), text.end(), re),
-                              std::sregex_iterator()));
-}
 
 // A node killed and restarted again and again while the camera moves: each kill drops its tile
 // once ("dead") and each restart rejoins it once; no other tile is ever dropped. The master
@@ -313,6 +314,10 @@ TEST_F(ZmqWall, StoppedNodeIsDroppedAsHungAndRejoinsWhenContinued) {
   const auto lost = frameOf(log, "frame (\\d+): tile tile-0-1 \\([^)]*\\) dropped");
   const auto back = frameOf(log, "frame (\\d+): tile tile-0-1 \\([^)]*\\) rejoined");
   ASSERT_TRUE(lost && back) << log;
+  // One drop and one rejoin: the continued node reads its queued "dropped" and joins again on a
+  // new connection, never twice.
+  EXPECT_EQ(countOf(log, "dropped"), 1u) << log;
+  EXPECT_EQ(countOf(log, "rejoined"), 1u) << log;
   expectDropAndReturn(this, screenshots(log), "tile-0-1", *lost, *back);
 }
 
