@@ -197,15 +197,8 @@ void AnnotationScene::refreshPlace(sync::SceneGraph& graph, int64_t place_id,
   }
   for (auto& [layer, items] : by_layer) {
     NodeId& node = mNotes[{place_id, layer}];
-    bool open = false;
-    if (node && graph.contains(node)) {
-      open = graph.node(node).annotation().open();
-    } else {
-      node = graph.add(scene::SceneNode::ANNOTATION, layerNode(graph, layer, author),
-                       "note " + std::to_string(place_id));
-      const glm::dmat4 t = glm::translate(glm::dmat4(1.0), place->position);
-      graph.setTransform(node, std::span<const double>(glm::value_ptr(t), 16));
-    }
+    const bool exists = node && graph.contains(node);
+    bool open = exists && graph.node(node).annotation().open();
     if (open_now) open = *open_now;
     scene::AnnotationPayload a;
     a.set_text(labelOf(items));
@@ -226,6 +219,13 @@ void AnnotationScene::refreshPlace(sync::SceneGraph& graph, int64_t place_id,
       if (open && items[i].kind == ItemKind::kImage) addPicture(items[i], shown_item, budget);
     }
     a.set_open(open);
+    if (!exists) {
+      const glm::dmat4 t = glm::translate(glm::dmat4(1.0), place->position);
+      node = graph.add(scene::SceneNode::ANNOTATION, layerNode(graph, layer, author),
+                       "note " + std::to_string(place_id), std::move(a), author,
+                       std::span<const double>(glm::value_ptr(t), 16));
+      continue;
+    }
     const scene::SceneNode& n = graph.node(node);
     if (n.has_annotation() && n.annotation().SerializeAsString() == a.SerializeAsString())
       continue;  // unchanged: the tiles get nothing
@@ -244,15 +244,10 @@ void AnnotationScene::loadStored(sync::SceneGraph& graph, const Place& p) {
     if (!m.ParseFromString(std::string(p.selection.begin(), p.selection.end())))
       throw std::runtime_error("its measurement does not parse");
     const std::string layer = item ? item->layer : "measurements";
-    const NodeId node = graph.add(scene::SceneNode::MEASUREMENT, layerNode(graph, layer, ""),
-                                  item ? item->title : "measurement");
-    try {
-      graph.setPayload(node, m);
-    } catch (...) {
-      graph.remove(node);
-      throw;
-    }
-    if (item) graph.setAuthor(node, item->author == "wall" ? "" : item->author);
+    const NodeId node =
+        graph.add(scene::SceneNode::MEASUREMENT, layerNode(graph, layer, ""),
+                  item ? item->title : "measurement", std::move(m),
+                  item && item->author != "wall" ? std::string_view(item->author) : "");
     mStoredNodes[node] = {p.id, item ? item->id : 0};
   } else if (p.selection_id == kSelectionBlob) {
     scene::SelectionPayload s;
@@ -262,14 +257,9 @@ void AnnotationScene::loadStored(sync::SceneGraph& graph, const Place& p) {
     if (!model || graph.node(*model).kind() != scene::SceneNode::MODEL)
       throw std::runtime_error("the scene has no model named \"" + p.model + "\"");
     s.set_model(*model);
-    const NodeId node = graph.add(scene::SceneNode::SELECTION, layerNode(graph, "selections", ""),
-                                  item ? item->title : "selection " + std::to_string(p.id));
-    try {
-      graph.setPayload(node, s);
-    } catch (...) {
-      graph.remove(node);
-      throw;
-    }
+    const NodeId node =
+        graph.add(scene::SceneNode::SELECTION, layerNode(graph, "selections", ""),
+                  item ? item->title : "selection " + std::to_string(p.id), std::move(s), "");
     mStoredNodes[node] = {p.id, item ? item->id : 0};
   }
   // Other selection formats (imports from other tools) are kept, not shown.

@@ -130,8 +130,10 @@ struct SiteHub::Impl {
       v.set_screen_y(std::clamp(opt.screen_y, 0.0f, 1.0f));
       v.set_screen_width(w);
       v.set_screen_height(0.0f);  // the renderer keeps the picture's aspect
-      in.node =
-          graph.add(scene::SceneNode::VIDEO_INSET, sync::SceneGraph::kRoot, "video: " + info.name);
+      if (!exists) {
+        in.node = graph.add(scene::SceneNode::VIDEO_INSET, sync::SceneGraph::kRoot,
+                            "video: " + info.name, v, info.name);
+      }
     } else {
       if (!info.avatar || !graph.contains(info.avatar)) return;
       const float reach = graph.node(info.avatar).avatar().reach();
@@ -143,16 +145,21 @@ struct SiteHub::Impl {
       }
       v.set_width(float(width));
       v.set_height(float(width * aspect));
-      if (!exists)
-        in.node = graph.add(scene::SceneNode::VIDEO_INSET, info.avatar, "video: " + info.name);
       // Right of the head, its top edge level with the eye (the avatar frame: x right, y up).
       glm::dmat4 m(1.0);
       m[3] = glm::dvec4(0.6 * width, -0.5 * width * aspect, 0.0, 1.0);
-      graph.setTransform(in.node, std::span<const double>(&m[0][0], 16));
+      const std::span<const double> beside(&m[0][0], 16);
+      if (exists)
+        graph.setTransform(in.node, beside);
+      else
+        in.node = graph.add(scene::SceneNode::VIDEO_INSET, info.avatar, "video: " + info.name, v,
+                            info.name, beside);
     }
-    graph.setPayload(in.node, v);
-    graph.setAuthor(in.node, info.name);
-    if (exists) return;
+    if (exists) {
+      graph.setPayload(in.node, v);
+      graph.setAuthor(in.node, info.name);
+      return;
+    }
     say(who(p) + " sends video (" + std::to_string(packet.width) + "x" +
         std::to_string(packet.height) + "): inset " + std::to_string(in.node) +
         (opt.video_screen ? " pinned to the screen" : " beside its avatar"));

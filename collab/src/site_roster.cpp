@@ -115,13 +115,12 @@ uint32_t SiteRoster::join(sync::SceneGraph& graph, const std::string& wanted,
   s.color.set_r(c[0]);
   s.color.set_g(c[1]);
   s.color.set_b(c[2]);
-  s.info.avatar = graph.add(scene::SceneNode::AVATAR, sync::SceneGraph::kRoot, "avatar: " + name);
   scene::AvatarPayload a;
   a.set_site(name);
   *a.mutable_color() = s.color;
-  graph.setPayload(s.info.avatar, a);
-  graph.setVisible(s.info.avatar, false);
-  graph.setAuthor(s.info.avatar, name);
+  s.info.avatar = graph.add(scene::SceneNode::AVATAR, sync::SceneGraph::kRoot, "avatar: " + name,
+                            std::move(a), name);
+  graph.setVisible(s.info.avatar, false);  // until its first pose
   return id;
 }
 

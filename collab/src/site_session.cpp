@@ -23,6 +23,7 @@
 #include <tessera/media/voice_wav.h>
 #include <tessera/core/file_checks.h>
 #include <tessera/interact/console_notes.h>
+#include <tessera/interact/keys.h>
 #include <tessera/interact/measure_tool.h>
 #include <tessera/interact/one_button_navigation.h>
 #include <tessera/interact/surface_pick.h>
@@ -40,6 +41,13 @@
 namespace tessera::collab {
 
 namespace {
+
+/// The keys a site's window offers (interact/keys.h), as its title lists them.
+constexpr interact::Command kSiteKeys[] = {
+    interact::Command::kLead,       interact::Command::kRelease, interact::Command::kFollow,
+    interact::Command::kUndoSketch, interact::Command::kClearSketches,
+    interact::Command::kAddNote,    interact::Command::kMeasure, interact::Command::kLasso,
+    interact::Command::kSnap,       interact::Command::kOpenNote, interact::Command::kPicture};
 
 namespace fs = std::filesystem;
 using sync::vec;
@@ -209,13 +217,13 @@ struct SiteSession::Impl {
   bool right_held = false;
   // --window tools, as the master's console has them (keys A, M, S, N, O), sent as the script's
   // actions are: a note, measure (clicks), lasso (a left drag), snap (left stroke in, right out).
-  enum class Tool { kNone, kMeasure, kLasso, kSnap, kNote } window_tool = Tool::kNone;
+  interact::ToolKeys tools;
+  using Tool = interact::ToolKeys::Tool;
   // A: the next click on the model places a note, then a small form (Dear ImGui) asks its layer,
   // title and text; Add sends it as the script's note action does (SiteNote add).
   std::optional<glm::dvec2> note_pixel;
   char note_layer[256] = "notes", note_title[1025] = "", note_text[2048] = "";
   bool note_focus = false;
-  scene::MeasurementPayload::Type measure_type = scene::MeasurementPayload::DISTANCE;
   std::vector<float> tool_px, snap_bg;  // x y pairs: the clicks, the lasso or the snap strokes
   glm::dvec2 press_at{0.0};
   Clock::time_point last_input = Clock::now();
@@ -423,10 +431,10 @@ struct SiteSession::Impl {
       };
       marks(drag, {255, 255, 255, 200}, 2.0f);
       marks(tool_px,
-            window_tool == Tool::kMeasure ? glm::u8vec4{90, 230, 255, 255}
-            : window_tool == Tool::kLasso ? glm::u8vec4{255, 190, 0, 230}
+            tools.tool() == Tool::kMeasure ? glm::u8vec4{90, 230, 255, 255}
+            : tools.tool() == Tool::kLasso ? glm::u8vec4{255, 190, 0, 230}
                                           : glm::u8vec4{60, 230, 90, 230},
-            window_tool == Tool::kMeasure ? 4.0f : 1.5f);
+            tools.tool() == Tool::kMeasure ? 4.0f : 1.5f);
       marks(snap_bg, {240, 60, 60, 230}, 1.5f);
     }
     return o;
@@ -873,7 +881,7 @@ struct SiteSession::Impl {
     return true;
   }
 
-  /// The --window tools' input (window_tool != kNone): clicks and drags become pixels of the
+  /// The --window tools' input (tools.tool() != kNone): clicks and drags become pixels of the
   /// measurement, lasso or snap, sent as their script actions when complete.
   void toolInput(render::WindowInput& in, const glm::dvec2& scale, const glm::dvec2& cursor,
                  double now) {
@@ -884,22 +892,22 @@ struct SiteSession::Impl {
       px.push_back(float(q.x));
       px.push_back(float(q.y));
     };
-    if (window_tool == Tool::kNote) {  // a click places the note: the form opens
+    if (tools.tool() == Tool::kNote) {  // a click places the note: the form opens
       if (in.left_pressed) press_at = cursor;
       if (in.left_released && glm::length(cursor - press_at) <= 4.0) {
         note_pixel = cursor;
         note_focus = true;
-        window_tool = Tool::kNone;
+        tools.choose(Tool::kNone);
         say("note at pixel " + std::to_string(int(cursor.x)) + "," + std::to_string(int(cursor.y)) +
             ": its title and text?");
       }
-    } else if (window_tool == Tool::kMeasure) {
+    } else if (tools.tool() == Tool::kMeasure) {
       if (in.left_pressed) press_at = cursor;
       if (in.left_released && glm::length(cursor - press_at) <= 4.0) {
         record(tool_px, cursor);
         const size_t n = tool_px.size() / 2;
-        if ((measure_type == scene::MeasurementPayload::DISTANCE && n == 2) ||
-            (measure_type == scene::MeasurementPayload::ANGLE && n == 3))
+        if ((tools.measureMode() == interact::MeasureTool::Mode::kDistance && n == 2) ||
+            (tools.measureMode() == interact::MeasureTool::Mode::kAngle && n == 3))
           sendTool(now);
       }
     } else {
@@ -907,8 +915,8 @@ struct SiteSession::Impl {
       if (in.left_pressed) fg.clear();
       for (const glm::dvec2& q : in.dragOf(render::WindowInput::kLeftHeld)) record(fg, q * scale);
       if (in.left) record(fg, cursor);
-      if (window_tool == Tool::kLasso && in.left_released) sendTool(now);
-      if (window_tool == Tool::kSnap) {  // the right button strokes what not to select
+      if (tools.tool() == Tool::kLasso && in.left_released) sendTool(now);
+      if (tools.tool() == Tool::kSnap) {  // the right button strokes what not to select
         if (in.right_pressed) snap_bg.clear();
         for (const glm::dvec2& q : in.dragOf(render::WindowInput::kRightHeld))
           record(snap_bg, q * scale);
@@ -934,14 +942,14 @@ struct SiteSession::Impl {
   /// release) as its script action, then starts over.
   void sendTool(double now) {
     site::SiteAction a;
-    if (window_tool == Tool::kMeasure) {
-      a.mutable_measure()->set_type(measure_type);
+    if (tools.tool() == Tool::kMeasure) {
+      a.mutable_measure()->set_type(interact::MeasureTool::typeOf(tools.measureMode()));
       for (float v : tool_px) a.mutable_measure()->add_pixels(v);
-    } else if (window_tool == Tool::kLasso) {
+    } else if (tools.tool() == Tool::kLasso) {
       if (tool_px.size() < 6) return tool_px.clear();
       a.mutable_lasso()->set_model(modelNameAt(tool_px[0], tool_px[1]));
       for (float v : tool_px) a.mutable_lasso()->add_pixels(v);
-    } else if (window_tool == Tool::kSnap) {
+    } else if (tools.tool() == Tool::kSnap) {
       if (tool_px.empty()) return say("snap: first stroke what to select (left drag)");
       site::SnapAction& sn = *a.mutable_snap();
       sn.set_model(modelNameAt(tool_px[0], tool_px[1]));
@@ -999,78 +1007,68 @@ struct SiteSession::Impl {
     if (!open) note_pixel.reset();
   }
 
-  /// A tool key (A, M, S, N, O, Enter, Backspace). True when it was one.
-  bool toolKey(int key, const glm::dvec2& cursor, double now) {
-    using T = scene::MeasurementPayload;
-    auto use = [&](Tool t, const std::string& said) {
-      window_tool = t;
-      tool_px.clear();
-      snap_bg.clear();
-      say(said);
-    };
-    switch (key) {
-      case 65:  // A: a note where the next click lands
-        use(window_tool == Tool::kNote ? Tool::kNone : Tool::kNote,
-            window_tool == Tool::kNote ? "add note: cancelled"
-                                       : "add note: click on the model where it goes");
-        return true;
-      case 77:  // M: distance, path, angle, area, off
-        if (window_tool != Tool::kMeasure) {
-          measure_type = T::DISTANCE;
-        } else if (measure_type == T::AREA) {
-          use(Tool::kNone, "measuring off");
-          return true;
-        } else {
-          measure_type = measure_type == T::DISTANCE   ? T::POLYLINE
-                         : measure_type == T::POLYLINE ? T::ANGLE
-                                                       : T::AREA;
-        }
-        use(Tool::kMeasure,
-            "measuring: " + T::Type_Name(measure_type) + " (clicks; Enter ends a path or an area)");
-        return true;
-      case 83:  // S
-        use(window_tool == Tool::kLasso ? Tool::kNone : Tool::kLasso,
-            window_tool == Tool::kLasso ? "lasso off" : "lasso on (drag around a region)");
-        return true;
-      case 78:  // N
-        use(window_tool == Tool::kSnap ? Tool::kNone : Tool::kSnap,
-            window_tool == Tool::kSnap ? "snap off"
-                                       : "snap on (left drag: what to select, right drag: what not "
-                                         "to; Enter)");
-        return true;
-      case 257:  // Enter, keypad Enter
-      case 335:
+  /// What a key asks of this site's window (interact/keys.h: the console's keys).
+  void key(interact::KeyPress press, const glm::dvec2& cursor, double now) {
+    using interact::Command;
+    site::SiteAction a;
+    switch (press.command) {
+      case Command::kAddNote:
+      case Command::kMeasure:
+      case Command::kLasso:
+      case Command::kSnap:
+        say(tools.press(press.command));
+        tool_px.clear();
+        snap_bg.clear();
+        return;
+      case Command::kEnd:
         sendTool(now);
-        return true;
-      case 259:  // Backspace: the last click, or the strokes
-        if (window_tool == Tool::kMeasure && tool_px.size() >= 2) {
+        return;
+      case Command::kBack:  // the last click, or the strokes
+        if (tools.tool() == Tool::kMeasure && tool_px.size() >= 2) {
           tool_px.resize(tool_px.size() - 2);
         } else {
           tool_px.clear();
           snap_bg.clear();
         }
-        return true;
-      case 79: {  // O: open or close the note nearest the cursor
+        return;
+      case Command::kOpenNote: {  // open or close the note nearest the cursor
         const auto node = interact::noteNear(graph, last_view, cursor, 24.0);
         if (!node) {
           say("no note within 24 px of the cursor");
-          return true;
+          return;
         }
         const scene::AnnotationPayload& n = graph.node(*node).annotation();
         if (n.place() == 0) {
           say("that note is not in the database: it cannot be opened");
-          return true;
+          return;
         }
-        site::SiteAction a;
         site::PlaceOpen& open = *a.mutable_note()->mutable_note()->mutable_open();
         open.set_place(n.place());
         open.set_open(!n.open());
-        act(a, now);
-        return true;
+        break;
       }
-      default:
-        return false;
+      case Command::kLead:
+        a.set_lead(true);
+        break;
+      case Command::kRelease:
+        a.set_release(true);
+        break;
+      case Command::kFollow:
+        a.set_follow(true);
+        break;
+      case Command::kUndoSketch:
+        a.set_undo(true);
+        break;
+      case Command::kClearSketches:
+        a.set_clear(true);
+        break;
+      case Command::kPicture:
+        a.set_screenshot("site-" + std::to_string(uint64_t(now * 1000)) + ".png");
+        break;
+      default:  // the console's own (section clip, models, opacity, lighting)
+        return;
     }
+    act(a, now);
   }
 
   /// --window: the user's input since the last frame. False when the window closes.
@@ -1102,7 +1100,7 @@ struct SiteSession::Impl {
     p.released = in.left_released;
     p.scroll = in.scroll;
     p.size = glm::dvec2(script.width(), script.height());
-    if (window_tool != Tool::kNone) {
+    if (tools.tool() != Tool::kNone) {
       toolInput(in, scale, p.cursor, now);
       p.down = p.pressed = p.released = false;
     }
@@ -1145,42 +1143,14 @@ struct SiteSession::Impl {
       drag.clear();
     }
     right_held = in.right;
-    // Keys (GLFW codes): L lead, R release, F follow, U undo, C clear, P screenshot.
-    for (int key : in.keys) {
-      if (toolKey(key, p.cursor, now)) continue;
-      site::SiteAction a;
-      switch (key) {
-        case 76:
-          a.set_lead(true);
-          break;
-        case 82:
-          a.set_release(true);
-          break;
-        case 70:
-          a.set_follow(true);
-          break;
-        case 85:
-          a.set_undo(true);
-          break;
-        case 67:
-          a.set_clear(true);
-          break;
-        case 80:
-          a.set_screenshot("site-" + std::to_string(uint64_t(now * 1000)) + ".png");
-          break;
-        default:
-          continue;
-      }
-      act(a, now);
-    }
+    for (int k : in.keys) key(interact::commandOf(k), p.cursor, now);
     const std::string& leader = graph.settings().leader();
     window->setTitle(
         "tessera-site: " + welcome.name() +
         (leader == welcome.name() ? " | leading the view"
          : following ? " | following " + (leader.empty() ? std::string("the wall") : leader)
                      : "") +
-        " | left: navigate, right: draw; L lead, R release, F follow, U undo, C "
-        "clear, A add note, M measure, S lasso, N snap, O open note, P picture, Esc quit");
+        " | left: navigate, right: draw; " + interact::keysHelp(kSiteKeys) + ", Esc quit");
     return true;
   }
 

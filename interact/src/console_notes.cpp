@@ -112,15 +112,12 @@ sync::SceneGraph::NodeId addSectionClip(sync::SceneGraph& graph, const glm::dvec
   glm::dvec3 forward = sync::vec(camera.target()) - eye;
   forward = glm::length(forward) > 0.0 ? glm::normalize(forward) : glm::dvec3(0.0, 0.0, -1.0);
   const auto layer = sync::layerGroup(graph, "clips", author);
-  const auto id = graph.add(scene::SceneNode::CLIP, layer, author + " section");
   const glm::dmat4 t = glm::translate(glm::dmat4(1.0), at);
-  graph.setTransform(id, std::span<const double>(&t[0][0], 16));
   scene::ClipPayload clip;
   for (double v : {forward.x, forward.y, forward.z, 0.0}) clip.add_planes(v);
   clip.set_outline(float(0.25 * glm::length(at - eye)));
-  graph.setPayload(id, clip);
-  graph.setAuthor(id, author);
-  return id;
+  return graph.add(scene::SceneNode::CLIP, layer, author + " section", std::move(clip), author,
+                   std::span<const double>(&t[0][0], 16));
 }
 
 }  // namespace tessera::interact

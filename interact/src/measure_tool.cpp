@@ -15,6 +15,15 @@ MeasureTool::Mode MeasureTool::cycle() {
   return mMode;
 }
 
+scene::MeasurementPayload::Type MeasureTool::typeOf(Mode mode) {
+  switch (mode) {
+    case Mode::kPath: return scene::MeasurementPayload::POLYLINE;
+    case Mode::kAngle: return scene::MeasurementPayload::ANGLE;
+    case Mode::kArea: return scene::MeasurementPayload::AREA;
+    default: return scene::MeasurementPayload::DISTANCE;
+  }
+}
+
 const char* MeasureTool::name(Mode mode) {
   switch (mode) {
     case Mode::kDistance:

@@ -43,16 +43,8 @@ sync::SceneGraph::NodeId addSelection(sync::SceneGraph& graph,
                                       const scene::SelectionPayload& payload,
                                       const std::string& author) {
   const auto layer = sync::layerGroup(graph, "selections", author);
-  const auto node = graph.add(scene::SceneNode::SELECTION, layer,
-                              "selection " + std::to_string(graph.children(layer).size() + 1));
-  try {
-    graph.setPayload(node, payload);
-  } catch (...) {
-    graph.remove(node);
-    throw;
-  }
-  graph.setAuthor(node, author);
-  return node;
+  return graph.add(scene::SceneNode::SELECTION, layer,
+                   sync::freshName(graph, layer, "selection"), payload, author);
 }
 
 LassoSelectResult selectWithLasso(sync::SceneGraph& graph, const render::ModelInstance& instance,

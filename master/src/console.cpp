@@ -19,11 +19,6 @@ namespace tessera::master {
 
 namespace {
 
-// GLFW key codes (glfw3.h), kept here so this file needs no GLFW header.
-constexpr int kKey1 = 49, kKey9 = 57, kKeyEqual = 61, kKeyMinus = 45, kKeyH = 72, kKeyE = 69,
-              kKeyPadAdd = 334, kKeyPadSubtract = 333, kKeyL = 76, kKeyU = 85, kKeyC = 67,
-              kKeyM = 77, kKeyEnter = 257, kKeyPadEnter = 335, kKeyBackspace = 259, kKeyS = 83,
-              kKeyO = 79, kKeyN = 78, kKeyK = 75;
 /// The robust lasso's stroke width when the console snaps with a foreground stroke only, pixels.
 constexpr double kHeavyStrokePx = 16.0;
 /// How near the cursor a note must be for O to open it, pixels.
@@ -123,14 +118,41 @@ void Console::measured(const std::function<std::optional<sync::SceneGraph::NodeI
   }
 }
 
-void Console::only(Tool tool) {
-  if (tool != Tool::kMeasure) mTool.setMode(interact::MeasureTool::Mode::kOff);
-  mLassoing = tool == Tool::kLasso;
-  mLasso.clear();
-  mSnapping = tool == Tool::kSnap;
-  mSnapFg.clear();
-  mSnapBg.clear();
-  mPlacingNote = tool == Tool::kPlaceNote;
+void Console::toolsChanged() {
+  if (mTool.mode() != mTools.measureMode()) mTool.setMode(mTools.measureMode());
+  if (!on(Tool::kLasso)) mLasso.clear();
+  if (!on(Tool::kSnap)) {
+    mSnapFg.clear();
+    mSnapBg.clear();
+  }
+}
+
+void Console::back(sync::SceneGraph& graph) {
+  if (on(Tool::kSnap)) {
+    if (!mSnapFg.empty() || !mSnapBg.empty()) {
+      mSnapFg.clear();
+      mSnapBg.clear();
+      return;
+    }
+    sync::SceneGraph::NodeId newest = 0;  // the newest selection the console snapped
+    for (auto id : graph.ids())
+      if (graph.node(id).kind() == scene::SceneNode::SELECTION &&
+          graph.node(id).author() == kConsole)
+        newest = std::max(newest, id);
+    if (newest) graph.remove(newest);
+  } else if (on(Tool::kLasso)) {
+    std::erase_if(mSelections, [&](auto id) { return !graph.contains(id); });
+    if (!mSelections.empty()) {
+      graph.remove(mSelections.back());
+      mSelections.pop_back();
+    }
+  } else if (!mTool.undoPoint()) {  // no point: the newest measurement
+    std::erase_if(mMeasurements, [&](auto id) { return !graph.contains(id); });
+    if (!mMeasurements.empty()) {
+      graph.remove(mMeasurements.back());
+      mMeasurements.pop_back();
+    }
+  }
 }
 
 std::optional<std::pair<sync::SceneGraph::NodeId, size_t>> Console::currentModel(
@@ -282,7 +304,7 @@ bool Console::handleInput(sync::SceneGraph& graph) {
     form.draft.view.up = sync::vec(camera.up());
     form.draft.view.fovy_deg = glm::degrees(fovy);
     mNoteForm = form;
-    mPlacingNote = false;
+    only(Tool::kNone);
     char line[256];
     std::snprintf(line, sizeof line, "note at %.4f %.4f %.4f on model %s: its title and text?",
                   at->point.world.x, at->point.world.y, at->point.world.z,
@@ -293,7 +315,7 @@ bool Console::handleInput(sync::SceneGraph& graph) {
   auto record = [&](std::vector<glm::dvec2>& stroke, glm::dvec2 q) {
     if (stroke.empty() || glm::length(q - stroke.back()) >= 2.0) stroke.push_back(q);
   };
-  if (mSnapping) {
+  if (on(Tool::kSnap)) {
     // Left drag: what to select; right drag: what not to (not a sketch). A new drag replaces
     // its stroke. Every cursor position the window reported, as the lasso.
     if (in.left_pressed) mSnapFg.clear();
@@ -304,11 +326,11 @@ bool Console::handleInput(sync::SceneGraph& graph) {
     if (in.right) record(mSnapBg, p.cursor);
     in.right = false;
     p.down = p.pressed = p.released = false;
-  } else if (mPlacingNote) {  // as measuring: a click places the note; the wheel still moves the view
+  } else if (on(Tool::kNote)) {  // as measuring: a click places the note; the wheel still moves the view
     if (in.left_pressed) mPressAt = p.cursor;
     if (in.left_released && glm::length(p.cursor - mPressAt) <= 4.0) placeNoteAt(p.cursor);
     p.down = p.pressed = p.released = false;
-  } else if (mLassoing) {
+  } else if (on(Tool::kLasso)) {
     // A left drag draws the lasso (every cursor position the window reported, so a fast drag
     // over slow frames keeps its shape); letting go selects what of the current model it
     // encloses.
@@ -333,7 +355,7 @@ bool Console::handleInput(sync::SceneGraph& graph) {
       mLasso.clear();
     }
     p.down = p.pressed = p.released = false;
-  } else if (mTool.mode() != interact::MeasureTool::Mode::kOff) {
+  } else if (on(Tool::kMeasure)) {
     // Clicks measure; the wheel still moves the view.
     if (in.left_pressed) mPressAt = p.cursor;
     if (in.left_released && glm::length(p.cursor - mPressAt) <= 4.0) measureAt(p.cursor);
@@ -378,114 +400,99 @@ bool Console::handleInput(sync::SceneGraph& graph) {
   mRightHeld = in.right;
 
   const auto models = modelIds(graph);
+  using interact::Command;
   for (int key : in.keys) {
+    const interact::KeyPress press = interact::commandOf(key);
     std::erase_if(mSketches, [&](auto id) { return !graph.contains(id); });
-    if (key == kKeyL) {  // the wall's console leads (sites' poses no longer move the view)
-      const bool leads = graph.settings().leader() == kConsole;
-      graph.setLeader(leads ? "" : kConsole);
-      std::printf("tessera-master: console: %s\n", leads ? "gave the view back" : "leads the view");
-      std::fflush(stdout);
-    }
-    if (key == kKeyU && !mSketches.empty()) {
-      graph.remove(mSketches.back());
-      mSketches.pop_back();
-    }
-    if (key == kKeyC) {
-      for (auto id : mSketches) graph.remove(id);
-      mSketches.clear();
-    }
-    if (key == kKeyN) {
-      only(mSnapping ? Tool::kNone : Tool::kSnap);
-      say(mSnapping ? "snap on (left drag: what to select, right drag: what not to; Enter "
-                      "selects; Backspace drops the strokes)"
-                    : "snap off");
-    }
-    if (key == kKeyS) {
-      only(mLassoing ? Tool::kNone : Tool::kLasso);
-      std::printf("tessera-master: console: lasso %s\n",
-                  mLassoing ? "on (drag around a region of the current model; Backspace removes "
-                              "the newest selection)"
-                            : "off");
-      std::fflush(stdout);
-    }
-    if (key == kKeyM) {
-      mLassoing = mSnapping = false;
-      std::printf(
-          "tessera-master: console: measuring: %s%s\n", interact::MeasureTool::name(mTool.cycle()),
-          mTool.mode() == interact::MeasureTool::Mode::kPath || mTool.mode() == interact::MeasureTool::Mode::kArea
-              ? " (click points, Enter ends, Backspace drops the last)"
-              : "");
-      std::fflush(stdout);
-    }
-    if ((key == kKeyEnter || key == kKeyPadEnter) && mSnapping) {
-      snap(graph);
-    } else if (key == kKeyEnter || key == kKeyPadEnter) {
-      measured([&] { return mTool.finish(graph, mInstances, kConsole); });
-    }
-    if (key == kKeyBackspace && mSnapping) {
-      if (!mSnapFg.empty() || !mSnapBg.empty()) {
-        mSnapFg.clear();
-        mSnapBg.clear();
-      } else {  // the newest selection the console snapped
-        sync::SceneGraph::NodeId newest = 0;
-        for (auto id : graph.ids())
-          if (graph.node(id).kind() == scene::SceneNode::SELECTION &&
-              graph.node(id).author() == kConsole)
-            newest = std::max(newest, id);
-        if (newest) graph.remove(newest);
+    switch (press.command) {
+      case Command::kLead: {  // the wall's console leads (sites' poses no longer move the view)
+        const bool leads = graph.settings().leader() == kConsole;
+        graph.setLeader(leads ? "" : kConsole);
+        say(leads ? "gave the view back" : "leads the view");
+        break;
       }
-    } else if (key == kKeyBackspace && mLassoing) {
-      std::erase_if(mSelections, [&](auto id) { return !graph.contains(id); });
-      if (!mSelections.empty()) {
-        graph.remove(mSelections.back());
-        mSelections.pop_back();
-      }
-    } else if (key == kKeyBackspace && !mTool.undoPoint()) {  // no point: the newest measurement
-      std::erase_if(mMeasurements, [&](auto id) { return !graph.contains(id); });
-      if (!mMeasurements.empty()) {
-        graph.remove(mMeasurements.back());
-        mMeasurements.pop_back();
-      }
-    }
-    if (key == kKeyK) {  // a section: a clip plane through the surface under the cursor
-      std::erase_if(mClips, [&](auto id) { return !graph.contains(id); });
-      if (!mClips.empty()) {
-        for (auto id : mClips) graph.remove(id);
-        mClips.clear();
-        say("clip removed");
-      } else if (const auto at = surfaceAt(p.cursor)) {
-        mClips.push_back(interact::addSectionClip(graph, at->point.world, graph.camera(), kConsole));
-        say("clip: everything nearer than the surface under the cursor is cut away (K again "
-            "removes it)");
-      } else {
-        say("clip: no model under the cursor");
-      }
-    }
-    if (key == kKeyO && mAnnotations) {  // the note nearest the cursor, open on the wall or not
-      if (const auto note = interact::noteNear(graph, mLastView, p.cursor, kNoteReachPx)) {
-        const auto& a = graph.node(*note).annotation();
-        try {
-          mAnnotations->setOpen(graph, int64_t(a.place()), !a.open(), "");
-          say(std::string(a.open() ? "closed" : "opened") + " note " + std::to_string(a.place()) +
-              " on the wall");
-        } catch (const std::exception& e) {
-          say(std::string("cannot open the note: ") + e.what());
+      case Command::kUndoSketch:
+        if (!mSketches.empty()) {
+          graph.remove(mSketches.back());
+          mSketches.pop_back();
         }
+        break;
+      case Command::kClearSketches:
+        for (auto id : mSketches) graph.remove(id);
+        mSketches.clear();
+        break;
+      case Command::kAddNote:
+      case Command::kMeasure:
+      case Command::kLasso:
+      case Command::kSnap:
+        if (press.command == Command::kAddNote && !mAnnotations) {
+          say("notes need tessera-master --annotations FILE");
+          break;
+        }
+        say(mTools.press(press.command));
+        toolsChanged();
+        break;
+      case Command::kEnd:
+        if (on(Tool::kSnap))
+          snap(graph);
+        else
+          measured([&] { return mTool.finish(graph, mInstances, kConsole); });
+        break;
+      case Command::kBack:
+        back(graph);
+        break;
+      case Command::kClip:  // a section: a clip plane through the surface under the cursor
+        std::erase_if(mClips, [&](auto id) { return !graph.contains(id); });
+        if (!mClips.empty()) {
+          for (auto id : mClips) graph.remove(id);
+          mClips.clear();
+          say("clip removed");
+        } else if (const auto at = surfaceAt(p.cursor)) {
+          mClips.push_back(
+              interact::addSectionClip(graph, at->point.world, graph.camera(), kConsole));
+          say("clip: everything nearer than the surface under the cursor is cut away (K again "
+              "removes it)");
+        } else {
+          say("clip: no model under the cursor");
+        }
+        break;
+      case Command::kOpenNote:  // the note nearest the cursor, open on the wall or not
+        if (!mAnnotations) break;
+        if (const auto note = interact::noteNear(graph, mLastView, p.cursor, kNoteReachPx)) {
+          const auto& a = graph.node(*note).annotation();
+          try {
+            mAnnotations->setOpen(graph, int64_t(a.place()), !a.open(), "");
+            say(std::string(a.open() ? "closed" : "opened") + " note " +
+                std::to_string(a.place()) + " on the wall");
+          } catch (const std::exception& e) {
+            say(std::string("cannot open the note: ") + e.what());
+          }
+        }
+        break;
+      case Command::kModel:
+        if (size_t(press.model) < models.size()) mSelected = size_t(press.model);
+        break;
+      case Command::kOpacityUp:
+      case Command::kOpacityDown:
+      case Command::kHide: {
+        if (models.empty()) break;
+        const auto id = models[std::min(mSelected, models.size() - 1)];
+        const float opacity = graph.node(id).opacity();
+        if (press.command == Command::kOpacityUp)
+          graph.setOpacity(id, std::min(1.0f, std::round(opacity * 10.0f + 1.0f) / 10.0f));
+        else if (press.command == Command::kOpacityDown)
+          graph.setOpacity(id, std::max(0.1f, std::round(opacity * 10.0f - 1.0f) / 10.0f));
+        else
+          graph.setVisible(id, !graph.node(id).visible());
+        break;
       }
+      case Command::kShading:
+        graph.setShading(graph.settings().shading() == scene::SHADING_EDL ? scene::SHADING_COLOR
+                                                                          : scene::SHADING_EDL);
+        break;
+      default:  // release, follow, picture: a site's
+        break;
     }
-    if (key >= kKey1 && key <= kKey9 && size_t(key - kKey1) < models.size())
-      mSelected = size_t(key - kKey1);
-    if (models.empty()) continue;
-    const auto id = models[std::min(mSelected, models.size() - 1)];
-    const float opacity = graph.node(id).opacity();
-    if (key == kKeyEqual || key == kKeyPadAdd)
-      graph.setOpacity(id, std::min(1.0f, std::round(opacity * 10.0f + 1.0f) / 10.0f));
-    if (key == kKeyMinus || key == kKeyPadSubtract)
-      graph.setOpacity(id, std::max(0.1f, std::round(opacity * 10.0f - 1.0f) / 10.0f));
-    if (key == kKeyH) graph.setVisible(id, !graph.node(id).visible());
-    if (key == kKeyE)
-      graph.setShading(graph.settings().shading() == scene::SHADING_EDL ? scene::SHADING_COLOR
-                                                                        : scene::SHADING_EDL);
   }
   char title[256];
   const auto& target = mNavigation.target();

@@ -15,6 +15,7 @@
 
 #include <tessera/annotate/annotation_scene.h>
 #include <tessera/interact/console_notes.h>
+#include <tessera/interact/keys.h>
 #include <tessera/interact/measure_tool.h>
 #include <tessera/interact/one_button_navigation.h>
 #include <tessera/master/selection_worker.h>
@@ -109,26 +110,35 @@ class Console {
   interact::MeasureTool mTool;
   glm::dvec2 mPressAt{0.0};  // where the left button went down (a click measures)
   std::vector<sync::SceneGraph::NodeId> mMeasurements;  // the console's, oldest first
-  bool mLassoing = false;                               // S: left drags draw a lasso
   std::vector<glm::dvec2> mLasso;                       // its pixels so far
   std::vector<sync::SceneGraph::NodeId> mSelections;    // the console's, oldest first
-  bool mSnapping = false;                               // N: strokes for lazy snapping
   std::vector<glm::dvec2> mSnapFg, mSnapBg;             // the strokes, the view's pixels
   std::unique_ptr<SelectionWorker> mSnaps;              // made with the first snap
   std::vector<sync::SceneGraph::NodeId> mClips;         // K: the console's section
-  /// Turns one tool on (the others off) or every tool off.
-  enum class Tool { kNone, kMeasure, kLasso, kSnap, kPlaceNote };
-  void only(Tool tool);
+  /// Which tool is on (A, M, S, N, or a panel): one at a time.
+  interact::ToolKeys mTools;
+  using Tool = interact::ToolKeys::Tool;
+  bool on(Tool tool) const { return mTools.tool() == tool; }
+  /// Makes the rest of the console follow mTools: the measuring mode, and the strokes of a tool
+  /// that is off dropped.
+  void toolsChanged();
+  /// Turns `tool` on (the others off), or every tool off with Tool::kNone.
+  void only(Tool tool) {
+    mTools.choose(tool);
+    toolsChanged();
+  }
   /// The current model's MODEL node and its index among the drawn instances, if drawn.
   std::optional<std::pair<sync::SceneGraph::NodeId, size_t>> currentModel(
       const sync::SceneGraph& graph) const;
+  /// Backspace: the snap strokes or the newest snap, the newest lasso selection, the last
+  /// measuring point or the newest measurement, by the tool that is on.
+  void back(sync::SceneGraph& graph);
   /// Sends the snap strokes to the worker (N, then Enter).
   void snap(const sync::SceneGraph& graph);
   std::chrono::steady_clock::time_point mLastInput = std::chrono::steady_clock::now();
 
   // The panels' state.
   annotate::AnnotationScene* mAnnotations = nullptr;
-  bool mPlacingNote = false;  // "Add note": the next click on the model places it
   struct NoteFormState {
     interact::NoteDraft draft;
     char layer[256] = "notes", title[1025] = "", text[2048] = "", unit[32] = "", link[512] = "";

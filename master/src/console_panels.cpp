@@ -146,9 +146,10 @@ void Console::toolsPanel(sync::SceneGraph& graph) {
     using Mode = interact::MeasureTool::Mode;
     for (Mode m : {Mode::kOff, Mode::kDistance, Mode::kPath, Mode::kAngle, Mode::kArea}) {
       if (m != Mode::kOff && m != Mode::kAngle) ImGui::SameLine();
-      if (ImGui::RadioButton(interact::MeasureTool::name(m), mTool.mode() == m) && mTool.mode() != m) {
-        mTool.setMode(m);
-        if (m != Mode::kOff) mLassoing = mPlacingNote = mSnapping = false;
+      if (ImGui::RadioButton(interact::MeasureTool::name(m), mTool.mode() == m) &&
+          mTool.mode() != m) {
+        mTools.choose(Tool::kMeasure, m);
+        toolsChanged();
         say(std::string("measuring: ") + interact::MeasureTool::name(m));
       }
     }
@@ -158,20 +159,20 @@ void Console::toolsPanel(sync::SceneGraph& graph) {
       ImGui::SameLine();
       if (ImGui::SmallButton("drop last point")) (void)mTool.undoPoint();
     }
-    if (bool on = mLassoing; ImGui::Checkbox("Lasso (S)", &on)) {
-      only(on ? Tool::kLasso : Tool::kNone);
-      say(std::string("lasso ") + (mLassoing ? "on" : "off"));
+    if (bool lasso = on(Tool::kLasso); ImGui::Checkbox("Lasso (S)", &lasso)) {
+      only(lasso ? Tool::kLasso : Tool::kNone);
+      say(std::string("lasso ") + (lasso ? "on" : "off"));
     }
     if (ImGui::IsItemHovered()) ImGui::SetTooltip("drag around a region of the current model");
     ImGui::SameLine();
-    if (bool on = mSnapping; ImGui::Checkbox("Snap (N)", &on)) {
-      only(on ? Tool::kSnap : Tool::kNone);
-      say(std::string("snap ") + (mSnapping ? "on" : "off"));
+    if (bool snapping = on(Tool::kSnap); ImGui::Checkbox("Snap (N)", &snapping)) {
+      only(snapping ? Tool::kSnap : Tool::kNone);
+      say(std::string("snap ") + (snapping ? "on" : "off"));
     }
     if (ImGui::IsItemHovered())
       ImGui::SetTooltip("lazy snapping: a left drag over what to select, a right drag over what "
                         "not to, then Enter");
-    if (mSnapping) {
+    if (on(Tool::kSnap)) {
       ImGui::TextDisabled("left drag: select, right drag: not");
       if (ImGui::SmallButton("select (Enter)")) snap(graph);
       if (mSnaps && mSnaps->pending() > 0) {
@@ -276,12 +277,12 @@ void Console::notesPanel(sync::SceneGraph& graph) {
       ImGui::End();
       return;
     }
-    if (mPlacingNote) {
+    if (on(Tool::kNote)) {
       ImGui::TextWrapped("Click on the model where the note goes.");
-      if (ImGui::SmallButton("cancel")) mPlacingNote = false;
+      if (ImGui::SmallButton("cancel")) only(Tool::kNone);
     } else if (!mNoteForm && ImGui::Button("Add note")) {
-      only(Tool::kPlaceNote);
-      say("add note: click on the model where it goes");
+      say(mTools.press(interact::Command::kAddNote));
+      toolsChanged();
     }
     if (mNoteForm) noteForm(graph);
 

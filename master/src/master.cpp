@@ -427,15 +427,16 @@ int Master::run() {
       first |= !mTiles->slot(i).reported;
     }
     const double timeout_ms = first ? mOpt.first_frame_timeout_s * 1000.0 : nodeTimeoutMs();
-    // A frame that must be complete (deterministic runs, screenshots) may take long: a node that
-    // keeps saying it is at work (NodeReport{working}) is waited for up to the first-frame
-    // timeout; otherwise a report later than the timeout drops the tile.
+    // The timeout is how long a node may be silent: a node at work says so now and then
+    // (NodeReport{working}), so a frame whose cost jumps (a see-through ensemble, a cold chunk)
+    // is slow, not hung. It is waited for up to ten timeouts, and a frame that must be complete
+    // (deterministic runs, screenshots) up to the first-frame timeout.
     const bool complete = message_out.read_back() || (mOpt.frames > 0 && !mOpt.console);
     const auto quiet = std::chrono::microseconds(int64_t(timeout_ms * 1000.0));
-    sync::LinkEvents events =
-        mLink.collect(mFrame, awaited, quiet,
-                      complete ? after(std::max(timeout_ms, mOpt.first_frame_timeout_s * 1000.0))
-                               : Clock::now() + quiet);
+    const double first_ms = mOpt.first_frame_timeout_s * 1000.0;
+    sync::LinkEvents events = mLink.collect(
+        mFrame, awaited, quiet,
+        after(complete ? std::max(timeout_ms, first_ms) : std::min(10.0 * timeout_ms, first_ms)));
     std::vector<std::optional<cluster::NodeReport>> reports(tiles);
     std::vector<std::pair<sync::PeerId, cluster::NodeReport>> others;
     for (auto& [peer, report] : events.reports) {

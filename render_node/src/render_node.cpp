@@ -243,12 +243,12 @@ struct RenderNode::Impl {
             graph, setup.splat_scale() > 0 ? setup.splat_scale() : 2.0f);
         options.highlights = overlay.highlights();  // selections, tinted on every tile
         render::RenderStats rs;
+        // While this frame renders the link says now and then that this node is at work, so the
+        // master tells a slow frame (settling, loading, see-through ensembles) from a hung node.
+        link.working(graph.frameNumber());
         // Settled frames (screenshots, deterministic scripted runs) wait for every chunk of the
         // cut, so their pixels are exactly what tessera-render --mosaic makes.
         if (read_back || setup.settled()) {
-          // Settling can take many frames (loading, see-through ensembles): the link says
-          // now and then that this node is at work, so the master tells slow from hung.
-          link.working(graph.frameNumber());
           render::Image image =
               renderer->renderSettled(instances, view, options, &rs, overlay.drawn());
           if (read_back) r.set_rgba(image.rgba.data(), image.rgba.size());

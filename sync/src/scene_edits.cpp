@@ -20,12 +20,29 @@ SceneGraph::NodeId groupChild(SceneGraph& graph, SceneGraph::NodeId parent, std:
     const scene::SceneNode& n = graph.node(id);
     if (n.kind() == scene::SceneNode::GROUP && n.name() == name) return id;
   }
-  const SceneGraph::NodeId id = graph.add(scene::SceneNode::GROUP, parent, name);
-  graph.setAuthor(id, author);
-  return id;
+  return graph.add(scene::SceneNode::GROUP, parent, name, {}, author);
 }
 
 }  // namespace
+
+std::string freshName(const SceneGraph& graph, SceneGraph::NodeId parent,
+                      std::string_view prefix) {
+  uint64_t largest = 0;
+  for (SceneGraph::NodeId id : graph.children(parent)) {
+    const std::string& name = graph.node(id).name();
+    if (name.size() <= prefix.size() + 1 || name.compare(0, prefix.size(), prefix) != 0 ||
+        name[prefix.size()] != ' ')
+      continue;
+    uint64_t n = 0;
+    bool digits = true;
+    for (size_t i = prefix.size() + 1; i < name.size() && digits; ++i) {
+      digits = name[i] >= '0' && name[i] <= '9' && n < (uint64_t(1) << 60);
+      n = n * 10 + uint64_t(name[i] - '0');
+    }
+    if (digits) largest = std::max(largest, n);
+  }
+  return std::string(prefix) + " " + std::to_string(largest + 1);
+}
 
 SceneGraph::NodeId layerGroup(SceneGraph& graph, std::string_view name, std::string_view author) {
   return groupChild(graph, SceneGraph::kRoot, name, author);
@@ -53,20 +70,15 @@ SceneGraph::NodeId addSketch(SceneGraph& graph, SceneGraph::NodeId layer, std::s
       TESSERA_CHECK(std::isfinite(p[k]) && std::abs(p[k]) <= 1e8,
                     "sync::addSketch(): points must be finite, within 1e8 m");
   TESSERA_CHECK(width > 0.0f && width <= 64.0f, "sync::addSketch(): width in (0, 64] pixels");
-  const SceneGraph::NodeId id =
-      graph.add(scene::SceneNode::SKETCH, layer,
-                "sketch " + std::to_string(graph.children(layer).size() + 1));
   const glm::dvec3 origin = points.front();
   scene::SketchPayload p;
   for (const glm::dvec3& q : points)
     for (int k = 0; k < 3; ++k) p.add_points(float(q[k] - origin[k]));
   *p.mutable_color() = color;
   p.set_width(width);
-  graph.setPayload(id, p);  // checks the colour
   const glm::dmat4 t = glm::translate(glm::dmat4(1.0), origin);
-  graph.setTransform(id, std::span<const double>(glm::value_ptr(t), 16));
-  graph.setAuthor(id, author);
-  return id;
+  return graph.add(scene::SceneNode::SKETCH, layer, freshName(graph, layer, "sketch"),
+                   std::move(p), author, std::span<const double>(glm::value_ptr(t), 16));
 }
 
 SceneGraph::NodeId addMeasurement(SceneGraph& graph, SceneGraph::NodeId layer,
@@ -83,17 +95,8 @@ SceneGraph::NodeId addMeasurement(SceneGraph& graph, SceneGraph::NodeId layer,
   if (color) *p.mutable_color() = *color;
   std::string name = scene::MeasurementPayload::Type_Name(type);
   for (char& c : name) c = char(std::tolower(static_cast<unsigned char>(c)));
-  const SceneGraph::NodeId id =
-      graph.add(scene::SceneNode::MEASUREMENT, layer,
-                name + " " + std::to_string(graph.children(layer).size() + 1));
-  try {
-    graph.setPayload(id, p);
-  } catch (...) {
-    graph.remove(id);  // no half-made node stays behind
-    throw;
-  }
-  graph.setAuthor(id, author);
-  return id;
+  return graph.add(scene::SceneNode::MEASUREMENT, layer, freshName(graph, layer, name),
+                   std::move(p), author);
 }
 
 }  // namespace tessera::sync

@@ -791,7 +791,7 @@ TEST_F(SiteSession, AWindowedSiteOpensANoteMeasuresAndLassos) {
   xdo("mousemove --window " + wid + " 242 158 key --window " + wid + " o");
   ASSERT_TRUE(site->waitFor("note 1 committed", 60)) << site->output();
   xdo("key --window " + wid + " m");
-  ASSERT_TRUE(site->waitFor("measuring: DISTANCE", 30)) << site->output();
+  ASSERT_TRUE(site->waitFor("measuring: distance", 30)) << site->output();
   // The bunny is about 90 px wide in the site's view.
   for (const char* at : {"228 160", "254 160"}) {
     xdo(std::string("mousemove --window ") + wid + " " + at + " click 1");

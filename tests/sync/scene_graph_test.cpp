@@ -15,6 +15,7 @@
 #include <tessera/core/check.h>
 #include <tessera/sync/camera_state.h>
 #include <tessera/sync/config.h>
+#include <tessera/sync/scene_edits.h>
 #include <tessera/sync/scene_graph.h>
 #include <tessera/sync/transform.h>
 #include <tessera/sync/wire.h>
@@ -137,6 +138,62 @@ TEST(SceneGraph, ChangedNodeSendsOnlyChangedFields) {
   f = g.takeFrame(3, 0);
   EXPECT_EQ(f.changed_size(), 0);
   EXPECT_EQ(f.version(), 2u);
+}
+
+// A whole node is one checked call: a refused value leaves nothing behind, not even a
+// pending change.
+TEST(SceneGraph, AddIsWholeOrNothing) {
+  SceneGraph g;
+  g.takeFrame(1, 0);
+  scene::SketchPayload bad;
+  for (float v : {0.0f, 0.0f, 0.0f, 1.0f, 0.0f, 0.0f}) bad.add_points(v);
+  bad.mutable_color()->set_r(2.0f);  // out of [0, 1]
+  bad.set_width(4.0f);
+  EXPECT_THROW(g.add(scene::SceneNode::SKETCH, SceneGraph::kRoot, "s", bad, "kyoto"),
+               tessera::PreconditionError);
+  EXPECT_EQ(g.size(), 0u);
+  EXPECT_FALSE(g.hasPendingChanges());
+  // A payload of another kind, an author too long, a NaN in the transform: refused the same way.
+  EXPECT_THROW(g.add(scene::SceneNode::CLIP, SceneGraph::kRoot, "c", scene::SketchPayload(), ""),
+               tessera::PreconditionError);
+  EXPECT_THROW(g.add(scene::SceneNode::GROUP, SceneGraph::kRoot, "g", {}, std::string(65, 'a')),
+               tessera::PreconditionError);
+  std::vector<double> nan_matrix(16, 0.0);
+  nan_matrix[0] = std::nan("");
+  EXPECT_THROW(g.add(scene::SceneNode::GROUP, SceneGraph::kRoot, "g", {}, "", nan_matrix),
+               tessera::PreconditionError);
+  EXPECT_EQ(g.size(), 0u);
+  EXPECT_FALSE(g.hasPendingChanges());
+
+  bad.mutable_color()->set_r(1.0f);
+  std::vector<double> moved = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0.5, 0, 0, 1};
+  const auto id = g.add(scene::SceneNode::SKETCH, SceneGraph::kRoot, "s", bad, "kyoto", moved);
+  EXPECT_EQ(g.node(id).name(), "s");
+  EXPECT_EQ(g.node(id).author(), "kyoto");
+  EXPECT_EQ(g.node(id).sketch().points_size(), 6);
+  // One create in the frame carries all of it: a replica gets the whole node at once.
+  const scene::Frame f = g.takeFrame(2, 0);
+  ASSERT_EQ(f.created_size(), 1);
+  EXPECT_EQ(f.created(0).author(), "kyoto");
+  SceneGraph replica;
+  replica.apply(g.snapshot());
+  EXPECT_TRUE(replica == g);
+}
+
+// Generated names count up from the largest among the siblings, so a deletion never makes the
+// next one repeat a name still in use.
+TEST(SceneGraph, FreshNamesNeverRepeatAfterADeletion) {
+  SceneGraph g;
+  const auto layer = g.add(scene::SceneNode::GROUP, SceneGraph::kRoot, "sketches");
+  EXPECT_EQ(tessera::sync::freshName(g, layer, "sketch"), "sketch 1");
+  const auto a = g.add(scene::SceneNode::GROUP, layer, tessera::sync::freshName(g, layer, "sketch"));
+  g.add(scene::SceneNode::GROUP, layer, tessera::sync::freshName(g, layer, "sketch"));
+  g.add(scene::SceneNode::GROUP, layer, "sketchy 9");  // another prefix
+  g.add(scene::SceneNode::GROUP, layer, "sketch 7b");  // not a number
+  g.remove(a);  // "sketch 1": one child fewer, yet the next is not "sketch 2" again
+  EXPECT_EQ(tessera::sync::freshName(g, layer, "sketch"), "sketch 3");
+  g.add(scene::SceneNode::GROUP, layer, "sketch 99999999999999999999999");  // too long to count
+  EXPECT_EQ(tessera::sync::freshName(g, layer, "sketch"), "sketch 3");
 }
 
 TEST(SceneGraph, RemovingAParentRemovesItsSubtree) {

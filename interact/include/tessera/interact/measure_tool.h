@@ -28,6 +28,8 @@ class MeasureTool {
   Mode cycle();
   /// "distance", "path", "angle", "area" or "off".
   static const char* name(Mode mode);
+  /// The MEASUREMENT node's type a mode makes (kOff: DISTANCE).
+  static scene::MeasurementPayload::Type typeOf(Mode mode);
 
   /// A completed measurement: what a MEASUREMENT node holds.
   struct Finished {

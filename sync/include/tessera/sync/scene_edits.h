@@ -12,6 +12,11 @@
 
 namespace tessera::sync {
 
+/// "PREFIX N" for a new child of `parent`: N is one more than the largest N among the children
+/// named "PREFIX N", so a name is never given twice while its node exists (a count of children
+/// would repeat one after a deletion).
+std::string freshName(const SceneGraph& graph, SceneGraph::NodeId parent, std::string_view prefix);
+
 /// The GROUP node named `name` under the root (the first such), made when there is none.
 SceneGraph::NodeId layerGroup(SceneGraph& graph, std::string_view name, std::string_view author);
 

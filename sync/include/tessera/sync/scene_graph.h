@@ -26,6 +26,7 @@
 #include <stdexcept>
 #include <string>
 #include <string_view>
+#include <variant>
 #include <vector>
 
 #include <tessera/config.pb.h>
@@ -112,6 +113,19 @@ class SceneGraph {
   void create(NodeId id, Kind kind, NodeId parent = kRoot, std::string_view name = {});
   /// Same with the next id never used by this graph (one more than the largest seen). Returns it.
   NodeId add(Kind kind, NodeId parent = kRoot, std::string_view name = {});
+
+  /// A node's payload, of its kind's type (none for a GROUP).
+  using Payload =
+      std::variant<std::monostate, scene::ModelPayload, scene::AnnotationPayload,
+                   scene::SketchPayload, scene::AvatarPayload, scene::VideoInsetPayload,
+                   scene::MeasurementPayload, scene::SelectionPayload, scene::ClipPayload>;
+  /// A whole node in one checked step: `kind` under `parent` with `name`, `payload` (the kind's,
+  /// moved in), `author` and `transform` (16 numbers, column-major, or none: identity), the next
+  /// id. Every value is checked before anything changes: a refused one (a colour out of range, a
+  /// NaN, a payload of another kind) throws PreconditionError naming the field and leaves the
+  /// graph as it was.
+  NodeId add(Kind kind, NodeId parent, std::string_view name, Payload payload,
+             std::string_view author, std::span<const double> transform = {});
   /// Removes `id` and its whole subtree. Cost: the subtree's size.
   void remove(NodeId id);
   /// Moves `id` under `parent`, which must not be `id` or in its subtree.

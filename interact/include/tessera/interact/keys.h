@@ -1,0 +1,80 @@
+// The keyboard of the wall's console and of a site's window: one map from keys to commands and
+// one tool state machine, so a key means the same on the wall and at every site. Window-free:
+// keys arrive as GLFW key codes (glfw3.h values, so no GLFW header is needed here), the front
+// end does what a command asks, and a test drives the state machine with commands.
+//
+//   L lead the view          R release it            F follow the leader   P picture
+//   U undo the newest sketch C clear my sketches     K section clip        O open the nearest note
+//   A add a note             M measure (distance, path, angle, area, off)  S lasso   N snap
+//   Enter end (a path, an area, a snap)   Backspace drop the last point, stroke or selection
+//   1..9 the current model   + / - its opacity       H hide or show it     E eye-dome lighting
+//
+// Which commands a front end offers is its own (a site has no section clip, the console does
+// not follow); a key it does not offer does nothing.
+#pragma once
+
+#include <span>
+#include <string>
+
+#include <tessera/interact/measure_tool.h>
+
+namespace tessera::interact {
+
+enum class Command {
+  kNone,
+  kLead,
+  kRelease,
+  kFollow,
+  kPicture,
+  kUndoSketch,
+  kClearSketches,
+  kClip,
+  kOpenNote,
+  kAddNote,
+  kMeasure,
+  kLasso,
+  kSnap,
+  kEnd,
+  kBack,
+  kModel,  ///< 1..9: KeyPress::model is 0..8
+  kOpacityUp,
+  kOpacityDown,
+  kHide,
+  kShading,
+};
+
+struct KeyPress {
+  Command command = Command::kNone;
+  int model = 0;  ///< kModel: which model, from 0
+};
+
+/// What GLFW key code `key` asks for (kNone for any other key).
+KeyPress commandOf(int key);
+
+/// "L lead, R release, ..." for the commands a front end offers, in the order given.
+std::string keysHelp(std::span<const Command> offered);
+
+/// One tool at a time: a tool key switches its tool on (and every other off), or off when it is
+/// the one on. M steps distance -> path -> angle -> area -> off.
+class ToolKeys {
+ public:
+  enum class Tool { kNone, kNote, kMeasure, kLasso, kSnap };
+
+  Tool tool() const { return mTool; }
+  /// The measuring mode: kOff unless the tool is kMeasure.
+  MeasureTool::Mode measureMode() const {
+    return mTool == Tool::kMeasure ? mMeasure : MeasureTool::Mode::kOff;
+  }
+
+  /// A tool command (kAddNote, kMeasure, kLasso, kSnap): the state changes and the line the user
+  /// reads is returned. Any other command changes nothing and returns "".
+  std::string press(Command command);
+  /// Chooses directly (a panel's button): `mode` is the measuring mode for kMeasure (kOff: off).
+  void choose(Tool tool, MeasureTool::Mode mode = MeasureTool::Mode::kDistance);
+
+ private:
+  Tool mTool = Tool::kNone;
+  MeasureTool::Mode mMeasure = MeasureTool::Mode::kOff;
+};
+
+}  // namespace tessera::interact

@@ -1,0 +1,78 @@
+// The keyboard the console and the sites share: the key map and the tool state machine.
+#include <gtest/gtest.h>
+
+#include <tessera/interact/keys.h>
+
+namespace {
+
+using tessera::interact::Command;
+using tessera::interact::commandOf;
+using tessera::interact::MeasureTool;
+using tessera::interact::ToolKeys;
+using Tool = ToolKeys::Tool;
+using Mode = MeasureTool::Mode;
+
+TEST(Keys, GlfwCodesMapToOneCommandEach) {
+  EXPECT_EQ(commandOf(76).command, Command::kLead);  // L
+  EXPECT_EQ(commandOf(82).command, Command::kRelease);
+  EXPECT_EQ(commandOf(77).command, Command::kMeasure);
+  EXPECT_EQ(commandOf(257).command, Command::kEnd);  // Enter and the keypad's
+  EXPECT_EQ(commandOf(335).command, Command::kEnd);
+  EXPECT_EQ(commandOf(259).command, Command::kBack);
+  EXPECT_EQ(commandOf(61).command, Command::kOpacityUp);  // = and keypad +
+  EXPECT_EQ(commandOf(334).command, Command::kOpacityUp);
+  EXPECT_EQ(commandOf(49).command, Command::kModel);
+  EXPECT_EQ(commandOf(49).model, 0);
+  EXPECT_EQ(commandOf(57).model, 8);
+  EXPECT_EQ(commandOf(48).command, Command::kNone);  // 0 is no model
+  EXPECT_EQ(commandOf(90).command, Command::kNone);  // Z
+  EXPECT_EQ(commandOf(-1).command, Command::kNone);
+  const Command offered[] = {Command::kLead, Command::kSnap, Command::kBack};
+  EXPECT_EQ(tessera::interact::keysHelp(offered), "L lead, N snap, Backspace back");
+}
+
+TEST(Keys, MeasureStepsThroughItsModesAndOff) {
+  ToolKeys k;
+  EXPECT_EQ(k.tool(), Tool::kNone);
+  EXPECT_EQ(k.press(Command::kMeasure), "measuring: distance (click points)");
+  EXPECT_EQ(k.measureMode(), Mode::kDistance);
+  EXPECT_NE(k.press(Command::kMeasure).find("measuring: path (click points, Enter ends"),
+            std::string::npos);
+  k.press(Command::kMeasure);
+  EXPECT_EQ(k.measureMode(), Mode::kAngle);
+  k.press(Command::kMeasure);
+  EXPECT_EQ(k.measureMode(), Mode::kArea);
+  EXPECT_EQ(MeasureTool::typeOf(k.measureMode()), tessera::scene::MeasurementPayload::AREA);
+  EXPECT_EQ(k.press(Command::kMeasure), "measuring off");
+  EXPECT_EQ(k.tool(), Tool::kNone);
+  EXPECT_EQ(k.measureMode(), Mode::kOff);
+}
+
+TEST(Keys, OneToolAtATime) {
+  ToolKeys k;
+  k.press(Command::kMeasure);
+  k.press(Command::kMeasure);  // path
+  EXPECT_EQ(k.press(Command::kLasso).rfind("lasso on", 0), 0u);
+  EXPECT_EQ(k.tool(), Tool::kLasso);
+  EXPECT_EQ(k.measureMode(), Mode::kOff);  // the lasso turned measuring off
+  EXPECT_EQ(k.press(Command::kAddNote), "add note: click on the model where it goes");
+  EXPECT_EQ(k.tool(), Tool::kNote);
+  EXPECT_EQ(k.press(Command::kMeasure), "measuring: distance (click points)");  // from the start
+  EXPECT_EQ(k.press(Command::kSnap).rfind("snap on", 0), 0u);
+  EXPECT_EQ(k.press(Command::kSnap), "snap off");
+  EXPECT_EQ(k.tool(), Tool::kNone);
+  EXPECT_EQ(k.press(Command::kAddNote), "add note: click on the model where it goes");
+  EXPECT_EQ(k.press(Command::kAddNote), "add note: cancelled");
+  // Commands that are no tool's change nothing.
+  k.press(Command::kLasso);
+  EXPECT_EQ(k.press(Command::kEnd), "");
+  EXPECT_EQ(k.press(Command::kLead), "");
+  EXPECT_EQ(k.tool(), Tool::kLasso);
+  // A panel chooses directly; measuring "off" is no tool.
+  k.choose(Tool::kMeasure, Mode::kAngle);
+  EXPECT_EQ(k.measureMode(), Mode::kAngle);
+  k.choose(Tool::kMeasure, Mode::kOff);
+  EXPECT_EQ(k.tool(), Tool::kNone);
+}
+
+}  // namespace
