@@ -234,13 +234,7 @@ bool Console::handleInput(sync::SceneGraph& graph) {
   mWindow->beginUi();
   panels(graph);
   mWindow->endUi();
-  if (mWindow->uiWantsMouse()) {
-    in.left = in.left_pressed = in.left_released = false;
-    in.scroll = 0.0;
-    in.path.clear();
-    if (!mRightHeld) in.right = false;  // a sketch begun on the model goes on
-  }
-  if (mWindow->uiWantsKeyboard()) in.keys.clear();
+  mWindow->withoutWhatUiTook(in, mRightHeld);  // a sketch begun on the model goes on
   const auto now = std::chrono::steady_clock::now();
   const double dt = std::chrono::duration<double>(now - mLastInput).count();
   mLastInput = now;

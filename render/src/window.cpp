@@ -214,6 +214,17 @@ bool Window::uiWantsKeyboard() const {
   return mImpl->ui && ImGui::GetIO().WantCaptureKeyboard;
 }
 
+void Window::withoutWhatUiTook(WindowInput& in, bool right_held) const {
+  if (uiWantsMouse()) {
+    in.left = in.left_pressed = in.left_released = false;
+    in.scroll = 0.0;
+    in.path.clear();
+    in.path_buttons.clear();
+    if (!right_held) in.right = false;
+  }
+  if (uiWantsKeyboard()) in.keys.clear();
+}
+
 std::vector<uint8_t> Window::readFramebuffer(uint32_t& width, uint32_t& height) const {
   int fw = 0, fh = 0;
   glfwGetFramebufferSize(mImpl->window, &fw, &fh);

@@ -73,6 +73,10 @@ class Window {
   /// is taken (a text field is active) Escape does not close the window.
   bool uiWantsMouse() const;
   bool uiWantsKeyboard() const;
+  /// Takes from `in` what the panels took (after endUi()): the mouse while it is over them, the
+  /// keys while a text field is active, so the view does not also get them. A right-button drag
+  /// begun on the view (`right_held`) goes on under a panel.
+  void withoutWhatUiTook(WindowInput& in, bool right_held) const;
   void setTitle(const std::string& title);
 
   struct Impl;  ///< GLFW state (window.cpp); public so GLFW callbacks can reach it
