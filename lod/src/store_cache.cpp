@@ -41,6 +41,15 @@ fs::path cachedStorePath(const fs::path& input, const std::string& who) {
   return cache / (input.stem().string() + "-" + std::to_string(key) + ".tlod");
 }
 
+bool cachedStoreReady(const fs::path& input) {
+  try {
+    std::error_code ec;
+    return fs::exists(cachedStorePath(input, "lod::cachedStoreReady"), ec);
+  } catch (const std::runtime_error&) {
+    return false;
+  }
+}
+
 namespace {
 
 /// An exclusive lock on a file beside a cache entry, held while the entry is checked and built:

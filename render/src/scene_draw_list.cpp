@@ -103,7 +103,31 @@ const std::vector<ModelInstance>& SceneDrawList::update(const sync::SceneGraph& 
                                                         std::span<ChunkStreamer* const> streamers) {
   mVisited = 0;
   const bool everything = changes.everything || !mStarted;
-  if (!everything && changes.nodes.empty()) return mInstances;
+  // Samplings that ended: their models are looked at again; one no model waits for any more is
+  // let go.
+  std::vector<uint32_t> nodes = changes.nodes;
+  for (auto it = mSampling.begin(); it != mSampling.end();) {
+    if (it->second.wait_for(std::chrono::seconds(0)) != std::future_status::ready) {
+      ++it;
+      continue;
+    }
+    bool waited = false;
+    for (const auto& [id, key] : mWaiting) {
+      if (key != it->first) continue;
+      nodes.push_back(id);
+      waited = true;
+    }
+    if (waited) {
+      ++it;
+    } else {
+      try {
+        it->second.get();
+      } catch (const std::exception&) {  // nobody needs it
+      }
+      it = mSampling.erase(it);
+    }
+  }
+  if (!everything && nodes.empty()) return mInstances;
 
   // The nodes to look at again: every node, or the changed ones and their subtrees (a group's
   // transform, opacity or visibility reaches all models under it). Deleted ones go.
@@ -113,7 +137,7 @@ const std::vector<ModelInstance>& SceneDrawList::update(const sync::SceneGraph& 
     for (const auto& [id, e] : mEntries) gone.insert(id);
     stack = graph.children(sync::SceneGraph::kRoot);
   } else {
-    for (const uint32_t id : changes.nodes) {
+    for (const uint32_t id : nodes) {
       if (graph.contains(id)) {
         stack.push_back(id);
       } else {
@@ -143,6 +167,26 @@ const std::vector<ModelInstance>& SceneDrawList::update(const sync::SceneGraph& 
     try {
       if (isMeshPath(path)) {
         opened_meshes.emplace(path, mMeshOpener ? mMeshOpener(path) : lod::MeshStore::open(path));
+      } else if (const auto mesh = meshOfPointsKey(path); mesh && !mOpener) {
+        // Samples: from the store cache when it holds them, else built off the frame while
+        // the mesh is drawn opaque.
+        auto it = mSampling.find(path);
+        if (it == mSampling.end() && lod::cachedStoreReady(*mesh)) {
+          opened.emplace(path, openLocalStore(path));
+          continue;
+        }
+        if (it == mSampling.end()) {
+          mSampling.emplace(path, std::async(std::launch::async,
+                                             [path] { return openLocalStore(path); }));
+        } else if (it->second.wait_for(std::chrono::seconds(0)) == std::future_status::ready) {
+          auto future = std::move(it->second);
+          mSampling.erase(it);
+          opened.emplace(path, future.get());  // throws what the build threw
+          continue;
+        }
+        if (!mMeshStores.count(*mesh) && !opened_meshes.count(*mesh))
+          opened_meshes.emplace(*mesh, mMeshOpener ? mMeshOpener(*mesh)
+                                                   : lod::MeshStore::open(*mesh));
       } else {
         opened.emplace(path, mOpener ? mOpener(path) : openLocalStore(path));
       }
@@ -158,6 +202,7 @@ const std::vector<ModelInstance>& SceneDrawList::update(const sync::SceneGraph& 
   for (const uint32_t id : gone) {
     mEntries.erase(id);
     mClips.erase(id);
+    mWaiting.erase(id);
   }
   for (const uint32_t id : dirty) {
     const scene::SceneNode& node = graph.node(id);
@@ -176,11 +221,18 @@ const std::vector<ModelInstance>& SceneDrawList::update(const sync::SceneGraph& 
     }
     if (node.kind() != scene::SceneNode::MODEL) {
       mEntries.erase(id);
+      mWaiting.erase(id);
       continue;
     }
-    const NodePlacement placed = placeNode(graph, id);
+    NodePlacement placed = placeNode(graph, id);
     Entry& e = mEntries[id];
     e.path = storeKey(graph, id);
+    mWaiting.erase(id);
+    if (mSampling.count(e.path)) {  // its samples are being built: the mesh, opaque, meanwhile
+      mWaiting[id] = e.path;
+      e.path = *meshOfPointsKey(e.path);
+      placed.opacity = 1.0f;
+    }
     glm::u8vec3 color(0);
     if (node.model().has_color()) {
       const scene::Color& c = node.model().color();
@@ -251,7 +303,16 @@ std::vector<glm::dvec4> SceneDrawList::clipPlanesOf(const scene::ClipPayload& cl
   return {in_world.planes.begin(), in_world.planes.begin() + in_world.count};
 }
 
+const std::vector<ModelInstance>& SceneDrawList::finishSampling(
+    const sync::SceneGraph& graph, std::span<ChunkStreamer* const> streamers) {
+  for (auto& [key, build] : mSampling) build.wait();
+  return update(graph, sync::SceneChanges(), streamers);
+}
+
 void SceneDrawList::clear(std::span<ChunkStreamer* const> streamers) {
+  for (auto& [key, build] : mSampling) build.wait();
+  mSampling.clear();
+  mWaiting.clear();
   for (auto& [path, store] : mStores)
     for (ChunkStreamer* s : streamers)
       if (s) s->forget(*store);

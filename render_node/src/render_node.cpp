@@ -135,11 +135,13 @@ struct RenderNode::Impl {
     std::fprintf(stderr, "%s: %s\n", who.c_str(), why.c_str());
   }
 
-  void updateModels(const sync::SceneChanges& changes) {
+  /// `settled`: waits for see-through samples being built (SceneDrawList::finishSampling).
+  void updateModels(const sync::SceneChanges& changes, bool settled = false) {
     overlay.update(graph, changes);  // rebuilt only when nodes changed
     try {
       render::ChunkStreamer* streamers[] = {renderer ? &renderer->streamer() : nullptr};
       instances = models.update(graph, changes, streamers);
+      if (settled && models.sampling()) instances = models.finishSampling(graph, streamers);
     } catch (const lod::StoreError& e) {
       throw NodeError(cluster::NODE_BAD_STORE, e.what());
     }
@@ -220,7 +222,10 @@ struct RenderNode::Impl {
   void apply(const cluster::FrameMessage& frame) {
     if (status.code() != cluster::NODE_OK) return;
     try {
-      updateModels(graph.apply(sync::parseFrame(frame.frame())));
+      // A settled frame (pixels asked for, a deterministic run) draws see-through meshes from
+      // their samples, waiting for them if they are being built.
+      updateModels(graph.apply(sync::parseFrame(frame.frame())),
+                   frame.read_back() || setup.settled());
       applyMedia(frame);
     } catch (const render::RenderError& e) {
       fail(cluster::NODE_RENDER, std::string("video textures: ") + e.what());

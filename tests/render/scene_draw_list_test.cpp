@@ -213,9 +213,16 @@ TEST(SceneDrawList, AMeshIsDrawnAsTrianglesOpaqueAndAsPointsOnItsTrianglesSeeThr
   EXPECT_NE(models[0].mesh, nullptr);
   EXPECT_EQ(models[0].store, nullptr);
   const uint64_t mesh_bytes = list.storeBytes();
-  // The group turns see-through: the mesh is drawn from points sampled on its triangles.
+  // The group turns see-through: the mesh is drawn from points sampled on its triangles. They
+  // are built off the frame (the cache is empty): meanwhile the mesh is drawn opaque.
   graph.setOpacity(group, 0.5f);
   models = list.update(graph, sync::SceneChanges::all());
+  ASSERT_TRUE(list.sampling());
+  ASSERT_EQ(models.size(), 1u);
+  EXPECT_NE(models[0].mesh, nullptr);
+  EXPECT_FLOAT_EQ(models[0].opacity, 1.0f);
+  models = list.finishSampling(graph);  // what a settled frame does
+  EXPECT_FALSE(list.sampling());
   ASSERT_EQ(models.size(), 1u);
   ASSERT_NE(models[0].store, nullptr);
   EXPECT_EQ(models[0].mesh, nullptr);
@@ -237,6 +244,29 @@ TEST(SceneDrawList, AMeshIsDrawnAsTrianglesOpaqueAndAsPointsOnItsTrianglesSeeThr
   ASSERT_EQ(models.size(), 1u);
   EXPECT_NE(models[0].mesh, nullptr);
   EXPECT_EQ(list.storeBytes(), mesh_bytes);
+  // See-through again: the samples are in the cache now, so this frame draws them at once.
+  graph.setOpacity(group, 0.25f);
+  models = list.update(graph, sync::SceneChanges::all());
+  EXPECT_FALSE(list.sampling());
+  ASSERT_EQ(models.size(), 1u);
+  EXPECT_NE(models[0].store, nullptr);
+  EXPECT_FLOAT_EQ(models[0].opacity, 0.25f);
+  // A second list whose mesh turns see-through and back before the build ends lets the build go
+  // (nothing waits for it) and draws the mesh.
+  ::setenv("XDG_CACHE_HOME", (dir / "cache2").c_str(), 1);
+  SceneDrawList other;
+  graph.setOpacity(group, 1.0f);
+  other.update(graph, sync::SceneChanges::all());
+  graph.setOpacity(group, 0.5f);
+  other.update(graph, sync::SceneChanges::all());
+  ASSERT_TRUE(other.sampling());
+  graph.setOpacity(group, 1.0f);
+  models = other.update(graph, sync::SceneChanges::all());
+  EXPECT_NE(models[0].mesh, nullptr);
+  EXPECT_FLOAT_EQ(models[0].opacity, 1.0f);
+  models = other.finishSampling(graph);
+  EXPECT_FALSE(other.sampling());
+  EXPECT_NE(models[0].mesh, nullptr);
   ::unsetenv("XDG_CACHE_HOME");
 }
 

@@ -28,4 +28,8 @@ std::filesystem::path cachedStoreFor(const std::filesystem::path& input, const s
 /// stat'ed or the cache folder not made.
 std::filesystem::path cachedStorePath(const std::filesystem::path& input, const std::string& who);
 
+/// Whether cachedStoreFor(`input`) would return at once: a .tlod, or a cache entry made before.
+/// False too when `input` cannot be stat'ed (cachedStoreFor() then says why).
+bool cachedStoreReady(const std::filesystem::path& input);
+
 }  // namespace tessera::lod

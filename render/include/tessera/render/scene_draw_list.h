@@ -13,6 +13,7 @@
 #pragma once
 
 #include <functional>
+#include <future>
 #include <map>
 #include <memory>
 #include <optional>
@@ -94,8 +95,18 @@ class SceneDrawList {
                                            const sync::SceneChanges& changes,
                                            std::span<ChunkStreamer* const> streamers = {});
 
-  /// Forgets and closes every store (before the streamers go).
+  /// Forgets and closes every store (before the streamers go), after any sampling below ended.
   void clear(std::span<ChunkStreamer* const> streamers);
+
+  /// A mesh that turns see-through needs its samples (storeKey(): MESH#points). With the default
+  /// opener, a store the store cache does not hold yet is built on a thread of its own, off the
+  /// frame: meanwhile update() draws the mesh opaque, and the first update() after the build
+  /// draws its samples. Whether such a build is under way:
+  bool sampling() const { return !mSampling.empty(); }
+  /// Waits for every build under way, then brings the models that waited up to date: what a
+  /// settled frame (a screenshot, a deterministic run) draws. Throws as update().
+  const std::vector<ModelInstance>& finishSampling(const sync::SceneGraph& graph,
+                                                   std::span<ChunkStreamer* const> streamers = {});
 
   /// Clip planes and boxes (the scene's visible CLIP nodes): each instance's
   /// ModelInstance::clip holds, in the world frame (double), the planes of every visible CLIP
@@ -131,6 +142,10 @@ class SceneDrawList {
   std::map<std::string, std::unique_ptr<lod::PointStore>> mStores;     // by store path
   std::map<std::string, std::unique_ptr<lod::MeshStore>> mMeshStores;  // .tmesh, by path
   std::map<uint32_t, Entry> mEntries;                                  // by node id
+  /// Samples of see-through meshes being built (by storeKey()), and the models drawn opaque
+  /// until theirs are ready (node id -> storeKey()).
+  std::map<std::string, std::future<std::unique_ptr<lod::PointStore>>> mSampling;
+  std::map<uint32_t, std::string> mWaiting;
   /// A visible CLIP node: its planes in the world, whether it keeps their outside, the models
   /// it cuts (empty: all).
   struct ClipEntry {
