@@ -18,6 +18,7 @@
 
 #include <CLI/CLI.hpp>
 
+#include <tessera/core/stopwatch.h>
 #include <tessera/core/cli.h>
 #include <tessera/lod/point_reader.h>
 #include <tessera/lod/point_store.h>
@@ -34,10 +35,6 @@ using namespace tessera;
 using Clock = std::chrono::steady_clock;
 
 namespace {
-
-double msSince(Clock::time_point t) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - t).count();
-}
 
 std::vector<glm::dvec3> latitudeLoop(double polar, int n) {
   std::vector<glm::dvec3> loop;

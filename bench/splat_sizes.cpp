@@ -27,6 +27,7 @@
 #include <CLI/CLI.hpp>
 #include <glm/gtc/matrix_transform.hpp>
 
+#include <tessera/core/stopwatch.h>
 #include <tessera/core/cli.h>
 #include <tessera/lod/point_store.h>
 #include <tessera/lod/store_cache.h>
@@ -55,10 +56,6 @@ struct Scene {
   glm::dvec3 eye, target, up;
   double ground_rows;  ///< > 0: the bottom share of the picture that is only ground
 };
-
-double msSince(Clock::time_point t) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - t).count();
-}
 
 render::ViewSetup viewOf(const Scene& s, const lod::PointStore& store, uint32_t w, uint32_t h) {
   const auto& sum = store.summary();

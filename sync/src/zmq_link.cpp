@@ -470,9 +470,12 @@ ZmqNodeLink::~ZmqNodeLink() {
 }
 
 void ZmqNodeLink::working(uint64_t frame) {
-  std::lock_guard lock(m->beat_mutex);
-  m->beating = true;
-  m->beat_frame = frame;
+  {
+    std::lock_guard lock(m->beat_mutex);
+    m->beating = true;
+    m->beat_frame = frame;
+  }
+  m->beat_wake.notify_one();  // the first sign at once, then one every 100 ms
 }
 
 cluster::ClusterSetup ZmqNodeLink::join(const cluster::Hello& hello,
