@@ -11,6 +11,7 @@
 
 #include <cmath>
 #include <fstream>
+#include <cstring>
 #include <regex>
 #include <sstream>
 
@@ -437,6 +438,49 @@ tessera::site::ToMaster rawPose(uint64_t seq, double x) {
 }
 
 }  // namespace
+
+// A node killed and restarted while a site leads the view rejoins once, from a snapshot that
+// holds the leader's camera: its tile in the wall's last picture is exactly tessera-render
+// --mosaic's for the camera the master printed, and no other tile was dropped.
+TEST_F(SiteSession, ANodeRestartedWhileASiteLeadsRejoinsAtTheLeadersView) {
+  auto master = startMaster(24.0);
+  auto nodes = startNodes();
+  ASSERT_TRUE(master->waitFor("4 of 4 tiles have a node", 60)) << master->output();
+  auto a = startSite("a", "A", R"({"width": 320, "height": 240, "actions": [
+      {"frame": 0, "camera": )" + cameraJson(kEyeA, kTarget) + R"(},
+      {"frame": 5, "lead": true}]})");
+  ASSERT_TRUE(master->waitFor("A leads the view", 60)) << master->output();
+  nodes[1]->signal(SIGKILL);  // tile-1-0
+  ASSERT_TRUE(master->waitFor("tile tile-1-0 \\([^)]*\\) dropped: dead", 30)) << master->output();
+  auto restarted = std::make_unique<Process>(
+      std::vector<std::string>{TESSERA_NODE, "--master", mWall, "--headless", "--tile", "tile-1-0"},
+      mRun / "node-tile-1-0-restarted.log");
+  ASSERT_TRUE(master->waitFor("tile tile-1-0 \\([^)]*\\) rejoined", 30)) << master->output();
+  ASSERT_EQ(master->wait(120), std::optional<int>(0)) << master->output();
+  EXPECT_EQ(restarted->wait(15), std::optional<int>(0)) << restarted->output();
+  for (size_t i : {0, 2, 3}) EXPECT_EQ(nodes[i]->wait(15), std::optional<int>(0)) << nodes[i]->output();
+  EXPECT_EQ(a->wait(15), std::optional<int>(0)) << a->output();
+  const std::string log = master->output();
+  const std::regex drop("dropped:"), rejoin("rejoined");
+  EXPECT_EQ(std::distance(std::sregex_iterator(log.begin(), log.end(), drop), {}), 1) << log;
+  EXPECT_EQ(std::distance(std::sregex_iterator(log.begin(), log.end(), rejoin), {}), 1) << log;
+  // The last picture's camera is A's; the wall is the mosaic for it.
+  const std::string camera = tessera::test::captured(log, "wrote \\S+wall.png \\(\\d+x\\d+\\); camera (\\S+)");
+  ASSERT_FALSE(camera.empty()) << log;
+  const auto r = tessera::test::runCommand("cd " + sDir->path().string() + " && " +
+                                           TESSERA_RENDER_TOOL +
+                                           " --scene scene.json --wall wall.json --mosaic --camera '" +
+                                           camera + "' -o " + (mRun / "mosaic.png").string());
+  ASSERT_EQ(r.code, 0) << r.out;
+  const tessera::render::Image shot = tessera::render::readPng((mRun / "wall.png").string());
+  const tessera::render::Image ref = tessera::render::readPng((mRun / "mosaic.png").string());
+  ASSERT_EQ(shot.width, ref.width);
+  ASSERT_EQ(shot.height, ref.height);
+  size_t differ = 0;
+  for (size_t i = 0; i < shot.rgba.size(); i += 4)
+    differ += std::memcmp(&shot.rgba[i], &ref.rgba[i], 4) != 0;
+  EXPECT_EQ(differ, 0u) << "pixels of " << mRun / "wall.png" << " that are not the mosaic's";
+}
 
 TEST_F(SiteSession, StrangersPlaintextWrongKeysGarbageAndFloodsGetNothingAndTheWallGoesOn) {
   using tessera::site::ToSite;
