@@ -43,7 +43,7 @@ site::SiteNoteAnswer applySiteNote(annotate::AnnotationScene* notes, sync::Scene
   site::SiteNoteAnswer out;
   out.set_request(note.request());
   if (!notes) {
-    out.set_error("this session keeps no annotations (the master runs without --annotations)");
+    out.set_error("the master keeps no annotations (it runs without --annotations)");
     return out;
   }
   try {

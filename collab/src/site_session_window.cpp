@@ -211,15 +211,9 @@ bool SiteSession::Impl::interact(double now) {
   const auto t = Clock::now();
   const double dt = std::chrono::duration<double>(t - last_input).count();
   last_input = t;
-  const glm::dvec2 scale(script.width() / std::max(1.0, double(in.size.x)),
-                         script.height() / std::max(1.0, double(in.size.y)));
-  interact::PointerInput p;
-  p.cursor = in.cursor * scale;
-  p.down = in.left;
-  p.pressed = in.left_pressed;
-  p.released = in.left_released;
-  p.scroll = in.scroll;
-  p.size = glm::dvec2(script.width(), script.height());
+  glm::dvec2 scale;
+  interact::PointerInput p =
+      interact::pointerInView(in, glm::dvec2(script.width(), script.height()), scale);
   if (tools.tool() != Tool::kNone) {
     toolInput(in, scale, p.cursor, now);
     p.down = p.pressed = p.released = false;

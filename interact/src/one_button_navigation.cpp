@@ -8,6 +8,18 @@
 
 namespace tessera::interact {
 
+PointerInput pointerInView(const render::WindowInput& in, glm::dvec2 size, glm::dvec2& scale) {
+  scale = size / glm::max(glm::dvec2(in.size), glm::dvec2(1.0));
+  PointerInput p;
+  p.cursor = in.cursor * scale;
+  p.down = in.left;
+  p.pressed = in.left_pressed;
+  p.released = in.left_released;
+  p.scroll = in.scroll;
+  p.size = size;
+  return p;
+}
+
 namespace {
 
 using sync::set;

@@ -239,16 +239,8 @@ bool Console::handleInput(sync::SceneGraph& graph) {
   const double dt = std::chrono::duration<double>(now - mLastInput).count();
   mLastInput = now;
 
-  // Window coordinates to view pixels (present() scales the image to the window).
-  const glm::dvec2 scale(mWidth / std::max(1.0, double(in.size.x)),
-                         mHeight / std::max(1.0, double(in.size.y)));
-  interact::PointerInput p;
-  p.cursor = in.cursor * scale;
-  p.down = in.left;
-  p.pressed = in.left_pressed;
-  p.released = in.left_released;
-  p.scroll = in.scroll;
-  p.size = glm::dvec2(mWidth, mHeight);
+  glm::dvec2 scale;
+  interact::PointerInput p = interact::pointerInView(in, glm::dvec2(mWidth, mHeight), scale);
   const glm::dmat4 clip_from_world = mLastView.projection * mLastView.view;
   const glm::dmat4 world_from_clip = glm::inverse(clip_from_world);
   const double fovy = 2.0 * std::atan(1.0 / mLastView.projection[1][1]);

@@ -332,7 +332,7 @@ struct RenderNode::Impl {
           exit_code = status.code();
           sayVideoStats();
           return SessionEnd::kQuit;
-        default:  // a welcome or refusal out of turn: not for this session
+        default:  // a welcome or refusal out of turn: not for this join
           break;
       }
     }

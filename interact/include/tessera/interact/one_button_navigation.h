@@ -22,6 +22,7 @@
 #include <glm/glm.hpp>
 
 #include <tessera/config.pb.h>
+#include <tessera/render/window.h>
 
 namespace tessera::interact {
 
@@ -34,6 +35,11 @@ struct PointerInput {
   double scroll = 0.0;        ///< wheel steps, up positive
   glm::dvec2 size{1.0, 1.0};  ///< the view's size in the same pixels
 };
+
+/// A window's input as the pointer of a view of `size` pixels: window coordinates to view pixels
+/// (Window::present() scales the picture to the window). `scale` receives the factor, view
+/// pixels per window pixel, for the input's drags.
+PointerInput pointerInView(const render::WindowInput& in, glm::dvec2 size, glm::dvec2& scale);
 
 class OneButtonNavigation {
  public:

@@ -140,7 +140,7 @@ class JitterBuffer {
   int64_t mLastSequence = -1;  ///< sequence of the last frame played from a packet
   int mFrameSamples = kMaxVoiceFrameSamples;
   Gap mGap = Gap::kNone;    ///< what the frames since the last packet played are
-  uint64_t mGapFrames = 0;  ///< frames played since then, not yet counted
+  uint64_t mGapFrames = 0;  ///< frames played since the gap began, not yet counted
   int64_t mLostInGap = 0;   ///< frames since the last packet played counted as lost
   bool mQuiet = true;       ///< the last frame played was silence
   double mLastTransit = 0;  ///< for the RFC 3550 estimate
