@@ -7,6 +7,8 @@
 #include <cstdlib>
 #include <vector>
 
+#include <glm/glm.hpp>
+
 #include <tessera/render/image.h>
 
 namespace tessera::bench {
@@ -33,6 +35,29 @@ inline double psnr(const render::Image& a, const render::Image& b, uint32_t box 
         ++n;
       }
   const double mse = se / double(n);
+  return mse > 0 ? 10.0 * std::log10(255.0 * 255.0 / mse) : 99.0;
+}
+
+/// PSNR of the RGB channels over the pixels where either image shows something other than
+/// `background` (the model's pixels: a model small in the view would otherwise gain from the
+/// empty pixels around it), dB; 99 for equal images or none covered.
+inline double psnrCovered(const render::Image& a, const render::Image& b,
+                          glm::u8vec3 background = {0, 0, 0}) {
+  double se = 0;
+  size_t n = 0;
+  auto empty = [&](const render::Image& img, size_t i) {
+    return img.rgba[i] == background.r && img.rgba[i + 1] == background.g &&
+           img.rgba[i + 2] == background.b;
+  };
+  for (size_t i = 0; i < a.rgba.size(); i += 4) {
+    if (empty(a, i) && empty(b, i)) continue;
+    for (size_t c = 0; c < 3; ++c) {
+      const double d = double(a.rgba[i + c]) - double(b.rgba[i + c]);
+      se += d * d;
+    }
+    n += 3;
+  }
+  const double mse = n ? se / double(n) : 0.0;
   return mse > 0 ? 10.0 * std::log10(255.0 * 255.0 / mse) : 99.0;
 }
 

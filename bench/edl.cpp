@@ -3,6 +3,8 @@
 // (every leaf, and lod-px 1; each at the bench camera and 0.1 degree of orbit further); then for
 // each EDL method and setting, on copies of those planes:
 //   psnr_db      per pixel, lod-px 1 against the full-resolution render (same method);
+//   psnr_covered_db  the same over the pixels either render covers (a bunny small in the view
+//                gains nothing from the empty pixels around it);
 //   flicker      mean absolute change of the RGB channels between the two frames of the orbit
 //                step, grey levels over every pixel, for lod-px 1 and for the full render;
 //   edl_ms       the EDL pass alone at 1920x1080 (best of --repeats; llvmpipe, 2 cores).
@@ -26,8 +28,8 @@
 
 #include <tessera/core/cli.h>
 #include <tessera/core/stopwatch.h>
-#include <tessera/render/pass_timing.h>
 #include <tessera/render/gl_context.h>
+#include <tessera/render/pass_timing.h>
 #include <tessera/render/view_renderer.h>
 
 #include "bench_images.h"
@@ -78,15 +80,16 @@ struct Plane {
   glm::dmat4 projection;
 };
 
-/// bench::bigBunnyView() with its eye turned by `degrees` about the up axis around the target.
-render::ViewSetup orbitView(double degrees, uint32_t w, uint32_t h) {
+/// bench::bigBunnyView() with its eye turned by `degrees` about the up axis around the target and
+/// `distance` times as far from it.
+render::ViewSetup orbitView(double degrees, uint32_t w, uint32_t h, double distance) {
   const config::Camera cam = bench::bigBunnyCamera();
   const glm::dvec3 eye(cam.eye().x(), cam.eye().y(), cam.eye().z());
   const glm::dvec3 target(cam.target().x(), cam.target().y(), cam.target().z());
   const glm::dvec3 up(cam.up().x(), cam.up().y(), cam.up().z());
   const glm::dmat4 turn = glm::rotate(glm::dmat4(1.0), glm::radians(degrees), up);
   render::ViewSetup v = bench::bigBunnyView(w, h);
-  v.eye_world = target + glm::dvec3(turn * glm::dvec4(eye - target, 0.0));
+  v.eye_world = target + distance * glm::dvec3(turn * glm::dvec4(eye - target, 0.0));
   v.view = glm::lookAt(v.eye_world, target, up);
   return v;
 }
@@ -101,12 +104,25 @@ int main(int argc, char** argv) {
   int repeats = 5;
   double orbit_deg = 0.1;
   std::vector<uint32_t> crop_at{560, 200};
+  double distance = 1.0, reference_lod = 0.0;
+  bool dump = false;
   app.add_option("--repeats", repeats, "Timed rounds of every variant's EDL pass (best kept)")
       ->check(CLI::PositiveNumber)
       ->capture_default_str();
   app.add_option("--orbit", orbit_deg, "Orbit step between the two frames, degrees")
       ->check(tessera::cli::finiteRange(-10.0, 10.0))
       ->capture_default_str();
+  app.add_option("--distance", distance,
+                 "The camera this many times as far from the bunny (the 1 px view then draws "
+                 "fewer of the points)")
+      ->check(tessera::cli::finiteRange(0.25, 64.0))
+      ->capture_default_str();
+  app.add_option("--reference-lod", reference_lod,
+                 "LOD threshold of the reference, pixels (0: every leaf)")
+      ->check(tessera::cli::finiteRange(0.0, 0.99))
+      ->capture_default_str();
+  app.add_flag("--dump", dump,
+               "Also write OUT/dump-{off,robust}-{full,lod1}.png, the whole pictures compared");
   app.add_option("--crop", crop_at, "Top-left pixel of the 320x180 crops")
       ->expected(2)
       ->check(CLI::Range(0u, 1600u))
@@ -125,17 +141,17 @@ int main(int argc, char** argv) {
     render::ViewRenderer renderer(W, H, nullptr, so);
     std::vector<Plane> planes;
     uint64_t points_drawn[2] = {0, 0};
-    for (const double lod : {1e-9, 1.0})
+    for (const double lod : {std::max(reference_lod, 1e-9), 1.0})
       for (const double deg : {0.0, orbit_deg}) {
         render::RenderOptions o;
         o.lod_pixels = lod;
-        o.coverage_stop = lod > 1e-3;  // the reference draws every leaf
-        const render::ViewSetup v = orbitView(deg, W, H);
+        o.coverage_stop = lod >= 1.0;  // the reference draws every leaf (or its level), whole
+        const render::ViewSetup v = orbitView(deg, W, H, distance);
         render::RenderStats st;
         const auto t = std::chrono::steady_clock::now();
         renderer.renderSettled({&inst, 1}, v, o, &st);
-        points_drawn[lod < 1e-3 ? 0 : 1] = st.points;
-        Plane p{std::string(lod < 1e-3 ? "full" : "lod1") + (deg == 0.0 ? "" : "-orbit"),
+        points_drawn[lod < 1.0 ? 0 : 1] = st.points;
+        Plane p{std::string(lod < 1.0 ? "full" : "lod1") + (deg == 0.0 ? "" : "-orbit"),
                 std::make_unique<render::FrameTarget>(W, H), v.projection};
         glCopyNamedBufferSubData(renderer.target().depth().name(), p.target->depth().name(), 0, 0,
                                  GLsizeiptr(p.target->pixels() * 4));
@@ -165,7 +181,7 @@ int main(int argc, char** argv) {
     std::ofstream csv(fs::path(out) / "edl.csv");
     const std::string header =
         "method,radius,filter_radius,plane_fit,edge_slope,edl_ms,psnr_db,psnr_4x4_db,flicker_lod1,"
-        "flicker_full,full_points,lod1_points";
+        "flicker_full,full_points,lod1_points,psnr_covered_db";
     csv << header << "\n";
     std::cout << header << "\n";
     // Crops: rows classic (today) and robust (the default); columns full, lod-px 1.
@@ -178,21 +194,26 @@ int main(int argc, char** argv) {
       render::Image img[4];
       for (size_t i = 0; i < planes.size(); ++i) img[i] = shade(planes[i], var.options).first;
       const double p = bench::psnr(img[2], img[0]), p4 = bench::psnr(img[2], img[0], 4);
+      const double pc = bench::psnrCovered(img[2], img[0]);
       const double flicker_lod1 = bench::meanAbsChange(img[2], img[3]);
       const double flicker_full = bench::meanAbsChange(img[0], img[1]);
       const bool classic =
           var.options.method == render::EdlMethod::kClassic || var.options.strength <= 0.0f;
       char line[512];
-      std::snprintf(line, sizeof line, "%s,%d,%d,%d,%g,%.1f,%.2f,%.2f,%.3f,%.3f,%llu,%llu",
+      std::snprintf(line, sizeof line, "%s,%d,%d,%d,%g,%.1f,%.2f,%.2f,%.3f,%.3f,%llu,%llu,%.2f",
                     var.name.c_str(), var.options.radius, classic ? 0 : var.options.filter_radius,
                     classic ? 0 : int(var.options.plane_fit),
                     classic ? 0.0 : double(var.options.edge_slope), ms, p, p4, flicker_lod1,
                     flicker_full, (unsigned long long)points_drawn[0],
-                    (unsigned long long)points_drawn[1]);
+                    (unsigned long long)points_drawn[1], pc);
       csv << line << "\n";
       std::cout << line << std::endl;
       if (var.name == "classic") base_psnr = p, base_flicker = flicker_lod1;
       if (var.name == "off") off_psnr = p;
+      if (dump && (var.name == "off" || var.name == "robust")) {
+        render::writePng(out + "/dump-" + var.name + "-full.png", img[0]);
+        render::writePng(out + "/dump-" + var.name + "-lod1.png", img[2]);
+      }
       const auto row = std::find(crop_rows.begin(), crop_rows.end(), var.name);
       if (row != crop_rows.end()) {
         const size_t cell = 2 * size_t(row - crop_rows.begin());

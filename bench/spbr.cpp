@@ -3,6 +3,10 @@
 //  figure5   the paper's Figure 5: a white plane of n_raw uniformly random points parallel to the
 //            image, black background, 512x512, alpha 0.05..0.95: mean intensity and its standard
 //            deviation against 255 alpha, for n_raw = 10^6 and 4 x 10^6 (L = 64);
+//  opacity   the opacity drawn against the opacity set, with the default method on the Figure 5
+//            plane at 10^6 points: alpha 0.1..0.9 at L = 16, 64 and 256, slant shading on and
+//            off: mean against 255 alpha, std against the binomial, a half-plane's edge width;
+//            crops of the plane beside the flat 255 alpha it must average to;
 //  accuracy  image error (RMSE to an exact CPU compositor, reference_compositor.h) against frame
 //            time for SPBR at L = 4, 16, 64, 256, the weighted average and weighted blended OIT,
 //            on the bunny's scans fused at two opacities and on Autzen;
@@ -32,8 +36,8 @@
 
 #include <tessera/lod/point_writer.h>
 #include <tessera/lod/store_builder.h>
-#include <tessera/render/pass_timing.h>
 #include <tessera/render/gl_context.h>
+#include <tessera/render/pass_timing.h>
 #include <tessera/render/reference_compositor.h>
 #include <tessera/render/view_renderer.h>
 
@@ -369,6 +373,93 @@ render::Image sideBySide(const std::vector<const render::Image*>& images, uint32
   return out;
 }
 
+/// The opacity drawn is the opacity set: the default method on the Figure 5 plane (10^6 points,
+/// 512x512) at alpha 0.1 .. 0.9, L = 16, 64 and 256, slant shading on and off (the plane faces
+/// the image, so both must give 255 alpha; off, each point's disc follows its estimated normal).
+void opacity(const fs::path& out) {
+  std::ofstream csv(out / "spbr_opacity.csv");
+  csv << "slant,L,alpha,mean,theory,error_pct,error_grey,stddev,std_over_binomial,edge_10_90_px,"
+         "frame_ms\n";
+  std::cout << "\n== opacity drawn against opacity set: Figure 5 plane, 10^6 points, 512x512\n"
+               "slant,L,alpha,mean,theory,error_pct,error_grey,stddev,std_over_binomial,"
+               "edge_10_90_px,frame_ms\n";
+  auto plane = lod::PointStore::open(planeStore(out / "inputs", 1'000'000));
+  auto half = lod::PointStore::open(planeStore(out / "inputs", 500'000, 0.0));
+  const render::ViewSetup v =
+      lookAt({0.5, 0.5, 1.0}, {0.5, 0.5, 0.0}, {0, 1, 0}, 512, 512, 40.0, 0.1, 10.0);
+  render::StreamerOptions with_normals;
+  with_normals.normals = true;  // for slant shading off; the default ignores them
+  auto streamer = std::make_shared<render::ChunkStreamer>(with_normals);
+  // Crops at L = 64, slant shading on: 96x96 of the plane's centre over a flat 255 alpha.
+  std::vector<render::Image> crops;
+  for (bool slant : {true, false})
+    for (uint32_t L : {16u, 64u, 256u})
+      for (int a = 1; a <= 9; ++a) {
+        const float alpha = float(a) * 0.1f;
+        render::RenderOptions o;
+        o.spbr.ensembles = L;
+        o.spbr.slant_shading = slant;
+        render::ModelInstance inst{plane.get(), render::storeModel(*plane), alpha};
+        render::Image img;
+        const double ms = timedFrame({&inst, 1}, v, o, streamer, 1, &img, nullptr);
+        double sd = 0;
+        const double mean = meanOf(img, 0, img.width, &sd);
+        render::ModelInstance edge_inst{half.get(), render::storeModel(*half), alpha};
+        render::ViewRenderer re(v.width, v.height, streamer);
+        const double edge = render::edgeWidth(re.renderSettled({&edge_inst, 1}, v, o), 256);
+        const double theory = 255.0 * alpha;
+        const double binomial = 255.0 * std::sqrt(alpha * (1.0 - alpha) / L);
+        char line[256];
+        std::snprintf(line, sizeof line, "%s,%u,%.1f,%.2f,%.2f,%.2f,%.2f,%.2f,%.3f,%.2f,%.1f",
+                      slant ? "on" : "off", L, alpha, mean, theory, 100.0 * (mean / theory - 1.0),
+                      mean - theory, sd, sd / binomial, edge, ms);
+        csv << line << "\n";
+        std::cout << line << std::endl;
+        if (slant && L == 64 && a % 2 == 1) {
+          render::Image c{96, 192, std::vector<uint8_t>(96 * 192 * 4, 255)};
+          const uint8_t flat = uint8_t(std::lround(theory));
+          for (uint32_t y = 0; y < 96; ++y)
+            for (uint32_t x = 0; x < 96; ++x)
+              for (int ch = 0; ch < 3; ++ch) {
+                c.rgba[(y * 96 + x) * 4 + ch] = img.rgba[((208 + y) * 512 + 208 + x) * 4 + ch];
+                c.rgba[((96 + y) * 96 + x) * 4 + ch] = flat;
+              }
+          crops.push_back(std::move(c));
+        }
+      }
+  std::vector<const render::Image*> row;
+  for (const render::Image& c : crops) row.push_back(&c);
+  render::writePng((out / "spbr_opacity_crops.png").string(), sideBySide(row, 8));
+  csv.close();
+  const std::string f = (out / "spbr_opacity.csv").string();
+  std::ofstream g(out / "spbr_opacity.gp");
+  g << "set terminal pngcairo size 1200,520 font 'sans,10' noenhanced\nset output '"
+    << (out / "spbr_opacity.png").string() << "'\nset datafile separator ','\n"
+    << "set multiplot layout 1,3 title 'Opacity drawn against opacity set: the Figure 5 plane, "
+       "10^6 points, 512x512, the default method (copies in cells)'\n"
+    << "set grid\nset xlabel 'alpha'\nset xrange [0:1]\nset key below font ',9'\n";
+  auto plot = [&](const char* title, const char* ylabel, int column, const char* goal) {
+    g << "set title '" << title << "'\nset ylabel '" << ylabel << "'\nplot ";
+    int k = 0;
+    for (const char* slant : {"on", "off"})
+      for (int L : {16, 64, 256})
+        g << "'" << f << "' using (stringcolumn(1) eq '" << slant << "' && $2 == " << L
+          << " ? $3 : 1/0):" << column << " with linespoints pt " << (slant[1] == 'n' ? 7 : 6)
+          << " lc " << ++k % 3 + 1 << " title 'L = " << L << ", slant " << slant << "', ";
+    g << goal << "\n";
+  };
+  plot("mean - 255 alpha", "grey levels", 7,
+       "(2.55*x > 1 ? 2.55*x : 1) with lines dt 2 lc rgb 'black' title 'goal: 1% or 1 grey', "
+       "(2.55*x > 1 ? -2.55*x : -1) with lines dt 2 lc rgb 'black' notitle");
+  plot("standard deviation / binomial", "std / binomial", 9,
+       "1.5 with lines dt 2 lc rgb 'black' title 'goal 1.5'");
+  plot("edge of a half-plane, 10-90%", "px", 10,
+       "2 with lines dt 2 lc rgb 'black' title 'goal 2 px'");
+  g << "unset multiplot\n";
+  g.close();
+  gnuplot(out / "spbr_opacity.gp");
+}
+
 void sparse(const fs::path& out, const std::vector<double>& jitters,
             const std::vector<double>& shares, const std::vector<std::string>& only,
             bool with_bunny) {
@@ -681,13 +772,13 @@ int main(int argc, char** argv) {
       "spbr: see-through rendering: Figure 5, accuracy against an exact compositor, "
       "speed, and where it breaks"};
   std::string out = TESSERA_BENCH_RESULTS_DIR;
-  std::vector<std::string> parts{"figure5", "sparse", "accuracy", "speed", "breaks"};
+  std::vector<std::string> parts{"figure5", "opacity", "sparse", "accuracy", "speed", "breaks"};
   double speed_lod = 1.5;
   std::vector<double> jitters, shares;
   std::vector<std::string> only;
   bool sparse_bunny = true;
   app.add_option("--out", out, "Folder for inputs, CSV and charts")->capture_default_str();
-  app.add_option("--parts", parts, "Which parts: figure5 sparse accuracy speed breaks")
+  app.add_option("--parts", parts, "Which parts: figure5 opacity sparse accuracy speed breaks")
       ->capture_default_str();
   app.add_option("--speed-lod", speed_lod, "LOD threshold of the speed view")
       ->capture_default_str();
@@ -705,6 +796,7 @@ int main(int argc, char** argv) {
     fs::create_directories(dir / "inputs");
     auto ctx = render::GlContext::createHeadless();
     if (has("figure5")) figure5(dir, {1'000'000, 4'000'000});
+    if (has("opacity")) opacity(dir);
     if (has("sparse")) sparse(dir, jitters, shares, only, sparse_bunny);
     if (has("accuracy")) {
       std::vector<Scene> scenes;

@@ -28,9 +28,9 @@
 // cosine cost the default in-cell copies their time while they were switched by uniforms): PASS
 // 0 (depth) or 1 (colour); HAS_CELLS (cells[] centre and weigh each point's copies); IN_CELL
 // (copies stratified over the cell's rectangle, needs HAS_CELLS); JITTER (Gaussian copies,
-// uJitterK > 0, without IN_CELL); SLANT_OFF (cross-section s cos(theta), from the point's
-// normal); HAS_RATIOS (k scaled by each point's density ratio, for density jumps in a node);
-// ONE_LAYER (every ensemble into layer 0: one opaque pass, a speed baseline).
+// uJitterK > 0, without IN_CELL); SLANT_OFF (cross-section s cos(theta) / cos(phi), from the
+// point's normal); HAS_RATIOS (k scaled by each point's density ratio, for density jumps in a
+// node); ONE_LAYER (every ensemble into layer 0: one opaque pass, a speed baseline).
 // The per-point inputs are read as texels of buffer views (PointPass binds them): llvmpipe
 // gathers a texture's texels with vector code where it reads a storage buffer lane by lane.
 layout(local_size_x = 128) in;
@@ -144,14 +144,26 @@ void main() {
   float r = grow * uDiscK / c.w;
 #if SLANT_OFF
   {
-    // s cos(theta): the disc's area shrinks with the angle between the surface normal and the
-    // line of sight, cancelling eq. 2's gain on slanted surfaces.
+    // Cancel eq. 2's gain. A disc here is a circle of radius uDiscK / w on the screen (w the
+    // depth along the view axis), so a surface element's points per pixel, against a surface
+    // parallel to the image at the same depth, scale as cos(phi) / cos(theta): theta between
+    // its normal and the ray, phi between the ray and the view axis (eq. 2's 1 / cos(theta) on
+    // the axis). The cross-section s cos(theta) / cos(phi) keeps the opacity at alpha everywhere
+    // in the view. cos(theta) / cos(phi) = |n . (p - eye)| |grad w| / w: the gradient of w is the
+    // clip matrix's last row, and w is 0 at the eye. An orthographic view (w constant) has
+    // phi = 0 and theta the angle to its axis. A point without a normal (0) faces the viewer.
     uint bits = texelFetch(uNormals, gi).x;
     vec3 n = vec3(float(int(bits << 22) >> 22), float(int(bits << 12) >> 22),
                   float(int(bits << 2) >> 22)) / 511.0;
-    vec3 view = normalize(uEyeLocal - position);
-    float cosine = abs(dot(normalize(n + 1e-9), view));
-    r *= sqrt(max(cosine, 0.02));
+    float n2 = dot(n, n);
+    if (n2 > 0.25) {
+      n *= inversesqrt(n2);
+      vec3 grad_w = vec3(uClip[0][3], uClip[1][3], uClip[2][3]);
+      float ratio = dot(grad_w, grad_w) > 0.0
+                        ? abs(dot(n, position - uEyeLocal)) * length(grad_w) / c.w
+                        : abs(dot(n, normalize(vec3(uClip[0][2], uClip[1][2], uClip[2][2]))));
+      r *= sqrt(clamp(ratio, 0.02, 50.0));
+    }
   }
 #endif
   uint rgb = uColorOverride != 0u ? uColorOverride & 0xFFFFFFu : point.w & 0xFFFFFFu;

@@ -16,7 +16,7 @@ struct Fragment {
   float depth;  ///< view distance along the axis, world units
   uint16_t model;
   glm::u8vec3 color;
-  float cosine;  ///< |n . view| of the point's surface (1 when unknown)
+  float cosine;  ///< cos(theta) / cos(phi) of the point's surface (1 when unknown)
   float gap;     ///< three spacings: the depth gap that separates surface layers
 };
 
@@ -64,8 +64,11 @@ Image referenceSeeThrough(std::span<const ModelInstance> models, const ViewSetup
         if (const uint32_t q = normals[i]) {
           const glm::dvec3 nl(double(int32_t(q << 22) >> 22), double(int32_t(q << 12) >> 22),
                               double(int32_t(q << 2) >> 22));
+          // Discs face the image plane (their radius goes as 1 / view depth), so the gain is
+          // cos(phi) / cos(theta): theta between the normal and the ray, phi between the ray and
+          // the view axis; |n . p| / |p.z| in view space.
           const glm::dvec3 nv = glm::normalize(normal_to_view * nl);
-          cosine = float(std::abs(glm::dot(nv, glm::normalize(-pv))));
+          cosine = float(std::abs(glm::dot(nv, pv)) / std::max(std::abs(pv.z), 1e-30));
         }
         glm::u8vec3 color = m.color != glm::u8vec3(0) ? m.color : options.default_color;
         if (!chunk->colors.empty()) color = glm::u8vec3(chunk->colors[i]);

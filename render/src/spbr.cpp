@@ -26,7 +26,11 @@ double spbrPointsFor(double alpha, double s, double S) {
 
 double spbrCellSpread(double density, double spacing) {
   const double per_disc = density * std::numbers::pi * spacing * spacing;
-  return std::clamp((1.0 - per_disc) / 0.15, 0.0, 1.0);
+  return per_disc < kSpreadBelowPerDisc ? 1.0 : 0.0;
+}
+
+double spbrShiftScale(uint32_t total_ensembles) {
+  return std::max(1.0, std::pow(double(total_ensembles) / 64.0, 0.3));
 }
 
 double spbrCoverAlpha(double alpha, SpbrCopies copies, double spread) {
@@ -39,19 +43,19 @@ double spbrCoverAlpha(double alpha, SpbrCopies copies, double spread) {
     // cells cut by the node's box: 1.018 + 0.061 lambda): the quadratic.
     lambda = (-1.015 + std::sqrt(1.015 * 1.015 + 0.24 * target)) / 0.12;
   } else {
-    // Copies in cells, measured on the Figure 5 plane at 10^6 points (rho s = 0.8, spread 1,
-    // max_share 1, L = 64): (lambda asked of eq. 1, -ln(1 - shown)). Each ensemble holds at
-    // most one copy of a point, stratified over its cell, so discs overlap far less than eq. 1's
-    // Poisson placement, the more so as points fill more of the ensembles. Piecewise linear,
-    // inverted; beyond the table its last ratio; blended with eq. 1 by the spread.
-    static constexpr std::array<std::pair<double, double>, 8> kShown{{{0.0, 0.0},
-                                                                      {0.0513, 0.0525},
-                                                                      {0.2231, 0.2392},
-                                                                      {0.4308, 0.4912},
-                                                                      {0.6931, 0.8484},
-                                                                      {1.0498, 1.3972},
-                                                                      {1.6094, 2.3745},
-                                                                      {2.9957, 5.2412}}};
+    // Copies in cells, measured on the Figure 5 plane at 10^6 points (rho s 0.66 - 0.87,
+    // spread 1, max_share 1, L = 64; the same at L = 16 and 256): (lambda asked of eq. 1,
+    // -ln(1 - shown)), at the opacities asked without a correction and at those this table
+    // asked for alpha 0.05 to 0.95. Each ensemble holds at most one copy of a point, stratified
+    // over its cell, so discs overlap far less than eq. 1's Poisson placement, the more so as
+    // points fill more of the ensembles. Piecewise linear, inverted; beyond the table its last
+    // ratio.
+    static constexpr std::array<std::pair<double, double>, 21> kShown{
+        {{0.0, 0.0},       {0.0513, 0.0525}, {0.1016, 0.1054}, {0.1054, 0.1093}, {0.2086, 0.2225},
+         {0.2231, 0.2392}, {0.3222, 0.3553}, {0.3567, 0.3976}, {0.4308, 0.4912}, {0.4452, 0.5098},
+         {0.5789, 0.6881}, {0.6931, 0.8489}, {0.7369, 0.9138}, {0.9241, 1.1993}, {1.0498, 1.3972},
+         {1.1763, 1.609},  {1.204, 1.6559},  {1.5688, 2.3045}, {1.6094, 2.3745}, {2.3026, 3.7646},
+         {2.9957, 5.2412}}};
     double fitted = target * kShown.back().first / kShown.back().second;
     for (size_t i = 1; i < kShown.size(); ++i) {
       if (target <= kShown[i].second) {

@@ -193,7 +193,8 @@ void ViewRenderer::draw(std::span<const ModelInstance> models, const ViewSetup& 
     mTarget.clearGeometry(pick, shading.blend, shading.fill);
     if (!mesh_batches.empty()) {
       if (!mMeshes) mMeshes = std::make_unique<MeshPass>();
-      st.mesh_ms = mMeshes->draw(mTarget, mesh_batches, MeshShading{.flat = options.flat_shading, .pick = pick});
+      st.mesh_ms = mMeshes->draw(mTarget, mesh_batches,
+                                 MeshShading{.flat = options.flat_shading, .pick = pick});
     }
     const PassTimings t = mPoints.draw(mTarget, batches, shading);
     st.depth_ms = t.depth_ms;
@@ -470,7 +471,7 @@ void ViewRenderer::addModel(const ModelInstance& instance, bool see_through, con
                  : gaussian   ? SpbrCopies::kGaussian
                               : SpbrCopies::kAtPoint;
       b.cell_spread = float(spread);
-      b.ensemble_shift = float(so.ensemble_shift);
+      b.ensemble_shift = float(so.ensemble_shift * spbrShiftScale(total));
       b.cell_unit = float(chunk.spacing);
       b.disc_k = float(std::sqrt(p.cross_section / std::numbers::pi) * k);
       if (instance.opacity >= 1.0f) b.disc_k = 0.5f * b.spacing_k;

@@ -124,7 +124,7 @@ class PointPass {
   /// Draws ensembles [first, first + count) of `total` with each batch's spbr_k, disc_k and seed,
   /// `max_layers` at a time (each layer holds a depth and a colour image: 8 bytes a pixel), and
   /// adds their images (background where empty) to the sums. With `slant_off`, cross-sections
-  /// shrink by cos(theta) from each batch's normals buffer.
+  /// take cos(theta) / cos(phi) from each batch's normals buffer (spbr_raster.comp).
   /// `one_layer` draws every ensemble into a single layer instead (the same adjusted points in
   /// one opaque pass: the speed baseline of bench/spbr).
   PassTimings drawEnsembles(FrameTarget& target, std::span<const DrawBatch> batches, uint32_t first,

@@ -2,8 +2,10 @@
 // of every leaf (full resolution) is splatted as a disc of its leaf's spacing, the fragments of
 // each pixel are sorted by depth, grouped into surface layers (one model, depth gaps below three
 // spacings), and the layers are composited front to back with the opacity the theory gives:
-// alpha for a surface facing the viewer, 1 - (1 - alpha)^(1 / cos(theta)) on a slant (Tanaka
-// et al. 2016, eq. 2; alpha itself with slant shading off). Slow (seconds for 10^6 points); for
+// alpha for a surface parallel to the image, 1 - (1 - alpha)^(cos(phi) / cos(theta)) on a slant
+// (Tanaka et al. 2016, eq. 2, with theta the angle between the surface normal and the ray and
+// phi between the ray and the view axis: the renderer's discs face the image plane; alpha
+// itself with slant shading off). Slow (seconds for 10^6 points); for
 // tests and benchmarks of see-through methods.
 #pragma once
 

@@ -52,7 +52,8 @@ enum class SpbrCopies {
 struct SpbrOptions {
   uint32_t ensembles = 16;       ///< L: ensembles per frame
   uint32_t progressive_max = 0;  ///< >L: a resting view keeps adding ensembles up to this many
-  bool slant_shading = true;     ///< eq. 2's opacity gradation on slanted surfaces (off: s cos)
+  bool slant_shading =
+      true;  ///< eq. 2's opacity gradation on slanted surfaces (off: s cos(theta) / cos(phi))
   /// Largest adjustment ratio k (eq. 4) before cross-sections grow instead. The default keeps
   /// the paper's fixed cross-section (the opaque disc) and copies points as k requires (up to
   /// one copy in each ensemble, or max_share x L with copies moved off their point).
@@ -77,7 +78,7 @@ struct SpbrOptions {
   /// places, a box filter over what structure of the cover remains at the scale of a cell (the
   /// rectangles only approximate the cells), which dominates the noise near alpha 1 (bench/spbr
   /// sparse: std 1.63x the binomial at alpha 0.95 without, 1.21x with). Widens edges by about
-  /// 0.4 px (10-90%); 0: off.
+  /// 0.4 px (10-90%); 0: off. Scaled by spbrShiftScale() of the ensembles in all.
   double ensemble_shift = 1.0;
   /// kGaussian: scale each point's copies by its surface cell's area and centre them on the
   /// cell's centroid (needs StreamerOptions::surface_cells).
@@ -120,15 +121,31 @@ double spbrOpacity(double n, double s, double S);
 /// Points per segment area S that give opacity alpha with cross-section s (eq. 1 inverted).
 double spbrPointsFor(double alpha, double s, double S);
 
-/// How far SpbrCopies::kInCell spreads a node's copies over their cells, in [0, 1], from the
-/// node's points per disc rho s = `density` x pi `spacing`^2 (s the cross-section, the opaque
-/// disc). Below 1 the mean cell (1 / density) is larger than a disc: copies at their points
-/// leave holes in every ensemble's cover that no number of ensembles closes, the binary noise
-/// of a random sample (rho s = pi / 4 for uniformly random points, whose mean spacing is half
-/// the mean distance). From 1 on the discs cover the cells (scan grids: 1 to 2.5 on the
-/// bunny's scans) and what gaps remain are the data's, which an exact compositor shows: copies
-/// stay at their points, as the paper. 1 up to rho s = 0.85, 0 from 1, linear between.
+/// The points per disc (rho s) below which SpbrCopies::kInCell spreads a node's copies over
+/// their cells: between the sparse random plane's nodes (0.66 - 0.87 at 2 points a pixel) and
+/// registered range scans' (1 - 2.5 on the bunny's).
+inline constexpr double kSpreadBelowPerDisc = 0.93;
+
+/// Whether SpbrCopies::kInCell spreads a node's copies over their cells: 1 or 0, from the node's
+/// points per disc rho s = `density` x pi `spacing`^2 (s the cross-section, the opaque disc).
+/// Below 1 the mean cell (1 / density) is larger than a disc: copies at their points leave
+/// holes in every ensemble's cover that no number of ensembles closes, the binary noise of a
+/// random sample (rho s = pi / 4 for uniformly random points, whose mean spacing is half the
+/// mean distance). From 1 on the discs cover the cells (scan grids) and what gaps remain are
+/// the data's, which an exact compositor shows: copies stay at their points, as the paper.
+/// A step at kSpreadBelowPerDisc, not a ramp: copies spread part way (rectangles shrunk towards
+/// their points) cover unevenly, 1.5 - 3.7x the binomial noise at three quarters to half the
+/// spread on the Figure 5 plane, and a node so drawn stood out a few grey levels from its
+/// neighbours (bench/spbr opacity). Either side of the step the opacity is the one asked.
 double spbrCellSpread(double density, double spacing);
+
+/// How much wider SpbrOptions::ensemble_shift is over `total_ensembles`: 1 up to 64, then
+/// (L / 64)^0.3 (1.52 at 256). The structure that remains of the cover at the scale of a cell is
+/// the same in every ensemble, so it does not average away as the binomial noise does (it
+/// falls as 1 / sqrt(L)); a wider shift filters it more: on the Figure 5 plane at alpha 0.9 and
+/// L = 256 the noise is 1.72x the binomial with a 1 px shift and 1.46x with 1.5 px, edges 1.35
+/// and 1.70 px wide (bench/spbr opacity).
+double spbrShiftScale(uint32_t total_ensembles);
 
 /// The opacity to ask of eq. 1 so that copies moved over surface cells (`copies`, spread by
 /// `spread`, spbrCellSpread()) show `alpha`. Such a cover is more regular than the independent
@@ -171,7 +188,8 @@ std::vector<float> densityRatios(std::span<const glm::vec3> points, double radiu
 
 /// Unit normals by principal component analysis of the points within `radius` of each point,
 /// packed as 10:10:10 signed normalised integers (x in the low bits); 0 where fewer than 3
-/// points are near. For turning the slant shading off (cross-section s cos(theta), eq. 2).
+/// points are near. For turning the slant shading off (cross-section s cos(theta) / cos(phi), eq.
+/// 2).
 std::vector<uint32_t> estimateNormals(std::span<const glm::vec3> points, double radius);
 
 /// A point's share of its surface (surfaceCells()): where its copies are centred, over what
