@@ -4,6 +4,7 @@
 #include <cassert>
 #include <chrono>
 #include <cmath>
+#include <thread>
 #include <utility>
 
 #include <glm/geometric.hpp>
@@ -11,6 +12,7 @@
 #include <tessera/core/check.h>
 #include <tessera/sync/view.h>
 
+#include "fts_tokenizer.h"
 #include "sqlite_statement.h"
 #include "utf8.h"
 
@@ -33,8 +35,6 @@ CREATE TABLE notes(
 );
 PRAGMA user_version = 1;
 )sql";
-
-namespace {
 
 // Schema v2. Items and places take AUTOINCREMENT ids: an id is never reused after a removal,
 // because documents outside the database link to items by id (Bettio et al. 3.4: links from a
@@ -105,6 +105,42 @@ CREATE TRIGGER items_fts_update AFTER UPDATE OF title, body, layer ON items BEGI
 END;
 PRAGMA user_version = 2;
 )sql";
+
+namespace {
+
+
+// Schema v3: the full-text index in any script (fts_tokenizer.h) and over links' addresses
+// too. The v2 index and its triggers are replaced and the new index built from the items.
+const char* const kSchemaV3Sql = R"sql(
+DROP TRIGGER items_fts_insert;
+DROP TRIGGER items_fts_delete;
+DROP TRIGGER items_fts_update;
+DROP TABLE items_fts;
+CREATE VIRTUAL TABLE items_fts USING fts5(
+  title, body, layer, link, content='items_fts_source', content_rowid='id',
+  tokenize='tessera', prefix='2 3');
+CREATE VIEW items_fts_source AS SELECT id, title, body, layer, link_uri AS link FROM items;
+CREATE TRIGGER items_fts_insert AFTER INSERT ON items BEGIN
+  INSERT INTO items_fts(rowid, title, body, layer, link)
+  VALUES (new.id, new.title, new.body, new.layer, new.link_uri);
+END;
+CREATE TRIGGER items_fts_delete AFTER DELETE ON items BEGIN
+  INSERT INTO items_fts(items_fts, rowid, title, body, layer, link)
+  VALUES ('delete', old.id, old.title, old.body, old.layer, old.link_uri);
+END;
+CREATE TRIGGER items_fts_update AFTER UPDATE OF title, body, layer, link_uri ON items BEGIN
+  INSERT INTO items_fts(items_fts, rowid, title, body, layer, link)
+  VALUES ('delete', old.id, old.title, old.body, old.layer, old.link_uri);
+  INSERT INTO items_fts(rowid, title, body, layer, link)
+  VALUES (new.id, new.title, new.body, new.layer, new.link_uri);
+END;
+INSERT INTO items_fts(items_fts) VALUES ('rebuild');
+PRAGMA user_version = 3;
+)sql";
+
+/// Tries of the switch to WAL while another process holds the new file (5 to 24 ms apart: about
+/// the busy timeout's 5 s).
+constexpr int kWalSwitchAttempts = 350;
 
 constexpr const char* kItemColumns =
     "id, layer, kind, title, body, number, unit, mime, path, data, link_item, link_uri, author, "
@@ -275,6 +311,27 @@ std::optional<PlaceKind> parsePlaceKind(const std::string& text) {
   return std::nullopt;
 }
 
+namespace {
+
+/// `file` as an SQLite URI opened immutable (read without locks or a shared index).
+std::string immutableUri(const std::filesystem::path& file) {
+  const std::string path = std::filesystem::absolute(file).string();
+  std::string uri = "file:";
+  static const char* kHex = "0123456789ABCDEF";
+  for (unsigned char c : path) {
+    if (c == '%' || c == '?' || c == '#' || c < 0x21 || c >= 0x7F) {
+      uri += '%';
+      uri += kHex[c >> 4];
+      uri += kHex[c & 15];
+    } else {
+      uri += char(c);
+    }
+  }
+  return uri + "?immutable=1";
+}
+
+}  // namespace
+
 AnnotationDb::AnnotationDb(const std::filesystem::path& file, AnnotationDbOptions options)
     : mFile(file) {
   using Kind = AnnotationError::Kind;
@@ -288,28 +345,76 @@ AnnotationDb::AnnotationDb(const std::filesystem::path& file, AnnotationDbOption
   const int flags =
       (options.read_only ? SQLITE_OPEN_READONLY : SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE) |
       SQLITE_OPEN_NOMUTEX;
-  const int rc = sqlite3_open_v2(file.c_str(), &mDb, flags, nullptr);
-  if (rc != SQLITE_OK) {
-    // The handle exists even on failure (for its message) and must be closed.
-    const std::string reason = mDb ? sqlite3_errmsg(mDb) : sqlite3_errstr(rc);
-    sqlite3_close(std::exchange(mDb, nullptr));
-    throw AnnotationError(rc == SQLITE_NOTADB ? Kind::kNotADatabase : Kind::kCannotOpen,
-                          prefix(file) + "cannot open: " + reason);
-  }
-  try {
+  auto open = [&](const std::string& name, int how) {
+    const int rc = sqlite3_open_v2(name.c_str(), &mDb, how, nullptr);
+    if (rc != SQLITE_OK) {
+      // The handle exists even on failure (for its message) and must be closed.
+      const std::string reason = mDb ? sqlite3_errmsg(mDb) : sqlite3_errstr(rc);
+      sqlite3_close(std::exchange(mDb, nullptr));
+      throw AnnotationError(rc == SQLITE_NOTADB ? Kind::kNotADatabase : Kind::kCannotOpen,
+                            prefix(file) + "cannot open: " + reason);
+    }
     sqlite3_extended_result_codes(mDb, 1);
     sqlite3_busy_timeout(mDb, 5000);
     // Defensive mode: SQL cannot corrupt the file on purpose (writable_schema, raw page edits).
     sqlite3_db_config(mDb, SQLITE_DBCONFIG_DEFENSIVE, 1, nullptr);
-
+    if (const int trc = detail::registerTokenizer(mDb); trc != SQLITE_OK) {
+      sqlite3_close(std::exchange(mDb, nullptr));
+      throw AnnotationError(Kind::kIo, prefix(file) + "cannot register the full-text tokenizer: " +
+                                           sqlite3_errstr(trc));
+    }
+  };
+  open(file.string(), flags);
+  try {
     // The first read of the header: NOTADB or CORRUPT surface here, before anything is written.
-    int64_t objects = 0;
-    {
+    auto countObjects = [&] {
       Statement probe(mDb, mFile, "SELECT count(*) FROM sqlite_schema");
       probe.step();
-      objects = probe.integer(0);
-    }  // finalized: an open statement would hold a read transaction
+      return probe.integer(0);
+    };  // finalized: an open statement would hold a read transaction
+    int64_t objects = 0;
+    try {
+      objects = countObjects();
+    } catch (const AnnotationError& e) {
+      // A WAL file read where its FILE-shm cannot be made (a read-only folder or medium, no
+      // writer at work: a writer would have left FILE-wal and FILE-shm there): read it as
+      // immutable, without the shared index.
+      if (!options.read_only && !memory && e.kind() == Kind::kReadOnly)
+        throw AnnotationError(Kind::kReadOnly,
+                              prefix(file) +
+                                  "cannot be written: the file or its folder is read-only (list, "
+                                  "search, show and export still read it)");
+      if (!options.read_only || memory || e.kind() != Kind::kReadOnly ||
+          std::filesystem::exists(file.string() + "-wal", ec) ||
+          std::filesystem::exists(file.string() + "-shm", ec))
+        throw;
+      sqlite3_close_v2(std::exchange(mDb, nullptr));
+      open(immutableUri(file), flags | SQLITE_OPEN_URI);
+      objects = countObjects();
+    }
+    // Damage is refused before anything is written: a write into a damaged b-tree spreads the
+    // damage and buries the copy a restore needs. quick_check reads every page (O(pages), 0.3 s
+    // at 10^5 items); integrity_check also matches every index to its table.
+    if (!memory && objects > 0 && options.check != DbCheck::kNone) {
+      Statement check(
+          mDb, mFile,
+          options.check == DbCheck::kFull ? "PRAGMA integrity_check(8)" : "PRAGMA quick_check(8)");
+      std::string problems;
+      while (check.step()) {
+        const std::string line = check.text(0);
+        if (line == "ok") break;
+        problems += (problems.empty() ? "" : "; ") + line;
+      }
+      if (!problems.empty())
+        throw AnnotationError(Kind::kCorrupt,
+                              prefix(file) + "is damaged (" + problems.substr(0, 300) +
+                                  "); nothing was written to it: restore it from a copy");
+    }
     const int version = schemaVersion();
+    if (version < 0)
+      throw AnnotationError(Kind::kNotADatabase,
+                            prefix(file) + "has schema version " + std::to_string(version) +
+                                ", which no Tessera writes (damaged, or another program's file)");
     if (version > kSchemaVersion)
       throw AnnotationError(Kind::kNewerSchema,
                             prefix(file) + "has schema version " + std::to_string(version) +
@@ -325,9 +430,29 @@ AnnotationDb::AnnotationDb(const std::filesystem::path& file, AnnotationDbOption
     if (!options.read_only && !memory) {
       // WAL: readers (the exporter, a second tool) never block the master's writes, and a
       // commit is one append to the log. It must be set outside a transaction.
-      Statement wal(mDb, mFile, "PRAGMA journal_mode = WAL");
-      if (!wal.step() || wal.text(0) != "wal")
+      // The switch needs the file to itself: a process creating the same new file at the same
+      // moment may hold it, and SQLite answers SQLITE_BUSY at once (no busy handler there), so
+      // the switch is retried for as long as the busy timeout.
+      for (int attempt = 0;; ++attempt) {
+        sqlite3_stmt* raw = nullptr;
+        int wal_rc = sqlite3_prepare_v2(mDb, "PRAGMA journal_mode = WAL", -1, &raw, nullptr);
+        std::string mode;
+        if (wal_rc == SQLITE_OK) {
+          wal_rc = sqlite3_step(raw);
+          if (wal_rc == SQLITE_ROW) {
+            mode = reinterpret_cast<const char*>(sqlite3_column_text(raw, 0));
+            wal_rc = SQLITE_OK;
+          }
+        }
+        sqlite3_finalize(raw);
+        if (wal_rc == SQLITE_OK && mode == "wal") break;
+        if ((wal_rc & 0xff) == SQLITE_BUSY && attempt < kWalSwitchAttempts) {
+          std::this_thread::sleep_for(std::chrono::milliseconds(5 + attempt % 20));
+          continue;
+        }
+        if (wal_rc != SQLITE_OK) fail(wal_rc, "switching to WAL journal mode");
         throw AnnotationError(Kind::kIo, prefix(file) + "cannot switch to WAL journal mode");
+      }
     }
     exec(options.full_sync ? "PRAGMA synchronous = FULL" : "PRAGMA synchronous = NORMAL");
     exec("PRAGMA foreign_keys = ON");
@@ -341,10 +466,9 @@ AnnotationDb::AnnotationDb(const std::filesystem::path& file, AnnotationDbOption
       transaction([&] {
         // Another process may have created or migrated it while this one waited for the lock.
         const int now = schemaVersion();
-        if (now == 0)
-          exec(kSchemaV2Sql);
-        else if (now == 1)
-          migrate(1);
+        if (now == 0) exec(kSchemaV2Sql);
+        if (now == 1) migrate(1);
+        if (now < 3) exec(kSchemaV3Sql);
       });
     }
   } catch (...) {
@@ -868,7 +992,7 @@ std::vector<SearchHit> AnnotationDb::search(const std::string& query, int limit)
   // bm25 weights: a word in the title says more than one in a long text (thesis 5.2: labels
   // and captions are what users scan first); the layer name in between.
   Statement s(mDb, mFile,
-              "SELECT rowid, bm25(items_fts, 10.0, 1.0, 2.0) AS score, "
+              "SELECT rowid, bm25(items_fts, 10.0, 1.0, 2.0, 1.0) AS score, "
               "snippet(items_fts, -1, '[', ']', '...', 12) FROM items_fts "
               "WHERE items_fts MATCH ?1 ORDER BY score, rowid LIMIT ?2");
   s.bind(1, query).bind(2, limit);

@@ -10,11 +10,11 @@
 #include <iostream>
 #include <sstream>
 
+#include <tessera/annotate/annotation_db.h>
+#include <tessera/annotate/annotation_io.h>
 #include <tessera/core/cli.h>
 #include <tessera/core/file_checks.h>
 #include <tessera/sync/view.h>
-#include <tessera/annotate/annotation_db.h>
-#include <tessera/annotate/annotation_io.h>
 
 namespace {
 
@@ -132,8 +132,8 @@ int run(int argc, char** argv) {
       ->check(CLI::IsMember({"text", "number", "image", "link"}))
       ->capture_default_str();
   add->add_option("--text", item.text, "The text (or a caption for other kinds)");
-  add->add_option("--number", number, "kind number: the value")
-      ->check(cli::finiteRange(-1e300, 1e300));
+  auto* number_option = add->add_option("--number", number, "kind number: the value (required)")
+                            ->check(cli::finiteRange(-1e300, 1e300));
   add->add_option("--unit", item.unit, "kind number: its unit (m, m^2, deg...)");
   add->add_option("--image", item.path, "kind image: the image file's path (stored as a path)");
   add->add_option("--embed", image_file, "kind image: a file whose bytes are stored in the item");
@@ -190,6 +190,11 @@ int run(int argc, char** argv) {
   lay->add_option("--show", show, "Make these layers visible");
   lay->add_option("--hide", hide, "Hide these layers (their sublayers with them)");
 
+  auto* check = app.add_subcommand(
+      "check",
+      "Check every page and index of the database (PRAGMA integrity_check); every "
+      "other command checks the pages' structure first (quick_check)");
+
   auto* georef = app.add_subcommand("georef", "Store the CRS and origin of the local frame");
   georef->add_option("--crs", crs, "The projected CRS (EPSG:32633...)")->required();
   georef->add_option("--origin", origin, "The local origin's X,Y,Z in that CRS")->required();
@@ -220,18 +225,41 @@ int run(int argc, char** argv) {
       throw cli::UsageError("--radius, --eye, --target: only with --at");
     }
   }
+  if (add->parsed() && kind == "number" && number_option->count() == 0)
+    throw cli::UsageError("--kind number needs --number");
+  if (add->parsed() && kind != "number" && number_option->count() > 0)
+    throw cli::UsageError("--number: only with --kind number");
   std::optional<glm::dvec3> origin_v;
   if (!origin.empty()) origin_v = cli::parseVec3(origin, "--origin");
 
   // Only edits create a database: a mistyped path to list or export is an error, not an empty
-  // new file.
-  if ((list->parsed() || search->parsed() || exp->parsed() || lay->parsed() ||
-       show_item->parsed() || show_place->parsed()) &&
-      !fs::exists(db_file))
-    throw AnnotationError(
-        AnnotationError::Kind::kCannotOpen,
-        "AnnotationDb: " + db_file + ": does not exist (add, import and georef create a database)");
-  AnnotationDb db(db_file);
+  // new file. Reads open it read-only, so they work where nothing can be written (a read-only
+  // folder or medium) and never change it.
+  const bool reads = list->parsed() || search->parsed() || exp->parsed() || show_item->parsed() ||
+                     show_place->parsed() || check->parsed() ||
+                     (lay->parsed() && show.empty() && hide.empty());
+  if (reads) {
+    std::error_code ec;
+    const bool exists = fs::exists(db_file, ec);
+    if (!exists || (fs::is_regular_file(db_file, ec) && fs::file_size(db_file, ec) == 0))
+      throw AnnotationError(AnnotationError::Kind::kCannotOpen,
+                            "AnnotationDb: " + db_file +
+                                (exists ? ": is empty" : ": does not exist") +
+                                " (add, import and georef create a database)");
+  }
+  AnnotationDbOptions options;
+  options.read_only = reads;
+  options.check = check->parsed() ? DbCheck::kFull : DbCheck::kQuick;
+  AnnotationDb db = [&] {
+    try {
+      return AnnotationDb(db_file, options);
+    } catch (const AnnotationError& e) {
+      // A first-release file must be migrated once, which a read-only open cannot do.
+      if (!reads || e.kind() != AnnotationError::Kind::kReadOnly) throw;
+      options.read_only = false;
+      return AnnotationDb(db_file, options);
+    }
+  }();
 
   if (list->parsed()) {
     for (const Item& it : db.items(layer)) printItem(db, it);
@@ -320,6 +348,8 @@ int run(int argc, char** argv) {
     for (const Layer& l : db.layers())
       std::cout << l.path << "\t" << (l.visible ? "visible" : "hidden")
                 << (l.visible && !db.layerShown(l.path) ? " (an ancestor is hidden)" : "") << "\n";
+  } else if (check->parsed()) {
+    std::cout << db_file << ": ok (every page, table and index)\n";
   } else if (georef->parsed()) {
     db.setGeoreference(crs, *origin_v);
   }

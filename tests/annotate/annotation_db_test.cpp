@@ -18,16 +18,20 @@
 
 #include <gtest/gtest.h>
 
-#include "../../fuzz/annotation_fuzz.h"
 #include "../../annotate/src/json.h"
+#include "../../fuzz/annotation_fuzz.h"
 #include "../support/process.h"
 #include "../support/temp_dir.h"
+#include "annotation_test_support.h"
 
 namespace {
 
 using namespace tessera::annotate;
 using tessera::test::Process;
+using tessera::test::runTool;
+using tessera::test::slurp;
 using tessera::test::TempDir;
+using tessera::test::textItem;
 using Kind = AnnotationError::Kind;
 
 /// Runs `body`, expecting AnnotationError of `kind` whose message contains `needle`.
@@ -40,14 +44,6 @@ void expectError(Kind kind, const std::string& needle, F&& body) {
     EXPECT_EQ(int(e.kind()), int(kind)) << e.what();
     EXPECT_NE(std::string(e.what()).find(needle), std::string::npos) << e.what();
   }
-}
-
-Item textItem(const std::string& layer, const std::string& title, const std::string& text = "") {
-  Item it;
-  it.layer = layer;
-  it.title = title;
-  it.text = text;
-  return it;
 }
 
 Place hotSpot(const std::string& model, glm::dvec3 at, double radius) {
@@ -77,11 +73,6 @@ void rawSql(const std::filesystem::path& file, const std::string& sql) {
   EXPECT_EQ(rc, SQLITE_OK) << (error ? error : "");
   sqlite3_free(error);
   sqlite3_close(db);
-}
-
-std::string slurp(const std::filesystem::path& p) {
-  std::ifstream in(p, std::ios::binary);
-  return {std::istreambuf_iterator<char>(in), {}};
 }
 
 /// A database with one of everything: all item kinds, a forward link, every place kind.
@@ -364,7 +355,7 @@ TEST(AnnotationDb, MigratesAVersion1File) {
 
   {
     AnnotationDb db(file);
-    EXPECT_EQ(db.schemaVersion(), 2);
+    EXPECT_EQ(db.schemaVersion(), kSchemaVersion);
     const auto items = db.items();
     ASSERT_EQ(items.size(), 3u);
     EXPECT_EQ(items[0].id, 3);
@@ -398,8 +389,9 @@ TEST(AnnotationDb, RefusesBadFiles) {
   // A newer schema.
   const auto newer = dir / "newer.tadb";
   { AnnotationDb db(newer); }
-  rawSql(newer, "PRAGMA user_version = 3");
-  expectError(Kind::kNewerSchema, "newer.tadb: has schema version 3",
+  rawSql(newer, "PRAGMA user_version = " + std::to_string(kSchemaVersion + 1));
+  expectError(Kind::kNewerSchema,
+              "newer.tadb: has schema version " + std::to_string(kSchemaVersion + 1),
               [&] { AnnotationDb db(newer); });
 
   // Not a database at all.
@@ -769,14 +761,6 @@ TEST(AnnotationFuzz, SeedsAndRegressionsReplay) {
 }
 
 // --- The tool ---------------------------------------------------------------------------------
-
-int runTool(const std::vector<std::string>& args, const std::filesystem::path& log) {
-  std::vector<std::string> argv{TESSERA_ANNOTATE_TOOL};
-  argv.insert(argv.end(), args.begin(), args.end());
-  Process p(argv, log);
-  const auto code = p.wait(60.0);
-  return code ? *code : -1000;
-}
 
 TEST(AnnotateTool, SubcommandsAndExitCodes) {
   TempDir dir;

@@ -26,8 +26,9 @@ using sync::SceneGraph;
 class AnnotationSceneTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    dir = fs::temp_directory_path() / ("tessera_annotation_scene_" + std::to_string(getpid()) +
-                                       "_" + ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    dir = fs::temp_directory_path() /
+          ("tessera_annotation_scene_" + std::to_string(getpid()) + "_" +
+           ::testing::UnitTest::GetInstance()->current_test_info()->name());
     fs::remove_all(dir);
     fs::create_directories(dir);
     file = dir / "scene.tadb";
@@ -78,8 +79,9 @@ TEST_F(AnnotationSceneTest, LoadsLayersAsNestedGroupsAndPlacesAsNotesThatReachAR
   {
     AnnotationDb db(file);
     const int64_t p = db.addPlace(point(georef));
-    for (const auto& [layer, title] :
-         {std::pair{"damage/cracks", "crack A"}, {"damage/cracks", "crack B"}, {"history", "Edo"}}) {
+    for (const auto& [layer, title] : {std::pair{"damage/cracks", "crack A"},
+                                       {"damage/cracks", "crack B"},
+                                       {"history", "Edo"}}) {
       db.attach(db.addItem(text(layer, title), "kyoto"), p);
     }
     Place hot = point({1, 2, 3});
@@ -203,8 +205,8 @@ TEST_F(AnnotationSceneTest, MeasurementsAndSelectionsOfOneSessionComeBackInTheNe
     scene.load(g);
     const auto layer = sync::layerGroup(g, "measurements", "");
     const std::vector<glm::dvec3> pts{{512000.001, 5403000.002, 10.0}, {512000.5, 5403000.0, 10.0}};
-    const auto m = sync::addMeasurement(g, layer, "kyoto", scene::MeasurementPayload::DISTANCE,
-                                        pts, 0.4990, 0.0003);
+    const auto m = sync::addMeasurement(g, layer, "kyoto", scene::MeasurementPayload::DISTANCE, pts,
+                                        0.4990, 0.0003);
     const auto angle_pts = std::vector<glm::dvec3>{{1, 0, 0}, {0, 0, 0}, {0, 1, 0}};
     const auto angle = sync::addMeasurement(g, layer, "", scene::MeasurementPayload::ANGLE,
                                             angle_pts, std::numbers::pi / 2, 0.001);
@@ -215,8 +217,8 @@ TEST_F(AnnotationSceneTest, MeasurementsAndSelectionsOfOneSessionComeBackInTheNe
     for (double v : {-0.5, -0.5, 0.5, -0.5, 0.0, 0.5}) s.add_lasso(v);
     s.set_elements("some bytes");
     s.set_count(42);
-    const auto sel = g.add(scene::SceneNode::SELECTION, sync::layerGroup(g, "selections", ""),
-                           "selection 1");
+    const auto sel =
+        g.add(scene::SceneNode::SELECTION, sync::layerGroup(g, "selections", ""), "selection 1");
     g.setPayload(sel, s);
     selected = s;
     scene.sync(g);
@@ -391,7 +393,8 @@ TEST(NotePicture, DecodesAndScalesAndSaysWhyItCannot) {
   EXPECT_NE(why(cut), "decoded");
   // A small file declaring a huge picture is refused before it is allocated.
   std::vector<uint8_t> bomb = bmp(4, 4);
-  for (int k = 0; k < 4; ++k) bomb[18 + k] = uint8_t(100000u >> (8 * k)), bomb[22 + k] = uint8_t(100000u >> (8 * k));
+  for (int k = 0; k < 4; ++k)
+    bomb[18 + k] = uint8_t(100000u >> (8 * k)), bomb[22 + k] = uint8_t(100000u >> (8 * k));
   EXPECT_NE(why(bomb), "decoded");
 }
 

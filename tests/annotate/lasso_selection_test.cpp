@@ -13,6 +13,8 @@
 
 #include <glm/gtc/matrix_transform.hpp>
 
+#include <tessera/annotate/lasso_selection.h>
+#include <tessera/annotate/selection.h>
 #include <tessera/core/check.h>
 #include <tessera/lod/mesh_builder.h>
 #include <tessera/lod/mesh_store.h>
@@ -20,8 +22,6 @@
 #include <tessera/lod/point_writer.h>
 #include <tessera/lod/store_builder.h>
 #include <tessera/lod/store_format.h>
-#include <tessera/annotate/lasso_selection.h>
-#include <tessera/annotate/selection.h>
 
 #include "../../fuzz/selection_fuzz.h"
 #include "../support/random_cube.h"

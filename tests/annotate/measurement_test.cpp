@@ -4,9 +4,9 @@
 // force over every leaf sample of the Autzen LiDAR (georeferenced: millimetres hundreds of km
 // from the origin) and the bunny mesh against its input triangles.
 #include <tessera/annotate/lasso_selection.h>
+#include <tessera/annotate/measurement.h>
 #include <tessera/interact/measure_tool.h>
 #include <tessera/interact/select_tool.h>
-#include <tessera/annotate/measurement.h>
 #include <tessera/interact/surface_pick.h>
 
 #include <cmath>
@@ -116,10 +116,11 @@ TEST(Measure, MinimumAreaTriangulationIsTheLeastOfAllTriangulations) {
 TEST(Measure, PlanarPolygonsConvexAndConcaveAreExact) {
   // An L in a tilted plane far from the origin (georeferenced): area 3 (a 2x2 square less 1x1).
   const glm::dvec3 o(512345.0, 5012345.0, 120.0);
-  const glm::dvec3 u = glm::normalize(glm::dvec3(1, 1, 0)), v = glm::normalize(glm::dvec3(-1, 1, 2));
+  const glm::dvec3 u = glm::normalize(glm::dvec3(1, 1, 0)),
+                   v = glm::normalize(glm::dvec3(-1, 1, 2));
   std::vector<glm::dvec3> ell;
-  for (auto [x, y] : std::vector<std::pair<double, double>>{
-           {0, 0}, {2, 0}, {2, 1}, {1, 1}, {1, 2}, {0, 2}})
+  for (auto [x, y] :
+       std::vector<std::pair<double, double>>{{0, 0}, {2, 0}, {2, 1}, {1, 1}, {1, 2}, {0, 2}})
     ell.push_back(o + x * u + y * v);
   const auto plane = [&](const glm::dvec3& p) -> std::optional<glm::dvec3> {
     const glm::dvec3 n = glm::normalize(glm::cross(u, v));
@@ -141,7 +142,8 @@ double sphericalPolygonArea(const std::vector<glm::dvec3>& loop, double radius) 
   double sum = 0.0;
   for (size_t i = 0; i < n; ++i) {
     const glm::dvec3 v = glm::normalize(loop[i]);
-    const glm::dvec3 a = glm::normalize(loop[(i + n - 1) % n]), b = glm::normalize(loop[(i + 1) % n]);
+    const glm::dvec3 a = glm::normalize(loop[(i + n - 1) % n]),
+                     b = glm::normalize(loop[(i + 1) % n]);
     const glm::dvec3 ta = glm::normalize(a - v * glm::dot(a, v)),
                      tb = glm::normalize(b - v * glm::dot(b, v));
     sum += std::acos(std::clamp(glm::dot(ta, tb), -1.0, 1.0));
@@ -222,7 +224,8 @@ fs::path sphereStore(const fs::path& dir, size_t n) {
   b.reset(0);
   std::mt19937_64 rng(11);
   std::normal_distribution<double> g(0.0, 1.0);
-  for (size_t i = 0; i < n; ++i) b.positions.push_back(glm::normalize(glm::dvec3(g(rng), g(rng), g(rng))));
+  for (size_t i = 0; i < n; ++i)
+    b.positions.push_back(glm::normalize(glm::dvec3(g(rng), g(rng), g(rng))));
   lod::writePly(dir / "sphere.ply", b, glm::dvec3(0.0));
   lod::BuildOptions o;
   o.quiet = true;
@@ -259,7 +262,7 @@ TEST(MeasureOnStores, FullResolutionPickOnGeoreferencedLidarIsARealSampleNearest
   const fs::path las = kData / "lidar/autzen_trim.las";
   lod::BuildOptions bo;
   bo.quiet = true;
-  bo.leaf_max = 4096;  // several levels, so the pick must descend
+  bo.leaf_max = 4096;      // several levels, so the pick must descend
   bo.exact_leaves = true;  // measurement grade: the file's own 0.01 ft resolution
   lod::buildStore({las}, dir.path() / "autzen.tlod", bo);
   auto store = lod::PointStore::open(dir.path() / "autzen.tlod");
@@ -339,16 +342,16 @@ TEST(MeasureOnStores, FullResolutionPickOnGeoreferencedLidarIsARealSampleNearest
     EXPECT_EQ(pick->point.world, best) << "trial " << trial;
     // A real input point within the store's stated uncertainty (LAS scale 0.01 ft here).
     double nearest = std::numeric_limits<double>::infinity();
-    for (const glm::dvec3& p : input) nearest = std::min(nearest, glm::length(p - pick->point.world));
+    for (const glm::dvec3& p : input)
+      nearest = std::min(nearest, glm::length(p - pick->point.world));
     EXPECT_LE(nearest, pick->point.uncertainty);
     // The store's grid is the file's (step 0.01 ft) but not aligned with it: half a diagonal.
     EXPECT_LE(nearest, 0.01 * std::sqrt(3.0) / 2 * (1 + 1e-6)) << "the file's own resolution";
-
   }
   EXPECT_EQ(hits, 40);
   // A ray into the sky hits nothing.
   EXPECT_FALSE(interact::pickSurface(std::span(&m, 1), all[0].world + glm::dvec3(0, 0, 10),
-                           glm::dvec3(0, 0, 1), po));
+                                     glm::dvec3(0, 0, 1), po));
 }
 
 TEST(MeasureOnStores, MeshPickHitsTheInputTriangleAndItsProjectorTheSurface) {
@@ -371,7 +374,8 @@ TEST(MeasureOnStores, MeshPickHitsTheInputTriangleAndItsProjectorTheSurface) {
   for (int trial = 0; trial < 30; ++trial) {
     const lod::Triangle& t = input.triangles[rng() % input.triangles.size()];
     const glm::dvec3 c = (corner(t, 0) + corner(t, 1) + corner(t, 2)) / 3.0;
-    const glm::dvec3 n = glm::normalize(glm::cross(corner(t, 1) - corner(t, 0), corner(t, 2) - corner(t, 0)));
+    const glm::dvec3 n =
+        glm::normalize(glm::cross(corner(t, 1) - corner(t, 0), corner(t, 2) - corner(t, 0)));
     const glm::dvec3 eye = c + 0.3 * n;
     // Brute force over the input triangles: the nearest crossing of the same ray.
     double best = std::numeric_limits<double>::infinity();
@@ -575,8 +579,8 @@ TEST(MeasurementNode, BadPayloadsAreRefusedNamingTheField) {
   refused(scene::MeasurementPayload::DISTANCE, two, 1.0, -1.0, "measurement.uncertainty");
   refused(scene::MeasurementPayload::DISTANCE, {{0, 0, 0}, {std::nan(""), 0, 0}}, 1.0, 0.0,
           "measurement.points");
-  EXPECT_NO_THROW(sync::addMeasurement(g, layer, "x", scene::MeasurementPayload::AREA, three, 0.5,
-                                       0.01));
+  EXPECT_NO_THROW(
+      sync::addMeasurement(g, layer, "x", scene::MeasurementPayload::AREA, three, 0.5, 0.01));
 }
 
 }  // namespace
@@ -595,7 +599,8 @@ TEST_F(MeasureToolTest, ALassoBecomesASelectionNodeWithItsExactElementsAndItsLas
   v.width = 400;
   v.height = 300;
   const std::vector<glm::dvec2> box = {{170, 120}, {230, 120}, {230, 180}, {170, 180}};
-  const interact::LassoSelectResult r = interact::selectWithLasso(g, mModel, model, v, box, "site B");
+  const interact::LassoSelectResult r =
+      interact::selectWithLasso(g, mModel, model, v, box, "site B");
   ASSERT_NE(r.node, 0u);
   EXPECT_GT(r.count, 100u);
   EXPECT_EQ(r.corrupt, 0u);
@@ -625,7 +630,8 @@ TEST_F(MeasureToolTest, ALassoBecomesASelectionNodeWithItsExactElementsAndItsLas
     const lod::MeshPatch p = mStore->readPatch(id);
     for (uint32_t t = 0; t < p.triangles(); ++t) {
       glm::dvec3 c(0.0);
-      for (int k = 0; k < 3; ++k) c += (p.offset + glm::dvec3(p.positions[p.indices[3 * t + k]])) / 3.0;
+      for (int k = 0; k < 3; ++k)
+        c += (p.offset + glm::dvec3(p.positions[p.indices[3 * t + k]])) / 3.0;
       const glm::dvec4 q = vp * glm::dvec4(c, 1.0);
       const double x = (q.x / q.w * 0.5 + 0.5) * v.width, y = (0.5 - q.y / q.w * 0.5) * v.height;
       const bool in = q.w > 0 && x > 170 && x < 230 && y > 120 && y < 180;
@@ -642,7 +648,8 @@ TEST_F(MeasureToolTest, ALassoBecomesASelectionNodeWithItsExactElementsAndItsLas
   ASSERT_EQ(highlights.size(), 1u);
   size_t set = 0;
   for (uint32_t word : *highlights[0].mask) set += size_t(__builtin_popcount(word));
-  const double share = double(set) / (double(render::kHighlightMaskSize) * render::kHighlightMaskSize);
+  const double share =
+      double(set) / (double(render::kHighlightMaskSize) * render::kHighlightMaskSize);
   EXPECT_NEAR(share, (60.0 / 400) * (60.0 / 300), 0.002);
   // A lasso off the model selects nothing and makes nothing.
   const std::vector<glm::dvec2> empty_box = {{0, 0}, {10, 0}, {10, 10}};

@@ -79,8 +79,9 @@ class AnnotationError : public std::runtime_error {
 };
 
 /// The schema this build writes. Version 1 was the first release's (one "notes" table, no
-/// layers table, no full-text index); opening a v1 file migrates it in one transaction.
-constexpr int kSchemaVersion = 2;
+/// layers table, no full-text index); version 2's full-text index found words between spaces
+/// only. Opening an older file migrates it in one transaction.
+constexpr int kSchemaVersion = 3;
 
 /// Bounds on what an item may hold, so a bad site or import cannot fill the disk or the wall.
 constexpr size_t kMaxTitleBytes = 1024;
@@ -153,8 +154,17 @@ struct SearchHit {
   std::string snippet;  ///< the best matching text with matches in [brackets]
 };
 
+/// What opening a database checks of its pages before anything is written (AnnotationDbOptions).
+enum class DbCheck {
+  kQuick,  ///< PRAGMA quick_check: every page's structure (0.3 s at 10^5 items)
+  kFull,   ///< PRAGMA integrity_check: also every index against its table
+  kNone,   ///< nothing (a database this process has just checked)
+};
+
 struct AnnotationDbOptions {
   bool read_only = false;
+  /// A damaged file is refused (AnnotationError::Kind::kCorrupt) with its bytes as they were.
+  DbCheck check = DbCheck::kQuick;
   /// synchronous=FULL (the default): a commit reaches the disk before the call returns.
   /// NORMAL is only for the benchmark's baseline: in WAL mode a power cut may lose the last
   /// commits (never corrupts).
@@ -164,7 +174,8 @@ struct AnnotationDbOptions {
 class AnnotationDb {
  public:
   /// Opens or creates `file` (created only when it does not exist and !read_only), checks its
-  /// schema version, migrates a v1 file, and turns on WAL, foreign keys and the chosen sync.
+  /// pages (AnnotationDbOptions::check) and its schema version (a negative one is refused),
+  /// migrates a v1 file, and turns on WAL, foreign keys and the chosen sync.
   /// Throws AnnotationError naming the file: kCannotOpen, kNotADatabase, kCorrupt,
   /// kNewerSchema. ":memory:" opens a private database in memory (no WAL; fuzzing, tests).
   explicit AnnotationDb(const std::filesystem::path& file, AnnotationDbOptions options = {});
@@ -280,7 +291,9 @@ class AnnotationDb {
   int mDepth = 0;  ///< open transaction() nesting
 };
 
-/// The v1 schema, as the first release created it (kept so tests can write a v1 file).
+/// The v1 and v2 schemas, as the releases that wrote them created them (kept so tests can write
+/// such files).
 extern const char* const kSchemaV1Sql;
+extern const char* const kSchemaV2Sql;
 
 }  // namespace tessera::annotate
