@@ -3,6 +3,10 @@
 // master, its window and its media are in the files beside this one (site_session_impl.h).
 #include "site_session_impl.h"
 
+#include <csignal>
+
+#include <tessera/core/cli.h>
+
 namespace tessera::collab {
 
 SiteSession::Impl::~Impl() {
@@ -119,7 +123,7 @@ render::Overlay SiteSession::Impl::overlay(const config::Camera& c) const {
     marks(tool_px,
           tools.tool() == Tool::kMeasure ? glm::u8vec4{90, 230, 255, 255}
           : tools.tool() == Tool::kLasso ? glm::u8vec4{255, 190, 0, 230}
-                                        : glm::u8vec4{60, 230, 90, 230},
+                                         : glm::u8vec4{60, 230, 90, 230},
           tools.tool() == Tool::kMeasure ? 4.0f : 1.5f);
     marks(snap_bg, {240, 60, 60, 230}, 1.5f);
   }
@@ -174,8 +178,8 @@ render::Image SiteSession::Impl::settled(const config::Camera& c) {
       if (st.ensembles == 0 || st.ensembles >= ensembles) break;
       continue;  // a resting see-through view: more ensembles
     }
-    update(client->receive(graph,
-                           Clock::now() + std::chrono::duration_cast<Clock::duration>(period)));
+    update(
+        client->receive(graph, Clock::now() + std::chrono::duration_cast<Clock::duration>(period)));
     sendPose(c);
   }
   return img;
@@ -205,8 +209,7 @@ std::unique_ptr<Store> SiteSession::Impl::openStore(const std::string& path, con
   try {
     return Store::open(chunks->open(path));
   } catch (const lod::RangeError& e) {
-    throw lod::StoreError(std::string(kind) + ": " + path +
-                          ": from the chunk server: " + e.what());
+    throw lod::StoreError(std::string(kind) + ": " + path + ": from the chunk server: " + e.what());
   }
 }
 
@@ -222,8 +225,8 @@ void SiteSession::Impl::noteProgress(const render::RenderStats& st) {
     first_image = true;
     note("first image");
   }
-  if (first_image && !view_settled && st.stream.requested == 0 &&
-      st.stream.pages_requested == 0 && st.stream.queued == 0) {
+  if (first_image && !view_settled && st.stream.requested == 0 && st.stream.pages_requested == 0 &&
+      st.stream.queued == 0) {
     view_settled = true;
     note("view settled");
   }
@@ -240,8 +243,8 @@ int SiteSession::Impl::session() {
   }
   if (opt.render) {
     if (opt.window) {
-      window = render::Window::open(script.width(), script.height(),
-                                    "tessera-site: " + opt.client.name);
+      window =
+          render::Window::open(script.width(), script.height(), "tessera-site: " + opt.client.name);
       window->enableUi();  // the note form (A)
     } else {
       context = render::GlContext::createHeadless();
@@ -269,7 +272,8 @@ int SiteSession::Impl::session() {
     const std::optional<std::string> in_device = media::alsaDeviceOf(opt.audio_in);
     const std::optional<std::string> out_device = media::alsaDeviceOf(opt.audio_out);
     if (in_device) {
-      microphone = std::make_unique<media::AlsaMicrophone>(*in_device, voice.frameSamples(), say_device);
+      microphone =
+          std::make_unique<media::AlsaMicrophone>(*in_device, voice.frameSamples(), say_device);
       say("voice: microphone " + microphone->pcm().describe());
     }
     if (out_device) {
@@ -278,12 +282,11 @@ int SiteSession::Impl::session() {
       say("voice: speaker " + speaker->pcm().describe());
     }
     station = std::make_unique<media::VoiceStation>(voice, opt.audio_in.empty() || in_device
-                                                        ? std::vector<float>{}
-                                                        : media::readVoiceWav(opt.audio_in));
+                                                               ? std::vector<float>{}
+                                                               : media::readVoiceWav(opt.audio_in));
     station->setLive(microphone != nullptr, speaker != nullptr);
     opt.client.voice = [this](std::string_view bytes) {
-      station->receive({reinterpret_cast<const uint8_t*>(bytes.data()), bytes.size()},
-                       voiceNow());
+      station->receive({reinterpret_cast<const uint8_t*>(bytes.data()), bytes.size()}, voiceNow());
     };
   }
   if (renderer) {
@@ -293,15 +296,15 @@ int SiteSession::Impl::session() {
     };
   }
   if (!opt.video.empty()) {
-    video_source = media::openVideoSource(opt.video, opt.video_settings.width, opt.video_settings.height,
-                                   opt.video_settings.fps);
+    video_source = media::openVideoSource(opt.video, opt.video_settings.width,
+                                          opt.video_settings.height, opt.video_settings.fps);
   }
   opt.client.note = [this](const site::SiteNoteAnswer& a) {
     if (a.ok())
       say("note " + std::to_string(a.request()) + " committed" +
-          (a.item() ? ": item " + std::to_string(a.item()) + " revision " +
-                          std::to_string(a.revision())
-                    : std::string()) +
+          (a.item()
+               ? ": item " + std::to_string(a.item()) + " revision " + std::to_string(a.revision())
+               : std::string()) +
           (a.place() ? " at place " + std::to_string(a.place()) : std::string()));
     else
       say("note " + std::to_string(a.request()) + (a.conflict() ? " conflict: " : " refused: ") +
@@ -338,8 +341,7 @@ int SiteSession::Impl::session() {
     say("chunks from " + co.endpoint +
         (co.cache_dir.empty() ? std::string(" (no disk cache)") : ", cached in " + co.cache_dir));
   } else if (opt.remote_stores && opt.render) {
-    throw lod::StoreError(
-        "--remote-stores: the master serves no chunks (start it with --chunks)");
+    throw lod::StoreError("--remote-stores: the master serves no chunks (start it with --chunks)");
   }
   models.setStoreOpener([this](const std::string& path) {
     return openStore<lod::PointStore>(path, "lod::PointStore");
@@ -371,6 +373,13 @@ int SiteSession::Impl::session() {
       bye.mutable_bye();
       client->send(bye);
       say("left (its window closed)");
+      return kSiteOk;
+    }
+    if (const int sig = cli::stopSignal()) {
+      site::ToMaster bye;
+      bye.mutable_bye();
+      client->send(bye);
+      say(std::string("left (") + (sig == SIGINT ? "SIGINT" : "SIGTERM") + ")");
       return kSiteOk;
     }
     const config::Camera c = asSent(camera(now));

@@ -14,6 +14,7 @@
 #include <tessera/collab/site_messages.h>
 #include <tessera/collab/site_session.h>
 #include <tessera/core/cli.h>
+#include <tessera/media/voice_alsa.h>
 
 namespace {
 
@@ -135,6 +136,9 @@ int run(int argc, char** argv) {
     throw cli::UsageError(e.what());
   }
   o.render = !no_render;
+  // Written when the session ends, so refused now when it could not be.
+  if (!o.audio_out.empty() && !media::alsaDeviceOf(o.audio_out))
+    cli::refuseUnwritable(o.audio_out, "--audio-out");
   collab::SiteSession session(o);
   return session.run();
 }
@@ -142,5 +146,7 @@ int run(int argc, char** argv) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  // Ctrl-C, SIGTERM: the site says goodbye and writes what it recorded, as when its script ends.
+  tessera::cli::catchStopSignals();
   return tessera::cli::runMain("tessera-site", [&] { return run(argc, argv); });
 }

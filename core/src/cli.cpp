@@ -1,6 +1,7 @@
 #include <tessera/core/cli.h>
 
 #include <atomic>
+#include <chrono>
 #include <cmath>
 #include <csignal>
 #include <cstdio>
@@ -68,7 +69,13 @@ void catchStopSignals() {
     int sig = 0;
     if (sigwait(&set, &sig) != 0) return;
     gStopSignal.store(sig);
-    if (sigwait(&set, &sig) != 0) return;
+    const auto first = std::chrono::steady_clock::now();
+    // The same request may come twice at once: `timeout` and other supervisors signal the
+    // process and then its group, and a terminal's Ctrl-C reaches every process of its group.
+    // Only a signal kSecondSignalAfter later is a second request.
+    do {
+      if (sigwait(&set, &sig) != 0) return;
+    } while (std::chrono::steady_clock::now() - first < kSecondSignalAfter);
     // The second one is not ignored: its default action, now.
     std::signal(sig, SIG_DFL);
     pthread_sigmask(SIG_UNBLOCK, &set, nullptr);
@@ -76,7 +83,9 @@ void catchStopSignals() {
   }).detach();
 }
 
-int stopSignal() { return gStopSignal.load(std::memory_order_relaxed); }
+int stopSignal() {
+  return gStopSignal.load(std::memory_order_relaxed);
+}
 
 int runMain(const std::string& tool, const std::function<int()>& body, int failure_code) {
   try {
@@ -166,6 +175,11 @@ void refuseOverwrite(const std::filesystem::path& output,
     throw UsageError(option + " " + output.string() + ": is the input " + in->string() +
                      " (the same file); refusing to write over an input");
   }
+}
+
+void refuseUnwritable(const std::filesystem::path& output, const std::string& option) {
+  if (const auto why = notWritable(output))
+    throw UsageError(option + " " + output.string() + ": cannot be written: " + *why);
 }
 
 }  // namespace tessera::cli

@@ -70,4 +70,21 @@ std::string whyNotWritable(const std::filesystem::path& path, int error) {
   return std::strerror(error);
 }
 
+std::optional<std::string> notWritable(const std::filesystem::path& path) {
+  std::error_code ec;
+  if (path.empty()) return "no path";
+  if (std::filesystem::exists(path, ec)) {
+    if (std::filesystem::is_directory(path, ec)) return "it is a folder";
+    if (access(path.c_str(), W_OK) != 0) return whyNotWritable(path, errno);
+    return std::nullopt;
+  }
+  const std::filesystem::path folder =
+      path.parent_path().empty() ? std::filesystem::path(".") : path.parent_path();
+  if (!std::filesystem::exists(folder, ec) || !std::filesystem::is_directory(folder, ec))
+    return whyNotWritable(path, ENOENT);
+  if (access(folder.c_str(), W_OK | X_OK) != 0)
+    return "the folder " + folder.string() + " is not writable (" + std::strerror(errno) + ")";
+  return std::nullopt;
+}
+
 }  // namespace tessera

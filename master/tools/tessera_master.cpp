@@ -18,6 +18,7 @@
 #include <tessera/collab/curve.h>
 #include <tessera/collab/site_hub.h>
 #include <tessera/master/master.h>
+#include <tessera/media/voice_alsa.h>
 #include <tessera/sync/config.h>
 #include <tessera/sync/mpi_link.h>
 #include <tessera/sync/zmq_link.h>
@@ -42,6 +43,11 @@ int run(int argc, char** argv) {
   CLI::App app{
       "tessera-master: owns the scene and drives the wall's render nodes, over MPI (started by "
       "mpirun before the nodes) or ZeroMQ (nodes join at any time)"};
+  app.footer(
+      "Ctrl-C or SIGTERM ends the session at the frame at work, as the end of its script does "
+      "(its screenshot and outputs written, nodes and sites told). Another signal within a "
+      "second is the same request (a supervisor such as timeout signals the process and its "
+      "group); one a second or more later ends the master at once.");
   app.add_option("--wall", o.wall, "Wall configuration (JSON)")->required();
   app.add_option("--scene", o.scene, "Scene configuration (JSON): models, camera, shading")
       ->required();
@@ -201,6 +207,14 @@ int run(int argc, char** argv) {
           std::pair{&o.annotations, "--annotations"}}) {
       if (!path->empty()) cli::refuseOverwrite(*path, read, option);
     }
+    // Outputs written at the end (or during the run) are refused now when they could not be.
+    for (const auto& [path, option] :
+         {std::pair{&o.screenshot, "--screenshot"}, std::pair{&o.stats, "--stats"},
+          std::pair{&o.console_screenshot, "--console-screenshot"}}) {
+      if (!path->empty()) cli::refuseUnwritable(*path, option);
+    }
+    if (!sites.audio_out.empty() && !media::alsaDeviceOf(sites.audio_out))
+      cli::refuseUnwritable(sites.audio_out, "--audio-out");
   } catch (const cli::UsageError& e) {
     std::fprintf(stderr, "tessera-master: %s\n", e.what());
     if (mpi) {

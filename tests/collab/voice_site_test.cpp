@@ -6,7 +6,10 @@
 // site and not itself.
 #include <gtest/gtest.h>
 
+#include <chrono>
+#include <csignal>
 #include <filesystem>
+#include <thread>
 
 #include <tessera/media/voice_alsa.h>
 #include <tessera/media/voice_wav.h>
@@ -148,6 +151,82 @@ TEST(VoiceSites, TheWallAndTwoSitesHearEachOtherButNotThemselves) {
   EXPECT_LT(a.a, std::min(a.wall, a.b) - 25) << "site A hears itself";
   EXPECT_GT(std::min(b.wall, b.a), -50);
   EXPECT_LT(b.b, std::min(b.wall, b.a) - 25) << "site B hears itself";
+}
+
+// Sessions end as people end them. A site sent SIGTERM says goodbye and writes what it heard,
+// as at the end of its script. The master run under `timeout`, which is sent SIGTERM (and
+// passes it to the master and then to its whole group: two signals at once), ends the session
+// once: its last picture and the room's audio written, the node and the site told, every
+// process exiting 0.
+TEST(VoiceSites, SignalsEndSessionsAsTheirScriptsDo) {
+  test::TempDir dir;
+  auto keys = writeKeys(dir.path(), {"a"});
+  ASSERT_FALSE(keys.empty());
+  const std::string camera = writeOneTileWall(dir.path());
+  media::writeWav(dir / "wall-mic.wav", test::talking(kWallHz, 30));
+  media::writeWav(dir / "a-mic.wav", test::talking(kAHz, 30));
+  auto argv = test::masterWithSites(
+      TESSERA_MASTER, dir.path(), dir.path(), 120.0, camera,
+      {"--voice", "--audio-in", (dir / "wall-mic.wav").string(), "--audio-out",
+       (dir / "room.wav").string(), "--screenshot", (dir / "wall.png").string()});
+  argv.insert(argv.begin(), {"/usr/bin/timeout", "300"});
+  VoiceWall w = startWall(argv, dir.path());
+  ASSERT_FALSE(w.sites.empty());
+  Process site(test::headlessSite(TESSERA_SITE, w.sites, keys["master"], "site a", dir / "a.key",
+                                  dir.path(), dir / "still.json",
+                                  {"--no-render", "--audio-in", (dir / "a-mic.wav").string(),
+                                   "--audio-out", (dir / "a-heard.wav").string()}),
+               dir / "a.log");
+  ASSERT_TRUE(w.master->waitFor("site a\\S* .*joined", 60)) << w.master->output() << site.output();
+  std::this_thread::sleep_for(std::chrono::seconds(3));  // a few seconds of voices
+
+  site.signal(SIGTERM);
+  EXPECT_EQ(site.wait(30), std::optional<int>(0)) << site.output();
+  EXPECT_TRUE(site.waitFor("left \\(SIGTERM\\)", 1)) << site.output();
+  EXPECT_TRUE(site.waitFor("wrote what this site heard", 1)) << site.output();
+  EXPECT_GT(heard(dir / "a-heard.wav").wall, -50) << "the site's recording holds the wall";
+  EXPECT_TRUE(w.master->waitFor("site a\\S* .*left: ", 30)) << w.master->output();
+  EXPECT_EQ(w.master->output().find("site a dropped"), std::string::npos) << w.master->output();
+
+  w.master->signal(SIGTERM);  // to `timeout`, which signals the master and then its group
+  EXPECT_EQ(w.master->wait(120), std::optional<int>(0)) << w.master->output();
+  EXPECT_TRUE(w.master->waitFor("SIGTERM: ending the session with frame \\d+", 1))
+      << w.master->output();
+  EXPECT_EQ(w.node->wait(30), std::optional<int>(0)) << w.node->output();
+  EXPECT_TRUE(fs::exists(dir / "wall.png")) << w.master->output();
+  EXPECT_GT(heard(dir / "room.wav").a, -50) << "the room's recording holds the site";
+}
+
+// An output written at the end that could not be written is refused at the start (exit 2),
+// on the master and on a site.
+TEST(VoiceSites, UnwritableOutputsAreRefusedAtTheStart) {
+  test::TempDir dir;
+  auto keys = writeKeys(dir.path(), {"a"});
+  ASSERT_FALSE(keys.empty());
+  const std::string camera = writeOneTileWall(dir.path());
+  for (const char* option : {"--audio-out", "--screenshot", "--stats"}) {
+    const bool stats = std::string(option) == "--stats";  // masterWithSites gives one
+    std::vector<std::string> extra{"--voice"};
+    if (!stats) extra.insert(extra.end(), {option, "/missing/dir/x.out"});
+    auto argv = test::masterWithSites(TESSERA_MASTER, dir.path(), dir.path(), 5.0, camera, extra);
+    if (stats) test::setOption(argv, "--stats", "/missing/dir/x.out");
+    std::string command;
+    for (const std::string& a : argv) command += "'" + a + "' ";
+    const auto r = test::runCommand(command);
+    EXPECT_EQ(r.code, 2) << option << ": " << r.out;
+    EXPECT_NE(r.out.find(std::string(option) +
+                         " /missing/dir/x.out: cannot be written: the folder /missing/dir does "
+                         "not exist"),
+              std::string::npos)
+        << r.out;
+  }
+  const auto r = test::runCommand(
+      std::string(TESSERA_SITE) + " --master tcp://127.0.0.1:9 --master-key '" + keys["master"] +
+      "' --name x --key " + (dir / "a.key").string() +
+      " --headless --no-render --join-timeout 1 --audio-out /missing/dir/heard.wav");
+  EXPECT_EQ(r.code, 2) << r.out;
+  EXPECT_NE(r.out.find("--audio-out /missing/dir/heard.wav: cannot be written"), std::string::npos)
+      << r.out;
 }
 
 TEST(VoiceSites, VoiceOptionsAreChecked) {

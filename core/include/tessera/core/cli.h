@@ -12,6 +12,7 @@
 
 #include <cctype>
 #include <charconv>
+#include <chrono>
 #include <cstdint>
 #include <filesystem>
 #include <functional>
@@ -56,9 +57,14 @@ int exitCode(CLI::App& app, const CLI::ParseError& e, const std::string& tool);
 int runMain(const std::string& tool, const std::function<int()>& body,
             int failure_code = kExitBadInput);
 
+/// A second SIGINT or SIGTERM this long after the first terminates at once; sooner, it is the
+/// same request (a supervisor signalling the process and its group).
+inline constexpr std::chrono::milliseconds kSecondSignalAfter{1000};
+
 /// Makes SIGINT and SIGTERM requests to stop: the first sets stopSignal() and the long-running
-/// loops (the master's frames) end at their next frame as if their script had ended, with their
-/// normal exit code; a second one terminates at once (the default action is restored). Call it
+/// loops (the master's frames, a site's) end at their next frame as if their script had ended,
+/// with their normal exit code; a second one kSecondSignalAfter or more later terminates at
+/// once (the default action is restored). Call it
 /// first in main(), before any thread starts: the signals are blocked in every thread and taken
 /// by one of their own, so no blocking call is interrupted (EINTR).
 void catchStopSignals();
@@ -131,5 +137,9 @@ glm::dvec3 parseVec3(const std::string& text, const std::string& option, double 
 /// over an input". Inputs that do not exist are ignored; call before anything is written.
 void refuseOverwrite(const std::filesystem::path& output,
                      std::span<const std::filesystem::path> inputs, const std::string& option);
+
+/// Throws UsageError when a file cannot be written at `output` (notWritable()), naming `option`:
+/// an output written at the end of a run is refused at its start.
+void refuseUnwritable(const std::filesystem::path& output, const std::string& option);
 
 }  // namespace tessera::cli

@@ -28,4 +28,9 @@ std::optional<std::filesystem::path> sameFileAs(const std::filesystem::path& out
 /// does not exist", "F is not a folder", "it is a folder", else the errno text.
 std::string whyNotWritable(const std::filesystem::path& path, int error);
 
+/// Why a file could not be written at `path` later (its folder missing or not writable, the
+/// path a folder, or an existing file not writable), or nullopt; creates nothing. For outputs
+/// written at the end of a run, refused at its start instead.
+std::optional<std::string> notWritable(const std::filesystem::path& path);
+
 }  // namespace tessera
