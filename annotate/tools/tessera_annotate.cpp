@@ -4,6 +4,8 @@
 // a malformed import, a bad query), 2 bad command line, 3 an output could not be written.
 #include <CLI/CLI.hpp>
 
+#include <algorithm>
+#include <charconv>
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
@@ -29,6 +31,18 @@ std::string defaultAuthor() {
   return user && *user ? user : "tessera-annotate";
 }
 
+/// A number as written, the shortest text that reads back to the same double (list, show and
+/// place all print numbers so).
+std::string number(double v) {
+  char buf[32];
+  const auto r = std::to_chars(buf, buf + sizeof buf, v);
+  return std::string(buf, r.ptr);
+}
+
+std::string vec3(const glm::dvec3& v) {
+  return number(v.x) + "," + number(v.y) + "," + number(v.z);
+}
+
 void printItem(AnnotationDb& db, const Item& it) {
   std::cout << it.id << "\t" << it.layer << (db.layerShown(it.layer) ? "" : " (hidden)") << "\t"
             << toString(it.kind) << "\t" << it.title;
@@ -36,7 +50,7 @@ void printItem(AnnotationDb& db, const Item& it) {
     case ItemKind::kText:
       break;
     case ItemKind::kNumber:
-      std::cout << " = " << it.number << (it.unit.empty() ? "" : " ") << it.unit;
+      std::cout << " = " << number(it.number) << (it.unit.empty() ? "" : " ") << it.unit;
       break;
     case ItemKind::kImage:
       std::cout << " [" << it.mime << ", "
@@ -51,27 +65,21 @@ void printItem(AnnotationDb& db, const Item& it) {
     const auto p = db.place(place);
     if (!p) continue;
     std::cout << "\t" << toString(p->kind) << " " << place << " on " << p->model;
-    if (p->kind != PlaceKind::kSelection)
-      std::cout << " at " << p->position.x << "," << p->position.y << "," << p->position.z;
+    if (p->kind != PlaceKind::kSelection) std::cout << " at " << vec3(p->position);
   }
   std::cout << "\n";
 }
 
 void printPlace(const Place& p) {
-  auto v3 = [](const glm::dvec3& v) {
-    std::ostringstream s;
-    s.precision(17);
-    s << v.x << "," << v.y << "," << v.z;
-    return s.str();
-  };
+  const auto v3 = vec3;
   std::cout << "place " << p.id << "\t" << toString(p.kind) << " on " << p.model;
   if (p.kind != PlaceKind::kSelection) std::cout << " at " << v3(p.position);
-  if (p.kind == PlaceKind::kHotSpot) std::cout << " radius " << p.radius;
+  if (p.kind == PlaceKind::kHotSpot) std::cout << " radius " << number(p.radius);
   if (p.kind == PlaceKind::kSelection)
     std::cout << " " << p.selection_id << " (" << p.selection.size() << " bytes)";
   if (p.view)
     std::cout << "\tview eye " << v3(p.view->eye) << " target " << v3(p.view->target) << " up "
-              << v3(p.view->up) << " fovy " << p.view->fovy_deg;
+              << v3(p.view->up) << " fovy " << number(p.view->fovy_deg);
   std::cout << "\n";
 }
 
@@ -127,16 +135,27 @@ int run(int argc, char** argv) {
   int64_t count = 1;
   auto* add = app.add_subcommand("add", "Add an item, optionally at a point of a model");
   add->add_option("--layer", item.layer, "Its layer (\"a/b/c\"; created if absent)")->required();
-  add->add_option("--title", item.title, "Its label")->required();
+  add->add_option("--title", item.title,
+                  "Its label, at most " + std::to_string(kMaxTitleBytes) + " bytes of UTF-8")
+      ->required();
   add->add_option("--kind", kind, "text, number, image or link")
       ->check(CLI::IsMember({"text", "number", "image", "link"}))
       ->capture_default_str();
-  add->add_option("--text", item.text, "The text (or a caption for other kinds)");
+  add->add_option("--text", item.text,
+                  "The text (or a caption for other kinds), at most " +
+                      std::to_string(kMaxTextBytes >> 20) + " MiB of UTF-8");
+  std::string text_file;
+  add->add_option("--text-file", text_file,
+                  "The text from this file (- for standard input), for texts longer than a "
+                  "command line")
+      ->excludes("--text");
   auto* number_option = add->add_option("--number", number, "kind number: the value (required)")
                             ->check(cli::finiteRange(-1e300, 1e300));
   add->add_option("--unit", item.unit, "kind number: its unit (m, m^2, deg...)");
   add->add_option("--image", item.path, "kind image: the image file's path (stored as a path)");
-  add->add_option("--embed", image_file, "kind image: a file whose bytes are stored in the item");
+  add->add_option("--embed", image_file,
+                  "kind image: a file whose bytes are stored in the item, at most " +
+                      std::to_string(kMaxBlobBytes >> 20) + " MiB");
   add->add_option("--mime", item.mime, "kind image: its MIME type (image/png...)");
   add->add_option("--link-item", item.link_item, "kind link: the item linked to")
       ->check(cli::integerRange<int64_t>(1, INT64_MAX));
@@ -280,11 +299,36 @@ int run(int argc, char** argv) {
     printPlace(*p);
     for (int64_t id : db.itemsAt(at_id)) printItem(db, *db.item(id));
   } else if (search->parsed()) {
-    for (const SearchHit& hit : db.search(query, limit))
+    for (SearchHit hit : db.search(query, limit)) {
+      // One line a hit: a text's line breaks and tabs read as spaces.
+      std::replace_if(
+          hit.snippet.begin(), hit.snippet.end(),
+          [](char c) { return c == '\n' || c == '\r' || c == '\t'; }, ' ');
       std::cout << hit.item << "\t" << hit.score << "\t" << hit.snippet << "\n";
+    }
   } else if (add->parsed()) {
     item.kind = *parseItemKind(kind);
     if (item.kind == ItemKind::kNumber) item.number = number;
+    if (!text_file.empty()) {
+      // At most one byte past the limit is read: a longer input is refused, not held.
+      auto readBounded = [&](std::istream& in) {
+        std::string text(kMaxTextBytes + 1, '\0');
+        in.read(text.data(), std::streamsize(text.size()));
+        text.resize(size_t(in.gcount()));
+        return text;
+      };
+      if (text_file == "-") {
+        item.text = readBounded(std::cin);
+      } else {
+        if (const auto why = tessera::notRegularFile(text_file))
+          throw cli::UsageError("--text-file " + text_file + ": " + *why);
+        std::ifstream in(text_file, std::ios::binary);
+        item.text = readBounded(in);
+      }
+      if (item.text.size() > kMaxTextBytes)
+        throw cli::UsageError("--text-file " + text_file + ": longer than " +
+                              std::to_string(kMaxTextBytes) + " bytes");
+    }
     if (!image_file.empty()) {
       if (const auto why = tessera::notRegularFile(image_file))
         throw cli::UsageError("--embed " + image_file + ": " + *why);

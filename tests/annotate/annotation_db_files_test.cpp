@@ -9,6 +9,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <fstream>
 #include <random>
 #include <set>
@@ -310,6 +311,54 @@ TEST(AnnotationDbFiles, ToolRefusesWhatItCannotDo) {
     EXPECT_NE(slurp(log).find("empty.tadb: is empty"), std::string::npos) << slurp(log);
   }
   EXPECT_EQ(std::filesystem::file_size(empty), 0u);
+}
+
+}  // namespace
+
+namespace {
+
+// Texts longer than a command line come from a file or standard input; numbers print as
+// written, the same in list, show and place.
+TEST(AnnotationDbFiles, ToolReadsTextFilesAndPrintsNumbersAsWritten) {
+  TempDir dir;
+  const std::string db = (dir / "t.tadb").string();
+  const auto log = dir / "log.txt";
+  std::string long_text;
+  for (int i = 0; i < 20000; ++i) long_text += "調査の記録 " + std::to_string(i) + "\n";
+  tessera::test::writeText(dir / "long.txt", long_text);
+  EXPECT_EQ(runTool({"-d", db, "add", "--layer", "a", "--title", "long", "--text-file",
+                     (dir / "long.txt").string()},
+                    log),
+            0)
+      << slurp(log);
+  EXPECT_EQ(
+      runTool({"-d", db, "add", "--layer", "a", "--title", "n", "--kind", "number", "--number",
+               "0.1", "--unit", "m", "--at", "0.1,0.2,1e-07", "--radius", "0.25", "--eye", "1,2,3"},
+              log),
+      0)
+      << slurp(log);
+  EXPECT_EQ(runTool({"-d", db, "add", "--layer", "a", "--title", "t", "--text-file",
+                     (dir / "missing.txt").string()},
+                    log),
+            2);
+  {
+    AnnotationDb read(db, {.read_only = true});
+    EXPECT_EQ(read.item(1)->text, long_text);
+  }
+  const auto listed = dir / "list.txt", shown = dir / "show.txt", place = dir / "place.txt";
+  EXPECT_EQ(runTool({"-d", db, "list"}, listed), 0);
+  EXPECT_EQ(runTool({"-d", db, "show", "2"}, shown), 0);
+  EXPECT_EQ(runTool({"-d", db, "place", "1"}, place), 0);
+  for (const auto& out : {listed, shown, place})
+    EXPECT_NE(slurp(out).find("at 0.1,0.2,1e-07"), std::string::npos) << slurp(out);
+  EXPECT_NE(slurp(listed).find("n = 0.1 m"), std::string::npos) << slurp(listed);
+  EXPECT_NE(slurp(shown).find("n = 0.1 m"), std::string::npos) << slurp(shown);
+  EXPECT_NE(slurp(place).find("radius 0.25"), std::string::npos) << slurp(place);
+  // A hit is one line, whatever line breaks its text holds.
+  const auto found = dir / "found.txt";
+  EXPECT_EQ(runTool({"-d", db, "search", "記録"}, found), 0);
+  const std::string hits = slurp(found);
+  EXPECT_EQ(std::count(hits.begin(), hits.end(), '\n'), 1) << hits;
 }
 
 }  // namespace

@@ -99,10 +99,11 @@ TEST(ToolOutputs, MasterNeverWritesOverTheScenesStores) {
 
 TEST(ToolOutputs, MasterSaysWhyItsStatsCannotBeWritten) {
   TempDir dir;
-  // Before: "--stats ...: cannot write", without the reason.
+  // Refused at the start (a bad command line), with the reason.
   const CommandResult r = runMaster(dir, "--stats " + (dir / "none" / "stats.csv").string());
-  EXPECT_EQ(r.code, 1) << r.out;
-  EXPECT_NE(r.out.find("cannot write: the folder " + (dir / "none").string() + " does not exist"),
+  EXPECT_EQ(r.code, 2) << r.out;
+  EXPECT_NE(r.out.find("cannot be written: the folder " + (dir / "none").string() +
+                       " does not exist"),
             std::string::npos)
       << r.out;
 }
