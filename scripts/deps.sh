@@ -32,8 +32,9 @@ PACKAGES=(
   libsqlite3-dev libmeshoptimizer-dev libmetis-dev libimgui-dev libcli11-dev libspdlog-dev
   # virtual scanner ray casting, point chunk entropy coding, images
   libembree-dev libzstd-dev libpng-dev
-  # the overlay labels' font (render/overlay_pass.h; Dear ImGui's embedded font without it)
-  fonts-dejavu-core
+  # the overlay's text: shaping, glyphs, fonts for every script (render/src/text_shaper.h):
+  # DejaVu (Latin, Greek, Cyrillic, Hebrew, Arabic), Noto Sans CJK, Symbola (emoji, symbols)
+  libharfbuzz-dev libfreetype-dev libfontconfig-dev fonts-dejavu-core fonts-noto-cjk fonts-symbola
 )
 
 missing=()

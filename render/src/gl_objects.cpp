@@ -148,6 +148,14 @@ void GlTexture::upload(const void* pixels) {
   glPixelStorei(GL_UNPACK_ALIGNMENT, 4);
 }
 
+void GlTexture::uploadRegion(uint32_t x, uint32_t y, uint32_t w, uint32_t h, const void* pixels) {
+  if (w == 0 || h == 0) return;
+  glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
+  glTextureSubImage2D(mName, 0, GLint(x), GLint(y), GLsizei(w), GLsizei(h),
+                      mFormat == GL_R8 ? GL_RED : GL_RGBA, GL_UNSIGNED_BYTE, pixels);
+  glPixelStorei(GL_UNPACK_ALIGNMENT, 4);
+}
+
 GlBufferTexture::GlBufferTexture(const GlBuffer& buffer, uint32_t format)
     : GlBufferTexture(buffer.name(), format) {}
 

@@ -6,8 +6,8 @@
 #include <filesystem>
 #include <limits>
 #include <map>
-
-#include <imgui.h>
+#include <string_view>
+#include <vector>
 
 #define GL_GLEXT_PROTOTYPES
 #include <GL/glcorearb.h>
@@ -15,6 +15,7 @@
 #include "gpu_lap.h"
 #include "shaders.h"
 #include "shared_layout.h"
+#include "text_shaper.h"
 
 namespace tessera::render {
 namespace {
@@ -69,27 +70,16 @@ uint32_t pack(const glm::u8vec4& c) {
   return uint32_t(c.r) | uint32_t(c.g) << 8 | uint32_t(c.b) << 16 | uint32_t(c.a) << 24;
 }
 
-/// The label font: DejaVu Sans (Debian's fonts-dejavu-core) rasterised at 32 px, else Dear
-/// ImGui's embedded ProggyClean at 13 px. Labels scale it to their height.
-constexpr const char* kFontFile = "/usr/share/fonts/truetype/dejavu/DejaVuSans.ttf";
-
-/// The next code point of UTF-8 `s` from `i` (advanced); U+FFFD for a malformed sequence.
-uint32_t nextCodePoint(const std::string& s, size_t& i) {
-  const auto b = uint8_t(s[i++]);
-  if (b < 0x80) return b;
-  const int extra = b >= 0xF0 ? 3 : b >= 0xE0 ? 2 : b >= 0xC0 ? 1 : -1;
-  if (extra < 0) return 0xFFFD;
-  uint32_t cp = b & (0x3F >> extra);
-  for (int k = 0; k < extra; ++k) {
-    if (i >= s.size() || (uint8_t(s[i]) & 0xC0) != 0x80) return 0xFFFD;
-    cp = cp << 6 | (uint8_t(s[i++]) & 0x3F);
-  }
-  return cp;
-}
-
-/// ImGui's glyph key (16 bits): code points beyond the Basic Multilingual Plane show as '?'.
-ImWchar glyphOf(uint32_t cp) {
-  return cp > 0xFFFF ? ImWchar('?') : ImWchar(cp);
+/// Line breaks in a label's text: the lines between them.
+std::vector<std::string_view> linesOf(const std::string& text) {
+  std::vector<std::string_view> lines;
+  size_t start = 0;
+  for (size_t i = 0; i <= text.size(); ++i)
+    if (i == text.size() || text[i] == '\n') {
+      lines.emplace_back(text.data() + start, i - start);
+      start = i + 1;
+    }
+  return lines;
 }
 
 /// What a run of primitives is: lines, dots, labels (flat boxes, glyphs, pictures) or textured
@@ -136,9 +126,7 @@ struct OverlayPass::Impl {
   GlBuffer owner;                          // its per-pixel owner plane, all zero between runs
   std::vector<GpuOverlayLine> gpu_lines;   // per run(): the opaque lines it writes
   std::vector<uint32_t> step_lines;        // per run(): each step's line (overlay_lines.comp)
-  ImFontAtlas atlas;
-  ImFont* font = nullptr;
-  GlTexture font_texture;
+  TextShaper text;  // labels' glyphs (HarfBuzz, FreeType, fontconfig) in one atlas
   GlTexture white;
   GlFramebuffer framebuffer;
   uint32_t vao = 0;
@@ -347,22 +335,14 @@ void OverlayPass::Impl::drawDirectLines(FrameTarget& target) {
 
 glm::vec2 OverlayPass::Impl::layout(const OverlayLabel& l, const glm::dvec4* anchor,
                                     uint32_t anchored) {
-  const float scale = l.height_px / font->FontSize;
+  const float scale = l.height_px / TextShaper::kPixelSize;
   const float pad = 0.2f * l.height_px;
   // Lines break at '\n', each kLineSpacing label heights below the one before.
   constexpr float kLineSpacing = 1.2f;
-  float width = 0.0f, line = 0.0f;
-  int lines = 1;
-  for (size_t i = 0; i < l.text.size();) {
-    const uint32_t cp = nextCodePoint(l.text, i);
-    if (cp == '\n') {
-      ++lines;
-      line = 0.0f;
-      continue;
-    }
-    line += font->GetCharAdvance(glyphOf(cp)) * scale;
-    width = std::max(width, line);
-  }
+  const std::vector<std::string_view> text_lines = linesOf(l.text);
+  float width = 0.0f;
+  const int lines = int(text_lines.size());
+  for (std::string_view line : text_lines) width = std::max(width, text.shape(line).width * scale);
   const float text_height = l.height_px * (1.0f + kLineSpacing * float(lines - 1));
   // Pictures in a row under the text, `pad` apart.
   glm::vec2 row(0.0f);
@@ -383,25 +363,16 @@ glm::vec2 OverlayPass::Impl::layout(const OverlayLabel& l, const glm::dvec4* anc
     sprite(*anchor, o, o + box, glm::vec2(0), glm::vec2(1), pack(l.background),
            TESSERA_OVERLAY_FLAT | anchored);
   }
-  begin(Group::kLabels, font_texture.name(), false);
-  float pen = o.x + pad, top = o.y + pad;
+  begin(Group::kLabels, text.texture(), false);
+  float top = o.y + pad;
   const uint32_t rgba = pack(l.color);
-  for (size_t i = 0; i < l.text.size();) {
-    const uint32_t cp = nextCodePoint(l.text, i);
-    if (cp == '\n') {
-      pen = o.x + pad;
-      top += kLineSpacing * l.height_px;
-      continue;
-    }
-    const ImFontGlyph* g = font->FindGlyph(glyphOf(cp));
-    if (!g) continue;
-    if (g->Visible) {
-      const glm::vec2 lo(pen + g->X0 * scale, top + g->Y0 * scale);
-      const glm::vec2 hi(pen + g->X1 * scale, top + g->Y1 * scale);
-      sprite(*anchor, lo, hi, {g->U0, g->V0}, {g->U1, g->V1}, rgba,
+  for (std::string_view line : text_lines) {
+    for (const ShapedGlyph& g : text.shape(line).glyphs) {
+      const glm::vec2 at(o.x + pad, top);
+      sprite(*anchor, at + g.lo * scale, at + g.hi * scale, g.uv0, g.uv1, rgba,
              TESSERA_OVERLAY_GLYPH | anchored);
     }
-    pen += g->AdvanceX * scale;
+    top += kLineSpacing * l.height_px;
   }
   float left = o.x + pad;
   for (const LabelPicture& p : l.pictures) {
@@ -495,14 +466,6 @@ OverlayLabel OverlayPass::Impl::place(const OverlayLabel& l, glm::vec2 at) {
 
 OverlayPass::OverlayPass() : mImpl(std::make_unique<Impl>()) {
   Impl& s = *mImpl;
-  if (std::filesystem::exists(kFontFile)) s.font = s.atlas.AddFontFromFileTTF(kFontFile, 32.0f);
-  if (!s.font) s.font = s.atlas.AddFontDefault();
-  unsigned char* pixels = nullptr;
-  int w = 0, h = 0;
-  s.atlas.GetTexDataAsAlpha8(&pixels, &w, &h);
-  s.font_texture = GlTexture(uint32_t(w), uint32_t(h), GL_R8);
-  s.font_texture.upload(pixels);
-  s.atlas.ClearTexData();
   s.white = GlTexture(1, 1, GL_RGBA8);
   const uint32_t white = 0xFFFFFFFFu;
   s.white.upload(&white);
@@ -521,6 +484,7 @@ double OverlayPass::run(FrameTarget& target, const ViewSetup& view, const Overla
   if (overlay.empty()) return 0.0;
   GpuLap lap;
   Impl& s = *mImpl;
+  s.text.beginFrame();
   s.vertices.clear();
   s.runs.clear();
   s.anchors.clear();

@@ -85,6 +85,8 @@ class GlTexture {
   /// Replaces the whole image: width * height pixels of the texture's format, top row first
   /// (texture row 0 is the image's top row: v = 0 at the top).
   void upload(const void* pixels);
+  /// Replaces the `w` x `h` pixels at (`x`, `y`) (y from the top row), rows tightly packed.
+  void uploadRegion(uint32_t x, uint32_t y, uint32_t w, uint32_t h, const void* pixels);
   uint32_t name() const { return mName; }
   uint32_t width() const { return mWidth; }
   uint32_t height() const { return mHeight; }
