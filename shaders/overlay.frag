@@ -16,8 +16,18 @@
 #define HAS_UNTESTED 1
 #define ONE_MODE 0
 #endif
+// WRITES_DEPTH: the run's opaque fragments (video insets) write their depth into the overlay's
+// copy of the depth plane, so the lines, dots, labels and insets drawn after them are hidden
+// behind them as behind the scene.
+#ifndef WRITES_DEPTH
+#define WRITES_DEPTH 0
+#endif
 
-layout(std430, binding = TESSERA_BINDING_DEPTH) readonly buffer Depth { uint depth[]; };  // raster order
+#if WRITES_DEPTH
+layout(std430, binding = TESSERA_BINDING_DEPTH) buffer Depth { uint depth[]; };  // raster order
+#else
+layout(std430, binding = TESSERA_BINDING_DEPTH) readonly buffer Depth { uint depth[]; };
+#endif
 
 uniform ivec2 uSize;
 in vec2 vUv;
@@ -56,6 +66,13 @@ void main() {
 #endif
 #if HAS_GLYPH
   if (ONE_MODE != 0 || mode == TESSERA_OVERLAY_GLYPH) c.a *= texture(uTexture, vUv).r;
+#endif
+#if WRITES_DEPTH
+  if (c.a >= 0.999) {
+    ivec2 q = ivec2(gl_FragCoord.xy);
+    atomicMin(depth[uint(uSize.y - 1 - q.y) * uint(uSize.x) + uint(q.x)],
+              floatBitsToUint(gl_FragCoord.z));
+  }
 #endif
   fragColor = c;
 }

@@ -9,7 +9,15 @@ layout(std430, binding = TESSERA_BINDING_OVERLAY) readonly buffer Vertices { Ove
 // cover (a measurement's middle on a chord just under it). Done here, per vertex, so no label
 // waits for a read-back of the depth on the CPU.
 layout(std430, binding = TESSERA_BINDING_OVERLAY_ANCHORS) readonly buffer Anchors { vec4 anchors[]; };
-layout(std430, binding = TESSERA_BINDING_DEPTH) readonly buffer Depth { uint depth[]; };  // raster order
+// As overlay.frag declares it (insets' runs write it there: WRITES_DEPTH).
+#ifndef WRITES_DEPTH
+#define WRITES_DEPTH 0
+#endif
+#if WRITES_DEPTH
+layout(std430, binding = TESSERA_BINDING_DEPTH) buffer Depth { uint depth[]; };  // raster order
+#else
+layout(std430, binding = TESSERA_BINDING_DEPTH) readonly buffer Depth { uint depth[]; };
+#endif
 
 uniform ivec2 uSize;
 uniform vec2 uDepthFromNdc;  // perspective: eye distance = uDepthFromNdc.x / (ndc + uDepthFromNdc.y)

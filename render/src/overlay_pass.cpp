@@ -90,6 +90,8 @@ enum class Group : uint8_t { kLines, kDots, kLabels, kTextured };
 /// (TESSERA_OVERLAY_FLAT..GLYPH), and whether some of its primitives are depth-tested and
 /// some not.
 constexpr uint32_t kTestedBit = 1u << 4, kUntestedBit = 1u << 5;
+/// A run whose opaque fragments write their depth (video insets: overlay.frag WRITES_DEPTH).
+constexpr uint32_t kWritesDepthBit = 1u << 6;
 
 /// A batch of vertices drawn with one texture (0: none bound yet; flat primitives take any) and
 /// one fragment variant.
@@ -115,6 +117,7 @@ std::string variantDefines(uint32_t v) {
   def("HAS_TESTED", v & kTestedBit);
   def("HAS_UNTESTED", v & kUntestedBit);
   def("ONE_MODE", kinds == 1);
+  def("WRITES_DEPTH", v & kWritesDepthBit);
   return d;
 }
 
@@ -129,6 +132,7 @@ struct OverlayPass::Impl {
   TextShaper text;  // labels' glyphs (HarfBuzz, FreeType, fontconfig) in one atlas
   GlTexture white;
   GlFramebuffer framebuffer;
+  GlBuffer inset_depth;  // with video insets: the target's depth plane and the insets' depth
   uint32_t vao = 0;
   // Labels' pictures by key, kept while some label of the last run showed them.
   struct Picture {
@@ -227,7 +231,11 @@ struct OverlayPass::Impl {
   /// `l` as a quad of the raster pass, or with `direct` as a line of overlay_lines.comp.
   void addLine(const OverlayLine& l, bool direct);
   /// Writes the direct lines into the image (overlay_lines.comp's two passes).
-  void drawDirectLines(FrameTarget& target);
+  void drawDirectLines(FrameTarget& target, uint32_t depth);
+  /// Draws runs [`begin`, `end`) over the target's image, depth-tested against `depth` (a plane
+  /// of the target's size).
+  void drawRuns(FrameTarget& target, const ViewSetup& view, uint32_t depth, size_t begin,
+                size_t end);
   /// The end of a run(): unused pictures released; the pass's milliseconds.
   double finish(GpuLap& lap);
   void addLabel(const OverlayLabel& l, const FrameTarget& target, const glm::dmat4& projection);
@@ -300,7 +308,7 @@ void OverlayPass::Impl::addLine(const OverlayLine& l, bool direct) {
        {glm::vec2(0), glm::vec2(0), glm::vec2(0), glm::vec2(0)}, rgba, TESSERA_OVERLAY_FLAT);
 }
 
-void OverlayPass::Impl::drawDirectLines(FrameTarget& target) {
+void OverlayPass::Impl::drawDirectLines(FrameTarget& target, uint32_t depth) {
   for (int pass = 0; pass < 2; ++pass)
     if (!line_passes[pass])
       line_passes[pass] = GlProgram::compute(shaders::kOverlayLines, "overlay_lines.comp",
@@ -315,7 +323,7 @@ void OverlayPass::Impl::drawDirectLines(FrameTarget& target) {
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_OVERLAY_LINES, lines.name());
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_OVERLAY_STEPS, steps.name());
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_OVERLAY_OWNER, owner.name());
-  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_DEPTH, target.depth().name());
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_DEPTH, depth);
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_IMAGE, target.image().name());
   for (int pass = 0; pass < 2; ++pass) {
     glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
@@ -480,6 +488,62 @@ glm::vec2 OverlayPass::measure(const OverlayLabel& label) const {
   return mImpl->layout(label, nullptr);
 }
 
+void OverlayPass::Impl::drawRuns(FrameTarget& target, const ViewSetup& view, uint32_t depth,
+                                 size_t begin_run, size_t end_run) {
+  if (vertices.empty()) return;
+  if (framebuffer.width() != target.width() || framebuffer.height() != target.height())
+    framebuffer = GlFramebuffer(target.width(), target.height(), false);
+  // The image into the framebuffer's colour (row 0 = the image's top row): a copy from the
+  // buffer, no shader. The depth test reads `depth` in the overlay's fragment shader, where a
+  // primitive covers a pixel, so nothing is done per pixel of the view.
+  glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT | GL_PIXEL_BUFFER_BARRIER_BIT |
+                  GL_TEXTURE_UPDATE_BARRIER_BIT);
+  glBindBuffer(GL_PIXEL_UNPACK_BUFFER, target.image().name());
+  glPixelStorei(GL_UNPACK_ALIGNMENT, 4);
+  glPixelStorei(GL_UNPACK_ROW_LENGTH, 0);
+  glTextureSubImage2D(framebuffer.color().name(), 0, 0, 0, GLsizei(target.width()),
+                      GLsizei(target.height()), GL_RGBA, GL_UNSIGNED_BYTE, nullptr);
+  glBindBuffer(GL_PIXEL_UNPACK_BUFFER, 0);
+  glBindFramebuffer(GL_FRAMEBUFFER, framebuffer.name());
+  glViewport(0, 0, GLsizei(target.width()), GLsizei(target.height()));
+  glBindVertexArray(vao);
+  glDisable(GL_DEPTH_TEST);
+
+  const GlBuffer vertex_buffer(vertices.size() * sizeof(OverlayVertex), vertices.data());
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_OVERLAY, vertex_buffer.name());
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_DEPTH, depth);
+  if (anchors.empty()) anchors.emplace_back(0.0f);  // a buffer is bound either way
+  const GlBuffer anchor_buffer(anchors.size() * sizeof(glm::vec4), anchors.data());
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_OVERLAY_ANCHORS, anchor_buffer.name());
+  // Colour blends over the scene, the image's alpha stays opaque; runs after the insets do not
+  // hide each other (later ones draw on top).
+  glEnable(GL_BLEND);
+  glBlendFuncSeparate(GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA, GL_ZERO, GL_ONE);
+  for (size_t i = begin_run; i < end_run; ++i) {
+    const Run& r = runs[i];
+    if (r.count == 0) continue;
+    GlProgram& draw = program(r.variant);
+    draw.use();
+    draw.set("uTexture", 0);
+    draw.set("uSize", glm::ivec2(target.width(), target.height()));
+    draw.set("uDepthFromNdc",
+             glm::vec2(float(view.projection[3][2]), float(view.projection[2][2])));
+    glBindTextureUnit(0, r.texture ? r.texture : white.name());
+    glDrawArrays(GL_TRIANGLES, GLint(r.first), GLsizei(r.count));
+    // An inset's depth is seen by the next inset's fragments.
+    if (r.variant & kWritesDepthBit) glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+  }
+  glDisable(GL_BLEND);
+  glBindBuffer(GL_PIXEL_PACK_BUFFER, target.image().name());
+  glPixelStorei(GL_PACK_ALIGNMENT, 4);
+  glReadPixels(0, 0, GLsizei(target.width()), GLsizei(target.height()), GL_RGBA, GL_UNSIGNED_BYTE,
+               nullptr);
+  glBindBuffer(GL_PIXEL_PACK_BUFFER, 0);
+  glBindFramebuffer(GL_FRAMEBUFFER, 0);
+  glBindVertexArray(0);
+  glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT | GL_PIXEL_BUFFER_BARRIER_BIT);
+}
+
 double OverlayPass::run(FrameTarget& target, const ViewSetup& view, const Overlay& overlay) {
   if (overlay.empty()) return 0.0;
   GpuLap lap;
@@ -502,14 +566,16 @@ double OverlayPass::run(FrameTarget& target, const ViewSetup& view, const Overla
     s.quad(c, {glm::vec2(0, 0), glm::vec2(1, 0), glm::vec2(1, 1), glm::vec2(0, 1)}, pack(q.tint),
            TESSERA_OVERLAY_TEXTURED);
   }
-  // Opaque lines go straight into the image (overlay_lines.comp: llvmpipe rasterises long thin
-  // quads slowly), unless a textured quad (a video inset) is drawn first and must stay under
-  // them: then every line is a quad of the raster pass, in order.
+  // The insets' runs write their depth into a copy of the depth plane: what is drawn after them
+  // (lines, dots, labels, other insets) is hidden behind them as behind the scene. Opaque lines
+  // go straight into the image (overlay_lines.comp: llvmpipe rasterises long thin quads slowly),
+  // after the insets and before the other runs.
+  const size_t inset_runs = s.runs.size();
+  for (size_t i = 0; i < inset_runs; ++i) s.runs[i].variant |= kWritesDepthBit;
   s.gpu_lines.clear();
   s.step_lines.clear();
-  const bool direct = overlay.quads.empty();
   s.begin(Group::kLines, 0, true);
-  for (const OverlayLine& l : overlay.lines) s.addLine(l, direct && l.color.a == 255);
+  for (const OverlayLine& l : overlay.lines) s.addLine(l, l.color.a == 255);
   s.begin(Group::kDots, 0, true);
   for (const OverlayPoint& p : overlay.points) {
     const glm::dvec4 a = s.clip(p.at);
@@ -531,56 +597,17 @@ double OverlayPass::run(FrameTarget& target, const ViewSetup& view, const Overla
              TESSERA_OVERLAY_TEXTURED);
   }
 
-  if (!s.gpu_lines.empty()) s.drawDirectLines(target);
-  if (s.vertices.empty()) return s.finish(lap);
-
-  if (s.framebuffer.width() != target.width() || s.framebuffer.height() != target.height())
-    s.framebuffer = GlFramebuffer(target.width(), target.height(), false);
-  // The image into the framebuffer's colour (row 0 = the image's top row): a copy from the
-  // buffer, no shader. The depth test reads the frame target's depth in the overlay's fragment
-  // shader, where a primitive covers a pixel, so nothing is done per pixel of the view.
-  glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT | GL_PIXEL_BUFFER_BARRIER_BIT |
-                  GL_TEXTURE_UPDATE_BARRIER_BIT);
-  glBindBuffer(GL_PIXEL_UNPACK_BUFFER, target.image().name());
-  glPixelStorei(GL_UNPACK_ALIGNMENT, 4);
-  glPixelStorei(GL_UNPACK_ROW_LENGTH, 0);
-  glTextureSubImage2D(s.framebuffer.color().name(), 0, 0, 0, GLsizei(target.width()),
-                      GLsizei(target.height()), GL_RGBA, GL_UNSIGNED_BYTE, nullptr);
-  glBindBuffer(GL_PIXEL_UNPACK_BUFFER, 0);
-  glBindFramebuffer(GL_FRAMEBUFFER, s.framebuffer.name());
-  glViewport(0, 0, GLsizei(target.width()), GLsizei(target.height()));
-  glBindVertexArray(s.vao);
-  glDisable(GL_DEPTH_TEST);
-
-  const GlBuffer vertices(s.vertices.size() * sizeof(OverlayVertex), s.vertices.data());
-  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_OVERLAY, vertices.name());
-  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_DEPTH, target.depth().name());
-  if (s.anchors.empty()) s.anchors.emplace_back(0.0f);  // a buffer is bound either way
-  const GlBuffer anchors(s.anchors.size() * sizeof(glm::vec4), s.anchors.data());
-  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_OVERLAY_ANCHORS, anchors.name());
-  // Overlays do not hide each other (later ones draw on top); colour blends over the scene,
-  // the image's alpha stays opaque.
-  glEnable(GL_BLEND);
-  glBlendFuncSeparate(GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA, GL_ZERO, GL_ONE);
-  for (const Run& r : s.runs) {
-    if (r.count == 0) continue;
-    GlProgram& draw = s.program(r.variant);
-    draw.use();
-    draw.set("uTexture", 0);
-    draw.set("uSize", glm::ivec2(target.width(), target.height()));
-    draw.set("uDepthFromNdc",
-             glm::vec2(float(view.projection[3][2]), float(view.projection[2][2])));
-    glBindTextureUnit(0, r.texture ? r.texture : s.white.name());
-    glDrawArrays(GL_TRIANGLES, GLint(r.first), GLsizei(r.count));
+  uint32_t depth = target.depth().name();
+  if (inset_runs > 0) {
+    const size_t plane = target.pixels() * sizeof(uint32_t);
+    if (s.inset_depth.bytes() != plane) s.inset_depth = GlBuffer(plane, nullptr);
+    glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT | GL_BUFFER_UPDATE_BARRIER_BIT);
+    glCopyNamedBufferSubData(depth, s.inset_depth.name(), 0, 0, GLsizeiptr(plane));
+    depth = s.inset_depth.name();
+    s.drawRuns(target, view, depth, 0, inset_runs);
   }
-  glDisable(GL_BLEND);
-  glBindBuffer(GL_PIXEL_PACK_BUFFER, target.image().name());
-  glPixelStorei(GL_PACK_ALIGNMENT, 4);
-  glReadPixels(0, 0, GLsizei(target.width()), GLsizei(target.height()), GL_RGBA, GL_UNSIGNED_BYTE,
-               nullptr);
-  glBindBuffer(GL_PIXEL_PACK_BUFFER, 0);
-  glBindFramebuffer(GL_FRAMEBUFFER, 0);
-  glBindVertexArray(0);
+  if (!s.gpu_lines.empty()) s.drawDirectLines(target, depth);
+  if (s.runs.size() > inset_runs) s.drawRuns(target, view, depth, inset_runs, s.runs.size());
   return s.finish(lap);
 }
 
