@@ -128,6 +128,49 @@ TEST_F(FramePipelineTest, PickIdsNameTheModelAndThePointUnderThePixel) {
   }
 }
 
+// A long label in several scripts across the bezel of the 1x2 wall: each tile draws its part
+// where the whole-wall view draws it, glyph pixel for glyph pixel.
+TEST_F(FramePipelineTest, ALongLabelCrossesTheBezelSeamlessly) {
+  const config::WallConfig wall = sync::loadWallConfig(kConfigs + "/walls/1x2.json");
+  config::Camera cam;
+  cam.mutable_eye()->set_z(2.0);
+  cam.mutable_up()->set_y(1.0);
+  cam.mutable_target()->set_z(0.0);
+  Overlay overlay;
+  OverlayLabel label;
+  label.at = {-0.1, 0.0, 0.0};
+  label.text = "東京の調査 — crack survey, Ναός, الشقوق 🐇";
+  label.height_px = 28.0f;
+  label.color = {255, 255, 255, 255};
+  label.background = {0, 0, 0, 0};
+  overlay.labels.push_back(label);
+  const ViewSetup whole_view = wholeWallView(wall, cam);
+  ViewRenderer whole_r(whole_view.width, whole_view.height);
+  const Image whole = whole_r.render({}, whole_view, RenderOptions{}, nullptr, &overlay);
+  auto ink = [](const uint8_t* p) { return p[0] > 128 && p[1] > 128 && p[2] > 128; };
+  size_t differ = 0, glyph = 0;
+  int tiles_with_ink = 0;
+  for (const auto& tile : wall.tiles()) {
+    const ViewSetup tv = tileView(wall, tile, cam);
+    ViewRenderer tr(tv.width, tv.height);
+    const Image img = tr.render({}, tv, RenderOptions{}, nullptr, &overlay);
+    const glm::ivec2 off = tileOffsetInWhole(wall, tile);
+    size_t here = 0;
+    for (uint32_t y = 0; y < img.height; ++y)
+      for (uint32_t x = 0; x < img.width; ++x) {
+        const bool a = ink(pixel(img, x, y));
+        const bool b = ink(pixel(whole, off.x + x, off.y + y));
+        here += a;
+        differ += a != b;
+      }
+    glyph += here;
+    tiles_with_ink += here > 200;
+  }
+  EXPECT_EQ(tiles_with_ink, 2) << "the label crosses the bezel";
+  EXPECT_GT(glyph, 1500u);
+  EXPECT_LE(double(differ) / double(glyph), 0.02) << differ << " of " << glyph;
+}
+
 TEST_F(FramePipelineTest, OverlayLineAcrossTheBezelMeetsOnTheNextTile) {
   const config::WallConfig wall = sync::loadWallConfig(kConfigs + "/walls/1x2.json");
   config::Camera cam;
