@@ -30,6 +30,8 @@ PACKAGES=(
   graphviz
   # annotations database, mesh LOD, console UI, command line, logging
   libsqlite3-dev libmeshoptimizer-dev libmetis-dev libimgui-dev libcli11-dev libspdlog-dev
+  # GeoJSON exports in longitude and latitude from a projected CRS
+  libproj-dev proj-data
   # virtual scanner ray casting, point chunk entropy coding, images
   libembree-dev libzstd-dev libpng-dev
   # the overlay's text: shaping, glyphs, fonts for every script (render/src/text_shaper.h):

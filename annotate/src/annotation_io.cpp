@@ -1,5 +1,6 @@
 #include <tessera/annotate/annotation_io.h>
 
+#include <proj.h>
 #include <sqlite3.h>
 
 #include <tessera/core/json_string.h>
@@ -269,6 +270,48 @@ void exportCsv(AnnotationDb& db, std::ostream& out, const std::string& layer) {
   }
 }
 
+namespace {
+
+/// Positions in a projected CRS to longitude, latitude (degrees on WGS 84) and height, by PROJ.
+class ToWgs84 {
+ public:
+  explicit ToWgs84(const std::string& crs) : mContext(proj_context_create()) {
+    PJ* raw = proj_create_crs_to_crs(mContext, crs.c_str(), "EPSG:4326", nullptr);
+    if (raw) {
+      mTransform = proj_normalize_for_visualization(mContext, raw);  // longitude first
+      proj_destroy(raw);
+    }
+    if (!mTransform) {
+      const std::string why = proj_context_errno_string(mContext, proj_context_errno(mContext));
+      proj_context_destroy(mContext);
+      throw AnnotationError(AnnotationError::Kind::kBadInput,
+                            "exportGeoJson(): " + crs +
+                                ": not a coordinate reference system PROJ knows (" + why + ")");
+    }
+  }
+  ~ToWgs84() {
+    proj_destroy(mTransform);
+    proj_context_destroy(mContext);
+  }
+  ToWgs84(const ToWgs84&) = delete;
+  ToWgs84& operator=(const ToWgs84&) = delete;
+
+  glm::dvec3 operator()(const glm::dvec3& p) const {
+    const PJ_COORD c = proj_trans(mTransform, PJ_FWD, proj_coord(p.x, p.y, p.z, 0.0));
+    if (!std::isfinite(c.xyz.x) || !std::isfinite(c.xyz.y))
+      throw AnnotationError(AnnotationError::Kind::kBadInput,
+                            "exportGeoJson(): a position (" + json::number(p.x) + ", " +
+                                json::number(p.y) + ") lies outside its CRS's area");
+    return {c.xyz.x, c.xyz.y, p.z};
+  }
+
+ private:
+  PJ_CONTEXT* mContext;
+  PJ* mTransform = nullptr;
+};
+
+}  // namespace
+
 void exportGeoJson(AnnotationDb& db, std::ostream& out, const std::optional<Georeference>& geo_in) {
   std::optional<Georeference> geo = geo_in;
   if (!geo)
@@ -286,25 +329,23 @@ void exportGeoJson(AnnotationDb& db, std::ostream& out, const std::optional<Geor
                             "exportGeoJson(): " + geo->crs +
                                 " is geographic (degrees); the store's positions are metres and "
                                 "need a projected CRS (UTM, a national grid)");
-  // "EPSG:32633" -> "urn:ogc:def:crs:EPSG::32633", the form GDAL and QGIS read.
-  std::string urn = geo->crs;
-  if (const size_t colon = urn.find(':'); colon != std::string::npos && urn.find("urn:") != 0)
-    urn = "urn:ogc:def:crs:" + urn.substr(0, colon) + "::" + urn.substr(colon + 1);
-  std::string s =
-      "{\"type\": \"FeatureCollection\",\n\"crs\": {\"type\": \"name\", "
-      "\"properties\": {\"name\": " +
-      jsonString(urn) + "}},\n\"features\": [";
+  // RFC 7946: longitude and latitude on WGS 84 (degrees), then the height; no "crs" member. The
+  // projected coordinates stay in each feature's properties, with the CRS they are in.
+  const ToWgs84 wgs84(geo->crs);
+  std::string s = "{\"type\": \"FeatureCollection\",\n\"features\": [";
   bool first = true;
   for (const Place& p : db.places()) {
     if (p.kind == PlaceKind::kSelection) continue;
     std::string items;
     for (int64_t id : db.itemsAt(p.id))
       if (const auto it = db.item(id)) items += (items.empty() ? "" : ", ") + itemJson(*it);
+    const glm::dvec3 projected = geo->origin + p.position;
     s += (first ? "\n" : ",\n") + std::string("{\"type\": \"Feature\", \"id\": ") +
          std::to_string(p.id) +
-         ", \"geometry\": {\"type\": \"Point\", \"coordinates\": " + vec(geo->origin + p.position) +
+         ", \"geometry\": {\"type\": \"Point\", \"coordinates\": " + vec(wgs84(projected)) +
          "}, \"properties\": {\"kind\": " + jsonString(toString(p.kind)) +
-         ", \"model\": " + jsonString(p.model) + ", \"local_position\": " + vec(p.position);
+         ", \"model\": " + jsonString(p.model) + ", \"crs\": " + jsonString(geo->crs) +
+         ", \"projected\": " + vec(projected) + ", \"local_position\": " + vec(p.position);
     if (p.kind == PlaceKind::kHotSpot) s += ", \"radius\": " + json::number(p.radius);
     if (p.view) s += ", \"view\": " + viewJson(*p.view, geo->origin);
     s += ", \"items\": [" + items + "]}}";

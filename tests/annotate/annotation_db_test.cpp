@@ -718,19 +718,43 @@ TEST(AnnotationExport, CsvAndGeoJson) {
   expectError(Kind::kBadInput, "geographic", [&] {
     exportGeoJson(db, geo, Georeference{"EPSG:4326", {0, 0, 0}});
   });
-  db.setGeoreference("EPSG:32654", {500000.0, 3950000.0, 10.0});
+  // The hot spot is at (1.25, -3.5, 0.1) in the local frame: on UTM zone 54's central meridian
+  // (easting 500000), where longitude is 141 degrees exactly and the northing is k0 times the
+  // meridian's arc from the equator.
+  db.setGeoreference("EPSG:32654", {500000.0 - 1.25, 3950000.0 + 3.5, 10.0});
   exportGeoJson(db, geo);
   const auto doc = json::parse(geo.str());
   EXPECT_EQ(doc.find("type")->text, "FeatureCollection");
-  EXPECT_EQ(doc.find("crs")->find("properties")->find("name")->text, "urn:ogc:def:crs:EPSG::32654");
+  EXPECT_EQ(doc.find("crs"), nullptr) << "RFC 7946 has no crs member";
   const auto& features = doc.find("features")->array;
   ASSERT_EQ(features.size(), 2u);  // the hot spot and the point; the selection has no position
   const auto& spot = features[0];
   EXPECT_EQ(spot.find("geometry")->find("type")->text, "Point");
-  const auto& xyz = spot.find("geometry")->find("coordinates")->array;
-  EXPECT_EQ(std::stod(xyz[0].text), 500000.0 + 1.25);
-  EXPECT_EQ(std::stod(xyz[1].text), 3950000.0 - 3.5);
-  EXPECT_EQ(std::stod(xyz[2].text), 10.0 + 0.1);
+  const auto& lon_lat = spot.find("geometry")->find("coordinates")->array;
+  // WGS 84's meridian arc (the series to e^6), solved for the latitude by bisection.
+  auto meridianArc = [](double phi) {
+    const double a = 6378137.0, f = 1.0 / 298.257223563, e2 = f * (2 - f);
+    const double e4 = e2 * e2, e6 = e4 * e2;
+    return a * ((1 - e2 / 4 - 3 * e4 / 64 - 5 * e6 / 256) * phi -
+                (3 * e2 / 8 + 3 * e4 / 32 + 45 * e6 / 1024) * std::sin(2 * phi) +
+                (15 * e4 / 256 + 45 * e6 / 1024) * std::sin(4 * phi) -
+                (35 * e6 / 3072) * std::sin(6 * phi));
+  };
+  double lo = 0.0, hi = 1.5;
+  for (int i = 0; i < 200; ++i) {
+    const double mid = 0.5 * (lo + hi);
+    (0.9996 * meridianArc(mid) < 3950000.0 ? lo : hi) = mid;
+  }
+  const double latitude = lo * 180.0 / 3.14159265358979323846;
+  EXPECT_NEAR(std::stod(lon_lat[0].text), 141.0, 1e-9);
+  EXPECT_NEAR(std::stod(lon_lat[1].text), latitude, 1e-7);  // about a centimetre
+  EXPECT_EQ(std::stod(lon_lat[2].text), 10.0 + 0.1);
+  const auto& projected = spot.find("properties")->find("projected")->array;
+  EXPECT_EQ(std::stod(projected[0].text), 500000.0);
+  EXPECT_EQ(spot.find("properties")->find("crs")->text, "EPSG:32654");
+  expectError(Kind::kBadInput, "not a coordinate reference system", [&] {
+    exportGeoJson(db, geo, Georeference{"EPSG:999999", {0, 0, 0}});
+  });
   const auto* props = spot.find("properties");
   EXPECT_EQ(props->find("kind")->text, "hotspot");
   EXPECT_EQ(props->find("radius")->text, "0.5");

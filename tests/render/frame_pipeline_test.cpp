@@ -13,8 +13,8 @@
 
 #include <tessera/lod/point_writer.h>
 #include <tessera/lod/store_builder.h>
-#include <tessera/render/pass_timing.h>
 #include <tessera/render/gl_context.h>
+#include <tessera/render/pass_timing.h>
 #include <tessera/render/view_renderer.h>
 #include <tessera/sync/config.h>
 
@@ -280,8 +280,8 @@ TEST_F(FramePipelineTest, DirectLinesDrawTheRasterPathsPixels) {
   direct.lines.push_back(
       {c + glm::dvec3(0.0, -0.1, 0.1), c + glm::dvec3(0.0, 0.1, 0.1), {0, 0, 255, 255}, 3.0f});
   // One end just in front of the eye (millions of pixels off the view): left to the raster.
-  direct.lines.push_back({c, c + (v.eye_world - c) * 0.9999999 + glm::dvec3(1e-9, 0, 0),
-                          {255, 255, 0, 255}, 2.0f});
+  direct.lines.push_back(
+      {c, c + (v.eye_world - c) * 0.9999999 + glm::dvec3(1e-9, 0, 0), {255, 255, 0, 255}, 2.0f});
   Overlay raster = direct;
   // A quad behind the eye (never drawn) makes every line a quad of the raster pass.
   raster.quads.push_back({{v.eye_world + glm::dvec3(0, 0, 1), v.eye_world + glm::dvec3(1, 0, 1),
