@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cassert>
+#include <cctype>
 #include <chrono>
 #include <cmath>
 #include <thread>
@@ -107,7 +108,6 @@ PRAGMA user_version = 2;
 )sql";
 
 namespace {
-
 
 // Schema v3: the full-text index in any script (fts_tokenizer.h) and over links' addresses
 // too. The v2 index and its triggers are replaced and the new index built from the items.
@@ -234,6 +234,42 @@ bool inRange(const glm::dvec3& v) {
 }  // namespace
 
 namespace detail {
+
+std::string purposeOf(std::string_view sql) {
+  // The words of the SQL, upper-cased keywords as they are, up to the table it touches.
+  std::vector<std::string> words;
+  std::string word;
+  for (size_t i = 0; i <= sql.size() && words.size() < 12; ++i) {
+    const char c = i < sql.size() ? sql[i] : ' ';
+    if (std::isalnum(static_cast<unsigned char>(c)) || c == '_') {
+      word += c;
+    } else if (!word.empty()) {
+      words.push_back(word);
+      word.clear();
+    }
+  }
+  if (words.empty()) return "an empty statement";
+  auto upper = [](std::string w) {
+    for (char& ch : w) ch = char(std::toupper(static_cast<unsigned char>(ch)));
+    return w;
+  };
+  auto after = [&](const char* keyword) -> std::string {
+    for (size_t i = 0; i + 1 < words.size(); ++i)
+      if (upper(words[i]) == keyword) return words[i + 1];
+    return "the database";
+  };
+  const std::string first = upper(words[0]);
+  if (first == "SELECT" || first == "WITH") return "reading " + after("FROM");
+  if (first == "INSERT" || first == "REPLACE") return "adding to " + after("INTO");
+  if (first == "UPDATE")
+    return words.size() > 1 ? "changing " + words[1] : std::string("changing the database");
+  if (first == "DELETE") return "removing from " + after("FROM");
+  if (first == "PRAGMA") return "PRAGMA " + (words.size() > 1 ? words[1] : std::string());
+  if (first == "BEGIN" || first == "COMMIT" || first == "ROLLBACK")
+    return "a transaction (" + first + ")";
+  if (first == "CREATE" || first == "DROP" || first == "ALTER") return "changing the schema";
+  return first;
+}
 
 void throwSqlite(sqlite3* db, int rc, const std::filesystem::path& file, const std::string& what) {
   using Kind = AnnotationError::Kind;
@@ -501,7 +537,7 @@ void AnnotationDb::exec(const char* sql) {
   const int rc = sqlite3_exec(mDb, sql, nullptr, nullptr, &message);
   if (rc != SQLITE_OK) {
     sqlite3_free(message);
-    fail(rc, std::string("running `") + std::string(sql).substr(0, 60) + "`");
+    fail(rc, detail::purposeOf(sql));
   }
 }
 

@@ -8,6 +8,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <string>
+#include <string_view>
 #include <utility>
 #include <vector>
 
@@ -20,12 +21,16 @@ namespace tessera::annotate::detail {
 [[noreturn]] void throwSqlite(sqlite3* db, int rc, const std::filesystem::path& file,
                               const std::string& what);
 
+/// What a statement is for, in words, from its SQL ("reading items", "adding to places",
+/// "changing layers", "PRAGMA journal_mode"): what an error names instead of the whole SQL.
+std::string purposeOf(std::string_view sql);
+
 class Statement {
  public:
   Statement(sqlite3* db, const std::filesystem::path& file, const char* sql)
       : mDb(db), mFile(&file) {
     const int rc = sqlite3_prepare_v2(db, sql, -1, &mStmt, nullptr);
-    if (rc != SQLITE_OK) throwSqlite(db, rc, file, std::string("preparing `") + sql + "`");
+    if (rc != SQLITE_OK) throwSqlite(db, rc, file, "preparing " + purposeOf(sql));
   }
   ~Statement() { sqlite3_finalize(mStmt); }
   Statement(Statement&& o) noexcept
@@ -54,7 +59,7 @@ class Statement {
     const int rc = sqlite3_step(mStmt);
     if (rc == SQLITE_ROW) return true;
     if (rc == SQLITE_DONE) return false;
-    throwSqlite(mDb, rc, *mFile, std::string("running `") + sqlite3_sql(mStmt) + "`");
+    throwSqlite(mDb, rc, *mFile, purposeOf(sqlite3_sql(mStmt)));
   }
   /// Steps a statement that returns no rows (INSERT, UPDATE...).
   void run() {

@@ -17,6 +17,7 @@
 
 #include <gtest/gtest.h>
 
+#include "../../annotate/src/sqlite_statement.h"
 #include "../support/process.h"
 #include "../support/temp_dir.h"
 #include "annotation_test_support.h"
@@ -359,6 +360,35 @@ TEST(AnnotationDbFiles, ToolReadsTextFilesAndPrintsNumbersAsWritten) {
   EXPECT_EQ(runTool({"-d", db, "search", "記録"}, found), 0);
   const std::string hits = slurp(found);
   EXPECT_EQ(std::count(hits.begin(), hits.end(), '\n'), 1) << hits;
+}
+
+}  // namespace
+
+namespace {
+
+// Errors say what a statement was for, never its SQL.
+TEST(AnnotationDbFiles, ErrorsNameAStatementsPurpose) {
+  using tessera::annotate::detail::purposeOf;
+  EXPECT_EQ(purposeOf("SELECT id, title FROM items WHERE layer = ?1"), "reading items");
+  EXPECT_EQ(purposeOf("INSERT OR IGNORE INTO layers(path) VALUES (?1)"), "adding to layers");
+  EXPECT_EQ(purposeOf("UPDATE items SET title = ?1"), "changing items");
+  EXPECT_EQ(purposeOf("DELETE FROM attachments WHERE item = ?1"), "removing from attachments");
+  EXPECT_EQ(purposeOf("PRAGMA journal_mode = WAL"), "PRAGMA journal_mode");
+  EXPECT_EQ(purposeOf("BEGIN IMMEDIATE"), "a transaction (BEGIN)");
+  EXPECT_EQ(purposeOf(""), "an empty statement");
+  TempDir dir;
+  AnnotationDb db(dir / "a.tadb");
+  db.addItem(textItem("a", "t"), "s");
+  try {
+    AnnotationDb ro(dir / "a.tadb", {.read_only = true});
+    ro.addItem(textItem("a", "u"), "s");
+    ADD_FAILURE() << "a write through a read-only handle";
+  } catch (const AnnotationError& e) {
+    const std::string what = e.what();
+    EXPECT_EQ(what.find("INSERT"), std::string::npos) << what;
+    EXPECT_EQ(what.find("SELECT"), std::string::npos) << what;
+    EXPECT_NE(what.find("a.tadb"), std::string::npos) << what;
+  }
 }
 
 }  // namespace
