@@ -43,6 +43,17 @@ std::string vec3(const glm::dvec3& v) {
   return number(v.x) + "," + number(v.y) + "," + number(v.z);
 }
 
+/// What a selection place holds, in words: a measurement (anchored at its first point) or a
+/// selected region, its size.
+std::string selectionWords(const Place& p) {
+  if (p.selection_id == kMeasurementBlob)
+    return "(a measurement at " + vec3(p.position) + ", " + std::to_string(p.selection.size()) +
+           " bytes)";
+  if (p.selection_id == kSelectionBlob)
+    return "(a selected region, " + std::to_string(p.selection.size()) + " bytes)";
+  return "(" + p.selection_id + ", " + std::to_string(p.selection.size()) + " bytes)";
+}
+
 void printItem(AnnotationDb& db, const Item& it) {
   std::cout << it.id << "\t" << it.layer << (db.layerShown(it.layer) ? "" : " (hidden)") << "\t"
             << toString(it.kind) << "\t" << it.title;
@@ -66,6 +77,7 @@ void printItem(AnnotationDb& db, const Item& it) {
     if (!p) continue;
     std::cout << "\t" << toString(p->kind) << " " << place << " on " << p->model;
     if (p->kind != PlaceKind::kSelection) std::cout << " at " << vec3(p->position);
+    if (p->kind == PlaceKind::kSelection) std::cout << " " << selectionWords(*p);
   }
   std::cout << "\n";
 }
@@ -75,8 +87,7 @@ void printPlace(const Place& p) {
   std::cout << "place " << p.id << "\t" << toString(p.kind) << " on " << p.model;
   if (p.kind != PlaceKind::kSelection) std::cout << " at " << v3(p.position);
   if (p.kind == PlaceKind::kHotSpot) std::cout << " radius " << number(p.radius);
-  if (p.kind == PlaceKind::kSelection)
-    std::cout << " " << p.selection_id << " (" << p.selection.size() << " bytes)";
+  if (p.kind == PlaceKind::kSelection) std::cout << " " << selectionWords(p);
   if (p.view)
     std::cout << "\tview eye " << v3(p.view->eye) << " target " << v3(p.view->target) << " up "
               << v3(p.view->up) << " fovy " << number(p.view->fovy_deg);
@@ -282,6 +293,10 @@ int run(int argc, char** argv) {
 
   if (list->parsed()) {
     for (const Item& it : db.items(layer)) printItem(db, it);
+    // Places no item hangs at (a lasso's selection): listed too, as what they are.
+    if (layer.empty())
+      for (const Place& p : db.places())
+        if (db.itemsAt(p.id).empty()) printPlace(p);
   } else if (show_item->parsed()) {
     const auto it = db.item(show_id);
     if (!it)

@@ -392,3 +392,41 @@ TEST(AnnotationDbFiles, ErrorsNameAStatementsPurpose) {
 }
 
 }  // namespace
+
+namespace {
+
+// Lasso selections and measurements are listed as what they are, with their place; a selection
+// no item hangs at is listed too.
+TEST(AnnotationDbFiles, SelectionsAndMeasurementsAreListedAsWhatTheyAre) {
+  TempDir dir;
+  const auto file = dir / "s.tadb";
+  {
+    AnnotationDb db(file);
+    Place region;
+    region.kind = PlaceKind::kSelection;
+    region.model = "bunny";
+    region.selection_id = kSelectionBlob;
+    region.selection = std::vector<uint8_t>(120, 7);
+    db.addPlace(region);
+    Place measured = region;
+    measured.model = "scene";
+    measured.selection_id = kMeasurementBlob;
+    measured.position = {0.5, 0.25, 2};
+    Item distance = textItem("measurements", "ear to ear");
+    distance.kind = ItemKind::kNumber;
+    distance.number = 0.0734;
+    distance.unit = "m";
+    db.attach(db.addItem(distance, "s"), db.addPlace(measured));
+  }
+  const auto log = dir / "list.txt";
+  ASSERT_EQ(runTool({"-d", file.string(), "list"}, log), 0) << slurp(log);
+  const std::string listed = slurp(log);
+  EXPECT_NE(listed.find("ear to ear = 0.0734 m"), std::string::npos) << listed;
+  EXPECT_NE(listed.find("(a measurement at 0.5,0.25,2"), std::string::npos) << listed;
+  EXPECT_NE(listed.find("place 1\tselection on bunny (a selected region, 120 bytes)"),
+            std::string::npos)
+      << listed;
+  EXPECT_EQ(listed.find("scene.SelectionPayload"), std::string::npos) << listed;
+}
+
+}  // namespace

@@ -291,6 +291,11 @@ class AnnotationDb {
   int mDepth = 0;  ///< open transaction() nesting
 };
 
+/// How a selection place's bytes are to be read (Place::selection_id): the scene payload the
+/// node carried, serialized (a measurement, or a lasso's or snap's selection; annotation_scene.h).
+constexpr const char* kMeasurementBlob = "scene.MeasurementPayload";
+constexpr const char* kSelectionBlob = "scene.SelectionPayload";
+
 /// The v1 and v2 schemas, as the releases that wrote them created them (kept so tests can write
 /// such files).
 extern const char* const kSchemaV1Sql;

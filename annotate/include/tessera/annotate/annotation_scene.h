@@ -47,10 +47,6 @@
 
 namespace tessera::annotate {
 
-/// How a selection place's bytes are to be read (Place::selection_id): the scene payload the
-/// node carried, serialized.
-constexpr const char* kMeasurementBlob = "scene.MeasurementPayload";
-constexpr const char* kSelectionBlob = "scene.SelectionPayload";
 
 class AnnotationScene {
  public:
