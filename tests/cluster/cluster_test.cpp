@@ -184,13 +184,15 @@ TEST_F(Cluster, SketchesAvatarsAndAnnotationsAreDrawnOnEveryTile) {
                    m +
                    R"(]}, "avatar": {"site": "Pisa", "color": {"r": 0.2, "g": 0.9, "b": 0.4},
                "fovyDeg": 40, "aspect": 1.5, "reach": 0.07}},
-               {"kind": "ANNOTATION", "annotation": {"text": "left ear", "anchor": {"x": -0.07,
+               {"kind": "ANNOTATION", "annotation": {"text": "left ear 左耳 الأذن Ναός 🐇", "anchor": {"x": -0.07,
                "y": 0.15, "z": 0.03}}})");
   write(sDir->path() / "overlay.json", scene);
   const std::string wall = kConfigs + "/walls/1x2.json";
   const CommandResult r =
       cluster("--wall " + wall + " --scene overlay.json --frames 2 --screenshot ov.png", 2);
   ASSERT_EQ(r.code, 0) << r.out;
+  // The note's title in four scripts and an emoji, each from a font that has it, on the wall.
+  EXPECT_EQ(r.out.find("no installed font has"), std::string::npos) << r.out;
   expectSameAsMosaic(r, "ov.png", wall, "overlay.json");
   const tessera::render::Image img = tessera::render::readPng((sDir->path() / "ov.png").string());
   size_t left = 0, right = 0, avatar = 0;
