@@ -46,12 +46,10 @@ void pushPath(GLFWwindow* gw, double x, double y) {
   WindowInput& in = implOf(gw)->pending;
   if (in.path.size() >= 4096) return;
   in.path.push_back({x, y});
-  in.path_buttons.push_back(
-      uint8_t((glfwGetMouseButton(gw, GLFW_MOUSE_BUTTON_LEFT) == GLFW_PRESS ? WindowInput::kLeftHeld
-                                                                           : 0) |
-              (glfwGetMouseButton(gw, GLFW_MOUSE_BUTTON_RIGHT) == GLFW_PRESS
-                   ? WindowInput::kRightHeld
-                   : 0)));
+  in.path_buttons.push_back(uint8_t(
+      (glfwGetMouseButton(gw, GLFW_MOUSE_BUTTON_LEFT) == GLFW_PRESS ? WindowInput::kLeftHeld : 0) |
+      (glfwGetMouseButton(gw, GLFW_MOUSE_BUTTON_RIGHT) == GLFW_PRESS ? WindowInput::kRightHeld
+                                                                     : 0)));
 }
 
 }  // namespace
@@ -176,10 +174,25 @@ void Window::enableUi() {
   ImGuiIO& io = ImGui::GetIO();
   io.IniFilename = nullptr;  // the panels start where the console puts them, every session
   // A hinted sans-serif reads better than the built-in bitmap font in a screenshot; the
-  // built-in one where it is not installed.
+  // built-in one where it is not installed. DejaVu Sans gives Latin, Greek and Cyrillic; Noto
+  // Sans CJK (merged) the kana and the ideographs of Japanese and Chinese titles in the panels.
+  // Dear ImGui neither shapes nor orders right to left, nor draws beyond the 16-bit range: the
+  // wall's labels do (text_shaper.h).
+  static const ImWchar kPanelRanges[] = {0x0020, 0x024F, 0x0370, 0x03FF, 0x0400, 0x04FF,
+                                         0x1F00, 0x1FFF, 0x2000, 0x206F, 0x20A0, 0x20CF,
+                                         0x2100, 0x214F, 0x2190, 0x21FF, 0};
   const char* font = "/usr/share/fonts/truetype/dejavu/DejaVuSans.ttf";
-  if (std::error_code ec; std::filesystem::exists(font, ec))
-    io.Fonts->AddFontFromFileTTF(font, 14.0f);
+  const char* cjk = "/usr/share/fonts/opentype/noto/NotoSansCJK-Regular.ttc";
+  if (std::error_code ec; std::filesystem::exists(font, ec)) {
+    io.Fonts->AddFontFromFileTTF(font, 14.0f, nullptr, kPanelRanges);
+    if (std::filesystem::exists(cjk, ec)) {
+      ImFontConfig merge;
+      merge.MergeMode = true;
+      io.Fonts->AddFontFromFileTTF(cjk, 14.0f, &merge,
+                                   io.Fonts->GetGlyphRangesChineseSimplifiedCommon());
+      io.Fonts->AddFontFromFileTTF(cjk, 14.0f, &merge, io.Fonts->GetGlyphRangesJapanese());
+    }
+  }
   ImGui::StyleColorsDark();
   ImGui::GetStyle().WindowRounding = 3.0f;
   ImGui::GetStyle().Alpha = 0.92f;
