@@ -58,6 +58,8 @@ if(NOT Protobuf_FOUND OR NOT Protobuf_PROTOC_EXECUTABLE)
 endif()
 tessera_find_config(GTest libgtest-dev)
 tessera_find_pkg(SQLITE3 sqlite3 libsqlite3-dev)
+# E57 scans: their XML section.
+tessera_find_pkg(PUGIXML pugixml libpugixml-dev)
 # GeoJSON exports in longitude and latitude (RFC 7946) from a projected CRS.
 tessera_find_pkg(PROJ proj "libproj-dev proj-data")
 # The overlay's text: shaping, glyphs, and the fonts that have each character.

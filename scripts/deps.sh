@@ -32,8 +32,8 @@ PACKAGES=(
   libsqlite3-dev libmeshoptimizer-dev libmetis-dev libimgui-dev libcli11-dev libspdlog-dev
   # GeoJSON exports in longitude and latitude from a projected CRS
   libproj-dev proj-data
-  # virtual scanner ray casting, point chunk entropy coding, images
-  libembree-dev libzstd-dev libpng-dev
+  # virtual scanner ray casting, point chunk entropy coding, images, E57 scans' XML
+  libembree-dev libzstd-dev libpng-dev libpugixml-dev
   # the overlay's text: shaping, glyphs, fonts for every script (render/src/text_shaper.h):
   # DejaVu (Latin, Greek, Cyrillic, Hebrew, Arabic), Noto Sans CJK, Symbola (emoji, symbols)
   libharfbuzz-dev libfreetype-dev libfontconfig-dev fonts-dejavu-core fonts-noto-cjk fonts-symbola

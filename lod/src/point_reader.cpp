@@ -33,6 +33,8 @@ const char* formatName(Format format) {
       return "xyz";
     case Format::kObj:
       return "obj";
+    case Format::kE57:
+      return "e57";
   }
   return "unknown";
 }
@@ -109,11 +111,13 @@ std::string lowerExtension(const std::string& name) {
 std::optional<Format> detect(const uint8_t* head, size_t n, const std::string& name) {
   if (detail::isPlyMagic(head, n)) return Format::kPly;
   if (n >= 4 && std::memcmp(head, "LASF", 4) == 0) return Format::kLas;
+  if (n >= 8 && std::memcmp(head, "ASTM-E57", 8) == 0) return Format::kE57;
   std::string ext = lowerExtension(name);
   if (ext == ".conf") return Format::kStanfordConf;
   if (ext == ".obj") return Format::kObj;
   if (ext == ".xyz" || ext == ".pts" || ext == ".txt" || ext == ".csv") return Format::kText;
-  if (ext == ".ply" || ext == ".las" || ext == ".laz") return std::nullopt;  // wrong magic
+  if (ext == ".ply" || ext == ".las" || ext == ".laz" || ext == ".e57")
+    return std::nullopt;  // wrong magic
   return std::nullopt;
 }
 
@@ -127,6 +131,8 @@ std::unique_ptr<PointReader> openWith(Format format, ByteSource src) {
       return detail::openText(std::move(src));
     case Format::kObj:
       return detail::openObj(std::move(src));
+    case Format::kE57:
+      return detail::openE57(std::move(src));
     case Format::kStanfordConf:
       break;
   }
@@ -143,8 +149,10 @@ std::unique_ptr<PointReader> openWith(Format format, ByteSource src) {
     what = "not a PLY file (missing 'ply' magic line)";
   } else if (ext == ".las" || ext == ".laz") {
     what = "not a LAS file (missing 'LASF' signature)";
+  } else if (ext == ".e57") {
+    what = "not an E57 file (missing 'ASTM-E57' signature)";
   } else {
-    what = "unknown point format (expected PLY, LAS, .conf, .xyz/.pts/.txt or .obj)";
+    what = "unknown point format (expected PLY, LAS, E57, .conf, .xyz/.pts/.txt or .obj)";
   }
   detail::fail("lod::openPointReader()", src.name(), "byte 0", what);
 }

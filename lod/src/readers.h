@@ -30,6 +30,7 @@ std::unique_ptr<PointReader> openPly(ByteSource source);
 std::unique_ptr<PointReader> openLas(ByteSource source);
 std::unique_ptr<PointReader> openText(ByteSource source);
 std::unique_ptr<PointReader> openObj(ByteSource source);
+std::unique_ptr<PointReader> openE57(ByteSource source);
 /// A Stanford .conf file. `chain`: the .conf files being read around it, outermost first (a
 /// .conf may list .conf files; one that lists itself, directly or not, is refused).
 std::unique_ptr<PointReader> openStanfordConf(const std::filesystem::path& conf,

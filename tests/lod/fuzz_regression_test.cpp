@@ -16,8 +16,11 @@ namespace {
 const std::filesystem::path kRegressions = TESSERA_FUZZ_REGRESSIONS;
 
 TEST(FuzzRegressions, EveryRecordedCrashInputIsHandled) {
-  const std::pair<const char*, Format> formats[] = {
-      {"ply", Format::kPly}, {"las", Format::kLas}, {"text", Format::kText}, {"obj", Format::kObj}};
+  const std::pair<const char*, Format> formats[] = {{"ply", Format::kPly},
+                                                    {"las", Format::kLas},
+                                                    {"text", Format::kText},
+                                                    {"obj", Format::kObj},
+                                                    {"e57", Format::kE57}};
   size_t replayed = 0;
   for (auto [dir, format] : formats) {
     std::filesystem::path folder = kRegressions / dir;
@@ -42,9 +45,8 @@ TEST(FuzzRegressions, EveryRecordedConfStoreAndChunkInputIsHandled) {
                       const std::filesystem::path& dir) { return fuzz::readConf(d, n, dir); }},
           {"tlod", [](const uint8_t* d, size_t n,
                       const std::filesystem::path&) { return fuzz::readStore(d, n); }},
-          {"chunk", [](const uint8_t* d, size_t n, const std::filesystem::path&) {
-             return fuzz::decodeChunkBytes(d, n);
-           }},
+          {"chunk", [](const uint8_t* d, size_t n,
+                       const std::filesystem::path&) { return fuzz::decodeChunkBytes(d, n); }},
           {"tmesh", [](const uint8_t* d, size_t n, const std::filesystem::path&) {
              return fuzz::readMeshStore(d, n);
            }}};

@@ -1,5 +1,6 @@
 // One streaming reader interface over every scan format Tessera reads: PLY, Stanford range
-// scans (.conf), LAS 1.2-1.4, XYZ/PTS/TXT point lists and OBJ meshes.
+// scans (.conf), LAS 1.2-1.4, XYZ/PTS/TXT point lists, OBJ meshes and E57 (every data3D scan,
+// each a ScanInfo with its pose).
 //
 // A reader never holds the whole file in memory: it parses a small header on open and then
 // hands out batches. Bad input is normal input: every problem throws `ReadError` whose message
@@ -31,7 +32,7 @@ class ReadError : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
-enum class Format { kPly, kStanfordConf, kLas, kText, kObj };
+enum class Format { kPly, kStanfordConf, kLas, kText, kObj, kE57 };
 const char* formatName(Format format);
 
 /// A rigid transform: world = rotation * local + translation (metres or file units).
