@@ -22,6 +22,7 @@
 #include <tessera/collab/chunk_cache.h>
 #include <tessera/collab/chunk_server.h>
 #include <tessera/collab/site_messages.h>
+#include <tessera/sync/zmq_poll.h>
 
 namespace tessera::collab {
 
@@ -160,7 +161,7 @@ struct Link {
       }
       zmq::pollitem_t items[2] = {{socket.handle(), 0, ZMQ_POLLIN, 0},
                                   {nullptr, wake, ZMQ_POLLIN, 0}};
-      zmq::poll(items, 2, std::chrono::milliseconds(backlog ? 10 : 200));
+      sync::pollItems(items, 2, std::chrono::milliseconds(backlog ? 10 : 200));
       if (items[1].revents & ZMQ_POLLIN) {
         uint64_t v = 0;
         (void)!::read(wake, &v, sizeof v);

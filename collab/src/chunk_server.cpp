@@ -18,6 +18,7 @@
 #include <tessera/lod/range_source.h>
 #include <tessera/lod/store_cache.h>
 #include <tessera/render/scene_draw_list.h>
+#include <tessera/sync/zmq_poll.h>
 
 #include "server_socket.h"
 #include "token_bucket.h"
@@ -318,7 +319,8 @@ struct ChunkServer::Impl {
       syncStores();
       const double wait = serve(0.1);
       zmq::pollitem_t item{socket.handle(), 0, ZMQ_POLLIN, 0};
-      if (zmq::poll(&item, 1, std::chrono::milliseconds(int64_t(std::ceil(wait * 1000)))) > 0) {
+      if (sync::pollItems(&item, 1, std::chrono::milliseconds(int64_t(std::ceil(wait * 1000)))) >
+          0) {
         syncStores();  // the scene's stores as of now: a site welcomed meanwhile may ask at once
         const double now = seconds();
         for (int budget = 1000; budget > 0 && (socket.get(zmq::sockopt::events) & ZMQ_POLLIN);

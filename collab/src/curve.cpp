@@ -1,4 +1,5 @@
 #include <tessera/collab/curve.h>
+#include <tessera/sync/zmq_poll.h>
 
 #include <fcntl.h>
 #include <sys/stat.h>
@@ -565,7 +566,7 @@ struct ZapHandler::Impl {
       try {
         zmq::pollitem_t item{socket.handle(), 0, ZMQ_POLLIN, 0};
         // A short timeout: the destructor's stop flag is seen within it.
-        if (zmq::poll(&item, 1, std::chrono::milliseconds(100)) == 0) continue;
+        if (sync::pollItems(&item, 1, std::chrono::milliseconds(100)) == 0) continue;
         std::vector<zmq::message_t> frames;
         if (!zmq::recv_multipart(socket, std::back_inserter(frames), zmq::recv_flags::dontwait))
           continue;

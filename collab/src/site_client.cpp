@@ -4,6 +4,7 @@
 
 #include <tessera/sync/cluster_link.h>
 #include <tessera/sync/wire.h>
+#include <tessera/sync/zmq_poll.h>
 
 namespace tessera::collab {
 
@@ -18,11 +19,10 @@ struct SiteClient::Impl {
 
   /// The next message until `deadline`, or nothing.
   std::optional<site::ToSite> next(Clock::time_point deadline) {
-    const auto left =
-        std::chrono::ceil<std::chrono::milliseconds>(deadline - Clock::now());
+    const auto left = std::chrono::ceil<std::chrono::milliseconds>(deadline - Clock::now());
     zmq::pollitem_t item{socket.handle(), 0, ZMQ_POLLIN, 0};
-    if (zmq::poll(&item, 1,
-                  std::max<std::chrono::milliseconds>(left, std::chrono::milliseconds(0))) <= 0)
+    if (sync::pollItems(
+            &item, 1, std::max<std::chrono::milliseconds>(left, std::chrono::milliseconds(0))) <= 0)
       return std::nullopt;
     zmq::message_t msg;
     if (!socket.recv(msg, zmq::recv_flags::dontwait)) return std::nullopt;

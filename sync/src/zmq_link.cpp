@@ -1,4 +1,5 @@
 #include <tessera/sync/zmq_link.h>
+#include <tessera/sync/zmq_poll.h>
 
 #include <zmq.hpp>
 #include <zmq_addon.hpp>
@@ -183,7 +184,7 @@ struct ZmqMasterLink::Impl {
   void checkDisconnects(LinkEvents& events) {
     while (true) {
       zmq::pollitem_t item{monitor.handle(), 0, ZMQ_POLLIN, 0};
-      if (zmq::poll(&item, 1, std::chrono::milliseconds(0)) <= 0) break;
+      if (pollItems(&item, 1, std::chrono::milliseconds(0)) <= 0) break;
       int fd = -1;
       if (!readMonitorEvent(monitor, &fd)) continue;
       probe_until = LinkClock::now() + std::chrono::milliseconds(300);
@@ -239,7 +240,7 @@ struct ZmqMasterLink::Impl {
       if (LinkClock::now() < probe_until) left = std::min(left, std::chrono::milliseconds(5));
       zmq::pollitem_t items[] = {{router.handle(), 0, ZMQ_POLLIN, 0},
                                  {monitor.handle(), 0, ZMQ_POLLIN, 0}};
-      zmq::poll(items, 2, left);
+      pollItems(items, 2, left);
     }
   }
 };
@@ -337,7 +338,7 @@ LinkEvents ZmqMasterLink::collect(uint64_t frame, const std::set<PeerId>& awaite
     wait = std::min(wait, std::chrono::milliseconds(100));  // deadlines move with progress
     zmq::pollitem_t items[] = {{m->router.handle(), 0, ZMQ_POLLIN, 0},
                                {m->monitor.handle(), 0, ZMQ_POLLIN, 0}};
-    zmq::poll(items, 2, wait);
+    pollItems(items, 2, wait);
   }
 }
 
@@ -422,7 +423,7 @@ struct ZmqNodeLink::Impl {
                          " is not a Tessera master: " + why);
       }
       zmq::pollitem_t mon{monitor->handle(), 0, ZMQ_POLLIN, 0};
-      while (zmq::poll(&mon, 1, std::chrono::milliseconds(0)) > 0) {
+      while (pollItems(&mon, 1, std::chrono::milliseconds(0)) > 0) {
         if (readMonitorEvent(*monitor)) {
           lost = true;
           throw MasterLost("sync::ZmqNodeLink: lost the master at " + endpoint +
@@ -434,7 +435,7 @@ struct ZmqNodeLink::Impl {
       if (left.count() == 0) return false;
       zmq::pollitem_t items[] = {{dealer->handle(), 0, ZMQ_POLLIN, 0},
                                  {monitor->handle(), 0, ZMQ_POLLIN, 0}};
-      zmq::poll(items, 2, left);
+      pollItems(items, 2, left);
     }
   }
 };
@@ -509,7 +510,7 @@ bool ZmqNodeLink::receive(cluster::ToNode& message, LinkClock::time_point deadli
 bool ZmqNodeLink::pending() {
   std::lock_guard socket(m->socket_mutex);
   zmq::pollitem_t item{m->dealer->handle(), 0, ZMQ_POLLIN, 0};
-  return zmq::poll(&item, 1, std::chrono::milliseconds(0)) > 0;
+  return pollItems(&item, 1, std::chrono::milliseconds(0)) > 0;
 }
 
 void ZmqNodeLink::report(const cluster::NodeReport& report) {
