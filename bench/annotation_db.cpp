@@ -10,7 +10,7 @@
 //     a Zipf-like frequency, one in ten also with a Japanese sentence, written without spaces):
 //     a rare word, a common word, a prefix, a two-word phrase, an OR, a Japanese word and a
 //     Japanese phrase, median and p90 over repeated queries, with the number of hits; the index
-//     in any script (schema v3, "after") against the previous words-between-spaces index
+//     in any script (schema v3, "after") against an index of words between spaces only
 //     (schema v2, unicode61, "before", queried with the same SQL through the bare C API), the
 //     same items in both.
 //  3. Opening a database of the largest size: with the page check (quick_check) and without.
@@ -104,7 +104,7 @@ Item benchItem(std::mt19937_64& rng, size_t i) {
   return it;
 }
 
-/// The previous release's database (schema v2: its full-text index finds words between spaces
+/// A schema v2 database (its full-text index finds words between spaces
 /// only), written and queried through the bare C API: the baseline of the search.
 class V2Baseline {
  public:

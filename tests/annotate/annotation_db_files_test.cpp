@@ -103,7 +103,7 @@ TEST(AnnotationDbFiles, SearchFindsWordsInEveryScript) {
   EXPECT_EQ(hitsOf(db, "archive"), (std::set<int64_t>{report}));
 }
 
-// A file the previous release wrote (schema v2, its index words between spaces only) is
+// A schema v2 file (its index: words between spaces only) is
 // migrated on opening, and its items are found in any script afterwards.
 TEST(AnnotationDbFiles, MigratesAVersion2File) {
   TempDir dir;
@@ -152,7 +152,7 @@ TEST(AnnotationDbFiles, RefusesANegativeSchemaVersion) {
 // overwritten), each on a fresh copy: every copy SQLite's integrity_check finds damaged is
 // refused by `tessera-annotate add` (exit 1, the file named, the advice to restore a copy) and
 // keeps its bytes; copies whose damage lies where no check can see it (inside a text) may be
-// written. Without the check at opening, add wrote into 13 of 14 damaged files.
+// written. Without the check at opening, add writes into most of the damaged files.
 TEST(AnnotationDbFiles, DamagedFilesAreRefusedAndKeepTheirBytes) {
   TempDir dir;
   const auto good = dir / "good.tadb";

@@ -135,7 +135,7 @@ inline constexpr double kSpreadBelowPerDisc = 0.93;
 /// the data's, which an exact compositor shows: copies stay at their points, as the paper.
 /// A step at kSpreadBelowPerDisc, not a ramp: copies spread part way (rectangles shrunk towards
 /// their points) cover unevenly, 1.5 - 3.7x the binomial noise at three quarters to half the
-/// spread on the Figure 5 plane, and a node so drawn stood out a few grey levels from its
+/// spread on the Figure 5 plane, and a node so drawn stands out a few grey levels from its
 /// neighbours (bench/spbr opacity). Either side of the step the opacity is the one asked.
 double spbrCellSpread(double density, double spacing);
 
