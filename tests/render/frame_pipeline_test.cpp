@@ -128,14 +128,21 @@ TEST_F(FramePipelineTest, PickIdsNameTheModelAndThePointUnderThePixel) {
   }
 }
 
-// A long label in several scripts across the bezel of the 1x2 wall: each tile draws its part
-// where the whole-wall view draws it, glyph pixel for glyph pixel.
-TEST_F(FramePipelineTest, ALongLabelCrossesTheBezelSeamlessly) {
-  const config::WallConfig wall = sync::loadWallConfig(kConfigs + "/walls/1x2.json");
+/// A camera 2 m in front of the z = 0 plane, looking at its origin, y up (the 1x2 wall's bezel
+/// tests).
+config::Camera twoMetresAhead() {
   config::Camera cam;
   cam.mutable_eye()->set_z(2.0);
   cam.mutable_up()->set_y(1.0);
   cam.mutable_target()->set_z(0.0);
+  return cam;
+}
+
+// A long label in several scripts across the bezel of the 1x2 wall: each tile draws its part
+// where the whole-wall view draws it, glyph pixel for glyph pixel.
+TEST_F(FramePipelineTest, ALongLabelCrossesTheBezelSeamlessly) {
+  const config::WallConfig wall = sync::loadWallConfig(kConfigs + "/walls/1x2.json");
+  const config::Camera cam = twoMetresAhead();
   Overlay overlay;
   OverlayLabel label;
   label.at = {-0.1, 0.0, 0.0};
@@ -173,10 +180,7 @@ TEST_F(FramePipelineTest, ALongLabelCrossesTheBezelSeamlessly) {
 
 TEST_F(FramePipelineTest, OverlayLineAcrossTheBezelMeetsOnTheNextTile) {
   const config::WallConfig wall = sync::loadWallConfig(kConfigs + "/walls/1x2.json");
-  config::Camera cam;
-  cam.mutable_eye()->set_z(2.0);
-  cam.mutable_up()->set_y(1.0);
-  cam.mutable_target()->set_z(0.0);
+  const config::Camera cam = twoMetresAhead();
   // A diagonal line through the middle of the wall, in the scene (z = 0 plane, 2 m ahead).
   Overlay overlay;
   overlay.lines.push_back({{-0.7, -0.2, 0.0}, {0.7, 0.15, 0.0}, {255, 0, 0, 255}, 3.0f});
