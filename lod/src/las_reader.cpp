@@ -1,12 +1,15 @@
-// LAS 1.0-1.4 reader, point data formats 0-10, uncompressed. Coordinates are integers scaled
-// and offset in double, then expressed relative to a local origin (the header box centre) so
-// georeferenced data keeps its precision. Extra bytes are skipped by the record length.
-// LAZ (compressed) files are recognised and refused with a clear message.
+// LAS 1.0-1.4 reader, point data formats 0-10, uncompressed or LAZ-compressed. Coordinates are
+// integers scaled and offset in double, then expressed relative to a local origin (the header
+// box centre) so georeferenced data keeps its precision. Extra bytes are skipped by the record
+// length. A LAZ file's chunks decode to the same records an uncompressed file holds
+// (laz_reader.h), several chunks at a time.
 #include <algorithm>
 #include <cmath>
+#include <optional>
 #include <vector>
 
 #include "byte_source.h"
+#include "laz_reader.h"
 #include "reader_util.h"
 #include "readers.h"
 
@@ -36,18 +39,15 @@ int rgbOffset(int fmt) {
 
 class LasReader final : public PointReader {
  public:
-  explicit LasReader(ByteSource source) : mSrc(std::move(source)) { parseHeader(); }
+  LasReader(ByteSource source, unsigned threads) : mSrc(std::move(source)), mThreads(threads) {
+    parseHeader();
+  }
   bool next(PointBatch& batch, size_t max_points) override;
 
  private:
   void parseHeader();
-  void refuseLaz(const std::string& why) const {
-    fail(kComponent, mSrc.name(), "",
-         "file is LAZ-compressed (" + why +
-             "); LAZ is not supported: decompress it to LAS first (for example "
-             "`laszip -i IN.laz -o OUT.las` or `pdal translate IN.laz OUT.las`)");
-  }
   void detectColorDepth();
+  bool nextLaz(PointBatch& batch, size_t max_points);
   /// Decodes `n` records at `p` into batch points at, at + 1, ...
   void decodeRecords(const uint8_t* p, size_t n, PointBatch& batch, size_t at);
 
@@ -60,6 +60,10 @@ class LasReader final : public PointReader {
   glm::dvec3 mScale{1.0}, mDelta{0.0};
   int mRgb = -1;
   bool mColor16 = true;  // colours use the full 16 bits (else 8-bit values in 16-bit fields)
+  unsigned mThreads;
+  std::unique_ptr<LazChunks> mLaz;
+  std::vector<uint8_t> mChunk;  // LAZ: the decoded records of the current chunk
+  uint64_t mChunkCount = 0, mChunkNext = 0;
 };
 
 void LasReader::parseHeader() {
@@ -84,12 +88,8 @@ void LasReader::parseHeader() {
     fail(kComponent, mSrc.name(), atByte(24), "unsupported LAS version " + version);
   }
   // LASzip marks compressed records by setting bit 7 (and 6) of the format byte.
-  if (fmt_byte & 0xC0) {
-    char hex[8];
-    std::snprintf(hex, sizeof hex, "0x%02x", fmt_byte);
-    refuseLaz(std::string("point format byte ") + hex);
-  }
-  mFormat = fmt_byte;
+  const bool compressed = fmt_byte & 0xC0;
+  mFormat = fmt_byte & 0x3F;
   if (mFormat > 10) {
     fail(kComponent, mSrc.name(), atByte(104),
          "unknown point data format " + std::to_string(mFormat));
@@ -151,7 +151,8 @@ void LasReader::parseHeader() {
     }
   }
 
-  // Variable length records: look for the LASzip VLR a renamed .laz would carry.
+  // Variable length records: the LASzip VLR says how the records are compressed.
+  std::optional<LaszipVlr> laszip;
   uint64_t pos = header_size;
   for (uint32_t i = 0; i < vlr_count && pos + 54 <= mDataOffset; ++i) {
     uint8_t vh[54];
@@ -159,18 +160,37 @@ void LasReader::parseHeader() {
     std::string user(reinterpret_cast<const char*>(vh + 2),
                      strnlen(reinterpret_cast<const char*>(vh + 2), 16));
     uint16_t record_id = loadLE<uint16_t>(vh + 18);
-    if (user == "laszip encoded" && record_id == 22204) refuseLaz("LASzip VLR present");
-    pos += 54 + loadLE<uint16_t>(vh + 20);
+    uint16_t length = loadLE<uint16_t>(vh + 20);
+    if (user == "laszip encoded" && record_id == 22204) {
+      std::vector<uint8_t> payload(length);
+      if (pos + 54 + length > mDataOffset ||
+          mSrc.readAt(pos + 54, payload.data(), length) < length) {
+        fail(kComponent, mSrc.name(), atByte(pos), "LASzip VLR runs past the point data offset");
+      }
+      laszip.emplace();
+      if (std::string why = parseLaszipVlr(payload.data(), length, *laszip); !why.empty()) {
+        fail(kComponent, mSrc.name(), atByte(pos + 54), why);
+      }
+    }
+    pos += 54 + length;
   }
-  std::string ext = std::filesystem::path(mSrc.name()).extension().string();
-  if (ext == ".laz" || ext == ".LAZ") refuseLaz("file name ends in .laz");
+  if (compressed && !laszip) {
+    fail(kComponent, mSrc.name(), atByte(104),
+         "point format byte marks LAZ compression but the file has no LASzip VLR");
+  }
 
   mRgb = rgbOffset(mFormat);
-  mInfo.format = Format::kLas;
-  mInfo.format_detail = "LAS " + version + " format " + std::to_string(mFormat);
+  mInfo.format = laszip ? Format::kLaz : Format::kLas;
+  mInfo.format_detail = (laszip ? "LAZ " : "LAS ") + version + " format " + std::to_string(mFormat);
   mInfo.declared_points = mCount;
   mInfo.has_declared_points = true;
   mInfo.attributes = kIntensity | kClassification | (mRgb >= 0 ? kColor : 0u);
+  if (laszip) {
+    mLaz = std::make_unique<LazChunks>(mSrc, kComponent, mDataOffset, mCount, mRecordLength,
+                                       *laszip, mThreads);
+    mInfo.format_detail += " (" + mLaz->describe() + ")";
+    return;  // colour depth: from the first chunk, once decoded
+  }
   if (mRgb >= 0) detectColorDepth();
   mSrc.seek(mDataOffset);
 }
@@ -211,9 +231,41 @@ void LasReader::detectColorDepth() {
   mColor16 = max_value > 255;
 }
 
+bool LasReader::nextLaz(PointBatch& batch, size_t max_points) {
+  if (mChunkNext == mChunkCount) {
+    const bool first = mChunkCount == 0;
+    if (!mLaz->next(mChunk, mChunkCount)) {
+      fail(kComponent, mSrc.name(), "",
+           "the chunks hold " + std::to_string(mNext) + " points but the header declares " +
+               std::to_string(mCount));
+    }
+    mChunkNext = 0;
+    // Colours that never exceed 255 in the first chunk are 8-bit values in 16-bit fields.
+    if (first && mRgb >= 0) {
+      uint16_t max_value = 0;
+      for (uint64_t i = 0; i < mChunkCount; ++i) {
+        for (int c = 0; c < 3; ++c) {
+          max_value = std::max(max_value,
+                               loadLE<uint16_t>(mChunk.data() + i * mRecordLength + mRgb + 2 * c));
+        }
+      }
+      mColor16 = max_value > 255;
+    }
+  }
+  size_t n = size_t(std::min<uint64_t>({std::max<size_t>(1, max_points), mCount - mNext,
+                                        mChunkCount - mChunkNext}));
+  batch.resize(n);
+  decodeRecords(mChunk.data() + mChunkNext * mRecordLength, n, batch, 0);
+  mChunkNext += n;
+  mNext += n;
+  mStats.points += n;
+  return true;
+}
+
 bool LasReader::next(PointBatch& batch, size_t max_points) {
   batch.reset(mInfo.attributes);
   if (mNext >= mCount) return false;
+  if (mLaz) return nextLaz(batch, max_points);
   size_t n = size_t(std::min<uint64_t>(std::max<size_t>(1, max_points), mCount - mNext));
   batch.resize(n);
   // Blocks of about 64 KiB: a refill then moves at most a block's tail to the buffer front.
@@ -262,8 +314,8 @@ void LasReader::decodeRecords(const uint8_t* p, size_t n, PointBatch& batch, siz
 
 }  // namespace
 
-std::unique_ptr<PointReader> openLas(ByteSource source) {
-  return std::make_unique<LasReader>(std::move(source));
+std::unique_ptr<PointReader> openLas(ByteSource source, unsigned decode_threads) {
+  return std::make_unique<LasReader>(std::move(source), decode_threads);
 }
 
 }  // namespace tessera::lod::detail

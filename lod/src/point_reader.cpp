@@ -29,6 +29,8 @@ const char* formatName(Format format) {
       return "stanford-conf";
     case Format::kLas:
       return "las";
+    case Format::kLaz:
+      return "laz";
     case Format::kText:
       return "xyz";
     case Format::kObj:
@@ -121,12 +123,14 @@ std::optional<Format> detect(const uint8_t* head, size_t n, const std::string& n
   return std::nullopt;
 }
 
-std::unique_ptr<PointReader> openWith(Format format, ByteSource src) {
+std::unique_ptr<PointReader> openWith(Format format, ByteSource src,
+                                      const ReaderOptions& options) {
   switch (format) {
     case Format::kPly:
       return detail::openPly(std::move(src));
     case Format::kLas:
-      return detail::openLas(std::move(src));
+    case Format::kLaz:
+      return detail::openLas(std::move(src), options.decode_threads);
     case Format::kText:
       return detail::openText(std::move(src));
     case Format::kObj:
@@ -152,7 +156,7 @@ std::unique_ptr<PointReader> openWith(Format format, ByteSource src) {
   } else if (ext == ".e57") {
     what = "not an E57 file (missing 'ASTM-E57' signature)";
   } else {
-    what = "unknown point format (expected PLY, LAS, E57, .conf, .xyz/.pts/.txt or .obj)";
+    what = "unknown point format (expected PLY, LAS, LAZ, E57, .conf, .xyz/.pts/.txt or .obj)";
   }
   detail::fail("lod::openPointReader()", src.name(), "byte 0", what);
 }
@@ -163,7 +167,7 @@ std::unique_ptr<PointReader> openSource(ByteSource src, const ReaderOptions& opt
   if (!format) unknownFormat(src);
   if (src.size() == 0)
     detail::fail("lod::openPointReader()", src.name(), "byte 0", "file is empty");
-  return openWith(*format, std::move(src));
+  return openWith(*format, std::move(src), options);
 }
 
 }  // namespace

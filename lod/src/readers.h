@@ -27,7 +27,8 @@ inline bool isPlyMagic(const uint8_t* head, size_t n) {
 }
 
 std::unique_ptr<PointReader> openPly(ByteSource source);
-std::unique_ptr<PointReader> openLas(ByteSource source);
+/// LAS or LAZ; `decode_threads`: LAZ chunks decoded at once (0: one per core).
+std::unique_ptr<PointReader> openLas(ByteSource source, unsigned decode_threads = 0);
 std::unique_ptr<PointReader> openText(ByteSource source);
 std::unique_ptr<PointReader> openObj(ByteSource source);
 std::unique_ptr<PointReader> openE57(ByteSource source);

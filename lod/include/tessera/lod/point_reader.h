@@ -1,5 +1,5 @@
 // One streaming reader interface over every scan format Tessera reads: PLY, Stanford range
-// scans (.conf), LAS 1.2-1.4, XYZ/PTS/TXT point lists, OBJ meshes and E57 (every data3D scan,
+// scans (.conf), LAS 1.0-1.4 and LAZ, XYZ/PTS/TXT point lists, OBJ meshes and E57 (every data3D scan,
 // each a ScanInfo with its pose).
 //
 // A reader never holds the whole file in memory: it parses a small header on open and then
@@ -32,7 +32,7 @@ class ReadError : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
-enum class Format { kPly, kStanfordConf, kLas, kText, kObj, kE57 };
+enum class Format { kPly, kStanfordConf, kLas, kText, kObj, kE57, kLaz };
 const char* formatName(Format format);
 
 /// A rigid transform: world = rotation * local + translation (metres or file units).
@@ -106,10 +106,12 @@ class PointReader {
 struct ReaderOptions {
   /// Force a format instead of detecting it from magic bytes and extension.
   std::optional<Format> format;
+  /// LAZ: chunks decoded at once on their own threads (0: one per core).
+  unsigned decode_threads = 0;
 };
 
 /// Opens `path`, detects the format (magic bytes first, then extension) and parses its header.
-/// Throws ReadError for a missing/unreadable file, an unknown format, a bad header, or LAZ.
+/// Throws ReadError for a missing/unreadable file, an unknown format or a bad header.
 std::unique_ptr<PointReader> openPointReader(const std::filesystem::path& path,
                                              const ReaderOptions& options = {});
 
