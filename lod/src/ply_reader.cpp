@@ -1,7 +1,10 @@
 // PLY reader: ASCII, binary little and big endian; any scalar type for any property; vertex
-// normals, colours (uchar, ushort or float), alpha, intensity, confidence; faces triangulated as
-// fans; Stanford range grids (`obj_info num_cols/num_rows` + `range_grid` element) mapped to
-// per-vertex grid positions; every other element and property skipped by its declared size.
+// normals, colours (uchar, ushort or float), alpha, intensity, confidence; `face` polygons
+// triangulated as fans; `tristrips` (Cyberware and Stanford scanning software) decoded as
+// triangle strips; Stanford range grids (`obj_info num_cols/num_rows` + `range_grid` element)
+// mapped to per-vertex grid positions; every other element and property skipped by its declared
+// size. An element that looks like faces but is not one of these is a ReadError naming it, never
+// silently dropped.
 #include "readers.h"
 
 #include <algorithm>
@@ -132,12 +135,26 @@ struct Property {
   size_t offset = 0;  // in a fixed-size binary record
 };
 
+/// What the reader makes of an element besides the vertices and the range grid.
+enum class ElementKind : uint8_t {
+  kOther,   // skipped by size
+  kFaces,   // `face`: polygons, triangulated as fans
+  kStrips,  // `tristrips`: triangle strips, -1 between strips
+};
+
+bool isIndexListName(std::string_view n) {
+  return n == "vertex_indices" || n == "vertex_index";
+}
+
 struct Element {
   std::string name;
   uint64_t count = 0;
   std::vector<Property> props;
   bool fixed = true;       // no list properties
   size_t record_size = 0;  // bytes per instance when fixed
+  uint64_t line = 0;       // header line declaring it
+  ElementKind kind = ElementKind::kOther;
+  int index_list = -1;  // the vertex_indices (or vertex_index) list property, if any
 };
 
 enum class Encoding { kAscii, kBinaryLE, kBinaryBE };
@@ -227,10 +244,22 @@ class PlyReader final : public PointReader {
     fail(kComponent, mSrc.name(),
          mEncoding == Encoding::kAscii ? atLine(mSrc.lineNumber()) : atByte(mSrc.offset()), what);
   }
-  /// Reads one vertex's properties into `values` (indexed by property). False only at a clean
-  /// end of data; throws on truncation or a bad token.
+  /// Reads one instance's properties into `values` (indexed by property) and, when `lists` is
+  /// given, its list properties into `lists`. Throws on truncation or a bad token.
   void readInstance(const Element& e, uint64_t index, std::vector<double>& values,
                     std::vector<std::vector<double>>* lists);
+  /// One property of instance `index`: a scalar into `value`, a list (at most 10^6 values) into
+  /// `list` when given.
+  void readProperty(const Element& e, uint64_t index, const Property& p, double& value,
+                    std::vector<double>* list);
+  /// One value of type `t` at the read position, in either encoding.
+  double readScalar(const Element& e, uint64_t index, PlyType t);
+  /// A list's length, refused when negative or above `limit`.
+  uint64_t readListLength(const Element& e, uint64_t index, const Property& p, double limit);
+  /// ASCII: moves to the next non-blank line, where instance `index` starts.
+  void beginAsciiInstance(const Element& e, uint64_t index);
+  /// ASCII: refuses values left on the line after instance `index`.
+  void endAsciiInstance(const Element& e, uint64_t index);
   std::string_view nextAsciiToken(const Element& e, uint64_t index);
   double asciiValue(const Element& e, uint64_t index, PlyType t, bool integral);
   [[noreturn]] void truncated(const Element& e, uint64_t index) const;
@@ -252,7 +281,20 @@ class PlyReader final : public PointReader {
   /// Binary vertices without list properties: whole blocks of records, one column at a time.
   void readFixedVertices(PointBatch& batch, size_t max_points);
   void decodeVertexBlock(const uint8_t* records, size_t n, PointBatch& batch);
+  /// Whether file vertex index `d` names a vertex that was read and kept.
+  bool usableVertex(double d) const {
+    return d >= 0 && d < double(mRemap.size()) && mRemap[size_t(d)] != kDropped;
+  }
+  /// Triangles of the current face or tristrips element, until `max_triangles` or its end.
+  void readTriangles(PointBatch& batch, size_t max_triangles);
   void readFaces(PointBatch& batch, size_t max_triangles);
+  void readStrips(PointBatch& batch, size_t max_triangles);
+  void addStripIndex(double d, PointBatch& batch);
+  void endStrip();
+  /// Where in the current list, for skip counts: "tristrips 0, index 57".
+  std::string stripPosition(uint64_t position) const;
+  /// Upper bound on the triangles of the tristrips elements: one per index the data can hold.
+  uint64_t stripTriangleBound() const;
   void readRangeGrid();
   void skipElement(const Element& e);
   void advanceElement();
@@ -277,6 +319,16 @@ class PlyReader final : public PointReader {
   std::vector<std::vector<double>> mLists;
   std::string_view mLineRest;    // ASCII: unread part of the current line
   uint64_t mLineOfInstance = 0;  // ASCII: line the current instance started on
+
+  // Triangle strips: one list may hold a whole mesh, so it is decoded index by index and a batch
+  // may end inside it.
+  struct StripState {
+    bool in_list = false;   // inside instance mInstance's index list
+    uint64_t left = 0;      // indices of that list not read yet
+    uint64_t position = 0;  // position in the list of the next index
+    uint64_t length = 0;    // indices of the current strip (since the list's start or a -1)
+    double a = 0, b = 0;    // the strip's last two indices
+  } mStrip;
 
   // Range-grid buffering (one scan: at most num_cols * num_rows vertices).
   PointBatch mBuffer;
@@ -331,6 +383,7 @@ void PlyReader::parseHeader() {
     } else if (key == "element") {
       Element e;
       e.name = std::string(nextToken(rest));
+      e.line = mSrc.lineNumber();
       if (e.name.empty() || !parseUint(nextToken(rest), e.count)) {
         fail(kComponent, mSrc.name(), where, "malformed element line " + shown(line));
       }
@@ -411,20 +464,42 @@ void PlyReader::parseHeader() {
   }
   if (has(Slot::kNx) && has(Slot::kNy) && has(Slot::kNz)) attrs |= kNormal;
 
-  bool faces = false;
+  bool faces = false, strips = false;
   int grid = -1;
   for (size_t i = 0; i < mElements.size(); ++i) {
-    const Element& e = mElements[i];
-    if (e.name == "face") {
+    Element& e = mElements[i];
+    if (int(i) == mVertexElement) continue;
+    for (size_t k = 0; k < e.props.size(); ++k) {
+      if (e.props[k].is_list && isIndexListName(e.props[k].name)) e.index_list = int(k);
+    }
+    if (e.index_list >= 0 && e.name == "face") {
+      e.kind = ElementKind::kFaces;
       faces = true;
       // Triangle count is exact only for triangle meshes; fans from polygons come out more.
       mInfo.declared_triangles += e.count;
     }
-    if (e.name == "range_grid" && int(i) > mVertexElement && e.props.size() == 1 &&
-        e.props[0].is_list) {
-      grid = int(i);
+    if (e.index_list >= 0 && e.name == "tristrips") {
+      e.kind = ElementKind::kStrips;
+      strips = true;
+    }
+    if (e.name == "range_grid") {  // grid cells to vertices, not faces
+      if (int(i) > mVertexElement && e.props.size() == 1 && e.props[0].is_list) grid = int(i);
+      continue;
+    }
+    // Faces under another name or without an index list would vanish: the mesh would read as a
+    // point cloud with nothing said. An empty one loses nothing.
+    const bool face_like = e.name.find("face") != std::string::npos ||
+                           e.name.find("strip") != std::string::npos || e.index_list >= 0;
+    if (face_like && e.kind == ElementKind::kOther && e.count > 0) {
+      fail(kComponent, mSrc.name(), atLine(e.line),
+           "element " + shown(e.name) + " (" + std::to_string(e.count) +
+               " instances) looks like faces but is not read: faces are read from a 'face' "
+               "element and triangle strips from a 'tristrips' element, each with a list "
+               "property 'vertex_indices' or 'vertex_index'; rename it to one of these, or "
+               "remove it to read the vertices alone");
     }
   }
+  if (strips) mInfo.declared_triangles += stripTriangleBound();
   if (grid >= 0 && mGridCols > 0 && mGridRows > 0 &&
       uint64_t(mGridCols) * mGridRows == mElements[size_t(grid)].count &&
       v.count <= uint64_t(mGridCols) * mGridRows) {
@@ -439,7 +514,7 @@ void PlyReader::parseHeader() {
     scan.points = v.count;
     mInfo.scans.push_back(std::move(scan));
   }
-  mRemapNeeded = faces || mBufferGrid;
+  mRemapNeeded = faces || strips || mBufferGrid;
   if (mRemapNeeded && v.count > (uint64_t(1) << 32) - 2) {
     fail(kComponent, mSrc.name(), "header", "more than 2^32 - 2 vertices in a mesh");
   }
@@ -480,40 +555,84 @@ double PlyReader::asciiValue(const Element& e, uint64_t index, PlyType t, bool i
   return v;
 }
 
-void PlyReader::readInstance(const Element& e, uint64_t index, std::vector<double>& values,
-                             std::vector<std::vector<double>>* lists) {
-  if (mEncoding == Encoding::kAscii) {
-    // One instance per line in every writer we know; tolerate instances spanning lines.
-    std::string_view line;
-    do {
-      if (!mSrc.readLine(line)) truncated(e, index);
-      mLineRest = line;
-    } while (mLineRest.find_first_not_of(" \t\r") == std::string_view::npos);
-    mLineOfInstance = mSrc.lineNumber();
-    for (size_t i = 0; i < e.props.size(); ++i) {
-      const Property& p = e.props[i];
-      if (!p.is_list) {
-        values[i] = asciiValue(e, index, p.type, isIntegerType(p.type));
-        continue;
-      }
-      double n = asciiValue(e, index, p.count_type, true);
-      if (n < 0 || n > 1e6) failHere("bad list length " + std::to_string(n) + " in " + e.name);
-      auto* out = lists ? &(*lists)[i] : nullptr;
-      if (out) out->clear();
-      for (size_t k = 0; k < size_t(n); ++k) {
-        double x = asciiValue(e, index, p.type, isIntegerType(p.type));
-        if (out) out->push_back(x);
-      }
+uint64_t PlyReader::stripTriangleBound() const {
+  // The data after the header, less the fixed-size records of the other elements, holds the
+  // strips; each index adds at most one triangle and takes at least its type's size (binary) or
+  // a digit and a separator (ASCII).
+  uint64_t rest = mSrc.size() - mSrc.offset();
+  size_t index_bytes = 8;
+  for (const Element& e : mElements) {
+    if (e.kind == ElementKind::kStrips) {
+      index_bytes = std::min(index_bytes, typeSize(e.props[size_t(e.index_list)].type));
+    } else if (mEncoding != Encoding::kAscii && e.fixed && e.record_size > 0) {
+      rest -= e.count > rest / e.record_size ? rest : e.count * e.record_size;
     }
-    // The next instance starts on a new line: anything left on this one is a bad file.
-    std::string_view extra = nextToken(mLineRest, " \t\r");
-    if (!extra.empty()) {
-      failHere("more values than " + e.name + " " + std::to_string(index) + " declares (" +
-               shown(extra) + " is extra)");
+  }
+  return rest / (mEncoding == Encoding::kAscii ? 2 : index_bytes);
+}
+
+void PlyReader::beginAsciiInstance(const Element& e, uint64_t index) {
+  // One instance per line in every writer we know; tolerate instances spanning lines.
+  std::string_view line;
+  do {
+    if (!mSrc.readLine(line)) truncated(e, index);
+    mLineRest = line;
+  } while (mLineRest.find_first_not_of(" \t\r") == std::string_view::npos);
+  mLineOfInstance = mSrc.lineNumber();
+}
+
+void PlyReader::endAsciiInstance(const Element& e, uint64_t index) {
+  // The next instance starts on a new line: anything left on this one is a bad file.
+  std::string_view extra = nextToken(mLineRest, " \t\r");
+  if (!extra.empty()) {
+    failHere("more values than " + e.name + " " + std::to_string(index) + " declares (" +
+             shown(extra) + " is extra)");
+  }
+}
+
+double PlyReader::readScalar(const Element& e, uint64_t index, PlyType t) {
+  if (mEncoding == Encoding::kAscii) return asciiValue(e, index, t, isIntegerType(t));
+  const size_t sz = typeSize(t);
+  if (mSrc.ensure(sz) < sz) truncated(e, index);
+  const double v = loadScalar(mSrc.data(), t, mSwap);
+  mSrc.consume(sz);
+  return v;
+}
+
+uint64_t PlyReader::readListLength(const Element& e, uint64_t index, const Property& p,
+                                   double limit) {
+  const double n = readScalar(e, index, p.count_type);
+  if (n < 0 || n > limit) failHere("bad list length " + std::to_string(n) + " in " + e.name);
+  return uint64_t(n);
+}
+
+void PlyReader::readProperty(const Element& e, uint64_t index, const Property& p, double& value,
+                             std::vector<double>* list) {
+  if (!p.is_list) {
+    value = readScalar(e, index, p.type);
+    return;
+  }
+  const size_t n = size_t(readListLength(e, index, p, 1e6));
+  if (mEncoding == Encoding::kAscii) {
+    if (list) list->clear();
+    for (size_t k = 0; k < n; ++k) {
+      const double x = readScalar(e, index, p.type);
+      if (list) list->push_back(x);
     }
     return;
   }
-  if (e.fixed) {
+  const size_t isz = typeSize(p.type);
+  if (mSrc.ensure(n * isz) < n * isz) truncated(e, index);
+  if (list) {
+    list->resize(n);
+    for (size_t k = 0; k < n; ++k) (*list)[k] = loadScalar(mSrc.data() + k * isz, p.type, mSwap);
+  }
+  mSrc.consume(n * isz);
+}
+
+void PlyReader::readInstance(const Element& e, uint64_t index, std::vector<double>& values,
+                             std::vector<std::vector<double>>* lists) {
+  if (mEncoding != Encoding::kAscii && e.fixed) {
     if (mSrc.ensure(e.record_size) < e.record_size) truncated(e, index);
     const uint8_t* rec = mSrc.data();
     for (size_t i = 0; i < e.props.size(); ++i) {
@@ -522,26 +641,11 @@ void PlyReader::readInstance(const Element& e, uint64_t index, std::vector<doubl
     mSrc.consume(e.record_size);
     return;
   }
+  if (mEncoding == Encoding::kAscii) beginAsciiInstance(e, index);
   for (size_t i = 0; i < e.props.size(); ++i) {
-    const Property& p = e.props[i];
-    size_t sz = typeSize(p.is_list ? p.count_type : p.type);
-    if (mSrc.ensure(sz) < sz) truncated(e, index);
-    double v = loadScalar(mSrc.data(), p.is_list ? p.count_type : p.type, mSwap);
-    mSrc.consume(sz);
-    if (!p.is_list) {
-      values[i] = v;
-      continue;
-    }
-    if (v < 0 || v > 1e6) failHere("bad list length " + std::to_string(v) + " in " + e.name);
-    size_t n = size_t(v), isz = typeSize(p.type);
-    if (mSrc.ensure(n * isz) < n * isz) truncated(e, index);
-    auto* out = lists ? &(*lists)[i] : nullptr;
-    if (out) {
-      out->resize(n);
-      for (size_t k = 0; k < n; ++k) (*out)[k] = loadScalar(mSrc.data() + k * isz, p.type, mSwap);
-    }
-    mSrc.consume(n * isz);
+    readProperty(e, index, e.props[i], values[i], lists ? &(*lists)[i] : nullptr);
   }
+  if (mEncoding == Encoding::kAscii) endAsciiInstance(e, index);
 }
 
 void PlyReader::skipVertex(uint64_t file_index) {
@@ -698,34 +802,25 @@ void PlyReader::decodeVertexBlock(const uint8_t* records, size_t n, PointBatch& 
   mInstance += n;
 }
 
+void PlyReader::readTriangles(PointBatch& batch, size_t max_triangles) {
+  if (mElements[mElement].kind == ElementKind::kStrips) {
+    readStrips(batch, max_triangles);
+  } else {
+    readFaces(batch, max_triangles);
+  }
+}
+
 void PlyReader::readFaces(PointBatch& batch, size_t max_triangles) {
   const Element& e = mElements[mElement];
-  int list_prop = -1;
-  for (size_t i = 0; i < e.props.size(); ++i) {
-    if (e.props[i].is_list &&
-        (e.props[i].name == "vertex_indices" || e.props[i].name == "vertex_index")) {
-      list_prop = int(i);
-    }
-  }
-  if (list_prop < 0) {
-    // Nothing to triangulate: skip by size (a binary face without properties has 0 bytes, and
-    // reading its instances one by one would never end for a huge count).
-    skipElement(e);
-    return;
-  }
   while (mInstance < e.count && batch.triangles.size() < max_triangles) {
     uint64_t where = mInstance;
     readInstance(e, mInstance++, mValues, &mLists);
-    const auto& idx = mLists[size_t(list_prop)];
+    const auto& idx = mLists[size_t(e.index_list)];
     if (idx.size() < 3) {
       mStats.skip("face with fewer than 3 vertices", "face " + std::to_string(where));
       continue;
     }
-    bool ok = true;
-    for (double d : idx) {
-      if (!(d >= 0) || d >= double(mRemap.size()) || mRemap[size_t(d)] == kDropped) ok = false;
-    }
-    if (!ok) {
+    if (!std::all_of(idx.begin(), idx.end(), [&](double d) { return usableVertex(d); })) {
       mStats.skip("face with an out-of-range or skipped vertex", "face " + std::to_string(where));
       continue;
     }
@@ -734,6 +829,82 @@ void PlyReader::readFaces(PointBatch& batch, size_t max_triangles) {
                                    mRemap[size_t(idx[k + 1])]);
     }
   }
+}
+
+void PlyReader::readStrips(PointBatch& batch, size_t max_triangles) {
+  const Element& e = mElements[mElement];
+  const Property& list = e.props[size_t(e.index_list)];
+  while (mInstance < e.count && batch.triangles.size() < max_triangles) {
+    if (!mStrip.in_list) {
+      if (mEncoding == Encoding::kAscii) beginAsciiInstance(e, mInstance);
+      double unused;
+      for (int k = 0; k < e.index_list; ++k)
+        readProperty(e, mInstance, e.props[size_t(k)], unused, nullptr);
+      // No limit but the file: one list often holds the whole mesh. Each index takes a byte at
+      // least, so a longer list is a truncated file.
+      const uint64_t n = readListLength(e, mInstance, list, 1e18);
+      const uint64_t bytes_left = mSrc.size() - mSrc.offset() + mLineRest.size();
+      if (n > bytes_left) {
+        mSrc.seek(mSrc.size());
+        truncated(e, mInstance);
+      }
+      mStrip = StripState{};
+      mStrip.in_list = true;
+      mStrip.left = n;
+    }
+    while (mStrip.left > 0 && batch.triangles.size() < max_triangles) {
+      const double d = readScalar(e, mInstance, list.type);
+      --mStrip.left;
+      addStripIndex(d, batch);
+      ++mStrip.position;
+    }
+    if (mStrip.left > 0) return;  // the batch is full: the list goes on in the next one
+    endStrip();
+    double unused;
+    for (size_t k = size_t(e.index_list) + 1; k < e.props.size(); ++k)
+      readProperty(e, mInstance, e.props[k], unused, nullptr);
+    if (mEncoding == Encoding::kAscii) endAsciiInstance(e, mInstance);
+    mStrip.in_list = false;
+    ++mInstance;
+  }
+}
+
+// Triangle k of a strip v0 v1 v2 ... is (v[k], v[k+1], v[k+2]) for even k and
+// (v[k+1], v[k], v[k+2]) for odd k, so every triangle keeps the first one's winding.
+void PlyReader::addStripIndex(double d, PointBatch& batch) {
+  StripState& s = mStrip;
+  // -1 ends a strip; an unsigned 32-bit list writes it as 0xFFFFFFFF (never a vertex: a mesh has
+  // at most 2^32 - 2).
+  if (d == -1.0 || d == 4294967295.0) {
+    endStrip();
+    return;
+  }
+  if (s.length >= 2) {
+    const bool odd = (s.length - 2) % 2 == 1;
+    const double a = odd ? s.b : s.a, b = odd ? s.a : s.b;
+    if (a == b || b == d || a == d) {
+      mStats.skip("degenerate strip triangle (a vertex repeated)", stripPosition(s.position));
+    } else if (!usableVertex(a) || !usableVertex(b) || !usableVertex(d)) {
+      mStats.skip("strip triangle with an out-of-range or skipped vertex",
+                  stripPosition(s.position));
+    } else {
+      batch.triangles.emplace_back(mRemap[size_t(a)], mRemap[size_t(b)], mRemap[size_t(d)]);
+    }
+  }
+  s.a = s.b;
+  s.b = d;
+  ++s.length;
+}
+
+void PlyReader::endStrip() {
+  if (mStrip.length == 1 || mStrip.length == 2)
+    mStats.skip("strip with fewer than 3 vertices", stripPosition(mStrip.position - mStrip.length));
+  mStrip.length = 0;
+}
+
+std::string PlyReader::stripPosition(uint64_t position) const {
+  return mElements[mElement].name + " " + std::to_string(mInstance) + ", index " +
+         std::to_string(position);
 }
 
 void PlyReader::readRangeGrid() {
@@ -842,9 +1013,9 @@ bool PlyReader::fillBuffered() {
     const Element& e = mElements[mElement];
     if (int(mElement) == mVertexElement) {
       readVertices(mBuffer, std::numeric_limits<size_t>::max());
-    } else if (e.name == "face") {
+    } else if (e.kind != ElementKind::kOther) {
       PointBatch tmp;
-      readFaces(tmp, std::numeric_limits<size_t>::max());
+      readTriangles(tmp, std::numeric_limits<size_t>::max());
       mBufferedTriangles.insert(mBufferedTriangles.end(), tmp.triangles.begin(),
                                 tmp.triangles.end());
     } else if (int(mElement) == mGridElement &&
@@ -879,8 +1050,8 @@ bool PlyReader::next(PointBatch& batch, size_t max_points) {
     const Element& e = mElements[mElement];
     if (int(mElement) == mVertexElement) {
       readVertices(batch, max_points);
-    } else if (e.name == "face") {
-      readFaces(batch, max_points);
+    } else if (e.kind != ElementKind::kOther) {
+      readTriangles(batch, max_points);
     } else {
       skipElement(e);
     }

@@ -29,7 +29,7 @@ std::string vec(const glm::dvec3& v, bool json) {
 
 namespace {
 
-bool isStore(const std::filesystem::path& path) {
+bool isPointStore(const std::filesystem::path& path) {
   if (path.extension() == ".tlod") return true;
   if (notRegularFile(path)) return false;  // the reader says why; an ifstream would block on a FIFO
   std::ifstream in(path, std::ios::binary);
@@ -38,12 +38,45 @@ bool isStore(const std::filesystem::path& path) {
   return in && std::memcmp(magic, "TLOD", 4) == 0;
 }
 
+void summarizeMeshStore(const std::filesystem::path& path, SourceSummary& s) {
+  try {
+    const auto store = MeshStore::open(path);
+    const MeshSummary& m = store->summary();
+    s.mesh_store = m;
+    s.opened = true;
+    s.stats.points = m.input_vertices;
+    s.stats.triangles = m.input_triangles;
+    s.bbox_min = m.origin + m.bbox_min;
+    s.bbox_max = m.origin + m.bbox_max;
+    s.info.attributes = m.colors ? AttributeMask(kColor) : AttributeMask(0);
+    s.info.origin = m.origin;
+    // Children come after their parents in the table (open() checks it): a node's depth is
+    // known when it is met.
+    std::vector<uint32_t> depth(store->nodeCount(), 0);
+    for (NodeId id = 0; id < store->nodeCount(); ++id) {
+      const MeshNodeRecord& r = store->record(id);
+      for (uint32_t c = 0; c < r.child_count; ++c) depth[r.first_child + c] = depth[id] + 1;
+      if (depth[id] >= s.mesh_levels.size()) s.mesh_levels.resize(depth[id] + 1);
+      SourceSummary::MeshLevel& level = s.mesh_levels[depth[id]];
+      ++level.patches;
+      level.triangles += r.triangles;
+      level.max_error = std::max(level.max_error, double(r.error));
+    }
+  } catch (const StoreError& e) {
+    s.error = e.what();
+  }
+}
+
 }  // namespace
 
 SourceSummary summarizeSource(const std::filesystem::path& path, bool quiet) {
   SourceSummary s;
   s.path = path.string();
-  if (isStore(path)) {
+  if (path.extension() == ".tmesh" || isMeshStore(path)) {
+    summarizeMeshStore(path, s);
+    return s;
+  }
+  if (isPointStore(path)) {
     try {
       auto store = PointStore::open(path);
       s.store = store->summary();
@@ -90,7 +123,68 @@ SourceSummary summarizeSource(const std::filesystem::path& path, bool quiet) {
   return s;
 }
 
+namespace {
+
+std::string meshStoreText(const SourceSummary& s) {
+  const MeshSummary& m = *s.mesh_store;
+  const double per_triangle = double(std::max<uint64_t>(1, m.input_triangles));
+  const glm::dvec3 size = m.bbox_max - m.bbox_min;
+  std::string o =
+      s.path + ": Tessera mesh store (.tmesh) version " + std::to_string(m.version) + "\n";
+  char line[256];
+  std::snprintf(line, sizeof line,
+                "  %llu input triangles, %llu vertices%s; %llu nodes, depth %u, %llu stored "
+                "triangles (%.2fx)\n",
+                (unsigned long long)m.input_triangles, (unsigned long long)m.input_vertices,
+                m.colors ? ", colour" : "", (unsigned long long)m.nodes, m.depth,
+                (unsigned long long)m.stored_triangles, double(m.stored_triangles) / per_triangle);
+  o += line;
+  std::snprintf(line, sizeof line,
+                "  origin %.9g %.9g %.9g, size %.6g x %.6g x %.6g, grid step %.3g\n", m.origin.x,
+                m.origin.y, m.origin.z, size.x, size.y, size.z, m.step);
+  o += line;
+  std::snprintf(line, sizeof line, "  %llu bytes: %.2f bytes per input triangle\n",
+                (unsigned long long)m.file_bytes, double(m.file_bytes) / per_triangle);
+  o += line;
+  for (size_t d = 0; d < s.mesh_levels.size(); ++d) {
+    const SourceSummary::MeshLevel& l = s.mesh_levels[d];
+    std::snprintf(line, sizeof line,
+                  "  depth %zu: %llu patches, %llu triangles, error up to %.3g\n", d,
+                  (unsigned long long)l.patches, (unsigned long long)l.triangles, l.max_error);
+    o += line;
+  }
+  return o;
+}
+
+std::string meshStoreJson(const SourceSummary& s) {
+  const MeshSummary& m = *s.mesh_store;
+  const double per_triangle = double(std::max<uint64_t>(1, m.input_triangles));
+  std::ostringstream o;
+  o << ", \"format\": \"tmesh\", \"version\": " << m.version << ", \"points\": " << m.input_vertices
+    << ", \"vertices\": " << m.input_vertices << ", \"triangles\": " << m.input_triangles
+    << ", \"bbox_min\": " << vec(s.bbox_min, true) << ", \"bbox_max\": " << vec(s.bbox_max, true)
+    << ", \"origin\": " << vec(m.origin, true)
+    << ", \"size\": " << vec(m.bbox_max - m.bbox_min, true) << ", \"attributes\": ["
+    << (m.colors ? "\"color\"" : "") << "], \"skipped\": {}, \"scans\": []"
+    << ", \"nodes\": " << m.nodes << ", \"depth\": " << m.depth
+    << ", \"stored_triangles\": " << m.stored_triangles
+    << ", \"overhead\": " << num(double(m.stored_triangles) / per_triangle)
+    << ", \"grid_step\": " << num(m.step) << ", \"file_bytes\": " << m.file_bytes
+    << ", \"bytes_per_triangle\": " << num(double(m.file_bytes) / per_triangle)
+    << ", \"levels\": [";
+  for (size_t d = 0; d < s.mesh_levels.size(); ++d) {
+    const SourceSummary::MeshLevel& l = s.mesh_levels[d];
+    o << (d ? ", " : "") << "{\"depth\": " << d << ", \"patches\": " << l.patches
+      << ", \"triangles\": " << l.triangles << ", \"max_error\": " << num(l.max_error) << "}";
+  }
+  o << "]";
+  return o.str();
+}
+
+}  // namespace
+
 std::string summaryText(const SourceSummary& s) {
+  if (s.mesh_store) return meshStoreText(s);
   std::ostringstream o;
   o << s.path << "\n";
   if (s.store) {
@@ -157,6 +251,7 @@ std::string summaryText(const SourceSummary& s) {
 std::string summaryJson(const SourceSummary& s) {
   std::ostringstream o;
   o << "{\"file\": " << jsonString(s.path);
+  if (s.mesh_store) o << meshStoreJson(s);
   if (s.store) {
     const StoreSummary& t = *s.store;
     o << ", \"format\": \"tlod\", \"version\": " << t.version << ", \"points\": " << t.points
@@ -180,7 +275,7 @@ std::string summaryJson(const SourceSummary& s) {
       o << (i ? ", " : "") << jsonString(s.store_sources[i]);
     o << "]";
   }
-  if (s.opened && !s.store) {
+  if (s.opened && !s.store && !s.mesh_store) {
     o << ", \"format\": " << jsonString(formatName(s.info.format))
       << ", \"format_detail\": " << jsonString(s.info.format_detail)
       << ", \"points\": " << s.stats.points;

@@ -55,56 +55,9 @@ int guarded(const char* command, int store_error_code, Body body) {
   }
 }
 
-/// A mesh store's summary and its levels.
-void printMeshInfo(const std::string& file) {
-  const auto store = MeshStore::open(file);
-  const MeshSummary& s = store->summary();
-  std::printf("%s: Tessera mesh store (.tmesh) version %u\n", file.c_str(), s.version);
-  std::printf("  %llu input triangles, %llu vertices%s; %llu nodes, depth %u, %llu stored triangles "
-              "(%.2fx)\n",
-              (unsigned long long)s.input_triangles, (unsigned long long)s.input_vertices,
-              s.colors ? ", colour" : "", (unsigned long long)s.nodes, s.depth,
-              (unsigned long long)s.stored_triangles,
-              double(s.stored_triangles) / double(std::max<uint64_t>(1, s.input_triangles)));
-  std::printf("  origin %.9g %.9g %.9g, size %.6g x %.6g x %.6g, grid step %.3g\n", s.origin.x,
-              s.origin.y, s.origin.z, s.bbox_max.x, s.bbox_max.y, s.bbox_max.z, s.step);
-  std::printf("  %llu bytes: %.2f bytes per input triangle\n", (unsigned long long)s.file_bytes,
-              double(s.file_bytes) / double(std::max<uint64_t>(1, s.input_triangles)));
-  std::vector<uint32_t> depth(store->nodeCount(), 0);
-  std::vector<uint64_t> tris, count;
-  std::vector<double> err;
-  for (NodeId id = 0; id < store->nodeCount(); ++id) {
-    const MeshNodeRecord& r = store->record(id);
-    for (uint32_t c = 0; c < r.child_count; ++c) depth[r.first_child + c] = depth[id] + 1;
-    if (depth[id] >= tris.size()) {
-      tris.resize(depth[id] + 1, 0);
-      count.resize(depth[id] + 1, 0);
-      err.resize(depth[id] + 1, 0.0);
-    }
-    tris[depth[id]] += r.triangles;
-    ++count[depth[id]];
-    err[depth[id]] = std::max(err[depth[id]], double(r.error));
-  }
-  for (size_t d = 0; d < tris.size(); ++d)
-    std::printf("  depth %zu: %llu patches, %llu triangles, error up to %.3g\n", d,
-                (unsigned long long)count[d], (unsigned long long)tris[d], err[d]);
-}
-
+/// Describes every file, scan or store alike (summarizeSource() tells them apart).
 int runInfo(const std::vector<std::string>& files, bool json, bool quiet) {
   int rc = 0;
-  if (!json) {
-    bool all_meshes = true;
-    for (const auto& f : files) all_meshes &= isMeshStore(f);
-    if (all_meshes) {
-      try {
-        for (const auto& f : files) printMeshInfo(f);
-        return 0;
-      } catch (const StoreError& e) {
-        std::cerr << "tessera-lod info: " << e.what() << "\n";
-        return kExitBadInput;
-      }
-    }
-  }
   if (json && files.size() > 1) std::cout << "[\n";
   for (size_t i = 0; i < files.size(); ++i) {
     SourceSummary s = summarizeSource(files[i], quiet);
@@ -302,7 +255,9 @@ int run(int argc, char** argv) {
   bool info_json = false, info_quiet = false;
   auto* info = app.add_subcommand(
       "info", "Describe scan files: format, points, triangles, bounds, attributes, skips, scans");
-  info->add_option("FILE", info_files, "PLY, LAS, Stanford .conf, XYZ/PTS/TXT or OBJ files")
+  info->add_option("FILE", info_files,
+                   "PLY, LAS, E57, Stanford .conf, XYZ/PTS/TXT or OBJ files, .tlod point stores "
+                   "or .tmesh mesh stores")
       ->required();
   info->add_flag("--json", info_json, "Print JSON (one object per file; an array for several)");
   info->add_flag("--quiet", info_quiet, "No progress bar");

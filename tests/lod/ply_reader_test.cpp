@@ -1,12 +1,15 @@
-// PLY reader: real Stanford data, every encoding and type, skipped properties, faces, and bad
-// input (truncation, NaN, wrong magic, unknown types) giving errors that say where.
+// PLY reader: real Stanford data, every encoding and type, skipped properties, faces, triangle
+// strips, and bad input (truncation, NaN, wrong magic, unknown types, faces it cannot read)
+// giving errors that say where.
 #include <gtest/gtest.h>
 
 #include <sys/stat.h>
 
 #include <cmath>
 #include <cstring>
+#include <limits>
 
+#include <tessera/lod/mesh.h>
 #include <tessera/lod/point_reader.h>
 #include <tessera/lod/point_writer.h>
 
@@ -352,6 +355,233 @@ TEST(PlyReader, RangeGridCellLargerThanTheReadWindow) {
   ASSERT_EQ(r.points.size(), 1u);
   EXPECT_EQ(r.points.grid_positions[0], glm::u16vec2(1, 0));
 }
+
+}  // namespace
+}  // namespace tessera::lod
+
+namespace tessera::lod {
+namespace {
+
+// A PLY of float x y z vertices and one element of int lists named `element`, its list property
+// `vertex_indices` with `count_type` counts, written byte by byte here: independent of the
+// reader and of writePly().
+std::string plyWithLists(PlyEncoding encoding, const std::vector<glm::vec3>& vertices,
+                         const std::string& element, const std::vector<std::vector<int32_t>>& lists,
+                         const std::string& count_type = "int") {
+  static const char* const kFormat[] = {"ascii", "binary_little_endian", "binary_big_endian"};
+  std::string s = std::string("ply\nformat ") + kFormat[int(encoding)] + " 1.0\nelement vertex " +
+                  std::to_string(vertices.size()) +
+                  "\nproperty float x\nproperty float y\nproperty float z\nelement " + element +
+                  " " + std::to_string(lists.size()) + "\nproperty list " + count_type +
+                  " int vertex_indices\nend_header\n";
+  auto put = [&](const void* p, size_t n) {
+    std::string bytes(static_cast<const char*>(p), n);
+    if (encoding == PlyEncoding::kBinaryBigEndian) std::reverse(bytes.begin(), bytes.end());
+    s += bytes;
+  };
+  auto number = [&](auto v) {
+    if (encoding == PlyEncoding::kAscii) {
+      s += std::to_string(v) + " ";
+    } else {
+      put(&v, sizeof v);
+    }
+  };
+  for (const glm::vec3& v : vertices) {
+    for (int axis = 0; axis < 3; ++axis) number(v[axis]);
+    if (encoding == PlyEncoding::kAscii) s += "\n";
+  }
+  for (const auto& list : lists) {
+    if (count_type == "uchar") {
+      number(uint8_t(list.size()));
+    } else {
+      number(int32_t(list.size()));
+    }
+    for (int32_t i : list) number(i);
+    if (encoding == PlyEncoding::kAscii) s += "\n";
+  }
+  return s;
+}
+
+// Vertices 0..3 and 4..6 in the z = 0 plane: the strip's first triangle faces -z.
+const std::vector<glm::vec3> kStripVertices = {{0, 0, 0}, {0, 1, 0}, {1, 0, 0}, {1, 1, 0},
+                                               {3, 0, 0}, {3, 1, 0}, {4, 0, 0}};
+
+double normalZ(const PointBatch& b, const Triangle& t) {
+  return glm::cross(b.positions[t.y] - b.positions[t.x], b.positions[t.z] - b.positions[t.x]).z;
+}
+
+class PlyStrips : public ::testing::TestWithParam<PlyEncoding> {};
+
+TEST_P(PlyStrips, StripsGiveTrianglesWithTheFirstOnesWinding) {
+  for (const char* count_type : {"int", "uchar"}) {
+    SCOPED_TRACE(count_type);
+    auto r = readAllMemory(plyWithLists(GetParam(), kStripVertices, "tristrips",
+                                        {{0, 1, 2, 3, -1, 4, 5, 6}}, count_type),
+                           "strip.ply");
+    ASSERT_EQ(r.points.size(), 7u);
+    ASSERT_EQ(r.points.triangles.size(), 3u);
+    EXPECT_EQ(r.points.triangles[0], Triangle(0, 1, 2));
+    EXPECT_EQ(r.points.triangles[1], Triangle(2, 1, 3));  // odd: the first two swap
+    EXPECT_EQ(r.points.triangles[2], Triangle(4, 5, 6));  // after -1 a new strip starts even
+    for (const Triangle& t : r.points.triangles) EXPECT_LT(normalZ(r.points, t), 0.0);
+    EXPECT_EQ(r.stats.triangles, 3u);
+    EXPECT_TRUE(r.stats.skipped.empty());
+    EXPECT_GE(r.info.declared_triangles, 3u);  // an upper bound: the header has no count
+  }
+}
+
+// A 0xFFFFFFFF restart in an unsigned list, big-endian bytes written by hand.
+TEST(PlyReader, UnsignedStripListsRestartAtAllOnes) {
+  std::string s =
+      "ply\nformat binary_big_endian 1.0\nelement vertex 6\nproperty uchar x\nproperty uchar "
+      "y\nproperty uchar z\nelement tristrips 1\nproperty list ushort uint vertex_indices\n"
+      "end_header\n";
+  for (uint8_t i = 0; i < 6; ++i) s += std::string{char(i), char(i * i), char(1)};
+  s += std::string("\x00\x07", 2);
+  for (uint32_t i : {0u, 1u, 2u, 0xFFFFFFFFu, 3u, 4u, 5u})
+    s += std::string{char(i >> 24), char(i >> 16), char(i >> 8), char(i)};
+  auto r = readAllMemory(s, "be_strip.ply");
+  ASSERT_EQ(r.points.triangles.size(), 2u);
+  EXPECT_EQ(r.points.triangles[0], Triangle(0, 1, 2));
+  EXPECT_EQ(r.points.triangles[1], Triangle(3, 4, 5));
+}
+
+TEST_P(PlyStrips, DegenerateTrianglesAndShortStripsAreSkippedAndCounted) {
+  // 0 1 1 2 3: (0,1,1) and, odd, (1,1,2) repeat a vertex; (1,2,3) is even again. 5 6: too short.
+  auto r = readAllMemory(
+      plyWithLists(GetParam(), kStripVertices, "tristrips", {{0, 1, 1, 2, 3, -1, 5, 6}, {4}}),
+      "degenerate.ply");
+  ASSERT_EQ(r.points.triangles.size(), 1u);
+  EXPECT_EQ(r.points.triangles[0], Triangle(1, 2, 3));
+  EXPECT_EQ(r.stats.skipped.at("degenerate strip triangle (a vertex repeated)"), 2u);
+  EXPECT_EQ(r.stats.first_skip_at.at("degenerate strip triangle (a vertex repeated)"),
+            "tristrips 0, index 2");
+  EXPECT_EQ(r.stats.skipped.at("strip with fewer than 3 vertices"), 2u);
+  EXPECT_EQ(r.stats.first_skip_at.at("strip with fewer than 3 vertices"), "tristrips 0, index 6");
+}
+
+TEST_P(PlyStrips, TrianglesWithABadOrSkippedVertexAreSkippedAsFacesAre) {
+  // Index 99 is out of range: the three triangles using it go, the rest of the strip stays, its
+  // parity unchanged. Vertex 6 is not finite (skipped) and -7 is no vertex.
+  std::vector<glm::vec3> vertices = kStripVertices;
+  vertices[6].x = std::numeric_limits<float>::quiet_NaN();
+  auto r = readAllMemory(
+      plyWithLists(GetParam(), vertices, "tristrips", {{0, 1, 2, 99, 3, 4, 5, 6, -1, -7, 0, 1}}),
+      "bad.ply");
+  const std::string reason = "strip triangle with an out-of-range or skipped vertex";
+  EXPECT_EQ(r.points.size(), 6u);
+  ASSERT_EQ(r.points.triangles.size(), 2u);
+  EXPECT_EQ(r.points.triangles[0], Triangle(0, 1, 2));
+  EXPECT_EQ(r.points.triangles[1], Triangle(3, 4, 5));  // even: k = 4
+  // (2,1,99), (2,99,3), (3,99,4), (5,4,6) and (-7,0,1).
+  EXPECT_EQ(r.stats.skipped.at(reason), 5u);
+  EXPECT_EQ(r.stats.first_skip_at.at(reason), "tristrips 0, index 3");
+}
+
+test::ReadResult readMemory(const std::string& bytes, const std::string& name, size_t batch_size) {
+  auto reader = openPointReader(
+      std::span<const uint8_t>(reinterpret_cast<const uint8_t*>(bytes.data()), bytes.size()), name);
+  return readAll(*reader, batch_size);
+}
+
+TEST_P(PlyStrips, AGridAsStripsAndAsFacesGivesTheSameTriangles) {
+  // A 30 x 20 grid: one strip per row of quads, b0 t0 b1 t1 ..., all in one list with -1
+  // between rows (as Stanford's strip writer does). The faces list the triangles that strip
+  // order makes, written by formula: (b_j, t_j, b_j+1) and (b_j+1, t_j, t_j+1).
+  const int w = 30, h = 20;
+  std::vector<glm::vec3> vertices;
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) vertices.emplace_back(float(x), float(y), float(x * y) * 0.01f);
+  std::vector<int32_t> strips;
+  std::vector<std::vector<int32_t>> faces;
+  for (int y = 0; y + 1 < h; ++y) {
+    if (y > 0) strips.push_back(-1);
+    for (int x = 0; x < w; ++x) {
+      const int32_t b = y * w + x, t = (y + 1) * w + x;
+      strips.push_back(b);
+      strips.push_back(t);
+      if (x + 1 < w) {
+        faces.push_back({b, t, b + 1});
+        faces.push_back({b + 1, t, t + 1});
+      }
+    }
+  }
+  const auto as_faces = readAllMemory(plyWithLists(GetParam(), vertices, "face", faces), "f.ply");
+  ASSERT_EQ(as_faces.points.triangles.size(), size_t(2 * (w - 1) * (h - 1)));
+  const std::string strip_bytes = plyWithLists(GetParam(), vertices, "tristrips", {strips});
+  for (size_t batch : {size_t(7), size_t(1000)}) {  // 7: batches end inside the list
+    SCOPED_TRACE(batch);
+    const auto as_strips = readMemory(strip_bytes, "s.ply", batch);
+    EXPECT_EQ(as_strips.points.triangles, as_faces.points.triangles);
+    EXPECT_EQ(as_strips.stats.triangles, as_faces.stats.triangles);
+    EXPECT_TRUE(as_strips.stats.skipped.empty());
+  }
+  // The mesh path reads them too (before, "no triangles (a point cloud, not a mesh)").
+  test::TempDir dir;
+  test::writeText(dir / "s.ply", strip_bytes);
+  EXPECT_EQ(readMesh(dir / "s.ply").triangles, as_faces.points.triangles);
+}
+
+TEST_P(PlyStrips, AListLongerThanTheFileIsAnError) {
+  std::string s = plyWithLists(GetParam(), kStripVertices, "tristrips", {{0, 1, 2, 3}});
+  // Cut inside the list: the last index (and, in ASCII, the line end) are missing.
+  s.resize(s.size() - (GetParam() == PlyEncoding::kAscii ? 3 : 2));
+  const std::string msg = readErrorOf([&] { readAllMemory(s, "cut.ply"); });
+  EXPECT_NE(msg.find("cut.ply: byte "), std::string::npos) << msg;
+  EXPECT_NE(msg.find("file ends inside tristrips 0 of 1"), std::string::npos) << msg;
+  // A length no file this size can hold is refused before reading on.
+  std::string lying = plyWithLists(GetParam(), kStripVertices, "tristrips", {{0, 1, 2}});
+  const uint32_t n = 1000000000;
+  if (GetParam() == PlyEncoding::kAscii) {
+    lying.replace(lying.rfind("3 0 1 2"), 1, std::to_string(n));
+  } else {
+    const bool be = GetParam() == PlyEncoding::kBinaryBigEndian;
+    for (int k = 0; k < 4; ++k)
+      lying[lying.size() - 16 + size_t(k)] = char(n >> (8 * (be ? 3 - k : k)));
+  }
+  const std::string lie = readErrorOf([&] { readAllMemory(lying, "lie.ply"); });
+  EXPECT_NE(lie.find("lie.ply: byte " + std::to_string(lying.size()) +
+                     ": file ends inside tristrips 0 of 1"),
+            std::string::npos)
+      << lie;
+}
+
+// An element that looks like faces but that the reader does not triangulate is named, not
+// dropped (which would read the mesh as a point cloud with nothing said).
+TEST(PlyReader, FacesItCannotReadAreNamedInTheError) {
+  const std::string head =
+      "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+      "property float z\n";
+  const std::string verts = "0 0 0\n1 0 0\n0 1 0\n";
+  for (const auto& [element, name] : std::vector<std::pair<std::string, std::string>>{
+           {"element faces 1\nproperty list uchar int vertex_indices\n", "'faces' (1 instances)"},
+           {"element face 1\nproperty list uchar int corners\n", "'face' (1 instances)"},
+           {"element tristrips 1\nproperty list int int indices\n", "'tristrips' (1 instances)"},
+           {"element quadstrip 1\nproperty int a\n", "'quadstrip' (1 instances)"},
+           {"element polygon 1\nproperty list uchar int vertex_index\n",
+            "'polygon' (1 instances)"}}) {
+    SCOPED_TRACE(element);
+    const std::string msg = readErrorOf(
+        [&] { readAllMemory(head + element + "end_header\n" + verts + "3 0 1 2\n", "e.ply"); });
+    EXPECT_NE(msg.find("e.ply: line 7: element " + name + " looks like faces but is not read"),
+              std::string::npos)
+        << msg;
+    EXPECT_NE(msg.find("'tristrips'"), std::string::npos) << msg;
+  }
+  // An empty one loses nothing: read.
+  EXPECT_EQ(readAllMemory(head + "element face 0\nend_header\n" + verts, "e.ply").points.size(),
+            3u);
+}
+
+std::string plyEncodingName(const ::testing::TestParamInfo<PlyEncoding>& i) {
+  static const char* const kEnc[] = {"ascii", "binary_le", "binary_be"};
+  return kEnc[int(i.param)];
+}
+
+INSTANTIATE_TEST_SUITE_P(Encodings, PlyStrips,
+                         ::testing::Values(PlyEncoding::kAscii, PlyEncoding::kBinaryLittleEndian,
+                                           PlyEncoding::kBinaryBigEndian),
+                         plyEncodingName);
 
 }  // namespace
 }  // namespace tessera::lod

@@ -295,11 +295,20 @@ TEST(TesseraLodHardening, TooManyThreadsIsABadCommandLineAndLeavesNothing) {
 
 }  // namespace
 
+/// Builds the Stanford bunny mesh `ply` (a file of reconstruction/) into dir/b.tmesh: the
+/// build's exit code and output.
+CommandResult buildBunnyStore(const tessera::test::TempDir& dir, const std::string& ply,
+                              int patch_triangles) {
+  return run("build " + kData + "/stanford-bunny/reconstruction/" + ply + " -o " +
+             (dir.path() / "b.tmesh").string() + " --patch-triangles " +
+             std::to_string(patch_triangles) + " --quiet");
+}
+
 TEST(TesseraLodMesh, BuildInfoVerifyRoundTripAndBadInput) {
   tessera::test::TempDir dir;
   const std::string mesh = kData + "/stanford-bunny/reconstruction/bun_zipper_res2.ply";
   const std::string out = (dir.path() / "b.tmesh").string();
-  CommandResult b = run("build " + mesh + " -o " + out + " --patch-triangles 512 --quiet");
+  CommandResult b = buildBunnyStore(dir, "bun_zipper_res2.ply", 512);
   ASSERT_EQ(b.code, 0) << b.out;
   EXPECT_NE(b.out.find("16301 triangles (0 dropped)"), std::string::npos) << b.out;
   EXPECT_NE(b.out.find("bytes/triangle"), std::string::npos) << b.out;
@@ -345,4 +354,65 @@ TEST(TesseraLodMesh, BuildInfoVerifyRoundTripAndBadInput) {
   CommandResult bad = run("info " + out);
   EXPECT_EQ(bad.code, 1) << bad.out;
   EXPECT_NE(bad.out.find("header checksum"), std::string::npos) << bad.out;
+}
+
+// `info`, plain and --json, on a mesh store alone and among other inputs. The JSON is parsed by
+// Python's json module (independent of the writer) and its facts compared with the mesh.
+TEST(TesseraLodMesh, InfoDescribesAMeshStoreInEveryForm) {
+  tessera::test::TempDir dir;
+  CommandResult b = buildBunnyStore(dir, "bun_zipper_res3.ply", 256);
+  ASSERT_EQ(b.code, 0) << b.out;
+  const std::string mesh = kData + "/stanford-bunny/reconstruction/bun_zipper_res3.ply";
+  const std::string out = (dir.path() / "b.tmesh").string();
+  CommandResult json = run("info --json " + out);
+  ASSERT_EQ(json.code, 0) << json.out;  // before: exit 1, "unknown point format"
+  std::filesystem::path saved = dir.path() / "info.json";
+  std::ofstream(saved) << json.out;
+  // The levels' patches add up to the nodes and their triangles to the stored ones; the mesh's
+  // 1889 vertices less the 2 no triangle uses are its points.
+  CommandResult facts = tessera::test::runCommand(
+      "python3 -c 'import json, sys\n"
+      "d = json.load(open(sys.argv[1]))\n"
+      "levels = d[\"levels\"]\n"
+      "print(d[\"format\"], d[\"version\"], d[\"points\"], d[\"vertices\"], d[\"triangles\"],\n"
+      "      sum(l[\"patches\"] for l in levels) == d[\"nodes\"], len(levels) == d[\"depth\"],\n"
+      "      levels[0][\"patches\"], sum(l[\"triangles\"] for l in levels) == "
+      "d[\"stored_triangles\"],\n"
+      "      d[\"stored_triangles\"] > d[\"triangles\"], d[\"attributes\"], d[\"skipped\"],\n"
+      "      all(a < b for a, b in zip(d[\"bbox_min\"], d[\"bbox_max\"])), d[\"grid_step\"] > 0,\n"
+      "      d[\"file_bytes\"] == " +
+      std::to_string(std::filesystem::file_size(out)) + ")' " + saved.string());
+  ASSERT_EQ(facts.code, 0) << facts.out << "\nfrom: " << json.out;
+  EXPECT_EQ(facts.out, "tmesh 1 1887 1887 3851 True True 1 True True [] {} True True True\n")
+      << json.out;
+  // The plain form says the same.
+  CommandResult plain = run("info " + out);
+  ASSERT_EQ(plain.code, 0) << plain.out;
+  EXPECT_NE(plain.out.find("3851 input triangles, 1887 vertices"), std::string::npos) << plain.out;
+  // Among a point store and a scan, in either form: each described as itself.
+  const std::string store = (dir.path() / "p.tlod").string();
+  ASSERT_EQ(run("build " + kData + "/lidar/1.2-with-color.las -o " + store + " --quiet").code, 0);
+  const std::string all = out + " " + store + " " + mesh;
+  CommandResult mixed = run("info " + all);
+  ASSERT_EQ(mixed.code, 0) << mixed.out;
+  for (const char* fact : {"Tessera mesh store (.tmesh)", "format: tlod", "points: 1065",
+                           "format: ply", "triangles: 3851"})
+    EXPECT_NE(mixed.out.find(fact), std::string::npos) << fact << " in " << mixed.out;
+  CommandResult array = run("info --json " + all);
+  ASSERT_EQ(array.code, 0) << array.out;
+  std::ofstream(saved) << array.out;
+  CommandResult formats = tessera::test::runCommand(
+      "python3 -c 'import json, sys\n"
+      "print([(d[\"format\"], d[\"triangles\"]) for d in json.load(open(sys.argv[1]))])' " +
+      saved.string());
+  EXPECT_EQ(formats.out, "[('tmesh', 3851), ('tlod', 0), ('ply', 3851)]\n") << array.out;
+  // A file named .tmesh that is not one, and a corrupt store: exit 1, the error in the object.
+  const std::string fake = (dir.path() / "fake.tmesh").string();
+  std::ofstream(fake) << std::string(4096, 'x');
+  CommandResult bad = run("info --json " + fake);
+  EXPECT_EQ(bad.code, 1) << bad.out;
+  EXPECT_NE(bad.out.find("\"error\": \"lod::MeshStore: " + fake +
+                         ": not a Tessera mesh store (.tmesh): wrong magic\""),
+            std::string::npos)
+      << bad.out;
 }
