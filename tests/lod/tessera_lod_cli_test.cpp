@@ -44,8 +44,20 @@ TEST(TesseraLodCli, InfoJsonHasTheDocumentedKeys) {
 
 TEST(TesseraLodCli, BadInputExitsNonZeroWithTheMessage) {
   CommandResult laz = run("info " + kData + "/lidar/autzen_trim.laz");
-  EXPECT_EQ(laz.code, 1);
-  EXPECT_NE(laz.out.find("LAZ-compressed"), std::string::npos) << laz.out;
+  EXPECT_EQ(laz.code, 0) << laz.out;
+  EXPECT_NE(laz.out.find("LAZ 1.2 format 3"), std::string::npos) << laz.out;
+  EXPECT_NE(laz.out.find("110000"), std::string::npos) << laz.out;
+  // A LAZ file cut short: the chunk and its bytes are named.
+  tessera::test::TempDir dir;
+  std::ifstream in(kData + "/lidar/autzen_trim.laz", std::ios::binary);
+  std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  std::ofstream(dir / "cut.laz", std::ios::binary).write(bytes.data(), 400000);
+  CommandResult cut = run("build " + (dir / "cut.laz").string() + " -o " +
+                          (dir / "cut.tlod").string() + " --quiet");
+  EXPECT_EQ(cut.code, 1) << cut.out;
+  EXPECT_NE(cut.out.find("cut.laz"), std::string::npos) << cut.out;
+  EXPECT_NE(cut.out.find("chunk"), std::string::npos) << cut.out;
+  EXPECT_FALSE(std::filesystem::exists(dir / "cut.tlod"));
   // One bad file among good ones: the good ones are still described.
   CommandResult mixed = run("info " + kData + "/lidar/1.2-with-color.las /nonexistent.ply");
   EXPECT_EQ(mixed.code, 1);
@@ -115,14 +127,21 @@ TEST(TesseraLodBuild, BadInputsFailBeforeAnyWork) {
       run("build " + kData + "/lidar/autzen_trim.las /nonexistent.las -o " + out + " --quiet");
   EXPECT_EQ(m.code, 1);
   EXPECT_NE(m.out.find("/nonexistent.las: no such file"), std::string::npos) << m.out;
-  CommandResult laz = run("build " + kData + "/lidar/autzen_trim.laz -o " + out + " --quiet");
-  EXPECT_EQ(laz.code, 1);
-  EXPECT_NE(laz.out.find("LAZ-compressed"), std::string::npos) << laz.out;
   CommandResult d = run("build " + dir.path().string() + " -o " + out + " --quiet");
   EXPECT_EQ(d.code, 1);
   EXPECT_FALSE(std::filesystem::exists(out));
   CommandResult v = run("info " + kData + "/lidar/autzen_trim.las.tlod");
   EXPECT_EQ(v.code, 1);
+}
+
+TEST(TesseraLodBuild, ALazBuildsAStoreThatVerifiesAgainstItsLasTwin) {
+  TempDir dir;
+  const std::string out = (dir / "laz.tlod").string();
+  CommandResult b = run("build " + kData + "/lidar/autzen_trim.laz -o " + out + " --quiet");
+  ASSERT_EQ(b.code, 0) << b.out;
+  CommandResult v = run("verify " + out + " " + kData + "/lidar/autzen_trim.las --quiet");
+  EXPECT_EQ(v.code, 0) << v.out;
+  EXPECT_NE(v.out.find("OK"), std::string::npos) << v.out;
 }
 
 TEST(TesseraLodBuild, DiskFullLeavesNoOutput) {
