@@ -292,7 +292,7 @@ class GpsTimeCoder {
     const uint32_t full = mLayered ? 511 : 512;
     for (;;) {
       if (mDiff[mLast] == 0) {
-        if (t == mTime[mLast]) {  // v2 only: the layered coder is not called for a same time
+        if (!mLayered && t == mTime[mLast]) {  // v2 only: layered points flag a same time
           enc.encodeSymbol(mZeroDiff, 0);
           return;
         }
@@ -314,7 +314,7 @@ class GpsTimeCoder {
         mTime[mLast] = t;
         return;
       }
-      if (t == mTime[mLast]) {
+      if (!mLayered && t == mTime[mLast]) {
         enc.encodeSymbol(mMulti, 511);  // v2 only, as above
         return;
       }
@@ -756,7 +756,6 @@ class Point14V3 final : public LayeredItem {
   }
   void decode(uint8_t* item, uint32_t& context) override;
 
- private:
   struct Context {
     Point14 last;
     uint16_t last_intensity[8] = {};
@@ -772,15 +771,19 @@ class Point14V3 final : public LayeredItem {
     IntegerCoder intensity{16, 4}, scan_angle{16, 2}, source{16};
     GpsTimeCoder time{true};
   };
-  void start(uint32_t c, const Point14& from) {
-    mContexts[c] = std::make_unique<Context>();
-    Context& ctx = *mContexts[c];
-    ctx.last = from;
-    ctx.last.gps_time_change = false;
-    std::fill(std::begin(ctx.last_z), std::end(ctx.last_z), from.z);
-    std::fill(std::begin(ctx.last_intensity), std::end(ctx.last_intensity), from.intensity);
-    ctx.time.init(from.gps_time);
+  /// A channel's state, started from the point before it (or the chunk's first point).
+  static std::unique_ptr<Context> startContext(const Point14& from) {
+    auto ctx = std::make_unique<Context>();
+    ctx->last = from;
+    ctx->last.gps_time_change = false;
+    std::fill(std::begin(ctx->last_z), std::end(ctx->last_z), from.z);
+    std::fill(std::begin(ctx->last_intensity), std::end(ctx->last_intensity), from.intensity);
+    ctx->time.init(from.gps_time);
+    return ctx;
   }
+
+ private:
+  void start(uint32_t c, const Point14& from) { mContexts[c] = startContext(from); }
 
   bool mV4;
   Layers* mLayers = nullptr;
@@ -930,17 +933,20 @@ class Rgb14V3 final : public LayeredItem {
     storeRgb(item, c, mNir ? 4 : 3);
   }
 
- private:
   struct Context {
     uint16_t last[4] = {};
     RgbModels rgb;
     SymbolModel nir_used{4};
     SymbolModel nir[2] = {SymbolModel(256), SymbolModel(256)};
   };
-  void start(uint32_t c, const uint16_t* from) {
-    mContexts[c] = std::make_unique<Context>();
-    std::copy(from, from + 4, mContexts[c]->last);
+  static std::unique_ptr<Context> startContext(const uint16_t* from) {
+    auto ctx = std::make_unique<Context>();
+    std::copy(from, from + 4, ctx->last);
+    return ctx;
   }
+
+ private:
+  void start(uint32_t c, const uint16_t* from) { mContexts[c] = startContext(from); }
 
   bool mNir, mV4;
   Layers* mLayers = nullptr;
@@ -979,16 +985,19 @@ class Byte14V3 final : public LayeredItem {
     }
   }
 
- private:
   struct Context {
     std::vector<uint8_t> last;
     std::vector<SymbolModel> models;
   };
-  void start(uint32_t c, const uint8_t* from) {
-    mContexts[c] = std::make_unique<Context>();
-    mContexts[c]->last.assign(from, from + mN);
-    for (uint16_t i = 0; i < mN; ++i) mContexts[c]->models.emplace_back(256);
+  static std::unique_ptr<Context> startContext(const uint8_t* from, uint16_t n) {
+    auto ctx = std::make_unique<Context>();
+    ctx->last.assign(from, from + n);
+    for (uint16_t i = 0; i < n; ++i) ctx->models.emplace_back(256);
+    return ctx;
   }
+
+ private:
+  void start(uint32_t c, const uint8_t* from) { mContexts[c] = startContext(from, mN); }
 
   uint16_t mN;
   bool mV4;
@@ -1008,6 +1017,249 @@ std::unique_ptr<LayeredItem> makeLayered(const Item& item) {
       return std::make_unique<Rgb14V3>(true, v4);
     default:
       return std::make_unique<Byte14V3>(item.size, v4);
+  }
+}
+
+// ---- layered encoders: the mirror of the decoders above, state for state -------------------
+
+/// One layer being written: its bytes, its encoder, and whether its value ever changed (a layer
+/// whose field never changes in the chunk is left out, and its decoder never started).
+struct OutLayer {
+  std::vector<uint8_t> bytes;
+  Encoder enc{bytes};
+  bool changed = false;
+};
+
+class LayeredEncoderItem {
+ public:
+  virtual ~LayeredEncoderItem() = default;
+  virtual size_t layerCount() const = 0;
+  virtual void init(const uint8_t* item, uint32_t& context) = 0;
+  virtual void encode(const uint8_t* item, uint32_t& context) = 0;
+  /// The layers' bytes, finished; an empty vector for a layer left out.
+  std::vector<std::vector<uint8_t>> finish(bool always_first_two) {
+    std::vector<std::vector<uint8_t>> out;
+    for (size_t i = 0; i < mOut.size(); ++i) {
+      OutLayer& l = *mOut[i];
+      if (l.changed || (always_first_two && i < 2)) {
+        l.enc.finish();
+        out.push_back(std::move(l.bytes));
+      } else {
+        out.emplace_back();
+      }
+    }
+    return out;
+  }
+
+ protected:
+  void openLayers(size_t n) {
+    mOut.clear();
+    for (size_t i = 0; i < n; ++i) mOut.push_back(std::make_unique<OutLayer>());
+  }
+  std::vector<std::unique_ptr<OutLayer>> mOut;
+};
+
+class Point14EncoderV3 final : public LayeredEncoderItem {
+ public:
+  size_t layerCount() const override { return 9; }
+  void init(const uint8_t* item, uint32_t& context) override {
+    openLayers(9);
+    for (auto& c : mContexts) c.reset();
+    const Point14 first = Point14::load(item);
+    mCurrent = first.channel;
+    context = mCurrent;
+    start(mCurrent, first);
+  }
+  void encode(const uint8_t* item, uint32_t& context) override {
+    const Point14 p = Point14::load(item);
+    Encoder& xy = mOut[kXY]->enc;
+    Context* ctx = mContexts[mCurrent].get();
+    Point14* last = &ctx->last;
+    const uint32_t lpr = (last->return_number == 1 ? 1 : 0) +
+                         (last->return_number >= last->number_of_returns ? 2 : 0) +
+                         (last->gps_time_change ? 4 : 0);
+    const uint32_t channel = p.channel;
+    if (channel != mCurrent && mContexts[channel]) last = &mContexts[channel]->last;
+    const bool source_change = p.source != last->source;
+    const bool gps_change = p.gps_time != last->gps_time;  // the bits: -0.0 is not 0.0 here
+    const bool angle_change = p.scan_angle != last->scan_angle;
+    const uint32_t last_n = last->number_of_returns, last_r = last->return_number;
+    const uint32_t n = p.number_of_returns, r = p.return_number;
+    uint32_t changed = (uint32_t(channel != mCurrent) << 6) | (uint32_t(source_change) << 5) |
+                       (uint32_t(gps_change) << 4) | (uint32_t(angle_change) << 3) |
+                       (uint32_t(n != last_n) << 2);
+    if (r != last_r) changed |= r == (last_r + 1) % 16 ? 1 : r == (last_r + 15) % 16 ? 2 : 3;
+    xy.encodeSymbol(ctx->changed[lpr], changed);
+    if (changed & (1u << 6)) {
+      const int32_t diff = int32_t(channel) - int32_t(mCurrent);
+      xy.encodeSymbol(ctx->channel, uint32_t(diff > 0 ? diff - 1 : diff + 3));
+      if (!mContexts[channel]) {
+        start(channel, ctx->last);
+        last = &mContexts[channel]->last;
+      }
+      mCurrent = channel;
+      context = mCurrent;
+      ctx = mContexts[mCurrent].get();
+    }
+    if (changed & (1u << 2)) xy.encodeSymbol(lazy(ctx->number_of_returns[last_n], 16), n);
+    if ((changed & 3) == 3) {
+      if (gps_change) {
+        xy.encodeSymbol(lazy(ctx->return_number[last_r], 16), r);
+      } else {
+        const int32_t diff = int32_t(r) - int32_t(last_r);
+        xy.encodeSymbol(ctx->return_gps_same, uint32_t(diff > 1 ? diff - 2 : diff + 14));
+      }
+    }
+    const uint32_t m = kReturnMap6[n][r], l = returnLevel8(n, r);
+    const uint32_t cpr = (r == 1 ? 2 : 0) + (r >= n ? 1 : 0);
+    const uint32_t mi = (m << 1) | uint32_t(gps_change);
+    int32_t diff = int32_t(uint32_t(p.x) - uint32_t(last->x));
+    ctx->dx.encode(xy, ctx->median_x[mi].get(), diff, n == 1);
+    ctx->median_x[mi].add(diff);
+    diff = int32_t(uint32_t(p.y) - uint32_t(last->y));
+    ctx->dy.encode(xy, ctx->median_y[mi].get(), diff, (n == 1) + kContext(ctx->dx.k(), 20));
+    ctx->median_y[mi].add(diff);
+    const uint32_t kb = (ctx->dx.k() + ctx->dy.k()) / 2;
+    ctx->z.encode(mOut[kZ]->enc, ctx->last_z[l], p.z, (n == 1) + kContext(kb, 18));
+    ctx->last_z[l] = p.z;
+    mOut[kZ]->changed = true;
+    OutLayer& cls = *mOut[kClass];
+    cls.changed |= p.classification != last->classification;
+    const uint32_t ccc = ((last->classification & 0x1Fu) << 1) + (cpr == 3 ? 1 : 0);
+    cls.enc.encodeSymbol(lazy(ctx->classification[ccc], 256), p.classification);
+    OutLayer& fl = *mOut[kFlags];
+    const uint32_t last_flags = (uint32_t(last->edge) << 5) |
+                                (uint32_t(last->scan_direction) << 4) | last->class_flags;
+    const uint32_t flags =
+        (uint32_t(p.edge) << 5) | (uint32_t(p.scan_direction) << 4) | p.class_flags;
+    fl.changed |= flags != last_flags;
+    fl.enc.encodeSymbol(lazy(ctx->flags[last_flags], 64), flags);
+    OutLayer& in = *mOut[kIntensity];
+    in.changed |= p.intensity != last->intensity;
+    uint16_t& pred = ctx->last_intensity[(cpr << 1) | uint32_t(gps_change)];
+    ctx->intensity.encode(in.enc, pred, p.intensity, cpr);
+    pred = p.intensity;
+    if (angle_change) {
+      mOut[kAngle]->changed = true;
+      ctx->scan_angle.encode(mOut[kAngle]->enc, last->scan_angle, p.scan_angle, gps_change);
+    }
+    OutLayer& ud = *mOut[kUser];
+    ud.changed |= p.user_data != last->user_data;
+    ud.enc.encodeSymbol(lazy(ctx->user_data[last->user_data / 4], 256), p.user_data);
+    if (source_change) {
+      mOut[kSource]->changed = true;
+      ctx->source.encode(mOut[kSource]->enc, last->source, p.source);
+    }
+    if (gps_change) {
+      mOut[kTime]->changed = true;
+      ctx->time.encode(mOut[kTime]->enc, p.gps_time);
+    }
+    *last = p;
+    last->gps_time_change = gps_change;
+  }
+
+ private:
+  using Context = Point14V3::Context;
+  void start(uint32_t c, const Point14& from) { mContexts[c] = Point14V3::startContext(from); }
+
+  uint32_t mCurrent = 0;
+  std::unique_ptr<Context> mContexts[4];
+};
+
+class Rgb14EncoderV3 final : public LayeredEncoderItem {
+ public:
+  explicit Rgb14EncoderV3(bool nir) : mNir(nir) {}
+  size_t layerCount() const override { return mNir ? 2 : 1; }
+  void init(const uint8_t* item, uint32_t& context) override {
+    openLayers(layerCount());
+    for (auto& c : mContexts) c.reset();
+    mCurrent = context;
+    uint16_t first[4] = {};
+    loadRgb(item, first, mNir ? 4 : 3);
+    mContexts[mCurrent] = Rgb14V3::startContext(first);
+  }
+  void encode(const uint8_t* item, uint32_t& context) override {
+    Context* ctx = mContexts[mCurrent].get();
+    uint16_t* last = ctx->last;
+    if (mCurrent != context) {  // v3: a used channel keeps the previous channel's values
+      mCurrent = context;
+      if (!mContexts[mCurrent]) {
+        mContexts[mCurrent] = Rgb14V3::startContext(last);
+        last = mContexts[mCurrent]->last;
+      }
+      ctx = mContexts[mCurrent].get();
+    }
+    uint16_t c[4] = {};
+    loadRgb(item, c, mNir ? 4 : 3);
+    mOut[0]->changed |= c[0] != last[0] || c[1] != last[1] || c[2] != last[2];
+    encodeRgb(mOut[0]->enc, ctx->rgb, last, c);
+    if (mNir) {
+      const uint32_t sym = uint32_t((last[3] & 0xFF) != (c[3] & 0xFF)) |
+                           (uint32_t((last[3] & 0xFF00) != (c[3] & 0xFF00)) << 1);
+      Encoder& e = mOut[1]->enc;
+      e.encodeSymbol(ctx->nir_used, sym);
+      if (sym & 1) e.encodeSymbol(ctx->nir[0], foldByte(int32_t(c[3] & 0xFF) - (last[3] & 0xFF)));
+      if (sym & 2) e.encodeSymbol(ctx->nir[1], foldByte(int32_t(c[3] >> 8) - (last[3] >> 8)));
+      mOut[1]->changed |= sym != 0;
+    }
+    std::copy(c, c + (mNir ? 4 : 3), last);
+  }
+
+ private:
+  using Context = Rgb14V3::Context;
+  bool mNir;
+  uint32_t mCurrent = 0;
+  std::unique_ptr<Context> mContexts[4];
+};
+
+class Byte14EncoderV3 final : public LayeredEncoderItem {
+ public:
+  explicit Byte14EncoderV3(uint16_t n) : mN(n) {}
+  size_t layerCount() const override { return mN; }
+  void init(const uint8_t* item, uint32_t& context) override {
+    openLayers(mN);
+    for (auto& c : mContexts) c.reset();
+    mCurrent = context;
+    mContexts[mCurrent] = Byte14V3::startContext(item, mN);
+  }
+  void encode(const uint8_t* item, uint32_t& context) override {
+    Context* ctx = mContexts[mCurrent].get();
+    uint8_t* last = ctx->last.data();
+    if (mCurrent != context) {
+      mCurrent = context;
+      if (!mContexts[mCurrent]) {
+        mContexts[mCurrent] = Byte14V3::startContext(last, mN);
+        last = mContexts[mCurrent]->last.data();
+      }
+      ctx = mContexts[mCurrent].get();
+    }
+    for (uint16_t i = 0; i < mN; ++i) {
+      const int32_t diff = int32_t(item[i]) - int32_t(last[i]);
+      mOut[i]->enc.encodeSymbol(ctx->models[i], foldByte(diff));
+      if (diff) {
+        mOut[i]->changed = true;
+        last[i] = item[i];
+      }
+    }
+  }
+
+ private:
+  using Context = Byte14V3::Context;
+  uint16_t mN;
+  uint32_t mCurrent = 0;
+  std::unique_ptr<Context> mContexts[4];
+};
+
+std::unique_ptr<LayeredEncoderItem> makeLayeredEncoder(const Item& item) {
+  switch (item.type) {
+    case kPoint14:
+      return std::make_unique<Point14EncoderV3>();
+    case kRgb14:
+      return std::make_unique<Rgb14EncoderV3>(false);
+    case kRgbNir14:
+      return std::make_unique<Rgb14EncoderV3>(true);
+    default:
+      return std::make_unique<Byte14EncoderV3>(item.size);
   }
 }
 
@@ -1199,13 +1451,15 @@ size_t ChunkDecoder::decodeLayered(std::span<const uint8_t> bytes, uint64_t coun
 }
 
 ChunkEncoder::ChunkEncoder(std::vector<Item> items, bool layered)
-    : mItems(std::move(items)), mLayered(layered), mRecordSize(laz::recordSize(mItems)) {
-  if (layered) throw std::invalid_argument("laz::ChunkEncoder: layered chunks are not written");
-}
+    : mItems(std::move(items)), mLayered(layered), mRecordSize(laz::recordSize(mItems)) {}
 
 void ChunkEncoder::encode(const uint8_t* records, uint64_t count, std::vector<uint8_t>& out) {
   if (count == 0) return;
   out.insert(out.end(), records, records + mRecordSize);
+  if (mLayered) {
+    encodeLayered(records, count, out);
+    return;
+  }
   std::vector<std::unique_ptr<ItemCoder>> coders;
   std::vector<uint32_t> offsets;
   uint32_t at = 0;
@@ -1223,13 +1477,52 @@ void ChunkEncoder::encode(const uint8_t* records, uint64_t count, std::vector<ui
   enc.finish();
 }
 
+void ChunkEncoder::encodeLayered(const uint8_t* records, uint64_t count,
+                                 std::vector<uint8_t>& out) {
+  std::vector<std::unique_ptr<LayeredEncoderItem>> items;
+  std::vector<uint32_t> offsets;
+  uint32_t context = 0, at = 0;
+  for (const Item& it : mItems) {
+    items.push_back(makeLayeredEncoder(it));
+    items.back()->init(records + at, context);
+    offsets.push_back(at);
+    at += it.size;
+  }
+  for (uint64_t p = 1; p < count; ++p) {
+    const uint8_t* rec = records + p * mRecordSize;
+    context = 0;  // as the decoder: POINT14 v3 sets it on a change of channel only
+    for (size_t i = 0; i < items.size(); ++i) items[i]->encode(rec + offsets[i], context);
+  }
+  const uint32_t n = uint32_t(count);
+  out.insert(out.end(), reinterpret_cast<const uint8_t*>(&n), reinterpret_cast<const uint8_t*>(&n) + 4);
+  std::vector<std::vector<std::vector<uint8_t>>> layers;
+  for (size_t i = 0; i < items.size(); ++i) {
+    // POINT14's first two layers (XY and Z) are always written, as LASzip does.
+    layers.push_back(items[i]->finish(mItems[i].type == kPoint14));
+    for (const auto& l : layers.back()) {
+      const uint32_t size = uint32_t(l.size());
+      out.insert(out.end(), reinterpret_cast<const uint8_t*>(&size),
+                 reinterpret_cast<const uint8_t*>(&size) + 4);
+    }
+  }
+  for (const auto& item_layers : layers) {
+    for (const auto& l : item_layers) out.insert(out.end(), l.begin(), l.end());
+  }
+}
+
 std::vector<Item> itemsForFormat(int format, uint16_t extra) {
   std::vector<Item> items;
-  if (format < 0 || format > 3) return items;
-  items.push_back({kPoint10, 20, 2});
-  if (format == 1 || format == 3) items.push_back({kGpsTime11, 8, 2});
-  if (format == 2 || format == 3) items.push_back({kRgb12, 6, 2});
-  if (extra) items.push_back({kByte, extra, 2});
+  if (format >= 0 && format <= 3) {
+    items.push_back({kPoint10, 20, 2});
+    if (format == 1 || format == 3) items.push_back({kGpsTime11, 8, 2});
+    if (format == 2 || format == 3) items.push_back({kRgb12, 6, 2});
+    if (extra) items.push_back({kByte, extra, 2});
+  } else if (format >= 6 && format <= 8) {
+    items.push_back({kPoint14, 30, 3});
+    if (format == 7) items.push_back({kRgb14, 6, 3});
+    if (format == 8) items.push_back({kRgbNir14, 8, 3});
+    if (extra) items.push_back({kByte14, extra, 3});
+  }
   return items;
 }
 

@@ -70,7 +70,7 @@ class ChunkDecoder {
   uint32_t mRecordSize;
 };
 
-/// Encodes chunks: item versions 2 (point formats 0-5 without wave packets) and 3 (6-8).
+/// Encodes chunks: item versions 2 (point formats 0-3, pointwise) and 3 (6-8, layered).
 class ChunkEncoder {
  public:
   ChunkEncoder(std::vector<Item> items, bool layered);
@@ -78,13 +78,15 @@ class ChunkEncoder {
   void encode(const uint8_t* records, uint64_t count, std::vector<uint8_t>& out);
 
  private:
+  void encodeLayered(const uint8_t* records, uint64_t count, std::vector<uint8_t>& out);
+
   std::vector<Item> mItems;
   bool mLayered;
   uint32_t mRecordSize;
 };
 
 /// The items LASzip writes for LAS point format `format` with `extra` extra bytes, in the
-/// versions ChunkEncoder writes. Empty for formats it cannot write (4, 5, 9, 10: wave packets).
+/// versions ChunkEncoder writes. Empty for the formats with wave packets (4, 5, 9, 10).
 std::vector<Item> itemsForFormat(int format, uint16_t extra);
 
 /// The chunk table: each chunk's point count (variable chunks) and byte count, coded with an
