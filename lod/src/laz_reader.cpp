@@ -54,13 +54,14 @@ std::string parseLaszipVlr(const uint8_t* p, size_t n, LaszipVlr& out) {
   return {};
 }
 
-std::vector<uint8_t> laszipVlrPayload(const std::vector<laz::Item>& items, uint32_t chunk_size) {
+std::vector<uint8_t> laszipVlrPayload(const std::vector<laz::Item>& items, uint32_t chunk_size,
+                                      bool layered) {
   std::vector<uint8_t> v(34 + 6 * items.size(), 0);
   auto put16 = [&](size_t at, uint16_t x) { std::memcpy(v.data() + at, &x, 2); };
-  put16(0, 2);  // pointwise chunked
-  put16(2, 0);  // arithmetic coder
-  v[4] = 2;     // the LASzip version these items come from: 2.2
-  v[5] = 2;
+  put16(0, layered ? 3 : 2);  // layered chunked or pointwise chunked
+  put16(2, 0);                // arithmetic coder
+  v[4] = 3;                   // the LASzip release whose format these chunks follow: 3.4
+  v[5] = 4;
   std::memcpy(v.data() + 12, &chunk_size, 4);
   const int64_t none = -1;
   std::memcpy(v.data() + 16, &none, 8);  // no special EVLRs

@@ -28,7 +28,8 @@ struct LaszipVlr {
 std::string parseLaszipVlr(const uint8_t* data, size_t n, LaszipVlr& out);
 
 /// Builds the VLR's payload (34 bytes + 6 per item) for the chunk size given.
-std::vector<uint8_t> laszipVlrPayload(const std::vector<laz::Item>& items, uint32_t chunk_size);
+std::vector<uint8_t> laszipVlrPayload(const std::vector<laz::Item>& items, uint32_t chunk_size,
+                                      bool layered);
 
 class LazChunks {
  public:

@@ -11,6 +11,9 @@
 
 #include <tessera/core/check.h>
 
+#include "atomic_file.h"
+#include "las_file.h"
+
 namespace tessera::lod {
 namespace {
 
@@ -32,46 +35,6 @@ class Bytes {
  private:
   bool mBig;
   std::vector<uint8_t> mData;
-};
-
-/// Writes to PATH.partial then renames: readers never see a half-written file.
-class AtomicFile {
- public:
-  AtomicFile(std::filesystem::path path, const char* component)
-      : mPath(std::move(path)),
-        mTmp(mPath.string() + ".partial"),
-        mComponent(component),
-        mOut(mTmp, std::ios::binary | std::ios::trunc) {
-    if (!mOut) throw WriteError(std::string(mComponent) + ": cannot create " + mTmp.string());
-  }
-  ~AtomicFile() {
-    if (!mDone) {
-      std::error_code ec;
-      std::filesystem::remove(mTmp, ec);
-    }
-  }
-  void write(const std::vector<uint8_t>& b) {
-    mOut.write(reinterpret_cast<const char*>(b.data()), std::streamsize(b.size()));
-    if (!mOut)
-      throw WriteError(std::string(mComponent) + ": write failed for " + mTmp.string() +
-                       " (disk full?)");
-  }
-  void commit() {
-    mOut.close();
-    if (!mOut) throw WriteError(std::string(mComponent) + ": closing " + mTmp.string() + " failed");
-    std::error_code ec;
-    std::filesystem::rename(mTmp, mPath, ec);
-    if (ec)
-      throw WriteError(std::string(mComponent) + ": cannot rename to " + mPath.string() + ": " +
-                       ec.message());
-    mDone = true;
-  }
-
- private:
-  std::filesystem::path mPath, mTmp;
-  const char* mComponent;
-  std::ofstream mOut;
-  bool mDone = false;
 };
 
 std::string fmt(double v) {
@@ -172,7 +135,6 @@ void writePly(const std::filesystem::path& path, const PointBatch& pts, const gl
 
 void writeLas(const std::filesystem::path& path, const PointBatch& pts, const glm::dvec3& origin,
               const LasWriteOptions& o) {
-  static constexpr uint16_t kMinRecord[11] = {20, 28, 26, 34, 57, 63, 30, 36, 38, 59, 67};
   TESSERA_CHECK(o.minor_version >= 2 && o.minor_version <= 4,
                 "lod::writeLas(): minor version must be 2..4");
   TESSERA_CHECK(o.point_format >= 0 && o.point_format <= 10,
@@ -180,64 +142,29 @@ void writeLas(const std::filesystem::path& path, const PointBatch& pts, const gl
   TESSERA_CHECK(o.point_format <= 5 || o.minor_version == 4,
                 "lod::writeLas(): formats 6-10 need LAS 1.4");
   const int f = o.point_format;
-  const uint16_t header_size = o.minor_version == 4 ? 375 : o.minor_version == 3 ? 235 : 227;
-  const uint16_t record = uint16_t(kMinRecord[f] + o.extra_bytes);
   glm::dvec3 lo(std::numeric_limits<double>::max()), hi(-std::numeric_limits<double>::max());
   for (const auto& p : pts.positions) {
     lo = glm::min(lo, origin + p);
     hi = glm::max(hi, origin + p);
   }
   if (pts.size() == 0) lo = hi = origin;
-  glm::dvec3 offset = glm::round(0.5 * (lo + hi));
-
-  Bytes b(false);
-  b.text("LASF");
-  b.put<uint16_t>(0);  // file source id
-  b.put<uint16_t>(0);  // global encoding
-  b.zeros(16);         // GUID
-  b.put<uint8_t>(1);
-  b.put<uint8_t>(uint8_t(o.minor_version));
-  std::string sys = "tessera";
-  sys.resize(32, '\0');
-  b.text(sys);
-  b.text(sys);  // generating software
-  b.put<uint16_t>(1);
-  b.put<uint16_t>(2026);
-  b.put<uint16_t>(header_size);
-  b.put<uint32_t>(header_size);  // offset to point data: no VLRs
-  b.put<uint32_t>(0);
-  b.put<uint8_t>(uint8_t(f));
-  b.put<uint16_t>(record);
-  const uint64_t n = pts.size();
-  b.put<uint32_t>(f <= 5 && n <= 0xFFFFFFFFu ? uint32_t(n) : 0);
-  b.put<uint32_t>(f <= 5 && n <= 0xFFFFFFFFu ? uint32_t(n) : 0);  // all first returns
-  for (int i = 0; i < 4; ++i) b.put<uint32_t>(0);
-  for (int i = 0; i < 3; ++i) b.put<double>(o.scale[i]);
-  for (int i = 0; i < 3; ++i) b.put<double>(offset[i]);
-  for (int i = 0; i < 3; ++i) {
-    b.put<double>(hi[i]);
-    b.put<double>(lo[i]);
-  }
-  if (o.minor_version >= 3) b.put<uint64_t>(0);  // waveform start
-  if (o.minor_version >= 4) {
-    b.put<uint64_t>(0);  // first EVLR
-    b.put<uint32_t>(0);
-    b.put<uint64_t>(n);
-    b.put<uint64_t>(n);
-    for (int i = 0; i < 14; ++i) b.put<uint64_t>(0);
-  }
-  if (b.data().size() != header_size)
-    throw WriteError("lod::writeLas(): internal header size mismatch");
-
-  AtomicFile file(path, "lod::writeLas()");
+  const glm::dvec3 offset = glm::round(0.5 * (lo + hi));
+  detail::LasFileWriter out(path,
+                            detail::newLasParts(f, o.extra_bytes, o.scale, offset, o.minor_version),
+                            o.laz, 0, "lod::writeLas()");
+  const size_t record = out.recordLength();
   const AttributeMask a = pts.attributes;
+  const bool rgb = f == 2 || f == 3 || f == 5 || f == 7 || f == 8 || f == 10;
+  Bytes b(false);
+  const size_t n = pts.size();
   for (size_t i = 0; i < n; ++i) {
-    glm::dvec3 q = glm::round((origin + pts.positions[i] - offset) / o.scale);
-    size_t start = b.data().size();
-    for (int c = 0; c < 3; ++c)
+    const glm::dvec3 q = glm::round((origin + pts.positions[i] - offset) / o.scale);
+    const size_t start = b.data().size();
+    for (int c = 0; c < 3; ++c) {
       b.put<int32_t>(int32_t(std::clamp(q[c], -2147483648.0, 2147483647.0)));
+    }
     b.put<uint16_t>(a & kIntensity ? uint16_t(std::clamp(pts.intensities[i], 0.f, 65535.f)) : 0);
-    uint8_t cls = a & kClassification ? pts.classifications[i] : 1;
+    const uint8_t cls = a & kClassification ? pts.classifications[i] : 1;
     if (f <= 5) {
       b.put<uint8_t>(0x09);  // return 1 of 1
       b.put<uint8_t>(cls & 0x1F);
@@ -254,23 +181,21 @@ void writeLas(const std::filesystem::path& path, const PointBatch& pts, const gl
       b.put<uint16_t>(0);  // point source id
       b.put<double>(double(i));
     }
-    bool rgb = f == 2 || f == 3 || f == 5 || f == 7 || f == 8 || f == 10;
     if (rgb) {
       for (int c = 0; c < 3; ++c) {
-        uint8_t v = a & kColor ? pts.colors[i][c] : 0;
+        const uint8_t v = a & kColor ? pts.colors[i][c] : 0;
         b.put<uint16_t>(o.eight_bit_colors ? v : uint16_t(v * 257));
       }
     }
     if (f == 8 || f == 10) b.put<uint16_t>(0);  // NIR
     // Waveform packet fields (formats 4, 5, 9, 10) and extra bytes: zeros.
     b.zeros(record - (b.data().size() - start));
-    if (b.data().size() > (1u << 22)) {
-      file.write(b.data());
+    if (b.data().size() > (1u << 22) || i + 1 == n) {
+      out.add(b.data().data(), b.data().size() / record);
       b.data().clear();
     }
   }
-  file.write(b.data());
-  file.commit();
+  out.commit();
 }
 
 }  // namespace tessera::lod

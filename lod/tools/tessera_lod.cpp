@@ -12,6 +12,7 @@
 #include <tessera/lod/mesh.h>
 #include <tessera/lod/mesh_builder.h>
 #include <tessera/lod/photo_points.h>
+#include <tessera/lod/point_export.h>
 #include <tessera/lod/point_writer.h>
 #include <tessera/lod/source_summary.h>
 #include <tessera/lod/store_builder.h>
@@ -246,6 +247,60 @@ int runPhoto(const PhotoOptions& o, const std::string& out, const BuildOptions& 
   }
 }
 
+/// "XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX" or "A,B,C,D": `n` finite numbers.
+std::vector<double> parseNumbers(const std::string& text, size_t n, const char* option) {
+  std::vector<double> v;
+  size_t at = 0;
+  while (at <= text.size()) {
+    const size_t comma = std::min(text.find(',', at), text.size());
+    const std::string part = text.substr(at, comma - at);
+    char* end = nullptr;
+    const double x = std::strtod(part.c_str(), &end);
+    if (part.empty() || end != part.c_str() + part.size() || !std::isfinite(x)) {
+      throw cli::UsageError(std::string(option) + " " + text + ": '" + part +
+                            "' is not a finite number");
+    }
+    v.push_back(x);
+    at = comma + 1;
+  }
+  if (v.size() != n) {
+    throw cli::UsageError(std::string(option) + " " + text + ": expected " + std::to_string(n) +
+                          " numbers separated by commas, got " + std::to_string(v.size()));
+  }
+  return v;
+}
+
+int runExport(const std::string& in, const std::string& out, const std::string& box,
+              const std::vector<std::string>& planes, ExportOptions o) {
+  return guarded("export", kExitBadInput, [&] {
+    if (!box.empty()) {
+      const auto v = parseNumbers(box, 6, "--box");
+      const glm::dvec3 lo(v[0], v[1], v[2]), hi(v[3], v[4], v[5]);
+      if (glm::any(glm::greaterThan(lo, hi))) {
+        throw cli::UsageError("--box " + box + ": a minimum is above its maximum");
+      }
+      o.box = std::make_pair(lo, hi);
+    }
+    for (const std::string& p : planes) {
+      const auto v = parseNumbers(p, 4, "--plane");
+      if (v[0] == 0 && v[1] == 0 && v[2] == 0) {
+        throw cli::UsageError("--plane " + p + ": the normal (A,B,C) is zero");
+      }
+      o.planes.emplace_back(v[0], v[1], v[2], v[3]);
+    }
+    cli::refuseOverwrite(out, filesReadBy({in}), "-o");
+    try {
+      const ExportReport r = exportPoints(in, out, o);
+      std::printf("exported %s: %llu of %llu points, %s\n", out.c_str(),
+                  (unsigned long long)r.written, (unsigned long long)r.read, r.method.c_str());
+    } catch (const WriteError& e) {
+      std::fprintf(stderr, "tessera-lod export: %s\n", e.what());
+      return kExitWriteFailed;
+    }
+    return 0;
+  });
+}
+
 int run(int argc, char** argv) {
   CLI::App app{"tessera-lod: read, inspect and generate scanned 3D data for Tessera"};
   app.require_subcommand(1);
@@ -256,7 +311,7 @@ int run(int argc, char** argv) {
   auto* info = app.add_subcommand(
       "info", "Describe scan files: format, points, triangles, bounds, attributes, skips, scans");
   info->add_option("FILE", info_files,
-                   "PLY, LAS, E57, Stanford .conf, XYZ/PTS/TXT or OBJ files, .tlod point stores "
+                   "PLY, LAS, LAZ, E57, Stanford .conf, XYZ/PTS/TXT or OBJ files, .tlod point stores "
                    "or .tmesh mesh stores")
       ->required();
   info->add_flag("--json", info_json, "Print JSON (one object per file; an array for several)");
@@ -372,6 +427,36 @@ int run(int argc, char** argv) {
   photo->add_option("-o,--output", photo_out, "Output store (.tlod) or points (.ply)")->required();
   photo->add_flag("--quiet", pbo.quiet, "No progress output");
 
+  std::string export_in, export_out, export_box;
+  std::vector<std::string> export_planes;
+  ExportOptions eo;
+  auto* exp = app.add_subcommand(
+      "export",
+      "Write the points of a scan or a store, or the part inside a box or planes, as LAS, LAZ or "
+      "PLY for another program. LAS or LAZ in and out: the records are copied with every "
+      "attribute, scale, offset and VLR. Other scans and .tlod stores (their leaves: every input "
+      "point once, at the positions the store keeps) become LAS 1.4 point format 7 (6 without "
+      "colour) with intensity and classification; PLY out is binary with double positions. "
+      "Waveform packets (LAS formats 4, 5, 9, 10) are not exported");
+  exp->add_option("IN", export_in,
+                  "A scan (PLY, LAS, LAZ, E57, .conf, XYZ/PTS/TXT, OBJ) or a .tlod store")
+      ->required();
+  exp->add_option("-o,--output", export_out, "OUT.las, OUT.laz or OUT.ply (never an input)")
+      ->required();
+  exp->add_option("--box", export_box,
+                  "XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX: keep the points inside (world coordinates)");
+  exp->add_option("--plane", export_planes,
+                  "A,B,C,D: keep the points with A*x + B*y + C*z + D >= 0 (repeat for several)");
+  exp->add_option("--scale", eo.scale,
+                  "Coordinate resolution of converted points (default: the input's own, else "
+                  "0.0001); copied LAS records keep theirs")
+      ->check(cli::positiveFinite(1e6));
+  exp->add_option("--threads", eo.threads, "Threads for LAZ chunks (0: every core)")
+      ->check(cli::integerRange(0u, 64u))
+      ->capture_default_str();
+  bool export_quiet = false;
+  exp->add_flag("--quiet", export_quiet, "No progress bar");
+
   // CLI11 reads the --config file before any validator runs: a FIFO there would block it.
   for (int i = 1; i + 1 < argc; ++i) {
     if (std::string(argv[i]) != "--config") continue;
@@ -398,6 +483,10 @@ int run(int argc, char** argv) {
     return runBuild(build_in, build_out, bo, mbo);
   }
   if (*verify) return runVerify(verify_store, verify_in, vo);
+  if (*exp) {
+    eo.quiet = export_quiet;
+    return runExport(export_in, export_out, export_box, export_planes, eo);
+  }
   if (*info) return runInfo(info_files, info_json, info_quiet);
   if (*scan) return runScan(scan_mesh, scan_out, scan_res, so);
   return kExitBadCommandLine;

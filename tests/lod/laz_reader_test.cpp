@@ -27,11 +27,6 @@ const std::string kData = TESSERA_DATA_DIR;
 const std::string kLaz = kData + "/lidar/autzen_trim.laz";
 const std::string kLas = kData + "/lidar/autzen_trim.las";
 
-std::vector<uint8_t> fileBytes(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
-}
-
 struct LasLayout {
   uint64_t data_offset = 0, count = 0;
   uint16_t record_length = 0;
@@ -70,7 +65,7 @@ std::vector<uint8_t> lazRecords(const std::vector<uint8_t>& f, const std::string
 }
 
 TEST(LazReader, AutzenRecordsEqualTheLasTwinByteForByte) {
-  const auto las = fileBytes(kLas), laz = fileBytes(kLaz);
+  const auto las = test::readBytes(kLas), laz = test::readBytes(kLaz);
   ASSERT_FALSE(laz.empty());
   LasLayout ll = layoutOf(las), lz = layoutOf(laz);
   ASSERT_EQ(ll.count, 110000u);
@@ -110,7 +105,7 @@ TEST(LazReader, PointsEqualTheLasReadersAndTheFormatSaysLaz) {
 /// four scanner channels in runs, returns up to 15, flags, scan angles, repeated and jumping
 /// GPS times, NIR.
 std::vector<uint8_t> las14Records(int format, uint16_t extra, uint64_t& count) {
-  const auto las = fileBytes(kLas);
+  const auto las = test::readBytes(kLas);
   LasLayout l = layoutOf(las);
   count = l.count;
   const uint32_t base = format == 6 ? 30 : format == 7 ? 36 : 38;
@@ -166,7 +161,7 @@ std::vector<uint8_t> roundTrip(const std::vector<uint8_t>& records, uint64_t cou
 }
 
 TEST(LazCoder, PointwiseRoundTripsAutzenInEveryChunkSize) {
-  const auto las = fileBytes(kLas);
+  const auto las = test::readBytes(kLas);
   LasLayout l = layoutOf(las);
   std::vector<uint8_t> records(las.begin() + long(l.data_offset),
                                las.begin() + long(l.data_offset + l.count * l.record_length));
@@ -178,7 +173,7 @@ TEST(LazCoder, PointwiseRoundTripsAutzenInEveryChunkSize) {
     const auto back = roundTrip(part, n, laz::itemsForFormat(3, 0), false, chunk, &coded);
     ASSERT_TRUE(back == part) << "chunks of " << chunk;
     if (chunk == 50000) {  // within a few percent of what LASzip made of the same records
-      const size_t laszip = fileBytes(kLaz).size() - l.data_offset;
+      const size_t laszip = test::readBytes(kLaz).size() - l.data_offset;
       EXPECT_LT(double(coded), 1.03 * double(laszip)) << coded << " against " << laszip;
     }
   }
@@ -258,7 +253,7 @@ TEST(LazCoder, ChunkTablesRoundTripFixedAndVariable) {
 }
 
 TEST(LazCoder, DamagedChunksThrowAndNeverReadOutsideTheirBytes) {
-  const auto las = fileBytes(kLas);
+  const auto las = test::readBytes(kLas);
   LasLayout l = layoutOf(las);
   const uint64_t n = 3000;
   std::vector<uint8_t> records(las.begin() + long(l.data_offset),

@@ -144,6 +144,37 @@ TEST(TesseraLodBuild, ALazBuildsAStoreThatVerifiesAgainstItsLasTwin) {
   EXPECT_NE(v.out.find("OK"), std::string::npos) << v.out;
 }
 
+TEST(TesseraLodExport, CutsAScanAndRefusesBadRequestsWithTheirExitCodes) {
+  TempDir dir;
+  const std::string out = (dir / "cut.laz").string();
+  CommandResult e = run("export " + kData + "/lidar/autzen_trim.laz -o " + out +
+                        " --box 636500,849000,0,637000,849400,1000 --quiet");
+  ASSERT_EQ(e.code, 0) << e.out;
+  EXPECT_NE(e.out.find("38155 of 110000 points"), std::string::npos) << e.out;
+  CommandResult i = run("info " + out);
+  EXPECT_NE(i.out.find("points: 38155"), std::string::npos) << i.out;
+  // The output is an input: refused before anything is written (exit 2).
+  CommandResult same = run("export " + out + " -o " + out);
+  EXPECT_EQ(same.code, 2) << same.out;
+  EXPECT_NE(same.out.find("refusing to write over an input"), std::string::npos) << same.out;
+  CommandResult box = run("export " + out + " -o " + (dir / "b.las").string() + " --box 1,2,3");
+  EXPECT_EQ(box.code, 2) << box.out;
+  EXPECT_NE(box.out.find("expected 6 numbers"), std::string::npos) << box.out;
+  CommandResult nan = run("export " + out + " -o " + (dir / "b.las").string() +
+                          " --plane 0,0,nan,1");
+  EXPECT_EQ(nan.code, 2) << nan.out;
+  CommandResult zero = run("export " + out + " -o " + (dir / "b.las").string() +
+                           " --plane 0,0,0,1");
+  EXPECT_EQ(zero.code, 2) << zero.out;
+  EXPECT_NE(zero.out.find("normal (A,B,C) is zero"), std::string::npos) << zero.out;
+  CommandResult kind = run("export " + out + " -o " + (dir / "b.xyz").string());
+  EXPECT_EQ(kind.code, 3) << kind.out;
+  EXPECT_NE(kind.out.find(".las, .laz or .ply"), std::string::npos) << kind.out;
+  CommandResult bad = run("export /nonexistent.las -o " + (dir / "b.las").string());
+  EXPECT_EQ(bad.code, 1) << bad.out;
+  EXPECT_FALSE(std::filesystem::exists(dir / "b.las"));
+}
+
 TEST(TesseraLodBuild, DiskFullLeavesNoOutput) {
   TempDir dir;
   std::string out = (dir / "a.tlod").string();

@@ -1,4 +1,4 @@
-// Writers for PLY and LAS: export, test fixtures and benchmark inputs. Output is written to a
+// Writers for PLY, LAS and LAZ: export, test fixtures and benchmark inputs. Output is written to a
 // temporary file beside the target and renamed into place, so a failed write leaves nothing.
 #pragma once
 
@@ -34,10 +34,12 @@ struct LasWriteOptions {
   glm::dvec3 scale{0.001};        ///< coordinate resolution
   bool eight_bit_colors = false;  ///< store 0..255 in the 16-bit fields (as some writers do)
   uint16_t extra_bytes = 0;       ///< zero bytes appended to each record (record length grows)
+  bool laz = false;               ///< LAZ-compressed (formats 0-3 and 6-8)
 };
 
-/// Writes a LAS file. Coordinates are world = origin + position, quantised by `scale` around an
-/// offset at the box centre. Colour, intensity and classification come from the batch when set.
+/// Writes a LAS or LAZ file. Coordinates are world = origin + position, quantised by `scale`
+/// around an offset at the box centre. Colour, intensity and classification come from the batch
+/// when set.
 void writeLas(const std::filesystem::path& path, const PointBatch& points, const glm::dvec3& origin,
               const LasWriteOptions& options = {});
 
