@@ -4,14 +4,14 @@
 # for SECONDS (default 300), one at a time. Crashing inputs land in fuzz/regressions/<target>/,
 # which is also replayed first, so a regression that comes back fails at once.
 # Usage: fuzz/run.sh [SECONDS] [TARGET...]
-#   (targets: ply las text obj conf tlod chunk tmesh frame link site chunk_request voice wav
-#    video selection annotation picture; default all)
+#   (targets: ply las laz e57 text obj conf tlod chunk tmesh frame link site chunk_request voice
+#    wav video selection annotation picture; default all)
 set -euo pipefail
 
 cd "$(dirname "$0")/.."
 SECONDS_PER_TARGET=${1:-300}
 shift || true
-TARGETS=("${@:-ply las text obj conf tlod chunk tmesh frame link site chunk_request voice wav video selection annotation picture}")
+TARGETS=("${@:-ply las laz e57 text obj conf tlod chunk tmesh frame link site chunk_request voice wav video selection annotation picture}")
 read -r -a TARGETS <<<"${TARGETS[*]}"
 DATA=${TESSERA_DATA_DIR:-$(cd .. && pwd)/shared/data}
 BUILD=build/fuzz
@@ -19,7 +19,7 @@ BUILD=build/fuzz
 cmake --preset fuzz >/dev/null
 # tessera-lod (same build) writes the seed stores of the tlod and chunk targets.
 TOOLS=()
-if [[ " ${TARGETS[*]} " == *" tlod "* || " ${TARGETS[*]} " == *" chunk "* || " ${TARGETS[*]} " == *" tmesh "* ]]; then TOOLS=(tessera-lod); fi
+if [[ " ${TARGETS[*]} " =~ \ (tlod|chunk|tmesh|laz)\  ]]; then TOOLS=(tessera-lod); fi
 if [[ " ${TARGETS[*]} " == *" video "* ]]; then TOOLS+=(video_seeds); fi
 cmake --build "$BUILD" -j1 --target "${TARGETS[@]/%/_fuzzer}" "${TOOLS[@]}"
 LOD_TOOL=$(pwd)/$BUILD/lod/tessera-lod
@@ -109,6 +109,20 @@ seed_conf() {
   printf 'bmesh nest.conf 0 0 0 0 0 0 1\r\nbmesh a.ply 0 0 0 1 0 0 0\r\n' >nested.conf
   printf 'bmesh ping.conf 0 0 0 0 0 0 1\n' >cycle.conf
   printf 'bmesh missing.ply 0 0 0 0 0 0 1\n' >missing.conf
+}
+
+# LAZ: pointwise (LAS 1.2 format 3, 1065 points) and layered (LAS 1.4 format 7, the coloured
+# cube's 7680 points), both written by tessera-lod; bare chunks come from mutations of these.
+seed_laz() {
+  "$LOD_TOOL" export "$DATA/lidar/1.2-with-color.las" -o color-1.2.laz --quiet >/dev/null
+  "$LOD_TOOL" export "$DATA/e57/ColouredCubeFloat.e57" -o cube-1.4.laz --quiet >/dev/null
+}
+
+# E57: the small shared files (the cube as floats, a file without scans, a scan without
+# points, a page whose CRC does not match).
+seed_e57() {
+  cp "$DATA/e57/ColouredCubeFloat.e57" "$DATA/e57/ZeroPoints.e57" "$DATA/e57/empty.e57" \
+    "$DATA/e57/bad-crc.e57" .
 }
 
 # Stores: one node (1065 points, colour and intensity), and a root with children (a 26^3 grid:
@@ -327,7 +341,7 @@ seed_picture() {
   cp "$OLDPWD"/fuzz/seeds/picture/* .
 }
 
-declare -A MAX_LEN=([ply]=8192 [las]=8192 [text]=4096 [obj]=4096 [conf]=1024 [tlod]=32768
+declare -A MAX_LEN=([ply]=8192 [las]=8192 [laz]=65536 [e57]=65536 [text]=4096 [obj]=4096 [conf]=1024 [tlod]=32768
   [chunk]=8192 [frame]=4096 [link]=4096 [site]=4096 [chunk_request]=1024 [voice]=8192
   [wav]=16384 [tmesh]=16384 [video]=32768 [selection]=4096 [annotation]=16384
   [picture]=8192)

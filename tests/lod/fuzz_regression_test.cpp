@@ -6,6 +6,7 @@
 
 #include "../../fuzz/conf_fuzz.h"
 #include "../../fuzz/fuzz_reader.h"
+#include "../../fuzz/laz_fuzz.h"
 #include "../../fuzz/store_fuzz.h"
 #include "../../fuzz/tmesh_fuzz.h"
 #include "../support/temp_dir.h"
@@ -49,7 +50,9 @@ TEST(FuzzRegressions, EveryRecordedConfStoreAndChunkInputIsHandled) {
                        const std::filesystem::path&) { return fuzz::decodeChunkBytes(d, n); }},
           {"tmesh", [](const uint8_t* d, size_t n, const std::filesystem::path&) {
              return fuzz::readMeshStore(d, n);
-           }}};
+           }},
+          {"laz", [](const uint8_t* d, size_t n,
+                     const std::filesystem::path&) { return fuzz::decodeLaz(d, n); }}};
   size_t replayed = 0;
   for (auto [dir, replay] : targets) {
     const std::filesystem::path folder = kRegressions / dir;
