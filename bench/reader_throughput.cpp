@@ -1,8 +1,14 @@
 // reader_throughput: points per second the streaming readers deliver from files in the page
 // cache, next to a plain read() of the same bytes in the same run (the ceiling for a reader).
-// Inputs are tiled from the real Autzen LiDAR scan and generated once into OUT/inputs; the real
-// file itself is measured too. Prints CSV on stdout, writes OUT/reader_throughput.csv and draws
-// OUT/reader_throughput.png with gnuplot. Goal: >= 30 M points/s for binary PLY and LAS.
+// Inputs are tiled from the real Autzen LiDAR scan and generated once into OUT/inputs (PLY, LAS,
+// and LAZ pointwise and layered, decoded on 1 and on 2 threads); the real Autzen LAS and LAZ and
+// the real E57 bunny are measured too. Prints CSV on stdout, writes OUT/reader_throughput.csv and
+// draws OUT/reader_throughput.png with gnuplot. Goal: >= 30 M points/s for binary PLY and LAS.
+//
+// --build-points N also builds a store from a LAS file and from its LAZ twin (N points, the
+// builds alternated, best of --repeat) and writes OUT/laz_build.csv and OUT/laz_build.png.
+// Goals: the LAZ build at least 0.5x as fast as the LAS build, LAZ decoding at least 1.8x
+// faster on 2 threads than on 1.
 #include <fcntl.h>
 #include <unistd.h>
 
@@ -27,6 +33,7 @@
 #include <tessera/core/progress.h>
 #include <tessera/lod/point_reader.h>
 #include <tessera/lod/point_writer.h>
+#include <tessera/lod/store_builder.h>
 
 namespace {
 
@@ -43,6 +50,7 @@ struct Input {
   uint64_t points = 0;  ///< points in one pass over the file
   uint64_t bytes = 0;   ///< file size
   int passes = 1;       ///< passes per measurement (a tiny file is read many times)
+  unsigned threads = 0;  ///< LAZ: chunks decoded at once (0: the reader's default)
 };
 
 struct Result {
@@ -85,7 +93,9 @@ uint64_t plainRead(const fs::path& path, std::vector<uint8_t>& buffer) {
 
 /// Drains every batch of the reader, touching each position. Returns the sum of coordinates.
 double drainReader(const Input& in) {
-  auto reader = openPointReader(in.file);
+  ReaderOptions options;
+  options.decode_threads = in.threads;
+  auto reader = openPointReader(in.file, options);
   PointBatch batch;
   double sum = 0.0;
   uint64_t n = 0;
@@ -151,6 +161,19 @@ std::function<void(PointBatch&, const fs::path&)> plyWriter(PlyEncoding encoding
   };
 }
 
+/// LAS or LAZ of `format` (3: LAS 1.2, 7: LAS 1.4) at the Autzen survey's own 1 cm.
+std::function<void(PointBatch&, const fs::path&)> lasWriter(const glm::dvec3& origin, int format,
+                                                            bool laz) {
+  return [=](PointBatch& cloud, const fs::path& path) {
+    LasWriteOptions o;
+    o.scale = glm::dvec3(0.01);
+    o.point_format = format;
+    o.minor_version = format >= 6 ? 4 : 2;
+    o.laz = laz;
+    writeLas(path, cloud, origin, o);
+  };
+}
+
 /// Writes the benchmark inputs into `dir` unless a previous run left them there.
 std::vector<Input> prepareInputs(const fs::path& dir, uint64_t n, bool quiet) {
   const fs::path autzen = fs::path(TESSERA_DATA_DIR) / "lidar" / "autzen_trim.las";
@@ -171,12 +194,15 @@ std::vector<Input> prepareInputs(const fs::path& dir, uint64_t n, bool quiet) {
        plyWriter(PlyEncoding::kBinaryBigEndian, false)},
       {{"PLY ASCII", dir / ("ascii_" + std::to_string(n_ascii) + ".ply"), n_ascii},
        plyWriter(PlyEncoding::kAscii, false)},
-      {{"LAS 1.2 format 3", dir / ("las12_fmt3_" + tag + ".las"), n},
-       [&](PointBatch& cloud, const fs::path& path) {
-         LasWriteOptions o;
-         o.scale = glm::dvec3(0.01);  // as the Autzen survey itself
-         writeLas(path, cloud, origin, o);
-       }},
+      {{"LAS 1.2 format 3", dir / ("las12_fmt3_" + tag + ".las"), n}, lasWriter(origin, 3, false)},
+      {{"LAZ 1.2 format 3, 1 thread", dir / ("laz12_fmt3_" + tag + ".laz"), n, 0, 1, 1},
+       lasWriter(origin, 3, true)},
+      {{"LAZ 1.2 format 3, 2 threads", dir / ("laz12_fmt3_" + tag + ".laz"), n, 0, 1, 2},
+       lasWriter(origin, 3, true)},
+      {{"LAZ 1.4 format 7, 1 thread", dir / ("laz14_fmt7_" + tag + ".laz"), n, 0, 1, 1},
+       lasWriter(origin, 7, true)},
+      {{"LAZ 1.4 format 7, 2 threads", dir / ("laz14_fmt7_" + tag + ".laz"), n, 0, 1, 2},
+       lasWriter(origin, 7, true)},
   };
   fs::create_directories(dir);
   std::vector<Input> inputs;
@@ -191,10 +217,17 @@ std::vector<Input> prepareInputs(const fs::path& dir, uint64_t n, bool quiet) {
     g.input.bytes = fs::file_size(g.input.file);
     inputs.push_back(g.input);
   }
-  // The real file is tiny: read it often enough to measure a quarter of the generated points.
-  Input real{"LAS autzen_trim (real)", autzen, scan.size(), fs::file_size(autzen)};
-  real.passes = int(std::max<uint64_t>(10, n / 4 / scan.size()));
-  inputs.push_back(real);
+  // The real files are small: read them often enough to measure a quarter of the generated
+  // points. Autzen's LAZ twin was written by LASzip itself.
+  const int passes = int(std::max<uint64_t>(10, n / 4 / scan.size()));
+  inputs.push_back({"LAS autzen_trim (real)", autzen, scan.size(), fs::file_size(autzen), passes});
+  const fs::path autzen_laz = fs::path(TESSERA_DATA_DIR) / "lidar" / "autzen_trim.laz";
+  inputs.push_back({"LAZ autzen_trim (real, LASzip)", autzen_laz, scan.size(),
+                    fs::file_size(autzen_laz), passes});
+  const fs::path bunny_e57 = fs::path(TESSERA_DATA_DIR) / "e57" / "bunnyDouble.e57";
+  const uint64_t e57_points = 30571;
+  inputs.push_back({"E57 bunnyDouble (real)", bunny_e57, e57_points, fs::file_size(bunny_e57),
+                    int(std::max<uint64_t>(10, n / 4 / e57_points))});
   return inputs;
 }
 
@@ -269,16 +302,86 @@ bool drawChart(const fs::path& out, size_t formats, uint64_t n, int repeat, bool
   return true;
 }
 
+/// A store built from a LAS file and from its LAZ twin, alternated; LAZ decoding alone on 1 and
+/// on 2 threads. Writes laz_build.csv and laz_build.png into `out`.
+void measureBuilds(const fs::path& out, uint64_t n, int repeat, bool quiet) {
+  const fs::path dir = out / "inputs";
+  const fs::path autzen = fs::path(TESSERA_DATA_DIR) / "lidar" / "autzen_trim.las";
+  const std::string tag = std::to_string(n);
+  const fs::path las = dir / ("build_" + tag + ".las"), laz = dir / ("build_" + tag + ".laz");
+  if (!fs::exists(las) || !fs::exists(laz)) {
+    glm::dvec3 origin;
+    PointBatch cloud = tiledCloud(readAll(autzen, origin), n);
+    if (!quiet) std::cerr << "generating " << las.string() << " and its LAZ twin\n";
+    lasWriter(origin, 3, false)(cloud, las);
+    lasWriter(origin, 3, true)(cloud, laz);
+  }
+  struct Row {
+    std::string what;
+    double best = std::numeric_limits<double>::max();
+  };
+  std::vector<Row> rows = {{"build from LAS"}, {"build from LAZ"}, {"decode LAZ, 1 thread"},
+                           {"decode LAZ, 2 threads"}};
+  const fs::path store = out / "laz_build.tlod";
+  BuildOptions b;
+  b.quiet = true;
+  tessera::Progress progress("laz_build", size_t(repeat) * rows.size(), "measurements", quiet);
+  for (int rep = 0; rep < repeat; ++rep) {
+    rows[0].best = std::min(rows[0].best, seconds([&] { buildStore({las}, store, b); }));
+    progress.add(1);
+    rows[1].best = std::min(rows[1].best, seconds([&] { buildStore({laz}, store, b); }));
+    progress.add(1);
+    for (unsigned t : {1u, 2u}) {
+      Input in{"", laz, n, fs::file_size(laz), 1, t};
+      rows[1 + t].best = std::min(rows[1 + t].best, seconds([&] { drainReader(in); }));
+      progress.add(1);
+    }
+  }
+  fs::remove(store);
+  std::ofstream csv(out / "laz_build.csv");
+  csv << "what,points,seconds,mpts_per_s\n";
+  for (const Row& r : rows) {
+    char line[256];
+    std::snprintf(line, sizeof line, "%s,%llu,%.4f,%.3f", r.what.c_str(),
+                  static_cast<unsigned long long>(n), r.best, double(n) / r.best / 1e6);
+    csv << line << "\n";
+    std::cout << line << "\n";
+  }
+  std::printf("LAZ build / LAS build speed: %.2f (goal >= 0.5); LAZ decoding 2 threads / 1: %.2f "
+              "(goal >= 1.8)\n",
+              rows[0].best / rows[1].best, rows[2].best / rows[3].best);
+  csv.close();
+  const fs::path script = out / "laz_build.gp";
+  std::ofstream gp(script);
+  gp << "set terminal pngcairo noenhanced size 900,500 font ',10'\n"
+     << "set output '" << (out / "laz_build.png").string() << "'\n"
+     << "set datafile separator ','\n"
+     << "set title 'A store from LAS and from its LAZ twin (" << tessera::humanCount(double(n))
+     << " points of tiled Autzen, best of " << repeat << ")'\n"
+     << "set style fill solid 0.85 border -1\nset boxwidth 0.6\nset grid ytics\n"
+     << "set ylabel 'M points/s'\nset yrange [0:*]\nset xtics nomirror\n"
+     << "plot '" << (out / "laz_build.csv").string()
+     << "' skip 1 using 0:4:xtic(1) with boxes lc rgb '#1f77b4' notitle, \\\n"
+     << "  '' skip 1 using 0:4:(sprintf('%.2f', $4)) with labels offset 0,0.8 notitle\n";
+  gp.close();
+  std::string gnuplot = TESSERA_GNUPLOT;
+  if (gnuplot.empty()) gnuplot = "gnuplot";
+  const std::string cmd = "'" + gnuplot + "' '" + script.string() + "'";
+  if (std::system(cmd.c_str()) != 0) std::cerr << "reader_throughput: gnuplot failed\n";
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
   CLI::App app{
-      "reader_throughput: points/s of the PLY and LAS readers from the page cache against a plain "
-      "read() of the same bytes. Prints CSV; writes reader_throughput.csv and .png into --out."};
+      "reader_throughput: points/s of the PLY, LAS, LAZ and E57 readers from the page cache "
+      "against a plain read() of the same bytes. Prints CSV; writes reader_throughput.csv and "
+      ".png into --out (and laz_build.csv and .png with --build-points)."};
   uint64_t points = 20'000'000;
   std::string out = TESSERA_BENCH_RESULTS_DIR;
   int repeat = 3;
   bool remove_inputs = false, quiet = false;
+  uint64_t build_points = 0;
   app.add_option("--points", points, "Points in each generated binary file (ASCII PLY: a tenth)")
       ->check(CLI::Range(uint64_t(1000), uint64_t(1) << 32))
       ->capture_default_str();
@@ -286,6 +389,11 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--repeat", repeat, "Measurements per input; the best is kept")
       ->check(CLI::Range(1, 100))
+      ->capture_default_str();
+  app.add_option("--build-points", build_points,
+                 "Also build a store from a LAS file and from its LAZ twin of this many points "
+                 "(0: skip)")
+      ->check(CLI::Range(uint64_t(0), uint64_t(1) << 32))
       ->capture_default_str();
   app.add_flag("--remove-inputs", remove_inputs, "Delete OUT/inputs when done");
   app.add_flag("--quiet", quiet, "No progress output on stderr");
@@ -314,6 +422,7 @@ int main(int argc, char** argv) {
     csv.close();
     if (!csv) throw std::runtime_error("cannot write " + (out_dir / kCsvName).string());
     drawChart(out_dir, results.size(), points, repeat, quiet);
+    if (build_points > 0) measureBuilds(out_dir, build_points, repeat, quiet);
     if (remove_inputs) fs::remove_all(out_dir / "inputs");
   } catch (const std::exception& e) {
     std::cerr << "reader_throughput: " << e.what() << "\n";

@@ -341,7 +341,7 @@ seed_picture() {
   cp "$OLDPWD"/fuzz/seeds/picture/* .
 }
 
-declare -A MAX_LEN=([ply]=8192 [las]=8192 [laz]=65536 [e57]=65536 [text]=4096 [obj]=4096 [conf]=1024 [tlod]=32768
+declare -A MAX_LEN=([ply]=8192 [las]=8192 [laz]=65536 [e57]=131072 [text]=4096 [obj]=4096 [conf]=1024 [tlod]=32768
   [chunk]=8192 [frame]=4096 [link]=4096 [site]=4096 [chunk_request]=1024 [voice]=8192
   [wav]=16384 [tmesh]=16384 [video]=32768 [selection]=4096 [annotation]=16384
   [picture]=8192)

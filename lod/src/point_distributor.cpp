@@ -77,7 +77,10 @@ PointDistributor::PointDistributor(const std::vector<std::filesystem::path>& inp
     const SourceInfo& info = reader->info();
     if (mInputs.empty()) mFirstOrigin = info.origin;
     mInputs.push_back({path, uint16_t(next_source)});
-    if (info.format == Format::kStanfordConf) {
+    // A .conf's and an E57's scans are sources of their own (a scan's points carry its index).
+    const bool per_scan = (info.format == Format::kStanfordConf || info.format == Format::kE57) &&
+                          !info.scans.empty() && (info.attributes & kScanIndex);
+    if (per_scan) {
       for (const ScanInfo& s : info.scans)
         mSourceNames.push_back(path.filename().string() + ":" + s.name);
       next_source += uint32_t(info.scans.size());

@@ -145,26 +145,60 @@ SourceFacts storeFacts(PointStore& store) {
   return f;
 }
 
-void readStore(PointStore& store, const BatchSink& sink) {
-  std::vector<NodeId> stack{store.root()};
-  PointBatch batch;
-  const glm::dvec3 origin = store.summary().origin;
+/// Every leaf of a store, in depth-first order.
+std::vector<NodeId> allLeaves(PointStore& store) {
+  std::vector<NodeId> leaves, stack{store.root()};
   while (!stack.empty()) {
     const NodeId id = stack.back();
     stack.pop_back();
-    if (!store.node(id).leaf()) {
+    if (store.node(id).leaf()) {
+      leaves.push_back(id);
+    } else {
       for (NodeId c : store.children(id)) stack.push_back(c);
-      continue;
     }
+  }
+  return leaves;
+}
+
+void readStore(PointStore& store, const ExportOptions& o, const BatchSink& sink) {
+  const std::vector<NodeId> all = allLeaves(store);
+  std::vector<NodeId> leaves = o.leaves ? *o.leaves : all;
+  if (o.leaves) {  // a selection's nodes must be leaves of this store
+    const std::vector<NodeId> sorted = [&] {
+      auto v = all;
+      std::sort(v.begin(), v.end());
+      return v;
+    }();
+    for (NodeId id : leaves) {
+      if (!std::binary_search(sorted.begin(), sorted.end(), id)) {
+        throw ReadError(std::string(kComponent) + ": " + store.path().string() +
+                        ": the selection names node " + std::to_string(id) +
+                        ", which is not a leaf of this store (it was made on another store)");
+      }
+    }
+  }
+  PointBatch batch;
+  const glm::dvec3 origin = store.summary().origin;
+  for (NodeId id : leaves) {
     const auto chunk = store.decodeChunk(id);
+    if (o.leaf_size && o.leaf_size(id) != chunk->size()) {
+      throw ReadError(std::string(kComponent) + ": " + store.path().string() +
+                      ": the selection counts " + std::to_string(o.leaf_size(id)) +
+                      " points in node " + std::to_string(id) + ", which holds " +
+                      std::to_string(chunk->size()) + " (it was made on another store)");
+    }
     batch.reset(chunk->attributes & (kColor | kIntensity | kClassification));
     batch.resize(chunk->size());
+    size_t kept = 0;
     for (size_t i = 0; i < chunk->size(); ++i) {
-      batch.positions[i] = chunk->offset + glm::dvec3(chunk->positions[i]);
-      if (batch.attributes & kColor) batch.colors[i] = chunk->colors[i];
-      if (batch.attributes & kIntensity) batch.intensities[i] = float(chunk->intensities[i]);
-      if (batch.attributes & kClassification) batch.classifications[i] = chunk->classifications[i];
+      if (o.keep_element && !o.keep_element(id, uint32_t(i))) continue;
+      batch.positions[kept] = chunk->offset + glm::dvec3(chunk->positions[i]);
+      if (batch.attributes & kColor) batch.colors[kept] = chunk->colors[i];
+      if (batch.attributes & kIntensity) batch.intensities[kept] = float(chunk->intensities[i]);
+      if (batch.attributes & kClassification) batch.classifications[kept] = chunk->classifications[i];
+      ++kept;
     }
+    batch.resize(kept);
     sink(batch, origin);
   }
 }
@@ -253,7 +287,7 @@ void writePlyOut(const SourceFacts& f, const std::function<void(const BatchSink&
 ExportReport exportPoints(const std::filesystem::path& input, const std::filesystem::path& output,
                           const ExportOptions& o) {
   const OutKind kind = outKind(output);
-  if (kind != OutKind::kPly && hasMagic(input, "LASF", 4)) {
+  if (kind != OutKind::kPly && hasMagic(input, "LASF", 4) && !o.leaves && !o.keep_element) {
     return copyRecords(input, output, kind == OutKind::kLaz, o);
   }
   ExportReport r;
@@ -263,8 +297,12 @@ ExportReport exportPoints(const std::filesystem::path& input, const std::filesys
   if (hasMagic(input, store::kMagic, 4)) {
     store = PointStore::open(input, 64ull << 20);
     facts = storeFacts(*store);
-    source = [&](const BatchSink& sink) { readStore(*store, sink); };
+    source = [&](const BatchSink& sink) { readStore(*store, o, sink); };
   } else {
+    if (o.leaves || o.keep_element || o.leaf_size) {
+      throw ReadError(std::string(kComponent) + ": " + input.string() +
+                      ": a selection picks points of the .tlod store it was made on, not of a scan");
+    }
     ReaderOptions ro;
     ro.decode_threads = o.threads;
     auto probe = openPointReader(input, ro);

@@ -6,7 +6,10 @@
 #include <iostream>
 #include <tuple>
 
+#include <tessera/annotate/annotation_db.h>
+#include <tessera/annotate/selection.h>
 #include <tessera/core/check.h>
+#include <tessera/scene.pb.h>
 #include <tessera/core/cli.h>
 #include <tessera/core/file_checks.h>
 #include <tessera/lod/mesh.h>
@@ -270,9 +273,65 @@ std::vector<double> parseNumbers(const std::string& text, size_t n, const char* 
   return v;
 }
 
+/// The region selected at place ID of the annotation database DB ("DB:ID"), as the lasso or the
+/// lazy snapping stored it: per store leaf, the indices of its points.
+tessera::annotate::Selection storedSelection(const std::string& spec) {
+  namespace annotate = tessera::annotate;
+  const size_t colon = spec.rfind(':');
+  char* end = nullptr;
+  const long long id = colon == std::string::npos ? 0 : std::strtoll(spec.c_str() + colon + 1, &end, 10);
+  if (colon == std::string::npos || colon == 0 || id <= 0 || *end != '\0') {
+    throw cli::UsageError("--selection " + spec +
+                          ": expected DB:ID (an annotation database and a place id, as "
+                          "`tessera-annotate place` lists them)");
+  }
+  const std::string db_path = spec.substr(0, colon);
+  const std::string where = "--selection " + spec + ": ";
+  try {
+    annotate::AnnotationDbOptions options;
+    options.read_only = true;
+    annotate::AnnotationDb db(db_path, options);
+    const std::optional<annotate::Place> place = db.place(id);
+    if (!place) throw ReadError(where + db_path + " has no place " + std::to_string(id));
+    if (place->kind != annotate::PlaceKind::kSelection ||
+        place->selection_id != annotate::kSelectionBlob) {
+      throw ReadError(where + "place " + std::to_string(id) +
+                      " is not a selected region (a point, a hot spot or a measurement)");
+    }
+    tessera::scene::SelectionPayload payload;
+    if (!payload.ParseFromString(std::string(place->selection.begin(), place->selection.end()))) {
+      throw ReadError(where + "place " + std::to_string(id) + ": its selection does not parse");
+    }
+    const auto& e = payload.elements();
+    annotate::Selection selection = annotate::Selection::deserialize(
+        std::span<const uint8_t>(reinterpret_cast<const uint8_t*>(e.data()), e.size()));
+    if (selection.elements() != annotate::SelectionElements::kPoints) {
+      throw ReadError(where + "place " + std::to_string(id) +
+                      " selects triangles of a mesh; export writes the points of a .tlod store");
+    }
+    return selection;
+  } catch (const annotate::AnnotationError& e) {
+    throw ReadError(where + e.what());
+  } catch (const annotate::SelectionError& e) {
+    throw ReadError(where + e.what());
+  }
+}
+
 int runExport(const std::string& in, const std::string& out, const std::string& box,
-              const std::vector<std::string>& planes, ExportOptions o) {
+              const std::vector<std::string>& planes, const std::string& selection_spec,
+              ExportOptions o) {
   return guarded("export", kExitBadInput, [&] {
+    tessera::annotate::Selection selection;
+    if (!selection_spec.empty()) {
+      selection = storedSelection(selection_spec);
+      std::vector<NodeId> leaves;
+      for (const auto& [node, sel] : selection.nodes()) leaves.push_back(node);
+      o.leaves = std::move(leaves);
+      o.keep_element = [&](NodeId node, uint32_t index) {
+        return selection.contains(node, index);
+      };
+      o.leaf_size = [&](NodeId node) { return selection.node(node)->size(); };
+    }
     if (!box.empty()) {
       const auto v = parseNumbers(box, 6, "--box");
       const glm::dvec3 lo(v[0], v[1], v[2]), hi(v[3], v[4], v[5]);
@@ -427,7 +486,7 @@ int run(int argc, char** argv) {
   photo->add_option("-o,--output", photo_out, "Output store (.tlod) or points (.ply)")->required();
   photo->add_flag("--quiet", pbo.quiet, "No progress output");
 
-  std::string export_in, export_out, export_box;
+  std::string export_in, export_out, export_box, export_selection;
   std::vector<std::string> export_planes;
   ExportOptions eo;
   auto* exp = app.add_subcommand(
@@ -447,6 +506,9 @@ int run(int argc, char** argv) {
                   "XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX: keep the points inside (world coordinates)");
   exp->add_option("--plane", export_planes,
                   "A,B,C,D: keep the points with A*x + B*y + C*z + D >= 0 (repeat for several)");
+  exp->add_option("--selection", export_selection,
+                  "DB:ID: only the points of the region selected at place ID of the annotation "
+                  "database DB (a lasso or lazy snapping on the .tlod store IN)");
   exp->add_option("--scale", eo.scale,
                   "Coordinate resolution of converted points (default: the input's own, else "
                   "0.0001); copied LAS records keep theirs")
@@ -485,7 +547,7 @@ int run(int argc, char** argv) {
   if (*verify) return runVerify(verify_store, verify_in, vo);
   if (*exp) {
     eo.quiet = export_quiet;
-    return runExport(export_in, export_out, export_box, export_planes, eo);
+    return runExport(export_in, export_out, export_box, export_planes, export_selection, eo);
   }
   if (*info) return runInfo(info_files, info_json, info_quiet);
   if (*scan) return runScan(scan_mesh, scan_out, scan_res, so);

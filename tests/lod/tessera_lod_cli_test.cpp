@@ -175,6 +175,18 @@ TEST(TesseraLodExport, CutsAScanAndRefusesBadRequestsWithTheirExitCodes) {
   EXPECT_FALSE(std::filesystem::exists(dir / "b.las"));
 }
 
+TEST(TesseraLodBuild, AnE57sScansAreSourcesOfTheirOwnAsAConfsAre) {
+  TempDir dir;
+  const std::string out = (dir / "e.tlod").string();
+  CommandResult b = run("build " + kData + "/e57/bunnyDouble.e57 " + kData +
+                        "/lidar/1.2-with-color.las -o " + out + " --quiet");
+  ASSERT_EQ(b.code, 0) << b.out;
+  CommandResult i = run("info " + out);
+  // The scan is named by its file and the name its data3D element gives it.
+  EXPECT_NE(i.out.find("[0] bunnyDouble.e57:"), std::string::npos) << i.out;
+  EXPECT_NE(i.out.find("[1] 1.2-with-color.las"), std::string::npos) << i.out;
+}
+
 TEST(TesseraLodBuild, DiskFullLeavesNoOutput) {
   TempDir dir;
   std::string out = (dir / "a.tlod").string();

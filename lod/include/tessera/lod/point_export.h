@@ -17,11 +17,14 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <optional>
 #include <string>
 #include <vector>
 
 #include <glm/glm.hpp>
+
+#include <tessera/lod/lod_hierarchy.h>
 
 namespace tessera::lod {
 
@@ -35,6 +38,13 @@ struct ExportOptions {
   double scale = 0.0;
   unsigned threads = 0;  ///< LAZ chunks decoded or encoded at once (0: one per core)
   bool quiet = true;     ///< no progress bar
+  /// A store input only: the leaves to read (a selection's nodes) instead of every leaf, which
+  /// of a leaf's points (by index in its decoded chunk) to keep, and how many points each leaf
+  /// had when the selection was made. A leaf this store does not have, or one of another size,
+  /// is a ReadError: the selection was made on another store.
+  std::optional<std::vector<NodeId>> leaves;
+  std::function<bool(NodeId leaf, uint32_t index)> keep_element;
+  std::function<uint32_t(NodeId leaf)> leaf_size;
 };
 
 struct ExportReport {
