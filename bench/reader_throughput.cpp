@@ -195,13 +195,13 @@ std::vector<Input> prepareInputs(const fs::path& dir, uint64_t n, bool quiet) {
       {{"PLY ASCII", dir / ("ascii_" + std::to_string(n_ascii) + ".ply"), n_ascii},
        plyWriter(PlyEncoding::kAscii, false)},
       {{"LAS 1.2 format 3", dir / ("las12_fmt3_" + tag + ".las"), n}, lasWriter(origin, 3, false)},
-      {{"LAZ 1.2 format 3, 1 thread", dir / ("laz12_fmt3_" + tag + ".laz"), n, 0, 1, 1},
+      {{"LAZ 1.2 format 3 (1 thread)", dir / ("laz12_fmt3_" + tag + ".laz"), n, 0, 1, 1},
        lasWriter(origin, 3, true)},
-      {{"LAZ 1.2 format 3, 2 threads", dir / ("laz12_fmt3_" + tag + ".laz"), n, 0, 1, 2},
+      {{"LAZ 1.2 format 3 (2 threads)", dir / ("laz12_fmt3_" + tag + ".laz"), n, 0, 1, 2},
        lasWriter(origin, 3, true)},
-      {{"LAZ 1.4 format 7, 1 thread", dir / ("laz14_fmt7_" + tag + ".laz"), n, 0, 1, 1},
+      {{"LAZ 1.4 format 7 (1 thread)", dir / ("laz14_fmt7_" + tag + ".laz"), n, 0, 1, 1},
        lasWriter(origin, 7, true)},
-      {{"LAZ 1.4 format 7, 2 threads", dir / ("laz14_fmt7_" + tag + ".laz"), n, 0, 1, 2},
+      {{"LAZ 1.4 format 7 (2 threads)", dir / ("laz14_fmt7_" + tag + ".laz"), n, 0, 1, 2},
        lasWriter(origin, 7, true)},
   };
   fs::create_directories(dir);
@@ -222,7 +222,7 @@ std::vector<Input> prepareInputs(const fs::path& dir, uint64_t n, bool quiet) {
   const int passes = int(std::max<uint64_t>(10, n / 4 / scan.size()));
   inputs.push_back({"LAS autzen_trim (real)", autzen, scan.size(), fs::file_size(autzen), passes});
   const fs::path autzen_laz = fs::path(TESSERA_DATA_DIR) / "lidar" / "autzen_trim.laz";
-  inputs.push_back({"LAZ autzen_trim (real, LASzip)", autzen_laz, scan.size(),
+  inputs.push_back({"LAZ autzen_trim (real; LASzip)", autzen_laz, scan.size(),
                     fs::file_size(autzen_laz), passes});
   const fs::path bunny_e57 = fs::path(TESSERA_DATA_DIR) / "e57" / "bunnyDouble.e57";
   const uint64_t e57_points = 30571;
@@ -266,7 +266,7 @@ std::string csvLine(const Result& r) {
 bool drawChart(const fs::path& out, size_t formats, uint64_t n, int repeat, bool quiet) {
   const fs::path script = out / "reader_throughput.gp";
   std::ofstream gp(script);
-  gp << "set terminal pngcairo noenhanced size 1200,650 font ',10'\n"
+  gp << "set terminal pngcairo noenhanced size 1400,700 font ',10'\n"
      << "set output '" << (out / "reader_throughput.png").string() << "'\n"
      << "set datafile separator ','\n"
      << "set title 'Reader throughput from the page cache (" << tessera::humanCount(double(n))
@@ -279,8 +279,9 @@ bool drawChart(const fs::path& out, size_t formats, uint64_t n, int repeat, bool
      << "set yrange [0.5:*]\n"
      << "set ylabel 'M points/s (log scale)'\n"
      << "set grid ytics\n"
-     << "set key top right\n"
-     << "set xtics nomirror\n"
+     << "set key outside top center horizontal\n"
+     << "set xtics nomirror rotate by -25\n"
+     << "set bmargin 7\n"
      << "set xrange [-0.6:" << double(formats) - 0.4 << "]\n"
      << "plot '" << (out / kCsvName).string() << "' skip 1 using 7:xtic(1) lc rgb '#9e9e9e' "
      << "title 'plain read() of the same bytes', \\\n"
@@ -320,8 +321,8 @@ void measureBuilds(const fs::path& out, uint64_t n, int repeat, bool quiet) {
     std::string what;
     double best = std::numeric_limits<double>::max();
   };
-  std::vector<Row> rows = {{"build from LAS"}, {"build from LAZ"}, {"decode LAZ, 1 thread"},
-                           {"decode LAZ, 2 threads"}};
+  std::vector<Row> rows = {{"build from LAS"}, {"build from LAZ"}, {"decode LAZ (1 thread)"},
+                           {"decode LAZ (2 threads)"}};
   const fs::path store = out / "laz_build.tlod";
   BuildOptions b;
   b.quiet = true;
