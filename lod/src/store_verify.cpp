@@ -4,9 +4,10 @@
 //
 // Every input point is stored once, in the leaf whose cell contains it (inner nodes hold
 // sampled copies). A stored point is the input point quantised on its leaf's grid, so the
-// candidate for p is key(L, p) = round((p - L.min) / L.step); a multiset per leaf makes the
-// match one to one, and the distance from p to the decoded position is checked against the
-// bound the hierarchy states for L.
+// candidate for p is key(L, p) = round((p - L.min) / L.step), or one of its neighbours when p
+// lies half a step from that grid; a multiset per leaf makes the match one to one, and the
+// distance from p to the decoded position is checked against the bound the hierarchy states
+// for L.
 #include <tessera/lod/store_builder.h>
 
 #include <fcntl.h>
@@ -168,19 +169,25 @@ VerifyReport verifyStore(const std::filesystem::path& store_path,
       auto a = path.empty() ? active.end() : active.find(path.back());
       if (a != active.end()) {
         ActiveNode& node = a->second;
-        glm::dvec3 q = glm::max(glm::round((p - node.box_min) / node.step), glm::dvec3(0.0));
-        auto k = node.keys.find(packKey(q));
-        if (k != node.keys.end() && k->second > 0) {
+        const glm::dvec3 q0 = glm::max(glm::round((p - node.box_min) / node.step), glm::dvec3(0.0));
+        // The key p rounds to first; then its 26 neighbours: a point half a step from the grid
+        // (every point of a leaf whose grid is offset by half a step from the input's own, as
+        // --exact-leaves gives) may have been rounded the other way by the encoder.
+        for (int n = -1; n < 27 && !matched; ++n) {  // -1: q0; 0-26: the cube around it
+          const glm::dvec3 q =
+              n < 0 ? q0 : q0 + glm::dvec3(n % 3 - 1, n / 3 % 3 - 1, n / 9 - 1);
+          if (n == 13 || glm::any(glm::lessThan(q, glm::dvec3(0.0)))) continue;  // 13: q0 again
+          auto k = node.keys.find(packKey(q));
+          if (k == node.keys.end() || k->second == 0) continue;
           // The decoded position, as a renderer gets it (float relative to the node).
-          glm::dvec3 stored = node.box_min + glm::dvec3(glm::vec3(q) * float(node.step));
-          double d = glm::length(stored - p);
-          if (d <= node.bound) {
-            --k->second;
-            matched = true;
-            report.max_error = std::max(report.max_error, d);
-            if (node.bound > 0)
-              report.max_error_ratio = std::max(report.max_error_ratio, d / node.bound);
-          }
+          const glm::dvec3 stored = node.box_min + glm::dvec3(glm::vec3(q) * float(node.step));
+          const double d = glm::length(stored - p);
+          if (d > node.bound) continue;
+          --k->second;
+          matched = true;
+          report.max_error = std::max(report.max_error, d);
+          if (node.bound > 0)
+            report.max_error_ratio = std::max(report.max_error_ratio, d / node.bound);
         }
       }
       if (matched) {

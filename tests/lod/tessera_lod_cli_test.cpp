@@ -187,6 +187,20 @@ TEST(TesseraLodBuild, AnE57sScansAreSourcesOfTheirOwnAsAConfsAre) {
   EXPECT_NE(i.out.find("[1] 1.2-with-color.las"), std::string::npos) << i.out;
 }
 
+TEST(TesseraLodBuild, ExactLeavesVerifyAgainstTheirInput) {
+  // Exact leaves quantise on the input's 1 cm relative to each leaf's corner: a leaf whose
+  // corner lies half a step off the survey's grid rounds its points either way, and verify
+  // finds them on the neighbouring key.
+  TempDir dir;
+  const std::string out = (dir / "exact.tlod").string();
+  ASSERT_EQ(run("build " + kData + "/lidar/autzen_trim.las -o " + out + " --exact-leaves --quiet")
+                .code,
+            0);
+  CommandResult v = run("verify " + out + " " + kData + "/lidar/autzen_trim.las --quiet");
+  EXPECT_EQ(v.code, 0) << v.out;
+  EXPECT_NE(v.out.find("110000 matched, 0 unmatched"), std::string::npos) << v.out;
+}
+
 TEST(TesseraLodBuild, DiskFullLeavesNoOutput) {
   TempDir dir;
   std::string out = (dir / "a.tlod").string();
