@@ -26,6 +26,9 @@
 #define TESSERA_BINDING_OVERLAY_LINES 19    // OverlayLine[]: opaque lines (overlay_lines.comp)
 #define TESSERA_BINDING_OVERLAY_OWNER 20    // uint per pixel: the last line covering it, + 1
 #define TESSERA_BINDING_OVERLAY_STEPS 21    // uint per step along the lines: its line
+#define TESSERA_BINDING_ANALYSIS_PLANE 22   // float per pixel: relative depth (analysis.comp)
+#define TESSERA_BINDING_ANALYSIS_RANGE 23   // its extremes (ordered float bits), histogram
+#define TESSERA_ANALYSIS_BINS 4096u         // the relative depth's histogram (its percentiles)
 
 // The pull-push fill (shaders/fill.comp, FillPass): most pyramid levels above the frame (reach
 // 2^levels pixels); its pyramid's texture units (samples, the push's winners) and image units

@@ -164,7 +164,8 @@ GlBufferTexture::GlBufferTexture(uint32_t buffer_name, uint32_t format) {
   glGetIntegerv(GL_MAX_TEXTURE_BUFFER_SIZE, &max_texels);
   GLint64 bytes = 0;
   glGetNamedBufferParameteri64v(buffer_name, GL_BUFFER_SIZE, &bytes);
-  const GLint64 texel_bytes = format == GL_RG32UI ? 8 : format == GL_RGBA32UI ? 16 : 4;
+  const GLint64 texel_bytes =
+      format == GL_RG32UI || format == GL_RG32F ? 8 : format == GL_RGBA32UI ? 16 : 4;
   if (bytes / texel_bytes > max_texels)
     throw RenderError("render::GlBufferTexture: " + std::to_string(bytes / texel_bytes) +
                       " texels (at most " + std::to_string(max_texels) + ")");

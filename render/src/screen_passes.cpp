@@ -1,6 +1,7 @@
 #include <tessera/render/screen_passes.h>
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <optional>
 #include <string>
@@ -104,6 +105,148 @@ double EdlPass::run(FrameTarget& target, const EdlOptions& options, const glm::d
     p.set("uEdgeTau", float(std::log2(1.0 + double(options.edge_slope) * pixel_angle)));
     p.set("uPlaneFit", options.plane_fit ? 1 : 0);
     p.set("uMedian", options.median_reference ? 1 : 0);
+    dispatchPixels(target);
+    glMemoryBarrier(GL_TEXTURE_FETCH_BARRIER_BIT);
+  }
+  for (uint32_t unit : {TESSERA_TEXTURE_DEPTH, TESSERA_TEXTURE_SCREEN_SCRATCH})
+    glBindTextureUnit(unit, 0);
+  return lap();
+}
+
+AnalysisPass::AnalysisPass() {
+  for (int stage = 0; stage < 6; ++stage)
+    mStages[stage] = GlProgram::compute(shaders::kAnalysis, "analysis.comp",
+                                        "#define TESSERA_ANALYSIS_STAGE " +
+                                            std::to_string(stage) + "\n");
+}
+
+double AnalysisPass::relativeDepth(FrameTarget& target, const RelativeDepthOptions& o,
+                                   const glm::dmat4& projection, glm::vec2* range_out) {
+  if (!o.enabled || !(o.amount > 0.0f)) return 0.0;
+  TESSERA_CHECK(o.radius >= 1 && o.radius <= kMaxRelativeDepthRadius,
+                "render::AnalysisPass: the relative depth's radius must be in [1, 256] pixels");
+  TESSERA_CHECK(!o.range || (std::isfinite(o.range->x) && std::isfinite(o.range->y) &&
+                             o.range->x < o.range->y),
+                "render::AnalysisPass: a relative depth range must be finite and increasing");
+  GpuLap lap;
+  if (mPlane.bytes() != target.pixels() * 4) {
+    mSums = GlBuffer(target.pixels() * 8, nullptr);
+    mPlane = GlBuffer(target.pixels() * 4, nullptr);
+    mSumTexels = GlBufferTexture(mSums, GL_RG32F);
+    mPlaneTexels = GlBufferTexture(mPlane, GL_R32F);
+  }
+  constexpr size_t kRangeBytes = 8 + 4 * size_t(TESSERA_ANALYSIS_BINS);
+  if (!mRange) mRange = GlBuffer(kRangeBytes, nullptr, GL_DYNAMIC_STORAGE_BIT);
+  std::vector<uint32_t> counts(2 + TESSERA_ANALYSIS_BINS, 0);
+  counts[0] = 0xFFFFFFFFu;  // the extremes start beyond every value
+  glNamedBufferSubData(mRange.name(), 0, kRangeBytes, counts.data());
+  const GlBufferTexture depth(target.depth(), GL_R32UI);
+  depth.bind(TESSERA_TEXTURE_DEPTH);
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_IMAGE, target.image().name());
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_SCREEN_SCRATCH, mSums.name());
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_ANALYSIS_PLANE, mPlane.name());
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_ANALYSIS_RANGE, mRange.name());
+  auto run = [&](int stage, const glm::vec2& range) {
+    (stage == 1 ? mSumTexels : mPlaneTexels).bind(TESSERA_TEXTURE_SCREEN_SCRATCH);
+    const GlProgram& p = mStages[stage];
+    p.use();
+    p.set("uSize", glm::ivec2(target.width(), target.height()));
+    p.set("uP22", float(projection[2][2]));
+    p.set("uP32", float(projection[3][2]));
+    p.set("uRadius", o.radius);
+    p.set("uAmount", std::clamp(o.amount, 0.0f, 1.0f));
+    p.set("uFixedRange", 1);
+    p.set("uRangeLo", range.x);
+    p.set("uRangeHi", range.y);
+    dispatchPixels(target);
+    glMemoryBarrier(GL_TEXTURE_FETCH_BARRIER_BIT);
+  };
+  run(0, {});
+  run(1, {});
+  glm::vec2 range(0.0f);
+  if (o.range) {
+    range = *o.range;
+  } else {
+    // The 1st to 99th percentile of this frame's differences (analysis.comp, stage 4).
+    run(4, {});
+    mRange.read(0, kRangeBytes, counts.data());
+    auto value = [](uint32_t u) {
+      return std::bit_cast<float>((u & 0x80000000u) ? u & 0x7FFFFFFFu : ~u);
+    };
+    if (counts[0] <= counts[1]) {
+      const float lo = value(counts[0]), hi = value(counts[1]);
+      uint64_t total = 0;
+      for (size_t i = 2; i < counts.size(); ++i) total += counts[i];
+      const uint64_t low_cut = total / 100, high_cut = total - total / 100;
+      uint64_t seen = 0;
+      size_t first = 0, last = TESSERA_ANALYSIS_BINS - 1;
+      bool found_first = false;
+      for (size_t b = 0; b < TESSERA_ANALYSIS_BINS; ++b) {
+        seen += counts[2 + b];
+        if (!found_first && seen > low_cut) {
+          first = b;
+          found_first = true;
+        }
+        if (seen >= high_cut) {
+          last = b;
+          break;
+        }
+      }
+      const float width = (hi - lo) / float(TESSERA_ANALYSIS_BINS);
+      range = glm::vec2(lo + width * float(first), lo + width * float(last + 1));
+    }
+  }
+  if (range.y > range.x) run(2, range);
+  if (range_out) *range_out = range;
+  for (uint32_t unit : {TESSERA_TEXTURE_DEPTH, TESSERA_TEXTURE_SCREEN_SCRATCH})
+    glBindTextureUnit(unit, 0);
+  return lap();
+}
+
+double AnalysisPass::contours(FrameTarget& target, const ContourOptions& o,
+                              const glm::dmat4& projection, const glm::dmat4& view) {
+  if (!o.enabled) return 0.0;
+  TESSERA_CHECK(std::isfinite(o.interval) && o.interval > 0.0 && std::isfinite(o.phase),
+                "render::AnalysisPass: the contour interval must be finite and positive");
+  const double axis_length = glm::length(o.axis);
+  TESSERA_CHECK(!o.height || (std::isfinite(axis_length) && axis_length > 0.0),
+                "render::AnalysisPass: the contour height axis must be a finite non-zero vector");
+  GpuLap lap;
+  // Height along the world axis a: h(p) = a . p_world = a . eye + (R a) . p_view, R the view's
+  // rotation. The eye's part is the same for every pixel: only its fraction of an interval
+  // matters to where the lines fall, so it joins the phase and floats keep their precision
+  // however far the model lies from the world's origin.
+  const glm::dvec3 a = o.height ? o.axis / axis_length : glm::dvec3(0.0);
+  const glm::dvec3 eye = glm::dvec3(glm::inverse(view)[3]);
+  const glm::dvec3 axis_view = glm::dmat3(view) * a;
+  double phase = o.phase / o.interval;
+  if (o.height) phase -= glm::dot(a, eye) / o.interval;  // h = a.eye + ..., levels of h - phase
+  phase = -phase;
+  phase -= std::floor(phase);
+  if (mPlane.bytes() != target.pixels() * 4) {
+    mSums = GlBuffer(target.pixels() * 8, nullptr);
+    mPlane = GlBuffer(target.pixels() * 4, nullptr);
+    mSumTexels = GlBufferTexture(mSums, GL_RG32F);
+    mPlaneTexels = GlBufferTexture(mPlane, GL_R32F);
+  }
+  const GlBufferTexture depth(target.depth(), GL_R32UI);
+  depth.bind(TESSERA_TEXTURE_DEPTH);
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_IMAGE, target.image().name());
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_ANALYSIS_PLANE, mPlane.name());
+  mPlaneTexels.bind(TESSERA_TEXTURE_SCREEN_SCRATCH);
+  for (int stage : {3, 5}) {  // the surface's value per pixel, then the lines
+    const GlProgram& p = mStages[stage];
+    p.use();
+    p.set("uSize", glm::ivec2(target.width(), target.height()));
+    p.set("uP22", float(projection[2][2]));
+    p.set("uP32", float(projection[3][2]));
+    p.set("uViewFromClip", glm::mat4(glm::inverse(projection)));
+    p.set("uHeight", o.height ? 1 : 0);
+    p.set("uAxis", glm::vec3(axis_view));
+    p.set("uInvInterval", float(1.0 / o.interval));
+    p.set("uPhase", float(phase));
+    p.set("uEdge", o.edge);
+    p.set("uLineColor", o.color);
     dispatchPixels(target);
     glMemoryBarrier(GL_TEXTURE_FETCH_BARRIER_BIT);
   }

@@ -206,6 +206,12 @@ void ViewRenderer::draw(std::span<const ModelInstance> models, const ViewSetup& 
     }
     st.resolve_ms = mResolve.run(mTarget, options.background, shading.uniform_color, shading.blend);
     st.screen_ms = mEdl.run(mTarget, options.edl, view.projection);
+    if (options.relative_depth.enabled || options.contours.enabled) {
+      if (!mAnalysis) mAnalysis = std::make_unique<AnalysisPass>();
+      st.screen_ms += mAnalysis->relativeDepth(mTarget, options.relative_depth, view.projection,
+                                               &st.relative_depth_range);
+      st.screen_ms += mAnalysis->contours(mTarget, options.contours, view.projection, view.view);
+    }
   }
   if (!options.highlights.empty()) {
     if (!mHighlight) mHighlight = std::make_unique<HighlightPass>();

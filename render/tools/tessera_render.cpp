@@ -180,6 +180,22 @@ int run(int argc, char** argv) {
                "Eye-dome lighting (shape without normals; default: the scene's shading)");
   app.add_flag("--edl-classic", edl_classic,
                "Eye-dome lighting from raw depths, the classic method (speckles on noisy scans)");
+  int relative_depth = 0;
+  double contour_interval = 0.0, contour_phase = 0.0;
+  std::string contour_axis;
+  app.add_option("--relative-depth", relative_depth,
+                 "Relative depth (the view depth minus its Gaussian blur of this half-width in "
+                 "pixels: the fine relief, in the viridis colour map over the frame's range); "
+                 "a single view, not yet agreed across a wall's tiles")
+      ->check(cli::integerRange(1, render::kMaxRelativeDepthRadius));
+  app.add_option("--contours", contour_interval,
+                 "Contour lines every this many units (metres) of view depth, one pixel wide")
+      ->check(cli::positiveFinite(1e12));
+  app.add_option("--contour-axis", contour_axis,
+                 "X,Y,Z: contour lines of the height along this world axis instead of the depth "
+                 "(0,0,1: a LiDAR scan's vertical)");
+  app.add_option("--contour-phase", contour_phase, "Units: lines at PHASE + k * interval")
+      ->check(cli::finiteRange(-1e12, 1e12));
   app.add_option("--splat-scale", splat_scale,
                  "Splat size as a multiple of the projected sample spacing (raise for LiDAR)")
       ->check(cli::finiteRange(0.25, 8.0))
@@ -312,6 +328,22 @@ int run(int argc, char** argv) {
     if (lod_px > 0) options.lod_pixels = lod_px;
     if (edl) options.edl.strength = 1.0f;
     if (edl_classic) options.edl = render::EdlOptions::classic();
+    if (relative_depth > 0) {
+      options.relative_depth.enabled = true;
+      options.relative_depth.radius = relative_depth;
+    }
+    if (!contour_axis.empty() && !(contour_interval > 0))
+      usage("--contour-axis needs --contours INTERVAL");
+    if (contour_interval > 0) {
+      options.contours.enabled = true;
+      options.contours.interval = contour_interval;
+      options.contours.phase = contour_phase;
+      if (!contour_axis.empty()) {
+        options.contours.height = true;
+        options.contours.axis = cli::parseVec3(contour_axis, "--contour-axis");
+        if (glm::length(options.contours.axis) == 0.0) usage("--contour-axis: a zero vector");
+      }
+    }
     options.splat_scale = float(splat_scale);
     options.point_budget = point_budget;
     options.coverage_stop = !no_coverage_stop;

@@ -1,10 +1,13 @@
-// The screen passes (screen_passes.h): eye-dome lighting leaves a plane facing the camera
+// The screen passes (screen_passes.h): relative depth and contour lines equal a CPU reference
+// computed from the frame's own depth plane (colours within 3 levels, lines pixel for pixel);
+// eye-dome lighting leaves a plane facing the camera
 // unshaded (exact, and with scanner-like range noise for the robust method), darkens the far
 // side of a depth step, and on a noisy virtual scan of the bunny the 1 px LOD view
 // matches the full-resolution render to at least 35 dB and flickers at most half as much as the
 // classic method over a 0.1 degree orbit step.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <bit>
 #include <cmath>
 #include <cstdio>
@@ -44,9 +47,8 @@ glm::dmat4 squareProjection() {
 }
 
 /// Points given in view space (the camera at the origin looking down -z), drawn as discs of
-/// radius `splat` px (0: one pixel), resolved in grey and shaded by EDL with `options`.
-Image shade(const std::vector<GpuPoint>& points, const EdlOptions& options, int splat = 1) {
-  FrameTarget target(kSize, kSize);
+/// radius `splat` px (0: one pixel) into `target`, resolved in grey.
+void drawGrey(FrameTarget& target, const std::vector<GpuPoint>& points, int splat) {
   PointPass pass;
   pass.setPoints(points);
   DrawBatch b;
@@ -58,6 +60,12 @@ Image shade(const std::vector<GpuPoint>& points, const EdlOptions& options, int 
   target.clearGeometry(false);
   pass.draw(target, {&b, 1}, shading);
   ResolvePass().run(target, glm::vec3(0.0f), shading.uniform_color);
+}
+
+/// The points drawn (drawGrey) and shaded by EDL with `options`.
+Image shade(const std::vector<GpuPoint>& points, const EdlOptions& options, int splat = 1) {
+  FrameTarget target(kSize, kSize);
+  drawGrey(target, points, splat);
   EdlPass().run(target, options, squareProjection());
   return target.readImage();
 }
@@ -611,6 +619,202 @@ TEST_F(FillTest, BadSizesAndRadiiAreRefusedOrIgnored) {
   EXPECT_EQ(fill.run(target, squareProjection(), 0.0f, true, true), 0.0);
   fill.run(target, squareProjection(), 1e9f, true, true);  // clamped to the deepest pyramid
   for (uint32_t d : target.readDepth()) ASSERT_EQ(d, kEmptyDepth);
+}
+
+
+// ---- analysis filters: relative depth and contour lines against a CPU reference ------------
+
+/// The same headless context as eye-dome lighting's tests.
+class AnalysisTest : public EdlTest {};
+
+/// A slanted plane (depth growing with y) with a Gaussian bump, in view space, 4 points a pixel.
+std::vector<GpuPoint> bumpyRamp() {
+  std::vector<GpuPoint> out;
+  const int n = 2 * int(kSize);
+  for (int j = 0; j < n; ++j)
+    for (int i = 0; i < n; ++i) {
+      const double u = 2.0 * (i + 0.5) / n - 1.0, v = 2.0 * (j + 0.5) / n - 1.0;
+      const double z = 2.0 + 0.8 * v + 0.06 * std::exp(-(u * u + (v - 0.1) * (v - 0.1)) / 0.02);
+      const double half = z * std::tan(glm::radians(20.0)) * 0.95;
+      out.push_back({glm::vec3(u * half, v * half, -z), 0xFFFFFFFFu});
+    }
+  return out;
+}
+
+struct AnalysedFrame {
+  Image image;
+  std::vector<uint32_t> depth;
+  glm::vec2 range{0.0f};
+};
+
+/// The points resolved in grey; then relative depth and/or contours when enabled.
+AnalysedFrame analyse(const std::vector<GpuPoint>& points, const RelativeDepthOptions& rel,
+                      const ContourOptions& contours) {
+  FrameTarget target(kSize, kSize);
+  drawGrey(target, points, 1);
+  AnalysisPass analysis;
+  AnalysedFrame f;
+  analysis.relativeDepth(target, rel, squareProjection(), &f.range);
+  analysis.contours(target, contours, squareProjection(), glm::dmat4(1.0));
+  f.image = target.readImage();
+  f.depth = target.readDepth();
+  return f;
+}
+
+/// Linear view depth of a depth-plane value (0 for none), in double.
+double linearDepth(uint32_t bits) {
+  if (bits == 0xFFFFFFFFu) return 0.0;
+  const glm::dmat4 p = squareProjection();
+  const double ndc = double(std::bit_cast<float>(bits)) * 2.0 - 1.0;
+  return p[3][2] / (ndc + p[2][2]);
+}
+
+TEST_F(AnalysisTest, RelativeDepthMatchesAReferenceComputedFromTheDepthPlane) {
+  RelativeDepthOptions rel;
+  rel.enabled = true;
+  rel.radius = 12;
+  const AnalysedFrame f = analyse(bumpyRamp(), rel, {});
+  // The reference: the same blur, difference and percentile range, in double, from the plane.
+  const int w = int(kSize);
+  std::vector<double> d(f.depth.size()), rd(f.depth.size(), 0.0);
+  for (size_t i = 0; i < d.size(); ++i) d[i] = linearDepth(f.depth[i]);
+  const double sigma = rel.radius / 3.0;
+  auto g = [&](int k) { return std::exp(-double(k * k) / (2 * sigma * sigma)); };
+  std::vector<glm::dvec2> h(d.size());
+  for (int y = 0; y < w; ++y)
+    for (int x = 0; x < w; ++x) {
+      glm::dvec2 s(0.0);
+      for (int k = -rel.radius; k <= rel.radius; ++k) {
+        const int xx = x + k;
+        if (xx < 0 || xx >= w || d[y * w + xx] == 0) continue;
+        s += glm::dvec2(g(k) * d[y * w + xx], g(k));
+      }
+      h[y * w + x] = s;
+    }
+  std::vector<double> values;
+  for (int y = 0; y < w; ++y)
+    for (int x = 0; x < w; ++x) {
+      if (d[y * w + x] == 0) continue;
+      glm::dvec2 s(0.0);
+      for (int k = -rel.radius; k <= rel.radius; ++k) {
+        const int yy = y + k;
+        if (yy >= 0 && yy < w) s += g(k) * h[yy * w + x];
+      }
+      rd[y * w + x] = d[y * w + x] - s.x / s.y;
+      values.push_back(rd[y * w + x]);
+    }
+  ASSERT_GT(values.size(), size_t(w * w) / 2);
+  std::sort(values.begin(), values.end());
+  const double lo = values[values.size() / 100], hi = values[values.size() * 99 / 100];
+  // The pass's range: its histogram's 1st and 99th percentile bins (4096 over the extremes).
+  const double bin = (values.back() - values.front()) / 4096.0;
+  EXPECT_NEAR(f.range.x, lo, 2 * bin + 1e-6);
+  EXPECT_NEAR(f.range.y, hi, 2 * bin + 1e-6);
+  // Every covered pixel in the colour map at its difference: the bump's top yellow-green, the
+  // ring around it (pulled below its blur) dark.
+  size_t close = 0, covered = 0;
+  double top_green = 0, plane_green = 0;
+  for (int y = 0; y < w; ++y)
+    for (int x = 0; x < w; ++x) {
+      if (d[y * w + x] == 0) continue;
+      ++covered;
+      const double t = std::clamp((rd[y * w + x] - f.range.x) / (f.range.y - f.range.x), 0.0, 1.0);
+      // viridis at t: the pass's nine stops.
+      static const double stops[9][3] = {{68, 1, 84},    {72, 40, 120},  {62, 74, 137},
+                                         {49, 104, 142}, {38, 130, 142}, {31, 158, 137},
+                                         {53, 183, 121}, {109, 205, 89}, {253, 231, 37}};
+      const double xs = t * 8.0;
+      const int i = std::min(int(xs), 7);
+      const uint8_t* px = &f.image.rgba[(size_t(w - 1 - y) * w + x) * 4];
+      bool ok = true;
+      for (int c = 0; c < 3; ++c) {
+        const double want = stops[i][c] + (stops[i + 1][c] - stops[i][c]) * (xs - i);
+        ok = ok && std::abs(px[c] - want) <= 3.0;
+      }
+      close += ok;
+    }
+  EXPECT_GT(double(close), 0.99 * double(covered)) << close << " of " << covered;
+  // The bump (its peak at the view's centre, slightly up) stands out from the ramp around it.
+  const uint8_t* peak = &f.image.rgba[(size_t(w / 2 - 7) * w + w / 2) * 4];
+  const uint8_t* ramp = &f.image.rgba[(size_t(w / 2 - 7) * w + w / 8) * 4];
+  top_green = peak[1];
+  plane_green = ramp[1];
+  EXPECT_NE(top_green, plane_green);
+}
+
+TEST_F(AnalysisTest, ContourLinesAreOnePixelWideAndWhereTheReferencePutsThem) {
+  for (bool height : {false, true}) {
+    ContourOptions c;
+    c.enabled = true;
+    c.interval = height ? 0.05 : 0.1;
+    c.phase = 0.013;
+    c.height = height;
+    c.axis = glm::dvec3(0.0, 1.0, 0.0);  // the view's up (view = world here)
+    c.color = glm::vec4(0.0f, 0.0f, 0.0f, 1.0f);
+    const AnalysedFrame f = analyse(bumpyRamp(), {}, c);
+    const int w = int(kSize);
+    const glm::dmat4 inv = glm::inverse(squareProjection());
+    std::vector<double> value(f.depth.size(), 0.0), d(f.depth.size());
+    for (size_t i = 0; i < d.size(); ++i) d[i] = linearDepth(f.depth[i]);
+    auto raw = [&](int x, int y) {
+      if (!height) return d[y * w + x];
+      const glm::dvec4 ndc((x + 0.5) / w * 2 - 1, (y + 0.5) / w * 2 - 1,
+                           double(std::bit_cast<float>(f.depth[y * w + x])) * 2 - 1, 1.0);
+      const glm::dvec4 v = inv * ndc;
+      return v.y / v.w;
+    };
+    for (int y = 0; y < w; ++y)
+      for (int x = 0; x < w; ++x) {
+        if (d[y * w + x] == 0) continue;
+        double sum = 0, n = 0;
+        for (int dy = -2; dy <= 2; ++dy)
+          for (int dx = -2; dx <= 2; ++dx) {
+            const int xx = x + dx, yy = y + dy;
+            if (xx < 0 || yy < 0 || xx >= w || yy >= w || d[yy * w + xx] == 0) continue;
+            if (std::abs(d[yy * w + xx] - d[y * w + x]) >
+                c.edge * d[y * w + x] * std::max(std::abs(dx), std::abs(dy)))
+              continue;
+            sum += raw(xx, yy);
+            n += 1;
+          }
+        value[y * w + x] = sum / n;
+      }
+    auto level = [&](int x, int y) { return std::floor((value[y * w + x] - c.phase) / c.interval); };
+    size_t agree = 0, lines = 0, covered = 0, near_boundary = 0;
+    for (int y = 0; y < w; ++y)
+      for (int x = 0; x < w; ++x) {
+        if (d[y * w + x] == 0) continue;
+        ++covered;
+        bool want = false, close_call = false;
+        for (glm::ivec2 o : {glm::ivec2(1, 0), glm::ivec2(-1, 0), glm::ivec2(0, 1), glm::ivec2(0, -1)}) {
+          const int xx = x + o.x, yy = y + o.y;
+          if (xx < 0 || yy < 0 || xx >= w || yy >= w || d[yy * w + xx] == 0) continue;
+          if (std::abs(d[yy * w + xx] - d[y * w + x]) > c.edge * d[y * w + x]) continue;
+          want = want || level(xx, yy) > level(x, y);
+        }
+        // A value within float precision of a level is a coin toss for either side.
+        const double frac = (value[y * w + x] - c.phase) / c.interval;
+        close_call = std::abs(frac - std::round(frac)) < 1e-4;
+        const bool got = f.image.rgba[(size_t(w - 1 - y) * w + x) * 4] == 0;
+        lines += got;
+        near_boundary += close_call;
+        agree += got == want || close_call;
+      }
+    ASSERT_GT(covered, size_t(w * w) / 2);
+    EXPECT_EQ(agree, covered) << (height ? "height" : "depth") << ": " << covered - agree
+                              << " pixels differ from the reference";
+    EXPECT_GT(lines, size_t(3 * w)) << "lines drawn";
+    // One pixel wide: down every column, a line pixel never has a line pixel right below it
+    // (the ramp runs along y, so the lines run across).
+    size_t doubled = 0;
+    for (int x = w / 4; x < 3 * w / 4; ++x)
+      for (int y = 1; y < w; ++y) {
+        const bool a = f.image.rgba[(size_t(w - 1 - y) * w + x) * 4] == 0 && d[y * w + x] != 0;
+        const bool b = f.image.rgba[(size_t(w - y) * w + x) * 4] == 0 && d[(y - 1) * w + x] != 0;
+        doubled += a && b;
+      }
+    EXPECT_LT(doubled, size_t(w / 8)) << (height ? "height" : "depth");
+  }
 }
 
 }  // namespace

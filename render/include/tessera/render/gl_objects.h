@@ -105,7 +105,7 @@ class GlBuffer;
 class GlBufferTexture {
  public:
   GlBufferTexture() = default;
-  /// `format`: GL_R32UI, GL_R32F, GL_RG32UI or GL_RGBA32UI: one texel per that many bytes of
+  /// `format`: GL_R32UI, GL_R32F, GL_RG32UI, GL_RG32F or GL_RGBA32UI: one texel per that many bytes of
   /// `buffer`. Throws RenderError when the buffer holds more texels than GL allows.
   GlBufferTexture(const GlBuffer& buffer, uint32_t format);
   /// The same for a buffer known by its GL name (the GPU cache's chunk buffers).

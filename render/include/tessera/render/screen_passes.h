@@ -152,6 +152,58 @@ class EdlPass {
   GlBufferTexture mFilteredTexels;  ///< mFiltered as stage 1 reads it
 };
 
+/// The relative depth filter (Borgeat et al., "Visualizing and analyzing large and detailed 3D
+/// datasets", section 4; shaders/analysis.comp): the linear view depth minus its Gaussian blur
+/// keeps the fine relief (tool marks, erosion, faint carving) and drops the global shape, shown
+/// through a perceptual colour map (viridis, dark for hollows, yellow for ridges).
+struct RelativeDepthOptions {
+  bool enabled = false;
+  int radius = 24;      ///< the blur's half-width, pixels (sigma = radius / 3); 1..kMaxRelativeDepthRadius
+  float amount = 1.0f;  ///< 1: the colour map replaces the picture; less: mixed into it
+  /// The depth difference (view units) mapped to the colour map's ends; unset: this frame's own
+  /// 1st to 99th percentile. A wall sets one range on every tile so their colours agree.
+  std::optional<glm::vec2> range;
+};
+constexpr int kMaxRelativeDepthRadius = 256;
+
+/// Contour lines (the same paper, section 4): one pixel wide wherever a level is crossed, even on
+/// flat ground, of the view depth or of the height along a world axis (a LiDAR scan's vertical).
+struct ContourOptions {
+  bool enabled = false;
+  double interval = 1.0;  ///< units (metres) between two lines; finite, > 0
+  double phase = 0.0;     ///< units: lines at phase + k * interval
+  /// Height along `axis` (world, need not be unit length) instead of the view depth.
+  bool height = false;
+  glm::dvec3 axis{0.0, 0.0, 1.0};
+  glm::vec4 color{0.05f, 0.05f, 0.05f, 0.85f};  ///< rgb 0..1 and opacity over the picture
+  /// Neighbours whose view depths differ by more than this fraction lie on another surface: no
+  /// line along a depth step.
+  float edge = 0.05f;
+};
+
+/// Relative depth and contour lines on the resolved image (run after eye-dome lighting, before
+/// highlights and the overlay). Milliseconds. Opaque frames: they read the depth plane.
+/// Cost: relative depth, 2 (2 radius / stride + 1) reads a pixel in two separable passes (taps
+/// every max(1, radius / 12) pixels: about 25 a pass for any radius), one
+/// histogram pass (16 KiB read back) and one colour-map pass (a plane of 8 bytes a pixel and
+/// one of 4, reallocated when the target's size changes); contour lines, 25 depth reads a pixel
+/// (the surface's mean value over 5x5) and 5 more (the lines).
+class AnalysisPass {
+ public:
+  AnalysisPass();
+  /// `range_out`: the range used (this frame's own, or the one given), for a wall to agree on.
+  double relativeDepth(FrameTarget& target, const RelativeDepthOptions& options,
+                       const glm::dmat4& projection, glm::vec2* range_out = nullptr);
+  /// `view`: world to view (the height's axis and its offset from the eye).
+  double contours(FrameTarget& target, const ContourOptions& options,
+                  const glm::dmat4& projection, const glm::dmat4& view);
+
+ private:
+  GlProgram mStages[6];  ///< shaders/analysis.comp's stages
+  GlBuffer mSums, mPlane, mRange;
+  GlBufferTexture mSumTexels, mPlaneTexels;
+};
+
 /// The side of a highlight mask, bits: 1024 x 1024 over the lasso view's NDC square (128 KiB),
 /// so a lasso drawn on a 1920-pixel view is followed to about 2 of its pixels.
 constexpr uint32_t kHighlightMaskSize = 1024;

@@ -60,6 +60,10 @@ struct RenderOptions {
   glm::u8vec3 default_color{200, 200, 200};  ///< for stores without colour (all must agree)
   /// Eye-dome lighting (screen_passes.h): off unless edl.strength is set (1: usual).
   EdlOptions edl{.strength = 0.0f};
+  /// Analysis filters (screen_passes.h AnalysisPass), after eye-dome lighting, opaque frames:
+  /// relative depth (the fine relief in a colour map) and contour lines over the picture.
+  RelativeDepthOptions relative_depth;
+  ContourOptions contours;
   /// Splat diameter as a multiple of the node's projected mean sample spacing (the mean nearest-
   /// neighbour distance). At 1 random samples leave 20% of a surface open; 2 closes them and
   /// LiDAR scan lines (tests/render/view_renderer_test.cpp measures it).
@@ -110,7 +114,10 @@ struct RenderStats {
   double mesh_ms = 0;            ///< the mesh pass (mesh_pass.h)
   uint64_t triangles = 0;        ///< mesh triangles drawn
   size_t mesh_patches = 0;       ///< mesh patches drawn (stand-ins included)
-  double screen_ms = 0;          ///< screen passes after the resolve (eye-dome lighting)
+  double screen_ms = 0;          ///< screen passes after the resolve (eye-dome lighting, analysis)
+  /// The relative depth's range this frame (RelativeDepthOptions; zero when it is off): what a
+  /// tile reports so the wall can agree on one range.
+  glm::vec2 relative_depth_range{0.0f};
   double overlay_ms = 0;         ///< the overlay pass
   size_t frames = 1;             ///< frames renderSettled() drew
   uint32_t ensembles = 0;        ///< see-through: ensembles averaged in the image (0: opaque)
@@ -236,6 +243,7 @@ class ViewRenderer {
   std::unique_ptr<FillPass> mFill;        ///< made on first use
   std::unique_ptr<OverlayPass> mOverlay;  ///< made on first use (builds a font atlas)
   std::unique_ptr<HighlightPass> mHighlight;  ///< made on first use
+  std::unique_ptr<AnalysisPass> mAnalysis;    ///< made on first use
   std::vector<PickRange> mPickRanges;     ///< the last frame's, by base
   std::vector<lod::NodeId> mBatchNodes;   ///< this frame's batches' nodes
   std::vector<glm::dmat4> mBatchWorld;    ///< this frame's point batches' world_from_local
