@@ -6,7 +6,7 @@ namespace {
 
 // GLFW key codes (glfw3.h).
 constexpr int kKey1 = 49, kKey9 = 57, kKeyEqual = 61, kKeyMinus = 45, kKeyA = 65, kKeyC = 67,
-              kKeyE = 69, kKeyF = 70, kKeyH = 72, kKeyK = 75, kKeyL = 76, kKeyM = 77, kKeyN = 78,
+              kKeyD = 68, kKeyT = 84, kKeyE = 69, kKeyF = 70, kKeyH = 72, kKeyK = 75, kKeyL = 76, kKeyM = 77, kKeyN = 78,
               kKeyO = 79, kKeyP = 80, kKeyR = 82, kKeyS = 83, kKeyU = 85, kKeyEnter = 257,
               kKeyBackspace = 259, kKeyPadSubtract = 333, kKeyPadAdd = 334, kKeyPadEnter = 335;
 
@@ -31,6 +31,8 @@ const char* helpOf(Command c) {
     case Command::kOpacityDown: return "- see-through";
     case Command::kHide: return "H hide";
     case Command::kShading: return "E lighting";
+    case Command::kRelativeDepth: return "D relative depth";
+    case Command::kContours: return "T contour lines";
     case Command::kNone: break;
   }
   return "";
@@ -62,6 +64,8 @@ KeyPress commandOf(int key) {
     case kKeyPadSubtract: return {Command::kOpacityDown};
     case kKeyH: return {Command::kHide};
     case kKeyE: return {Command::kShading};
+    case kKeyD: return {Command::kRelativeDepth};
+    case kKeyT: return {Command::kContours};
     default: return {};
   }
 }

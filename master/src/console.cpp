@@ -73,6 +73,20 @@ void Console::video(const sync::SceneGraph& graph,
   if (mVideos->upload()) mSceneOverlay.invalidate();
 }
 
+double Console::contourInterval() const {
+  // A round interval (1, 2 or 5 times a power of ten) near a 25th of the largest model's extent.
+  double extent = 0.0;
+  for (const render::ModelInstance& m : mInstances) {
+    if (m.store) {
+      const lod::StoreSummary& s = m.store->summary();
+      extent = std::max(extent, glm::length(s.bbox_max - s.bbox_min));
+    }
+  }
+  if (!(extent > 0.0)) return 1.0;
+  const double raw = extent / 25.0, p = std::pow(10.0, std::floor(std::log10(raw)));
+  return raw / p < 2.0 ? p : raw / p < 5.0 ? 2.0 * p : 5.0 * p;
+}
+
 render::ViewSetup Console::view(const config::Camera& camera) const {
   // The whole wall's frustum at a lower pixel count: the same picture, smaller.
   render::ViewSetup v = render::wholeWallView(mWall, camera);
@@ -476,6 +490,22 @@ bool Console::handleInput(sync::SceneGraph& graph) {
         graph.setShading(graph.settings().shading() == scene::SHADING_EDL ? scene::SHADING_COLOR
                                                                           : scene::SHADING_EDL);
         break;
+      case Command::kRelativeDepth: {  // on (a 24 px blur) or off, on every tile
+        scene::Analysis a = graph.settings().analysis();
+        a.set_relative_depth_radius(a.relative_depth_radius() > 0 ? 0 : 24);
+        graph.setAnalysis(a);
+        say(a.relative_depth_radius() > 0 ? "relative depth on" : "relative depth off");
+        break;
+      }
+      case Command::kContours: {  // lines of the view depth, about 25 across the models
+        scene::Analysis a = graph.settings().analysis();
+        a.set_contour_interval(a.contour_interval() > 0.0 ? 0.0 : contourInterval());
+        graph.setAnalysis(a);
+        say(a.contour_interval() > 0.0
+                ? "contour lines every " + std::to_string(a.contour_interval()) + " m"
+                : "contour lines off");
+        break;
+      }
       default:  // release, follow, picture: a site's
         break;
     }

@@ -75,6 +75,8 @@ class Console {
 
  private:
   render::ViewSetup view(const config::Camera& camera) const;
+  /// The contour interval T switches on: a round number near a 25th of the largest model.
+  double contourInterval() const;
   /// The scene's overlay (sketches, avatars, annotations) with the navigation's bar and the
   /// target marker on top.
   render::Overlay overlay(const render::Overlay& scene) const;

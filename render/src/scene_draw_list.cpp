@@ -343,6 +343,24 @@ RenderOptions SceneDrawList::options(const sync::SceneGraph& graph, float splat_
   o.edl.strength = s.shading() == scene::SHADING_EDL ? 1.0f : 0.0f;
   o.splat_scale = splat_scale;
   o.spbr.ensembles = std::max<uint32_t>(1, s.spbr_ensembles());
+  const scene::Analysis& a = s.analysis();
+  if (a.relative_depth_radius() > 0) {
+    o.relative_depth.enabled = true;
+    o.relative_depth.radius = int(std::min<uint32_t>(a.relative_depth_radius(),
+                                                     uint32_t(kMaxRelativeDepthRadius)));
+    if (a.has_relative_depth_lo() && a.relative_depth_lo() < a.relative_depth_hi())
+      o.relative_depth.range = glm::vec2(a.relative_depth_lo(), a.relative_depth_hi());
+  }
+  if (a.contour_interval() > 0.0) {
+    o.contours.enabled = true;
+    o.contours.interval = a.contour_interval();
+    o.contours.phase = a.contour_phase();
+    const glm::dvec3 axis(a.contour_axis().x(), a.contour_axis().y(), a.contour_axis().z());
+    if (glm::length(axis) > 0.0) {
+      o.contours.height = true;
+      o.contours.axis = axis;
+    }
+  }
   return o;
 }
 

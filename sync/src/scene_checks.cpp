@@ -349,6 +349,30 @@ Problem checkNodeFields(const SceneNode& n, SceneGraph::Kind kind) {
   return checkPayload(n);
 }
 
+Problem checkAnalysis(const scene::Analysis& a) {
+  if (a.relative_depth_radius() > 256)
+    return "settings.analysis.relative_depth_radius: must be 0..256 px, got " +
+           std::to_string(a.relative_depth_radius());
+  if (a.has_relative_depth_lo() != a.has_relative_depth_hi())
+    return "settings.analysis: relative_depth_lo and relative_depth_hi go together";
+  if (a.has_relative_depth_lo() &&
+      !(std::isfinite(a.relative_depth_lo()) && std::isfinite(a.relative_depth_hi()) &&
+        a.relative_depth_lo() < a.relative_depth_hi()))
+    return "settings.analysis: relative_depth_lo must be below relative_depth_hi, both finite, "
+           "got " + num(a.relative_depth_lo()) + " and " + num(a.relative_depth_hi());
+  if (!(std::isfinite(a.contour_interval()) && a.contour_interval() >= 0.0))
+    return "settings.analysis.contour_interval: must be finite and >= 0 (0: off), got " +
+           num(a.contour_interval());
+  if (!std::isfinite(a.contour_phase()))
+    return "settings.analysis.contour_phase: must be finite, got " + num(a.contour_phase());
+  if (a.has_contour_axis()) {
+    const auto& v = a.contour_axis();
+    if (!(std::isfinite(v.x()) && std::isfinite(v.y()) && std::isfinite(v.z())))
+      return "settings.analysis.contour_axis: must be finite";
+  }
+  return std::nullopt;
+}
+
 /// A delta of the settings (or complete settings).
 Problem checkSettings(const scene::Settings& s) {
   if (s.has_background()) {
@@ -359,6 +383,9 @@ Problem checkSettings(const scene::Settings& s) {
            std::to_string(int(s.shading()));
   if (s.has_lod_pixels() && !(s.lod_pixels() > 0.0f && std::isfinite(s.lod_pixels())))
     return "settings.lod_pixels: must be finite and > 0, got " + num(s.lod_pixels());
+  if (s.has_analysis()) {
+    if (auto p = checkAnalysis(s.analysis())) return p;
+  }
   if (s.has_spbr_ensembles() && (s.spbr_ensembles() < 1 || s.spbr_ensembles() > 4096))
     return "settings.spbr_ensembles: must be 1..4096, got " + std::to_string(s.spbr_ensembles());
   if (s.has_leader() && s.leader().size() > SceneGraph::kMaxParticipantName)

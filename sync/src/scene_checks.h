@@ -29,6 +29,8 @@ Problem checkTransform(const scene::Transform& t);
 Problem checkNodeFields(const scene::SceneNode& n, SceneGraph::Kind kind);
 /// A delta of the settings (or complete settings).
 Problem checkSettings(const scene::Settings& s);
+/// The analysis filters' settings (scene::Analysis).
+Problem checkAnalysis(const scene::Analysis& a);
 /// A delta of the camera: each part absent or complete.
 Problem checkCameraDelta(const scene::CameraState& c);
 Problem checkCommand(const scene::Command& c);

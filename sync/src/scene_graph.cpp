@@ -472,6 +472,13 @@ void SceneGraph::setSpbrEnsembles(uint32_t ensembles) {
   mSettings.set_spbr_ensembles(ensembles);
 }
 
+void SceneGraph::setAnalysis(const scene::Analysis& analysis) {
+  const Problem p = checkAnalysis(analysis);
+  TESSERA_CHECK(!p, "sync::SceneGraph::setAnalysis(): " + p.value_or(""));
+  touchSettings();
+  *mSettings.mutable_analysis() = analysis;
+}
+
 void SceneGraph::setLeader(std::string_view leader) {
   TESSERA_CHECK(leader.size() <= kMaxParticipantName,
                 "sync::SceneGraph::setLeader(): a participant's name is at most 64 bytes");

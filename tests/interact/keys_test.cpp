@@ -25,6 +25,8 @@ TEST(Keys, GlfwCodesMapToOneCommandEach) {
   EXPECT_EQ(commandOf(49).model, 0);
   EXPECT_EQ(commandOf(57).model, 8);
   EXPECT_EQ(commandOf(48).command, Command::kNone);  // 0 is no model
+  EXPECT_EQ(commandOf(68).command, Command::kRelativeDepth);  // D
+  EXPECT_EQ(commandOf(84).command, Command::kContours);       // T
   EXPECT_EQ(commandOf(90).command, Command::kNone);  // Z
   EXPECT_EQ(commandOf(-1).command, Command::kNone);
   const Command offered[] = {Command::kLead, Command::kSnap, Command::kBack};

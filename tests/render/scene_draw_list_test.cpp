@@ -271,4 +271,32 @@ TEST(SceneDrawList, AMeshIsDrawnAsTrianglesOpaqueAndAsPointsOnItsTrianglesSeeThr
 }
 
 }  // namespace
+TEST(SceneDrawList, TheAnalysisSettingsBecomeEveryTilesRenderOptions) {
+  sync::SceneGraph g;
+  RenderOptions o = SceneDrawList::options(g, 2.0f);
+  EXPECT_FALSE(o.relative_depth.enabled);
+  EXPECT_FALSE(o.contours.enabled);
+  scene::Analysis a;
+  a.set_relative_depth_radius(40);
+  a.set_relative_depth_lo(-0.2f);
+  a.set_relative_depth_hi(0.3f);
+  a.set_contour_interval(2.5);
+  a.set_contour_phase(0.5);
+  a.mutable_contour_axis()->set_z(2.0);
+  g.setAnalysis(a);
+  o = SceneDrawList::options(g, 2.0f);
+  EXPECT_TRUE(o.relative_depth.enabled);
+  EXPECT_EQ(o.relative_depth.radius, 40);
+  ASSERT_TRUE(o.relative_depth.range.has_value());
+  EXPECT_EQ(*o.relative_depth.range, glm::vec2(-0.2f, 0.3f));
+  EXPECT_TRUE(o.contours.enabled);
+  EXPECT_EQ(o.contours.interval, 2.5);
+  EXPECT_EQ(o.contours.phase, 0.5);
+  EXPECT_TRUE(o.contours.height);
+  EXPECT_EQ(o.contours.axis, glm::dvec3(0.0, 0.0, 2.0));
+  a.clear_contour_axis();  // no axis: lines of the view depth
+  g.setAnalysis(a);
+  EXPECT_FALSE(SceneDrawList::options(g, 2.0f).contours.height);
+}
+
 }  // namespace tessera::render

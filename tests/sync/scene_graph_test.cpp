@@ -3,6 +3,8 @@
 // SyncError that names what is wrong and leaves the replica as it was.
 #include <gtest/gtest.h>
 
+#include <limits>
+
 #include <google/protobuf/stubs/logging.h>
 #include <google/protobuf/util/message_differencer.h>
 
@@ -293,6 +295,28 @@ TEST(SceneGraph, SnapshotLeavesPendingChangesOut) {
   EXPECT_TRUE(late == g) << differences(late, g);
 }
 
+TEST(SceneGraph, AnalysisSettingsReachEveryReplicaAndTurnOffAgain) {
+  SceneGraph g;
+  g.takeFrame(1, 0);
+  SceneGraph replica;
+  replica.apply(parseSnapshot(serializeSnapshot(g.snapshot())));
+  scene::Analysis a;
+  a.set_relative_depth_radius(24);
+  a.set_contour_interval(0.5);
+  a.mutable_contour_axis()->set_z(1.0);
+  g.setAnalysis(a);
+  replica.apply(wire(g.takeFrame(2, 0)));
+  EXPECT_EQ(replica.settings().analysis().relative_depth_radius(), 24u);
+  EXPECT_EQ(replica.settings().analysis().contour_interval(), 0.5);
+  a.set_relative_depth_radius(0);  // off again: the message is replaced whole
+  g.setAnalysis(a);
+  replica.apply(wire(g.takeFrame(3, 0)));
+  EXPECT_TRUE(replica == g) << differences(replica, g);
+  EXPECT_EQ(replica.settings().analysis().relative_depth_radius(), 0u);
+  a.set_contour_interval(-1.0);
+  EXPECT_THROW(g.setAnalysis(a), tessera::PreconditionError);
+}
+
 TEST(SceneGraph, FromFileMakesTheSceneFilesNodes) {
   SceneGraph g = SceneGraph::fromFile(loadSceneFile(kConfigs + "/scenes/bunny.json"));
   ASSERT_EQ(g.size(), 1u);
@@ -493,6 +517,21 @@ TEST_F(BadFrame, BadFields) {
   f = next();
   f.mutable_settings()->set_spbr_ensembles(0);
   expectError(f, Code::kBadField, "settings.spbr_ensembles: must be 1..4096");
+  f = next();
+  f.mutable_settings()->mutable_analysis()->set_relative_depth_radius(1000);
+  expectError(f, Code::kBadField, "settings.analysis.relative_depth_radius: must be 0..256 px");
+  f = next();
+  f.mutable_settings()->mutable_analysis()->set_contour_interval(
+      std::numeric_limits<double>::quiet_NaN());
+  expectError(f, Code::kBadField, "settings.analysis.contour_interval: must be finite");
+  f = next();
+  f.mutable_settings()->mutable_analysis()->set_relative_depth_lo(2.0f);
+  f.mutable_settings()->mutable_analysis()->set_relative_depth_hi(1.0f);
+  expectError(f, Code::kBadField, "relative_depth_lo must be below relative_depth_hi");
+  f = next();
+  f.mutable_settings()->mutable_analysis()->mutable_contour_axis()->set_z(
+      std::numeric_limits<double>::infinity());
+  expectError(f, Code::kBadField, "settings.analysis.contour_axis: must be finite");
   f = next();
   f.set_version(1);
   f.add_commands();

@@ -8,6 +8,7 @@
 //   A add a note             M measure (distance, path, angle, area, off)  S lasso   N snap
 //   Enter end (a path, an area, a snap)   Backspace drop the last point, stroke or selection
 //   1..9 the current model   + / - its opacity       H hide or show it     E eye-dome lighting
+//   D relative depth         T contour lines
 //
 // Which commands a front end offers is its own (a site has no section clip, the console does
 // not follow); a key it does not offer does nothing.
@@ -41,6 +42,8 @@ enum class Command {
   kOpacityDown,
   kHide,
   kShading,
+  kRelativeDepth,
+  kContours,
 };
 
 struct KeyPress {

@@ -167,6 +167,8 @@ class SceneGraph {
   void setLodPixels(float pixels);
   /// 1..4096 (scene::Settings::spbr_ensembles).
   void setSpbrEnsembles(uint32_t ensembles);
+  /// Relative depth and contour lines (scene::Analysis; checked as a frame's settings are).
+  void setAnalysis(const scene::Analysis& analysis);
 
   /// Who leads the view ("" nobody; at most kMaxParticipantName bytes): scene::Settings::leader.
   void setLeader(std::string_view leader);
