@@ -345,7 +345,8 @@ TEST_F(ZmqWall, StoppedNodeIsDroppedAsHungAndRejoinsWhenContinued) {
   ASSERT_TRUE(master->waitFor("tile-0-1 \\([^)]*\\) dropped: hung", 30)) << master->output();
   ASSERT_TRUE(master->waitFor("frame \\d+: wrote \\S+shot-03.45", 30)) << master->output();
   nodes[2]->signal(SIGCONT);
-  ASSERT_TRUE(master->waitFor("tile-0-1 \\([^)]*\\) rejoined", 30)) << master->output();
+  ASSERT_TRUE(master->waitFor("tile-0-1 \\([^)]*\\) rejoined", 30))
+      << master->output() << "\n-- the continued node:\n" << nodes[2]->output();
   ASSERT_EQ(master->wait(120), std::optional<int>(0)) << master->output();
   for (auto& n : nodes) EXPECT_EQ(n->wait(10), std::optional<int>(0)) << n->output();
   const std::string log = master->output();
