@@ -662,6 +662,25 @@ std::unique_ptr<ItemCoder> makePointwise(const Item& item) {
   }
 }
 
+/// One coder per pointwise item, each started from the chunk's first record, and each item's
+/// offset in a record.
+struct PointwiseCoders {
+  std::vector<std::unique_ptr<ItemCoder>> coders;
+  std::vector<uint32_t> offsets;
+};
+
+PointwiseCoders pointwiseCoders(const std::vector<Item>& items, const uint8_t* first) {
+  PointwiseCoders pc;
+  uint32_t at = 0;
+  for (const Item& it : items) {
+    pc.coders.push_back(makePointwise(it));
+    pc.coders.back()->init(first + at);
+    pc.offsets.push_back(at);
+    at += it.size;
+  }
+  return pc;
+}
+
 // ---- layered LAS 1.4 items ------------------------------------------------------------------
 
 /// The byte streams of one layered item in a chunk; an empty stream: the field never changes.
@@ -1379,15 +1398,8 @@ size_t ChunkDecoder::decode(std::span<const uint8_t> bytes, uint64_t count, uint
 
 size_t ChunkDecoder::decodePointwise(std::span<const uint8_t> bytes, uint64_t count,
                                      uint8_t* out) {
-  std::vector<std::unique_ptr<ItemCoder>> coders;
-  std::vector<uint32_t> offsets;
-  uint32_t at = 0;
-  for (const Item& it : mItems) {
-    coders.push_back(makePointwise(it));
-    coders.back()->init(out + at);
-    offsets.push_back(at);
-    at += it.size;
-  }
+  const PointwiseCoders pc = pointwiseCoders(mItems, out);
+  const auto& [coders, offsets] = pc;
   Decoder dec(bytes.subspan(mRecordSize));
   for (uint64_t p = 1; p < count; ++p) {
     uint8_t* rec = out + p * mRecordSize;
@@ -1460,15 +1472,8 @@ void ChunkEncoder::encode(const uint8_t* records, uint64_t count, std::vector<ui
     encodeLayered(records, count, out);
     return;
   }
-  std::vector<std::unique_ptr<ItemCoder>> coders;
-  std::vector<uint32_t> offsets;
-  uint32_t at = 0;
-  for (const Item& it : mItems) {
-    coders.push_back(makePointwise(it));
-    coders.back()->init(records + at);
-    offsets.push_back(at);
-    at += it.size;
-  }
+  const PointwiseCoders pc = pointwiseCoders(mItems, records);
+  const auto& [coders, offsets] = pc;
   Encoder enc(out);
   for (uint64_t p = 1; p < count; ++p) {
     const uint8_t* rec = records + p * mRecordSize;

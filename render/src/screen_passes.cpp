@@ -120,6 +120,24 @@ AnalysisPass::AnalysisPass() {
                                             std::to_string(stage) + "\n");
 }
 
+void AnalysisPass::ensurePlanes(const FrameTarget& target) {
+  if (mPlane.bytes() == target.pixels() * 4) return;
+  mSums = GlBuffer(target.pixels() * 8, nullptr);
+  mPlane = GlBuffer(target.pixels() * 4, nullptr);
+  mSumTexels = GlBufferTexture(mSums, GL_RG32F);
+  mPlaneTexels = GlBufferTexture(mPlane, GL_R32F);
+}
+
+const GlProgram& AnalysisPass::useStage(int stage, const FrameTarget& target,
+                                        const glm::dmat4& projection) const {
+  const GlProgram& p = mStages[stage];
+  p.use();
+  p.set("uSize", glm::ivec2(target.width(), target.height()));
+  p.set("uP22", float(projection[2][2]));
+  p.set("uP32", float(projection[3][2]));
+  return p;
+}
+
 double AnalysisPass::relativeDepth(FrameTarget& target, const RelativeDepthOptions& o,
                                    const glm::dmat4& projection, glm::vec2* range_out) {
   if (!o.enabled || !(o.amount > 0.0f)) return 0.0;
@@ -129,12 +147,7 @@ double AnalysisPass::relativeDepth(FrameTarget& target, const RelativeDepthOptio
                              o.range->x < o.range->y),
                 "render::AnalysisPass: a relative depth range must be finite and increasing");
   GpuLap lap;
-  if (mPlane.bytes() != target.pixels() * 4) {
-    mSums = GlBuffer(target.pixels() * 8, nullptr);
-    mPlane = GlBuffer(target.pixels() * 4, nullptr);
-    mSumTexels = GlBufferTexture(mSums, GL_RG32F);
-    mPlaneTexels = GlBufferTexture(mPlane, GL_R32F);
-  }
+  ensurePlanes(target);
   constexpr size_t kRangeBytes = 8 + 4 * size_t(TESSERA_ANALYSIS_BINS);
   if (!mRange) mRange = GlBuffer(kRangeBytes, nullptr, GL_DYNAMIC_STORAGE_BIT);
   std::vector<uint32_t> counts(2 + TESSERA_ANALYSIS_BINS, 0);
@@ -148,11 +161,7 @@ double AnalysisPass::relativeDepth(FrameTarget& target, const RelativeDepthOptio
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_ANALYSIS_RANGE, mRange.name());
   auto run = [&](int stage, const glm::vec2& range) {
     (stage == 1 ? mSumTexels : mPlaneTexels).bind(TESSERA_TEXTURE_SCREEN_SCRATCH);
-    const GlProgram& p = mStages[stage];
-    p.use();
-    p.set("uSize", glm::ivec2(target.width(), target.height()));
-    p.set("uP22", float(projection[2][2]));
-    p.set("uP32", float(projection[3][2]));
+    const GlProgram& p = useStage(stage, target, projection);
     p.set("uRadius", o.radius);
     p.set("uAmount", std::clamp(o.amount, 0.0f, 1.0f));
     p.set("uFixedRange", 1);
@@ -223,23 +232,14 @@ double AnalysisPass::contours(FrameTarget& target, const ContourOptions& o,
   if (o.height) phase -= glm::dot(a, eye) / o.interval;  // h = a.eye + ..., levels of h - phase
   phase = -phase;
   phase -= std::floor(phase);
-  if (mPlane.bytes() != target.pixels() * 4) {
-    mSums = GlBuffer(target.pixels() * 8, nullptr);
-    mPlane = GlBuffer(target.pixels() * 4, nullptr);
-    mSumTexels = GlBufferTexture(mSums, GL_RG32F);
-    mPlaneTexels = GlBufferTexture(mPlane, GL_R32F);
-  }
+  ensurePlanes(target);
   const GlBufferTexture depth(target.depth(), GL_R32UI);
   depth.bind(TESSERA_TEXTURE_DEPTH);
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_IMAGE, target.image().name());
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_ANALYSIS_PLANE, mPlane.name());
   mPlaneTexels.bind(TESSERA_TEXTURE_SCREEN_SCRATCH);
   for (int stage : {3, 5}) {  // the surface's value per pixel, then the lines
-    const GlProgram& p = mStages[stage];
-    p.use();
-    p.set("uSize", glm::ivec2(target.width(), target.height()));
-    p.set("uP22", float(projection[2][2]));
-    p.set("uP32", float(projection[3][2]));
+    const GlProgram& p = useStage(stage, target, projection);
     p.set("uViewFromClip", glm::mat4(glm::inverse(projection)));
     p.set("uHeight", o.height ? 1 : 0);
     p.set("uAxis", glm::vec3(axis_view));

@@ -199,6 +199,12 @@ class AnalysisPass {
                   const glm::dmat4& projection, const glm::dmat4& view);
 
  private:
+  /// The planes sized to the target (reallocated when its size changes).
+  void ensurePlanes(const FrameTarget& target);
+  /// Stage `stage`'s program in use with the target's size and the depth's projection set.
+  const GlProgram& useStage(int stage, const FrameTarget& target,
+                            const glm::dmat4& projection) const;
+
   GlProgram mStages[6];  ///< shaders/analysis.comp's stages
   GlBuffer mSums, mPlane, mRange;
   GlBufferTexture mSumTexels, mPlaneTexels;
