@@ -61,6 +61,13 @@ float linearDepth(uint bits) {
   return uP32 / (ndc + uP22);
 }
 
+// The picture's own pixels, without its guard band: only they set the relative depth's range.
+uniform ivec4 uInner;  // x0, y0, x1, y1 (exclusive), raster order
+
+bool inner(ivec2 p) {
+  return all(greaterThanEqual(p, uInner.xy)) && all(lessThan(p, uInner.zw));
+}
+
 uint imageIndex(ivec2 p) {
   return uint(uSize.y - 1 - p.y) * uint(uSize.x) + uint(p.x);
 }
@@ -139,8 +146,10 @@ void main() {
   }
   float relative = linearDepth(b) - s.x / s.y;
   plane[index] = relative;
-  atomicMin(range[0], orderedBits(relative));
-  atomicMax(range[1], orderedBits(relative));
+  if (inner(p)) {
+    atomicMin(range[0], orderedBits(relative));
+    atomicMax(range[1], orderedBits(relative));
+  }
 #elif TESSERA_ANALYSIS_STAGE == 2
   if (depthBits(p) == kEmpty) return;
   float lo = uRangeLo, hi = uRangeHi;
@@ -151,7 +160,7 @@ void main() {
   float t = hi > lo ? (texelFetch(uScratch, int(index)).x - lo) / (hi - lo) : 0.5;
   mixImage(p, viridis(t), uAmount);
 #elif TESSERA_ANALYSIS_STAGE == 4
-  if (depthBits(p) == kEmpty) return;
+  if (depthBits(p) == kEmpty || !inner(p)) return;
   float lo = rangeValue(range[0]), hi = rangeValue(range[1]);
   if (!(hi > lo)) return;
   float t = (texelFetch(uScratch, int(index)).x - lo) / (hi - lo);

@@ -14,6 +14,7 @@
 #include <tessera/master/tile_assignment.h>
 #include <tessera/render/gl_context.h>
 #include <tessera/render/scene_draw_list.h>
+#include <tessera/render/screen_passes.h>
 #include <tessera/render/wall_mosaic.h>
 #include <tessera/sync/camera_path.h>
 #include <tessera/sync/wire.h>
@@ -399,6 +400,10 @@ int Master::run() {
     const scene::Frame taken = mGraph.takeFrame(mFrame, uint64_t(t * 1e6));
     message_out.set_frame(sync::serializeFrame(taken));
     message_out.set_read_back(!shots.empty());
+    if (mWallRelativeDepth) {
+      message_out.add_relative_depth_range(mWallRelativeDepth->x);
+      message_out.add_relative_depth_range(mWallRelativeDepth->y);
+    }
     if (mParticipants) {
       std::vector<std::string> media;
       mParticipants->takeMedia(media);
@@ -477,8 +482,14 @@ int Master::run() {
       loseTile(i, why);
     }
     double slowest = 0;
-    for (const auto& r : reports)
-      if (r) slowest = std::max(slowest, r->stats().render_ms());
+    std::vector<glm::vec2> tile_ranges;
+    for (const auto& r : reports) {
+      if (!r) continue;
+      slowest = std::max(slowest, r->stats().render_ms());
+      tile_ranges.emplace_back(r->stats().relative_depth_lo(), r->stats().relative_depth_hi());
+    }
+    // The next frame maps the same depth differences to the same colours on every tile.
+    mWallRelativeDepth = render::wallRange(tile_ranges);
     if (slowest > 0) {
       mRenderMs.push_back(slowest);
       if (mRenderMs.size() > 15) mRenderMs.erase(mRenderMs.begin());

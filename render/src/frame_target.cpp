@@ -2,6 +2,9 @@
 
 #include <string>
 
+#define GL_GLEXT_PROTOTYPES
+#include <GL/glcorearb.h>
+
 #include <tessera/core/check.h>
 #include <tessera/render/gl_context.h>
 
@@ -60,6 +63,17 @@ Image FrameTarget::readImage() const {
   img.rgba.resize(pixels() * 4);
   mImage.read(0, img.rgba.size(), img.rgba.data());
   return img;
+}
+
+void FrameTarget::copyImageRegion(uint32_t x, uint32_t y, uint32_t width, uint32_t height,
+                                  const GlBuffer& out) const {
+  TESSERA_CHECK(size_t(x) + width <= mWidth && size_t(y) + height <= mHeight &&
+                    out.bytes() >= size_t(width) * height * 4,
+                "render::FrameTarget::copyImageRegion(): region outside the image or the copy");
+  for (uint32_t row = 0; row < height; ++row)
+    glCopyNamedBufferSubData(mImage.name(), out.name(),
+                             GLintptr((size_t(y + row) * mWidth + x) * 4),
+                             GLintptr(size_t(row) * width * 4), GLsizeiptr(size_t(width) * 4));
 }
 
 std::vector<uint32_t> FrameTarget::readDepth() const {

@@ -99,6 +99,9 @@ void GlProgram::set(const char* u, float v) const {
 void GlProgram::set(const char* u, const glm::ivec2& v) const {
   glProgramUniform2i(mName, location(u), v.x, v.y);
 }
+void GlProgram::set(const char* u, const glm::ivec4& v) const {
+  glProgramUniform4i(mName, location(u), v.x, v.y, v.z, v.w);
+}
 void GlProgram::set(const char* u, const glm::vec2& v) const {
   glProgramUniform2f(mName, location(u), v.x, v.y);
 }

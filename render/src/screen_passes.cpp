@@ -139,13 +139,14 @@ const GlProgram& AnalysisPass::useStage(int stage, const FrameTarget& target,
 }
 
 double AnalysisPass::relativeDepth(FrameTarget& target, const RelativeDepthOptions& o,
-                                   const glm::dmat4& projection, glm::vec2* range_out) {
+                                   const glm::dmat4& projection, glm::vec2* range_out,
+                                   uint32_t band) {
   if (!o.enabled || !(o.amount > 0.0f)) return 0.0;
   TESSERA_CHECK(o.radius >= 1 && o.radius <= kMaxRelativeDepthRadius,
                 "render::AnalysisPass: the relative depth's radius must be in [1, 256] pixels");
-  TESSERA_CHECK(!o.range || (std::isfinite(o.range->x) && std::isfinite(o.range->y) &&
-                             o.range->x < o.range->y),
-                "render::AnalysisPass: a relative depth range must be finite and increasing");
+  for (const auto& r : {o.range, o.agreed_range})
+    TESSERA_CHECK(!r || (std::isfinite(r->x) && std::isfinite(r->y) && r->x < r->y),
+                  "render::AnalysisPass: a relative depth range must be finite and increasing");
   GpuLap lap;
   ensurePlanes(target);
   constexpr size_t kRangeBytes = 8 + 4 * size_t(TESSERA_ANALYSIS_BINS);
@@ -167,6 +168,8 @@ double AnalysisPass::relativeDepth(FrameTarget& target, const RelativeDepthOptio
     p.set("uFixedRange", 1);
     p.set("uRangeLo", range.x);
     p.set("uRangeHi", range.y);
+    const auto b = int(std::min(band, std::min(target.width(), target.height()) / 2));
+    p.set("uInner", glm::ivec4(b, b, int(target.width()) - b, int(target.height()) - b));
     dispatchPixels(target);
     glMemoryBarrier(GL_TEXTURE_FETCH_BARRIER_BIT);
   };
@@ -205,11 +208,21 @@ double AnalysisPass::relativeDepth(FrameTarget& target, const RelativeDepthOptio
       range = glm::vec2(lo + width * float(first), lo + width * float(last + 1));
     }
   }
-  if (range.y > range.x) run(2, range);
   if (range_out) *range_out = range;
+  if (!o.range && o.agreed_range) range = *o.agreed_range;
+  if (range.y > range.x) run(2, range);
   for (uint32_t unit : {TESSERA_TEXTURE_DEPTH, TESSERA_TEXTURE_SCREEN_SCRATCH})
     glBindTextureUnit(unit, 0);
   return lap();
+}
+
+std::optional<glm::vec2> wallRange(std::span<const glm::vec2> part_ranges) {
+  std::optional<glm::vec2> wall;
+  for (const glm::vec2& r : part_ranges) {
+    if (!std::isfinite(r.x) || !std::isfinite(r.y) || !(r.x < r.y)) continue;
+    wall = wall ? glm::vec2(std::min(wall->x, r.x), std::max(wall->y, r.y)) : r;
+  }
+  return wall;
 }
 
 double AnalysisPass::contours(FrameTarget& target, const ContourOptions& o,

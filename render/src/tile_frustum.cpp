@@ -38,6 +38,21 @@ ViewSetup tileView(const config::WallConfig& wall, const config::Tile& tile,
   v.eye_world = glm::dvec3(glm::inverse(mono) * glm::dvec4(eye_offset, 1.0));
   v.pixels_per_metre =
       glm::dvec2(tile.pixel_width() / tile.width(), tile.pixel_height() / tile.height());
+  v.origin = tileOffsetInWhole(wall, tile);
+  return v;
+}
+
+ViewSetup withGuardBand(const ViewSetup& view, uint32_t band) {
+  ViewSetup v = view;
+  if (band == 0) return v;
+  v.width = view.width + 2 * band;
+  v.height = view.height + 2 * band;
+  // NDC x' = x * width / width': pixel x' = pixel x + band, the same pixel size.
+  glm::dmat4 scale(1.0);
+  scale[0][0] = double(view.width) / double(v.width);
+  scale[1][1] = double(view.height) / double(v.height);
+  v.projection = scale * view.projection;
+  v.origin = view.origin - glm::ivec2(int(band));
   return v;
 }
 

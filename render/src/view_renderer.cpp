@@ -82,7 +82,30 @@ std::pair<glm::dvec3, glm::dvec3> worldBounds(const ModelInstance& m) {
 ViewRenderer::ViewRenderer(uint32_t width, uint32_t height, std::shared_ptr<ChunkStreamer> streamer,
                            const StreamerOptions& stream_options)
     : mStreamer(streamer ? std::move(streamer) : std::make_shared<ChunkStreamer>(stream_options)),
+      mWidth(width),
+      mHeight(height),
       mTarget(width, height) {}
+
+uint32_t screenPassReach(const RenderOptions& o) {
+  int reach = 0;
+  if (o.edl.strength > 0.0f) {
+    const bool robust = o.edl.method == EdlMethod::kRobust && o.edl.filter_radius > 0;
+    // Robust: the shade reads the denoised plane at the radius, each denoised value a window
+    // around a 3x3 median.
+    reach = std::max(o.edl.radius, 1) +
+            (robust ? o.edl.filter_radius + (o.edl.median_reference ? 1 : 0) : 0);
+  }
+  if (o.relative_depth.enabled && o.relative_depth.amount > 0.0f)
+    reach = std::max(reach, std::clamp(o.relative_depth.radius, 1, kMaxRelativeDepthRadius));
+  if (o.contours.enabled) reach = std::max(reach, 3);  // the 5x5 mean, then the neighbours'
+  return uint32_t(reach);
+}
+
+uint32_t guardBand(const RenderOptions& o) {
+  TESSERA_CHECK(o.guard_band >= -1 && o.guard_band <= 4096,
+                "render::RenderOptions: guard_band must be -1 (automatic) or 0..4096 pixels");
+  return o.guard_band < 0 ? screenPassReach(o) : uint32_t(o.guard_band);
+}
 
 Image ViewRenderer::render(std::span<const ModelInstance> models, const ViewSetup& view,
                            const RenderOptions& options, RenderStats* stats,
@@ -90,16 +113,32 @@ Image ViewRenderer::render(std::span<const ModelInstance> models, const ViewSetu
   RenderStats st;
   draw(models, view, options, &st, overlay);
   const auto t0 = std::chrono::steady_clock::now();
-  Image img = mTarget.readImage();
+  Image img;
+  if (mGuard > 0) {
+    img.width = mWidth;
+    img.height = mHeight;
+    img.rgba.resize(size_t(mWidth) * mHeight * 4);
+    mCropped.read(0, img.rgba.size(), img.rgba.data());
+  } else {
+    img = mTarget.readImage();
+  }
   st.readback_ms = msSince(t0);
   if (stats) *stats = st;
   return img;
 }
 
-void ViewRenderer::draw(std::span<const ModelInstance> models, const ViewSetup& view,
+void ViewRenderer::draw(std::span<const ModelInstance> models, const ViewSetup& requested,
                         const RenderOptions& options, RenderStats* stats, const Overlay* overlay) {
-  TESSERA_CHECK(view.width == mTarget.width() && view.height == mTarget.height(),
+  TESSERA_CHECK(requested.width == mWidth && requested.height == mHeight,
                 "render::ViewRenderer: a view's size must be the renderer's");
+  // The frame is drawn with its guard band; the view's own pixels are cropped out at the end.
+  const uint32_t band = guardBand(options);
+  const ViewSetup view = withGuardBand(requested, band);
+  if (view.width != mTarget.width() || view.height != mTarget.height()) {
+    mTarget = FrameTarget(view.width, view.height);
+    mSpbrSignature = 0;  // the accumulated ensembles were of the other size
+  }
+  mGuard = band;
   RenderStats st;
   bool see_through = false, meshes = false;
   for (const ModelInstance& m : models) {
@@ -209,7 +248,7 @@ void ViewRenderer::draw(std::span<const ModelInstance> models, const ViewSetup& 
     if (options.relative_depth.enabled || options.contours.enabled) {
       if (!mAnalysis) mAnalysis = std::make_unique<AnalysisPass>();
       st.screen_ms += mAnalysis->relativeDepth(mTarget, options.relative_depth, view.projection,
-                                               &st.relative_depth_range);
+                                               &st.relative_depth_range, band);
       st.screen_ms += mAnalysis->contours(mTarget, options.contours, view.projection, view.view);
     }
   }
@@ -228,6 +267,11 @@ void ViewRenderer::draw(std::span<const ModelInstance> models, const ViewSetup& 
   if (overlay && !overlay->empty()) {
     if (!mOverlay) mOverlay = std::make_unique<OverlayPass>();
     st.overlay_ms = mOverlay->run(mTarget, view, *overlay);
+  }
+  if (band > 0) {
+    if (mCropped.bytes() != size_t(mWidth) * mHeight * 4)
+      mCropped = GlBuffer(size_t(mWidth) * mHeight * 4, nullptr);
+    mTarget.copyImageRegion(band, band, mWidth, mHeight, mCropped);
   }
   if (stats) *stats = st;
 }
@@ -262,7 +306,9 @@ void ViewRenderer::drawLassoDepth(const glm::dmat4& lasso_clip_from_world, const
 }
 
 std::optional<PickHit> ViewRenderer::pick(uint32_t x, uint32_t y) const {
-  if (x >= mTarget.width() || y >= mTarget.height() || mPickRanges.empty()) return std::nullopt;
+  if (x >= mWidth || y >= mHeight || mPickRanges.empty()) return std::nullopt;
+  x += mGuard;  // the frame's target holds the guard band around the view
+  y += mGuard;
   const uint32_t id = mTarget.readAt(mTarget.pick(), x, y);
   if (id == kNoPick) return std::nullopt;
   // The range holding id: the last whose base is at most id.

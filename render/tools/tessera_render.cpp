@@ -417,10 +417,13 @@ int run(int argc, char** argv) {
     stream_options.surface_cells =
         stream_options.density_ratios && options.spbr.copies != render::SpbrCopies::kAtPoint;
     const render::Overlay* overlay = scene_overlay.empty() ? nullptr : &scene_overlay;
-    auto renderView = [&](const std::string& name, const render::ViewSetup& v) {
+    glm::vec2 own_range(0.0f);  // the last view's own relative depth range
+    auto renderView = [&](const std::string& name, const render::ViewSetup& v,
+                          const render::RenderOptions& view_options) {
       render::ViewRenderer r(v.width, v.height, nullptr, stream_options);
       render::RenderStats st;
-      render::Image img = r.renderSettled(instances, v, options, &st, overlay);
+      render::Image img = r.renderSettled(instances, v, view_options, &st, overlay);
+      own_range = st.relative_depth_range;
       std::fprintf(stderr,
                    "%s: %ux%u, %zu nodes, %llu points, %llu triangles, %.1f MB resident after %zu "
                    "frames; last frame %.1f ms (select %.1f, meshes %.1f, depth %.1f, colour "
@@ -467,15 +470,27 @@ int run(int argc, char** argv) {
             interactive(*win, cam, plainView, instances, options, stream_options, overlay, frames);
       if (out.empty()) return 0;
       const render::ViewSetup v = plainView(cam);
-      result = renderView("view", v);
+      result = renderView("view", v, options);
     } else {
       config::WallConfig wall = sync::loadWallConfig(wall_path);
       if (whole) {
-        result = renderView("whole", render::wholeWallView(wall, cam));
+        result = renderView("whole", render::wholeWallView(wall, cam), options);
       } else if (mosaic) {
         std::vector<render::Image> tiles;
+        render::RenderOptions wall_options = options;
+        if (options.relative_depth.enabled && !options.relative_depth.range) {
+          // The tiles agree on one relative depth range, as a wall's master has them do: each
+          // tile's own range first, then the pictures with the wall's.
+          std::vector<glm::vec2> ranges;
+          for (const auto& tile : wall.tiles()) {
+            renderView(tile.name(), render::tileView(wall, tile, cam), options);
+            ranges.push_back(own_range);
+          }
+          wall_options.relative_depth.agreed_range = render::wallRange(ranges);
+        }
         for (const auto& tile : wall.tiles())
-          tiles.push_back(renderView(tile.name(), render::tileView(wall, tile, cam)));
+          tiles.push_back(
+              renderView(tile.name(), render::tileView(wall, tile, cam), wall_options));
         result = render::assembleWallMosaic(wall, tiles);
       } else {
         const config::Tile* tile =
@@ -486,7 +501,7 @@ int run(int argc, char** argv) {
         if (!tile)
           usage("--tile '" + tile_name + "' is not a tile of " + wall_path +
                 " (give --tile, --mosaic or --whole)");
-        result = renderView(tile->name(), render::tileView(wall, *tile, cam));
+        result = renderView(tile->name(), render::tileView(wall, *tile, cam), options);
       }
     }
     // A corrupt hierarchy page leaves out the nodes below it: the picture is written, but said.

@@ -4,6 +4,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <optional>
 
@@ -72,6 +73,8 @@ struct RenderNode::Impl {
   double barrier_ms = 0, present_ms = 0;  // of the previous frame, sent with the next report
   uint64_t video_errors = 0;              // decoding errors already said
   Clock::time_point video_said;           // when a video problem was last said
+  /// The relative depth range the wall agreed on, from the last frame message (if any).
+  std::optional<glm::vec2> agreed_relative_depth;
 
   Impl(sync::NodeLink& l, NodeOptions o) : link(l), opt(std::move(o)) {}
 
@@ -227,6 +230,13 @@ struct RenderNode::Impl {
       updateModels(graph.apply(sync::parseFrame(frame.frame())),
                    frame.read_back() || setup.settled());
       applyMedia(frame);
+      agreed_relative_depth.reset();
+      if (frame.relative_depth_range_size() == 2 &&
+          frame.relative_depth_range(0) < frame.relative_depth_range(1) &&
+          std::isfinite(frame.relative_depth_range(0)) &&
+          std::isfinite(frame.relative_depth_range(1)))
+        agreed_relative_depth =
+            glm::vec2(frame.relative_depth_range(0), frame.relative_depth_range(1));
     } catch (const render::RenderError& e) {
       fail(cluster::NODE_RENDER, std::string("video textures: ") + e.what());
     } catch (const sync::SyncError& e) {
@@ -247,6 +257,7 @@ struct RenderNode::Impl {
         render::RenderOptions options = render::SceneDrawList::options(
             graph, setup.splat_scale() > 0 ? setup.splat_scale() : 2.0f);
         options.highlights = overlay.highlights();  // selections, tinted on every tile
+        options.relative_depth.agreed_range = agreed_relative_depth;
         render::RenderStats rs;
         // While this frame renders the link says now and then that this node is at work, so the
         // master tells a slow frame (settling, loading, see-through ensembles) from a hung node.
@@ -271,6 +282,8 @@ struct RenderNode::Impl {
         st.set_store_bytes(models.storeBytes());
         st.set_barrier_ms(barrier_ms);
         st.set_present_ms(present_ms);
+        st.set_relative_depth_lo(rs.relative_depth_range.x);
+        st.set_relative_depth_hi(rs.relative_depth_range.y);
       } catch (const std::exception& e) {
         fail(cluster::NODE_RENDER, std::string("rendering: ") + e.what());
         r.clear_rgba();

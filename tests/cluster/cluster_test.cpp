@@ -64,6 +64,12 @@ class Cluster : public ::testing::Test {
     ASSERT_EQ(r.code, 0) << r.out;
     write(*sDir / "scene.json", sceneJson("bunny.tlod"));
     write(*sDir / "scene-color.json", sceneJson("bunny.tlod", "color"));
+    // Relative depth and contour lines over eye-dome lighting: kernels that reach across the
+    // tiles' edges and a colour range the tiles must agree on.
+    std::string analysis = sceneJson("bunny.tlod");
+    analysis.replace(analysis.rfind("}}"), 2,
+                     R"(, "analysis": {"relativeDepthRadius": 20, "contourInterval": 0.004}}})");
+    write(*sDir / "scene-analysis.json", analysis);
   }
   static void TearDownTestSuite() {
     delete sDir;
@@ -126,6 +132,17 @@ TEST_F(Cluster, TwoNodesWallScreenshotIsTheMosaic) {
   }
   EXPECT_EQ(rows, 9);
   EXPECT_EQ(node_rows_with_points, 6);
+}
+
+// Each node draws its tile with the guard band the filters reach and the relative depth range
+// the master agreed from the tiles' last reports: the wall shows one picture, the same as
+// tessera-render --mosaic, whose tiles agree on their range the same way.
+TEST_F(Cluster, TheAnalysisFiltersAreOnePictureAcrossTheTiles) {
+  const std::string wall = kConfigs + "/walls/1x2.json";
+  const CommandResult r = cluster(
+      "--wall " + wall + " --scene scene-analysis.json --frames 3 --screenshot rd.png", 2);
+  ASSERT_EQ(r.code, 0) << r.out;
+  expectSameAsMosaic(r, "rd.png", wall, "scene-analysis.json");
 }
 
 TEST_F(Cluster, AMeshBesideTheScansOnTheWallIsTheMosaic) {

@@ -24,6 +24,8 @@
 #include <string>
 #include <vector>
 
+#include <glm/glm.hpp>
+
 #include <tessera/annotate/annotation_scene.h>
 #include <tessera/master/script_player.h>
 #include <tessera/master/tile_table.h>
@@ -140,6 +142,9 @@ class Master {
   Participants* mParticipants = nullptr;
   std::unique_ptr<std::ofstream> mCsv;
   std::vector<double> mRenderMs;  // the slowest node's render time, last frames
+  // The relative depth range the tiles' last reports agree on (render::wallRange()), sent with
+  // the next frame.
+  std::optional<glm::vec2> mWallRelativeDepth;
   uint64_t mFrame = 0;            // the last frame published
   double mSwapUnixMs = 0;         // the system clock at the last swap, milliseconds
   int mStopCode = 0;

@@ -58,6 +58,11 @@ class FrameTarget {
   void clearGeometry(bool pick, bool blend = false, bool footprints = false);
 
   Image readImage() const;
+  /// The image's `width` x `height` pixels from (x, y) (from the top-left) into `out` (at least
+  /// width * height * 4 bytes), top row first: a picture's inner part without its guard band.
+  /// Cost: one GPU copy per row.
+  void copyImageRegion(uint32_t x, uint32_t y, uint32_t width, uint32_t height,
+                       const GlBuffer& out) const;
   /// One plane read back, raster order.
   std::vector<uint32_t> readDepth() const;
   std::vector<uint32_t> readPick() const;

@@ -49,6 +49,7 @@ class GlProgram {
   void set(const char* uniform, uint32_t v) const;
   void set(const char* uniform, float v) const;
   void set(const char* uniform, const glm::ivec2& v) const;
+  void set(const char* uniform, const glm::ivec4& v) const;
   void set(const char* uniform, const glm::vec2& v) const;
   void set(const char* uniform, const glm::vec3& v) const;
   void set(const char* uniform, const glm::vec4& v) const;

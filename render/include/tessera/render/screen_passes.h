@@ -160,10 +160,19 @@ struct RelativeDepthOptions {
   bool enabled = false;
   int radius = 24;      ///< the blur's half-width, pixels (sigma = radius / 3); 1..kMaxRelativeDepthRadius
   float amount = 1.0f;  ///< 1: the colour map replaces the picture; less: mixed into it
-  /// The depth difference (view units) mapped to the colour map's ends; unset: this frame's own
-  /// 1st to 99th percentile. A wall sets one range on every tile so their colours agree.
+  /// The depth difference (view units) mapped to the colour map's ends, fixed (a scene
+  /// setting); unset: agreed_range, else this frame's own 1st to 99th percentile.
   std::optional<glm::vec2> range;
+  /// The range the whole picture agreed on (a wall: wallRange() of every tile's own range, sent
+  /// by the master), used when `range` is unset; the frame's own range is still measured, so a
+  /// tile keeps reporting it.
+  std::optional<glm::vec2> agreed_range;
 };
+
+/// One range for a picture made of parts (the tiles of a wall) from each part's own relative
+/// depth range: from the lowest low to the highest high, parts with an empty range (hi <= lo,
+/// or not finite: nothing drawn) left out; unset when no part has one.
+std::optional<glm::vec2> wallRange(std::span<const glm::vec2> part_ranges);
 constexpr int kMaxRelativeDepthRadius = 256;
 
 /// Contour lines (the same paper, section 4): one pixel wide wherever a level is crossed, even on
@@ -191,9 +200,12 @@ struct ContourOptions {
 class AnalysisPass {
  public:
   AnalysisPass();
-  /// `range_out`: the range used (this frame's own, or the one given), for a wall to agree on.
+  /// `range_out`: the frame's own range (or the fixed one, when options.range is set), for a
+  /// wall to agree on. `band`: the target's guard band, pixels; the frame's own range is that of
+  /// the pixels inside it.
   double relativeDepth(FrameTarget& target, const RelativeDepthOptions& options,
-                       const glm::dmat4& projection, glm::vec2* range_out = nullptr);
+                       const glm::dmat4& projection, glm::vec2* range_out = nullptr,
+                       uint32_t band = 0);
   /// `view`: world to view (the height's axis and its offset from the eye).
   double contours(FrameTarget& target, const ContourOptions& options,
                   const glm::dmat4& projection, const glm::dmat4& view);

@@ -30,6 +30,10 @@ struct ViewSetup {
   glm::dvec3 eye_offset{0.0};
   /// Pixels per metre on the wall plane, x and y (0 for views that are not of a wall).
   glm::dvec2 pixels_per_metre{0.0};
+  /// This view's top-left pixel in the larger picture it is a part of (a tile in the whole
+  /// wall: tileOffsetInWhole(); 0 for a picture of its own). Passes that seed their samples by
+  /// pixel use the position in that picture, so a tile draws what the whole wall draws there.
+  glm::ivec2 origin{0};
 };
 
 /// World -> camera matrix of a scene camera (right-handed, looking down -z, y up).
@@ -45,6 +49,12 @@ glm::dmat4 offAxisProjection(const glm::dvec3& eye, double x0, double x1, double
 /// wall plane land on the same pixel in both, points behind it further apart).
 ViewSetup tileView(const config::WallConfig& wall, const config::Tile& tile,
                    const config::Camera& camera, const glm::dvec3& eye_offset = glm::dvec3(0.0));
+
+/// `view` grown by `band` pixels on every side: the same pixels at the same places, with
+/// (width + 2 band) x (height + 2 band) pixels and its frustum widened to match (the projection
+/// scaled in NDC), its origin moved up and left by `band`. Screen passes whose kernels reach
+/// `band` pixels draw the inner pixels as a larger picture would (a wall tile's guard band).
+ViewSetup withGuardBand(const ViewSetup& view, uint32_t band);
 
 /// The whole wall's extent as one view, at the pixel density of its first tile (pixels per metre),
 /// so tile pixels and whole-wall pixels line up one to one.

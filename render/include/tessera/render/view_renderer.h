@@ -64,6 +64,12 @@ struct RenderOptions {
   /// relative depth (the fine relief in a colour map) and contour lines over the picture.
   RelativeDepthOptions relative_depth;
   ContourOptions contours;
+  /// Pixels drawn around the view for the screen passes' kernels (withGuardBand() in
+  /// tile_frustum.h), cropped off before the image is read or shown: a pass then sees past the
+  /// view's edge what a larger picture has there, so the tiles of a wall show one picture
+  /// without seams. -1: what the passes switched on reach (guardBand()); 0: none (a pass's
+  /// kernel then stops at the edge).
+  int guard_band = -1;
   /// Splat diameter as a multiple of the node's projected mean sample spacing (the mean nearest-
   /// neighbour distance). At 1 random samples leave 20% of a surface open; 2 closes them and
   /// LiDAR scan lines (tests/render/view_renderer_test.cpp measures it).
@@ -99,6 +105,14 @@ struct RenderOptions {
   /// so only that model's pixels are tinted.
   std::vector<Highlight> highlights;
 };
+
+/// The pixels the screen passes `options` switches on read around a pixel: eye-dome lighting's
+/// neighbour distance plus its denoise window and median, the relative depth's blur, the contour
+/// lines' 5x5 mean and neighbour; the largest of them (0 when none is on).
+uint32_t screenPassReach(const RenderOptions& options);
+
+/// The guard band a frame is drawn with: options.guard_band, or screenPassReach() when it is -1.
+uint32_t guardBand(const RenderOptions& options);
 
 /// One frame. `nodes`..`points` describe what was drawn.
 struct RenderStats {
@@ -205,10 +219,12 @@ class ViewRenderer {
   std::optional<PickHit> pick(uint32_t x, uint32_t y) const;
 
   ChunkStreamer& streamer() { return *mStreamer; }
-  /// The view's frame target: the last frame's depth, colours, pick ids and image.
+  /// The view's frame target: the last frame's depth, colours, pick ids and image, with the
+  /// guard band the frame was drawn with (lastGuardBand() pixels on every side).
   const FrameTarget& target() const { return mTarget; }
-  /// The GL buffer with the last frame's image (FrameTarget::image()).
-  uint32_t imageBuffer() const { return mTarget.image().name(); }
+  uint32_t lastGuardBand() const { return mGuard; }
+  /// The GL buffer with the last frame's image, the view's own pixels (top row first).
+  uint32_t imageBuffer() const { return mGuard > 0 ? mCropped.name() : mTarget.image().name(); }
 
  private:
   void drawSeeThrough(std::span<const ModelInstance> models, const ViewSetup& view,
@@ -235,7 +251,10 @@ class ViewRenderer {
     bool triangles = false;
   };
   std::shared_ptr<ChunkStreamer> mStreamer;
-  FrameTarget mTarget;
+  uint32_t mWidth, mHeight;  ///< the views' size
+  FrameTarget mTarget;       ///< the views' size plus the last frame's guard band
+  uint32_t mGuard = 0;       ///< the last frame's guard band, pixels
+  GlBuffer mCropped;         ///< mGuard > 0: the image without the band (mWidth x mHeight)
   PointPass mPoints;
   std::unique_ptr<MeshPass> mMeshes;      ///< made on first use
   ResolvePass mResolve;
