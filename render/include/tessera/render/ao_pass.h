@@ -133,7 +133,9 @@ class AoPass {
                    float nearest_depth_hint);
 
  private:
-  GlProgram mStages[3];  ///< shaders/ao.comp's stages: visibility and mean, denoise, shade
+  /// shaders/ao.comp's stages (visibility and mean, denoise, shade), each at full and half
+  /// resolution: [stage * 2 + half].
+  GlProgram mStages[6];
   GlBuffer mMean, mDenoised, mVisibility;
   GlBufferTexture mMeanTexels, mDenoisedTexels;
   glm::ivec2 mGrid{0};  ///< size of the computed planes (half resolution: about half each way)
