@@ -109,9 +109,11 @@ std::vector<float> visibility(const Picture& p, const AoOptions& o, int frames =
   return pass.readVisibility();
 }
 
+/// Enabled, at full resolution unless a test asks for half.
 AoOptions enabled() {
   AoOptions o;
   o.enabled = true;
+  o.half_resolution = false;
   return o;
 }
 

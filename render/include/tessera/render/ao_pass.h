@@ -6,13 +6,17 @@
 //
 // Per pixel, the view-space point P is unprojected from its depth through the full projection
 // (off-axis tile frusta included) and the surface normal N is reconstructed from the depth (per
-// axis the neighbour on the same side of the nearer depth difference, so a silhouette does not
-// bend it). Each slice is a direction phi in the screen; the plane through the view vector V and
-// phi cuts the hemisphere into a half circle. Marching the depth from the pixel both ways along
-// phi finds the two horizon angles h1, h2 (the highest tap within the radius, measured from V;
-// a tap's elevation is pulled towards the tangent plane's by a falloff with its distance, so the
-// radius has no hard edge). N projected into the slice plane (length |Np|, angle n from V) gives
-// the slice's cosine-weighted visibility in closed form (the paper's equation 10):
+// axis the one-sided difference towards the side whose two neighbours continue the pixel's depth
+// in a straight line: J. Turanszki, "Improved normal reconstruction from depth", 2021; a pixel
+// beside a crease or a silhouette takes its own face's slope). Each slice is a direction phi in
+// the screen; the plane through the view vector V and phi cuts the hemisphere into a half
+// circle. Marching the depth from the pixel both ways along phi finds the two horizon angles h1,
+// h2: the highest tap within the radius, its elevation above the slice's tangent line measured
+// against the normal (sin e = (Q - P).N / (|Q - P| |Np|), the same as the angle from V for a
+// tap in the slice's plane; a tap rounded to a pixel centre lies a little off it, where only
+// this measure keeps a plane's own taps at elevation 0), scaled down by a falloff with its
+// distance so the radius has no hard edge. N projected into the slice plane (length |Np|, angle
+// n from V) gives the slice's cosine-weighted visibility in closed form (the paper's equation 10):
 //   a(h1, h2) = |Np| / 4 (-cos(2 h1 - n) + cos n + 2 h1 sin n - cos(2 h2 - n) + cos n + 2 h2 sin n).
 // The pass divides the slices' sum of a(h1, h2) by their sum of the unoccluded value
 // (h = n -/+ pi/2): a ratio estimator that tends to the paper's mean over slices as the slices
@@ -79,8 +83,10 @@ struct AoOptions {
   /// 0: off; the visibility is raised to this power. Finite, >= 0.
   float strength = 1.0f;
   /// Computes the visibility on every other pixel each way (a quarter of the work) and brings it
-  /// to full resolution with weights from the depth.
-  bool half_resolution = false;
+  /// to full resolution with weights from the depth. On by default: at 1920x1080 on llvmpipe the
+  /// full-resolution pass costs 2.7 eye-dome lighting passes, half resolution about one, for a
+  /// mean error against a ray-traced reference 0.0005 larger (bench/ao).
+  bool half_resolution = true;
   /// A depth-aware (bilateral) 5x5 blur of the visibility plane.
   bool denoise = true;
   /// Frames averaged while the camera rests (1: none); frames beyond it keep the mean and cost
