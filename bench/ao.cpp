@@ -327,12 +327,12 @@ int main(int argc, char** argv) {
         setting("2 slices", 2, 1, false, true),
         setting("4 slices", 4, 1, false, true),
         setting("8 slices", 8, 1, false, true),
-        setting("2 slices, 4 frames", 2, 4, false, true),
-        setting("2 slices, 16 frames", 2, 16, false, true),
-        setting("2 slices, no denoise", 2, 1, false, false),
-        setting("half res, 2 slices", 2, 1, true, true),
-        setting("half res, 2 slices, 16 frames", 2, 16, true, true),
-        setting("half res, 4 slices", 4, 1, true, true),
+        setting("2 slices 4 frames", 2, 4, false, true),
+        setting("2 slices 16 frames", 2, 16, false, true),
+        setting("2 slices no denoise", 2, 1, false, false),
+        setting("half res 2 slices", 2, 1, true, true),
+        setting("half res 2 slices 16 frames", 2, 16, true, true),
+        setting("half res 4 slices", 4, 1, true, true),
     };
     render::EdlPass edl;
     render::AoPass ao;
@@ -461,8 +461,9 @@ int main(int argc, char** argv) {
     g << "set terminal pngcairo size 1000,560 font 'sans,10' noenhanced\n"
       << "set output '" << (fs::path(out) / "ao.png").string() << "'\n"
       << "set datafile separator ','\nset grid\nset key top right\n"
+      << "set yrange [0:0.1]\n"
       << "set xlabel 'ms per frame at " << W << "x" << H << " (llvmpipe, 2 cores)'\n"
-      << "set ylabel 'visibility error against the Embree reference'\nset yrange [0:*]\n"
+      << "set ylabel 'visibility error against the Embree reference'\n"
       << "set xrange [0:*]\n"
       << "set title 'Screen-space AO on the bunny mesh: error against cost (EDL: "
       << std::to_string(edl_best).substr(0, 5) << " ms, dashed: 1.5x EDL)'\n"
@@ -473,7 +474,7 @@ int main(int argc, char** argv) {
       << "plot '< grep ^bunny, " << csv_path << " | grep -v ,edl,' using 7:10 title 'mean abs' "
       << "with points pt 7 ps 1.2 lc rgb '#1f77b4', "
       << "'' using 7:11 title '95th percentile' with points pt 5 ps 1.2 lc rgb '#ff7f0e', "
-      << "'' using 7:10:2 with labels offset 0.8,0.6 left font 'sans,8' notitle\n";
+      << "'' using 7:11:2 with labels rotate by 40 offset 0.6,0.6 left font 'sans,8' notitle\n";
     g.close();
     std::string gnuplot = TESSERA_GNUPLOT;
     if (gnuplot.empty()) gnuplot = "gnuplot";
