@@ -37,6 +37,7 @@
 #define GL_GLEXT_PROTOTYPES
 #include <GL/glcorearb.h>
 
+#include <tessera/core/cli.h>
 #include <tessera/core/parallel.h>
 #include <tessera/core/stopwatch.h>
 #include <tessera/lod/mesh.h>
@@ -244,7 +245,7 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(4, 65536))
       ->capture_default_str();
   app.add_option("--radius", radius, "AO radius, metres on the bunny")
-      ->check(CLI::Range(1e-4, 0.1))
+      ->check(cli::finiteRange(1e-4, 0.1))
       ->capture_default_str();
   app.add_flag("!--no-lidar", lidar, "Skip the Autzen timing");
   CLI11_PARSE(app, argc, argv);
