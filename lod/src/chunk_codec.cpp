@@ -25,7 +25,7 @@ struct ChunkHeader {
 };
 static_assert(sizeof(ChunkHeader) == 32);
 
-constexpr AttributeMask kExtra = kIntensity | kScanIndex | kClassification;
+constexpr AttributeMask kExtra = kIntensity | kScanIndex | kClassification | kAmbientOcclusion;
 
 void putVarint(std::vector<uint8_t>& out, uint64_t v) {
   while (v >= 0x80) {
@@ -148,7 +148,7 @@ bool decodePositions(const uint8_t*& p, const uint8_t* end, size_t n, uint64_t l
 
 size_t ChunkPoints::byteSize() const {
   return positions.size() * sizeof(glm::vec3) + colors.size() * 4 + intensities.size() * 2 +
-         sources.size() * 2 + classifications.size() + sizeof(*this);
+         sources.size() * 2 + classifications.size() + ambient_occlusion.size() + sizeof(*this);
 }
 
 EncodedChunk encodeChunk(std::span<BuildPoint> pts, const glm::dvec3& box_min, double extent,
@@ -246,6 +246,14 @@ EncodedChunk encodeChunk(std::span<BuildPoint> pts, const glm::dvec3& box_min, d
     if (attributes & kClassification) {
       for (size_t i = 0; i < n; ++i) raw.push_back(pts[i].classification);
     }
+    if (attributes & kAmbientOcclusion) {
+      // Deltas mod 256 along the Morton order: neighbours' AO is close, so zstd sees small bytes.
+      uint8_t prev_ao = 0;
+      for (size_t i = 0; i < n; ++i) {
+        raw.push_back(uint8_t(pts[i].ao - prev_ao));
+        prev_ao = pts[i].ao;
+      }
+    }
     size_t before = out.bytes.size();
     compressInto(out.bytes, raw, zstd_level);
     h.extra_size = uint32_t(out.bytes.size() - before);
@@ -312,10 +320,12 @@ void decodeChunk(std::span<const uint8_t> bytes, const glm::dvec3& box_min, Chun
   out.intensities.clear();
   out.sources.clear();
   out.classifications.clear();
+  out.ambient_occlusion.clear();
   if (h.attributes & kExtra) {
     size_t expect = (h.attributes & kIntensity ? 2 * n : 0) +
                     (h.attributes & kScanIndex ? 2 * n : 0) +
-                    (h.attributes & kClassification ? n : 0);
+                    (h.attributes & kClassification ? n : 0) +
+                    (h.attributes & kAmbientOcclusion ? n : 0);
     if (h.extra_size == 0) corrupt(what, "attribute frame missing");
     decompress(bytes.subspan(sizeof h + h.pc_size, h.extra_size), raw, expect, what);
     const uint8_t* q = raw.data();
@@ -334,7 +344,15 @@ void decodeChunk(std::span<const uint8_t> bytes, const glm::dvec3& box_min, Chun
       for (size_t i = 0; i < n; ++i) out.sources[i] = uint16_t(q[i] | q[n + i] << 8);
       q += 2 * n;
     }
-    if (h.attributes & kClassification) out.classifications.assign(q, q + n);
+    if (h.attributes & kClassification) {
+      out.classifications.assign(q, q + n);
+      q += n;
+    }
+    if (h.attributes & kAmbientOcclusion) {
+      out.ambient_occlusion.resize(n);
+      uint8_t v = 0;
+      for (size_t i = 0; i < n; ++i) out.ambient_occlusion[i] = v = uint8_t(v + q[i]);
+    }
   } else if (h.extra_size != 0) {
     corrupt(what, "unexpected attribute frame");
   }

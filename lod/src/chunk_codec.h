@@ -5,7 +5,8 @@
 // code, and coded as LEB128 Morton deltas. Colours are decorrelated with the reversible
 // subtract-green transform (G, R-G, B-G mod 256), delta-coded along the Morton order, and stored
 // as byte planes. Both go through zstd. Intensity, source id and classification form a second
-// frame so the position + colour cost can be reported on its own.
+// frame so the position + colour cost can be reported on its own; ambient occlusion joins it as
+// byte deltas along the Morton order.
 #pragma once
 
 #include <cstdint>

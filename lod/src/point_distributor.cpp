@@ -100,12 +100,24 @@ PointDistributor::PointDistributor(const std::vector<std::filesystem::path>& inp
   }
 }
 
+void PointDistributor::setAmbientOcclusion(std::span<const uint8_t> ao) {
+  mAo = ao;
+  if (!ao.empty()) mAttributes |= kAmbientOcclusion;
+}
+
 void PointDistributor::forEachBatch(const std::string& label,
                                     const std::function<void(std::span<const BuildPoint>)>& fn) {
   Progress progress(label, mDeclared, " points", mQuiet);
   std::vector<BuildPoint> pts;
   PointBatch batch;
   uint64_t skipped = 0;
+  uint64_t read = 0;
+  auto aoMismatch = [&] {
+    return ReadError("lod::buildStore(): ambient occlusion is given for " +
+                     std::to_string(mAo.size()) + " points but the inputs hold " +
+                     (read > mAo.size() ? "more" : std::to_string(read)) +
+                     " (inputs changed since it was computed?)");
+  };
   for (const InputSource& in : mInputs) {
     auto reader = openPointReader(in.path);
     const glm::dvec3 shift = reader->info().origin - mFrame.origin;
@@ -119,12 +131,22 @@ void PointDistributor::forEachBatch(const std::string& label,
         p.intensity = a & kIntensity ? uint16_t(std::clamp(batch.intensities[i], 0.f, 65535.f)) : 0;
         p.source = uint16_t(in.first_source + (a & kScanIndex ? batch.scan_indices[i] : 0));
         p.classification = a & kClassification ? batch.classifications[i] : 0;
+        p.ao = 255;
       }
+      if (!mAo.empty()) {
+        if (read + pts.size() > mAo.size()) {
+          read += pts.size();
+          throw aoMismatch();
+        }
+        for (size_t i = 0; i < pts.size(); ++i) pts[i].ao = mAo[read + i];
+      }
+      read += pts.size();
       fn(pts);
       progress.add(batch.size());
     }
     skipped += reader->stats().skippedTotal();
   }
+  if (!mAo.empty() && read != mAo.size()) throw aoMismatch();
   mSkipped = skipped;
 }
 

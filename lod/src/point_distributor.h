@@ -71,6 +71,9 @@ class PointDistributor {
   const std::vector<std::string>& sourceNames() const { return mSourceNames; }
   AttributeMask attributes() const { return mAttributes; }
   double inputPrecision() const { return mPrecision; }
+  /// Each input point's ambient-occlusion byte in reading order (BuildOptions::
+  /// ambient_occlusion); the store then carries kAmbientOcclusion. Call before measure().
+  void setAmbientOcclusion(std::span<const uint8_t> ao);
   uint64_t skipped() const { return mSkipped; }
 
   /// Pass 1: parses every input once into `raw_file` (40 bytes a point); bounds and count; sets
@@ -101,6 +104,7 @@ class PointDistributor {
   std::vector<InputSource> mInputs;
   std::vector<std::string> mSourceNames;
   AttributeMask mAttributes = kScanIndex;
+  std::span<const uint8_t> mAo;
   double mPrecision = 0.0;
   uint64_t mDeclared = 0;
   uint64_t mPoints = 0;

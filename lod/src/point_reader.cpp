@@ -13,7 +13,7 @@ namespace tessera::lod {
 std::vector<const char*> attributeNames(AttributeMask mask) {
   static constexpr const char* kNames[] = {"normal",        "color",         "alpha",
                                            "intensity",     "confidence",    "scan_index",
-                                           "grid_position", "classification"};
+                                           "grid_position", "classification", "ambient_occlusion"};
   std::vector<const char*> out;
   for (unsigned i = 0; i < std::size(kNames); ++i) {
     if (mask & (1u << i)) out.push_back(kNames[i]);

@@ -198,6 +198,9 @@ std::unique_ptr<PointStore> PointStore::open(std::unique_ptr<RangeSource> source
   }
   if (h.version == 0) m.fail("bad format version 0");
   if (!header_intact) m.fail("header is corrupt (checksum mismatch)");
+  if (h.version < 3 && (h.attributes & kAmbientOcclusion))
+    m.fail("version " + std::to_string(h.version) +
+           " header lists ambient occlusion, which needs version 3 (corrupt header)");
   // Offset and size each within the file first: their sum must not wrap around.
   if (!(h.cube_size > 0) || h.root_page_offset > m.file_size ||
       h.root_page_size > m.file_size - h.root_page_offset || h.source_table_offset > m.file_size ||

@@ -250,6 +250,7 @@ BuildReport buildStore(const std::vector<std::filesystem::path>& inputs,
   }
 
   PointDistributor dist(inputs, options.quiet);
+  dist.setAmbientOcclusion(options.ambient_occlusion);
   dist.measure(temp_dir / "raw.bin");
   const CubeFrame frame = dist.frame();
   // Memory: the chunk being worked on dominates (point + partition buffer + codec temporaries,
@@ -436,7 +437,9 @@ BuildReport buildStore(const std::vector<std::filesystem::path>& inputs,
 
   store::FileHeader h{};
   std::memcpy(h.magic, store::kMagic, 4);
-  h.version = store::kVersion;
+  // Version 3 only where it is needed: a store without the AO byte stays version 2, readable
+  // by builds that predate it, byte for byte what they write.
+  h.version = dist.attributes() & kAmbientOcclusion ? store::kVersion : 2;
   h.header_size = store::kHeaderSize;
   h.attributes = dist.attributes();
   for (int i = 0; i < 3; ++i) {

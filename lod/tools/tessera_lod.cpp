@@ -12,6 +12,7 @@
 #include <tessera/scene.pb.h>
 #include <tessera/core/cli.h>
 #include <tessera/core/file_checks.h>
+#include <tessera/lod/ambient_occlusion.h>
 #include <tessera/lod/mesh.h>
 #include <tessera/lod/mesh_builder.h>
 #include <tessera/lod/photo_points.h>
@@ -360,6 +361,31 @@ int runExport(const std::string& in, const std::string& out, const std::string& 
   });
 }
 
+/// `ao`: multi-view ambient occlusion of range scans into a store (lod/ambient_occlusion.h).
+int runAo(const std::string& in, const std::string& out, const std::string& method,
+          const AoOptions& ao, const BuildOptions& bo) {
+  return guarded("ao", kExitWriteFailed, [&] {
+    const AoMethod m = method == "ssao" ? AoMethod::kSsao
+                       : method == "grid" ? AoMethod::kGrid
+                                          : AoMethod::kMvao;
+    cli::refuseOverwrite(out, filesReadBy({in}), "-o");
+    AoStoreReport r;
+    try {
+      r = buildStoreWithAo(in, out, m, ao, bo);
+    } catch (const AoError& e) {
+      throw ReadError(e.what());
+    }
+    std::printf("ao %s: %zu scans, %llu points, method %s, t_max %.4g, radius %.4g, %d samples, "
+                "%dx%d neighbours\n",
+                out.c_str(), r.scans, (unsigned long long)r.points, method.c_str(),
+                r.resolved.t_max, r.resolved.radius, r.resolved.samples, r.resolved.neighbours,
+                r.resolved.neighbours);
+    std::printf("  %.2f s load, %.2f s ssao, %.2f s integration, %.2f s store build\n",
+                r.seconds_load, r.seconds_ssao, r.seconds_integrate, r.build.seconds);
+    return 0;
+  });
+}
+
 int run(int argc, char** argv) {
   CLI::App app{"tessera-lod: read, inspect and generate scanned 3D data for Tessera"};
   app.require_subcommand(1);
@@ -449,6 +475,44 @@ int run(int argc, char** argv) {
                    ".tmesh: build in blocks of at most this many triangles (default: in blocks "
                    "only when the whole build would not fit --memory-mb, as large as it allows)")
       ->check(cli::integerRange<uint64_t>(64, uint64_t(1) << 40));
+
+  std::string ao_in, ao_out, ao_method = "mvao";
+  AoOptions aoo;
+  BuildOptions abo;
+  auto* ao = app.add_subcommand(
+      "ao",
+      "Ambient occlusion of range scans (Sabbadin et al. 2016: per-scan SSAO, multi-view "
+      "integration) into a point store whose points carry it");
+  ao->add_option("SCANS", ao_in, "Registered range scans: a Stanford .conf, a range-grid PLY or "
+                                 "an E57 (scans without a grid are projected orthographically)")
+      ->required();
+  ao->add_option("-o,--output", ao_out, "Output store (.tlod, format version 3)")->required();
+  ao->add_option("--tmax", aoo.t_max,
+                 "Falloff distance t_max of the occlusion, scan units (0: 5% of the diagonal)")
+      ->check(cli::finiteRange(0.0, 1e12))
+      ->capture_default_str();
+  ao->add_option("--radius", aoo.radius, "Screen-space disk radius r_s, scan units (0: t_max / 2)")
+      ->check(cli::finiteRange(0.0, 1e12))
+      ->capture_default_str();
+  ao->add_option("--samples", aoo.samples, "SSAO samples per point")
+      ->check(cli::integerRange(1, 4096))
+      ->capture_default_str();
+  ao->add_option("--neighbours", aoo.neighbours,
+                 "Samples per scan in the integration: 1, 3 (3x3) or 5 (5x5)")
+      ->check(CLI::IsMember({1, 3, 5}))
+      ->capture_default_str();
+  ao->add_option("--method", ao_method,
+                 "ssao: each point's own scan; mvao: multi-view integration; grid: the real-time "
+                 "voxel grid")
+      ->check(CLI::IsMember({"ssao", "mvao", "grid"}))
+      ->capture_default_str();
+  ao->add_option("--seed", aoo.seed, "Sample seed (same seed, same store)")
+      ->check(cli::anyInteger<uint64_t>())
+      ->capture_default_str();
+  ao->add_option("--threads", aoo.threads, "Threads (0: every core)")
+      ->check(cli::integerRange(0, kMaxThreads))
+      ->capture_default_str();
+  ao->add_flag("--quiet", abo.quiet, "No progress output");
 
   std::string verify_store;
   std::vector<std::string> verify_in;
@@ -545,6 +609,10 @@ int run(int argc, char** argv) {
     return runBuild(build_in, build_out, bo, mbo);
   }
   if (*verify) return runVerify(verify_store, verify_in, vo);
+  if (*ao) {
+    abo.threads = aoo.threads;
+    return runAo(ao_in, ao_out, ao_method, aoo, abo);
+  }
   if (*exp) {
     eo.quiet = export_quiet;
     return runExport(export_in, export_out, export_box, export_planes, export_selection, eo);

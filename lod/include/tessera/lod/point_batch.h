@@ -19,6 +19,9 @@ enum Attribute : uint32_t {
   kScanIndex = 1u << 5,       ///< index of the range scan (or input file) the point came from
   kGridPosition = 1u << 6,    ///< (column, row) cell in the scan's range grid
   kClassification = 1u << 7,  ///< LAS classification code
+  /// Ambient-occlusion visibility, one byte (0..255 = 0..1); stores only, never a reader
+  /// (lod/ambient_occlusion.h computes it; store format version 3).
+  kAmbientOcclusion = 1u << 8,
 };
 using AttributeMask = uint32_t;
 

@@ -30,7 +30,8 @@ class StoreError : public std::runtime_error {
 /// in the store's local frame), so precision does not depend on where the data lies on Earth:
 /// local = offset + position, world = store origin + local.
 struct ChunkPoints {
-  AttributeMask attributes = 0;  ///< kColor, kIntensity, kScanIndex (= source id), kClassification
+  /// kColor, kIntensity, kScanIndex (= source id), kClassification, kAmbientOcclusion
+  AttributeMask attributes = 0;
   glm::dvec3 offset{0.0};
   double step = 0.0;  ///< quantisation step: every position is a whole multiple of it
   std::vector<glm::vec3> positions;
@@ -38,6 +39,9 @@ struct ChunkPoints {
   std::vector<uint16_t> intensities;
   std::vector<uint16_t> sources;  ///< index into PointStore::sources()
   std::vector<uint8_t> classifications;
+  /// kAmbientOcclusion: per point its ambient-occlusion visibility, 0 (occluded) .. 255 (open),
+  /// i.e. v / 255 of lod/ambient_occlusion.h; empty without it.
+  std::vector<uint8_t> ambient_occlusion;
 
   size_t size() const { return positions.size(); }
   size_t byteSize() const;

@@ -12,6 +12,7 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -37,6 +38,11 @@ struct BuildOptions {
   uint64_t chunk_points = 0;
   /// Temporary files go here (default: beside the output). Needs up to 80 bytes per point.
   std::filesystem::path temp_dir;
+  /// Per input point, in the order the readers deliver them (inputs in turn; what
+  /// lod::loadScans() lists), its ambient-occlusion byte (ambient_occlusion.h): the store then
+  /// carries kAmbientOcclusion (format version 3). Empty: none. A count that differs from the
+  /// points read is a ReadError. The caller keeps the bytes alive during the build.
+  std::span<const uint8_t> ambient_occlusion;
 };
 
 struct BuildReport {

@@ -1,5 +1,5 @@
-// The .tlod point store file format (version 2; version 1 stores are read too: they lack the
-// source table's checksum). Little-endian, every structure checksummed.
+// The .tlod point store file format (version 3 where points carry ambient occlusion, else 2;
+// versions 1 and 2 are read too: version 1 lacks the source table's checksum). Little-endian, every structure checksummed.
 //
 //   [Header, 4096 bytes at offset 0]
 //   [Payload: one compressed chunk per node, ordered by (level, Morton key of the node cell):
@@ -20,7 +20,9 @@
 namespace tessera::lod::store {
 
 constexpr char kMagic[4] = {'T', 'L', 'O', 'D'};
-constexpr uint32_t kVersion = 2;  ///< 2: source_table_crc (was reserved in 1)
+/// 2: source_table_crc (reserved in 1); 3: chunks may carry kAmbientOcclusion (a store without
+/// it is written as version 2).
+constexpr uint32_t kVersion = 3;
 constexpr uint32_t kHeaderSize = 4096;
 constexpr int kGrid = 48;  ///< sampling grid per node and axis: inner nodes hold <= kGrid^3 points
 /// An inner node holds at most this fraction of the input points below it (a coarser sampling
