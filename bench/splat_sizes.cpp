@@ -175,7 +175,7 @@ int main(int argc, char** argv) {
         img = r.render({&inst, 1}, view, o);
         frame = std::min(frame, msSince(t0));
       }
-      const std::vector<uint32_t> depth = r.target().readDepth();
+      const std::vector<uint32_t> depth = r.readDepth();
       if (foot.empty()) foot = footprint(depth, view, 4, scene.ground_rows);
       size_t inside = 0, open = 0;
       for (size_t i = 0; i < foot.size(); ++i) {

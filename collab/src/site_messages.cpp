@@ -5,6 +5,7 @@
 
 #include <tessera/media/video_packet.h>
 #include <tessera/media/voice_packet.h>
+#include <tessera/sync/scene_graph.h>
 #include <tessera/sync/vec3.h>
 #include <tessera/sync/view.h>
 
@@ -298,6 +299,17 @@ Problem checkToMaster(const site::ToMaster& m) {
       return checkMeasure(m.measure());
     case site::ToMaster::kSelect:
       return checkSelect(m.select());
+    case site::ToMaster::kShading: {
+      const site::SiteShading& s = m.shading();
+      if (!s.has_shading() && !s.has_analysis()) return "shading: needs shading or analysis";
+      if (s.has_shading() && s.shading() != scene::SHADING_COLOR &&
+          s.shading() != scene::SHADING_EDL)
+        return "shading.shading: must be SHADING_COLOR or SHADING_EDL, got " +
+               std::to_string(int(s.shading()));
+      if (s.has_analysis())
+        if (auto why = sync::SceneGraph::analysisProblem(s.analysis())) return "shading: " + *why;
+      return {};
+    }
     case site::ToMaster::kSnap:
       return checkSnap(m.snap());
     case site::ToMaster::kVideo: {

@@ -206,6 +206,14 @@ void SiteRoster::apply(sync::SceneGraph& graph, uint32_t participant, const site
       }
       return;
     }
+    case site::ToMaster::kShading: {  // checked: the wall's lighting and filters, for everyone
+      const site::SiteShading& sh = m.shading();
+      if (sh.has_shading()) graph.setShading(sh.shading());
+      if (sh.has_analysis()) graph.setAnalysis(sh.analysis());
+      std::printf("tessera-master: sites: %s changed the shading\n", s.info.name.c_str());
+      std::fflush(stdout);
+      return;
+    }
     case site::ToMaster::kUndo:
       if (!s.sketches.empty()) {
         graph.remove(s.sketches.back());

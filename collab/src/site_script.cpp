@@ -1,6 +1,8 @@
 // The site script (site.proto SiteScript, JSON): loaded, checked field by field, defaults set.
 #include "site_session_impl.h"
 
+#include <tessera/collab/site_messages.h>
+
 #include <google/protobuf/util/json_util.h>
 
 namespace tessera::collab {
@@ -125,6 +127,12 @@ site::SiteScript loadSiteScript(const std::string& path) {
           for (float v : *px)
             if (!std::isfinite(v)) fail(path, field + name, "numbers must be finite");
         }
+        break;
+      }
+      case site::SiteAction::kShading: {  // as the master checks the message it becomes
+        site::ToMaster m;
+        *m.mutable_shading() = a.shading();
+        if (auto why = checkToMaster(m)) fail(path, field, *why);
         break;
       }
       case site::SiteAction::kScreenshot:

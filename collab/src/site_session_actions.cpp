@@ -44,7 +44,7 @@ void SiteSession::Impl::note(const site::NoteAction& a, const config::Camera& c)
     const render::ViewSetup v = view(c);
     const glm::dvec2 pixel(a.pixel(0), a.pixel(1));
     const std::optional<Surface> at =
-        surfaceAt(renderer->target().readDepth(), v, glm::inverse(v.projection * v.view), pixel);
+        surfaceAt(renderer->readDepth(), v, glm::inverse(v.projection * v.view), pixel);
     if (!at) {
       say("note " + std::to_string(n.request()) + " skipped: no surface under its pixel");
       return;
@@ -199,7 +199,7 @@ void SiteSession::Impl::stroke(const site::StrokeAction& a, const config::Camera
     }
     (void)settled(c);
     const render::ViewSetup v = view(c);
-    const std::vector<uint32_t> depth = renderer->target().readDepth();
+    const std::vector<uint32_t> depth = renderer->readDepth();
     const glm::dmat4 unproject = glm::inverse(v.projection * v.view);
     // The pixels the stroke passes, at most 2 px apart (as a mouse drag gives them), so the
     // polyline follows the surface between the samples given instead of cutting chords under
@@ -262,6 +262,10 @@ bool SiteSession::Impl::act(const site::SiteAction& a, double now) {
       break;
     case site::SiteAction::kSnap:
       snap(a.snap(), asSent(camera(now)));
+      break;
+    case site::SiteAction::kShading:
+      *m.mutable_shading() = a.shading();
+      simple(m);
       break;
     case site::SiteAction::kUndo:
       m.mutable_undo();

@@ -13,7 +13,9 @@ constexpr interact::Command kSiteKeys[] = {
     interact::Command::kLead,       interact::Command::kRelease, interact::Command::kFollow,
     interact::Command::kUndoSketch, interact::Command::kClearSketches,
     interact::Command::kAddNote,    interact::Command::kMeasure, interact::Command::kLasso,
-    interact::Command::kSnap,       interact::Command::kOpenNote, interact::Command::kPicture};
+    interact::Command::kSnap,       interact::Command::kOpenNote, interact::Command::kPicture,
+    interact::Command::kShading,    interact::Command::kAmbientOcclusion,
+    interact::Command::kRelativeDepth, interact::Command::kContours};
 
 }  // namespace
 
@@ -193,6 +195,22 @@ void SiteSession::Impl::key(interact::KeyPress press, const glm::dvec2& cursor, 
     case Command::kPicture:
       a.set_screenshot("site-" + std::to_string(uint64_t(now * 1000)) + ".png");
       break;
+    case Command::kShading:
+    case Command::kAmbientOcclusion:
+    case Command::kRelativeDepth:
+    case Command::kContours: {  // for the whole wall: the master applies it
+      double extent = 0.0;  // contour lines about 25 across the largest model
+      for (const render::ModelInstance& m : instances) {
+        const auto [lo, hi] = render::worldBounds(m);
+        extent = std::max(extent, glm::length(hi - lo));
+      }
+      const auto e =
+          interact::shadingEdit(press.command, graph.settings(), interact::roundContourInterval(extent));
+      if (e->delta.has_shading()) a.mutable_shading()->set_shading(e->delta.shading());
+      if (e->delta.has_analysis()) *a.mutable_shading()->mutable_analysis() = e->delta.analysis();
+      say(e->said);
+      break;
+    }
     default:  // the console's own (section clip, models, opacity, lighting)
       return;
   }

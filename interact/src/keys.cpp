@@ -1,12 +1,15 @@
 #include <tessera/interact/keys.h>
 
+#include <cmath>
+#include <cstdio>
+
 namespace tessera::interact {
 
 namespace {
 
 // GLFW key codes (glfw3.h).
 constexpr int kKey1 = 49, kKey9 = 57, kKeyEqual = 61, kKeyMinus = 45, kKeyA = 65, kKeyC = 67,
-              kKeyD = 68, kKeyT = 84, kKeyE = 69, kKeyF = 70, kKeyH = 72, kKeyK = 75, kKeyL = 76, kKeyM = 77, kKeyN = 78,
+              kKeyD = 68, kKeyG = 71, kKeyT = 84, kKeyE = 69, kKeyF = 70, kKeyH = 72, kKeyK = 75, kKeyL = 76, kKeyM = 77, kKeyN = 78,
               kKeyO = 79, kKeyP = 80, kKeyR = 82, kKeyS = 83, kKeyU = 85, kKeyEnter = 257,
               kKeyBackspace = 259, kKeyPadSubtract = 333, kKeyPadAdd = 334, kKeyPadEnter = 335;
 
@@ -33,6 +36,7 @@ const char* helpOf(Command c) {
     case Command::kShading: return "E lighting";
     case Command::kRelativeDepth: return "D relative depth";
     case Command::kContours: return "T contour lines";
+    case Command::kAmbientOcclusion: return "G ambient occlusion";
     case Command::kNone: break;
   }
   return "";
@@ -66,8 +70,48 @@ KeyPress commandOf(int key) {
     case kKeyE: return {Command::kShading};
     case kKeyD: return {Command::kRelativeDepth};
     case kKeyT: return {Command::kContours};
+    case kKeyG: return {Command::kAmbientOcclusion};
     default: return {};
   }
+}
+
+std::optional<SettingsEdit> shadingEdit(Command command, const scene::Settings& current,
+                                        double contour_interval) {
+  SettingsEdit e;
+  scene::Analysis a = current.analysis();
+  switch (command) {
+    case Command::kShading: {
+      const bool edl = current.shading() != scene::SHADING_EDL;
+      e.delta.set_shading(edl ? scene::SHADING_EDL : scene::SHADING_COLOR);
+      e.said = edl ? "eye-dome lighting on" : "eye-dome lighting off";
+      return e;
+    }
+    case Command::kAmbientOcclusion:
+      a.set_ao_strength(a.ao_strength() > 0.0f ? 0.0f : 1.0f);
+      e.said = a.ao_strength() > 0.0f ? "ambient occlusion on" : "ambient occlusion off";
+      break;
+    case Command::kRelativeDepth:
+      a.set_relative_depth_radius(a.relative_depth_radius() > 0 ? 0 : 24);
+      e.said = a.relative_depth_radius() > 0 ? "relative depth on" : "relative depth off";
+      break;
+    case Command::kContours: {
+      a.set_contour_interval(a.contour_interval() > 0.0 ? 0.0 : contour_interval);
+      char line[96];
+      std::snprintf(line, sizeof line, "contour lines every %g m", a.contour_interval());
+      e.said = a.contour_interval() > 0.0 ? line : "contour lines off";
+      break;
+    }
+    default:
+      return std::nullopt;
+  }
+  *e.delta.mutable_analysis() = a;
+  return e;
+}
+
+double roundContourInterval(double extent) {
+  if (!(extent > 0.0) || !std::isfinite(extent)) return 1.0;
+  const double raw = extent / 25.0, p = std::pow(10.0, std::floor(std::log10(raw)));
+  return raw / p < 2.0 ? p : raw / p < 5.0 ? 2.0 * p : 5.0 * p;
 }
 
 std::string keysHelp(std::span<const Command> offered) {

@@ -82,9 +82,7 @@ double Console::contourInterval() const {
       extent = std::max(extent, glm::length(s.bbox_max - s.bbox_min));
     }
   }
-  if (!(extent > 0.0)) return 1.0;
-  const double raw = extent / 25.0, p = std::pow(10.0, std::floor(std::log10(raw)));
-  return raw / p < 2.0 ? p : raw / p < 5.0 ? 2.0 * p : 5.0 * p;
+  return interact::roundContourInterval(extent);
 }
 
 render::ViewSetup Console::view(const config::Camera& camera) const {
@@ -487,25 +485,12 @@ bool Console::handleInput(sync::SceneGraph& graph) {
         break;
       }
       case Command::kShading:
-        graph.setShading(graph.settings().shading() == scene::SHADING_EDL ? scene::SHADING_COLOR
-                                                                          : scene::SHADING_EDL);
+      case Command::kAmbientOcclusion:
+      case Command::kRelativeDepth:
+      case Command::kContours:  // contour lines: about 25 across the largest model
+        if (const auto e = interact::shadingEdit(press.command, graph.settings(), contourInterval()))
+          applyShading(graph, *e);
         break;
-      case Command::kRelativeDepth: {  // on (a 24 px blur) or off, on every tile
-        scene::Analysis a = graph.settings().analysis();
-        a.set_relative_depth_radius(a.relative_depth_radius() > 0 ? 0 : 24);
-        graph.setAnalysis(a);
-        say(a.relative_depth_radius() > 0 ? "relative depth on" : "relative depth off");
-        break;
-      }
-      case Command::kContours: {  // lines of the view depth, about 25 across the models
-        scene::Analysis a = graph.settings().analysis();
-        a.set_contour_interval(a.contour_interval() > 0.0 ? 0.0 : contourInterval());
-        graph.setAnalysis(a);
-        say(a.contour_interval() > 0.0
-                ? "contour lines every " + std::to_string(a.contour_interval()) + " m"
-                : "contour lines off");
-        break;
-      }
       default:  // release, follow, picture: a site's
         break;
     }

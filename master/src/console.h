@@ -86,6 +86,11 @@ class Console {
   void toolsPanel(sync::SceneGraph& graph);
   void layersPanel(sync::SceneGraph& graph);
   void notesPanel(sync::SceneGraph& graph);
+  /// Shading: eye-dome lighting, ambient occlusion, relative depth and contour lines with their
+  /// parameters, at the bottom right, folded until opened.
+  void shadingPanel(sync::SceneGraph& graph);
+  /// A shading edit (a key, the Shading panel) applied to the scene and said.
+  void applyShading(sync::SceneGraph& graph, const interact::SettingsEdit& edit);
   void noteForm(sync::SceneGraph& graph);
   void shownNote(sync::SceneGraph& graph);
   /// A line on stdout ("tessera-master: console: ...") and in the panels.

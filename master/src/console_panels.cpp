@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <cfloat>
+#include <cmath>
 #include <cstdio>
 #include <map>
 
@@ -98,6 +99,95 @@ void Console::panels(sync::SceneGraph& graph) {
   toolsPanel(graph);
   layersPanel(graph);
   notesPanel(graph);
+  shadingPanel(graph);
+}
+
+void Console::applyShading(sync::SceneGraph& graph, const interact::SettingsEdit& edit) {
+  if (edit.delta.has_shading()) graph.setShading(edit.delta.shading());
+  if (edit.delta.has_analysis()) graph.setAnalysis(edit.delta.analysis());
+  say(edit.said);
+}
+
+void Console::shadingPanel(sync::SceneGraph& graph) {
+  const float right = float(mWidth) - 8.0f;
+  ImGui::SetNextWindowCollapsed(true, ImGuiCond_FirstUseEver);
+  if (beginPanel("Shading", ImVec2(right - kPanelWidth, float(mHeight) - 30.0f))) {
+    const scene::Settings& s = graph.settings();
+    scene::Analysis a = s.analysis();
+    bool changed = false;  // the analysis, applied once a control is let go of
+    auto key = [&](interact::Command c) {
+      if (const auto e = interact::shadingEdit(c, s, contourInterval())) applyShading(graph, *e);
+    };
+    if (bool edl = s.shading() == scene::SHADING_EDL; ImGui::Checkbox("Eye-dome lighting (E)", &edl))
+      key(interact::Command::kShading);
+    if (bool ao = a.ao_strength() > 0.0f; ImGui::Checkbox("Ambient occlusion (G)", &ao))
+      key(interact::Command::kAmbientOcclusion);
+    if (a.ao_strength() > 0.0f) {
+      float strength = a.ao_strength(), radius = a.has_ao_radius_px() ? a.ao_radius_px() : 32.0f;
+      ImGui::SetNextItemWidth(kFieldWidth);
+      if (ImGui::SliderFloat("strength", &strength, 0.1f, 4.0f, "%.1f")) {
+        a.set_ao_strength(std::clamp(strength, 0.1f, 4.0f));
+        changed = true;
+      }
+      ImGui::SetNextItemWidth(kFieldWidth);
+      if (ImGui::SliderFloat("radius px", &radius, 4.0f, 128.0f, "%.0f")) {
+        a.set_ao_radius_px(std::clamp(radius, 4.0f, 128.0f));
+        a.set_ao_radius(0.0f);
+        changed = true;
+      }
+      if (bool half = a.ao_half_resolution(); ImGui::Checkbox("half resolution", &half)) {
+        a.set_ao_half_resolution(half);
+        changed = true;
+      }
+    }
+    if (bool rd = a.relative_depth_radius() > 0; ImGui::Checkbox("Relative depth (D)", &rd))
+      key(interact::Command::kRelativeDepth);
+    if (a.relative_depth_radius() > 0) {
+      int radius = int(a.relative_depth_radius());
+      ImGui::SetNextItemWidth(kFieldWidth);
+      if (ImGui::SliderInt("blur px", &radius, 2, 256)) {
+        a.set_relative_depth_radius(uint32_t(std::clamp(radius, 2, 256)));
+        changed = true;
+      }
+    }
+    if (bool lines = a.contour_interval() > 0.0; ImGui::Checkbox("Contour lines (T)", &lines))
+      key(interact::Command::kContours);
+    if (a.contour_interval() > 0.0) {
+      double interval = a.contour_interval();
+      ImGui::SetNextItemWidth(kFieldWidth);
+      if (ImGui::InputDouble("every m", &interval, 0.0, 0.0, "%g") && interval > 0.0 &&
+          std::isfinite(interval)) {
+        a.set_contour_interval(interval);
+        changed = true;
+      }
+      // Of the view depth, or heights along a world axis (a LiDAR scan's vertical: z).
+      const auto& ax = a.contour_axis();
+      int axis = ax.x() != 0.0 ? 1 : ax.y() != 0.0 ? 2 : ax.z() != 0.0 ? 3 : 0;
+      const char* names[4] = {"depth", "x", "y", "z"};
+      for (int i = 0; i < 4; ++i) {
+        if (i > 0) ImGui::SameLine();
+        if (ImGui::RadioButton(names[i], axis == i) && axis != i) {
+          if (i == 0) {
+            a.clear_contour_axis();
+          } else {
+            auto& v = *a.mutable_contour_axis();
+            v.set_x(i == 1);
+            v.set_y(i == 2);
+            v.set_z(i == 3);
+          }
+          changed = true;
+        }
+      }
+    }
+    if (changed) {
+      graph.setAnalysis(a);
+      if (ImGui::IsItemDeactivatedAfterEdit() || !ImGui::IsAnyItemActive())
+        say("shading: " + std::string(a.ao_strength() > 0.0f ? "ambient occlusion " : "") +
+            (a.relative_depth_radius() > 0 ? "relative depth " : "") +
+            (a.contour_interval() > 0.0 ? "contour lines " : "") + "changed");
+    }
+  }
+  ImGui::End();
 }
 
 void Console::modelsPanel(sync::SceneGraph& graph) {

@@ -18,6 +18,8 @@ std::vector<std::string> ScriptPlayer::advance(sync::SceneGraph& graph, double t
         graph.setVisible(*id, a.set_visible().visible());
     } else if (a.has_set_shading()) {
       graph.setShading(a.set_shading() == "edl" ? scene::SHADING_EDL : scene::SHADING_COLOR);
+    } else if (a.has_set_analysis()) {
+      graph.setAnalysis(a.set_analysis());
     } else if (a.has_screenshot()) {
       screenshots.push_back(a.screenshot());
     }

@@ -351,6 +351,14 @@ RenderOptions SceneDrawList::options(const sync::SceneGraph& graph, float splat_
     if (a.has_relative_depth_lo() && a.relative_depth_lo() < a.relative_depth_hi())
       o.relative_depth.range = glm::vec2(a.relative_depth_lo(), a.relative_depth_hi());
   }
+  if (a.ao_strength() > 0.0f) {
+    o.ao.enabled = true;
+    o.ao.strength = a.ao_strength();
+    o.ao.radius = a.ao_radius();
+    if (a.has_ao_radius_px()) o.ao.radius_px = a.ao_radius_px();
+    if (a.has_ao_slices()) o.ao.slices = int(a.ao_slices());
+    o.ao.half_resolution = a.ao_half_resolution();
+  }
   if (a.contour_interval() > 0.0) {
     o.contours.enabled = true;
     o.contours.interval = a.contour_interval();

@@ -86,14 +86,18 @@ ViewRenderer::ViewRenderer(uint32_t width, uint32_t height, std::shared_ptr<Chun
       mHeight(height),
       mTarget(width, height) {}
 
-uint32_t screenPassReach(const RenderOptions& o) {
+uint32_t screenPassReach(const RenderOptions& o, const ViewSetup& view, double nearest_depth) {
   int reach = 0;
+  if (o.ao.enabled && o.ao.strength > 0.0f && aoOptionsError(o.ao).empty())
+    reach = AoPass::reach(o.ao, view.projection, view.height,
+                          float(std::max(nearest_depth, 1e-9)));
   if (o.edl.strength > 0.0f) {
     const bool robust = o.edl.method == EdlMethod::kRobust && o.edl.filter_radius > 0;
     // Robust: the shade reads the denoised plane at the radius, each denoised value a window
     // around a 3x3 median.
-    reach = std::max(o.edl.radius, 1) +
-            (robust ? o.edl.filter_radius + (o.edl.median_reference ? 1 : 0) : 0);
+    reach = std::max(reach, std::max(o.edl.radius, 1) + (robust ? o.edl.filter_radius +
+                                                                     (o.edl.median_reference ? 1 : 0)
+                                                               : 0));
   }
   if (o.relative_depth.enabled && o.relative_depth.amount > 0.0f)
     reach = std::max(reach, std::clamp(o.relative_depth.radius, 1, kMaxRelativeDepthRadius));
@@ -101,10 +105,10 @@ uint32_t screenPassReach(const RenderOptions& o) {
   return uint32_t(reach);
 }
 
-uint32_t guardBand(const RenderOptions& o) {
+uint32_t guardBand(const RenderOptions& o, const ViewSetup& view, double nearest_depth) {
   TESSERA_CHECK(o.guard_band >= -1 && o.guard_band <= 4096,
                 "render::RenderOptions: guard_band must be -1 (automatic) or 0..4096 pixels");
-  return o.guard_band < 0 ? screenPassReach(o) : uint32_t(o.guard_band);
+  return o.guard_band < 0 ? screenPassReach(o, view, nearest_depth) : uint32_t(o.guard_band);
 }
 
 Image ViewRenderer::render(std::span<const ModelInstance> models, const ViewSetup& view,
@@ -132,7 +136,18 @@ void ViewRenderer::draw(std::span<const ModelInstance> models, const ViewSetup& 
   TESSERA_CHECK(requested.width == mWidth && requested.height == mHeight,
                 "render::ViewRenderer: a view's size must be the renderer's");
   // The frame is drawn with its guard band; the view's own pixels are cropped out at the end.
-  const uint32_t band = guardBand(options);
+  double nearest = std::numeric_limits<double>::infinity();  // view depth, for AO's reach
+  if (options.ao.enabled) {
+    for (const ModelInstance& m : models) {
+      const auto [lo, hi] = worldBounds(m);
+      const glm::dvec3 eye = glm::dvec3(glm::inverse(requested.view)[3]);
+      nearest = std::min(nearest, glm::length(glm::clamp(eye, lo, hi) - eye));
+    }
+    // The nearest a point can be is the near plane: -P[3][2] / (1 - P[2][2]) of a perspective.
+    const glm::dmat4& p = requested.projection;
+    nearest = std::max(nearest, p[3][2] / (p[2][2] - 1.0));
+  }
+  const uint32_t band = guardBand(options, requested, nearest);
   const ViewSetup view = withGuardBand(requested, band);
   if (view.width != mTarget.width() || view.height != mTarget.height()) {
     mTarget = FrameTarget(view.width, view.height);
@@ -244,7 +259,30 @@ void ViewRenderer::draw(std::span<const ModelInstance> models, const ViewSetup& 
                               shading.uniform_color == 0, pick);
     }
     st.resolve_ms = mResolve.run(mTarget, options.background, shading.uniform_color, shading.blend);
-    st.screen_ms = mEdl.run(mTarget, options.edl, view.projection);
+    if (options.ao.enabled && options.ao.strength > 0.0f) {
+      // The running mean goes on while the view, the options and the data drawn stay the same.
+      uint64_t sig = mixBytes(0xA0u, &view.view, sizeof view.view);
+      sig = mixBytes(sig, &view.projection, sizeof view.projection);
+      const AoOptions& a = options.ao;  // field by field: the struct has padding
+      const float numbers[3] = {a.radius, a.radius_px, a.strength};
+      sig = mixBytes(sig, numbers, sizeof numbers);
+      sig = mix(mix(mix(mix(sig, uint64_t(a.slices)), uint64_t(a.steps)),
+                    uint64_t(a.half_resolution) | uint64_t(a.denoise) << 1),
+                uint64_t(a.max_frames));
+      for (const DrawBatch& b : batches) sig = mix(mix(mix(sig, b.buffer), b.first), b.count);
+      for (const MeshBatch& b : mesh_batches)
+        sig = mixBytes(mix(mix(sig, b.vertices), b.index_count), &b.morph, sizeof b.morph);
+      mAoFrame = sig == mAoSignature ? mAoFrame + 1 : 0;
+      mAoSignature = sig;
+      if (!mAo) mAo = std::make_unique<AoPass>();
+      // The pass seeds by raster position (rows from the bottom); the view's origin counts rows
+      // from the top of the whole picture. Rows counted up from the whole picture's top edge
+      // (negative) are the same for a tile and the whole, whatever the whole's height.
+      const glm::ivec2 raster_origin(view.origin.x, -(view.origin.y + int(view.height)));
+      st.screen_ms += mAo->run(mTarget, options.ao, view.projection, mAoFrame, raster_origin);
+      st.ao_frames = std::min<uint32_t>(mAoFrame + 1, uint32_t(std::max(options.ao.max_frames, 1)));
+    }
+    st.screen_ms += mEdl.run(mTarget, options.edl, view.projection);
     if (options.relative_depth.enabled || options.contours.enabled) {
       if (!mAnalysis) mAnalysis = std::make_unique<AnalysisPass>();
       st.screen_ms += mAnalysis->relativeDepth(mTarget, options.relative_depth, view.projection,
@@ -266,7 +304,17 @@ void ViewRenderer::draw(std::span<const ModelInstance> models, const ViewSetup& 
   }
   if (overlay && !overlay->empty()) {
     if (!mOverlay) mOverlay = std::make_unique<OverlayPass>();
-    st.overlay_ms = mOverlay->run(mTarget, view, *overlay);
+    if (band > 0 && !overlay->rects.empty()) {
+      // Rectangles are in the view's pixels: in the target they lie `band` further in.
+      Overlay moved = *overlay;
+      for (ScreenRect& r : moved.rects) {
+        r.min += glm::vec2(float(band));
+        r.max += glm::vec2(float(band));
+      }
+      st.overlay_ms = mOverlay->run(mTarget, view, moved);
+    } else {
+      st.overlay_ms = mOverlay->run(mTarget, view, *overlay);
+    }
   }
   if (band > 0) {
     if (mCropped.bytes() != size_t(mWidth) * mHeight * 4)
@@ -303,6 +351,16 @@ void ViewRenderer::drawLassoDepth(const glm::dmat4& lasso_clip_from_world, const
   PointShading depth_only;
   depth_only.uniform_color = 0xFFFFFFFFu;
   mPoints.draw(t, moved, depth_only);
+}
+
+std::vector<uint32_t> ViewRenderer::readDepth() const {
+  std::vector<uint32_t> all = mTarget.readDepth();
+  if (mGuard == 0) return all;
+  std::vector<uint32_t> own(size_t(mWidth) * mHeight);
+  for (uint32_t y = 0; y < mHeight; ++y)
+    std::copy_n(all.begin() + ptrdiff_t(size_t(y + mGuard) * mTarget.width() + mGuard), mWidth,
+                own.begin() + ptrdiff_t(size_t(y) * mWidth));
+  return own;
 }
 
 std::optional<PickHit> ViewRenderer::pick(uint32_t x, uint32_t y) const {
@@ -345,8 +403,9 @@ Image ViewRenderer::renderSettled(std::span<const ModelInstance> models, const V
     img = render(models, view, options, &st, overlay);
     st.frames = frame;
     if (st.stream.requested == 0 && st.stream.pages_requested == 0) {
-      if (st.ensembles == 0 || st.ensembles >= ensembles) break;
-      continue;  // a resting see-through view: more ensembles
+      const bool more_ao = st.ao_frames > 0 && st.ao_frames < uint32_t(options.ao.max_frames);
+      if ((st.ensembles == 0 || st.ensembles >= ensembles) && !more_ao) break;
+      continue;  // a resting view: more see-through ensembles or ambient occlusion samples
     }
     mStreamer->waitForLoader();
   }

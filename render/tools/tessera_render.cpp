@@ -185,8 +185,8 @@ int run(int argc, char** argv) {
   std::string contour_axis;
   app.add_option("--relative-depth", relative_depth,
                  "Relative depth (the view depth minus its Gaussian blur of this half-width in "
-                 "pixels: the fine relief, in the viridis colour map over the frame's range); "
-                 "a single view, not yet agreed across a wall's tiles")
+                 "pixels: the fine relief, in the viridis colour map over the frame's range; "
+                 "the tiles of --mosaic agree on one range)")
       ->check(cli::integerRange(1, render::kMaxRelativeDepthRadius));
   app.add_option("--contours", contour_interval,
                  "Contour lines every this many units (metres) of view depth, one pixel wide")
@@ -196,6 +196,18 @@ int run(int argc, char** argv) {
                  "(0,0,1: a LiDAR scan's vertical)");
   app.add_option("--contour-phase", contour_phase, "Units: lines at PHASE + k * interval")
       ->check(cli::finiteRange(-1e12, 1e12));
+  float ao = 0.0f, ao_radius = 0.0f, ao_radius_px = 0.0f;
+  bool ao_full = false;
+  app.add_option("--ao", ao,
+                 "Screen-space ambient occlusion of this strength (1: the usual), over the "
+                 "colours and eye-dome lighting; settled pictures average its frames")
+      ->check(cli::finiteRange(0.0, 4.0));
+  app.add_option("--ao-radius", ao_radius, "Its radius in units (metres) on the model")
+      ->check(cli::positiveFinite(1e12));
+  app.add_option("--ao-radius-px", ao_radius_px, "Its radius in pixels at any depth (default 32)")
+      ->check(cli::finiteRange(1.0, render::kAoMaxRadiusPx));
+  app.add_flag("--ao-full-resolution", ao_full,
+               "Ambient occlusion on every pixel (default: on a quarter, upsampled by depth)");
   app.add_option("--splat-scale", splat_scale,
                  "Splat size as a multiple of the projected sample spacing (raise for LiDAR)")
       ->check(cli::finiteRange(0.25, 8.0))
@@ -331,6 +343,15 @@ int run(int argc, char** argv) {
     if (relative_depth > 0) {
       options.relative_depth.enabled = true;
       options.relative_depth.radius = relative_depth;
+    }
+    if ((ao_radius > 0.0f || ao_radius_px > 0.0f || ao_full) && !(ao > 0.0f))
+      usage("--ao-radius, --ao-radius-px and --ao-full-resolution need --ao STRENGTH");
+    if (ao > 0.0f) {
+      options.ao.enabled = true;
+      options.ao.strength = ao;
+      options.ao.radius = ao_radius;
+      if (ao_radius_px > 0.0f) options.ao.radius_px = ao_radius_px;
+      options.ao.half_resolution = !ao_full;
     }
     if (!contour_axis.empty() && !(contour_interval > 0))
       usage("--contour-axis needs --contours INTERVAL");

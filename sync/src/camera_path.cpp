@@ -8,6 +8,7 @@
 #include <tessera/core/check.h>
 
 #include "config_json.h"
+#include "scene_checks.h"
 
 namespace tessera::sync {
 namespace {
@@ -101,8 +102,13 @@ config::CameraPath parseCameraPath(const std::string& json, const std::string& n
       case config::PathAction::kScreenshot:
         if (a.screenshot().empty()) failConfig(fn, name, f + ".screenshot", "needs a path");
         break;
+      case config::PathAction::kSetAnalysis:
+        if (const auto problem = checks::checkAnalysis(a.set_analysis()))
+          failConfig(fn, name, f + ".setAnalysis", *problem);
+        break;
       default:
-        failConfig(fn, name, f, "needs one of setOpacity, setVisible, setShading, screenshot");
+        failConfig(fn, name, f,
+                   "needs one of setOpacity, setVisible, setShading, setAnalysis, screenshot");
     }
   }
   return path;

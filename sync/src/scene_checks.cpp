@@ -370,6 +370,15 @@ Problem checkAnalysis(const scene::Analysis& a) {
     if (!(std::isfinite(v.x()) && std::isfinite(v.y()) && std::isfinite(v.z())))
       return "settings.analysis.contour_axis: must be finite";
   }
+  if (!(std::isfinite(a.ao_strength()) && a.ao_strength() >= 0.0f && a.ao_strength() <= 4.0f))
+    return "settings.analysis.ao_strength: must be 0..4 (0: off), got " + num(a.ao_strength());
+  if (!(std::isfinite(a.ao_radius()) && a.ao_radius() >= 0.0f))
+    return "settings.analysis.ao_radius: must be finite and >= 0 metres (0: ao_radius_px), got " +
+           num(a.ao_radius());
+  if (a.has_ao_radius_px() && !(a.ao_radius_px() >= 1.0f && a.ao_radius_px() <= 128.0f))
+    return "settings.analysis.ao_radius_px: must be 1..128 px, got " + num(a.ao_radius_px());
+  if (a.has_ao_slices() && (a.ao_slices() < 1 || a.ao_slices() > 64))
+    return "settings.analysis.ao_slices: must be 1..64, got " + std::to_string(a.ao_slices());
   return std::nullopt;
 }
 

@@ -472,6 +472,10 @@ void SceneGraph::setSpbrEnsembles(uint32_t ensembles) {
   mSettings.set_spbr_ensembles(ensembles);
 }
 
+std::optional<std::string> SceneGraph::analysisProblem(const scene::Analysis& analysis) {
+  return checkAnalysis(analysis);
+}
+
 void SceneGraph::setAnalysis(const scene::Analysis& analysis) {
   const Problem p = checkAnalysis(analysis);
   TESSERA_CHECK(!p, "sync::SceneGraph::setAnalysis(): " + p.value_or(""));

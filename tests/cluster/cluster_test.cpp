@@ -68,7 +68,8 @@ class Cluster : public ::testing::Test {
     // tiles' edges and a colour range the tiles must agree on.
     std::string analysis = sceneJson("bunny.tlod");
     analysis.replace(analysis.rfind("}}"), 2,
-                     R"(, "analysis": {"relativeDepthRadius": 20, "contourInterval": 0.004}}})");
+                     R"(, "analysis": {"relativeDepthRadius": 20, "contourInterval": 0.004, )"
+                     R"("aoStrength": 1.0}}})");
     write(*sDir / "scene-analysis.json", analysis);
   }
   static void TearDownTestSuite() {
@@ -134,7 +135,8 @@ TEST_F(Cluster, TwoNodesWallScreenshotIsTheMosaic) {
   EXPECT_EQ(node_rows_with_points, 6);
 }
 
-// Each node draws its tile with the guard band the filters reach and the relative depth range
+// Ambient occlusion, relative depth and contour lines over eye-dome lighting: each node draws
+// its tile with the guard band the filters reach and the relative depth range
 // the master agreed from the tiles' last reports: the wall shows one picture, the same as
 // tessera-render --mosaic, whose tiles agree on their range the same way.
 TEST_F(Cluster, TheAnalysisFiltersAreOnePictureAcrossTheTiles) {

@@ -300,6 +300,32 @@ TEST(SiteRoster, StrokesAreSketchesInTheSitesLayerWithUndoAndClear) {
   EXPECT_EQ(s.replica.children(*layer_b).size(), 1u);
 }
 
+// A site's shading keys change the wall's lighting and filters for everyone; a message with a
+// filter out of range is refused by name before it reaches the scene.
+TEST(SiteRoster, ASitesShadingKeysChangeTheWallsFilters) {
+  Session s;
+  const uint32_t a = s.roster.join(s.master, "A", "k1");
+  site::ToMaster m;  // what G sends (interact::shadingEdit())
+  m.mutable_shading()->mutable_analysis()->set_ao_strength(1.0f);
+  m.mutable_shading()->set_shading(scene::SHADING_EDL);
+  EXPECT_FALSE(collab::checkToMaster(m));
+  s.roster.apply(s.master, a, m, 0.0);
+  s.step(0.1);
+  EXPECT_EQ(s.replica.settings().analysis().ao_strength(), 1.0f);
+  EXPECT_EQ(s.replica.settings().shading(), scene::SHADING_EDL);
+  site::ToMaster bad = m;
+  bad.mutable_shading()->mutable_analysis()->set_ao_strength(std::nanf(""));
+  const auto why = collab::checkToMaster(bad);
+  ASSERT_TRUE(why);
+  EXPECT_NE(why->find("ao_strength"), std::string::npos) << *why;
+  bad = m;
+  bad.mutable_shading()->mutable_analysis()->set_ao_slices(1000);
+  EXPECT_TRUE(collab::checkToMaster(bad));
+  bad.Clear();
+  bad.mutable_shading();
+  EXPECT_TRUE(collab::checkToMaster(bad));  // names nothing
+}
+
 TEST(SiteRoster, TheLeadersPoseMovesTheSceneCameraUntilReleased) {
   Session s;
   const uint32_t a = s.roster.join(s.master, "A", "k1");

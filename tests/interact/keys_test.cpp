@@ -1,6 +1,8 @@
 // The keyboard the console and the sites share: the key map and the tool state machine.
 #include <gtest/gtest.h>
 
+#include <cmath>
+
 #include <tessera/interact/keys.h>
 
 namespace {
@@ -27,10 +29,37 @@ TEST(Keys, GlfwCodesMapToOneCommandEach) {
   EXPECT_EQ(commandOf(48).command, Command::kNone);  // 0 is no model
   EXPECT_EQ(commandOf(68).command, Command::kRelativeDepth);  // D
   EXPECT_EQ(commandOf(84).command, Command::kContours);       // T
+  EXPECT_EQ(commandOf(71).command, Command::kAmbientOcclusion);  // G
   EXPECT_EQ(commandOf(90).command, Command::kNone);  // Z
   EXPECT_EQ(commandOf(-1).command, Command::kNone);
   const Command offered[] = {Command::kLead, Command::kSnap, Command::kBack};
   EXPECT_EQ(tessera::interact::keysHelp(offered), "L lead, N snap, Backspace back");
+}
+
+// A shading key switches its filter on or off and keeps the others as they are.
+TEST(Keys, ShadingKeysSwitchOneFilterAndKeepTheOthers) {
+  using tessera::interact::shadingEdit;
+  tessera::scene::Settings s;
+  s.mutable_analysis()->set_relative_depth_radius(40);
+  auto e = shadingEdit(Command::kAmbientOcclusion, s, 0.5);
+  ASSERT_TRUE(e);
+  EXPECT_EQ(e->delta.analysis().ao_strength(), 1.0f);
+  EXPECT_EQ(e->delta.analysis().relative_depth_radius(), 40u);
+  EXPECT_FALSE(e->delta.has_shading());
+  EXPECT_EQ(e->said, "ambient occlusion on");
+  *s.mutable_analysis() = e->delta.analysis();
+  e = shadingEdit(Command::kAmbientOcclusion, s, 0.5);
+  EXPECT_EQ(e->delta.analysis().ao_strength(), 0.0f);
+  e = shadingEdit(Command::kContours, s, 0.5);
+  EXPECT_EQ(e->delta.analysis().contour_interval(), 0.5);
+  EXPECT_EQ(e->said, "contour lines every 0.5 m");
+  e = shadingEdit(Command::kShading, s, 0.5);
+  EXPECT_EQ(e->delta.shading(), tessera::scene::SHADING_EDL);
+  EXPECT_FALSE(e->delta.has_analysis());
+  EXPECT_FALSE(shadingEdit(Command::kLead, s, 0.5));
+  EXPECT_EQ(tessera::interact::roundContourInterval(3.0), 0.1);
+  EXPECT_EQ(tessera::interact::roundContourInterval(100.0), 2.0);
+  EXPECT_EQ(tessera::interact::roundContourInterval(std::nan("")), 1.0);
 }
 
 TEST(Keys, MeasureStepsThroughItsModesAndOff) {

@@ -419,9 +419,9 @@ TEST_F(FramePipelineTest, BlendedColoursAverageWhereNearestColoursAlias) {
   EXPECT_NEAR(mean_b, 127.5, 0.05 * 255) << "blended: the plane's mean grey";
   EXPECT_LT(sd_b, 0.5 * 127.5) << "blending averages several points a pixel";
   // Blending changes colours, not coverage: the depth planes are the same.
-  const std::vector<uint32_t> depth_b = r.target().readDepth();
+  const std::vector<uint32_t> depth_b = r.readDepth();
   r.renderSettled({&inst, 1}, v, nearest);
-  EXPECT_TRUE(depth_b == r.target().readDepth());
+  EXPECT_TRUE(depth_b == r.readDepth());
 }
 
 }  // namespace

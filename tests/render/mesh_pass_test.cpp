@@ -98,7 +98,7 @@ TEST_F(MeshPassTest, FullResolutionCutEqualsTheInputMeshDrawnDirectly) {
   RenderStats st;
   const Image lod_image = r.renderSettled({&m, 1}, v, o, &st);
   EXPECT_EQ(st.triangles, 69451u);
-  const std::vector<uint32_t> lod_depth = r.target().readDepth();
+  const std::vector<uint32_t> lod_depth = r.readDepth();
 
   // The input mesh, as one batch, on the store's grid (what the leaves hold, exactly).
   const lod::Mesh mesh = lod::readMesh(kBunnyMesh);
@@ -232,12 +232,12 @@ TEST_F(MeshPassTest, PointsAndTrianglesHideEachOther) {
   ViewRenderer r(v.width, v.height);
   RenderOptions o;
   r.renderSettled({&mm, 1}, v, o);
-  const auto dm = r.target().readDepth();
+  const auto dm = r.readDepth();
   r.renderSettled({&pm, 1}, v, o);
-  const auto dp = r.target().readDepth();
+  const auto dp = r.readDepth();
   const ModelInstance both[2] = {mm, pm};
   r.renderSettled(both, v, o);
-  const auto d = r.target().readDepth();
+  const auto d = r.readDepth();
   size_t agree = 0, mesh_wins = 0, points_win = 0;
   for (size_t i = 0; i < d.size(); ++i) {
     agree += d[i] == std::min(dm[i], dp[i]);
@@ -257,10 +257,10 @@ TEST_F(MeshPassTest, FlatShadingShowsFacetsOverTheSamePixels) {
   RenderOptions o;
   o.lod_pixels = 8.0;  // coarse patches: facets several pixels wide
   const Image smooth = r.renderSettled({&m, 1}, v, o);
-  const auto smooth_depth = r.target().readDepth();
+  const auto smooth_depth = r.readDepth();
   o.flat_shading = true;
   const Image flat = r.renderSettled({&m, 1}, v, o);
-  EXPECT_EQ(r.target().readDepth(), smooth_depth);  // the same surface
+  EXPECT_EQ(r.readDepth(), smooth_depth);  // the same surface
   EXPECT_EQ(silhouetteIoU(flat, smooth, o.background), 1.0);
   // Facets: within a triangle every pixel of a flat picture has one colour, so neighbouring
   // pixels are equal far more often than in the smooth one.

@@ -84,7 +84,7 @@ size_t openGroundPixels(lod::PointStore& store, bool own_sizes, int max_radius, 
   o.fill = fill;
   const ModelInstance inst{&store, storeModel(store)};
   r.renderSettled({&inst, 1}, v, o);
-  const std::vector<uint32_t> depth = r.target().readDepth();  // raster order: bottom row first
+  const std::vector<uint32_t> depth = r.readDepth();  // raster order: bottom row first
   size_t open = 0;
   for (uint32_t y = 4; y < H * 2 / 5; ++y)
     for (uint32_t x = 4; x + 4 < W; ++x) open += depth[size_t(y) * W + x] == 0xFFFFFFFFu;
@@ -118,7 +118,7 @@ std::pair<size_t, size_t> openBunnyPixels(lod::PointStore& store, bool own_sizes
   o.lod_pixels = 2.0;
   const ModelInstance inst{&store, storeModel(store)};
   r.renderSettled({&inst, 1}, v, o);
-  const std::vector<uint32_t> depth = r.target().readDepth();
+  const std::vector<uint32_t> depth = r.readDepth();
   auto empty = [&](uint32_t x, uint32_t y) { return depth[size_t(y) * W + x] == 0xFFFFFFFFu; };
   size_t open = 0, covered = 0;
   for (uint32_t y = 2; y + 2 < H; ++y)

@@ -8,14 +8,17 @@
 //   A add a note             M measure (distance, path, angle, area, off)  S lasso   N snap
 //   Enter end (a path, an area, a snap)   Backspace drop the last point, stroke or selection
 //   1..9 the current model   + / - its opacity       H hide or show it     E eye-dome lighting
-//   D relative depth         T contour lines
+//   G ambient occlusion      D relative depth        T contour lines
 //
 // Which commands a front end offers is its own (a site has no section clip, the console does
 // not follow); a key it does not offer does nothing.
 #pragma once
 
+#include <optional>
 #include <span>
 #include <string>
+
+#include <tessera/scene.pb.h>
 
 #include <tessera/interact/measure_tool.h>
 
@@ -44,6 +47,7 @@ enum class Command {
   kShading,
   kRelativeDepth,
   kContours,
+  kAmbientOcclusion,
 };
 
 struct KeyPress {
@@ -56,6 +60,22 @@ KeyPress commandOf(int key);
 
 /// "L lead, R release, ..." for the commands a front end offers, in the order given.
 std::string keysHelp(std::span<const Command> offered);
+
+/// What a shading key does to the scene's settings: E switches eye-dome lighting and colour; G
+/// ambient occlusion (strength 1, 32 px), D relative depth (a 24 px blur), T contour lines of the
+/// view depth every `contour_interval` metres, each on or off, the other filters kept.
+struct SettingsEdit {
+  scene::Settings delta;  ///< `shading` or the whole `analysis`
+  std::string said;       ///< "ambient occlusion on", ...
+};
+/// The edit of `command` on `current` (nullopt for a command that is not a shading key). The
+/// console applies it; a site sends it to the master, which applies it on every tile.
+std::optional<SettingsEdit> shadingEdit(Command command, const scene::Settings& current,
+                                        double contour_interval);
+
+/// A round contour interval (1, 2 or 5 times a power of ten) near a 25th of `extent` (metres; 1
+/// when it is not positive and finite).
+double roundContourInterval(double extent);
 
 /// One tool at a time: a tool key switches its tool on (and every other off), or off when it is
 /// the one on. M steps distance -> path -> angle -> area -> off.

@@ -14,6 +14,7 @@
 #include <span>
 
 #include <tessera/lod/point_store.h>
+#include <tessera/render/ao_pass.h>
 #include <tessera/render/chunk_streamer.h>
 #include <tessera/render/frame_target.h>
 #include <tessera/render/lod_selector.h>
@@ -60,6 +61,11 @@ struct RenderOptions {
   glm::u8vec3 default_color{200, 200, 200};  ///< for stores without colour (all must agree)
   /// Eye-dome lighting (screen_passes.h): off unless edl.strength is set (1: usual).
   EdlOptions edl{.strength = 0.0f};
+  /// Screen-space ambient occlusion (ao_pass.h), opaque frames: multiplies the resolved colour
+  /// (and eye-dome lighting's shade) by the ambient light reaching each pixel's surface. While
+  /// the view and its data rest, each frame adds its samples to a running mean, up to
+  /// ao.max_frames; renderSettled() draws frames until that mean is full.
+  AoOptions ao;
   /// Analysis filters (screen_passes.h AnalysisPass), after eye-dome lighting, opaque frames:
   /// relative depth (the fine relief in a colour map) and contour lines over the picture.
   RelativeDepthOptions relative_depth;
@@ -107,12 +113,15 @@ struct RenderOptions {
 };
 
 /// The pixels the screen passes `options` switches on read around a pixel: eye-dome lighting's
-/// neighbour distance plus its denoise window and median, the relative depth's blur, the contour
-/// lines' 5x5 mean and neighbour; the largest of them (0 when none is on).
-uint32_t screenPassReach(const RenderOptions& options);
+/// neighbour distance plus its denoise window and median, ambient occlusion's radius and denoise
+/// (AoPass::reach(), a radius in world units taken at `nearest_depth`, the nearest view depth a
+/// model can have), the relative depth's blur, the contour lines' 5x5 mean and neighbour; the
+/// largest of them (0 when none is on). `view`: the view drawn (its projection and height).
+uint32_t screenPassReach(const RenderOptions& options, const ViewSetup& view,
+                         double nearest_depth);
 
 /// The guard band a frame is drawn with: options.guard_band, or screenPassReach() when it is -1.
-uint32_t guardBand(const RenderOptions& options);
+uint32_t guardBand(const RenderOptions& options, const ViewSetup& view, double nearest_depth);
 
 /// One frame. `nodes`..`points` describe what was drawn.
 struct RenderStats {
@@ -132,6 +141,9 @@ struct RenderStats {
   /// The relative depth's range this frame (RelativeDepthOptions; zero when it is off): what a
   /// tile reports so the wall can agree on one range.
   glm::vec2 relative_depth_range{0.0f};
+  /// Ambient occlusion: frames in its running mean (0: off); renderSettled() draws until it
+  /// reaches AoOptions::max_frames.
+  uint32_t ao_frames = 0;
   double overlay_ms = 0;         ///< the overlay pass
   size_t frames = 1;             ///< frames renderSettled() drew
   uint32_t ensembles = 0;        ///< see-through: ensembles averaged in the image (0: opaque)
@@ -206,7 +218,8 @@ class ViewRenderer {
                const RenderOptions& options, RenderStats* stats = nullptr,
                const Overlay* overlay = nullptr);
   /// Frames until the whole cut is resident (or refused as corrupt) and, see-through, every
-  /// ensemble up to options.spbr's maximum is averaged; the last one's image.
+  /// ensemble up to options.spbr's maximum is averaged, and with ambient occlusion its running
+  /// mean holds options.ao.max_frames frames; the last one's image.
   /// `stats` holds the last frame's figures with `frames` counting all of them. `overlay`, when
   /// given, is drawn on every frame's image, so the settled one shows it (screenshots).
   Image renderSettled(std::span<const ModelInstance> models, const ViewSetup& view,
@@ -223,6 +236,9 @@ class ViewRenderer {
   /// guard band the frame was drawn with (lastGuardBand() pixels on every side).
   const FrameTarget& target() const { return mTarget; }
   uint32_t lastGuardBand() const { return mGuard; }
+  /// The last frame's depth plane over the view's own pixels (without the guard band), raster
+  /// order (row 0 at the bottom), as FrameTarget::readDepth(). Reads the plane back.
+  std::vector<uint32_t> readDepth() const;
   /// The GL buffer with the last frame's image, the view's own pixels (top row first).
   uint32_t imageBuffer() const { return mGuard > 0 ? mCropped.name() : mTarget.image().name(); }
 
@@ -263,6 +279,9 @@ class ViewRenderer {
   std::unique_ptr<OverlayPass> mOverlay;  ///< made on first use (builds a font atlas)
   std::unique_ptr<HighlightPass> mHighlight;  ///< made on first use
   std::unique_ptr<AnalysisPass> mAnalysis;    ///< made on first use
+  std::unique_ptr<AoPass> mAo;                ///< made on first use
+  uint64_t mAoSignature = 0;                  ///< what the AO's running mean is of
+  uint32_t mAoFrame = 0;                      ///< the last frame's number in that mean
   std::vector<PickRange> mPickRanges;     ///< the last frame's, by base
   std::vector<lod::NodeId> mBatchNodes;   ///< this frame's batches' nodes
   std::vector<glm::dmat4> mBatchWorld;    ///< this frame's point batches' world_from_local

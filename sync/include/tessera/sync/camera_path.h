@@ -19,7 +19,7 @@ namespace tessera::sync {
 /// increasing; each keyframe's eye, target and up present and finite, eye != target, up not along
 /// the view; action times finite and non-decreasing; each action one of setOpacity (a model
 /// name, opacity in (0, 1]), setVisible (a model name), setShading ("color" or "edl"),
-/// screenshot (a path); a closed path has 3 keyframes or more and ends where it starts. Throws
+/// setAnalysis (the shading filters, checked as a scene's settings.analysis), screenshot (a path); a closed path has 3 keyframes or more and ends where it starts. Throws
 /// ConfigError "sync::loadCameraPath(): FILE: FIELD: what", e.g. "keyframes[2].time: 1 is not after
 /// keyframes[1] (3)".
 config::CameraPath loadCameraPath(const std::filesystem::path& path);

@@ -167,8 +167,11 @@ class SceneGraph {
   void setLodPixels(float pixels);
   /// 1..4096 (scene::Settings::spbr_ensembles).
   void setSpbrEnsembles(uint32_t ensembles);
-  /// Relative depth and contour lines (scene::Analysis; checked as a frame's settings are).
+  /// The shading filters (scene::Analysis; checked as a frame's settings are).
   void setAnalysis(const scene::Analysis& analysis);
+  /// What is wrong with `analysis` as settings.analysis ("settings.analysis.ao_strength: ..."),
+  /// or nothing: for checks of outside messages before they are applied.
+  static std::optional<std::string> analysisProblem(const scene::Analysis& analysis);
 
   /// Who leads the view ("" nobody; at most kMaxParticipantName bytes): scene::Settings::leader.
   void setLeader(std::string_view leader);
