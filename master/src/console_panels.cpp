@@ -140,6 +140,20 @@ void Console::shadingPanel(sync::SceneGraph& graph) {
         changed = true;
       }
     }
+    {  // points of stores carrying multi-view AO (tessera-lod ao)
+      ImGui::TextUnformatted("Stored AO");
+      const scene::Analysis::StoredAo modes[3] = {scene::Analysis::STORED_AO_MODULATE,
+                                                  scene::Analysis::STORED_AO_OFF,
+                                                  scene::Analysis::STORED_AO_ALONE};
+      const char* names[3] = {"x colour", "off", "alone"};
+      for (int i = 0; i < 3; ++i) {
+        ImGui::SameLine();
+        if (ImGui::RadioButton(names[i], a.stored_ao() == modes[i]) && a.stored_ao() != modes[i]) {
+          a.set_stored_ao(modes[i]);
+          changed = true;
+        }
+      }
+    }
     if (bool rd = a.relative_depth_radius() > 0; ImGui::Checkbox("Relative depth (D)", &rd))
       key(interact::Command::kRelativeDepth);
     if (a.relative_depth_radius() > 0) {

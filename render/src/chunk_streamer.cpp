@@ -3,6 +3,7 @@
 #include <tessera/core/parallel.h>
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <condition_variable>
@@ -111,6 +112,7 @@ uint64_t residentBytes(const GpuChunk& c) {
 struct ChunkStreamer::Impl {
   StreamerOptions options;
   uint32_t grey = 0;
+  std::atomic<StoredAo> stored_ao{StoredAo::kModulate};  ///< read by the loader threads
 
   // Shared with the loader threads, under `mutex`.
   mutable std::mutex mutex;
@@ -213,11 +215,21 @@ struct ChunkStreamer::Impl {
       out.splat_sized = (item.needs & kSplatSizes) != 0;
       if (out.splat_sized && item.store->node(item.node).leaf())
         scales = splatScales(chunk->positions, out.spacing);
+      const StoredAo ao_mode = stored_ao.load();
+      const bool ao = !chunk->ambient_occlusion.empty() && ao_mode != StoredAo::kOff;
       for (size_t i = 0; i < chunk->size(); ++i) {
         uint32_t rgb = grey;
         if (color) {
           const glm::u8vec4 c = chunk->colors[i];
           rgb = uint32_t(c.r) | uint32_t(c.g) << 8 | uint32_t(c.b) << 16;
+        }
+        if (ao) {  // each channel times the visibility v / 255, rounded
+          const uint32_t v = chunk->ambient_occlusion[i];
+          if (ao_mode == StoredAo::kAlone) rgb = 0xFFFFFFu;
+          uint32_t shaded = 0;
+          for (int shift = 0; shift < 24; shift += 8)
+            shaded |= (((rgb >> shift & 0xFFu) * v + 127u) / 255u) << shift;
+          rgb = shaded;
         }
         if (!scales.empty()) rgb |= uint32_t(scales[i]) << 24;
         out.points[i] = {chunk->positions[i], rgb};
@@ -525,6 +537,14 @@ void ChunkStreamer::forget(const lod::LodHierarchy& store) {
   }
   std::erase_if(s.failed, [&](const Key& k) { return k.store == &store; });
   std::erase_if(s.failed_pages, [&](const Key& k) { return k.store == &store; });
+}
+
+void ChunkStreamer::setStoredAo(StoredAo mode) {
+  mImpl->stored_ao.store(mode);
+}
+
+StoredAo ChunkStreamer::storedAo() const {
+  return mImpl->stored_ao.load();
 }
 
 uint32_t ChunkStreamer::loaderThreads() const {

@@ -351,6 +351,9 @@ RenderOptions SceneDrawList::options(const sync::SceneGraph& graph, float splat_
     if (a.has_relative_depth_lo() && a.relative_depth_lo() < a.relative_depth_hi())
       o.relative_depth.range = glm::vec2(a.relative_depth_lo(), a.relative_depth_hi());
   }
+  o.stored_ao = a.stored_ao() == scene::Analysis::STORED_AO_OFF     ? StoredAo::kOff
+                : a.stored_ao() == scene::Analysis::STORED_AO_ALONE ? StoredAo::kAlone
+                                                                     : StoredAo::kModulate;
   if (a.ao_strength() > 0.0f) {
     o.ao.enabled = true;
     o.ao.strength = a.ao_strength();

@@ -170,6 +170,12 @@ void ViewRenderer::draw(std::span<const ModelInstance> models, const ViewSetup& 
     throw RenderError(
         "render::ViewRenderer: a see-through frame with mesh models: meshes are drawn only in "
         "opaque frames yet (set every point model's opacity to 1, or hide the meshes)");
+  if (options.stored_ao != mStreamer->storedAo()) {
+    // Stored AO is coloured in on loading: the stores carrying it load again in the new mode.
+    mStreamer->setStoredAo(options.stored_ao);
+    for (const ModelInstance& m : models)
+      if (m.store && (m.store->summary().attributes & lod::kAmbientOcclusion)) mStreamer->forget(*m.store);
+  }
   mStreamer->beginFrame();
   st.upload_ms = mStreamer->stats().upload_ms;
   // A highlight on one model needs the pick ids to tell that model's pixels (HighlightPass).
@@ -221,7 +227,9 @@ void ViewRenderer::draw(std::span<const ModelInstance> models, const ViewSetup& 
   bool one_color = mesh_batches.empty();  // shaded triangles have colours of their own
   for (const ModelInstance& m : models) {
     if (!m.store) continue;
-    one_color &= (m.store->summary().attributes & lod::kColor) == 0 &&
+    const bool shaded = (m.store->summary().attributes & lod::kAmbientOcclusion) != 0 &&
+                        options.stored_ao != StoredAo::kOff;
+    one_color &= (m.store->summary().attributes & lod::kColor) == 0 && !shaded &&
                  (m.color == glm::u8vec3(0) || m.color == models.front().color);
   }
   if (one_color && !models.empty()) {

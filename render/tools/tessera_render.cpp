@@ -206,6 +206,11 @@ int run(int argc, char** argv) {
       ->check(cli::positiveFinite(1e12));
   app.add_option("--ao-radius-px", ao_radius_px, "Its radius in pixels at any depth (default 32)")
       ->check(cli::finiteRange(1.0, render::kAoMaxRadiusPx));
+  std::string stored_ao;
+  app.add_option("--stored-ao", stored_ao,
+                 "Points of stores carrying ambient occlusion (tessera-lod ao): modulate (their "
+                 "colour times it, the default), off, or alone (the AO as grey)")
+      ->check(CLI::IsMember({"modulate", "off", "alone"}));
   app.add_flag("--ao-full-resolution", ao_full,
                "Ambient occlusion on every pixel (default: on a quarter, upsampled by depth)");
   app.add_option("--splat-scale", splat_scale,
@@ -344,6 +349,8 @@ int run(int argc, char** argv) {
       options.relative_depth.enabled = true;
       options.relative_depth.radius = relative_depth;
     }
+    if (stored_ao == "off") options.stored_ao = render::StoredAo::kOff;
+    if (stored_ao == "alone") options.stored_ao = render::StoredAo::kAlone;
     if ((ao_radius > 0.0f || ao_radius_px > 0.0f || ao_full) && !(ao > 0.0f))
       usage("--ao-radius, --ao-radius-px and --ao-full-resolution need --ao STRENGTH");
     if (ao > 0.0f) {

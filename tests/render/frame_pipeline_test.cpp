@@ -424,6 +424,54 @@ TEST_F(FramePipelineTest, BlendedColoursAverageWhereNearestColoursAlias) {
   EXPECT_TRUE(depth_b == r.readDepth());
 }
 
+// A store carrying ambient occlusion (multi-view AO of scans): the points' colours times their
+// visibility, their colours, or the visibility alone, switched on one renderer (the chunks load
+// again in each mode).
+TEST_F(FramePipelineTest, StoredAmbientOcclusionShadesThePointsInEachMode) {
+  lod::PointBatch plane;
+  plane.reset(lod::kColor);
+  std::vector<uint8_t> ao;
+  std::mt19937_64 rng(5);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  for (int i = 0; i < 100000; ++i) {
+    const double x = u(rng);
+    plane.positions.push_back({x, u(rng), 0.0});
+    plane.colors.push_back({200, 100, 50, 255});
+    ao.push_back(x < 0.5 ? 255 : 102);  // open on the left, visibility 0.4 on the right
+  }
+  lod::writePly(*sDir / "ao.ply", plane, glm::dvec3(0.0));
+  lod::BuildOptions o;
+  o.quiet = true;
+  o.ambient_occlusion = ao;
+  lod::buildStore({*sDir / "ao.ply"}, *sDir / "ao.tlod", o);
+  auto s = lod::PointStore::open(*sDir / "ao.tlod");
+  ASSERT_TRUE(s->summary().attributes & lod::kAmbientOcclusion);
+  ModelInstance inst{s.get(), storeModel(*s)};
+  const ViewSetup v = frontView(*s, 1.2, 320, 240);
+  ViewRenderer r(v.width, v.height);
+  auto at = [&](const Image& img, uint32_t x) { return glm::ivec3(pixel(img, x, 120)[0],
+                                                                  pixel(img, x, 120)[1],
+                                                                  pixel(img, x, 120)[2]); };
+  const uint32_t left = 110, right = 210;  // the plane's left and right halves
+  RenderOptions opt;
+  for (StoredAo mode : {StoredAo::kModulate, StoredAo::kOff, StoredAo::kAlone, StoredAo::kModulate}) {
+    opt.stored_ao = mode;
+    const Image img = r.renderSettled({&inst, 1}, v, opt);
+    const glm::ivec3 l = at(img, left), rt = at(img, right);
+    SCOPED_TRACE(int(mode));
+    if (mode == StoredAo::kModulate) {
+      EXPECT_EQ(l, glm::ivec3(200, 100, 50));
+      EXPECT_EQ(rt, glm::ivec3(80, 40, 20));
+    } else if (mode == StoredAo::kOff) {
+      EXPECT_EQ(l, glm::ivec3(200, 100, 50));
+      EXPECT_EQ(rt, glm::ivec3(200, 100, 50));
+    } else {
+      EXPECT_EQ(l, glm::ivec3(255));
+      EXPECT_EQ(rt, glm::ivec3(102));
+    }
+  }
+}
+
 }  // namespace
 }  // namespace tessera::render
 

@@ -74,6 +74,14 @@ struct StreamStats {
   double upload_ms = 0.0;
 };
 
+/// How points of stores carrying ambient occlusion (lod::kAmbientOcclusion: multi-view AO from
+/// the range scans, `tessera-lod ao`) are coloured when their chunks are loaded.
+enum class StoredAo : uint8_t {
+  kModulate,  ///< the point's colour times its visibility
+  kOff,       ///< the point's colour
+  kAlone,     ///< white times its visibility (the AO by itself, as grey)
+};
+
 struct StreamerOptions {
   uint64_t budget_bytes = 1ull << 30;        ///< GPU bytes for resident chunks
   glm::u8vec3 default_color{200, 200, 200};  ///< for stores without colour
@@ -159,6 +167,10 @@ class ChunkStreamer {
   /// threads to leave them, discards what they produced and frees its resident chunks. After
   /// it returns no loader thread touches the store.
   void forget(const lod::LodHierarchy& store);
+  /// How chunks loaded from here on colour stored ambient occlusion. The caller forgets the
+  /// stores carrying it when the mode changes (ViewRenderer does), so none stays in the old one.
+  void setStoredAo(StoredAo mode);
+  StoredAo storedAo() const;
   /// Loader threads (StreamerOptions::loader_threads resolved).
   uint32_t loaderThreads() const;
   /// Items the loader threads are working on at this moment (tests, tools).

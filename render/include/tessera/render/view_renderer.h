@@ -66,6 +66,9 @@ struct RenderOptions {
   /// the view and its data rest, each frame adds its samples to a running mean, up to
   /// ao.max_frames; renderSettled() draws frames until that mean is full.
   AoOptions ao;
+  /// Points of stores carrying ambient occlusion (multi-view AO of range scans): their colour
+  /// times it, the colour alone, or the AO alone. Changing it reloads those stores' chunks.
+  StoredAo stored_ao = StoredAo::kModulate;
   /// Analysis filters (screen_passes.h AnalysisPass), after eye-dome lighting, opaque frames:
   /// relative depth (the fine relief in a colour map) and contour lines over the picture.
   RelativeDepthOptions relative_depth;
