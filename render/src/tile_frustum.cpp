@@ -23,6 +23,85 @@ glm::dmat4 offAxisProjection(const glm::dvec3& eye, double x0, double x1, double
                       far);
 }
 
+bool hasOwnPlane(const config::Tile& tile) {
+  return tile.has_origin() || tile.has_right() || tile.has_up();
+}
+
+bool isRoom(const config::WallConfig& wall) {
+  return std::any_of(wall.tiles().begin(), wall.tiles().end(), hasOwnPlane);
+}
+
+TilePlane tilePlane(const config::Tile& tile) {
+  TilePlane p;
+  p.width = tile.width();
+  p.height = tile.height();
+  if (!hasOwnPlane(tile)) {
+    p.origin = glm::dvec3(tile.x(), tile.y(), 0.0);
+    return p;
+  }
+  p.origin = vec(tile.origin());
+  if (tile.has_right()) p.right = glm::normalize(vec(tile.right()));
+  if (tile.has_up()) p.up = glm::normalize(vec(tile.up()));
+  p.normal = glm::normalize(glm::cross(p.right, p.up));
+  return p;
+}
+
+bool samePlane(const TilePlane& a, const TilePlane& b) {
+  return glm::length(a.normal - b.normal) < 1e-6 &&
+         std::abs(glm::dot(a.origin - b.origin, a.normal)) < 1e-6;
+}
+
+void screenProjection(const TilePlane& plane, const glm::dvec3& eye, double near, double far,
+                      glm::dmat4& rotation, glm::dmat4& projection) {
+  // Kooima 2008: va, vb, vc from the eye to the lower-left, lower-right and upper-left corners;
+  // d the eye's distance from the screen plane; the frustum edges scaled to the near plane.
+  const glm::dvec3 va = plane.origin - eye, vb = va + plane.right * plane.width,
+                   vc = va + plane.up * plane.height;
+  const double d = -glm::dot(plane.normal, va);
+  const double s = near / d;
+  projection = glm::frustum(glm::dot(plane.right, va) * s, glm::dot(plane.right, vb) * s,
+                            glm::dot(plane.up, va) * s, glm::dot(plane.up, vc) * s, near, far);
+  // M^T: the rows are the screen's axes.
+  rotation = glm::dmat4(1.0);
+  for (int c = 0; c < 3; ++c) {
+    rotation[c][0] = plane.right[c];
+    rotation[c][1] = plane.up[c];
+    rotation[c][2] = plane.normal[c];
+  }
+}
+
+glm::ivec2 roomNetOffset(const config::WallConfig& wall, const config::Tile& tile) {
+  int x = 0;
+  for (const auto& t : wall.tiles()) {
+    if (&t == &tile || t.name() == tile.name()) break;
+    x += int(t.pixel_width()) + kRoomNetGap;
+  }
+  return {x, 0};
+}
+
+glm::uvec2 roomNetSize(const config::WallConfig& wall) {
+  glm::uvec2 size(0);
+  for (const auto& t : wall.tiles()) {
+    size.x += t.pixel_width() + (size.x > 0 ? kRoomNetGap : 0);
+    size.y = std::max(size.y, t.pixel_height());
+  }
+  return size;
+}
+
+ViewSetup eyeView(const config::WallConfig& wall, const config::Camera& camera, uint32_t width,
+                  uint32_t height, double fov_degrees) {
+  ViewSetup v;
+  v.view = cameraView(camera);
+  const double half = std::tan(glm::radians(fov_degrees) * 0.5) * wall.near();
+  const double aspect = double(width) / double(height);
+  const double hx = aspect >= 1 ? half : half * aspect, hy = aspect >= 1 ? half / aspect : half;
+  v.projection = glm::frustum(-hx, hx, -hy, hy, wall.near(), wall.far());
+  v.width = width;
+  v.height = height;
+  v.eye_world = vec(camera.eye());
+  return v;
+}
+
 ViewSetup tileView(const config::WallConfig& wall, const config::Tile& tile,
                    const config::Camera& camera, const glm::dvec3& eye_offset) {
   ViewSetup v;
@@ -30,8 +109,16 @@ ViewSetup tileView(const config::WallConfig& wall, const config::Tile& tile,
   // `eye_offset` sees camera space moved the other way, through its own off-axis window.
   const glm::dmat4 mono = cameraView(camera);
   v.view = glm::translate(glm::dmat4(1.0), -eye_offset) * mono;
-  v.projection = offAxisProjection(vec(wall.eye()) + eye_offset, tile.x(), tile.x() + tile.width(),
-                                   tile.y(), tile.y() + tile.height(), wall.near(), wall.far());
+  if (hasOwnPlane(tile)) {
+    glm::dmat4 rotation;
+    screenProjection(tilePlane(tile), vec(wall.eye()) + eye_offset, wall.near(), wall.far(),
+                     rotation, v.projection);
+    v.view = rotation * v.view;
+  } else {
+    v.projection =
+        offAxisProjection(vec(wall.eye()) + eye_offset, tile.x(), tile.x() + tile.width(),
+                          tile.y(), tile.y() + tile.height(), wall.near(), wall.far());
+  }
   v.width = tile.pixel_width();
   v.height = tile.pixel_height();
   v.eye_offset = eye_offset;
@@ -66,6 +153,10 @@ glm::dvec4 wallExtent(const config::WallConfig& wall) {
 }
 
 ViewSetup wholeWallView(const config::WallConfig& wall, const config::Camera& camera) {
+  if (isRoom(wall)) {
+    const glm::uvec2 net = roomNetSize(wall);
+    return eyeView(wall, camera, net.x, net.y, 120.0);
+  }
   const config::Tile& first = wall.tiles(0);
   const double ppm_x = first.pixel_width() / first.width(),
                ppm_y = first.pixel_height() / first.height();
@@ -83,6 +174,7 @@ ViewSetup wholeWallView(const config::WallConfig& wall, const config::Camera& ca
 }
 
 glm::ivec2 tileOffsetInWhole(const config::WallConfig& wall, const config::Tile& tile) {
+  if (isRoom(wall)) return roomNetOffset(wall, tile);
   const config::Tile& first = wall.tiles(0);
   const double ppm_x = first.pixel_width() / first.width(),
                ppm_y = first.pixel_height() / first.height();

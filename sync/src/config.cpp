@@ -22,12 +22,47 @@ constexpr double kMaxWallPixels = double(1u << 28);
   detail::failConfig(fn, file, field, what);
 }
 
+/// A tile's own plane: finite origin, right and up; the axes non-zero and orthogonal within
+/// 1e-4 (as cosines).
+void checkTilePlane(const config::Tile& t, const char* fn, const std::string& name,
+                    const std::string& f, const config::WallConfig&) {
+  if (t.has_origin() && !finite(t.origin()))
+    fail(fn, name, f + ".origin", "needs finite x, y and z (metres)");
+  for (const auto* axis : {&t.right(), &t.up()}) {
+    const bool has = axis == &t.right() ? t.has_right() : t.has_up();
+    const std::string field = f + (axis == &t.right() ? ".right" : ".up");
+    if (!has) continue;
+    if (!finite(*axis)) fail(fn, name, field, "needs finite x, y and z");
+    if (!(glm::length(vec(*axis)) > 1e-9)) fail(fn, name, field, "is zero: give a unit axis");
+  }
+  const glm::dvec3 r = t.has_right() ? glm::normalize(vec(t.right())) : glm::dvec3(1, 0, 0);
+  const glm::dvec3 u = t.has_up() ? glm::normalize(vec(t.up())) : glm::dvec3(0, 1, 0);
+  const double c = glm::dot(r, u);
+  if (!(std::abs(c) <= 1e-4)) {
+    char what[160];
+    std::snprintf(what, sizeof what,
+                  "right and up must be orthogonal (the cosine between them is %.6g, at most "
+                  "1e-4)",
+                  c);
+    fail(fn, name, f + ".up", what);
+  }
+}
+
 }  // namespace
 
-config::WallConfig parseWallConfig(const std::string& json, const std::string& name) {
+config::WallConfig parseWallConfig(const std::string& json, const std::string& name,
+                                   const std::filesystem::path& base_dir) {
   const char* fn = "sync::loadWallConfig()";
   config::WallConfig wall;
   parseConfigJson(json, name, fn, wall);
+  // Projector files are named relative to the wall file's folder.
+  auto resolve = [&](const std::string& file) {
+    const std::filesystem::path p(file);
+    return p.is_relative() && !base_dir.empty() ? (base_dir / p).lexically_normal().string()
+                                                : file;
+  };
+  if (!wall.mpcdi().empty()) wall.set_mpcdi(resolve(wall.mpcdi()));
+  bool room = false;
   if (wall.tiles_size() == 0) fail(fn, name, "tiles", "a wall needs at least one tile");
   std::set<std::string> names;
   for (int i = 0; i < wall.tiles_size(); ++i) {
@@ -46,8 +81,27 @@ config::WallConfig parseWallConfig(const std::string& json, const std::string& n
         t.pixel_height() > 16384) {
       fail(fn, name, f, "pixelWidth and pixelHeight must be 1..16384");
     }
+    if (t.has_origin() || t.has_right() || t.has_up()) {
+      room = true;
+      checkTilePlane(t, fn, name, f, wall);
+    }
+    if (!std::isfinite(t.gamma()) || t.gamma() < 0 || t.gamma() > 10)
+      fail(fn, name, f + ".gamma", "must be in (0, 10] (0 or absent: 2.2)");
+    if (t.blend() != "auto" && !t.blend().empty()) t.set_blend(resolve(t.blend()));
+    if (!t.warp().empty()) t.set_warp(resolve(t.warp()));
   }
-  {
+  if (room) {
+    // A room's screenshot is its net: the tiles side by side (render::roomNetSize()).
+    double w = 0, h = 0;
+    for (const auto& t : wall.tiles()) {
+      w += t.pixel_width() + 16.0;
+      h = std::max(h, double(t.pixel_height()));
+    }
+    if (!(w <= kMaxWallPixelsPerSide && w * h <= kMaxWallPixels))
+      fail(fn, name, "tiles",
+           "the room's net (its tiles side by side) would be " + std::to_string(int64_t(w)) +
+               " x " + std::to_string(int64_t(h)) + " pixels: at most 65536 a side, 2^28 in all");
+  } else {
     // The whole wall as one picture (screenshots, --mosaic, --whole) at the first tile's pixel
     // density: bounded, so tiles far apart are refused here, not by std::bad_alloc later.
     const config::Tile& first = wall.tiles(0);
@@ -69,7 +123,20 @@ config::WallConfig parseWallConfig(const std::string& json, const std::string& n
       fail(fn, name, "tiles", what);
     }
   }
-  if (!wall.has_eye() || !finite(wall.eye()) || !(wall.eye().z() > 0)) {
+  if (!wall.has_eye() || !finite(wall.eye()))
+    fail(fn, name, "eye", "the viewer's eye needs finite x, y and z (metres)");
+  if (room) {
+    for (int i = 0; i < wall.tiles_size(); ++i) {
+      const config::Tile& t = wall.tiles(i);
+      const glm::dvec3 o = t.has_origin() ? vec(t.origin()) : glm::dvec3(t.x(), t.y(), 0.0);
+      const glm::dvec3 r = t.has_right() ? glm::normalize(vec(t.right())) : glm::dvec3(1, 0, 0);
+      const glm::dvec3 u = t.has_up() ? glm::normalize(vec(t.up())) : glm::dvec3(0, 1, 0);
+      if (!(glm::dot(vec(wall.eye()) - o, glm::cross(r, u)) > 1e-6))
+        fail(fn, name, "eye",
+             "the viewer's eye must be in front of tiles[" + std::to_string(i) + "] ('" +
+                 t.name() + "'): on the side right x up points to");
+    }
+  } else if (!(wall.eye().z() > 0)) {
     fail(fn, name, "eye", "the viewer's eye must be in front of the wall (z > 0, metres)");
   }
   if (wall.min_live_tiles() > uint32_t(wall.tiles_size()))
@@ -84,7 +151,8 @@ config::WallConfig parseWallConfig(const std::string& json, const std::string& n
 }
 
 config::WallConfig loadWallConfig(const std::filesystem::path& path) {
-  return parseWallConfig(detail::readConfigFile(path, "sync::loadWallConfig()"), path.string());
+  return parseWallConfig(detail::readConfigFile(path, "sync::loadWallConfig()"), path.string(),
+                         path.parent_path());
 }
 
 scene::SceneFile parseSceneFile(const std::string& json, const std::string& name,

@@ -6,6 +6,12 @@
 // Frames: the wall frame has the wall plane at z = 0 (x right, y up, metres) and the eye at
 // z > 0. The scene camera (eye, target, up) places the wall eye in the world: camera space is
 // the wall frame translated so the eye is at the origin, looking down -z.
+//
+// Rooms: a tile with a plane of its own (Tile.origin, right, up: a CAVE's walls and floor, an
+// L-shaped or angled wall, facets of a curved screen) gets Kooima's general form: the wall frame
+// rotated into the screen's basis (right, up, normal), then the asymmetric frustum of the
+// rectangle at its distance from the eye. The wall screenshot of a room is its net
+// (roomNetOffset()): the tiles side by side in the order of the config.
 #pragma once
 
 #include <array>
@@ -50,6 +56,50 @@ glm::dmat4 offAxisProjection(const glm::dvec3& eye, double x0, double x1, double
 ViewSetup tileView(const config::WallConfig& wall, const config::Tile& tile,
                    const config::Camera& camera, const glm::dvec3& eye_offset = glm::dvec3(0.0));
 
+/// A tile's rectangle in the wall frame: lower-left corner, unit axes and the normal towards the
+/// eye (right x up), metres. A tile without a plane of its own: (x, y, 0), +x, +y, +z.
+struct TilePlane {
+  glm::dvec3 origin{0.0}, right{1.0, 0.0, 0.0}, up{0.0, 1.0, 0.0}, normal{0.0, 0.0, 1.0};
+  double width = 0, height = 0;
+  /// The point at (u, v) of the rectangle (0..1, u right, v down from the top-left corner).
+  glm::dvec3 at(double u, double v) const {
+    return origin + right * (u * width) + up * ((1.0 - v) * height);
+  }
+  /// (u, v) of a point on the plane (the inverse of at()).
+  glm::dvec2 uv(const glm::dvec3& p) const {
+    return {glm::dot(p - origin, right) / width, 1.0 - glm::dot(p - origin, up) / height};
+  }
+};
+
+/// Whether the tile has a plane of its own (any of origin, right, up set).
+bool hasOwnPlane(const config::Tile& tile);
+/// Whether any tile of the wall has a plane of its own: the wall is a room, its screenshot a net.
+bool isRoom(const config::WallConfig& wall);
+TilePlane tilePlane(const config::Tile& tile);
+/// Whether two tiles lie on one plane (normals within 1e-6, offsets within 1e-6 m): where
+/// projectors may overlap and blend.
+bool samePlane(const TilePlane& a, const TilePlane& b);
+
+/// Kooima's general projection: world -> clip for the screen `plane` seen from `eye` (wall
+/// frame) as a matrix on camera space (wall frame translated by -eye), i.e. P M^T of the paper:
+/// `rotation` takes camera space into the screen's basis, `projection` is the frustum.
+void screenProjection(const TilePlane& plane, const glm::dvec3& eye, double near, double far,
+                      glm::dmat4& rotation, glm::dmat4& projection);
+
+/// Pixels between tiles in a room's net.
+constexpr int kRoomNetGap = 16;
+
+/// Where a tile's pixel (0, 0) falls in a room's net: the tiles side by side, left to right in
+/// the order of the config, tops aligned, kRoomNetGap pixels apart.
+glm::ivec2 roomNetOffset(const config::WallConfig& wall, const config::Tile& tile);
+/// The net's size in pixels.
+glm::uvec2 roomNetSize(const config::WallConfig& wall);
+
+/// A single wide-angle view from the wall's eye (the reference a room's tiles are compared
+/// with): looking where the camera looks, `fov_degrees` across the wider side.
+ViewSetup eyeView(const config::WallConfig& wall, const config::Camera& camera, uint32_t width,
+                  uint32_t height, double fov_degrees);
+
 /// `view` grown by `band` pixels on every side: the same pixels at the same places, with
 /// (width + 2 band) x (height + 2 band) pixels and its frustum widened to match (the projection
 /// scaled in NDC), its origin moved up and left by `band`. Screen passes whose kernels reach
@@ -57,10 +107,12 @@ ViewSetup tileView(const config::WallConfig& wall, const config::Tile& tile,
 ViewSetup withGuardBand(const ViewSetup& view, uint32_t band);
 
 /// The whole wall's extent as one view, at the pixel density of its first tile (pixels per metre),
-/// so tile pixels and whole-wall pixels line up one to one.
+/// so tile pixels and whole-wall pixels line up one to one. For a room (isRoom()): eyeView() at
+/// the net's size (roomNetSize()), 120 degrees across.
 ViewSetup wholeWallView(const config::WallConfig& wall, const config::Camera& camera);
 
-/// Where a tile's pixel (0, 0) (top-left) falls in the whole-wall image of wholeWallView().
+/// Where a tile's pixel (0, 0) (top-left) falls in the whole-wall image of wholeWallView(); for a
+/// room, in its net (roomNetOffset()).
 glm::ivec2 tileOffsetInWhole(const config::WallConfig& wall, const config::Tile& tile);
 
 /// The wall's bounding rectangle on its plane: min x, min y, max x, max y (metres).
