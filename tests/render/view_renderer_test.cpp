@@ -15,6 +15,7 @@
 #include <tessera/render/view_renderer.h>
 
 #include "../support/bunny_store_test.h"
+#include "../support/bunny_views.h"
 #include "../support/random_cube.h"
 #include "../support/temp_dir.h"
 
@@ -26,28 +27,12 @@ const std::string kConfigs = TESSERA_CONFIG_DIR;
 class ViewRendererTest : public test::BunnyStoreTest {
  protected:
   static config::Camera camera(const lod::PointStore& s, double distance) {
-    const auto& sum = s.summary();
-    glm::dvec3 c = sum.origin + 0.5 * (sum.bbox_min + sum.bbox_max);
-    config::Camera cam;
-    cam.mutable_eye()->set_x(c.x + 0.05);
-    cam.mutable_eye()->set_y(c.y + 0.02);
-    cam.mutable_eye()->set_z(c.z + distance);
-    cam.mutable_target()->set_x(c.x);
-    cam.mutable_target()->set_y(c.y);
-    cam.mutable_target()->set_z(c.z);
-    cam.mutable_up()->set_y(1);
-    return cam;
+    return test::frontCamera(s, distance);
   }
 };
 
 ViewSetup plainView(const config::Camera& cam, uint32_t w, uint32_t h) {
-  ViewSetup v;
-  v.view = cameraView(cam);
-  v.projection = glm::perspective(glm::radians(40.0), double(w) / h, 0.01, 10.0);
-  v.width = w;
-  v.height = h;
-  v.eye_world = glm::dvec3(cam.eye().x(), cam.eye().y(), cam.eye().z());
-  return v;
+  return test::perspectiveView(cam, w, h);
 }
 
 TEST_F(ViewRendererTest, SilhouetteMatchesACpuProjectionOfTheSamePoints) {
