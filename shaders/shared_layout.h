@@ -29,6 +29,7 @@
 #define TESSERA_BINDING_ANALYSIS_PLANE 22   // float per pixel: relative depth (analysis.comp)
 #define TESSERA_BINDING_ANALYSIS_RANGE 23   // its extremes (ordered float bits), histogram
 #define TESSERA_ANALYSIS_BINS 4096u         // the relative depth's histogram (its percentiles)
+#define TESSERA_ANALYSIS_MAX_TAPS 32        // the relative depth blur's taps a pass, at most
 
 // The pull-push fill (shaders/fill.comp, FillPass): most pyramid levels above the frame (reach
 // 2^levels pixels); its pyramid's texture units (samples, the push's winners) and image units

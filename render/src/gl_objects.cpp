@@ -121,6 +121,9 @@ void GlProgram::set(const char* u, std::span<const glm::vec4> v) const {
 void GlProgram::set(const char* u, std::span<const uint32_t> v) const {
   glProgramUniform1uiv(mName, location(u), GLsizei(v.size()), v.data());
 }
+void GlProgram::set(const char* u, std::span<const float> v) const {
+  glProgramUniform1fv(mName, location(u), GLsizei(v.size()), v.data());
+}
 
 GlTexture::GlTexture(uint32_t width, uint32_t height, uint32_t format, uint32_t levels)
     : mWidth(width), mHeight(height), mFormat(format) {

@@ -160,10 +160,19 @@ double AnalysisPass::relativeDepth(FrameTarget& target, const RelativeDepthOptio
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_SCREEN_SCRATCH, mSums.name());
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_ANALYSIS_PLANE, mPlane.name());
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, TESSERA_BINDING_ANALYSIS_RANGE, mRange.name());
+  // The blur's taps, every `step` pixels from -(radius / step) step (shaders/analysis.comp).
+  const int step = std::max(1, o.radius / 6), first = -(o.radius / step) * step;
+  const double sigma = std::max(o.radius / 3.0, 0.5);
+  std::vector<float> weights;
+  for (int k = first; k <= o.radius; k += step)
+    weights.push_back(float(std::exp(-double(k) * k / (2.0 * sigma * sigma))));
+  TESSERA_CHECK(weights.size() <= size_t(TESSERA_ANALYSIS_MAX_TAPS),
+                "render::AnalysisPass: too many taps for the blur");
   auto run = [&](int stage, const glm::vec2& range) {
     (stage == 1 ? mSumTexels : mPlaneTexels).bind(TESSERA_TEXTURE_SCREEN_SCRATCH);
     const GlProgram& p = useStage(stage, target, projection);
     p.set("uRadius", o.radius);
+    if (stage <= 1) p.set("uWeights", std::span<const float>(weights));
     p.set("uAmount", std::clamp(o.amount, 0.0f, 1.0f));
     p.set("uFixedRange", 1);
     p.set("uRangeLo", range.x);

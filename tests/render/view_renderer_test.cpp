@@ -159,9 +159,10 @@ TEST_F(ViewRendererTest, MosaicEqualsTheWholeWallRenderInEveryShadingMode) {
     // Pixel for pixel, up to float rounding: the tiles' projections and the whole wall's put a
     // point a few ulps apart, which moves a shade by a level here and there, and now and then
     // moves a disc whose centre lies on a pixel edge by a pixel, showing the surface behind on
-    // one pixel; the relative depth shows that as a spot of colour around it (measured: 309
-    // pixels differ, 90 by more than 2 levels, of 2,073,600).
-    EXPECT_LE(double(differ) / double(compared), 2e-4)
+    // one pixel; the relative depth shows that as a spot of colour around it, ambient
+    // occlusion as a shade a few levels off around it (measured: up to 451 pixels differ, up to
+    // 90 by more than 2 levels, of 2,073,600).
+    EXPECT_LE(double(differ) / double(compared), 5e-4)
         << differ << " of " << compared << " pixels differ";
     EXPECT_LE(visible, compared / 10000) << visible << " pixels differ by more than 2 levels";
     std::printf("%s: mosaic vs whole, %zu of %zu pixels differ, %zu by more than 2 levels, by at "

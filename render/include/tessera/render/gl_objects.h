@@ -57,6 +57,7 @@ class GlProgram {
   /// Arrays from element 0 (uniform names the array).
   void set(const char* uniform, std::span<const glm::vec4> v) const;
   void set(const char* uniform, std::span<const uint32_t> v) const;
+  void set(const char* uniform, std::span<const float> v) const;
 
  private:
   uint32_t mName = 0;
