@@ -90,10 +90,13 @@ std::optional<SettingsEdit> shadingEdit(Command command, const scene::Settings& 
       a.set_ao_strength(a.ao_strength() > 0.0f ? 0.0f : 1.0f);
       e.said = a.ao_strength() > 0.0f ? "ambient occlusion on" : "ambient occlusion off";
       break;
-    case Command::kRelativeDepth:
-      a.set_relative_depth_radius(a.relative_depth_radius() > 0 ? 0 : 24);
-      e.said = a.relative_depth_radius() > 0 ? "relative depth on" : "relative depth off";
+    case Command::kRelativeDepth: {
+      const bool on = a.relative_depth_radius() == 0 && !(a.relative_depth_radius_m() > 0.0f);
+      a.set_relative_depth_radius(on ? 24 : 0);
+      a.clear_relative_depth_radius_m();
+      e.said = on ? "relative depth on" : "relative depth off";
       break;
+    }
     case Command::kContours: {
       a.set_contour_interval(a.contour_interval() > 0.0 ? 0.0 : contour_interval);
       char line[96];

@@ -154,9 +154,10 @@ void Console::shadingPanel(sync::SceneGraph& graph) {
         }
       }
     }
-    if (bool rd = a.relative_depth_radius() > 0; ImGui::Checkbox("Relative depth (D)", &rd))
+    const bool relative = a.relative_depth_radius() > 0 || a.relative_depth_radius_m() > 0.0f;
+    if (bool rd = relative; ImGui::Checkbox("Relative depth (D)", &rd))
       key(interact::Command::kRelativeDepth);
-    if (a.relative_depth_radius() > 0) {
+    if (relative && !(a.relative_depth_radius_m() > 0.0f)) {
       int radius = int(a.relative_depth_radius());
       ImGui::SetNextItemWidth(kFieldWidth);
       if (ImGui::SliderInt("blur px", &radius, 2, 256)) {

@@ -8,6 +8,7 @@
 #include <tessera/lod/store_cache.h>
 #include <tessera/sync/config.h>
 #include <tessera/sync/transform.h>
+#include <tessera/sync/vec3.h>
 
 namespace tessera::render {
 
@@ -344,10 +345,16 @@ RenderOptions SceneDrawList::options(const sync::SceneGraph& graph, float splat_
   o.splat_scale = splat_scale;
   o.spbr.ensembles = std::max<uint32_t>(1, s.spbr_ensembles());
   const scene::Analysis& a = s.analysis();
-  if (a.relative_depth_radius() > 0) {
+  if (a.relative_depth_radius() > 0 || a.relative_depth_radius_m() > 0.0f) {
     o.relative_depth.enabled = true;
-    o.relative_depth.radius = int(std::min<uint32_t>(a.relative_depth_radius(),
-                                                     uint32_t(kMaxRelativeDepthRadius)));
+    o.relative_depth.radius = int(std::clamp<uint32_t>(a.relative_depth_radius(), 1,
+                                                       uint32_t(kMaxRelativeDepthRadius)));
+    if (a.relative_depth_radius_m() > 0.0f) {  // metres at the camera's distance to its target
+      const config::Camera& c = graph.camera();
+      o.relative_depth.radius_m = a.relative_depth_radius_m();
+      o.relative_depth.radius_depth =
+          std::max(1e-9, glm::length(sync::vec(c.target()) - sync::vec(c.eye())));
+    }
     if (a.has_relative_depth_lo() && a.relative_depth_lo() < a.relative_depth_hi())
       o.relative_depth.range = glm::vec2(a.relative_depth_lo(), a.relative_depth_hi());
   }

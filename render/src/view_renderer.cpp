@@ -100,9 +100,18 @@ uint32_t screenPassReach(const RenderOptions& o, const ViewSetup& view, double n
                                                                : 0));
   }
   if (o.relative_depth.enabled && o.relative_depth.amount > 0.0f)
-    reach = std::max(reach, std::clamp(o.relative_depth.radius, 1, kMaxRelativeDepthRadius));
+    reach = std::max(reach, relativeDepthRadiusPx(o.relative_depth, view));
   if (o.contours.enabled) reach = std::max(reach, 3);  // the 5x5 mean, then the neighbours'
   return uint32_t(reach);
+}
+
+int relativeDepthRadiusPx(const RelativeDepthOptions& o, const ViewSetup& view) {
+  TESSERA_CHECK(std::isfinite(o.radius_m) && std::isfinite(o.radius_depth) && o.radius_depth > 0.0,
+                "render::RelativeDepthOptions: radius_m and radius_depth must be finite, the depth "
+                "positive");
+  if (!(o.radius_m > 0.0f)) return std::clamp(o.radius, 1, kMaxRelativeDepthRadius);
+  const double px = double(o.radius_m) * pixelsPerUnitAtDistanceOne(view) / o.radius_depth;
+  return int(std::clamp(std::lround(px), 1l, long(kMaxRelativeDepthRadius)));
 }
 
 uint32_t guardBand(const RenderOptions& o, const ViewSetup& view, double nearest_depth) {
@@ -293,7 +302,9 @@ void ViewRenderer::draw(std::span<const ModelInstance> models, const ViewSetup& 
     st.screen_ms += mEdl.run(mTarget, options.edl, view.projection);
     if (options.relative_depth.enabled || options.contours.enabled) {
       if (!mAnalysis) mAnalysis = std::make_unique<AnalysisPass>();
-      st.screen_ms += mAnalysis->relativeDepth(mTarget, options.relative_depth, view.projection,
+      RelativeDepthOptions relative = options.relative_depth;
+      if (relative.enabled) relative.radius = relativeDepthRadiusPx(relative, view);
+      st.screen_ms += mAnalysis->relativeDepth(mTarget, relative, view.projection,
                                                &st.relative_depth_range, band);
       st.screen_ms += mAnalysis->contours(mTarget, options.contours, view.projection, view.view);
     }

@@ -377,6 +377,9 @@ Problem checkAnalysis(const scene::Analysis& a) {
            num(a.ao_radius());
   if (a.has_ao_radius_px() && !(a.ao_radius_px() >= 1.0f && a.ao_radius_px() <= 128.0f))
     return "settings.analysis.ao_radius_px: must be 1..128 px, got " + num(a.ao_radius_px());
+  if (!(std::isfinite(a.relative_depth_radius_m()) && a.relative_depth_radius_m() >= 0.0f))
+    return "settings.analysis.relative_depth_radius_m: must be finite and >= 0 metres, got " +
+           num(a.relative_depth_radius_m());
   if (!scene::Analysis::StoredAo_IsValid(a.stored_ao()))
     return "settings.analysis.stored_ao: unknown value " + std::to_string(int(a.stored_ao()));
   if (a.has_ao_slices() && (a.ao_slices() < 1 || a.ao_slices() > 64))

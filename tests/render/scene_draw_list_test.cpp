@@ -4,6 +4,7 @@
 // a loader decoding into a closed store is a use-after-free.
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <filesystem>
 #include <random>
 
@@ -297,6 +298,59 @@ TEST(SceneDrawList, TheAnalysisSettingsBecomeEveryTilesRenderOptions) {
   a.clear_contour_axis();  // no axis: lines of the view depth
   g.setAnalysis(a);
   EXPECT_FALSE(SceneDrawList::options(g, 2.0f).contours.height);
+  // Ambient occlusion and the stored AO's mode.
+  EXPECT_FALSE(o.ao.enabled);
+  EXPECT_EQ(o.stored_ao, StoredAo::kModulate);
+  a.set_ao_strength(1.5f);
+  a.set_ao_radius(0.02f);
+  a.set_ao_slices(4);
+  a.set_ao_half_resolution(false);
+  a.set_stored_ao(scene::Analysis::STORED_AO_ALONE);
+  g.setAnalysis(a);
+  o = SceneDrawList::options(g, 2.0f);
+  EXPECT_TRUE(o.ao.enabled);
+  EXPECT_EQ(o.ao.strength, 1.5f);
+  EXPECT_EQ(o.ao.radius, 0.02f);
+  EXPECT_EQ(o.ao.slices, 4);
+  EXPECT_FALSE(o.ao.half_resolution);
+  EXPECT_EQ(o.stored_ao, StoredAo::kAlone);
+  // A blur in metres, taken at the camera's distance to its target.
+  a.set_relative_depth_radius(0);
+  a.set_relative_depth_radius_m(0.005f);
+  g.setAnalysis(a);
+  o = SceneDrawList::options(g, 2.0f);
+  EXPECT_TRUE(o.relative_depth.enabled);
+  EXPECT_EQ(o.relative_depth.radius_m, 0.005f);
+  const config::Camera& c = g.camera();
+  EXPECT_NEAR(o.relative_depth.radius_depth,
+              glm::length(glm::dvec3(c.target().x() - c.eye().x(), c.target().y() - c.eye().y(),
+                                     c.target().z() - c.eye().z())),
+              1e-9);
+  // Out of range: refused by name.
+  a.set_ao_strength(std::nanf(""));
+  EXPECT_THROW(g.setAnalysis(a), std::exception);
+  a.set_ao_strength(1.0f);
+  a.set_relative_depth_radius_m(-1.0f);
+  EXPECT_THROW(g.setAnalysis(a), std::exception);
+}
+
+// A blur given in metres covers the pixels those metres span at the reference depth.
+TEST(SceneDrawList, ARelativeDepthRadiusInMetresIsPixelsAtItsDepth) {
+  ViewSetup v;
+  v.width = 800;
+  v.height = 600;
+  v.projection = glm::perspective(glm::radians(60.0), 800.0 / 600.0, 0.1, 100.0);
+  RelativeDepthOptions r;
+  r.radius = 7;
+  EXPECT_EQ(relativeDepthRadiusPx(r, v), 7);
+  r.radius_m = 0.1f;
+  r.radius_depth = 2.0;
+  // 600 px span 2 tan(30 deg) x 2 m: 0.1 m is 0.1 / (2 tan 30 * 2) * 600 = 25.98 px.
+  EXPECT_EQ(relativeDepthRadiusPx(r, v), 26);
+  r.radius_depth = 1e-6;  // up close: the largest blur
+  EXPECT_EQ(relativeDepthRadiusPx(r, v), kMaxRelativeDepthRadius);
+  r.radius_m = std::nanf("");
+  EXPECT_THROW(relativeDepthRadiusPx(r, v), std::exception);
 }
 
 }  // namespace tessera::render

@@ -159,6 +159,12 @@ class EdlPass {
 struct RelativeDepthOptions {
   bool enabled = false;
   int radius = 24;      ///< the blur's half-width, pixels (sigma = radius / 3); 1..kMaxRelativeDepthRadius
+  /// Positive: the half-width in units (metres) on the model instead, at view depth
+  /// `radius_depth` (the camera's distance to what it looks at), turned into pixels for each
+  /// view (ViewRenderer; clamped to 1..kMaxRelativeDepthRadius), so the same relief is kept
+  /// whatever the zoom. Finite.
+  float radius_m = 0.0f;
+  double radius_depth = 1.0;  ///< view depth (units) radius_m is taken at; finite, > 0
   float amount = 1.0f;  ///< 1: the colour map replaces the picture; less: mixed into it
   /// The depth difference (view units) mapped to the colour map's ends, fixed (a scene
   /// setting); unset: agreed_range, else this frame's own 1st to 99th percentile.

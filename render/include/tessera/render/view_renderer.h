@@ -123,6 +123,10 @@ struct RenderOptions {
 uint32_t screenPassReach(const RenderOptions& options, const ViewSetup& view,
                          double nearest_depth);
 
+/// The relative depth blur's half-width in `view`'s pixels: options.radius, or radius_m at
+/// radius_depth through the view's projection when radius_m is positive; 1..kMaxRelativeDepthRadius.
+int relativeDepthRadiusPx(const RelativeDepthOptions& options, const ViewSetup& view);
+
 /// The guard band a frame is drawn with: options.guard_band, or screenPassReach() when it is -1.
 uint32_t guardBand(const RenderOptions& options, const ViewSetup& view, double nearest_depth);
 
