@@ -17,7 +17,9 @@ namespace tessera::render {
 
 namespace {
 
-uint32_t ceilDiv(uint64_t a, uint64_t b) { return uint32_t((a + b - 1) / b); }
+uint32_t ceilDiv(uint64_t a, uint64_t b) {
+  return uint32_t((a + b - 1) / b);
+}
 
 /// Part `i` of `n` equal spans over `total` pixels: its start (the first total % n spans are one
 /// pixel longer).
@@ -39,8 +41,7 @@ uint64_t PosterPlan::peakBytes() const {
          uint64_t(part_width) * part_height * kPosterBytesPerPartPixel;
 }
 
-ViewSetup subView(const ViewSetup& full, uint32_t x, uint32_t y, uint32_t width,
-                  uint32_t height) {
+ViewSetup subView(const ViewSetup& full, uint32_t x, uint32_t y, uint32_t width, uint32_t height) {
   TESSERA_CHECK(width > 0 && height > 0 && uint64_t(x) + width <= full.width &&
                     uint64_t(y) + height <= full.height,
                 "render::subView(): the part lies inside the view");
@@ -79,8 +80,8 @@ PosterPlan planPoster(uint32_t width, uint32_t height, uint32_t max_part, uint64
     throw RenderError("render::planPoster(): a " + std::to_string(width) + "x" +
                       std::to_string(height) + " poster needs at least " +
                       std::to_string(ceilDiv(per_row * 16, 1 << 20)) +
-                      " MiB for rows of parts 16 pixels tall (" + std::to_string(memory_bytes >> 20) +
-                      " MiB allowed)");
+                      " MiB for rows of parts 16 pixels tall (" +
+                      std::to_string(memory_bytes >> 20) + " MiB allowed)");
   const uint32_t tallest = uint32_t(std::min<uint64_t>({fit, max_part, height}));
   p.rows = ceilDiv(height, tallest);
   p.part_height = ceilDiv(height, p.rows);
@@ -109,8 +110,8 @@ PngStripWriter::PngStripWriter(const std::string& path, uint32_t width, uint32_t
   checkPosterSide(width, "width", "render::PngStripWriter: " + path);
   checkPosterSide(height, "height", "render::PngStripWriter: " + path);
   const std::filesystem::path p(path);
-  mTemp = (p.parent_path() / ("." + p.filename().string() + ".part-" +
-                              std::to_string(std::random_device{}())))
+  mTemp = (p.parent_path() /
+           ("." + p.filename().string() + ".part-" + std::to_string(std::random_device{}())))
               .string();
   mFile = std::fopen(mTemp.c_str(), "wb");
   if (!mFile)
@@ -141,9 +142,9 @@ PngStripWriter::~PngStripWriter() {
 }
 
 void PngStripWriter::writeRows(std::span<const uint8_t> rgba, uint32_t rows) {
-  TESSERA_CHECK(!mDone && uint64_t(mRows) + rows <= mHeight &&
-                    rgba.size() >= size_t(rows) * mWidth * 4,
-                "render::PngStripWriter::writeRows(): rows within the picture, all given");
+  TESSERA_CHECK(
+      !mDone && uint64_t(mRows) + rows <= mHeight && rgba.size() >= size_t(rows) * mWidth * 4,
+      "render::PngStripWriter::writeRows(): rows within the picture, all given");
   png_structp png = static_cast<png_structp>(mPng);
   if (setjmp(png_jmpbuf(png)))
     throw RenderError("render::PngStripWriter: writing " + mPath + " failed (disk full?)");
@@ -153,8 +154,7 @@ void PngStripWriter::writeRows(std::span<const uint8_t> rgba, uint32_t rows) {
 }
 
 void PngStripWriter::finish() {
-  TESSERA_CHECK(!mDone && mRows == mHeight,
-                "render::PngStripWriter::finish(): every row written");
+  TESSERA_CHECK(!mDone && mRows == mHeight, "render::PngStripWriter::finish(): every row written");
   png_structp png = static_cast<png_structp>(mPng);
   png_infop info = static_cast<png_infop>(mInfo);
   if (setjmp(png_jmpbuf(png)))
@@ -165,20 +165,20 @@ void PngStripWriter::finish() {
   const int closed = std::fclose(mFile);
   mFile = nullptr;
   if (closed != 0)
-    throw RenderError("render::PngStripWriter: closing " + mPath + " failed: " +
-                      std::strerror(errno));
+    throw RenderError("render::PngStripWriter: closing " + mPath +
+                      " failed: " + std::strerror(errno));
   std::error_code ec;
   std::filesystem::rename(mTemp, mPath, ec);
   if (ec) throw RenderError("render::PngStripWriter: " + mPath + ": " + ec.message());
   mDone = true;
 }
 
-PosterStats renderPoster(std::span<const ModelInstance> models, const ViewSetup& full,
-                         const RenderOptions& options, const PosterPlan& plan,
-                         const std::function<void(std::span<const uint8_t>, uint32_t,
-                                                  uint32_t)>& strip,
-                         const StreamerOptions& stream_options, const Overlay* overlay,
-                         const std::function<void(size_t, size_t)>& progress) {
+PosterStats renderPoster(
+    std::span<const ModelInstance> models, const ViewSetup& full, const RenderOptions& options,
+    const PosterPlan& plan,
+    const std::function<void(std::span<const uint8_t>, uint32_t, uint32_t)>& strip,
+    const StreamerOptions& stream_options, const Overlay* overlay,
+    const std::function<void(size_t, size_t)>& progress) {
   const std::vector<PosterPart> parts = posterParts(full, plan);
   auto streamer = std::make_shared<ChunkStreamer>(stream_options);
   PosterStats stats;

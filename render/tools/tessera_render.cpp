@@ -1,5 +1,7 @@
 // tessera-render: renders a plain view, one tile of a wall, the wall mosaic (bezels drawn dark)
-// or the wall's whole extent to PNG, headless. `tessera-render --help` lists the options.
+// or the wall's whole extent to PNG, headless; posters larger than one render (poster.h), both
+// eyes of a stereo view (stereo.h) and camera paths as movies or PNG sequences (path_frames.h,
+// media/movie_writer.h). `tessera-render --help` lists the options.
 #include <CLI/CLI.hpp>
 
 #include <cerrno>
@@ -18,16 +20,22 @@
 
 #include <tessera/core/cli.h>
 #include <tessera/core/file_checks.h>
+#include <tessera/core/progress.h>
 #include <tessera/lod/point_reader.h>
 #include <tessera/lod/store_builder.h>
 #include <tessera/lod/store_cache.h>
+#include <tessera/media/movie_writer.h>
 #include <tessera/render/gl_context.h>
 #include <tessera/render/pass_timing.h>
+#include <tessera/render/path_frames.h>
+#include <tessera/render/poster.h>
 #include <tessera/render/scene_draw_list.h>
 #include <tessera/render/scene_overlay.h>
+#include <tessera/render/stereo.h>
 #include <tessera/render/view_renderer.h>
 #include <tessera/render/wall_mosaic.h>
 #include <tessera/render/window.h>
+#include <tessera/sync/camera_path.h>
 #include <tessera/sync/config.h>
 #include <tessera/sync/vec3.h>
 #include <tessera/sync/view.h>
@@ -136,6 +144,51 @@ config::Camera interactive(render::Window& win, config::Camera cam,
   return cam;
 }
 
+/// Renders every frame of `path` at `fps` with `picture` into the movie `movie` and/or the PNG
+/// sequence in `frames_dir` (whichever is not empty), with a progress bar; `start` runs first.
+int writePathFrames(const config::CameraPath& path, double fps, const std::string& movie,
+                    const std::string& frames_dir,
+                    const std::function<render::Image(const config::Camera&)>& picture,
+                    const std::function<void()>& start, const std::function<void()>& warn) {
+  const size_t n = render::pathFrameCount(path, fps);
+  if (!frames_dir.empty()) {
+    std::error_code ec;
+    fs::create_directories(frames_dir, ec);
+    if (ec || !fs::is_directory(frames_dir))
+      usage("--frames-dir " + frames_dir + ": not a folder that can be made" +
+            (ec ? ": " + ec.message() : ""));
+  }
+  start();
+  std::unique_ptr<media::MovieWriter> writer;
+  Progress progress(movie.empty() ? frames_dir : movie, n, " frames");
+  render::forEachPathFrame(path, fps, [&](size_t i, double, const config::Camera& c) {
+    const render::Image img = picture(c);
+    if (!movie.empty()) {
+      if (!writer) {
+        media::MovieSettings ms;
+        ms.width = int(img.width);
+        ms.height = int(img.height);
+        ms.fps = fps;
+        writer = std::make_unique<media::MovieWriter>(movie, ms);
+      }
+      writer->write(img.rgba, int(img.width), int(img.height));
+    }
+    if (!frames_dir.empty()) render::writePng(render::framePngPath(frames_dir, i).string(), img);
+    progress.update(i + 1);
+  });
+  progress.finish();
+  warn();
+  if (writer) {
+    writer->finish();
+    std::printf("wrote %s (%zu frames at %g fps, %s)\n", movie.c_str(), n, fps,
+                writer->encoder().c_str());
+  }
+  if (!frames_dir.empty())
+    std::printf("wrote %s/frame-000000.png .. %s\n", frames_dir.c_str(),
+                render::framePngPath(frames_dir, n - 1).filename().c_str());
+  return 0;
+}
+
 int run(int argc, char** argv) {
   CLI::App app{
       "tessera-render: render point stores headless to PNG: a view, a wall tile, the mosaic or the "
@@ -188,6 +241,11 @@ int run(int argc, char** argv) {
                  "pixels: the fine relief, in the viridis colour map over the frame's range; "
                  "the tiles of --mosaic agree on one range)")
       ->check(cli::integerRange(1, render::kMaxRelativeDepthRadius));
+  float relative_depth_m = 0.0f;
+  app.add_option("--relative-depth-m", relative_depth_m,
+                 "Relative depth with its blur's half-width in units (metres) on the model, at "
+                 "the camera's distance to its target")
+      ->check(cli::positiveFinite(1e12));
   app.add_option("--contours", contour_interval,
                  "Contour lines every this many units (metres) of view depth, one pixel wide")
       ->check(cli::positiveFinite(1e12));
@@ -270,19 +328,89 @@ int run(int argc, char** argv) {
                "zooms, Esc quits; -o then saves the last view");
   app.add_option("--frames", frames, "With --window: quit after this many frames (0: on close)")
       ->check(cli::integerRange(0, 1 << 30));
-  auto* out_opt = app.add_option("-o,--output", out, "Output PNG (required without --window)");
+  std::string poster, stereo, path_file, movie, frames_dir;
+  uint32_t poster_part = render::kDefaultPosterPart;
+  double poster_memory_mb = 1024.0, eye_separation = 0.065, fps = 30.0;
+  app.add_option("--poster", poster,
+                 "Render the view (with --wall: the whole wall's view) as a WxH poster, up to " +
+                     std::to_string(render::kMaxPosterSide) +
+                     " pixels a side: in parts with the view's own off-axis frustum, each with "
+                     "the guard band its screen passes reach (eye-dome lighting, ambient "
+                     "occlusion, relative depth and contours show no seams), the PNG written a "
+                     "row of parts at a time, a progress bar on stderr");
+  app.add_option("--poster-part", poster_part, "Poster: the largest part, pixels a side")
+      ->check(cli::integerRange<uint32_t>(16, render::kMaxPosterPart))
+      ->capture_default_str();
+  app.add_option("--poster-memory-mb", poster_memory_mb,
+                 "Poster: memory for one row of parts and one part's render, MiB (rows of parts "
+                 "get shorter to fit)")
+      ->check(cli::finiteRange(1.0, 1e7))
+      ->capture_default_str();
+  app.add_option("--stereo", stereo,
+                 "Both eyes, off-axis through the screen (the wall plane; for a plain view the "
+                 "plane through the camera's target), which shows at zero parallax: sbs (side "
+                 "by side, left eye left), tb (left eye on top), anaglyph (red-cyan: red from "
+                 "the left eye) or pair (OUT-left.png and OUT-right.png; the only one with "
+                 "--poster)")
+      ->check(CLI::IsMember({"sbs", "tb", "anaglyph", "pair"}));
+  app.add_option("--eye-separation", eye_separation, "Stereo: metres between the eyes")
+      ->check(cli::positiveFinite(10.0))
+      ->capture_default_str();
+  app.add_option("--path", path_file,
+                 "Camera path (JSON, configs/paths/) to render with --movie or --frames-dir: "
+                 "frame i shows the camera at i / fps seconds, each frame settled; the path's "
+                 "keyframes move the camera, its actions are not applied");
+  const std::string encoder = media::movieEncoderName();
+  app.add_option(
+      "--movie", movie,
+      "Write the path as an MP4 movie (this build encodes with " +
+          (encoder.empty() ? std::string("nothing: no H.264, HEVC or MPEG-4 encoder") : encoder) +
+          "; libx264 at CRF 18 where present, else H.264, HEVC or MPEG-4 part 2); "
+          "its sides must be even");
+  app.add_option("--frames-dir", frames_dir,
+                 "Write the path's frames as PNGs DIR/frame-000000.png, ... (made if missing)");
+  app.add_option("--fps", fps, "Frames a second of --movie and --frames-dir")
+      ->check(cli::positiveFinite(240.0))
+      ->capture_default_str();
+  auto* out_opt = app.add_option(
+      "-o,--output", out,
+      "Output PNG (required without --window, --movie or --frames-dir; with --stereo pair the "
+      "files OUT-left.png and OUT-right.png)");
   if (const auto code = cli::parse(app, argc, argv, "tessera-render")) return *code;
-  if (out.empty() && !window) usage("-o OUT.png is required (or --window)");
+  const bool path_run = !path_file.empty();
+  if (path_run != (!movie.empty() || !frames_dir.empty()))
+    usage(path_run ? "--path needs --movie OUT.mp4 or --frames-dir DIR"
+                   : "--movie and --frames-dir render a camera path: give --path PATH.json");
+  if (path_run && (window || !poster.empty() || !out.empty()))
+    usage("--path renders a movie or frames: drop --window, --poster and -o");
+  if (out.empty() && !window && !path_run) usage("-o OUT.png is required (or --window)");
+  if (!poster.empty() && (window || !tile_name.empty() || mosaic || !stats_path.empty()))
+    usage(
+        "--poster renders the plain view or the whole wall: drop --window, --tile, --mosaic "
+        "and --stats");
+  if (!stereo.empty() && window) usage("--stereo writes files: drop --window");
+  if (stereo == "pair" && path_run)
+    usage("--stereo pair writes two pictures: a movie or frames take sbs, tb or anaglyph");
+  if (!poster.empty() && !stereo.empty() && stereo != "pair")
+    usage("--poster --stereo " + stereo + ": posters take --stereo pair (two files)");
+  const cli::Size poster_size =
+      poster.empty() ? cli::Size{} : cli::parseSize(poster, "--poster", render::kMaxPosterSide);
   if (window && !wall_path.empty()) usage("--window shows a plain view: drop --wall");
   (void)out_opt;
   // Every value is checked before any file is opened: a bad one never costs a load.
   const cli::Size plain_size = cli::parseSize(size, "--size", 16384);
+  if (!movie.empty() && wall_path.empty() && stereo != "tb" &&
+      (plain_size.width % 2 != 0 || plain_size.height % 2 != 0))
+    usage("--size " + size + ": a movie's sides must be even");
   const std::optional<config::Camera> camera_given =
       camera.empty() ? std::nullopt : std::optional(parseCamera(camera));
   const glm::dvec3 background_rgb =
       background.empty() ? glm::dvec3(0.0) : cli::parseVec3(background, "--background", 0.0, 1.0);
 
   try {
+    // A bad path file is refused before any store is opened.
+    const config::CameraPath camera_path =
+        path_run ? sync::loadCameraPath(path_file) : config::CameraPath{};
     std::vector<std::unique_ptr<lod::PointStore>> stores;
     std::vector<std::unique_ptr<lod::MeshStore>> mesh_stores;
     std::vector<render::ModelInstance> instances;
@@ -349,6 +477,12 @@ int run(int argc, char** argv) {
       options.relative_depth.enabled = true;
       options.relative_depth.radius = relative_depth;
     }
+    if (relative_depth_m > 0.0f) {
+      options.relative_depth.enabled = true;
+      options.relative_depth.radius_m = relative_depth_m;
+      options.relative_depth.radius_depth =
+          std::max(1e-9, glm::length(sync::vec(cam.target()) - sync::vec(cam.eye())));
+    }
     if (stored_ao == "off") options.stored_ao = render::StoredAo::kOff;
     if (stored_ao == "alone") options.stored_ao = render::StoredAo::kAlone;
     if ((ao_radius > 0.0f || ao_radius_px > 0.0f || ao_full) && !(ao > 0.0f))
@@ -396,7 +530,9 @@ int run(int argc, char** argv) {
     for (const auto& m : instances) read.push_back(m.hierarchy()->path());
     for (const std::string& m : models) read.push_back(m.substr(0, m.rfind(':')));
     for (const std::string& m : models) read.push_back(m);
+    if (!path_file.empty()) read.push_back(path_file);
     if (!out.empty()) cli::refuseOverwrite(out, read, "-o");
+    if (!movie.empty()) cli::refuseOverwrite(movie, read, "--movie");
     if (!stats_path.empty()) {
       cli::refuseOverwrite(stats_path, read, "--stats");
       render::timePasses(true);  // the CSV's per-pass columns
@@ -446,23 +582,29 @@ int run(int argc, char** argv) {
         stream_options.density_ratios && options.spbr.copies != render::SpbrCopies::kAtPoint;
     const render::Overlay* overlay = scene_overlay.empty() ? nullptr : &scene_overlay;
     glm::vec2 own_range(0.0f);  // the last view's own relative depth range
+    // A movie's frames share one streamer (its chunks stay resident from frame to frame) and
+    // show a progress bar instead of a line a view.
+    std::shared_ptr<render::ChunkStreamer> shared_streamer;
+    bool quiet_views = false;
     auto renderView = [&](const std::string& name, const render::ViewSetup& v,
                           const render::RenderOptions& view_options) {
-      render::ViewRenderer r(v.width, v.height, nullptr, stream_options);
+      render::ViewRenderer r(v.width, v.height, shared_streamer, stream_options);
       render::RenderStats st;
       render::Image img = r.renderSettled(instances, v, view_options, &st, overlay);
       own_range = st.relative_depth_range;
-      std::fprintf(stderr,
-                   "%s: %ux%u, %zu nodes, %llu points, %llu triangles, %.1f MB resident after %zu "
-                   "frames; last frame %.1f ms (select %.1f, meshes %.1f, depth %.1f, colour "
-                   "%.1f, resolve %.1f)%s\n",
-                   name.c_str(), v.width, v.height, st.nodes, (unsigned long long)st.points,
-                   (unsigned long long)st.triangles, st.stream.resident_bytes / 1e6, st.frames,
-                   st.totalMs(), st.select_ms, st.mesh_ms, st.depth_ms, st.color_ms, st.resolve_ms,
-                   st.corrupt_chunks ? (", " + std::to_string(st.corrupt_chunks) +
-                                        " corrupt chunks drawn by their ancestors")
-                                           .c_str()
-                                     : "");
+      if (!quiet_views)
+        std::fprintf(
+            stderr,
+            "%s: %ux%u, %zu nodes, %llu points, %llu triangles, %.1f MB resident after %zu "
+            "frames; last frame %.1f ms (select %.1f, meshes %.1f, depth %.1f, colour "
+            "%.1f, resolve %.1f)%s\n",
+            name.c_str(), v.width, v.height, st.nodes, (unsigned long long)st.points,
+            (unsigned long long)st.triangles, st.stream.resident_bytes / 1e6, st.frames,
+            st.totalMs(), st.select_ms, st.mesh_ms, st.depth_ms, st.color_ms, st.resolve_ms,
+            st.corrupt_chunks ? (", " + std::to_string(st.corrupt_chunks) +
+                                 " corrupt chunks drawn by their ancestors")
+                                    .c_str()
+                              : "");
       if (stats_file) {
         stats_file << name << "," << v.width << "," << v.height << "," << st.frames << ","
                    << st.cut_nodes << "," << st.nodes << "," << st.points << ","
@@ -475,79 +617,174 @@ int run(int argc, char** argv) {
       return img;
     };
 
-    render::Image result;
-    if (wall_path.empty()) {
-      const unsigned w = plain_size.width, h = plain_size.height;
-      auto plainView = [&](const config::Camera& c) {
-        render::ViewSetup v;
-        v.view = render::cameraView(c);
-        const auto [lo, hi] = render::worldBounds(instances.front());
-        double radius = 0.5 * glm::length(hi - lo);
-        double dist = glm::length(glm::dvec3(c.eye().x(), c.eye().y(), c.eye().z()) -
-                                  glm::dvec3(c.target().x(), c.target().y(), c.target().z()));
-        v.projection = glm::perspective(
-            glm::radians(fovy), double(w) / h,
-            std::max(1e-4 * radius, (dist - 4 * radius) * 0.5 + 1e-6 * radius), dist + 4 * radius);
-        v.width = w;
-        v.height = h;
-        v.eye_world = glm::dvec3(c.eye().x(), c.eye().y(), c.eye().z());
-        return v;
-      };
-      if (win)
-        cam =
-            interactive(*win, cam, plainView, instances, options, stream_options, overlay, frames);
-      if (out.empty()) return 0;
-      const render::ViewSetup v = plainView(cam);
-      result = renderView("view", v, options);
-    } else {
-      config::WallConfig wall = sync::loadWallConfig(wall_path);
-      if (whole) {
-        result = renderView("whole", render::wholeWallView(wall, cam), options);
-      } else if (mosaic) {
+    // A corrupt hierarchy page leaves out the nodes below it: the picture is written, but said.
+    std::set<const lod::PointStore*> warned;
+    auto warnCorrupt = [&] {
+      for (const auto& m : instances) {
+        if (!m.store) continue;
+        const uint64_t pages = m.store->cacheStats().corrupt_pages;
+        if (pages > 0 && warned.insert(m.store).second)
+          std::fprintf(stderr,
+                       "tessera-render: warning: %s: %llu corrupt hierarchy pages; the nodes "
+                       "below them are not drawn\n",
+                       m.store->path().c_str(), (unsigned long long)pages);
+      }
+    };
+    const std::optional<config::WallConfig> wall =
+        wall_path.empty() ? std::nullopt : std::optional(sync::loadWallConfig(wall_path));
+    auto plainViewSized = [&](const config::Camera& c, unsigned w, unsigned h) {
+      render::ViewSetup v;
+      v.view = render::cameraView(c);
+      const auto [lo, hi] = render::worldBounds(instances.front());
+      double radius = 0.5 * glm::length(hi - lo);
+      double dist = glm::length(glm::dvec3(c.eye().x(), c.eye().y(), c.eye().z()) -
+                                glm::dvec3(c.target().x(), c.target().y(), c.target().z()));
+      v.projection = glm::perspective(
+          glm::radians(fovy), double(w) / h,
+          std::max(1e-4 * radius, (dist - 4 * radius) * 0.5 + 1e-6 * radius), dist + 4 * radius);
+      v.width = w;
+      v.height = h;
+      v.eye_world = glm::dvec3(c.eye().x(), c.eye().y(), c.eye().z());
+      return v;
+    };
+    auto plainView = [&](const config::Camera& c) {
+      return plainViewSized(c, plain_size.width, plain_size.height);
+    };
+    // Stereo: the eye `eye_x` metres right of the viewer (0: the mono view), through the wall
+    // plane or, for a plain view, the plane through the camera's target.
+    auto eyeView = [&](const render::ViewSetup& v, const config::Camera& c, double eye_x) {
+      if (eye_x == 0.0) return v;
+      const double screen = wall ? wall->eye().z() : glm::length(vec(c.eye()) - vec(c.target()));
+      return render::stereoEyeView(v, glm::dvec3(eye_x, 0.0, 0.0), screen);
+    };
+    // The picture of camera `c` for one eye, as the command line asks: the plain view, the
+    // whole wall, the mosaic or one tile.
+    auto picture = [&](const config::Camera& c, double eye_x) -> render::Image {
+      const std::string eye = eye_x < 0.0 ? "-left" : eye_x > 0.0 ? "-right" : "";
+      if (!wall) return renderView("view" + eye, eyeView(plainView(c), c, eye_x), options);
+      if (whole)
+        return renderView("whole" + eye, eyeView(render::wholeWallView(*wall, c), c, eye_x),
+                          options);
+      if (mosaic) {
         std::vector<render::Image> tiles;
         render::RenderOptions wall_options = options;
         if (options.relative_depth.enabled && !options.relative_depth.range) {
           // The tiles agree on one relative depth range, as a wall's master has them do: each
           // tile's own range first, then the pictures with the wall's.
           std::vector<glm::vec2> ranges;
-          for (const auto& tile : wall.tiles()) {
-            renderView(tile.name(), render::tileView(wall, tile, cam), options);
+          for (const auto& tile : wall->tiles()) {
+            renderView(tile.name() + eye, eyeView(render::tileView(*wall, tile, c), c, eye_x),
+                       options);
             ranges.push_back(own_range);
           }
           wall_options.relative_depth.agreed_range = render::wallRange(ranges);
         }
-        for (const auto& tile : wall.tiles())
-          tiles.push_back(
-              renderView(tile.name(), render::tileView(wall, tile, cam), wall_options));
-        result = render::assembleWallMosaic(wall, tiles);
-      } else {
-        const config::Tile* tile =
-            wall.tiles_size() == 1 && tile_name.empty() ? &wall.tiles(0) : nullptr;
-        for (const auto& t : wall.tiles()) {
-          if (t.name() == tile_name) tile = &t;
-        }
-        if (!tile)
-          usage("--tile '" + tile_name + "' is not a tile of " + wall_path +
-                " (give --tile, --mosaic or --whole)");
-        result = renderView(tile->name(), render::tileView(wall, *tile, cam), options);
+        for (const auto& tile : wall->tiles())
+          tiles.push_back(renderView(tile.name() + eye,
+                                     eyeView(render::tileView(*wall, tile, c), c, eye_x),
+                                     wall_options));
+        return render::assembleWallMosaic(*wall, tiles);
       }
+      const config::Tile* tile =
+          wall->tiles_size() == 1 && tile_name.empty() ? &wall->tiles(0) : nullptr;
+      for (const auto& t : wall->tiles()) {
+        if (t.name() == tile_name) tile = &t;
+      }
+      if (!tile)
+        usage("--tile '" + tile_name + "' is not a tile of " + wall_path +
+              " (give --tile, --mosaic or --whole)");
+      return renderView(tile->name() + eye, eyeView(render::tileView(*wall, *tile, c), c, eye_x),
+                        options);
+    };
+    const double half_eye = 0.5 * eye_separation;
+    const render::StereoLayout layout = stereo.empty()
+                                            ? render::StereoLayout::kPair
+                                            : render::parseStereoLayout(stereo, "--stereo");
+    // One picture of camera `c`: mono, or both eyes in one image.
+    auto framePicture = [&](const config::Camera& c) {
+      if (stereo.empty()) return picture(c, 0.0);
+      return render::composeStereo(picture(c, -half_eye), picture(c, half_eye), layout);
+    };
+
+    if (win) {
+      cam = interactive(*win, cam, plainView, instances, options, stream_options, overlay, frames);
+      if (out.empty()) return 0;
     }
-    // A corrupt hierarchy page leaves out the nodes below it: the picture is written, but said.
-    std::set<const lod::PointStore*> warned;
-    for (const auto& m : instances) {
-      if (!m.store) continue;
-      const uint64_t pages = m.store->cacheStats().corrupt_pages;
-      if (pages > 0 && warned.insert(m.store).second)
-        std::fprintf(stderr,
-                     "tessera-render: warning: %s: %llu corrupt hierarchy pages; the nodes below "
-                     "them are not drawn\n",
-                     m.store->path().c_str(), (unsigned long long)pages);
+    if (path_run)
+      return writePathFrames(
+          camera_path, fps, movie, frames_dir,
+          [&](const config::Camera& c) { return framePicture(c); },
+          [&] {
+            shared_streamer = std::make_shared<render::ChunkStreamer>(stream_options);
+            quiet_views = true;
+          },
+          warnCorrupt);
+    if (!poster.empty()) {
+      render::ViewSetup full;
+      if (!wall) {
+        full = plainViewSized(cam, poster_size.width, poster_size.height);
+      } else {
+        // The whole wall at the poster's size: the same window, more pixels on it.
+        full = render::wholeWallView(*wall, cam);
+        const long fit_h = std::lround(double(poster_size.width) * full.height / full.width);
+        if (std::abs(long(poster_size.height) - fit_h) > 1)
+          usage("--poster " + poster + ": the wall's whole view is " + std::to_string(full.width) +
+                "x" + std::to_string(full.height) + "; give " + std::to_string(poster_size.width) +
+                "x" + std::to_string(fit_h));
+        full.pixels_per_metre *= double(poster_size.width) / full.width;
+        full.width = poster_size.width;
+        full.height = poster_size.height;
+      }
+      const render::PosterPlan plan = render::planPoster(full.width, full.height, poster_part,
+                                                         uint64_t(poster_memory_mb * 1048576.0));
+      std::vector<std::pair<double, std::string>> eyes = {{0.0, out}};
+      if (!stereo.empty())
+        eyes = {{-half_eye, render::stereoPairPath(out, false)},
+                {half_eye, render::stereoPairPath(out, true)}};
+      for (const auto& [eye_x, file] : eyes) {
+        if (eye_x != 0.0) cli::refuseOverwrite(file, read, "-o");
+        render::PngStripWriter writer(file, full.width, full.height);
+        std::optional<Progress> progress;
+        const render::PosterStats st = render::renderPoster(
+            instances, eyeView(full, cam, eye_x), options, plan,
+            [&](std::span<const uint8_t> rgba, uint32_t, uint32_t rows) {
+              writer.writeRows(rgba, rows);
+            },
+            stream_options, overlay,
+            [&](size_t done, size_t total) {
+              if (!progress) progress.emplace("poster " + file, total, " parts");
+              progress->update(done);
+            });
+        if (progress) progress->finish();
+        warnCorrupt();
+        writer.finish();
+        std::printf("wrote %s (%ux%u, %ux%u parts of up to %ux%u, guard band %u px)\n",
+                    file.c_str(), full.width, full.height, plan.columns, plan.rows, plan.part_width,
+                    plan.part_height, st.max_band);
+      }
+      return 0;
     }
+    if (layout == render::StereoLayout::kPair && !stereo.empty()) {
+      for (const double eye_x : {-half_eye, half_eye}) {
+        const std::string file = render::stereoPairPath(out, eye_x > 0.0);
+        cli::refuseOverwrite(file, read, "-o");
+        const render::Image img = picture(cam, eye_x);
+        warnCorrupt();
+        render::writePng(file, img);
+        std::printf("wrote %s (%ux%u)\n", file.c_str(), img.width, img.height);
+      }
+      return 0;
+    }
+    const render::Image result = framePicture(cam);
+    warnCorrupt();
     render::writePng(out, result);
     std::printf("wrote %s (%ux%u)\n", out.c_str(), result.width, result.height);
     return 0;
   } catch (const cli::UsageError&) {
-    throw;                                  // cli::runMain: exit 2
+    throw;                                // cli::runMain: exit 2
+  } catch (const media::VideoError& e) {  // the movie cannot be written
+    std::fprintf(stderr, "tessera-render: %s\n", e.what());
+    return 3;
   } catch (const render::RenderError& e) {  // no usable GL, or the PNG cannot be written
     std::fprintf(stderr, "tessera-render: %s\n", e.what());
     return 3;

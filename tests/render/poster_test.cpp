@@ -73,8 +73,8 @@ TEST_F(PosterTest, PartsAreSubRectanglesOfTheFullWindowAndCoverThePoster) {
     for (uint32_t y = p.y; y < p.y + p.height; ++y)
       for (uint32_t x = p.x; x < p.x + p.width; ++x) ++hits[size_t(y) * 1000 + x];
     // A world point's pixel in the part is its pixel in the full view, less the part's corner.
-    const glm::dvec3 world = glm::dvec3(glm::inverse(full.projection * full.view) *
-                                        glm::dvec4(0.3, -0.2, 0.5, 1.0));
+    const glm::dvec3 world =
+        glm::dvec3(glm::inverse(full.projection * full.view) * glm::dvec4(0.3, -0.2, 0.5, 1.0));
     auto pixel = [&](const ViewSetup& v) {
       const glm::dvec4 c = v.projection * v.view * glm::dvec4(world, 1.0);
       return glm::dvec2((c.x / c.w * 0.5 + 0.5) * v.width, (0.5 - c.y / c.w * 0.5) * v.height);
@@ -151,9 +151,10 @@ TEST_F(PosterTest, FourByFourPartsEqualTwoByTwoPartsWithScreenPasses) {
     EXPECT_LE(double(d.differ) / double(d.pixels), 2e-4)
         << d.differ << " of " << d.pixels << " pixels differ";
     EXPECT_LE(d.visible, d.pixels / 10000) << d.visible << " pixels differ by more than 2 levels";
-    std::printf("%s: 4x4 vs 2x2 parts, %zu of %zu pixels differ, %zu by more than 2 levels, by at "
-                "most %d\n",
-                mode.name, d.differ, d.pixels, d.visible, d.max_step);
+    std::printf(
+        "%s: 4x4 vs 2x2 parts, %zu of %zu pixels differ, %zu by more than 2 levels, by at "
+        "most %d\n",
+        mode.name, d.differ, d.pixels, d.visible, d.max_step);
     // Against one render of the whole view (measured with ambient occlusion: 40 of 160,000
     // pixels differ, each by one level).
     ViewRenderer r(v.width, v.height);
@@ -320,9 +321,9 @@ TEST(StereoTest, DisparityOnInFrontOfAndBehindTheScreenMatchesTheAnalyticValue) 
     glm::dvec3 centre;  // world; the camera looks down -z from z = 2
     double side;
   };
-  const Patch patches[3] = {{{0.0, 0.0, 0.0}, 0.08},      // Z = 2: on the screen
-                            {{-0.3, 0.05, 1.0}, 0.05},    // Z = 1: in front
-                            {{0.5, -0.1, -2.0}, 0.16}};   // Z = 4: behind
+  const Patch patches[3] = {{{0.0, 0.0, 0.0}, 0.08},     // Z = 2: on the screen
+                            {{-0.3, 0.05, 1.0}, 0.05},   // Z = 1: in front
+                            {{0.5, -0.1, -2.0}, 0.16}};  // Z = 4: behind
   // 16 x 16 isolated points a patch, 1.6 to 3.3 pixels apart, drawn one pixel each (no splats,
   // no fill): their sub-pixel positions spread over the pixel, so the centroid of the lit pixels
   // follows the points' to a small fraction of a pixel.
@@ -331,9 +332,8 @@ TEST(StereoTest, DisparityOnInFrontOfAndBehindTheScreenMatchesTheAnalyticValue) 
   for (const Patch& p : patches)
     for (int i = 0; i < 16; ++i)
       for (int j = 0; j < 16; ++j)
-        b.positions.push_back(p.centre + glm::dvec3((i + 0.5) / 16.0 - 0.5,
-                                                     (j + 0.5) / 16.0 - 0.5, 0.0) *
-                                             p.side);
+        b.positions.push_back(
+            p.centre + glm::dvec3((i + 0.5) / 16.0 - 0.5, (j + 0.5) / 16.0 - 0.5, 0.0) * p.side);
   lod::writePly(dir.path() / "patches.ply", b, glm::dvec3(0.0));
   lod::BuildOptions bo;
   bo.quiet = true;

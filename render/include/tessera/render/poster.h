@@ -66,7 +66,8 @@ ViewSetup subView(const ViewSetup& full, uint32_t x, uint32_t y, uint32_t width,
 /// Cuts a `width` x `height` poster into parts of at most `max_part` pixels a side, as few rows as
 /// `memory_bytes` allows (peakBytes() within it). Throws RenderError naming the size for a side
 /// of 0 or above kMaxPosterSide, and the memory needed when `memory_bytes` holds no row of parts 16
-/// pixels tall (or the poster's height, if less). Precondition (TESSERA_CHECK): 16 <= max_part <= kMaxPosterPart.
+/// pixels tall (or the poster's height, if less). Precondition (TESSERA_CHECK): 16 <= max_part <=
+/// kMaxPosterPart.
 PosterPlan planPoster(uint32_t width, uint32_t height, uint32_t max_part, uint64_t memory_bytes);
 
 /// The parts of `full` (a view of plan.width x plan.height) for `plan`, row by row, top first.
@@ -104,27 +105,26 @@ class PngStripWriter {
 
 /// What renderPoster() did.
 struct PosterStats {
-  size_t parts = 0;      ///< parts rendered for the picture
-  size_t renders = 0;    ///< renders in all (twice the parts when the relative depth agreed)
-  size_t frames = 0;     ///< frames renderSettled() drew over all renders
-  uint32_t max_band = 0; ///< the widest guard band a part was drawn with
+  size_t parts = 0;       ///< parts rendered for the picture
+  size_t renders = 0;     ///< renders in all (twice the parts when the relative depth agreed)
+  size_t frames = 0;      ///< frames renderSettled() drew over all renders
+  uint32_t max_band = 0;  ///< the widest guard band a part was drawn with
   /// The relative depth range the parts agreed on (wallRange() of their own), when they did.
   std::optional<glm::vec2> agreed_range;
 };
 
 /// Renders `full` (plan.width x plan.height) part by part with renderSettled() and hands each
 /// finished row of parts to `strip` (RGBA, top row first, the poster's width times the row's
-/// height; `y`: its first row in the poster). With the relative depth on and neither a fixed nor an agreed range, each
-/// part is rendered once for its own range first and the range wallRange() makes of them is
-/// used by every part. The parts share one chunk streamer with `stream_options`. `progress`, when
-/// given, is called after each render with (renders done, renders in all).
-PosterStats renderPoster(std::span<const ModelInstance> models, const ViewSetup& full,
-                         const RenderOptions& options, const PosterPlan& plan,
-                         const std::function<void(std::span<const uint8_t> rgba, uint32_t y,
-                                                  uint32_t rows)>& strip,
-                         const StreamerOptions& stream_options = {},
-                         const Overlay* overlay = nullptr,
-                         const std::function<void(size_t, size_t)>& progress = {});
+/// height; `y`: its first row in the poster). With the relative depth on and neither a fixed nor an
+/// agreed range, each part is rendered once for its own range first and the range wallRange() makes
+/// of them is used by every part. The parts share one chunk streamer with `stream_options`.
+/// `progress`, when given, is called after each render with (renders done, renders in all).
+PosterStats renderPoster(
+    std::span<const ModelInstance> models, const ViewSetup& full, const RenderOptions& options,
+    const PosterPlan& plan,
+    const std::function<void(std::span<const uint8_t> rgba, uint32_t y, uint32_t rows)>& strip,
+    const StreamerOptions& stream_options = {}, const Overlay* overlay = nullptr,
+    const std::function<void(size_t, size_t)>& progress = {});
 
 /// renderPoster() into one Image (tests, and posters small enough to hold).
 Image renderPosterImage(std::span<const ModelInstance> models, const ViewSetup& full,

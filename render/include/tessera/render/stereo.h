@@ -19,10 +19,10 @@ namespace tessera::render {
 
 /// How two eyes' pictures make one file.
 enum class StereoLayout {
-  kSideBySide,    ///< left eye on the left, right eye on the right: twice the width
-  kTopBottom,     ///< left eye on top: twice the height
-  kAnaglyph,      ///< red from the left eye, green and blue from the right (red-cyan glasses)
-  kPair,          ///< two files, OUT-left.png and OUT-right.png
+  kSideBySide,  ///< left eye on the left, right eye on the right: twice the width
+  kTopBottom,   ///< left eye on top: twice the height
+  kAnaglyph,    ///< red from the left eye, green and blue from the right (red-cyan glasses)
+  kPair,        ///< two files, OUT-left.png and OUT-right.png
 };
 
 /// "sbs", "tb", "anaglyph", "pair"; anything else throws RenderError naming `what` and the text.
