@@ -83,6 +83,8 @@ tessera_find_config(spdlog libspdlog-dev)
 tessera_find_config(embree libembree-dev 3)
 tessera_find_pkg(ZSTD libzstd libzstd-dev)
 tessera_find_pkg(PNG libpng libpng-dev)
+# MPCDI projector calibrations are zip files (render/projector_pass.h).
+tessera_find_pkg(LIBZIP libzip libzip-dev)
 find_program(GNUPLOT_EXECUTABLE gnuplot)
 if(NOT GNUPLOT_EXECUTABLE)
   tessera_missing(gnuplot gnuplot-nox)

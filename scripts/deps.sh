@@ -34,6 +34,8 @@ PACKAGES=(
   libproj-dev proj-data
   # virtual scanner ray casting, point chunk entropy coding, images, E57 scans' XML
   libembree-dev libzstd-dev libpng-dev libpugixml-dev
+  # projector calibrations: MPCDI files are zips
+  libzip-dev
   # the overlay's text: shaping, glyphs, fonts for every script (render/src/text_shaper.h):
   # DejaVu (Latin, Greek, Cyrillic, Hebrew, Arabic), Noto Sans CJK, Symbola (emoji, symbols)
   libharfbuzz-dev libfreetype-dev libfontconfig-dev fonts-dejavu-core fonts-noto-cjk fonts-symbola

@@ -560,7 +560,16 @@ void Master::writeScreenshots(const std::vector<std::string>& paths, uint64_t fr
     images[i].height = tile.pixel_height();
     images[i].rgba.assign(pixels[i].begin(), pixels[i].end());
   }
-  const render::Image wall = render::assembleWallMosaic(mWall, images);
+  // What the room sees: with projectors, their pictures recomposed on the screen through the
+  // warps the wall names (a file that went bad since the start is said, no picture written).
+  render::Image wall;
+  try {
+    wall = render::assembleWallMosaic(mWall, images);
+  } catch (const render::RenderError& e) {
+    std::fprintf(stderr, "tessera-master: frame %llu: no screenshot: %s\n",
+                 (unsigned long long)frame, e.what());
+    return;
+  }
   for (const std::string& p : paths) {
     try {
       if (fs::path(p).has_parent_path()) fs::create_directories(fs::path(p).parent_path());

@@ -3,6 +3,7 @@
 #include <cstring>
 
 #include <tessera/core/check.h>
+#include <tessera/render/projector_pass.h>
 #include <tessera/render/tile_frustum.h>
 
 namespace tessera::render {
@@ -27,6 +28,8 @@ Image lostTileImage(uint32_t width, uint32_t height) {
 
 Image assembleWallMosaic(const config::WallConfig& wall, std::span<const Image> tiles) {
   TESSERA_CHECK(tiles.size() == size_t(wall.tiles_size()), "one image per tile of the wall");
+  // Projectors' pictures are warped and blended: what the room sees is their light recomposed.
+  if (hasProjectors(wall)) return recomposeScreen(wall, tiles, loadProjectorMaps(wall, false));
   // The wall's pixel size does not depend on the camera; any valid one will do.
   config::Camera camera;
   camera.mutable_eye()->set_z(1.0);

@@ -10,6 +10,7 @@
 
 #include <tessera/core/stopwatch.h>
 #include <tessera/render/gl_context.h>
+#include <tessera/render/projector_pass.h>
 #include <tessera/render/scene_draw_list.h>
 #include <tessera/render/scene_overlay.h>
 #include <tessera/render/video_textures.h>
@@ -67,6 +68,8 @@ struct RenderNode::Impl {
   render::SceneOverlay overlay;                      // sketches, avatars, annotations, videos
   std::unique_ptr<render::VideoTextures> videos;     // the sites' video (needs the context)
   std::unique_ptr<render::ViewRenderer> renderer;    // destroyed first: needs the context
+  /// The tile's projector: blend and warp applied to every frame (none: the frame as drawn).
+  std::unique_ptr<render::ProjectorPass> projector;
   cluster::NodeStatus status;                        // NODE_OK until something fails
   uint64_t reported = 0;                             // the last frame reported
   Clock::time_point reported_at;
@@ -79,6 +82,7 @@ struct RenderNode::Impl {
   Impl(sync::NodeLink& l, NodeOptions o) : link(l), opt(std::move(o)) {}
 
   ~Impl() {
+    projector.reset();
     renderer.reset();
     videos.reset();
   }
@@ -206,6 +210,20 @@ struct RenderNode::Impl {
       throw NodeError(cluster::NODE_BAD_FRAME, e.what());
     }
     updateModels(sync::SceneChanges::all());
+    projector.reset();
+    if (render::hasProjectors(setup.wall())) {
+      // The projector's blend and warp from the wall's files (paths as the master read them).
+      int index = 0;
+      while (setup.wall().tiles(index).name() != tile->name()) ++index;
+      try {
+        const std::vector<render::ProjectorMap> maps =
+            render::loadProjectorMaps(setup.wall(), true, index);
+        if (!maps[size_t(index)].identity())
+          projector = std::make_unique<render::ProjectorPass>(maps[size_t(index)]);
+      } catch (const render::RenderError& e) {
+        throw NodeError(cluster::NODE_BAD_TILE, e.what());
+      }
+    }
     if (same_size && old_w == tile->pixel_width() && old_h == tile->pixel_height()) return;
     render::StreamerOptions stream;
     if (setup.gpu_budget_bytes() > 0) stream.budget_bytes = setup.gpu_budget_bytes();
@@ -267,9 +285,15 @@ struct RenderNode::Impl {
         if (read_back || setup.settled()) {
           render::Image image =
               renderer->renderSettled(instances, view, options, &rs, overlay.drawn());
+          if (projector) {
+            // The projector's picture is what the tile shows and what the master recomposes.
+            projector->run(renderer->imageBuffer());
+            if (read_back) image = projector->read();
+          }
           if (read_back) r.set_rgba(image.rgba.data(), image.rgba.size());
         } else {
           renderer->draw(instances, view, options, &rs, overlay.drawn());
+          if (projector) projector->run(renderer->imageBuffer());
         }
         cluster::NodeFrameStats& st = *r.mutable_stats();
         st.set_render_ms(msSince(start_time));
@@ -300,7 +324,8 @@ struct RenderNode::Impl {
     present_ms = 0;
     if (!window || status.code() != cluster::NODE_OK) return;
     const auto start_time = Clock::now();
-    window->present(renderer->imageBuffer(), tile->pixel_width(), tile->pixel_height());
+    window->present(projector ? projector->imageBuffer() : renderer->imageBuffer(),
+                    tile->pixel_width(), tile->pixel_height());
     window->poll();  // keep the window responsive; input belongs to the master's console
     present_ms = msSince(start_time);
   }

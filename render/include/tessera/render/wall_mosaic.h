@@ -22,8 +22,11 @@ Image lostTileImage(uint32_t width, uint32_t height);
 
 /// The wall image: wholeWallView(wall, ...).width x height, RGBA top row first. `tiles[i]` is
 /// the image of wall.tiles(i) (tileView() size); each is copied to tileOffsetInWhole() and clipped
-/// to the wall image. Precondition (TESSERA_CHECK): one image per tile, each width * height * 4
-/// bytes. Cost: one pass over the wall image.
+/// to the wall image; for a room (isRoom()) the image is its net (roomNetOffset()). A wall with
+/// projectors (hasProjectors(): blends, warps, MPCDI) shows what the room sees instead:
+/// recomposeScreen() of the tiles' pictures, reading the warps (RenderError for a bad file).
+/// Precondition (TESSERA_CHECK): one image per tile, each width * height * 4 bytes. Cost: one
+/// pass over the wall image; with projectors an inverse warp a pixel and tile.
 Image assembleWallMosaic(const config::WallConfig& wall, std::span<const Image> tiles);
 
 }  // namespace tessera::render
