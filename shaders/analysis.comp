@@ -120,48 +120,7 @@ float contourValue(ivec2 q, uint bits) {
   return dot(uAxis, v.xyz / v.w);
 }
 
-#if TESSERA_ANALYSIS_STAGE == 1
-// Stage 1's extremes, first over the workgroup in shared memory, then one global atomic pair a
-// workgroup: an atomic per pixel on the same two words costs llvmpipe's threads tens of
-// milliseconds a frame in contention.
-shared uint sLo, sHi;
-
-void verticalAndExtremes() {
-  ivec2 p = ivec2(gl_GlobalInvocationID.xy);
-  if (gl_LocalInvocationIndex == 0u) {
-    sLo = 0xFFFFFFFFu;
-    sHi = 0u;
-  }
-  barrier();
-  uint b = p.x < uSize.x && p.y < uSize.y ? depthBits(p) : kEmpty;
-  if (b != kEmpty) {
-    vec2 s = vec2(0.0);
-    int step = stride();
-    for (int k = -(uRadius / step) * step; k <= uRadius; k += step) {
-      int y = p.y + k;
-      if (y < 0 || y >= uSize.y) continue;
-      s += gaussWeight(k) * texelFetch(uScratch, y * uSize.x + p.x).xy;
-    }
-    float relative = linearDepth(b) - s.x / s.y;
-    plane[uint(p.y) * uint(uSize.x) + uint(p.x)] = relative;
-    if (inner(p)) {
-      atomicMin(sLo, orderedBits(relative));
-      atomicMax(sHi, orderedBits(relative));
-    }
-  }
-  barrier();
-  if (gl_LocalInvocationIndex == 0u && sLo <= sHi) {
-    atomicMin(range[0], sLo);
-    atomicMax(range[1], sHi);
-  }
-}
-#endif
-
 void main() {
-#if TESSERA_ANALYSIS_STAGE == 1
-  verticalAndExtremes();
-  return;
-#endif
   ivec2 p = ivec2(gl_GlobalInvocationID.xy);
   if (p.x >= uSize.x || p.y >= uSize.y) return;
   uint index = uint(p.y) * uint(uSize.x) + uint(p.x);
@@ -177,7 +136,24 @@ void main() {
     s += vec2(w * linearDepth(b), w);
   }
   sums[index] = s;
-#elif TESSERA_ANALYSIS_STAGE == 1  // verticalAndExtremes()
+#elif TESSERA_ANALYSIS_STAGE == 1
+  uint b = depthBits(p);
+  if (b == kEmpty) return;
+  vec2 s = vec2(0.0);
+  int step = stride();
+  for (int k = -(uRadius / step) * step; k <= uRadius; k += step) {
+    int y = p.y + k;
+    if (y < 0 || y >= uSize.y) continue;
+    s += gaussWeight(k) * texelFetch(uScratch, y * uSize.x + p.x).xy;
+  }
+  float relative = linearDepth(b) - s.x / s.y;
+  plane[index] = relative;
+  // The extremes of the pixels the histogram takes (every other one each way): a quarter of
+  // the atomics on these two words, which llvmpipe's threads contend for.
+  if (((p.x | p.y) & 1) == 0 && inner(p)) {
+    atomicMin(range[0], orderedBits(relative));
+    atomicMax(range[1], orderedBits(relative));
+  }
 #elif TESSERA_ANALYSIS_STAGE == 2
   if (depthBits(p) == kEmpty) return;
   float lo = uRangeLo, hi = uRangeHi;

@@ -199,8 +199,8 @@ struct ContourOptions {
 /// Relative depth and contour lines on the resolved image (run after eye-dome lighting, before
 /// highlights and the overlay). Milliseconds. Opaque frames: they read the depth plane.
 /// Cost: relative depth, 2 (2 radius / stride + 1) reads a pixel in two separable passes (taps
-/// every max(1, radius / 6) pixels: 13 to 23 a pass for any radius; the extremes reduced per
-/// workgroup), one histogram pass over every other pixel each way (16 KiB read back) and one
+/// every max(1, radius / 6) pixels: 13 to 23 a pass for any radius; the extremes of every other
+/// pixel each way), one histogram pass over those pixels (16 KiB read back) and one
 /// colour-map pass (a plane of 8 bytes a pixel and
 /// one of 4, reallocated when the target's size changes); contour lines, 25 depth reads a pixel
 /// (the surface's mean value over 5x5) and 5 more (the lines).
