@@ -15,6 +15,8 @@
 #include <functional>
 
 #include <tessera/lod/ambient_occlusion.h>
+#include <tessera/lod/mesh.h>
+#include <tessera/lod/virtual_scanner.h>
 #include <tessera/render/image.h>
 
 #include "bench_stats.h"
@@ -33,76 +35,94 @@ uint8_t grey(float v) {
   return uint8_t(std::lround(std::pow(std::clamp(v, 0.0f, 1.0f), 4.0f) * 255.0f));
 }
 
+/// The point subsets accuracy is reported on (ambient_occlusion.h's grazingPoint(),
+/// borderPoint(); thin: the mesh is less than t_max / 2 thick behind the point).
+const char* const kSubsets[] = {"all", "grazing", "border", "thin"};
+constexpr int kSubsetCount = 4;
+const char* const kRefs[] = {"discs", "mesh"};
+
 struct Row {
   std::string method;
+  int samples = 0;
   double seconds = 0;
-  double mean = 0, p95 = 0, grazing = 0, border = 0;
+  double mean[2][kSubsetCount] = {};  ///< [reference][subset] mean |AO - reference|
+  double p95[2] = {};                 ///< over all points, per reference
+  double bias[2] = {};                ///< mean AO - reference over all points
 };
 
-void errorsOf(Row& r, const std::vector<float>& ao, const std::vector<float>& ref,
-              const std::vector<uint32_t>& pts, const std::vector<bool>& graz,
-              const std::vector<bool>& bord) {
-  std::vector<double> e;
-  double g = 0, b = 0;
-  size_t ng = 0, nb = 0;
-  for (size_t k = 0; k < pts.size(); ++k) {
-    double d = std::abs(double(ao[pts[k]]) - ref[k]);
-    e.push_back(d);
-    if (graz[k]) g += d, ++ng;
-    if (bord[k]) b += d, ++nb;
+struct Sample {
+  std::vector<uint32_t> points;
+  std::vector<float> ref[2];
+  std::vector<uint8_t> in[kSubsetCount];
+};
+
+void errorsOf(Row& r, const std::vector<float>& ao, const Sample& s) {
+  for (int f = 0; f < 2; ++f) {
+    std::vector<double> all;
+    for (int c = 0; c < kSubsetCount; ++c) {
+      double sum = 0;
+      size_t n = 0;
+      for (size_t k = 0; k < s.points.size(); ++k) {
+        if (!s.in[c][k]) continue;
+        const double d = std::abs(double(ao[s.points[k]]) - s.ref[f][k]);
+        sum += d;
+        ++n;
+        if (c == 0) all.push_back(d), r.bias[f] += double(ao[s.points[k]]) - s.ref[f][k];
+      }
+      r.mean[f][c] = sum / double(std::max<size_t>(1, n));
+    }
+    r.p95[f] = bench::percentile(all, 0.95);
+    r.bias[f] /= double(std::max<size_t>(1, all.size()));
   }
-  for (double x : e) r.mean += x;
-  r.mean /= double(e.size());
-  r.p95 = bench::percentile(e, 0.95);
-  r.grazing = g / double(std::max<size_t>(1, ng));
-  r.border = b / double(std::max<size_t>(1, nb));
 }
 
-/// One scan's SSAO | MVAO | reference side by side in its grid (rows top first).
-void rangeMapPicture(const ScanSet& set, uint16_t scan, const std::vector<float>& mvao,
-                     const std::vector<float>& ref_all, const std::string& path) {
+/// One scan's panels side by side in its grid (rows top first), each value per point (negative:
+/// not drawn).
+void rangeMapPicture(const ScanSet& set, uint16_t scan,
+                     const std::vector<const std::vector<float>*>& panels,
+                     const std::string& path) {
   const RangeMap& m = set.maps[scan];
+  const uint32_t count = uint32_t(panels.size());
   render::Image img;
-  img.width = 3 * m.columns + 8;
+  img.width = count * (m.columns + 4);
   img.height = m.rows;
   img.rgba.assign(size_t(img.width) * img.height * 4, 0);
   for (size_t i = 0; i < img.rgba.size(); i += 4) {
     img.rgba[i] = 30, img.rgba[i + 1] = 34, img.rgba[i + 2] = 48, img.rgba[i + 3] = 255;
   }
-  auto put = [&](uint32_t panel, size_t px, float v) {
-    size_t x = px % m.columns + panel * (m.columns + 4), y = px / m.columns;
-    uint8_t g = grey(v);
-    uint8_t* o = &img.rgba[(y * img.width + x) * 4];
-    o[0] = o[1] = o[2] = g;
-  };
   for (size_t i = 0; i < set.size(); ++i) {
     if (set.scan_of_point[i] != scan) continue;
-    size_t px = set.pixel_of_point[i];
-    put(0, px, m.ssao[px]);
-    put(1, px, mvao[i]);
-    if (ref_all[i] >= 0) put(2, px, ref_all[i]);
+    const size_t px = set.pixel_of_point[i];
+    for (uint32_t panel = 0; panel < count; ++panel) {
+      const float v = (*panels[panel])[i];
+      if (v < 0) continue;
+      const size_t x = px % m.columns + panel * (m.columns + 4), y = px / m.columns;
+      uint8_t* o = &img.rgba[(y * img.width + x) * 4];
+      o[0] = o[1] = o[2] = grey(v);
+    }
   }
   render::writePng(path, img);
 }
 
-/// The whole bunny seen from +z (orthographic, nearest point per pixel, 2x2 splats): MVAO on the
-/// left, the reference on the right; only points with a reference are drawn.
-void bunnyPicture(const ScanSet& set, const std::vector<float>& mvao,
-                  const std::vector<float>& ref_all, const std::string& path) {
+/// The whole bunny seen from +z (orthographic, nearest point per pixel, 2x2 splats), one panel
+/// per value (negative: not drawn).
+void bunnyPicture(const ScanSet& set, const std::vector<const std::vector<float>*>& panels,
+                  const std::string& path) {
   glm::dvec3 lo(1e300), hi(-1e300);
   for (auto& p : set.positions) lo = glm::min(lo, p), hi = glm::max(hi, p);
-  const uint32_t S = 640;
+  const uint32_t S = 560;
+  const int count = int(panels.size());
   const double scale = (S - 20) / std::max(hi.x - lo.x, hi.y - lo.y);
   render::Image img;
-  img.width = 2 * S;
+  img.width = uint32_t(count) * S;
   img.height = S;
   img.rgba.assign(size_t(img.width) * img.height * 4, 255);
   std::vector<double> depth(size_t(img.width) * img.height, -1e300);
   for (size_t i = 0; i < set.size(); ++i) {
-    if (ref_all[i] < 0) continue;
+    if ((*panels[0])[i] < 0) continue;
     const glm::dvec3& p = set.positions[i];
     int x = int((p.x - lo.x) * scale) + 10, y = int(S - 10 - (p.y - lo.y) * scale);
-    for (int panel = 0; panel < 2; ++panel)
+    for (int panel = 0; panel < count; ++panel)
       for (int dy = 0; dy < 2; ++dy)
         for (int dx = 0; dx < 2; ++dx) {
           int px = x + dx + panel * int(S), py = y + dy;
@@ -110,11 +130,48 @@ void bunnyPicture(const ScanSet& set, const std::vector<float>& mvao,
           size_t k = size_t(py) * img.width + size_t(px);
           if (p.z <= depth[k]) continue;
           depth[k] = p.z;
-          uint8_t g = grey(panel == 0 ? mvao[i] : ref_all[i]);
+          uint8_t g = grey((*panels[panel])[i]);
           img.rgba[k * 4] = img.rgba[k * 4 + 1] = img.rgba[k * 4 + 2] = g;
         }
   }
   render::writePng(path, img);
+}
+
+/// Section 4 and 5 on a virtual scan of `mesh` with `scanners` x `per_scan` points: points per
+/// second of SSAO and of the integration (borders + eq. 6-12, 1x1).
+void virtualThroughput(const std::string& mesh_path, int scanners, uint32_t per_scan,
+                       const std::string& dir, int samples) {
+  Mesh mesh = readMesh(mesh_path);
+  ScanOptions so;
+  so.scanners = scanners;
+  so.columns = uint32_t(std::lround(std::sqrt(per_scan * 1.25)));
+  so.rows = uint32_t((per_scan + so.columns - 1) / so.columns);
+  so.binary = true;
+  so.quiet = true;
+  so.units_per_mm = 0.001;
+  auto t = Clock::now();
+  ScanResult scan = scanMesh(mesh, dir, so);
+  const double seconds_scan = since(t);
+  t = Clock::now();
+  ScanSet set = loadScans(scan.conf);
+  const double seconds_load = since(t);
+  AoOptions o;
+  o.samples = samples;
+  o = resolveAoOptions(set, o);
+  t = Clock::now();
+  for (size_t j = 0; j < set.maps.size(); ++j) computeSsao(set.maps[j], uint32_t(j), o);
+  const double seconds_ssao = since(t);
+  t = Clock::now();
+  for (auto& m : set.maps) computeBorders(m, o.threads);
+  std::vector<float> mv = integrateMvao(set, o);
+  const double seconds_int = since(t);
+  std::printf(
+      "virtual scan: %d scanners x %ux%u grid, %zu points (scan %.1f s, load %.1f s); "
+      "ssao %d samples %.2f s = %.2f Mpoints/s; borders + mvao 1x1 %.2f s = %.2f "
+      "Mpoints/s\n",
+      scanners, so.columns, so.rows, set.size(), seconds_scan, seconds_load, samples, seconds_ssao,
+      double(set.size()) / seconds_ssao * 1e-6, seconds_int,
+      double(set.size()) / seconds_int * 1e-6);
 }
 
 }  // namespace
@@ -123,13 +180,27 @@ int main(int argc, char** argv) {
   CLI::App app{"mvao: multi-view ambient occlusion of the bunny scans, time and error"};
   std::string out = TESSERA_BENCH_RESULTS_DIR;
   std::string conf = std::string(TESSERA_DATA_DIR) + "/stanford-bunny/scans/bun.conf";
-  int rounds = 3, rays = 256, picture_stride = 3;
+  std::string mesh_path =
+      std::string(TESSERA_DATA_DIR) + "/stanford-bunny/reconstruction/bun_zipper.ply";
+  int rounds = 3, rays = 256, picture_stride = 3, stride = 8;
+  int virtual_scanners = 0;
+  uint32_t virtual_per_scan = 400000;
+  bool pictures = true;
   app.add_option("--out", out, "Folder for CSV, charts and pictures")->capture_default_str();
   app.add_option("--scans", conf, "Registered range scans (.conf)")->capture_default_str();
+  app.add_option("--mesh", mesh_path, "Their surface reconstruction (second reference)")
+      ->capture_default_str();
   app.add_option("--rounds", rounds, "Rounds per method (best kept)")->capture_default_str();
   app.add_option("--rays", rays, "Reference rays per point")->capture_default_str();
+  app.add_option("--stride", stride, "Reference on every Nth point")->capture_default_str();
   app.add_option("--picture-stride", picture_stride,
                  "Reference for every Nth point of the whole-bunny picture")
+      ->capture_default_str();
+  app.add_flag("!--no-pictures", pictures, "Skip the pictures");
+  app.add_option("--virtual-scanners", virtual_scanners,
+                 "Also time a virtual scan of the mesh with this many scanners (0: none)")
+      ->capture_default_str();
+  app.add_option("--virtual-points", virtual_per_scan, "Points per virtual scanner")
       ->capture_default_str();
   CLI11_PARSE(app, argc, argv);
   std::filesystem::create_directories(out);
@@ -151,30 +222,91 @@ int main(int argc, char** argv) {
     integrateMvao(set, o);
     best_int = std::min(best_int, since(t));
   }
-  std::printf("bunny: %zu scans, %zu points; load %.2f s, ssao %.2f s, integration %.2f s, "
-              "end to end %.2f s (best of %d)\n",
-              set.maps.size(), set.size(), best_load, best_ssao, best_int,
-              best_load + best_ssao + best_int, rounds);
+  std::printf(
+      "bunny: %zu scans, %zu points; load %.2f s, ssao %.2f s, integration %.2f s, "
+      "end to end %.2f s (best of %d); t_max %.5f, r_s %.5f\n",
+      set.maps.size(), set.size(), best_load, best_ssao, best_int, best_load + best_ssao + best_int,
+      rounds, o.t_max, o.radius);
+  if (virtual_scanners > 0)
+    virtualThroughput(mesh_path, virtual_scanners, virtual_per_scan, out + "/virtual_scan", 32);
 
-  std::vector<uint32_t> pts;
-  for (uint32_t i = 0; i < set.size(); i += 8) pts.push_back(i);
+  const Mesh mesh = readMesh(mesh_path);
+  Sample sample;
+  for (uint32_t i = 0; i < set.size(); i += uint32_t(stride)) sample.points.push_back(i);
   auto t = Clock::now();
-  std::vector<float> ref = referenceAo(set, pts, rays, o);
-  const double ref_seconds = since(t);
-  // Residual of the reference: the same points at 4x the rays.
-  std::vector<uint32_t> few(pts.begin(), pts.begin() + std::min<size_t>(pts.size(), 4000));
-  std::vector<float> fine = referenceAo(set, few, 4 * rays, o);
-  std::vector<double> resid;
-  for (size_t k = 0; k < few.size(); ++k) resid.push_back(std::abs(fine[k] - ref[k]));
-  double resid_mean = 0;
-  for (double x : resid) resid_mean += x;
-  resid_mean /= double(resid.size());
-  std::printf("reference: %zu points x %d rays in %.1f s; against %d rays: mean %.4f, p95 %.4f\n",
-              pts.size(), rays, ref_seconds, 4 * rays, resid_mean,
-              bench::percentile(resid, 0.95));
+  sample.ref[0] = referenceAo(set, sample.points, rays, o);
+  const double disc_seconds = since(t);
+  t = Clock::now();
+  MeshAoReference mref = meshReferenceAo(set, mesh, sample.points, rays, o);
+  sample.ref[1] = mref.ao;
+  const double mesh_seconds = since(t);
+  for (uint32_t i : sample.points) {
+    sample.in[0].push_back(1);
+    sample.in[1].push_back(grazingPoint(set, i));
+    sample.in[2].push_back(borderPoint(set, i));
+  }
+  std::vector<double> dist;
+  for (size_t k = 0; k < sample.points.size(); ++k) {
+    sample.in[3].push_back(mref.thickness[k] < 0.5 * o.t_max);
+    dist.push_back(mref.distance[k]);
+  }
+  // Residual of each reference: the same points at 4x the rays.
+  std::vector<uint32_t> few;
+  for (size_t k = 0; k < sample.points.size() && few.size() < 4000; k += 4)
+    few.push_back(sample.points[k]);
+  std::vector<float> fine[2] = {referenceAo(set, few, 4 * rays, o),
+                                meshReferenceAo(set, mesh, few, 4 * rays, o).ao};
+  for (int f = 0; f < 2; ++f) {
+    std::vector<double> resid;
+    for (size_t k = 0; k < few.size(); ++k)
+      resid.push_back(std::abs(fine[f][k] - sample.ref[f][4 * k]));
+    double m = 0;
+    for (double x : resid) m += x;
+    std::printf("%s reference: against %d rays: mean %.4f, p95 %.4f\n", kRefs[f], 4 * rays,
+                m / double(resid.size()), bench::percentile(resid, 0.95));
+  }
+  std::printf(
+      "references: %zu points x %d rays, discs %.1f s, mesh %.1f s; points to mesh: "
+      "median %.5f, p95 %.5f (median edge %.5f)\n",
+      sample.points.size(), rays, disc_seconds, mesh_seconds, bench::percentile(dist, 0.5),
+      bench::percentile(dist, 0.95), mref.edge);
+  {
+    Row rr;
+    rr.method = "discs-vs-mesh";
+    std::vector<float> disc_all(set.size(), 0.0f);
+    for (size_t k = 0; k < sample.points.size(); ++k) disc_all[sample.points[k]] = sample.ref[0][k];
+    errorsOf(rr, disc_all, sample);
+    std::printf("discs against mesh: all %.4f grazing %.4f border %.4f thin %.4f; subset sizes",
+                rr.mean[1][0], rr.mean[1][1], rr.mean[1][2], rr.mean[1][3]);
+    for (int c = 0; c < kSubsetCount; ++c) {
+      size_t n = 0;
+      for (uint8_t x : sample.in[c]) n += x;
+      std::printf(" %s %zu", kSubsets[c], n);
+    }
+    double mean[2] = {};
+    for (int f = 0; f < 2; ++f) {
+      for (float x : sample.ref[f]) mean[f] += x;
+      mean[f] /= double(sample.points.size());
+    }
+    std::printf("; mean reference discs %.4f mesh %.4f\n", mean[0], mean[1]);
+  }
 
-  std::vector<bool> graz, bord;
-  for (uint32_t i : pts) graz.push_back(grazingPoint(set, i)), bord.push_back(borderPoint(set, i));
+  {
+    // Where MVAO takes its values from: the own scan's share of eq. 8's weight, per subset.
+    std::vector<float> share;
+    integrateMvao(set, o, &share);
+    std::printf("own scan's share of the weight:");
+    for (int c = 0; c < kSubsetCount; ++c) {
+      double sum = 0;
+      size_t n = 0, alone = 0;
+      for (size_t k = 0; k < sample.points.size(); ++k)
+        if (sample.in[c][k])
+          sum += share[sample.points[k]], ++n, alone += share[sample.points[k]] > 0.999f;
+      std::printf(" %s %.3f (alone %.3f)", kSubsets[c], sum / double(std::max<size_t>(1, n)),
+                  double(alone) / double(std::max<size_t>(1, n)));
+    }
+    std::printf("\n");
+  }
 
   std::vector<Row> rows;
   auto timed = [&](const std::function<std::vector<float>()>& f, double& best) {
@@ -191,21 +323,22 @@ int main(int argc, char** argv) {
     AoOptions os = o;
     os.samples = samples;
     Row r;
-    r.method = "ssao-" + std::to_string(samples);
+    r.method = "ssao";
+    r.samples = samples;
     auto v = timed(
         [&] {
           for (size_t j = 0; j < set.maps.size(); ++j) computeSsao(set.maps[j], uint32_t(j), os);
           return ownSsao(set);
         },
         r.seconds);
-    errorsOf(r, v, ref, pts, graz, bord);
+    errorsOf(r, v, sample);
     rows.push_back(r);
     for (int nb : {1, 3, 5}) {
       AoOptions om = os;
       om.neighbours = nb;
       Row m;
-      m.method = "mvao" + std::to_string(nb) + "x" + std::to_string(nb) + "-" +
-                 std::to_string(samples);
+      m.method = "mvao" + std::to_string(nb) + "x" + std::to_string(nb);
+      m.samples = samples;
       double secs;
       auto mv = timed(
           [&] {
@@ -214,73 +347,106 @@ int main(int argc, char** argv) {
           },
           secs);
       m.seconds = r.seconds + secs;
-      errorsOf(m, mv, ref, pts, graz, bord);
+      errorsOf(m, mv, sample);
       rows.push_back(m);
     }
     Row g;
-    g.method = "grid-" + std::to_string(samples);
+    g.method = "grid";
+    g.samples = samples;
     double secs;
     auto gv = timed([&] { return gridMvao(set, os); }, secs);
     g.seconds = r.seconds + secs;
-    errorsOf(g, gv, ref, pts, graz, bord);
+    errorsOf(g, gv, sample);
     rows.push_back(g);
   }
   const std::string csv = out + "/mvao.csv";
   {
     std::ofstream f(csv);
-    f << "method,seconds,mean_abs_error,p95_abs_error,grazing_mean,border_mean\n";
-    std::printf("method,seconds,mean_abs_error,p95_abs_error,grazing_mean,border_mean\n");
+    std::string head = "method,samples,seconds";
+    for (int rf = 0; rf < 2; ++rf) {
+      head += std::string(",") + kRefs[rf] + "_bias," + kRefs[rf] + "_p95";
+      for (int c = 0; c < kSubsetCount; ++c)
+        head += std::string(",") + kRefs[rf] + "_" + kSubsets[c];
+    }
+    f << head << "\n";
+    std::printf("%s\n", head.c_str());
     for (auto& r : rows) {
-      char line[256];
-      std::snprintf(line, sizeof line, "%s,%.3f,%.4f,%.4f,%.4f,%.4f\n", r.method.c_str(),
-                    r.seconds, r.mean, r.p95, r.grazing, r.border);
-      f << line;
-      std::fputs(line, stdout);
+      char line[512];
+      int n =
+          std::snprintf(line, sizeof line, "%s,%d,%.3f", r.method.c_str(), r.samples, r.seconds);
+      for (int rf = 0; rf < 2; ++rf) {
+        n += std::snprintf(line + n, sizeof line - size_t(n), ",%.4f,%.4f", r.bias[rf], r.p95[rf]);
+        for (int c = 0; c < kSubsetCount; ++c)
+          n += std::snprintf(line + n, sizeof line - size_t(n), ",%.4f", r.mean[rf][c]);
+      }
+      f << line << "\n";
+      std::printf("%s\n", line);
     }
   }
-
-  // Pictures: MVAO at 32 samples, 5x5.
-  AoOptions op = o;
-  op.neighbours = 5;
-  for (size_t j = 0; j < set.maps.size(); ++j) computeSsao(set.maps[j], uint32_t(j), op);
-  for (auto& m : set.maps) computeBorders(m, op.threads);
-  std::vector<float> mvao = integrateMvao(set, op);
-  std::vector<float> ref_all(set.size(), -1.0f);
-  for (uint16_t scan : {uint16_t(0), uint16_t(5)}) {
-    std::vector<uint32_t> mine;
-    for (uint32_t i = 0; i < set.size(); ++i)
-      if (set.scan_of_point[i] == scan) mine.push_back(i);
-    std::vector<float> r = referenceAo(set, mine, rays, o);
-    for (size_t k = 0; k < mine.size(); ++k) ref_all[mine[k]] = r[k];
-    rangeMapPicture(set, scan, mvao, ref_all,
-                    out + "/mvao_scan_" + std::filesystem::path(set.maps[scan].name).stem().string() +
-                        ".png");
-  }
-  {
+  if (pictures) {
+    // Pictures: SSAO and MVAO 5x5 at 32 samples, the two references.
+    AoOptions op = o;
+    op.neighbours = 5;
+    for (size_t j = 0; j < set.maps.size(); ++j) computeSsao(set.maps[j], uint32_t(j), op);
+    for (auto& m : set.maps) computeBorders(m, op.threads);
+    std::vector<float> mvao = integrateMvao(set, op), ssao = ownSsao(set);
+    std::vector<float> ref_all[2] = {std::vector<float>(set.size(), -1.0f),
+                                     std::vector<float>(set.size(), -1.0f)};
+    auto fill = [&](const std::vector<uint32_t>& pts) {
+      std::vector<float> r = referenceAo(set, pts, rays, o);
+      std::vector<float> mr = meshReferenceAo(set, mesh, pts, rays, o).ao;
+      for (size_t k = 0; k < pts.size(); ++k) {
+        ref_all[0][pts[k]] = r[k];
+        ref_all[1][pts[k]] = mr[k];
+      }
+    };
+    for (uint16_t scan : {uint16_t(0), uint16_t(5)}) {
+      std::vector<uint32_t> mine;
+      for (uint32_t i = 0; i < set.size(); ++i)
+        if (set.scan_of_point[i] == scan) mine.push_back(i);
+      fill(mine);
+      rangeMapPicture(set, scan, {&ssao, &mvao, &ref_all[0], &ref_all[1]},
+                      out + "/mvao_scan_" +
+                          std::filesystem::path(set.maps[scan].name).stem().string() + ".png");
+    }
     std::vector<uint32_t> some;
     for (uint32_t i = 0; i < set.size(); i += uint32_t(picture_stride))
-      if (ref_all[i] < 0) some.push_back(i);
-    std::vector<float> r = referenceAo(set, some, rays, o);
-    for (size_t k = 0; k < some.size(); ++k) ref_all[some[k]] = r[k];
-    bunnyPicture(set, mvao, ref_all, out + "/mvao_bunny.png");
+      if (ref_all[0][i] < 0) some.push_back(i);
+    fill(some);
+    std::vector<float> mvao_shown(set.size(), -1.0f), ssao_shown(set.size(), -1.0f);
+    for (uint32_t i = 0; i < set.size(); ++i)
+      if (ref_all[0][i] >= 0) mvao_shown[i] = mvao[i], ssao_shown[i] = ssao[i];
+    bunnyPicture(set, {&ssao_shown, &mvao_shown, &ref_all[0], &ref_all[1]},
+                 out + "/mvao_bunny.png");
   }
 
   const std::string gp = out + "/mvao.gp";
   {
     std::ofstream f(gp);
-    f << "set terminal pngcairo size 1100,450\nset output '" << out << "/mvao_error.png'\n"
-      << "set datafile separator ','\nset key outside right\nset multiplot layout 1,2\n"
-      << "set xlabel 'seconds (10 bunny scans, 2 cores)'\nset ylabel 'mean |AO - reference|'\n"
-      << "set title 'mean absolute error'\n"
-      << "plot '" << csv << "' every ::1 using 2:3:1 with labels point pt 7 offset 0.5,0.5 font ',7' notitle\n"
-      << "set ylabel 'p95 |AO - reference|'\nset title '95th percentile'\n"
-      << "plot '" << csv << "' every ::1 using 2:4:1 with labels point pt 7 offset 0.5,0.5 font ',7' notitle\n"
-      << "unset multiplot\n";
+    // Columns: 1 method, 2 samples, 3 seconds, 4 discs bias, 5 discs p95, 6-9 discs
+    // all/grazing/border/thin, 10 mesh bias, 11 mesh p95, 12-15 mesh all/grazing/border/thin.
+    f << "set terminal pngcairo size 1200,800\nset output '" << out << "/mvao_error.png'\n"
+      << "set datafile separator ','\nset key top right font ',8'\nset multiplot layout 2,2\n"
+      << "set xlabel 'SSAO samples'\nset logscale x 2\nset xtics (8,16,32,64)\n"
+      << "set ylabel 'mean |AO - reference|'\n";
+    const char* panels[4][2] = {{"12", "mesh reference, all points"},
+                                {"13", "mesh reference, grazing"},
+                                {"14", "mesh reference, border"},
+                                {"15", "mesh reference, thin"}};
+    for (auto& p : panels) {
+      f << "set title '" << p[1] << "'\nplot ";
+      const char* methods[] = {"ssao", "mvao1x1", "mvao5x5", "grid"};
+      for (int k = 0; k < 4; ++k)
+        f << (k ? ", " : "") << "'" << csv << "' using 2:(stringcolumn(1) eq '" << methods[k]
+          << "' ? $" << p[0] << " : 1/0) with linespoints title '" << methods[k] << "'";
+      f << "\n";
+    }
+    f << "unset multiplot\n";
   }
   std::string cmd = std::string(TESSERA_GNUPLOT) + " '" + gp + "'";
   if (std::system(cmd.c_str()) != 0)
     std::fprintf(stderr, "mvao: gnuplot failed; the CSV is complete\n");
-  std::printf("wrote %s, %s/mvao_error.png, pictures in %s\nreproduce: %s --out %s\n", csv.c_str(),
-              out.c_str(), out.c_str(), argv[0], out.c_str());
+  std::printf("wrote %s, %s/mvao_error.png, pictures in %s\nreproduce: %s --out %s --rounds %d\n",
+              csv.c_str(), out.c_str(), out.c_str(), argv[0], out.c_str(), rounds);
   return 0;
 }

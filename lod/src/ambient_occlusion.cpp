@@ -216,8 +216,8 @@ void estimateGeometry(RangeMap& m, int threads) {
       // Candidates: the centred 5x5 window and the four 3x3 windows with p at a corner; the
       // flattest wins (least mean squared distance to its plane), the 5x5 unless a corner is
       // much flatter. On a crease the 5x5 mixes both faces; one corner window lies on p's own.
-      const int windows[5][4] = {{-2, 2, -2, 2}, {0, 2, 0, 2}, {-2, 0, 0, 2}, {0, 2, -2, 0},
-                                 {-2, 0, -2, 0}};
+      const int windows[5][4] = {
+          {-2, 2, -2, 2}, {0, 2, 0, 2}, {-2, 0, 0, 2}, {0, 2, -2, 0}, {-2, 0, -2, 0}};
       glm::dvec3 normal = toward;
       double best = std::numeric_limits<double>::max();
       for (int wi = 0; wi < 5; ++wi) {
@@ -261,8 +261,8 @@ void estimateGeometry(RangeMap& m, int threads) {
 void chooseProjection(RangeMap& m) {
   Fit best;
   ScanProjection which = ScanProjection::kOrthographic;
-  for (ScanProjection p : {ScanProjection::kOrthographic, ScanProjection::kPerspective,
-                           ScanProjection::kPanoramic}) {
+  for (ScanProjection p :
+       {ScanProjection::kOrthographic, ScanProjection::kPerspective, ScanProjection::kPanoramic}) {
     Fit f = fitProjection(m, p);
     if (f.rms < best.rms) {
       best = f;
@@ -288,8 +288,9 @@ void chooseProjection(RangeMap& m) {
 void projectScan(RangeMap& m, const std::vector<glm::dvec3>& local, std::vector<uint32_t>& pixel_of,
                  const std::string& source) {
   if (local.size() < 3)
-    throw AoError(std::string(kWho) + ": " + source + ": scan '" + m.name + "' has no range grid and " +
-                  std::to_string(local.size()) + " points: too few to project into one");
+    throw AoError(std::string(kWho) + ": " + source + ": scan '" + m.name +
+                  "' has no range grid and " + std::to_string(local.size()) +
+                  " points: too few to project into one");
   glm::dvec2 lo(std::numeric_limits<double>::max()), hi(-std::numeric_limits<double>::max());
   for (auto& p : local) {
     lo = glm::min(lo, glm::dvec2(p));
@@ -532,9 +533,9 @@ ScanSet makeScanSet(const std::vector<GridScan>& scans, const RangeMapOptions& o
   std::vector<glm::u16vec2> grid;
   for (size_t s = 0; s < scans.size(); ++s) {
     const GridScan& g = scans[s];
-    TESSERA_CHECK(g.points.size() == size_t(g.columns) * g.rows && g.columns < 65535 &&
-                      g.rows < 65535,
-                  "lod::makeScanSet(): points must be columns x rows, below 65535 each");
+    TESSERA_CHECK(
+        g.points.size() == size_t(g.columns) * g.rows && g.columns < 65535 && g.rows < 65535,
+        "lod::makeScanSet(): points must be columns x rows, below 65535 each");
     ScanInfo info;
     info.name = g.name;
     info.pose = g.pose;
@@ -602,8 +603,8 @@ void computeSsao(RangeMap& m, uint32_t scan_index, const AoOptions& o) {
       // depth, so its image is a circle (an ellipse where pixels are not square).
       glm::dvec2 size = m.pixelSize(p);
       double rx = o.radius / size.x, ry = o.radius / size.y;
-      uint64_t state = splitmix64(o.seed * 0x9E3779B97F4A7C15ull ^
-                                  (uint64_t(scan_index) << 40) ^ uint64_t(i));
+      uint64_t state =
+          splitmix64(o.seed * 0x9E3779B97F4A7C15ull ^ (uint64_t(scan_index) << 40) ^ uint64_t(i));
       double occlusion = 0;
       for (int k = 0; k < o.samples; ++k) {
         uint64_t h1 = splitmix64(state + 2 * uint64_t(k));
@@ -749,18 +750,22 @@ void computeBorders(RangeMap& m, int threads) {
 
 std::vector<float> ownSsao(const ScanSet& s) {
   std::vector<float> out(s.size());
-  for (size_t i = 0; i < s.size(); ++i) out[i] = s.maps[s.scan_of_point[i]].ssao[s.pixel_of_point[i]];
+  for (size_t i = 0; i < s.size(); ++i)
+    out[i] = s.maps[s.scan_of_point[i]].ssao[s.pixel_of_point[i]];
   return out;
 }
 
-std::vector<float> integrateMvao(const ScanSet& s, const AoOptions& o) {
+std::vector<float> integrateMvao(const ScanSet& s, const AoOptions& o,
+                                 std::vector<float>* own_share) {
   const auto [d_min, d_max] = depthRange(s);
   const int half = o.neighbours / 2;
   std::vector<float> out(s.size());
+  if (own_share) own_share->assign(s.size(), 1.0f);
   const size_t block = 4096;
   parallelFor((s.size() + block - 1) / block, threadCount(o.threads), [&](size_t b) {
     for (size_t i = b * block; i < std::min(s.size(), (b + 1) * block); ++i) {
       const uint32_t si = s.scan_of_point[i];
+      double own_w = 0;
       const RangeMap& own = s.maps[si];
       const uint32_t own_px = s.pixel_of_point[i];
       const glm::dvec3 world = s.origin + s.positions[i];
@@ -818,16 +823,18 @@ std::vector<float> integrateMvao(const ScanSet& s, const AoOptions& o) {
             const glm::dvec3 pk(m.positions[k]);
             if (k != pij && glm::length(pk - p_ij) > reach) continue;
             const glm::dvec3 nk(m.normals[k]);
-            const double w_d = distanceWeight(m, pk, d_min, d_max);             // eq. 10
+            const double w_d = distanceWeight(m, pk, d_min, d_max);               // eq. 10
             const double w_n = std::max(glm::dot(nk, m.towardScanner(pk)), 0.0);  // eq. 11
             const double alpha = rad_i / std::max(double(m.radius[k]), 1e-30);
             const double w_b = std::min(m.border_px[k] / (o.border_px * alpha), 1.0);  // eq. 12
             const double w = w_d * w_n * w_b;
             sum += w * m.ssao[k];
             wsum += w;
+            if (j == si) own_w += w;
           }
       }
       out[i] = wsum > 0 ? float(sum / wsum) : own.ssao[own_px];
+      if (own_share && wsum > 0) (*own_share)[i] = float(own_w / wsum);
     }
   });
   return out;

@@ -13,6 +13,7 @@
 #include <glm/gtc/quaternion.hpp>
 
 #include <tessera/lod/ambient_occlusion.h>
+#include <tessera/lod/mesh.h>
 #include <tessera/lod/point_store.h>
 #include <tessera/lod/store_builder.h>
 
@@ -85,8 +86,10 @@ double wedgeVisibility(double s, double t_max) {
   double sum = 0, norm = 0;
   for (int a = 0; a < n; ++a)
     for (int b = 0; b < n; ++b) {
-      double theta = (a + 0.5) / n * std::numbers::pi / 2, phi = (b + 0.5) / n * 2 * std::numbers::pi;
-      glm::dvec3 w(std::sin(theta) * std::cos(phi), std::sin(theta) * std::sin(phi), std::cos(theta));
+      double theta = (a + 0.5) / n * std::numbers::pi / 2,
+             phi = (b + 0.5) / n * 2 * std::numbers::pi;
+      glm::dvec3 w(std::sin(theta) * std::cos(phi), std::sin(theta) * std::sin(phi),
+                   std::cos(theta));
       double weight = std::cos(theta) * std::sin(theta);
       double v = 1.0;
       if (w.y < 0) {
@@ -146,8 +149,8 @@ TEST(AmbientOcclusionTest, ACornerGivesTheCosineWeightedWedgeAtTheCrease) {
   EXPECT_NEAR(ref, analytic, 0.03) << "s " << s;
   std::vector<float> ssao = computeAmbientOcclusion(c.set, AoMethod::kSsao, c.o);
   std::vector<float> mvao = computeAmbientOcclusion(c.set, AoMethod::kMvao, c.o);
-  std::printf("corner: s %.4f analytic %.3f reference %.3f ssao %.3f mvao %.3f\n", s, analytic,
-              ref, ssao[i], mvao[i]);
+  std::printf("corner: s %.4f analytic %.3f reference %.3f ssao %.3f mvao %.3f\n", s, analytic, ref,
+              ssao[i], mvao[i]);
   // Where the screen-space estimate fails: its samples count the wall by the distance to the
   // sampled point, not along the ray, and the disk (r_s = t_max / 2) and the 5x5 blur reach
   // the open floor; at the crease it reads about 0.82 where the truth is 0.55 (measured:
@@ -181,7 +184,6 @@ TEST(AmbientOcclusionTest, BadParametersAreRefusedByName) {
   EXPECT_THROW(resolveAoOptions(c.set, o), AoError);
 }
 
-
 TEST(AmbientOcclusionTest, AThinFinSeenEdgeOnIsMissedByItsViewAndRecoveredByTheOthers) {
   // A floor and a thin vertical fin (x = 0, 0.3 high). From straight above the fin is an edge
   // of no width: that view's depth map has no occluder, its SSAO says the floor beside the fin
@@ -213,16 +215,17 @@ TEST(AmbientOcclusionTest, AThinFinSeenEdgeOnIsMissedByItsViewAndRecoveredByTheO
       mean_ref += ref[k];
     }
     const double n = double(std::max<size_t>(1, pts.size()));
-    std::printf("fin: %zu points, reference %.3f, ssao error %.3f, mvao error %.3f\n",
-                pts.size(), mean_ref / n, es / n, em / n);
+    std::printf("fin: %zu points, reference %.3f, ssao error %.3f, mvao error %.3f\n", pts.size(),
+                mean_ref / n, es / n, em / n);
     return std::tuple{pts.size(), mean_ref / n, es / n, em / n};
   };
   ScanSet all = makeScanSet(scans);
   auto [n, ref, ssao_err, mvao_err] = floorErrors(all);
   ASSERT_GT(n, 20u);
-  EXPECT_LT(ref, 0.85);         // the fin occludes the floor beside it
-  EXPECT_GT(ssao_err, 0.1);     // the top view does not see it
-  EXPECT_LT(mvao_err, 0.8 * ssao_err);
+  // Measured: reference 0.862, ssao error 0.138, mvao error 0.066.
+  EXPECT_LT(ref, 0.9);       // the fin occludes the floor beside it
+  EXPECT_GT(ssao_err, 0.1);  // the top view does not see it
+  EXPECT_LT(mvao_err, 0.6 * ssao_err);
   // With the top view alone the fin is not in the data at all (the reference built from the
   // scans does not know it either): the multi-view value is the single one.
   ScanSet top = makeScanSet({scans[0]});
@@ -231,79 +234,163 @@ TEST(AmbientOcclusionTest, AThinFinSeenEdgeOnIsMissedByItsViewAndRecoveredByTheO
 }
 
 struct Errors {
-  double mean = 0, p95 = 0;
+  double mean = 0, p95 = 0, bias = 0;
   size_t n = 0;
 };
 
 Errors errors(const std::vector<float>& ao, const std::vector<float>& ref,
               const std::vector<uint32_t>& pts, const std::vector<bool>& keep) {
   std::vector<double> e;
-  for (size_t k = 0; k < pts.size(); ++k)
-    if (keep.empty() || keep[k]) e.push_back(std::abs(double(ao[pts[k]]) - ref[k]));
   Errors r;
+  for (size_t k = 0; k < pts.size(); ++k)
+    if (keep.empty() || keep[k]) {
+      e.push_back(std::abs(double(ao[pts[k]]) - ref[k]));
+      r.bias += double(ao[pts[k]]) - ref[k];
+    }
   r.n = e.size();
   if (e.empty()) return r;
   for (double x : e) r.mean += x;
   r.mean /= double(e.size());
+  r.bias /= double(e.size());
   std::sort(e.begin(), e.end());
   r.p95 = e[size_t(0.95 * double(e.size() - 1))];
   return r;
 }
 
+struct Bunny {
+  ScanSet set;
+  Mesh mesh;
+  AoOptions o;
+  Bunny()
+      : set(loadScans(kData + "/stanford-bunny/scans/bun.conf")),
+        mesh(readMesh(kData + "/stanford-bunny/reconstruction/bun_zipper.ply")),
+        o(resolveAoOptions(set, {})) {}
+};
+
+TEST(AmbientOcclusionTest, TheDiscReferenceAgreesWithTheMeshReferenceOnTheBunny) {
+  // Two independent references: the scans' own points as discs, and the zippered mesh made
+  // from them. Where registered layers of different scans cross, a disc reference that stops
+  // at every disc met from behind reads dark specks (measured 0.051 mean |discs - mesh|, mean
+  // 0.938 against 0.986, 1.3% of the points 0.3 darker); passing through them and with discs
+  // of 0.75 rad(p) it reads 0.0166, 0.9% (ao_reference.cpp). The mesh is the reference the
+  // methods are measured against; the discs are the same geometry the scans are.
+  Bunny b;
+  std::vector<uint32_t> pts;
+  for (uint32_t i = 0; i < b.set.size(); i += 64) pts.push_back(i);
+  const std::vector<float> discs = referenceAo(b.set, pts, 256, b.o);
+  const MeshAoReference mesh = meshReferenceAo(b.set, b.mesh, pts, 256, b.o);
+  double diff = 0, mean_d = 0, mean_m = 0, far = 0;
+  int dark = 0;
+  for (size_t k = 0; k < pts.size(); ++k) {
+    diff += std::abs(discs[k] - mesh.ao[k]);
+    mean_d += discs[k];
+    mean_m += mesh.ao[k];
+    far += mesh.distance[k] > 0.001;  // a millimetre off the reconstruction
+    dark += discs[k] < mesh.ao[k] - 0.3f;
+  }
+  const double n = double(pts.size());
+  std::printf("discs %.4f mesh %.4f, |discs - mesh| %.4f, %d dark specks, %.0f far of %zu\n",
+              mean_d / n, mean_m / n, diff / n, dark, far, pts.size());
+  EXPECT_LT(diff / n, 0.025);
+  EXPECT_NEAR(mean_d / n, mean_m / n, 0.02);
+  EXPECT_LT(dark, int(0.011 * n));
+  // The scans lie on their reconstruction: the projection onto it moves few points far.
+  EXPECT_LT(far, 0.01 * n);
+}
+
 TEST(AmbientOcclusionTest, MultiViewIsCloserToTheReferenceThanSingleViewOnTheBunny) {
-  ScanSet set = loadScans(kData + "/stanford-bunny/scans/bun.conf");
-  ASSERT_EQ(set.maps.size(), 10u);
-  for (auto& m : set.maps)
+  Bunny b;
+  ASSERT_EQ(b.set.maps.size(), 10u);
+  for (auto& m : b.set.maps)
     std::printf("%s %ux%u %s fit %.2f px\n", m.name.c_str(), m.columns, m.rows,
                 projectionName(m.projection), m.fit_rms_px);
-  AoOptions base;
-  base = resolveAoOptions(set, base);
   std::vector<uint32_t> pts;
-  for (uint32_t i = 0; i < set.size(); i += 16) pts.push_back(i);
-  std::vector<float> ref = referenceAo(set, pts, 256, base);
-  for (auto& m : set.maps) computeBorders(m);
-  {
-    double mr = 0;
-    int low = 0;
-    for (float v : ref) { mr += v; low += v < 0.5; }
-    std::printf("reference mean %.3f, %d of %zu below 0.5\n", mr / ref.size(), low, ref.size());
-  }
+  for (uint32_t i = 0; i < b.set.size(); i += 16) pts.push_back(i);
+  const MeshAoReference mesh = meshReferenceAo(b.set, b.mesh, pts, 256, b.o);
+  const std::vector<float>& ref = mesh.ao;
+  for (auto& m : b.set.maps) computeBorders(m);
   std::vector<bool> grazing, border;
   for (uint32_t i : pts) {
-    grazing.push_back(grazingPoint(set, i));
-    border.push_back(borderPoint(set, i));
+    grazing.push_back(grazingPoint(b.set, i));
+    border.push_back(borderPoint(b.set, i));
   }
-  // Measured (every 16th point, 256-ray reference; mean / p95 absolute error):
-  //   samples 8:  ssao 0.0579 / 0.294, mvao 5x5 0.0572 / 0.291, grid 0.0574 / 0.292
-  //   samples 64: ssao 0.0578 / 0.294, mvao 5x5 0.0572 / 0.291, grid 0.0574 / 0.291
-  //   border subset: ssao 0.0741, mvao 5x5 0.0732; grazing: ssao 0.0481, mvao 5x5 0.0490.
-  // The 5x5 Gaussian already removes most sampling noise, so the sample count hardly matters;
-  // what remains is the estimator's bias, shared by every view.
+  // Measured against the mesh reference (every 16th point, 256 rays; mean / p95 absolute error),
+  // the same at 8, 16, 32 and 64 samples within 0.0002 mean, 0.001 p95:
+  //   ssao       all 0.0167 / 0.059   border 0.0165   grazing 0.0127   bias -0.0090
+  //   mvao 1x1   all 0.0160 / 0.056   border 0.0156   grazing 0.0129   bias -0.0100
+  //   mvao 5x5   all 0.0159 / 0.051   border 0.0157   grazing 0.0131   bias -0.0099
+  // MVAO wins on every point and near borders by 4-6% in mean and 14% at the 95th percentile
+  // with 5x5 neighbours. The sample count hardly matters: the 5x5 Gaussian removes the
+  // sampling noise, and what is left is mostly the estimator's bias (-0.009 of 0.0167),
+  // which every view shares and no average of views removes.
   for (int samples : {8, 16, 32, 64}) {
-    AoOptions o = base;
+    AoOptions o = b.o;
     o.samples = samples;
-    for (size_t j = 0; j < set.maps.size(); ++j) computeSsao(set.maps[j], uint32_t(j), o);
-    std::vector<float> ssao = ownSsao(set);
+    for (size_t j = 0; j < b.set.maps.size(); ++j) computeSsao(b.set.maps[j], uint32_t(j), o);
+    std::vector<float> ssao = ownSsao(b.set);
     Errors es = errors(ssao, ref, pts, {}), eg = errors(ssao, ref, pts, grazing),
            eb = errors(ssao, ref, pts, border);
-    std::printf("samples %d ssao all %.4f/%.4f grazing %.4f/%.4f border %.4f/%.4f\n", samples,
-                es.mean, es.p95, eg.mean, eg.p95, eb.mean, eb.p95);
+    std::printf("samples %d ssao all %.4f/%.4f grazing %.4f/%.4f border %.4f/%.4f bias %.4f\n",
+                samples, es.mean, es.p95, eg.mean, eg.p95, eb.mean, eb.p95, es.bias);
     for (int nb : {1, 3, 5}) {
       o.neighbours = nb;
-      std::vector<float> mv = integrateMvao(set, o);
+      std::vector<float> mv = integrateMvao(b.set, o);
       Errors m = errors(mv, ref, pts, {}), mg = errors(mv, ref, pts, grazing),
              mb = errors(mv, ref, pts, border);
-      std::printf("  mvao %dx%d all %.4f/%.4f grazing %.4f/%.4f border %.4f/%.4f\n", nb, nb,
-                  m.mean, m.p95, mg.mean, mg.p95, mb.mean, mb.p95);
-      EXPECT_LT(m.mean, es.mean) << samples << " samples, " << nb << "x" << nb;
-      EXPECT_LT(m.p95, es.p95) << samples << " samples, " << nb << "x" << nb;
-      EXPECT_LT(mb.mean, eb.mean) << samples << " samples, " << nb << "x" << nb << ", border";
+      std::printf("  mvao %dx%d all %.4f/%.4f grazing %.4f/%.4f border %.4f/%.4f bias %.4f\n", nb,
+                  nb, m.mean, m.p95, mg.mean, mg.p95, mb.mean, mb.p95, m.bias);
+      EXPECT_LT(m.mean, 0.97 * es.mean) << samples << " samples, " << nb << "x" << nb;
+      EXPECT_LT(m.p95, (nb == 5 ? 0.9 : 0.97) * es.p95)
+          << samples << " samples, " << nb << "x" << nb;
+      EXPECT_LT(mb.mean, 0.97 * eb.mean)
+          << samples << " samples, " << nb << "x" << nb << ", border";
     }
-    std::vector<float> gv = gridMvao(set, o);
+    std::vector<float> gv = gridMvao(b.set, o);
     Errors g = errors(gv, ref, pts, {});
     std::printf("  grid all %.4f/%.4f\n", g.mean, g.p95);
     EXPECT_LT(g.mean, es.mean) << samples << " samples, grid";
   }
+}
+
+TEST(AmbientOcclusionTest, OnTheBunnyGrazingPointsTakeTheHeadOnViewsValueAndGainNothing) {
+  // Why MVAO does not beat SSAO on points their own scanner sees at more than 60 degrees:
+  // the integration does take their value from the views that see them head-on (w_n, eq. 11:
+  // the own scan's share of the weight is 0.09 on them, 0.35 on all points), but on the bunny
+  // the grazing view's SSAO is not worse than the head-on views' (error 0.0127 against 0.0167
+  // on all points: grazing points lie on convex silhouettes, open in every view), and the
+  // head-on views carry the same dark bias as every view (the estimator's, -0.009). Measured:
+  // grazing ssao 0.0127, mvao 1x1 0.0129.
+  Bunny b;
+  std::vector<uint32_t> pts;
+  for (uint32_t i = 0; i < b.set.size(); i += 16) pts.push_back(i);
+  const MeshAoReference mesh = meshReferenceAo(b.set, b.mesh, pts, 256, b.o);
+  for (size_t j = 0; j < b.set.maps.size(); ++j) computeSsao(b.set.maps[j], uint32_t(j), b.o);
+  for (auto& m : b.set.maps) computeBorders(m);
+  std::vector<float> share;
+  const std::vector<float> mv = integrateMvao(b.set, b.o, &share);
+  const std::vector<float> ssao = ownSsao(b.set);
+  std::vector<bool> grazing;
+  double share_g = 0, share_all = 0;
+  for (uint32_t i : pts) {
+    grazing.push_back(grazingPoint(b.set, i));
+    share_all += share[i];
+    if (grazing.back()) share_g += share[i];
+  }
+  const Errors sg = errors(ssao, mesh.ao, pts, grazing), sa = errors(ssao, mesh.ao, pts, {});
+  const Errors mg = errors(mv, mesh.ao, pts, grazing), ma = errors(mv, mesh.ao, pts, {});
+  share_g /= double(sg.n);
+  share_all /= double(pts.size());
+  std::printf(
+      "own share grazing %.3f all %.3f; grazing ssao %.4f mvao %.4f; all ssao %.4f "
+      "(bias %.4f) mvao %.4f (bias %.4f)\n",
+      share_g, share_all, sg.mean, mg.mean, sa.mean, sa.bias, ma.mean, ma.bias);
+  ASSERT_GT(sg.n, 1000u);
+  EXPECT_LT(share_g, 0.2);  // head-on views decide grazing points
+  EXPECT_LT(share_g, 0.5 * share_all);
+  EXPECT_LT(sg.mean, sa.mean);                             // the grazing view is not the problem
+  EXPECT_NEAR(mg.mean, sg.mean, 0.1 * sg.mean);            // so there is nothing to gain
+  EXPECT_LT(sa.bias, -0.4 * sa.mean);                      // a dark bias is most of the error ...
+  EXPECT_NEAR(ma.bias, sa.bias, 0.3 * std::abs(sa.bias));  // ... and every view shares it
 }
 
 /// FNV-1a 64 of a file: the fingerprint of a store built before the AO attribute existed.

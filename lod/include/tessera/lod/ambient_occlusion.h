@@ -39,6 +39,7 @@
 
 #include <glm/glm.hpp>
 
+#include <tessera/lod/mesh.h>
 #include <tessera/lod/point_reader.h>
 #include <tessera/lod/store_builder.h>
 
@@ -75,8 +76,8 @@ struct RangeMap {
   /// least squares to the grid's own points.
   glm::dvec3 col_axis{0.0}, row_axis{0.0};
   double col_offset = 0.0, row_offset = 0.0;
-  double fit_rms_px = 0.0;     ///< RMS distance of the fitted pixel from the real one
-  glm::dvec3 view{0, 0, 1};    ///< orthographic: unit direction towards the scanner
+  double fit_rms_px = 0.0;   ///< RMS distance of the fitted pixel from the real one
+  glm::dvec3 view{0, 0, 1};  ///< orthographic: unit direction towards the scanner
   std::vector<uint8_t> valid;
   std::vector<glm::vec3> positions;  ///< scanner frame
   std::vector<glm::vec3> normals;    ///< scanner frame, facing the scanner
@@ -100,11 +101,11 @@ struct RangeMap {
 /// order the store builder reads them: BuildOptions::ambient_occlusion).
 struct ScanSet {
   std::filesystem::path source;
-  glm::dvec3 origin{0.0};                    ///< world = origin + position
+  glm::dvec3 origin{0.0};  ///< world = origin + position
   std::vector<RangeMap> maps;
-  std::vector<glm::dvec3> positions;         ///< registered frame, relative to origin
+  std::vector<glm::dvec3> positions;  ///< registered frame, relative to origin
   std::vector<uint16_t> scan_of_point;
-  std::vector<uint32_t> pixel_of_point;      ///< pixel in its scan's map
+  std::vector<uint32_t> pixel_of_point;  ///< pixel in its scan's map
   size_t size() const { return positions.size(); }
   /// World-frame (registered) normal of point i (its map's normal rotated by the pose).
   glm::dvec3 normal(size_t i) const;
@@ -134,10 +135,10 @@ struct GridScan {
 ScanSet makeScanSet(const std::vector<GridScan>& scans, const RangeMapOptions& options = {});
 
 struct AoOptions {
-  double t_max = 0.0;   ///< falloff distance of eq. 4 (world units); 0: 5% of the diagonal
-  double radius = 0.0;  ///< r_s, the disk of eq. 3 (world units); 0: t_max / 2
-  int samples = 32;     ///< N of eq. 3
-  int neighbours = 1;   ///< 1, 3 or 5: N = 1, 3x3, 5x5 samples per scan in eq. 8
+  double t_max = 0.0;       ///< falloff distance of eq. 4 (world units); 0: 5% of the diagonal
+  double radius = 0.0;      ///< r_s, the disk of eq. 3 (world units); 0: t_max / 2
+  int samples = 32;         ///< N of eq. 3
+  int neighbours = 1;       ///< 1, 3 or 5: N = 1, 3x3, 5x5 samples per scan in eq. 8
   double border_px = 16.0;  ///< t_p of eq. 12 in pixels
   double grid_cell = 0.0;   ///< section 6 voxel size; 0: t_max / 4
   bool blur = true;         ///< section 4's 5x5 Gaussian
@@ -161,7 +162,10 @@ void computeBorders(RangeMap& map, int threads = 0);
 /// Each point's SSAO in its own scan (the single-view baseline). Needs computeSsao() on every map.
 std::vector<float> ownSsao(const ScanSet& scans);
 /// Section 5, eq. 6-12: MVAO of every point. Needs computeSsao() and computeBorders().
-std::vector<float> integrateMvao(const ScanSet& scans, const AoOptions& options);
+/// `own_share`, when given, receives per point the share of eq. 8's weight that came from the
+/// point's own scan (1 where no other scan contributes).
+std::vector<float> integrateMvao(const ScanSet& scans, const AoOptions& options,
+                                 std::vector<float>* own_share = nullptr);
 
 /// Section 6: a sparse voxel grid keyed by the Morton code of the cell, each cell holding the
 /// accumulated SSAO x weight and weight (eq. 9 without w_b). Scans are added one at a time, as a
@@ -188,12 +192,30 @@ std::vector<float> computeAmbientOcclusion(ScanSet& scans, AoMethod method,
                                            const AoOptions& options);
 
 /// Reference AO of the listed points: `rays` stratified cosine-weighted rays (a square number
-/// of strata, jittered) against every scan's points as Embree oriented discs of radius rad(p),
-/// each hit at distance d counting rho(d) = smoothstep(0, t_max, d), a miss 1 (eq. 1 with
-/// eq. 4's falloff). Rays start rad(p) above the point along its normal so the point's own and
-/// overlapping scans' discs do not hide it. `options` resolved.
+/// of strata, jittered) against every scan's points as Embree oriented discs of radius
+/// 0.75 rad(p), each hit at distance d counting rho(d) = smoothstep(0, t_max, d), a miss 1 (eq. 1
+/// with eq. 4's falloff). Rays start rad(p) / 4 above the point along its normal; they go on
+/// through discs met from behind (layers of the point's own surface in other scans) and
+/// through discs facing the point's way within 4 rad(p) of its tangent plane. `options` resolved.
 std::vector<float> referenceAo(const ScanSet& scans, std::span<const uint32_t> points, int rays,
                                const AoOptions& options);
+
+/// The second reference, on a surface reconstruction of the same scans (the bunny's
+/// bun_zipper.ply): each listed point goes to its nearest point q on the mesh, the normal is the
+/// mesh's (vertex normals, area-weighted, interpolated at q, turned towards the point's scanner),
+/// and `rays` stratified cosine-weighted rays from a quarter of the median edge above q meet the
+/// mesh's triangles (Embree 3), each hit at distance d counting rho(d) of eq. 4, a miss 1. It
+/// shares nothing with the scans' own normals, radii or registration layers.
+struct MeshAoReference {
+  std::vector<float> ao;         ///< per listed point, eq. 1 with eq. 4's falloff
+  std::vector<float> distance;   ///< from the point to q (world units)
+  std::vector<float> thickness;  ///< from q inwards along -normal to the next surface; inf: none
+  double edge = 0;               ///< the mesh's median edge length
+};
+/// Throws AoError for a mesh without triangles. The mesh's frame is the scans' registered frame.
+MeshAoReference meshReferenceAo(const ScanSet& scans, const Mesh& mesh,
+                                std::span<const uint32_t> points, int rays,
+                                const AoOptions& options);
 
 /// Visibility 0..1 as the store's byte: round(255 v).
 inline uint8_t aoByte(float v) {
