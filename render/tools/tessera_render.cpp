@@ -399,9 +399,11 @@ int run(int argc, char** argv) {
   (void)out_opt;
   // Every value is checked before any file is opened: a bad one never costs a load.
   const cli::Size plain_size = cli::parseSize(size, "--size", 16384);
-  if (!movie.empty() && wall_path.empty() && stereo != "tb" &&
-      (plain_size.width % 2 != 0 || plain_size.height % 2 != 0))
-    usage("--size " + size + ": a movie's sides must be even");
+  // A movie's frames (both eyes side by side or on top of each other) have even sides.
+  if (!movie.empty() && wall_path.empty() &&
+      ((plain_size.width * (stereo == "sbs" ? 2 : 1)) % 2 != 0 ||
+       (plain_size.height * (stereo == "tb" ? 2 : 1)) % 2 != 0))
+    usage("--size " + size + ": a movie's frames need even sides");
   const std::optional<config::Camera> camera_given =
       camera.empty() ? std::nullopt : std::optional(parseCamera(camera));
   const glm::dvec3 background_rgb =
