@@ -167,12 +167,35 @@ int runMeshVerify(const std::string& store, const std::vector<std::filesystem::p
 }
 
 int runBuild(const std::vector<std::string>& inputs, const std::string& out,
-             const BuildOptions& o, const MeshBuildOptions& mo) {
+             const BuildOptions& o, const MeshBuildOptions& mo, bool ao) {
   std::vector<std::filesystem::path> paths(inputs.begin(), inputs.end());
-  if (std::filesystem::path(out).extension() == ".tmesh") return runMeshBuild(paths, out, mo);
+  if (std::filesystem::path(out).extension() == ".tmesh") {
+    if (ao) {
+      std::cerr << "tessera-lod build: --ao: ambient occlusion is a point attribute; a .tmesh "
+                   "store cannot carry it (write a .tlod)\n";
+      return kExitBadCommandLine;
+    }
+    return runMeshBuild(paths, out, mo);
+  }
   return guarded("build", kExitWriteFailed, [&] {
     cli::refuseOverwrite(out, filesReadBy(paths), "-o");
-    BuildReport r = buildStore(paths, out, o);
+    BuildReport r;
+    if (ao) {
+      // --ao: MVAO (section 5) of each input's scans with the defaults of `tessera-lod ao`.
+      AoStoreReport a;
+      try {
+        a = buildStoreWithAo(paths, out, AoMethod::kMvao, AoOptions{}, o);
+      } catch (const AoError& e) {
+        throw ReadError(std::string(e.what()) + " (build --ao needs registered range scans)");
+      }
+      std::printf("ambient occlusion: %zu scans, %llu points; %.2f s load, %.2f s ssao, %.2f s "
+                  "integration\n",
+                  a.scans, (unsigned long long)a.points, a.seconds_load, a.seconds_ssao,
+                  a.seconds_integrate);
+      r = a.build;
+    } else {
+      r = buildStore(paths, out, o);
+    }
     std::printf(
         "built %s: %llu points (%llu skipped), %llu nodes, depth %u, %llu chunks, overhead %.3fx\n",
         out.c_str(), (unsigned long long)r.points, (unsigned long long)r.skipped,
@@ -461,6 +484,11 @@ int run(int argc, char** argv) {
                   "Leaves keep the input's own resolution (measurement-grade picks; a larger "
                   "store) instead of a quarter of their spacing");
   build->add_flag("--quiet", bo.quiet, "No progress output");
+  bool build_ao = false;
+  build->add_flag("--ao", build_ao,
+                  "Points carry multi-view ambient occlusion of their scans (as `tessera-lod "
+                  "ao --method mvao` with its defaults); every input must be registered range "
+                  "scans with poses (a Stanford .conf, a range-grid PLY, an E57)");
   MeshBuildOptions mbo;
   build
       ->add_option("--patch-triangles", mbo.patch_triangles,
@@ -606,7 +634,7 @@ int run(int argc, char** argv) {
     mbo.quiet = bo.quiet;
     mbo.temp_dir = bo.temp_dir;
     if (bo.memory_mb != BuildOptions{}.memory_mb) mbo.memory_mb = bo.memory_mb;
-    return runBuild(build_in, build_out, bo, mbo);
+    return runBuild(build_in, build_out, bo, mbo, build_ao);
   }
   if (*verify) return runVerify(verify_store, verify_in, vo);
   if (*ao) {

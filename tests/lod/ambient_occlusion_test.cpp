@@ -17,6 +17,7 @@
 #include <tessera/lod/point_store.h>
 #include <tessera/lod/store_builder.h>
 
+#include "../support/command.h"
 #include "../support/temp_dir.h"
 
 namespace tessera::lod {
@@ -487,6 +488,33 @@ TEST(AmbientOcclusionStoreTest, AScanWithoutAGridIsProjectedOrRefusedByName) {
   } catch (const AoError& e) {
     EXPECT_NE(std::string(e.what()).find("line.ply"), std::string::npos) << e.what();
   }
+}
+
+TEST(AmbientOcclusionStoreTest, BuildWithAoCarriesItAndRefusesInputsWithoutScans) {
+  test::TempDir dir;
+  const std::string tool = TESSERA_LOD_TOOL;
+  const std::string conf = kData + "/stanford-bunny/scans/bun.conf";
+  const auto out = dir.path() / "bunny.tlod";
+  test::CommandResult r =
+      test::runCommand(tool + " build " + conf + " -o " + out.string() + " --ao --quiet");
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("ambient occlusion: 10 scans, 362272 points"), std::string::npos) << r.out;
+  auto store = PointStore::open(out);
+  EXPECT_EQ(store->summary().version, 3u);
+  EXPECT_TRUE(store->summary().attributes & kAmbientOcclusion);
+  // Points without scans: refused as bad input (exit 1) by name, nothing written.
+  const std::string las = kData + "/lidar/autzen_trim.las";
+  r = test::runCommand(tool + " build " + las + " -o " + (dir.path() / "las.tlod").string() +
+                       " --ao --quiet");
+  EXPECT_EQ(r.code, 1) << r.out;
+  EXPECT_NE(r.out.find("autzen_trim.las"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("scans with poses"), std::string::npos) << r.out;
+  EXPECT_FALSE(std::filesystem::exists(dir.path() / "las.tlod"));
+  // A mesh store cannot carry a point attribute: a command-line error.
+  r = test::runCommand(tool + " build " + kData +
+                       "/stanford-bunny/reconstruction/bun_zipper_res4.ply -o " +
+                       (dir.path() / "m.tmesh").string() + " --ao --quiet");
+  EXPECT_EQ(r.code, 2) << r.out;
 }
 
 }  // namespace

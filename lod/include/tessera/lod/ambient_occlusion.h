@@ -238,6 +238,14 @@ struct AoStoreReport {
 AoStoreReport buildStoreWithAo(const std::filesystem::path& scans,
                                const std::filesystem::path& output, AoMethod method,
                                const AoOptions& options, BuildOptions build);
+/// `tessera-lod build --ao`: the same over several inputs, each one's scans on their own (AO is
+/// not integrated across inputs; t_max 0 resolves per input), the bytes in input order, one
+/// store of every input's points. Every input must hold scans with poses: one that does not is
+/// an AoError naming it, before anything is written. The report sums scans, points and times;
+/// `resolved` is the last input's.
+AoStoreReport buildStoreWithAo(const std::vector<std::filesystem::path>& inputs,
+                               const std::filesystem::path& output, AoMethod method,
+                               const AoOptions& options, BuildOptions build);
 
 /// Point subsets the accuracy is reported on: seen at a grazing angle by its own scanner (normal
 /// more than 60 degrees from the scanner direction) and within 8 px of a depth edge.
