@@ -754,8 +754,11 @@ int run(int argc, char** argv) {
             },
             stream_options, overlay,
             [&](size_t done, size_t total) {
-              if (!progress) progress.emplace("poster " + file, total, " parts");
-              progress->update(done);
+              // Pixels rendered (twice the poster's when the parts agree on a range first).
+              const uint64_t part_px =
+                  uint64_t(full.width) * full.height / (uint64_t(plan.columns) * plan.rows);
+              if (!progress) progress.emplace("poster " + file, total * part_px, " px");
+              progress->update(done * part_px);
             });
         if (progress) progress->finish();
         warnCorrupt();
