@@ -395,6 +395,16 @@ int run(int argc, char** argv) {
     usage("--poster --stereo " + stereo + ": posters take --stereo pair (two files)");
   const cli::Size poster_size =
       poster.empty() ? cli::Size{} : cli::parseSize(poster, "--poster", render::kMaxPosterSide);
+  // How the poster is cut, before anything loads: too little memory is a bad command line.
+  render::PosterPlan plan;
+  if (!poster.empty()) {
+    try {
+      plan = render::planPoster(poster_size.width, poster_size.height, poster_part,
+                                uint64_t(poster_memory_mb * 1048576.0));
+    } catch (const render::RenderError& e) {
+      usage(std::string("--poster-memory-mb: ") + e.what());
+    }
+  }
   if (window && !wall_path.empty()) usage("--window shows a plain view: drop --wall");
   (void)out_opt;
   // Every value is checked before any file is opened: a bad one never costs a load.
@@ -737,8 +747,6 @@ int run(int argc, char** argv) {
         full.width = poster_size.width;
         full.height = poster_size.height;
       }
-      const render::PosterPlan plan = render::planPoster(full.width, full.height, poster_part,
-                                                         uint64_t(poster_memory_mb * 1048576.0));
       std::vector<std::pair<double, std::string>> eyes = {{0.0, out}};
       if (!stereo.empty())
         eyes = {{-half_eye, render::stereoPairPath(out, false)},
