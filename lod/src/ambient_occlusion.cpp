@@ -9,6 +9,7 @@
 
 #include <tessera/core/check.h>
 #include <tessera/core/parallel.h>
+#include <tessera/core/symmetric_eigen.h>
 
 #include "morton.h"
 #include "splitmix.h"
@@ -130,34 +131,6 @@ Fit fitProjection(const RangeMap& m, ScanProjection proj) {
   return fit;
 }
 
-/// Smallest-eigenvalue eigenvector of a symmetric 3x3 matrix (cyclic Jacobi).
-glm::dvec3 smallestEigenvector(glm::dmat3 a) {
-  glm::dmat3 v(1.0);
-  for (int sweep = 0; sweep < 12; ++sweep) {
-    double off = a[0][1] * a[0][1] + a[0][2] * a[0][2] + a[1][2] * a[1][2];
-    if (off < 1e-30) break;
-    for (int p = 0; p < 2; ++p) {
-      for (int q = p + 1; q < 3; ++q) {
-        if (std::abs(a[p][q]) < 1e-300) continue;
-        double theta = (a[q][q] - a[p][p]) / (2.0 * a[p][q]);
-        double t = (theta >= 0 ? 1.0 : -1.0) / (std::abs(theta) + std::sqrt(theta * theta + 1.0));
-        double c = 1.0 / std::sqrt(t * t + 1.0), s = t * c;
-        glm::dmat3 r(1.0);
-        r[p][p] = c;
-        r[q][q] = c;
-        r[q][p] = s;  // glm: r[column][row]
-        r[p][q] = -s;
-        a = glm::transpose(r) * a * r;
-        v = v * r;
-      }
-    }
-  }
-  int k = 0;
-  for (int i = 1; i < 3; ++i)
-    if (a[i][i] < a[k][k]) k = i;
-  return v[k];
-}
-
 /// rad(p) and normals of every valid pixel (section 5: rad(p) = 2 sqrt(d_k^2 / k); on a grid of
 /// spacing s the k nearest points fill a disc of area k s^2, so rad = 2 s / sqrt(pi) = 1.128 s,
 /// with s the median distance to the valid 4-neighbours). Normals: PCA over the 5x5 window's
@@ -238,9 +211,8 @@ void estimateGeometry(RangeMap& m, int threads) {
         glm::dvec3 c = sum / double(n);
         glm::dmat3 cov(0.0);
         for (int k = 0; k < n; ++k) cov += glm::outerProduct(pts[k] - c, pts[k] - c);
-        glm::dvec3 e = smallestEigenvector(cov);
-        if (!(glm::length(e) > 0.5)) continue;
-        e = glm::normalize(e);
+        const glm::dvec3 e = tessera::smallestEigenvector(cov);
+        if (!(glm::length(e) > 0.5)) continue;  // NaN
         double residual = 0;
         for (int k = 0; k < n; ++k) residual += glm::dot(pts[k] - c, e) * glm::dot(pts[k] - c, e);
         residual /= n;

@@ -12,6 +12,7 @@
 
 #include <glm/gtc/quaternion.hpp>
 
+#include <tessera/core/symmetric_eigen.h>
 #include <tessera/lod/ambient_occlusion.h>
 #include <tessera/lod/mesh.h>
 #include <tessera/lod/point_store.h>
@@ -101,6 +102,19 @@ double wedgeVisibility(double s, double t_max) {
       norm += weight;
     }
   return sum / norm;
+}
+
+TEST(AmbientOcclusionTest, TheNormalIsTheSmallestEigenvectorOfTheCovariance) {
+  // core/symmetric_eigen.h, shared with the surface pick: a rotated diagonal matrix R D R^T has
+  // the column of R that belongs to D's smallest entry as that eigenvector.
+  const glm::dmat3 r = glm::mat3_cast(glm::angleAxis(0.7, glm::normalize(glm::dvec3(1, 2, 3))));
+  for (int smallest = 0; smallest < 3; ++smallest) {
+    glm::dmat3 d(0.0);
+    for (int k = 0; k < 3; ++k) d[k][k] = k == smallest ? 1e-4 : 2.0 + k;
+    const glm::dvec3 e = tessera::smallestEigenvector(r * d * glm::transpose(r));
+    EXPECT_NEAR(std::abs(glm::dot(e, r[smallest])), 1.0, 1e-12) << smallest;
+    EXPECT_NEAR(glm::length(e), 1.0, 1e-12);
+  }
 }
 
 TEST(AmbientOcclusionTest, AFlatPlaneIsOpen) {
