@@ -157,13 +157,21 @@ TEST(CommandLineSweep, TesseraRender) {
                    {"--spbr-L", false, true, false},
                    {"--spbr-progressive", true, true, false},
                    {"--spbr-max-k", false, false},
-                   {"--frames", true, true, false}});
+                   {"--frames", true, true, false},
+                   {"--poster-part", false, true, false},
+                   {"--poster-memory-mb", false, false},
+                   {"--eye-separation", false, false},
+                   {"--fps", false, false}});
 }
 
 TEST(CommandLineSweep, TesseraRenderComposites) {
   for (const char* size :
        {"4294967297x480", "1280x4294967297", "0x480", "-1x480", "nanx480", "16385x480", "1280"}) {
     expectRefused(render(), "--size", size);
+  }
+  for (const char* size :
+       {"0x100", "100x0", "nanx100", "-1x100", "65536x100", "100x4294967297", "100", "1.5x100"}) {
+    expectRefused(render(), "--poster", size);
   }
   for (const char* bg : {"5,-1,nan", "nan,0,0", "0,0,inf", "2,0,0", "0,-0.5,0", "1,1"}) {
     expectRefused(render(), "--background", bg);

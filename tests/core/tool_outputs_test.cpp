@@ -59,6 +59,78 @@ TEST(ToolOutputs, RenderNeverWritesOverItsInputs) {
   EXPECT_NE(folder.out.find("does not exist"), std::string::npos) << folder.out;
 }
 
+/// A PNG file's width and height from its header (0, 0 when it is not a PNG).
+std::pair<uint32_t, uint32_t> pngSize(const std::filesystem::path& p) {
+  const std::string b = contentOf(p);
+  if (b.size() < 24 || b.compare(1, 3, "PNG") != 0) return {0, 0};
+  auto be = [&](size_t at) {
+    return uint32_t(uint8_t(b[at])) << 24 | uint32_t(uint8_t(b[at + 1])) << 16 |
+           uint32_t(uint8_t(b[at + 2])) << 8 | uint32_t(uint8_t(b[at + 3]));
+  };
+  return {be(16), be(20)};
+}
+
+// Posters, stereo pictures and movies from the command line: what each writes, and what each
+// refuses (a bad path file: exit 1 naming it; an output that cannot be made: exit 3 saying why;
+// too little poster memory and a movie over an input: exit 2).
+TEST(ToolOutputs, RenderWritesPostersStereoPicturesAndMovies) {
+  TempDir dir;
+  const std::string store = smallStore(dir);
+  ASSERT_FALSE(store.empty());
+  const std::string render = "EGL_PLATFORM=surfaceless timeout 300 " +
+                             std::string(TESSERA_RENDER_TOOL) + " --edl --model " + store;
+  const CommandResult poster =
+      runCommand(render + " --poster 100x70 --poster-part 32 -o " + (dir / "poster.png").string());
+  ASSERT_EQ(poster.code, 0) << poster.out;
+  EXPECT_NE(poster.out.find("4x3 parts"), std::string::npos) << poster.out;
+  EXPECT_EQ(pngSize(dir / "poster.png"), std::make_pair(100u, 70u));
+  const CommandResult memory = runCommand(
+      render + " --poster 65535x65535 --poster-memory-mb 1 -o " + (dir / "big.png").string());
+  EXPECT_EQ(memory.code, 2) << memory.out;
+  EXPECT_NE(memory.out.find("needs at least"), std::string::npos) << memory.out;
+
+  const std::string small = render + " --size 64x48";
+  ASSERT_EQ(runCommand(small + " --stereo sbs -o " + (dir / "sbs.png").string()).code, 0);
+  EXPECT_EQ(pngSize(dir / "sbs.png"), std::make_pair(128u, 48u));
+  ASSERT_EQ(runCommand(small + " --stereo tb -o " + (dir / "tb.png").string()).code, 0);
+  EXPECT_EQ(pngSize(dir / "tb.png"), std::make_pair(64u, 96u));
+  ASSERT_EQ(runCommand(small + " --stereo pair -o " + (dir / "pair.png").string()).code, 0);
+  EXPECT_EQ(pngSize(dir / "pair-left.png"), std::make_pair(64u, 48u));
+  EXPECT_EQ(pngSize(dir / "pair-right.png"), std::make_pair(64u, 48u));
+  EXPECT_FALSE(std::filesystem::exists(dir / "pair.png"));
+
+  // A path of 0.5 s at 4 fps: 3 frames.
+  const auto path = dir / "path.json";
+  std::ofstream(path) << R"({"keyframes": [
+    {"time": 0, "eye": {"x": 0, "y": 0, "z": 50}, "target": {"x": 0, "y": 0, "z": 0},
+     "up": {"x": 0, "y": 1, "z": 0}},
+    {"time": 0.5, "eye": {"x": 10, "y": 0, "z": 50}, "target": {"x": 0, "y": 0, "z": 0},
+     "up": {"x": 0, "y": 1, "z": 0}}]})";
+  const std::string movie = small + " --path " + path.string() + " --fps 4";
+  const CommandResult ok = runCommand(movie + " --movie " + (dir / "m.mp4").string() +
+                                      " --frames-dir " + (dir / "frames").string());
+  ASSERT_EQ(ok.code, 0) << ok.out;
+  EXPECT_NE(ok.out.find("3 frames"), std::string::npos) << ok.out;
+  EXPECT_GT(std::filesystem::file_size(dir / "m.mp4"), 100u);
+  EXPECT_EQ(pngSize(dir / "frames" / "frame-000002.png"), std::make_pair(64u, 48u));
+  EXPECT_FALSE(std::filesystem::exists(dir / "frames" / "frame-000003.png"));
+  const auto bad = dir / "bad.json";
+  std::ofstream(bad) << R"({"keyframes": [{"time": 1.0}, {"time": 0.5}]})";
+  const CommandResult refused =
+      runCommand(small + " --path " + bad.string() + " --movie " + (dir / "b.mp4").string());
+  EXPECT_EQ(refused.code, 1) << refused.out;
+  EXPECT_NE(refused.out.find(bad.string()), std::string::npos) << refused.out;
+  const CommandResult unwritable =
+      runCommand(movie + " --movie " + (dir / "none" / "m.mp4").string());
+  EXPECT_EQ(unwritable.code, 3) << unwritable.out;
+  EXPECT_NE(unwritable.out.find("cannot create " + (dir / "none" / "m.mp4").string()),
+            std::string::npos)
+      << unwritable.out;
+  const CommandResult over = runCommand(movie + " --movie " + store);
+  EXPECT_EQ(over.code, 2) << over.out;
+  EXPECT_NE(over.out.find("refusing to write over an input"), std::string::npos) << over.out;
+}
+
 TEST(ToolOutputs, MasterNeverWritesOverItsConfigs) {
   TempDir dir;
   for (const char* f : {"w.json", "s.json"}) std::ofstream(dir / f) << "{}";
