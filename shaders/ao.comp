@@ -313,6 +313,6 @@ void main() {
   if (v < 0.0) v = 1.0;
 #endif
   visibility[index] = v;
-  if (v < 1.0) shadeImage(p, pow(v, uStrength));
+  if (v < 1.0 && uStrength > 0.0) shadeImage(p, pow(v, uStrength));  // 0: visibility only
 #endif
 }

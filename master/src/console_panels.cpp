@@ -135,10 +135,18 @@ void Console::shadingPanel(sync::SceneGraph& graph) {
         a.set_ao_radius(0.0f);
         changed = true;
       }
-      if (bool half = a.ao_half_resolution(); ImGui::Checkbox("half resolution", &half)) {
+      if (bool half = !a.has_ao_half_resolution() || a.ao_half_resolution();
+          ImGui::Checkbox("half resolution", &half)) {
         a.set_ao_half_resolution(half);
         changed = true;
       }
+      ImGui::SameLine();
+      if (bool grid = a.ao_grid(); ImGui::Checkbox("grid", &grid)) {
+        a.set_ao_grid(grid);
+        changed = true;
+      }
+      if (ImGui::IsItemHovered())
+        ImGui::SetTooltip("gather the AO of every view drawn into a multi-view grid");
     }
     {  // points of stores carrying multi-view AO (tessera-lod ao)
       ImGui::TextUnformatted("Stored AO");

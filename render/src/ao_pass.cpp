@@ -171,7 +171,7 @@ double AoPass::run(FrameTarget& target, const AoOptions& o, const glm::dmat4& pr
     dispatch(grid);
   }
   (o.denoise ? mDenoisedTexels : mMeanTexels).bind(kTexturePlane);
-  use(2).set("uStrength", o.strength);
+  use(2).set("uStrength", o.shade ? o.strength : 0.0f);  // x^0: the image as it is
   dispatch(size);
   for (uint32_t unit : {uint32_t(TESSERA_TEXTURE_DEPTH), uint32_t(kTexturePlane)})
     glBindTextureUnit(unit, 0);

@@ -367,7 +367,8 @@ RenderOptions SceneDrawList::options(const sync::SceneGraph& graph, float splat_
     o.ao.radius = a.ao_radius();
     if (a.has_ao_radius_px()) o.ao.radius_px = a.ao_radius_px();
     if (a.has_ao_slices()) o.ao.slices = int(a.ao_slices());
-    o.ao.half_resolution = a.ao_half_resolution();
+    o.ao.half_resolution = !a.has_ao_half_resolution() || a.ao_half_resolution();
+    o.ao_grid.enabled = a.ao_grid();
   }
   if (a.contour_interval() > 0.0) {
     o.contours.enabled = true;

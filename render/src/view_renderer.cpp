@@ -292,11 +292,36 @@ void ViewRenderer::draw(std::span<const ModelInstance> models, const ViewSetup& 
       mAoFrame = sig == mAoSignature ? mAoFrame + 1 : 0;
       mAoSignature = sig;
       if (!mAo) mAo = std::make_unique<AoPass>();
+      const bool grid = options.ao_grid.enabled;
+      AoOptions ao = options.ao;
+      ao.shade = !grid;  // the grid shades the picture instead
       // The pass seeds by raster position (rows from the bottom); the view's origin counts rows
       // from the top of the whole picture. Rows counted up from the whole picture's top edge
       // (negative) are the same for a tile and the whole, whatever the whole's height.
       const glm::ivec2 raster_origin(view.origin.x, -(view.origin.y + int(view.height)));
-      st.screen_ms += mAo->run(mTarget, options.ao, view.projection, mAoFrame, raster_origin);
+      st.screen_ms += mAo->run(mTarget, ao, view.projection, mAoFrame, raster_origin);
+      if (grid) {
+        // Placed once around the models (a 256th of their extent a cell unless given); their
+        // samples then gather over every frame the view draws, until the placing changes.
+        glm::dvec3 lo(std::numeric_limits<double>::max()), hi(-lo);
+        for (const ModelInstance& m : models) {
+          const auto [a, b] = worldBounds(m);
+          lo = glm::min(lo, a);
+          hi = glm::max(hi, b);
+        }
+        const double extent = std::max(glm::length(hi - lo), 1e-9);
+        TESSERA_CHECK(std::isfinite(options.ao_grid.cell) && options.ao_grid.cell >= 0.0,
+                      "render::AoGridOptions: the cell must be finite and >= 0");
+        const double cell = options.ao_grid.cell > 0.0 ? options.ao_grid.cell : extent / 256.0;
+        const glm::dvec3 centre = 0.5 * (lo + hi);
+        if (!mAoGrid) mAoGrid = std::make_unique<AoGrid>();
+        if (mAoGrid->cell() != cell || mAoGrid->centre() != centre) mAoGrid->reset(centre, cell);
+        // A resting view adds its samples while its running mean takes new ones.
+        if (mAoFrame < uint32_t(std::max(options.ao.max_frames, 1)))
+          st.screen_ms += mAoGrid->add(mTarget, mAo->visibility(), view.projection, view.view,
+                                       options.ao_grid.stride);
+        st.screen_ms += mAoGrid->shade(mTarget, view.projection, view.view, options.ao.strength);
+      }
       st.ao_frames = std::min<uint32_t>(mAoFrame + 1, uint32_t(std::max(options.ao.max_frames, 1)));
     }
     st.screen_ms += mEdl.run(mTarget, options.edl, view.projection);

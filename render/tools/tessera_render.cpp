@@ -269,6 +269,10 @@ int run(int argc, char** argv) {
                  "Points of stores carrying ambient occlusion (tessera-lod ao): modulate (their "
                  "colour times it, the default), off, or alone (the AO as grey)")
       ->check(CLI::IsMember({"modulate", "off", "alone"}));
+  bool ao_grid = false;
+  app.add_flag("--ao-grid", ao_grid,
+               "Gather ambient occlusion over the frames drawn into a multi-view grid and shade "
+               "from it (with a window: as the view moves)");
   app.add_flag("--ao-full-resolution", ao_full,
                "Ambient occlusion on every pixel (default: on a quarter, upsampled by depth)");
   app.add_option("--splat-scale", splat_scale,
@@ -497,8 +501,9 @@ int run(int argc, char** argv) {
     }
     if (stored_ao == "off") options.stored_ao = render::StoredAo::kOff;
     if (stored_ao == "alone") options.stored_ao = render::StoredAo::kAlone;
-    if ((ao_radius > 0.0f || ao_radius_px > 0.0f || ao_full) && !(ao > 0.0f))
-      usage("--ao-radius, --ao-radius-px and --ao-full-resolution need --ao STRENGTH");
+    if ((ao_radius > 0.0f || ao_radius_px > 0.0f || ao_full || ao_grid) && !(ao > 0.0f))
+      usage("--ao-radius, --ao-radius-px, --ao-full-resolution and --ao-grid need --ao STRENGTH");
+    options.ao_grid.enabled = ao_grid;
     if (ao > 0.0f) {
       options.ao.enabled = true;
       options.ao.strength = ao;

@@ -171,6 +171,43 @@ TEST_F(ViewRendererTest, MosaicEqualsTheWholeWallRenderInEveryShadingMode) {
   }
 }
 
+// With the multi-view grid, the AO a view shows gathers what the views drawn before saw: the
+// same view looks otherwise once another view has added its samples.
+TEST_F(ViewRendererTest, TheAoGridGathersTheViewsDrawn) {
+  auto s = lod::PointStore::open(*sDir / "b.tlod");
+  ModelInstance inst{s.get(), storeModel(*s)};
+  const config::Camera ca = camera(*s, 0.35);
+  config::Camera cb = ca;  // 70 degrees around the vertical through the target
+  const double dx = ca.eye().x() - ca.target().x(), dz = ca.eye().z() - ca.target().z();
+  const double c = std::cos(glm::radians(70.0)), sn = std::sin(glm::radians(70.0));
+  cb.mutable_eye()->set_x(ca.target().x() + c * dx - sn * dz);
+  cb.mutable_eye()->set_z(ca.target().z() + sn * dx + c * dz);
+  const ViewSetup va = plainView(ca, 256, 192), vb = plainView(cb, 256, 192);
+  RenderOptions o;
+  o.ao.enabled = true;
+  o.ao.max_frames = 2;
+  o.ao_grid.enabled = true;
+  ViewRenderer r(va.width, va.height);
+  const Image first = r.renderSettled({&inst, 1}, va, o);
+  r.renderSettled({&inst, 1}, vb, o);
+  const Image again = r.renderSettled({&inst, 1}, va, o);
+  size_t covered = 0, changed = 0;
+  for (size_t i = 0; i < first.rgba.size(); i += 4) {
+    covered += first.rgba[i] != 0;
+    changed += first.rgba[i] != again.rgba[i];
+  }
+  EXPECT_GT(covered, 5000u);
+  EXPECT_GT(changed, covered / 20) << "the other view's samples shade this one";
+  ViewRenderer bare_r(va.width, va.height);
+  const Image bare = bare_r.renderSettled({&inst, 1}, va, RenderOptions{});
+  double shaded = 0, unshaded = 0;
+  for (size_t i = 0; i < first.rgba.size(); i += 4) {
+    shaded += first.rgba[i];
+    unshaded += bare.rgba[i];
+  }
+  EXPECT_LT(shaded, 0.99 * unshaded) << "the grid darkens the picture";
+}
+
 // Without the guard band a kernel stops at the tile's edge: the seams the band removes are there.
 TEST_F(ViewRendererTest, WithoutAGuardBandTheTilesShowSeams) {
   auto s = lod::PointStore::open(*sDir / "b.tlod");

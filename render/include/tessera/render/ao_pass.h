@@ -92,6 +92,9 @@ struct AoOptions {
   /// Frames averaged while the camera rests (1: none); frames beyond it keep the mean and cost
   /// only the denoise and the image's shading. >= 1.
   int max_frames = 16;
+  /// false: the visibility plane only (visibility(), for the multi-view grid of ao_grid.h), the
+  /// image left as it is.
+  bool shade = true;
 };
 
 /// Why `options` cannot be run ("" when they can): NaN or infinite numbers, slices or steps out
@@ -129,6 +132,8 @@ class AoPass {
   /// The last run's visibility per pixel (before the strength), raster order (row 0 at the
   /// bottom), -1 where nothing was drawn. Empty before the first run. Waits for the GL work.
   std::vector<float> readVisibility() const;
+  /// The same on the GPU: a float per pixel of the last run's target.
+  const GlBuffer& visibility() const { return mVisibility; }
 
   /// The pixels a tile needs around it (its guard band) so that its pixels equal the whole
   /// picture's: the largest screen radius of these options (a world radius at

@@ -14,6 +14,7 @@
 #include <span>
 
 #include <tessera/lod/point_store.h>
+#include <tessera/render/ao_grid.h>
 #include <tessera/render/ao_pass.h>
 #include <tessera/render/chunk_streamer.h>
 #include <tessera/render/frame_target.h>
@@ -66,6 +67,10 @@ struct RenderOptions {
   /// the view and its data rest, each frame adds its samples to a running mean, up to
   /// ao.max_frames; renderSettled() draws frames until that mean is full.
   AoOptions ao;
+  /// With `ao`: its visibility gathered over the frames the view draws into a multi-view grid
+  /// (ao_grid.h, Sabbadin et al.'s real-time variant), and the picture shaded from the grid
+  /// instead of the frame's own AO. The grid is the view's: it lives as long as the renderer.
+  AoGridOptions ao_grid;
   /// Points of stores carrying ambient occlusion (multi-view AO of range scans): their colour
   /// times it, the colour alone, or the AO alone. Changing it reloads those stores' chunks.
   StoredAo stored_ao = StoredAo::kModulate;
@@ -287,6 +292,7 @@ class ViewRenderer {
   std::unique_ptr<HighlightPass> mHighlight;  ///< made on first use
   std::unique_ptr<AnalysisPass> mAnalysis;    ///< made on first use
   std::unique_ptr<AoPass> mAo;                ///< made on first use
+  std::unique_ptr<AoGrid> mAoGrid;            ///< made on first use
   uint64_t mAoSignature = 0;                  ///< what the AO's running mean is of
   uint32_t mAoFrame = 0;                      ///< the last frame's number in that mean
   std::vector<PickRange> mPickRanges;     ///< the last frame's, by base
