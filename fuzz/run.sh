@@ -133,6 +133,16 @@ seed_tlod() {
     print i, j, k }' >grid.xyz
   "$LOD_TOOL" build grid.xyz -o grid.tlod --quiet >/dev/null
   rm grid.xyz
+  ao_store ao.tlod
+}
+
+# ao_store OUT: a one-node store of version 3 whose 205 points carry ambient occlusion (three
+# 24x20 virtual scans of the bunny's coarsest reconstruction, `build --ao`).
+ao_store() {
+  "$LOD_TOOL" scan "$DATA/stanford-bunny/reconstruction/bun_zipper_res4.ply" -o ao-scans \
+    --scanners 3 --resolution 24x20 --quiet >/dev/null
+  "$LOD_TOOL" build ao-scans/scans.conf -o "$1" --ao --quiet >/dev/null
+  rm -r ao-scans
 }
 
 # Mesh stores: the bunny's coarsest reconstruction (948 triangles) as one patch and as a tree.
@@ -144,13 +154,18 @@ seed_tmesh() {
 
 # Chunk payloads: a one-node store's payload is exactly its chunk (header fields at byte 144:
 # payload_offset, 152: payload_size).
+# The chunk with ambient occlusion comes from ao_store's one node.
 seed_chunk() {
   "$LOD_TOOL" build "$DATA/lidar/1.2-with-color.las" -o one.tlod --quiet >/dev/null
-  local off size
-  off=$(od -An -t u8 -j 144 -N 8 one.tlod | tr -d ' ')
-  size=$(od -An -t u8 -j 152 -N 8 one.tlod | tr -d ' ')
-  dd if=one.tlod of=color.chunk iflag=skip_bytes,count_bytes skip="$off" count="$size" status=none
-  rm one.tlod
+  ao_store ao.tlod
+  local off size name
+  for name in one:color ao:ao; do
+    off=$(od -An -t u8 -j 144 -N 8 "${name%%:*}.tlod" | tr -d ' ')
+    size=$(od -An -t u8 -j 152 -N 8 "${name%%:*}.tlod" | tr -d ' ')
+    dd if="${name%%:*}.tlod" of="${name##*:}.chunk" iflag=skip_bytes,count_bytes skip="$off" \
+      count="$size" status=none
+  done
+  rm one.tlod ao.tlod
 }
 
 # Frames and snapshots written from protobuf text format (protoc --encode), against the scene

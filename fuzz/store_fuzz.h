@@ -39,6 +39,9 @@ inline void checkChunk(const lod::ChunkPoints& c) {
   require(!(c.attributes & kScanIndex) || c.sources.size() == n, "sources.size()");
   require(!(c.attributes & kClassification) || c.classifications.size() == n,
           "classifications.size()");
+  require((c.attributes & kAmbientOcclusion) ? c.ambient_occlusion.size() == n
+                                             : c.ambient_occlusion.empty(),
+          "ambient_occlusion.size()");
   for (const glm::vec3& p : c.positions)
     require(std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z),
             "non-finite decoded position");
