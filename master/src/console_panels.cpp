@@ -109,9 +109,12 @@ void Console::applyShading(sync::SceneGraph& graph, const interact::SettingsEdit
 }
 
 void Console::shadingPanel(sync::SceneGraph& graph) {
-  const float right = float(mWidth) - 8.0f;
+  // Anchored by its bottom-right corner, so it opens upwards from the window's corner.
   ImGui::SetNextWindowCollapsed(true, ImGuiCond_FirstUseEver);
-  if (beginPanel("Shading", ImVec2(right - kPanelWidth, float(mHeight) - 30.0f))) {
+  ImGui::SetNextWindowPos(ImVec2(float(mWidth) - 8.0f, float(mHeight) - 8.0f), ImGuiCond_Always,
+                          ImVec2(1.0f, 1.0f));
+  ImGui::SetNextWindowSizeConstraints(ImVec2(kPanelWidth, 0.0f), ImVec2(kPanelWidth, FLT_MAX));
+  if (ImGui::Begin("Shading", nullptr, kPanel)) {
     const scene::Settings& s = graph.settings();
     scene::Analysis a = s.analysis();
     bool changed = false;  // the analysis, applied once a control is let go of
@@ -149,13 +152,13 @@ void Console::shadingPanel(sync::SceneGraph& graph) {
         ImGui::SetTooltip("gather the AO of every view drawn into a multi-view grid");
     }
     {  // points of stores carrying multi-view AO (tessera-lod ao)
-      ImGui::TextUnformatted("Stored AO");
+      ImGui::TextUnformatted("Stored AO (tessera-lod ao)");
       const scene::Analysis::StoredAo modes[3] = {scene::Analysis::STORED_AO_MODULATE,
                                                   scene::Analysis::STORED_AO_OFF,
                                                   scene::Analysis::STORED_AO_ALONE};
       const char* names[3] = {"x colour", "off", "alone"};
       for (int i = 0; i < 3; ++i) {
-        ImGui::SameLine();
+        if (i > 0) ImGui::SameLine();
         if (ImGui::RadioButton(names[i], a.stored_ao() == modes[i]) && a.stored_ao() != modes[i]) {
           a.set_stored_ao(modes[i]);
           changed = true;

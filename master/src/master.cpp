@@ -115,13 +115,15 @@ void Master::openConsole() {
     std::printf(
         "tessera-master: console open (one button: click sets a target, drag orbits "
         "it, click it to fly there; right-hand bar: forward/back; wheel zooms; 1-9 "
-        "select a model, +/- opacity, H hide, E eye-dome lighting; right-button drag draws "
+        "select a model, +/- opacity, H hide, E eye-dome lighting, G ambient occlusion, D "
+        "relative depth, T contour lines; right-button drag draws "
         "on the model, U undo, C clear; M measures (distance, path, angle, area: click "
         "points, Enter ends, Backspace undoes); S lasso (drag around a region); O opens the "
         "note nearest the cursor on the wall; L leads the view; Esc quits. Panels: Models "
         "(visibility, opacity), Tools (measuring, lasso, what was measured and selected), "
         "Layers (shown or not), Notes (search, fly to, open, edit, delete; Add note, then "
-        "click on the model)%s)\n",
+        "click on the model), Shading (bottom right: lighting, ambient occlusion, relative "
+        "depth, contour lines and their settings)%s)\n",
         mAnnotations ? "" : "; without --annotations notes are not kept");
   } catch (const render::RenderError& e) {
     std::printf("tessera-master: --console: %s; running headless\n", e.what());

@@ -322,6 +322,49 @@ TEST_F(ConsolePanels, TheSliderFadesAModelAndANoteTypedInIsStored) {
   EXPECT_GT(int(frame[2]), int(frame[0]) + 40) << dir.path() / "console.png";
 }
 
+// The Shading panel, folded at the bottom right: opened by its arrow, its relative depth switch
+// colours the wall's picture; the keys T and G switch contour lines and ambient occlusion.
+constexpr int kShadingArrowX = 393, kShadingArrowY = 348;  // the folded panel's title bar
+constexpr int kShadingCheckX = 399, kRelativeDepthY = 316;  // opened: its second-last switch
+
+TEST_F(ConsolePanels, TheShadingPanelAndKeysSwitchTheWallsFilters) {
+  using tessera::test::VirtualDisplay;
+  if (!VirtualDisplay::available())
+    GTEST_SKIP() << "needs Xvfb and xdotool (scripts/deps.sh installs them)";
+  const VirtualDisplay xdo(dir.path() / "xvfb.log");
+  auto master = startMaster("scene.json", {});
+  ASSERT_TRUE(master->waitFor("console open", 120)) << master->output();
+  const std::string wid = xdo.window("tessera-master");
+  ASSERT_FALSE(wid.empty()) << "no console window on " << xdo.name;
+  ASSERT_TRUE(master->waitFor("0 of 4 tiles have a node", 60)) << master->output();
+  std::this_thread::sleep_for(std::chrono::seconds(2));
+  xdo("mousemove --window " + wid + " " + std::to_string(kShadingArrowX) + " " +
+      std::to_string(kShadingArrowY) + " click 1");
+  std::this_thread::sleep_for(std::chrono::milliseconds(1500));
+  xdo("mousemove --window " + wid + " " + std::to_string(kShadingCheckX) + " " +
+      std::to_string(kRelativeDepthY) + " click 1");
+  ASSERT_TRUE(master->waitFor("console: relative depth on", 30)) << master->output();
+  xdo("mousemove --window " + wid + " 320 150");  // off the panels, over the bunny
+  std::this_thread::sleep_for(std::chrono::milliseconds(500));
+  xdo("key --window " + wid + " t");
+  ASSERT_TRUE(master->waitFor("console: contour lines every", 30)) << master->output();
+  xdo("key --window " + wid + " g");
+  ASSERT_TRUE(master->waitFor("console: ambient occlusion on", 30)) << master->output();
+  std::this_thread::sleep_for(std::chrono::milliseconds(1500));
+  master->signal(SIGTERM);
+  ASSERT_EQ(master->wait(60), std::optional<int>(0)) << master->output();
+  // The bunny in the relative depth's colour map (viridis: blue, green and yellow, never grey):
+  // the middle of the view has coloured pixels where it was grey.
+  const tessera::render::Image shot = tessera::render::readPng(dir.path() / "console.png");
+  int coloured = 0;
+  for (uint32_t y = 100; y < 260; y += 4)
+    for (uint32_t x = 240; x < 360; x += 4) {
+      const uint8_t* p = &shot.rgba[(size_t(y) * shot.width + x) * 4];
+      coloured += std::abs(int(p[2]) - int(p[0])) > 30 || std::abs(int(p[1]) - int(p[0])) > 30;
+    }
+  EXPECT_GT(coloured, 100) << dir.path() / "console.png";
+}
+
 // Without --annotations the Layers panel lists the scene's groups: hiding "scans" there hides
 // the bunny in it (the console's last picture shows none of it).
 TEST_F(ConsolePanels, WithoutADatabaseTheScenesGroupsAreTheLayers) {
