@@ -636,6 +636,10 @@ TEST_F(SiteSession, AWindowDrivenByMouseAndKeys) {
       << site->output();
   xdo("key --window " + wid + " r");
   ASSERT_TRUE(master->waitFor("W gave the view back", 30)) << master->output();
+  // G: ambient occlusion for the whole wall, asked of the master, which applies it.
+  xdo("key --window " + wid + " g");
+  ASSERT_TRUE(site->waitFor("ambient occlusion on", 30)) << site->output();
+  ASSERT_TRUE(master->waitFor("sites: W changed the shading", 30)) << master->output();
   xdo("key --window " + wid + " Escape");
   EXPECT_EQ(site->wait(30), std::optional<int>(0)) << site->output();
   ASSERT_TRUE(master->waitFor("W \\(key \\S+\\) left: it said goodbye", 30)) << master->output();
