@@ -14,6 +14,7 @@ TEST(ScriptPlayer, CameraAndActionsOnceEachIntoTheGraph) {
       {"time": 1, "eye": {"x": 1, "z": 2}, "target": {}, "up": {"y": 1}}],
       "actions": [{"time": 0.5, "setOpacity": {"model": "m", "opacity": 0.25}},
                   {"time": 0.5, "setShading": "edl"},
+                  {"time": 0.6, "setAnalysis": {"aoStrength": 1, "contourInterval": 0.01}},
                   {"time": 0.75, "setVisible": {"model": "m", "visible": false}},
                   {"time": 1, "screenshot": "end.png"}]})",
                                                         "p.json");
@@ -36,6 +37,10 @@ TEST(ScriptPlayer, CameraAndActionsOnceEachIntoTheGraph) {
   EXPECT_TRUE(player.advance(graph, 0.5).empty());
   EXPECT_EQ(graph.node(id).opacity(), 0.25f);
   EXPECT_EQ(graph.settings().shading(), scene::SHADING_EDL);
+  EXPECT_EQ(graph.settings().analysis().ao_strength(), 0.0f);
+  EXPECT_TRUE(player.advance(graph, 0.6).empty());
+  EXPECT_EQ(graph.settings().analysis().ao_strength(), 1.0f);
+  EXPECT_EQ(graph.settings().analysis().contour_interval(), 0.01);
   EXPECT_TRUE(graph.node(id).visible());
   EXPECT_EQ(player.advance(graph, 1.0), std::vector<std::string>{"end.png"});
   EXPECT_FALSE(graph.node(id).visible());

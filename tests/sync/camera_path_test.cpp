@@ -137,6 +137,8 @@ TEST(CameraPath, BadFilesNameTheField) {
   expectError(one + R"({"time": 1}]})", "actions[0]: needs one of setOpacity");
   expectError(one + R"({"time": 1, "setShading": "phong"}]})",
               "actions[0].setShading: 'phong' is not one of color, edl");
+  expectError(one + R"({"time": 1, "setAnalysis": {"aoSlices": 100}}]})",
+              "actions[0].setAnalysis: settings.analysis.ao_slices: must be 1..64, got 100");
   expectError(one + R"({"time": 1, "setOpacity": {"model": "m", "opacity": 0}}]})",
               "actions[0].setOpacity.opacity: must be in (0, 1]");
   expectError(one + R"({"time": 1, "setVisible": {"visible": true}}]})",
