@@ -144,11 +144,19 @@ void virtualThroughput(const std::string& mesh_path, int scanners, uint32_t per_
   Mesh mesh = readMesh(mesh_path);
   ScanOptions so;
   so.scanners = scanners;
-  so.columns = uint32_t(std::lround(std::sqrt(per_scan * 1.25)));
-  so.rows = uint32_t((per_scan + so.columns - 1) / so.columns);
   so.binary = true;
   so.quiet = true;
   so.units_per_mm = 0.001;
+  // A pilot scan at 200 x 160 measures how much of each view the model fills; the grid is then
+  // sized for `per_scan` points a scanner (5:4).
+  so.columns = 200;
+  so.rows = 160;
+  const ScanResult pilot = scanMesh(mesh, dir + "/pilot", so);
+  std::filesystem::remove_all(dir + "/pilot");
+  const double fill = double(pilot.points) / double(pilot.rays);
+  const double rays = double(per_scan) / std::max(fill, 1e-3);
+  so.columns = uint32_t(std::min(65000.0, std::ceil(std::sqrt(rays * 1.25))));
+  so.rows = uint32_t(std::min(65000.0, std::ceil(rays / so.columns)));
   auto t = Clock::now();
   ScanResult scan = scanMesh(mesh, dir, so);
   const double seconds_scan = since(t);
@@ -313,10 +321,11 @@ int main(int argc, char** argv) {
     for (size_t k = 0; k < sample.points.size(); ++k)
       if (sample.ref[1][k] > 0.999f)
         sum_s += ssao[sample.points[k]], sum_m += mv[sample.points[k]], ++open;
-    std::printf("points the mesh reference finds open (> 0.999): %zu of %zu, ssao mean %.4f, "
-                "mvao 1x1 mean %.4f\n",
-                open, sample.points.size(), sum_s / double(std::max<size_t>(1, open)),
-                sum_m / double(std::max<size_t>(1, open)));
+    std::printf(
+        "points the mesh reference finds open (> 0.999): %zu of %zu, ssao mean %.4f, "
+        "mvao 1x1 mean %.4f\n",
+        open, sample.points.size(), sum_s / double(std::max<size_t>(1, open)),
+        sum_m / double(std::max<size_t>(1, open)));
   }
 
   std::vector<Row> rows;

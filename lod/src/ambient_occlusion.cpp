@@ -744,12 +744,18 @@ std::vector<float> integrateMvao(const ScanSet& s, const AoOptions& o,
       const double rad_i = own.radius[own_px];
       // Direction towards scanner i in the registered frame (eq. 7's b - p).
       const glm::dvec3 toward_i = own.pose.rotation * own.towardScanner(toLocal(own.pose, world));
+      const glm::dvec3 normal_i = own.pose.rotation * glm::dvec3(own.normals[own_px]);
       double sum = 0, wsum = 0;
       for (size_t j = 0; j < s.maps.size(); ++j) {
         const RangeMap& m = s.maps[j];
         const int W = int(m.columns), H = int(m.rows);
         // Eq. 6: p_i into scan j's frame, projected into its grid.
         const glm::dvec3 q = toLocal(m.pose, world);
+        // A scanner acquires only surfaces that face it: where p_i's surface faces away from
+        // scanner j, p_ij would have w_n = 0 (eq. 11), and the projection is not worth making.
+        if (j != si &&
+            glm::dot(glm::conjugate(m.pose.rotation) * normal_i, m.towardScanner(q)) <= 0)
+          continue;
         long cx, cy;
         if (j == si) {
           cx = long(own_px % m.columns);
