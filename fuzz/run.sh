@@ -5,13 +5,13 @@
 # which is also replayed first, so a regression that comes back fails at once.
 # Usage: fuzz/run.sh [SECONDS] [TARGET...]
 #   (targets: ply las laz e57 text obj conf tlod chunk tmesh frame link site chunk_request voice
-#    wav video selection annotation picture; default all)
+#    wav video selection annotation picture pfm; default all)
 set -euo pipefail
 
 cd "$(dirname "$0")/.."
 SECONDS_PER_TARGET=${1:-300}
 shift || true
-TARGETS=("${@:-ply las laz e57 text obj conf tlod chunk tmesh frame link site chunk_request voice wav video selection annotation picture}")
+TARGETS=("${@:-ply las laz e57 text obj conf tlod chunk tmesh frame link site chunk_request voice wav video selection annotation picture pfm}")
 read -r -a TARGETS <<<"${TARGETS[*]}"
 DATA=${TESSERA_DATA_DIR:-$(cd .. && pwd)/shared/data}
 BUILD=build/fuzz
@@ -356,10 +356,14 @@ seed_picture() {
   cp "$OLDPWD"/fuzz/seeds/picture/* .
 }
 
+seed_pfm() {
+  cp "$OLDPWD"/fuzz/seeds/pfm/* .
+}
+
 declare -A MAX_LEN=([ply]=8192 [las]=8192 [laz]=65536 [e57]=131072 [text]=4096 [obj]=4096 [conf]=1024 [tlod]=32768
   [chunk]=8192 [frame]=4096 [link]=4096 [site]=4096 [chunk_request]=1024 [voice]=8192
   [wav]=16384 [tmesh]=16384 [video]=32768 [selection]=4096 [annotation]=16384
-  [picture]=8192)
+  [picture]=8192 [pfm]=4096)
 export UBSAN_OPTIONS=halt_on_error=1:print_stacktrace=1
 status=0
 summary=()

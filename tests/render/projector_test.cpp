@@ -16,6 +16,8 @@
 #include <tessera/render/wall_mosaic.h>
 #include <tessera/sync/config.h>
 
+#include "../../fuzz/pfm_fuzz.h"
+
 namespace tessera::render {
 namespace {
 
@@ -419,4 +421,34 @@ TEST_F(ProjectorTest, BadFilesAreRefusedByNameAndField) {
 }
 
 }  // namespace
+// The PFM fuzz target's seeds read, and every input it kept (fuzz/regressions/pfm) and a few
+// made here pass its checks: a RenderError or a map holding exactly its values.
+TEST(ProjectorFuzz, PfmSeedsReadAndRegressionsPassTheFuzzChecks) {
+  namespace fs = std::filesystem;
+  auto bytesOf = [](const fs::path& p) {
+    std::ifstream in(p, std::ios::binary);
+    return std::vector<uint8_t>(std::istreambuf_iterator<char>(in), {});
+  };
+  size_t seeds = 0;
+  for (const auto& e : fs::directory_iterator(fs::path(TESSERA_FUZZ_SEEDS) / "pfm")) {
+    const std::vector<uint8_t> b = bytesOf(e.path());
+    EXPECT_NO_THROW(render::readPfm(b, e.path().string())) << e.path();
+    ++seeds;
+  }
+  EXPECT_GE(seeds, 2u);
+  const fs::path kept = fs::path(TESSERA_FUZZ_REGRESSIONS) / "pfm";
+  if (fs::exists(kept))
+    for (const auto& e : fs::directory_iterator(kept)) {
+      const std::vector<uint8_t> b = bytesOf(e.path());
+      tessera::fuzz::readPfm(b.data(), b.size());
+    }
+  for (const std::string text : {std::string("PF\n4 3\n-1\n"), std::string("Pf\n65537 1\n-1\n"),
+                                 std::string("PF\n-3 2\n-1\n"),
+                                 std::string("PF\n99999999999999999999 1\n-1\n"), std::string("P")}) {
+    const std::vector<uint8_t> b(text.begin(), text.end());
+    tessera::fuzz::readPfm(b.data(), b.size());
+    EXPECT_THROW(render::readPfm(b, "made.pfm"), render::RenderError) << text;
+  }
+}
+
 }  // namespace tessera::render
