@@ -339,46 +339,50 @@ int main(int argc, char** argv) {
     }
     return v;
   };
-  for (int samples : {8, 16, 32, 64}) {
-    AoOptions os = o;
-    os.samples = samples;
-    Row r;
-    r.method = "ssao";
-    r.samples = samples;
-    auto v = timed(
-        [&] {
-          for (size_t j = 0; j < set.maps.size(); ++j) computeSsao(set.maps[j], uint32_t(j), os);
-          return ownSsao(set);
-        },
-        r.seconds);
-    errorsOf(r, v, sample);
-    rows.push_back(r);
-    for (int nb : {1, 3, 5}) {
-      AoOptions om = os;
-      om.neighbours = nb;
-      Row m;
-      m.method = "mvao" + std::to_string(nb) + "x" + std::to_string(nb);
-      m.samples = samples;
-      double secs;
-      auto mv = timed(
+  // Eq. 5 as written (angle bias 0), then with the angle bias 0.1 (methods suffixed "-b").
+  for (int variant = 0; variant < 2; ++variant)
+    for (int samples : {8, 16, 32, 64}) {
+      AoOptions os = o;
+      os.samples = samples;
+      os.angle_bias = variant ? 0.1 : 0.0;
+      const std::string suffix = variant ? "-b" : "";
+      Row r;
+      r.method = "ssao" + suffix;
+      r.samples = samples;
+      auto v = timed(
           [&] {
-            for (auto& mp : set.maps) computeBorders(mp, om.threads);
-            return integrateMvao(set, om);
+            for (size_t j = 0; j < set.maps.size(); ++j) computeSsao(set.maps[j], uint32_t(j), os);
+            return ownSsao(set);
           },
-          secs);
-      m.seconds = r.seconds + secs;
-      errorsOf(m, mv, sample);
-      rows.push_back(m);
+          r.seconds);
+      errorsOf(r, v, sample);
+      rows.push_back(r);
+      for (int nb : {1, 3, 5}) {
+        AoOptions om = os;
+        om.neighbours = nb;
+        Row m;
+        m.method = "mvao" + std::to_string(nb) + "x" + std::to_string(nb) + suffix;
+        m.samples = samples;
+        double secs;
+        auto mv = timed(
+            [&] {
+              for (auto& mp : set.maps) computeBorders(mp, om.threads);
+              return integrateMvao(set, om);
+            },
+            secs);
+        m.seconds = r.seconds + secs;
+        errorsOf(m, mv, sample);
+        rows.push_back(m);
+      }
+      Row g;
+      g.method = "grid" + suffix;
+      g.samples = samples;
+      double secs;
+      auto gv = timed([&] { return gridMvao(set, os); }, secs);
+      g.seconds = r.seconds + secs;
+      errorsOf(g, gv, sample);
+      rows.push_back(g);
     }
-    Row g;
-    g.method = "grid";
-    g.samples = samples;
-    double secs;
-    auto gv = timed([&] { return gridMvao(set, os); }, secs);
-    g.seconds = r.seconds + secs;
-    errorsOf(g, gv, sample);
-    rows.push_back(g);
-  }
   const std::string csv = out + "/mvao.csv";
   {
     std::ofstream f(csv);
@@ -455,8 +459,8 @@ int main(int argc, char** argv) {
                                 {"15", "mesh reference, thin"}};
     for (auto& p : panels) {
       f << "set title '" << p[1] << "'\nplot ";
-      const char* methods[] = {"ssao", "mvao1x1", "mvao5x5", "grid"};
-      for (int k = 0; k < 4; ++k)
+      const char* methods[] = {"ssao", "mvao1x1", "mvao5x5", "ssao-b", "mvao1x1-b", "mvao5x5-b"};
+      for (int k = 0; k < 6; ++k)
         f << (k ? ", " : "") << "'" << csv << "' using 2:(stringcolumn(1) eq '" << methods[k]
           << "' ? $" << p[0] << " : 1/0) with linespoints title '" << methods[k] << "'";
       f << "\n";

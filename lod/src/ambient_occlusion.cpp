@@ -534,6 +534,9 @@ AoOptions resolveAoOptions(const ScanSet& scans, AoOptions o) {
   checkValue(o.radius, "radius", true);
   checkValue(o.border_px, "border distance t_p", false);
   checkValue(o.grid_cell, "grid cell", true);
+  if (!std::isfinite(o.angle_bias) || o.angle_bias < 0 || o.angle_bias >= 0.5)
+    throw AoError(std::string(kWho) + ": angle bias must be in [0, 0.5) (got " +
+                  std::to_string(o.angle_bias) + ")");
   if (o.samples < 1 || o.samples > 4096)
     throw AoError(std::string(kWho) + ": samples must be 1..4096 (got " +
                   std::to_string(o.samples) + ")");
@@ -593,8 +596,11 @@ void computeSsao(RangeMap& m, uint32_t scan_index, const AoOptions& o) {
         // Eq. 3-5 as a visibility: a sample is open when it is far (rho = 1, eq. 4) or not above
         // the tangent plane (w = 1, eq. 5); its occlusion is (1 - rho)(1 - w). The literal
         // product rho * w darkens a plane to 0.7 (samples nearer than t_max have rho < 1).
+        // With an angle bias beta, elevations below asin(beta) count as the tangent plane
+        // (AoOptions::angle_bias).
         double rho = smoothstep01(d * inv_t);
-        const double w = 1.0 - std::max(glm::dot(n, v) / d, 0.0);
+        const double w =
+            1.0 - std::max(glm::dot(n, v) / d - o.angle_bias, 0.0) / (1.0 - o.angle_bias);
         occlusion += (1.0 - rho) * (1.0 - w);
       }
       raw[i] = float(1.0 - occlusion / o.samples);

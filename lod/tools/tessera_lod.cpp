@@ -534,6 +534,12 @@ int run(int argc, char** argv) {
                  "voxel grid")
       ->check(CLI::IsMember({"ssao", "mvao", "grid"}))
       ->capture_default_str();
+  ao->add_option("--angle-bias", aoo.angle_bias,
+                 "SSAO angle bias: samples less than asin(B) above the tangent plane do not "
+                 "occlude (0: eq. 5 as written; 0.1 removes most of the darkening of open "
+                 "surfaces by normal error and noise)")
+      ->check(cli::finiteRange(0.0, 0.49))
+      ->capture_default_str();
   ao->add_option("--seed", aoo.seed, "Sample seed (same seed, same store)")
       ->check(cli::anyInteger<uint64_t>())
       ->capture_default_str();

@@ -197,6 +197,11 @@ TEST(AmbientOcclusionTest, BadParametersAreRefusedByName) {
   o = {};
   o.samples = 0;
   EXPECT_THROW(resolveAoOptions(c.set, o), AoError);
+  for (double bad : {std::nan(""), -0.1, 0.5}) {
+    o = {};
+    o.angle_bias = bad;
+    EXPECT_THROW(resolveAoOptions(c.set, o), AoError) << bad;
+  }
 }
 
 TEST(AmbientOcclusionTest, AThinFinSeenEdgeOnIsMissedByItsViewAndRecoveredByTheOthers) {
@@ -406,6 +411,45 @@ TEST(AmbientOcclusionTest, OnTheBunnyGrazingPointsTakeTheHeadOnViewsValueAndGain
   EXPECT_NEAR(mg.mean, sg.mean, 0.1 * sg.mean);            // so there is nothing to gain
   EXPECT_LT(sa.bias, -0.4 * sa.mean);                      // a dark bias is most of the error ...
   EXPECT_NEAR(ma.bias, sa.bias, 0.3 * std::abs(sa.bias));  // ... and every view shares it
+}
+
+TEST(AmbientOcclusionTest, WithAnAngleBiasMultiViewWinsOnGrazingPointsToo) {
+  // The dark bias every view shares comes from the elevation n . v of samples just above the
+  // tangent plane (the normal's error, the scanner's noise): open points read 0.992. With the
+  // angle bias 0.1 (AoOptions::angle_bias) they read 0.9975, the bias is gone, and what is left
+  // differs between views, which the integration averages out. Measured (every 16th point,
+  // mesh reference, 32 samples, mean error): ssao all 0.0105 grazing 0.0095 border 0.0127
+  // (bias 0.0008), mvao 1x1 0.0094 / 0.0082 / 0.0106, mvao 5x5 0.0092 / 0.0082 / 0.0106.
+  Bunny b;
+  std::vector<uint32_t> pts;
+  for (uint32_t i = 0; i < b.set.size(); i += 16) pts.push_back(i);
+  const MeshAoReference mesh = meshReferenceAo(b.set, b.mesh, pts, 256, b.o);
+  AoOptions o = b.o;
+  o.angle_bias = 0.1;
+  for (size_t j = 0; j < b.set.maps.size(); ++j) computeSsao(b.set.maps[j], uint32_t(j), o);
+  for (auto& m : b.set.maps) computeBorders(m);
+  std::vector<bool> grazing, border;
+  for (uint32_t i : pts) {
+    grazing.push_back(grazingPoint(b.set, i));
+    border.push_back(borderPoint(b.set, i));
+  }
+  const std::vector<float> ssao = ownSsao(b.set);
+  const Errors sa = errors(ssao, mesh.ao, pts, {}), sg = errors(ssao, mesh.ao, pts, grazing),
+               sb = errors(ssao, mesh.ao, pts, border);
+  std::printf("bias 0.1 ssao all %.4f grazing %.4f border %.4f (bias %.4f)\n", sa.mean, sg.mean,
+              sb.mean, sa.bias);
+  EXPECT_LT(std::abs(sa.bias), 0.003);
+  for (int nb : {1, 5}) {
+    o.neighbours = nb;
+    const std::vector<float> mv = integrateMvao(b.set, o);
+    const Errors ma = errors(mv, mesh.ao, pts, {}), mg = errors(mv, mesh.ao, pts, grazing),
+                 mb = errors(mv, mesh.ao, pts, border);
+    std::printf("  mvao %dx%d all %.4f grazing %.4f border %.4f\n", nb, nb, ma.mean, mg.mean,
+                mb.mean);
+    EXPECT_LT(ma.mean, 0.93 * sa.mean) << nb;
+    EXPECT_LT(mg.mean, 0.95 * sg.mean) << nb;
+    EXPECT_LT(mb.mean, 0.9 * sb.mean) << nb;
+  }
 }
 
 /// FNV-1a 64 of a file: the fingerprint of a store built before the AO attribute existed.
