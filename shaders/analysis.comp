@@ -36,7 +36,7 @@ uniform ivec2 uSize;
 uniform float uP22;  // projection[2][2] and [3][2]: linear depth from NDC depth
 uniform float uP32;
 // Relative depth.
-uniform int uRadius;      // blur half-width, pixels (sigma = uRadius / 3; the taps below)
+uniform int uRadius;      // blur half-width, pixels
 uniform float uAmount;    // 1: the colour map replaces the image; 0: nothing
 uniform int uFixedRange;  // 1: uRangeLo..uRangeHi; 0: this frame's own range
 uniform float uRangeLo;
@@ -90,14 +90,16 @@ float rangeValue(uint u) {
   return uintBitsToFloat((u & 0x80000000u) != 0u ? u & 0x7FFFFFFFu : ~u);
 }
 
-// The blur's taps (AnalysisPass computes them): uTaps taps at uFirst + i uStep pixels, weights
-// uWeights[i]. A blur wider than 6 pixels keeps 13 taps a pass, every radius / 6 pixels (its
-// sigma, radius / 3, stays at least twice the stride, where a sampled Gaussian still sums
-// evenly). No division or exp in the loops: llvmpipe has no vector integer division.
-uniform int uTaps;
-uniform int uFirst;
-uniform int uStep;
+// Taps every stride() pixels: a blur wider than 6 pixels keeps 13 taps a pass (its sigma,
+// radius / 3, stays at least twice the stride, where a sampled Gaussian still sums evenly). The
+// taps' weights come from AnalysisPass (uWeights[i]: the i-th tap from the left), counted along
+// the loop: no exp and no integer division a tap (llvmpipe has no vector division).
+int stride() {
+  return max(1, uRadius / 6);
+}
+
 uniform float uWeights[TESSERA_ANALYSIS_MAX_TAPS];
+
 
 // Viridis (van der Walt and Smith, matplotlib) at nine stops, linear between them.
 vec3 viridis(float t) {
@@ -122,20 +124,23 @@ void main() {
   uint index = uint(p.y) * uint(uSize.x) + uint(p.x);
 #if TESSERA_ANALYSIS_STAGE == 0
   vec2 s = vec2(0.0);
-  for (int i = 0; i < uTaps; ++i) {
-    int x = p.x + uFirst + i * uStep;
+  int step = stride(), i = 0;
+  for (int k = -(uRadius / step) * step; k <= uRadius; k += step, ++i) {
+    int x = p.x + k;
     if (x < 0 || x >= uSize.x) continue;
     uint b = depthBits(ivec2(x, p.y));
     if (b == kEmpty) continue;
-    s += uWeights[i] * vec2(linearDepth(b), 1.0);
+    float w = uWeights[i];
+    s += vec2(w * linearDepth(b), w);
   }
   sums[index] = s;
 #elif TESSERA_ANALYSIS_STAGE == 1
   uint b = depthBits(p);
   if (b == kEmpty) return;
   vec2 s = vec2(0.0);
-  for (int i = 0; i < uTaps; ++i) {
-    int y = p.y + uFirst + i * uStep;
+  int step = stride(), i = 0;
+  for (int k = -(uRadius / step) * step; k <= uRadius; k += step, ++i) {
+    int y = p.y + k;
     if (y < 0 || y >= uSize.y) continue;
     s += uWeights[i] * texelFetch(uScratch, y * uSize.x + p.x).xy;
   }

@@ -172,12 +172,7 @@ double AnalysisPass::relativeDepth(FrameTarget& target, const RelativeDepthOptio
     (stage == 1 ? mSumTexels : mPlaneTexels).bind(TESSERA_TEXTURE_SCREEN_SCRATCH);
     const GlProgram& p = useStage(stage, target, projection);
     p.set("uRadius", o.radius);
-    if (stage <= 1) {
-      p.set("uWeights", std::span<const float>(weights));
-      p.set("uTaps", int(weights.size()));
-      p.set("uFirst", first);
-      p.set("uStep", step);
-    }
+    if (stage <= 1) p.set("uWeights", std::span<const float>(weights));
     p.set("uAmount", std::clamp(o.amount, 0.0f, 1.0f));
     p.set("uFixedRange", 1);
     p.set("uRangeLo", range.x);
