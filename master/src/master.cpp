@@ -13,6 +13,7 @@
 #include <tessera/core/stopwatch.h>
 #include <tessera/master/tile_assignment.h>
 #include <tessera/render/gl_context.h>
+#include <tessera/render/inset.h>
 #include <tessera/render/scene_draw_list.h>
 #include <tessera/render/screen_passes.h>
 #include <tessera/render/wall_mosaic.h>
@@ -80,8 +81,20 @@ void Master::prepare() {
   if (!mOpt.script.empty()) {
     config::CameraPath path = sync::loadCameraPath(mOpt.script);
     sync::checkPathModels(path, mGraph, mOpt.script);
+    try {
+      render::checkPathInsets(path, mWall, mOpt.script);
+    } catch (const render::RenderError& e) {
+      throw StartError("tessera-master: --script " + std::string(e.what()));
+    }
     mPlayer.emplace(std::move(path));
   }
+  // The scene's inset centres are checked against this wall (the scene's own checks know no
+  // wall): every inset named and inside the wall's extent.
+  const scene::InsetPlacement& insets = mGraph.settings().inset();
+  for (int i = 0; i < insets.centres_size(); ++i)
+    if (const auto why = render::insetPlacementProblem(mWall, insets.centres(i)))
+      throw StartError("tessera-master: --scene " + mOpt.scene + ": settings.inset.centres[" +
+                       std::to_string(i) + "]: " + *why);
   mTiles = std::make_unique<TileTable>(mWall, mOpt.wall);
   if (!mOpt.annotations.empty()) {
     try {
@@ -170,8 +183,8 @@ void Master::handleJoins(const sync::LinkEvents& events) {
       } catch (const AssignmentError& e) {
         refusal = e.what();
       }
-    } else if (events.joins.size() != size_t(mWall.tiles_size())) {
-      refusal = mOpt.wall + " has " + std::to_string(mWall.tiles_size()) + " tiles but " +
+    } else if (events.joins.size() != mTiles->size()) {
+      refusal = mOpt.wall + " has " + std::to_string(mTiles->size()) + " tiles but " +
                 std::to_string(events.joins.size()) + " render nodes were started";
     }
     for (size_t i = 0; i < events.joins.size(); ++i) {
@@ -250,7 +263,7 @@ void Master::loseTile(uint32_t tile, const std::string& reason) {
 std::optional<std::string> Master::policyViolation() const {
   for (uint32_t t = 0; t < mTiles->size(); ++t) {
     const TileTable::Slot& s = mTiles->slot(t);
-    if (!mWall.tiles(int(t)).critical() || s.state == State::kJoining || s.state == State::kLive)
+    if (!mTiles->tile(t).critical() || s.state == State::kJoining || s.state == State::kLive)
       continue;
     return "critical tile " + mTiles->name(t) + " has no node" +
            (s.lost_reason.empty() ? std::string() : " (" + s.lost_reason + ")");
@@ -457,7 +470,7 @@ int Master::run() {
       if (slot.state == State::kJoining && report.frame() > slot.welcome_frame)
         mTiles->setLive(*tile);
       // Nodes are not trusted for sizes: pixels only when asked, exactly the tile's.
-      const config::Tile& tc = mWall.tiles(int(*tile));
+      const config::Tile& tc = mTiles->tile(*tile);
       const size_t expected =
           message_out.read_back() ? size_t(tc.pixel_width()) * tc.pixel_height() * 4 : 0;
       if (report.rgba().size() != expected) {
@@ -553,7 +566,7 @@ void Master::writeScreenshots(const std::vector<std::string>& paths, uint64_t fr
                               const std::vector<std::string>& pixels) {
   std::vector<render::Image> images(pixels.size());
   for (size_t i = 0; i < pixels.size(); ++i) {
-    const config::Tile& tile = mWall.tiles(int(i));
+    const config::Tile& tile = mTiles->tile(uint32_t(i));
     if (pixels[i].empty()) {
       images[i] = render::lostTileImage(tile.pixel_width(), tile.pixel_height());
       continue;
@@ -566,7 +579,11 @@ void Master::writeScreenshots(const std::vector<std::string>& paths, uint64_t fr
   // warps the wall names (a file that went bad since the start is said, no picture written).
   render::Image wall;
   try {
-    wall = render::assembleWallMosaic(mWall, images);
+    // Foveal insets: each slot's picture arrives weighted by its node (render/inset.h); the wall
+    // adds the insets' light to the context's.
+    wall = mWall.insets_size() == 0
+               ? render::assembleWallMosaic(mWall, images)
+               : render::assembleInsetWall(mWall, images, mGraph.settings().inset());
   } catch (const render::RenderError& e) {
     std::fprintf(stderr, "tessera-master: frame %llu: no screenshot: %s\n",
                  (unsigned long long)frame, e.what());
@@ -587,8 +604,33 @@ void Master::writeScreenshots(const std::vector<std::string>& paths, uint64_t fr
       std::fprintf(stderr, "tessera-master: frame %llu: screenshot %s: %s\n",
                    (unsigned long long)frame, p.c_str(), e.what());
     }
+    writeInsetPictures(p, frame, images);
   }
   std::fflush(stdout);
+}
+
+void Master::writeInsetPictures(const std::string& path, uint64_t frame,
+                                const std::vector<render::Image>& slots) {
+  // Each inset at its own density beside the screenshot: PATH-inset-NAME.png (stereo: an eye a
+  // file), the context sampled up under it.
+  for (int i = 0; i < mWall.insets_size(); ++i) {
+    const config::Inset& in = mWall.insets(i);
+    for (int eye : in.stereo() ? std::vector<int>{-1, 1} : std::vector<int>{0}) {
+      const std::string file = render::insetPicturePath(path, in.name(), eye);
+      try {
+        const render::Image detail =
+            render::insetDetail(mWall, slots, mGraph.settings().inset(), i, eye);
+        render::writePng(file, detail);
+        const render::InsetRect r = render::insetRect(mWall, i, mGraph.settings().inset());
+        std::printf("tessera-master: frame %llu: wrote %s (%ux%u); inset %s at (%.6g, %.6g)\n",
+                    (unsigned long long)frame, file.c_str(), detail.width, detail.height,
+                    in.name().c_str(), 0.5 * (r.x0 + r.x1), 0.5 * (r.y0 + r.y1));
+      } catch (const std::exception& e) {
+        std::fprintf(stderr, "tessera-master: frame %llu: screenshot %s: %s\n",
+                     (unsigned long long)frame, file.c_str(), e.what());
+      }
+    }
+  }
 }
 
 void Master::writeStatsHeader() {

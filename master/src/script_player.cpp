@@ -20,6 +20,9 @@ std::vector<std::string> ScriptPlayer::advance(sync::SceneGraph& graph, double t
       graph.setShading(a.set_shading() == "edl" ? scene::SHADING_EDL : scene::SHADING_COLOR);
     } else if (a.has_set_analysis()) {
       graph.setAnalysis(a.set_analysis());
+    } else if (a.has_set_inset()) {
+      // Checked against the wall when the script was loaded (render::checkPathInsets()).
+      graph.setInsetCentre(a.set_inset().name(), a.set_inset().x(), a.set_inset().y());
     } else if (a.has_screenshot()) {
       screenshots.push_back(a.screenshot());
     }

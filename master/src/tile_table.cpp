@@ -18,7 +18,10 @@ bool free(const TileTable::Slot& s) {
 }  // namespace
 
 TileTable::TileTable(const config::WallConfig& wall, std::string wall_name)
-    : mWall(wall), mWallName(std::move(wall_name)), mSlots(size_t(wall.tiles_size())) {}
+    : mWall(wall),
+      mWallName(std::move(wall_name)),
+      mWallSlots(render::wallSlots(wall)),
+      mSlots(mWallSlots.size()) {}
 
 std::variant<uint32_t, std::string> TileTable::claim(const cluster::Hello& hello) const {
   if (!hello.tile().empty()) {
@@ -35,11 +38,11 @@ std::variant<uint32_t, std::string> TileTable::claim(const cluster::Hello& hello
            ")";
   }
   for (uint32_t t = 0; t < mSlots.size(); ++t) {
-    const std::string& host = mWall.tiles(int(t)).host();
+    const std::string& host = tile(t).host();
     if (free(mSlots[t]) && !host.empty() && sameHost(host, hello.host())) return t;
   }
   for (uint32_t t = 0; t < mSlots.size(); ++t)
-    if (free(mSlots[t]) && mWall.tiles(int(t)).host().empty()) return t;
+    if (free(mSlots[t]) && tile(t).host().empty()) return t;
   return "every tile of " + mWallName + " that this host (" + hello.host().substr(0, 64) +
          ") may drive has a node; name one with --tile, or stop the node driving it";
 }

@@ -26,6 +26,7 @@
 #include <tessera/lod/store_cache.h>
 #include <tessera/media/movie_writer.h>
 #include <tessera/render/gl_context.h>
+#include <tessera/render/inset.h>
 #include <tessera/render/pass_timing.h>
 #include <tessera/render/path_frames.h>
 #include <tessera/render/poster.h>
@@ -207,6 +208,12 @@ int run(int argc, char** argv) {
       app.add_flag("--whole", whole, "Render the wall's whole extent as one image (seam check)");
   tile_opt->excludes(mosaic_opt)->excludes(whole_opt);
   mosaic_opt->excludes(whole_opt);
+  std::vector<std::string> inset_args;
+  app.add_option(
+         "--inset", inset_args,
+         "Place a foveal inset of the wall: NAME=X,Y, its centre on the wall plane "
+         "(metres), over the scene's settings.inset; --mosaic also writes OUT-inset-NAME.png")
+      ->take_all();
   app.add_option("--size", size, "Plain view size WxH (without --wall)")->capture_default_str();
   app.add_option("--fovy", fovy, "Plain view vertical field of view, degrees")
       ->check(cli::finiteRange(1.0, 170.0))
@@ -649,6 +656,36 @@ int run(int argc, char** argv) {
     };
     const std::optional<config::WallConfig> wall =
         wall_path.empty() ? std::nullopt : std::optional(sync::loadWallConfig(wall_path));
+    // Where the wall's foveal insets are: the scene's centres, then --inset's.
+    scene::InsetPlacement inset_placement = graph.settings().inset();
+    if (!inset_args.empty() && !wall) usage("--inset needs --wall");
+    if (wall) {
+      for (int i = 0; i < inset_placement.centres_size(); ++i)
+        if (const auto why = render::insetPlacementProblem(*wall, inset_placement.centres(i)))
+          throw std::runtime_error(scene_path + ": settings.inset.centres[" + std::to_string(i) +
+                                   "]: " + *why);
+      for (const std::string& arg : inset_args) {
+        const size_t eq = arg.rfind('='), comma = arg.rfind(',');
+        scene::InsetCentre c;
+        char* end = nullptr;
+        if (eq == std::string::npos || comma == std::string::npos || comma < eq)
+          usage("--inset " + arg + ": give NAME=X,Y (metres)");
+        c.set_name(arg.substr(0, eq));
+        const std::string xs = arg.substr(eq + 1, comma - eq - 1), ys = arg.substr(comma + 1);
+        c.set_x(std::strtod(xs.c_str(), &end));
+        if (xs.empty() || *end != '\0') usage("--inset " + arg + ": X is not a number");
+        c.set_y(std::strtod(ys.c_str(), &end));
+        if (ys.empty() || *end != '\0') usage("--inset " + arg + ": Y is not a number");
+        if (const auto why = render::insetPlacementProblem(*wall, c))
+          usage("--inset " + arg + ": " + *why);
+        bool placed = false;
+        for (scene::InsetCentre& old_centre : *inset_placement.mutable_centres())
+          if (old_centre.name() == c.name()) old_centre = c, placed = true;
+        if (!placed) *inset_placement.add_centres() = c;
+      }
+    }
+    // The slots' weighted pictures of the last --mosaic of a wall with insets (insetDetail()).
+    std::vector<render::Image> inset_slots;
     auto plainViewSized = [&](const config::Camera& c, unsigned w, unsigned h) {
       render::ViewSetup v;
       v.view = render::cameraView(c);
@@ -682,6 +719,31 @@ int run(int argc, char** argv) {
       if (whole)
         return renderView("whole" + eye, eyeView(render::wholeWallView(*wall, c), c, eye_x),
                           options);
+      if (mosaic && wall->insets_size() > 0) {
+        // The tiles and the insets' slots, each weighted as its node weighs it, then the wall
+        // as the master assembles it (render/inset.h).
+        const std::vector<render::WallSlot> slots = render::wallSlots(*wall);
+        auto slotView = [&](const render::WallSlot& s) {
+          const render::ViewSetup v = render::slotView(*wall, s, inset_placement, c);
+          return s.inset < 0 ? eyeView(v, c, eye_x) : v;
+        };
+        render::RenderOptions wall_options = options;
+        if (options.relative_depth.enabled && !options.relative_depth.range) {
+          std::vector<glm::vec2> ranges;
+          for (const auto& s : slots) {
+            renderView(s.tile.name() + eye, slotView(s), options);
+            ranges.push_back(own_range);
+          }
+          wall_options.relative_depth.agreed_range = render::wallRange(ranges);
+        }
+        inset_slots.clear();
+        for (const auto& s : slots) {
+          render::Image img = renderView(s.tile.name() + eye, slotView(s), wall_options);
+          render::applySlotWeights(*wall, s, inset_placement, img);
+          inset_slots.push_back(std::move(img));
+        }
+        return render::assembleInsetWall(*wall, inset_slots, inset_placement);
+      }
       if (mosaic) {
         std::vector<render::Image> tiles;
         render::RenderOptions wall_options = options;
@@ -797,6 +859,20 @@ int run(int argc, char** argv) {
     warnCorrupt();
     render::writePng(out, result);
     std::printf("wrote %s (%ux%u)\n", out.c_str(), result.width, result.height);
+    if (mosaic && !inset_slots.empty() && stereo.empty()) {
+      // Each inset at its own density beside the wall, as the master writes it.
+      for (int i = 0; i < wall->insets_size(); ++i) {
+        const config::Inset& in = wall->insets(i);
+        for (int eye : in.stereo() ? std::vector<int>{-1, 1} : std::vector<int>{0}) {
+          const std::string file = render::insetPicturePath(out, in.name(), eye);
+          cli::refuseOverwrite(file, read, "-o");
+          const render::Image detail =
+              render::insetDetail(*wall, inset_slots, inset_placement, i, eye);
+          render::writePng(file, detail);
+          std::printf("wrote %s (%ux%u)\n", file.c_str(), detail.width, detail.height);
+        }
+      }
+    }
     return 0;
   } catch (const cli::UsageError&) {
     throw;                                // cli::runMain: exit 2

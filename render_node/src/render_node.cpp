@@ -10,6 +10,7 @@
 
 #include <tessera/core/stopwatch.h>
 #include <tessera/render/gl_context.h>
+#include <tessera/render/inset.h>
 #include <tessera/render/projector_pass.h>
 #include <tessera/render/scene_draw_list.h>
 #include <tessera/render/scene_overlay.h>
@@ -59,7 +60,9 @@ struct RenderNode::Impl {
   NodeOptions opt;
   std::string who = "tessera-node";
   cluster::ClusterSetup setup;
-  const config::Tile* tile = nullptr;
+  const config::Tile* tile = nullptr;  // slot.tile once started
+  /// The wall's part this node drives: a tile or an eye of a foveal inset (render/inset.h).
+  render::WallSlot slot;
   std::unique_ptr<render::Window> window;
   std::unique_ptr<render::GlContext> context;
   sync::SceneGraph graph;
@@ -161,8 +164,11 @@ struct RenderNode::Impl {
     const uint32_t old_w = tile ? tile->pixel_width() : 0, old_h = tile ? tile->pixel_height() : 0;
     setup = std::move(s);
     tile = nullptr;
-    for (const config::Tile& t : setup.wall().tiles())
-      if (t.name() == setup.tile()) tile = &t;
+    for (const render::WallSlot& w : render::wallSlots(setup.wall())) {
+      if (w.tile.name() != setup.tile()) continue;
+      slot = w;
+      tile = &slot.tile;
+    }
     if (!tile)
       throw NodeError(cluster::NODE_BAD_TILE,
                       "the master gave tile '" + setup.tile() + "', which its wall does not have");
@@ -211,7 +217,7 @@ struct RenderNode::Impl {
     }
     updateModels(sync::SceneChanges::all());
     projector.reset();
-    if (render::hasProjectors(setup.wall())) {
+    if (slot.inset < 0 && render::hasProjectors(setup.wall())) {
       // The projector's blend and warp from the wall's files (paths as the master read them).
       int index = 0;
       while (setup.wall().tiles(index).name() != tile->name()) ++index;
@@ -271,7 +277,9 @@ struct RenderNode::Impl {
     if (status.code() == cluster::NODE_OK) {
       const auto start_time = Clock::now();
       try {
-        const render::ViewSetup view = render::tileView(setup.wall(), *tile, graph.camera());
+        // A tile's view, or a foveal inset's rectangle where the scene places it.
+        const render::ViewSetup view =
+            render::slotView(setup.wall(), slot, graph.settings().inset(), graph.camera());
         render::RenderOptions options = render::SceneDrawList::options(
             graph, setup.splat_scale() > 0 ? setup.splat_scale() : 2.0f);
         options.highlights = overlay.highlights();  // selections, tinted on every tile
@@ -290,6 +298,10 @@ struct RenderNode::Impl {
             projector->run(renderer->imageBuffer());
             if (read_back) image = projector->read();
           }
+          // Foveal insets: the context black under them and both cross-faded over the band
+          // (a CPU pass on the read-back picture, render/inset.h).
+          if (read_back && setup.wall().insets_size() > 0)
+            render::applySlotWeights(setup.wall(), slot, graph.settings().inset(), image);
           if (read_back) r.set_rgba(image.rgba.data(), image.rgba.size());
         } else {
           renderer->draw(instances, view, options, &rs, overlay.drawn());

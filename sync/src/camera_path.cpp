@@ -106,9 +106,20 @@ config::CameraPath parseCameraPath(const std::string& json, const std::string& n
         if (const auto problem = checks::checkAnalysis(a.set_analysis()))
           failConfig(fn, name, f + ".setAnalysis", *problem);
         break;
+      case config::PathAction::kSetInset: {
+        // Whether the inset exists and stays on the wall is checked against the wall by the
+        // master (render::checkPathInsets()).
+        const scene::InsetCentre& c = a.set_inset();
+        if (c.name().empty() || c.name().size() > 64)
+          failConfig(fn, name, f + ".setInset.name", "needs the inset's name (1..64 bytes)");
+        if (!std::isfinite(c.x()) || !std::isfinite(c.y()))
+          failConfig(fn, name, f + ".setInset", "x and y must be finite (metres)");
+        break;
+      }
       default:
         failConfig(fn, name, f,
-                   "needs one of setOpacity, setVisible, setShading, setAnalysis, screenshot");
+                   "needs one of setOpacity, setVisible, setShading, setAnalysis, setInset, "
+                   "screenshot");
     }
   }
   return path;

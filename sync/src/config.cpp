@@ -48,6 +48,66 @@ void checkTilePlane(const config::Tile& t, const char* fn, const std::string& na
   }
 }
 
+/// The foveal insets: names unique among tiles and insets (no '/', which names an eye's slot),
+/// sizes finite and positive, the rectangle inside the wall's extent, pixels 1..16384, eye
+/// separation in (0, 1] m, blend band in [0, half the smaller side], the border under half the
+/// smaller pixel side. Fills in the defaults (eye separation 0.065 m, band width / 20).
+void checkInsets(config::WallConfig& wall, const char* fn, const std::string& name,
+                 std::set<std::string>& names, bool room) {
+  if (wall.insets_size() == 0) return;
+  if (room)
+    fail(fn, name, "insets", "foveal insets need a planar wall (no tile with a plane of its own)");
+  if (wall.insets_size() > 64) fail(fn, name, "insets", "at most 64");
+  double x0 = 1e300, y0 = 1e300, x1 = -1e300, y1 = -1e300;
+  for (const auto& t : wall.tiles()) {
+    x0 = std::min(x0, t.x());
+    y0 = std::min(y0, t.y());
+    x1 = std::max(x1, t.x() + t.width());
+    y1 = std::max(y1, t.y() + t.height());
+  }
+  for (int i = 0; i < wall.insets_size(); ++i) {
+    config::Inset& in = *wall.mutable_insets(i);
+    const std::string f = "insets[" + std::to_string(i) + "]";
+    if (in.name().empty() || in.name().size() > 64)
+      fail(fn, name, f + ".name", "every inset needs a name (1..64 bytes)");
+    if (in.name().find('/') != std::string::npos)
+      fail(fn, name, f + ".name", "'" + in.name() + "' holds '/', which names a stereo eye's slot");
+    if (!names.insert(in.name()).second)
+      fail(fn, name, f + ".name", "'" + in.name() + "' already names a tile or an inset");
+    if (in.stereo() &&
+        (!names.insert(in.name() + "/left").second || !names.insert(in.name() + "/right").second))
+      fail(fn, name, f + ".name", "'" + in.name() + "/left' or '/right' already names a tile");
+    if (!(in.width() > 0) || !(in.height() > 0) || !std::isfinite(in.width()) ||
+        !std::isfinite(in.height()))
+      fail(fn, name, f, "width and height must be finite and positive (metres)");
+    if (!std::isfinite(in.x()) || !std::isfinite(in.y()))
+      fail(fn, name, f, "x and y must be finite (metres)");
+    if (in.pixel_width() == 0 || in.pixel_height() == 0 || in.pixel_width() > 16384 ||
+        in.pixel_height() > 16384)
+      fail(fn, name, f, "pixelWidth and pixelHeight must be 1..16384");
+    if (!(in.x() >= x0 && in.y() >= y0 && in.x() + in.width() <= x1 &&
+          in.y() + in.height() <= y1)) {
+      char what[256];
+      std::snprintf(what, sizeof what,
+                    "the inset [%.6g, %.6g] x [%.6g, %.6g] m must lie inside the wall's extent "
+                    "[%.6g, %.6g] x [%.6g, %.6g] m",
+                    in.x(), in.x() + in.width(), in.y(), in.y() + in.height(), x0, x1, y0, y1);
+      fail(fn, name, f, what);
+    }
+    if (!in.has_eye_separation()) in.set_eye_separation(0.065);
+    if (!(in.eye_separation() > 0 && in.eye_separation() <= 1))
+      fail(fn, name, f + ".eyeSeparation", "must be in (0, 1] metres (absent: 0.065)");
+    if (!in.has_blend_band()) in.set_blend_band(in.width() / 20.0);
+    const double half = 0.5 * std::min(in.width(), in.height());
+    if (!(in.blend_band() >= 0 && in.blend_band() <= half))
+      fail(fn, name, f + ".blendBand",
+           "must be in [0, " + std::to_string(half) +
+               "] metres, half the inset's smaller side (absent: a twentieth of its width)");
+    if (uint64_t(in.border()) * 2 >= std::min(in.pixel_width(), in.pixel_height()))
+      fail(fn, name, f + ".border", "must be under half the inset's smaller pixel side");
+  }
+}
+
 }  // namespace
 
 config::WallConfig parseWallConfig(const std::string& json, const std::string& name,
@@ -143,6 +203,7 @@ config::WallConfig parseWallConfig(const std::string& json, const std::string& n
     fail(fn, name, "minLiveTiles",
          "is " + std::to_string(wall.min_live_tiles()) + " but the wall has only " +
              std::to_string(wall.tiles_size()) + " tiles");
+  checkInsets(wall, fn, name, names, room);
   if (wall.near() == 0) wall.set_near(0.05);
   if (wall.far() == 0) wall.set_far(1000.0);
   if (!(wall.near() > 0) || !(wall.far() > wall.near()))

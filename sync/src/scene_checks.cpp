@@ -387,6 +387,23 @@ Problem checkAnalysis(const scene::Analysis& a) {
   return std::nullopt;
 }
 
+Problem checkInsetPlacement(const scene::InsetPlacement& p) {
+  if (p.centres_size() > 256)
+    return "settings.inset.centres: at most 256, got " + std::to_string(p.centres_size());
+  for (int i = 0; i < p.centres_size(); ++i) {
+    const scene::InsetCentre& c = p.centres(i);
+    const std::string f = "settings.inset.centres[" + std::to_string(i) + "]";
+    if (c.name().empty() || c.name().size() > 64)
+      return f + ".name: needs the inset's name (1..64 bytes)";
+    if (!std::isfinite(c.x()) || !std::isfinite(c.y()))
+      return f + " ('" + c.name() + "'): x and y must be finite (metres), got " + num(c.x()) +
+             ", " + num(c.y());
+    for (int j = 0; j < i; ++j)
+      if (p.centres(j).name() == c.name()) return f + ".name: '" + c.name() + "' is placed twice";
+  }
+  return std::nullopt;
+}
+
 /// A delta of the settings (or complete settings).
 Problem checkSettings(const scene::Settings& s) {
   if (s.has_background()) {
@@ -399,6 +416,9 @@ Problem checkSettings(const scene::Settings& s) {
     return "settings.lod_pixels: must be finite and > 0, got " + num(s.lod_pixels());
   if (s.has_analysis()) {
     if (auto p = checkAnalysis(s.analysis())) return p;
+  }
+  if (s.has_inset()) {
+    if (auto p = checkInsetPlacement(s.inset())) return p;
   }
   if (s.has_spbr_ensembles() && (s.spbr_ensembles() < 1 || s.spbr_ensembles() > 4096))
     return "settings.spbr_ensembles: must be 1..4096, got " + std::to_string(s.spbr_ensembles());

@@ -31,6 +31,8 @@ Problem checkNodeFields(const scene::SceneNode& n, SceneGraph::Kind kind);
 Problem checkSettings(const scene::Settings& s);
 /// The analysis filters' settings (scene::Analysis).
 Problem checkAnalysis(const scene::Analysis& a);
+/// settings.inset: names non-empty (at most 64 bytes) and unique, centres finite, at most 256.
+Problem checkInsetPlacement(const scene::InsetPlacement& p);
 /// A delta of the camera: each part absent or complete.
 Problem checkCameraDelta(const scene::CameraState& c);
 Problem checkCommand(const scene::Command& c);

@@ -483,6 +483,23 @@ void SceneGraph::setAnalysis(const scene::Analysis& analysis) {
   *mSettings.mutable_analysis() = analysis;
 }
 
+void SceneGraph::setInsetCentre(std::string_view name, double x, double y) {
+  TESSERA_CHECK(!name.empty() && name.size() <= 64 && std::isfinite(x) && std::isfinite(y),
+                "sync::SceneGraph::setInsetCentre(): a name of 1..64 bytes and a finite centre");
+  touchSettings();
+  scene::InsetPlacement& p = *mSettings.mutable_inset();
+  for (scene::InsetCentre& c : *p.mutable_centres()) {
+    if (c.name() != name) continue;
+    c.set_x(x);
+    c.set_y(y);
+    return;
+  }
+  scene::InsetCentre& c = *p.add_centres();
+  c.set_name(std::string(name));
+  c.set_x(x);
+  c.set_y(y);
+}
+
 void SceneGraph::setLeader(std::string_view leader) {
   TESSERA_CHECK(leader.size() <= kMaxParticipantName,
                 "sync::SceneGraph::setLeader(): a participant's name is at most 64 bytes");

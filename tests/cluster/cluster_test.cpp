@@ -88,14 +88,15 @@ class Cluster : public ::testing::Test {
 
   /// tessera-render --mosaic of `scene` on `wall` with the camera the master printed for `png`.
   static void expectSameAsMosaic(const CommandResult& r, const std::string& png,
-                                 const std::string& wall, const std::string& scene) {
+                                 const std::string& wall, const std::string& scene,
+                                 const std::string& extra = "") {
     const std::regex line("wrote (\\S*" + png + ") \\(\\d+x\\d+\\); camera (\\S+)");
     std::smatch m;
     ASSERT_TRUE(std::regex_search(r.out, m, line)) << r.out;
     const fs::path mosaic = *sDir / ("mosaic-" + png);
-    const CommandResult ref =
-        run("cd " + sDir->path().string() + " && " + TESSERA_RENDER_TOOL + " --scene " + scene +
-            " --wall " + wall + " --mosaic --camera '" + m[2].str() + "' -o " + mosaic.string());
+    const CommandResult ref = run("cd " + sDir->path().string() + " && " + TESSERA_RENDER_TOOL +
+                                  " --scene " + scene + " --wall " + wall + " --mosaic --camera '" +
+                                  m[2].str() + "' -o " + mosaic.string() + extra);
     ASSERT_EQ(ref.code, 0) << ref.out;
     const auto wall_png = tessera::test::readBytes(sDir->path() / m[1].str());
     const auto ref_png = tessera::test::readBytes(mosaic);
@@ -245,6 +246,80 @@ TEST_F(Cluster, FourNodesFollowTheScriptAndMatchTheMosaic) {
   expectSameAsMosaic(r, "mid.png", wall, "scene-color.json");
   expectSameAsMosaic(r, "last.png", wall, "scene-color.json");
   EXPECT_NE(r.out.find("frame 3: wrote ./mid.png"), std::string::npos) << r.out;
+}
+
+/// Two 320x180 tiles (0.48 x 0.27 m, a 2 cm bezel) and a mono foveal inset of 0.24 x 0.09 m at
+/// twice their density over the bezel, near the top.
+const std::string kInsetWall = R"({"name": "1x2 and a fovea", "tiles": [
+  {"name": "left", "x": 0, "y": 0, "width": 0.48, "height": 0.27, "pixelWidth": 320,
+   "pixelHeight": 180},
+  {"name": "right", "x": 0.5, "y": 0, "width": 0.48, "height": 0.27, "pixelWidth": 320,
+   "pixelHeight": 180}],
+  "insets": [{"name": "fovea", "x": 0.37, "y": 0.17, "width": 0.24, "height": 0.09,
+              "pixelWidth": 320, "pixelHeight": 120}],
+  "eye": {"x": 0.49, "y": 0.135, "z": 1.5}})";
+
+bool bezelGrey(const tessera::render::Image& img, uint32_t x, uint32_t y) {
+  const uint8_t* p = &img.rgba[(size_t(y) * img.width + x) * 4];
+  return p[0] == 24 && p[1] == 24 && p[2] == 24;
+}
+
+TEST_F(Cluster, AFovealInsetNodeAndTwoTilesMakeTheMosaic) {
+  // Three nodes: the two context tiles and the inset (a slot named "fovea"). The context is
+  // black under the inset, the inset cross-fades over the band; the master's screenshot and
+  // the inset's own picture are tessera-render --mosaic's, byte for byte.
+  write(sDir->path() / "inset-wall.json", kInsetWall);
+  const CommandResult r =
+      cluster("--wall inset-wall.json --scene scene.json --frames 3 --screenshot fov.png", 3);
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("tile fovea"), std::string::npos) << r.out;
+  expectSameAsMosaic(r, "fov.png", "inset-wall.json", "scene.json");
+  EXPECT_NE(r.out.find("wrote fov-inset-fovea.png (320x120); inset fovea at (0.49, 0.215)"),
+            std::string::npos)
+      << r.out;
+  const auto inset = tessera::test::readBytes(sDir->path() / "fov-inset-fovea.png");
+  const auto ref = tessera::test::readBytes(sDir->path() / "mosaic-fov-inset-fovea.png");
+  ASSERT_FALSE(inset.empty());
+  EXPECT_TRUE(inset == ref) << "the inset's picture differs from tessera-render --mosaic's";
+}
+
+TEST_F(Cluster, AScriptedSetInsetMovesTheInsetOnEveryNode) {
+  // The inset starts near the top (the scene does not place it) and the script moves it down at
+  // t = 0.02 s (frame 2): the bezel it covers (no grey there) follows it.
+  write(sDir->path() / "inset-wall.json", kInsetWall);
+  write(sDir->path() / "move.json", R"({"name": "move the inset", "keyframes": [
+    {"time": 0, "eye": {"x": -0.027, "y": 0.12, "z": 0.38}, "target": {"x": -0.027, "y": 0.1,
+     "z": 0}, "up": {"x": 0, "y": 1, "z": 0}}],
+    "actions": [{"time": 0, "screenshot": "before.png"},
+                {"time": 0.02, "setInset": {"name": "fovea", "x": 0.49, "y": 0.055}}]})");
+  const CommandResult r = cluster(
+      "--wall inset-wall.json --scene scene.json --script move.json --frames 4 "
+      "--screenshot moved.png",
+      3);
+  ASSERT_EQ(r.code, 0) << r.out;
+  expectSameAsMosaic(r, "moved.png", "inset-wall.json", "scene.json", " --inset fovea=0.49,0.055");
+  EXPECT_NE(r.out.find("inset fovea at (0.49, 0.055)"), std::string::npos) << r.out;
+  const tessera::render::Image before =
+      tessera::render::readPng((sDir->path() / "before.png").string());
+  const tessera::render::Image moved =
+      tessera::render::readPng((sDir->path() / "moved.png").string());
+  // The bezel is columns 320..332; the inset's rows at the top are 7..66, at the bottom 113..173.
+  for (uint32_t x : {324u, 326u, 328u}) {
+    EXPECT_FALSE(bezelGrey(before, x, 40)) << x;
+    EXPECT_TRUE(bezelGrey(before, x, 143)) << x;
+    EXPECT_TRUE(bezelGrey(moved, x, 40)) << x;
+    EXPECT_FALSE(bezelGrey(moved, x, 143)) << x;
+  }
+  // A setInset that leaves the wall is refused when the script is loaded, by field.
+  write(sDir->path() / "off.json", R"({"name": "off", "keyframes": [
+    {"time": 0, "eye": {"x": 0, "y": 0, "z": 1}, "target": {"x": 0, "y": 0, "z": 0},
+     "up": {"x": 0, "y": 1, "z": 0}}],
+    "actions": [{"time": 0, "setInset": {"name": "fovea", "x": 0.9, "y": 0.1}}]})");
+  const CommandResult off =
+      cluster("--wall inset-wall.json --scene scene.json --script off.json --frames 2", 3);
+  EXPECT_NE(off.code, 0);
+  EXPECT_NE(off.out.find("off.json: actions[0].setInset: inset 'fovea'"), std::string::npos)
+      << off.out;
 }
 
 TEST_F(Cluster, WrongNodeCountStopsBeforeRendering) {

@@ -29,6 +29,7 @@
 #include <tessera/annotate/annotation_scene.h>
 #include <tessera/master/script_player.h>
 #include <tessera/master/tile_table.h>
+#include <tessera/render/image.h>
 #include <tessera/sync/cluster_link.h>
 #include <tessera/sync/config.h>
 #include <tessera/sync/scene_graph.h>
@@ -123,6 +124,10 @@ class Master {
   std::optional<std::string> policyViolation() const;
   double nodeTimeoutMs() const;
   cluster::ClusterSetup setupFor(uint32_t tile) const;
+  /// Each foveal inset at its own density beside the screenshot `path`
+  /// (render::insetPicturePath()); `slots` are the pictures of render::wallSlots().
+  void writeInsetPictures(const std::string& path, uint64_t frame,
+                          const std::vector<render::Image>& slots);
   void writeScreenshots(const std::vector<std::string>& paths, uint64_t frame,
                         const std::vector<std::string>& pixels);
   void writeStatsHeader();

@@ -1,7 +1,8 @@
 // Which node drives which tile of the wall, as nodes join, die and come back (cluster link,
 // sync/cluster_link.h). A node is known by its tile's name, not by its connection or MPI rank:
 // it names the tile it wants (tessera-node --tile NAME) or is given the first free one; a second
-// node claiming a driven tile is refused with a message naming who drives it.
+// node claiming a driven tile is refused with a message naming who drives it. A wall's foveal
+// insets are slots too, after its tiles (render::wallSlots(): "<inset>", "<inset>/left", ...).
 #pragma once
 
 #include <cstdint>
@@ -11,6 +12,7 @@
 #include <vector>
 
 #include <tessera/cluster.pb.h>
+#include <tessera/render/inset.h>
 #include <tessera/sync/cluster_link.h>
 
 namespace tessera::master {
@@ -59,11 +61,14 @@ class TileTable {
 
   /// "tile left (host h, pid 12)".
   std::string describe(uint32_t tile) const;
-  const std::string& name(uint32_t tile) const { return mWall.tiles(int(tile)).name(); }
+  const std::string& name(uint32_t tile) const { return mWallSlots[tile].tile.name(); }
+  /// The tile of slot `tile` (an inset's: render::WallSlot::tile).
+  const config::Tile& tile(uint32_t tile) const { return mWallSlots[tile].tile; }
 
  private:
   config::WallConfig mWall;
   std::string mWallName;
+  std::vector<render::WallSlot> mWallSlots;
   std::vector<Slot> mSlots;
 };
 

@@ -172,6 +172,12 @@ class SceneGraph {
   /// What is wrong with `analysis` as settings.analysis ("settings.analysis.ao_strength: ..."),
   /// or nothing: for checks of outside messages before they are applied.
   static std::optional<std::string> analysisProblem(const scene::Analysis& analysis);
+  /// Moves the foveal inset `name` (config::WallConfig::insets) to centre (x, y) on the wall
+  /// plane, metres (scene::Settings::inset): every node draws it there from the next frame. The
+  /// graph does not know the wall: whether the inset stays inside it is the caller's check
+  /// (render::insetPlacementProblem()). Precondition (TESSERA_CHECK): name 1..64 bytes, x and y
+  /// finite.
+  void setInsetCentre(std::string_view name, double x, double y);
 
   /// Who leads the view ("" nobody; at most kMaxParticipantName bytes): scene::Settings::leader.
   void setLeader(std::string_view leader);
