@@ -301,6 +301,21 @@ int main(int argc, char** argv) {
       mean[f] /= double(sample.points.size());
     }
     std::printf("; mean reference discs %.4f mesh %.4f\n", mean[0], mean[1]);
+    // Where the discs read darker than the mesh by more than 0.3: how far the point's own
+    // normal (the scan's, which the disc reference starts its rays around) is from the mesh's.
+    std::vector<double> angle_all, angle_dark;
+    for (size_t k = 0; k < sample.points.size(); ++k) {
+      const double c = glm::dot(set.normal(sample.points[k]), glm::dvec3(mref.normal[k]));
+      const double deg = std::acos(std::clamp(c, -1.0, 1.0)) * 180.0 / 3.141592653589793;
+      angle_all.push_back(deg);
+      if (sample.ref[0][k] < sample.ref[1][k] - 0.3f) angle_dark.push_back(deg);
+    }
+    std::printf(
+        "scan normal against mesh normal: median %.1f deg (p95 %.1f) on all points, "
+        "%.1f (p95 %.1f) on the %zu points the discs read 0.3 darker\n",
+        bench::percentile(angle_all, 0.5), bench::percentile(angle_all, 0.95),
+        angle_dark.empty() ? 0.0 : bench::percentile(angle_dark, 0.5),
+        angle_dark.empty() ? 0.0 : bench::percentile(angle_dark, 0.95), angle_dark.size());
   }
 
   {

@@ -230,6 +230,7 @@ MeshAoReference meshReferenceAo(const ScanSet& s, const Mesh& mesh,
   out.ao.resize(points.size());
   out.distance.resize(points.size());
   out.thickness.resize(points.size());
+  out.normal.resize(points.size());
   out.edge = edge;
   tracePoints(points.size(), o.threads, [&](RTCIntersectContext& ctx, size_t k) {
     const uint32_t i = points[k];
@@ -255,6 +256,7 @@ MeshAoReference meshReferenceAo(const ScanSet& s, const Mesh& mesh,
         m.pose.rotation *
         m.towardScanner(glm::conjugate(m.pose.rotation) * (s.origin + p - m.pose.translation));
     if (glm::dot(n, toward) < 0) n = -n;
+    out.normal[k] = glm::vec3(n);
     // Rays leave a quarter of an edge above the surface: the facets around q do not hide it.
     const glm::dvec3 org = q - centre + n * (0.25 * edge);
     double sum = 0;

@@ -216,6 +216,7 @@ struct MeshAoReference {
   std::vector<float> ao;         ///< per listed point, eq. 1 with eq. 4's falloff
   std::vector<float> distance;   ///< from the point to q (world units)
   std::vector<float> thickness;  ///< from q inwards along -normal to the next surface; inf: none
+  std::vector<glm::vec3> normal;  ///< the mesh's unit normal at q, towards the point's scanner
   double edge = 0;               ///< the mesh's median edge length
 };
 /// Throws AoError for a mesh without triangles. The mesh's frame is the scans' registered frame.
