@@ -184,7 +184,9 @@ int runBuild(const std::vector<std::string>& inputs, const std::string& out,
       // --ao: MVAO (section 5) of each input's scans with the defaults of `tessera-lod ao`.
       AoStoreReport a;
       try {
-        a = buildStoreWithAo(paths, out, AoMethod::kMvao, AoOptions{}, o);
+        AoOptions ao_options;
+        ao_options.threads = o.threads;
+        a = buildStoreWithAo(paths, out, AoMethod::kMvao, ao_options, o);
       } catch (const AoError& e) {
         throw ReadError(std::string(e.what()) + " (build --ao needs registered range scans)");
       }

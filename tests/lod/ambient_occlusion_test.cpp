@@ -560,6 +560,12 @@ TEST(AmbientOcclusionStoreTest, BuildWithAoCarriesItAndRefusesInputsWithoutScans
   auto store = PointStore::open(out);
   EXPECT_EQ(store->summary().version, 3u);
   EXPECT_TRUE(store->summary().attributes & kAmbientOcclusion);
+  // The same store byte for byte on one thread.
+  const auto one = dir.path() / "one.tlod";
+  r = test::runCommand(tool + " build " + conf + " -o " + one.string() +
+                       " --ao --threads 1 --quiet");
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_EQ(fnv1a(one), fnv1a(out));
   // Points without scans: refused as bad input (exit 1) by name, nothing written.
   const std::string las = kData + "/lidar/autzen_trim.las";
   r = test::runCommand(tool + " build " + las + " -o " + (dir.path() / "las.tlod").string() +
