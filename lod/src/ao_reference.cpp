@@ -1,5 +1,6 @@
-// The ray-traced AO reference (ambient_occlusion.h, referenceAo()): every scan's points as
-// Embree oriented discs, stratified cosine-weighted rays, eq. 4's falloff on the hit distance.
+// The ray-traced AO references (ambient_occlusion.h): referenceAo() over every scan's points as
+// Embree oriented discs, meshReferenceAo() over a surface reconstruction's triangles; both with
+// stratified cosine-weighted rays and eq. 4's falloff on the hit distance.
 #include <tessera/lod/ambient_occlusion.h>
 
 #include <embree3/rtcore.h>

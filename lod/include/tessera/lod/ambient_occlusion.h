@@ -9,8 +9,9 @@
 //    or 5x5 grid neighbours per scan;
 //  - the real-time variant (section 6): a sparse voxel grid keyed by Morton code accumulating
 //    SSAO x weight and weight as scans arrive one by one;
-//  - a ray-traced reference (Embree 3, oriented discs of every scan's points) with the same AO
-//    definition, to measure the others against.
+//  - two ray-traced references (Embree 3) with the same AO definition, to measure the others
+//    against: the scans' surface reconstruction (meshReferenceAo(), independent of the scans'
+//    normals and registration layers) and every scan's points as oriented discs (referenceAo()).
 //
 // AO here is a visibility in [0, 1]: 1 is fully open (a plane), 0 fully occluded. The quantity
 // every method estimates is eq. 1's obscurance with rho = smoothstep(0, t_max, d) (eq. 4): the
