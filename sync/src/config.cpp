@@ -57,6 +57,11 @@ void checkInsets(config::WallConfig& wall, const char* fn, const std::string& na
   if (wall.insets_size() == 0) return;
   if (room)
     fail(fn, name, "insets", "foveal insets need a planar wall (no tile with a plane of its own)");
+  for (const auto& t : wall.tiles())
+    if (!t.blend().empty() || !t.warp().empty() || !wall.mpcdi().empty())
+      fail(fn, name, "insets",
+           "foveal insets need a wall without projector files (tile '" + t.name() +
+               "' has a blend, a warp or the wall an MPCDI file)");
   if (wall.insets_size() > 64) fail(fn, name, "insets", "at most 64");
   double x0 = 1e300, y0 = 1e300, x1 = -1e300, y1 = -1e300;
   for (const auto& t : wall.tiles()) {

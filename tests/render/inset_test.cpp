@@ -111,6 +111,13 @@ TEST(InsetWeights, TheBandIsMonotoneAndContextPlusInsetIsOneInLinearLight) {
       EXPECT_NEAR(contextWeight(w, {}, wx, wy) + insetWeight(r, wx, wy), 1.0, 1e-12);
     }
   }
+  // The ramp itself, by hand: in the middle row the left edge is nearest, pixel i's centre is
+  // i + 0.5 of the band's 10 pixels inside it.
+  for (uint32_t i = 0; i < 12; ++i) {
+    const double expected = i < 10 ? 1.0 - (i + 0.5) / 10.0 : 0.0;
+    EXPECT_NEAR(linearFromByte(red(context, 40 + i, 90)), expected, 1.1 / 255.0) << i;
+    EXPECT_NEAR(linearFromByte(red(inset, i, 30)), 1.0 - expected, 1.1 / 255.0) << i;
+  }
   // 8-bit gamma-2.2 values: each weight rounds to the nearest code, at most 1.47/255 together
   // (near white one code is 2.2/255 of light).
   EXPECT_LE(worst, 1.5 / 255.0);
@@ -333,6 +340,20 @@ TEST(InsetConfig, BadInsetsAreRefusedByField) {
   expectRefused(R"({"name": "f", "eyeSeparation": 0, "stereo": true, )" + ok + "}",
                 "insets[0].eyeSeparation", "(0, 1]");
   expectRefused(R"({"name": "f", "border": 100, )" + ok + "}", "insets[0].border", "under half");
+  // Projector files: the inset's slots would need their own blend and warp.
+  try {
+    (void)sync::parseWallConfig(R"({"tiles": [{"name": "p", "width": 1, "height": 1,
+        "pixelWidth": 8, "pixelHeight": 8, "blend": "auto"}], "eye": {"z": 2}, "insets": [
+        {"name": "f", "x": 0.1, "y": 0.1, "width": 0.2, "height": 0.2, "pixelWidth": 8,
+         "pixelHeight": 8}]})",
+                                "p.json", "");
+    ADD_FAILURE() << "an inset on a projector wall";
+  } catch (const sync::ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("p.json: insets: foveal insets need a wall without "
+                                         "projector files"),
+              std::string::npos)
+        << e.what();
+  }
 }
 
 }  // namespace
