@@ -2,8 +2,9 @@
 // on one context (llvmpipe): a 1920x1080 context tile of 0.96 x 0.54 m and a 1920x1080 inset over
 // a fifth of its area (0.429 x 0.241 m, 2.24 times the density each way), the bunny's ten range
 // scans filling the tile. Per round (interleaved, the median kept): the context's frame (settled,
-// chunks resident: draw and read-back), its weights (the CPU pass that blacks it out under the
-// inset), the inset's frame, its weights, and the wall picture (the screenshot's composite:
+// chunks resident: draw and read-back), its weights (blacking it out under the inset: the CPU
+// reference and the GPU pass nodes run, with its read-back), the inset's frame, its weights, and
+// the wall picture (the screenshot's composite:
 // assembleInsetWall()) and the inset's own picture (insetDetail()). Prints CSV; writes
 // OUT/inset.csv, OUT/inset.png (ms per step) and OUT/inset_wall.png (the composite).
 #include <algorithm>
@@ -108,12 +109,21 @@ int main(int argc, char** argv) {
         render::applySlotWeights(wall, slots[i], placement, weighted[i]);
       };
     };
+    render::InsetPass pass;
+    auto weighGpu = [&](size_t i) {
+      return [&, i] {
+        pass.run(renderers[i]->imageBuffer(), wall, slots[i], placement);
+        weighted[i] = pass.read();
+      };
+    };
     render::Image composite, detail;
     std::vector<Step> steps = {
         {"context frame", frame(0), {}},
         {"context weights (CPU)", weigh(0), {}},
+        {"context weights (GPU)", weighGpu(0), {}},
         {"inset frame", frame(1), {}},
         {"inset weights (CPU)", weigh(1), {}},
+        {"inset weights (GPU)", weighGpu(1), {}},
         {"wall composite (screenshot)",
          [&] { composite = render::assembleInsetWall(wall, weighted, placement); },
          {}},

@@ -9,6 +9,11 @@
 #include <tessera/render/gl_context.h>
 #include <tessera/render/wall_mosaic.h>
 
+#define GL_GLEXT_PROTOTYPES
+#include <GL/glcorearb.h>
+
+#include "shaders.h"
+
 namespace tessera::render {
 
 namespace {
@@ -251,6 +256,71 @@ void applySlotWeights(const config::WallConfig& wall, const WallSlot& slot,
       weigh(p, insetWeight(r, wx, wy));
     }
   }
+}
+
+InsetPass::InsetPass() : mProgram(GlProgram::compute(shaders::kInset, "inset.comp")) {}
+
+void InsetPass::run(uint32_t image_buffer, const config::WallConfig& wall, const WallSlot& slot,
+                    const scene::InsetPlacement& placement) {
+  TESSERA_CHECK(wall.insets_size() <= 64, "render::InsetPass::run(): at most 64 insets");
+  const config::Tile& t = slot.tile;
+  if (t.pixel_width() != mWidth || t.pixel_height() != mHeight) {
+    mWidth = t.pixel_width();
+    mHeight = t.pixel_height();
+    mOut = GlBuffer(size_t(mWidth) * mHeight * 4, nullptr);
+  }
+  // The picture's top-left corner on the wall and its pixel; rectangles relative to the corner,
+  // in double precision here, so single precision only spans the picture.
+  std::vector<glm::vec4> rects;
+  std::vector<float> bands;
+  glm::dvec2 corner, pixel;
+  float border = 0.0f;
+  glm::vec2 band_pixels(0.0f);
+  if (slot.inset < 0) {
+    corner = glm::dvec2(t.x(), t.y() + t.height());
+    pixel = glm::dvec2(t.width() / t.pixel_width(), t.height() / t.pixel_height());
+    for (const InsetRect& r : insetRects(wall, placement)) {
+      rects.emplace_back(r.x0 - corner.x, r.y0 - corner.y, r.x1 - corner.x, r.y1 - corner.y);
+      bands.push_back(float(r.band));
+    }
+  } else {
+    const InsetRect r = insetRect(wall, slot.inset, placement);
+    const config::Inset& in = wall.insets(slot.inset);
+    corner = glm::dvec2(r.x0, r.y1);
+    pixel = glm::dvec2(in.width() / in.pixel_width(), in.height() / in.pixel_height());
+    rects.emplace_back(0.0, r.y0 - r.y1, r.x1 - r.x0, 0.0);
+    bands.push_back(float(r.band));
+    border = float(in.border());
+    band_pixels = glm::vec2(r.band / pixel.x, r.band / pixel.y);
+  }
+  if (rects.empty()) {  // no insets: the picture as it is (a band of 0 around nothing)
+    rects.emplace_back(0.0f);
+    bands.push_back(0.0f);
+  }
+  const GlBufferTexture source(image_buffer, GL_R32UI);
+  source.bind(2);
+  mProgram.set("uSize", glm::ivec2(int(mWidth), int(mHeight)));
+  mProgram.set("uPixel", glm::vec2(pixel));
+  mProgram.set("uCount", wall.insets_size() == 0 ? 0 : int(rects.size()));
+  mProgram.set("uRects", std::span<const glm::vec4>(rects));
+  mProgram.set("uBands", std::span<const float>(bands));
+  mProgram.set("uInset", slot.inset < 0 ? 0 : 1);
+  mProgram.set("uBorder", border);
+  mProgram.set("uBandPixels", band_pixels);
+  mProgram.use();
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 3, mOut.name());
+  glDispatchCompute((mWidth + 15) / 16, (mHeight + 15) / 16, 1);
+  glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT | GL_SHADER_STORAGE_BARRIER_BIT |
+                  GL_PIXEL_BUFFER_BARRIER_BIT | GL_TEXTURE_FETCH_BARRIER_BIT);
+}
+
+Image InsetPass::read() const {
+  Image img;
+  img.width = mWidth;
+  img.height = mHeight;
+  img.rgba.resize(size_t(mWidth) * mHeight * 4);
+  mOut.read(0, img.rgba.size(), img.rgba.data());
+  return img;
 }
 
 Image assembleInsetWall(const config::WallConfig& wall, std::span<const Image> slots,

@@ -610,11 +610,51 @@ int run(int argc, char** argv) {
     // show a progress bar instead of a line a view.
     std::shared_ptr<render::ChunkStreamer> shared_streamer;
     bool quiet_views = false;
+    const std::optional<config::WallConfig> wall =
+        wall_path.empty() ? std::nullopt : std::optional(sync::loadWallConfig(wall_path));
+    // Where the wall's foveal insets are: the scene's centres, then --inset's.
+    scene::InsetPlacement inset_placement = graph.settings().inset();
+    if (!inset_args.empty() && !wall) usage("--inset needs --wall");
+    if (wall) {
+      for (int i = 0; i < inset_placement.centres_size(); ++i)
+        if (const auto why = render::insetPlacementProblem(*wall, inset_placement.centres(i)))
+          throw std::runtime_error(scene_path + ": settings.inset.centres[" + std::to_string(i) +
+                                   "]: " + *why);
+      for (const std::string& arg : inset_args) {
+        const size_t eq = arg.rfind('='), comma = arg.rfind(',');
+        scene::InsetCentre c;
+        char* end = nullptr;
+        if (eq == std::string::npos || comma == std::string::npos || comma < eq)
+          usage("--inset " + arg + ": give NAME=X,Y (metres)");
+        c.set_name(arg.substr(0, eq));
+        const std::string xs = arg.substr(eq + 1, comma - eq - 1), ys = arg.substr(comma + 1);
+        c.set_x(std::strtod(xs.c_str(), &end));
+        if (xs.empty() || *end != '\0') usage("--inset " + arg + ": X is not a number");
+        c.set_y(std::strtod(ys.c_str(), &end));
+        if (ys.empty() || *end != '\0') usage("--inset " + arg + ": Y is not a number");
+        if (const auto why = render::insetPlacementProblem(*wall, c))
+          usage("--inset " + arg + ": " + *why);
+        bool placed = false;
+        for (scene::InsetCentre& old_centre : *inset_placement.mutable_centres())
+          if (old_centre.name() == c.name()) old_centre = c, placed = true;
+        if (!placed) *inset_placement.add_centres() = c;
+      }
+    }
+    // The slots' weighted pictures of the last --mosaic of a wall with insets (insetDetail()).
+    std::vector<render::Image> inset_slots;
+    // `weigh`: a foveal inset's slot (render/inset.h), weighed on the GPU as a node weighs it.
+    std::unique_ptr<render::InsetPass> inset_pass;
     auto renderView = [&](const std::string& name, const render::ViewSetup& v,
-                          const render::RenderOptions& view_options) {
+                          const render::RenderOptions& view_options,
+                          const render::WallSlot* weigh = nullptr) {
       render::ViewRenderer r(v.width, v.height, shared_streamer, stream_options);
       render::RenderStats st;
       render::Image img = r.renderSettled(instances, v, view_options, &st, overlay);
+      if (weigh) {
+        if (!inset_pass) inset_pass = std::make_unique<render::InsetPass>();
+        inset_pass->run(r.imageBuffer(), *wall, *weigh, inset_placement);
+        img = inset_pass->read();
+      }
       own_range = st.relative_depth_range;
       if (!quiet_views)
         std::fprintf(
@@ -654,38 +694,6 @@ int run(int argc, char** argv) {
                        m.store->path().c_str(), (unsigned long long)pages);
       }
     };
-    const std::optional<config::WallConfig> wall =
-        wall_path.empty() ? std::nullopt : std::optional(sync::loadWallConfig(wall_path));
-    // Where the wall's foveal insets are: the scene's centres, then --inset's.
-    scene::InsetPlacement inset_placement = graph.settings().inset();
-    if (!inset_args.empty() && !wall) usage("--inset needs --wall");
-    if (wall) {
-      for (int i = 0; i < inset_placement.centres_size(); ++i)
-        if (const auto why = render::insetPlacementProblem(*wall, inset_placement.centres(i)))
-          throw std::runtime_error(scene_path + ": settings.inset.centres[" + std::to_string(i) +
-                                   "]: " + *why);
-      for (const std::string& arg : inset_args) {
-        const size_t eq = arg.rfind('='), comma = arg.rfind(',');
-        scene::InsetCentre c;
-        char* end = nullptr;
-        if (eq == std::string::npos || comma == std::string::npos || comma < eq)
-          usage("--inset " + arg + ": give NAME=X,Y (metres)");
-        c.set_name(arg.substr(0, eq));
-        const std::string xs = arg.substr(eq + 1, comma - eq - 1), ys = arg.substr(comma + 1);
-        c.set_x(std::strtod(xs.c_str(), &end));
-        if (xs.empty() || *end != '\0') usage("--inset " + arg + ": X is not a number");
-        c.set_y(std::strtod(ys.c_str(), &end));
-        if (ys.empty() || *end != '\0') usage("--inset " + arg + ": Y is not a number");
-        if (const auto why = render::insetPlacementProblem(*wall, c))
-          usage("--inset " + arg + ": " + *why);
-        bool placed = false;
-        for (scene::InsetCentre& old_centre : *inset_placement.mutable_centres())
-          if (old_centre.name() == c.name()) old_centre = c, placed = true;
-        if (!placed) *inset_placement.add_centres() = c;
-      }
-    }
-    // The slots' weighted pictures of the last --mosaic of a wall with insets (insetDetail()).
-    std::vector<render::Image> inset_slots;
     auto plainViewSized = [&](const config::Camera& c, unsigned w, unsigned h) {
       render::ViewSetup v;
       v.view = render::cameraView(c);
@@ -737,11 +745,8 @@ int run(int argc, char** argv) {
           wall_options.relative_depth.agreed_range = render::wallRange(ranges);
         }
         inset_slots.clear();
-        for (const auto& s : slots) {
-          render::Image img = renderView(s.tile.name() + eye, slotView(s), wall_options);
-          render::applySlotWeights(*wall, s, inset_placement, img);
-          inset_slots.push_back(std::move(img));
-        }
+        for (const auto& s : slots)
+          inset_slots.push_back(renderView(s.tile.name() + eye, slotView(s), wall_options, &s));
         return render::assembleInsetWall(*wall, inset_slots, inset_placement);
       }
       if (mosaic) {

@@ -73,6 +73,8 @@ struct RenderNode::Impl {
   std::unique_ptr<render::ViewRenderer> renderer;    // destroyed first: needs the context
   /// The tile's projector: blend and warp applied to every frame (none: the frame as drawn).
   std::unique_ptr<render::ProjectorPass> projector;
+  /// Foveal insets: this slot's weights applied to every frame (none: a wall without insets).
+  std::unique_ptr<render::InsetPass> inset_pass;
   cluster::NodeStatus status;                        // NODE_OK until something fails
   uint64_t reported = 0;                             // the last frame reported
   Clock::time_point reported_at;
@@ -85,6 +87,7 @@ struct RenderNode::Impl {
   Impl(sync::NodeLink& l, NodeOptions o) : link(l), opt(std::move(o)) {}
 
   ~Impl() {
+    inset_pass.reset();
     projector.reset();
     renderer.reset();
     videos.reset();
@@ -217,6 +220,14 @@ struct RenderNode::Impl {
     }
     updateModels(sync::SceneChanges::all());
     projector.reset();
+    inset_pass.reset();
+    if (setup.wall().insets_size() > 0) {
+      try {
+        inset_pass = std::make_unique<render::InsetPass>();
+      } catch (const render::RenderError& e) {
+        throw NodeError(cluster::NODE_NO_GL, e.what());
+      }
+    }
     if (slot.inset < 0 && render::hasProjectors(setup.wall())) {
       // The projector's blend and warp from the wall's files (paths as the master read them).
       int index = 0;
@@ -299,13 +310,17 @@ struct RenderNode::Impl {
             if (read_back) image = projector->read();
           }
           // Foveal insets: the context black under them and both cross-faded over the band
-          // (a CPU pass on the read-back picture, render/inset.h).
-          if (read_back && setup.wall().insets_size() > 0)
-            render::applySlotWeights(setup.wall(), slot, graph.settings().inset(), image);
+          // (render/inset.h), shown and read back alike.
+          if (inset_pass) {
+            inset_pass->run(renderer->imageBuffer(), setup.wall(), slot, graph.settings().inset());
+            if (read_back) image = inset_pass->read();
+          }
           if (read_back) r.set_rgba(image.rgba.data(), image.rgba.size());
         } else {
           renderer->draw(instances, view, options, &rs, overlay.drawn());
           if (projector) projector->run(renderer->imageBuffer());
+          if (inset_pass)
+            inset_pass->run(renderer->imageBuffer(), setup.wall(), slot, graph.settings().inset());
         }
         cluster::NodeFrameStats& st = *r.mutable_stats();
         st.set_render_ms(msSince(start_time));
@@ -336,7 +351,9 @@ struct RenderNode::Impl {
     present_ms = 0;
     if (!window || status.code() != cluster::NODE_OK) return;
     const auto start_time = Clock::now();
-    window->present(projector ? projector->imageBuffer() : renderer->imageBuffer(),
+    window->present(projector    ? projector->imageBuffer()
+                    : inset_pass ? inset_pass->imageBuffer()
+                                 : renderer->imageBuffer(),
                     tile->pixel_width(), tile->pixel_height());
     window->poll();  // keep the window responsive; input belongs to the master's console
     present_ms = msSince(start_time);

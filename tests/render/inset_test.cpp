@@ -228,6 +228,47 @@ TEST_F(InsetRender, TheWallPictureIsOnePictureAcrossTheSeam) {
   EXPECT_NE(red(wall_picture, 325, 90), kBezelGrey);
 }
 
+TEST_F(InsetRender, TheGpuPassWeighsAsTheCpuReference) {
+  // What nodes and tessera-render --mosaic run (InsetPass) against applySlotWeights(): the
+  // context tiles and the inset (with a border), each pixel within one level, most equal.
+  auto s = lod::PointStore::open(*sDir / "b.tlod");
+  ModelInstance inst{s.get(), storeModel(*s)};
+  const config::WallConfig w = wall(
+      R"({"name": "fovea", "x": 0.37, "y": 0.0675, "width": 0.24, "height": 0.135,
+          "pixelWidth": 320, "pixelHeight": 180, "blendBand": 0.02, "border": 3})");
+  const config::Camera cam = test::frontCamera(*s, 0.5);
+  scene::InsetPlacement placement;
+  scene::InsetCentre& c = *placement.add_centres();
+  c.set_name("fovea");
+  c.set_x(0.45);
+  c.set_y(0.15);
+  InsetPass pass;
+  for (const WallSlot& slot : wallSlots(w)) {
+    SCOPED_TRACE(slot.tile.name());
+    const ViewSetup v = slotView(w, slot, placement, cam);
+    ViewRenderer r(v.width, v.height);
+    Image cpu = r.renderSettled({&inst, 1}, v, RenderOptions{});
+    pass.run(r.imageBuffer(), w, slot, placement);
+    const Image gpu = pass.read();
+    const Image unweighted = cpu;
+    applySlotWeights(w, slot, placement, cpu);
+    ASSERT_EQ(gpu.rgba.size(), cpu.rgba.size());
+    size_t differ = 0, changed = 0;
+    int worst = 0;
+    for (size_t i = 0; i < cpu.rgba.size(); ++i) {
+      const int d = std::abs(int(gpu.rgba[i]) - int(cpu.rgba[i]));
+      worst = std::max(worst, d);
+      differ += d != 0;
+      changed += cpu.rgba[i] != unweighted.rgba[i];
+    }
+    EXPECT_LE(worst, 1);
+    EXPECT_LT(differ, cpu.rgba.size() / 100);
+    EXPECT_GT(changed, 1000u) << "the inset covers part of every slot here";
+    std::printf("%s: GPU weights against the CPU's: %zu of %zu bytes one level apart\n",
+                slot.tile.name().c_str(), differ, cpu.rgba.size());
+  }
+}
+
 TEST(InsetStereo, EachEyeIsTheMonoViewSeenFromThatEye) {
   const config::WallConfig w = wall(
       R"({"name": "fovea", "x": 0.37, "y": 0.0675, "width": 0.24, "height": 0.135,

@@ -13,10 +13,10 @@
 // Blending, in linear light (gamma 2.2): with d the distance of a wall point inside R's edge and
 // b the blend band, the context's weight is 1 outside R, 1 - d / b across the band and 0 deeper
 // in; the inset's weight is 1 minus it. Each picture is multiplied by its weight where it is
-// made (applySlotWeights(): the context tiles are black under the inset minus the band, the inset
-// black outside it), so the wall's light is the sum of the two, one picture. The weights are a
-// CPU pass over the node's read-back image (what screenshots and the mosaic use; a windowed node
-// presents its unweighted picture). Cost: one pass over the pixels under R.
+// made (the context tiles are black under the inset minus the band, the inset black outside it),
+// so the wall's light is the sum of the two, one picture. Nodes and `tessera-render --mosaic`
+// weigh on the GPU (InsetPass, every frame, presented and read back alike); applySlotWeights() is
+// the same on the CPU in double precision, the reference the tests hold the GPU pass to.
 //
 // The wall screenshot (assembleInsetWall()) is assembleWallMosaic()'s picture at the context's
 // density with each inset's weighted pixels averaged down onto it and added in linear light;
@@ -31,6 +31,8 @@
 #include <vector>
 
 #include <tessera/camera_path.pb.h>
+#include <tessera/render/gl_buffer.h>
+#include <tessera/render/gl_objects.h>
 #include <tessera/render/image.h>
 #include <tessera/render/tile_frustum.h>
 #include <tessera/scene.pb.h>
@@ -87,6 +89,28 @@ ViewSetup slotView(const config::WallConfig& wall, const WallSlot& slot,
 /// leaves tiles as they are. Precondition (TESSERA_CHECK): the image has the slot's pixel size.
 void applySlotWeights(const config::WallConfig& wall, const WallSlot& slot,
                       const scene::InsetPlacement& placement, Image& image);
+
+/// applySlotWeights() on the GPU (shaders/inset.comp), for nodes and `tessera-render --mosaic`:
+/// the same weights in single precision, so a pixel may differ from the CPU's by one level where
+/// its value rounds half way. Writes into a buffer of its own (the rendered picture is kept for
+/// the renderer's next frame). A GL 4.5 context must be current for the object's whole life.
+class InsetPass {
+ public:
+  InsetPass();
+  /// Weighs `image_buffer` (RGBA8 words, top row first, the slot's pixel size:
+  /// ViewRenderer::imageBuffer()) for `slot`. Precondition (TESSERA_CHECK): at most 64 insets.
+  /// Cost: one pass over the pixels, a weight per inset for a tile.
+  void run(uint32_t image_buffer, const config::WallConfig& wall, const WallSlot& slot,
+           const scene::InsetPlacement& placement);
+  /// The last run's picture: a GL buffer (for a window to present) and read back.
+  uint32_t imageBuffer() const { return mOut.name(); }
+  Image read() const;
+
+ private:
+  GlProgram mProgram;
+  GlBuffer mOut;
+  uint32_t mWidth = 0, mHeight = 0;
+};
 
 /// The wall screenshot: assembleWallMosaic() of the tiles' (weighted) pictures, bezels weighted
 /// as the context, with each inset's weighted picture (a stereo inset's left eye) averaged down
