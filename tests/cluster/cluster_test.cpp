@@ -283,6 +283,31 @@ TEST_F(Cluster, AFovealInsetNodeAndTwoTilesMakeTheMosaic) {
   EXPECT_TRUE(inset == ref) << "the inset's picture differs from tessera-render --mosaic's";
 }
 
+TEST_F(Cluster, AStereoInsetHasANodePerEyeAndMatchesTheMosaic) {
+  // Four nodes: two tiles and the inset's eyes ("fovea/left", "fovea/right"). The screenshot
+  // shows the left eye; each eye's picture is written beside it, all as tessera-render's.
+  std::string wall = kInsetWall;
+  wall.replace(wall.find(R"("pixelHeight": 120})"), 19,
+               R"("pixelHeight": 120, "stereo": true, "eyeSeparation": 0.065})");
+  write(sDir->path() / "stereo-inset-wall.json", wall);
+  const CommandResult r =
+      cluster("--wall stereo-inset-wall.json --scene scene.json --frames 2 --screenshot st.png", 4);
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("tile fovea/left"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("tile fovea/right"), std::string::npos) << r.out;
+  expectSameAsMosaic(r, "st.png", "stereo-inset-wall.json", "scene.json");
+  for (const char* eye : {"left", "right"}) {
+    const std::string name = std::string("st-inset-fovea-") + eye + ".png";
+    const auto inset = tessera::test::readBytes(sDir->path() / name);
+    const auto ref = tessera::test::readBytes(sDir->path() / ("mosaic-" + name));
+    ASSERT_FALSE(inset.empty()) << name;
+    EXPECT_TRUE(inset == ref) << name << " differs from tessera-render --mosaic's";
+  }
+  // The eyes see the bunny (behind the wall plane) from 6.5 cm apart: different pictures.
+  EXPECT_NE(tessera::test::readBytes(sDir->path() / "st-inset-fovea-left.png"),
+            tessera::test::readBytes(sDir->path() / "st-inset-fovea-right.png"));
+}
+
 TEST_F(Cluster, AScriptedSetInsetMovesTheInsetOnEveryNode) {
   // The inset starts near the top (the scene does not place it) and the script moves it down at
   // t = 0.02 s (frame 2): the bezel it covers (no grey there) follows it.
