@@ -335,6 +335,19 @@ TEST_F(Cluster, AScriptedSetInsetMovesTheInsetOnEveryNode) {
     EXPECT_TRUE(bezelGrey(moved, x, 40)) << x;
     EXPECT_FALSE(bezelGrey(moved, x, 143)) << x;
   }
+  // A scene placing the inset off the wall, or placing one the wall lacks, is refused at the
+  // start, by field.
+  std::string off_scene = sceneJson("bunny.tlod");
+  off_scene.replace(off_scene.rfind("}}"), 2,
+                    R"(, "inset": {"centres": [{"name": "fovea", "x": 0.1, "y": 0.1}]}}})");
+  write(sDir->path() / "off-scene.json", off_scene);
+  const CommandResult bad_scene =
+      cluster("--wall inset-wall.json --scene off-scene.json --frames 2", 3);
+  EXPECT_NE(bad_scene.code, 0);
+  EXPECT_NE(bad_scene.out.find("off-scene.json: settings.inset.centres[0]: inset 'fovea' "
+                               "centred at (0.1, 0.1)"),
+            std::string::npos)
+      << bad_scene.out;
   // A setInset that leaves the wall is refused when the script is loaded, by field.
   write(sDir->path() / "off.json", R"({"name": "off", "keyframes": [
     {"time": 0, "eye": {"x": 0, "y": 0, "z": 1}, "target": {"x": 0, "y": 0, "z": 0},

@@ -381,6 +381,19 @@ TEST(InsetConfig, BadInsetsAreRefusedByField) {
   expectRefused(R"({"name": "f", "eyeSeparation": 0, "stereo": true, )" + ok + "}",
                 "insets[0].eyeSeparation", "(0, 1]");
   expectRefused(R"({"name": "f", "border": 100, )" + ok + "}", "insets[0].border", "under half");
+  // A scene file's inset centres must be finite.
+  try {
+    (void)sync::parseSceneFile(R"({"camera": {"eye": {"z": 1}, "target": {}, "up": {"y": 1}},
+        "settings": {"inset": {"centres": [{"name": "f", "x": "NaN", "y": 0}]}}})",
+                               "scene.json", "");
+    ADD_FAILURE() << "a NaN inset centre";
+  } catch (const sync::ConfigError& e) {
+    EXPECT_NE(
+        std::string(e.what()).find("scene.json: scene: settings.inset.centres[0] ('f'): x and y "
+                                   "must be finite"),
+        std::string::npos)
+        << e.what();
+  }
   // Projector files: the inset's slots would need their own blend and warp.
   try {
     (void)sync::parseWallConfig(R"({"tiles": [{"name": "p", "width": 1, "height": 1,
