@@ -56,13 +56,17 @@ void FrameTarget::clearGeometry(bool pick, bool blend, bool footprints) {
   }
 }
 
-Image FrameTarget::readImage() const {
+Image readImageBuffer(const GlBuffer& plane, uint32_t width, uint32_t height) {
   Image img;
-  img.width = mWidth;
-  img.height = mHeight;
-  img.rgba.resize(pixels() * 4);
-  mImage.read(0, img.rgba.size(), img.rgba.data());
+  img.width = width;
+  img.height = height;
+  img.rgba.resize(size_t(width) * height * 4);
+  plane.read(0, img.rgba.size(), img.rgba.data());
   return img;
+}
+
+Image FrameTarget::readImage() const {
+  return readImageBuffer(mImage, mWidth, mHeight);
 }
 
 void FrameTarget::copyImageRegion(uint32_t x, uint32_t y, uint32_t width, uint32_t height,

@@ -6,6 +6,7 @@
 #include <cstdio>
 
 #include <tessera/core/check.h>
+#include <tessera/render/frame_target.h>
 #include <tessera/render/gl_context.h>
 #include <tessera/render/wall_mosaic.h>
 
@@ -315,12 +316,7 @@ void InsetPass::run(uint32_t image_buffer, const config::WallConfig& wall, const
 }
 
 Image InsetPass::read() const {
-  Image img;
-  img.width = mWidth;
-  img.height = mHeight;
-  img.rgba.resize(size_t(mWidth) * mHeight * 4);
-  mOut.read(0, img.rgba.size(), img.rgba.data());
-  return img;
+  return readImageBuffer(mOut, mWidth, mHeight);
 }
 
 Image assembleInsetWall(const config::WallConfig& wall, std::span<const Image> slots,

@@ -15,6 +15,7 @@
 #include <zip.h>
 
 #include <tessera/core/check.h>
+#include <tessera/render/frame_target.h>
 #include <tessera/core/file_checks.h>
 #include <tessera/core/parallel.h>
 #include <tessera/render/gl_context.h>
@@ -636,12 +637,7 @@ void ProjectorPass::run(uint32_t image_buffer) {
 }
 
 Image ProjectorPass::read() const {
-  Image img;
-  img.width = mWidth;
-  img.height = mHeight;
-  img.rgba.resize(size_t(mWidth) * mHeight * 4);
-  mOut.read(0, img.rgba.size(), img.rgba.data());
-  return img;
+  return readImageBuffer(mOut, mWidth, mHeight);
 }
 
 }  // namespace tessera::render

@@ -126,15 +126,7 @@ Image ViewRenderer::render(std::span<const ModelInstance> models, const ViewSetu
   RenderStats st;
   draw(models, view, options, &st, overlay);
   const auto t0 = std::chrono::steady_clock::now();
-  Image img;
-  if (mGuard > 0) {
-    img.width = mWidth;
-    img.height = mHeight;
-    img.rgba.resize(size_t(mWidth) * mHeight * 4);
-    mCropped.read(0, img.rgba.size(), img.rgba.data());
-  } else {
-    img = mTarget.readImage();
-  }
+  Image img = mGuard > 0 ? readImageBuffer(mCropped, mWidth, mHeight) : mTarget.readImage();
   st.readback_ms = msSince(t0);
   if (stats) *stats = st;
   return img;

@@ -24,6 +24,9 @@ constexpr size_t kMaxFramePixels = size_t(1) << 27;
 /// The pick plane's empty value.
 constexpr uint32_t kNoPick = 0xFFFFFFFFu;
 
+/// A GL buffer of width x height RGBA8 pixels (top row first) read back as an Image.
+Image readImageBuffer(const GlBuffer& plane, uint32_t width, uint32_t height);
+
 class FrameTarget {
  public:
   /// Four planes of 4 bytes a pixel. Throws RenderError for a zero or absurd size.
