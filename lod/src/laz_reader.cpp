@@ -3,6 +3,7 @@
 #include "laz_reader.h"
 
 #include <algorithm>
+#include <cassert>
 #include <thread>
 
 #include "reader_util.h"
@@ -240,6 +241,14 @@ LazChunks::Result LazChunks::decodeChunk(size_t i) const {
   }
   r.used = used;
   return r;
+}
+
+uint64_t LazChunks::decodeAt(size_t index, std::vector<uint8_t>& records, uint64_t& bytes) const {
+  assert(!mScanning && index < mPoints.size());
+  Result r = decodeChunk(index);
+  records = std::move(r.records);
+  bytes = r.used;
+  return r.count;
 }
 
 void LazChunks::launch() {

@@ -45,6 +45,13 @@ class LazChunks {
   /// "pointwise chunked, 3 chunks, POINT10 v2 + GPSTIME11 v2 + RGB12 v2" and the like.
   std::string describe() const;
   size_t chunkCount() const { return mPoints.size(); }
+  /// Whether chunks can be decoded out of order (the chunk table was read): decodeAt().
+  bool seekable() const { return !mScanning; }
+  /// Points in chunk `index` (< chunkCount()).
+  uint64_t chunkPoints(size_t index) const { return mPoints[index]; }
+  /// Decodes chunk `index` (< chunkCount()) into `records`, its coded size into `bytes`;
+  /// returns its point count. Any thread, several at once. Precondition (assert): seekable().
+  uint64_t decodeAt(size_t index, std::vector<uint8_t>& records, uint64_t& bytes) const;
 
  private:
   struct Result {
