@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "byte_source.h"
+#include "las_records.h"
 #include "laz_reader.h"
 #include "reader_util.h"
 #include "readers.h"
@@ -43,6 +44,8 @@ class LasReader final : public PointReader {
     parseHeader();
   }
   bool next(PointBatch& batch, size_t max_points) override;
+  /// The record layout; nullptr for LAZ (its records are compressed).
+  const LasRecordFormat* records() const { return mLaz ? nullptr : &mRec; }
 
  private:
   void parseHeader();
@@ -52,14 +55,8 @@ class LasReader final : public PointReader {
   void decodeRecords(const uint8_t* p, size_t n, PointBatch& batch, size_t at);
 
   ByteSource mSrc;
-  int mFormat = 0;
-  uint16_t mRecordLength = 0;
-  uint64_t mCount = 0;
-  uint64_t mDataOffset = 0;
-  uint64_t mNext = 0;  // next record index
-  glm::dvec3 mScale{1.0}, mDelta{0.0};
-  int mRgb = -1;
-  bool mColor16 = true;  // colours use the full 16 bits (else 8-bit values in 16-bit fields)
+  LasRecordFormat mRec;  // layout, scaling and colour depth of the records
+  uint64_t mNext = 0;    // next record index
   unsigned mThreads;
   std::unique_ptr<LazChunks> mLaz;
   std::vector<uint8_t> mChunk;  // LAZ: the decoded records of the current chunk
@@ -78,10 +75,10 @@ void LasReader::parseHeader() {
   }
   int major = h[24], minor = h[25];
   uint16_t header_size = loadLE<uint16_t>(h + 94);
-  mDataOffset = loadLE<uint32_t>(h + 96);
+  mRec.data_offset = loadLE<uint32_t>(h + 96);
   uint32_t vlr_count = loadLE<uint32_t>(h + 100);
   uint8_t fmt_byte = h[104];
-  mRecordLength = loadLE<uint16_t>(h + 105);
+  mRec.record_length = loadLE<uint16_t>(h + 105);
   uint64_t legacy_count = loadLE<uint32_t>(h + 107);
   std::string version = std::to_string(major) + "." + std::to_string(minor);
   if (major != 1 || minor > 4) {
@@ -89,10 +86,10 @@ void LasReader::parseHeader() {
   }
   // LASzip marks compressed records by setting bit 7 (and 6) of the format byte.
   const bool compressed = fmt_byte & 0xC0;
-  mFormat = fmt_byte & 0x3F;
-  if (mFormat > 10) {
+  mRec.format = fmt_byte & 0x3F;
+  if (mRec.format > 10) {
     fail(kComponent, mSrc.name(), atByte(104),
-         "unknown point data format " + std::to_string(mFormat));
+         "unknown point data format " + std::to_string(mRec.format));
   }
   size_t need_header = minor >= 4 ? 375 : minor == 3 ? 235 : kMinHeader;
   if (header_size < need_header) {
@@ -103,23 +100,24 @@ void LasReader::parseHeader() {
   if (got < need_header) {
     fail(kComponent, mSrc.name(), atByte(got), "file ends inside the public header");
   }
-  if (mDataOffset < header_size) {
+  if (mRec.data_offset < header_size) {
     fail(kComponent, mSrc.name(), atByte(96),
-         "offset to point data " + std::to_string(mDataOffset) + " lies inside the header");
+         "offset to point data " + std::to_string(mRec.data_offset) + " lies inside the header");
   }
-  if (mRecordLength < kMinRecord[mFormat]) {
+  if (mRec.record_length < kMinRecord[mRec.format]) {
     fail(kComponent, mSrc.name(), atByte(105),
-         "point record length " + std::to_string(mRecordLength) + " is shorter than format " +
-             std::to_string(mFormat) + " needs (" + std::to_string(kMinRecord[mFormat]) + ")");
+         "point record length " + std::to_string(mRec.record_length) + " is shorter than format " +
+             std::to_string(mRec.format) + " needs (" + std::to_string(kMinRecord[mRec.format]) +
+             ")");
   }
-  mCount = legacy_count;
+  mRec.count = legacy_count;
   if (minor >= 4) {
     uint64_t count64 = loadLE<uint64_t>(h + 247);
-    if (count64 != 0) mCount = count64;
+    if (count64 != 0) mRec.count = count64;
   }
   for (int i = 0; i < 3; ++i) {
-    mScale[i] = loadLE<double>(h + 131 + 8 * i);
-    if (!std::isfinite(mScale[i]) || mScale[i] == 0.0) {
+    mRec.scale[i] = loadLE<double>(h + 131 + 8 * i);
+    if (!std::isfinite(mRec.scale[i]) || mRec.scale[i] == 0.0) {
       fail(kComponent, mSrc.name(), atByte(131 + 8 * i), "scale factor is zero or not finite");
     }
   }
@@ -137,15 +135,16 @@ void LasReader::parseHeader() {
   if (box_ok) mInfo.header_bbox = std::make_pair(lo, hi);
   // Local origin: the header box centre snapped to the coordinate grid, else the offset.
   glm::dvec3 origin = offset;
-  if (box_ok) origin = offset + glm::round((0.5 * (lo + hi) - offset) / mScale) * mScale;
+  if (box_ok) origin = offset + glm::round((0.5 * (lo + hi) - offset) / mRec.scale) * mRec.scale;
   // A box or scale at the edge of the double range overflows: keep the offset then.
   if (!finite3(origin.x, origin.y, origin.z)) origin = offset;
   mInfo.origin = origin;
-  mInfo.precision = std::min({std::abs(mScale.x), std::abs(mScale.y), std::abs(mScale.z)});
-  mDelta = offset - origin;
+  mInfo.precision =
+      std::min({std::abs(mRec.scale.x), std::abs(mRec.scale.y), std::abs(mRec.scale.z)});
+  mRec.delta = offset - origin;
   for (int i = 0; i < 3; ++i) {
     // Every int32 coordinate must give a finite position.
-    if (!std::isfinite(2147483648.0 * std::abs(mScale[i]) + std::abs(mDelta[i]))) {
+    if (!std::isfinite(2147483648.0 * std::abs(mRec.scale[i]) + std::abs(mRec.delta[i]))) {
       fail(kComponent, mSrc.name(), atByte(131 + 8 * i),
            "scale factor and offset make coordinates overflow (not finite)");
     }
@@ -154,7 +153,7 @@ void LasReader::parseHeader() {
   // Variable length records: the LASzip VLR says how the records are compressed.
   std::optional<LaszipVlr> laszip;
   uint64_t pos = header_size;
-  for (uint32_t i = 0; i < vlr_count && pos + 54 <= mDataOffset; ++i) {
+  for (uint32_t i = 0; i < vlr_count && pos + 54 <= mRec.data_offset; ++i) {
     uint8_t vh[54];
     if (mSrc.readAt(pos, vh, 54) < 54) break;
     std::string user(reinterpret_cast<const char*>(vh + 2),
@@ -163,7 +162,7 @@ void LasReader::parseHeader() {
     uint16_t length = loadLE<uint16_t>(vh + 20);
     if (user == "laszip encoded" && record_id == 22204) {
       std::vector<uint8_t> payload(length);
-      if (pos + 54 + length > mDataOffset ||
+      if (pos + 54 + length > mRec.data_offset ||
           mSrc.readAt(pos + 54, payload.data(), length) < length) {
         fail(kComponent, mSrc.name(), atByte(pos), "LASzip VLR runs past the point data offset");
       }
@@ -179,27 +178,29 @@ void LasReader::parseHeader() {
          "point format byte marks LAZ compression but the file has no LASzip VLR");
   }
 
-  mRgb = rgbOffset(mFormat);
+  mRec.rgb = rgbOffset(mRec.format);
   mInfo.format = laszip ? Format::kLaz : Format::kLas;
-  mInfo.format_detail = (laszip ? "LAZ " : "LAS ") + version + " format " + std::to_string(mFormat);
-  mInfo.declared_points = mCount;
+  mInfo.format_detail =
+      (laszip ? "LAZ " : "LAS ") + version + " format " + std::to_string(mRec.format);
+  mInfo.declared_points = mRec.count;
   mInfo.has_declared_points = true;
-  mInfo.attributes = kIntensity | kClassification | (mRgb >= 0 ? kColor : 0u);
+  mInfo.attributes = kIntensity | kClassification | (mRec.rgb >= 0 ? kColor : 0u);
   if (laszip) {
-    mLaz = std::make_unique<LazChunks>(mSrc, kComponent, mDataOffset, mCount, mRecordLength,
-                                       *laszip, mThreads);
+    mLaz = std::make_unique<LazChunks>(mSrc, kComponent, mRec.data_offset, mRec.count,
+                                       mRec.record_length, *laszip, mThreads);
     mInfo.format_detail += " (" + mLaz->describe() + ")";
     return;  // colour depth: from the first chunk, once decoded
   }
-  if (mRgb >= 0) detectColorDepth();
-  mSrc.seek(mDataOffset);
+  if (mRec.rgb >= 0) detectColorDepth();
+  mSrc.seek(mRec.data_offset);
 }
 
 // Some writers put 8-bit colours in the 16-bit fields. Look at up to 64k records spread over
 // the whole file: if no channel exceeds 255, the values are 8-bit and are used as they are.
 void LasReader::detectColorDepth() {
-  uint64_t available = mSrc.size() > mDataOffset ? (mSrc.size() - mDataOffset) / mRecordLength : 0;
-  uint64_t n = std::min(mCount, available);
+  uint64_t available =
+      mSrc.size() > mRec.data_offset ? (mSrc.size() - mRec.data_offset) / mRec.record_length : 0;
+  uint64_t n = std::min(mRec.count, available);
   if (n == 0) return;
   uint64_t samples = std::min<uint64_t>(n, 65536);
   auto record = [&](uint64_t s) { return s * n / samples; };
@@ -212,15 +213,15 @@ void LasReader::detectColorDepth() {
   for (uint64_t s = 0; s < samples && !short_read;) {
     const uint64_t first = record(s);
     uint64_t end = s + 1, last = first;
-    while (end < samples && (record(end) - last) * mRecordLength <= kMaxGap &&
-           (record(end) - first) * mRecordLength <= kMaxSpan) {
+    while (end < samples && (record(end) - last) * mRec.record_length <= kMaxGap &&
+           (record(end) - first) * mRec.record_length <= kMaxSpan) {
       last = record(end++);
     }
-    chunk.resize(size_t((last - first) * mRecordLength + 6));
-    size_t got = mSrc.readAt(mDataOffset + first * mRecordLength + uint64_t(mRgb), chunk.data(),
-                             chunk.size());
+    chunk.resize(size_t((last - first) * mRec.record_length + 6));
+    size_t got = mSrc.readAt(mRec.data_offset + first * mRec.record_length + uint64_t(mRec.rgb),
+                             chunk.data(), chunk.size());
     for (; s < end; ++s) {
-      size_t at = size_t((record(s) - first) * mRecordLength);
+      size_t at = size_t((record(s) - first) * mRec.record_length);
       short_read = at + 6 > got;
       if (short_read) break;
       for (int c = 0; c < 3; ++c) {
@@ -228,7 +229,7 @@ void LasReader::detectColorDepth() {
       }
     }
   }
-  mColor16 = max_value > 255;
+  mRec.color16 = max_value > 255;
 }
 
 bool LasReader::nextLaz(PointBatch& batch, size_t max_points) {
@@ -237,25 +238,25 @@ bool LasReader::nextLaz(PointBatch& batch, size_t max_points) {
     if (!mLaz->next(mChunk, mChunkCount)) {
       fail(kComponent, mSrc.name(), "",
            "the chunks hold " + std::to_string(mNext) + " points but the header declares " +
-               std::to_string(mCount));
+               std::to_string(mRec.count));
     }
     mChunkNext = 0;
     // Colours that never exceed 255 in the first chunk are 8-bit values in 16-bit fields.
-    if (first && mRgb >= 0) {
+    if (first && mRec.rgb >= 0) {
       uint16_t max_value = 0;
       for (uint64_t i = 0; i < mChunkCount; ++i) {
         for (int c = 0; c < 3; ++c) {
-          max_value = std::max(max_value,
-                               loadLE<uint16_t>(mChunk.data() + i * mRecordLength + mRgb + 2 * c));
+          max_value = std::max(max_value, loadLE<uint16_t>(mChunk.data() + i * mRec.record_length +
+                                                           mRec.rgb + 2 * c));
         }
       }
-      mColor16 = max_value > 255;
+      mRec.color16 = max_value > 255;
     }
   }
-  size_t n = size_t(std::min<uint64_t>({std::max<size_t>(1, max_points), mCount - mNext,
-                                        mChunkCount - mChunkNext}));
+  size_t n = size_t(std::min<uint64_t>(
+      {std::max<size_t>(1, max_points), mRec.count - mNext, mChunkCount - mChunkNext}));
   batch.resize(n);
-  decodeRecords(mChunk.data() + mChunkNext * mRecordLength, n, batch, 0);
+  decodeRecords(mChunk.data() + mChunkNext * mRec.record_length, n, batch, 0);
   mChunkNext += n;
   mNext += n;
   mStats.points += n;
@@ -264,25 +265,25 @@ bool LasReader::nextLaz(PointBatch& batch, size_t max_points) {
 
 bool LasReader::next(PointBatch& batch, size_t max_points) {
   batch.reset(mInfo.attributes);
-  if (mNext >= mCount) return false;
+  if (mNext >= mRec.count) return false;
   if (mLaz) return nextLaz(batch, max_points);
-  size_t n = size_t(std::min<uint64_t>(std::max<size_t>(1, max_points), mCount - mNext));
+  size_t n = size_t(std::min<uint64_t>(std::max<size_t>(1, max_points), mRec.count - mNext));
   batch.resize(n);
   // Blocks of about 64 KiB: a refill then moves at most a block's tail to the buffer front.
-  const size_t block = std::max<size_t>(1, (size_t(64) << 10) / mRecordLength);
+  const size_t block = std::max<size_t>(1, (size_t(64) << 10) / mRec.record_length);
   size_t done = 0;
   while (done < n) {
     size_t want = std::min(n - done, block);
-    size_t whole = mSrc.ensure(want * mRecordLength) / mRecordLength;
+    size_t whole = mSrc.ensure(want * mRec.record_length) / mRec.record_length;
     decodeRecords(mSrc.data(), whole, batch, done);
-    mSrc.consume(whole * mRecordLength);
+    mSrc.consume(whole * mRec.record_length);
     done += whole;
     if (whole < want) break;  // the file ends early: deliver the whole records, fail next call
   }
   if (done == 0) {
     fail(kComponent, mSrc.name(), atByte(mSrc.offset()),
          "file ends inside point record " + std::to_string(mNext) + " of " +
-             std::to_string(mCount) + " declared by the header");
+             std::to_string(mRec.count) + " declared by the header");
   }
   batch.resize(done);
   mNext += done;
@@ -291,24 +292,12 @@ bool LasReader::next(PointBatch& batch, size_t max_points) {
 }
 
 void LasReader::decodeRecords(const uint8_t* p, size_t n, PointBatch& batch, size_t at) {
-  const bool legacy = mFormat < 6;
-  const bool color = mRgb >= 0;
-  for (size_t i = at; i < at + n; ++i, p += mRecordLength) {
-    batch.positions[i] = glm::dvec3(double(loadLE<int32_t>(p)) * mScale.x + mDelta.x,
-                                    double(loadLE<int32_t>(p + 4)) * mScale.y + mDelta.y,
-                                    double(loadLE<int32_t>(p + 8)) * mScale.z + mDelta.z);
-    batch.intensities[i] = float(loadLE<uint16_t>(p + 12));
-    batch.classifications[i] = legacy ? (p[15] & 0x1F) : p[16];
-    if (color) {
-      const uint8_t* c = p + mRgb;
-      uint16_t r = loadLE<uint16_t>(c), g = loadLE<uint16_t>(c + 2), b = loadLE<uint16_t>(c + 4);
-      if (mColor16) {
-        batch.colors[i] = glm::u8vec4((r + 128) / 257, (g + 128) / 257, (b + 128) / 257, 255);
-      } else {
-        batch.colors[i] = glm::u8vec4(std::min<uint16_t>(r, 255), std::min<uint16_t>(g, 255),
-                                      std::min<uint16_t>(b, 255), 255);
-      }
-    }
+  const bool color = mRec.rgb >= 0;
+  for (size_t i = at; i < at + n; ++i, p += mRec.record_length) {
+    batch.positions[i] = mRec.position(p);
+    batch.intensities[i] = float(mRec.intensity(p));
+    batch.classifications[i] = mRec.classification(p);
+    if (color) batch.colors[i] = glm::u8vec4(mRec.color(p), 255);
   }
 }
 
@@ -316,6 +305,11 @@ void LasReader::decodeRecords(const uint8_t* p, size_t n, PointBatch& batch, siz
 
 std::unique_ptr<PointReader> openLas(ByteSource source, unsigned decode_threads) {
   return std::make_unique<LasReader>(std::move(source), decode_threads);
+}
+
+const LasRecordFormat* lasRecords(const PointReader& reader) {
+  const auto* las = dynamic_cast<const LasReader*>(&reader);
+  return las ? las->records() : nullptr;
 }
 
 }  // namespace tessera::lod::detail

@@ -2,6 +2,7 @@
 
 #include "file_io.h"
 #include "morton.h"
+#include "readers.h"
 
 #include <fcntl.h>
 #include <unistd.h>
@@ -29,6 +30,12 @@ constexpr uint32_t kCountRes = 1u << kCountLevel;
 
 size_t gridIndex(uint32_t x, uint32_t y, uint32_t z) {
   return (size_t(z) * kCountRes + y) * kCountRes + x;
+}
+
+ReadError aoMismatchError(size_t given, const std::string& held) {
+  return ReadError("lod::buildStore(): ambient occlusion is given for " + std::to_string(given) +
+                   " points but the inputs hold " + held +
+                   " (inputs changed since it was computed?)");
 }
 
 }  // namespace
@@ -77,6 +84,8 @@ PointDistributor::PointDistributor(const std::vector<std::filesystem::path>& inp
     const SourceInfo& info = reader->info();
     if (mInputs.empty()) mFirstOrigin = info.origin;
     mInputs.push_back({path, uint16_t(next_source)});
+    if (const detail::LasRecordFormat* las = detail::lasRecords(*reader))
+      mLas.push_back({{path.string(), *las, glm::dvec3(0.0), uint16_t(next_source)}, info.origin});
     // A .conf's and an E57's scans are sources of their own (a scan's points carry its index).
     const bool per_scan = (info.format == Format::kStanfordConf || info.format == Format::kE57) &&
                           !info.scans.empty() && (info.attributes & kScanIndex);
@@ -113,10 +122,7 @@ void PointDistributor::forEachBatch(const std::string& label,
   uint64_t skipped = 0;
   uint64_t read = 0;
   auto aoMismatch = [&] {
-    return ReadError("lod::buildStore(): ambient occlusion is given for " +
-                     std::to_string(mAo.size()) + " points but the inputs hold " +
-                     (read > mAo.size() ? "more" : std::to_string(read)) +
-                     " (inputs changed since it was computed?)");
+    return aoMismatchError(mAo.size(), read > mAo.size() ? "more" : std::to_string(read));
   };
   for (const InputSource& in : mInputs) {
     auto reader = openPointReader(in.path);
@@ -154,6 +160,10 @@ void PointDistributor::forEachBatch(const std::string& label,
 // a raw temporary file so the later passes read fixed-size records instead of parsing again
 // (ASCII PLY parses at ~2 M points/s, its raw records read at hundreds of M points/s).
 void PointDistributor::readInputs(const std::string& label, const std::filesystem::path& raw_file) {
+  if (mLas.size() == mInputs.size()) {
+    readLasBounds(label);
+    return;
+  }
   mRawFile = raw_file;
   const std::string name = raw_file.string();
   ScopedFd file(raw_file, O_RDWR | O_CREAT | O_TRUNC, "temporary file");
@@ -173,14 +183,40 @@ void PointDistributor::readInputs(const std::string& label, const std::filesyste
   mMax = hi;
 }
 
+void PointDistributor::readLasBounds(const std::string& label) {
+  // Every input is an uncompressed LAS: its records are read where they are, no raw file.
+  std::vector<LasDirect::Input> las;
+  for (const auto& [in, origin] : mLas) {
+    las.push_back(in);
+    las.back().shift = origin - mFrame.origin;  // forEachBatch()'s shift
+  }
+  mDirect = std::make_unique<LasDirect>(std::move(las));
+  mPoints = mDirect->points();
+  mSkipped = 0;
+  if (!mAo.empty() && mAo.size() != mPoints)
+    throw aoMismatchError(mAo.size(), std::to_string(mPoints));
+  Progress progress(label, mPoints, " points", mQuiet);
+  mDirect->bounds(mThreads, mMin, mMax);
+  progress.update(mPoints);
+}
+
 void PointDistributor::forEachRaw(const std::string& label, int parts,
                                   const std::function<void(int, std::span<const BuildPoint>)>& fn) {
+  Progress progress(label, mPoints, " points", mQuiet);
+  std::atomic<uint64_t> done{0};
+  if (mDirect) {
+    mDirect->forEachPart(parts, mAo, [&](int part, std::span<const BuildPoint> pts) {
+      fn(part, pts);
+      uint64_t total = done += pts.size();
+      if (part == 0) progress.update(total);
+    });
+    progress.update(done);
+    return;
+  }
   // Contiguous parts of the raw file, one thread each: copying records in and out of the page
   // cache is a third of a build's CPU time, and it scales with cores.
   ScopedFd file(mRawFile, O_RDONLY, "temporary file");
   const int fd = file.get();
-  Progress progress(label, mPoints, " points", mQuiet);
-  std::atomic<uint64_t> done{0};
   // One part a worker; where the system starts fewer threads, the workers take the rest.
   parallelFor(size_t(parts), unsigned(parts), [&](size_t p) {
     const int part = int(p);

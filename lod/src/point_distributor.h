@@ -2,15 +2,20 @@
 // worked on in memory: the first passes of building (and verifying) a point store.
 #pragma once
 
+#include <algorithm>
 #include <cstdint>
 #include <filesystem>
 #include <functional>
+#include <memory>
 #include <string>
+#include <utility>
 #include <vector>
 
+#include <tessera/core/parallel.h>
 #include <tessera/lod/point_reader.h>
 
 #include "build_point.h"
+#include "las_direct.h"
 
 namespace tessera::lod {
 
@@ -74,6 +79,8 @@ class PointDistributor {
   /// Each input point's ambient-occlusion byte in reading order (BuildOptions::
   /// ambient_occlusion); the store then carries kAmbientOcclusion. Call before measure().
   void setAmbientOcclusion(std::span<const uint8_t> ao);
+  /// Threads for the passes over the inputs (default: the hardware's). Call before measure().
+  void setThreads(unsigned threads) { mThreads = std::max(1u, threads); }
   uint64_t skipped() const { return mSkipped; }
 
   /// Pass 1: parses every input once into `raw_file` (40 bytes a point); bounds and count; sets
@@ -96,6 +103,8 @@ class PointDistributor {
   void forEachBatch(const std::string& label,
                     const std::function<void(std::span<const BuildPoint>)>& fn);
   void readInputs(const std::string& label, const std::filesystem::path& raw_file);
+  /// readInputs() where every input is an uncompressed LAS: the bounds pass of LasDirect.
+  void readLasBounds(const std::string& label);
   /// Streams the raw file written by pass 1 in `parts` contiguous parts, one thread each;
   /// `fn(part, points)` is called from that part's thread.
   void forEachRaw(const std::string& label, int parts,
@@ -113,6 +122,11 @@ class PointDistributor {
   CubeFrame mFrame;
   glm::dvec3 mFirstOrigin{0.0};  ///< the first input's local origin (the store's origin)
   std::filesystem::path mRawFile;
+  /// The inputs that are uncompressed LAS files, each with its local origin; when they are all
+  /// the inputs, the passes read their records directly (mDirect) instead of a raw file.
+  std::vector<std::pair<LasDirect::Input, glm::dvec3>> mLas;
+  std::unique_ptr<LasDirect> mDirect;
+  unsigned mThreads = threadCount();
   bool mQuiet;
 };
 

@@ -29,6 +29,10 @@ inline bool isPlyMagic(const uint8_t* head, size_t n) {
 std::unique_ptr<PointReader> openPly(ByteSource source);
 /// LAS or LAZ; `decode_threads`: LAZ chunks decoded at once (0: one per core).
 std::unique_ptr<PointReader> openLas(ByteSource source, unsigned decode_threads = 0);
+struct LasRecordFormat;
+/// The record layout of an uncompressed LAS file's reader, as openLas() parsed it (colour depth
+/// included); nullptr for any other reader, LAZ too. Valid while the reader lives.
+const LasRecordFormat* lasRecords(const PointReader& reader);
 std::unique_ptr<PointReader> openText(ByteSource source);
 std::unique_ptr<PointReader> openObj(ByteSource source);
 std::unique_ptr<PointReader> openE57(ByteSource source);

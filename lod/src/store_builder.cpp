@@ -251,6 +251,7 @@ BuildReport buildStore(const std::vector<std::filesystem::path>& inputs,
 
   PointDistributor dist(inputs, options.quiet);
   dist.setAmbientOcclusion(options.ambient_occlusion);
+  dist.setThreads(unsigned(threads));
   dist.measure(temp_dir / "raw.bin");
   const CubeFrame frame = dist.frame();
   // Memory: the chunk being worked on dominates (point + partition buffer + codec temporaries,
