@@ -22,6 +22,7 @@
 #include <tessera/core/file_checks.h>
 #include <tessera/core/progress.h>
 #include <tessera/lod/point_reader.h>
+#include <tessera/lod/scan_preview.h>
 #include <tessera/lod/store_builder.h>
 #include <tessera/lod/store_cache.h>
 #include <tessera/media/movie_writer.h>
@@ -77,18 +78,23 @@ config::Camera parseCamera(const std::string& s) {
   return c;
 }
 
+/// A --model file that can be stat'ed, else a bad command line naming it.
+void requireFile(const fs::path& input) {
+  std::error_code ec;
+  (void)fs::file_size(input, ec);
+  if (ec) usage("--model " + input.string() + ": " + ec.message());
+}
+
 /// A .tlod as it is; any other readable file is converted once into a cache folder
 /// (lod/store_cache.h). Read and build errors propagate to main's handler.
 fs::path storeFor(const fs::path& input) {
   if (input.extension() == ".tlod" || input.extension() == ".tmesh") return input;
-  std::error_code ec;
-  (void)fs::file_size(input, ec);
-  if (ec) usage("--model " + input.string() + ": " + ec.message());
+  requireFile(input);
   return lod::cachedStoreFor(input, "tessera-render");
 }
 
-config::Camera fitCamera(const render::ModelInstance& m) {
-  const auto [lo, hi] = render::worldBounds(m);
+/// The camera fitted to a world box (lo, hi).
+config::Camera fitCamera(const glm::dvec3& lo, const glm::dvec3& hi) {
   const glm::dvec3 c = 0.5 * (lo + hi);
   glm::dvec3 ext = hi - lo;
   double r = 0.5 * glm::length(ext);
@@ -103,6 +109,18 @@ config::Camera fitCamera(const render::ModelInstance& m) {
   return cam;
 }
 
+config::Camera fitCamera(const render::ModelInstance& m) {
+  const auto [lo, hi] = render::worldBounds(m);
+  return fitCamera(lo, hi);
+}
+
+/// A raw scan drawn from its preview store (lod/scan_preview.h) until its whole store is built:
+/// the store and the instance that draw it.
+struct PreviewedModel {
+  std::unique_ptr<lod::ScanPreview> preview;
+  size_t store = 0, instance = 0;
+};
+
 /// Shows the view in `win` until it closes (or `frames` frames): left drag orbits the target,
 /// right drag pans, the wheel zooms. Frames never wait for data; it streams in behind them.
 /// Returns the camera the user left.
@@ -111,10 +129,12 @@ config::Camera interactive(render::Window& win, config::Camera cam,
                            std::span<const render::ModelInstance> instances,
                            const render::RenderOptions& options,
                            const render::StreamerOptions& stream_options,
-                           const render::Overlay* overlay, int frames) {
+                           const render::Overlay* overlay, int frames,
+                           const std::function<void(render::ViewRenderer&)>& before_frame = {}) {
   const render::ViewSetup first = viewOf(cam);
   render::ViewRenderer r(first.width, first.height, nullptr, stream_options);
   for (int frame = 1; !win.closing() && (frames == 0 || frame <= frames); ++frame) {
+    if (before_frame) before_frame(r);
     render::RenderStats st;
     r.draw(instances, viewOf(cam), options, &st, overlay);
     win.present(r.imageBuffer(), first.width, first.height);
@@ -383,6 +403,17 @@ int run(int argc, char** argv) {
   app.add_option("--fps", fps, "Frames a second of --movie and --frames-dir")
       ->check(cli::positiveFinite(240.0))
       ->capture_default_str();
+  std::string preview_out;
+  uint64_t preview_points = lod::SampleOptions{}.points;
+  app.add_option("--preview", preview_out,
+                 "Raw scans whose store is not cached yet: first write this PNG, drawn from an "
+                 "even sample of each scan read without parsing the whole file (LAS, LAZ, binary "
+                 "PLY; other formats say so and wait for the build) with the final picture's "
+                 "camera, then build the store and write -o; the window shows the preview "
+                 "while the store builds without it");
+  app.add_option("--preview-points", preview_points, "Points in a scan's preview sample")
+      ->check(cli::integerRange<uint64_t>(1000, 100'000'000))
+      ->capture_default_str();
   auto* out_opt = app.add_option(
       "-o,--output", out,
       "Output PNG (required without --window, --movie or --frames-dir; with --stereo pair the "
@@ -417,6 +448,10 @@ int run(int argc, char** argv) {
     }
   }
   if (window && !wall_path.empty()) usage("--window shows a plain view: drop --wall");
+  if (!preview_out.empty() && (path_run || !poster.empty() || stereo == "pair" || window))
+    usage(
+        "--preview writes one picture before -o: drop --path, --poster, --stereo pair and "
+        "--window (the window shows the preview by itself)");
   (void)out_opt;
   // Every value is checked before any file is opened: a bad one never costs a load.
   const cli::Size plain_size = cli::parseSize(size, "--size", 16384);
@@ -437,6 +472,7 @@ int run(int argc, char** argv) {
     std::vector<std::unique_ptr<lod::PointStore>> stores;
     std::vector<std::unique_ptr<lod::MeshStore>> mesh_stores;
     std::vector<render::ModelInstance> instances;
+    std::vector<PreviewedModel> previewed;  // raw scans drawn from their previews for now
     render::RenderOptions options;
     config::Camera cam;
     bool have_camera = false;
@@ -481,7 +517,30 @@ int run(int argc, char** argv) {
                              glm::u8vec3(0), mesh_stores.back().get()});
         continue;
       }
-      stores.push_back(lod::PointStore::open(storeFor(file)));
+      if ((!preview_out.empty() || window) && fs::path(file).extension() != ".tlod") {
+        // A raw scan: its preview store first, its whole store once built.
+        requireFile(file);
+        auto preview = std::make_unique<lod::ScanPreview>(file, "tessera-render",
+                                                          lod::SampleOptions{preview_points});
+        if (preview->hasPreview()) {
+          std::fprintf(stderr,
+                       "tessera-render: %s: preview of %llu points (sampled in %.2f s, built in "
+                       "%.2f s); the whole store follows\n",
+                       file.c_str(), (unsigned long long)preview->previewPoints(),
+                       preview->sampleSeconds(), preview->previewBuildSeconds());
+          stores.push_back(lod::PointStore::open(preview->previewPath()));
+          previewed.push_back({std::move(preview), stores.size() - 1, instances.size()});
+        } else {
+          if (!preview->whyNot().empty())
+            std::fprintf(stderr,
+                         "tessera-render: %s cannot be sampled (%s): the first picture waits "
+                         "for its whole store\n",
+                         file.c_str(), preview->whyNot().c_str());
+          stores.push_back(lod::PointStore::open(preview->finalStore()));
+        }
+      } else {
+        stores.push_back(lod::PointStore::open(storeFor(file)));
+      }
       instances.push_back({stores.back().get(), render::storeModel(*stores.back()), opacity});
     }
     if (instances.empty())
@@ -493,6 +552,12 @@ int run(int argc, char** argv) {
       have_camera = true;
     }
     if (!have_camera) cam = fitCamera(instances.front());
+    // A previewed scan's camera is fitted to its header's bounds, which the whole store shares,
+    // so the preview and the final picture are seen from one camera.
+    if (!have_camera && !previewed.empty() && previewed.front().instance == 0 &&
+        previewed.front().preview->headerBounds())
+      cam = fitCamera(previewed.front().preview->headerBounds()->first,
+                      previewed.front().preview->headerBounds()->second);
     if (lod_px > 0) options.lod_pixels = lod_px;
     if (edl) options.edl.strength = 1.0f;
     if (edl_classic) options.edl = render::EdlOptions::classic();
@@ -556,6 +621,7 @@ int run(int argc, char** argv) {
     for (const std::string& m : models) read.push_back(m);
     if (!path_file.empty()) read.push_back(path_file);
     if (!out.empty()) cli::refuseOverwrite(out, read, "-o");
+    if (!preview_out.empty()) cli::refuseOverwrite(preview_out, read, "--preview");
     if (!movie.empty()) cli::refuseOverwrite(movie, read, "--movie");
     if (!stats_path.empty()) {
       cli::refuseOverwrite(stats_path, read, "--stats");
@@ -790,8 +856,33 @@ int run(int argc, char** argv) {
       return render::composeStereo(picture(c, -half_eye), picture(c, half_eye), layout);
     };
 
+    // Each previewed scan's whole store in place of its preview: once built (`wait` false:
+    // only those built by now), its preview's chunks forgotten by `streamer` when given.
+    auto swapPreviews = [&](bool wait, render::ChunkStreamer* streamer) {
+      for (PreviewedModel& p : previewed) {
+        if (!p.preview || (!wait && !p.preview->finalReady())) continue;
+        auto whole = lod::PointStore::open(p.preview->finalStore());
+        if (streamer) streamer->forget(*stores[p.store]);
+        instances[p.instance].store = whole.get();
+        instances[p.instance].model = render::storeModel(*whole);
+        stores[p.store] = std::move(whole);
+        p.preview.reset();
+      }
+    };
+    if (!preview_out.empty()) {
+      const render::Image first = framePicture(cam);
+      render::writePng(preview_out, first);
+      std::printf(
+          "wrote %s (%ux%u)%s\n", preview_out.c_str(), first.width, first.height,
+          previewed.empty() ? ", the final picture: no scan needed a preview" : ", preview");
+      std::fflush(stdout);
+      swapPreviews(true, nullptr);
+    }
     if (win) {
-      cam = interactive(*win, cam, plainView, instances, options, stream_options, overlay, frames);
+      for (PreviewedModel& p : previewed) p.preview->startBuild();
+      cam = interactive(*win, cam, plainView, instances, options, stream_options, overlay, frames,
+                        [&](render::ViewRenderer& r) { swapPreviews(false, &r.streamer()); });
+      swapPreviews(true, nullptr);
       if (out.empty()) return 0;
     }
     if (path_run)
