@@ -383,6 +383,7 @@ struct SiteHub::Impl {
 
 SiteHub::SiteHub(SiteHubOptions options) : m(std::make_unique<Impl>()) {
   m->opt = std::move(options);
+  if (m->opt.wall.tiles_size() > 0) m->roster.setWall(m->opt.wall);
   m->keys = readKeyFile(m->opt.key_file);
   m->allow = std::make_shared<AllowList>(m->opt.allow_list);
   m->allow_generation = m->allow->generation();

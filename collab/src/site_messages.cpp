@@ -310,6 +310,10 @@ Problem checkToMaster(const site::ToMaster& m) {
         if (auto why = sync::SceneGraph::analysisProblem(s.analysis())) return "shading: " + *why;
       return {};
     }
+    case site::ToMaster::kHead:  // the wall's own check follows on the master (site_roster.h)
+      if (!m.head().has_head()) return "head.head: needs the viewer's head";
+      if (auto why = sync::SceneGraph::headProblem(m.head().head())) return "head.head." + *why;
+      return {};
     case site::ToMaster::kSnap:
       return checkSnap(m.snap());
     case site::ToMaster::kVideo: {

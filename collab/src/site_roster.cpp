@@ -11,6 +11,7 @@
 #include <tessera/collab/site_messages.h>
 #include <tessera/sync/scene_edits.h>
 #include <tessera/sync/transform.h>
+#include <tessera/sync/viewer_head.h>
 
 namespace tessera::collab {
 
@@ -211,6 +212,19 @@ void SiteRoster::apply(sync::SceneGraph& graph, uint32_t participant, const site
       if (sh.has_shading()) graph.setShading(sh.shading());
       if (sh.has_analysis()) graph.setAnalysis(sh.analysis());
       std::printf("tessera-master: sites: %s changed the shading\n", s.info.name.c_str());
+      std::fflush(stdout);
+      return;
+    }
+    case site::ToMaster::kHead: {  // checked alone; in front of every tile is the wall's check
+      const auto why = mWall ? sync::headProblem(*mWall, m.head().head())
+                             : std::optional<std::string>("the master knows no wall");
+      if (why) {
+        std::printf("tessera-master: sites: %s: head refused: head.head.%s\n", s.info.name.c_str(),
+                    why->c_str());
+      } else {
+        graph.setHead(m.head().head());
+        std::printf("tessera-master: sites: %s moved the viewer's head\n", s.info.name.c_str());
+      }
       std::fflush(stdout);
       return;
     }

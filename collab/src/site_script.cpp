@@ -135,6 +135,12 @@ site::SiteScript loadSiteScript(const std::string& path) {
         if (auto why = checkToMaster(m)) fail(path, field, *why);
         break;
       }
+      case site::SiteAction::kHead: {
+        site::ToMaster m;
+        *m.mutable_head() = a.head();
+        if (auto why = checkToMaster(m)) fail(path, field, *why);
+        break;
+      }
       case site::SiteAction::kScreenshot:
         if (a.screenshot().empty() || a.screenshot().find('/') != std::string::npos)
           fail(path, field + ".screenshot", "a file name in the output folder");

@@ -267,6 +267,10 @@ bool SiteSession::Impl::act(const site::SiteAction& a, double now) {
       *m.mutable_shading() = a.shading();
       simple(m);
       break;
+    case site::SiteAction::kHead:
+      *m.mutable_head() = a.head();
+      simple(m);
+      break;
     case site::SiteAction::kUndo:
       m.mutable_undo();
       simple(m);

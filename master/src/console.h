@@ -89,6 +89,9 @@ class Console {
   /// Shading: eye-dome lighting, ambient occlusion, relative depth and contour lines with their
   /// parameters, at the bottom right, folded until opened.
   void shadingPanel(sync::SceneGraph& graph);
+  /// View: the viewer's head (eye point, turn, eye separation) and each foveal inset's centre
+  /// and switch (interact/wall_view.h), at the bottom beside Shading, folded until opened.
+  void viewPanel(sync::SceneGraph& graph);
   /// A shading edit (a key, the Shading panel) applied to the scene and said.
   void applyShading(sync::SceneGraph& graph, const interact::SettingsEdit& edit);
   void noteForm(sync::SceneGraph& graph);

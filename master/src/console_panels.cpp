@@ -13,7 +13,9 @@
 
 #include <imgui.h>
 
+#include <tessera/interact/wall_view.h>
 #include <tessera/render/scene_overlay.h>
+#include <tessera/render/tile_frustum.h>
 
 namespace tessera::master {
 
@@ -100,6 +102,76 @@ void Console::panels(sync::SceneGraph& graph) {
   layersPanel(graph);
   notesPanel(graph);
   shadingPanel(graph);
+  viewPanel(graph);
+}
+
+void Console::viewPanel(sync::SceneGraph& graph) {
+  // Anchored by its bottom-right corner left of Shading, so it opens upwards.
+  ImGui::SetNextWindowCollapsed(true, ImGuiCond_FirstUseEver);
+  ImGui::SetNextWindowPos(ImVec2(float(mWidth) - kPanelWidth - 16.0f, float(mHeight) - 8.0f),
+                          ImGuiCond_Always, ImVec2(1.0f, 1.0f));
+  ImGui::SetNextWindowSizeConstraints(ImVec2(kPanelWidth, 0.0f), ImVec2(kPanelWidth, FLT_MAX));
+  if (ImGui::Begin("View", nullptr, kPanel)) {
+    // Each control's edit passes the wall's checks (the head in front of every tile, the inset
+    // on the wall) as a script's or a site's does; a refused one is said and changes nothing.
+    auto tell = [&](const std::optional<std::string>& why, const std::string& done) {
+      if (why) {
+        say("refused: " + *why);
+      } else if (ImGui::IsItemDeactivatedAfterEdit() || !ImGui::IsAnyItemActive()) {
+        say(done);
+      }
+    };
+    const glm::dvec4 e = render::wallExtent(mWall);
+    ImGui::TextUnformatted("Viewer's head (wall frame, m)");
+    scene::Head head = interact::currentHead(mWall, graph.settings());
+    double eye[3] = {head.eye().x(), head.eye().y(), head.eye().z()};
+    ImGui::SetNextItemWidth(kFieldWidth);
+    if (ImGui::InputScalarN("eye", ImGuiDataType_Double, eye, 3, nullptr, nullptr, "%.3f")) {
+      head.mutable_eye()->set_x(eye[0]);
+      head.mutable_eye()->set_y(eye[1]);
+      head.mutable_eye()->set_z(eye[2]);
+      tell(interact::applyHead(graph, mWall, head), "head moved");
+    }
+    float yaw = float(interact::headYawDegrees(head));
+    ImGui::SetNextItemWidth(kFieldWidth);
+    if (ImGui::SliderFloat("turn deg", &yaw, -60.0f, 60.0f, "%.0f")) {
+      interact::setHeadYaw(head, double(yaw));
+      tell(interact::applyHead(graph, mWall, head), "head turned");
+    }
+    float separation = float(head.eye_separation() * 1000.0);
+    ImGui::SetNextItemWidth(kFieldWidth);
+    if (ImGui::SliderFloat("eyes mm", &separation, 40.0f, 80.0f, "%.0f")) {
+      head.set_eye_separation(double(separation) / 1000.0);
+      tell(interact::applyHead(graph, mWall, head), "eye separation changed");
+    }
+    for (int i = 0; i < mWall.insets_size(); ++i) {
+      scene::InsetCentre c = interact::currentInset(mWall, graph.settings(), i);
+      ImGui::PushID(i);
+      bool shown = !c.hidden();
+      const std::string label = "Inset " + literal(c.name());
+      if (ImGui::Checkbox(label.c_str(), &shown)) {
+        c.set_hidden(!shown);
+        tell(interact::applyInset(graph, mWall, c),
+             "inset " + c.name() + (shown ? " shown" : " switched off"));
+      }
+      const config::Inset& in = mWall.insets(i);
+      float x = float(c.x()), y = float(c.y());
+      ImGui::SetNextItemWidth(kFieldWidth);
+      if (ImGui::SliderFloat("x m", &x, float(e.x + 0.5 * in.width()),
+                             float(e.z - 0.5 * in.width()), "%.3f")) {
+        c.set_x(std::clamp(double(x), e.x + 0.5 * in.width(), e.z - 0.5 * in.width()));
+        tell(interact::applyInset(graph, mWall, c), "inset " + c.name() + " moved");
+      }
+      ImGui::SetNextItemWidth(kFieldWidth);
+      if (ImGui::SliderFloat("y m", &y, float(e.y + 0.5 * in.height()),
+                             float(e.w - 0.5 * in.height()), "%.3f")) {
+        c.set_y(std::clamp(double(y), e.y + 0.5 * in.height(), e.w - 0.5 * in.height()));
+        tell(interact::applyInset(graph, mWall, c), "inset " + c.name() + " moved");
+      }
+      ImGui::PopID();
+    }
+  }
+  ImGui::End();
 }
 
 void Console::applyShading(sync::SceneGraph& graph, const interact::SettingsEdit& edit) {

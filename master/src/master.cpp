@@ -16,8 +16,10 @@
 #include <tessera/render/inset.h>
 #include <tessera/render/scene_draw_list.h>
 #include <tessera/render/screen_passes.h>
+#include <tessera/render/stereo.h>
 #include <tessera/render/wall_mosaic.h>
 #include <tessera/sync/camera_path.h>
+#include <tessera/sync/viewer_head.h>
 #include <tessera/sync/wire.h>
 
 #include "console.h"
@@ -86,6 +88,8 @@ void Master::prepare() {
     } catch (const render::RenderError& e) {
       throw StartError("tessera-master: --script " + std::string(e.what()));
     }
+    if (const auto why = sync::pathHeadProblem(path, mWall))
+      throw StartError("tessera-master: --script " + mOpt.script + ": " + *why);
     mPlayer.emplace(std::move(path));
   }
   // The scene's inset centres are checked against this wall (the scene's own checks know no
@@ -95,6 +99,10 @@ void Master::prepare() {
     if (const auto why = render::insetPlacementProblem(mWall, insets.centres(i)))
       throw StartError("tessera-master: --scene " + mOpt.scene + ": settings.inset.centres[" +
                        std::to_string(i) + "]: " + *why);
+  // The scene's head likewise: in front of every tile of this wall.
+  if (mGraph.settings().has_head())
+    if (const auto why = sync::headProblem(mWall, mGraph.settings().head()))
+      throw StartError("tessera-master: --scene " + mOpt.scene + ": settings.head." + *why);
   mTiles = std::make_unique<TileTable>(mWall, mOpt.wall);
   if (!mOpt.annotations.empty()) {
     try {
@@ -581,7 +589,8 @@ void Master::writeScreenshots(const std::vector<std::string>& paths, uint64_t fr
   try {
     // Foveal insets: each slot's picture arrives weighted by its node (render/inset.h); the wall
     // adds the insets' light to the context's.
-    wall = mWall.insets_size() == 0
+    // A stereo wall: its left eye (each eye is written beside it).
+    wall = mWall.insets_size() == 0 && !mWall.stereo()
                ? render::assembleWallMosaic(mWall, images)
                : render::assembleInsetWall(mWall, images, mGraph.settings().inset());
   } catch (const render::RenderError& e) {
@@ -605,8 +614,28 @@ void Master::writeScreenshots(const std::vector<std::string>& paths, uint64_t fr
                    (unsigned long long)frame, p.c_str(), e.what());
     }
     writeInsetPictures(p, frame, images);
+    if (mWall.stereo()) writeEyePictures(p, frame, images);
   }
   std::fflush(stdout);
+}
+
+void Master::writeEyePictures(const std::string& path, uint64_t frame,
+                              const std::vector<render::Image>& slots) {
+  // A stereo wall: each eye's wall beside the screenshot, PATH-left.png and PATH-right.png.
+  for (int eye : {-1, 1}) {
+    const std::string file = render::stereoPairPath(path, eye > 0);
+    try {
+      const render::Image picture =
+          render::assembleWallEye(mWall, slots, mGraph.settings().inset(), eye);
+      render::writePng(file, picture);
+      std::printf("tessera-master: frame %llu: wrote %s (%ux%u); the %s eye\n",
+                  (unsigned long long)frame, file.c_str(), picture.width, picture.height,
+                  eye < 0 ? "left" : "right");
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "tessera-master: frame %llu: screenshot %s: %s\n",
+                   (unsigned long long)frame, file.c_str(), e.what());
+    }
+  }
 }
 
 void Master::writeInsetPictures(const std::string& path, uint64_t frame,

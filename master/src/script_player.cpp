@@ -22,7 +22,10 @@ std::vector<std::string> ScriptPlayer::advance(sync::SceneGraph& graph, double t
       graph.setAnalysis(a.set_analysis());
     } else if (a.has_set_inset()) {
       // Checked against the wall when the script was loaded (render::checkPathInsets()).
-      graph.setInsetCentre(a.set_inset().name(), a.set_inset().x(), a.set_inset().y());
+      graph.setInset(a.set_inset());
+    } else if (a.has_set_head()) {
+      // Checked against the wall when the script was loaded (sync::pathHeadProblem()).
+      graph.setHead(a.set_head());
     } else if (a.has_screenshot()) {
       screenshots.push_back(a.screenshot());
     }

@@ -317,6 +317,7 @@ int run(int argc, char** argv) {
   std::unique_ptr<collab::SiteHub> hub;
   if (!sites.endpoint.empty()) {
     try {
+      sites.wall = m.wall();  // sites' heads are checked against it
       hub = std::make_unique<collab::SiteHub>(sites);
       std::printf("tessera-master: remote sites join on %s\n", hub->endpoint().c_str());
       if (!sites.chunks_endpoint.empty())

@@ -36,11 +36,12 @@ double bandOf(const config::Inset& in) {
 }
 
 double separationOf(const config::Inset& in) {
-  return in.has_eye_separation() ? in.eye_separation() : 0.065;
+  return in.has_eye_separation() ? in.eye_separation() : sync::kDefaultEyeSeparation;
 }
 
 /// The context's weight of one inset (1 outside it).
 double contextWeightOf(const InsetRect& r, double x, double y) {
+  if (!r.shown) return 1.0;
   const double d = std::min(std::min(x - r.x0, r.x1 - x), std::min(y - r.y0, r.y1 - y));
   if (d <= 0) return 1.0;
   if (r.band <= 0 || d >= r.band) return 0.0;
@@ -124,7 +125,18 @@ uint8_t byteFromLinear(double light) {
 
 std::vector<WallSlot> wallSlots(const config::WallConfig& wall) {
   std::vector<WallSlot> slots;
-  for (const config::Tile& t : wall.tiles()) slots.push_back(WallSlot{t, -1, 0});
+  for (int i = 0; i < wall.tiles_size(); ++i) {
+    const config::Tile& t = wall.tiles(i);
+    if (!wall.stereo()) {
+      slots.push_back(WallSlot{t, -1, 0, i});
+      continue;
+    }
+    for (int eye : {-1, 1}) {
+      WallSlot s{t, -1, eye, i};
+      s.tile.set_name(t.name() + (eye < 0 ? "/left" : "/right"));
+      slots.push_back(s);
+    }
+  }
   for (int i = 0; i < wall.insets_size(); ++i) {
     const config::Inset& in = wall.insets(i);
     WallSlot s;
@@ -155,15 +167,17 @@ InsetRect insetRect(const config::WallConfig& wall, int index,
                 "render::insetRect(): index of one of the wall's insets");
   const config::Inset& in = wall.insets(index);
   double x0 = in.x(), y0 = in.y();
+  bool shown = true;
   for (const scene::InsetCentre& c : placement.centres()) {
     if (c.name() != in.name() || !std::isfinite(c.x()) || !std::isfinite(c.y())) continue;
     x0 = c.x() - 0.5 * in.width();
     y0 = c.y() - 0.5 * in.height();
+    shown = !c.hidden();
   }
   const glm::dvec4 e = wallExtent(wall);
   x0 = std::max(e.x, std::min(x0, e.z - in.width()));
   y0 = std::max(e.y, std::min(y0, e.w - in.height()));
-  return InsetRect{x0, y0, x0 + in.width(), y0 + in.height(), bandOf(in)};
+  return InsetRect{x0, y0, x0 + in.width(), y0 + in.height(), bandOf(in), shown};
 }
 
 std::optional<std::string> insetPlacementProblem(const config::WallConfig& wall,
@@ -201,19 +215,46 @@ double contextWeight(const config::WallConfig& wall, const scene::InsetPlacement
 }
 
 double insetWeight(const InsetRect& rect, double x, double y) {
+  if (!rect.shown) return 0.0;
   if (!(x > rect.x0 && x < rect.x1 && y > rect.y0 && y < rect.y1)) return 0.0;
   return 1.0 - contextWeightOf(rect, x, y);
 }
 
+std::vector<Image> eyePictures(const config::WallConfig& wall, std::span<const Image> slots,
+                               int eye) {
+  const std::vector<WallSlot> layout = wallSlots(wall);
+  TESSERA_CHECK(slots.size() == layout.size(), "render::eyePictures(): one picture a slot");
+  std::vector<Image> out;
+  for (size_t i = 0; i < layout.size(); ++i) {
+    const WallSlot& s = layout[i];
+    if (s.inset < 0 && wall.stereo() && s.eye != (eye > 0 ? 1 : -1)) continue;
+    out.push_back(slots[i]);
+  }
+  return out;
+}
+
+config::WallConfig monoWall(const config::WallConfig& wall) {
+  config::WallConfig mono = wall;
+  mono.set_stereo(false);
+  return mono;
+}
+
 ViewSetup slotView(const config::WallConfig& wall, const WallSlot& slot,
-                   const scene::InsetPlacement& placement, const config::Camera& camera) {
-  if (slot.inset < 0) return tileView(wall, slot.tile, camera);
+                   const scene::InsetPlacement& placement, const config::Camera& camera,
+                   const sync::ViewerHead* head) {
+  const sync::ViewerHead h = head ? *head : sync::viewerHead(wall, scene::Settings());
+  if (slot.inset < 0) {
+    // The config's tile (a stereo slot's copy is named after its eye), so a room's net finds it.
+    const config::Tile& t = slot.tile_index >= 0 ? wall.tiles(slot.tile_index) : slot.tile;
+    return tileView(wall, t, camera,
+                    sync::eyeOffset(wall, h, slot.eye, sync::wallEyeSeparation(wall)));
+  }
   const InsetRect r = insetRect(wall, slot.inset, placement);
   config::Tile t = slot.tile;
   t.set_x(r.x0);
   t.set_y(r.y0);
-  const double half = 0.5 * separationOf(wall.insets(slot.inset));
-  ViewSetup v = tileView(wall, t, camera, glm::dvec3(slot.eye * half, 0.0, 0.0));
+  ViewSetup v = tileView(wall, t, camera,
+                         sync::eyeOffset(wall, h, slot.eye, separationOf(wall.insets(slot.inset))));
   v.origin = glm::ivec2(0);  // a picture of its own, at another density than the wall's
   return v;
 }
@@ -244,7 +285,7 @@ void applySlotWeights(const config::WallConfig& wall, const WallSlot& slot,
     for (uint32_t x = 0; x < image.width; ++x) {
       const double wx = r.x0 + (x + 0.5) / ppm_x;
       uint8_t* p = &image.rgba[(size_t(y) * image.width + x) * 4];
-      if (in.border() > 0) {
+      if (in.border() > 0 && r.shown) {
         // The frame: `border` pixels just inside the band's inner edge.
         const double dx = std::min(x + 0.5, image.width - x - 0.5) - r.band * ppm_x;
         const double dy = std::min(y + 0.5, image.height - y - 0.5) - r.band * ppm_y;
@@ -281,6 +322,7 @@ void InsetPass::run(uint32_t image_buffer, const config::WallConfig& wall, const
     corner = glm::dvec2(t.x(), t.y() + t.height());
     pixel = glm::dvec2(t.width() / t.pixel_width(), t.height() / t.pixel_height());
     for (const InsetRect& r : insetRects(wall, placement)) {
+      if (!r.shown) continue;  // switched off: no hole in the context
       rects.emplace_back(r.x0 - corner.x, r.y0 - corner.y, r.x1 - corner.x, r.y1 - corner.y);
       bands.push_back(float(r.band));
     }
@@ -289,9 +331,10 @@ void InsetPass::run(uint32_t image_buffer, const config::WallConfig& wall, const
     const config::Inset& in = wall.insets(slot.inset);
     corner = glm::dvec2(r.x0, r.y1);
     pixel = glm::dvec2(in.width() / in.pixel_width(), in.height() / in.pixel_height());
-    rects.emplace_back(0.0, r.y0 - r.y1, r.x1 - r.x0, 0.0);
+    // Switched off: an empty rectangle, inside which no pixel lies (the picture black).
+    rects.emplace_back(r.shown ? glm::vec4(0.0, r.y0 - r.y1, r.x1 - r.x0, 0.0) : glm::vec4(0.0f));
     bands.push_back(float(r.band));
-    border = float(in.border());
+    border = r.shown ? float(in.border()) : 0.0f;
     band_pixels = glm::vec2(r.band / pixel.x, r.band / pixel.y);
   }
   if (rects.empty()) {  // no insets: the picture as it is (a band of 0 around nothing)
@@ -321,6 +364,7 @@ Image InsetPass::read() const {
 
 Image assembleInsetWall(const config::WallConfig& wall, std::span<const Image> slots,
                         const scene::InsetPlacement& placement) {
+  if (wall.stereo()) return assembleWallEye(wall, slots, placement, -1);
   const std::vector<WallSlot> layout = wallSlots(wall);
   TESSERA_CHECK(slots.size() == layout.size(), "render::assembleInsetWall(): one picture a slot");
   if (wall.insets_size() == 0) return assembleWallMosaic(wall, slots);
@@ -337,6 +381,7 @@ Image assembleInsetWall(const config::WallConfig& wall, std::span<const Image> s
                       img.rgba.size() == size_t(img.width) * img.height * 4,
                   "render::assembleInsetWall(): an inset picture of its pixel size");
     const InsetRect r = insetRect(wall, i, placement);
+    if (!r.shown) continue;  // switched off: its slot is black, the context whole
     std::fill(sum.begin(), sum.end(), 0.0);
     std::fill(count.begin(), count.end(), 0u);
     // Each inset pixel's light to the wall pixel its centre falls in (a box filter).
@@ -372,8 +417,16 @@ Image assembleInsetWall(const config::WallConfig& wall, std::span<const Image> s
   return out;
 }
 
+Image assembleWallEye(const config::WallConfig& wall, std::span<const Image> slots,
+                      const scene::InsetPlacement& placement, int eye) {
+  const std::vector<Image> pictures = eyePictures(wall, slots, eye);
+  return assembleInsetWall(monoWall(wall), pictures, placement);
+}
+
 Image insetDetail(const config::WallConfig& wall, std::span<const Image> slots,
                   const scene::InsetPlacement& placement, int index, int eye) {
+  if (wall.stereo())  // the context of the inset's eye (a mono inset: the left's)
+    return insetDetail(monoWall(wall), eyePictures(wall, slots, eye), placement, index, eye);
   TESSERA_CHECK(index >= 0 && index < wall.insets_size(),
                 "render::insetDetail(): index of one of the wall's insets");
   TESSERA_CHECK(slots.size() == wallSlots(wall).size(),

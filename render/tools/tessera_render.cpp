@@ -41,6 +41,7 @@
 #include <tessera/sync/config.h>
 #include <tessera/sync/vec3.h>
 #include <tessera/sync/view.h>
+#include <tessera/sync/viewer_head.h>
 
 namespace {
 
@@ -76,6 +77,34 @@ config::Camera parseCamera(const std::string& s) {
   if (seen != 3) usage("--camera: give eye, target and up");
   sync::requireView(sync::vec(c.eye()), sync::vec(c.target()), sync::vec(c.up()), "--camera");
   return c;
+}
+
+/// --head 'eye=X,Y,Z;right=X,Y,Z;separation=S' (right: +x when absent; separation: each slot's
+/// own when absent): the viewer's head in the wall frame, metres. Checked against the wall by
+/// the caller (sync::headProblem()).
+scene::Head parseHead(const std::string& s) {
+  scene::Head h;
+  sync::set(h.mutable_right(), glm::dvec3(1.0, 0.0, 0.0));
+  std::stringstream in(s);
+  for (std::string part; std::getline(in, part, ';');) {
+    const auto eq = part.find('=');
+    if (eq == std::string::npos)
+      usage("--head: expected eye=X,Y,Z[;right=X,Y,Z][;separation=S] (metres, wall frame)");
+    const std::string key = part.substr(0, eq), value = part.substr(eq + 1);
+    if (key == "eye") {
+      sync::set(h.mutable_eye(), cli::parseVec3(value, "--head eye"));
+    } else if (key == "right") {
+      sync::set(h.mutable_right(), cli::parseVec3(value, "--head right"));
+    } else if (key == "separation") {
+      char* end = nullptr;
+      h.set_eye_separation(std::strtod(value.c_str(), &end));
+      if (value.empty() || *end != '\0') usage("--head separation: '" + value + "' is not a number");
+    } else {
+      usage("--head: unknown key '" + key + "' (eye, right, separation)");
+    }
+  }
+  if (!h.has_eye()) usage("--head: give at least eye=X,Y,Z");
+  return h;
 }
 
 /// A --model file that can be stat'ed, else a bad command line naming it.
@@ -234,6 +263,12 @@ int run(int argc, char** argv) {
          "Place a foveal inset of the wall: NAME=X,Y, its centre on the wall plane "
          "(metres), over the scene's settings.inset; --mosaic also writes OUT-inset-NAME.png")
       ->take_all();
+  std::string head_arg;
+  app.add_option("--head", head_arg,
+                 "The viewer's head on the wall over the scene's settings.head: "
+                 "'eye=X,Y,Z;right=X,Y,Z;separation=S' (wall frame, metres; right +x and each "
+                 "stereo slot's own separation when absent): every tile's frustum and stereo eye "
+                 "are seen from it");
   app.add_option("--size", size, "Plain view size WxH (without --wall)")->capture_default_str();
   app.add_option("--fovy", fovy, "Plain view vertical field of view, degrees")
       ->check(cli::finiteRange(1.0, 170.0))
@@ -706,6 +741,21 @@ int run(int argc, char** argv) {
         if (!placed) *inset_placement.add_centres() = c;
       }
     }
+    // The viewer's head: the scene's, then --head's (sync/viewer_head.h).
+    scene::Settings head_settings;
+    if (graph.settings().has_head()) *head_settings.mutable_head() = graph.settings().head();
+    if (!head_arg.empty()) {
+      if (!wall || !mosaic) usage("--head needs --wall and --mosaic");
+      *head_settings.mutable_head() = parseHead(head_arg);
+      if (const auto why = sync::headProblem(*wall, head_settings.head()))
+        usage("--head " + head_arg + ": head." + *why);
+    } else if (wall && head_settings.has_head()) {
+      if (const auto why = sync::headProblem(*wall, head_settings.head()))
+        throw std::runtime_error(scene_path + ": settings.head." + *why);
+    }
+    const bool has_head = head_settings.has_head();
+    const sync::ViewerHead viewer =
+        wall ? sync::viewerHead(*wall, head_settings) : sync::ViewerHead();
     // The slots' weighted pictures of the last --mosaic of a wall with insets (insetDetail()).
     std::vector<render::Image> inset_slots;
     // `weigh`: a foveal inset's slot (render/inset.h), weighed on the GPU as a node weighs it.
@@ -793,14 +843,24 @@ int run(int argc, char** argv) {
       if (whole)
         return renderView("whole" + eye, eyeView(render::wholeWallView(*wall, c), c, eye_x),
                           options);
-      if (mosaic && wall->insets_size() > 0) {
+      if (mosaic && (wall->insets_size() > 0 || wall->stereo() || has_head)) {
         // The tiles and the insets' slots, each weighted as its node weighs it, then the wall
-        // as the master assembles it (render/inset.h).
-        const std::vector<render::WallSlot> slots = render::wallSlots(*wall);
+        // as the master assembles it (render/inset.h). A stereo wall's tiles are seen by the
+        // eye asked for (its left one for a mono picture, as the master's screenshot is), with
+        // the views the nodes of those slots render; so are every wall's under a head.
+        const config::WallConfig shown = render::monoWall(*wall);
+        const int tile_eye = eye_x < 0.0 ? -1 : eye_x > 0.0 ? 1 : wall->stereo() ? -1 : 0;
+        const std::vector<render::WallSlot> slots = render::wallSlots(shown);
         auto slotView = [&](const render::WallSlot& s) {
-          const render::ViewSetup v = render::slotView(*wall, s, inset_placement, c);
-          return s.inset < 0 ? eyeView(v, c, eye_x) : v;
+          if (!has_head && !wall->stereo()) {
+            const render::ViewSetup v = render::slotView(*wall, s, inset_placement, c);
+            return s.inset < 0 ? eyeView(v, c, eye_x) : v;
+          }
+          render::WallSlot seen = s;
+          if (s.inset < 0) seen.eye = tile_eye;
+          return render::slotView(*wall, seen, inset_placement, c, &viewer);
         };
+        const bool weigh = wall->insets_size() > 0;
         render::RenderOptions wall_options = options;
         if (options.relative_depth.enabled && !options.relative_depth.range) {
           std::vector<glm::vec2> ranges;
@@ -812,8 +872,9 @@ int run(int argc, char** argv) {
         }
         inset_slots.clear();
         for (const auto& s : slots)
-          inset_slots.push_back(renderView(s.tile.name() + eye, slotView(s), wall_options, &s));
-        return render::assembleInsetWall(*wall, inset_slots, inset_placement);
+          inset_slots.push_back(
+              renderView(s.tile.name() + eye, slotView(s), wall_options, weigh ? &s : nullptr));
+        return render::assembleInsetWall(shown, inset_slots, inset_placement);
       }
       if (mosaic) {
         std::vector<render::Image> tiles;
@@ -963,7 +1024,7 @@ int run(int argc, char** argv) {
           const std::string file = render::insetPicturePath(out, in.name(), eye);
           cli::refuseOverwrite(file, read, "-o");
           const render::Image detail =
-              render::insetDetail(*wall, inset_slots, inset_placement, i, eye);
+              render::insetDetail(render::monoWall(*wall), inset_slots, inset_placement, i, eye);
           render::writePng(file, detail);
           std::printf("wrote %s (%ux%u)\n", file.c_str(), detail.width, detail.height);
         }

@@ -18,6 +18,7 @@
 #include <tessera/render/view_renderer.h>
 #include <tessera/render/window.h>
 #include <tessera/sync/scene_graph.h>
+#include <tessera/sync/viewer_head.h>
 #include <tessera/sync/wire.h>
 
 namespace tessera::render_node {
@@ -93,11 +94,22 @@ struct RenderNode::Impl {
     videos.reset();
   }
 
+  /// This node's view: its tile, stereo eye or foveal inset where the scene places it, seen from
+  /// the scene's viewer head (sync/viewer_head.h).
+  /// A head the master sent behind a tile (its gates refuse one) is refused here too.
+  render::ViewSetup slotView() const {
+    if (graph.settings().has_head())
+      if (const auto why = sync::headProblem(setup.wall(), graph.settings().head()))
+        throw NodeError(cluster::NODE_BAD_FRAME, "settings.head." + *why);
+    const sync::ViewerHead head = sync::viewerHead(setup.wall(), graph.settings());
+    return render::slotView(setup.wall(), slot, graph.settings().inset(), graph.camera(), &head);
+  }
+
   /// Video insets: the frame's video packets to the streams this tile shows, the
   /// new pictures to their textures; a texture made or resized rebuilds the overlay.
   void applyMedia(const cluster::FrameMessage& frame) {
     if (!videos || (frame.media_size() == 0)) return;
-    const render::ViewSetup view = render::tileView(setup.wall(), *tile, graph.camera());
+    const render::ViewSetup view = slotView();
     videos->setShown(render::shownVideoSources(graph, view, overlay.options()));
     // A master sends what its sites sent in one frame period: thousands would be an error.
     const int count = std::min(frame.media_size(), 4096);
@@ -289,8 +301,7 @@ struct RenderNode::Impl {
       const auto start_time = Clock::now();
       try {
         // A tile's view, or a foveal inset's rectangle where the scene places it.
-        const render::ViewSetup view =
-            render::slotView(setup.wall(), slot, graph.settings().inset(), graph.camera());
+        const render::ViewSetup view = slotView();
         render::RenderOptions options = render::SceneDrawList::options(
             graph, setup.splat_scale() > 0 ? setup.splat_scale() : 2.0f);
         options.highlights = overlay.highlights();  // selections, tinted on every tile

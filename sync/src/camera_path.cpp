@@ -116,10 +116,19 @@ config::CameraPath parseCameraPath(const std::string& json, const std::string& n
           failConfig(fn, name, f + ".setInset", "x and y must be finite (metres)");
         break;
       }
+      case config::PathAction::kSetHead:
+        // That the head is in front of every tile is checked against the wall by the master
+        // (sync::pathHeadProblem()).
+        if (const auto problem = checks::checkHead(a.set_head())) {
+          const size_t colon = problem->find(": ");
+          failConfig(fn, name, f + ".setHead." + problem->substr(0, colon),
+                     problem->substr(colon + 2));
+        }
+        break;
       default:
         failConfig(fn, name, f,
                    "needs one of setOpacity, setVisible, setShading, setAnalysis, setInset, "
-                   "screenshot");
+                   "setHead, screenshot");
     }
   }
   return path;

@@ -1,5 +1,6 @@
 #include <tessera/sync/config.h>
 #include <tessera/sync/scene_graph.h>
+#include <tessera/sync/viewer_head.h>
 
 #include <algorithm>
 #include <cmath>
@@ -191,16 +192,10 @@ config::WallConfig parseWallConfig(const std::string& json, const std::string& n
   if (!wall.has_eye() || !finite(wall.eye()))
     fail(fn, name, "eye", "the viewer's eye needs finite x, y and z (metres)");
   if (room) {
-    for (int i = 0; i < wall.tiles_size(); ++i) {
-      const config::Tile& t = wall.tiles(i);
-      const glm::dvec3 o = t.has_origin() ? vec(t.origin()) : glm::dvec3(t.x(), t.y(), 0.0);
-      const glm::dvec3 r = t.has_right() ? glm::normalize(vec(t.right())) : glm::dvec3(1, 0, 0);
-      const glm::dvec3 u = t.has_up() ? glm::normalize(vec(t.up())) : glm::dvec3(0, 1, 0);
-      if (!(glm::dot(vec(wall.eye()) - o, glm::cross(r, u)) > 1e-6))
-        fail(fn, name, "eye",
-             "the viewer's eye must be in front of tiles[" + std::to_string(i) + "] ('" +
-                 t.name() + "'): on the side right x up points to");
-    }
+    if (const int i = tileNotFacing(wall, vec(wall.eye())); i >= 0)
+      fail(fn, name, "eye",
+           "the viewer's eye must be in front of tiles[" + std::to_string(i) + "] ('" +
+               wall.tiles(i).name() + "'): on the side right x up points to");
   } else if (!(wall.eye().z() > 0)) {
     fail(fn, name, "eye", "the viewer's eye must be in front of the wall (z > 0, metres)");
   }
@@ -209,6 +204,23 @@ config::WallConfig parseWallConfig(const std::string& json, const std::string& n
          "is " + std::to_string(wall.min_live_tiles()) + " but the wall has only " +
              std::to_string(wall.tiles_size()) + " tiles");
   checkInsets(wall, fn, name, names, room);
+  if (wall.has_eye_separation() && !(wall.eye_separation() > 0 && wall.eye_separation() <= 1))
+    fail(fn, name, "eyeSeparation", "must be in (0, 1] metres (absent: 0.065)");
+  if (wall.stereo()) {
+    // A node per eye: the slots "<tile>/left" and "<tile>/right" (render::wallSlots()).
+    for (int i = 0; i < wall.tiles_size(); ++i) {
+      const config::Tile& t = wall.tiles(i);
+      const std::string f = "tiles[" + std::to_string(i) + "]";
+      if (t.name().find('/') != std::string::npos)
+        fail(fn, name, f + ".name",
+             "'" + t.name() + "' holds '/', which names a stereo eye's slot on a stereo wall");
+      if (!names.insert(t.name() + "/left").second || !names.insert(t.name() + "/right").second)
+        fail(fn, name, f + ".name", "'" + t.name() + "/left' or '/right' already names a slot");
+      if (!t.blend().empty() || !t.warp().empty())
+        fail(fn, name, f, "a stereo wall takes no projector blend or warp");
+    }
+    if (!wall.mpcdi().empty()) fail(fn, name, "mpcdi", "a stereo wall takes no projector files");
+  }
   if (wall.near() == 0) wall.set_near(0.05);
   if (wall.far() == 0) wall.set_far(1000.0);
   if (!(wall.near() > 0) || !(wall.far() > wall.near()))

@@ -5,6 +5,7 @@
 
 #include <tessera/sync/selection_mask.h>
 #include <tessera/sync/transform.h>
+#include <tessera/sync/vec3.h>
 #include <tessera/sync/view.h>
 
 namespace tessera::sync::checks {
@@ -404,6 +405,25 @@ Problem checkInsetPlacement(const scene::InsetPlacement& p) {
   return std::nullopt;
 }
 
+Problem checkHead(const scene::Head& h) {
+  auto vec3 = [](const config::Vec3& v) {
+    return "(" + num(v.x()) + ", " + num(v.y()) + ", " + num(v.z()) + ")";
+  };
+  if (!h.has_eye() || !finite(h.eye()))
+    return "eye: needs finite x, y and z (metres, wall frame), got " +
+           (h.has_eye() ? vec3(h.eye()) : std::string("none"));
+  if (!h.has_right() || !finite(h.right()))
+    return "right: needs finite x, y and z (the head's right axis), got " +
+           (h.has_right() ? vec3(h.right()) : std::string("none"));
+  const double len = std::sqrt(h.right().x() * h.right().x() + h.right().y() * h.right().y() +
+                               h.right().z() * h.right().z());
+  if (!(len > 1e-9) || !std::isfinite(len))
+    return "right: the head's right axis must not be zero, got " + vec3(h.right());
+  if (h.has_eye_separation() && !(h.eye_separation() > 0.0 && h.eye_separation() <= 1.0))
+    return "eye_separation: must be in (0, 1] metres, got " + num(h.eye_separation());
+  return std::nullopt;
+}
+
 /// A delta of the settings (or complete settings).
 Problem checkSettings(const scene::Settings& s) {
   if (s.has_background()) {
@@ -419,6 +439,9 @@ Problem checkSettings(const scene::Settings& s) {
   }
   if (s.has_inset()) {
     if (auto p = checkInsetPlacement(s.inset())) return p;
+  }
+  if (s.has_head()) {
+    if (auto p = checkHead(s.head())) return "settings.head." + *p;
   }
   if (s.has_spbr_ensembles() && (s.spbr_ensembles() < 1 || s.spbr_ensembles() > 4096))
     return "settings.spbr_ensembles: must be 1..4096, got " + std::to_string(s.spbr_ensembles());

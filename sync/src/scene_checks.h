@@ -33,6 +33,10 @@ Problem checkSettings(const scene::Settings& s);
 Problem checkAnalysis(const scene::Analysis& a);
 /// settings.inset: names non-empty (at most 64 bytes) and unique, centres finite, at most 256.
 Problem checkInsetPlacement(const scene::InsetPlacement& p);
+/// A viewer's head on its own (no wall): eye and right present and finite, right non-zero,
+/// eye_separation in (0, 1] when present. The text names the field under the head ("eye: ...",
+/// "right: ...", "eye_separation: ...").
+Problem checkHead(const scene::Head& h);
 /// A delta of the camera: each part absent or complete.
 Problem checkCameraDelta(const scene::CameraState& c);
 Problem checkCommand(const scene::Command& c);

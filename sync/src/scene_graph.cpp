@@ -500,6 +500,23 @@ void SceneGraph::setInsetCentre(std::string_view name, double x, double y) {
   c.set_y(y);
 }
 
+void SceneGraph::setInset(const scene::InsetCentre& centre) {
+  setInsetCentre(centre.name(), centre.x(), centre.y());
+  for (scene::InsetCentre& c : *mSettings.mutable_inset()->mutable_centres())
+    if (c.name() == centre.name()) c.set_hidden(centre.hidden());
+}
+
+std::optional<std::string> SceneGraph::headProblem(const scene::Head& head) {
+  return checkHead(head);
+}
+
+void SceneGraph::setHead(const scene::Head& head) {
+  const Problem p = checkHead(head);
+  TESSERA_CHECK(!p, "sync::SceneGraph::setHead(): " + p.value_or(""));
+  touchSettings();
+  *mSettings.mutable_head() = head;
+}
+
 void SceneGraph::setLeader(std::string_view leader) {
   TESSERA_CHECK(leader.size() <= kMaxParticipantName,
                 "sync::SceneGraph::setLeader(): a participant's name is at most 64 bytes");

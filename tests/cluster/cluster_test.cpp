@@ -108,6 +108,23 @@ class Cluster : public ::testing::Test {
         << ref_png.size() << " bytes)";
   }
 
+  /// The cluster started with `master_args` and `nodes` nodes stops before rendering, saying
+  /// `says`.
+  static void expectRefusedAtStart(const std::string& master_args, int nodes,
+                                   const std::string& says) {
+    const CommandResult r = cluster(master_args, nodes);
+    EXPECT_NE(r.code, 0);
+    EXPECT_NE(r.out.find(says), std::string::npos) << r.out;
+  }
+
+  /// sceneJson("bunny.tlod") with `settings` (", \"inset\": ...") added to its settings, written
+  /// as `name` in the suite's folder.
+  static void writeSceneWith(const std::string& name, const std::string& settings) {
+    std::string scene = sceneJson("bunny.tlod");
+    scene.replace(scene.rfind("}}"), 2, settings + "}}");
+    write(sDir->path() / name, scene);
+  }
+
   static tessera::test::TempDir* sDir;
 };
 tessera::test::TempDir* Cluster::sDir = nullptr;
@@ -337,27 +354,123 @@ TEST_F(Cluster, AScriptedSetInsetMovesTheInsetOnEveryNode) {
   }
   // A scene placing the inset off the wall, or placing one the wall lacks, is refused at the
   // start, by field.
-  std::string off_scene = sceneJson("bunny.tlod");
-  off_scene.replace(off_scene.rfind("}}"), 2,
-                    R"(, "inset": {"centres": [{"name": "fovea", "x": 0.1, "y": 0.1}]}}})");
-  write(sDir->path() / "off-scene.json", off_scene);
-  const CommandResult bad_scene =
-      cluster("--wall inset-wall.json --scene off-scene.json --frames 2", 3);
-  EXPECT_NE(bad_scene.code, 0);
-  EXPECT_NE(bad_scene.out.find("off-scene.json: settings.inset.centres[0]: inset 'fovea' "
-                               "centred at (0.1, 0.1)"),
-            std::string::npos)
-      << bad_scene.out;
+  writeSceneWith("off-scene.json",
+                 R"(, "inset": {"centres": [{"name": "fovea", "x": 0.1, "y": 0.1}]})");
+  expectRefusedAtStart("--wall inset-wall.json --scene off-scene.json --frames 2", 3,
+                       "off-scene.json: settings.inset.centres[0]: inset 'fovea' centred at "
+                       "(0.1, 0.1)");
   // A setInset that leaves the wall is refused when the script is loaded, by field.
   write(sDir->path() / "off.json", R"({"name": "off", "keyframes": [
     {"time": 0, "eye": {"x": 0, "y": 0, "z": 1}, "target": {"x": 0, "y": 0, "z": 0},
      "up": {"x": 0, "y": 1, "z": 0}}],
     "actions": [{"time": 0, "setInset": {"name": "fovea", "x": 0.9, "y": 0.1}}]})");
-  const CommandResult off =
-      cluster("--wall inset-wall.json --scene scene.json --script off.json --frames 2", 3);
-  EXPECT_NE(off.code, 0);
-  EXPECT_NE(off.out.find("off.json: actions[0].setInset: inset 'fovea'"), std::string::npos)
-      << off.out;
+  expectRefusedAtStart("--wall inset-wall.json --scene scene.json --script off.json --frames 2", 3,
+                       "off.json: actions[0].setInset: inset 'fovea'");
+}
+
+/// Two 320x180 tiles (0.48 x 0.27 m, a 2 cm bezel), the viewer's eye 1.5 m in front of the
+/// bezel; `extra` goes into the wall's object (stereo).
+std::string smallWall(const std::string& extra = "") {
+  return R"({"name": "1x2", "tiles": [
+  {"name": "left", "x": 0, "y": 0, "width": 0.48, "height": 0.27, "pixelWidth": 320,
+   "pixelHeight": 180},
+  {"name": "right", "x": 0.5, "y": 0, "width": 0.48, "height": 0.27, "pixelWidth": 320,
+   "pixelHeight": 180}],
+  "eye": {"x": 0.49, "y": 0.135, "z": 1.5})" +
+         extra + "}";
+}
+
+TEST_F(Cluster, AScriptedHeadMoveReachesEveryNode) {
+  // The head moves 5 cm left, 2.5 cm up and 5 cm nearer and turns 20 degrees at t = 0.02 s
+  // (frame 2): both nodes see their tiles from it, so the screenshot is tessera-render --mosaic
+  // --head's, byte for byte, and not the picture from the wall's eye.
+  write(sDir->path() / "head-wall.json", smallWall());
+  write(sDir->path() / "head.json", R"({"name": "move the head", "keyframes": [
+    {"time": 0, "eye": {"x": -0.027, "y": 0.12, "z": 0.38}, "target": {"x": -0.027, "y": 0.1,
+     "z": 0}, "up": {"x": 0, "y": 1, "z": 0}}],
+    "actions": [{"time": 0, "screenshot": "from-eye.png"},
+                {"time": 0.02, "setHead": {"eye": {"x": 0.44, "y": 0.16, "z": 1.45},
+                 "right": {"x": 0.9397, "y": 0, "z": 0.342}, "eyeSeparation": 0.07}}]})");
+  const CommandResult r = cluster(
+      "--wall head-wall.json --scene scene.json --script head.json --frames 4 "
+      "--screenshot head.png",
+      2);
+  ASSERT_EQ(r.code, 0) << r.out;
+  expectSameAsMosaic(r, "head.png", "head-wall.json", "scene.json",
+                     " --head 'eye=0.44,0.16,1.45;right=0.9397,0,0.342;separation=0.07'");
+  expectSameAsMosaic(r, "from-eye.png", "head-wall.json", "scene.json");
+  EXPECT_NE(tessera::test::readBytes(sDir->path() / "from-eye.png"),
+            tessera::test::readBytes(sDir->path() / "head.png"));
+  // The bunny is still in view from the moved head (light grey on the dark background).
+  const tessera::render::Image moved =
+      tessera::render::readPng((sDir->path() / "head.png").string());
+  size_t light = 0;
+  for (size_t i = 0; i + 3 < moved.rgba.size(); i += 4) light += moved.rgba[i] > 120;
+  EXPECT_GT(light, 10000u);
+  // A setHead behind the wall stops the start, naming the action's field; so does a scene
+  // whose head is behind it.
+  write(sDir->path() / "behind.json", R"({"name": "behind", "keyframes": [
+    {"time": 0, "eye": {"x": 0, "y": 0, "z": 1}, "target": {"x": 0, "y": 0, "z": 0},
+     "up": {"x": 0, "y": 1, "z": 0}}],
+    "actions": [{"time": 0, "setHead": {"eye": {"x": 0.3, "y": 0.2, "z": -0.4},
+                 "right": {"x": 1, "y": 0, "z": 0}}}]})");
+  expectRefusedAtStart("--wall head-wall.json --scene scene.json --script behind.json --frames 2",
+                       2,
+                       "behind.json: actions[0].setHead.eye: the head (0.3, 0.2, -0.4) is behind "
+                       "the plane of tiles[0] ('left')");
+  // The head 1 cm from the wall, its eyes along the wall's normal: the left one behind it.
+  writeSceneWith("behind-scene.json", R"(, "head": {"eye": {"x": 0.49, "y": 0.1, "z": 0.01},
+                                         "right": {"x": 0, "y": 0, "z": 1}})");
+  expectRefusedAtStart("--wall head-wall.json --scene behind-scene.json --frames 2", 2,
+                       "behind-scene.json: settings.head.eye: its left eye");
+  // tessera-render refuses the same head on its command line, by field.
+  const CommandResult bad_cli = run("cd " + sDir->path().string() + " && " + TESSERA_RENDER_TOOL +
+                                    " --scene scene.json --wall head-wall.json --mosaic -o x.png "
+                                    "--head 'eye=0.3,0.2,1;right=0,0,0'");
+  EXPECT_EQ(bad_cli.code, 2) << bad_cli.out;
+  EXPECT_NE(bad_cli.out.find("head.right: the head's right axis must not be zero"),
+            std::string::npos)
+      << bad_cli.out;
+}
+
+TEST_F(Cluster, AStereoWallHasANodePerEyeAndEachEyeIsTheMosaics) {
+  // Four nodes, one per tile and eye ("left/left", "left/right", "right/left",
+  // "right/right"). The screenshot shows the left eye; each eye's wall is written beside it,
+  // equal to tessera-render --mosaic --stereo pair's, and the eyes differ.
+  write(sDir->path() / "stereo-wall.json",
+        smallWall(R"(, "stereo": true, "eyeSeparation": 0.065)"));
+  const CommandResult r =
+      cluster("--wall stereo-wall.json --scene scene.json --frames 2 --screenshot stw.png", 4);
+  ASSERT_EQ(r.code, 0) << r.out;
+  for (const char* slot : {"left/left", "left/right", "right/left", "right/right"})
+    EXPECT_NE(r.out.find(std::string("tile ") + slot), std::string::npos) << slot << r.out;
+  EXPECT_TRUE(
+      std::regex_search(r.out, std::regex("wrote \\S*stw-left.png \\(\\d+x180\\); the left eye")))
+      << r.out;
+  EXPECT_TRUE(
+      std::regex_search(r.out, std::regex("wrote \\S*stw-right.png \\(\\d+x180\\); the right eye")))
+      << r.out;
+  expectSameAsMosaic(r, "stw.png", "stereo-wall.json", "scene.json");
+  const std::regex line("wrote \\S*stw.png \\(\\d+x\\d+\\); camera (\\S+)");
+  std::smatch m;
+  ASSERT_TRUE(std::regex_search(r.out, m, line)) << r.out;
+  const CommandResult ref =
+      run("cd " + sDir->path().string() + " && " + TESSERA_RENDER_TOOL +
+          " --scene scene.json --wall stereo-wall.json --mosaic --stereo pair --camera '" +
+          m[1].str() + "' -o mosaic-stw.png");
+  ASSERT_EQ(ref.code, 0) << ref.out;
+  for (const char* eye : {"left", "right"}) {
+    const auto wall_eye =
+        tessera::test::readBytes(sDir->path() / ("stw-" + std::string(eye) + ".png"));
+    const auto ref_eye =
+        tessera::test::readBytes(sDir->path() / ("mosaic-stw-" + std::string(eye) + ".png"));
+    ASSERT_FALSE(wall_eye.empty()) << eye;
+    EXPECT_TRUE(wall_eye == ref_eye) << eye << " differs from tessera-render --mosaic --stereo's";
+  }
+  EXPECT_EQ(tessera::test::readBytes(sDir->path() / "stw.png"),
+            tessera::test::readBytes(sDir->path() / "stw-left.png"));
+  EXPECT_NE(tessera::test::readBytes(sDir->path() / "stw-left.png"),
+            tessera::test::readBytes(sDir->path() / "stw-right.png"));
 }
 
 TEST_F(Cluster, WrongNodeCountStopsBeforeRendering) {

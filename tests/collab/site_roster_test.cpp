@@ -15,8 +15,10 @@
 #include <tessera/collab/site_roster.h>
 #include <tessera/media/video_packet.h>
 #include <tessera/media/voice_packet.h>
+#include <tessera/sync/config.h>
 #include <tessera/sync/scene_graph.h>
 #include <tessera/sync/transform.h>
+#include <tessera/sync/vec3.h>
 
 namespace {
 
@@ -324,6 +326,59 @@ TEST(SiteRoster, ASitesShadingKeysChangeTheWallsFilters) {
   bad.Clear();
   bad.mutable_shading();
   EXPECT_TRUE(collab::checkToMaster(bad));  // names nothing
+}
+
+// A site moves the viewer's head on the wall for everyone: the message's own checks refuse a
+// NaN or a zero axis by field, the master's wall check one behind a tile; a refused head leaves
+// the scene as it was.
+TEST(SiteRoster, ASitesHeadMessageMovesTheViewersHeadOrIsRefused) {
+  Session s;
+  s.roster.setWall(sync::parseWallConfig(
+      R"({"tiles": [{"name": "a", "width": 1.6, "height": 1.2, "pixelWidth": 64,
+          "pixelHeight": 48}], "eye": {"x": 0.8, "y": 0.6, "z": 1.5}})",
+      "wall.json", ""));
+  const uint32_t a = s.roster.join(s.master, "A", "k1");
+  site::ToMaster m;
+  scene::Head& h = *m.mutable_head()->mutable_head();
+  sync::set(h.mutable_eye(), {0.8, 0.6, 1.4});
+  sync::set(h.mutable_right(), {0.94, 0.0, 0.34});
+  h.set_eye_separation(0.06);
+  EXPECT_FALSE(collab::checkToMaster(m));
+  s.roster.apply(s.master, a, m, 0.0);
+  s.step(0.1);
+  ASSERT_TRUE(s.replica.settings().has_head());
+  EXPECT_EQ(s.replica.settings().head().eye().x(), 0.8);
+  EXPECT_EQ(s.replica.settings().head().eye_separation(), 0.06);
+
+  site::ToMaster bad = m;
+  bad.mutable_head()->mutable_head()->mutable_eye()->set_y(std::nan(""));
+  EXPECT_EQ(collab::checkToMaster(bad).value_or("").rfind("head.head.eye: needs finite", 0), 0u)
+      << collab::checkToMaster(bad).value_or("");
+  bad = m;
+  sync::set(bad.mutable_head()->mutable_head()->mutable_right(), {0, 0, 0});
+  EXPECT_NE(collab::checkToMaster(bad).value_or("").find("head.head.right: the head's right axis"),
+            std::string::npos);
+  bad = m;
+  bad.mutable_head()->mutable_head()->set_eye_separation(1.5);
+  EXPECT_NE(collab::checkToMaster(bad).value_or("").find("eye_separation"), std::string::npos);
+  bad.Clear();
+  bad.mutable_head();
+  EXPECT_TRUE(collab::checkToMaster(bad));  // no head in it
+  // Behind the wall: passes the message's checks, refused by the master's wall check.
+  bad = m;
+  bad.mutable_head()->mutable_head()->mutable_eye()->set_z(-0.5);
+  EXPECT_FALSE(collab::checkToMaster(bad));
+  s.roster.apply(s.master, a, bad, 0.2);
+  EXPECT_FALSE(s.master.hasPendingChanges());
+  s.step(0.3);
+  EXPECT_EQ(s.replica.settings().head().eye().z(), 1.4);
+  // Without a wall to check against, a master refuses every head.
+  Session bare;
+  const uint32_t b = bare.roster.join(bare.master, "B", "k2");
+  bare.step(0.0);
+  bare.roster.apply(bare.master, b, m, 0.1);
+  bare.step(0.2);
+  EXPECT_FALSE(bare.replica.settings().has_head());
 }
 
 TEST(SiteRoster, TheLeadersPoseMovesTheSceneCameraUntilReleased) {

@@ -20,6 +20,8 @@
 #include <tessera/sync/scene_edits.h>
 #include <tessera/sync/scene_graph.h>
 #include <tessera/sync/transform.h>
+#include <tessera/sync/vec3.h>
+#include <tessera/sync/viewer_head.h>
 #include <tessera/sync/wire.h>
 
 namespace tessera::sync {
@@ -315,6 +317,94 @@ TEST(SceneGraph, AnalysisSettingsReachEveryReplicaAndTurnOffAgain) {
   EXPECT_EQ(replica.settings().analysis().relative_depth_radius(), 0u);
   a.set_contour_interval(-1.0);
   EXPECT_THROW(g.setAnalysis(a), tessera::PreconditionError);
+}
+
+scene::Head head(glm::dvec3 eye, glm::dvec3 right, double separation = 0.0) {
+  scene::Head h;
+  set(h.mutable_eye(), eye);
+  set(h.mutable_right(), right);
+  if (separation != 0.0) h.set_eye_separation(separation);
+  return h;
+}
+
+// The viewer's head is a setting every replica gets with the next frame (and a late joiner with
+// its snapshot); bad heads are refused by field: by the graph's precondition, by a replica
+// applying a frame, by a scene file's checks, and against a wall by sync::headProblem().
+TEST(SceneGraph, TheViewersHeadReachesReplicasAndBadHeadsAreRefusedByField) {
+  SceneGraph g;
+  g.takeFrame(1, 0);
+  SceneGraph replica;
+  replica.apply(parseSnapshot(serializeSnapshot(g.snapshot())));
+  EXPECT_FALSE(replica.settings().has_head());
+  g.setHead(head({0.3, 0.2, 1.2}, {0.94, 0, 0.34}, 0.07));
+  replica.apply(wire(g.takeFrame(2, 0)));
+  ASSERT_TRUE(replica.settings().has_head());
+  EXPECT_EQ(replica.settings().head().eye().z(), 1.2);
+  EXPECT_EQ(replica.settings().head().eye_separation(), 0.07);
+  g.setHead(head({0.1, 0.2, 1.5}, {1, 0, 0}));  // replaced whole: its separation goes
+  replica.apply(wire(g.takeFrame(3, 0)));
+  EXPECT_FALSE(replica.settings().head().has_eye_separation());
+  SceneGraph late;
+  late.apply(parseSnapshot(serializeSnapshot(g.snapshot())));
+  EXPECT_TRUE(late == g) << differences(late, g);
+
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  const double inf = std::numeric_limits<double>::infinity();
+  auto refused = [&](const scene::Head& h, const std::string& says) {
+    const auto why = SceneGraph::headProblem(h);
+    ASSERT_TRUE(why) << says;
+    EXPECT_NE(why->find(says), std::string::npos) << *why;
+    EXPECT_THROW(g.setHead(h), tessera::PreconditionError) << says;
+  };
+  refused(head({nan, 0.2, 1}, {1, 0, 0}), "eye: needs finite x, y and z");
+  refused(head({0, inf, 1}, {1, 0, 0}), "eye: needs finite");
+  refused(head({0, 0.2, 1}, {0, 0, 0}), "right: the head's right axis must not be zero");
+  refused(head({0, 0.2, 1}, {nan, 0, 0}), "right: needs finite");
+  refused(head({0, 0.2, 1}, {1e300, 1e300, 0}), "right: the head's right axis must not be zero");
+  refused(head({0, 0.2, 1}, {1, 0, 0}, 2.0), "eye_separation: must be in (0, 1] metres, got 2");
+  refused(head({0, 0.2, 1}, {1, 0, 0}, -0.01), "eye_separation");
+  scene::Head no_right = head({0, 0.2, 1}, {1, 0, 0});
+  no_right.clear_right();
+  refused(no_right, "right: needs finite x, y and z (the head's right axis), got none");
+  // A replica refuses a frame carrying a NaN head and stays as it was.
+  scene::Frame f;
+  f.set_number(4);
+  f.set_version(replica.version() + 1);
+  *f.mutable_settings()->mutable_head() = head({0, nan, 1}, {1, 0, 0});
+  const SceneGraph before = replica;
+  try {
+    replica.apply(f);
+    ADD_FAILURE() << "a NaN head";
+  } catch (const SyncError& e) {
+    EXPECT_NE(std::string(e.what()).find("settings.head.eye: needs finite"), std::string::npos)
+        << e.what();
+  }
+  EXPECT_TRUE(replica == before) << differences(replica, before);
+  // A scene file's head passes the same checks.
+  try {
+    (void)parseSceneFile(R"({"camera": {"eye": {"z": 1}, "target": {}, "up": {"y": 1}},
+        "settings": {"head": {"eye": {"x": 0, "y": 0, "z": 1}, "right": {}}}})",
+                         "scene.json", "");
+    ADD_FAILURE() << "a zero right axis";
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("scene.json: scene: settings.head.right: the head's "
+                                         "right axis must not be zero"),
+              std::string::npos)
+        << e.what();
+  }
+  // Against a wall: the head and both of its eyes in front of every tile.
+  const config::WallConfig wall = loadWallConfig(kConfigs + "/walls/cave.json");
+  EXPECT_FALSE(headProblem(wall, head(vec(wall.eye()), {1, 0, 0})));
+  const auto behind = headProblem(wall, head(vec(wall.eye()) + glm::dvec3(0, -5, 0), {1, 0, 0}));
+  ASSERT_TRUE(behind);
+  EXPECT_NE(behind->find("eye: the head ("), std::string::npos) << *behind;
+  EXPECT_NE(behind->find("is behind the plane of tiles["), std::string::npos) << *behind;
+  // Its point inside the room, but an eye through the left wall at a wide separation.
+  const config::WallConfig flat = loadWallConfig(kConfigs + "/walls/2x2.json");
+  const auto eye_behind = headProblem(flat, head({1, 0.5, 0.02}, {0, 0, 1}, 0.065));
+  ASSERT_TRUE(eye_behind);
+  EXPECT_NE(eye_behind->find("its left eye"), std::string::npos) << *eye_behind;
+  EXPECT_TRUE(headProblem(flat, head({1, 0.5, 1}, {0, 0, 0})));
 }
 
 TEST(SceneGraph, FromFileMakesTheSceneFilesNodes) {

@@ -74,6 +74,8 @@ struct SiteHubOptions {
   bool video_screen = false;
   float screen_x = 0.72f, screen_y = 0.04f, screen_width = 0.24f;
   double video_timeout_s = 3.0;  ///< no video from a site for this long: its inset goes
+  /// The wall the sites' heads are checked against (SiteRoster::setWall()); no tiles: none.
+  config::WallConfig wall;
 };
 
 struct SiteHubCounters {

@@ -13,6 +13,7 @@
 
 #include <cstdint>
 #include <map>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -41,6 +42,9 @@ class SiteRoster {
   uint32_t join(sync::SceneGraph& graph, const std::string& wanted, const std::string& key);
   /// Its avatar goes and its lead ends; its sketches stay.
   void leave(sync::SceneGraph& graph, uint32_t participant);
+  /// The wall the sites' heads are checked against (sync::headProblem()): a head behind one of
+  /// its tiles is refused and said. Without one, every head is refused.
+  void setWall(const config::WallConfig& wall) { mWall = wall; }
   /// A checked request (site_messages.h) other than hello and bye, at `now` (seconds).
   void apply(sync::SceneGraph& graph, uint32_t participant, const site::ToMaster& request,
              double now);
@@ -61,6 +65,7 @@ class SiteRoster {
   // the leader's over kLeadBlendSeconds.
   config::Camera mLeadFrom;
   double mLeadStart = -1.0;
+  std::optional<config::WallConfig> mWall;
 };
 
 }  // namespace tessera::collab

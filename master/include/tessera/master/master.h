@@ -126,6 +126,9 @@ class Master {
   cluster::ClusterSetup setupFor(uint32_t tile) const;
   /// Each foveal inset at its own density beside the screenshot `path`
   /// (render::insetPicturePath()); `slots` are the pictures of render::wallSlots().
+  /// Each eye of a stereo wall beside the screenshot `path` (render::stereoPairPath()).
+  void writeEyePictures(const std::string& path, uint64_t frame,
+                        const std::vector<render::Image>& slots);
   void writeInsetPictures(const std::string& path, uint64_t frame,
                           const std::vector<render::Image>& slots);
   void writeScreenshots(const std::vector<std::string>& paths, uint64_t frame,

@@ -7,8 +7,9 @@
 //
 // Geometry: the inset's rectangle R on the wall plane has the config's size and the scene's
 // centre (scene::Settings::inset, else the config's (x, y) corner); a slot renders R's off-axis
-// view from the wall eye (moved by -/+ half the eye separation along x for a stereo eye) at the
-// inset's own pixel size, exactly as tileView() renders a tile of that rectangle.
+// view from the viewer's head (sync/viewer_head.h; moved by -/+ half the eye separation along
+// its right axis for a stereo eye) at the inset's own pixel size, exactly as tileView() renders
+// a tile of that rectangle. A stereo wall's tiles are slots per eye the same way.
 //
 // Blending, in linear light (gamma 2.2): with d the distance of a wall point inside R's edge and
 // b the blend band, the context's weight is 1 outside R, 1 - d / b across the band and 0 deeper
@@ -36,25 +37,42 @@
 #include <tessera/render/image.h>
 #include <tessera/render/tile_frustum.h>
 #include <tessera/scene.pb.h>
+#include <tessera/sync/viewer_head.h>
 
 namespace tessera::render {
 
-/// One node's part of a wall: a tile (inset < 0) or one eye of an inset.
+/// One node's part of a wall: a tile (inset < 0), one eye of a stereo wall's tile, or one eye
+/// of an inset.
 struct WallSlot {
-  /// The tile, or for an inset a tile named as its slot ("<name>", "<name>/left",
+  /// The tile, named as its slot ("<tile>" on a mono wall; "<tile>/left", "<tile>/right" on a
+  /// stereo one), or for an inset a tile named as its slot ("<name>", "<name>/left",
   /// "<name>/right") with the inset's config rectangle and pixel size.
   config::Tile tile;
   int inset = -1;  ///< index in wall.insets(), or -1 for a tile
   int eye = 0;     ///< -1 left, +1 right, 0 mono
+  int tile_index = -1;  ///< a tile's index in wall.tiles(), or -1 for an inset
 };
 
-/// The wall's tiles in config order, then each inset's slots (mono: one; stereo: left, right).
+/// The wall's tiles in config order (a stereo wall's: each tile's left eye, then its right),
+/// then each inset's slots (mono: one; stereo: left, right).
 std::vector<WallSlot> wallSlots(const config::WallConfig& wall);
+
+/// The pictures of one eye of a wall, as the slots of `wall` without stereo tiles
+/// (monoWall()): each tile's picture for `eye` (-1 left, +1 right; a mono wall's tiles whatever
+/// the eye), then every inset slot's as it is. `slots[i]` is the picture of wallSlots(wall)[i].
+/// Precondition (TESSERA_CHECK): one picture a slot.
+std::vector<Image> eyePictures(const config::WallConfig& wall, std::span<const Image> slots,
+                               int eye);
+/// `wall` with `stereo` cleared: the wall one eye of it shows (its slots: one per tile).
+config::WallConfig monoWall(const config::WallConfig& wall);
 
 /// An inset's rectangle on the wall plane (metres) and its blend band (metres).
 struct InsetRect {
   double x0 = 0, y0 = 0, x1 = 0, y1 = 0;
   double band = 0;
+  /// False when the scene switches the inset off (scene::InsetCentre::hidden): the context's
+  /// weight is 1 over it and the inset's 0.
+  bool shown = true;
 };
 
 /// Inset `index`'s rectangle where the scene places it: its centre from `placement` when it names
@@ -77,11 +95,15 @@ double contextWeight(const config::WallConfig& wall, const scene::InsetPlacement
 /// inset inside it.
 double insetWeight(const InsetRect& rect, double x, double y);
 
-/// The view a slot renders: tileView() for a tile; for an inset, the off-axis view of its
-/// rectangle (insetRect()) at its pixel size from the wall eye moved by eye * half the eye
-/// separation along x, its origin 0 (a picture of its own).
+/// The view a slot renders from the viewer's head `head` (sync/viewer_head.h; null: the wall's
+/// eye, right axis +x): tileView() of its tile with the eye offset sync::eyeOffset() gives for
+/// the slot's eye (a stereo wall's tile: at the wall's eye separation); for an inset, the
+/// off-axis view of its rectangle (insetRect()) at its pixel size from that eye (at the inset's
+/// separation), its origin 0 (a picture of its own). A head without a separation of its own
+/// uses the slot's.
 ViewSetup slotView(const config::WallConfig& wall, const WallSlot& slot,
-                   const scene::InsetPlacement& placement, const config::Camera& camera);
+                   const scene::InsetPlacement& placement, const config::Camera& camera,
+                   const sync::ViewerHead* head = nullptr);
 
 /// Multiplies a slot's picture (slotView()'s size, RGBA, top row first) by its weight in linear
 /// light (gamma 2.2; alpha kept): a tile by the context's weight, an inset by its own, with its
@@ -115,14 +137,19 @@ class InsetPass {
 /// The wall screenshot: assembleWallMosaic() of the tiles' (weighted) pictures, bezels weighted
 /// as the context, with each inset's weighted picture (a stereo inset's left eye) averaged down
 /// to the context's density over its rectangle and added in linear light. `slots[i]` is the
-/// picture of wallSlots(wall)[i]. A wall without insets: assembleWallMosaic(). Preconditions as
-/// assembleWallMosaic's, one picture a slot.
+/// picture of wallSlots(wall)[i]. A wall without insets: assembleWallMosaic(). A stereo wall:
+/// its left eye (assembleWallEye()). Preconditions as assembleWallMosaic's, one picture a slot.
 Image assembleInsetWall(const config::WallConfig& wall, std::span<const Image> slots,
                         const scene::InsetPlacement& placement);
+/// One eye of a stereo wall (-1 left, +1 right): assembleInsetWall() of monoWall(wall) with
+/// that eye's tiles (eyePictures()). A mono wall gives the same picture for either eye.
+Image assembleWallEye(const config::WallConfig& wall, std::span<const Image> slots,
+                      const scene::InsetPlacement& placement, int eye);
 
 /// Inset `index`'s rectangle at its own density: the weighted context (the tiles and bezels of
 /// assembleInsetWall(), before any inset is added) sampled up, nearest pixel, plus the inset's
-/// weighted picture for `eye` (-1 left, +1 right; 0 for a mono inset) in linear light.
+/// weighted picture for `eye` (-1 left, +1 right; 0 for a mono inset) in linear light. On a
+/// stereo wall the context is that eye's (a mono inset's: the left's).
 Image insetDetail(const config::WallConfig& wall, std::span<const Image> slots,
                   const scene::InsetPlacement& placement, int index, int eye);
 

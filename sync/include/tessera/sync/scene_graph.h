@@ -178,6 +178,18 @@ class SceneGraph {
   /// (render::insetPlacementProblem()). Precondition (TESSERA_CHECK): name 1..64 bytes, x and y
   /// finite.
   void setInsetCentre(std::string_view name, double x, double y);
+  /// Replaces the named inset's placement whole: its centre and whether it is switched off
+  /// (scene::InsetCentre::hidden), as a camera path's setInset and the console's inset control
+  /// do. The same wall check is the caller's. Precondition (TESSERA_CHECK): as setInsetCentre().
+  void setInset(const scene::InsetCentre& centre);
+  /// Moves the viewer's head (scene::Settings::head, wall frame, metres): every node sees its
+  /// tiles and stereo eyes from it from the next frame (sync/viewer_head.h). The graph does not
+  /// know the wall: that the head is in front of every tile is the caller's check
+  /// (sync::headProblem()). Precondition (TESSERA_CHECK): headProblem(head) is nothing.
+  void setHead(const scene::Head& head);
+  /// What is wrong with `head` without a wall ("right: the head's right axis must not be
+  /// zero ..."), or nothing: for checks of outside messages before the wall's.
+  static std::optional<std::string> headProblem(const scene::Head& head);
 
   /// Who leads the view ("" nobody; at most kMaxParticipantName bytes): scene::Settings::leader.
   void setLeader(std::string_view leader);
