@@ -65,14 +65,64 @@ CellKey CubeFrame::cellOf(const glm::dvec3& p, int level) const {
   return {uint8_t(level), axis(p.x - cube_min.x), axis(p.y - cube_min.y), axis(p.z - cube_min.z)};
 }
 
-void readTempPoints(int fd, uint64_t first, uint64_t count, BuildPoint* out,
-                    const std::string& name) {
-  preadAll(fd, out, count * sizeof(BuildPoint), first * sizeof(BuildPoint), name);
+// A compact record: x, y, z as int32 multiples of the quantum, then rgb, classification,
+// intensity, source, ao (little-endian, unaligned).
+void readTempPoints(const TempLayout& layout, int fd, uint64_t first, uint64_t count,
+                    BuildPoint* out, const std::string& name) {
+  if (!layout.compact()) {
+    preadAll(fd, out, count * sizeof(BuildPoint), first * sizeof(BuildPoint), name);
+    return;
+  }
+  constexpr size_t R = TempLayout::kCompactRecord;
+  thread_local std::vector<uint8_t> buf;
+  buf.resize(count * R);
+  preadAll(fd, buf.data(), buf.size(), first * R, name);
+  const double q = layout.quantum;
+  for (uint64_t i = 0; i < count; ++i) {
+    const uint8_t* r = buf.data() + i * R;
+    int32_t k[3];
+    std::memcpy(k, r, 12);
+    BuildPoint& p = out[i];
+    p.position = glm::dvec3(double(k[0]) * q, double(k[1]) * q, double(k[2]) * q);
+    p.rgb = glm::u8vec3(r[12], r[13], r[14]);
+    p.classification = r[15];
+    std::memcpy(&p.intensity, r + 16, 2);
+    std::memcpy(&p.source, r + 18, 2);
+    p.ao = r[20];
+  }
 }
 
-void writeTempPoints(int fd, uint64_t first, const BuildPoint* pts, uint64_t count,
-                     const std::string& name) {
-  pwriteAll(fd, pts, count * sizeof(BuildPoint), first * sizeof(BuildPoint), name);
+void writeTempPoints(const TempLayout& layout, int fd, uint64_t first, const BuildPoint* pts,
+                     uint64_t count, const std::string& name) {
+  if (!layout.compact()) {
+    pwriteAll(fd, pts, count * sizeof(BuildPoint), first * sizeof(BuildPoint), name);
+    return;
+  }
+  constexpr size_t R = TempLayout::kCompactRecord;
+  constexpr double kLimit = 2147483647.0;
+  thread_local std::vector<uint8_t> buf;
+  buf.resize(count * R);
+  const double inv = 1.0 / layout.quantum;
+  for (uint64_t i = 0; i < count; ++i) {
+    const BuildPoint& p = pts[i];
+    uint8_t* r = buf.data() + i * R;
+    int32_t k[3];
+    for (int a = 0; a < 3; ++a) {
+      const double v = std::round(p.position[a] * inv);
+      if (!(std::fabs(v) <= kLimit))
+        throw TempRangeError("a position lies beyond 2^31 quanta of the origin");
+      k[a] = int32_t(v);
+    }
+    std::memcpy(r, k, 12);
+    r[12] = p.rgb.r;
+    r[13] = p.rgb.g;
+    r[14] = p.rgb.b;
+    r[15] = p.classification;
+    std::memcpy(r + 16, &p.intensity, 2);
+    std::memcpy(r + 18, &p.source, 2);
+    r[20] = p.ao;
+  }
+  pwriteAll(fd, buf.data(), buf.size(), first * R, name);
 }
 
 PointDistributor::PointDistributor(const std::vector<std::filesystem::path>& inputs, bool quiet)
@@ -156,6 +206,29 @@ void PointDistributor::forEachBatch(const std::string& label,
   mSkipped = skipped;
 }
 
+TempLayout PointDistributor::chooseLayout() const {
+  return TempLayout{mPrecision > 0.0 ? mPrecision / 16.0 : 0.0};
+}
+
+void PointDistributor::readInputsIn(TempLayout layout, const std::string& label,
+                                    const std::filesystem::path& raw_file) {
+  mLayout = layout;
+  try {
+    readInputs(label, raw_file);
+  } catch (const TempRangeError&) {
+    if (!mLayout.compact()) throw;
+    mLayout = TempLayout{};
+    readInputs(label + " (again, wide records: the inputs span more than compact ones hold)",
+               raw_file);
+  }
+  // Inputs read in place write no raw file: their bounds decide.
+  if (mLayout.compact() && mLas.size() == mInputs.size()) {
+    const double reach = std::max({std::fabs(mMin.x), std::fabs(mMin.y), std::fabs(mMin.z),
+                                   std::fabs(mMax.x), std::fabs(mMax.y), std::fabs(mMax.z)});
+    if (!(reach * (1.0 / mLayout.quantum) <= 2147483646.0)) mLayout = TempLayout{};
+  }
+}
+
 // Pass 1 parses the inputs once: bounds and count, and every point in the local frame goes to
 // a raw temporary file so the later passes read fixed-size records instead of parsing again
 // (ASCII PLY parses at ~2 M points/s, its raw records read at hundreds of M points/s).
@@ -175,7 +248,7 @@ void PointDistributor::readInputs(const std::string& label, const std::filesyste
       lo = glm::min(lo, p.position);
       hi = glm::max(hi, p.position);
     }
-    writeTempPoints(fd, n, pts.data(), pts.size(), name);
+    writeTempPoints(mLayout, fd, n, pts.data(), pts.size(), name);
     n += pts.size();
   });
   mPoints = n;
@@ -227,7 +300,7 @@ void PointDistributor::forEachRaw(const std::string& label, int parts,
     for (uint64_t i = begin; i < end; i += kBlock) {
       uint64_t n = std::min(kBlock, end - i);
       pts.resize(n);
-      readTempPoints(fd, i, n, pts.data(), mRawFile.string());
+      readTempPoints(mLayout, fd, i, n, pts.data(), mRawFile.string());
       fn(part, pts);
       uint64_t total = done += n;
       if (part == 0) progress.update(total);
@@ -240,7 +313,7 @@ void PointDistributor::measure(const std::filesystem::path& raw_file) {
   // The local frame's origin is the first input's own (a LAS file's local origin, 0 for
   // others): positions then carry the same arithmetic in build and verify.
   mFrame.origin = mFirstOrigin;
-  readInputs("build 1/5 reading", raw_file);
+  readInputsIn(chooseLayout(), "build 1/5 reading", raw_file);
   if (mPoints == 0) throw ReadError("lod::buildStore(): the inputs hold no points");
   // The root cube around the box, a hair larger so nothing sits on its far faces.
   glm::dvec3 centre = 0.5 * (mMin + mMax);
@@ -253,7 +326,7 @@ void PointDistributor::measure(const std::filesystem::path& raw_file) {
 void PointDistributor::measureInFrame(const CubeFrame& frame,
                                       const std::filesystem::path& raw_file) {
   mFrame = frame;
-  readInputs("verify 1/3 reading", raw_file);
+  readInputsIn(chooseLayout(), "verify 1/3 reading", raw_file);
 }
 
 std::vector<Chunk> PointDistributor::distribute(uint64_t chunk_max,
@@ -368,7 +441,8 @@ std::vector<Chunk> PointDistributor::distribute(uint64_t chunk_max,
     if (st.written[ci] + b.size() > part_chunk[size_t(part)][ci]) {
       throw StoreError("lod::buildStore(): internal error: chunk overflow");
     }
-    writeTempPoints(fd, start[size_t(part)][ci] + st.written[ci], b.data(), b.size(), name);
+    writeTempPoints(mLayout, fd, start[size_t(part)][ci] + st.written[ci], b.data(), b.size(),
+                    name);
     st.written[ci] += b.size();
     b.clear();
   };

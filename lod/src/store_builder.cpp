@@ -168,8 +168,9 @@ struct Pending {
 };
 
 /// Splits chunks too large for memory into their octants (streamed through the temp file).
-void splitOversized(std::vector<Chunk>& chunks, uint64_t chunk_max, const CubeFrame& frame, int fd,
-                    const std::string& name, uint64_t& temp_end) {
+void splitOversized(std::vector<Chunk>& chunks, uint64_t chunk_max, const CubeFrame& frame,
+                    const TempLayout& layout, int fd, const std::string& name,
+                    uint64_t& temp_end) {
   std::vector<Chunk> out;
   std::vector<Chunk> work(chunks.begin(), chunks.end());
   const uint64_t kStream = 1 << 20;
@@ -189,7 +190,7 @@ void splitOversized(std::vector<Chunk>& chunks, uint64_t chunk_max, const CubeFr
     for (uint64_t i = 0; i < c.count; i += kStream) {
       uint64_t n = std::min(kStream, c.count - i);
       buf.resize(n);
-      readTempPoints(fd, c.first + i, n, buf.data(), name);
+      readTempPoints(layout, fd, c.first + i, n, buf.data(), name);
       for (const auto& p : buf) ++counts[size_t(octant(p))];
     }
     std::array<Chunk, 8> kids;
@@ -202,11 +203,12 @@ void splitOversized(std::vector<Chunk>& chunks, uint64_t chunk_max, const CubeFr
     for (uint64_t i = 0; i < c.count; i += kStream) {
       uint64_t n = std::min(kStream, c.count - i);
       buf.resize(n);
-      readTempPoints(fd, c.first + i, n, buf.data(), name);
+      readTempPoints(layout, fd, c.first + i, n, buf.data(), name);
       for (const auto& p : buf) bufs[size_t(octant(p))].push_back(p);
       for (int k = 0; k < 8; ++k) {
         auto& b = bufs[size_t(k)];
-        writeTempPoints(fd, kids[size_t(k)].first + fill[size_t(k)], b.data(), b.size(), name);
+        writeTempPoints(layout, fd, kids[size_t(k)].first + fill[size_t(k)], b.data(), b.size(),
+                        name);
         fill[size_t(k)] += b.size();
         b.clear();
       }
@@ -273,11 +275,13 @@ BuildReport buildStore(const std::vector<std::filesystem::path>& inputs,
   report.seconds_read = since(t0);
   report.points = dist.points();
   report.skipped = dist.skipped();
+  report.temp_record_bytes = dist.tempLayout().recordSize();
 
   const auto t1 = Clock::now();
   ScopedFd points_fd(temp_points, O_RDWR, "temporary file");
   uint64_t temp_end = dist.points();
-  splitOversized(chunks, chunk_max, frame, points_fd.get(), points_fd.name(), temp_end);
+  splitOversized(chunks, chunk_max, frame, dist.tempLayout(), points_fd.get(), points_fd.name(),
+                 temp_end);
   std::sort(chunks.begin(), chunks.end(),
             [](const Chunk& a, const Chunk& b) { return a.count > b.count; });
   report.chunks = chunks.size();
@@ -298,7 +302,8 @@ BuildReport buildStore(const std::vector<std::filesystem::path>& inputs,
         for (size_t ci; !failed && (ci = next++) < chunks.size();) {
           const Chunk& c = chunks[ci];
           pts.resize(c.count);
-          readTempPoints(points_fd.get(), c.first, c.count, pts.data(), points_fd.name());
+          readTempPoints(dist.tempLayout(), points_fd.get(), c.first, c.count, pts.data(),
+                         points_fd.name());
           Pending root;
           root.child_mask = builder.buildSubtree(c.key, pts, &root.pts);
           {

@@ -156,7 +156,8 @@ VerifyReport verifyStore(const std::filesystem::path& store_path,
       for (NodeId c : store->children(id)) todo.push_back(c);
     }
     pts.resize(region.count);
-    readTempPoints(fd, region.first, region.count, pts.data(), "verify temporary file");
+    readTempPoints(dist.tempLayout(), fd, region.first, region.count, pts.data(),
+                   "verify temporary file");
     for (const BuildPoint& bp : pts) {
       const glm::dvec3 p = bp.position;
       path.clear();
