@@ -13,10 +13,11 @@ format 3) side by side into one LAS of N points with bench/tile_las.py, then con
 R rounds with each tool, alternating (Tessera, Potree, Tessera, Potree, ...), each run into a
 fresh output folder, timed by /usr/bin/time -v:
 
-  tessera  default       tessera-lod build IN -o OUT.tlod --threads T --quiet
+  tessera  default       tessera-lod build IN -o OUT.tlod --threads T --quiet (leaves keep the
+                         LAS's own 1 cm integers, as Potree keeps them)
   potree   brotli        PotreeConverter IN -o OUTDIR --encoding BROTLI
                                          --attributes rgb intensity classification
-  tessera  exact-leaves  ... --exact-leaves (leaves keep the LAS's 1 cm resolution)
+  tessera  lossy         ... --lossy (leaves within a quarter of their spacing)
   potree   uncompressed  PotreeConverter's default encoding (same attributes)
 
 Potree keeps position (always), rgb, intensity and classification, the attributes a Tessera
@@ -167,7 +168,7 @@ got=$("$TOOL" info "$LAS" | awk '$1 == "points:" { print $2 }')
 [ "$got" = "$POINTS" ] || die "tessera-lod info reads $got points in $LAS, expected $POINTS"
 
 # --- runs ------------------------------------------------------------------------------------
-MODES=("tessera default" "potree brotli" "tessera exact-leaves" "potree uncompressed")
+MODES=("tessera default" "potree brotli" "tessera lossy" "potree uncompressed")
 RUNS=$OUT/potree_peer_runs.csv
 [ -f "$RUNS" ] || echo "tool,mode,points,threads,round,seconds,peak_rss_mb,bytes,cpu_seconds" >"$RUNS"
 # rounds of an earlier run at this point count and thread count are replaced
@@ -181,7 +182,7 @@ run_one() {  # tool mode round
   mkdir -p "$dest"
   if [ "$tool" = tessera ]; then
     cmd=("$TOOL" build "$LAS" -o "$dest/store.tlod" --threads "$THREADS" --quiet)
-    [ "$mode" = exact-leaves ] && cmd+=(--exact-leaves)
+    [ "$mode" = lossy ] && cmd+=(--lossy)
   else
     rmdir "$dest"   # PotreeConverter makes its own folder
     cmd=("$PBIN" "$LAS" -o "$dest" --attributes rgb intensity classification)
@@ -248,7 +249,7 @@ EOF
 # one row per point count, the four modes as columns, for each panel's clustered bars
 DAT=$OUT/potree_peer.dat
 awk -F, 'NR > 1 { k = $1 " " $2; v[$3, k] = $6 " " $7 " " $9; if (!($3 in seen)) { seen[$3] = 1; pts[++n] = $3 } }
-     END { split("tessera default|tessera exact-leaves|potree brotli|potree uncompressed", ks, "|")
+     END { split("tessera default|tessera lossy|potree brotli|potree uncompressed", ks, "|")
            for (i = 1; i <= n; i++) { p = pts[i]; e = int(log(p) / log(10) + 1e-9); m = p / 10 ^ e
              label = (m == 1) ? sprintf("10^%d", e) : sprintf("%gx10^%d", m, e); line = "\"" label " points\""
              for (a = 1; a <= 3; a++) for (j = 1; j <= 4; j++) {
@@ -293,7 +294,7 @@ unset border; unset tics; unset grid; unset title; unset xlabel; unset ylabel
 set offsets 0, 0, 0, 0
 set xrange [0:1]; set yrange [0:1]
 set key center center horizontal maxrows 1 Left reverse samplen 2 width 2 font ",11"
-plot NaN with boxes lt 1 title "Tessera (default)", NaN with boxes lt 2 title "Tessera --exact-leaves", \
+plot NaN with boxes lt 1 title "Tessera (default, exact)", NaN with boxes lt 2 title "Tessera --lossy", \
      NaN with boxes lt 3 title "Potree BROTLI", NaN with boxes lt 4 title "Potree uncompressed (its default)"
 unset multiplot
 EOF

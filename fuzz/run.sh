@@ -153,19 +153,22 @@ seed_tmesh() {
 }
 
 # Chunk payloads: a one-node store's payload is exactly its chunk (header fields at byte 144:
-# payload_offset, 152: payload_size).
-# The chunk with ambient occlusion comes from ao_store's one node.
+# payload_offset, 152: payload_size): format 2 with exact cells on the LAS lattice, with lossy
+# cells (`--lossy`), and with ambient occlusion (ao_store's one node); the format 1 chunk of
+# stores of version 1-3 is fuzz/seeds/chunk/format1-color.chunk.
 seed_chunk() {
   "$LOD_TOOL" build "$DATA/lidar/1.2-with-color.las" -o one.tlod --quiet >/dev/null
+  "$LOD_TOOL" build "$DATA/lidar/1.2-with-color.las" -o lossy.tlod --lossy --quiet >/dev/null
   ao_store ao.tlod
+  cp "$OLDPWD"/fuzz/seeds/chunk/*.chunk .
   local off size name
-  for name in one:color ao:ao; do
+  for name in one:color lossy:lossy ao:ao; do
     off=$(od -An -t u8 -j 144 -N 8 "${name%%:*}.tlod" | tr -d ' ')
     size=$(od -An -t u8 -j 152 -N 8 "${name%%:*}.tlod" | tr -d ' ')
     dd if="${name%%:*}.tlod" of="${name##*:}.chunk" iflag=skip_bytes,count_bytes skip="$off" \
       count="$size" status=none
   done
-  rm one.tlod ao.tlod
+  rm one.tlod lossy.tlod ao.tlod
 }
 
 # Frames and snapshots written from protobuf text format (protoc --encode), against the scene

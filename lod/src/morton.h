@@ -1,4 +1,4 @@
-// 3D Morton (Z-order) codes with 21 bits per axis, by the magic-bits method.
+// Morton (Z-order) codes by the magic-bits method: 3D with 21 bits per axis, 2D with 32.
 #pragma once
 
 #include <cstdint>
@@ -29,6 +29,28 @@ inline uint32_t mortonCompact(uint64_t v) {
 
 inline uint64_t mortonEncode(uint64_t x, uint64_t y, uint64_t z) {
   return mortonSpread(x) | mortonSpread(y) << 1 | mortonSpread(z) << 2;
+}
+
+/// Spreads the low 32 bits of v to every second bit (2D Morton codes).
+inline uint64_t mortonSpread2(uint64_t v) {
+  v &= 0xFFFFFFFFull;
+  v = (v | v << 16) & 0x0000FFFF0000FFFFull;
+  v = (v | v << 8) & 0x00FF00FF00FF00FFull;
+  v = (v | v << 4) & 0x0F0F0F0F0F0F0F0Full;
+  v = (v | v << 2) & 0x3333333333333333ull;
+  v = (v | v << 1) & 0x5555555555555555ull;
+  return v;
+}
+
+/// Inverse of mortonSpread2: gathers every second bit (starting at bit 0).
+inline uint32_t mortonCompact2(uint64_t v) {
+  v &= 0x5555555555555555ull;
+  v = (v ^ (v >> 1)) & 0x3333333333333333ull;
+  v = (v ^ (v >> 2)) & 0x0F0F0F0F0F0F0F0Full;
+  v = (v ^ (v >> 4)) & 0x00FF00FF00FF00FFull;
+  v = (v ^ (v >> 8)) & 0x0000FFFF0000FFFFull;
+  v = (v ^ (v >> 16)) & 0x00000000FFFFFFFFull;
+  return uint32_t(v);
 }
 
 }  // namespace tessera::lod

@@ -180,7 +180,9 @@ void readStore(PointStore& store, const ExportOptions& o, const BatchSink& sink)
   PointBatch batch;
   const glm::dvec3 origin = store.summary().origin;
   for (NodeId id : leaves) {
-    const auto chunk = store.decodeChunk(id);
+    // The cells too: in double, offset + grid + cell * step is the stored point exactly (the
+    // input's own integers in an exact store), where the float positions round.
+    const auto chunk = store.decodeChunk(id, {}, true);
     if (o.leaf_size && o.leaf_size(id) != chunk->size()) {
       throw ReadError(std::string(kComponent) + ": " + store.path().string() +
                       ": the selection counts " + std::to_string(o.leaf_size(id)) +
@@ -192,7 +194,8 @@ void readStore(PointStore& store, const ExportOptions& o, const BatchSink& sink)
     size_t kept = 0;
     for (size_t i = 0; i < chunk->size(); ++i) {
       if (o.keep_element && !o.keep_element(id, uint32_t(i))) continue;
-      batch.positions[kept] = chunk->offset + glm::dvec3(chunk->positions[i]);
+      batch.positions[kept] =
+          chunk->offset + chunk->grid + glm::dvec3(chunk->cells[i]) * chunk->step;
       if (batch.attributes & kColor) batch.colors[kept] = chunk->colors[i];
       if (batch.attributes & kIntensity) batch.intensities[kept] = float(chunk->intensities[i]);
       if (batch.attributes & kClassification) batch.classifications[kept] = chunk->classifications[i];

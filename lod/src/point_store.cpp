@@ -228,6 +228,7 @@ std::unique_ptr<PointStore> PointStore::open(std::unique_ptr<RangeSource> source
   sum.spacing_root = h.spacing_root;
   sum.spacing_finest = h.spacing_finest;
   sum.input_precision = h.input_precision;
+  sum.exact_leaves = h.version >= 4 && (h.flags & store::kExactLeaves);
 
   std::string table(h.source_table_size, '\0');
   if (!m.readChecked(h.source_table_offset, table.data(), table.size(), "the source table", [&] {
@@ -309,7 +310,8 @@ uint32_t PointStore::chunkBytes(NodeId id) const {
   return mImpl->nodes[id].payload_size;
 }
 
-std::shared_ptr<ChunkPoints> PointStore::decodeChunk(NodeId id, std::stop_token cancel) const {
+std::shared_ptr<ChunkPoints> PointStore::decodeChunk(NodeId id, std::stop_token cancel,
+                                                     bool with_cells) const {
   const Impl& m = *mImpl;
   Impl::Entry e;
   {
@@ -330,7 +332,7 @@ std::shared_ptr<ChunkPoints> PointStore::decodeChunk(NodeId id, std::stop_token 
           [&] { return crc32c(bytes.data(), bytes.size()) == e.crc; }, cancel)) {
     throw StoreError("lod::PointStore: " + what + ": corrupt chunk (checksum mismatch); skipped");
   }
-  lod::decodeChunk(bytes, e.info.box_min, *out, what);
+  lod::decodeChunk(bytes, e.info.box_min, *out, what, with_cells);
   if (out->size() != e.info.points)
     throw StoreError("lod::PointStore: " + what + ": point count differs from the hierarchy");
   return out;

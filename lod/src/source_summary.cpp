@@ -203,6 +203,10 @@ std::string summaryText(const SourceSummary& s) {
       << " (position + colour " << num(double(t.position_color_bytes) / double(t.points)) << ")\n";
     o << "  spacing_root: " << num(t.spacing_root)
       << "\n  spacing_finest: " << num(t.spacing_finest) << "\n";
+    o << "  leaves: "
+      << (t.exact_leaves ? "exact (the input's integers at " + num(t.input_precision) + ")"
+                         : std::string("within their stated error bounds"))
+      << "\n";
     o << "  sources: " << s.store_sources.size() << "\n";
     for (size_t i = 0; i < s.store_sources.size(); ++i)
       o << "    [" << i << "] " << s.store_sources[i] << "\n";
@@ -270,7 +274,9 @@ std::string summaryJson(const SourceSummary& s) {
       << ", \"stored_points\": " << t.stored_points
       << ", \"overhead\": " << num(double(t.stored_points) / double(t.points))
       << ", \"spacing_root\": " << num(t.spacing_root)
-      << ", \"spacing_finest\": " << num(t.spacing_finest) << ", \"sources\": [";
+      << ", \"spacing_finest\": " << num(t.spacing_finest)
+      << ", \"exact_leaves\": " << (t.exact_leaves ? "true" : "false")
+      << ", \"input_precision\": " << num(t.input_precision) << ", \"sources\": [";
     for (size_t i = 0; i < s.store_sources.size(); ++i)
       o << (i ? ", " : "") << jsonString(s.store_sources[i]);
     o << "]";

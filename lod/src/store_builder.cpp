@@ -79,25 +79,36 @@ class Builder {
     // Quantisation error at most a quarter of the spacing (Euclidean: step * sqrt(3) / 2), but
     // no finer than the input's own resolution.
     double step = std::max(spacing / (2.0 * std::sqrt(3.0)), mPrecision);
-    if (child_mask == 0 && mOpt.exact_leaves)
-      step = mPrecision > 0.0 ? mPrecision : spacing / 1024.0;
+    // Exact leaves: the input's declared resolution, cells on its lattice (the local frame's
+    // origin lies on it); without one, a 1024th of the spacing, but at most 2^16 cells across
+    // the node (float positions; two points a hair apart measure a spacing of almost 0).
+    const bool exact = child_mask == 0 && mOpt.exact_leaves;
+    if (exact)
+      step = mPrecision > 0.0 ? mPrecision : std::max(spacing / 1024.0, extent / 65536.0);
     NodeOut out;
     out.key = key;
     out.child_mask = child_mask;
     out.points = uint32_t(pts.size());
     out.spacing = float(spacing);
     if (!pts.empty()) {
-      EncodedChunk enc = encodeChunk(pts, box_min, extent, step, mAttributes, mOpt.zstd_level);
+      EncodedChunk enc = encodeChunk(pts, box_min, extent, step, mAttributes, mOpt.zstd_level,
+                                     exact && mPrecision > 0.0);
       out.size = uint32_t(enc.bytes.size());
       out.crc = crc32c(enc.bytes.data(), enc.bytes.size());
       out.position_color_bytes = enc.position_color_bytes;
-      // The stated bound: what the step guarantees, never below what was measured.
+      // The stated bound: what the step guarantees, never below what was measured. A leaf whose
+      // cells are the input's integers states a thousandth of its step (double rounding only).
+      const bool on_lattice = exact && mPrecision > 0.0 && enc.step == step &&
+                              enc.max_error <= store::kLatticeTolerance * step;
       out.error_bound =
-          float(std::max(enc.step * std::sqrt(3.0) / 2.0, enc.max_error) * (1.0 + 1e-6));
+          on_lattice
+              ? float(store::kLatticeTolerance * step)
+              : float(std::max(enc.step * std::sqrt(3.0) / 2.0, enc.max_error) * (1.0 + 1e-6));
       std::lock_guard lock(mMutex);
       out.temp_offset = mPayloadEnd;
       mPayloadEnd += out.size;
       mMaxError = std::max(mMaxError, enc.max_error);
+      if (child_mask == 0 && !on_lattice) mAllExact = false;
       pwriteAll(mPayload.get(), enc.bytes.data(), enc.bytes.size(), out.temp_offset,
                 mPayload.name());
       mNodes.push_back(out);
@@ -148,6 +159,8 @@ class Builder {
   ScopedFd& payload() { return mPayload; }
   uint64_t payloadEnd() const { return mPayloadEnd; }
   double maxError() const { return mMaxError; }
+  /// Whether every leaf keeps the input's integers (store::kExactLeaves).
+  bool allExact() const { return mAllExact; }
 
  private:
   const BuildOptions& mOpt;
@@ -159,6 +172,7 @@ class Builder {
   uint64_t mPayloadEnd = 0;
   std::vector<NodeOut> mNodes;
   double mMaxError = 0.0;
+  bool mAllExact = true;
 };
 
 /// The points of a chunk root or upper node, kept for its parent to sample from.
@@ -443,9 +457,7 @@ BuildReport buildStore(const std::vector<std::filesystem::path>& inputs,
 
   store::FileHeader h{};
   std::memcpy(h.magic, store::kMagic, 4);
-  // Version 3 only where it is needed: a store without the AO byte stays version 2, readable
-  // by builds that predate it, byte for byte what they write.
-  h.version = dist.attributes() & kAmbientOcclusion ? store::kVersion : 2;
+  h.version = store::kVersion;
   h.header_size = store::kHeaderSize;
   h.attributes = dist.attributes();
   for (int i = 0; i < 3; ++i) {
@@ -474,6 +486,7 @@ BuildReport buildStore(const std::vector<std::filesystem::path>& inputs,
   h.source_table_size = uint32_t(table.size());
   h.source_table_crc = crc32c(table.data(), table.size());
   h.input_precision = dist.inputPrecision();
+  h.flags = builder.allExact() && h.input_precision > 0.0 ? store::kExactLeaves : 0;
   h.spacing_root = nodes[index.at(CellKey{})].spacing;
   h.spacing_finest = finest;
   h.payload_position_color_bytes = pc_bytes;

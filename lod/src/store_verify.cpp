@@ -29,14 +29,15 @@ namespace tessera::lod {
 namespace {
 
 struct ActiveNode {
-  std::unordered_map<uint64_t, uint32_t> keys;  // quantised position -> multiplicity
+  std::unordered_map<CellKey, uint32_t, CellKeyHash> keys;  // cell -> multiplicity
   glm::dvec3 box_min{0.0};
+  glm::dvec3 grid{0.0};  // cell 0 relative to box_min
   double step = 0.0;
   double bound = 0.0;
 };
 
-uint64_t packKey(const glm::dvec3& q) {
-  return uint64_t(q.x) | uint64_t(q.y) << 21 | uint64_t(q.z) << 42;
+CellKey packKey(const glm::dvec3& q) {
+  return CellKey{0, uint32_t(q.x), uint32_t(q.y), uint32_t(q.z)};
 }
 
 bool overlaps(const NodeInfo& n, const glm::dvec3& lo, const glm::dvec3& hi) {
@@ -58,6 +59,7 @@ VerifyReport verifyStore(const std::filesystem::path& store_path,
   const StoreSummary& sum = store->summary();
   VerifyReport report;
   report.store_points = sum.points;
+  report.exact_store = sum.exact_leaves;
 
   CubeFrame frame;
   frame.origin = sum.origin;
@@ -104,7 +106,6 @@ VerifyReport verifyStore(const std::filesystem::path& store_path,
   } remove{temp_dir};
 
   PointDistributor dist(inputs, options.quiet);
-  dist.setThreads(threadCount(options.threads));
   dist.measureInFrame(frame, temp_dir / "raw.bin");
   report.input_points = dist.points();
   const uint64_t region_max = std::max<uint64_t>(200'000, (options.memory_mb << 20) / 400);
@@ -123,7 +124,7 @@ VerifyReport verifyStore(const std::filesystem::path& store_path,
     if (active.count(id) || corrupt.count(id)) return;
     std::shared_ptr<ChunkPoints> pts;
     try {
-      pts = store->decodeChunk(id);
+      pts = store->decodeChunk(id, {}, true);
     } catch (const StoreError&) {
       corrupt[id] = true;
       ++report.corrupt_chunks;
@@ -131,12 +132,10 @@ VerifyReport verifyStore(const std::filesystem::path& store_path,
     }
     ActiveNode a;
     a.box_min = pts->offset;
+    a.grid = pts->grid;
     a.step = pts->step;
     a.bound = store->node(id).error_bound;
-    for (const glm::vec3& p : pts->positions) {
-      glm::dvec3 q = glm::round(glm::dvec3(p) / a.step);
-      ++a.keys[packKey(q)];
-    }
+    for (const glm::uvec3& c : pts->cells) ++a.keys[CellKey{0, c.x, c.y, c.z}];
     active.emplace(id, std::move(a));
   };
 
@@ -171,22 +170,30 @@ VerifyReport verifyStore(const std::filesystem::path& store_path,
       auto a = path.empty() ? active.end() : active.find(path.back());
       if (a != active.end()) {
         ActiveNode& node = a->second;
-        const glm::dvec3 q0 = glm::max(glm::round((p - node.box_min) / node.step), glm::dvec3(0.0));
+        const glm::dvec3 q0 = glm::max(
+            glm::round((p - node.box_min - node.grid) / node.step), glm::dvec3(0.0));
         // The key p rounds to first; then its 26 neighbours: a point half a step from the grid
         // (every point of a leaf whose grid is offset by half a step from the input's own, as
-        // --exact-leaves gives) may have been rounded the other way by the encoder.
+        // inputs without a declared lattice give) may have been rounded the other way.
         for (int n = -1; n < 27 && !matched; ++n) {  // -1: q0; 0-26: the cube around it
           const glm::dvec3 q =
               n < 0 ? q0 : q0 + glm::dvec3(n % 3 - 1, n / 3 % 3 - 1, n / 9 - 1);
           if (n == 13 || glm::any(glm::lessThan(q, glm::dvec3(0.0)))) continue;  // 13: q0 again
           auto k = node.keys.find(packKey(q));
           if (k == node.keys.end() || k->second == 0) continue;
-          // The decoded position, as a renderer gets it (float relative to the node).
-          const glm::dvec3 stored = node.box_min + glm::dvec3(glm::vec3(q) * float(node.step));
+          // The decoded position: exact leaves in double (the integers they keep), others as a
+          // renderer gets them (float relative to the node).
+          const bool exact =
+              sum.exact_leaves && node.bound <= store::kLatticeTolerance * node.step * 1.001;
+          const glm::dvec3 stored =
+              exact ? node.box_min + node.grid + q * node.step
+                    : node.box_min +
+                          glm::dvec3(glm::vec3(q) * float(node.step) + glm::vec3(node.grid));
           const double d = glm::length(stored - p);
           if (d > node.bound) continue;
           --k->second;
           matched = true;
+          if (exact) ++report.exact;
           report.max_error = std::max(report.max_error, d);
           if (node.bound > 0)
             report.max_error_ratio = std::max(report.max_error_ratio, d / node.bound);

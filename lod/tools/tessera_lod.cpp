@@ -226,8 +226,15 @@ int runVerify(const std::string& store, const std::vector<std::string>& inputs,
         store.c_str(), (unsigned long long)r.input_points, (unsigned long long)r.store_points,
         (unsigned long long)r.matched, (unsigned long long)r.unmatched,
         (unsigned long long)r.corrupt_chunks);
-    std::printf("max error %.6g (%.3f of the stated bound)\n%s\n", r.max_error, r.max_error_ratio,
-                r.ok() ? "OK: every input point is stored once within its error bound" : "FAILED");
+    std::printf("max error %.6g (%.3f of the stated bound)\n", r.max_error, r.max_error_ratio);
+    if (r.exact_store)
+      std::printf("exact leaves: %llu of %llu input points at their own integer coordinates\n",
+                  (unsigned long long)r.exact, (unsigned long long)r.input_points);
+    const char* verdict = !r.ok()          ? "FAILED"
+                          : r.exact_store ? "OK: every input point is stored once, exactly"
+                                          : "OK: every input point is stored once within its "
+                                            "error bound";
+    std::printf("%s\n", verdict);
     return r.ok() ? 0 : kExitVerifyFailed;
   });
 }
@@ -482,9 +489,13 @@ int run(int argc, char** argv) {
       ->capture_default_str();
   build->add_option("--temp-dir", bo.temp_dir,
                     "Folder for temporary files (default: beside the output)");
-  build->add_flag("--exact-leaves", bo.exact_leaves,
-                  "Leaves keep the input's own resolution (measurement-grade picks; a larger "
-                  "store) instead of a quarter of their spacing");
+  bool lossy = false, exact_alias = false;
+  build->add_flag("--lossy", lossy,
+                  "Leaves keep positions within a quarter of their spacing (Euclidean) instead of "
+                  "the input's own coordinates (a LAS scale factor; a 1024th of the leaf spacing "
+                  "for inputs that declare none): a smaller store, not for measuring");
+  build->add_flag("--exact-leaves", exact_alias,
+                  "The default: leaves keep the input's own coordinates (accepted for scripts)");
   build->add_flag("--quiet", bo.quiet, "No progress output");
   bool build_ao = false;
   build->add_flag("--ao", build_ao,
@@ -642,6 +653,9 @@ int run(int argc, char** argv) {
     mbo.quiet = bo.quiet;
     mbo.temp_dir = bo.temp_dir;
     if (bo.memory_mb != BuildOptions{}.memory_mb) mbo.memory_mb = bo.memory_mb;
+    if (lossy && exact_alias)
+      throw cli::UsageError("--lossy and --exact-leaves contradict each other");
+    bo.exact_leaves = !lossy;
     return runBuild(build_in, build_out, bo, mbo, build_ao);
   }
   if (*verify) return runVerify(verify_store, verify_in, vo);

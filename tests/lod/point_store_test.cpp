@@ -8,6 +8,7 @@
 #include <cstring>
 #include <fstream>
 #include <functional>
+#include <iterator>
 #include <map>
 #include <mutex>
 #include <set>
@@ -15,7 +16,6 @@
 #include <tuple>
 
 #include <tessera/lod/point_store.h>
-#include <tessera/lod/point_writer.h>
 #include <tessera/lod/store_builder.h>
 #include <tessera/lod/store_format.h>
 
@@ -50,7 +50,10 @@ std::vector<NodeId> allNodes(PointStore& s) {
 
 TEST(PointStore, BunnyScansBuildVerifyAndMeetTheBudgets) {
   test::TempDir dir;
-  BuildReport r = buildStore({kBunny}, dir / "b.tlod", quiet());
+  // The lossy mode's budgets: positions within a quarter of the spacing.
+  BuildOptions lossy = quiet();
+  lossy.exact_leaves = false;
+  BuildReport r = buildStore({kBunny}, dir / "b.tlod", lossy);
   EXPECT_EQ(r.points, 362272u);
   VerifyReport v = verifyStore(dir / "b.tlod", {kBunny}, quiet());
   EXPECT_TRUE(v.ok()) << v.unmatched << " unmatched";
@@ -109,10 +112,15 @@ TEST(PointStore, BunnyScansBuildVerifyAndMeetTheBudgets) {
 
 TEST(PointStore, AutzenColourAndPositionUnderThreeAndAHalfBytes) {
   test::TempDir dir;
-  buildStore({kAutzen}, dir / "a.tlod", quiet());
-  EXPECT_TRUE(verifyStore(dir / "a.tlod", {kAutzen}, quiet()).ok());
+  BuildOptions lossy = quiet();
+  lossy.exact_leaves = false;
+  buildStore({kAutzen}, dir / "a.tlod", lossy);
+  const VerifyReport v = verifyStore(dir / "a.tlod", {kAutzen}, quiet());
+  EXPECT_TRUE(v.ok());
+  EXPECT_FALSE(v.exact_store);
   auto s = PointStore::open(dir / "a.tlod");
   const StoreSummary& sum = s->summary();
+  EXPECT_FALSE(sum.exact_leaves);
   EXPECT_LE(double(sum.position_color_bytes) / double(sum.points), 3.5);
   EXPECT_TRUE(sum.attributes & kColor);
   EXPECT_DOUBLE_EQ(sum.input_precision, 0.01);
@@ -121,31 +129,55 @@ TEST(PointStore, AutzenColourAndPositionUnderThreeAndAHalfBytes) {
   EXPECT_NEAR(sum.origin.y + sum.bbox_max.y, 849497.9, 1e-6);
 }
 
-TEST(PointStore, TemporaryRecordsAreCompactForLasAndWideWhereTheyCannotHoldThePositions) {
+TEST(PointStore, AutzenLeavesKeepTheFilesIntegersByDefault) {
   test::TempDir dir;
-  // Autzen declares 1 cm: its points pass the temporary files as 21-byte records.
-  BuildOptions o = quiet(20000, 400);
-  o.exact_leaves = true;
-  EXPECT_EQ(buildStore({kAutzen}, dir / "a.tlod", o).temp_record_bytes, 21u);
-  EXPECT_TRUE(verifyStore(dir / "a.tlod", {kAutzen}, o).ok());
-  // A PLY declares no resolution: wide records.
-  EXPECT_EQ(buildStore({kData + "/stanford-bunny/reconstruction/bun_zipper.ply"}, dir / "b.tlod",
-                       quiet())
-                .temp_record_bytes,
-            40u);
-  // 1 mm over 4000 km: 2^31 sixteenths of a millimetre reach 134 km, so the first pass starts
-  // again with wide records, and the store still holds every point where it was.
-  PointBatch far;
-  for (int i = 0; i < 2000; ++i) {
-    const double t = double(i) / 1999.0;
-    far.positions.push_back({-2.0e6 + 4.0e6 * t, 1000.0 * std::sin(40.0 * t), 0.5 * i});
+  buildStore({kAutzen}, dir / "a.tlod", quiet());
+  auto s = PointStore::open(dir / "a.tlod");
+  const StoreSummary& sum = s->summary();
+  EXPECT_EQ(sum.version, store::kVersion);
+  EXPECT_TRUE(sum.exact_leaves);
+  // Whole file, inner copies included: under 0.8x of PotreeConverter's Brotli output for the
+  // same attributes (7.54 bytes a point on tiled Autzen).
+  EXPECT_LE(double(sum.file_bytes) / double(sum.points), 6.0);
+  const VerifyReport v = verifyStore(dir / "a.tlod", {kAutzen}, quiet());
+  EXPECT_TRUE(v.ok());
+  EXPECT_TRUE(v.exact_store);
+  EXPECT_EQ(v.exact, 110000u);
+  // Every leaf point is offset + grid + cell * step exactly: the file's 1 cm integers. The LAS
+  // records' own integers, read independently of the store's reader, must all be there.
+  std::ifstream f(kAutzen, std::ios::binary);
+  std::vector<char> las((std::istreambuf_iterator<char>(f)), {});
+  uint32_t offset_to_points, count;
+  uint16_t record_length;
+  double scale[3], offset[3];
+  std::memcpy(&offset_to_points, las.data() + 96, 4);
+  std::memcpy(&record_length, las.data() + 105, 2);
+  std::memcpy(&count, las.data() + 107, 4);
+  std::memcpy(scale, las.data() + 131, 24);
+  std::memcpy(offset, las.data() + 155, 24);
+  ASSERT_EQ(count, 110000u);
+  std::map<std::tuple<int64_t, int64_t, int64_t>, int> in_file, in_store;
+  for (uint32_t i = 0; i < count; ++i) {
+    int32_t xyz[3];
+    std::memcpy(xyz, las.data() + offset_to_points + size_t(i) * record_length, 12);
+    ++in_file[{xyz[0], xyz[1], xyz[2]}];
   }
-  writeLas(dir / "far.las", far, glm::dvec3(0.0), {2, 0, glm::dvec3(0.001), false, 0, false});
-  BuildReport r = buildStore({dir / "far.las"}, dir / "far.tlod", quiet());
-  EXPECT_EQ(r.temp_record_bytes, 40u);
-  EXPECT_EQ(r.points, 2000u);
-  VerifyReport v = verifyStore(dir / "far.tlod", {dir / "far.las"}, quiet());
-  EXPECT_TRUE(v.ok()) << v.unmatched << " unmatched of " << v.input_points;
+  for (NodeId id : allNodes(*s)) {
+    if (!s->node(id).leaf()) continue;
+    auto c = s->decodeChunk(id, {}, true);
+    ASSERT_EQ(c->cells.size(), c->size());
+    for (const glm::uvec3& cell : c->cells) {
+      const glm::dvec3 world = sum.origin + c->offset + c->grid + glm::dvec3(cell) * c->step;
+      int64_t q[3];
+      for (int a = 0; a < 3; ++a) {
+        const double x = (world[a] - offset[a]) / scale[a];
+        q[a] = std::llround(x);
+        ASSERT_NEAR(x, double(q[a]), 1e-6) << "not on the file's lattice";
+      }
+      ++in_store[{q[0], q[1], q[2]}];
+    }
+  }
+  EXPECT_EQ(in_store, in_file);
 }
 
 TEST(PointStore, OutOfCoreChunksFusedInputsAndThreadsGiveTheSameGuarantees) {

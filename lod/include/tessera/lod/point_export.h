@@ -9,8 +9,8 @@
 //    (format 6 without colour) with the positions in double precision quantised to the input's
 //    own precision when it declares one (a store: its leaves' step), else 0.1 mm; intensity,
 //    classification and colour where the input has them. A store gives its leaves: every input
-//    point once, at the positions the store keeps (exact with --exact-leaves, else within the
-//    error bound the store states).
+//    point once, at the positions the store keeps (the input's own coordinates where its
+//    leaves are exact, the default; else within the error bound the store states).
 //  - PLY out: binary, positions as doubles, the attributes PLY holds.
 // The output is written to a temporary file and renamed: a failed export leaves nothing.
 #pragma once

@@ -33,7 +33,14 @@ struct ChunkPoints {
   /// kColor, kIntensity, kScanIndex (= source id), kClassification, kAmbientOcclusion
   AttributeMask attributes = 0;
   glm::dvec3 offset{0.0};
-  double step = 0.0;  ///< quantisation step: every position is a whole multiple of it
+  double step = 0.0;  ///< quantisation step
+  /// Position of cell 0 relative to `offset` (each axis in [-step, 0]): every position is
+  /// grid + cell * step with whole cells, and offset + grid + cell * step (in double) is the
+  /// stored point exactly, at the input's own resolution where the store keeps it.
+  glm::dvec3 grid{0.0};
+  /// Each point's cell (whole steps from grid), exact where the float positions round:
+  /// filled only when asked for (PointStore::decodeChunk(id, cancel, true)), else empty.
+  std::vector<glm::uvec3> cells;
   std::vector<glm::vec3> positions;
   std::vector<glm::u8vec4> colors;
   std::vector<uint16_t> intensities;
@@ -62,6 +69,9 @@ struct StoreSummary {
   uint64_t position_color_bytes = 0;
   double spacing_root = 0.0, spacing_finest = 0.0;
   double input_precision = 0.0;
+  /// Every leaf keeps the input's own integers at input_precision (store::kExactLeaves):
+  /// a leaf point is offset + grid + cell * step exactly (ChunkPoints::grid).
+  bool exact_leaves = false;
 };
 
 struct CacheStats {
@@ -112,7 +122,9 @@ class PointStore : public LodHierarchy {
   /// Like loadChunk but bypassing the cache (verification, benchmarks, the chunk streamer).
   /// When `cancel` is stopped while its bytes are read from a slow source (range_source.h),
   /// throws lod::ReadCancelled, not StoreError.
-  std::shared_ptr<ChunkPoints> decodeChunk(NodeId id, std::stop_token cancel = {}) const;
+  /// `with_cells`: also fill ChunkPoints::cells (verification).
+  std::shared_ptr<ChunkPoints> decodeChunk(NodeId id, std::stop_token cancel = {},
+                                           bool with_cells = false) const;
   /// Compressed bytes of a node's chunk on disk.
   uint32_t chunkBytes(NodeId id) const override;
 

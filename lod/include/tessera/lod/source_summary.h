@@ -46,7 +46,7 @@ std::string summaryText(const SourceSummary& s);
 /// One JSON object with keys format, points, triangles, bbox_min, bbox_max, attributes, skipped,
 /// scans (and file, format_detail, declared_points, error when set). A point store adds version,
 /// origin, nodes, depth, bytes_per_point, spacing_root, spacing_finest, stored_points, overhead,
-/// position_color_bytes_per_point and sources. A mesh store ("format": "tmesh"; points are its
+/// position_color_bytes_per_point, exact_leaves, input_precision and sources. A mesh store ("format": "tmesh"; points are its
 /// input vertices, triangles its input triangles) adds version, vertices, origin, size, nodes,
 /// depth, stored_triangles, overhead, grid_step, file_bytes, bytes_per_triangle and levels (per
 /// depth: patches, triangles, max_error).

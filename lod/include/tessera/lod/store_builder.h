@@ -31,9 +31,10 @@ struct BuildOptions {
   int zstd_level = 5;
   uint32_t leaf_max = 16384;  ///< nodes with at most this many points stay leaves
   /// Leaves keep the input's own resolution (its declared precision, e.g. a LAS scale factor,
-  /// or a 1024th of the leaf spacing when it declares none) instead of a quarter of their
-  /// spacing: measurement-grade picks (interact/surface_pick.h) at a larger store.
-  bool exact_leaves = false;
+  /// their cells the input's own integers; a 1024th of the leaf spacing when it declares none)
+  /// for measurement-grade picks (interact/surface_pick.h). false (`--lossy`): a quarter of
+  /// their spacing (Euclidean), a smaller store.
+  bool exact_leaves = true;
   /// Points per out-of-core chunk; 0 derives it from memory_mb (tests force small chunks).
   uint64_t chunk_points = 0;
   /// Temporary files go here (default: beside the output). Needs up to 80 bytes per point.
@@ -59,7 +60,6 @@ struct BuildReport {
   double seconds_process = 0.0;  ///< chunk and upper-level work
   double seconds_write = 0.0;
   double max_error = 0.0;  ///< largest quantisation error of any stored point
-  size_t temp_record_bytes = 0;  ///< bytes a point in the temporary files (21 compact, 40 wide)
 };
 
 /// Builds `output` from `inputs`. Throws ReadError for bad input, StoreError for failures writing
@@ -78,9 +78,13 @@ struct VerifyReport {
   double max_error_ratio = 0.0;  ///< largest (distance / node error bound)
   uint64_t corrupt_chunks = 0;
   uint64_t stray_points = 0;  ///< inner-node points outside their node box
+  /// The store says its leaves keep the input's integers (StoreSummary::exact_leaves); then
+  /// every input point must be stored at exactly its own integer coordinates.
+  bool exact_store = false;
+  uint64_t exact = 0;  ///< matched points stored at the input's own integers (exact stores)
   bool ok() const {
     return unmatched == 0 && input_points == store_points && corrupt_chunks == 0 &&
-           stray_points == 0;
+           stray_points == 0 && (!exact_store || exact == input_points);
   }
 };
 

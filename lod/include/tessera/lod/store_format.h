@@ -1,5 +1,6 @@
-// The .tlod point store file format (version 3 where points carry ambient occlusion, else 2;
-// versions 1 and 2 are read too: version 1 lacks the source table's checksum). Little-endian, every structure checksummed.
+// The .tlod point store file format, version 4 (versions 1-3 are read too: version 1 lacks the
+// source table's checksum, versions 1-3 hold chunks of format 1). Little-endian, every structure
+// checksummed.
 //
 //   [Header, 4096 bytes at offset 0]
 //   [Payload: one compressed chunk per node, ordered by (level, Morton key of the node cell):
@@ -12,7 +13,9 @@
 // once, in the leaf containing it. An inner node holds a spatially even copy of the points below
 // it: one point per cell of a kGrid^3 grid over its box, the one nearest the cell centre. Nodes
 // are self-contained (Bettio et al. 2009): a cut is drawn from its own nodes only, so a coarse
-// node's quantisation (a quarter of its spacing) never shows next to finer data.
+// node's quantisation (a quarter of its spacing) never shows next to finer data. Leaves keep the
+// input's declared resolution, their cells the input's own integers (kExactLeaves), unless the
+// store was built lossy (a quarter of the spacing there too).
 #pragma once
 
 #include <cstdint>
@@ -20,9 +23,9 @@
 namespace tessera::lod::store {
 
 constexpr char kMagic[4] = {'T', 'L', 'O', 'D'};
-/// 2: source_table_crc (reserved in 1); 3: chunks may carry kAmbientOcclusion (a store without
-/// it is written as version 2).
-constexpr uint32_t kVersion = 3;
+/// 2: source_table_crc (reserved in 1); 3: chunks may carry kAmbientOcclusion; 4: chunks of
+/// format 2 (chunk_codec.h: entropy-coded streams, cells on the input's lattice) and `flags`.
+constexpr uint32_t kVersion = 4;
 constexpr uint32_t kHeaderSize = 4096;
 constexpr int kGrid = 48;  ///< sampling grid per node and axis: inner nodes hold <= kGrid^3 points
 /// An inner node holds at most this fraction of the input points below it (a coarser sampling
@@ -31,6 +34,12 @@ constexpr int kGrid = 48;  ///< sampling grid per node and axis: inner nodes hol
 constexpr double kMaxInnerFraction = 0.2;
 constexpr int kPageLevels = 4;  ///< levels per hierarchy page
 constexpr int kMaxLevel = 30;   ///< deepest node level (duplicates stop subdividing there)
+/// FileHeader::flags: every leaf keeps the input's integers (its cells are the input's own
+/// coordinates at input_precision; a leaf's stated error is kLatticeTolerance of its step).
+constexpr uint32_t kExactLeaves = 1;
+/// Largest distance, in steps, of an exact leaf's stored point from its input (double
+/// rounding): far below half a step, so the stored integer is the input's.
+constexpr double kLatticeTolerance = 1e-3;
 
 /// Fixed-size file header. All offsets are absolute byte offsets in the file.
 struct FileHeader {
@@ -62,7 +71,7 @@ struct FileHeader {
   uint64_t stored_points;  ///< points in all nodes (leaves hold each input point once; inner
                            ///< nodes hold sampled copies): stored_points / points = overhead
   uint32_t header_crc;     ///< CRC-32C of this struct with header_crc = 0
-  uint32_t reserved2;
+  uint32_t flags;          ///< kExactLeaves (version >= 4; 0 before)
 };
 
 /// One node on a hierarchy page (56 bytes, no padding).
