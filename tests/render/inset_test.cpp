@@ -269,6 +269,60 @@ TEST_F(InsetRender, TheGpuPassWeighsAsTheCpuReference) {
   }
 }
 
+TEST_F(InsetRender, ASwitchedOffInsetLeavesTheContextWholeAndItsPictureBlack) {
+  // settings.inset's `hidden` (the console's switch, a script's setInset): on the GPU as on the
+  // CPU, the tiles keep every byte and the inset's own picture is black, its border too.
+  auto s = lod::PointStore::open(*sDir / "b.tlod");
+  ModelInstance inst{s.get(), storeModel(*s)};
+  const config::WallConfig w = wall(
+      R"({"name": "fovea", "x": 0.37, "y": 0.0675, "width": 0.24, "height": 0.135,
+          "pixelWidth": 320, "pixelHeight": 180, "blendBand": 0.02, "border": 3})");
+  const config::Camera cam = test::frontCamera(*s, 0.5);
+  scene::InsetPlacement placement;
+  scene::InsetCentre& c = *placement.add_centres();
+  c.set_name("fovea");
+  c.set_x(0.45);
+  c.set_y(0.15);
+  c.set_hidden(true);
+  EXPECT_FALSE(insetRect(w, 0, placement).shown);
+  InsetPass pass;
+  for (const WallSlot& slot : wallSlots(w)) {
+    SCOPED_TRACE(slot.tile.name());
+    const ViewSetup v = slotView(w, slot, placement, cam);
+    ViewRenderer r(v.width, v.height);
+    const Image drawn = r.renderSettled({&inst, 1}, v, RenderOptions{});
+    Image cpu = drawn;
+    applySlotWeights(w, slot, placement, cpu);
+    pass.run(r.imageBuffer(), w, slot, placement);
+    const Image gpu = pass.read();
+    EXPECT_TRUE(gpu.rgba == cpu.rgba) << "the GPU pass and the CPU reference differ";
+    size_t lit = 0, black = 0;
+    for (size_t i = 0; i < cpu.rgba.size(); i += 4) {
+      lit += drawn.rgba[i] > 100;
+      black += cpu.rgba[i] == 0 && cpu.rgba[i + 1] == 0 && cpu.rgba[i + 2] == 0;
+    }
+    EXPECT_GT(lit, 1000u) << "the bunny is in every slot here";
+    if (slot.inset < 0) {
+      EXPECT_TRUE(cpu.rgba == drawn.rgba) << "a tile keeps every byte";
+    } else {
+      EXPECT_EQ(black, cpu.rgba.size() / 4) << "the inset is black";
+    }
+  }
+  // The wall's picture is the tiles' mosaic alone.
+  std::vector<Image> pictures;
+  for (const WallSlot& slot : wallSlots(w)) {
+    Image img;
+    img.width = slot.tile.pixel_width();
+    img.height = slot.tile.pixel_height();
+    img.rgba.assign(size_t(img.width) * img.height * 4, 200);
+    applySlotWeights(w, slot, placement, img);
+    pictures.push_back(img);
+  }
+  const std::vector<Image> tiles(pictures.begin(), pictures.begin() + w.tiles_size());
+  EXPECT_TRUE(assembleInsetWall(w, pictures, placement).rgba ==
+              assembleWallMosaic(w, tiles).rgba);
+}
+
 TEST(InsetStereo, EachEyeIsTheMonoViewSeenFromThatEye) {
   const config::WallConfig w = wall(
       R"({"name": "fovea", "x": 0.37, "y": 0.0675, "width": 0.24, "height": 0.135,
