@@ -14,6 +14,7 @@
 #include <tessera/master/tile_assignment.h>
 #include <tessera/render/gl_context.h>
 #include <tessera/render/inset.h>
+#include <tessera/render/projector_pass.h>
 #include <tessera/render/scene_draw_list.h>
 #include <tessera/render/screen_passes.h>
 #include <tessera/render/stereo.h>
@@ -615,8 +616,24 @@ void Master::writeScreenshots(const std::vector<std::string>& paths, uint64_t fr
     }
     writeInsetPictures(p, frame, images);
     if (mWall.stereo()) writeEyePictures(p, frame, images);
+    if (render::hasProjectors(mWall)) writeProjectorFrames(p, frame, images);
   }
   std::fflush(stdout);
+}
+
+void Master::writeProjectorFrames(const std::string& path, uint64_t frame,
+                                  const std::vector<render::Image>& pictures) {
+  // What each projector shows (its nodes' read-backs), side by side: PATH-projectors.png.
+  const std::string file = render::projectorFramesPath(path);
+  try {
+    const render::Image frames = render::assembleProjectorFrames(mWall, pictures);
+    render::writePng(file, frames);
+    std::printf("tessera-master: frame %llu: wrote %s (%ux%u); the projectors' pictures\n",
+                (unsigned long long)frame, file.c_str(), frames.width, frames.height);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "tessera-master: frame %llu: screenshot %s: %s\n",
+                 (unsigned long long)frame, file.c_str(), e.what());
+  }
 }
 
 void Master::writeEyePictures(const std::string& path, uint64_t frame,

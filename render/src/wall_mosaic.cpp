@@ -1,6 +1,8 @@
 #include <tessera/render/wall_mosaic.h>
 
 #include <cstring>
+#include <filesystem>
+#include <functional>
 
 #include <tessera/core/check.h>
 #include <tessera/render/projector_pass.h>
@@ -26,28 +28,24 @@ Image lostTileImage(uint32_t width, uint32_t height) {
   return img;
 }
 
-Image assembleWallMosaic(const config::WallConfig& wall, std::span<const Image> tiles) {
-  TESSERA_CHECK(tiles.size() == size_t(wall.tiles_size()), "one image per tile of the wall");
-  // Projectors' pictures are warped and blended: what the room sees is their light recomposed.
-  if (hasProjectors(wall)) return recomposeScreen(wall, tiles, loadProjectorMaps(wall, false));
-  // The wall's pixel size does not depend on the camera; any valid one will do.
-  config::Camera camera;
-  camera.mutable_eye()->set_z(1.0);
-  camera.mutable_up()->set_y(1.0);
-  const ViewSetup whole = wholeWallView(wall, camera);
+namespace {
+
+/// A width x height picture of kBezelGrey with each of `tiles` copied to its offset, clipped.
+Image pasteTiles(uint32_t width, uint32_t height, std::span<const Image> tiles,
+                 const std::function<glm::ivec2(size_t)>& offset) {
   Image result;
-  result.width = whole.width;
-  result.height = whole.height;
+  result.width = width;
+  result.height = height;
   result.rgba.assign(size_t(result.width) * result.height * 4, 0);
   for (size_t i = 0; i < result.rgba.size(); i += 4) {
     result.rgba[i] = result.rgba[i + 1] = result.rgba[i + 2] = kBezelGrey;
     result.rgba[i + 3] = 255;
   }
-  for (int t = 0; t < wall.tiles_size(); ++t) {
-    const Image& img = tiles[size_t(t)];
+  for (size_t t = 0; t < tiles.size(); ++t) {
+    const Image& img = tiles[t];
     TESSERA_CHECK(img.rgba.size() == size_t(img.width) * img.height * 4,
                   "a tile image of width * height RGBA pixels");
-    const glm::ivec2 off = tileOffsetInWhole(wall, wall.tiles(t));
+    const glm::ivec2 off = offset(t);
     for (uint32_t y = 0; y < img.height; ++y) {
       if (off.y + int(y) < 0 || off.y + y >= result.height) continue;
       for (uint32_t x = 0; x < img.width; ++x) {
@@ -58,6 +56,39 @@ Image assembleWallMosaic(const config::WallConfig& wall, std::span<const Image> 
     }
   }
   return result;
+}
+
+}  // namespace
+
+glm::uvec2 wallPictureSize(const config::WallConfig& wall) {
+  // The wall's pixel size does not depend on the camera; any valid one will do.
+  config::Camera camera;
+  camera.mutable_eye()->set_z(1.0);
+  camera.mutable_up()->set_y(1.0);
+  const ViewSetup whole = wholeWallView(wall, camera);
+  return {whole.width, whole.height};
+}
+
+Image assembleWallMosaic(const config::WallConfig& wall, std::span<const Image> tiles) {
+  TESSERA_CHECK(tiles.size() == size_t(wall.tiles_size()), "one image per tile of the wall");
+  // Projectors' pictures are warped and blended: what the room sees is their light recomposed.
+  if (hasProjectors(wall)) return recomposeScreen(wall, tiles, loadProjectorMaps(wall, false));
+  const glm::uvec2 size = wallPictureSize(wall);
+  return pasteTiles(size.x, size.y, tiles,
+                    [&](size_t t) { return tileOffsetInWhole(wall, wall.tiles(int(t))); });
+}
+
+Image assembleProjectorFrames(const config::WallConfig& wall, std::span<const Image> pictures) {
+  TESSERA_CHECK(pictures.size() == size_t(wall.tiles_size()), "one image per tile of the wall");
+  const glm::uvec2 size = roomNetSize(wall);
+  return pasteTiles(size.x, size.y, pictures,
+                    [&](size_t t) { return roomNetOffset(wall, wall.tiles(int(t))); });
+}
+
+std::string projectorFramesPath(const std::string& screenshot) {
+  const std::filesystem::path p(screenshot);
+  return (p.parent_path() / (p.stem().string() + "-projectors" + p.extension().string()))
+      .string();
 }
 
 }  // namespace tessera::render

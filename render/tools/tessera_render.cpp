@@ -31,6 +31,7 @@
 #include <tessera/render/pass_timing.h>
 #include <tessera/render/path_frames.h>
 #include <tessera/render/poster.h>
+#include <tessera/render/projector_pass.h>
 #include <tessera/render/scene_draw_list.h>
 #include <tessera/render/scene_overlay.h>
 #include <tessera/render/stereo.h>
@@ -252,7 +253,10 @@ int run(int argc, char** argv) {
   app.add_option("--wall", wall_path, "Wall configuration (JSON)");
   auto* tile_opt = app.add_option("--tile", tile_name, "Render this tile of the wall");
   auto* mosaic_opt =
-      app.add_flag("--mosaic", mosaic, "Render every tile and assemble the wall, bezels dark");
+      app.add_flag("--mosaic", mosaic,
+                   "Render every tile and assemble the wall, bezels dark; with projectors (blend, "
+                   "warp, MPCDI) each tile through its projector's pass as its node shows it, "
+                   "the screen recomposed from them, and OUT-projectors.png their pictures");
   auto* whole_opt =
       app.add_flag("--whole", whole, "Render the wall's whole extent as one image (seam check)");
   tile_opt->excludes(mosaic_opt)->excludes(whole_opt);
@@ -760,12 +764,34 @@ int run(int argc, char** argv) {
     std::vector<render::Image> inset_slots;
     // `weigh`: a foveal inset's slot (render/inset.h), weighed on the GPU as a node weighs it.
     std::unique_ptr<render::InsetPass> inset_pass;
+    // --mosaic of a wall with projectors: every tile's blend and warp (the automatic blends
+    // computed as each node computes its own), a pass per tile, and the projectors' pictures
+    // of the last mosaic (assembleProjectorFrames()).
+    std::vector<render::ProjectorMap> projector_maps;
+    std::vector<std::unique_ptr<render::ProjectorPass>> projector_passes;
+    std::vector<render::Image> projector_frames;
+    if (wall && mosaic && render::hasProjectors(*wall)) {
+      try {
+        projector_maps = render::loadProjectorMaps(*wall);
+      } catch (const render::RenderError& e) {
+        throw std::runtime_error(wall_path + ": " + e.what());  // bad input: exit 1
+      }
+      projector_passes.resize(projector_maps.size());
+    }
+    // `project`: the index of the tile whose projector shows the view (its pass applied as the
+    // node applies it), or -1.
     auto renderView = [&](const std::string& name, const render::ViewSetup& v,
                           const render::RenderOptions& view_options,
-                          const render::WallSlot* weigh = nullptr) {
+                          const render::WallSlot* weigh = nullptr, int project = -1) {
       render::ViewRenderer r(v.width, v.height, shared_streamer, stream_options);
       render::RenderStats st;
       render::Image img = r.renderSettled(instances, v, view_options, &st, overlay);
+      if (project >= 0 && !projector_maps[size_t(project)].identity()) {
+        auto& pass = projector_passes[size_t(project)];
+        if (!pass) pass = std::make_unique<render::ProjectorPass>(projector_maps[size_t(project)]);
+        pass->run(r.imageBuffer());
+        img = pass->read();
+      }
       if (weigh) {
         if (!inset_pass) inset_pass = std::make_unique<render::InsetPass>();
         inset_pass->run(r.imageBuffer(), *wall, *weigh, inset_placement);
@@ -890,10 +916,14 @@ int run(int argc, char** argv) {
           }
           wall_options.relative_depth.agreed_range = render::wallRange(ranges);
         }
-        for (const auto& tile : wall->tiles())
-          tiles.push_back(renderView(tile.name() + eye,
-                                     eyeView(render::tileView(*wall, tile, c), c, eye_x),
-                                     wall_options));
+        // With projectors each tile's picture is what its projector shows (its blend and warp
+        // applied as its node applies them), and the mosaic what the room sees of them.
+        for (int t = 0; t < wall->tiles_size(); ++t)
+          tiles.push_back(renderView(
+              wall->tiles(t).name() + eye,
+              eyeView(render::tileView(*wall, wall->tiles(t), c), c, eye_x), wall_options, nullptr,
+              projector_maps.empty() ? -1 : t));
+        if (!projector_maps.empty()) projector_frames = tiles;
         return render::assembleWallMosaic(*wall, tiles);
       }
       const config::Tile* tile =
@@ -1016,6 +1046,14 @@ int run(int argc, char** argv) {
     warnCorrupt();
     render::writePng(out, result);
     std::printf("wrote %s (%ux%u)\n", out.c_str(), result.width, result.height);
+    if (!projector_frames.empty() && stereo.empty()) {
+      // What each projector shows, side by side, as the master writes it.
+      const std::string file = render::projectorFramesPath(out);
+      cli::refuseOverwrite(file, read, "-o");
+      const render::Image shown = render::assembleProjectorFrames(*wall, projector_frames);
+      render::writePng(file, shown);
+      std::printf("wrote %s (%ux%u)\n", file.c_str(), shown.width, shown.height);
+    }
     if (mosaic && !inset_slots.empty() && stereo.empty()) {
       // Each inset at its own density beside the wall, as the master writes it.
       for (int i = 0; i < wall->insets_size(); ++i) {

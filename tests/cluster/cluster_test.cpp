@@ -18,9 +18,11 @@
 #include <glm/gtc/matrix_transform.hpp>
 
 #include <tessera/render/image.h>
+#include <tessera/render/projector_pass.h>
 
 #include "../support/command.h"
 #include "../support/temp_dir.h"
+#include "../support/wavy_warp.h"
 
 namespace {
 
@@ -588,6 +590,130 @@ TEST_F(Cluster, SceneNamingARawScanIsConvertedOnceAndShared) {
   EXPECT_EQ(ref.out.find("converting"), std::string::npos) << ref.out;
   EXPECT_TRUE(tessera::test::readBytes(sDir->path() / "raw.png") ==
               tessera::test::readBytes(sDir->path() / "raw-ref.png"));
+}
+
+}  // namespace
+
+namespace {
+
+void writeBinary(const fs::path& p, const std::vector<uint8_t>& bytes) {
+  std::ofstream(p, std::ios::binary)
+      .write(reinterpret_cast<const char*>(bytes.data()), std::streamsize(bytes.size()));
+}
+
+/// Mean and largest difference of the colour channels of two pictures of one size over the
+/// rectangle [x0, x1) x [y0, y1), levels of 255.
+std::pair<double, int> difference(const tessera::render::Image& a, const tessera::render::Image& b,
+                                  uint32_t x0, uint32_t y0, uint32_t x1, uint32_t y1) {
+  double sum = 0;
+  int worst = 0;
+  size_t n = 0;
+  for (uint32_t y = y0; y < y1; ++y)
+    for (uint32_t x = x0; x < x1; ++x)
+      for (int c = 0; c < 3; ++c, ++n) {
+        const size_t i = (size_t(y) * a.width + x) * 4 + size_t(c);
+        const int d = std::abs(int(a.rgba[i]) - int(b.rgba[i]));
+        sum += d;
+        worst = std::max(worst, d);
+      }
+  return {sum / double(n), worst};
+}
+
+/// Two projectors of 320x180 pixels on 0.6 x 0.3375 m, overlapping by 0.2 m (107 pixels), each
+/// warped by a wave (PFM grids written by the test) and blended automatically.
+const std::string kProjectorWall = R"({"name": "two projectors", "tiles": [
+  {"name": "a", "x": 0, "y": 0, "width": 0.6, "height": 0.3375, "pixelWidth": 320,
+   "pixelHeight": 180, "blend": "auto", "warp": "pa.pfm"},
+  {"name": "b", "x": 0.4, "y": 0, "width": 0.6, "height": 0.3375, "pixelWidth": 320,
+   "pixelHeight": 180, "blend": "auto", "warp": "pb.pfm"}],
+  "eye": {"x": 0.5, "y": 0.17, "z": 1.5}})";
+
+TEST_F(Cluster, AProjectorWallIsTheMosaicOfItsBlendedAndWarpedTiles) {
+  // Each node applies its projector's blend and warp; the master's screenshot (the screen as
+  // the room sees it, the projectors' light recomposed) and the projectors' own pictures are
+  // tessera-render --mosaic's, byte for byte.
+  writeBinary(sDir->path() / "pa.pfm",
+              tessera::render::writePfm(tessera::test::wavyWarp(17, 9, 0)));
+  writeBinary(sDir->path() / "pb.pfm",
+              tessera::render::writePfm(tessera::test::wavyWarp(13, 7, 1.3)));
+  write(sDir->path() / "projectors.json", kProjectorWall);
+  const CommandResult r =
+      cluster("--wall projectors.json --scene scene.json --frames 3 --screenshot pj.png", 2);
+  ASSERT_EQ(r.code, 0) << r.out;
+  expectSameAsMosaic(r, "pj.png", "projectors.json", "scene.json");
+  EXPECT_NE(r.out.find("wrote pj-projectors.png (656x180); the projectors' pictures"),
+            std::string::npos)
+      << r.out;
+  const auto shown = tessera::test::readBytes(sDir->path() / "pj-projectors.png");
+  ASSERT_FALSE(shown.empty());
+  EXPECT_TRUE(shown == tessera::test::readBytes(sDir->path() / "mosaic-pj-projectors.png"))
+      << "the projectors' pictures differ from tessera-render --mosaic's";
+  // The projectors' pictures are blended: projector a's last column, where its weight is 0, is
+  // black; its first column, alone on the screen, is not (it shows the background there).
+  const tessera::render::Image frames =
+      tessera::render::readPng((sDir->path() / "pj-projectors.png").string());
+  size_t lit_first = 0, lit_last = 0;
+  for (uint32_t y = 20; y < 160; ++y) {
+    const uint8_t* first = &frames.rgba[(size_t(y) * frames.width + 12) * 4];
+    const uint8_t* last = &frames.rgba[(size_t(y) * frames.width + 319) * 4];
+    lit_first += first[0] + first[1] + first[2] > 0;
+    lit_last += last[0] + last[1] + last[2] > 0;
+  }
+  EXPECT_EQ(lit_first, 140u);
+  EXPECT_EQ(lit_last, 0u);
+  // The recomposed screen against a single render of it (tessera-render --whole, the same
+  // camera) where both warps reach (their margins: 12 pixels at the sides, 8 at the top and
+  // bottom): the same picture up to the projectors' bilinear resampling, which softens edges.
+  const std::regex line("wrote \\S*pj.png \\(\\d+x\\d+\\); camera (\\S+)");
+  std::smatch m;
+  ASSERT_TRUE(std::regex_search(r.out, m, line));
+  const CommandResult whole = run("cd " + sDir->path().string() + " && " + TESSERA_RENDER_TOOL +
+                                  " --scene scene.json --wall projectors.json --whole --camera '" +
+                                  m[1].str() + "' -o pj-whole.png");
+  ASSERT_EQ(whole.code, 0) << whole.out;
+  const tessera::render::Image screen =
+      tessera::render::readPng((sDir->path() / "pj.png").string());
+  const tessera::render::Image one =
+      tessera::render::readPng((sDir->path() / "pj-whole.png").string());
+  ASSERT_EQ(screen.width, one.width);
+  ASSERT_EQ(screen.height, one.height);
+  const auto [mean, worst] = difference(screen, one, 12, 8, screen.width - 12, 172);
+  const auto [overlap_mean, overlap_worst] = difference(screen, one, 215, 8, 318, 172);
+  std::printf(
+      "recomposed screen against one render: mean %.2f levels (overlap %.2f), largest %d "
+      "(overlap %d)\n",
+      mean, overlap_mean, worst, overlap_worst);
+  EXPECT_LT(mean, 1.5);
+  EXPECT_LT(overlap_mean, 1.5);
+}
+
+TEST_F(Cluster, ACavesFourNodesMakeTheMosaicsNet) {
+  // The CAVE (three walls and the floor, each on its own plane) with the eye among the bunny's
+  // points: four nodes, each with its own off-axis view; the master's net is tessera-render's.
+  std::string scene = sceneJson("bunny.tlod");
+  const std::string eye = R"("eye": {"x": -0.027, "y": 0.12, "z": 0.38})";
+  scene.replace(scene.find(eye), eye.size(), R"("eye": {"x": -0.02, "y": 0.12, "z": 0.09})");
+  write(sDir->path() / "cave-scene.json", scene);
+  const std::string wall = kConfigs + "/walls/cave.json";
+  const CommandResult r =
+      cluster("--wall " + wall + " --scene cave-scene.json --frames 2 --screenshot cave.png", 4);
+  ASSERT_EQ(r.code, 0) << r.out;
+  for (const char* tile : {"tile left", "tile front", "tile right", "tile floor"})
+    EXPECT_NE(r.out.find(tile), std::string::npos) << tile;
+  expectSameAsMosaic(r, "cave.png", wall, "cave-scene.json");
+  // The net: four 512-pixel tiles 16 pixels apart; the bunny on at least three of them.
+  const tessera::render::Image net = tessera::render::readPng((sDir->path() / "cave.png").string());
+  ASSERT_EQ(net.width, 4u * 512 + 3 * 16);
+  ASSERT_EQ(net.height, 512u);
+  int tiles_with_bunny = 0;
+  for (uint32_t t = 0; t < 4; ++t) {
+    size_t lit = 0;
+    for (uint32_t y = 0; y < 512; ++y)
+      for (uint32_t x = t * 528; x < t * 528 + 512; ++x)
+        lit += net.rgba[(size_t(y) * net.width + x) * 4] > 60;
+    tiles_with_bunny += lit > 2000;
+  }
+  EXPECT_GE(tiles_with_bunny, 3);
 }
 
 }  // namespace

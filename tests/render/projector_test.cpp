@@ -17,11 +17,13 @@
 #include <tessera/sync/config.h>
 
 #include "../../fuzz/pfm_fuzz.h"
+#include "../support/wavy_warp.h"
 
 namespace tessera::render {
 namespace {
 
 namespace fs = std::filesystem;
+using test::wavyWarp;
 
 class ProjectorTest : public ::testing::Test {
  protected:
@@ -204,22 +206,6 @@ TEST_F(ProjectorTest, AKeystoneWarpCarriesPointsWhereItsGridSays) {
   EXPECT_EQ(out.rgba[(size_t(255) * 256 + 0) * 4], 0);
   EXPECT_EQ(out.rgba[(size_t(255) * 256 + 0) * 4 + 1], 0);
   EXPECT_FALSE(WarpInverse(map)(glm::dvec2(0.02, 0.02)));
-}
-
-/// A warp grid that keeps the picture inside its rectangle with a wave across it.
-FloatImage wavyWarp(uint32_t w, uint32_t h, double phase) {
-  FloatImage pfm;
-  pfm.width = w;
-  pfm.height = h;
-  pfm.channels = 3;
-  for (uint32_t j = 0; j < h; ++j)
-    for (uint32_t i = 0; i < w; ++i) {
-      const double s = double(i) / (w - 1), t = double(j) / (h - 1);
-      pfm.values.push_back(float(0.02 + 0.96 * s + 0.015 * std::sin(6.0 * t + phase)));
-      pfm.values.push_back(float(0.03 + 0.94 * t + 0.01 * std::sin(5.0 * s + phase)));
-      pfm.values.push_back(0.0f);
-    }
-  return pfm;
 }
 
 void writeBytes(const fs::path& path, const std::vector<uint8_t>& bytes) {

@@ -131,6 +131,10 @@ class Master {
                         const std::vector<render::Image>& slots);
   void writeInsetPictures(const std::string& path, uint64_t frame,
                           const std::vector<render::Image>& slots);
+  /// What each projector shows beside the screenshot `path` (render::projectorFramesPath()),
+  /// for a wall with projectors; `pictures` are the tiles' read-backs.
+  void writeProjectorFrames(const std::string& path, uint64_t frame,
+                            const std::vector<render::Image>& pictures);
   void writeScreenshots(const std::vector<std::string>& paths, uint64_t frame,
                         const std::vector<std::string>& pixels);
   void writeStatsHeader();

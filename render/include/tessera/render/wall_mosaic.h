@@ -6,6 +6,9 @@
 
 #include <cstdint>
 #include <span>
+#include <string>
+
+#include <glm/glm.hpp>
 
 #include <tessera/render/image.h>
 #include <tessera/sync/config.h>
@@ -20,6 +23,10 @@ constexpr uint8_t kBezelGrey = 24;
 /// dark picture. width x height RGBA. Cost: one pass over the image.
 Image lostTileImage(uint32_t width, uint32_t height);
 
+/// The size of the wall's picture (assembleWallMosaic(), the screenshot): wholeWallView()'s,
+/// which does not depend on the camera.
+glm::uvec2 wallPictureSize(const config::WallConfig& wall);
+
 /// The wall image: wholeWallView(wall, ...).width x height, RGBA top row first. `tiles[i]` is
 /// the image of wall.tiles(i) (tileView() size); each is copied to tileOffsetInWhole() and clipped
 /// to the wall image; for a room (isRoom()) the image is its net (roomNetOffset()). A wall with
@@ -28,5 +35,16 @@ Image lostTileImage(uint32_t width, uint32_t height);
 /// Precondition (TESSERA_CHECK): one image per tile, each width * height * 4 bytes. Cost: one
 /// pass over the wall image; with projectors an inverse warp a pixel and tile.
 Image assembleWallMosaic(const config::WallConfig& wall, std::span<const Image> tiles);
+
+/// What a wall's projectors show, each its own frame: `pictures[i]` (what tile i's projector
+/// shows: its render through the projector pass, projector_pass.h) side by side in the order of
+/// the config, tops aligned, kRoomNetGap pixels apart (roomNetOffset(), roomNetSize()), the gaps
+/// kBezelGrey. The master writes it beside a projector wall's screenshot, and `tessera-render
+/// --mosaic` beside its picture (projectorFramesPath()). Precondition (TESSERA_CHECK): one image
+/// per tile, each width * height * 4 bytes. Cost: one pass over the pictures.
+Image assembleProjectorFrames(const config::WallConfig& wall, std::span<const Image> pictures);
+
+/// The projectors' frames beside a screenshot: DIR/STEM-projectors.EXT for DIR/STEM.EXT.
+std::string projectorFramesPath(const std::string& screenshot);
 
 }  // namespace tessera::render
