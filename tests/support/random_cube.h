@@ -10,16 +10,21 @@
 
 namespace tessera::test {
 
-/// Builds `dir`/cube.tlod from `n` random points (seeded: the same points every run) with leaves
-/// of at most `leaf_max` points, and returns its path.
-inline std::filesystem::path randomCubeStore(const std::filesystem::path& dir, size_t n,
-                                             uint32_t leaf_max = 16384) {
+/// Writes `n` random points (seeded by n: the same points every run) as a binary PLY at `ply`.
+inline void randomCubePly(const std::filesystem::path& ply, size_t n) {
   lod::PointBatch cube;
   cube.reset(0);
   std::mt19937_64 rng(n);
   std::uniform_real_distribution<double> u(0.0, 1.0);
   for (size_t i = 0; i < n; ++i) cube.positions.push_back({u(rng), u(rng), u(rng)});
-  lod::writePly(dir / "cube.ply", cube, glm::dvec3(0.0));
+  lod::writePly(ply, cube, glm::dvec3(0.0));
+}
+
+/// Builds `dir`/cube.tlod from `n` random points (randomCubePly()) with leaves of at most
+/// `leaf_max` points, and returns its path.
+inline std::filesystem::path randomCubeStore(const std::filesystem::path& dir, size_t n,
+                                             uint32_t leaf_max = 16384) {
+  randomCubePly(dir / "cube.ply", n);
   lod::BuildOptions o;
   o.quiet = true;
   o.leaf_max = leaf_max;
