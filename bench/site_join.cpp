@@ -13,7 +13,7 @@
 // handshake, the snapshot and opening the store. Each case runs --runs times; the medians are
 // printed and charted.
 //
-//   site_join [--runs 3] [--rates 100,20,5] [--out DIR]
+//   site_join [--runs 3] [--rates 100,20,5] [--out DIR] [--store S.tlod] [--join-only]
 //
 // Writes DIR/site_join.csv (every run), DIR/site_join_summary.csv (medians) and
 // DIR/site_join.png (gnuplot). Every process runs on THIS machine (2 cores, loopback).
@@ -167,6 +167,13 @@ int main(int argc, char** argv) {
         ->check(tessera::cli::finiteRange(0.01, 1e5))
         ->capture_default_str();
     app.add_option("--out", out, "Output folder")->capture_default_str();
+    std::string store;
+    app.add_option("--store", store,
+                   "A store built elsewhere holding Autzen where the scene looks (bench/scale.sh's "
+                   "tiled Autzen: its first copy is unshifted); default: Autzen built here")
+        ->check(CLI::ExistingFile);
+    bool join_only = false;
+    app.add_flag("--join-only", join_only, "Only the joins (not the view that moves on)");
     if (const auto code = tessera::cli::parse(app, argc, argv, "site_join")) return *code;
     if (rates.empty()) throw tessera::cli::UsageError("--rates: needs at least one rate");
 
@@ -178,7 +185,8 @@ int main(int argc, char** argv) {
     b.master_bin = bin + "/master/tessera-master";
     b.node_bin = bin + "/render_node/tessera-node";
     b.site_bin = bin + "/collab/tessera-site";
-    b.store = fs::absolute(fs::path(out) / "inputs" / "autzen.tlod");
+    b.store = store.empty() ? fs::absolute(fs::path(out) / "inputs" / "autzen.tlod")
+                            : fs::absolute(store);
     if (!fs::exists(b.store)) {
       fs::create_directories(b.store.parent_path());
       tessera::lod::BuildOptions o;
@@ -250,7 +258,7 @@ int main(int argc, char** argv) {
     // A view that moves on before its chunks came: close over the tile's west end, then after
     // 0.2 s over its east end, settled there. Requests withdrawn (the default) against kept
     // until answered (--withdraw-after 0), at a rate where the first view's chunks still wait.
-    {
+    if (!join_only) {
       constexpr double kMovedRate = 1.0;
       std::string sites;
       auto w = b.wall(kMovedRate, sites);
