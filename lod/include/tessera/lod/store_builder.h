@@ -60,6 +60,7 @@ struct BuildReport {
   double seconds_process = 0.0;  ///< chunk and upper-level work
   double seconds_write = 0.0;
   double max_error = 0.0;  ///< largest quantisation error of any stored point
+  size_t temp_record_bytes = 0;  ///< bytes a point in the temporary files (21 compact, 40 wide)
 };
 
 /// Builds `output` from `inputs`. Throws ReadError for bad input, StoreError for failures writing
