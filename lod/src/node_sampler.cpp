@@ -1,66 +1,78 @@
 #include "node_sampler.h"
 
 #include <algorithm>
+#include <cassert>
 #include <cmath>
 #include <limits>
 
 namespace tessera::lod {
 
-size_t gridSample(std::span<BuildPoint> pts, const glm::dvec3& box_min, double size, int grid) {
+size_t gridSelect(std::span<const BuildPoint> pts, const glm::dvec3& box_min, double size, int grid,
+                  std::vector<uint8_t>& chosen) {
   const size_t cells = size_t(grid) * grid * grid;
-  thread_local std::vector<uint32_t> best;  // cell -> point index + 1 (0: empty)
-  thread_local std::vector<float> best_d;
+  // Cell -> point index + 1 (0: empty) and its squared distance to the centre, side by side:
+  // one cache line a point.
+  struct Best {
+    uint32_t index;
+    float d;
+  };
+  thread_local std::vector<Best> best;
   thread_local std::vector<uint32_t> touched;
-  if (best.size() != cells) {
-    best.assign(cells, 0);
-    best_d.assign(cells, 0.f);
-  }
+  if (best.size() != cells) best.assign(cells, Best{0, 0.f});
   touched.clear();
   const double inv_cell = grid / size;
+  const glm::dvec3 lo = box_min;  // a copy: no store below can change it
+  Best* const cell_best = best.data();
   for (size_t i = 0; i < pts.size(); ++i) {
-    const glm::dvec3 f = (pts[i].position - box_min) * inv_cell;
+    const glm::dvec3 f = (pts[i].position - lo) * inv_cell;
     auto axis = [&](double v) { return v <= 0.0 ? 0 : v >= grid ? grid - 1 : int(v); };
     const glm::ivec3 c(axis(f.x), axis(f.y), axis(f.z));
     const size_t idx = (size_t(c.z) * size_t(grid) + size_t(c.y)) * size_t(grid) + size_t(c.x);
     const glm::dvec3 e = f - (glm::dvec3(c) + 0.5);
     const float d = float(glm::dot(e, e));
-    if (best[idx] == 0) {
+    Best& b = cell_best[idx];
+    if (b.index == 0) {
       touched.push_back(uint32_t(idx));
-      best[idx] = uint32_t(i + 1);
-      best_d[idx] = d;
-    } else if (d < best_d[idx]) {
-      best[idx] = uint32_t(i + 1);
-      best_d[idx] = d;
+      b = {uint32_t(i + 1), d};
+    } else if (d < b.d) {
+      b = {uint32_t(i + 1), d};
     }
   }
-  thread_local std::vector<uint8_t> selected;
-  selected.assign(pts.size(), 0);
+  chosen.assign(pts.size(), 0);
   for (uint32_t idx : touched) {
-    selected[best[idx] - 1] = 1;
-    best[idx] = 0;
+    chosen[best[idx].index - 1] = 1;
+    best[idx].index = 0;
   }
-  // Stable partition: selected first, both groups in their original order.
-  thread_local std::vector<BuildPoint> tmp;
-  tmp.resize(pts.size());
-  size_t front = 0, back = touched.size();
-  for (size_t i = 0; i < pts.size(); ++i) tmp[selected[i] ? front++ : back++] = pts[i];
-  std::copy(tmp.begin(), tmp.begin() + ptrdiff_t(pts.size()), pts.begin());
   return touched.size();
 }
 
-std::array<size_t, 9> partitionOctants(std::span<BuildPoint> pts, const CubeFrame& frame,
-                                       const CellKey& key) {
-  const int level = key.level + 1;
-  auto octant = [&](const BuildPoint& p) { return frame.cellOf(p.position, level).childIndex(); };
+size_t gridSample(std::span<BuildPoint> pts, const glm::dvec3& box_min, double size, int grid) {
+  thread_local std::vector<uint8_t> chosen;
+  const size_t n = gridSelect(pts, box_min, size, grid, chosen);
+  // Stable partition: chosen first, both groups in their original order.
+  std::vector<BuildPoint> tmp(pts.begin(), pts.end());
+  size_t front = 0, back = n;
+  for (size_t i = 0; i < tmp.size(); ++i) pts[chosen[i] ? front++ : back++] = tmp[i];
+  return n;
+}
+
+std::array<size_t, 9> partitionOctants(std::span<const BuildPoint> pts, std::span<BuildPoint> out,
+                                       const CubeFrame& frame, const CellKey& key) {
+  assert(out.size() == pts.size());
+  const CubeFrame::LevelGrid grid = frame.levelGrid(key.level + 1);
+  thread_local std::vector<uint8_t> octants;
+  octants.resize(pts.size());
+  uint8_t* octant = octants.data();
   std::array<size_t, 9> bounds{};
-  for (const BuildPoint& p : pts) ++bounds[size_t(octant(p)) + 1];
+  for (size_t i = 0; i < pts.size(); ++i) {
+    const uint8_t o = uint8_t(grid.cellOf(pts[i].position).childIndex());
+    octant[i] = o;
+    ++bounds[o + 1u];
+  }
   for (int i = 0; i < 8; ++i) bounds[size_t(i) + 1] += bounds[size_t(i)];
-  thread_local std::vector<BuildPoint> tmp;
-  tmp.resize(pts.size());
   std::array<size_t, 8> fill{};
   for (int i = 0; i < 8; ++i) fill[size_t(i)] = bounds[size_t(i)];
-  for (const BuildPoint& p : pts) tmp[fill[size_t(octant(p))]++] = p;
-  std::copy(tmp.begin(), tmp.begin() + ptrdiff_t(pts.size()), pts.begin());
+  for (size_t i = 0; i < pts.size(); ++i) out[fill[octant[i]]++] = pts[i];
   return bounds;
 }
 
@@ -73,7 +85,9 @@ double meanSpacing(std::span<const BuildPoint> pts, double extent, double fallba
   const double cell = std::max(extent / std::sqrt(double(n)), extent * 1e-7);
   glm::dvec3 lo(std::numeric_limits<double>::max());
   for (const auto& p : pts) lo = glm::min(lo, p.position);
-  auto cellOf = [&](const glm::dvec3& p) { return glm::ivec3(glm::floor((p - lo) / cell)); };
+  const double inv_cell = 1.0 / cell;
+  // p - lo is never negative: truncation is floor.
+  auto cellOf = [&](const glm::dvec3& p) { return glm::ivec3((p - lo) * inv_cell); };
   const size_t buckets = size_t(1) << std::max(4, int(std::ceil(std::log2(double(n)))) + 1);
   auto bucketOf = [&](const glm::ivec3& c) {
     uint64_t h = uint64_t(uint32_t(c.x)) * 0x9E3779B97F4A7C15ull ^
@@ -81,20 +95,22 @@ double meanSpacing(std::span<const BuildPoint> pts, double extent, double fallba
                  uint64_t(uint32_t(c.z)) * 0x165667B19E3779F9ull;
     return size_t(h >> 20) & (buckets - 1);
   };
-  thread_local std::vector<uint32_t> start, order;
+  thread_local std::vector<uint32_t> start, order, bucket;
   thread_local std::vector<glm::ivec3> cells;
   start.assign(buckets + 1, 0);
   order.resize(n);
   cells.resize(n);
+  bucket.resize(n);
   for (size_t i = 0; i < n; ++i) {
     cells[i] = cellOf(pts[i].position);
-    ++start[bucketOf(cells[i]) + 1];
+    bucket[i] = uint32_t(bucketOf(cells[i]));
+    ++start[bucket[i] + 1];
   }
   for (size_t b = 0; b < buckets; ++b) start[b + 1] += start[b];
   {
     thread_local std::vector<uint32_t> fill;
     fill.assign(start.begin(), start.end() - 1);
-    for (size_t i = 0; i < n; ++i) order[fill[bucketOf(cells[i])]++] = uint32_t(i);
+    for (size_t i = 0; i < n; ++i) order[fill[bucket[i]]++] = uint32_t(i);
   }
   const size_t stride = std::max<size_t>(1, n / samples);
   double sum = 0.0;

@@ -11,17 +11,24 @@
 
 namespace tessera::lod {
 
-/// Moves to the front of `pts` one point per occupied cell of a `grid`^3 grid over the cube
-/// [box_min, box_min + size]: the point nearest the cell centre, so the subset is spatially
+/// Chooses one point per occupied cell of a `grid`^3 grid over the cube [box_min, box_min +
+/// size]: the point nearest the cell centre (the first of equals), so the subset is spatially
 /// even (no clumps), as the grid/Poisson-disk subsampling of Layered Point Clouds and Potree.
-/// Returns how many were selected. Stable: equal inputs give equal outputs.
+/// Sets `chosen[i]` to 1 for a chosen point i, else 0 (pts.size() bytes); returns how many.
+/// Moves no point: O(n) reads and one byte written a point.
+size_t gridSelect(std::span<const BuildPoint> pts, const glm::dvec3& box_min, double size, int grid,
+                  std::vector<uint8_t>& chosen);
+
+/// gridSelect(), then moves the chosen points to the front of `pts`, both groups in their
+/// order. Returns how many were chosen. Stable: equal inputs give equal outputs.
 size_t gridSample(std::span<BuildPoint> pts, const glm::dvec3& box_min, double size, int grid);
 
-/// Reorders the points of cell `key` by child cell (index x | y << 1 | z << 2) and returns the 9
-/// boundaries: child i spans [bounds[i], bounds[i + 1]). Uses CubeFrame::cellOf, the same
-/// arithmetic as distribution and verification, so a point on a boundary lands in one place.
-std::array<size_t, 9> partitionOctants(std::span<BuildPoint> pts, const CubeFrame& frame,
-                                       const CellKey& key);
+/// Copies the points of cell `key` into `out` (as many) by child cell (index x | y << 1 | z << 2),
+/// each child's points in their order, and returns the 9 boundaries: child i spans [bounds[i],
+/// bounds[i + 1]). Uses CubeFrame::cellOf, the same arithmetic as distribution and verification,
+/// so a point on a boundary lands in one place. Each point's cell is computed once.
+std::array<size_t, 9> partitionOctants(std::span<const BuildPoint> pts, std::span<BuildPoint> out,
+                                       const CubeFrame& frame, const CellKey& key);
 
 /// Mean distance from a point to its nearest other sample (exact duplicates excluded), over up
 /// to `samples` points spread through `pts`. Returns `fallback` when nothing can be measured.

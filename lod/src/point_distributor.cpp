@@ -53,18 +53,6 @@ bool CellKey::operator<(const CellKey& o) const {
   return std::tie(x, y, z) < std::tie(o.x, o.y, o.z);
 }
 
-CellKey CubeFrame::cellOf(const glm::dvec3& p, int level) const {
-  // (p - min) * (1 / size) then an exact power-of-two scale: the cell at level l + 1 is always a
-  // child of the cell at level l, and build and verify share this one function.
-  const double inv = 1.0 / cube_size;
-  const double res = double(uint64_t(1) << level);
-  auto axis = [&](double v) {
-    double f = (v * inv) * res;
-    return f <= 0.0 ? 0u : f >= res ? uint32_t(res - 1.0) : uint32_t(f);
-  };
-  return {uint8_t(level), axis(p.x - cube_min.x), axis(p.y - cube_min.y), axis(p.z - cube_min.z)};
-}
-
 // A compact record: x, y, z as int32 multiples of the quantum, then rgb, classification,
 // intensity, source, ao (little-endian, unaligned).
 void readTempPoints(const TempLayout& layout, int fd, uint64_t first, uint64_t count,
@@ -335,11 +323,12 @@ std::vector<Chunk> PointDistributor::distribute(uint64_t chunk_max,
   // Pass 2: counting grid, one per part of the raw file.
   const int parts = std::clamp(threads, 1, 16);
   const size_t cells = size_t(kCountRes) * kCountRes * kCountRes;
+  const CubeFrame::LevelGrid count_grid = mFrame.levelGrid(kCountLevel);
   std::vector<std::vector<uint32_t>> part_counts(size_t(parts), std::vector<uint32_t>(cells, 0));
   forEachRaw("build 2/5 counting", parts, [&](int part, std::span<const BuildPoint> pts) {
     auto& counts = part_counts[size_t(part)];
     for (const BuildPoint& p : pts) {
-      CellKey c = mFrame.cellOf(p.position, kCountLevel);
+      CellKey c = count_grid.cellOf(p.position);
       ++counts[gridIndex(c.x, c.y, c.z)];
     }
   });
@@ -449,7 +438,7 @@ std::vector<Chunk> PointDistributor::distribute(uint64_t chunk_max,
   forEachRaw("build 3/5 distributing", parts, [&](int part, std::span<const BuildPoint> pts) {
     PartState& st = state[size_t(part)];
     for (const BuildPoint& p : pts) {
-      CellKey c = mFrame.cellOf(p.position, kCountLevel);
+      CellKey c = count_grid.cellOf(p.position);
       int32_t ci = owner[gridIndex(c.x, c.y, c.z)];
       auto& b = st.buffers[size_t(ci)];
       if (b.capacity() == 0) b.reserve(per_chunk);

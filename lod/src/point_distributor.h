@@ -54,7 +54,29 @@ struct CubeFrame {
   }
   double cellSize(int level) const { return cube_size / double(uint64_t(1) << level); }
   /// The cell at `level` containing local point p (clamped into the cube).
-  CellKey cellOf(const glm::dvec3& p, int level) const;
+  CellKey cellOf(const glm::dvec3& p, int level) const { return levelGrid(level).cellOf(p); }
+
+  /// cellOf() at one level with its constants in registers: what loops over many points use
+  /// (a copy, so stores to points cannot alias it).
+  struct LevelGrid {
+    glm::dvec3 cube_min;
+    double inv;  ///< 1 / cube size
+    double res;  ///< 2^level
+    int level;
+    CellKey cellOf(const glm::dvec3& p) const {
+      // (p - min) * (1 / size) then an exact power-of-two scale: the cell at level l + 1 is
+      // always a child of the cell at level l, and build and verify share this one function.
+      auto axis = [&](double v) {
+        double f = (v * inv) * res;
+        return f <= 0.0 ? 0u : f >= res ? uint32_t(res - 1.0) : uint32_t(f);
+      };
+      return {uint8_t(level), axis(p.x - cube_min.x), axis(p.y - cube_min.y),
+              axis(p.z - cube_min.z)};
+    }
+  };
+  LevelGrid levelGrid(int level) const {
+    return {cube_min, 1.0 / cube_size, double(uint64_t(1) << level), level};
+  }
 };
 
 struct InputSource {

@@ -4,12 +4,14 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <cerrno>
 #include <chrono>
 #include <cmath>
 #include <cstring>
 #include <map>
+#include <memory>
 #include <mutex>
 #include <system_error>
 #include <thread>
@@ -121,16 +123,65 @@ class Builder {
   /// Builds the subtree of a chunk in memory and emits every node of it. Leaves hold all their
   /// points; an inner node holds a grid-sampled copy of the points below it (Bettio et al. 2009,
   /// section 3.2: self-contained nodes, a cut is drawn from its own nodes only). The points of
-  /// the subtree root are copied to `root_points`: the levels above sample from them.
+  /// the subtree root are copied to `root_points`: the levels above sample from them. Reorders
+  /// `pts`.
   uint8_t buildSubtree(const CellKey& key, std::span<BuildPoint> pts,
                        std::vector<BuildPoint>* root_points) {
+    // The partition's other half: each level copies its points by child into the other buffer
+    // and the children work there, so a point moves once a level.
+    thread_local std::unique_ptr<BuildPoint[]> scratch;
+    thread_local size_t scratch_size = 0;
+    if (scratch_size < pts.size()) {
+      scratch.reset();
+      scratch = std::make_unique_for_overwrite<BuildPoint[]>(pts.size());
+      scratch_size = pts.size();
+    }
+    std::vector<BuildPoint> stored;
+    const uint8_t mask =
+        buildNode(key, pts, std::span<BuildPoint>(scratch.get(), pts.size()), stored, 0);
+    if (root_points) root_points->swap(stored);
+    return mask;
+  }
+
+  std::vector<NodeOut>& nodes() { return mNodes; }
+  ScopedFd& payload() { return mPayload; }
+  uint64_t payloadEnd() const { return mPayloadEnd; }
+  double maxError() const { return mMaxError; }
+
+  /// Whether every leaf keeps the input's integers (store::kExactLeaves).
+  bool allExact() const { return mAllExact; }
+
+ private:
+  /// buildSubtree() of a node `depth` levels below the chunk root; `scratch` as many points.
+  /// The node's stored points (a leaf's all, an inner node's sample) are appended to `stored`.
+  uint8_t buildNode(const CellKey& key, std::span<BuildPoint> pts, std::span<BuildPoint> scratch,
+                    std::vector<BuildPoint>& stored, int depth) {
     if (pts.size() <= mOpt.leaf_max || key.level >= store::kMaxLevel) {
-      if (root_points) root_points->assign(pts.begin(), pts.end());
       emit(key, pts, 0);
+      stored.insert(stored.end(), pts.begin(), pts.end());
       return 0;
     }
-    size_t selected =
-        gridSample(pts, mFrame.cellMin(key), mFrame.cellSize(key.level), store::kGrid);
+    // Children first. An inner node samples its children's stored points, not every point
+    // below it, as the levels above the chunks do: every occupied cell of its grid holds an
+    // occupied cell of a child's finer grid, so it gets the same one point per occupied cell,
+    // each within a child cell of the one nearest the centre, and a point is sampled once
+    // instead of once a level (Potree's indexing moves points up the same way).
+    thread_local std::vector<std::vector<BuildPoint>> candidates_at(store::kMaxLevel + 2);
+    std::vector<BuildPoint>& candidates = candidates_at[size_t(depth)];
+    candidates.clear();
+    auto bounds = partitionOctants(pts, scratch, mFrame, key);
+    uint8_t mask = 0;
+    for (int i = 0; i < 8; ++i) {
+      size_t a = bounds[size_t(i)], b = bounds[size_t(i) + 1];
+      if (a == b) continue;
+      buildNode(key.child(i), scratch.subspan(a, b - a), pts.subspan(a, b - a), candidates,
+                depth + 1);
+      mask |= uint8_t(1u << i);
+    }
+    thread_local std::vector<uint8_t> chosen;
+    const glm::dvec3 box_min = mFrame.cellMin(key);
+    const double extent = mFrame.cellSize(key.level);
+    size_t selected = gridSelect(candidates, box_min, extent, store::kGrid, chosen);
     // Overhead bound: an inner node keeps at most kMaxInnerFraction of the points below it (a
     // coarser grid where the data is thick, e.g. noisy overlapping scans), so each inner level
     // costs at most f of the input. `pts` are input points, so the levels' fractions add up
@@ -139,30 +190,19 @@ class Builder {
     for (int grid = store::kGrid, tries = 0; double(selected) > cap && grid > 2 && tries < 6;
          ++tries) {
       grid = std::max(2, int(double(grid) * std::sqrt(cap / double(selected))));
-      selected = gridSample(pts, mFrame.cellMin(key), mFrame.cellSize(key.level), grid);
+      selected = gridSelect(candidates, box_min, extent, grid, chosen);
     }
-    std::vector<BuildPoint> sample(pts.begin(), pts.begin() + ptrdiff_t(selected));
-    auto bounds = partitionOctants(pts, mFrame, key);
-    uint8_t mask = 0;
-    for (int i = 0; i < 8; ++i) {
-      size_t a = bounds[size_t(i)], b = bounds[size_t(i) + 1];
-      if (a == b) continue;
-      buildSubtree(key.child(i), pts.subspan(a, b - a), nullptr);
-      mask |= uint8_t(1u << i);
+    thread_local std::vector<BuildPoint> sample;
+    sample.clear();
+    sample.reserve(selected);
+    for (size_t i = 0; i < candidates.size(); ++i) {
+      if (chosen[i]) sample.push_back(candidates[i]);
     }
-    if (root_points) *root_points = sample;
     emit(key, sample, mask);
+    stored.insert(stored.end(), sample.begin(), sample.end());
     return mask;
   }
 
-  std::vector<NodeOut>& nodes() { return mNodes; }
-  ScopedFd& payload() { return mPayload; }
-  uint64_t payloadEnd() const { return mPayloadEnd; }
-  double maxError() const { return mMaxError; }
-  /// Whether every leaf keeps the input's integers (store::kExactLeaves).
-  bool allExact() const { return mAllExact; }
-
- private:
   const BuildOptions& mOpt;
   CubeFrame mFrame;
   AttributeMask mAttributes;
@@ -289,7 +329,6 @@ BuildReport buildStore(const std::vector<std::filesystem::path>& inputs,
   report.seconds_read = since(t0);
   report.points = dist.points();
   report.skipped = dist.skipped();
-  report.temp_record_bytes = dist.tempLayout().recordSize();
 
   const auto t1 = Clock::now();
   ScopedFd points_fd(temp_points, O_RDWR, "temporary file");
@@ -346,22 +385,31 @@ BuildReport buildStore(const std::vector<std::filesystem::path>& inputs,
         upper[k.level].push_back(k);
       }
     }
+    // The nodes of a level are independent: they share the threads (a level above the chunks
+    // samples up to 8 x 48^3 points a node, which on one thread was a tail after the chunks).
     for (auto& [level, keys] : upper) {
-      for (const CellKey& key : keys) {
+      parallelFor(keys.size(), unsigned(threads), [&](size_t k) {
+        const CellKey key = keys[k];
         Pending parent;
-        for (int i = 0; i < 8; ++i) {
-          auto it = pending.find(key.child(i));
-          if (it == pending.end()) continue;
-          parent.pts.insert(parent.pts.end(), it->second.pts.begin(), it->second.pts.end());
-          parent.child_mask |= uint8_t(1u << i);
-          pending.erase(it);
+        std::array<std::vector<BuildPoint>, 8> children;
+        {
+          std::lock_guard lock(pending_mutex);
+          for (int i = 0; i < 8; ++i) {
+            auto it = pending.find(key.child(i));
+            if (it == pending.end()) continue;
+            children[size_t(i)] = std::move(it->second.pts);
+            parent.child_mask |= uint8_t(1u << i);
+            pending.erase(it);
+          }
         }
+        for (const auto& c : children) parent.pts.insert(parent.pts.end(), c.begin(), c.end());
         size_t selected =
             gridSample(parent.pts, frame.cellMin(key), frame.cellSize(key.level), store::kGrid);
         parent.pts.resize(selected);
         builder.emit(key, parent.pts, parent.child_mask);
+        std::lock_guard lock(pending_mutex);
         pending.emplace(key, std::move(parent));
-      }
+      });
     }
     if (pending.size() != 1 || !pending.count(CellKey{})) {
       throw StoreError(

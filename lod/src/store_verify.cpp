@@ -106,6 +106,7 @@ VerifyReport verifyStore(const std::filesystem::path& store_path,
   } remove{temp_dir};
 
   PointDistributor dist(inputs, options.quiet);
+  dist.setThreads(threadCount(options.threads));
   dist.measureInFrame(frame, temp_dir / "raw.bin");
   report.input_points = dist.points();
   const uint64_t region_max = std::max<uint64_t>(200'000, (options.memory_mb << 20) / 400);
