@@ -9,11 +9,14 @@
 #include <thread>
 
 #include <tessera/core/cli.h>
+#include <tessera/core/progress.h>
 #include <tessera/core/file_checks.h>
 #include <tessera/core/stopwatch.h>
 #include <tessera/master/tile_assignment.h>
 #include <tessera/render/gl_context.h>
+#include <tessera/media/movie_writer.h>
 #include <tessera/render/inset.h>
+#include <tessera/render/path_frames.h>
 #include <tessera/render/projector_pass.h>
 #include <tessera/render/scene_draw_list.h>
 #include <tessera/render/screen_passes.h>
@@ -67,6 +70,15 @@ Clock::time_point after(double ms) {
 
 }  // namespace
 
+struct Master::Film {
+  explicit Film(const MasterOptions& o)
+      : progress(o.movie.empty() ? o.frames_dir : o.movie, uint64_t(o.frames), " frames") {}
+  std::unique_ptr<media::MovieWriter> writer;  // made with the first frame
+  Progress progress;
+  size_t written = 0;  // frames filmed
+  std::string error;   // a write that failed
+};
+
 Master::Master(sync::MasterLink& link, MasterOptions options)
     : mLink(link), mOpt(std::move(options)) {}
 
@@ -91,7 +103,26 @@ void Master::prepare() {
     }
     if (const auto why = sync::pathHeadProblem(path, mWall))
       throw StartError("tessera-master: --script " + mOpt.script + ": " + *why);
+    if (!mOpt.movie.empty() || !mOpt.frames_dir.empty()) {
+      try {
+        mOpt.frames = int(render::pathFrameCount(path, mOpt.fps));
+      } catch (const render::RenderError& e) {
+        throw StartError("tessera-master: --path " + mOpt.script + ": " + e.what());
+      }
+    }
     mPlayer.emplace(std::move(path));
+  }
+  if (!mOpt.movie.empty()) {
+    const glm::uvec2 size = mOpt.movie_width > 0
+                                ? glm::uvec2(mOpt.movie_width, mOpt.movie_height)
+                                : render::wallPictureSize(mWall);
+    if (size.x % 2 != 0 || size.y % 2 != 0)
+      throw StartError("tessera-master: --movie " + mOpt.movie + ": the frames are " +
+                       std::to_string(size.x) + "x" + std::to_string(size.y) +
+                       (mOpt.movie_width > 0 ? " (--size)" : " (the wall's picture)") +
+                       "; a movie's sides must be even: give --size " +
+                       std::to_string(size.x + size.x % 2) + "x" +
+                       std::to_string(size.y + size.y % 2) + " or another even size");
   }
   // The scene's inset centres are checked against this wall (the scene's own checks know no
   // wall): every inset named and inside the wall's extent.
@@ -381,6 +412,7 @@ int Master::run() {
   mStopCode = 0;
   if (!start()) return mStopCode ? mStopCode : kExitStart;
   const bool deterministic = mOpt.frames > 0;
+  if (!mOpt.movie.empty() || !mOpt.frames_dir.empty()) mFilm = std::make_unique<Film>(mOpt);
   const auto session_start = Clock::now();
   const size_t tiles = mTiles->size();
   for (uint64_t f = 0;; ++f) {
@@ -423,7 +455,7 @@ int Master::run() {
     cluster::FrameMessage message_out;
     const scene::Frame taken = mGraph.takeFrame(mFrame, uint64_t(t * 1e6));
     message_out.set_frame(sync::serializeFrame(taken));
-    message_out.set_read_back(!shots.empty());
+    message_out.set_read_back(!shots.empty() || mFilm);
     if (mWallRelativeDepth) {
       message_out.add_relative_depth_range(mWallRelativeDepth->x);
       message_out.add_relative_depth_range(mWallRelativeDepth->y);
@@ -540,11 +572,18 @@ int Master::run() {
                       .count();
     const double barrier_ms = collect_ms + msSince(swap_start);
 
-    if (!shots.empty()) {
+    if (!shots.empty() || mFilm) {
       std::vector<std::string> pixels(tiles);
       for (uint32_t i = 0; i < tiles; ++i)
         if (reports[i]) pixels[i] = std::move(*reports[i]->mutable_rgba());
       writeScreenshots(shots, mFrame, pixels);
+    }
+    if (mFilm && !mFilm->error.empty()) {
+      std::fprintf(stderr, "tessera-master: frame %llu: stopping the wall: %s\n",
+                   (unsigned long long)mFrame, mFilm->error.c_str());
+      mLink.quit(uint32_t(kExitFilmFailed), mFilm->error);
+      if (mParticipants) mParticipants->end("the wall stopped: " + mFilm->error);
+      return kExitFilmFailed;
     }
     if (mCsv)
       writeStats(frame_start, mFrame, t, frame_bytes, sync_ms, barrier_ms, present_ms,
@@ -567,6 +606,63 @@ int Master::run() {
       mLink.transport(), (unsigned long long)c.bytes_sent, (unsigned long long)c.messages_sent,
       (unsigned long long)c.bytes_received, (unsigned long long)c.messages_received,
       (unsigned long long)mFrame);
+  std::fflush(stdout);
+  return mFilm ? finishFilm() : kExitOk;
+}
+
+void Master::film(const render::Image& wall) {
+  Film& f = *mFilm;
+  try {
+    const render::Image picture =
+        mOpt.movie_width > 0 ? render::resizeImage(wall, mOpt.movie_width, mOpt.movie_height)
+                             : wall;
+    if (!mOpt.movie.empty()) {
+      if (!f.writer) {
+        media::MovieSettings ms;
+        ms.width = int(picture.width);
+        ms.height = int(picture.height);
+        ms.fps = mOpt.fps;
+        f.writer = std::make_unique<media::MovieWriter>(mOpt.movie, ms);
+      }
+      f.writer->write(picture.rgba, int(picture.width), int(picture.height));
+    }
+    if (!mOpt.frames_dir.empty())
+      render::writePng(render::framePngPath(mOpt.frames_dir, f.written).string(), picture);
+    ++f.written;
+    f.progress.update(f.written);
+  } catch (const std::exception& e) {  // VideoError, RenderError: the disk, the encoder
+    f.error = (mOpt.movie.empty() ? "--frames-dir " + mOpt.frames_dir : "--movie " + mOpt.movie) +
+              ": " + e.what();
+  }
+}
+
+int Master::finishFilm() {
+  Film& f = *mFilm;
+  f.progress.finish();
+  // A frame whose wall picture failed was said when it did; the movie would lack it.
+  if (f.written != mFrame) {
+    std::fprintf(stderr,
+                 "tessera-master: %s: %zu of %llu frames have a picture; no movie written\n",
+                 mOpt.movie.empty() ? mOpt.frames_dir.c_str() : mOpt.movie.c_str(), f.written,
+                 (unsigned long long)mFrame);
+    return kExitFilmFailed;
+  }
+  if (mFrame < uint64_t(mOpt.frames))
+    std::printf("tessera-master: the session ended at frame %llu of the path's %d\n",
+                (unsigned long long)mFrame, mOpt.frames);
+  if (f.writer) {
+    try {
+      f.writer->finish();
+    } catch (const media::VideoError& e) {
+      std::fprintf(stderr, "tessera-master: --movie %s: %s\n", mOpt.movie.c_str(), e.what());
+      return kExitFilmFailed;
+    }
+    std::printf("tessera-master: wrote %s (%zu frames at %g fps, %s)\n", mOpt.movie.c_str(),
+                f.written, mOpt.fps, f.writer->encoder().c_str());
+  }
+  if (!mOpt.frames_dir.empty() && f.written > 0)
+    std::printf("tessera-master: wrote %s/frame-000000.png .. %s\n", mOpt.frames_dir.c_str(),
+                render::framePngPath(mOpt.frames_dir, f.written - 1).filename().c_str());
   std::fflush(stdout);
   return kExitOk;
 }
@@ -599,6 +695,7 @@ void Master::writeScreenshots(const std::vector<std::string>& paths, uint64_t fr
                  (unsigned long long)frame, e.what());
     return;
   }
+  if (mFilm) film(wall);
   for (const std::string& p : paths) {
     try {
       if (fs::path(p).has_parent_path()) fs::create_directories(fs::path(p).parent_path());

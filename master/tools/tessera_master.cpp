@@ -56,13 +56,29 @@ int run(int argc, char** argv) {
                  "Run this many frames, deterministic: script time = frame / fps, every frame "
                  "rendered complete (0: real time until the script or console ends)")
       ->check(cli::integerRange(0, 1 << 30));
-  app.add_option("--fps", o.fps, "With --frames: script frames per second (fewer: coarser steps)")
+  app.add_option("--fps", o.fps,
+                 "With --frames or --path: script frames per second (fewer: coarser steps)")
       ->check(cli::finiteRange(0.1, 1000.0))
       ->capture_default_str();
   app.add_option("--max-fps", o.max_fps,
                  "Start frames at most this often, real time (0: as fast as the nodes go)")
       ->check(cli::finiteRange(0.0, 1000.0))
       ->capture_default_str();
+  std::string film_path, movie_size;
+  app.add_option(
+      "--path", film_path,
+      "Film this camera path (configs/paths/; its actions applied, as --script's) with --movie "
+      "or --frames-dir: frame i at i / fps seconds, as many as its duration holds, every frame "
+      "settled on every node and read back");
+  app.add_option("--movie", o.movie,
+                 "With --path: write the wall's picture of every frame as an MP4 movie (as "
+                 "tessera-render --movie: its sides must be even), with a progress bar");
+  app.add_option("--frames-dir", o.frames_dir,
+                 "With --path: write every frame's wall picture as DIR/frame-000000.png, ... (made "
+                 "if missing)");
+  app.add_option("--size", movie_size,
+                 "With --movie or --frames-dir: the frames' size WxH (default: the wall "
+                 "screenshot's), the wall's picture scaled to it");
   app.add_option("--screenshot", o.screenshot, "Write the wall picture (PNG) of the last frame");
   app.add_option("--stats", o.stats, "Per-frame, per-tile statistics (CSV)");
   app.add_option("--out-dir", o.out_dir, "Where the script's screenshot paths are relative to")
@@ -193,6 +209,22 @@ int run(int argc, char** argv) {
   }
   // What the master writes must never be what it reads (by any path).
   try {
+    const bool filming = !o.movie.empty() || !o.frames_dir.empty();
+    if (!film_path.empty() != filming)
+      throw cli::UsageError(film_path.empty()
+                                ? "--movie and --frames-dir film a camera path: give --path P.json"
+                                : "--path needs --movie OUT.mp4 or --frames-dir DIR");
+    if (!film_path.empty() && (!o.script.empty() || o.frames > 0 || o.console))
+      throw cli::UsageError(
+          "--path films the path: drop --script, --frames (its duration and --fps give the "
+          "frames) and --console");
+    if (!movie_size.empty()) {
+      if (!filming) throw cli::UsageError("--size needs --movie or --frames-dir");
+      const cli::Size size = cli::parseSize(movie_size, "--size", 16384);
+      o.movie_width = size.width;
+      o.movie_height = size.height;
+    }
+    if (!film_path.empty()) o.script = film_path;
     std::vector<std::filesystem::path> read{o.wall, o.scene, o.script};
     try {  // and the scene's stores (a bad scene is reported by prepare())
       const scene::SceneFile scene_file = sync::loadSceneFile(o.scene);
@@ -204,14 +236,22 @@ int run(int argc, char** argv) {
     for (const auto& [path, option] :
          {std::pair{&o.screenshot, "--screenshot"}, std::pair{&o.stats, "--stats"},
           std::pair{&o.console_screenshot, "--console-screenshot"},
-          std::pair{&o.annotations, "--annotations"}}) {
+          std::pair{&o.annotations, "--annotations"}, std::pair{&o.movie, "--movie"}}) {
       if (!path->empty()) cli::refuseOverwrite(*path, read, option);
     }
     // Outputs written at the end (or during the run) are refused now when they could not be.
     for (const auto& [path, option] :
          {std::pair{&o.screenshot, "--screenshot"}, std::pair{&o.stats, "--stats"},
-          std::pair{&o.console_screenshot, "--console-screenshot"}}) {
+          std::pair{&o.console_screenshot, "--console-screenshot"},
+          std::pair{&o.movie, "--movie"}}) {
       if (!path->empty()) cli::refuseUnwritable(*path, option);
+    }
+    if (!o.frames_dir.empty()) {
+      std::error_code ec;
+      std::filesystem::create_directories(o.frames_dir, ec);
+      if (ec || !std::filesystem::is_directory(o.frames_dir))
+        throw cli::UsageError("--frames-dir " + o.frames_dir + ": not a folder that can be made" +
+                              (ec ? ": " + ec.message() : ""));
     }
     if (!sites.audio_out.empty() && !media::alsaDeviceOf(sites.audio_out))
       cli::refuseUnwritable(sites.audio_out, "--audio-out");

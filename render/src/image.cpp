@@ -2,10 +2,13 @@
 
 #include <png.h>
 
+#include <algorithm>
 #include <cerrno>
+#include <cmath>
 #include <cstdio>
 #include <cstring>
 
+#include <tessera/core/check.h>
 #include <tessera/core/file_checks.h>
 #include <tessera/render/gl_context.h>
 
@@ -55,6 +58,47 @@ void writePng(const std::string& path, const Image& image) {
   png_write_end(png, nullptr);
   png_destroy_write_struct(&png, &info);
   if (std::fclose(f) != 0) throw RenderError("render::writePng(): closing " + path + " failed");
+}
+
+Image resizeImage(const Image& image, uint32_t width, uint32_t height) {
+  TESSERA_CHECK(width > 0 && height > 0 && image.width > 0 && image.height > 0 &&
+                    image.rgba.size() == size_t(image.width) * image.height * 4,
+                "render::resizeImage(): sizes > 0 and width * height RGBA pixels");
+  // Along one axis: for new pixel i, the old pixels [first, last] it covers and their shares.
+  struct Span {
+    uint32_t first = 0;
+    std::vector<double> share;
+  };
+  auto spans = [](uint32_t from, uint32_t to) {
+    std::vector<Span> out(to);
+    const double scale = double(from) / to;
+    for (uint32_t i = 0; i < to; ++i) {
+      const double lo = i * scale, hi = (i + 1) * scale;
+      out[i].first = uint32_t(lo);
+      for (uint32_t k = out[i].first; k < from && k < hi; ++k)
+        out[i].share.push_back((std::min(hi, k + 1.0) - std::max(lo, double(k))) / scale);
+    }
+    return out;
+  };
+  const std::vector<Span> xs = spans(image.width, width), ys = spans(image.height, height);
+  Image out;
+  out.width = width;
+  out.height = height;
+  out.rgba.resize(size_t(width) * height * 4);
+  for (uint32_t y = 0; y < height; ++y)
+    for (uint32_t x = 0; x < width; ++x) {
+      double sum[4] = {0, 0, 0, 0};
+      for (size_t j = 0; j < ys[y].share.size(); ++j)
+        for (size_t i = 0; i < xs[x].share.size(); ++i) {
+          const double w = ys[y].share[j] * xs[x].share[i];
+          const uint8_t* p =
+              &image.rgba[(size_t(ys[y].first + j) * image.width + xs[x].first + i) * 4];
+          for (int c = 0; c < 4; ++c) sum[c] += w * p[c];
+        }
+      uint8_t* q = &out.rgba[(size_t(y) * width + x) * 4];
+      for (int c = 0; c < 4; ++c) q[c] = uint8_t(std::clamp(std::lround(sum[c]), 0l, 255l));
+    }
+  return out;
 }
 
 Image readPng(const std::string& path) {

@@ -5,6 +5,7 @@
 
 #include <tessera/core/check.h>
 #include <tessera/render/gl_context.h>
+#include <tessera/sync/camera_state.h>
 
 namespace tessera::render {
 
@@ -24,7 +25,9 @@ void forEachPathFrame(const config::CameraPath& path, double fps,
   const size_t n = pathFrameCount(path, fps);
   for (size_t i = 0; i < n; ++i) {
     const double t = double(i) / fps;
-    frame(i, t, sync::cameraAt(path, t));
+    // The camera as the wall's scene graph carries it (sync/camera_state.h: a float view and a
+    // roll), so a frame is the master's frame at the same time, pixel for pixel.
+    frame(i, t, sync::decodeCamera(sync::encodeCamera(sync::cameraAt(path, t))));
   }
 }
 

@@ -21,6 +21,7 @@
 #include <tessera/render/projector_pass.h>
 
 #include "../support/command.h"
+#include "../support/decoded_movie.h"
 #include "../support/temp_dir.h"
 #include "../support/wavy_warp.h"
 
@@ -438,7 +439,8 @@ TEST_F(Cluster, AScriptedHeadMoveReachesEveryNode) {
 TEST_F(Cluster, AStereoWallHasANodePerEyeAndEachEyeIsTheMosaics) {
   // Four nodes, one per tile and eye ("left/left", "left/right", "right/left",
   // "right/right"). The screenshot shows the left eye; each eye's wall is written beside it,
-  // equal to tessera-render --mosaic --stereo pair's, and the eyes differ.
+  // equal to tessera-render --mosaic --stereo pair's, and the eyes differ. Then two nodes, each
+  // drawing both eyes of its tile.
   write(sDir->path() / "stereo-wall.json",
         smallWall(R"(, "stereo": true, "eyeSeparation": 0.065)"));
   const CommandResult r =
@@ -473,6 +475,23 @@ TEST_F(Cluster, AStereoWallHasANodePerEyeAndEachEyeIsTheMosaics) {
             tessera::test::readBytes(sDir->path() / "stw-left.png"));
   EXPECT_NE(tessera::test::readBytes(sDir->path() / "stw-left.png"),
             tessera::test::readBytes(sDir->path() / "stw-right.png"));
+
+  // One node per tile drawing both eyes side by side into its two outputs (slots "left" and
+  // "right", 640x180 each): the same eyes' pictures, byte for byte.
+  write(sDir->path() / "pair-wall.json",
+        smallWall(R"(, "stereo": true, "eyeSeparation": 0.065, "eyesOnOneNode": true)"));
+  const CommandResult p =
+      cluster("--wall pair-wall.json --scene scene.json --frames 2 --screenshot pw.png", 2);
+  ASSERT_EQ(p.code, 0) << p.out;
+  EXPECT_NE(p.out.find("tile left"), std::string::npos) << p.out;
+  EXPECT_EQ(p.out.find("tile left/"), std::string::npos) << p.out;
+  for (const char* eye : {"left", "right"})
+    EXPECT_TRUE(
+        tessera::test::readBytes(sDir->path() / ("pw-" + std::string(eye) + ".png")) ==
+        tessera::test::readBytes(sDir->path() / ("mosaic-stw-" + std::string(eye) + ".png")))
+        << eye << " of the nodes of both eyes differs from tessera-render --mosaic --stereo's";
+  EXPECT_EQ(tessera::test::readBytes(sDir->path() / "pw.png"),
+            tessera::test::readBytes(sDir->path() / "stw.png"));
 }
 
 TEST_F(Cluster, WrongNodeCountStopsBeforeRendering) {
@@ -714,6 +733,78 @@ TEST_F(Cluster, ACavesFourNodesMakeTheMosaicsNet) {
     tiles_with_bunny += lit > 2000;
   }
   EXPECT_GE(tiles_with_bunny, 3);
+}
+
+TEST_F(Cluster, TheMasterFilmsAPathFrameByFrameAsTesseraRenderDoes) {
+  // --path at 8 fps over 0.5 s: 5 frames, each settled on every node and read back, into an MP4
+  // and PNGs. The PNGs are tessera-render --path's frames byte for byte; the movie holds 5
+  // frames of the wall's size over 5/8 s, each within the codec's loss of its PNG.
+  write(sDir->path() / "film.json", R"({"name": "film", "keyframes": [
+    {"time": 0, "eye": {"x": -0.027, "y": 0.12, "z": 0.38}, "target": {"x": -0.027, "y": 0.1,
+     "z": 0}, "up": {"x": 0, "y": 1, "z": 0}},
+    {"time": 0.5, "eye": {"x": 0.06, "y": 0.14, "z": 0.33}, "target": {"x": -0.027, "y": 0.1,
+     "z": 0}, "up": {"x": 0, "y": 1, "z": 0}}]})");
+  const std::string wall = kConfigs + "/walls/1x2.json";
+  const CommandResult r = cluster("--wall " + wall +
+                                      " --scene scene.json --path film.json --fps 8 --movie "
+                                      "film.mp4 --frames-dir film-frames",
+                                  2);
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("wrote film.mp4 (5 frames at 8 fps"), std::string::npos) << r.out;
+  const CommandResult ref = run("cd " + sDir->path().string() + " && " + TESSERA_RENDER_TOOL +
+                                " --scene scene.json --wall " + wall +
+                                " --mosaic --path film.json --fps 8 --frames-dir ref-frames");
+  ASSERT_EQ(ref.code, 0) << ref.out;
+  std::vector<tessera::render::Image> frames;
+  for (int i = 0; i < 5; ++i) {
+    char name[32];
+    std::snprintf(name, sizeof name, "frame-%06d.png", i);
+    const auto ours = tessera::test::readBytes(sDir->path() / "film-frames" / name);
+    ASSERT_FALSE(ours.empty()) << name;
+    EXPECT_TRUE(ours == tessera::test::readBytes(sDir->path() / "ref-frames" / name))
+        << name << " differs from tessera-render --path's";
+    frames.push_back(tessera::render::readPng((sDir->path() / "film-frames" / name).string()));
+  }
+  EXPECT_FALSE(fs::exists(sDir->path() / "film-frames" / "frame-000005.png"));
+  const tessera::test::DecodedMovie movie =
+      tessera::test::decodeMovie((sDir->path() / "film.mp4").string());
+  EXPECT_EQ(movie.width, 1940);
+  EXPECT_EQ(movie.height, 540);
+  EXPECT_NEAR(movie.fps, 8.0, 1e-6);
+  EXPECT_NEAR(movie.duration_s, 5 / 8.0, 0.5 / 8.0);
+  ASSERT_EQ(movie.frames.size(), 5u);
+  // The camera moves: the first and last frames differ, so matching each to its own is a test.
+  EXPECT_LT(tessera::test::psnr(frames.front(), frames.back()), 25.0);
+  for (size_t i = 0; i < 5; ++i) {
+    const double p = tessera::test::psnr(movie.frames[i], frames[i]);
+    std::printf("frame %zu: PSNR %.1f dB against its PNG\n", i, p);
+    EXPECT_GE(p, 35.0) << "frame " << i;
+  }
+  // --size scales the wall's picture; a movie of odd sides is refused before anything renders.
+  const CommandResult small = cluster("--wall " + wall +
+                                          " --scene scene.json --path film.json --fps 8 --movie "
+                                          "small.mp4 --size 480x134",
+                                      2);
+  ASSERT_EQ(small.code, 0) << small.out;
+  const tessera::test::DecodedMovie scaled =
+      tessera::test::decodeMovie((sDir->path() / "small.mp4").string());
+  EXPECT_EQ(scaled.width, 480);
+  EXPECT_EQ(scaled.height, 134);
+  ASSERT_EQ(scaled.frames.size(), 5u);
+  EXPECT_GE(
+      tessera::test::psnr(scaled.frames[4], tessera::render::resizeImage(frames[4], 480, 134)),
+      35.0);
+  const CommandResult odd = cluster(
+      "--wall " + wall + " --scene scene.json --path film.json --movie odd.mp4 --size 481x134", 2);
+  EXPECT_NE(odd.code, 0) << odd.out;
+  EXPECT_NE(odd.out.find("--movie odd.mp4: the frames are 481x134"), std::string::npos) << odd.out;
+  EXPECT_FALSE(fs::exists(sDir->path() / "odd.mp4"));
+  const CommandResult no_path =
+      cluster("--wall " + wall + " --scene scene.json --movie none.mp4", 2);
+  EXPECT_NE(no_path.code, 0) << no_path.out;
+  EXPECT_NE(no_path.out.find("--movie and --frames-dir film a camera path: give --path"),
+            std::string::npos)
+      << no_path.out;
 }
 
 }  // namespace

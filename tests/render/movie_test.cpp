@@ -1,106 +1,27 @@
 // Movies of camera paths (path_frames.h, media/movie_writer.h) read back with libavformat and
 // libavcodec: frame count, size and duration, and each decoded frame against the settled render
-// of its camera.
+// of its camera; the box filter that scales a movie's frames (image.h, resizeImage()).
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <fstream>
 
-extern "C" {
-#include <libavcodec/avcodec.h>
-#include <libavformat/avformat.h>
-#include <libswscale/swscale.h>
-}
-
+#include <tessera/core/check.h>
 #include <tessera/media/movie_writer.h>
 #include <tessera/render/path_frames.h>
 #include <tessera/render/view_renderer.h>
 
 #include "../support/bunny_store_test.h"
 #include "../support/bunny_views.h"
+#include "../support/decoded_movie.h"
 #include "../support/temp_dir.h"
 
 namespace tessera::render {
 namespace {
 
-/// What a movie file holds, decoded independently of the writer.
-struct DecodedMovie {
-  int width = 0, height = 0;
-  double duration_s = 0.0;  ///< the stream's duration
-  double fps = 0.0;         ///< its average frame rate
-  std::string codec;
-  std::vector<Image> frames;  ///< RGBA
-};
-
-DecodedMovie decodeMovie(const std::string& path) {
-  DecodedMovie m;
-  AVFormatContext* fmt = nullptr;
-  EXPECT_EQ(avformat_open_input(&fmt, path.c_str(), nullptr, nullptr), 0) << path;
-  if (!fmt) return m;
-  EXPECT_GE(avformat_find_stream_info(fmt, nullptr), 0);
-  const int si = av_find_best_stream(fmt, AVMEDIA_TYPE_VIDEO, -1, -1, nullptr, 0);
-  EXPECT_GE(si, 0);
-  if (si < 0) {
-    avformat_close_input(&fmt);
-    return m;
-  }
-  AVStream* st = fmt->streams[si];
-  m.duration_s = double(st->duration) * av_q2d(st->time_base);
-  m.fps = av_q2d(st->avg_frame_rate);
-  const AVCodec* dec = avcodec_find_decoder(st->codecpar->codec_id);
-  m.codec = dec ? dec->name : "?";
-  AVCodecContext* c = avcodec_alloc_context3(dec);
-  avcodec_parameters_to_context(c, st->codecpar);
-  EXPECT_EQ(avcodec_open2(c, dec, nullptr), 0);
-  m.width = c->width;
-  m.height = c->height;
-  AVPacket* pkt = av_packet_alloc();
-  AVFrame* f = av_frame_alloc();
-  SwsContext* sws = nullptr;
-  auto drain = [&] {
-    while (avcodec_receive_frame(c, f) == 0) {
-      sws =
-          sws_getCachedContext(sws, f->width, f->height, AVPixelFormat(f->format), f->width,
-                               f->height, AV_PIX_FMT_RGBA, SWS_BICUBIC, nullptr, nullptr, nullptr);
-      Image img;
-      img.width = uint32_t(f->width);
-      img.height = uint32_t(f->height);
-      img.rgba.resize(size_t(img.width) * img.height * 4);
-      uint8_t* dst[1] = {img.rgba.data()};
-      const int stride[1] = {int(img.width) * 4};
-      sws_scale(sws, f->data, f->linesize, 0, f->height, dst, stride);
-      m.frames.push_back(std::move(img));
-    }
-  };
-  while (av_read_frame(fmt, pkt) >= 0) {
-    if (pkt->stream_index == si) {
-      avcodec_send_packet(c, pkt);
-      drain();
-    }
-    av_packet_unref(pkt);
-  }
-  avcodec_send_packet(c, nullptr);
-  drain();
-  sws_freeContext(sws);
-  av_frame_free(&f);
-  av_packet_free(&pkt);
-  avcodec_free_context(&c);
-  avformat_close_input(&fmt);
-  return m;
-}
-
-/// Peak signal-to-noise ratio of the colour channels, dB.
-double psnr(const Image& a, const Image& b) {
-  double se = 0.0;
-  size_t n = 0;
-  for (size_t i = 0; i < a.rgba.size(); i += 4)
-    for (int c = 0; c < 3; ++c, ++n) {
-      const double d = double(a.rgba[i + c]) - double(b.rgba[i + c]);
-      se += d * d;
-    }
-  const double mse = se / double(n);
-  return mse == 0.0 ? 99.0 : 10.0 * std::log10(255.0 * 255.0 / mse);
-}
+using test::DecodedMovie;
+using test::decodeMovie;
+using test::psnr;
 
 class MovieTest : public test::BunnyStoreTest {};
 
@@ -218,6 +139,38 @@ TEST(PathFramesTest, FrameCountsAndABadPathFile) {
   } catch (const std::runtime_error& e) {
     EXPECT_NE(std::string(e.what()).find("bad.json"), std::string::npos) << e.what();
   }
+}
+
+}  // namespace
+}  // namespace tessera::render
+
+namespace tessera::render {
+namespace {
+
+// The box filter that scales a wall's picture to a movie's --size: each new pixel is the mean
+// of the old ones under it weighted by the area they share, worked out here by hand.
+TEST(ResizeImageTest, EachPixelIsTheAreaWeightedMeanOfThePixelsUnderIt) {
+  Image img;
+  img.width = 3;
+  img.height = 1;
+  img.rgba = {0, 30, 90, 255, 60, 90, 150, 255, 120, 150, 210, 255};
+  // 3 pixels to 2: [0, 1.5) and [1.5, 3), each old pixel's share 1 / 1.5 or 0.5 / 1.5.
+  const Image two = resizeImage(img, 2, 1);
+  ASSERT_EQ(two.rgba.size(), 8u);
+  EXPECT_EQ(two.rgba[0], 20);  // (0 * 1 + 60 * 0.5) / 1.5
+  EXPECT_EQ(two.rgba[1], 50);  // (30 + 45) / 1.5
+  EXPECT_EQ(two.rgba[4], 100);  // (30 + 120) / 1.5
+  EXPECT_EQ(two.rgba[6], 190);  // (75 + 210) / 1.5
+  EXPECT_EQ(two.rgba[3], 255);
+  // Up: 3x1 to 6x2 copies each pixel to two columns and both rows.
+  const Image up = resizeImage(img, 6, 2);
+  for (uint32_t y = 0; y < 2; ++y)
+    for (uint32_t x = 0; x < 6; ++x)
+      for (int c = 0; c < 4; ++c)
+        EXPECT_EQ(up.rgba[(size_t(y) * 6 + x) * 4 + c], img.rgba[(x / 2) * 4 + c]) << x << "," << y;
+  // The same size changes nothing; a bad size is a caller's bug.
+  EXPECT_EQ(resizeImage(img, 3, 1).rgba, img.rgba);
+  EXPECT_THROW(resizeImage(img, 0, 1), PreconditionError);
 }
 
 }  // namespace

@@ -65,6 +65,7 @@ struct StartError : std::runtime_error {
 constexpr int kExitOk = 0;
 constexpr int kExitStart = 1;       ///< bad input, or the wall could not start
 constexpr int kExitPolicyStop = 5;  ///< a critical tile or too many tiles lost mid-run
+constexpr int kExitFilmFailed = 3;  ///< the movie or a frame's PNG could not be written
 
 struct MasterOptions {
   std::string wall, scene, script, screenshot, stats, out_dir = ".";
@@ -76,6 +77,12 @@ struct MasterOptions {
   std::string console_screenshot;  ///< with the console: what it shows at the last frame (PNG)
   /// The annotation database beside the scene (annotation_scene.h), opened or created; "" none.
   std::string annotations;
+  /// A film of the script: `frames` becomes its frame count at `fps` (render::pathFrameCount()),
+  /// every frame is settled and read back, and the wall's picture of each goes into the MP4
+  /// `movie` (media/movie_writer.h) and/or the PNGs of `frames_dir` (render::framePngPath()),
+  /// scaled to movie_width x movie_height when both are > 0 (render::resizeImage()).
+  std::string movie, frames_dir;
+  uint32_t movie_width = 0, movie_height = 0;
   double splat_scale = 2.0, gpu_budget_mb = 1024.0;
   /// A live node's report may be this late (ms) before its tile is dropped; 0: automatic, five
   /// times the slowest node's median render time over the last 15 frames, at least 1000 ms.
@@ -114,6 +121,13 @@ class Master {
 
  private:
   struct Pending;  // per-frame collection state
+  struct Film;     // the movie and frames being written, with their progress bar
+  /// The wall's picture of a filmed frame into the movie and the frames' folder (a failure to
+  /// write is kept in the film, and stops the wall after the frame).
+  void film(const render::Image& wall);
+  /// After the last frame: the movie finished (its file appears), what was written said.
+  /// Returns kExitOk, or kExitFilmFailed when a frame had no picture or the file failed.
+  int finishFilm();
   bool start();
   void handleJoins(const sync::LinkEvents& events);
   void handleFaults(const sync::LinkEvents& events);
@@ -157,6 +171,7 @@ class Master {
   // The relative depth range the tiles' last reports agree on (render::wallRange()), sent with
   // the next frame.
   std::optional<glm::vec2> mWallRelativeDepth;
+  std::unique_ptr<Film> mFilm;  // with --movie or --frames-dir
   uint64_t mFrame = 0;            // the last frame published
   double mSwapUnixMs = 0;         // the system clock at the last swap, milliseconds
   int mStopCode = 0;

@@ -19,7 +19,9 @@ constexpr size_t kMaxPathFrames = 999999;
 /// Precondition (TESSERA_CHECK): fps finite and > 0.
 size_t pathFrameCount(const config::CameraPath& path, double fps);
 
-/// Calls `frame(i, t, camera)` for every frame in order, camera = cameraAt(path, t). Precondition
+/// Calls `frame(i, t, camera)` for every frame in order, camera = cameraAt(path, t) as the scene
+/// graph carries it to the wall (sync::decodeCamera(sync::encodeCamera())), so frame i is the
+/// master's frame i of the same path (tessera-master --path) pixel for pixel. Precondition
 /// (TESSERA_CHECK): a validated path (sync::loadCameraPath), fps as pathFrameCount().
 void forEachPathFrame(const config::CameraPath& path, double fps,
                       const std::function<void(size_t, double, const config::Camera&)>& frame);
