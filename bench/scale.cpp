@@ -28,7 +28,8 @@
 #include <tessera/render/image.h>
 #include <tessera/render/view_renderer.h>
 
-#include "bench_views.h"
+#include <glm/gtc/matrix_transform.hpp>
+
 
 namespace {
 
@@ -47,9 +48,21 @@ struct Row {
   double measure_ms = 0, distance_m = 0, uncertainty_m = 0;
 };
 
+/// The whole store, its bounding sphere filling a 30 degree view from (1, -0.8, 0.6), z up.
 render::ViewSetup storeView(const lod::PointStore& store) {
   const lod::StoreSummary& s = store.summary();
-  return bench::cubeView(bench::boxCamera(s.origin + s.bbox_min, s.origin + s.bbox_max));
+  const glm::dvec3 lo = s.origin + s.bbox_min, hi = s.origin + s.bbox_max;
+  const glm::dvec3 target = 0.5 * (lo + hi);
+  const double fovy = 30.0;
+  const double distance = 0.5 * glm::length(hi - lo) / std::sin(glm::radians(fovy) / 2.0);
+  render::ViewSetup v;
+  v.eye_world = target + glm::normalize(glm::dvec3(1.0, -0.8, 0.6)) * distance;
+  v.view = glm::lookAt(v.eye_world, target, glm::dvec3(0.0, 0.0, 1.0));
+  v.width = 1920;
+  v.height = 1080;
+  v.projection = glm::perspective(glm::radians(fovy), 1920.0 / 1080.0, 0.05 * distance,
+                                  4.0 * distance);
+  return v;
 }
 
 /// The ray from the view's eye through pixel (x, y), y down.
