@@ -16,6 +16,7 @@
 #include <tuple>
 
 #include <tessera/lod/point_store.h>
+#include <tessera/lod/point_writer.h>
 #include <tessera/lod/store_builder.h>
 #include <tessera/lod/store_format.h>
 
@@ -178,6 +179,34 @@ TEST(PointStore, AutzenLeavesKeepTheFilesIntegersByDefault) {
     }
   }
   EXPECT_EQ(in_store, in_file);
+}
+
+TEST(PointStore, TemporaryRecordsAreCompactForLasAndWideWhereTheyCannotHoldThePositions) {
+  test::TempDir dir;
+  // Autzen declares 1 cm: its points pass the temporary files as 21-byte records.
+  const BuildOptions o = quiet(20000, 400);
+  EXPECT_EQ(buildStore({kAutzen}, dir / "a.tlod", o).temp_record_bytes, 21u);
+  EXPECT_TRUE(verifyStore(dir / "a.tlod", {kAutzen}, o).ok());
+  // A PLY declares no resolution: wide records.
+  EXPECT_EQ(buildStore({kData + "/stanford-bunny/reconstruction/bun_zipper.ply"}, dir / "b.tlod",
+                       quiet())
+                .temp_record_bytes,
+            40u);
+  // 1 mm over 4000 km: 2^31 sixteenths of a millimetre reach 134 km, so the records are wide,
+  // and the store still holds every point where it was.
+  PointBatch far;
+  for (int i = 0; i < 2000; ++i) {
+    const double t = double(i) / 1999.0;
+    far.positions.push_back({-2.0e6 + 4.0e6 * t, 1000.0 * std::sin(40.0 * t), 0.5 * i});
+  }
+  writeLas(dir / "far.las", far, glm::dvec3(0.0), {2, 0, glm::dvec3(0.001), false, 0, false});
+  BuildOptions lossy = quiet();
+  lossy.exact_leaves = false;
+  BuildReport r = buildStore({dir / "far.las"}, dir / "far.tlod", lossy);
+  EXPECT_EQ(r.temp_record_bytes, 40u);
+  EXPECT_EQ(r.points, 2000u);
+  VerifyReport v = verifyStore(dir / "far.tlod", {dir / "far.las"}, lossy);
+  EXPECT_TRUE(v.ok()) << v.unmatched << " unmatched of " << v.input_points;
 }
 
 TEST(PointStore, OutOfCoreChunksFusedInputsAndThreadsGiveTheSameGuarantees) {
