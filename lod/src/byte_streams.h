@@ -287,45 +287,37 @@ class BitWriter {
 /// touching memory beyond the span.
 class BitReader {
  public:
-  explicit BitReader(std::span<const uint8_t> in) : mP(in.data()), mEnd(in.data() + in.size()) {}
+  explicit BitReader(std::span<const uint8_t> in) : mData(in.data()), mSize(in.size()) {}
   /// Precondition: bits <= 64.
   uint64_t get(int bits) {
-    if (bits > 32) {
+    if (bits > 56) {
       const uint64_t lo = get(32);
       return lo | get(bits - 32) << 32;
     }
-    if (mCount < bits) refill();
-    if (mCount < bits) {
-      mOverrun = true;
-      return 0;
+    // One unaligned 64-bit load covers the bits wanted (shift <= 7, bits <= 56).
+    const size_t byte = mPos >> 3;
+    uint64_t w = 0;
+    if (byte + 8 <= mSize) {
+      std::memcpy(&w, mData + byte, 8);
+    } else {
+      for (size_t k = byte; k < mSize && k < byte + 8; ++k)
+        w |= uint64_t(mData[k]) << (8 * (k - byte));
     }
-    const uint64_t v = bits == 0 ? 0 : mAcc & (~uint64_t(0) >> (64 - bits));
-    mAcc = bits == 64 ? 0 : mAcc >> bits;
-    mCount -= bits;
+    const uint64_t v = (w >> (mPos & 7)) & ((uint64_t(1) << bits) - 1);
+    mPos += uint64_t(bits);
     return v;
   }
-  bool overrun() const { return mOverrun; }
+  bool overrun() const { return mPos > 8 * uint64_t(mSize); }
   /// Whether every byte was consumed and the unread bits of the last one are zero.
-  bool exhausted() const { return mP == mEnd && mCount < 8 && mAcc == 0; }
+  bool exhausted() const {
+    if (overrun() || (mPos + 7) / 8 != mSize) return false;
+    return (mPos & 7) == 0 || (mData[mSize - 1] >> (mPos & 7)) == 0;
+  }
 
  private:
-  void refill() {
-    if (mEnd - mP >= 8 && mCount <= 0) {
-      std::memcpy(&mAcc, mP, 8);
-      mP += 8;
-      mCount = 64;
-      return;
-    }
-    while (mCount <= 56 && mP < mEnd) {
-      mAcc |= uint64_t(*mP++) << mCount;
-      mCount += 8;
-    }
-  }
-  const uint8_t* mP;
-  const uint8_t* mEnd;
-  uint64_t mAcc = 0;
-  int mCount = 0;
-  bool mOverrun = false;
+  const uint8_t* mData;
+  size_t mSize;
+  uint64_t mPos = 0;  ///< bits read
 };
 
 /// Log bucket of v: values below 8 are their own symbol; above, 8 + 4 (bit length - 4) + the

@@ -263,7 +263,7 @@ TEST(MeasureOnStores, FullResolutionPickOnGeoreferencedLidarIsARealSampleNearest
   lod::BuildOptions bo;
   bo.quiet = true;
   bo.leaf_max = 4096;      // several levels, so the pick must descend
-  bo.exact_leaves = true;  // measurement grade: the file's own 0.01 ft resolution
+  bo.exact_leaves = true;  // measurement grade (the default): the file's own 0.01 ft integers
   lod::buildStore({las}, dir.path() / "autzen.tlod", bo);
   auto store = lod::PointStore::open(dir.path() / "autzen.tlod");
   ASSERT_GT(store->summary().depth, 2u);
@@ -345,12 +345,16 @@ TEST(MeasureOnStores, FullResolutionPickOnGeoreferencedLidarIsARealSampleNearest
     for (const glm::dvec3& p : input)
       nearest = std::min(nearest, glm::length(p - pick->point.world));
     EXPECT_LE(nearest, pick->point.uncertainty);
-    // The store's grid is the file's (step 0.01 ft) but not aligned with it: half a diagonal.
-    EXPECT_LE(nearest, 0.01 * std::sqrt(3.0) / 2 * (1 + 1e-6)) << "the file's own resolution";
+    // The store keeps the file's integers (step 0.01 ft); the float positions a pick reads
+    // round them by far less than a step.
+    EXPECT_LE(nearest, 0.001) << "the file's own points";
   }
   EXPECT_EQ(hits, 40);
-  // A ray into the sky hits nothing.
-  EXPECT_FALSE(interact::pickSurface(std::span(&m, 1), all[0].world + glm::dvec3(0, 0, 10),
+  // A ray into the sky from above the highest sample hits nothing.
+  const auto top = std::max_element(all.begin(), all.end(), [](const Sample& a, const Sample& b) {
+    return a.world.z < b.world.z;
+  });
+  EXPECT_FALSE(interact::pickSurface(std::span(&m, 1), top->world + glm::dvec3(0, 0, 10),
                                      glm::dvec3(0, 0, 1), po));
 }
 
