@@ -4,6 +4,7 @@
 #include <array>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 
 #include <tessera/core/check.h>
 #include <tessera/render/frame_target.h>
@@ -131,6 +132,12 @@ std::vector<WallSlot> wallSlots(const config::WallConfig& wall) {
       slots.push_back(WallSlot{t, -1, 0, i});
       continue;
     }
+    if (wall.eyes_on_one_node()) {  // one node, both eyes side by side
+      WallSlot s{t, -1, kBothEyes, i};
+      s.tile.set_pixel_width(2 * t.pixel_width());
+      slots.push_back(s);
+      continue;
+    }
     for (int eye : {-1, 1}) {
       WallSlot s{t, -1, eye, i};
       s.tile.set_name(t.name() + (eye < 0 ? "/left" : "/right"));
@@ -225,12 +232,42 @@ std::vector<Image> eyePictures(const config::WallConfig& wall, std::span<const I
   const std::vector<WallSlot> layout = wallSlots(wall);
   TESSERA_CHECK(slots.size() == layout.size(), "render::eyePictures(): one picture a slot");
   std::vector<Image> out;
+  const int seen = eye > 0 ? 1 : -1;
   for (size_t i = 0; i < layout.size(); ++i) {
     const WallSlot& s = layout[i];
-    if (s.inset < 0 && wall.stereo() && s.eye != (eye > 0 ? 1 : -1)) continue;
+    if (s.eye == kBothEyes) {  // the eye's half of the node's picture
+      const Image& pair = slots[i];
+      TESSERA_CHECK(pair.width % 2 == 0 && pair.rgba.size() == size_t(pair.width) * pair.height * 4,
+                    "render::eyePictures(): a picture of both eyes, twice a tile's width");
+      Image half;
+      half.width = pair.width / 2;
+      half.height = pair.height;
+      half.rgba.resize(size_t(half.width) * half.height * 4);
+      const size_t row = size_t(half.width) * 4, x0 = seen > 0 ? row : 0;
+      for (uint32_t y = 0; y < half.height; ++y)
+        std::memcpy(&half.rgba[y * row], &pair.rgba[y * 2 * row + x0], row);
+      out.push_back(std::move(half));
+      continue;
+    }
+    if (s.inset < 0 && wall.stereo() && s.eye != seen) continue;
     out.push_back(slots[i]);
   }
   return out;
+}
+
+WallSlot eyeOfSlot(const config::WallConfig& wall, const WallSlot& both, int eye) {
+  TESSERA_CHECK(both.eye == kBothEyes && both.tile_index >= 0 &&
+                    both.tile_index < wall.tiles_size() && (eye == -1 || eye == 1),
+                "render::eyeOfSlot(): a slot of both eyes of one of the wall's tiles, eye -1 or 1");
+  return WallSlot{wall.tiles(both.tile_index), -1, eye, both.tile_index};
+}
+
+void copyEyeIntoPair(uint32_t eye_buffer, uint32_t pair_buffer, uint32_t width, uint32_t height,
+                     int eye) {
+  const GLsizeiptr row = GLsizeiptr(width) * 4;
+  for (uint32_t y = 0; y < height; ++y)
+    glCopyNamedBufferSubData(eye_buffer, pair_buffer, GLintptr(y) * row,
+                             GLintptr(y) * 2 * row + (eye > 0 ? row : 0), row);
 }
 
 config::WallConfig monoWall(const config::WallConfig& wall) {
@@ -242,6 +279,8 @@ config::WallConfig monoWall(const config::WallConfig& wall) {
 ViewSetup slotView(const config::WallConfig& wall, const WallSlot& slot,
                    const scene::InsetPlacement& placement, const config::Camera& camera,
                    const sync::ViewerHead* head) {
+  TESSERA_CHECK(slot.eye != kBothEyes,
+                "render::slotView(): one eye of a slot of both eyes (eyeOfSlot())");
   const sync::ViewerHead h = head ? *head : sync::viewerHead(wall, scene::Settings());
   if (slot.inset < 0) {
     // The config's tile (a stereo slot's copy is named after its eye), so a room's net finds it.

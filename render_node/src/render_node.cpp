@@ -9,6 +9,7 @@
 #include <optional>
 
 #include <tessera/core/stopwatch.h>
+#include <tessera/render/frame_target.h>
 #include <tessera/render/gl_context.h>
 #include <tessera/render/inset.h>
 #include <tessera/render/projector_pass.h>
@@ -76,6 +77,8 @@ struct RenderNode::Impl {
   std::unique_ptr<render::ProjectorPass> projector;
   /// Foveal insets: this slot's weights applied to every frame (none: a wall without insets).
   std::unique_ptr<render::InsetPass> inset_pass;
+  /// A node of both eyes (render::kBothEyes): the two eyes side by side, shown and read back.
+  render::GlBuffer pair;
   cluster::NodeStatus status;                        // NODE_OK until something fails
   uint64_t reported = 0;                             // the last frame reported
   Clock::time_point reported_at;
@@ -89,6 +92,7 @@ struct RenderNode::Impl {
 
   ~Impl() {
     inset_pass.reset();
+    pair = render::GlBuffer();
     projector.reset();
     renderer.reset();
     videos.reset();
@@ -97,19 +101,24 @@ struct RenderNode::Impl {
   /// This node's view: its tile, stereo eye or foveal inset where the scene places it, seen from
   /// the scene's viewer head (sync/viewer_head.h).
   /// A head the master sent behind a tile (its gates refuse one) is refused here too.
-  render::ViewSetup slotView() const {
+  /// A node of both eyes (render::kBothEyes) draws each eye's view in turn (`drawn`).
+  render::ViewSetup slotView(const render::WallSlot& drawn) const {
     if (graph.settings().has_head())
       if (const auto why = sync::headProblem(setup.wall(), graph.settings().head()))
         throw NodeError(cluster::NODE_BAD_FRAME, "settings.head." + *why);
     const sync::ViewerHead head = sync::viewerHead(setup.wall(), graph.settings());
-    return render::slotView(setup.wall(), slot, graph.settings().inset(), graph.camera(), &head);
+    return render::slotView(setup.wall(), drawn, graph.settings().inset(), graph.camera(), &head);
+  }
+  /// The slot drawn: this node's, or its left eye when it draws both.
+  render::WallSlot drawnSlot(int eye = -1) const {
+    return slot.eye == render::kBothEyes ? render::eyeOfSlot(setup.wall(), slot, eye) : slot;
   }
 
   /// Video insets: the frame's video packets to the streams this tile shows, the
   /// new pictures to their textures; a texture made or resized rebuilds the overlay.
   void applyMedia(const cluster::FrameMessage& frame) {
     if (!videos || (frame.media_size() == 0)) return;
-    const render::ViewSetup view = slotView();
+    const render::ViewSetup view = slotView(drawnSlot());
     videos->setShown(render::shownVideoSources(graph, view, overlay.options()));
     // A master sends what its sites sent in one frame period: thousands would be an error.
     const int count = std::min(frame.media_size(), 4096);
@@ -220,7 +229,7 @@ struct RenderNode::Impl {
       so.screen_wall = render::wallExtent(setup.wall());
       so.screen_view =
           glm::dvec4(tile->x(), tile->y(), tile->x() + tile->width(), tile->y() + tile->height());
-      so.view_px = glm::dvec2(tile->pixel_width(), tile->pixel_height());
+      so.view_px = glm::dvec2(drawnSlot().tile.pixel_width(), drawnSlot().tile.pixel_height());
       so.video_texture = [this](uint32_t source) { return videos->texture(source); };
       overlay.setOptions(so);
     }
@@ -261,8 +270,13 @@ struct RenderNode::Impl {
     stream.density_ratios = true;
     renderer.reset();
     try {
-      renderer = std::make_unique<render::ViewRenderer>(tile->pixel_width(), tile->pixel_height(),
+      // A node of both eyes renders each at the tile's size into its half of `pair`.
+      const config::Tile& drawn = drawnSlot().tile;
+      renderer = std::make_unique<render::ViewRenderer>(drawn.pixel_width(), drawn.pixel_height(),
                                                         nullptr, stream);
+      pair = slot.eye == render::kBothEyes
+                 ? render::GlBuffer(size_t(tile->pixel_width()) * tile->pixel_height() * 4, nullptr)
+                 : render::GlBuffer();
     } catch (const render::RenderError& e) {
       throw NodeError(cluster::NODE_NO_GL, e.what());
     }
@@ -300,8 +314,6 @@ struct RenderNode::Impl {
     if (status.code() == cluster::NODE_OK) {
       const auto start_time = Clock::now();
       try {
-        // A tile's view, or a foveal inset's rectangle where the scene places it.
-        const render::ViewSetup view = slotView();
         render::RenderOptions options = render::SceneDrawList::options(
             graph, setup.splat_scale() > 0 ? setup.splat_scale() : 2.0f);
         options.highlights = overlay.highlights();  // selections, tinted on every tile
@@ -310,29 +322,42 @@ struct RenderNode::Impl {
         // While this frame renders the link says now and then that this node is at work, so the
         // master tells a slow frame (settling, loading, see-through ensembles) from a hung node.
         link.working(graph.frameNumber());
-        // Settled frames (screenshots, deterministic scripted runs) wait for every chunk of the
-        // cut, so their pixels are exactly what tessera-render --mosaic makes.
-        if (read_back || setup.settled()) {
-          render::Image image =
-              renderer->renderSettled(instances, view, options, &rs, overlay.drawn());
-          if (projector) {
-            // The projector's picture is what the tile shows and what the master recomposes.
-            projector->run(renderer->imageBuffer());
-            if (read_back) image = projector->read();
+        // A tile's view, or a foveal inset's rectangle where the scene places it; a node of both
+        // eyes draws each in turn and copies it into its half of `pair`.
+        const bool both = slot.eye == render::kBothEyes;
+        render::Image image;
+        for (const int eye : both ? std::vector<int>{-1, 1} : std::vector<int>{0}) {
+          const render::WallSlot drawn = drawnSlot(eye);
+          const render::ViewSetup view = slotView(drawn);
+          // Settled frames (screenshots, deterministic scripted runs) wait for every chunk of the
+          // cut, so their pixels are exactly what tessera-render --mosaic makes.
+          if (read_back || setup.settled()) {
+            image = renderer->renderSettled(instances, view, options, &rs, overlay.drawn());
+            if (projector) {
+              // The projector's picture is what the tile shows and what the master recomposes.
+              projector->run(renderer->imageBuffer());
+              if (read_back) image = projector->read();
+            }
+            // Foveal insets: the context black under them and both cross-faded over the band
+            // (render/inset.h), shown and read back alike.
+            if (inset_pass) {
+              inset_pass->run(renderer->imageBuffer(), setup.wall(), drawn,
+                              graph.settings().inset());
+              if (read_back) image = inset_pass->read();
+            }
+          } else {
+            renderer->draw(instances, view, options, &rs, overlay.drawn());
+            if (projector) projector->run(renderer->imageBuffer());
+            if (inset_pass)
+              inset_pass->run(renderer->imageBuffer(), setup.wall(), drawn,
+                              graph.settings().inset());
           }
-          // Foveal insets: the context black under them and both cross-faded over the band
-          // (render/inset.h), shown and read back alike.
-          if (inset_pass) {
-            inset_pass->run(renderer->imageBuffer(), setup.wall(), slot, graph.settings().inset());
-            if (read_back) image = inset_pass->read();
-          }
-          if (read_back) r.set_rgba(image.rgba.data(), image.rgba.size());
-        } else {
-          renderer->draw(instances, view, options, &rs, overlay.drawn());
-          if (projector) projector->run(renderer->imageBuffer());
-          if (inset_pass)
-            inset_pass->run(renderer->imageBuffer(), setup.wall(), slot, graph.settings().inset());
+          if (both)
+            render::copyEyeIntoPair(shownBuffer(), pair.name(), view.width, view.height, eye);
         }
+        if (both && read_back)
+          image = render::readImageBuffer(pair, tile->pixel_width(), tile->pixel_height());
+        if (read_back) r.set_rgba(image.rgba.data(), image.rgba.size());
         cluster::NodeFrameStats& st = *r.mutable_stats();
         st.set_render_ms(msSince(start_time));
         st.set_points(rs.points);
@@ -357,15 +382,19 @@ struct RenderNode::Impl {
     reported_at = Clock::now();
   }
 
+  /// The last drawn view's picture as shown: after the projector's or the insets' pass.
+  uint32_t shownBuffer() const {
+    return projector    ? projector->imageBuffer()
+           : inset_pass ? inset_pass->imageBuffer()
+                        : renderer->imageBuffer();
+  }
+
   void present() {
     barrier_ms = msSince(reported_at);
     present_ms = 0;
     if (!window || status.code() != cluster::NODE_OK) return;
     const auto start_time = Clock::now();
-    window->present(projector    ? projector->imageBuffer()
-                    : inset_pass ? inset_pass->imageBuffer()
-                                 : renderer->imageBuffer(),
-                    tile->pixel_width(), tile->pixel_height());
+    window->present(pair ? pair.name() : shownBuffer(), tile->pixel_width(), tile->pixel_height());
     window->poll();  // keep the window responsive; input belongs to the master's console
     present_ms = msSince(start_time);
   }

@@ -220,6 +220,12 @@ config::WallConfig parseWallConfig(const std::string& json, const std::string& n
         fail(fn, name, f, "a stereo wall takes no projector blend or warp");
     }
     if (!wall.mpcdi().empty()) fail(fn, name, "mpcdi", "a stereo wall takes no projector files");
+    for (int i = 0; wall.eyes_on_one_node() && i < wall.tiles_size(); ++i)
+      if (wall.tiles(i).pixel_width() > 8192)
+        fail(fn, name, "tiles[" + std::to_string(i) + "].pixelWidth",
+             "at most 8192 with eyesOnOneNode (its node's outputs are twice as wide)");
+  } else if (wall.eyes_on_one_node()) {
+    fail(fn, name, "eyesOnOneNode", "needs \"stereo\": true");
   }
   if (wall.near() == 0) wall.set_near(0.05);
   if (wall.far() == 0) wall.set_far(1000.0);

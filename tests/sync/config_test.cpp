@@ -60,6 +60,37 @@ TEST(WallConfig, BadFilesNameTheField) {
             std::string::npos);
 }
 
+// Passive stereo walls: a node per eye (slots NAME/left, NAME/right) or one for both; their
+// checks name the field.
+TEST(WallConfig, StereoWallsLoadAndBadOnesNameTheField) {
+  const config::WallConfig shipped = loadWallConfig(kConfigs + "/walls/stereo-1x2.json");
+  EXPECT_TRUE(shipped.stereo());
+  EXPECT_EQ(shipped.eye_separation(), 0.065);
+  auto err = [](const std::string& wall) {
+    return errorOf([&] { parseWallConfig(wall, "w.json"); });
+  };
+  auto wall = [](const std::string& name, const std::string& extra) {
+    return R"({"tiles": [{"name": ")" + name +
+           R"(", "width": 1, "height": 1, "pixelWidth": 10, "pixelHeight": 10)" + extra +
+           R"(}], "eye": {"x": 0.5, "y": 0.5, "z": 2}, "stereo": true)";
+  };
+  EXPECT_EQ(err(wall("a", "") + "}"), "");
+  EXPECT_NE(err(wall("a/b", "") + "}").find("w.json: tiles[0].name: 'a/b' holds '/'"),
+            std::string::npos);
+  EXPECT_NE(err(wall("a", R"(, "blend": "auto")") + "}").find("a stereo wall takes no projector"),
+            std::string::npos);
+  EXPECT_NE(err(wall("a", "") + R"(, "eyeSeparation": 1.5})").find("eyeSeparation: must be in (0, 1]"),
+            std::string::npos);
+  EXPECT_NE(err(R"({"tiles": [{"name": "a", "width": 1, "height": 1, "pixelWidth": 10,
+                "pixelHeight": 10}], "eye": {"z": 2}, "eyesOnOneNode": true})")
+                .find("eyesOnOneNode: needs \"stereo\": true"),
+            std::string::npos);
+  EXPECT_NE(err(R"({"tiles": [{"name": "a", "width": 1, "height": 1, "pixelWidth": 9000,
+                "pixelHeight": 10}], "eye": {"z": 2}, "stereo": true, "eyesOnOneNode": true})")
+                .find("tiles[0].pixelWidth: at most 8192 with eyesOnOneNode"),
+            std::string::npos);
+}
+
 TEST(SceneFile, ShippedScenesLoadWithPathsBesideTheFile) {
   const scene::SceneFile bunny = loadSceneFile(kConfigs + "/scenes/bunny.json");
   ASSERT_EQ(bunny.nodes_size(), 1);

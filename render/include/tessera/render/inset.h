@@ -49,17 +49,32 @@ struct WallSlot {
   /// "<name>/right") with the inset's config rectangle and pixel size.
   config::Tile tile;
   int inset = -1;  ///< index in wall.insets(), or -1 for a tile
-  int eye = 0;     ///< -1 left, +1 right, 0 mono
+  int eye = 0;     ///< -1 left, +1 right, 0 mono, kBothEyes (eyes_on_one_node)
   int tile_index = -1;  ///< a tile's index in wall.tiles(), or -1 for an inset
 };
 
-/// The wall's tiles in config order (a stereo wall's: each tile's left eye, then its right),
-/// then each inset's slots (mono: one; stereo: left, right).
+/// WallSlot::eye of a stereo wall's tile whose node draws both eyes (eyes_on_one_node): its
+/// picture is the left eye's and the right eye's side by side, twice the tile's width.
+constexpr int kBothEyes = 2;
+
+/// The wall's tiles in config order (a stereo wall's: each tile's left eye, then its right; with
+/// eyes_on_one_node one slot a tile for both), then each inset's slots (mono: one; stereo: left,
+/// right).
 std::vector<WallSlot> wallSlots(const config::WallConfig& wall);
+
+/// The slot of one eye (-1, +1) of a kBothEyes slot: its config tile at its own pixel size.
+WallSlot eyeOfSlot(const config::WallConfig& wall, const WallSlot& both, int eye);
+
+/// Copies an eye's picture (RGBA8 words, width x height, top row first) into its half of a
+/// kBothEyes slot's picture (2 width x height): the left eye's into the left half. Runs on the
+/// GPU (a row a copy); a GL 4.5 context must be current.
+void copyEyeIntoPair(uint32_t eye_buffer, uint32_t pair_buffer, uint32_t width, uint32_t height,
+                     int eye);
 
 /// The pictures of one eye of a wall, as the slots of `wall` without stereo tiles
 /// (monoWall()): each tile's picture for `eye` (-1 left, +1 right; a mono wall's tiles whatever
-/// the eye), then every inset slot's as it is. `slots[i]` is the picture of wallSlots(wall)[i].
+/// the eye; a kBothEyes slot's half), then every inset slot's as it is. `slots[i]` is the
+/// picture of wallSlots(wall)[i].
 /// Precondition (TESSERA_CHECK): one picture a slot.
 std::vector<Image> eyePictures(const config::WallConfig& wall, std::span<const Image> slots,
                                int eye);
@@ -100,7 +115,8 @@ double insetWeight(const InsetRect& rect, double x, double y);
 /// the slot's eye (a stereo wall's tile: at the wall's eye separation); for an inset, the
 /// off-axis view of its rectangle (insetRect()) at its pixel size from that eye (at the inset's
 /// separation), its origin 0 (a picture of its own). A head without a separation of its own
-/// uses the slot's.
+/// uses the slot's. Precondition (TESSERA_CHECK): not a kBothEyes slot (eyeOfSlot() gives its
+/// eyes).
 ViewSetup slotView(const config::WallConfig& wall, const WallSlot& slot,
                    const scene::InsetPlacement& placement, const config::Camera& camera,
                    const sync::ViewerHead* head = nullptr);
