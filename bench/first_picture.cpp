@@ -16,8 +16,9 @@
 // tessera-render). Methods alternate in each round (--rounds); medians are kept.
 //
 // Per run: the time to the first picture and to the final picture, and for the preview its
-// silhouette IoU against the final picture (pixels brighter than 16 in any channel) and the
-// mean absolute difference of its RGB over the pixels either picture covers.
+// likeness to the final picture (render/image.h comparePictures(): the IoU of the covered
+// pixels, brighter than 16 in any channel; the silhouette IoU of 8-pixel blocks; the mean
+// absolute difference of its RGB over the pixels either picture covers).
 //
 // Prints CSV; writes OUT/first_picture.csv (every run), OUT/first_picture_summary.csv
 // (medians), OUT/first_picture.png (gnuplot) and each input's preview and final pictures as
@@ -121,46 +122,6 @@ render::ViewSetup viewOf(const bench::CubeCamera& c) {
   return v;
 }
 
-bool covered(const uint8_t* p) {
-  return p[0] > 16 || p[1] > 16 || p[2] > 16;
-}
-
-/// Side of the blocks of the silhouette IoU, pixels.
-constexpr uint32_t kBlock = 8;
-
-struct Likeness {
-  double pixel_iou = 1;       ///< IoU of the covered pixels
-  double silhouette_iou = 1;  ///< IoU of the kBlock-pixel blocks holding a covered pixel
-  double mean_diff = 0;       ///< mean |RGB difference| over the pixels either covers, 0..255
-};
-
-/// How alike two pictures of one view are. Pixel IoU counts every open pixel between points
-/// (a scan's own gaps, where the final picture shows the background between its points); the
-/// silhouette IoU compares the outline at kBlock pixels.
-Likeness compare(const render::Image& a, const render::Image& b) {
-  uint64_t both = 0, either = 0, diff = 0;
-  const uint32_t bw = (a.width + kBlock - 1) / kBlock, bh = (a.height + kBlock - 1) / kBlock;
-  std::vector<uint8_t> blocks(size_t(bw) * bh, 0);
-  for (uint32_t y = 0; y < a.height; ++y)
-    for (uint32_t x = 0; x < a.width; ++x) {
-      const size_t i = (size_t(y) * a.width + x) * 4;
-      const bool pa = covered(&a.rgba[i]), pb = covered(&b.rgba[i]);
-      both += pa && pb;
-      either += pa || pb;
-      blocks[size_t(y / kBlock) * bw + x / kBlock] |= uint8_t(pa) | uint8_t(pb) << 1;
-      if (pa || pb)
-        for (size_t c = 0; c < 3; ++c)
-          diff += uint64_t(std::abs(int(a.rgba[i + c]) - b.rgba[i + c]));
-    }
-  uint64_t block_both = 0, block_either = 0;
-  for (uint8_t m : blocks) block_both += m == 3, block_either += m != 0;
-  Likeness l;
-  l.pixel_iou = either ? double(both) / double(either) : 1.0;
-  l.silhouette_iou = block_either ? double(block_both) / double(block_either) : 1.0;
-  l.mean_diff = either ? double(diff) / double(3 * either) : 0.0;
-  return l;
-}
-
 struct Run {
   double first_s = 0, final_s = 0, iou = 1, silhouette_iou = 1, mean_diff = 0;
   double sample_s = 0, preview_build_s = 0;  ///< preview: its parts of first_s
@@ -214,10 +175,10 @@ Run previewFirst(const Input& in, const fs::path& cache, uint64_t sample) {
   run.preview_points = preview.previewPoints();
   run.sample_s = preview.sampleSeconds();
   run.preview_build_s = preview.previewBuildSeconds();
-  const Likeness like = compare(run.first, run.final);
+  const render::PictureLikeness like = render::comparePictures(run.first, run.final);
   run.iou = like.pixel_iou;
   run.silhouette_iou = like.silhouette_iou;
-  run.mean_diff = like.mean_diff;
+  run.mean_diff = like.mean_difference;
   return run;
 }
 

@@ -125,4 +125,35 @@ Image readPng(const std::string& path) {
   return img;
 }
 
+PictureLikeness comparePictures(const Image& a, const Image& b, uint32_t block) {
+  TESSERA_CHECK(a.width == b.width && a.height == b.height && block >= 1 &&
+                    a.rgba.size() == size_t(a.width) * a.height * 4 &&
+                    b.rgba.size() == a.rgba.size(),
+                "render::comparePictures(): pictures of one size and a block of at least 1");
+  auto covered = [](const uint8_t* p) { return p[0] > 16 || p[1] > 16 || p[2] > 16; };
+  const uint32_t bw = (a.width + block - 1) / block, bh = (a.height + block - 1) / block;
+  std::vector<uint8_t> blocks(size_t(bw) * bh, 0);  // bit 0: a covers, bit 1: b covers
+  uint64_t both = 0, either = 0, difference = 0;
+  for (uint32_t y = 0; y < a.height; ++y)
+    for (uint32_t x = 0; x < a.width; ++x) {
+      const size_t i = (size_t(y) * a.width + x) * 4;
+      const bool pa = covered(&a.rgba[i]), pb = covered(&b.rgba[i]);
+      both += pa && pb;
+      either += pa || pb;
+      blocks[size_t(y / block) * bw + x / block] |= uint8_t(pa) | uint8_t(pb) << 1;
+      if (pa || pb)
+        for (size_t c = 0; c < 3; ++c)
+          difference += uint64_t(std::abs(int(a.rgba[i + c]) - b.rgba[i + c]));
+    }
+  uint64_t blocks_both = 0, blocks_either = 0;
+  for (const uint8_t m : blocks) blocks_both += m == 3, blocks_either += m != 0;
+  PictureLikeness l;
+  if (either > 0) {
+    l.pixel_iou = double(both) / double(either);
+    l.mean_difference = double(difference) / double(3 * either);
+  }
+  if (blocks_either > 0) l.silhouette_iou = double(blocks_both) / double(blocks_either);
+  return l;
+}
+
 }  // namespace tessera::render

@@ -952,11 +952,11 @@ int run(int argc, char** argv) {
     auto swapPreviews = [&](bool wait, render::ChunkStreamer* streamer) {
       for (PreviewedModel& p : previewed) {
         if (!p.preview || (!wait && !p.preview->finalReady())) continue;
-        auto whole = lod::PointStore::open(p.preview->finalStore());
+        auto built = lod::PointStore::open(p.preview->finalStore());
         if (streamer) streamer->forget(*stores[p.store]);
-        instances[p.instance].store = whole.get();
-        instances[p.instance].model = render::storeModel(*whole);
-        stores[p.store] = std::move(whole);
+        instances[p.instance].store = built.get();
+        instances[p.instance].model = render::storeModel(*built);
+        stores[p.store] = std::move(built);
         p.preview.reset();
       }
     };

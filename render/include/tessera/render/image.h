@@ -24,6 +24,20 @@ double edgeWidth(const Image& image, uint32_t column);
 /// width * height * 4 bytes. Cost: O(new pixels x old pixels each covers).
 Image resizeImage(const Image& image, uint32_t width, uint32_t height);
 
+/// How alike two pictures of one view are (a preview against its final picture, tests): a pixel
+/// is covered when any of its RGB channels is above 16.
+struct PictureLikeness {
+  double pixel_iou = 1.0;       ///< IoU of the covered pixels (1 when neither covers any)
+  double silhouette_iou = 1.0;  ///< IoU of the blocks holding a covered pixel: the outline
+  double mean_difference = 0.0;  ///< mean |RGB difference| over pixels either covers, 0..255
+};
+
+/// Compares `a` and `b` with silhouette blocks of `block` x `block` pixels. Pixel IoU counts
+/// every open pixel between a scan's points, where one picture shows the background and the
+/// other a point; the silhouette IoU compares the outline. Precondition (TESSERA_CHECK): the
+/// same size, rgba of width * height * 4 bytes, block >= 1. O(pixels).
+PictureLikeness comparePictures(const Image& a, const Image& b, uint32_t block = 8);
+
 /// Writes an 8-bit RGBA PNG. Throws RenderError naming the file on failure.
 void writePng(const std::string& path, const Image& image);
 /// Reads an 8-bit RGB or RGBA PNG (any libpng can expand: palette, grey, 16-bit are converted)
