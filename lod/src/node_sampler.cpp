@@ -56,23 +56,36 @@ size_t gridSample(std::span<BuildPoint> pts, const glm::dvec3& box_min, double s
   return n;
 }
 
+void partitionCells(std::span<const BuildPoint> pts, std::span<BuildPoint> out,
+                    const CubeFrame& frame, const CellKey& key, int levels,
+                    std::array<size_t, 65>& bounds) {
+  assert(out.size() == pts.size() && (levels == 1 || levels == 2));
+  // The cell `levels` below the key; its ancestors are its integer halves (CubeFrame::cellOf).
+  const CubeFrame::LevelGrid grid = frame.levelGrid(key.level + levels);
+  const int buckets = 1 << (3 * levels);
+  thread_local std::vector<uint8_t> cells;
+  cells.resize(pts.size());
+  uint8_t* cell = cells.data();
+  bounds.fill(0);
+  for (size_t i = 0; i < pts.size(); ++i) {
+    const CellKey c = grid.cellOf(pts[i].position);
+    const int fine = c.childIndex();
+    const uint8_t b = uint8_t(levels == 1 ? fine : c.parent().childIndex() * 8 + fine);
+    cell[i] = b;
+    ++bounds[b + 1u];
+  }
+  for (int i = 0; i < buckets; ++i) bounds[size_t(i) + 1] += bounds[size_t(i)];
+  std::array<size_t, 64> fill{};
+  for (int i = 0; i < buckets; ++i) fill[size_t(i)] = bounds[size_t(i)];
+  for (size_t i = 0; i < pts.size(); ++i) out[fill[cell[i]]++] = pts[i];
+}
+
 std::array<size_t, 9> partitionOctants(std::span<const BuildPoint> pts, std::span<BuildPoint> out,
                                        const CubeFrame& frame, const CellKey& key) {
-  assert(out.size() == pts.size());
-  const CubeFrame::LevelGrid grid = frame.levelGrid(key.level + 1);
-  thread_local std::vector<uint8_t> octants;
-  octants.resize(pts.size());
-  uint8_t* octant = octants.data();
-  std::array<size_t, 9> bounds{};
-  for (size_t i = 0; i < pts.size(); ++i) {
-    const uint8_t o = uint8_t(grid.cellOf(pts[i].position).childIndex());
-    octant[i] = o;
-    ++bounds[o + 1u];
-  }
-  for (int i = 0; i < 8; ++i) bounds[size_t(i) + 1] += bounds[size_t(i)];
-  std::array<size_t, 8> fill{};
-  for (int i = 0; i < 8; ++i) fill[size_t(i)] = bounds[size_t(i)];
-  for (size_t i = 0; i < pts.size(); ++i) out[fill[octant[i]]++] = pts[i];
+  std::array<size_t, 65> all;
+  partitionCells(pts, out, frame, key, 1, all);
+  std::array<size_t, 9> bounds;
+  std::copy(all.begin(), all.begin() + 9, bounds.begin());
   return bounds;
 }
 

@@ -30,6 +30,15 @@ size_t gridSample(std::span<BuildPoint> pts, const glm::dvec3& box_min, double s
 std::array<size_t, 9> partitionOctants(std::span<const BuildPoint> pts, std::span<BuildPoint> out,
                                        const CubeFrame& frame, const CellKey& key);
 
+/// partitionOctants() for the cells `levels` (1 or 2) below `key` at once: 8^levels cells in
+/// Morton order, child-major (cell = child * 8 + grandchild for two levels), so each child's
+/// points come out already grouped by its own children. `bounds[0 .. 8^levels]` are the
+/// boundaries. Two levels move each point once where two partitions move it twice.
+/// Precondition: key.level + levels <= store::kMaxLevel (a cell's coordinates fit 32 bits).
+void partitionCells(std::span<const BuildPoint> pts, std::span<BuildPoint> out,
+                    const CubeFrame& frame, const CellKey& key, int levels,
+                    std::array<size_t, 65>& bounds);
+
 /// Mean distance from a point to its nearest other sample (exact duplicates excluded), over up
 /// to `samples` points spread through `pts`. Returns `fallback` when nothing can be measured.
 double meanSpacing(std::span<const BuildPoint> pts, double extent, double fallback,

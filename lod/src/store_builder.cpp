@@ -138,7 +138,7 @@ class Builder {
     }
     std::vector<BuildPoint> stored;
     const uint8_t mask =
-        buildNode(key, pts, std::span<BuildPoint>(scratch.get(), pts.size()), stored, 0);
+        buildNode(key, pts, std::span<BuildPoint>(scratch.get(), pts.size()), stored, 0, nullptr);
     if (root_points) root_points->swap(stored);
     return mask;
   }
@@ -154,8 +154,10 @@ class Builder {
  private:
   /// buildSubtree() of a node `depth` levels below the chunk root; `scratch` as many points.
   /// The node's stored points (a leaf's all, an inner node's sample) are appended to `stored`.
+  /// `presorted`: the node's points are already grouped by child, these 9 boundaries (its
+  /// parent partitioned two levels at once), else null.
   uint8_t buildNode(const CellKey& key, std::span<BuildPoint> pts, std::span<BuildPoint> scratch,
-                    std::vector<BuildPoint>& stored, int depth) {
+                    std::vector<BuildPoint>& stored, int depth, const size_t* presorted) {
     if (pts.size() <= mOpt.leaf_max || key.level >= store::kMaxLevel) {
       emit(key, pts, 0);
       stored.insert(stored.end(), pts.begin(), pts.end());
@@ -169,13 +171,28 @@ class Builder {
     thread_local std::vector<std::vector<BuildPoint>> candidates_at(store::kMaxLevel + 2);
     std::vector<BuildPoint>& candidates = candidates_at[size_t(depth)];
     candidates.clear();
-    auto bounds = partitionOctants(pts, scratch, mFrame, key);
+    // Children's points: grouped in place when the parent did it, else copied by child (and by
+    // grandchild, when there is room below) into `scratch`, which they then work in.
+    std::array<size_t, 65> bounds;
+    std::span<BuildPoint> kids = scratch, kids_scratch = pts;
+    const int levels = presorted ? 0 : key.level + 2 <= store::kMaxLevel ? 2 : 1;
+    if (presorted) {
+      std::copy(presorted, presorted + 9, bounds.begin());
+      std::swap(kids, kids_scratch);
+    } else {
+      partitionCells(pts, scratch, mFrame, key, levels, bounds);
+    }
+    const int per_child = levels == 2 ? 8 : 1;
     uint8_t mask = 0;
     for (int i = 0; i < 8; ++i) {
-      size_t a = bounds[size_t(i)], b = bounds[size_t(i) + 1];
+      const size_t a = bounds[size_t(i * per_child)], b = bounds[size_t((i + 1) * per_child)];
       if (a == b) continue;
-      buildNode(key.child(i), scratch.subspan(a, b - a), pts.subspan(a, b - a), candidates,
-                depth + 1);
+      std::array<size_t, 9> sub;
+      if (levels == 2) {
+        for (int j = 0; j < 9; ++j) sub[size_t(j)] = bounds[size_t(i * 8 + j)] - a;
+      }
+      buildNode(key.child(i), kids.subspan(a, b - a), kids_scratch.subspan(a, b - a), candidates,
+                depth + 1, levels == 2 ? sub.data() : nullptr);
       mask |= uint8_t(1u << i);
     }
     thread_local std::vector<uint8_t> chosen;
