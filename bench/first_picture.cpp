@@ -268,7 +268,8 @@ void chart(const fs::path& out) {
     << "plot '" << data << "' using 3:xtic(1) title 'ParaView 5.11, first picture', "
     << "'' using 4 title 'build, then draw (first = final)', "
     << "'' using 5 title 'preview: first picture', '' using 6 title 'preview: final picture', "
-    << "'' using 0:($5*1.15):(sprintf('IoU %.3f / %.3f', $8, $7)) with labels offset 4,0 font ',8' "
+    << "'' using 0:($5*1.15):(sprintf('IoU %.3f outline, %.3f pixels', $8, $7)) with labels offset "
+       "4,0 font ',8' "
        "notitle\n";
   g.close();
   if (std::system((std::string(TESSERA_GNUPLOT) + " '" + gp.string() + "'").c_str()) != 0)
@@ -307,7 +308,6 @@ int main(int argc, char** argv) {
     auto ctx = render::GlContext::createHeadless();
     std::ofstream csv(dir / "first_picture.csv"), summary(dir / "first_picture_summary.csv");
     const std::string header =
-
         "input,points,method,round,first_s,final_s,pixel_iou,silhouette_iou,mean_diff,"
         "preview_points,sample_s,preview_build_s\n";
     csv << header;
@@ -315,63 +315,61 @@ int main(int argc, char** argv) {
     summary << "input,points,paraview_first_s,build_then_draw_s,preview_first_s,preview_final_s,"
                "preview_pixel_iou,preview_silhouette_iou,preview_mean_diff,preview_points,"
                "paraview_wall_s\n";
-    {
-      for (const std::string& spec : inputs) {
-        const size_t colon = spec.find(':');
-        const std::string name = spec.substr(0, colon);
-        char* end = nullptr;
-        const double size =
-            colon == std::string::npos ? 0.0 : std::strtod(spec.c_str() + colon + 1, &end);
-        if ((name != "autzen" && name != "cube") || !(size >= 1.0 && size <= 1e10) || *end)
-          throw std::runtime_error("--inputs " + spec + ": give autzen:N or cube:N");
-        const uint64_t n = uint64_t(std::llround(size));
-        const Input in = name == "cube" ? cubeInput(input_dir, n) : autzenInput(input_dir, n);
-        std::map<std::string, std::vector<Run>> runs;
-        auto row = [&](const std::string& method, int round, const Run& r) {
-          std::ostringstream s;
-          s << name << "," << n << "," << method << "," << round << "," << r.first_s << ","
-            << r.final_s << "," << r.iou << "," << r.silhouette_iou << "," << r.mean_diff << ","
-            << r.preview_points << "," << r.sample_s << "," << r.preview_build_s << "\n";
-          csv << s.str();
-          csv.flush();
-          std::fputs(s.str().c_str(), stdout);
-          std::fflush(stdout);
-        };
-        const fs::path cache = dir / "first_picture-cache";
-        for (int round = 1; round <= rounds; ++round) {
-          // Alternate which goes first, so neither always follows the other's page cache.
-          for (int k = 0; k < 2; ++k) {
-            const bool preview = (k + round) % 2 == 0;
-            Run r = preview ? previewFirst(in, cache, sample) : buildThenDraw(in, cache);
-            row(preview ? "preview" : "build_then_draw", round, r);
-            runs[preview ? "preview" : "build_then_draw"].push_back(std::move(r));
-          }
+    for (const std::string& spec : inputs) {
+      const size_t colon = spec.find(':');
+      const std::string name = spec.substr(0, colon);
+      char* end = nullptr;
+      const double size =
+          colon == std::string::npos ? 0.0 : std::strtod(spec.c_str() + colon + 1, &end);
+      if ((name != "autzen" && name != "cube") || !(size >= 1.0 && size <= 1e10) || *end)
+        throw std::runtime_error("--inputs " + spec + ": give autzen:N or cube:N");
+      const uint64_t n = uint64_t(std::llround(size));
+      const Input in = name == "cube" ? cubeInput(input_dir, n) : autzenInput(input_dir, n);
+      std::map<std::string, std::vector<Run>> runs;
+      auto row = [&](const std::string& method, int round, const Run& r) {
+        std::ostringstream s;
+        s << name << "," << n << "," << method << "," << round << "," << r.first_s << ","
+          << r.final_s << "," << r.iou << "," << r.silhouette_iou << "," << r.mean_diff << ","
+          << r.preview_points << "," << r.sample_s << "," << r.preview_build_s << "\n";
+        csv << s.str();
+        csv.flush();
+        std::fputs(s.str().c_str(), stdout);
+        std::fflush(stdout);
+      };
+      const fs::path cache = dir / "first_picture-cache";
+      for (int round = 1; round <= rounds; ++round) {
+        // Alternate which goes first, so neither always follows the other's page cache.
+        for (int k = 0; k < 2; ++k) {
+          const bool preview = (k + round) % 2 == 0;
+          Run r = preview ? previewFirst(in, cache, sample) : buildThenDraw(in, cache);
+          row(preview ? "preview" : "build_then_draw", round, r);
+          runs[preview ? "preview" : "build_then_draw"].push_back(std::move(r));
         }
-        std::optional<std::pair<double, double>> pv;
-        if (paraview) {
-          pv = paraviewFirst(dir, in);
-          if (pv) {
-            Run r;
-            r.first_s = r.final_s = pv->first;
-            row("paraview", 1, r);
-          }
-        }
-        const std::string tag = "first_picture-" + name + "-" + std::to_string(n);
-        render::writePng((dir / (tag + "-preview.png")).string(), runs["preview"].back().first);
-        render::writePng((dir / (tag + "-final.png")).string(), runs["preview"].back().final);
-        auto med = [&](const std::string& m, double Run::*field) {
-          std::vector<double> v;
-          for (const Run& r : runs[m]) v.push_back(r.*field);
-          return median(v);
-        };
-        summary << name << " " << n << "," << n << "," << (pv ? pv->first : 0.0) << ","
-                << med("build_then_draw", &Run::final_s) << "," << med("preview", &Run::first_s)
-                << "," << med("preview", &Run::final_s) << "," << med("preview", &Run::iou) << ","
-                << med("preview", &Run::silhouette_iou) << "," << med("preview", &Run::mean_diff)
-                << "," << runs["preview"].front().preview_points << "," << (pv ? pv->second : 0.0)
-                << "\n";
-        summary.flush();
       }
+      std::optional<std::pair<double, double>> pv;
+      if (paraview) {
+        pv = paraviewFirst(dir, in);
+        if (pv) {
+          Run r;
+          r.first_s = r.final_s = pv->first;
+          row("paraview", 1, r);
+        }
+      }
+      const std::string tag = "first_picture-" + name + "-" + std::to_string(n);
+      render::writePng((dir / (tag + "-preview.png")).string(), runs["preview"].back().first);
+      render::writePng((dir / (tag + "-final.png")).string(), runs["preview"].back().final);
+      auto med = [&](const std::string& m, double Run::*field) {
+        std::vector<double> v;
+        for (const Run& r : runs[m]) v.push_back(r.*field);
+        return median(v);
+      };
+      summary << name << " " << n << "," << n << "," << (pv ? pv->first : 0.0) << ","
+              << med("build_then_draw", &Run::final_s) << "," << med("preview", &Run::first_s)
+              << "," << med("preview", &Run::final_s) << "," << med("preview", &Run::iou) << ","
+              << med("preview", &Run::silhouette_iou) << "," << med("preview", &Run::mean_diff)
+              << "," << runs["preview"].front().preview_points << "," << (pv ? pv->second : 0.0)
+              << "\n";
+      summary.flush();
     }
     summary.close();
     chart(dir);
