@@ -5,13 +5,13 @@
 # which is also replayed first, so a regression that comes back fails at once.
 # Usage: fuzz/run.sh [SECONDS] [TARGET...]
 #   (targets: ply las laz e57 text obj conf tlod chunk tmesh frame link site chunk_request voice
-#    wav video selection annotation picture pfm; default all)
+#    wav video selection annotation picture pfm scan_sample; default all)
 set -euo pipefail
 
 cd "$(dirname "$0")/.."
 SECONDS_PER_TARGET=${1:-300}
 shift || true
-TARGETS=("${@:-ply las laz e57 text obj conf tlod chunk tmesh frame link site chunk_request voice wav video selection annotation picture pfm}")
+TARGETS=("${@:-ply las laz e57 text obj conf tlod chunk tmesh frame link site chunk_request voice wav video selection annotation picture pfm scan_sample}")
 read -r -a TARGETS <<<"${TARGETS[*]}"
 DATA=${TESSERA_DATA_DIR:-$(cd .. && pwd)/shared/data}
 BUILD=build/fuzz
@@ -19,7 +19,7 @@ BUILD=build/fuzz
 cmake --preset fuzz >/dev/null
 # tessera-lod (same build) writes the seed stores of the tlod and chunk targets.
 TOOLS=()
-if [[ " ${TARGETS[*]} " =~ \ (tlod|chunk|tmesh|laz)\  ]]; then TOOLS=(tessera-lod); fi
+if [[ " ${TARGETS[*]} " =~ \ (tlod|chunk|tmesh|laz|scan_sample)\  ]]; then TOOLS=(tessera-lod); fi
 if [[ " ${TARGETS[*]} " == *" video "* ]]; then TOOLS+=(video_seeds); fi
 cmake --build "$BUILD" -j1 --target "${TARGETS[@]/%/_fuzzer}" "${TOOLS[@]}"
 LOD_TOOL=$(pwd)/$BUILD/lod/tessera-lod
@@ -359,6 +359,19 @@ seed_picture() {
   cp "$OLDPWD"/fuzz/seeds/picture/* .
 }
 
+# The LAS, LAZ and PLY seeds, each behind the two bytes the target reads first: which name the
+# bytes go by (0 .las, 1 .laz, 2 .ply) and the points asked for less one (9: every k-th of ten).
+seed_scan_sample() {
+  local f kind
+  seed_las
+  seed_laz
+  seed_ply
+  for f in *.las *.laz *.ply; do
+    case "$f" in *.las) kind='\x00' ;; *.laz) kind='\x01' ;; *) kind='\x02' ;; esac
+    { printf "$kind"'\x09'; cat "$f"; } >"sample-$f" && rm "$f"
+  done
+}
+
 seed_pfm() {
   cp "$OLDPWD"/fuzz/seeds/pfm/* .
 }
@@ -366,7 +379,7 @@ seed_pfm() {
 declare -A MAX_LEN=([ply]=8192 [las]=8192 [laz]=65536 [e57]=131072 [text]=4096 [obj]=4096 [conf]=1024 [tlod]=32768
   [chunk]=8192 [frame]=4096 [link]=4096 [site]=4096 [chunk_request]=1024 [voice]=8192
   [wav]=16384 [tmesh]=16384 [video]=32768 [selection]=4096 [annotation]=16384
-  [picture]=8192 [pfm]=4096)
+  [picture]=8192 [pfm]=4096 [scan_sample]=65536)
 export UBSAN_OPTIONS=halt_on_error=1:print_stacktrace=1
 status=0
 summary=()
