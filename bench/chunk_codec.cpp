@@ -176,7 +176,7 @@ int main(int argc, char** argv) {
     << "set multiplot layout 1,2 title 'Point chunk codec on "
     << fs::path(input).filename().string() << " (" << sum.points << " points, "
     << (sum.exact_leaves ? "exact" : "lossy") << " leaves; one thread)'\n"
-    << "set style fill solid 0.8 border -1\nset grid ytics\nset key top left\nset yrange [0:*]\n"
+    << "set style fill solid 0.8 border -1\nset grid ytics\nset key below\nset yrange [0:*]\n"
     << "set xtics rotate by -10\n"
     << "set title 'Bytes per input point (inner copies included)'\n"
     << "set style data histograms\nset style histogram rowstacked\nset boxwidth 0.5\n"
