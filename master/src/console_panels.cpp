@@ -113,14 +113,16 @@ void Console::viewPanel(sync::SceneGraph& graph) {
   ImGui::SetNextWindowSizeConstraints(ImVec2(kPanelWidth, 0.0f), ImVec2(kPanelWidth, FLT_MAX));
   if (ImGui::Begin("View", nullptr, kPanel)) {
     // Each control's edit passes the wall's checks (the head in front of every tile, the inset
-    // on the wall) as a script's or a site's does; a refused one is said and changes nothing.
-    auto tell = [&](const std::optional<std::string>& why, const std::string& done) {
-      if (why) {
-        say("refused: " + *why);
-      } else if (ImGui::IsItemDeactivatedAfterEdit() || !ImGui::IsAnyItemActive()) {
-        say(done);
-      }
+    // on the wall) as a script's or a site's does; a refused one is said and changes nothing. A
+    // slider or field says where it left the view once it is let go of.
+    auto refused = [&](const std::optional<std::string>& why) {
+      if (why) say("refused: " + *why);
+      return why.has_value();
     };
+    auto done = [&](const std::string& what) {
+      if (ImGui::IsItemDeactivatedAfterEdit()) say(what);
+    };
+    char line[160];
     const glm::dvec4 e = render::wallExtent(mWall);
     ImGui::TextUnformatted("Viewer's head (wall frame, m)");
     scene::Head head = interact::currentHead(mWall, graph.settings());
@@ -130,20 +132,35 @@ void Console::viewPanel(sync::SceneGraph& graph) {
       head.mutable_eye()->set_x(eye[0]);
       head.mutable_eye()->set_y(eye[1]);
       head.mutable_eye()->set_z(eye[2]);
-      tell(interact::applyHead(graph, mWall, head), "head moved");
+      (void)refused(interact::applyHead(graph, mWall, head));
     }
+    const auto head_now = [&] { return interact::currentHead(mWall, graph.settings()); };
+    std::snprintf(line, sizeof line, "head at (%.3f, %.3f, %.3f)", head_now().eye().x(),
+                  head_now().eye().y(), head_now().eye().z());
+    done(line);
     float yaw = float(interact::headYawDegrees(head));
     ImGui::SetNextItemWidth(kFieldWidth);
     if (ImGui::SliderFloat("turn deg", &yaw, -60.0f, 60.0f, "%.0f")) {
       interact::setHeadYaw(head, double(yaw));
-      tell(interact::applyHead(graph, mWall, head), "head turned");
+      (void)refused(interact::applyHead(graph, mWall, head));
     }
+    std::snprintf(line, sizeof line, "head turned %.0f degrees",
+                  interact::headYawDegrees(head_now()));
+    done(line);
     float separation = float(head.eye_separation() * 1000.0);
     ImGui::SetNextItemWidth(kFieldWidth);
     if (ImGui::SliderFloat("eyes mm", &separation, 40.0f, 80.0f, "%.0f")) {
       head.set_eye_separation(double(separation) / 1000.0);
-      tell(interact::applyHead(graph, mWall, head), "eye separation changed");
+      (void)refused(interact::applyHead(graph, mWall, head));
     }
+    std::snprintf(line, sizeof line, "eyes %.0f mm apart", head_now().eye_separation() * 1000.0);
+    done(line);
+    const auto insetSaid = [&](int i) {
+      const scene::InsetCentre now = interact::currentInset(mWall, graph.settings(), i);
+      char at[128];
+      std::snprintf(at, sizeof at, " at (%.3f, %.3f)", now.x(), now.y());
+      return "inset " + now.name() + at;
+    };
     for (int i = 0; i < mWall.insets_size(); ++i) {
       scene::InsetCentre c = interact::currentInset(mWall, graph.settings(), i);
       ImGui::PushID(i);
@@ -151,8 +168,8 @@ void Console::viewPanel(sync::SceneGraph& graph) {
       const std::string label = "Inset " + literal(c.name());
       if (ImGui::Checkbox(label.c_str(), &shown)) {
         c.set_hidden(!shown);
-        tell(interact::applyInset(graph, mWall, c),
-             "inset " + c.name() + (shown ? " shown" : " switched off"));
+        if (!refused(interact::applyInset(graph, mWall, c)))
+          say("inset " + c.name() + (shown ? " shown" : " switched off"));
       }
       const config::Inset& in = mWall.insets(i);
       float x = float(c.x()), y = float(c.y());
@@ -160,14 +177,16 @@ void Console::viewPanel(sync::SceneGraph& graph) {
       if (ImGui::SliderFloat("x m", &x, float(e.x + 0.5 * in.width()),
                              float(e.z - 0.5 * in.width()), "%.3f")) {
         c.set_x(std::clamp(double(x), e.x + 0.5 * in.width(), e.z - 0.5 * in.width()));
-        tell(interact::applyInset(graph, mWall, c), "inset " + c.name() + " moved");
+        (void)refused(interact::applyInset(graph, mWall, c));
       }
+      done(insetSaid(i));
       ImGui::SetNextItemWidth(kFieldWidth);
       if (ImGui::SliderFloat("y m", &y, float(e.y + 0.5 * in.height()),
                              float(e.w - 0.5 * in.height()), "%.3f")) {
         c.set_y(std::clamp(double(y), e.y + 0.5 * in.height(), e.w - 0.5 * in.height()));
-        tell(interact::applyInset(graph, mWall, c), "inset " + c.name() + " moved");
+        (void)refused(interact::applyInset(graph, mWall, c));
       }
+      done(insetSaid(i));
       ImGui::PopID();
     }
   }
