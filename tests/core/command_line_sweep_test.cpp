@@ -201,6 +201,11 @@ TEST(CommandLineSweep, TesseraMaster) {
   for (const char* v : {"nan,0.1,0.2", "0.1,inf,0.2", "0.9,0.1,0.2", "0.1,0.1,0", "0.1,0.1",
                         "0.1,0.1,0.2,0.3", "-0.1,0,0.5", "abc"})
     expectRefused(master(), "--video-screen", v);
+  // A filmed path's --size, by its text, before anything is read.
+  const Tool film{"tessera-master --path", master().base + " --path /nonexistent.json --movie "
+                                                          "/nonexistent.mp4"};
+  for (const char* size : {"0x480", "4294967297x480", "nanx480", "-1x480", "16385x480", "1280"})
+    expectRefused(film, "--size", size);
 }
 
 TEST(CommandLineSweep, TesseraSite) {
