@@ -187,18 +187,37 @@ TEST(TesseraLodBuild, AnE57sScansAreSourcesOfTheirOwnAsAConfsAre) {
   EXPECT_NE(i.out.find("[1] 1.2-with-color.las"), std::string::npos) << i.out;
 }
 
-TEST(TesseraLodBuild, ExactLeavesVerifyAgainstTheirInput) {
-  // Exact leaves quantise on the input's 1 cm relative to each leaf's corner: a leaf whose
-  // corner lies half a step off the survey's grid rounds its points either way, and verify
-  // finds them on the neighbouring key.
+TEST(TesseraLodBuild, ExactLeavesByDefaultLossyOnRequest) {
+  // Leaves keep the file's 1 cm integers by default (--exact-leaves says the same); verify
+  // checks every point's integers; --lossy stores them within their bound and says so.
   TempDir dir;
-  const std::string out = (dir / "exact.tlod").string();
-  ASSERT_EQ(run("build " + kData + "/lidar/autzen_trim.las -o " + out + " --exact-leaves --quiet")
-                .code,
-            0);
-  CommandResult v = run("verify " + out + " " + kData + "/lidar/autzen_trim.las --quiet");
+  const std::string las = kData + "/lidar/autzen_trim.las";
+  for (const std::string flag : {"", " --exact-leaves"}) {
+    const std::string out = (dir / "exact.tlod").string();
+    std::filesystem::remove(out);
+    ASSERT_EQ(run("build " + las + " -o " + out + flag + " --quiet").code, 0);
+    CommandResult v = run("verify " + out + " " + las + " --quiet");
+    EXPECT_EQ(v.code, 0) << v.out;
+    EXPECT_NE(v.out.find("110000 matched, 0 unmatched"), std::string::npos) << v.out;
+    EXPECT_NE(v.out.find("exact leaves: 110000 of 110000"), std::string::npos) << v.out;
+    CommandResult i = run("info " + out);
+    EXPECT_NE(i.out.find("leaves: exact (the input's integers at 0.01)"), std::string::npos)
+        << i.out;
+  }
+  const std::string lossy = (dir / "lossy.tlod").string();
+  ASSERT_EQ(run("build " + las + " -o " + lossy + " --lossy --quiet").code, 0);
+  CommandResult v = run("verify " + lossy + " " + las + " --quiet");
   EXPECT_EQ(v.code, 0) << v.out;
-  EXPECT_NE(v.out.find("110000 matched, 0 unmatched"), std::string::npos) << v.out;
+  EXPECT_NE(v.out.find("within its error bound"), std::string::npos) << v.out;
+  EXPECT_EQ(v.out.find("exact leaves:"), std::string::npos) << v.out;
+  EXPECT_LT(std::filesystem::file_size(lossy), std::filesystem::file_size(dir / "exact.tlod"));
+  // Both at once is a bad command line, and nothing is written.
+  const std::string both = (dir / "both.tlod").string();
+  CommandResult b = run("build " + las + " -o " + both + " --lossy --exact-leaves 2>&1");
+  EXPECT_EQ(b.code, 2) << b.out;
+  EXPECT_NE(b.out.find("--lossy and --exact-leaves contradict each other"), std::string::npos)
+      << b.out;
+  EXPECT_FALSE(std::filesystem::exists(both));
 }
 
 TEST(TesseraLodBuild, DiskFullLeavesNoOutput) {
