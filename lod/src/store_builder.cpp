@@ -346,6 +346,7 @@ BuildReport buildStore(const std::vector<std::filesystem::path>& inputs,
   report.seconds_read = since(t0);
   report.points = dist.points();
   report.skipped = dist.skipped();
+  report.temp_record_bytes = dist.tempLayout().recordSize();
 
   const auto t1 = Clock::now();
   ScopedFd points_fd(temp_points, O_RDWR, "temporary file");
