@@ -365,6 +365,53 @@ TEST_F(ConsolePanels, TheShadingPanelAndKeysSwitchTheWallsFilters) {
   EXPECT_GT(coloured, 100) << dir.path() / "console.png";
 }
 
+// The View panel, left of Shading (folded until its title bar is clicked), on a wall with a
+// foveal inset: rows from the bottom, 23 px apart: the inset's y and x sliders, its switch, the
+// eye separation, the head's turn.
+constexpr int kViewArrowX = 135, kViewArrowY = 348;
+constexpr int kViewCheckX = 141, kInsetSwitchY = 293, kInsetXSliderY = 316, kHeadTurnY = 247;
+
+// The View panel switches the inset off and on and moves it, and turns the head: each through
+// the scene (the same calls as a script's setInset and setHead), said once it is done.
+TEST_F(ConsolePanels, TheViewPanelSwitchesAndMovesTheInsetAndTurnsTheHead) {
+  using tessera::test::VirtualDisplay;
+  if (!VirtualDisplay::available())
+    GTEST_SKIP() << "needs Xvfb and xdotool (scripts/deps.sh installs them)";
+  tessera::test::writeText(
+      dir.path() / "wall.json",
+      tessera::test::smallWallJson("", R"(, "insets": [{"name": "fovea", "x": 0.37, "y": 0.2,
+          "width": 0.24, "height": 0.16, "pixelWidth": 160, "pixelHeight": 100}])"));
+  const VirtualDisplay xdo(dir.path() / "xvfb.log");
+  auto master = startMaster("scene.json", {});
+  ASSERT_TRUE(master->waitFor("console open", 120)) << master->output();
+  const std::string wid = xdo.window("tessera-master");
+  ASSERT_FALSE(wid.empty()) << "no console window on " << xdo.name;
+  ASSERT_TRUE(master->waitFor("0 of 5 tiles have a node", 60)) << master->output();
+  std::this_thread::sleep_for(std::chrono::seconds(2));
+  auto click = [&](int x, int y) {
+    xdo("mousemove --window " + wid + " " + std::to_string(x) + " " + std::to_string(y) +
+        " click 1");
+    std::this_thread::sleep_for(std::chrono::milliseconds(1500));
+  };
+  click(kViewArrowX, kViewArrowY);
+  click(kViewCheckX, kInsetSwitchY);
+  ASSERT_TRUE(master->waitFor("console: inset fovea switched off", 30)) << master->output();
+  click(kViewCheckX, kInsetSwitchY);
+  ASSERT_TRUE(master->waitFor("console: inset fovea shown", 30)) << master->output();
+  // The x slider's right end: the inset's centre as far right as the wall lets it go.
+  click(290, kInsetXSliderY);
+  ASSERT_TRUE(master->waitFor("console: inset fovea at \\(0\\.", 30)) << master->output();
+  EXPECT_EQ(master->output().find("console: inset fovea at (0.490"), std::string::npos)
+      << "the inset did not move from the wall's middle: " << master->output();
+  click(290, kHeadTurnY);
+  ASSERT_TRUE(master->waitFor("console: head turned", 30)) << master->output();
+  EXPECT_EQ(master->output().find("console: head turned 0 degrees"), std::string::npos)
+      << master->output();
+  EXPECT_EQ(master->output().find("refused"), std::string::npos) << master->output();
+  master->signal(SIGTERM);
+  ASSERT_EQ(master->wait(60), std::optional<int>(0)) << master->output();
+}
+
 // Without --annotations the Layers panel lists the scene's groups: hiding "scans" there hides
 // the bunny in it (the console's last picture shows none of it).
 TEST_F(ConsolePanels, WithoutADatabaseTheScenesGroupsAreTheLayers) {
