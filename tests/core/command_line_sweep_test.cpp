@@ -161,7 +161,8 @@ TEST(CommandLineSweep, TesseraRender) {
                    {"--poster-part", false, true, false},
                    {"--poster-memory-mb", false, false},
                    {"--eye-separation", false, false},
-                   {"--fps", false, false}});
+                   {"--fps", false, false},
+                   {"--preview-points", false, true}});
 }
 
 TEST(CommandLineSweep, TesseraRenderComposites) {

@@ -1,7 +1,8 @@
 // The store cache (lod/store_cache.h) shared by processes: four tessera-render processes, as the
 // render nodes of one host would, convert the same scan into one cache at once. One entry is
 // built, every process draws from it, nothing temporary is left. And an entry is keyed by the
-// input's size and time, so a changed input is never taken for the cached one.
+// input's size and time, so a changed input is never taken for the cached one. tessera-render
+// --preview writes a raw scan's preview before it converts the scan, and none once it is cached.
 #include <gtest/gtest.h>
 
 #include <chrono>
@@ -99,6 +100,46 @@ TEST(StoreCache, AChangedInputIsANewEntryAndAMissingOneIsNamed) {
   } catch (const std::runtime_error& e) {
     EXPECT_NE(std::string(e.what()).find("gone.ply"), std::string::npos) << e.what();
   }
+  ::unsetenv("XDG_CACHE_HOME");
+}
+
+TEST(StoreCache, TesseraRenderWritesARawScansPreviewBeforeItsWholeStoresPicture) {
+  test::TempDir dir;
+  ::setenv("XDG_CACHE_HOME", (dir / "cache").c_str(), 1);  // the child inherits it
+  ::setenv("ASAN_OPTIONS", "detect_leaks=0", 1);
+  const std::string las = std::string(TESSERA_DATA_DIR) + "/lidar/autzen_trim.las";
+  int runs = 0;
+  auto render = [&](const std::vector<std::string>& more) {
+    std::vector<std::string> args{TESSERA_RENDER_TOOL, "--model", las, "--size", "160x90"};
+    args.insert(args.end(), more.begin(), more.end());
+    test::Process p(args, dir / ("render-" + std::to_string(runs++) + ".log"));
+    const std::optional<int> code = p.wait(300);
+    return std::make_pair(code.value_or(-1), p.output());
+  };
+  const fs::path first = dir / "first.png", last = dir / "last.png";
+  const auto [code, out] =
+      render({"--preview", first.string(), "--preview-points", "10000", "-o", last.string()});
+  ASSERT_EQ(code, 0) << out;
+  // The preview of every 11th record, written before the whole store is converted.
+  const size_t preview = out.find("preview of 10000 points");
+  const size_t wrote_first = out.find("wrote " + first.string());
+  const size_t converting = out.find("converting");
+  const size_t wrote_last = out.find("wrote " + last.string());
+  ASSERT_NE(preview, std::string::npos) << out;
+  ASSERT_NE(wrote_last, std::string::npos) << out;
+  EXPECT_LT(wrote_first, converting) << out;
+  EXPECT_LT(converting, wrote_last) << out;
+  EXPECT_GT(fs::file_size(first), 100u);
+  EXPECT_NE(fileBytes(first), fileBytes(last));  // a coarser picture of the same view
+  // Its store cached, the scan needs no preview: the first picture is the final one.
+  const auto [again, again_out] = render({"--preview", first.string(), "-o", last.string()});
+  ASSERT_EQ(again, 0) << again_out;
+  EXPECT_NE(again_out.find("no scan needed a preview"), std::string::npos) << again_out;
+  EXPECT_EQ(fileBytes(first), fileBytes(last));
+  // The preview and the window do not go together: a bad command line, exit 2.
+  const auto [window, window_out] = render({"--preview", first.string(), "--window"});
+  EXPECT_EQ(window, 2) << window_out;
+  EXPECT_NE(window_out.find("--preview"), std::string::npos) << window_out;
   ::unsetenv("XDG_CACHE_HOME");
 }
 
