@@ -27,8 +27,8 @@ Image resizeImage(const Image& image, uint32_t width, uint32_t height);
 /// How alike two pictures of one view are (a preview against its final picture, tests): a pixel
 /// is covered when any of its RGB channels is above 16.
 struct PictureLikeness {
-  double pixel_iou = 1.0;       ///< IoU of the covered pixels (1 when neither covers any)
-  double silhouette_iou = 1.0;  ///< IoU of the blocks holding a covered pixel: the outline
+  double pixel_iou = 1.0;        ///< IoU of the covered pixels (1 when neither covers any)
+  double silhouette_iou = 1.0;   ///< IoU of the blocks holding a covered pixel: the outline
   double mean_difference = 0.0;  ///< mean |RGB difference| over pixels either covers, 0..255
 };
 
