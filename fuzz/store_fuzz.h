@@ -126,12 +126,17 @@ inline int readStore(const uint8_t* data, size_t size) {
   return 0;
 }
 
-/// Decodes `data` as one chunk payload of a node at the origin.
+/// Decodes `data` as one chunk payload of a node at the origin, with its cells (either chunk
+/// format: byte 25 tells them apart).
 inline int decodeChunkBytes(const uint8_t* data, size_t size) {
   lod::ChunkPoints out;
   try {
-    lod::decodeChunk(std::span<const uint8_t>(data, size), glm::dvec3(0.0), out, "fuzz chunk");
+    lod::decodeChunk(std::span<const uint8_t>(data, size), glm::dvec3(0.0), out, "fuzz chunk",
+                     true);
     checkChunk(out);
+    require(out.cells.size() == out.size(), "cells.size() != size()");
+    for (double g : {out.grid.x, out.grid.y, out.grid.z})
+      require(g <= 0.0 && g >= -out.step, "grid origin outside its step");
   } catch (const lod::StoreError&) {
   }
   return 0;
