@@ -897,9 +897,13 @@ int run(int argc, char** argv) {
           wall_options.relative_depth.agreed_range = render::wallRange(ranges);
         }
         inset_slots.clear();
+        // A head on a wall with projectors: each tile through its projector's pass, as a
+        // mono wall's mosaic has it.
         for (const auto& s : slots)
-          inset_slots.push_back(
-              renderView(s.tile.name() + eye, slotView(s), wall_options, weigh ? &s : nullptr));
+          inset_slots.push_back(renderView(s.tile.name() + eye, slotView(s), wall_options,
+                                           weigh ? &s : nullptr,
+                                           projector_maps.empty() ? -1 : s.tile_index));
+        if (!projector_maps.empty()) projector_frames = inset_slots;
         return render::assembleInsetWall(shown, inset_slots, inset_placement);
       }
       if (mosaic) {
