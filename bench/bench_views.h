@@ -44,13 +44,18 @@ struct CubeCamera {
   double fovy = 30.0;
 };
 
-inline CubeCamera cubeCamera() {
+/// ParaView's reset camera for the box [lo, hi] (bench/paraview_peer's second input, tiled
+/// LiDAR): the same direction, the box's bounding sphere filling the view.
+inline CubeCamera boxCamera(const glm::dvec3& lo, const glm::dvec3& hi) {
   CubeCamera c;
-  const double radius = std::sqrt(3.0) / 2.0;
+  c.target = 0.5 * (lo + hi);
+  const double radius = 0.5 * glm::length(hi - lo);
   const double distance = radius / std::sin(glm::radians(c.fovy) / 2.0);
   c.eye = c.target + glm::normalize(glm::dvec3(1.0, -0.8, 0.6)) * distance;
   return c;
 }
+
+inline CubeCamera cubeCamera() { return boxCamera(glm::dvec3(0.0), glm::dvec3(1.0)); }
 
 inline render::ViewSetup cubeView(const CubeCamera& c, uint32_t w = 1920, uint32_t h = 1080) {
   render::ViewSetup v;

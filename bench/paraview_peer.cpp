@@ -1,26 +1,32 @@
 // paraview_peer: Tessera against the peer a user would pick instead: ParaView 5.11's
-// pvbatch drawing 1 px OpenGL points, on the same 10^7 and 5x10^7 points uniformly random in the
-// unit cube, from the same camera (ParaView's reset camera: the bounding sphere fills the 30
-// degree view, looking along (1, -0.8, 0.6)), 1920x1080, on this machine, runs interleaved
-// (ParaView, then each Tessera variant, round after round) so load from other work hits both.
+// pvbatch drawing 1 px OpenGL points, on the same points from the same camera (ParaView's reset
+// camera: the bounding sphere fills the 30 degree view, looking along (1, -0.8, 0.6)),
+// 1920x1080, on this machine, runs interleaved (ParaView, then each Tessera variant, round after
+// round) so load from other work hits both. Two inputs at each size N (--inputs):
+//   cube    N points uniformly random in the unit cube (a volume of points)
+//   autzen  the Autzen LiDAR (autzen_trim.las, RGB) tiled side by side into one LAS of N points
+//           by bench/tile_las.py (as bench/potree_peer.sh), built into a store from that LAS;
+//           ParaView reads the same points, positions relative to the LAS's box corner.
 //
 // Tessera variants, each on a fresh store and renderer every round:
-//   full      every leaf (lod-px 1e-9, coverage stop off): the reference picture
-//   coverage  the defaults: lod-px 1, the coverage stop (lod_selector.h)
-//   budget    the defaults and a point budget per view (--budget, as Potree users set one)
-//   pullpush, pullpush-budget   coverage and budget with 1 px points and the pull-push fill
-//             (SurfaceFill::kPullPush; the three above draw discs)
+//   full      every leaf (lod-px 1e-9, coverage stop off, no budget, discs): the reference
+//   defaults  RenderOptions{} as a user gets them: the coverage stop, a point budget of 2
+//             points a covered pixel, the fill chosen for the frame (SurfaceFill::kAuto)
+//   coverage  the coverage stop alone, no budget, discs
+//   budget    the coverage stop and a point budget (--budget, as Potree users set one), discs
+//   pullpush  the coverage stop alone with 1 px points and the pull-push fill
 // For each: the first picture (store opened cold, every chunk of the cut resident), then the
 // frame time (best and median of --frames frames: cut selection, raster, readback), the points
-// drawn and the silhouette IoU against the full render. The summary's speed-up is the median
-// over rounds of each round's ParaView frame over the variant's (best frames). ParaView: load
-// (reader), first render, frame time (a camera nudge and Render() with glFinish, best and median).
-// ParaView runs only when pvbatch is on PATH (Debian `paraview`; under xvfb-run without a display);
-// otherwise its rows are left out with a message.
+// drawn, the fill drawn and the silhouette IoU against the full render. The summary's speed-up
+// is the median over rounds of each round's ParaView frame over the variant's (best frames).
+// ParaView: load (reader), first render, frame time (a camera nudge and Render() with glFinish,
+// best and median). ParaView runs only when pvbatch is on PATH (Debian `paraview`; under
+// xvfb-run without a display); otherwise its rows are left out with a message.
 //
 // Prints CSV; writes OUT/paraview_peer.csv (every run), OUT/paraview_peer_summary.csv (medians
 // over rounds) and OUT/paraview_peer.png (gnuplot). Inputs are generated once into OUT/inputs:
-// the points as binary PLY (built into cube-N.tlod, then removed) and as legacy VTK for ParaView.
+// the store (cube: from a binary PLY, then removed; autzen: from the tiled LAS, then removed)
+// and legacy VTK for ParaView.
 #include <algorithm>
 #include <array>
 #include <bit>
@@ -30,6 +36,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <iomanip>
 #include <iostream>
 #include <map>
 #include <numbers>
@@ -40,6 +47,7 @@
 #include <glm/gtc/matrix_transform.hpp>
 
 #include <tessera/core/stopwatch.h>
+#include <tessera/lod/point_reader.h>
 #include <tessera/lod/point_writer.h>
 #include <tessera/lod/store_builder.h>
 #include <tessera/render/pass_timing.h>
@@ -65,37 +73,63 @@ lod::PointBatch cubePoints(uint64_t n) {
   return b;
 }
 
-/// Legacy VTK polydata (binary, big-endian): the points as float and one poly-vertex cell.
-void writeVtk(const fs::path& path, const lod::PointBatch& b) {
-  std::ofstream f(path, std::ios::binary);
-  const uint64_t n = b.positions.size();
-  f << "# vtk DataFile Version 3.0\ntessera random cube\nBINARY\nDATASET POLYDATA\nPOINTS " << n
-    << " float\n";
-  auto put = [&](uint32_t v) {
-    v = __builtin_bswap32(v);
-    f.write(reinterpret_cast<const char*>(&v), 4);
-  };
-  for (const glm::dvec3& p : b.positions)
-    for (int c = 0; c < 3; ++c) put(std::bit_cast<uint32_t>(float(p[c])));
-  f << "\nVERTICES 1 " << n + 1 << "\n";
-  put(uint32_t(n));
-  for (uint64_t i = 0; i < n; ++i) put(uint32_t(i));
-  f << "\n";
-  if (!f) throw std::runtime_error("paraview_peer: cannot write " + path.string());
-}
+/// Legacy VTK polydata (binary, big-endian), streamed: the points as float relative to
+/// `origin`, one poly-vertex cell, and their RGB as colour scalars "rgb" when `colors` is not
+/// empty.
+class VtkWriter {
+ public:
+  VtkWriter(const fs::path& path, uint64_t n) : mPath(path), mN(n), mFile(path, std::ios::binary) {
+    mFile << "# vtk DataFile Version 3.0\ntessera paraview_peer\nBINARY\nDATASET POLYDATA\nPOINTS "
+          << n << " float\n";
+  }
+  void add(const glm::dvec3& p, const glm::dvec3& origin) {
+    for (int c = 0; c < 3; ++c) put(std::bit_cast<uint32_t>(float(p[c] - origin[c])));
+    ++mWritten;
+  }
+  /// Ends the file with the cell and, when given (one per point), the colours.
+  void finish(const std::vector<glm::u8vec3>& colors) {
+    if (mWritten != mN || (!colors.empty() && colors.size() != mN))
+      throw std::runtime_error("paraview_peer: " + mPath.string() + ": point count mismatch");
+    mFile << "\nVERTICES 1 " << mN + 1 << "\n";
+    put(uint32_t(mN));
+    for (uint64_t i = 0; i < mN; ++i) put(uint32_t(i));
+    if (!colors.empty()) {
+      mFile << "\nPOINT_DATA " << mN << "\nCOLOR_SCALARS rgb 3\n";
+      mFile.write(reinterpret_cast<const char*>(colors.data()), std::streamsize(colors.size() * 3));
+    }
+    mFile << "\n";
+    mFile.close();
+    if (!mFile) throw std::runtime_error("paraview_peer: cannot write " + mPath.string());
+  }
 
+ private:
+  void put(uint32_t v) {
+    v = __builtin_bswap32(v);
+    mFile.write(reinterpret_cast<const char*>(&v), 4);
+  }
+  fs::path mPath;
+  uint64_t mN, mWritten = 0;
+  std::ofstream mFile;
+};
+
+/// One input at one size: the store, the VTK ParaView reads (positions minus vtk_origin) and
+/// the points' world box.
 struct Inputs {
+  std::string name;  ///< "cube" or "autzen"
   fs::path store, vtk;
+  glm::dvec3 lo{0.0}, hi{1.0}, vtk_origin{0.0};
 };
 
 Inputs cubeInputs(const fs::path& dir, uint64_t n) {
   fs::create_directories(dir);
   const std::string tag = "cube-" + std::to_string(n);
-  Inputs in{dir / (tag + ".tlod"), dir / (tag + ".vtk")};
+  Inputs in{"cube", dir / (tag + ".tlod"), dir / (tag + ".vtk")};
   if (fs::exists(in.store) && fs::exists(in.vtk)) return in;
   std::fprintf(stderr, "paraview_peer: generating %llu points...\n", (unsigned long long)n);
   const lod::PointBatch b = cubePoints(n);
-  writeVtk(in.vtk, b);
+  VtkWriter vtk(in.vtk, n);
+  for (const glm::dvec3& p : b.positions) vtk.add(p, in.vtk_origin);
+  vtk.finish({});
   const fs::path ply = dir / (tag + ".ply");
   lod::writePly(ply, b, glm::dvec3(0.0));
   lod::BuildOptions o;
@@ -108,24 +142,84 @@ Inputs cubeInputs(const fs::path& dir, uint64_t n) {
   return in;
 }
 
-bool covered(const uint8_t* p) {
-  return p[0] > 16 || p[1] > 16 || p[2] > 16;
+/// Autzen tiled to `n` points by bench/tile_las.py; the store is built from that LAS and the
+/// VTK written from it (positions relative to the LAS box's lower corner, so floats keep cm).
+Inputs autzenInputs(const fs::path& dir, uint64_t n) {
+  fs::create_directories(dir);
+  const std::string tag = "autzen-" + std::to_string(n);
+  Inputs in{"autzen", dir / (tag + ".tlod"), dir / (tag + ".vtk")};
+  const fs::path las = dir / (tag + ".las");
+  const fs::path box = dir / (tag + ".box");  // lo, hi: the LAS header's box
+  if (!(fs::exists(in.store) && fs::exists(in.vtk) && fs::exists(box))) {
+    // The script beside this file's sources (TESSERA_CONFIG_DIR is the repository's configs/).
+    const fs::path script = fs::path(TESSERA_CONFIG_DIR).parent_path() / "bench" / "tile_las.py";
+    const std::string cmd = "python3 '" + script.string() + "' '" + TESSERA_DATA_DIR +
+                            "/lidar/autzen_trim.las' -o '" + las.string() + "' -n " +
+                            std::to_string(n) + " >&2";
+    if (std::system(cmd.c_str()) != 0)
+      throw std::runtime_error("paraview_peer: tiling Autzen failed: " + cmd);
+    auto reader = lod::openPointReader(las);
+    const auto bbox = reader->info().header_bbox;
+    if (!bbox) throw std::runtime_error("paraview_peer: " + las.string() + " has no box");
+    VtkWriter vtk(in.vtk, reader->info().declared_points);
+    std::vector<glm::u8vec3> colors;
+    lod::PointBatch b;
+    while (reader->next(b)) {
+      for (size_t i = 0; i < b.size(); ++i) {
+        vtk.add(reader->info().origin + b.positions[i], bbox->first);  // world, then local
+        colors.push_back(b.colors.empty() ? glm::u8vec3(200) : glm::u8vec3(b.colors[i]));
+      }
+    }
+    vtk.finish(colors);
+    lod::BuildOptions o;
+    o.quiet = true;
+    const auto t = Clock::now();
+    lod::buildStore({las}, in.store, o);
+    std::fprintf(stderr, "paraview_peer: built %s in %.1f s\n", in.store.c_str(),
+                 msSince(t) / 1000.0);
+    std::ofstream(box) << std::setprecision(17) << bbox->first.x << " " << bbox->first.y << " "
+                       << bbox->first.z << " " << bbox->second.x << " " << bbox->second.y << " "
+                       << bbox->second.z << "\n";
+    fs::remove(las);
+  }
+  std::ifstream f(box);
+  f >> in.lo.x >> in.lo.y >> in.lo.z >> in.hi.x >> in.hi.y >> in.hi.z;
+  if (!f) throw std::runtime_error("paraview_peer: cannot read " + box.string());
+  in.vtk_origin = in.lo;
+  return in;
 }
 
-double silhouetteIou(const render::Image& a, const render::Image& b) {
+/// Pixels covered, top row first: Tessera's from its depth plane (what a point was drawn on, dark
+/// colours included), ParaView's from its picture (anything but the black background).
+using Mask = std::vector<uint8_t>;
+
+Mask imageMask(const render::Image& img) {
+  Mask m(size_t(img.width) * img.height, 0);
+  for (size_t i = 0; i < m.size() && 4 * i + 3 < img.rgba.size(); ++i)
+    m[i] = (img.rgba[4 * i] | img.rgba[4 * i + 1] | img.rgba[4 * i + 2]) != 0;
+  return m;
+}
+
+Mask depthMask(const render::ViewRenderer& r, uint32_t width, uint32_t height) {
+  const std::vector<uint32_t> depth = r.readDepth();  // row 0 at the bottom
+  Mask m(size_t(width) * height, 0);
+  for (uint32_t y = 0; y < height; ++y)
+    for (uint32_t x = 0; x < width; ++x)
+      m[size_t(height - 1 - y) * width + x] = depth[size_t(y) * width + x] != render::kEmptyDepth;
+  return m;
+}
+
+double silhouetteIou(const Mask& a, const Mask& b) {
   size_t both = 0, either = 0;
-  for (size_t i = 0; i + 3 < a.rgba.size() && i + 3 < b.rgba.size(); i += 4) {
-    const bool pa = covered(&a.rgba[i]), pb = covered(&b.rgba[i]);
-    both += pa && pb;
-    either += pa || pb;
+  for (size_t i = 0; i < a.size() && i < b.size(); ++i) {
+    both += a[i] && b[i];
+    either += a[i] || b[i];
   }
   return either ? double(both) / double(either) : 1.0;
 }
 
-size_t coveredPixels(const render::Image& a) {
-  size_t n = 0;
-  for (size_t i = 0; i + 3 < a.rgba.size(); i += 4) n += covered(&a.rgba[i]);
-  return n;
+size_t coveredPixels(const Mask& a) {
+  return size_t(std::count(a.begin(), a.end(), uint8_t(1)));
 }
 
 double median(std::vector<double> v) {
@@ -137,9 +231,13 @@ double median(std::vector<double> v) {
 
 struct Run {
   uint64_t points = 0;  ///< drawn
+  uint64_t budget = 0;  ///< Tessera: the point budget of the cut
+  std::string fill = "-";  ///< Tessera: how the frame closed surfaces
+  render::FillEstimate estimate;  ///< Tessera: what the fill was chosen by
   double first_s = 0, load_s = 0, best_ms = 0, median_ms = 0;
   double iou = 1.0;
   render::Image image;
+  Mask mask;  ///< covered pixels
 };
 
 Run runTessera(const fs::path& store_path, const render::ViewSetup& view,
@@ -160,7 +258,13 @@ Run runTessera(const fs::path& store_path, const render::ViewSetup& view,
     run.image = r.render({&inst, 1}, view, options, &st);
     ms.push_back(msSince(f));
   }
+  run.mask = depthMask(r, view.width, view.height);
   run.points = st.points;
+  run.budget = st.point_budget;
+  run.estimate = st.fill_estimate;
+  run.fill = st.fill == render::SurfaceFill::kPullPush ? "pullpush"
+             : st.fill == render::SurfaceFill::kNone   ? "none"
+                                                       : "discs";
   run.best_ms = *std::min_element(ms.begin(), ms.end());
   run.median_ms = median(ms);
   return run;
@@ -194,6 +298,9 @@ d.AmbientColor = [200 / 255.0] * 3
 d.DiffuseColor = [200 / 255.0] * 3
 d.Ambient = 1.0
 d.Diffuse = 0.0
+if reader.PointData.GetArray('rgb') is not None:
+    d.ColorArrayName = ['POINTS', 'rgb']
+    d.MapScalars = 0
 view.CameraPosition, view.CameraFocalPoint, view.CameraViewUp = e, t, u
 view.CameraViewAngle = fovy
 rw = view.GetRenderWindow()
@@ -247,6 +354,7 @@ bool runParaView(const fs::path& out, const fs::path& vtk, const bench::CubeCame
                       &run.best_ms, &run.median_ms, &n) == 5) {
         run.points = n;
         run.image = render::readPng(png.string());
+        run.mask = imageMask(run.image);
         std::fprintf(stderr, "paraview_peer: pvbatch took %.1f s in all\n", wall);
         return true;
       }
@@ -256,26 +364,40 @@ bool runParaView(const fs::path& out, const fs::path& vtk, const bench::CubeCame
   return false;
 }
 
+/// The variants after ParaView, in the CSV's and the chart's order, with the chart's titles.
+constexpr std::array<std::pair<const char*, const char*>, 5> kVariants{{
+    {"full", "Tessera, every leaf"},
+    {"defaults", "Tessera, defaults (budget 2 points/covered pixel, fill chosen)"},
+    {"coverage", "Tessera, coverage stop alone, discs"},
+    {"budget", "Tessera, coverage stop + budget 10^6, discs"},
+    {"pullpush", "Tessera, coverage stop alone, pull-push fill"},
+}};
+
+/// OUT/paraview_peer_chart.csv holds per input: label, ParaView's ms, each variant's ms, then
+/// each variant's speed-up.
 void chart(const fs::path& out) {
   const fs::path gp = out / "paraview_peer.gp";
+  const std::string data = (out / "paraview_peer_chart.csv").string();
   std::ofstream g(gp);
-  g << "set terminal pngcairo size 1100,480 font 'sans,10' noenhanced\n"
+  g << "set terminal pngcairo size 1400,520 font 'sans,10' noenhanced\n"
     << "set output '" << (out / "paraview_peer.png").string() << "'\n"
     << "set datafile separator ','\nset multiplot layout 1,2\n"
-    << "set title 'Frame time, random points in a cube, 1920x1080 (llvmpipe, 2 cores)'\n"
+    << "set title 'Frame time, 1920x1080 (llvmpipe, 2 cores)'\n"
     << "set style data histograms\nset style histogram clustered gap 1\n"
     << "set style fill solid 0.85 border -1\nset logscale y\nset ylabel 'ms per frame (log)'\n"
-    << "set grid ytics\nset key top left\nset yrange [10:1e6]\n"
-    << "plot '" << (out / "paraview_peer_chart.csv").string()
-    << "' using 2:xtic(1) title 'ParaView 5.11, 1 px points', '' using 3 title 'Tessera, every "
-       "leaf', '' using 4 title 'Tessera, coverage stop (default)', '' using 5 title 'Tessera, "
-       "coverage stop + point budget', '' using 9 title 'Tessera, coverage stop, pull-push fill', "
-       "'' using 10 title 'Tessera, pull-push fill + budget'\n"
-    << "set title 'Points drawn per frame'\nset ylabel 'points (log)'\nset yrange [1e5:1e9]\n"
-    << "plot '" << (out / "paraview_peer_chart.csv").string()
-    << "' using 6:xtic(1) title 'ParaView and Tessera every leaf', '' using 7 title 'Tessera, "
-       "coverage stop', '' using 8 title 'Tessera, coverage stop + budget'\n"
-    << "unset multiplot\n";
+    << "set grid ytics\nset key top left font ',8'\nset yrange [10:1e6]\nset xtics rotate by -20\n"
+    << "plot '" << data << "' using 2:xtic(1) title 'ParaView 5.11, 1 px points'";
+  for (size_t i = 0; i < kVariants.size(); ++i)
+    g << ", '' using " << 3 + i << " title '" << kVariants[i].second << "'";
+  g << "\nset title 'Speed-up over ParaView per frame (median of rounds)'\n"
+    << "set ylabel 'ParaView ms / Tessera ms (log)'\nset yrange [0.5:2000]\n"
+    << "set arrow 1 from graph 0, first 20 to graph 1, first 20 nohead dt 2 lw 2 lc rgb 'red'\n"
+    << "set label 1 'goal: 20x' at graph 0.01, first 24 tc rgb 'red'\n"
+    << "plot '" << data << "' using " << 3 + kVariants.size() << ":xtic(1) title '"
+    << kVariants[0].second << "'";
+  for (size_t i = 1; i < kVariants.size(); ++i)
+    g << ", '' using " << 3 + kVariants.size() + i << " title '" << kVariants[i].second << "'";
+  g << "\nunset multiplot\n";
   g.close();
   const std::string cmd = std::string(TESSERA_GNUPLOT) + " '" + gp.string() + "'";
   if (std::system(cmd.c_str()) != 0)
@@ -286,14 +408,19 @@ void chart(const fs::path& out) {
 
 int main(int argc, char** argv) {
   tessera::render::timePasses(true);  // the per-pass figures
-  CLI::App app{"paraview_peer: Tessera against ParaView pvbatch on random points in a cube"};
+  CLI::App app{"paraview_peer: Tessera against ParaView pvbatch on random points in a cube and "
+               "on tiled Autzen LiDAR"};
   std::string out = TESSERA_BENCH_RESULTS_DIR;
   std::vector<uint64_t> sizes{10'000'000, 50'000'000};
+  std::vector<std::string> inputs{"cube", "autzen"};
   int rounds = 3, frames = 3;
   uint64_t budget = 1'000'000;
   bool no_paraview = false;
   app.add_option("--out", out, "Folder for inputs, CSV and chart")->capture_default_str();
-  app.add_option("--points", sizes, "Cube sizes (points)")->capture_default_str();
+  app.add_option("--points", sizes, "Input sizes (points)")->capture_default_str();
+  app.add_option("--inputs", inputs, "Inputs: cube (random points), autzen (tiled LiDAR)")
+      ->check(CLI::IsMember({"cube", "autzen"}))
+      ->capture_default_str();
   app.add_option("--rounds", rounds, "Interleaved rounds (medians kept)")
       ->check(CLI::PositiveNumber)
       ->capture_default_str();
@@ -315,66 +442,82 @@ int main(int argc, char** argv) {
                    "paraview_peer: pvbatch (Debian package paraview; xvfb-run without a display) "
                    "not found or --no-paraview: measuring Tessera alone\n");
     const uint32_t w = 1920, h = 1080;
-    const bench::CubeCamera cam = bench::cubeCamera();
-    const render::ViewSetup view = bench::cubeView(cam, w, h);
     auto ctx = render::GlContext::createHeadless();
     render::RenderOptions full;
     full.lod_pixels = 1e-9;
     full.coverage_stop = false;
-    full.fill = render::SurfaceFill::kDiscs;  // the reference picture: discs as before
+    full.budget_per_covered_pixel = 0.0;
+    full.fill = render::SurfaceFill::kDiscs;  // the reference picture
+    const render::RenderOptions defaults;
     render::RenderOptions coverage;
+    coverage.budget_per_covered_pixel = 0.0;
     coverage.fill = render::SurfaceFill::kDiscs;
     render::RenderOptions budgeted = coverage;
     budgeted.point_budget = budget;
     render::RenderOptions pullpush = coverage;
     pullpush.fill = render::SurfaceFill::kPullPush;
-    render::RenderOptions pullpush_budget = pullpush;
-    pullpush_budget.point_budget = budget;
-    const std::array<std::pair<const char*, render::RenderOptions>, 5> variants{
-        {{"full", full},
-         {"coverage", coverage},
-         {"budget", budgeted},
-         {"pullpush", pullpush},
-         {"pullpush-budget", pullpush_budget}}};
+    const std::array<render::RenderOptions, kVariants.size()> options{full, defaults, coverage,
+                                                                      budgeted, pullpush};
 
     std::ofstream csv(dir / "paraview_peer.csv");
     const std::string header =
-        "points,round,renderer,variant,points_drawn,covered_px,load_s,first_picture_s,"
-        "frame_best_ms,frame_median_ms,iou_vs_full";
+        "input,points,round,renderer,variant,points_drawn,point_budget,fill,disc_layers,"
+        "max_disc_radius_px,wide_disc_share,covered_px,load_s,first_picture_s,frame_best_ms,"
+        "frame_median_ms,iou_vs_full";
     csv << header << "\n";
     std::cout << header << "\n";
-    // (points, variant) -> per-round best frame ms, points drawn, IoU.
-    std::map<std::pair<uint64_t, std::string>, std::vector<std::array<double, 3>>> all;
-    auto row = [&](uint64_t n, int round, const char* who, const std::string& variant,
-                   const Run& r) {
-      char line[512];
-      std::snprintf(line, sizeof line, "%llu,%d,%s,%s,%llu,%zu,%.3f,%.3f,%.1f,%.1f,%.4f",
-                    (unsigned long long)n, round, who, variant.c_str(),
-                    (unsigned long long)r.points, coveredPixels(r.image), r.load_s, r.first_s,
-                    r.best_ms, r.median_ms, r.iou);
+    // (input, points, variant) -> per-round best frame ms, points drawn, IoU.
+    std::map<std::tuple<std::string, uint64_t, std::string>, std::vector<std::array<double, 3>>>
+        all;
+    auto row = [&](const Inputs& in, uint64_t n, int round, const char* who,
+                   const std::string& variant, const Run& r) {
+      const render::FillEstimate& e = r.estimate;
+      char line[640];
+      std::snprintf(line, sizeof line,
+                    "%s,%llu,%d,%s,%s,%llu,%llu,%s,%.1f,%.1f,%.4f,%zu,%.3f,%.3f,%.1f,%.1f,%.4f",
+                    in.name.c_str(), (unsigned long long)n, round, who, variant.c_str(),
+                    (unsigned long long)r.points, (unsigned long long)r.budget, r.fill.c_str(),
+                    e.covered_px > 0 ? e.disc_px / e.covered_px : 0.0, e.max_radius_px,
+                    e.points > 0 ? e.wide_points / e.points : 0.0, coveredPixels(r.mask),
+                    r.load_s, r.first_s, r.best_ms, r.median_ms, r.iou);
       csv << line << "\n";
       std::cout << line << std::endl;
-      all[{n, variant}].push_back({r.best_ms, double(r.points), r.iou});
+      all[{in.name, n, variant}].push_back({r.best_ms, double(r.points), r.iou});
     };
-    for (uint64_t n : sizes) {
-      const Inputs in = cubeInputs(dir / "inputs", n);
-      for (int round = 1; round <= rounds; ++round) {
-        Run pv;
-        const bool pv_ok = paraview && runParaView(dir, in.vtk, cam, w, h, frames, pv);
-        Run reference;
-        for (const auto& [name, options] : variants) {
-          Run r = runTessera(in.store, view, options, frames);
-          if (std::string(name) == "full") reference = r;
-          r.iou = silhouetteIou(r.image, reference.image);
-          row(n, round, "tessera", name, r);
-          if (round == 1)
-            render::writePng(
-                (dir / ("paraview_peer-" + std::to_string(n) + "-" + name + ".png")).string(),
-                r.image);
-        }
-        if (pv_ok) {
-          pv.iou = silhouetteIou(pv.image, reference.image);
-          row(n, round, "paraview", "paraview", pv);
+    std::vector<std::pair<std::string, uint64_t>> measured;
+    for (const std::string& input : inputs) {
+      for (uint64_t n : sizes) {
+        const Inputs in = input == "cube" ? cubeInputs(dir / "inputs", n)
+                                          : autzenInputs(dir / "inputs", n);
+        measured.emplace_back(input, n);
+        const bench::CubeCamera cam = bench::boxCamera(in.lo, in.hi);
+        const render::ViewSetup view = bench::cubeView(cam, w, h);
+        bench::CubeCamera pv_cam = cam;  // ParaView's points are relative to vtk_origin
+        pv_cam.eye -= in.vtk_origin;
+        pv_cam.target -= in.vtk_origin;
+        const std::string tag = input + "-" + std::to_string(n);
+        for (int round = 1; round <= rounds; ++round) {
+          Run pv;
+          const bool pv_ok = paraview && runParaView(dir, in.vtk, pv_cam, w, h, frames, pv);
+          Run reference;
+          for (size_t v = 0; v < kVariants.size(); ++v) {
+            Run r = runTessera(in.store, view, options[v], frames);
+            if (v == 0) reference = r;
+            r.iou = silhouetteIou(r.mask, reference.mask);
+            row(in, n, round, "tessera", kVariants[v].first, r);
+            if (round == 1)
+              render::writePng(
+                  (dir / ("paraview_peer-" + tag + "-" + kVariants[v].first + ".png")).string(),
+                  r.image);
+          }
+          if (pv_ok) {
+            pv.iou = silhouetteIou(pv.mask, reference.mask);
+            row(in, n, round, "paraview", "paraview", pv);
+            if (round == 1)
+              fs::copy_file(dir / "paraview_peer-paraview.png",
+                            dir / ("paraview_peer-" + tag + "-paraview.png"),
+                            fs::copy_options::overwrite_existing);
+          }
         }
       }
     }
@@ -383,39 +526,41 @@ int main(int argc, char** argv) {
     // Medians over rounds, the speed-ups against ParaView, and the chart's table.
     std::ofstream sum(dir / "paraview_peer_summary.csv");
     std::ofstream tab(dir / "paraview_peer_chart.csv");
-    sum << "points,variant,points_drawn,frame_ms,iou_vs_full,speedup_vs_paraview\n";
-    std::cout << "\npoints,variant,points_drawn,frame_ms,iou_vs_full,speedup_vs_paraview\n";
-    for (uint64_t n : sizes) {
+    const char* sum_header = "input,points,variant,points_drawn,frame_ms,iou_vs_full,speedup_vs_paraview\n";
+    sum << sum_header;
+    std::cout << "\n" << sum_header;
+    for (const auto& [input, n] : measured) {
       auto med = [&](const std::string& v, int i) {
         std::vector<double> x;
-        for (const auto& r : all[{n, v}]) x.push_back(r[size_t(i)]);
+        for (const auto& r : all[{input, n, v}]) x.push_back(r[size_t(i)]);
         return median(x);
       };
-      const double pv_ms = med("paraview", 0);
       // The speed-up of each round's interleaved pair, then their median: the machine's load
       // changes between rounds, less within one.
       auto speedup = [&](const std::string& v) {
-        const auto& pv = all[{n, "paraview"}];
-        const auto& t = all[{n, v}];
+        const auto& pv = all[{input, n, "paraview"}];
+        const auto& t = all[{input, n, v}];
         std::vector<double> x;
         for (size_t i = 0; i < pv.size() && i < t.size(); ++i) x.push_back(pv[i][0] / t[i][0]);
         return median(x);
       };
-      for (const char* v :
-           {"paraview", "full", "coverage", "budget", "pullpush", "pullpush-budget"}) {
-        if (all[{n, v}].empty()) continue;
+      std::vector<std::string> names{"paraview"};
+      for (const auto& v : kVariants) names.emplace_back(v.first);
+      for (const std::string& v : names) {
+        if (all[{input, n, v}].empty()) continue;
         char line[256];
-        std::snprintf(line, sizeof line, "%llu,%s,%.0f,%.1f,%.4f,%.2f", (unsigned long long)n, v,
-                      med(v, 1), med(v, 0), med(v, 2), speedup(v));
+        std::snprintf(line, sizeof line, "%s,%llu,%s,%.0f,%.1f,%.4f,%.2f", input.c_str(),
+                      (unsigned long long)n, v.c_str(), med(v, 1), med(v, 0), med(v, 2),
+                      speedup(v));
         sum << line << "\n";
         std::cout << line << "\n";
       }
-      char line[256];
-      std::snprintf(line, sizeof line, "%.0fx10^6,%.1f,%.1f,%.1f,%.1f,%.0f,%.0f,%.0f,%.1f,%.1f",
-                    double(n) / 1e6, pv_ms > 0 ? pv_ms : 1e-9, med("full", 0), med("coverage", 0),
-                    med("budget", 0), med("full", 1), med("coverage", 1), med("budget", 1),
-                    med("pullpush", 0), med("pullpush-budget", 0));
-      tab << line << "\n";
+      const double pv_ms = med("paraview", 0);
+      tab << (input == "cube" ? "cube " : "Autzen ") << double(n) / 1e6 << "M,"
+          << (pv_ms > 0 ? pv_ms : 1e-9);
+      for (const auto& v : kVariants) tab << "," << med(v.first, 0);
+      for (const auto& v : kVariants) tab << "," << std::max(speedup(v.first), 1e-9);
+      tab << "\n";
     }
     sum.close();
     tab.close();

@@ -77,6 +77,7 @@ struct Loaded {
   bool cancelled = false;  ///< given up: no frame wanted it any more (endFrame()), or forget()
   bool measured = false;
   bool splat_sized = false;  ///< splat sizes asked for (measured if a leaf)
+  float max_splat_scale = 1.0f;
   glm::dvec3 offset{0.0};
   std::vector<GpuPoint> points;
   std::vector<GpuMeshVertex> mesh_vertices;  ///< a mesh patch
@@ -215,6 +216,8 @@ struct ChunkStreamer::Impl {
       out.splat_sized = (item.needs & kSplatSizes) != 0;
       if (out.splat_sized && item.store->node(item.node).leaf())
         scales = splatScales(chunk->positions, out.spacing);
+      for (uint8_t b : scales)
+        out.max_splat_scale = std::max(out.max_splat_scale, pointSplatScale(uint32_t(b) << 24));
       const StoredAo ao_mode = stored_ao.load();
       const bool ao = !chunk->ambient_occlusion.empty() && ao_mode != StoredAo::kOff;
       for (size_t i = 0; i < chunk->size(); ++i) {
@@ -369,6 +372,7 @@ void ChunkStreamer::beginFrame() {
     c.spacing = l.spacing;
     c.measured = l.measured;
     c.splat_sized = l.splat_sized;
+    c.max_splat_scale = l.max_splat_scale;
     c.density = l.density;
     if (!l.normals.empty()) c.normals = GlBuffer(l.normals.size() * 4, l.normals.data());
     if (!l.ratios.empty()) c.density_ratios = GlBuffer(l.ratios.size() * 4, l.ratios.data());

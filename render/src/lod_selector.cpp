@@ -67,6 +67,16 @@ class CoverageGrid {
     return any && all;
   }
 
+  /// The screen area, pixels, of the cells splats cover `layers` times over.
+  double coveredArea(double layers) const {
+    double area = 0.0;
+    forCells({0.0, 0.0, double(mWidth), double(mHeight)}, [&](size_t cell, double, double a) {
+      if (mArea[cell] >= layers * a) area += a;
+      return true;
+    });
+    return area;
+  }
+
  private:
   /// Calls f(cell index, overlap with rect, cell area on screen) for every cell that `rect`
   /// overlaps, until f returns false; returns whether it never did.
@@ -156,6 +166,22 @@ struct Pending {
   lod::NodeInfo info;
 };
 
+/// The visible (in the frustum, not hidden) children of a refined node, measured, and their
+/// points.
+uint64_t visibleChildren(const Selection& s, lod::NodeId id, int32_t parent,
+                         const std::unordered_set<lod::NodeId>& hidden,
+                         std::vector<Pending>& children) {
+  children.clear();
+  uint64_t points = 0;
+  for (lod::NodeId c : s.store.children(id)) {
+    const lod::NodeInfo n = s.store.node(c);
+    if (hidden.count(c) || !s.frustum.intersects(n.box_min, n.box_max)) continue;
+    children.push_back({s.measure(c, n, parent), n});
+    points += n.points;
+  }
+  return points;
+}
+
 /// The spacing test, nearest node first, with the coverage stop when asked for.
 void refineNearestFirst(const Selection& s, Cut& cut, std::unordered_set<lod::NodeId>& refined,
                         std::unordered_set<lod::NodeId>& hidden) {
@@ -229,19 +255,30 @@ void refineNearestFirst(const Selection& s, Cut& cut, std::unordered_set<lod::No
     const auto index = int32_t(cut.above.size() - 1);
     for (lod::NodeId c : s.store.children(e.node.id)) push(c, index);
   }
+  if (!grid) return;
+  for (; !deposits.empty(); deposits.pop()) grid->add(deposits.top().rect, deposits.top().area);
+  cut.covered_px = grid->coveredArea(1.0);
 }
 
-/// Redoes the refinements of `refined` in order of projected spacing, largest first, while the
-/// cut stays within the budget; the first that does not fit ends the refinement (Potree).
-Cut refineWithinBudget(const Selection& s, const Cut& full,
-                       const std::unordered_set<lod::NodeId>& refined,
-                       const std::unordered_set<lod::NodeId>& hidden) {
+/// A cut without nodes that keeps `full`'s traversal counters (what a cut redone from the same
+/// traversal reports).
+Cut emptyCutOf(const Cut& full) {
   Cut cut;
   cut.visited = full.visited;
   cut.culled = full.culled;
   cut.pages_deferred = full.pages_deferred;
   cut.covered = full.covered;
   cut.hidden = full.hidden;
+  cut.covered_px = full.covered_px;
+  return cut;
+}
+
+/// Redoes the refinements of `refined` in order of projected spacing, largest first, while the
+/// cut stays within `budget` points; the first that does not fit ends the refinement (Potree).
+Cut refineWithinBudget(const Selection& s, const Cut& full,
+                       const std::unordered_set<lod::NodeId>& refined,
+                       const std::unordered_set<lod::NodeId>& hidden, uint64_t budget) {
+  Cut cut = emptyCutOf(full);
   auto lower = [](const Pending& a, const Pending& b) {  // heap order: largest spacing first
     if (a.node.projected_spacing_px != b.node.projected_spacing_px)
       return a.node.projected_spacing_px < b.node.projected_spacing_px;
@@ -260,15 +297,9 @@ Cut refineWithinBudget(const Selection& s, const Cut& full,
     queue.pop();
     if (refined.count(e.node.id)) {
       if (!full_budget) {
-        children.clear();
-        uint64_t points = 0;
-        for (lod::NodeId c : s.store.children(e.node.id)) {
-          const lod::NodeInfo n = s.store.node(c);
-          if (hidden.count(c) || !s.frustum.intersects(n.box_min, n.box_max)) continue;
-          children.push_back({s.measure(c, n, int32_t(cut.above.size())), n});
-          points += n.points;
-        }
-        if (cut.points - e.info.points + points <= s.options.point_budget) {
+        const uint64_t points =
+            visibleChildren(s, e.node.id, int32_t(cut.above.size()), hidden, children);
+        if (cut.points - e.info.points + points <= budget) {
           cut.points = cut.points - e.info.points + points;
           cut.above.push_back(e.node);
           for (const Pending& c : children) queue.push(c);
@@ -279,6 +310,32 @@ Cut refineWithinBudget(const Selection& s, const Cut& full,
       ++cut.over_budget;
     }
     cut.nodes.push_back(e.node);
+  }
+  return cut;
+}
+
+/// The cut of the refinements of `refined` that `allowed` also holds (another view's refined
+/// nodes: CutOptions::refine_only).
+Cut refineOnly(const Selection& s, const Cut& full, const std::unordered_set<lod::NodeId>& refined,
+               const std::unordered_set<lod::NodeId>& hidden,
+               const std::unordered_set<lod::NodeId>& allowed) {
+  Cut cut = emptyCutOf(full);
+  const lod::NodeInfo root = s.store.node(s.store.root());
+  if (!s.frustum.intersects(root.box_min, root.box_max)) return cut;
+  std::vector<Pending> queue{{s.measure(s.store.root(), root, -1), root}}, children;
+  for (size_t i = 0; i < queue.size(); ++i) {  // breadth first: parents before children
+    const Pending e = queue[i];
+    if (refined.count(e.node.id)) {
+      if (allowed.count(e.node.id)) {
+        cut.above.push_back(e.node);
+        visibleChildren(s, e.node.id, int32_t(cut.above.size() - 1), hidden, children);
+        queue.insert(queue.end(), children.begin(), children.end());
+        continue;
+      }
+      ++cut.over_budget;
+    }
+    cut.nodes.push_back(e.node);
+    cut.points += e.info.points;
   }
   return cut;
 }
@@ -307,8 +364,17 @@ Cut selectCut(lod::LodHierarchy& store, const glm::dmat4& model, const ViewSetup
   Cut cut;
   std::unordered_set<lod::NodeId> refined, hidden;
   refineNearestFirst(s, cut, refined, hidden);
-  if (options.point_budget > 0 && cut.points > options.point_budget)
-    cut = refineWithinBudget(s, cut, refined, hidden);
+  uint64_t budget = options.point_budget;
+  if (budget == 0 && options.budget_per_covered_px > 0.0) {
+    const double covered = cut.covered_px > 0.0 ? cut.covered_px : double(view.width) * view.height;
+    budget = uint64_t(std::min(std::ceil(options.budget_per_covered_px * covered), 1e18));
+  }
+  if (options.refine_only) {
+    cut = refineOnly(s, cut, refined, hidden, *options.refine_only);
+  } else if (budget > 0 && cut.points > budget) {
+    cut = refineWithinBudget(s, cut, refined, hidden, budget);
+  }
+  cut.point_budget = budget;
   // A node around the eye has no bound: it is always refined, and reported as 0.
   for (auto* list : {&cut.nodes, &cut.above})
     for (CutNode& n : *list)

@@ -60,6 +60,7 @@ ViewSetup subView(const ViewSetup& full, uint32_t x, uint32_t y, uint32_t width,
   m[3][1] = -(y0 + y1) / (y1 - y0);
   v.projection = m * full.projection;
   v.origin = full.origin + glm::ivec2(int(x), int(y));
+  if (full.whole_size == glm::uvec2(0)) v.whole_size = {full.width, full.height};
   return v;
 }
 

@@ -126,6 +126,29 @@ ViewSetup tileView(const config::WallConfig& wall, const config::Tile& tile,
   v.pixels_per_metre =
       glm::dvec2(tile.pixel_width() / tile.width(), tile.pixel_height() / tile.height());
   v.origin = tileOffsetInWhole(wall, tile);
+  if (!isRoom(wall)) {
+    const ViewSetup whole = wholeWallView(wall, camera);
+    v.whole_size = {whole.width, whole.height};
+  }
+  return v;
+}
+
+ViewSetup wholeView(const ViewSetup& part) {
+  if (part.whole_size == glm::uvec2(0)) return part;
+  // The inverse of subView() (poster.h): part NDC -> whole NDC, x' = s x + t, in clip space.
+  const double W = part.whole_size.x, H = part.whole_size.y;
+  const double w = part.width, h = part.height;
+  glm::dmat4 m(1.0);
+  m[0][0] = w / W;
+  m[1][1] = h / H;
+  m[3][0] = (2.0 * part.origin.x + w) / W - 1.0;
+  m[3][1] = 1.0 - (2.0 * part.origin.y + h) / H;
+  ViewSetup v = part;
+  v.projection = m * part.projection;
+  v.width = part.whole_size.x;
+  v.height = part.whole_size.y;
+  v.origin = glm::ivec2(0);
+  v.whole_size = glm::uvec2(0);
   return v;
 }
 
@@ -140,6 +163,7 @@ ViewSetup withGuardBand(const ViewSetup& view, uint32_t band) {
   scale[1][1] = double(view.height) / double(v.height);
   v.projection = scale * view.projection;
   v.origin = view.origin - glm::ivec2(int(band));
+  if (view.whole_size == glm::uvec2(0)) v.whole_size = {view.width, view.height};
   return v;
 }
 

@@ -8,6 +8,7 @@
 #include <iterator>
 #include <limits>
 #include <numbers>
+#include <unordered_set>
 
 #include <glm/gtc/matrix_transform.hpp>
 
@@ -22,12 +23,13 @@ namespace {
 /// The largest splat radius a frame draws, pixels: the discs' cap; with the pull-push fill,
 /// whose cost does not grow with the splats' area, at least the fill's reach (so close views of
 /// sparse scans close); 0 for single pixels.
-int splatRadiusCap(const RenderOptions& o) {
-  if (o.fill == SurfaceFill::kNone) return 0;
-  if (o.fill == SurfaceFill::kPullPush && !o.blend_colors)
+int splatRadiusCap(const RenderOptions& o, SurfaceFill fill) {
+  if (fill == SurfaceFill::kNone) return 0;
+  if (fill == SurfaceFill::kPullPush && !o.blend_colors)
     return std::max(o.max_splat_radius, 1 << kFillMaxLevels);
   return o.max_splat_radius;
 }
+
 
 uint32_t packRgb(const glm::u8vec3& c) {
   return uint32_t(c.r) | uint32_t(c.g) << 8 | uint32_t(c.b) << 16;
@@ -85,6 +87,14 @@ ViewRenderer::ViewRenderer(uint32_t width, uint32_t height, std::shared_ptr<Chun
       mWidth(width),
       mHeight(height),
       mTarget(width, height) {}
+
+SurfaceFill chooseFill(SurfaceFill fill, const FillEstimate& e) {
+  if (fill != SurfaceFill::kAuto) return fill;
+  return e.disc_px > kAutoFillDiscLayers * e.covered_px &&
+                 e.max_radius_px <= double(1 << kFillMaxLevels)
+             ? SurfaceFill::kPullPush
+             : SurfaceFill::kDiscs;
+}
 
 uint32_t screenPassReach(const RenderOptions& o, const ViewSetup& view, double nearest_depth) {
   int reach = 0;
@@ -189,6 +199,7 @@ void ViewRenderer::draw(std::span<const ModelInstance> models, const ViewSetup& 
   mBatchWorld.clear();
   mMeshWorld.clear();
   std::vector<DrawBatch> batches;
+  FillEstimate fill_estimate;
   std::vector<MeshBatch> mesh_batches;
   std::vector<lod::NodeId> mesh_nodes;
   auto nextBase = [&] {
@@ -207,7 +218,7 @@ void ViewRenderer::draw(std::span<const ModelInstance> models, const ViewSetup& 
       continue;
     }
     const size_t first = batches.size();
-    addModel(models[i], see_through, view, options, batches, st);
+    addModel(models[i], see_through, view, options, batches, fill_estimate, st);
     for (size_t b = first; pick && b < batches.size(); ++b) {
       const uint32_t base = nextBase();
       batches[b].pick_base = base;
@@ -218,6 +229,16 @@ void ViewRenderer::draw(std::span<const ModelInstance> models, const ViewSetup& 
   for (size_t i = 0; i < model_picks.size(); ++i)
     model_picks[i].count =
         (i + 1 < model_picks.size() ? model_picks[i + 1].first : nextBase()) - model_picks[i].first;
+  // The fill: the cheaper for this frame where the view is a picture of its own (a part of a
+  // larger one draws discs, so the parts join seamlessly: FillPass's pyramid follows the
+  // part's pixel grid); see-through and blended frames draw discs.
+  const bool own_picture =
+      requested.whole_size == glm::uvec2(0) && requested.pixels_per_metre == glm::dvec2(0.0);
+  st.fill = options.fill;
+  if (st.fill == SurfaceFill::kAuto)
+    st.fill = own_picture && !see_through ? chooseFill(st.fill, fill_estimate) : SurfaceFill::kDiscs;
+  st.fill_estimate = fill_estimate;
+  for (DrawBatch& b : batches) b.splat_radius = splatRadiusCap(options, st.fill);
   mStreamer->endFrame();
   st.stream = mStreamer->stats();
   mPickUnproject = glm::inverse(view.projection * view.view);
@@ -252,7 +273,7 @@ void ViewRenderer::draw(std::span<const ModelInstance> models, const ViewSetup& 
     mSpbrSignature = 0;
     shading.blend = options.blend_colors && shading.uniform_color == 0;
     shading.projection = view.projection;
-    shading.fill = options.fill == SurfaceFill::kPullPush && !shading.blend;
+    shading.fill = st.fill == SurfaceFill::kPullPush && !shading.blend;
     mTarget.clearGeometry(pick, shading.blend, shading.fill);
     if (!mesh_batches.empty()) {
       if (!mMeshes) mMeshes = std::make_unique<MeshPass>();
@@ -264,7 +285,7 @@ void ViewRenderer::draw(std::span<const ModelInstance> models, const ViewSetup& 
     st.color_ms = t.color_ms;
     if (shading.fill) {
       if (!mFill) mFill = std::make_unique<FillPass>();
-      st.fill_ms = mFill->run(mTarget, view.projection, float(splatRadiusCap(options)),
+      st.fill_ms = mFill->run(mTarget, view.projection, float(splatRadiusCap(options, st.fill)),
                               shading.uniform_color == 0, pick);
     }
     st.resolve_ms = mResolve.run(mTarget, options.background, shading.uniform_color, shading.blend);
@@ -517,7 +538,7 @@ void ViewRenderer::drawSeeThrough(std::span<const ModelInstance> models, const V
 
 void ViewRenderer::addModel(const ModelInstance& instance, bool see_through, const ViewSetup& view,
                             const RenderOptions& options, std::vector<DrawBatch>& batches,
-                            RenderStats& stats) {
+                            FillEstimate& estimate, RenderStats& stats) {
   lod::PointStore& store = *instance.store;
   const glm::dmat4& model = instance.model;
   auto t0 = std::chrono::steady_clock::now();
@@ -532,8 +553,31 @@ void ViewRenderer::addModel(const ModelInstance& instance, bool see_through, con
     mStreamer->requestChildren(store, id);
     return false;
   };
+  TESSERA_CHECK(std::isfinite(options.budget_per_covered_pixel) &&
+                    options.budget_per_covered_pixel >= 0.0,
+                "render::RenderOptions: budget_per_covered_pixel must be finite and >= 0");
+  co.point_budget = options.point_budget;
+  co.budget_per_covered_px = options.budget_per_covered_pixel;
+  uint64_t budget = 0;
+  std::unordered_set<lod::NodeId> whole_refined;
+  if ((co.point_budget > 0 || co.budget_per_covered_px > 0.0) &&
+      view.whole_size != glm::uvec2(0)) {
+    // A part of a larger picture (a wall's tile, a poster's part, a view with its guard band)
+    // draws the whole picture's cut: it refines only what that cut refined, which every part
+    // computes alike, instead of holding a budget of its own that would end at other nodes.
+    const Cut whole = selectCut(store, model, wholeView(view), co);
+    budget = whole.point_budget;
+    co.point_budget = 0;
+    co.budget_per_covered_px = 0.0;
+    if (whole.over_budget > 0) {
+      for (const CutNode& n : whole.above) whole_refined.insert(n.id);
+      co.refine_only = &whole_refined;
+    }
+  }
   const Cut cut = selectCut(store, model, view, co);
+  stats.point_budget += budget > 0 ? budget : cut.point_budget;
   stats.cut_nodes += cut.nodes.size();
+  estimate.covered_px += cut.covered_px > 0.0 ? cut.covered_px : double(view.width) * view.height;
 
   const glm::dmat4 clip_from_world = view.projection * view.view;
   const double k = pixelsPerUnitAtDistanceOne(view);
@@ -569,7 +613,7 @@ void ViewRenderer::addModel(const ModelInstance& instance, bool see_through, con
     b.clip_from_local = glm::mat4(clip_from_world * world_from_local);
     b.clip = gpuClipPlanes(instance.clip, world_from_local);
     b.spacing_k = float(n.spacing * k * options.splat_scale);
-    b.splat_radius = splatRadiusCap(options);
+    b.splat_radius = options.max_splat_radius;  // the frame's fill sets it (draw())
     // The discs' bound: the node's nearest view depth (at a corner of its box), a leaf's
     // largest point scale.
     const lod::NodeInfo info = store.node(n.id);
@@ -588,6 +632,15 @@ void ViewRenderer::addModel(const ModelInstance& instance, bool see_through, con
       b.own_scale_cap =
           discPx(n) >= kFullOwnSizesFromRadiusPx ? kMaxPointSplatScale : kSmallDiscOwnScaleCap;
     if (nearest_w > 0) b.max_disc_px = float(0.5 * b.spacing_k * b.own_scale_cap / nearest_w);
+    // What the discs cost (SurfaceFill::kAuto): their area at the node's nearest, and the
+    // widest, own sizes included.
+    const double disc_r = std::min(discPx(n), double(options.max_splat_radius));
+    const double own = std::min(double(b.own_scale_cap), double(chunk.max_splat_scale));
+    estimate.disc_px += double(chunk.count) * std::max(std::numbers::pi * disc_r * disc_r, 1.0);
+    const double widest = std::min(disc_r * own, double(options.max_splat_radius));
+    estimate.max_radius_px = std::max(estimate.max_radius_px, widest);
+    estimate.points += chunk.count;
+    if (widest > double(1 << kFillMaxLevels)) estimate.wide_points += chunk.count;
     b.blend_depth = float(n.spacing * unit * options.splat_scale);
     if (instance.color != glm::u8vec3(0) && (store.summary().attributes & lod::kColor) == 0)
       b.color_override = 0x1000000u | packRgb(instance.color);

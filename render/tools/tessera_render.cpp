@@ -286,10 +286,17 @@ int run(int argc, char** argv) {
   app.add_option("--lod-px", lod_px, "LOD threshold in pixels (default: the scene's, else 1)")
       ->check(cli::positiveFinite(1e6));
   uint64_t point_budget = 0;
+  double budget_per_pixel = render::RenderOptions{}.budget_per_covered_pixel;
   bool no_coverage_stop = false;
-  app.add_option("--point-budget", point_budget,
-                 "Most points per model and view, refined largest screen error first (0: none)")
-      ->check(cli::anyInteger<uint64_t>())
+  auto* budget_opt =
+      app.add_option("--point-budget", point_budget,
+                     "Most points per model and picture (a wall's tiles share the wall's), "
+                     "refined largest screen error first (0: none; default: "
+                     "--points-per-pixel of the pixels the model covers)")
+          ->check(cli::anyInteger<uint64_t>());
+  app.add_option("--points-per-pixel", budget_per_pixel,
+                 "Without --point-budget: the budget per pixel the model covers (0: none)")
+      ->check(cli::finiteRange(0.0, 1e6))
       ->capture_default_str();
   app.add_flag("--no-coverage-stop", no_coverage_stop,
                "Refine also where nearer points already cover the pixels (a volume of points "
@@ -345,14 +352,14 @@ int run(int argc, char** argv) {
                  "Splat size as a multiple of the projected sample spacing (raise for LiDAR)")
       ->check(cli::finiteRange(0.25, 8.0))
       ->capture_default_str();
-  std::string fill =
-      render::RenderOptions{}.fill == render::SurfaceFill::kPullPush ? "pullpush" : "discs";
+  std::string fill = "auto";
   app.add_option("--fill", fill,
-                 "How opaque points close surfaces: discs (each point a disc of its splat size) "
-                 "or pullpush (1 px points, then a screen-space pull-push fill reaching as far as "
-                 "the discs would: cost by pixels, not splat area), or none (1 px points, open: "
-                 "the cost floor)")
-      ->check(CLI::IsMember({"discs", "pullpush", "none"}))
+                 "How opaque points close surfaces: auto (whichever of the two below costs the "
+                 "frame less; discs on a wall's tiles), discs (each point a disc of its splat "
+                 "size), pullpush (1 px points, then a screen-space pull-push fill reaching as "
+                 "far as the discs would: cost by pixels, not splat area), or none (1 px points, "
+                 "open: the cost floor)")
+      ->check(CLI::IsMember({"auto", "discs", "pullpush", "none"}))
       ->capture_default_str();
   app.add_option("--gpu-budget-mb", budget_mb, "GPU bytes for resident chunks, MiB")
       ->check(cli::finiteRange(1.0, 1e6))
@@ -636,6 +643,9 @@ int run(int argc, char** argv) {
     }
     options.splat_scale = float(splat_scale);
     options.point_budget = point_budget;
+    options.budget_per_covered_pixel = budget_opt->count() > 0 && point_budget == 0
+                                           ? 0.0  // --point-budget 0: none
+                                           : budget_per_pixel;
     options.coverage_stop = !no_coverage_stop;
     if (spbr_l > 0) options.spbr.ensembles = spbr_l;
     options.spbr.progressive_max = spbr_progressive;
@@ -647,7 +657,8 @@ int run(int argc, char** argv) {
     options.flat_shading = flat_shading;
     options.fill = fill == "pullpush" ? render::SurfaceFill::kPullPush
                    : fill == "none"   ? render::SurfaceFill::kNone
-                                      : render::SurfaceFill::kDiscs;
+                   : fill == "discs"  ? render::SurfaceFill::kDiscs
+                                      : render::SurfaceFill::kAuto;
     if (!background.empty()) options.background = glm::vec3(background_rgb);
 
     // What this run reads must never be what it writes (-o, --stats), by any path.

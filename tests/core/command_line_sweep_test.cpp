@@ -151,6 +151,7 @@ TEST(CommandLineSweep, TesseraRender) {
   sweep(render(), {{"--fovy", false, false},
                    {"--lod-px", false, false},
                    {"--point-budget", true, true},
+                   {"--points-per-pixel", true, false},
                    {"--splat-scale", false, false},
                    {"--gpu-budget-mb", false, false},
                    {"--loader-threads", true, true, false},

@@ -53,6 +53,43 @@ TEST(TileFrustum, TilesAndWholeWallAgreeAcrossBezels) {
   EXPECT_GT(checked, 500);
 }
 
+// A tile, a tile with its guard band and a poster-like part rebuild the view of the picture they
+// belong to: every point lands on the same whole-picture pixel as in wholeWallView().
+TEST(TileFrustum, WholeViewOfAPartIsThePictureItBelongsTo) {
+  auto wall = sync::loadWallConfig(kConfigs + "/walls/2x2.json");
+  const config::Camera cam = camera();
+  const ViewSetup whole = wholeWallView(wall, cam);
+  EXPECT_EQ(whole.whole_size, glm::uvec2(0));
+  EXPECT_EQ(wholeView(whole).projection, whole.projection);  // a picture of its own
+  for (const auto& tile : wall.tiles()) {
+    const ViewSetup tv = tileView(wall, tile, cam);
+    EXPECT_EQ(tv.whole_size, glm::uvec2(whole.width, whole.height)) << tile.name();
+    for (uint32_t band : {0u, 7u}) {
+      const ViewSetup rebuilt = wholeView(withGuardBand(tv, band));
+      ASSERT_EQ(rebuilt.width, whole.width);
+      ASSERT_EQ(rebuilt.height, whole.height);
+      EXPECT_EQ(rebuilt.origin, glm::ivec2(0));
+      for (int i = 0; i < 200; ++i) {
+        const glm::dvec3 p(std::sin(i * 0.37) * 1.5, std::cos(i * 0.11) * 0.9,
+                           std::sin(i * 0.05) * 2.0);
+        const glm::dvec2 a = pixelOf(rebuilt, p), b = pixelOf(whole, p);
+        ASSERT_NEAR(a.x, b.x, 1e-6) << tile.name() << " band " << band;
+        ASSERT_NEAR(a.y, b.y, 1e-6) << tile.name() << " band " << band;
+      }
+    }
+  }
+  // A plain view with a guard band belongs to the view without it.
+  ViewSetup plain = whole;
+  const ViewSetup banded = withGuardBand(plain, 5);
+  EXPECT_EQ(banded.whole_size, glm::uvec2(plain.width, plain.height));
+  const ViewSetup back = wholeView(banded);
+  for (int c = 0; c < 4; ++c)
+    for (int r = 0; r < 4; ++r) EXPECT_NEAR(back.projection[c][r], plain.projection[c][r], 1e-12);
+  // A room's screens have planes of their own: no whole picture to share.
+  auto cave = sync::loadWallConfig(kConfigs + "/walls/cave.json");
+  EXPECT_EQ(tileView(cave, cave.tiles(0), cam).whole_size, glm::uvec2(0));
+}
+
 TEST(TileFrustum, WallPlanePointsLandOnTheirTilePixel) {
   auto wall = sync::loadWallConfig(kConfigs + "/walls/3x2.json");
   config::Camera cam;

@@ -45,6 +45,9 @@ struct GpuChunk {
   /// Whether its points' own splat sizes were asked for (StreamerOptions::point_splat_sizes;
   /// on leaves they are in the points' top bytes).
   bool splat_sized = false;
+  /// The largest of its points' own splat scales (pointSplatScale(), splat_sizes.h); 1 when
+  /// none was measured.
+  float max_splat_scale = 1.0f;
   /// Points per unit area (store units) by sphere counts on the chunk's own points (spbr.h),
   /// for see-through rendering; 0 when too few points or not `measured`.
   double density = 0.0;

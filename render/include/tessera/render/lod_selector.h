@@ -8,6 +8,8 @@
 // coverage stop on for opaque frames):
 // - a point budget per view, as Potree users set one: refinements are taken in order of
 //   projected spacing (the largest screen error first) while the cut's points stay within it;
+//   views that share a picture (a wall's tiles) agree on one cut by refining only what the
+//   whole picture's cut refined (CutOptions::refine_only);
 // - a coverage stop: nodes are visited nearest first and every cut node's splats are spread over
 //   a coarse grid of screen cells; a node whose footprint lies on cells that nearer cut nodes
 //   already cover many times over is not refined (an opaque, depth-tested render shows little
@@ -21,6 +23,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <unordered_set>
 #include <vector>
 
 #include <glm/glm.hpp>
@@ -38,6 +41,14 @@ struct CutOptions {
   /// Potree does; the cut is never coarser than the root, so a budget below the root's points
   /// gives the root.
   uint64_t point_budget = 0;
+  /// Without point_budget: a budget of this many points per pixel the cut covers (0: none).
+  /// The pixels are the coverage grid's (Cut::covered_px) with the coverage stop, else the
+  /// view's: a model seen small gets a small budget, one filling the view a large one.
+  double budget_per_covered_px = 0.0;
+  /// When set: refine only nodes it holds, in place of a budget. A wall tile passes the ids of
+  /// the whole wall's refined nodes (Cut::above of the same store), so every tile draws the
+  /// whole wall's budget-limited cut, not a budget of its own. Not owned; outlives the call.
+  const std::unordered_set<lod::NodeId>* refine_only = nullptr;
   /// Stop refining where nearer cut nodes already cover the screen (see the top of this file).
   bool coverage_stop = false;
   /// A screen cell counts as covered when the splats of the cut nodes chosen so far would cover
@@ -88,6 +99,10 @@ struct Cut {
   size_t covered = 0;         ///< refinements stopped by the coverage stop
   size_t hidden = 0;          ///< nodes left out by the coverage stop (coverage_hide_layers)
   size_t over_budget = 0;     ///< refinements left out to stay within the point budget
+  uint64_t point_budget = 0;  ///< the budget the cut was held to (0: none)
+  /// With the coverage stop: the screen area, pixels, of the grid cells the cut's splats cover
+  /// at least once (an estimate of the pixels the model covers); 0 without it.
+  double covered_px = 0.0;
 };
 
 /// Selects the cut for `view` of `store`, whose local frame maps to the world by `model`

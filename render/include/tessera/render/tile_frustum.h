@@ -40,7 +40,17 @@ struct ViewSetup {
   /// wall: tileOffsetInWhole(); 0 for a picture of its own). Passes that seed their samples by
   /// pixel use the position in that picture, so a tile draws what the whole wall draws there.
   glm::ivec2 origin{0};
+  /// The size of that larger picture, pixels (a tile: the whole wall's, wholeWallView(); a
+  /// poster's part: the poster's; a view with a guard band: the view without it); 0 for a
+  /// picture of its own. With `origin` it rebuilds the whole picture's view (wholeView()),
+  /// whose LOD cut the parts share. A room's tiles (screens on planes of their own) have none.
+  glm::uvec2 whole_size{0};
 };
+
+/// The view of the whole picture `part` belongs to (ViewSetup::whole_size): the same eye and
+/// projection plane, the frustum widened in NDC to the whole's pixels. `part` itself when it
+/// is a picture of its own.
+ViewSetup wholeView(const ViewSetup& part);
 
 /// World -> camera matrix of a scene camera (right-handed, looking down -z, y up).
 glm::dmat4 cameraView(const config::Camera& camera);

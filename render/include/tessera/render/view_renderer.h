@@ -45,14 +45,50 @@ enum class SurfaceFill {
   /// Each point one pixel, nothing filled: surfaces stay open. The cost floor the others are
   /// measured against (bench/fill), and a quick preview.
   kNone,
+  /// Whichever of kDiscs and kPullPush costs the frame less (chooseFill()): the pull-push fill
+  /// where the discs' summed area is many times the pixels the models cover (a volume of
+  /// points seen whole) and every disc lies within the fill's reach; discs otherwise, and always
+  /// in a view that is part of a larger picture (a wall's tiles, a poster's parts: the fill's
+  /// pyramid follows each part's own pixel grid, so parts would not join seamlessly).
+  kAuto,
 };
+
+/// What the discs of a frame's cuts would cost, for SurfaceFill::kAuto (ViewRenderer measures
+/// it from each model's cut).
+struct FillEstimate {
+  double disc_px = 0.0;     ///< summed disc area, pixels (each disc at least a pixel)
+  double covered_px = 0.0;  ///< pixels the models cover (the coverage grid's estimate)
+  double max_radius_px = 0.0;  ///< the largest disc radius, pixels (leaves' own sizes included)
+  double points = 0.0;         ///< points drawn
+  /// Points whose discs are wider than the pull-push fill reaches (2^kFillMaxLevels pixels).
+  double wide_points = 0.0;
+};
+
+/// The discs' summed area, in covered pixels, above which SurfaceFill::kAuto fills instead: on
+/// llvmpipe a disc pixel costs about 4 ns (10 for discs of a pixel or two) and the fill about
+/// 80-125 ns a covered pixel (bench/fill, bench/paraview_peer): they cross at 20 to 30 layers.
+constexpr double kAutoFillDiscLayers = 24.0;
+
+/// kAuto's choice: kPullPush when the discs' summed area exceeds kAutoFillDiscLayers times the
+/// covered pixels and no disc is wider than the fill reaches (2^kFillMaxLevels pixels), else
+/// kDiscs; `fill` itself when it is not kAuto.
+SurfaceFill chooseFill(SurfaceFill fill, const FillEstimate& estimate);
 
 struct RenderOptions {
   double lod_pixels = 1.0;
-  /// Most points in each model's cut for a view (0: no limit), refined largest projected
-  /// spacing first (lod_selector.h; Potree's point budget). Bounds a frame's cost whatever the
-  /// model's size, at the price of detail on views that need more.
+  /// Most points in each model's cut for a view, refined largest projected spacing first
+  /// (lod_selector.h; Potree's point budget). Bounds a frame's cost whatever the model's size,
+  /// at the price of detail on views that need more. 0: budget_per_covered_pixel sets it.
   uint64_t point_budget = 0;
+  /// Without point_budget: each model's budget is this many points per pixel it covers in the
+  /// picture the view belongs to (the whole wall for a tile, the whole poster for a part:
+  /// wholeView()), counted on the coverage stop's grid (CutOptions::budget_per_covered_px);
+  /// 0: no budget. A view draws about as many points as the pixels it shows, not as many as
+  /// the model holds; the splats, sized from the projected spacing of the nodes drawn, grow as
+  /// the budget coarsens the cut, so surfaces stay closed. A view that is part of a larger
+  /// picture draws that picture's budget-limited cut (CutOptions::refine_only), so a
+  /// wall's tiles agree at their seams.
+  double budget_per_covered_pixel = 2.0;
   /// Stop refining where the model's nearer points already cover the pixels densely
   /// (lod_selector.h): a volume of points draws its front, not every leaf (about a third of the
   /// points of a 10^7- or 5x10^7-point cube seen whole); surfaces are unchanged. Opaque frames
@@ -102,10 +138,11 @@ struct RenderOptions {
   /// smooth, alias-free colour for 4 atomics per point and pixel more.
   bool blend_colors = false;
   /// Opaque frames without blend_colors: discs or 1 px points and the pull-push fill (see-
-  /// through and blended frames always draw discs). Discs by default: the fill costs a fixed
-  /// 0.3-0.6 s at 1920x1080 on llvmpipe, less than the discs only where they are large (a
-  /// volume of points, splat scale 4; bench/fill and the README's figures).
-  SurfaceFill fill = SurfaceFill::kDiscs;
+  /// through and blended frames always draw discs). By default the cheaper of the two for the
+  /// frame (kAuto): the fill costs 30-75 ms at 1920x1080 on llvmpipe whatever the splats' size,
+  /// the discs grow with their area, so a volume of points seen whole fills and a surface draws
+  /// discs (bench/fill, bench/paraview_peer).
+  SurfaceFill fill = SurfaceFill::kAuto;
   /// Mesh models: geomorphing (mesh_pass.h). A patch morphs from its parent's surface to its
   /// own shape while its parent's error grows on screen from lod_pixels to (1 + this) x
   /// lod_pixels; 0 turns it off (a level change then pops).
@@ -146,6 +183,9 @@ struct RenderStats {
   StreamStats stream;         ///< requested / uploaded / evicted, resident bytes
   double select_ms = 0, upload_ms = 0, depth_ms = 0, color_ms = 0, resolve_ms = 0, readback_ms = 0;
   double fill_ms = 0;            ///< the pull-push fill (SurfaceFill::kPullPush)
+  SurfaceFill fill = SurfaceFill::kDiscs;  ///< how this frame closed surfaces (never kAuto)
+  FillEstimate fill_estimate;              ///< what kAuto chose by
+  uint64_t point_budget = 0;  ///< the models' budgets this frame, summed (0: none)
   double mesh_ms = 0;            ///< the mesh pass (mesh_pass.h)
   uint64_t triangles = 0;        ///< mesh triangles drawn
   size_t mesh_patches = 0;       ///< mesh patches drawn (stand-ins included)
@@ -259,8 +299,10 @@ class ViewRenderer {
                       const RenderOptions& options, std::vector<DrawBatch>& batches,
                       const PointShading& shading, RenderStats& st);
   /// Adds the model's batches for this view, their nodes to mBatchNodes.
+  /// Adds what its discs would cost to `estimate` (SurfaceFill::kAuto).
   void addModel(const ModelInstance& instance, bool see_through, const ViewSetup& view,
-                const RenderOptions& options, std::vector<DrawBatch>& batches, RenderStats& stats);
+                const RenderOptions& options, std::vector<DrawBatch>& batches,
+                FillEstimate& estimate, RenderStats& stats);
   /// Adds a mesh model's patches for this view: the cut by projected error, a missing patch's
   /// nearest resident ancestor standing in for every cut node below it.
   void addMeshModel(const ModelInstance& instance, const ViewSetup& view,
