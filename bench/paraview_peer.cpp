@@ -10,11 +10,11 @@
 //
 // Tessera variants, each on a fresh store and renderer every round:
 //   full      every leaf (lod-px 1e-9, coverage stop off, no budget, discs): the reference
-//   defaults  RenderOptions{} as a user gets them: the coverage stop, a point budget of 2
-//             points a covered pixel, the fill chosen for the frame (SurfaceFill::kAuto)
+//   defaults  RenderOptions{} as a user gets them: the coverage stop, the fill chosen for the
+//             frame (SurfaceFill::kAuto), no budget
 //   coverage  the coverage stop alone, no budget, discs
 //   budget    the coverage stop and a point budget (--budget, as Potree users set one), discs
-//   pullpush  the coverage stop alone with 1 px points and the pull-push fill
+//   pixels    the defaults and a budget of 2 points a covered pixel (--points-per-pixel 2)
 // For each: the first picture (store opened cold, every chunk of the cut resident), then the
 // frame time (best and median of --frames frames: cut selection, raster, readback), the points
 // drawn, the fill drawn and the silhouette IoU against the full render. The summary's speed-up
@@ -367,10 +367,10 @@ bool runParaView(const fs::path& out, const fs::path& vtk, const bench::CubeCame
 /// The variants after ParaView, in the CSV's and the chart's order, with the chart's titles.
 constexpr std::array<std::pair<const char*, const char*>, 5> kVariants{{
     {"full", "Tessera, every leaf"},
-    {"defaults", "Tessera, defaults (budget 2 points/covered pixel, fill chosen)"},
+    {"defaults", "Tessera, defaults (coverage stop, fill chosen)"},
     {"coverage", "Tessera, coverage stop alone, discs"},
     {"budget", "Tessera, coverage stop + budget 10^6, discs"},
-    {"pullpush", "Tessera, coverage stop alone, pull-push fill"},
+    {"pixels", "Tessera, defaults + budget 2 points/covered pixel"},
 }};
 
 /// OUT/paraview_peer_chart.csv holds per input: label, ParaView's ms, each variant's ms, then
@@ -446,18 +446,16 @@ int main(int argc, char** argv) {
     render::RenderOptions full;
     full.lod_pixels = 1e-9;
     full.coverage_stop = false;
-    full.budget_per_covered_pixel = 0.0;
     full.fill = render::SurfaceFill::kDiscs;  // the reference picture
     const render::RenderOptions defaults;
     render::RenderOptions coverage;
-    coverage.budget_per_covered_pixel = 0.0;
     coverage.fill = render::SurfaceFill::kDiscs;
     render::RenderOptions budgeted = coverage;
     budgeted.point_budget = budget;
-    render::RenderOptions pullpush = coverage;
-    pullpush.fill = render::SurfaceFill::kPullPush;
+    render::RenderOptions pixels;
+    pixels.budget_per_covered_pixel = 2.0;
     const std::array<render::RenderOptions, kVariants.size()> options{full, defaults, coverage,
-                                                                      budgeted, pullpush};
+                                                                      budgeted, pixels};
 
     std::ofstream csv(dir / "paraview_peer.csv");
     const std::string header =

@@ -602,10 +602,10 @@ TEST_F(ViewRendererTest, MosaicEqualsTheWholeWallRenderUnderAPointBudget) {
   EXPECT_GT(own, 10 * shared + 1e-3) << "budgets of their own end the tiles' cuts elsewhere";
 }
 
-// The defaults a user gets: a point budget of two points a covered pixel, splats sized from the cut
-// drawn (so a coarser cut still closes the surface), and the fill the frame is cheaper with: a
-// volume of points seen whole fills, a surface draws discs.
-TEST_F(ViewRendererTest, DefaultsBudgetTheCutByPixelsAndChooseTheFill) {
+// A budget of two points a covered pixel, splats sized from the cut drawn (so a coarser cut
+// still closes the surface), and the default fill, the one the frame is cheaper with: a volume
+// of points seen whole fills, a surface draws discs.
+TEST_F(ViewRendererTest, APixelBudgetHoldsTheCutAndTheFillFollowsTheFrame) {
   test::TempDir dir;
   auto cube = lod::PointStore::open(test::randomCubeStore(dir.path(), 1'000'000, 500));
   auto bunny = lod::PointStore::open(*sDir / "b.tlod");
@@ -620,7 +620,9 @@ TEST_F(ViewRendererTest, DefaultsBudgetTheCutByPixelsAndChooseTheFill) {
   full.fill = SurfaceFill::kDiscs;
   RenderStats sf, sd;
   const Image ref = r.renderSettled({&c, 1}, v, full, &sf);
-  const Image def = r.renderSettled({&c, 1}, v, RenderOptions{}, &sd);
+  RenderOptions pixel_budget;
+  pixel_budget.budget_per_covered_pixel = 2.0;
+  const Image def = r.renderSettled({&c, 1}, v, pixel_budget, &sd);
   EXPECT_EQ(sf.points, 1'000'000u);
   EXPECT_GT(sd.point_budget, 0u);
   EXPECT_LE(sd.point_budget, 2u * 640u * 480u);  // two points a covered pixel at most
@@ -631,7 +633,7 @@ TEST_F(ViewRendererTest, DefaultsBudgetTheCutByPixelsAndChooseTheFill) {
   EXPECT_EQ(sd.fill, SurfaceFill::kPullPush) << "discs " << sd.fill_estimate.disc_px
                                               << " px over " << sd.fill_estimate.covered_px;
   const double iou = silhouetteIou(ref, def);
-  std::printf("cube at defaults: %llu points (budget %llu), fill %s, IoU %.4f\n",
+  std::printf("cube, 2 points a covered pixel: %llu points (budget %llu), fill %s, IoU %.4f\n",
               (unsigned long long)sd.points, (unsigned long long)sd.point_budget,
               sd.fill == SurfaceFill::kPullPush ? "pull-push" : "discs", iou);
   // This store's root (110,583 points) already holds more than two points a pixel of this
