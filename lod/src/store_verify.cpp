@@ -17,6 +17,7 @@
 #include <cmath>
 #include <thread>
 #include <unordered_map>
+#include <unordered_set>
 
 #include <tessera/core/parallel.h>
 #include <tessera/core/progress.h>
@@ -34,6 +35,7 @@ struct ActiveNode {
   glm::dvec3 grid{0.0};  // cell 0 relative to box_min
   double step = 0.0;
   double bound = 0.0;
+  uint64_t remaining = 0;  // stored points not matched yet: at 0 the node is released
 };
 
 CellKey packKey(const glm::dvec3& q) {
@@ -121,8 +123,12 @@ VerifyReport verifyStore(const std::filesystem::path& store_path,
 
   std::unordered_map<NodeId, ActiveNode> active;
   std::unordered_map<NodeId, bool> corrupt;
+  // Leaves whose every stored point is matched: released, so memory holds the leaves the
+  // regions are working through (a leaf across a region's border waits for its other part),
+  // never every leaf met so far. A later input point cannot bring one back.
+  std::unordered_set<NodeId> finished;
   auto activate = [&](NodeId id) {
-    if (active.count(id) || corrupt.count(id)) return;
+    if (active.count(id) || corrupt.count(id) || finished.count(id)) return;
     std::shared_ptr<ChunkPoints> pts;
     try {
       pts = store->decodeChunk(id, {}, true);
@@ -137,6 +143,7 @@ VerifyReport verifyStore(const std::filesystem::path& store_path,
     a.step = pts->step;
     a.bound = store->node(id).error_bound;
     for (const glm::uvec3& c : pts->cells) ++a.keys[CellKey{0, c.x, c.y, c.z}];
+    a.remaining = pts->cells.size();
     active.emplace(id, std::move(a));
   };
 
@@ -193,6 +200,7 @@ VerifyReport verifyStore(const std::filesystem::path& store_path,
           const double d = glm::length(stored - p);
           if (d > node.bound) continue;
           --k->second;
+          --node.remaining;
           matched = true;
           if (exact) ++report.exact;
           report.max_error = std::max(report.max_error, d);
@@ -202,6 +210,10 @@ VerifyReport verifyStore(const std::filesystem::path& store_path,
       }
       if (matched) {
         ++report.matched;
+        if (a->second.remaining == 0) {
+          finished.insert(a->first);
+          active.erase(a);
+        }
       } else {
         ++report.unmatched;
       }
