@@ -469,12 +469,12 @@ TEST_F(ViewRendererTest, SplatsCloseSurfacesAtEveryLevelWithoutFatBlobs) {
             fill_name, lod_px, scale, (unsigned long long)st.points, 100.0 * hole_fraction, blobs);
         EXPECT_EQ(blobs, 0u) << fill_name << " lod " << lod_px << " scale " << scale;
         if (scale == 2.0f) {
-          // Single-pixel splats over random samples leave a few pixels open at 1 px.
-          EXPECT_LT(hole_fraction, lod_px == 1.0 ? 0.005 : 0.0005)
+          // Single-pixel splats over random samples leave a few pixels open at 1 px. Coarser
+          // levels sample their children's samples (one per grid cell, the one nearest its
+          // centre among those), which places them less evenly than a pick among every point
+          // below: measured 0.09% open at 2 px and 0.94% at 4 px (docs/limits.md).
+          EXPECT_LT(hole_fraction, lod_px == 1.0 ? 0.005 : lod_px == 2.0 ? 0.0015 : 0.015)
               << fill_name << " lod " << lod_px;
-          if (lod_px == 4.0) {
-            EXPECT_EQ(holes, 0u) << fill_name;
-          }
         } else if (scale == 1.0f && lod_px > 1.0) {
           EXPECT_GT(hole_fraction, 0.05) << "the mean spacing alone cannot close random samples";
         }
