@@ -28,7 +28,7 @@
 #include <tessera/render/image.h>
 #include <tessera/render/view_renderer.h>
 
-#include <glm/gtc/matrix_transform.hpp>
+#include "bench_views.h"
 
 
 namespace {
@@ -48,21 +48,10 @@ struct Row {
   double measure_ms = 0, distance_m = 0, uncertainty_m = 0;
 };
 
-/// The whole store, its bounding sphere filling a 30 degree view from (1, -0.8, 0.6), z up.
+/// The whole store as ParaView's reset camera frames a box (bench_views.h).
 render::ViewSetup storeView(const lod::PointStore& store) {
   const lod::StoreSummary& s = store.summary();
-  const glm::dvec3 lo = s.origin + s.bbox_min, hi = s.origin + s.bbox_max;
-  const glm::dvec3 target = 0.5 * (lo + hi);
-  const double fovy = 30.0;
-  const double distance = 0.5 * glm::length(hi - lo) / std::sin(glm::radians(fovy) / 2.0);
-  render::ViewSetup v;
-  v.eye_world = target + glm::normalize(glm::dvec3(1.0, -0.8, 0.6)) * distance;
-  v.view = glm::lookAt(v.eye_world, target, glm::dvec3(0.0, 0.0, 1.0));
-  v.width = 1920;
-  v.height = 1080;
-  v.projection = glm::perspective(glm::radians(fovy), 1920.0 / 1080.0, 0.05 * distance,
-                                  4.0 * distance);
-  return v;
+  return bench::cubeView(bench::boxCamera(s.origin + s.bbox_min, s.origin + s.bbox_max));
 }
 
 /// The ray from the view's eye through pixel (x, y), y down.
