@@ -5,7 +5,9 @@
 
 #include <algorithm>
 #include <cerrno>
+#include <cstdlib>
 #include <cstring>
+#include <new>
 
 #include <tessera/lod/point_store.h>
 
@@ -52,6 +54,74 @@ void pwriteAll(int fd, const void* data, size_t n, uint64_t offset, const std::s
     }
     done += size_t(put);
   }
+}
+
+uint8_t* AlignedBytes::reserve(size_t n) {
+  n = (n + kDirectAlign - 1) / kDirectAlign * kDirectAlign;
+  if (n > mSize) {
+    mData.reset(static_cast<uint8_t*>(std::aligned_alloc(kDirectAlign, n)));
+    if (!mData) throw std::bad_alloc();
+    mSize = n;
+  }
+  return mData.get();
+}
+
+void AlignedBytes::Free::operator()(uint8_t* p) const { std::free(p); }
+
+std::unique_ptr<ScopedFd> openMaybeDirect(const std::filesystem::path& path, int flags,
+                                          bool& direct, const char* what) {
+  if (direct) {
+    try {
+      return std::make_unique<ScopedFd>(path, flags | O_DIRECT, what);
+    } catch (const StoreError&) {
+      direct = false;  // a file system without direct I/O: through the cache
+    }
+  }
+  return std::make_unique<ScopedFd>(path, flags, what);
+}
+
+SequentialWriter::SequentialWriter(const std::filesystem::path& path, bool direct,
+                                   const char* what)
+    : mDirect(direct) {
+  mFile = openMaybeDirect(path, O_RDWR | O_CREAT | O_TRUNC, mDirect, what);
+  mBuf.reserve(mDirect ? kBuffer : kDirectAlign);
+}
+
+void SequentialWriter::append(const void* data, size_t n) {
+  if (!mDirect) {  // the page cache gathers the writes
+    pwriteAll(mFile->get(), data, n, mFlushed, mFile->name());
+    mFlushed += n;
+    return;
+  }
+  const auto* p = static_cast<const uint8_t*>(data);
+  while (n > 0) {
+    const size_t take = std::min(n, kBuffer - mUsed);
+    std::memcpy(mBuf.data() + mUsed, p, take);
+    mUsed += take;
+    p += take;
+    n -= take;
+    if (mUsed == kBuffer) {
+      pwriteAll(mFile->get(), mBuf.data(), kBuffer, mFlushed, mFile->name());
+      mFlushed += kBuffer;
+      mUsed = 0;
+    }
+  }
+}
+
+void SequentialWriter::finish() {
+  const uint64_t total = size();
+  if (mUsed > 0) {
+    const size_t padded = (mUsed + kDirectAlign - 1) / kDirectAlign * kDirectAlign;
+    std::memset(mBuf.data() + mUsed, 0, padded - mUsed);
+    pwriteAll(mFile->get(), mBuf.data(), padded, mFlushed, mFile->name());
+  }
+  if (::ftruncate(mFile->get(), off_t(total)) != 0)
+    throw StoreError("lod: truncating " + mFile->name() + " failed: " + std::strerror(errno));
+}
+
+void SequentialWriter::writeFirstBlock(const void* data) {
+  std::memcpy(mBuf.data(), data, kDirectAlign);
+  pwriteAll(mFile->get(), mBuf.data(), kDirectAlign, 0, mFile->name());
 }
 
 }  // namespace tessera::lod

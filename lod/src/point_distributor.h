@@ -1,5 +1,14 @@
 // Out-of-core distribution of input points into octree cells ("chunks") small enough to be
 // worked on in memory: the first passes of building (and verifying) a point store.
+//
+// Two routes. Bucketed, when every input states its bounding box (LAS, LAZ read through their
+// reader): the root cube comes from the header boxes before any point is read, so the one pass
+// over the inputs also counts the 128^3 grid and writes each point into the block file of its
+// level-4 bucket; the chunk phase then reads each bucket once (ChunkGroup). Otherwise: the
+// inputs into one raw file in reading order (or read in place, LasDirect), a counting pass, and a
+// distribution pass into one temporary file where every chunk is contiguous. The bucketed route
+// writes and reads each temporary record once, against three reads and two writes: at 10^9
+// points the records outgrow the page cache and every pass runs at disk speed.
 #pragma once
 
 #include <algorithm>
@@ -7,6 +16,7 @@
 #include <filesystem>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <utility>
@@ -16,6 +26,7 @@
 #include <tessera/lod/point_reader.h>
 
 #include "build_point.h"
+#include "file_io.h"
 #include "las_direct.h"
 
 namespace tessera::lod {
@@ -103,6 +114,16 @@ struct TempLayout {
   size_t recordSize() const { return compact() ? kCompactRecord : sizeof(BuildPoint); }
 };
 
+/// The bucketed route's work unit: the chunks whose points one read brings in. Either one level-4
+/// bucket and the chunks at level 4 or deeper inside it, or one chunk above level 4 and every
+/// bucket inside it (`merge`: its blocks then interleave by input order).
+struct ChunkGroup {
+  std::vector<uint32_t> chunks;  ///< indices into distribute()'s chunk list
+  std::vector<uint32_t> blocks;  ///< its blocks in file order
+  uint64_t points = 0;
+  bool merge = false;
+};
+
 /// A position too far from the origin for compact records (int32 multiples of the quantum):
 /// the first pass starts again with wide records.
 class TempRangeError : public std::runtime_error {
@@ -123,12 +144,20 @@ class PointDistributor {
   void setAmbientOcclusion(std::span<const uint8_t> ao);
   /// Threads for the passes over the inputs (default: the hardware's). Call before measure().
   void setThreads(unsigned threads) { mThreads = std::max(1u, threads); }
+  /// Memory the bucketed route's write buffers may take (a quarter of it at most).
+  void setMemory(uint64_t bytes) { mMemory = bytes; }
+  /// Whether the bucketed route's block file bypasses the page cache (O_DIRECT): -1 when its
+  /// records would outgrow half the machine's memory (BuildOptions::direct_io).
+  void setDirectIo(int mode) { mDirectIoMode = mode; }
+  /// Whether measure() chose direct I/O (the build writes its output so too).
+  bool directIo() const { return mDirectIo; }
   uint64_t skipped() const { return mSkipped; }
 
   /// Pass 1: parses every input once into `raw_file` (TempLayout); bounds and count; sets
   /// the frame (origin: the first input's own local origin; cube around the box).
   void measure(const std::filesystem::path& raw_file);
-  /// Pass 1 in a given frame (verification against an existing store).
+  /// Pass 1 in a given frame (verification against an existing store): bucketed unless every
+  /// input is an uncompressed LAS (read in place).
   void measureInFrame(const CubeFrame& frame, const std::filesystem::path& raw_file);
   const CubeFrame& frame() const { return mFrame; }
   /// The temporary files' record layout, chosen by measure() / measureInFrame().
@@ -138,9 +167,23 @@ class PointDistributor {
   glm::dvec3 boundsMax() const { return mMax; }
 
   /// Passes 2 and 3 over the raw file: counting grid, chunks of at most `chunk_max` points where
-  /// the grid allows, and distribution into `temp_file`; the raw file is then removed.
+  /// the grid allows, and distribution into `temp_file`; the raw file is then removed. Bucketed:
+  /// the chunks from the counts pass 1 made, nothing written (Chunk::first is unused).
   std::vector<Chunk> distribute(uint64_t chunk_max, const std::filesystem::path& temp_file,
                                 int threads);
+
+  /// True when measure() took the bucketed route: the chunks' points are read by group.
+  bool bucketed() const { return mBucketed; }
+  /// The groups of the bucketed route covering `chunks` (distribute()'s list), each block once.
+  std::vector<ChunkGroup> groups(const std::vector<Chunk>& chunks) const;
+  /// A group's points, chunk by chunk (parallel to group.chunks), each in input order.
+  void readGroup(const ChunkGroup& group, const std::vector<Chunk>& chunks,
+                 std::vector<std::vector<BuildPoint>>& out) const;
+  /// Streams a group too large for memory into `temp_fd` from record `temp_end` on, each of its
+  /// chunks contiguous and in input order; sets their Chunk::first. Single-bucket groups only
+  /// (a merged group is one chunk, within the chunk size).
+  void spillGroup(const ChunkGroup& group, std::vector<Chunk>& chunks, int temp_fd,
+                  const std::string& temp_name, uint64_t& temp_end) const;
 
  private:
   /// Streams every input, calling `fn` per batch of points in the local frame.
@@ -154,6 +197,15 @@ class PointDistributor {
   /// readInputs() in `layout`, again in the wide layout when a position does not fit it.
   void readInputsIn(TempLayout layout, const std::string& label,
                     const std::filesystem::path& raw_file);
+  /// The root cube around a box: centred, its largest side a hair larger.
+  CubeFrame cubeAround(const glm::dvec3& lo, const glm::dvec3& hi) const;
+  /// The cube of the inputs' header boxes in the local frame, when every input states one.
+  std::optional<CubeFrame> headerCube() const;
+  /// Whether the header cube serves as the root cube: it holds the points' box and is no more
+  /// than 1% larger than the cube around it.
+  bool headerCubeFits(const CubeFrame& header) const;
+  /// Pass 1 of the bucketed route in mFrame; false when `fit` and the header cube does not fit.
+  bool readBuckets(const std::string& label, const std::filesystem::path& raw_file, bool fit);
   /// Streams the raw file written by pass 1 in `parts` contiguous parts, one thread each;
   /// `fn(part, points)` is called from that part's thread.
   void forEachRaw(const std::string& label, int parts,
@@ -176,10 +228,35 @@ class PointDistributor {
   /// the inputs, the passes read their records directly (mDirect) instead of a raw file.
   std::vector<std::pair<LasDirect::Input, glm::dvec3>> mLas;
   std::unique_ptr<LasDirect> mDirect;
+  /// Union of the inputs' header boxes in world coordinates, when all state one.
+  std::optional<std::pair<glm::dvec3, glm::dvec3>> mHeaderBox;
+  bool mBucketed = false;
+  /// Bucketed route: the level-7 counts and the blocks of the raw file.
+  struct Block {
+    uint64_t offset = 0;       ///< bytes into the raw file
+    uint64_t first_index = 0;  ///< input index of its first point (the others: + a uint32)
+    uint32_t count = 0;
+    uint32_t bytes = 0;  ///< on disk: the records and deltas, padded to kDirectAlign
+    uint16_t bucket = 0;
+  };
+  /// Opens the block file for reading, directly when it was written so.
+  std::unique_ptr<ScopedFd> openBlocks() const;
+  /// Reads block `b`'s bytes (records, then deltas) into `buf`.
+  const uint8_t* readBlock(const ScopedFd& file, const Block& b, AlignedBytes& buf) const;
+  bool mDirectIo = false;
+  int mDirectIoMode = -1;
+  std::vector<uint64_t> mCounts;
+  std::vector<Block> mBlocks;
+  uint64_t mMemory = uint64_t(2048) << 20;
   unsigned mThreads = threadCount();
   bool mQuiet;
 };
 
+/// `count` points as temporary records of `layout` at `out` (recordSize() bytes each). Throws
+/// TempRangeError when a position does not fit a compact record.
+void encodeTemp(const TempLayout& layout, const BuildPoint* pts, uint64_t count, uint8_t* out);
+/// The inverse of encodeTemp().
+void decodeTemp(const TempLayout& layout, const uint8_t* in, uint64_t count, BuildPoint* out);
 /// Reads points [first, first + count) of a temp file written in `layout`.
 void readTempPoints(const TempLayout& layout, int fd, uint64_t first, uint64_t count,
                     BuildPoint* out, const std::string& name);

@@ -299,6 +299,8 @@ BuildReport buildStore(const std::vector<std::filesystem::path>& inputs,
   BuildReport report;
   TESSERA_CHECK(options.threads >= 0 && options.threads <= kMaxThreads,
                 "lod::buildStore(): threads must be in [0, " + std::to_string(kMaxThreads) + "]");
+  TESSERA_CHECK(options.direct_io >= -1 && options.direct_io <= 1,
+                "lod::buildStore(): direct_io must be -1, 0 or 1");
   for (const auto& in : inputs) {
     const auto read = filesRead(in);  // throws ReadError naming a missing or bad input
     if (const auto same = sameFileAs(output, read)) {
@@ -325,8 +327,13 @@ BuildReport buildStore(const std::vector<std::filesystem::path>& inputs,
   PointDistributor dist(inputs, options.quiet);
   dist.setAmbientOcclusion(options.ambient_occlusion);
   dist.setThreads(unsigned(threads));
+  dist.setMemory(options.memory_mb << 20);
+  dist.setDirectIo(options.direct_io);
   dist.measure(temp_dir / "raw.bin");
   const CubeFrame frame = dist.frame();
+  // Reading blocks around the page cache blocks a worker until the disk answers: one worker
+  // more than the cores keeps them busy meanwhile (and the memory is shared by one more).
+  const int workers = threads + (dist.directIo() ? 1 : 0);
   // Memory: the chunk being worked on dominates (point + partition buffer + codec temporaries,
   // under 100 bytes a point) on every thread; a fixed ~128 MB for grids and buffers.
   const uint64_t budget = options.memory_mb << 20;
@@ -347,42 +354,98 @@ BuildReport buildStore(const std::vector<std::filesystem::path>& inputs,
   report.points = dist.points();
   report.skipped = dist.skipped();
   report.temp_record_bytes = dist.tempLayout().recordSize();
+  report.bucketed = dist.bucketed();
 
   const auto t1 = Clock::now();
-  ScopedFd points_fd(temp_points, O_RDWR, "temporary file");
+  ScopedFd points_fd(temp_points, O_RDWR | O_CREAT, "temporary file");
+  // The chunks read from points.bin (every chunk on the raw route; on the bucketed route those
+  // of groups too large for memory, spilled there) and the groups read whole.
+  std::vector<ChunkGroup> groups;
+  std::vector<Chunk> from_file;
   uint64_t temp_end = dist.points();
-  splitOversized(chunks, chunk_max, frame, dist.tempLayout(), points_fd.get(), points_fd.name(),
-                 temp_end);
-  std::sort(chunks.begin(), chunks.end(),
+  if (dist.bucketed()) {
+    // A group in memory: its points twice (read, then by chunk) beside the chunk being built.
+    const uint64_t per_thread = (budget > fixed ? budget - fixed : budget / 2) / uint64_t(workers);
+    const uint64_t group_max =
+        std::max(chunk_max, (per_thread > chunk_max * 100 ? per_thread - chunk_max * 100 : 0) /
+                                (2 * sizeof(BuildPoint) + 8));
+    temp_end = 0;
+    for (ChunkGroup& g : dist.groups(chunks)) {
+      if (g.points <= group_max) {
+        groups.push_back(std::move(g));
+        continue;
+      }
+      dist.spillGroup(g, chunks, points_fd.get(), points_fd.name(), temp_end);
+      for (uint32_t ci : g.chunks) from_file.push_back(chunks[ci]);
+    }
+    std::sort(groups.begin(), groups.end(),
+              [](const ChunkGroup& a, const ChunkGroup& b) { return a.points > b.points; });
+  } else {
+    from_file = chunks;
+  }
+  splitOversized(from_file, chunk_max, frame, dist.tempLayout(), points_fd.get(),
+                 points_fd.name(), temp_end);
+  std::sort(from_file.begin(), from_file.end(),
             [](const Chunk& a, const Chunk& b) { return a.count > b.count; });
-  report.chunks = chunks.size();
 
   Builder builder(options, frame, dist.attributes(), dist.inputPrecision(),
                   temp_dir / "payload.bin");
   std::unordered_map<CellKey, Pending, CellKeyHash> pending;
   std::mutex pending_mutex;
+  std::atomic<uint64_t> subtrees{0};
   {
-    Progress progress("build 4/5 chunks", dist.points(), " points", options.quiet);
-    std::atomic<size_t> next{0};
-    std::atomic<bool> failed{false};
+    Progress progress(dist.bucketed() ? "build 2/3 chunks" : "build 4/5 chunks", dist.points(),
+                      " points", options.quiet);
     std::mutex progress_mutex;
-    // Chunks largest first, each worker with its own point buffer.
-    runWorkers(unsigned(threads), [&](unsigned) {
+    auto build = [&](const CellKey& key, std::span<BuildPoint> pts) {
+      Pending root;
+      root.child_mask = builder.buildSubtree(key, pts, &root.pts);
+      {
+        std::lock_guard lock(pending_mutex);
+        pending.emplace(key, std::move(root));
+      }
+      ++subtrees;
+      std::lock_guard lock(progress_mutex);
+      progress.add(pts.size());
+    };
+    // A chunk in memory larger than the chunk size (one counting cell holds more) splits into
+    // octants in memory as splitOversized() does through the file.
+    std::function<void(const CellKey&, std::vector<BuildPoint>&)> buildInMemory =
+        [&](const CellKey& key, std::vector<BuildPoint>& pts) {
+          if (pts.size() <= chunk_max || key.level >= store::kMaxLevel - 1) {
+            build(key, pts);
+            return;
+          }
+          std::array<std::vector<BuildPoint>, 8> kids;
+          for (const BuildPoint& p : pts)
+            kids[size_t(frame.cellOf(p.position, key.level + 1).childIndex())].push_back(p);
+          std::vector<BuildPoint>().swap(pts);
+          for (int i = 0; i < 8; ++i) {
+            if (!kids[size_t(i)].empty()) buildInMemory(key.child(i), kids[size_t(i)]);
+          }
+        };
+    std::atomic<size_t> next_group{0}, next{0};
+    std::atomic<bool> failed{false};
+    // Groups largest first, then the chunks from the file largest first; each worker with its
+    // own point buffers.
+    runWorkers(unsigned(workers), [&](unsigned) {
       std::vector<BuildPoint> pts;
+      std::vector<std::vector<BuildPoint>> by_chunk;
       try {
-        for (size_t ci; !failed && (ci = next++) < chunks.size();) {
-          const Chunk& c = chunks[ci];
+        for (size_t gi; !failed && (gi = next_group++) < groups.size();) {
+          const ChunkGroup& g = groups[gi];
+          dist.readGroup(g, chunks, by_chunk);
+          for (size_t j = 0; j < g.chunks.size(); ++j) {
+            buildInMemory(chunks[g.chunks[j]].key, by_chunk[j]);
+            std::vector<BuildPoint>().swap(by_chunk[j]);
+          }
+        }
+        for (size_t ci; !failed && (ci = next++) < from_file.size();) {
+          const Chunk& c = from_file[ci];
           pts.resize(c.count);
           readTempPoints(dist.tempLayout(), points_fd.get(), c.first, c.count, pts.data(),
                          points_fd.name());
-          Pending root;
-          root.child_mask = builder.buildSubtree(c.key, pts, &root.pts);
-          {
-            std::lock_guard lock(pending_mutex);
-            pending.emplace(c.key, std::move(root));
-          }
-          std::lock_guard lock(progress_mutex);
-          progress.add(c.count);
+          build(c.key, pts);
         }
       } catch (...) {
         failed = true;
@@ -390,6 +453,7 @@ BuildReport buildStore(const std::vector<std::filesystem::path>& inputs,
       }
     });
   }
+  report.chunks = subtrees;
 
   // Levels above the chunks: each upper node is a grid sample of its children's points.
   {
@@ -445,11 +509,17 @@ BuildReport buildStore(const std::vector<std::filesystem::path>& inputs,
   std::unordered_map<CellKey, size_t, CellKeyHash> index;
   for (size_t i = 0; i < nodes.size(); ++i) index[nodes[i].key] = i;
 
-  ScopedFd out(partial, O_RDWR | O_CREAT | O_TRUNC, "output");
+  // The output in order: the header's place, payload, pages, source table; the header last.
+  SequentialWriter out(partial, dist.directIo(), "output");
+  {
+    const std::vector<uint8_t> zeros(store::kHeaderSize, 0);
+    out.append(zeros.data(), zeros.size());
+  }
   uint64_t pos = store::kHeaderSize;
   uint64_t pc_bytes = 0;
   {
-    Progress progress("build 5/5 writing", nodes.size(), " nodes", options.quiet);
+    Progress progress(dist.bucketed() ? "build 3/3 writing" : "build 5/5 writing", nodes.size(),
+                      " nodes", options.quiet);
     std::vector<uint8_t> buf;
     for (NodeOut& n : nodes) {
       buf.resize(n.size);
@@ -457,7 +527,7 @@ BuildReport buildStore(const std::vector<std::filesystem::path>& inputs,
         preadAll(builder.payload().get(), buf.data(), n.size, n.temp_offset,
                  builder.payload().name());
       n.final_offset = pos;
-      if (n.size) pwriteAll(out.get(), buf.data(), n.size, pos, out.name());
+      if (n.size) out.append(buf.data(), n.size);
       pos += n.size;
       pc_bytes += n.position_color_bytes;
       progress.add(1);
@@ -507,9 +577,9 @@ BuildReport buildStore(const std::vector<std::filesystem::path>& inputs,
     ph.nodes = uint32_t(recs.size());
     ph.crc = crc32c(recs.data(), recs.size() * sizeof(store::NodeRecord));
     uint64_t at = pos;
-    pwriteAll(out.get(), &ph, sizeof ph, pos, out.name());
+    out.append(&ph, sizeof ph);
     pos += sizeof ph;
-    pwriteAll(out.get(), recs.data(), recs.size() * sizeof(store::NodeRecord), pos, out.name());
+    out.append(recs.data(), recs.size() * sizeof(store::NodeRecord));
     pos += recs.size() * sizeof(store::NodeRecord);
     return std::make_pair(at, uint32_t(pos - at));
   };
@@ -518,8 +588,11 @@ BuildReport buildStore(const std::vector<std::filesystem::path>& inputs,
   std::string table;
   for (const std::string& s : dist.sourceNames()) table += s + '\n';
   const uint64_t table_off = pos;
-  pwriteAll(out.get(), table.data(), table.size(), pos, out.name());
+  out.append(table.data(), table.size());
   pos += table.size();
+  if (out.size() != pos)
+    throw StoreError("lod::buildStore(): internal error: the output is not written in order");
+  out.finish();
 
   store::FileHeader h{};
   std::memcpy(h.magic, store::kMagic, 4);
@@ -560,9 +633,9 @@ BuildReport buildStore(const std::vector<std::filesystem::path>& inputs,
   h.header_crc = crc32c(&h, sizeof h);
   std::vector<uint8_t> header(store::kHeaderSize, 0);
   std::memcpy(header.data(), &h, sizeof h);
-  pwriteAll(out.get(), header.data(), header.size(), 0, out.name());
-  if (::fsync(out.get()) != 0)
-    throw StoreError("lod::buildStore(): flushing " + out.name() +
+  out.writeFirstBlock(header.data());
+  if (::fsync(out.file().get()) != 0)
+    throw StoreError("lod::buildStore(): flushing " + out.file().name() +
                      " failed: " + std::strerror(errno));
   std::error_code ec;
   std::filesystem::rename(partial, output, ec);

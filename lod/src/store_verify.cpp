@@ -115,11 +115,25 @@ VerifyReport verifyStore(const std::filesystem::path& store_path,
   std::vector<Chunk> regions =
       dist.distribute(region_max, temp_dir / "points.bin",
                       int(threadCount(options.threads)));
-  std::sort(regions.begin(), regions.end(),
-            [](const Chunk& a, const Chunk& b) { return a.key < b.key; });
-
-  ScopedFd points_file(temp_dir / "points.bin", O_RDONLY, "temporary file");
+  ScopedFd points_file(temp_dir / "points.bin", O_RDWR | O_CREAT, "temporary file");
   const int fd = points_file.get();
+  // The bucketed route reads the regions a group at a time (a group too large for half the
+  // memory is spilled to the file first); the other route reads them from the file in key order.
+  std::vector<ChunkGroup> groups;
+  std::vector<bool> spilled;
+  if (dist.bucketed()) {
+    const uint64_t group_max =
+        std::max(region_max, (options.memory_mb << 20) / 2 / (2 * sizeof(BuildPoint) + 8));
+    uint64_t temp_end = 0;
+    groups = dist.groups(regions);
+    for (const ChunkGroup& g : groups) {
+      spilled.push_back(g.points > group_max);
+      if (spilled.back()) dist.spillGroup(g, regions, fd, points_file.name(), temp_end);
+    }
+  } else {
+    std::sort(regions.begin(), regions.end(),
+              [](const Chunk& a, const Chunk& b) { return a.key < b.key; });
+  }
 
   std::unordered_map<NodeId, ActiveNode> active;
   std::unordered_map<NodeId, bool> corrupt;
@@ -147,10 +161,10 @@ VerifyReport verifyStore(const std::filesystem::path& store_path,
     active.emplace(id, std::move(a));
   };
 
-  Progress progress("verify 3/3 matching", dist.points(), " points", options.quiet);
-  std::vector<BuildPoint> pts;
+  Progress progress(dist.bucketed() ? "verify 2/2 matching" : "verify 3/3 matching",
+                    dist.points(), " points", options.quiet);
   std::vector<NodeId> path;
-  for (const Chunk& region : regions) {
+  auto matchRegion = [&](const Chunk& region, const std::vector<BuildPoint>& pts) {
     const glm::dvec3 lo = frame.cellMin(region.key), hi = lo + frame.cellSize(region.key.level);
     // Every node overlapping the region (ancestors and descendants).
     std::vector<NodeId> todo{store->root()};
@@ -162,9 +176,6 @@ VerifyReport verifyStore(const std::filesystem::path& store_path,
       if (n.points > 0 && n.leaf()) activate(id);
       for (NodeId c : store->children(id)) todo.push_back(c);
     }
-    pts.resize(region.count);
-    readTempPoints(dist.tempLayout(), fd, region.first, region.count, pts.data(),
-                   "verify temporary file");
     for (const BuildPoint& bp : pts) {
       const glm::dvec3 p = bp.position;
       path.clear();
@@ -226,6 +237,29 @@ VerifyReport verifyStore(const std::filesystem::path& store_path,
       } else {
         ++it;
       }
+    }
+  };
+  std::vector<BuildPoint> pts;
+  auto fromFile = [&](const Chunk& region) {
+    pts.resize(region.count);
+    readTempPoints(dist.tempLayout(), fd, region.first, region.count, pts.data(),
+                   "verify temporary file");
+    matchRegion(region, pts);
+  };
+  if (!dist.bucketed()) {
+    for (const Chunk& region : regions) fromFile(region);
+    return report;
+  }
+  std::vector<std::vector<BuildPoint>> by_region;
+  for (size_t g = 0; g < groups.size(); ++g) {
+    if (spilled[g]) {
+      for (uint32_t ci : groups[g].chunks) fromFile(regions[ci]);
+      continue;
+    }
+    dist.readGroup(groups[g], regions, by_region);
+    for (size_t j = 0; j < groups[g].chunks.size(); ++j) {
+      matchRegion(regions[groups[g].chunks[j]], by_region[j]);
+      std::vector<BuildPoint>().swap(by_region[j]);
     }
   }
   return report;

@@ -7,7 +7,9 @@
 // into one temporary file, each chunk contiguous; (4) per chunk, in parallel: the subtree,
 // grid-sampled top-down, each node encoded; (5) levels above the chunks, sampled bottom-up from the
 // chunk roots; (6) payload copied in (level, Morton) order, hierarchy pages, header; the file is
-// renamed into place at the end.
+// renamed into place at the end. Inputs that state their bounding box (LAS, LAZ) fold (2) and (3)
+// into (1): the cube is known before reading, so reading counts the grid and writes each point
+// into its spatial bucket, and (4) reads each bucket once (point_distributor.h).
 #pragma once
 
 #include <cstdint>
@@ -44,6 +46,11 @@ struct BuildOptions {
   /// carries kAmbientOcclusion (format version 3). Empty: none. A count that differs from the
   /// points read is a ReadError. The caller keeps the bytes alive during the build.
   std::span<const uint8_t> ambient_occlusion;
+  /// Temporary points bypass the page cache (O_DIRECT) on the route that reads the inputs once
+  /// (LAS and LAZ through their reader): 1 always, 0 never, -1 when they would take more than
+  /// half the machine's memory (the cache could not hold them, and moving them through it costs
+  /// more than the build's own work on them). File systems without direct I/O go through it.
+  int direct_io = -1;
 };
 
 struct BuildReport {
@@ -61,6 +68,9 @@ struct BuildReport {
   double seconds_write = 0.0;
   double max_error = 0.0;  ///< largest quantisation error of any stored point
   size_t temp_record_bytes = 0;  ///< bytes a point in the temporary files (21 compact, 40 wide)
+  /// The inputs went the bucketed route (point_distributor.h): one pass over them counted and
+  /// bucketed every point in the cube of their header boxes.
+  bool bucketed = false;
 };
 
 /// Builds `output` from `inputs`. Throws ReadError for bad input, StoreError for failures writing
