@@ -129,10 +129,14 @@ struct Run {
   render::Image first, final;
 };
 
-render::Image draw(const fs::path& store_path, const render::ViewSetup& view) {
+/// `preview`: as tessera-render --preview draws a preview (no per-point splat sizes).
+render::Image draw(const fs::path& store_path, const render::ViewSetup& view,
+                   bool preview = false) {
   auto store = lod::PointStore::open(store_path);
   render::ModelInstance inst{store.get(), render::storeModel(*store)};
-  render::ViewRenderer r(view.width, view.height);
+  render::StreamerOptions stream;
+  stream.point_splat_sizes = !preview;
+  render::ViewRenderer r(view.width, view.height, nullptr, stream);
   return r.renderSettled({&inst, 1}, view, render::RenderOptions{});
 }
 
@@ -168,7 +172,7 @@ Run previewFirst(const Input& in, const fs::path& cache, uint64_t sample) {
   if (!preview.hasPreview())
     throw std::runtime_error("first_picture: " + in.scan.string() +
                              ": no preview: " + preview.whyNot());
-  run.first = draw(preview.previewPath(), viewOf(in.camera));
+  run.first = draw(preview.previewPath(), viewOf(in.camera), true);
   run.first_s = msSince(t) / 1000.0;
   run.final = draw(preview.finalStore(), viewOf(in.camera));
   run.final_s = msSince(t) / 1000.0;

@@ -978,7 +978,12 @@ int run(int argc, char** argv) {
       }
     };
     if (!preview_out.empty()) {
+      // The preview is a coarse sample drawn once: discs of its nodes' spacing, without
+      // measuring each close point's own splat size (what dominates a volume's first frame).
+      const render::StreamerOptions full_options = stream_options;
+      if (!previewed.empty()) stream_options.point_splat_sizes = false;
       const render::Image first = framePicture(cam);
+      stream_options = full_options;
       render::writePng(preview_out, first);
       std::printf(
           "wrote %s (%ux%u)%s\n", preview_out.c_str(), first.width, first.height,
