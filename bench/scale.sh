@@ -23,7 +23,7 @@ each size (bench/tile_scan; 10^9 points are 5.5 GB as LAZ, 34 GB as LAS), then f
   site      bench/site_join --store S.tlod --rates 20 --join-only: a remote site without the
             store joins over a link of 20 Mbit/s and settles its view
 
-Inputs and stores go to --work (default /tmp/tessera-scale; about 60 GB at 10^9: the LAZ, the
+Inputs and stores go to --work (default /tmp/tessera-scale; about 40 GB at 10^9: the LAZ, the
 build's temporary files and the store), kept for the next run (--rebuild builds again).
 Results in --out (default BUILD/bench-results/scale):
   scale_build.csv  size, points, build_s, build_mpts, build_peak_mb, store_bytes,
