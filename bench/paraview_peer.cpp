@@ -404,17 +404,19 @@ void chart(const fs::path& out) {
     << "set style data histograms\nset style histogram clustered gap 1\n"
     << "set style fill solid 0.85 border -1\nset logscale y\nset ylabel 'ms per frame (log)'\n"
     << "set grid ytics\nset key top left font ',8'\nset yrange [10:1e6]\nset xtics rotate by -20\n"
-    << "plot '" << data << "' using 2:xtic(1) title 'ParaView 5.11, 1 px points'";
+    << "plot '" << data << "' using 2:xtic(1) title 'ParaView 5.11, 1 px points' lt 1";
+  // Each variant keeps its colour in both panels (ParaView's is the first).
   for (size_t i = 0; i < kVariants.size(); ++i)
-    g << ", '' using " << 3 + i << " title '" << kVariants[i].second << "'";
+    g << ", '' using " << 3 + i << " title '" << kVariants[i].second << "' lt " << i + 2;
   g << "\nset title 'Speed-up over ParaView per frame (median of rounds)'\n"
     << "set ylabel 'ParaView ms / Tessera ms (log)'\nset yrange [0.5:2000]\n"
     << "set arrow 1 from graph 0, first 20 to graph 1, first 20 nohead dt 2 lw 2 lc rgb 'red'\n"
     << "set label 1 'goal: 20x' at graph 0.01, first 24 tc rgb 'red'\n"
     << "plot '" << data << "' using " << 3 + kVariants.size() << ":xtic(1) title '"
-    << kVariants[0].second << "'";
+    << kVariants[0].second << "' lt 2";
   for (size_t i = 1; i < kVariants.size(); ++i)
-    g << ", '' using " << 3 + kVariants.size() + i << " title '" << kVariants[i].second << "'";
+    g << ", '' using " << 3 + kVariants.size() + i << " title '" << kVariants[i].second << "' lt "
+      << i + 2;
   g << "\nunset multiplot\n";
   g.close();
   const std::string cmd = std::string(TESSERA_GNUPLOT) + " '" + gp.string() + "'";

@@ -153,6 +153,8 @@ if [ "$skip_wall" = 0 ]; then
       "$repo/configs/scenes/autzen.json" > "$dir/scene.json"
     rm -f "$dir/stats.csv"
     echo "== wall over ZeroMQ, $size" >&2
+    # The path's screenshot step writes beside the master: into this run's folder.
+    pushd "$dir" > /dev/null
     "$build/master/tessera-master" --transport zmq --listen "tcp://127.0.0.1:*" \
       --wall "$repo/configs/walls/2x2.json" --scene "$dir/scene.json" \
       --script "$repo/configs/paths/autzen-flyover.json" --join-wait 120 \
@@ -165,6 +167,7 @@ if [ "$skip_wall" = 0 ]; then
       kill -0 "$master" 2>/dev/null || break
       sleep 0.1
     done
+    popd > /dev/null
     if [ -z "$endpoint" ]; then
       kill "$master" 2>/dev/null || true
       die "tessera-master did not listen; see $dir/master.txt"
