@@ -773,8 +773,9 @@ void PointDistributor::spillGroup(const ChunkGroup& group, std::vector<Chunk>& c
 void PointDistributor::measureInFrame(const CubeFrame& frame,
                                       const std::filesystem::path& raw_file) {
   mFrame = frame;
+  mVerifying = true;
   if (mLas.size() == mInputs.size()) {
-    readInputsIn(chooseLayout(), "verify 1/3 reading", raw_file);
+    readInputsIn(chooseLayout(), "verify 1/4 reading", raw_file);
     return;
   }
   // The frame is the store's: any input goes the bucketed route, its points outside the cube
@@ -839,7 +840,7 @@ std::vector<Chunk> PointDistributor::distribute(uint64_t chunk_max,
   const size_t cells = size_t(kCountRes) * kCountRes * kCountRes;
   const CubeFrame::LevelGrid count_grid = mFrame.levelGrid(kCountLevel);
   std::vector<std::vector<uint32_t>> part_counts(size_t(parts), std::vector<uint32_t>(cells, 0));
-  forEachRaw("build 2/5 counting", parts, [&](int part, std::span<const BuildPoint> pts) {
+  forEachRaw(mVerifying ? "verify 2/4 counting" : "build 2/5 counting", parts, [&](int part, std::span<const BuildPoint> pts) {
     auto& counts = part_counts[size_t(part)];
     for (const BuildPoint& p : pts) {
       CellKey c = count_grid.cellOf(p.position);
@@ -924,7 +925,7 @@ std::vector<Chunk> PointDistributor::distribute(uint64_t chunk_max,
     st.written[ci] += b.size();
     b.clear();
   };
-  forEachRaw("build 3/5 distributing", parts, [&](int part, std::span<const BuildPoint> pts) {
+  forEachRaw(mVerifying ? "verify 3/4 distributing" : "build 3/5 distributing", parts, [&](int part, std::span<const BuildPoint> pts) {
     PartState& st = state[size_t(part)];
     for (const BuildPoint& p : pts) {
       CellKey c = count_grid.cellOf(p.position);

@@ -224,6 +224,8 @@ class PointDistributor {
   TempLayout mLayout;
   glm::dvec3 mFirstOrigin{0.0};  ///< the first input's local origin (the store's origin)
   std::filesystem::path mRawFile;
+  /// What the passes' progress labels begin with: "build 2/5" or "verify 2/4" for counting.
+  bool mVerifying = false;
   /// The inputs that are uncompressed LAS files, each with its local origin; when they are all
   /// the inputs, the passes read their records directly (mDirect) instead of a raw file.
   std::vector<std::pair<LasDirect::Input, glm::dvec3>> mLas;

@@ -161,7 +161,7 @@ VerifyReport verifyStore(const std::filesystem::path& store_path,
     active.emplace(id, std::move(a));
   };
 
-  Progress progress(dist.bucketed() ? "verify 2/2 matching" : "verify 3/3 matching",
+  Progress progress(dist.bucketed() ? "verify 2/2 matching" : "verify 4/4 matching",
                     dist.points(), " points", options.quiet);
   std::vector<NodeId> path;
   auto matchRegion = [&](const Chunk& region, const std::vector<BuildPoint>& pts) {
