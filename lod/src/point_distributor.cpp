@@ -65,16 +65,7 @@ class BlockWriter {
   BlockWriter(int fd, std::string name) : mFd(fd), mName(std::move(name)) {
     mThread = std::thread([this] { run(); });
   }
-  ~BlockWriter() {
-    if (mThread.joinable()) {
-      {
-        std::lock_guard lock(mMutex);
-        mDone = true;
-      }
-      mWake.notify_all();
-      mThread.join();
-    }
-  }
+  ~BlockWriter() { stop(); }
   /// A buffer of at least `n` bytes to fill and hand to write().
   AlignedBytes take(size_t n) {
     AlignedBytes b;
@@ -97,16 +88,21 @@ class BlockWriter {
   }
   /// Waits for every block to be written; rethrows a write's failure.
   void finish() {
+    stop();
+    if (mError) std::rethrow_exception(mError);
+  }
+
+ private:
+  /// Lets the thread write what is queued, then joins it.
+  void stop() {
+    if (!mThread.joinable()) return;
     {
       std::lock_guard lock(mMutex);
       mDone = true;
     }
     mWake.notify_all();
     mThread.join();
-    if (mError) std::rethrow_exception(mError);
   }
-
- private:
   struct Job {
     AlignedBytes bytes;
     size_t n;
