@@ -144,6 +144,8 @@ int main(int argc, char** argv) {
     for (const double lod : {std::max(reference_lod, 1e-9), 1.0})
       for (const double deg : {0.0, orbit_deg}) {
         render::RenderOptions o;
+        // Every level the pixels ask for: the method measured alone, without the pixel budget.
+        o.budget_per_covered_pixel = 0.0;
         o.lod_pixels = lod;
         o.coverage_stop = lod >= 1.0;  // the reference draws every leaf (or its level), whole
         const render::ViewSetup v = orbitView(deg, W, H, distance);

@@ -50,7 +50,13 @@ struct Input {
   std::string name;
   fs::path store;
   render::ViewSetup view;
-  render::RenderOptions options;  ///< shading; splat scale and fill set per variant
+  /// Shading; splat scale and fill set per variant. No pixel budget: every level the pixels
+  /// ask for, the fill measured alone.
+  render::RenderOptions options = [] {
+    render::RenderOptions o;
+    o.budget_per_covered_pixel = 0.0;
+    return o;
+  }();
   std::vector<uint32_t> crop;     ///< top-left of the 160x100 crop
 };
 

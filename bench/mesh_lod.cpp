@@ -310,6 +310,8 @@ int main(int argc, char** argv) {
     so.budget_bytes = 4ull << 30;
     render::ViewRenderer renderer(v.width, v.height, nullptr, so);
     render::RenderOptions o;
+    // Every level the pixels ask for: the method measured alone, without the pixel budget.
+    o.budget_per_covered_pixel = 0.0;
     // A settled frame at threshold px, then the best of `repeats` frames of it (no readback).
     auto frameOf = [&](render::ViewRenderer& vr, const render::ViewSetup& view, double px,
                        render::RenderStats& st) {

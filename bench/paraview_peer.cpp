@@ -10,16 +10,20 @@
 //
 // Tessera variants, each on a fresh store and renderer every round:
 //   full      every leaf (lod-px 1e-9, coverage stop off, no budget, discs): the reference
-//   defaults  RenderOptions{} as a user gets them: the coverage stop, the fill chosen for the
-//             frame (SurfaceFill::kAuto), no budget
+//   defaults  RenderOptions{} as a user gets them: a budget of 2 points a covered pixel (at
+//             least 5x10^5 points), the coverage stop, the fill chosen for the frame
+//             (SurfaceFill::kAuto)
+//   nobudget  the defaults without the budget (--points-per-pixel 0)
 //   coverage  the coverage stop alone, no budget, discs
 //   budget    the coverage stop and a point budget (--budget, as Potree users set one), discs
-//   pixels    the defaults and a budget of 2 points a covered pixel (--points-per-pixel 2)
+//   ppp-F     the defaults with F points a covered pixel and no floor, for each F of --sweep:
+//             frame time against accuracy (OUT/paraview_peer_sweep.png)
 // For each: the first picture (store opened cold, every chunk of the cut resident), then the
 // frame time (best and median of --frames frames: cut selection, raster, readback), the points
-// drawn, the fill drawn, the pixel IoU of the covered pixels against the full render and the
-// silhouette IoU of 8-pixel blocks against it (the outline). The summary's speed-up
-// is the median over rounds of each round's ParaView frame over the variant's (best frames).
+// drawn, the fill drawn, the pixel IoU of the covered pixels against the full render, the
+// silhouette IoU of 8-pixel blocks against it (the outline) and the PSNR of the picture's
+// colours against it. The summary's speed-up is the median over rounds of each round's
+// ParaView frame over the variant's (best frames).
 // ParaView: load (reader), first render, frame time (a camera nudge and Render() with glFinish,
 // best and median). ParaView runs only when pvbatch is on PATH (Debian `paraview`; under
 // xvfb-run without a display); otherwise its rows are left out with a message.
@@ -235,6 +239,19 @@ double blockIou(const Mask& a, const Mask& b, uint32_t width, uint32_t height,
   return silhouetteIou(ba, bb);
 }
 
+/// PSNR of the RGB of every pixel of `a` against `b` (background included), dB; 99 when equal.
+double psnr(const render::Image& a, const render::Image& b) {
+  double se = 0.0;
+  size_t n = 0;
+  for (size_t i = 0; i + 3 < a.rgba.size() && i + 3 < b.rgba.size(); i += 4)
+    for (size_t c = 0; c < 3; ++c, ++n) {
+      const double d = double(a.rgba[i + c]) - double(b.rgba[i + c]);
+      se += d * d;
+    }
+  const double mse = n ? se / double(n) : 0.0;
+  return mse > 0.0 ? 10.0 * std::log10(255.0 * 255.0 / mse) : 99.0;
+}
+
 size_t coveredPixels(const Mask& a) {
   return size_t(std::count(a.begin(), a.end(), uint8_t(1)));
 }
@@ -253,6 +270,7 @@ struct Run {
   render::FillEstimate estimate;  ///< Tessera: what the fill was chosen by
   double first_s = 0, load_s = 0, best_ms = 0, median_ms = 0;
   double iou = 1.0;        ///< pixel IoU against the every-leaf render
+  double psnr = 99.0;      ///< dB, the RGB of every pixel against the every-leaf render
   double block_iou = 1.0;  ///< silhouette IoU of 8-pixel blocks against it
   render::Image image;
   Mask mask;  ///< covered pixels
@@ -385,11 +403,52 @@ bool runParaView(const fs::path& out, const fs::path& vtk, const bench::CubeCame
 /// The variants after ParaView, in the CSV's and the chart's order, with the chart's titles.
 constexpr std::array<std::pair<const char*, const char*>, 5> kVariants{{
     {"full", "Tessera, every leaf"},
-    {"defaults", "Tessera, defaults (coverage stop, fill chosen)"},
+    {"defaults", "Tessera, defaults (2 points/covered pixel, coverage stop, fill chosen)"},
+    {"nobudget", "Tessera, defaults without the budget"},
     {"coverage", "Tessera, coverage stop alone, discs"},
     {"budget", "Tessera, coverage stop + budget 10^6, discs"},
-    {"pixels", "Tessera, defaults + budget 2 points/covered pixel"},
 }};
+
+/// 10000000 as "10^7", 50000000 as "5x10^7"; other counts as they are.
+std::string powerOfTen(uint64_t n) {
+  int e = 0;
+  uint64_t m = n;
+  while (m >= 10 && m % 10 == 0) m /= 10, ++e;
+  if (e < 3 || m >= 10) return std::to_string(n);
+  return (m == 1 ? std::string() : std::to_string(m) + "x") + "10^" + std::to_string(e);
+}
+
+std::string sweepName(double f) {
+  char s[32];
+  std::snprintf(s, sizeof s, "ppp-%g", f);
+  return s;
+}
+
+/// OUT/paraview_peer_sweep.csv holds one block per input (two blank lines between): points a
+/// covered pixel (1e9: no budget; 0: ParaView, after a blank line), frame ms, PSNR, label; the
+/// chart puts frame time against accuracy.
+void sweepChart(const fs::path& out, const std::vector<std::string>& titles) {
+  const fs::path gp = out / "paraview_peer_sweep.gp";
+  const std::string data = (out / "paraview_peer_sweep.csv").string();
+  std::ofstream g(gp);
+  g << "set terminal pngcairo size 900,560 font 'sans,10' noenhanced\n"
+    << "set output '" << (out / "paraview_peer_sweep.png").string() << "'\n"
+    << "set datafile separator ','\n"
+    << "set title 'Points a covered pixel: frame time against accuracy (1920x1080, llvmpipe)'\n"
+    << "set xlabel 'ms per frame (log)'\nset ylabel 'PSNR against every leaf, dB'\n"
+    << "set logscale x\nset grid\nset key top left font ',9'\n"
+    << "set offsets graph 0.05, graph 0.12, 1, 1\n"
+    << "plot ";
+  for (size_t i = 0; i < titles.size(); ++i)
+    g << (i ? ", " : "") << "'" << data << "' index " << i
+      << " using 2:3 with linespoints lw 2 pt 7 lt " << i + 1 << " title '" << titles[i]
+      << "', '' index " << i << " using 2:3:4 with labels offset 1.2,0.6 font ',8' notitle";
+  g << "\n";
+  g.close();
+  const std::string cmd = std::string(TESSERA_GNUPLOT) + " '" + gp.string() + "'";
+  if (std::system(cmd.c_str()) != 0)
+    std::fprintf(stderr, "paraview_peer: gnuplot failed on the sweep; its CSV is complete\n");
+}
 
 /// OUT/paraview_peer_chart.csv holds per input: label, ParaView's ms, each variant's ms, then
 /// each variant's speed-up.
@@ -435,6 +494,7 @@ int main(int argc, char** argv) {
   std::vector<std::string> inputs{"cube", "autzen"};
   int rounds = 3, frames = 3;
   uint64_t budget = 1'000'000;
+  std::vector<double> sweep{1.0, 1.5, 3.0, 4.0};
   bool no_paraview = false;
   app.add_option("--out", out, "Folder for inputs, CSV and chart")->capture_default_str();
   app.add_option("--points", sizes, "Input sizes (points)")->capture_default_str();
@@ -449,6 +509,12 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--budget", budget, "Point budget of the budget variant")
       ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  app.add_option("--sweep", sweep,
+                 "Points a covered pixel of the ppp-F variants (the defaults' 2 and no budget "
+                 "are charted beside them; none: --sweep with no value)")
+      ->check(CLI::PositiveNumber)
+      ->expected(0, -1)
       ->capture_default_str();
   app.add_flag("--no-paraview", no_paraview, "Leave ParaView out even when pvbatch is on PATH");
   CLI11_PARSE(app, argc, argv);
@@ -467,40 +533,53 @@ int main(int argc, char** argv) {
     full.lod_pixels = 1e-9;
     full.coverage_stop = false;
     full.fill = render::SurfaceFill::kDiscs;  // the reference picture
+    full.budget_per_covered_pixel = 0.0;
     const render::RenderOptions defaults;
-    render::RenderOptions coverage;
+    render::RenderOptions nobudget;
+    nobudget.budget_per_covered_pixel = 0.0;
+    render::RenderOptions coverage = nobudget;
     coverage.fill = render::SurfaceFill::kDiscs;
     render::RenderOptions budgeted = coverage;
     budgeted.point_budget = budget;
-    render::RenderOptions pixels;
-    pixels.budget_per_covered_pixel = 2.0;
-    const std::array<render::RenderOptions, kVariants.size()> options{full, defaults, coverage,
-                                                                      budgeted, pixels};
+    std::vector<std::pair<std::string, render::RenderOptions>> options{
+        {kVariants[0].first, full},
+        {kVariants[1].first, defaults},
+        {kVariants[2].first, nobudget},
+        {kVariants[3].first, coverage},
+        {kVariants[4].first, budgeted}};
+    std::sort(sweep.begin(), sweep.end());
+    for (double f : sweep) {
+      render::RenderOptions o;
+      o.budget_per_covered_pixel = f;
+      o.budget_floor = 0;
+      options.emplace_back(sweepName(f), o);
+    }
 
     std::ofstream csv(dir / "paraview_peer.csv");
     const std::string header =
         "input,points,round,renderer,variant,points_drawn,point_budget,fill,disc_layers,"
         "max_disc_radius_px,wide_disc_share,covered_px,load_s,first_picture_s,frame_best_ms,"
-        "frame_median_ms,iou_vs_full,silhouette_iou_vs_full";
+        "frame_median_ms,iou_vs_full,silhouette_iou_vs_full,psnr_vs_full_db";
     csv << header << "\n";
     std::cout << header << "\n";
-    // (input, points, variant) -> per-round best frame ms, points drawn, IoU.
-    std::map<std::tuple<std::string, uint64_t, std::string>, std::vector<std::array<double, 4>>>
+    // (input, points, variant) -> per-round best frame ms, points drawn, IoU, block IoU, PSNR.
+    std::map<std::tuple<std::string, uint64_t, std::string>, std::vector<std::array<double, 5>>>
         all;
     auto row = [&](const Inputs& in, uint64_t n, int round, const char* who,
                    const std::string& variant, const Run& r) {
       const render::FillEstimate& e = r.estimate;
       char line[640];
       std::snprintf(line, sizeof line,
-                    "%s,%llu,%d,%s,%s,%llu,%llu,%s,%.1f,%.1f,%.4f,%zu,%.3f,%.3f,%.1f,%.1f,%.4f,%.4f",
+                    "%s,%llu,%d,%s,%s,%llu,%llu,%s,%.1f,%.1f,%.4f,%zu,%.3f,%.3f,%.1f,%.1f,%.4f,%.4f,%.2f",
                     in.name.c_str(), (unsigned long long)n, round, who, variant.c_str(),
                     (unsigned long long)r.points, (unsigned long long)r.budget, r.fill.c_str(),
                     e.covered_px > 0 ? e.disc_px / e.covered_px : 0.0, e.max_radius_px,
                     e.points > 0 ? e.wide_points / e.points : 0.0, coveredPixels(r.mask),
-                    r.load_s, r.first_s, r.best_ms, r.median_ms, r.iou, r.block_iou);
+                    r.load_s, r.first_s, r.best_ms, r.median_ms, r.iou, r.block_iou, r.psnr);
       csv << line << "\n";
       std::cout << line << std::endl;
-      all[{in.name, n, variant}].push_back({r.best_ms, double(r.points), r.iou, r.block_iou});
+      all[{in.name, n, variant}].push_back(
+          {r.best_ms, double(r.points), r.iou, r.block_iou, r.psnr});
     };
     std::vector<std::pair<std::string, uint64_t>> measured;
     for (const std::string& input : inputs) {
@@ -518,20 +597,22 @@ int main(int argc, char** argv) {
           Run pv;
           const bool pv_ok = paraview && runParaView(dir, in.vtk, pv_cam, w, h, frames, pv);
           Run reference;
-          for (size_t v = 0; v < kVariants.size(); ++v) {
-            Run r = runTessera(in.store, view, options[v], frames);
+          for (size_t v = 0; v < options.size(); ++v) {
+            Run r = runTessera(in.store, view, options[v].second, frames);
             if (v == 0) reference = r;
             r.iou = silhouetteIou(r.mask, reference.mask);
             r.block_iou = blockIou(r.mask, reference.mask, w, h);
-            row(in, n, round, "tessera", kVariants[v].first, r);
+            r.psnr = psnr(r.image, reference.image);
+            row(in, n, round, "tessera", options[v].first, r);
             if (round == 1)
               render::writePng(
-                  (dir / ("paraview_peer-" + tag + "-" + kVariants[v].first + ".png")).string(),
+                  (dir / ("paraview_peer-" + tag + "-" + options[v].first + ".png")).string(),
                   r.image);
           }
           if (pv_ok) {
             pv.iou = silhouetteIou(pv.mask, reference.mask);
             pv.block_iou = blockIou(pv.mask, reference.mask, w, h);
+            pv.psnr = psnr(pv.image, reference.image);
             row(in, n, round, "paraview", "paraview", pv);
             if (round == 1)
               fs::copy_file(dir / "paraview_peer-paraview.png",
@@ -546,9 +627,11 @@ int main(int argc, char** argv) {
     // Medians over rounds, the speed-ups against ParaView, and the chart's table.
     std::ofstream sum(dir / "paraview_peer_summary.csv");
     std::ofstream tab(dir / "paraview_peer_chart.csv");
+    std::ofstream swp(dir / "paraview_peer_sweep.csv");
+    std::vector<std::string> sweep_titles;
     const char* sum_header =
         "input,points,variant,points_drawn,frame_ms,iou_vs_full,silhouette_iou_vs_full,"
-        "speedup_vs_paraview\n";
+        "psnr_vs_full_db,speedup_vs_paraview\n";
     sum << sum_header;
     std::cout << "\n" << sum_header;
     for (const auto& [input, n] : measured) {
@@ -567,13 +650,13 @@ int main(int argc, char** argv) {
         return median(x);
       };
       std::vector<std::string> names{"paraview"};
-      for (const auto& v : kVariants) names.emplace_back(v.first);
+      for (const auto& v : options) names.push_back(v.first);
       for (const std::string& v : names) {
         if (all[{input, n, v}].empty()) continue;
         char line[256];
-        std::snprintf(line, sizeof line, "%s,%llu,%s,%.0f,%.1f,%.4f,%.4f,%.2f", input.c_str(),
-                      (unsigned long long)n, v.c_str(), med(v, 1), med(v, 0), med(v, 2),
-                      med(v, 3), speedup(v));
+        std::snprintf(line, sizeof line, "%s,%llu,%s,%.0f,%.1f,%.4f,%.4f,%.2f,%.2f",
+                      input.c_str(), (unsigned long long)n, v.c_str(), med(v, 1), med(v, 0),
+                      med(v, 2), med(v, 3), med(v, 4), speedup(v));
         sum << line << "\n";
         std::cout << line << "\n";
       }
@@ -583,10 +666,28 @@ int main(int argc, char** argv) {
       for (const auto& v : kVariants) tab << "," << med(v.first, 0);
       for (const auto& v : kVariants) tab << "," << std::max(speedup(v.first), 1e-9);
       tab << "\n";
+      // The sweep, by points a covered pixel: the ppp-F variants, the defaults (2, with the
+      // floor) and no budget (charted as 'none').
+      std::vector<std::tuple<double, std::string, std::string>> points;
+      for (double f : sweep) points.emplace_back(f, sweepName(f), sweepName(f).substr(4));
+      points.emplace_back(render::RenderOptions{}.budget_per_covered_pixel, "defaults",
+                          "defaults");
+      std::stable_sort(points.begin(), points.end());
+      points.emplace_back(1e9, "nobudget", "none");
+      if (!sweep_titles.empty()) swp << "\n\n";
+      for (const auto& [f, v, label] : points)
+        if (!all[{input, n, v}].empty())
+          swp << f << "," << med(v, 0) << "," << med(v, 4) << "," << label << "\n";
+      if (!all[{input, n, "paraview"}].empty())  // its own point, not joined to the line
+        swp << "\n0," << med("paraview", 0) << "," << med("paraview", 4) << ",ParaView\n";
+      sweep_titles.push_back((input == "cube" ? "random cube, " : "Autzen tiled, ") +
+                             powerOfTen(n) + " points");
     }
     sum.close();
     tab.close();
+    swp.close();
     chart(dir);
+    sweepChart(dir, sweep_titles);
     std::fprintf(stderr, "paraview_peer: wrote %s/paraview_peer.csv, _summary.csv, .png\n",
                  out.c_str());
     return 0;

@@ -14,9 +14,10 @@ each size (bench/tile_scan; 10^9 points are 5.5 GB as LAZ, 34 GB as LAS), then f
   build     tessera-lod build IN.laz -o S.tlod --threads T --memory-mb M, timed by /usr/bin/time -v
             (wall time, peak RSS), store bytes a point
   verify    tessera-lod verify S.tlod IN.laz: every input point found in the store
-  store     bench/scale: open, first picture, settled full view (1920x1080, the defaults), a
-            frame resident at the defaults and with a budget of 10^6 points, a lasso over the
-            middle half of the view, a distance between two full-resolution picks
+  store     bench/scale: open, first picture, settled full view (1920x1080, the defaults
+            without the pixel budget: every level the pixels ask for), a frame resident so and
+            with a budget of 10^6 points, a lasso over the middle half of the view, a distance
+            between two full-resolution picks
   wall      the 2x2 wall (configs/walls/2x2.json, 1920x1080 in all) over ZeroMQ: tessera-master
             and four tessera-nodes on this machine flying configs/paths/autzen-flyover.json in
             real time (20 s) over the store's first copy of Autzen; frame times from --stats

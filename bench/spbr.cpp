@@ -168,6 +168,8 @@ void figure5(const fs::path& out, const std::vector<size_t>& sizes) {
       const float alpha = float(independent ? a - 19 : a) * 0.05f;
       render::ModelInstance inst{store.get(), render::storeModel(*store), alpha};
       render::RenderOptions o;
+      // Every level the pixels ask for: the method measured alone, without the pixel budget.
+      o.budget_per_covered_pixel = 0.0;
       o.spbr = render::SpbrOptions::papersCopies();
       o.spbr.ensembles = 64;
       if (independent) o.spbr.max_k = 1.0;
@@ -274,10 +276,12 @@ void accuracy(const fs::path& out, std::vector<Scene>& scenes) {
     };
     for (uint32_t L : {4u, 16u, 64u, 256u}) {
       render::RenderOptions o;
+      o.budget_per_covered_pixel = 0.0;
       o.spbr = render::SpbrOptions::papersCopies();
       o.spbr.ensembles = L;
       row("spbr", L, o);
       render::RenderOptions cell;  // the default: copies in surface cells
+      cell.budget_per_covered_pixel = 0.0;
       cell.spbr.ensembles = L;
       row("spbr-cell", L, cell);
       // Independent ensembles (k <= 1): discs grow with L instead of points being copied.
@@ -285,9 +289,11 @@ void accuracy(const fs::path& out, std::vector<Scene>& scenes) {
       row("spbr-independent", L, o);
     }
     render::RenderOptions avg;
+    avg.budget_per_covered_pixel = 0.0;
     avg.transparency = render::Transparency::kWeightedAverage;
     row("average", 0, avg);
     render::RenderOptions wb;
+    wb.budget_per_covered_pixel = 0.0;
     wb.transparency = render::Transparency::kWeightedBlended;
     row("wboit", 0, wb);
   }
@@ -397,6 +403,7 @@ void opacity(const fs::path& out) {
       for (int a = 1; a <= 9; ++a) {
         const float alpha = float(a) * 0.1f;
         render::RenderOptions o;
+        o.budget_per_covered_pixel = 0.0;
         o.spbr.ensembles = L;
         o.spbr.slant_shading = slant;
         render::ModelInstance inst{plane.get(), render::storeModel(*plane), alpha};
@@ -488,6 +495,7 @@ void sparse(const fs::path& out, const std::vector<double>& jitters,
   for (const SparseMethod& m : methods) {
     for (float alpha : {0.05f, 0.2f, 0.35f, 0.5f, 0.65f, 0.8f, 0.95f}) {
       render::RenderOptions o;
+      o.budget_per_covered_pixel = 0.0;
       o.spbr = m.spbr;
       o.spbr.ensembles = L;
       render::ModelInstance inst{plane.get(), render::storeModel(*plane), alpha};
@@ -543,6 +551,7 @@ void sparse(const fs::path& out, const std::vector<double>& jitters,
     for (const SparseMethod& m : methods) {
       for (uint32_t l : {16u, 64u}) {
         render::RenderOptions o;
+        o.budget_per_covered_pixel = 0.0;
         o.spbr = m.spbr;
         o.spbr.ensembles = l;
         render::Image img;
@@ -600,6 +609,7 @@ void speed(const fs::path& out, const fs::path& store_path, double lod_px) {
       lookAt({-0.02, 0.13, 0.26}, {-0.02, 0.1, 0.0}, {0, 1, 0}, 1024, 1024, 45.0, 0.01, 2.0);
   auto streamer = std::make_shared<render::ChunkStreamer>(render::StreamerOptions{8ull << 30});
   render::RenderOptions o;
+  o.budget_per_covered_pixel = 0.0;
   o.spbr = render::SpbrOptions::papersCopies();  // as the README's speed figures
   o.lod_pixels = lod_px;
   o.spbr.ensembles = 64;
@@ -640,6 +650,7 @@ void bunnyOverlap(const fs::path& out, std::ofstream& csv) {
   const render::ViewSetup v =
       lookAt({-0.02, 0.11, 0.3}, {-0.02, 0.1, 0.0}, {0, 1, 0}, 640, 480, 40.0, 0.01, 2.0);
   render::RenderOptions o;
+  o.budget_per_covered_pixel = 0.0;
   o.spbr = render::SpbrOptions::papersCopies();  // as the README's overlap figures
   o.spbr.ensembles = 64;
   render::ViewRenderer r(v.width, v.height);
@@ -729,6 +740,7 @@ void breaks(const fs::path& out) {
   for (float alpha : {0.2f, 0.5f, 0.8f}) {
     render::ModelInstance inst{store.get(), render::storeModel(*store), alpha};
     render::RenderOptions o;
+    o.budget_per_covered_pixel = 0.0;
     o.spbr = render::SpbrOptions::papersCopies();  // as the README's density-jump figures
     render::ViewRenderer r(512, 512);
     const render::Image img = r.renderSettled({&inst, 1}, v, o);

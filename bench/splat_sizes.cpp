@@ -162,6 +162,8 @@ int main(int argc, char** argv) {
       auto streamer = std::make_shared<render::ChunkStreamer>(so);
       render::ViewRenderer r(width, height, streamer);
       render::RenderOptions o;
+      // Every level the pixels ask for: the method measured alone, without the pixel budget.
+      o.budget_per_covered_pixel = 0.0;
       o.max_splat_radius = method.max_radius;
       o.fill = method.fill;
       o.background = glm::vec3(1, 0, 0);

@@ -367,7 +367,8 @@ Cut selectCut(lod::LodHierarchy& store, const glm::dmat4& model, const ViewSetup
   uint64_t budget = options.point_budget;
   if (budget == 0 && options.budget_per_covered_px > 0.0) {
     const double covered = cut.covered_px > 0.0 ? cut.covered_px : double(view.width) * view.height;
-    budget = uint64_t(std::min(std::ceil(options.budget_per_covered_px * covered), 1e18));
+    budget = std::max(uint64_t(std::min(std::ceil(options.budget_per_covered_px * covered), 1e18)),
+                      options.budget_floor);
   }
   if (options.refine_only) {
     cut = refineOnly(s, cut, refined, hidden, *options.refine_only);

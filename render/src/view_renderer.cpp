@@ -558,6 +558,7 @@ void ViewRenderer::addModel(const ModelInstance& instance, bool see_through, con
                 "render::RenderOptions: budget_per_covered_pixel must be finite and >= 0");
   co.point_budget = options.point_budget;
   co.budget_per_covered_px = options.budget_per_covered_pixel;
+  co.budget_floor = options.budget_floor;
   uint64_t budget = 0;
   std::unordered_set<lod::NodeId> whole_refined;
   if ((co.point_budget > 0 || co.budget_per_covered_px > 0.0) &&

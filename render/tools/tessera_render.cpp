@@ -291,14 +291,20 @@ int run(int argc, char** argv) {
   auto* budget_opt =
       app.add_option("--point-budget", point_budget,
                      "Most points per model and picture (a wall's tiles share the wall's), "
-                     "refined largest screen error first (0: none, the default, unless "
-                     "--points-per-pixel)")
+                     "refined largest screen error first (by default --points-per-pixel sets "
+                     "it; 0: no budget at all, every level the pixels ask for)")
           ->check(cli::anyInteger<uint64_t>());
   app.add_option("--points-per-pixel", budget_per_pixel,
                  "Without --point-budget: a budget of this many points per pixel the model "
-                 "covers (0: none; 2 draws about a point a pixel shown: fast on volumes and "
-                 "dense data seen small, coarser on close scans)")
+                 "covers, never below --budget-floor (0: none; the default 2 draws about a "
+                 "point a pixel shown: fast on large scans seen whole, coarser colour there)")
       ->check(cli::finiteRange(0.0, 1e6))
+      ->capture_default_str();
+  uint64_t budget_floor = render::RenderOptions{}.budget_floor;
+  app.add_option("--budget-floor", budget_floor,
+                 "The --points-per-pixel budget is at least this many points per model: "
+                 "smaller cuts keep every level their pixels ask for")
+      ->check(cli::anyInteger<uint64_t>())
       ->capture_default_str();
   app.add_flag("--no-coverage-stop", no_coverage_stop,
                "Refine also where nearer points already cover the pixels (a volume of points "
@@ -648,6 +654,7 @@ int run(int argc, char** argv) {
     options.budget_per_covered_pixel = budget_opt->count() > 0 && point_budget == 0
                                            ? 0.0  // --point-budget 0: none
                                            : budget_per_pixel;
+    options.budget_floor = budget_floor;
     options.coverage_stop = !no_coverage_stop;
     if (spbr_l > 0) options.spbr.ensembles = spbr_l;
     options.spbr.progressive_max = spbr_progressive;

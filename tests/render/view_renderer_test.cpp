@@ -602,9 +602,10 @@ TEST_F(ViewRendererTest, MosaicEqualsTheWholeWallRenderUnderAPointBudget) {
   EXPECT_GT(own, 10 * shared + 1e-3) << "budgets of their own end the tiles' cuts elsewhere";
 }
 
-// A budget of two points a covered pixel, splats sized from the cut drawn (so a coarser cut
-// still closes the surface), and the default fill, the one the frame is cheaper with: a volume
-// of points seen whole fills, a surface draws discs.
+// The defaults' budget of two points a covered pixel, splats sized from the cut drawn (so a
+// coarser cut still closes the surface), and the default fill, the one the frame is cheaper
+// with: a volume of points seen whole fills, a surface draws discs. The budget's floor keeps
+// every level of cuts smaller than it: the bunny's ten scans seen close draw as without it.
 TEST_F(ViewRendererTest, APixelBudgetHoldsTheCutAndTheFillFollowsTheFrame) {
   test::TempDir dir;
   auto cube = lod::PointStore::open(test::randomCubeStore(dir.path(), 1'000'000, 500));
@@ -620,8 +621,10 @@ TEST_F(ViewRendererTest, APixelBudgetHoldsTheCutAndTheFillFollowsTheFrame) {
   full.fill = SurfaceFill::kDiscs;
   RenderStats sf, sd;
   const Image ref = r.renderSettled({&c, 1}, v, full, &sf);
-  RenderOptions pixel_budget;
-  pixel_budget.budget_per_covered_pixel = 2.0;
+  const RenderOptions defaults;
+  EXPECT_EQ(defaults.budget_per_covered_pixel, 2.0);
+  RenderOptions pixel_budget;  // the defaults without the floor, which this small view is below
+  pixel_budget.budget_floor = 0;
   const Image def = r.renderSettled({&c, 1}, v, pixel_budget, &sd);
   EXPECT_EQ(sf.points, 1'000'000u);
   EXPECT_GT(sd.point_budget, 0u);
@@ -640,13 +643,28 @@ TEST_F(ViewRendererTest, APixelBudgetHoldsTheCutAndTheFillFollowsTheFrame) {
   // 640x480 view, so the root is drawn, filled: measured 0.985 (bench/paraview_peer measures
   // 0.99 and above at 1920x1080 on 10^7 and 5x10^7 points).
   EXPECT_GE(iou, 0.98);
-  // The bunny's surface, near: discs, no pixel of its inside left open.
+  // With the floor (the defaults), the cube's cut is held to the floor, not to its pixels.
+  RenderStats sfl;
+  r.renderSettled({&c, 1}, v, defaults, &sfl);
+  EXPECT_EQ(sfl.point_budget, defaults.budget_floor);
+  EXPECT_LE(sfl.points, defaults.budget_floor);
+  EXPECT_GT(sfl.points, sd.points);
+  // The bunny's surface, near: discs, no pixel of its inside left open. Its 362,272 points are
+  // below the floor, so the defaults draw every level the pixels ask for, as without a budget;
+  // two points a pixel without the floor coarsen it.
   const ViewSetup near = plainView(camera(*bunny, 0.3), 640, 480);
   ModelInstance b{bunny.get(), storeModel(*bunny)};
-  RenderStats sb;
-  r.renderSettled({&b, 1}, near, RenderOptions{}, &sb);
+  RenderStats sb, sn, sp;
+  const Image near_defaults = r.renderSettled({&b, 1}, near, defaults, &sb);
   EXPECT_EQ(sb.fill, SurfaceFill::kDiscs) << "discs " << sb.fill_estimate.disc_px << " px over "
                                           << sb.fill_estimate.covered_px;
+  RenderOptions no_budget;
+  no_budget.budget_per_covered_pixel = 0.0;
+  const Image near_free = r.renderSettled({&b, 1}, near, no_budget, &sn);
+  EXPECT_EQ(sb.points, sn.points);
+  EXPECT_EQ(near_defaults.rgba, near_free.rgba);
+  r.renderSettled({&b, 1}, near, pixel_budget, &sp);
+  EXPECT_LT(sp.points, sn.points);
   // chooseFill() by its numbers: many layers of discs fill, few or wide discs do not.
   EXPECT_EQ(chooseFill(SurfaceFill::kAuto, {.disc_px = 1e8, .covered_px = 1e5, .max_radius_px = 8}),
             SurfaceFill::kPullPush);

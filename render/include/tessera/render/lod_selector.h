@@ -45,6 +45,10 @@ struct CutOptions {
   /// The pixels are the coverage grid's (Cut::covered_px) with the coverage stop, else the
   /// view's: a model seen small gets a small budget, one filling the view a large one.
   double budget_per_covered_px = 0.0;
+  /// The budget budget_per_covered_px gives is at least this many points (0: no floor): a cut
+  /// that small is cheap to draw, so the budget has nothing to save there and the view keeps
+  /// every level its pixels ask for (a small model, a close view of a few scans).
+  uint64_t budget_floor = 0;
   /// When set: refine only nodes it holds, in place of a budget. A wall tile passes the ids of
   /// the whole wall's refined nodes (Cut::above of the same store), so every tile draws the
   /// whole wall's budget-limited cut, not a budget of its own. Not owned; outlives the call.
