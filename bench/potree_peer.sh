@@ -5,7 +5,8 @@ set -euo pipefail
 usage() {
   cat <<'EOF'
 Usage: bench/potree_peer.sh --potree-src DIR [--points N] [--rounds R] [--threads T]
-                            [--out DIR] [--work DIR] [--data DIR] [--tool PATH] [--lock FILE]
+                            [--modes LIST] [--tiler PATH] [--out DIR] [--work DIR] [--data DIR]
+                            [--tool PATH] [--lock FILE]
 
 Builds PotreeConverter 2 from a source tree you give it (Release, outside the repository,
 never a dependency of Tessera's build), tiles Autzen (autzen_trim.las: 110,000 points, LAS 1.2
@@ -42,6 +43,10 @@ Options:
   --points N        points in the tiled LAS (default 10000000; 1e7, 3e7 also work)
   --rounds R        rounds per tool and mode (default 3)
   --threads T       threads for both tools (default 2)
+  --modes LIST      the runs, comma-separated TOOL:MODE (default tessera:default,potree:brotli,
+                    tessera:lossy,potree:uncompressed; at 10^9 the first two, for the disk)
+  --tiler PATH      tile with bench/tile_scan (C++, from a build: PATH to its binary) instead of
+                    bench/tile_las.py (pure Python, slow past 10^8)
   --out DIR         results (default build/dev/bench-results/potree_peer)
   --work DIR        PotreeConverter's build, the tiled LAS, the outputs
                     (default OUT/work; kept, so a rerun reuses the build and the LAS)
@@ -54,7 +59,8 @@ Options:
 Needs: bash, python3, cmake (3.16+) and a C++20 compiler, TBB (Debian: libtbb-dev),
 GNU time at /usr/bin/time (Debian: time), gnuplot (Debian: gnuplot-nox), taskset
 (util-linux), flock. PotreeConverter bundles LASzip, Brotli and its JSON library.
-Disk: about 34 bytes a point for the LAS plus both tools' outputs (about 1 GB at 10^7).
+Disk: about 34 bytes a point for the LAS, plus the running tool's temporary files and output
+(each output is measured, then removed): about 70 GB at 10^9 with PotreeConverter's Brotli.
 
 Exit status: 0 done, 1 a run failed, 2 usage or setup error (no --potree-src: prints how to
 get one).
@@ -74,16 +80,18 @@ POINTS=10000000
 ROUNDS=3
 THREADS=2
 LOCK=/tmp/tessera-build.lock
+MODE_LIST=tessera:default,potree:brotli,tessera:lossy,potree:uncompressed
+TILER=
 
 while [ $# -gt 0 ]; do
   case $1 in
     -h|--help) usage; exit 0 ;;
-    --potree-src|--points|--rounds|--threads|--out|--work|--data|--tool|--lock)
+    --potree-src|--points|--rounds|--threads|--out|--work|--data|--tool|--lock|--modes|--tiler)
       [ $# -ge 2 ] || die "$1 needs a value (see --help)"
       case $1 in
         --potree-src) SRC=$2 ;; --points) POINTS=$2 ;; --rounds) ROUNDS=$2 ;;
         --threads) THREADS=$2 ;; --out) OUT=$2 ;; --work) WORK=$2 ;; --data) DATA=$2 ;;
-        --tool) TOOL=$2 ;; --lock) LOCK=$2 ;;
+        --tool) TOOL=$2 ;; --lock) LOCK=$2 ;; --modes) MODE_LIST=$2 ;; --tiler) TILER=$2 ;;
       esac
       shift 2 ;;
     *) die "unknown argument '$1' (see --help)" ;;
@@ -112,6 +120,16 @@ print(int(v))' "$POINTS" 2>/dev/null) || die "--points must be a positive intege
   || die "'$SRC' is not a PotreeConverter 2 source tree (no CMakeLists.txt and Converter/src/main.cpp)"
 SRC=$(cd "$SRC" && pwd)
 case $SRC/ in "$REPO"/build/*) ;; "$REPO"/*) die "keep the PotreeConverter source outside the repository (or under build/), not in '$SRC'" ;; esac
+MODES=()
+IFS=, read -r -a mode_items <<<"$MODE_LIST"
+for item in "${mode_items[@]}"; do
+  case $item in
+    tessera:default|tessera:lossy|potree:brotli|potree:uncompressed) MODES+=("${item/:/ }") ;;
+    *) die "--modes: '$item' is not one of tessera:default, tessera:lossy, potree:brotli, potree:uncompressed" ;;
+  esac
+done
+[ ${#MODES[@]} -gt 0 ] || die "--modes names no run"
+[ -z "$TILER" ] || [ -x "$TILER" ] || die "--tiler: '$TILER' is not an executable (bench/tile_scan from a build)"
 [ -x "$TOOL" ] || die "tessera-lod not found at '$TOOL' (build the dev preset, or --tool PATH)"
 INPUT=$DATA/lidar/autzen_trim.las
 [ -f "$INPUT" ] || die "no $INPUT (set --data DIR or DATA)"
@@ -160,7 +178,10 @@ fi
 
 # --- input -----------------------------------------------------------------------------------
 LAS=$WORK/autzen_tiled_$POINTS.las
-if [ ! -f "$LAS" ] || [ "$LAS" -ot "$REPO/bench/tile_las.py" ]; then
+if [ -n "$TILER" ] && [ ! -f "$LAS" ]; then
+  note "tiling $INPUT into $POINTS points with $TILER"
+  locked "$TILER" "$INPUT" -o "$LAS" -n "$POINTS" --threads "$THREADS" >&2
+elif [ ! -f "$LAS" ] || [ "$LAS" -ot "$REPO/bench/tile_las.py" ]; then
   note "tiling $INPUT into $POINTS points"
   locked python3 "$REPO/bench/tile_las.py" "$INPUT" -o "$LAS" --points "$POINTS" >&2
 fi
@@ -168,7 +189,6 @@ got=$("$TOOL" info "$LAS" | awk '$1 == "points:" { print $2 }')
 [ "$got" = "$POINTS" ] || die "tessera-lod info reads $got points in $LAS, expected $POINTS"
 
 # --- runs ------------------------------------------------------------------------------------
-MODES=("tessera default" "potree brotli" "tessera lossy" "potree uncompressed")
 RUNS=$OUT/potree_peer_runs.csv
 [ -f "$RUNS" ] || echo "tool,mode,points,threads,round,seconds,peak_rss_mb,bytes,cpu_seconds" >"$RUNS"
 # rounds of an earlier run at this point count and thread count are replaced
@@ -210,6 +230,7 @@ run_one() {  # tool mode round
   bytes=$(du -sb "$dest" | cut -f1)
   cpu=$(awk -F': ' '/User time|System time/ { s += $2 } END { printf "%.2f", s }' "$OUT/logs/$tag.time")
   echo "$tool,$mode,$POINTS,$THREADS,$round,$secs,$rss,$bytes,$cpu" >>"$RUNS"
+  rm -rf "$dest"  # measured: its disk goes to the next run
   note "round $round  $tool $mode: ${secs} s (CPU ${cpu} s), ${rss} MB peak, $bytes bytes"
 }
 
@@ -219,7 +240,6 @@ for round in $(seq 1 "$ROUNDS"); do
     run_one $m "$round"
   done
 done
-for m in "${MODES[@]}"; do set -- $m; rm -rf "$WORK/out_$1_$2"; done
 
 # --- summary ---------------------------------------------------------------------------------
 CSV=$OUT/potree_peer.csv
@@ -239,7 +259,7 @@ cat >"$OUT/potree_peer_meta.txt" <<EOF
 PotreeConverter commit: $PCOMMIT (source: $SRC)
 PotreeConverter build: $("$(awk -F= '/^CMAKE_CXX_COMPILER:/ { print $2 }' "$PBUILD/CMakeCache.txt")" --version 2>/dev/null | head -1), CMAKE_BUILD_TYPE=$(awk -F= '/^CMAKE_BUILD_TYPE:/ { print $2 }' "$PBUILD/CMakeCache.txt")
 tessera-lod: $TOOL
-input: $INPUT tiled by bench/tile_las.py
+input: $INPUT tiled by ${TILER:-bench/tile_las.py}
 threads: $THREADS of $NCPU CPUs${PIN:+ (both tools under taskset ${PIN[2]})}, rounds: $ROUNDS
 cpu: $(awk -F': ' '/model name/ { print $2; exit }' /proc/cpuinfo)
 date: $(date -u +%Y-%m-%dT%H:%MZ)

@@ -344,6 +344,7 @@ RenderOptions SceneDrawList::options(const sync::SceneGraph& graph, float splat_
   o.edl.strength = s.shading() == scene::SHADING_EDL ? 1.0f : 0.0f;
   o.splat_scale = splat_scale;
   o.spbr.ensembles = std::max<uint32_t>(1, s.spbr_ensembles());
+  if (s.has_points_per_pixel()) o.budget_per_covered_pixel = s.points_per_pixel();
   const scene::Analysis& a = s.analysis();
   if (a.relative_depth_radius() > 0 || a.relative_depth_radius_m() > 0.0f) {
     o.relative_depth.enabled = true;

@@ -557,7 +557,9 @@ void ViewRenderer::addModel(const ModelInstance& instance, bool see_through, con
                     options.budget_per_covered_pixel >= 0.0,
                 "render::RenderOptions: budget_per_covered_pixel must be finite and >= 0");
   co.point_budget = options.point_budget;
-  co.budget_per_covered_px = options.budget_per_covered_pixel;
+  // The pixel budget counts the pixels an opaque model covers: a see-through model shows every
+  // layer, and its opacity comes from its points' density at each level (spbr.h).
+  co.budget_per_covered_px = see_through ? 0.0 : options.budget_per_covered_pixel;
   co.budget_floor = options.budget_floor;
   uint64_t budget = 0;
   std::unordered_set<lod::NodeId> whole_refined;

@@ -443,6 +443,10 @@ Problem checkSettings(const scene::Settings& s) {
   if (s.has_head()) {
     if (auto p = checkHead(s.head())) return "settings.head." + *p;
   }
+  if (s.has_points_per_pixel() &&
+      !(std::isfinite(s.points_per_pixel()) && s.points_per_pixel() >= 0.0f &&
+        s.points_per_pixel() <= 1e6f))
+    return "settings.points_per_pixel: must be finite and 0..1e6, got " + num(s.points_per_pixel());
   if (s.has_spbr_ensembles() && (s.spbr_ensembles() < 1 || s.spbr_ensembles() > 4096))
     return "settings.spbr_ensembles: must be 1..4096, got " + std::to_string(s.spbr_ensembles());
   if (s.has_leader() && s.leader().size() > SceneGraph::kMaxParticipantName)

@@ -465,6 +465,13 @@ void SceneGraph::setLodPixels(float pixels) {
   mSettings.set_lod_pixels(pixels);
 }
 
+void SceneGraph::setPointsPerPixel(float points) {
+  TESSERA_CHECK(std::isfinite(points) && points >= 0.0f && points <= 1e6f,
+                "sync::SceneGraph::setPointsPerPixel(): must be finite and 0..1e6");
+  touchSettings();
+  mSettings.set_points_per_pixel(points);
+}
+
 void SceneGraph::setSpbrEnsembles(uint32_t ensembles) {
   TESSERA_CHECK(ensembles >= 1 && ensembles <= 4096,
                 "sync::SceneGraph::setSpbrEnsembles(): must be 1..4096");

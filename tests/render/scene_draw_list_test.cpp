@@ -276,6 +276,14 @@ TEST(SceneDrawList, TheAnalysisSettingsBecomeEveryTilesRenderOptions) {
   sync::SceneGraph g;
   RenderOptions o = SceneDrawList::options(g, 2.0f);
   EXPECT_FALSE(o.relative_depth.enabled);
+  // The pixel budget: the renderer's default until the scene sets one; 0 turns it off.
+  EXPECT_EQ(o.budget_per_covered_pixel, RenderOptions{}.budget_per_covered_pixel);
+  g.setPointsPerPixel(0.0f);
+  EXPECT_EQ(SceneDrawList::options(g, 2.0f).budget_per_covered_pixel, 0.0);
+  g.setPointsPerPixel(3.5f);
+  EXPECT_EQ(SceneDrawList::options(g, 2.0f).budget_per_covered_pixel, 3.5);
+  EXPECT_THROW(g.setPointsPerPixel(-1.0f), std::exception);
+  EXPECT_THROW(g.setPointsPerPixel(std::nanf("")), std::exception);
   EXPECT_FALSE(o.contours.enabled);
   scene::Analysis a;
   a.set_relative_depth_radius(40);

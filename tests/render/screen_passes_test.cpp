@@ -251,6 +251,7 @@ class EdlBunnyTest : public ::testing::Test {
     RenderOptions full = lod1;
     full.lod_pixels = 1e-9;  // every leaf
     full.coverage_stop = false;
+    full.budget_per_covered_pixel = 0.0;
     Frames f;
     RenderStats st;
     f.full = r.renderSettled({&inst, 1}, view(0.0), full, &st);

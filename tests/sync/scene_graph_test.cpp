@@ -608,6 +608,9 @@ TEST_F(BadFrame, BadFields) {
   f.mutable_settings()->set_spbr_ensembles(0);
   expectError(f, Code::kBadField, "settings.spbr_ensembles: must be 1..4096");
   f = next();
+  f.mutable_settings()->set_points_per_pixel(std::numeric_limits<float>::infinity());
+  expectError(f, Code::kBadField, "settings.points_per_pixel: must be finite and 0..1e6");
+  f = next();
   f.mutable_settings()->mutable_analysis()->set_relative_depth_radius(1000);
   expectError(f, Code::kBadField, "settings.analysis.relative_depth_radius: must be 0..256 px");
   f = next();

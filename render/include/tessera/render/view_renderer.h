@@ -91,6 +91,7 @@ struct RenderOptions {
   /// at the price of fine colour detail on cuts the budget holds (bench/paraview_peer charts
   /// frame time against PSNR). A view that is part of a larger picture draws that picture's
   /// budget-limited cut (CutOptions::refine_only), so a wall's tiles agree at their seams.
+  /// Opaque models only, as the coverage stop: a see-through model shows every layer.
   double budget_per_covered_pixel = 2.0;
   /// The pixel budget is at least this many points per model: cuts this small cost little to
   /// draw (about 25 ms for 5x10^5 discs on llvmpipe at 1920x1080), so small models and close

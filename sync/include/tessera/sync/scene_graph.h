@@ -167,6 +167,9 @@ class SceneGraph {
   void setLodPixels(float pixels);
   /// 1..4096 (scene::Settings::spbr_ensembles).
   void setSpbrEnsembles(uint32_t ensembles);
+  /// The pixel budget, points a covered pixel, finite and 0..10^6 (0: none;
+  /// scene::Settings::points_per_pixel).
+  void setPointsPerPixel(float points);
   /// The shading filters (scene::Analysis; checked as a frame's settings are).
   void setAnalysis(const scene::Analysis& analysis);
   /// What is wrong with `analysis` as settings.analysis ("settings.analysis.ao_strength: ..."),
