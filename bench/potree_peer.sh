@@ -250,7 +250,7 @@ awk -F, -v t="$THREADS" 'NR > 1 && $4 == t { k = $1 "," $2 "," $3; s[k] = s[k] "
      END { for (i = 1; i <= n; i++) { k = order[i]; m = split(substr(s[k], 2), v, " ")
              for (a = 1; a <= m; a++) for (c = a + 1; c <= m; c++) if (v[c] < v[a]) { x = v[a]; v[a] = v[c]; v[c] = x }
              med = (m % 2) ? v[(m + 1) / 2] : (v[m / 2] + v[m / 2 + 1]) / 2
-             split(k, f, ","); printf "%s,%.2f,%.2f,%.3f,%.1f,%d,%.3f\n", k, v[1], med, f[3] / v[1] / 1e6, r[k], b[k], b[k] / f[3] } }' \
+             split(k, f, ","); printf "%s,%.2f,%.2f,%.3f,%.1f,%.0f,%.3f\n", k, v[1], med, f[3] / v[1] / 1e6, r[k], b[k], b[k] / f[3] } }' \
   "$RUNS" | sort -t, -k3,3n -k1,1r -k2,2 >"$CSV.body"
 { echo "$HDR"; cat "$CSV.body"; } >"$CSV"
 rm -f "$CSV.body"
@@ -276,7 +276,21 @@ awk -F, 'NR > 1 { k = $1 " " $2; v[$3, k] = $6 " " $7 " " $9; if (!($3 in seen))
                if ((p SUBSEP ks[j]) in v) { split(v[p, ks[j]], f, " "); line = line " " f[a] } else line = line " NaN" }
              print p, line } }' "$CSV" | sort -n | cut -d' ' -f2- >"$DAT"
 
-# bars of a cluster sit at x = cluster + (bar - 1.5) / 5 (4 bars, gap 1); each carries its value
+# the modes measured (a run with --modes leaves the others out of the chart)
+ALL_MODES=("tessera default" "tessera lossy" "potree brotli" "potree uncompressed")
+TITLES=("Tessera (default, exact)" "Tessera --lossy" "Potree BROTLI" "Potree uncompressed (its default)")
+COLS=() LEGEND=()
+for j in 0 1 2 3; do
+  if awk -F, -v k="${ALL_MODES[$j]}" 'NR > 1 && $1 " " $2 == k { f = 1 } END { exit !f }' "$CSV"; then
+    COLS+=("$j")
+    LEGEND+=("NaN with boxes lt $((j + 1)) title \"${TITLES[$j]}\"")
+  fi
+done
+COL_ARRAY=$(IFS=,; echo "${COLS[*]}")
+LEGEND_PLOT=$(IFS=,; echo "${LEGEND[*]}")
+
+# the k bars of a cluster sit at x = cluster + (i - 1 - (k - 1) / 2) / (k + 1) (gap 1); each
+# carries its value
 gnuplot <<EOF
 set terminal pngcairo size 1500,600 font "DejaVu Sans,12"
 set output "$OUT/potree_peer.png"
@@ -298,13 +312,15 @@ set size 0.333, 0.84
 array T[3] = ["Throughput (higher is better)", "Peak memory (lower is better)", "Output size (lower is better)"]
 array Y[3] = ["million points / s", "peak RSS, MB", "bytes / point"]
 array F[3] = ["%.2f", "%.0f", "%.1f"]
+array B[${#COLS[@]}] = [$COL_ARRAY]
+k = |B|
 do for [p = 1:3] {
   c = 2 + 4 * (p - 1)
   set origin (p - 1) / 3.0, 0.09
   set title T[p]
   set ylabel Y[p]
-  plot for [b = 0:3] "$DAT" using (column(c + b)):xtic(1), \
-       for [b = 0:3] "$DAT" using (\$0 + (b - 1.5) / 5.0):(column(c + b)):(sprintf(F[p], column(c + b))) \
+  plot for [i = 1:k] "$DAT" using (column(c + B[i])):xtic(1) lt (B[i] + 1), \
+       for [i = 1:k] "$DAT" using (\$0 + (i - 1 - (k - 1) / 2.0) / (k + 1.0)):(column(c + B[i])):(sprintf(F[p], column(c + B[i]))) \
          with labels offset 0,0.7 font ",9" notitle
 }
 # the legend, in a strip across the bottom
@@ -314,8 +330,7 @@ unset border; unset tics; unset grid; unset title; unset xlabel; unset ylabel
 set offsets 0, 0, 0, 0
 set xrange [0:1]; set yrange [0:1]
 set key center center horizontal maxrows 1 Left reverse samplen 2 width 2 font ",11"
-plot NaN with boxes lt 1 title "Tessera (default, exact)", NaN with boxes lt 2 title "Tessera --lossy", \
-     NaN with boxes lt 3 title "Potree BROTLI", NaN with boxes lt 4 title "Potree uncompressed (its default)"
+plot $LEGEND_PLOT
 unset multiplot
 EOF
 
