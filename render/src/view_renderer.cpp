@@ -318,9 +318,9 @@ void ViewRenderer::draw(std::span<const ModelInstance> models, const ViewSetup& 
         // samples then gather over every frame the view draws, until the placing changes.
         glm::dvec3 lo(std::numeric_limits<double>::max()), hi(-lo);
         for (const ModelInstance& m : models) {
-          const auto [a, b] = worldBounds(m);
-          lo = glm::min(lo, a);
-          hi = glm::max(hi, b);
+          const auto [m_lo, m_hi] = worldBounds(m);
+          lo = glm::min(lo, m_lo);
+          hi = glm::max(hi, m_hi);
         }
         const double extent = std::max(glm::length(hi - lo), 1e-9);
         TESSERA_CHECK(std::isfinite(options.ao_grid.cell) && options.ao_grid.cell >= 0.0,
