@@ -206,26 +206,22 @@ TEST(SceneFile, DegenerateTransformsAreRefusedWhenRead) {
 }
 
 TEST(SceneFile, SettingsLimitsAreCheckedWhenRead) {
-  const std::string e = errorOf([] {
-    parseSceneFile(R"({"settings": {"spbrEnsembles": 100000}, "camera": {"eye": {"z": 1},
-                     "target": {}, "up": {"y": 1}}})",
-                   "s.json");
-  });
+  // A scene of these settings and a camera.
+  auto scene = [](const std::string& settings) {
+    return R"({"settings": )" + settings +
+           R"(, "camera": {"eye": {"z": 1}, "target": {}, "up": {"y": 1}}})";
+  };
+  const std::string e =
+      errorOf([&] { parseSceneFile(scene(R"({"spbrEnsembles": 100000})"), "s.json"); });
   EXPECT_NE(e.find("s.json"), std::string::npos) << e;
   EXPECT_NE(e.find("spbr_ensembles"), std::string::npos) << e;
-  const std::string b = errorOf([] {
-    parseSceneFile(R"({"settings": {"pointsPerPixel": -2}, "camera": {"eye": {"z": 1},
-                     "target": {}, "up": {"y": 1}}})",
-                   "b.json");
-  });
+  const std::string b =
+      errorOf([&] { parseSceneFile(scene(R"({"pointsPerPixel": -2})"), "b.json"); });
   EXPECT_NE(b.find("b.json"), std::string::npos) << b;
   EXPECT_NE(b.find("settings.points_per_pixel"), std::string::npos) << b;
-  EXPECT_EQ(parseSceneFile(R"({"settings": {"pointsPerPixel": 0}, "camera": {"eye": {"z": 1},
-                              "target": {}, "up": {"y": 1}}})",
-                           "z.json")
-                .settings()
-                .points_per_pixel(),
-            0.0f);
+  EXPECT_EQ(
+      parseSceneFile(scene(R"({"pointsPerPixel": 0})"), "z.json").settings().points_per_pixel(),
+      0.0f);
 }
 
 // Tiles 100 km apart made --mosaic and the master's screenshot die of std::bad_alloc
