@@ -16,6 +16,7 @@
 #include <tessera/interact/wall_view.h>
 #include <tessera/render/scene_overlay.h>
 #include <tessera/render/tile_frustum.h>
+#include <tessera/render/view_renderer.h>
 
 namespace tessera::master {
 
@@ -123,6 +124,23 @@ void Console::viewPanel(sync::SceneGraph& graph) {
       if (ImGui::IsItemDeactivatedAfterEdit()) say(what);
     };
     char line[160];
+    // Points a covered pixel the wall's cut holds each opaque model to (0: every level the
+    // pixels ask for): coarser and faster to the left, finer to the right. First in the panel, so
+    // the controls below keep their places on the screen whether it is there or not.
+    float per_pixel = graph.settings().has_points_per_pixel()
+                          ? graph.settings().points_per_pixel()
+                          : float(render::RenderOptions{}.budget_per_covered_pixel);
+    ImGui::SetNextItemWidth(kFieldWidth);
+    if (ImGui::SliderFloat("points/px", &per_pixel, 0.0f, 8.0f,
+                           per_pixel > 0.0f ? "%.1f" : "every level"))
+      graph.setPointsPerPixel(std::clamp(per_pixel, 0.0f, 8.0f));
+    if (ImGui::IsItemHovered())
+      ImGui::SetTooltip("points drawn a pixel a model covers (0: every level, the slowest)");
+    if (const float now = graph.settings().points_per_pixel(); now > 0.0f)
+      std::snprintf(line, sizeof line, "%.1f points a covered pixel", double(now));
+    else
+      std::snprintf(line, sizeof line, "every level the pixels ask for");
+    done(line);
     const glm::dvec4 e = render::wallExtent(mWall);
     ImGui::TextUnformatted("Viewer's head (wall frame, m)");
     scene::Head head = interact::currentHead(mWall, graph.settings());

@@ -176,7 +176,8 @@ void Master::openConsole() {
         "(visibility, opacity), Tools (measuring, lasso, what was measured and selected), "
         "Layers (shown or not), Notes (search, fly to, open, edit, delete; Add note, then "
         "click on the model), Shading (bottom right: lighting, ambient occlusion, relative "
-        "depth, contour lines and their settings)%s)\n",
+        "depth, contour lines and their settings), View (beside Shading: points a pixel, the "
+        "viewer's head, insets)%s)\n",
         mAnnotations ? "" : "; without --annotations notes are not kept");
   } catch (const render::RenderError& e) {
     std::printf("tessera-master: --console: %s; running headless\n", e.what());

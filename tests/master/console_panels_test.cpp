@@ -367,13 +367,15 @@ TEST_F(ConsolePanels, TheShadingPanelAndKeysSwitchTheWallsFilters) {
 
 // The View panel, left of Shading (folded until its title bar is clicked), on a wall with a
 // foveal inset: rows from the bottom, 23 px apart: the inset's y and x sliders, its switch, the
-// eye separation, the head's turn.
+// eye separation, the head's turn; above the head's fields, the points a pixel.
 constexpr int kViewArrowX = 135, kViewArrowY = 348;
 constexpr int kViewCheckX = 141, kInsetSwitchY = 293, kInsetXSliderY = 316, kHeadTurnY = 247;
+constexpr int kPointsPerPixelY = 178;
 
-// The View panel switches the inset off and on and moves it, and turns the head: each through
-// the scene (the same calls as a script's setInset and setHead), said once it is done.
-TEST_F(ConsolePanels, TheViewPanelSwitchesAndMovesTheInsetAndTurnsTheHead) {
+// The View panel switches the inset off and on and moves it, turns the head and sets the points a
+// pixel: each through the scene (the same calls as a script's setInset and setHead), said once
+// it is done.
+TEST_F(ConsolePanels, TheViewPanelSwitchesAndMovesTheInsetTurnsTheHeadAndSetsTheBudget) {
   using tessera::test::VirtualDisplay;
   if (!VirtualDisplay::available())
     GTEST_SKIP() << "needs Xvfb and xdotool (scripts/deps.sh installs them)";
@@ -407,6 +409,12 @@ TEST_F(ConsolePanels, TheViewPanelSwitchesAndMovesTheInsetAndTurnsTheHead) {
   ASSERT_TRUE(master->waitFor("console: head turned", 30)) << master->output();
   EXPECT_EQ(master->output().find("console: head turned 0 degrees"), std::string::npos)
       << master->output();
+  // The points a pixel: the slider's right end is the finest budget, its left end every level.
+  click(290, kPointsPerPixelY);
+  ASSERT_TRUE(master->waitFor("console: [5-8]\\.[0-9] points a covered pixel", 30))
+      << master->output();
+  click(kViewCheckX - 6, kPointsPerPixelY);
+  ASSERT_TRUE(master->waitFor("console: every level the pixels ask for", 30)) << master->output();
   EXPECT_EQ(master->output().find("refused"), std::string::npos) << master->output();
   master->signal(SIGTERM);
   ASSERT_EQ(master->wait(60), std::optional<int>(0)) << master->output();
