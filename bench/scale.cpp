@@ -1,6 +1,6 @@
 // scale: what a user waits for on stores of growing size (10^7, 10^8, 10^9 points of tiled real
-// LiDAR, bench/scale.sh), each figure in one process per store, from a freshly opened store (its
-// chunk cache empty; the OS page cache as the machine has it):
+// LiDAR, bench/scale.sh), every store in one process, each figure from a freshly opened store
+// (its chunk cache empty; the OS page cache as the machine has it):
 //  - open: the header and the root hierarchy page;
 //  - first picture: open to the first image with points in it (coarse levels stand in);
 //  - settled: open to the image whose whole cut is resident, at the defaults a user gets but
@@ -10,13 +10,18 @@
 //  - lasso: a freehand-like lasso (THROUGH) over the middle half of the view, on a fresh store;
 //  - measure: a distance between two full-resolution picks (down to the leaves) on a fresh store.
 // The view: the whole store seen from ParaView's reset direction at 1920x1080 (bench_views.h).
-// Prints CSV; writes OUT/scale_store.csv and OUT/scale-LABEL.png (the settled picture).
+// --rounds R measures every store R times, round after round (the stores interleaved, so load
+// from other work hits each alike), and reports each figure's median over the rounds.
+// Prints CSV; writes OUT/scale_store.csv (medians), OUT/scale_store_rounds.csv (every round) and
+// OUT/scale-LABEL.png (the settled picture).
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -141,6 +146,43 @@ Row measureStore(const std::string& label, const fs::path& path, const fs::path&
   return row;
 }
 
+/// One CSV line of `r`.
+std::string csvLine(const Row& r) {
+  char line[768];
+  std::snprintf(line, sizeof line,
+                "%s,%llu,%llu,%.1f,%.1f,%llu,%.1f,%zu,%llu,%.1f,%.1f,%llu,%.1f,%llu,%llu,%.1f,"
+                "%.4f,%.4f",
+                r.label.c_str(), (unsigned long long)r.points, (unsigned long long)r.file_bytes,
+                r.open_ms, r.first_ms, (unsigned long long)r.first_points, r.settle_ms,
+                r.settle_frames, (unsigned long long)r.settled_points, r.frame_ms,
+                r.budget_frame_ms, (unsigned long long)r.budget_points, r.lasso_ms,
+                (unsigned long long)r.lasso_tested, (unsigned long long)r.lasso_selected,
+                r.measure_ms, r.distance_m, r.uncertainty_m);
+  return line;
+}
+
+/// The first round's row with every time (and the first picture's points, which depend on
+/// timing) replaced by its median over `rounds`.
+Row medianRow(const std::vector<Row>& rounds) {
+  Row m = rounds.front();
+  auto median = [&](auto field) {
+    std::vector<double> v;
+    for (const Row& r : rounds) v.push_back(double(r.*field));
+    std::sort(v.begin(), v.end());
+    const size_t n = v.size();
+    return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+  };
+  m.open_ms = median(&Row::open_ms);
+  m.first_ms = median(&Row::first_ms);
+  m.first_points = uint64_t(median(&Row::first_points));
+  m.settle_ms = median(&Row::settle_ms);
+  m.frame_ms = median(&Row::frame_ms);
+  m.budget_frame_ms = median(&Row::budget_frame_ms);
+  m.lasso_ms = median(&Row::lasso_ms);
+  m.measure_ms = median(&Row::measure_ms);
+  return m;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -148,37 +190,46 @@ int main(int argc, char** argv) {
                "measurement on stores of growing size (bench/scale.sh runs it)"};
   std::vector<std::string> stores;
   std::string out = TESSERA_BENCH_RESULTS_DIR;
+  int rounds = 5;
   app.add_option("stores", stores, "LABEL=PATH.tlod, one per store")->required();
   app.add_option("--out", out, "Folder for scale_store.csv and the pictures")->capture_default_str();
+  app.add_option("--rounds", rounds, "Rounds over every store (each figure's median is kept)")
+      ->check(CLI::Range(1, 1000))
+      ->capture_default_str();
   CLI11_PARSE(app, argc, argv);
   try {
-    fs::create_directories(out);
-    auto ctx = render::GlContext::createHeadless();
-    std::ofstream csv(fs::path(out) / "scale_store.csv");
-    const std::string header =
-        "label,points,file_bytes,open_ms,first_ms,first_points,settle_ms,settle_frames,"
-        "settled_points,frame_ms,budget_frame_ms,budget_points,lasso_ms,lasso_tested,"
-        "lasso_selected,measure_ms,distance_m,uncertainty_m";
-    csv << header << "\n";
-    std::cout << header << std::endl;
+    std::vector<std::pair<std::string, fs::path>> specs;
     for (const std::string& spec : stores) {
       const size_t eq = spec.find('=');
       if (eq == std::string::npos || eq == 0 || eq + 1 == spec.size())
         throw std::runtime_error("a store is LABEL=PATH, got '" + spec + "'");
-      const Row r = measureStore(spec.substr(0, eq), spec.substr(eq + 1), out);
-      char line[768];
-      std::snprintf(line, sizeof line,
-                    "%s,%llu,%llu,%.1f,%.1f,%llu,%.1f,%zu,%llu,%.1f,%.1f,%llu,%.1f,%llu,%llu,%.1f,"
-                    "%.4f,%.4f",
-                    r.label.c_str(), (unsigned long long)r.points,
-                    (unsigned long long)r.file_bytes, r.open_ms, r.first_ms,
-                    (unsigned long long)r.first_points, r.settle_ms, r.settle_frames,
-                    (unsigned long long)r.settled_points, r.frame_ms, r.budget_frame_ms,
-                    (unsigned long long)r.budget_points, r.lasso_ms,
-                    (unsigned long long)r.lasso_tested, (unsigned long long)r.lasso_selected,
-                    r.measure_ms, r.distance_m, r.uncertainty_m);
+      specs.emplace_back(spec.substr(0, eq), spec.substr(eq + 1));
+    }
+    fs::create_directories(out);
+    auto ctx = render::GlContext::createHeadless();
+    const std::string header =
+        "label,points,file_bytes,open_ms,first_ms,first_points,settle_ms,settle_frames,"
+        "settled_points,frame_ms,budget_frame_ms,budget_points,lasso_ms,lasso_tested,"
+        "lasso_selected,measure_ms,distance_m,uncertainty_m";
+    std::ofstream every(fs::path(out) / "scale_store_rounds.csv");
+    every << "round," << header << "\n";
+    std::map<std::string, std::vector<Row>> rows;
+    for (int round = 1; round <= rounds; ++round) {
+      for (const auto& [label, path] : specs) {
+        const Row r = measureStore(label, path, out);
+        every << round << "," << csvLine(r) << "\n";
+        every.flush();
+        std::fprintf(stderr, "scale: round %d of %d, %s: %s\n", round, rounds, label.c_str(),
+                     csvLine(r).c_str());
+        rows[label].push_back(r);
+      }
+    }
+    std::ofstream csv(fs::path(out) / "scale_store.csv");
+    csv << header << "\n";
+    std::cout << header << std::endl;
+    for (const auto& [label, path] : specs) {
+      const std::string line = csvLine(medianRow(rows[label]));
       csv << line << "\n";
-      csv.flush();
       std::cout << line << std::endl;
     }
   } catch (const std::exception& e) {

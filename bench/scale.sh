@@ -6,7 +6,8 @@ set -euo pipefail
 usage() {
   cat <<'EOF'
 Usage: bench/scale.sh [--sizes 1e7,1e8,1e9] [--work DIR] [--out DIR] [--build DIR]
-                      [--memory-mb M] [--threads T] [--rebuild] [--skip-wall] [--skip-site]
+                      [--memory-mb M] [--threads T] [--rebuild] [--rounds R] [--wall-rounds W]
+                      [--skip-wall] [--skip-site]
 
 Tiles Autzen (autzen_trim.laz: 110,000 real airborne LiDAR points) side by side into one LAZ of
 each size (bench/tile_scan; 10^9 points are 5.5 GB as LAZ, 34 GB as LAS), then for each:
@@ -17,10 +18,11 @@ each size (bench/tile_scan; 10^9 points are 5.5 GB as LAZ, 34 GB as LAS), then f
   store     bench/scale: open, first picture, settled full view (1920x1080, the defaults
             without the pixel budget: every level the pixels ask for), a frame resident so and
             with a budget of 10^6 points, a lasso over the middle half of the view, a distance
-            between two full-resolution picks
+            between two full-resolution picks; each the median of --rounds rounds
   wall      the 2x2 wall (configs/walls/2x2.json, 1920x1080 in all) over ZeroMQ: tessera-master
             and four tessera-nodes on this machine flying configs/paths/autzen-flyover.json in
-            real time (20 s) over the store's first copy of Autzen; frame times from --stats
+            real time (20 s) over the store's first copy of Autzen; frame times from --stats,
+            the median over --wall-rounds runs of each run's median and 95th percentile
   site      bench/site_join --store S.tlod --rates 20 --join-only: a remote site without the
             store joins over a link of 20 Mbit/s and settles its view
 
@@ -31,6 +33,7 @@ Results in --out (default BUILD/bench-results/scale):
                    bytes_per_point, verify_s, verify_peak_mb, verified
   scale_store.csv  bench/scale's figures per store (open_ms ... measure_ms)
   scale_wall.csv   size, frames, median and 95th percentile frame ms, median points a tile
+                   (medians over the runs; scale_wall_rounds.csv: every run)
   scale_site.csv   size, joined_s, first_image_s, settled_s, fetched_bytes
   scale.png        the figures against the input size (gnuplot)
   logs/            every run's output
@@ -44,6 +47,8 @@ Options:
   --memory-mb M     the builds' memory budget (default 8192)
   --threads T       build threads (default 2)
   --rebuild         build the stores again even when they are there
+  --rounds R        bench/scale rounds over the stores (default 5)
+  --wall-rounds W   wall runs per store (default 3)
   --skip-wall       no wall runs
   --skip-site       no site runs
 EOF
@@ -59,6 +64,8 @@ build=
 memory=8192
 threads=2
 rebuild=0
+rounds=5
+wall_rounds=3
 skip_wall=0
 skip_site=0
 while [ $# -gt 0 ]; do
@@ -71,6 +78,8 @@ while [ $# -gt 0 ]; do
     --memory-mb) memory=${2:?--memory-mb needs a value}; shift 2 ;;
     --threads) threads=${2:?--threads needs a value}; shift 2 ;;
     --rebuild) rebuild=1; shift ;;
+    --rounds) rounds=${2:?--rounds needs a value}; shift 2 ;;
+    --wall-rounds) wall_rounds=${2:?--wall-rounds needs a value}; shift 2 ;;
     --skip-wall) skip_wall=1; shift ;;
     --skip-site) skip_site=1; shift ;;
     *) die "unknown option '$1' (--help lists them)" ;;
@@ -84,6 +93,9 @@ build=$(cd "$build" && pwd) || die "no build tree at $build"
 out=${out:-$build/bench-results/scale}
 [[ "$memory" =~ ^[0-9]+$ ]] || die "--memory-mb must be a whole number, got '$memory'"
 [[ "$threads" =~ ^[0-9]+$ ]] || die "--threads must be a whole number, got '$threads'"
+[[ "$rounds" =~ ^[1-9][0-9]*$ ]] || die "--rounds must be a whole number above 0, got '$rounds'"
+[[ "$wall_rounds" =~ ^[1-9][0-9]*$ ]] ||
+  die "--wall-rounds must be a whole number above 0, got '$wall_rounds'"
 lod=$build/lod/tessera-lod
 for tool in "$lod" "$build/bench/tile_scan" "$build/bench/scale" "$build/master/tessera-master" \
             "$build/render_node/tessera-node" "$build/bench/site_join"; do
@@ -140,56 +152,59 @@ done
 cat "$build_csv"
 
 echo "== store figures" >&2
-"$build/bench/scale" "${stores[@]}" --out "$out" 2> "$out/logs/scale.txt"
+"$build/bench/scale" "${stores[@]}" --out "$out" --rounds "$rounds" 2> "$out/logs/scale.txt"
 
 if [ "$skip_wall" = 0 ]; then
   wall_csv=$out/scale_wall.csv
-  echo "size,frames,median_frame_ms,p95_frame_ms,median_tile_points" > "$wall_csv"
-  for spec in "${stores[@]}"; do
-    size=${spec%%=*}
-    store=${spec#*=}
-    dir=$out/wall-$size
-    mkdir -p "$dir"
-    sed -E "s|\"store\"[[:space:]]*:[[:space:]]*\"[^\"]*\"|\"store\": \"$store\"|" \
-      "$repo/configs/scenes/autzen.json" > "$dir/scene.json"
-    rm -f "$dir/stats.csv"
-    echo "== wall over ZeroMQ, $size" >&2
-    # The path's screenshot step writes beside the master: into this run's folder.
-    pushd "$dir" > /dev/null
-    "$build/master/tessera-master" --transport zmq --listen "tcp://127.0.0.1:*" \
-      --wall "$repo/configs/walls/2x2.json" --scene "$dir/scene.json" \
-      --script "$repo/configs/paths/autzen-flyover.json" --join-wait 120 \
-      --stats "$dir/stats.csv" > "$dir/master.txt" 2>&1 &
-    master=$!
-    endpoint=
-    for _ in $(seq 1 300); do
-      endpoint=$(grep -o -m1 'listening on tcp://[^ ]*' "$dir/master.txt" 2>/dev/null | cut -d' ' -f3) || true
-      [ -n "$endpoint" ] && break
-      kill -0 "$master" 2>/dev/null || break
-      sleep 0.1
-    done
-    popd > /dev/null
-    if [ -z "$endpoint" ]; then
-      kill "$master" 2>/dev/null || true
-      die "tessera-master did not listen; see $dir/master.txt"
-    fi
-    nodes=()
-    for t in tile-0-0 tile-1-0 tile-0-1 tile-1-1; do
-      "$build/render_node/tessera-node" --master "$endpoint" --headless --tile "$t" \
-        > "$dir/node-$t.txt" 2>&1 &
-      nodes+=($!)
-    done
-    status=0
-    wait "$master" || status=$?
-    for p in "${nodes[@]}"; do
-      for _ in $(seq 1 100); do kill -0 "$p" 2>/dev/null || break; sleep 0.1; done
-      kill "$p" 2>/dev/null || true
-      wait "$p" 2>/dev/null || true
-    done
-    [ "$status" = 0 ] || die "the wall run failed ($status); see $dir/master.txt"
-    python3 - "$size" "$dir/stats.csv" >> "$wall_csv" <<'PY'
+  wall_rounds_csv=$out/scale_wall_rounds.csv
+  echo "round,size,frames,median_frame_ms,p95_frame_ms,median_tile_points" > "$wall_rounds_csv"
+  # Round after round over the stores, so load from other work hits each size alike.
+  for round in $(seq 1 "$wall_rounds"); do
+    for spec in "${stores[@]}"; do
+      size=${spec%%=*}
+      store=${spec#*=}
+      dir=$out/wall-$size-$round
+      mkdir -p "$dir"
+      sed -E "s|\"store\"[[:space:]]*:[[:space:]]*\"[^\"]*\"|\"store\": \"$store\"|" \
+        "$repo/configs/scenes/autzen.json" > "$dir/scene.json"
+      rm -f "$dir/stats.csv"
+      echo "== wall over ZeroMQ, $size, run $round of $wall_rounds" >&2
+      # The path's screenshot step writes beside the master: into this run's folder.
+      pushd "$dir" > /dev/null
+      "$build/master/tessera-master" --transport zmq --listen "tcp://127.0.0.1:*" \
+        --wall "$repo/configs/walls/2x2.json" --scene "$dir/scene.json" \
+        --script "$repo/configs/paths/autzen-flyover.json" --join-wait 120 \
+        --stats "$dir/stats.csv" > "$dir/master.txt" 2>&1 &
+      master=$!
+      endpoint=
+      for _ in $(seq 1 300); do
+        endpoint=$(grep -o -m1 'listening on tcp://[^ ]*' "$dir/master.txt" 2>/dev/null | cut -d' ' -f3) || true
+        [ -n "$endpoint" ] && break
+        kill -0 "$master" 2>/dev/null || break
+        sleep 0.1
+      done
+      popd > /dev/null
+      if [ -z "$endpoint" ]; then
+        kill "$master" 2>/dev/null || true
+        die "tessera-master did not listen; see $dir/master.txt"
+      fi
+      nodes=()
+      for t in tile-0-0 tile-1-0 tile-0-1 tile-1-1; do
+        "$build/render_node/tessera-node" --master "$endpoint" --headless --tile "$t" \
+          > "$dir/node-$t.txt" 2>&1 &
+        nodes+=($!)
+      done
+      status=0
+      wait "$master" || status=$?
+      for p in "${nodes[@]}"; do
+        for _ in $(seq 1 100); do kill -0 "$p" 2>/dev/null || break; sleep 0.1; done
+        kill "$p" 2>/dev/null || true
+        wait "$p" 2>/dev/null || true
+      done
+      [ "$status" = 0 ] || die "the wall run failed ($status); see $dir/master.txt"
+      python3 - "$round" "$size" "$dir/stats.csv" >> "$wall_rounds_csv" <<'PY'
 import csv, statistics, sys
-size, path = sys.argv[1:]
+rnd, size, path = sys.argv[1:]
 frames = {}
 points = []
 with open(path) as f:
@@ -201,10 +216,24 @@ with open(path) as f:
 ms = sorted(frames.values())
 p95 = ms[min(len(ms) - 1, int(round(0.95 * (len(ms) - 1))))]
 pts = statistics.median(points) if points else 0
-print(f"{size},{len(ms)},{statistics.median(ms):.1f},{p95:.1f},{pts:.0f}")
+print(f"{rnd},{size},{len(ms)},{statistics.median(ms):.1f},{p95:.1f},{pts:.0f}")
 PY
+    done
   done
-  cat "$wall_csv"
+  # Per size, the median over the runs of each column.
+  python3 - "$wall_rounds_csv" > "$wall_csv" <<'PY'
+import csv, statistics, sys
+runs = {}
+with open(sys.argv[1]) as f:
+    for row in csv.DictReader(f):
+        runs.setdefault(row["size"], []).append(row)
+print("size,frames,median_frame_ms,p95_frame_ms,median_tile_points")
+for size, rows in runs.items():
+    med = lambda k: statistics.median(float(r[k]) for r in rows)
+    print(f"{size},{med('frames'):.0f},{med('median_frame_ms'):.1f},{med('p95_frame_ms'):.1f},"
+          f"{med('median_tile_points'):.0f}")
+PY
+  cat "$wall_rounds_csv" "$wall_csv"
 fi
 
 if [ "$skip_site" = 0 ]; then
@@ -280,15 +309,16 @@ unset y2tics
 unset y2label
 set title 'store'
 set ylabel 'bytes a point'
+set key bottom right
 plot '$out/g_bpp.dat' using 1:2 with linespoints pt 7 title 'store bytes a point'
 set title 'what a user waits for'
 set ylabel 'ms'
 set logscale y
-set yrange [*:*]
+set yrange [1:1e5]
 set key top left font ',8'
 plot '$out/g_first.dat' using 1:2 with linespoints pt 7 title 'first picture (cold)', \
      '$out/g_settle.dat' using 1:2 with linespoints pt 5 title 'settled view (cold)', \
-     '$out/g_frame.dat' using 1:2 with linespoints pt 9 title 'frame, defaults', \
+     '$out/g_frame.dat' using 1:2 with linespoints pt 9 title 'frame, every level', \
      '$out/g_budget.dat' using 1:2 with linespoints pt 11 title 'frame, budget 10^6', \
      '$out/g_lasso.dat' using 1:2 with linespoints pt 13 title 'lasso, middle half', \
      '$out/g_measure.dat' using 1:2 with linespoints pt 3 title 'measure (2 picks)', \
