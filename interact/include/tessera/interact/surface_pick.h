@@ -37,9 +37,9 @@ struct SurfacePick {
 /// ray (at least the leaf's spacing), the front surface (samples within two spacings of the
 /// nearest one) and there the sample nearest to the ray. Meshes: the nearest triangle the ray
 /// crosses. What a model's clip planes cut away (ModelInstance::clip) is skipped: a ray
-/// through a cut surface finds what lies behind. `only_model`: search that model alone (the one the
-/// pick ids name). Reads at most `options.max_chunks` chunks or patches per model; corrupt ones are
-/// skipped.
+/// through a cut surface finds what lies behind. `only_model`: search that model alone (the one
+/// the pick ids name). Reads at most `options.max_chunks` chunks or patches per model; corrupt
+/// ones are skipped.
 std::optional<SurfacePick> pickSurface(std::span<const render::ModelInstance> models,
                                        const glm::dvec3& origin, const glm::dvec3& dir,
                                        const PickOptions& options = {},
@@ -48,8 +48,9 @@ std::optional<SurfacePick> pickSurface(std::span<const render::ModelInstance> mo
 /// The surface under pixel `px` (x right, y down, fractional) of the last frame `renderer` drew
 /// of `view`: the frame's pick ids name the model (nullopt on background), then pickSurface()
 /// refines along the pixel's ray in that model's full resolution (a see-through frame has no
-/// pick ids: then every model's data along the ray is searched); where the refinement finds nothing (a corrupt chunk) the pixel's own depth,
-/// with a pixel's width of uncertainty. What the console's and a site's measuring tools click.
+/// pick ids: then every model's data along the ray is searched); where the refinement finds
+/// nothing (a corrupt chunk), the pixel's own depth, with a pixel's width of uncertainty. What
+/// the console's and a site's measuring tools click.
 std::optional<SurfacePick> pickUnderPixel(const render::ViewRenderer& renderer,
                                           std::span<const render::ModelInstance> models,
                                           const render::ViewSetup& view, glm::dvec2 px);
@@ -59,15 +60,15 @@ std::optional<SurfacePick> pickUnderPixel(const render::ViewRenderer& renderer,
 /// onto it, refitted once where it landed (a moving least-squares step). nullopt where no sample
 /// lies within `reach` metres or fewer than 8 within 8 times `radius`. `radius` <= 0: four
 /// times the spacing of the leaf holding the nearest sample; `reach` <= 0: a tenth of the
-/// model's diagonal. The instance's store
-/// must outlive the projector.
-annotate::SurfaceProjector pointSurfaceProjector(const render::ModelInstance& model, double radius = 0.0,
-                                       double reach = 0.0);
+/// model's diagonal. The instance's store must outlive the projector.
+annotate::SurfaceProjector pointSurfaceProjector(const render::ModelInstance& model,
+                                                 double radius = 0.0, double reach = 0.0);
 
 /// A projector onto a mesh model's input surface: the nearest point of the leaf triangles
 /// within `reach` metres (<= 0: a tenth of the model's diagonal). Keeps up to 512 decoded
 /// patches.
-annotate::SurfaceProjector meshSurfaceProjector(const render::ModelInstance& model, double reach = 0.0);
+annotate::SurfaceProjector meshSurfaceProjector(const render::ModelInstance& model,
+                                                double reach = 0.0);
 
 /// The finest sample spacing (points) or quantisation step (meshes) of a model, metres: a
 /// measuring tool's useful resolution (AreaOptions::min_edge).
