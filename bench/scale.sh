@@ -7,7 +7,7 @@ usage() {
   cat <<'EOF'
 Usage: bench/scale.sh [--sizes 1e7,1e8,1e9] [--work DIR] [--out DIR] [--build DIR]
                       [--memory-mb M] [--threads T] [--rebuild] [--rounds R] [--wall-rounds W]
-                      [--skip-wall] [--skip-site]
+                      [--skip-wall] [--skip-site] [--chart-only]
 
 Tiles Autzen (autzen_trim.laz: 110,000 real airborne LiDAR points) side by side into one LAZ of
 each size (bench/tile_scan; 10^9 points are 5.5 GB as LAZ, 34 GB as LAS), then for each:
@@ -51,6 +51,7 @@ Options:
   --wall-rounds W   wall runs per store (default 3)
   --skip-wall       no wall runs
   --skip-site       no site runs
+  --chart-only      redraw scale.png from the CSVs already in --out, measuring nothing
 EOF
 }
 
@@ -68,6 +69,7 @@ rounds=5
 wall_rounds=3
 skip_wall=0
 skip_site=0
+chart_only=0
 while [ $# -gt 0 ]; do
   case "$1" in
     -h|--help) usage; exit 0 ;;
@@ -82,6 +84,7 @@ while [ $# -gt 0 ]; do
     --wall-rounds) wall_rounds=${2:?--wall-rounds needs a value}; shift 2 ;;
     --skip-wall) skip_wall=1; shift ;;
     --skip-site) skip_site=1; shift ;;
+    --chart-only) chart_only=1; shift ;;
     *) die "unknown option '$1' (--help lists them)" ;;
   esac
 done
@@ -97,14 +100,7 @@ out=${out:-$build/bench-results/scale}
 [[ "$wall_rounds" =~ ^[1-9][0-9]*$ ]] ||
   die "--wall-rounds must be a whole number above 0, got '$wall_rounds'"
 lod=$build/lod/tessera-lod
-for tool in "$lod" "$build/bench/tile_scan" "$build/bench/scale" "$build/master/tessera-master" \
-            "$build/render_node/tessera-node" "$build/bench/site_join"; do
-  [ -x "$tool" ] || die "$tool is missing: build it first (cmake --build $build --target ...)"
-done
-data=$repo/../shared/data/lidar/autzen_trim.laz
-[ -f "$data" ] || die "no $data"
 command -v gnuplot >/dev/null || die "gnuplot is not installed"
-mkdir -p "$work" "$out/logs"
 
 # "Maximum resident set size (kbytes): N" and "Elapsed (wall clock) time (h:mm:ss or m:ss): T"
 peak_mb() { awk -F': ' '/Maximum resident set size/ {printf "%.0f", $2 / 1024}' "$1"; }
@@ -112,6 +108,103 @@ wall_s() {
   awk -F': ' '/Elapsed \(wall clock\)/ {n = split($2, t, ":"); s = 0;
               for (i = 1; i <= n; i++) s = s * 60 + t[i]; printf "%.2f", s}' "$1"
 }
+
+# The chart of OUT's CSVs: scale.png.
+draw_chart() {
+  echo "== chart" >&2
+  join_col() {  # file, column name -> "points value" lines
+    python3 - "$1" "$2" "$3" <<'PY'
+import csv, sys
+path, x, y = sys.argv[1:]
+try:
+    with open(path) as f:
+        for row in csv.DictReader(f):
+            print(float(row[x]) if x != "size" else float(row["size"]), row[y])
+except FileNotFoundError:
+    pass
+PY
+  }
+  join_col "$out/scale_build.csv" points build_s > "$out/g_build_s.dat"
+  join_col "$out/scale_build.csv" points verify_s > "$out/g_verify_s.dat"
+  join_col "$out/scale_build.csv" points build_mpts > "$out/g_build_mpts.dat"
+  join_col "$out/scale_build.csv" points build_peak_mb > "$out/g_build_peak.dat"
+  join_col "$out/scale_build.csv" points bytes_per_point > "$out/g_bpp.dat"
+  join_col "$out/scale_store.csv" points first_ms > "$out/g_first.dat"
+  join_col "$out/scale_store.csv" points settle_ms > "$out/g_settle.dat"
+  join_col "$out/scale_store.csv" points frame_ms > "$out/g_frame.dat"
+  join_col "$out/scale_store.csv" points budget_frame_ms > "$out/g_budget.dat"
+  join_col "$out/scale_store.csv" points lasso_ms > "$out/g_lasso.dat"
+  join_col "$out/scale_store.csv" points measure_ms > "$out/g_measure.dat"
+  [ -f "$out/scale_wall.csv" ] && join_col "$out/scale_wall.csv" size median_frame_ms > "$out/g_wall.dat"
+  [ -f "$out/scale_site.csv" ] && python3 - "$out/scale_site.csv" > "$out/g_site.dat" <<'PY'
+import csv, sys
+for row in csv.DictReader(open(sys.argv[1])):
+    print(float(row["size"]), float(row["settled_s"]) * 1000)
+PY
+  touch "$out/g_wall.dat" "$out/g_site.dat"
+  # Room above the largest peak RSS, for the key.
+  local rss_top
+  rss_top=$(awk -F, 'NR > 1 && $5 > m {m = $5} END {printf "%.0f", 1.25 * m + 1}' \
+    "$out/scale_build.csv" 2>/dev/null || echo 1)
+  gnuplot <<EOF
+set terminal pngcairo size 1200,480 font 'DejaVu Sans,10' noenhanced
+set output '$out/scale.png'
+set multiplot layout 1,3 title 'Tiled Autzen LiDAR from 10^7 to 10^9 points, 2 shared cores, llvmpipe'
+set logscale x
+set format x '10^%L'
+set xrange [5e6:2e9]
+set grid
+set key top left
+set title 'build and verification (grow with the input)'
+set xlabel 'input points'
+set ylabel 's (log)'
+set logscale y
+set y2label 'peak RSS, MB'
+set y2tics
+set yrange [1:3000]
+set y2range [0:$rss_top]
+plot '$out/g_build_s.dat' using 1:2 with linespoints pt 7 title 'build time, s', \
+     '$out/g_verify_s.dat' using 1:2 with linespoints pt 9 title 'verify time, s', \
+     '$out/g_build_peak.dat' using 1:2 axes x1y2 with linespoints pt 5 title 'build peak RSS, MB'
+unset y2tics
+unset y2label
+unset logscale y
+set title 'build rate and store size'
+set ylabel 'M points/s, bytes a point'
+set yrange [0:7]
+set key bottom right
+plot '$out/g_build_mpts.dat' using 1:2 with linespoints pt 7 title 'build, M points/s', \
+     '$out/g_bpp.dat' using 1:2 with linespoints pt 5 title 'store bytes a point'
+set title 'what a user waits for'
+set ylabel 'ms'
+set logscale y
+set yrange [1:1e5]
+set key top left font ',8'
+plot '$out/g_first.dat' using 1:2 with linespoints pt 7 title 'first picture (cold)', \
+     '$out/g_settle.dat' using 1:2 with linespoints pt 5 title 'settled view (cold)', \
+     '$out/g_frame.dat' using 1:2 with linespoints pt 9 title 'frame, every level', \
+     '$out/g_budget.dat' using 1:2 with linespoints pt 11 title 'frame, budget 10^6', \
+     '$out/g_lasso.dat' using 1:2 with linespoints pt 13 title 'lasso, middle half', \
+     '$out/g_measure.dat' using 1:2 with linespoints pt 3 title 'measure (2 picks)', \
+     '$out/g_wall.dat' using 1:2 with linespoints pt 4 title '2x2 wall frame (median)', \
+     '$out/g_site.dat' using 1:2 with linespoints pt 6 title 'site settled at 20 Mbit/s'
+unset multiplot
+EOF
+  rm -f "$out"/g_*.dat
+}
+
+if [ "$chart_only" = 1 ]; then
+  draw_chart
+  echo "scale.sh: $out/scale.png redrawn" >&2
+  exit 0
+fi
+for tool in "$lod" "$build/bench/tile_scan" "$build/bench/scale" "$build/master/tessera-master" \
+            "$build/render_node/tessera-node" "$build/bench/site_join"; do
+  [ -x "$tool" ] || die "$tool is missing: build it first (cmake --build $build --target ...)"
+done
+data=$repo/../shared/data/lidar/autzen_trim.laz
+[ -f "$data" ] || die "no $data"
+mkdir -p "$work" "$out/logs"
 
 IFS=, read -r -a size_list <<< "$sizes"
 build_csv=$out/scale_build.csv
@@ -258,73 +351,5 @@ PY
   cat "$site_csv"
 fi
 
-echo "== chart" >&2
-join_col() {  # file, column name -> "points value" lines
-  python3 - "$1" "$2" "$3" <<'PY'
-import csv, sys
-path, x, y = sys.argv[1:]
-try:
-    with open(path) as f:
-        for row in csv.DictReader(f):
-            print(float(row[x]) if x != "size" else float(row["size"]), row[y])
-except FileNotFoundError:
-    pass
-PY
-}
-join_col "$build_csv" points build_mpts > "$out/g_build_mpts.dat"
-join_col "$build_csv" points build_peak_mb > "$out/g_build_peak.dat"
-join_col "$build_csv" points bytes_per_point > "$out/g_bpp.dat"
-join_col "$out/scale_store.csv" points first_ms > "$out/g_first.dat"
-join_col "$out/scale_store.csv" points settle_ms > "$out/g_settle.dat"
-join_col "$out/scale_store.csv" points frame_ms > "$out/g_frame.dat"
-join_col "$out/scale_store.csv" points budget_frame_ms > "$out/g_budget.dat"
-join_col "$out/scale_store.csv" points lasso_ms > "$out/g_lasso.dat"
-join_col "$out/scale_store.csv" points measure_ms > "$out/g_measure.dat"
-[ -f "$out/scale_wall.csv" ] && join_col "$out/scale_wall.csv" size median_frame_ms > "$out/g_wall.dat"
-[ -f "$out/scale_site.csv" ] && python3 - "$out/scale_site.csv" > "$out/g_site.dat" <<'PY'
-import csv, sys
-for row in csv.DictReader(open(sys.argv[1])):
-    print(float(row["size"]), float(row["settled_s"]) * 1000)
-PY
-touch "$out/g_wall.dat" "$out/g_site.dat"
-gnuplot <<EOF
-set terminal pngcairo size 1200,480 font 'DejaVu Sans,10' noenhanced
-set output '$out/scale.png'
-set multiplot layout 1,3 title 'Tiled Autzen LiDAR from 10^7 to 10^9 points, 2 shared cores, llvmpipe'
-set logscale x
-set format x '10^%L'
-set xrange [5e6:2e9]
-set grid
-set key top left
-set title 'build'
-set xlabel 'input points'
-set ylabel 'M points/s'
-set y2label 'peak RSS, MB'
-set y2tics
-set yrange [0:*]
-set y2range [0:*]
-plot '$out/g_build_mpts.dat' using 1:2 with linespoints pt 7 title 'build, M points/s', \
-     '$out/g_build_peak.dat' using 1:2 axes x1y2 with linespoints pt 5 title 'peak RSS, MB'
-unset y2tics
-unset y2label
-set title 'store'
-set ylabel 'bytes a point'
-set key bottom right
-plot '$out/g_bpp.dat' using 1:2 with linespoints pt 7 title 'store bytes a point'
-set title 'what a user waits for'
-set ylabel 'ms'
-set logscale y
-set yrange [1:1e5]
-set key top left font ',8'
-plot '$out/g_first.dat' using 1:2 with linespoints pt 7 title 'first picture (cold)', \
-     '$out/g_settle.dat' using 1:2 with linespoints pt 5 title 'settled view (cold)', \
-     '$out/g_frame.dat' using 1:2 with linespoints pt 9 title 'frame, every level', \
-     '$out/g_budget.dat' using 1:2 with linespoints pt 11 title 'frame, budget 10^6', \
-     '$out/g_lasso.dat' using 1:2 with linespoints pt 13 title 'lasso, middle half', \
-     '$out/g_measure.dat' using 1:2 with linespoints pt 3 title 'measure (2 picks)', \
-     '$out/g_wall.dat' using 1:2 with linespoints pt 4 title '2x2 wall frame (median)', \
-     '$out/g_site.dat' using 1:2 with linespoints pt 6 title 'site settled at 20 Mbit/s'
-unset multiplot
-EOF
-rm -f "$out"/g_*.dat
+draw_chart
 echo "scale.sh: results in $out (scale.png)" >&2
