@@ -10,6 +10,8 @@
 //  - lasso: a freehand-like lasso (THROUGH) over the middle half of the view, on a fresh store;
 //  - measure: a distance between two full-resolution picks (down to the leaves) on a fresh store.
 // The view: the whole store seen from ParaView's reset direction at 1920x1080 (bench_views.h).
+// --drop-caches drops the OS page cache before each of the three (root only): cold from the
+// disk.
 // --rounds R measures every store R times, round after round (the stores interleaved, so load
 // from other work hits each alike), and reports each figure's median over the rounds.
 // Prints CSV; writes OUT/scale_store.csv (medians), OUT/scale_store_rounds.csv (every round) and
@@ -22,8 +24,11 @@
 #include <fstream>
 #include <iostream>
 #include <map>
+#include <stdexcept>
 #include <string>
 #include <vector>
+
+#include <unistd.h>
 
 #include <CLI/CLI.hpp>
 
@@ -70,7 +75,21 @@ std::pair<glm::dvec3, glm::dvec3> pixelRay(const render::ViewSetup& v, double x,
   return {glm::dvec3(a), glm::normalize(glm::dvec3(b - a))};
 }
 
-Row measureStore(const std::string& label, const fs::path& path, const fs::path& out) {
+/// Writes the page cache's dirty pages out and drops it (root only): the next reads come from
+/// the disk.
+void dropPageCache() {
+  ::sync();
+  std::ofstream f("/proc/sys/vm/drop_caches");
+  f << "3\n";
+  f.flush();
+  if (!f)
+    throw std::runtime_error(
+        "--drop-caches: cannot write /proc/sys/vm/drop_caches (needs root)");
+}
+
+/// `drop`: the OS page cache is dropped before the view's figures, the lasso and the measurement,
+/// so each reads the store from the disk.
+Row measureStore(const std::string& label, const fs::path& path, const fs::path& out, bool drop) {
   Row row;
   row.label = label;
   render::RenderOptions defaults;
@@ -78,6 +97,7 @@ Row measureStore(const std::string& label, const fs::path& path, const fs::path&
   render::StreamerOptions so;
   so.budget_bytes = 8ull << 30;
   {
+    if (drop) dropPageCache();
     render::ViewRenderer renderer(1920, 1080, nullptr, so);
     const auto t0 = Clock::now();
     auto store = lod::PointStore::open(path);
@@ -107,6 +127,7 @@ Row measureStore(const std::string& label, const fs::path& path, const fs::path&
     row.budget_points = st.points;
   }
   {
+    if (drop) dropPageCache();
     auto store = lod::PointStore::open(path);
     const render::ViewSetup view = storeView(*store);
     annotate::LassoView lv{glm::dmat4(view.view), glm::dmat4(view.projection),
@@ -124,6 +145,7 @@ Row measureStore(const std::string& label, const fs::path& path, const fs::path&
     row.lasso_tested = r.stats.elements_tested;
   }
   {
+    if (drop) dropPageCache();
     auto store = lod::PointStore::open(path);
     const render::ViewSetup view = storeView(*store);
     render::ModelInstance inst{store.get(), render::storeModel(*store)};
@@ -191,11 +213,15 @@ int main(int argc, char** argv) {
   std::vector<std::string> stores;
   std::string out = TESSERA_BENCH_RESULTS_DIR;
   int rounds = 5;
+  bool drop = false;
   app.add_option("stores", stores, "LABEL=PATH.tlod, one per store")->required();
   app.add_option("--out", out, "Folder for scale_store.csv and the pictures")->capture_default_str();
   app.add_option("--rounds", rounds, "Rounds over every store (each figure's median is kept)")
       ->check(CLI::Range(1, 1000))
       ->capture_default_str();
+  app.add_flag("--drop-caches", drop,
+               "Drop the OS page cache before the view, the lasso and the measurement (root): "
+               "cold from the disk, not only from a fresh store");
   CLI11_PARSE(app, argc, argv);
   try {
     std::vector<std::pair<std::string, fs::path>> specs;
@@ -216,7 +242,7 @@ int main(int argc, char** argv) {
     std::map<std::string, std::vector<Row>> rows;
     for (int round = 1; round <= rounds; ++round) {
       for (const auto& [label, path] : specs) {
-        const Row r = measureStore(label, path, out);
+        const Row r = measureStore(label, path, out, drop);
         every << round << "," << csvLine(r) << "\n";
         every.flush();
         std::fprintf(stderr, "scale: round %d of %d, %s: %s\n", round, rounds, label.c_str(),

@@ -7,7 +7,7 @@ usage() {
   cat <<'EOF'
 Usage: bench/scale.sh [--sizes 1e7,1e8,1e9] [--work DIR] [--out DIR] [--build DIR]
                       [--memory-mb M] [--threads T] [--rebuild] [--rounds R] [--wall-rounds W]
-                      [--skip-wall] [--skip-site] [--chart-only]
+                      [--drop-caches] [--skip-wall] [--skip-site] [--chart-only]
 
 Tiles Autzen (autzen_trim.laz: 110,000 real airborne LiDAR points) side by side into one LAZ of
 each size (bench/tile_scan; 10^9 points are 5.5 GB as LAZ, 34 GB as LAS), then for each:
@@ -49,6 +49,8 @@ Options:
   --rebuild         build the stores again even when they are there
   --rounds R        bench/scale rounds over the stores (default 5)
   --wall-rounds W   wall runs per store (default 3)
+  --drop-caches     bench/scale drops the OS page cache before the view, the lasso and the
+                    measurement (root only): cold from the disk, not only from a fresh store
   --skip-wall       no wall runs
   --skip-site       no site runs
   --chart-only      redraw scale.png from the CSVs already in --out, measuring nothing
@@ -70,6 +72,7 @@ wall_rounds=3
 skip_wall=0
 skip_site=0
 chart_only=0
+drop_caches=()
 while [ $# -gt 0 ]; do
   case "$1" in
     -h|--help) usage; exit 0 ;;
@@ -85,6 +88,7 @@ while [ $# -gt 0 ]; do
     --skip-wall) skip_wall=1; shift ;;
     --skip-site) skip_site=1; shift ;;
     --chart-only) chart_only=1; shift ;;
+    --drop-caches) drop_caches=(--drop-caches); shift ;;
     *) die "unknown option '$1' (--help lists them)" ;;
   esac
 done
@@ -245,7 +249,8 @@ done
 cat "$build_csv"
 
 echo "== store figures" >&2
-"$build/bench/scale" "${stores[@]}" --out "$out" --rounds "$rounds" 2> "$out/logs/scale.txt"
+"$build/bench/scale" "${stores[@]}" --out "$out" --rounds "$rounds" "${drop_caches[@]}" \
+  2> "$out/logs/scale.txt"
 
 if [ "$skip_wall" = 0 ]; then
   wall_csv=$out/scale_wall.csv
