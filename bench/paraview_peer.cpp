@@ -55,8 +55,8 @@
 #include <tessera/lod/point_reader.h>
 #include <tessera/lod/point_writer.h>
 #include <tessera/lod/store_builder.h>
-#include <tessera/render/pass_timing.h>
 #include <tessera/render/gl_context.h>
+#include <tessera/render/pass_timing.h>
 #include <tessera/render/view_renderer.h>
 
 #include "bench_views.h"
@@ -226,8 +226,7 @@ double silhouetteIou(const Mask& a, const Mask& b) {
 /// The silhouette IoU of `block` x `block` pixel blocks holding a covered pixel: the outline,
 /// as render::comparePictures() measures it (the pixel IoU also counts every open pixel
 /// between scan lines, where one picture shows the background and the other a point).
-double blockIou(const Mask& a, const Mask& b, uint32_t width, uint32_t height,
-                uint32_t block = 8) {
+double blockIou(const Mask& a, const Mask& b, uint32_t width, uint32_t height, uint32_t block = 8) {
   const uint32_t bw = (width + block - 1) / block, bh = (height + block - 1) / block;
   Mask ba(size_t(bw) * bh, 0), bb(size_t(bw) * bh, 0);
   for (uint32_t y = 0; y < height; ++y)
@@ -264,9 +263,9 @@ double median(std::vector<double> v) {
 }
 
 struct Run {
-  uint64_t points = 0;  ///< drawn
-  uint64_t budget = 0;  ///< Tessera: the point budget of the cut
-  std::string fill = "-";  ///< Tessera: how the frame closed surfaces
+  uint64_t points = 0;            ///< drawn
+  uint64_t budget = 0;            ///< Tessera: the point budget of the cut
+  std::string fill = "-";         ///< Tessera: how the frame closed surfaces
   render::FillEstimate estimate;  ///< Tessera: what the fill was chosen by
   double first_s = 0, load_s = 0, best_ms = 0, median_ms = 0;
   double iou = 1.0;        ///< pixel IoU against the every-leaf render
@@ -487,8 +486,9 @@ void chart(const fs::path& out) {
 
 int main(int argc, char** argv) {
   tessera::render::timePasses(true);  // the per-pass figures
-  CLI::App app{"paraview_peer: Tessera against ParaView pvbatch on random points in a cube and "
-               "on tiled Autzen LiDAR"};
+  CLI::App app{
+      "paraview_peer: Tessera against ParaView pvbatch on random points in a cube and "
+      "on tiled Autzen LiDAR"};
   std::string out = TESSERA_BENCH_RESULTS_DIR;
   std::vector<uint64_t> sizes{10'000'000, 50'000'000};
   std::vector<std::string> inputs{"cube", "autzen"};
@@ -569,13 +569,14 @@ int main(int argc, char** argv) {
                    const std::string& variant, const Run& r) {
       const render::FillEstimate& e = r.estimate;
       char line[640];
-      std::snprintf(line, sizeof line,
-                    "%s,%llu,%d,%s,%s,%llu,%llu,%s,%.1f,%.1f,%.4f,%zu,%.3f,%.3f,%.1f,%.1f,%.4f,%.4f,%.2f",
-                    in.name.c_str(), (unsigned long long)n, round, who, variant.c_str(),
-                    (unsigned long long)r.points, (unsigned long long)r.budget, r.fill.c_str(),
-                    e.covered_px > 0 ? e.disc_px / e.covered_px : 0.0, e.max_radius_px,
-                    e.points > 0 ? e.wide_points / e.points : 0.0, coveredPixels(r.mask),
-                    r.load_s, r.first_s, r.best_ms, r.median_ms, r.iou, r.block_iou, r.psnr);
+      std::snprintf(
+          line, sizeof line,
+          "%s,%llu,%d,%s,%s,%llu,%llu,%s,%.1f,%.1f,%.4f,%zu,%.3f,%.3f,%.1f,%.1f,%.4f,%.4f,%.2f",
+          in.name.c_str(), (unsigned long long)n, round, who, variant.c_str(),
+          (unsigned long long)r.points, (unsigned long long)r.budget, r.fill.c_str(),
+          e.covered_px > 0 ? e.disc_px / e.covered_px : 0.0, e.max_radius_px,
+          e.points > 0 ? e.wide_points / e.points : 0.0, coveredPixels(r.mask), r.load_s, r.first_s,
+          r.best_ms, r.median_ms, r.iou, r.block_iou, r.psnr);
       csv << line << "\n";
       std::cout << line << std::endl;
       all[{in.name, n, variant}].push_back(
@@ -584,8 +585,8 @@ int main(int argc, char** argv) {
     std::vector<std::pair<std::string, uint64_t>> measured;
     for (const std::string& input : inputs) {
       for (uint64_t n : sizes) {
-        const Inputs in = input == "cube" ? cubeInputs(dir / "inputs", n)
-                                          : autzenInputs(dir / "inputs", n);
+        const Inputs in =
+            input == "cube" ? cubeInputs(dir / "inputs", n) : autzenInputs(dir / "inputs", n);
         measured.emplace_back(input, n);
         const bench::CubeCamera cam = bench::boxCamera(in.lo, in.hi);
         const render::ViewSetup view = bench::cubeView(cam, w, h);
@@ -654,9 +655,9 @@ int main(int argc, char** argv) {
       for (const std::string& v : names) {
         if (all[{input, n, v}].empty()) continue;
         char line[256];
-        std::snprintf(line, sizeof line, "%s,%llu,%s,%.0f,%.1f,%.4f,%.4f,%.2f,%.2f",
-                      input.c_str(), (unsigned long long)n, v.c_str(), med(v, 1), med(v, 0),
-                      med(v, 2), med(v, 3), med(v, 4), speedup(v));
+        std::snprintf(line, sizeof line, "%s,%llu,%s,%.0f,%.1f,%.4f,%.4f,%.2f,%.2f", input.c_str(),
+                      (unsigned long long)n, v.c_str(), med(v, 1), med(v, 0), med(v, 2), med(v, 3),
+                      med(v, 4), speedup(v));
         sum << line << "\n";
         std::cout << line << "\n";
       }
@@ -670,8 +671,7 @@ int main(int argc, char** argv) {
       // floor) and no budget (charted as 'none').
       std::vector<std::tuple<double, std::string, std::string>> points;
       for (double f : sweep) points.emplace_back(f, sweepName(f), sweepName(f).substr(4));
-      points.emplace_back(render::RenderOptions{}.budget_per_covered_pixel, "defaults",
-                          "defaults");
+      points.emplace_back(render::RenderOptions{}.budget_per_covered_pixel, "defaults", "defaults");
       std::stable_sort(points.begin(), points.end());
       points.emplace_back(1e9, "nobudget", "none");
       if (!sweep_titles.empty()) swp << "\n\n";

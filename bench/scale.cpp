@@ -41,7 +41,6 @@
 
 #include "bench_views.h"
 
-
 namespace {
 
 using namespace tessera;
@@ -83,8 +82,7 @@ void dropPageCache() {
   f << "3\n";
   f.flush();
   if (!f)
-    throw std::runtime_error(
-        "--drop-caches: cannot write /proc/sys/vm/drop_caches (needs root)");
+    throw std::runtime_error("--drop-caches: cannot write /proc/sys/vm/drop_caches (needs root)");
 }
 
 /// `drop`: the OS page cache is dropped before the view's figures, the lasso and the measurement,
@@ -107,7 +105,8 @@ Row measureStore(const std::string& label, const fs::path& path, const fs::path&
     const render::ViewSetup view = storeView(*store);
     render::ModelInstance inst{store.get(), render::storeModel(*store)};
     render::RenderStats st;
-    for (int i = 0; i < 100000 && st.points == 0; ++i) renderer.render({&inst, 1}, view, defaults, &st);
+    for (int i = 0; i < 100000 && st.points == 0; ++i)
+      renderer.render({&inst, 1}, view, defaults, &st);
     row.first_ms = msSince(t0);
     row.first_points = st.points;
     const render::Image settled = renderer.renderSettled({&inst, 1}, view, defaults, &st);
@@ -136,10 +135,12 @@ Row measureStore(const std::string& label, const fs::path& path, const fs::path&
     for (int i = 0; i < 240; ++i) {
       const double a = 2.0 * M_PI * i / 240.0;
       const double r = 1.0 + 0.25 * std::sin(7.0 * a);
-      vertices.push_back(glm::dvec2(960.0 + 480.0 * r * std::cos(a), 540.0 + 270.0 * r * std::sin(a)));
+      vertices.push_back(
+          glm::dvec2(960.0 + 480.0 * r * std::cos(a), 540.0 + 270.0 * r * std::sin(a)));
     }
     const auto t = Clock::now();
-    const annotate::LassoResult r = annotate::lassoPoints(*store, lv, annotate::LassoPolygon(vertices));
+    const annotate::LassoResult r =
+        annotate::lassoPoints(*store, lv, annotate::LassoPolygon(vertices));
     row.lasso_ms = msSince(t);
     row.lasso_selected = r.selection.count();
     row.lasso_tested = r.stats.elements_tested;
@@ -208,14 +209,16 @@ Row medianRow(const std::vector<Row>& rounds) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  CLI::App app{"scale: open, first picture, settled view, frames, lasso and a full-resolution "
-               "measurement on stores of growing size (bench/scale.sh runs it)"};
+  CLI::App app{
+      "scale: open, first picture, settled view, frames, lasso and a full-resolution "
+      "measurement on stores of growing size (bench/scale.sh runs it)"};
   std::vector<std::string> stores;
   std::string out = TESSERA_BENCH_RESULTS_DIR;
   int rounds = 5;
   bool drop = false;
   app.add_option("stores", stores, "LABEL=PATH.tlod, one per store")->required();
-  app.add_option("--out", out, "Folder for scale_store.csv and the pictures")->capture_default_str();
+  app.add_option("--out", out, "Folder for scale_store.csv and the pictures")
+      ->capture_default_str();
   app.add_option("--rounds", rounds, "Rounds over every store (each figure's median is kept)")
       ->check(CLI::Range(1, 1000))
       ->capture_default_str();

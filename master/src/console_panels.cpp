@@ -230,7 +230,8 @@ void Console::shadingPanel(sync::SceneGraph& graph) {
     auto key = [&](interact::Command c) {
       if (const auto e = interact::shadingEdit(c, s, contourInterval())) applyShading(graph, *e);
     };
-    if (bool edl = s.shading() == scene::SHADING_EDL; ImGui::Checkbox("Eye-dome lighting (E)", &edl))
+    if (bool edl = s.shading() == scene::SHADING_EDL;
+        ImGui::Checkbox("Eye-dome lighting (E)", &edl))
       key(interact::Command::kShading);
     if (bool ao = a.ao_strength() > 0.0f; ImGui::Checkbox("Ambient occlusion (G)", &ao))
       key(interact::Command::kAmbientOcclusion);
@@ -395,8 +396,9 @@ void Console::toolsPanel(sync::SceneGraph& graph) {
       say(std::string("snap ") + (snapping ? "on" : "off"));
     }
     if (ImGui::IsItemHovered())
-      ImGui::SetTooltip("lazy snapping: a left drag over what to select, a right drag over what "
-                        "not to, then Enter");
+      ImGui::SetTooltip(
+          "lazy snapping: a left drag over what to select, a right drag over what "
+          "not to, then Enter");
     if (on(Tool::kSnap)) {
       ImGui::TextDisabled("left drag: select, right drag: not");
       if (ImGui::SmallButton("select (Enter)")) snap(graph);
@@ -442,7 +444,8 @@ void Console::layersPanel(sync::SceneGraph& graph) {
       } catch (const annotate::AnnotationError& e) {
         ImGui::TextWrapped("%s", e.what());
       }
-      std::map<std::string, std::vector<const annotate::Layer*>> under;  // parent path -> its layers
+      std::map<std::string, std::vector<const annotate::Layer*>>
+          under;  // parent path -> its layers
       for (const annotate::Layer& l : layers) {
         const size_t slash = l.path.rfind('/');
         under[slash == std::string::npos ? std::string() : l.path.substr(0, slash)].push_back(&l);
@@ -495,7 +498,8 @@ void Console::layersPanel(sync::SceneGraph& graph) {
 }
 
 void Console::notesPanel(sync::SceneGraph& graph) {
-  const float right = float(mWidth) * float(1.0 - interact::OneButtonNavigation::kBarFraction) - 8.0f;
+  const float right =
+      float(mWidth) * float(1.0 - interact::OneButtonNavigation::kBarFraction) - 8.0f;
   if (beginPanel("Notes", ImVec2(right - kPanelWidth, 8))) {
     if (!mAnnotations) {
       ImGui::TextWrapped("Notes need tessera-master --annotations FILE: they are not kept.");
@@ -648,7 +652,7 @@ void Console::shownNote(sync::SceneGraph& graph) {
           std::optional<annotate::Item> item = mAnnotations->db().item(e.item);
           if (!item)
             throw annotate::AnnotationError(annotate::AnnotationError::Kind::kNotFound,
-                                  "console: item " + std::to_string(e.item) + " is gone");
+                                            "console: item " + std::to_string(e.item) + " is gone");
           item->title = e.title;
           if (e.text_fits) item->text = e.text;
           if (e.with_number) item->number = e.number;

@@ -9,12 +9,12 @@
 #include <thread>
 
 #include <tessera/core/cli.h>
-#include <tessera/core/progress.h>
 #include <tessera/core/file_checks.h>
+#include <tessera/core/progress.h>
 #include <tessera/core/stopwatch.h>
 #include <tessera/master/tile_assignment.h>
-#include <tessera/render/gl_context.h>
 #include <tessera/media/movie_writer.h>
+#include <tessera/render/gl_context.h>
 #include <tessera/render/inset.h>
 #include <tessera/render/path_frames.h>
 #include <tessera/render/projector_pass.h>
@@ -113,9 +113,8 @@ void Master::prepare() {
     mPlayer.emplace(std::move(path));
   }
   if (!mOpt.movie.empty()) {
-    const glm::uvec2 size = mOpt.movie_width > 0
-                                ? glm::uvec2(mOpt.movie_width, mOpt.movie_height)
-                                : render::wallPictureSize(mWall);
+    const glm::uvec2 size = mOpt.movie_width > 0 ? glm::uvec2(mOpt.movie_width, mOpt.movie_height)
+                                                 : render::wallPictureSize(mWall);
     if (size.x % 2 != 0 || size.y % 2 != 0)
       throw StartError("tessera-master: --movie " + mOpt.movie + ": the frames are " +
                        std::to_string(size.x) + "x" + std::to_string(size.y) +

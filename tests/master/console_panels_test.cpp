@@ -17,8 +17,8 @@
 #include <tessera/annotate/annotation_scene.h>
 #include <tessera/interact/console_notes.h>
 #include <tessera/render/clip_planes.h>
-#include <tessera/render/scene_draw_list.h>
 #include <tessera/render/image.h>
+#include <tessera/render/scene_draw_list.h>
 
 #include "../support/site_scripts.h"
 #include "../support/small_wall.h"
@@ -324,7 +324,7 @@ TEST_F(ConsolePanels, TheSliderFadesAModelAndANoteTypedInIsStored) {
 
 // The Shading panel, folded at the bottom right: opened by its arrow, its relative depth switch
 // colours the wall's picture; the keys T and G switch contour lines and ambient occlusion.
-constexpr int kShadingArrowX = 393, kShadingArrowY = 348;  // the folded panel's title bar
+constexpr int kShadingArrowX = 393, kShadingArrowY = 348;   // the folded panel's title bar
 constexpr int kShadingCheckX = 399, kRelativeDepthY = 316;  // opened: its second-last switch
 
 TEST_F(ConsolePanels, TheShadingPanelAndKeysSwitchTheWallsFilters) {

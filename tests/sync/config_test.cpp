@@ -79,8 +79,9 @@ TEST(WallConfig, StereoWallsLoadAndBadOnesNameTheField) {
             std::string::npos);
   EXPECT_NE(err(wall("a", R"(, "blend": "auto")") + "}").find("a stereo wall takes no projector"),
             std::string::npos);
-  EXPECT_NE(err(wall("a", "") + R"(, "eyeSeparation": 1.5})").find("eyeSeparation: must be in (0, 1]"),
-            std::string::npos);
+  EXPECT_NE(
+      err(wall("a", "") + R"(, "eyeSeparation": 1.5})").find("eyeSeparation: must be in (0, 1]"),
+      std::string::npos);
   EXPECT_NE(err(R"({"tiles": [{"name": "a", "width": 1, "height": 1, "pixelWidth": 10,
                 "pixelHeight": 10}], "eye": {"z": 2}, "eyesOnOneNode": true})")
                 .find("eyesOnOneNode: needs \"stereo\": true"),
