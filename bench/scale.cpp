@@ -8,7 +8,8 @@
 //    cut's own growth with the store, which the budget would hide);
 //  - frame: one more frame with everything resident, so, and with a budget of 10^6 points;
 //  - lasso: a freehand-like lasso (THROUGH) over the middle half of the view, on a fresh store;
-//  - measure: a distance between two full-resolution picks (down to the leaves) on a fresh store.
+//  - measure: a distance between two full-resolution picks (down to the leaves, the cone of a
+//    console click: pickUnderPixel's angle a pixel) on a fresh store.
 // The view: the whole store seen from ParaView's reset direction at 1920x1080 (bench_views.h).
 // --drop-caches drops the OS page cache before each of the three (root only): cold from the
 // disk.
@@ -150,6 +151,9 @@ Row measureStore(const std::string& label, const fs::path& path, const fs::path&
     auto store = lod::PointStore::open(path);
     const render::ViewSetup view = storeView(*store);
     render::ModelInstance inst{store.get(), render::storeModel(*store)};
+    // The cone a console click searches (pickUnderPixel): the view's angle a pixel.
+    interact::PickOptions pick;
+    pick.pixel_angle = 2.0 * std::atan(1.0 / view.projection[1][1]) / view.height;
     const auto t = Clock::now();
     std::optional<interact::SurfacePick> a, b;
     // Two pixels on the ground left and right of the middle; further along the row where a ray
@@ -157,8 +161,8 @@ Row measureStore(const std::string& label, const fs::path& path, const fs::path&
     for (double dx = 0; dx < 400 && !(a && b); dx += 40) {
       const auto [oa, da] = pixelRay(view, 640.0 + dx, 600.0);
       const auto [ob, db] = pixelRay(view, 1280.0 - dx, 600.0);
-      if (!a) a = interact::pickSurface({&inst, 1}, oa, da);
-      if (!b) b = interact::pickSurface({&inst, 1}, ob, db);
+      if (!a) a = interact::pickSurface({&inst, 1}, oa, da, pick);
+      if (!b) b = interact::pickSurface({&inst, 1}, ob, db, pick);
     }
     row.measure_ms = msSince(t);
     if (a && b) {
