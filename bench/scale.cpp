@@ -151,9 +151,8 @@ Row measureStore(const std::string& label, const fs::path& path, const fs::path&
     auto store = lod::PointStore::open(path);
     const render::ViewSetup view = storeView(*store);
     render::ModelInstance inst{store.get(), render::storeModel(*store)};
-    // The cone a console click searches (pickUnderPixel): the view's angle a pixel.
-    interact::PickOptions pick;
-    pick.pixel_angle = 2.0 * std::atan(1.0 / view.projection[1][1]) / view.height;
+    // The cone a console click searches (pickUnderPixel).
+    const interact::PickOptions pick = interact::pickOptionsFor(view);
     const auto t = Clock::now();
     std::optional<interact::SurfacePick> a, b;
     // Two pixels on the ground left and right of the middle; further along the row where a ray

@@ -407,6 +407,13 @@ double dataResolution(const render::ModelInstance& model) {
   return 0.0;
 }
 
+PickOptions pickOptionsFor(const render::ViewSetup& view) {
+  PickOptions options;
+  // Perspective: the vertical field of view over the height (projection[1][1] = cot(fovy/2)).
+  options.pixel_angle = 2.0 * std::atan(1.0 / view.projection[1][1]) / view.height;
+  return options;
+}
+
 std::optional<SurfacePick> pickUnderPixel(const render::ViewRenderer& renderer,
                                           std::span<const render::ModelInstance> models,
                                           const render::ViewSetup& view, glm::dvec2 px) {
@@ -418,9 +425,7 @@ std::optional<SurfacePick> pickUnderPixel(const render::ViewRenderer& renderer,
   const glm::dvec4 a = world_from_clip * glm::dvec4(nx, ny, -1.0, 1.0);
   const glm::dvec4 b = world_from_clip * glm::dvec4(nx, ny, 1.0, 1.0);
   const glm::dvec3 from = glm::dvec3(a) / a.w, dir = glm::normalize(glm::dvec3(b) / b.w - from);
-  PickOptions options;
-  // Perspective: the vertical field of view over the height (projection[1][1] = cot(fovy/2)).
-  options.pixel_angle = 2.0 * std::atan(1.0 / view.projection[1][1]) / view.height;
+  const PickOptions options = pickOptionsFor(view);
   // A see-through frame has no pick ids: then every model's data along the ray.
   if (!hit) return pickSurface(models, from, dir, options);
   std::optional<SurfacePick> at = pickSurface(models, from, dir, options, hit->model);

@@ -133,11 +133,11 @@ void Console::viewPanel(sync::SceneGraph& graph) {
     ImGui::SetNextItemWidth(kFieldWidth);
     if (ImGui::SliderFloat("points/px", &per_pixel, 0.0f, 8.0f,
                            per_pixel > 0.0f ? "%.1f" : "every level"))
-      graph.setPointsPerPixel(std::clamp(per_pixel, 0.0f, 8.0f));
+      graph.setPointsPerPixel(per_pixel = std::clamp(per_pixel, 0.0f, 8.0f));
     if (ImGui::IsItemHovered())
       ImGui::SetTooltip("points drawn a pixel a model covers (0: every level, the slowest)");
-    if (const float now = graph.settings().points_per_pixel(); now > 0.0f)
-      std::snprintf(line, sizeof line, "%.1f points a covered pixel", double(now));
+    if (per_pixel > 0.0f)
+      std::snprintf(line, sizeof line, "%.1f points a covered pixel", double(per_pixel));
     else
       std::snprintf(line, sizeof line, "every level the pixels ask for");
     done(line);

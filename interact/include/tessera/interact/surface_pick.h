@@ -45,6 +45,10 @@ std::optional<SurfacePick> pickSurface(std::span<const render::ModelInstance> mo
                                        const PickOptions& options = {},
                                        std::optional<size_t> only_model = std::nullopt);
 
+/// The options a click on `view` picks with: the cone of PickOptions::radius_px pixels at the
+/// view's own angle a pixel.
+PickOptions pickOptionsFor(const render::ViewSetup& view);
+
 /// The surface under pixel `px` (x right, y down, fractional) of the last frame `renderer` drew
 /// of `view`: the frame's pick ids name the model (nullopt on background), then pickSurface()
 /// refines along the pixel's ray in that model's full resolution (a see-through frame has no
