@@ -99,6 +99,8 @@ def read_png(path):
 class Proc:
     """A process of the soak, its log appended to a file, its lines kept with their time."""
 
+    started = []  # every Proc, so that an interrupted soak leaves none behind
+
     def __init__(self, argv, log, keep_lines=False):
         self.argv = argv
         self.lines = []  # (monotonic time, line)
@@ -108,6 +110,7 @@ class Proc:
         self.keep = keep_lines
         self.reader = threading.Thread(target=self._read, daemon=True)
         self.reader.start()
+        Proc.started.append(self)
 
     def _read(self):
         for line in self.p.stdout:
@@ -193,6 +196,8 @@ def main():
                     help="the data folder (default ../shared/data)")
     ap.add_argument("--out", default=os.path.join(ROOT, "out", "soak"), help="output folder")
     a = ap.parse_args()
+    # The mosaic reference renders with the output folder as its working directory.
+    a.build, a.data = os.path.abspath(a.build), os.path.abspath(a.data)
     for name, v in (("--duration", a.duration), ("--interval", a.interval),
                     ("--pictures", a.pictures), ("--node-timeout", a.node_timeout)):
         if not (math.isfinite(v) and v > 0):
@@ -306,7 +311,7 @@ def main():
 
     def start_node(tile):
         nodes[tile] = Proc([exe["tessera-node"], "--master", wall_ep, "--headless", "--tile", tile],
-                           os.path.join(out, f"node-{tile}.log"))
+                           os.path.join(out, f"node-{tile}.log"), True)
 
     for n, _, _ in tiles:
         start_node(n)
@@ -603,6 +608,12 @@ unset multiplot
     for r in bad_returns:
         lines.append(f"    {r[0]:.1f} s: {r[1]} {r[2]} (pid {r[3]}): {r[4]} joins, first after "
                      f"{r[5]:.2f} s")
+        # What the node and the master said meanwhile, to tell where the time went.
+        t0, t1 = start + r[0] - 6.0, start + r[0] + min(r[5], 60.0) + 1.0
+        said = [(t, f"node: {line}") for p in Proc.started if p.pid == r[3] for t, line in p.lines]
+        said += [(t, f"master: {line}") for t, line in master.lines if r[2] + " " in line]
+        for t, line in sorted(x for x in said if t0 <= x[0] <= t1):
+            lines.append(f"      {t - start:7.2f} s  {line[:200]}")
     lines.append(f"[{'--' if not judge_memory else 'ok' if not bad_growth else 'MISSED'}] RSS "
                  f"growth under 1%/hour after {a.warmup:.0f} s"
                  f"{'' if judge_memory else ' (not judged: too short a run)'}: " +
@@ -633,5 +644,17 @@ unset multiplot
     return 0 if met else 1
 
 
+def end_all():
+    """Kills what the soak started and still runs (an interrupted or failed soak)."""
+    for p in Proc.started:
+        if p.running():
+            p.signal(signal.SIGKILL)
+            p.wait(5)
+
+
 if __name__ == "__main__":
-    sys.exit(main())
+    signal.signal(signal.SIGTERM, lambda *_: sys.exit(2))
+    try:
+        sys.exit(main())
+    finally:
+        end_all()

@@ -250,7 +250,15 @@ void Master::handleJoins(const sync::LinkEvents& events) {
     std::fflush(stdout);
     return;
   }
-  for (const auto& [peer, hello] : events.joins) {
+  for (size_t i = 0; i < events.joins.size(); ++i) {
+    const auto& [peer, hello] = events.joins[i];
+    // A node whose hello went unanswered says it again on a new connection (a master slower
+    // than the node's retry, or a connection that never came up): only its newest is answered.
+    const auto again = [&](const auto& later) {
+      return later.second.host() == hello.host() && later.second.pid() == hello.pid();
+    };
+    if (std::any_of(events.joins.begin() + std::ptrdiff_t(i) + 1, events.joins.end(), again))
+      continue;
     // A node that joins again on the same connection gives up the tile it had.
     if (const auto old = mTiles->tileOf(peer)) mTiles->lose(*old, "its node joined again");
     // A node that comes back on a new connection before its old one was dropped (it was

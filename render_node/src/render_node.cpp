@@ -474,6 +474,7 @@ struct RenderNode::Impl {
         std::fprintf(stderr, "%s: %s\n", who.c_str(), e.what());
         return cluster::NODE_MASTER_LOST;
       }
+      gContinued = 0;  // a stop before this welcome is behind the node now
       status = cluster::NodeStatus();
       try {
         start(std::move(s));

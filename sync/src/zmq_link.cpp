@@ -42,6 +42,10 @@ std::chrono::milliseconds until(LinkClock::time_point deadline) {
 /// probe is a message in the member's queue, read only between its frames.
 constexpr auto kProbeInterval = std::chrono::milliseconds(20);
 
+/// How long a node's hello waits for its answer on one connection before it goes out again on
+/// a new one. A master answers a hello at its next frame or pacing wait: well within this.
+constexpr auto kHelloRetry = std::chrono::milliseconds(2000);
+
 /// Reads one monitor event: true when it says a connection closed; `fd` is then its socket.
 bool readMonitorEvent(zmq::socket_t& monitor, int* fd = nullptr) {
   std::vector<zmq::message_t> parts;
@@ -482,20 +486,27 @@ void ZmqNodeLink::working(uint64_t frame) {
 cluster::ClusterSetup ZmqNodeLink::join(const cluster::Hello& hello,
                                         LinkClock::time_point deadline) {
   std::lock_guard socket(m->socket_mutex);
-  // A join after the first starts on a new connection: the old one may be closed under the
-  // node's feet (a node stopped past the heartbeat timeout reads its queued "dropped" before
-  // the close), and a hello on it would be answered twice.
-  if (m->lost || m->joined) m->open();
-  m->joined = true;
   cluster::FromNode f;
   *f.mutable_hello() = hello;
-  m->send(envelope(f));
-  cluster::ToNode t;
-  while (m->next(t, deadline)) {
-    if (t.has_welcome()) return std::move(*t.mutable_welcome());
-    if (t.has_refused()) throw JoinRefused(t.refused().reason());
-    if (t.has_quit()) throw MasterLost("the master ended the session: " + t.quit().reason());
-    // Anything else is from before this join (a frame, a swap, a ping): not ours any more.
+  const std::string bytes = envelope(f);
+  for (bool first = true;; first = false) {
+    // A join after the first starts on a new connection: the old one may be closed under the
+    // node's feet (a node stopped past the heartbeat timeout reads its queued "dropped" before
+    // the close), and a hello on it would be answered twice. A hello unanswered for
+    // kHelloRetry goes out again on a new connection too (the old one and what it still queues
+    // are let go): a connection that does not come up costs one retry, not the whole wait.
+    if (!first || m->lost || m->joined) m->open();
+    m->joined = true;
+    m->send(bytes);
+    const auto retry = std::min(deadline, LinkClock::now() + kHelloRetry);
+    cluster::ToNode t;
+    while (m->next(t, retry)) {
+      if (t.has_welcome()) return std::move(*t.mutable_welcome());
+      if (t.has_refused()) throw JoinRefused(t.refused().reason());
+      if (t.has_quit()) throw MasterLost("the master ended the session: " + t.quit().reason());
+      // Anything else is from before this join (a frame, a swap, a ping): not ours any more.
+    }
+    if (LinkClock::now() >= deadline) break;
   }
   throw MasterLost("sync::ZmqNodeLink: no master answered at " + m->endpoint + " in time");
 }
