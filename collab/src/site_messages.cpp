@@ -102,8 +102,10 @@ Problem checkText(std::string_view text, size_t max, const std::string& field, b
   return checkUtf8(text, field, lines);
 }
 
-Problem checkNoteContent(const site::NoteContent& c, const std::string& field) {
-  if (c.layer().empty()) return field + ".layer: empty";
+/// `keep_layer`: an update, whose empty layer keeps the item's own.
+Problem checkNoteContent(const site::NoteContent& c, const std::string& field,
+                         bool keep_layer = false) {
+  if (c.layer().empty() && !keep_layer) return field + ".layer: empty";
   if (auto e = checkText(c.layer(), 256, field + ".layer", false)) return e;
   if (c.kind() != "text" && c.kind() != "number" && c.kind() != "link")
     return field + ".kind: must be text, number or link";
@@ -145,7 +147,7 @@ Problem checkNote(const site::SiteNote& n) {
       if (n.update().item() == 0) return std::string("note.update.item: must be > 0");
       if (n.update().base_revision() == 0)
         return std::string("note.update.base_revision: must be > 0");
-      return checkNoteContent(n.update().content(), "note.update.content");
+      return checkNoteContent(n.update().content(), "note.update.content", true);
     case site::SiteNote::kRemove:
       if (n.remove().item() == 0) return std::string("note.remove.item: must be > 0");
       if (n.remove().base_revision() == 0)

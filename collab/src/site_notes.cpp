@@ -58,8 +58,18 @@ site::SiteNoteAnswer applySiteNote(annotate::AnnotationScene* notes, sync::Scene
         break;
       }
       case site::SiteNote::kUpdate: {
+        // A site writes text, numbers and links: an image item stays as tessera-annotate or
+        // the console left it, and an empty layer keeps the item's own.
+        const int64_t id = int64_t(note.update().item());
+        const std::optional<annotate::Item> now = notes->db().item(id);
+        if (now && now->kind == annotate::ItemKind::kImage)
+          throw annotate::AnnotationError(
+              annotate::AnnotationError::Kind::kBadInput,
+              "item " + std::to_string(id) +
+                  " is an image: a site does not edit it (the console or tessera-annotate does)");
         annotate::Item it = itemOf(note.update().content());
-        it.id = int64_t(note.update().item());
+        it.id = id;
+        if (it.layer.empty() && now) it.layer = now->layer;
         out.set_item(note.update().item());
         out.set_revision(uint64_t(
             notes->updateItem(graph, it, int64_t(note.update().base_revision()), author)));

@@ -302,9 +302,10 @@ int SiteSession::Impl::session() {
   opt.client.note = [this](const site::SiteNoteAnswer& a) {
     if (a.ok())
       say("note " + std::to_string(a.request()) + " committed" +
-          (a.item()
-               ? ": item " + std::to_string(a.item()) + " revision " + std::to_string(a.revision())
-               : std::string()) +
+          (!a.item()         ? std::string()
+           : a.revision() == 0 ? ": item " + std::to_string(a.item()) + " removed"
+                               : ": item " + std::to_string(a.item()) + " revision " +
+                                     std::to_string(a.revision())) +
           (a.place() ? " at place " + std::to_string(a.place()) : std::string()));
     else
       say("note " + std::to_string(a.request()) + (a.conflict() ? " conflict: " : " refused: ") +

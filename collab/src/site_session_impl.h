@@ -95,6 +95,19 @@ struct SiteSession::Impl {
   std::optional<glm::dvec2> note_pixel;
   char note_layer[256] = "notes", note_title[1025] = "", note_text[2048] = "";
   bool note_focus = false;
+  // O opens a note: its panel lists its items, and each text, number or link item can be
+  // edited (the form takes the keyboard; Enter or save sends SiteNote update, based on the
+  // revision the scene showed) or deleted (SiteNote remove).
+  uint32_t note_shown = 0;  // the ANNOTATION node whose panel is up (0: none)
+  struct NoteEdit {
+    uint64_t item = 0, base_revision = 0;
+    std::string kind, unit, uri;
+    uint64_t link_item = 0;
+    char title[1025] = "", text[2048] = "";
+    double number = 0.0;
+    bool focus = true;
+  };
+  std::optional<NoteEdit> note_edit;
   std::vector<float> tool_px, snap_bg;  // x y pairs: the clicks, the lasso or the snap strokes
   glm::dvec2 press_at{0.0};
   Clock::time_point last_input = Clock::now();
@@ -229,6 +242,9 @@ struct SiteSession::Impl {
   /// The new note's form (Dear ImGui, between the window's beginUi() and endUi()), while a
   /// note is being placed.
   void noteForm(double now);
+
+  /// The opened note's panel (Dear ImGui, as noteForm): its items, and their edit and delete.
+  void notePanel(double now);
 
   /// What a key asks of this site's window (interact/keys.h: the console's keys).
   void key(interact::KeyPress press, const glm::dvec2& cursor, double now);

@@ -138,6 +138,110 @@ void SiteSession::Impl::noteForm(double now) {
   if (!open) note_pixel.reset();
 }
 
+void SiteSession::Impl::notePanel(double now) {
+  if (note_shown == 0) return;
+  if (!graph.contains(note_shown) || graph.node(note_shown).kind() != scene::SceneNode::ANNOTATION) {
+    note_shown = 0;  // removed meanwhile (its last item deleted, the master restarted)
+    note_edit.reset();
+    return;
+  }
+  const scene::AnnotationPayload n = graph.node(note_shown).annotation();  // a copy: edits follow
+  bool open = true;
+  // Top right, clear of the new note's form (top left); anchored, so it grows downwards.
+  ImGui::SetNextWindowPos(ImVec2(float(script.width()) - 8.0f, 8.0f), ImGuiCond_Always,
+                          ImVec2(1.0f, 0.0f));
+  ImGui::SetNextWindowSizeConstraints(ImVec2(220.0f, 0.0f), ImVec2(220.0f, FLT_MAX));
+  const std::string title = std::string(n.radius() > 0.0 ? "Hot spot " : "Point ") +
+                            std::to_string(n.place()) + "###note";
+  if (ImGui::Begin(title.c_str(), &open, ImGuiWindowFlags_AlwaysAutoResize)) {
+    ImGui::PushItemWidth(-40.0f);
+    for (const scene::AnnotationItem& it : n.items()) {
+      ImGui::PushID(int(it.id()));
+      if (note_edit && note_edit->item == it.id()) {
+        NoteEdit& e = *note_edit;
+        if (e.focus) {
+          ImGui::SetKeyboardFocusHere();
+          e.focus = false;
+        }
+        // Focused with its text selected: typing renames, End keeps and appends.
+        bool save = ImGui::InputText(
+            "title", e.title, sizeof e.title,
+            ImGuiInputTextFlags_EnterReturnsTrue | ImGuiInputTextFlags_AutoSelectAll);
+        ImGui::InputTextMultiline("text", e.text, sizeof e.text, ImVec2(-40.0f, 40.0f));
+        if (e.kind == "number") ImGui::InputDouble("number", &e.number);
+        save |= ImGui::SmallButton("save");
+        ImGui::SameLine();
+        if (ImGui::SmallButton("cancel")) {
+          note_edit.reset();
+        } else if (save && e.title[0] == '\0') {
+          say("a note needs a title");
+        } else if (save) {
+          site::SiteAction a;
+          site::NoteUpdate& u = *a.mutable_note()->mutable_note()->mutable_update();
+          u.set_item(e.item);
+          u.set_base_revision(e.base_revision);
+          site::NoteContent& c = *u.mutable_content();  // its layer stays (empty: keep)
+          c.set_kind(e.kind);
+          c.set_title(e.title);
+          c.set_text(e.text);
+          c.set_number(e.number);
+          c.set_unit(e.unit);
+          c.set_uri(e.uri);
+          c.set_link_item(e.link_item);
+          note_edit.reset();
+          act(a, now);
+        }
+      } else {
+        if (!it.title().empty()) ImGui::TextWrapped("%s", it.title().c_str());
+        if (!it.text().empty()) ImGui::TextWrapped("%s", it.text().c_str());
+        if (it.kind() == "number") ImGui::Text("%g %s", it.number(), it.unit().c_str());
+        if (it.kind() == "link" && !it.uri().empty())
+          ImGui::TextWrapped("link: %s", it.uri().c_str());
+        ImGui::TextDisabled("%s, by %s, revision %llu", it.kind().c_str(),
+                            it.author().empty() ? "the master" : it.author().c_str(),
+                            (unsigned long long)it.revision());
+        // The scene carries 4 KiB of a text (longer ones cut, ending "..."), the form 2 KiB:
+        // a text it cannot hold whole is not rewritten here; images are the console's and
+        // tessera-annotate's.
+        const bool cut = it.text().size() >= sizeof NoteEdit::text - 1;
+        if (it.kind() == "image" || cut) {
+          ImGui::TextDisabled(it.kind() == "image" ? "(an image: edited at the console)"
+                                                   : "(a long text: edited at the console)");
+        } else if (ImGui::SmallButton("edit")) {
+          NoteEdit e;
+          e.item = it.id();
+          e.base_revision = it.revision();
+          e.kind = it.kind();
+          e.unit = it.unit();
+          e.uri = it.uri();
+          e.link_item = it.link_item();
+          e.number = it.number();
+          std::snprintf(e.title, sizeof e.title, "%s", it.title().c_str());
+          std::snprintf(e.text, sizeof e.text, "%s", it.text().c_str());
+          note_edit = e;
+        }
+        if (it.kind() != "image" && !cut) ImGui::SameLine();
+        if (ImGui::SmallButton("delete")) {
+          site::SiteAction a;
+          site::NoteRemove& r = *a.mutable_note()->mutable_note()->mutable_remove();
+          r.set_item(it.id());
+          r.set_base_revision(it.revision());
+          if (note_edit && note_edit->item == it.id()) note_edit.reset();
+          act(a, now);
+        }
+      }
+      ImGui::Separator();
+      ImGui::PopID();
+    }
+    ImGui::PopItemWidth();
+  }
+  ImGui::End();
+  if (!open) {  // closes the panel; the note stays open on the wall (O closes it there)
+    note_shown = 0;
+    note_edit.reset();
+  }
+}
+
 void SiteSession::Impl::key(interact::KeyPress press, const glm::dvec2& cursor, double now) {
   using interact::Command;
   site::SiteAction a;
@@ -175,6 +279,8 @@ void SiteSession::Impl::key(interact::KeyPress press, const glm::dvec2& cursor, 
       site::PlaceOpen& open = *a.mutable_note()->mutable_note()->mutable_open();
       open.set_place(n.place());
       open.set_open(!n.open());
+      note_shown = n.open() ? 0 : *node;  // its panel follows what the wall shows
+      note_edit.reset();
       break;
     }
     case Command::kLead:
@@ -224,6 +330,7 @@ bool SiteSession::Impl::interact(double now) {
   // does not also get.
   window->beginUi();
   noteForm(now);
+  notePanel(now);
   window->endUi();
   window->withoutWhatUiTook(in, right_held);
   const auto t = Clock::now();

@@ -804,8 +804,9 @@ int whitePixels(const tessera::render::Image& img, int x0, int y0, int x1, int y
 // acknowledged only once committed, shown on every tile where it was placed (opened, with its
 // text), and two sites editing one item resolve by revision; the database outlives a master
 // killed with SIGKILL right after an acknowledgement, and the next session starts from it.
-// The same person's tools, as at the wall's console: O by a note opens it on the wall, M and
-// two clicks measure a distance, S and a drag lasso the bunny's middle, A, a click and a title
+// The same person's tools, as at the wall's console: O by a note opens it on the wall and its
+// panel at the site, where one item is renamed and another deleted, M and two clicks measure a
+// distance, S and a drag lasso the bunny's middle, A, a click and a title
 // typed add a note; each reaches the master as the script's actions do, and the database keeps
 // what it should.
 TEST_F(SiteSession, AWindowedSiteOpensANoteMeasuresAndLassos) {
@@ -824,7 +825,11 @@ TEST_F(SiteSession, AWindowedSiteOpensANoteMeasuresAndLassos) {
     item.layer = "survey";
     item.title = "middle";
     item.text = "the body's centre";
-    notes.attach(notes.addItem(item, "archive"), notes.addPlace(place));
+    const int64_t at = notes.addPlace(place);
+    notes.attach(notes.addItem(item, "archive"), at);
+    item.title = "plaster";
+    item.text = "loose, to be checked";
+    notes.attach(notes.addItem(item, "archive"), at);
   }
   auto master = startMaster(300.0, {"--annotations", db.string()});
   auto nodes = startNodes();
@@ -838,6 +843,19 @@ TEST_F(SiteSession, AWindowedSiteOpensANoteMeasuresAndLassos) {
   ASSERT_TRUE(site->waitFor("view settled", 60)) << site->output();
   xdo("mousemove --window " + wid + " 242 158 key --window " + wid + " o");
   ASSERT_TRUE(site->waitFor("note 1 committed", 60)) << site->output();
+  // Its panel, top right (220 px wide): each item's edit and delete. The first item renamed
+  // (the form's title field has the keyboard, its text selected), the second deleted, the
+  // panel closed by its box (the note stays open on the wall).
+  std::this_thread::sleep_for(std::chrono::seconds(1));
+  xdo("mousemove --window " + wid + " 275 97 click 1");
+  xdo.typeAndEnter(wid, "middle, edited W");
+  ASSERT_TRUE(site->waitFor("note 2 committed: item 1 revision 2", 60)) << site->output();
+  std::this_thread::sleep_for(std::chrono::seconds(1));
+  xdo("mousemove --window " + wid + " 322 173 click 1");
+  ASSERT_TRUE(site->waitFor("note 3 committed: item 2 removed", 60)) << site->output();
+  std::this_thread::sleep_for(std::chrono::seconds(1));
+  xdo("mousemove --window " + wid + " 459 18 click 1");
+  std::this_thread::sleep_for(std::chrono::milliseconds(500));
   xdo("key --window " + wid + " m");
   ASSERT_TRUE(site->waitFor("measuring: distance", 30)) << site->output();
   // The bunny is about 90 px wide in the site's view.
@@ -857,7 +875,7 @@ TEST_F(SiteSession, AWindowedSiteOpensANoteMeasuresAndLassos) {
   xdo("mousemove --window " + wid + " 246 168 click 1");
   ASSERT_TRUE(site->waitFor("note at pixel \\d+,\\d+: its title and text", 30)) << site->output();
   xdo.typeAndEnter(wid, "crack W");  // the form has the keyboard
-  ASSERT_TRUE(site->waitFor("note 2 committed: item (\\d+) revision 1 at place (\\d+)", 60))
+  ASSERT_TRUE(site->waitFor("note 4 committed: item (\\d+) revision 1 at place (\\d+)", 60))
       << site->output();
   xdo("key --window " + wid + " Escape");
   EXPECT_EQ(site->wait(30), std::optional<int>(0)) << site->output();
@@ -868,6 +886,14 @@ TEST_F(SiteSession, AWindowedSiteOpensANoteMeasuresAndLassos) {
   EXPECT_EQ(site->output().find("stroke 1"), std::string::npos) << "no sketch was drawn";
 
   tessera::annotate::AnnotationDb notes(db, {.read_only = true});
+  const auto renamed = notes.item(1);
+  ASSERT_TRUE(renamed) << "the item edited at the site";
+  EXPECT_EQ(renamed->title, "middle, edited W");
+  EXPECT_EQ(renamed->text, "the body's centre");
+  EXPECT_EQ(renamed->layer, "survey");
+  EXPECT_EQ(renamed->author, "W");
+  EXPECT_EQ(renamed->revision, 2);
+  EXPECT_FALSE(notes.item(2)) << "the item deleted at the site";
   const auto hits = notes.search("distance");
   ASSERT_EQ(hits.size(), 1u);
   EXPECT_EQ(notes.item(hits[0].item)->author, "W");
