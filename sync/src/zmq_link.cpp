@@ -46,6 +46,13 @@ constexpr auto kProbeInterval = std::chrono::milliseconds(20);
 /// a new one. A master answers a hello at its next frame or pacing wait: well within this.
 constexpr auto kHelloRetry = std::chrono::milliseconds(2000);
 
+/// Stops `s`'s monitor. Before the monitor's reader is closed: libzmq sends each event from its
+/// I/O thread with a blocking send, so an event for a reader gone (a connection closed after
+/// it) would stop that thread, and every connection of the context with it, for good.
+void stopMonitor(zmq::socket_t& s) {
+  zmq_socket_monitor(s.handle(), nullptr, 0);
+}
+
 /// Reads one monitor event: true when it says a connection closed; `fd` is then its socket.
 bool readMonitorEvent(zmq::socket_t& monitor, int* fd = nullptr) {
   std::vector<zmq::message_t> parts;
@@ -77,6 +84,8 @@ struct ZmqMasterLink::Impl {
   zmq::socket_t router{ctx, zmq::socket_type::router};
   zmq::socket_t monitor{ctx, zmq::socket_type::pair};
   std::map<std::string, PeerId> by_routing;
+
+  ~Impl() { stopMonitor(router); }  // before the members close: the monitor's reader first
   std::map<PeerId, Peer> peers;
   PeerId next = 1;
   LinkCounters counters;
@@ -388,8 +397,11 @@ struct ZmqNodeLink::Impl {
   bool joined = false;  // join() was called before: the next one starts a new connection
 
   void open() {
+    if (dealer) {
+      stopMonitor(*dealer);
+      dealer->set(zmq::sockopt::linger, 0);  // what it still queues is stale
+    }
     monitor.reset();
-    if (dealer) dealer->set(zmq::sockopt::linger, 0);  // what it still queues is stale
     dealer.reset();
     dealer = std::make_unique<zmq::socket_t>(ctx, zmq::socket_type::dealer);
     monitor = std::make_unique<zmq::socket_t>(ctx, zmq::socket_type::pair);
@@ -470,6 +482,7 @@ ZmqNodeLink::~ZmqNodeLink() {
   }
   m->beat_wake.notify_all();
   m->beat.join();
+  stopMonitor(*m->dealer);
   m->monitor.reset();
   m->dealer.reset();
 }
