@@ -4,6 +4,8 @@
 
 #include <imgui.h>
 
+#include <tessera/render/panel_widgets.h>
+
 namespace tessera::collab {
 
 namespace {
@@ -192,14 +194,7 @@ void SiteSession::Impl::notePanel(double now) {
           act(a, now);
         }
       } else {
-        if (!it.title().empty()) ImGui::TextWrapped("%s", it.title().c_str());
-        if (!it.text().empty()) ImGui::TextWrapped("%s", it.text().c_str());
-        if (it.kind() == "number") ImGui::Text("%g %s", it.number(), it.unit().c_str());
-        if (it.kind() == "link" && !it.uri().empty())
-          ImGui::TextWrapped("link: %s", it.uri().c_str());
-        ImGui::TextDisabled("%s, by %s, revision %llu", it.kind().c_str(),
-                            it.author().empty() ? "the master" : it.author().c_str(),
-                            (unsigned long long)it.revision());
+        render::noteItemLines(it);
         // The scene carries 4 KiB of a text (longer ones cut, ending "..."), the form 2 KiB:
         // a text it cannot hold whole is not rewritten here; images are the console's and
         // tessera-annotate's.

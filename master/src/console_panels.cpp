@@ -14,6 +14,7 @@
 #include <imgui.h>
 
 #include <tessera/interact/wall_view.h>
+#include <tessera/render/panel_widgets.h>
 #include <tessera/render/scene_overlay.h>
 #include <tessera/render/tile_frustum.h>
 #include <tessera/render/view_renderer.h>
@@ -81,18 +82,6 @@ void wrapped(const ImVec4& color, const std::string& text) {
 /// Greyed text wrapped at the panel's width.
 void disabledWrapped(const std::string& text) {
   wrapped(ImGui::GetStyleColorVec4(ImGuiCol_TextDisabled), text);
-}
-
-/// The line under a note's item: its kind's value, its author and revision.
-void itemDetails(const scene::AnnotationItem& it) {
-  if (!it.title().empty()) ImGui::TextWrapped("%s", it.title().c_str());
-  if (!it.text().empty()) ImGui::TextWrapped("%s", it.text().c_str());
-  if (it.kind() == "number") ImGui::Text("%g %s", it.number(), it.unit().c_str());
-  if (it.kind() == "link" && !it.uri().empty()) ImGui::TextWrapped("link: %s", it.uri().c_str());
-  if (it.kind() == "link" && it.link_item() != 0)
-    ImGui::Text("link: item %llu", (unsigned long long)it.link_item());
-  disabledWrapped(it.kind() + ", by " + (it.author().empty() ? "the master" : it.author()) +
-                  ", revision " + std::to_string(it.revision()));
 }
 
 }  // namespace
@@ -676,7 +665,7 @@ void Console::shownNote(sync::SceneGraph& graph) {
       if (ImGui::SmallButton("cancel")) mEdit.reset();
       ImGui::PopItemWidth();
     } else {
-      itemDetails(it);
+      render::noteItemLines(it);
       if (ImGui::SmallButton("edit")) {
         ItemEditState e;
         e.item = int64_t(it.id());

@@ -84,14 +84,14 @@ struct ZmqMasterLink::Impl {
   zmq::socket_t router{ctx, zmq::socket_type::router};
   zmq::socket_t monitor{ctx, zmq::socket_type::pair};
   std::map<std::string, PeerId> by_routing;
-
-  ~Impl() { stopMonitor(router); }  // before the members close: the monitor's reader first
   std::map<PeerId, Peer> peers;
   PeerId next = 1;
   LinkCounters counters;
   std::string endpoint;
   LinkClock::time_point probe_until{};  // after a closed connection: probe the members
   std::set<PeerId> stalled;             // members a message could not be queued for
+
+  ~Impl() { stopMonitor(router); }  // before the members close: the monitor's reader first
 
   enum class Sent { kYes, kQueueFull, kGone };
 
